@@ -1,0 +1,1 @@
+"""One module per application; each defines ``Config`` (its schema) and ``run``."""

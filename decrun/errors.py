@@ -1,0 +1,61 @@
+"""Typed errors of decrun.
+
+Every error a user can cause by bad input is a :class:`DecrunError`. The CLI prints its
+message (no traceback unless asked) and exits non-zero.
+"""
+
+
+class DecrunError(Exception):
+    """Base class of every user-facing decrun error."""
+
+
+class MeshError(DecrunError, ValueError):
+    """A mesh is unusable; the message names the offending simplices."""
+
+
+class IndexOutOfRangeError(MeshError):
+    """A simplex references a vertex index outside ``[0, n_vertices)``."""
+
+
+class RepeatedVertexError(MeshError):
+    """A simplex lists the same vertex twice."""
+
+
+class DuplicateSimplexError(MeshError):
+    """Two top simplices have the same vertex set."""
+
+
+class NonFiniteCoordinateError(MeshError):
+    """A vertex coordinate is NaN or infinite."""
+
+
+class DegenerateSimplexError(MeshError):
+    """A top simplex has zero (or numerically zero) volume."""
+
+
+class NonManifoldError(MeshError):
+    """A face lies in more than two top simplices, or a vertex star is not a (half-)ball."""
+
+
+class OrientationError(MeshError):
+    """Neighbouring top simplices are oriented inconsistently (§2.3.4)."""
+
+
+class NonOrientableError(OrientationError):
+    """No consistent orientation exists (e.g. a Möbius strip)."""
+
+
+class UnreferencedVertexError(MeshError):
+    """A vertex is used by no top simplex."""
+
+
+class TopologyError(DecrunError, ValueError):
+    """The mesh is valid but has the wrong topology for the requested method."""
+
+
+class ConfigError(DecrunError, ValueError):
+    """A configuration value is invalid; the message names the key."""
+
+
+class SolverError(DecrunError, RuntimeError):
+    """A linear solve failed (singular matrix, no convergence)."""

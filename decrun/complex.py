@@ -1,0 +1,665 @@
+"""Simplicial complexes of any dimension (thesis §2.2–2.3).
+
+A :class:`SimplicialComplex` is built from vertex positions and a list of top simplices
+(triangles, tetrahedra, edges, ...). It stores every j-simplex list as **sorted** vertex
+tuples in lexicographic order (§2.3.3), the parity of each top simplex relative to its
+sorted tuple (the inversion count), and the border operators δ_j (Fig. 2.20) as sparse
+matrices. Everything is vectorized: there is no Python loop over simplices.
+
+Conventions (``shared/DESIGN.md``):
+
+* ``simplices(j)`` for ``j < n`` are sorted tuples in lexicographic order; ``simplices(n)``
+  are the top simplices in *input order*, each row sorted, with ``orientation`` (±1)
+  the parity of the consistently oriented input tuple relative to the sorted one.
+* ``boundary(j)`` is δ_j with shape ``(#(j-1)-simplices, #j-simplices)``; the entry of
+  face ``l`` (the face omitting local vertex ``l`` of the sorted tuple) is ``(-1)**l``,
+  times ``orientation`` for top simplices (§2.2.4, §2.3.3).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+from itertools import combinations
+from math import factorial
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from decrun.errors import (
+    DegenerateSimplexError,
+    DuplicateSimplexError,
+    IndexOutOfRangeError,
+    MeshError,
+    NonFiniteCoordinateError,
+    NonManifoldError,
+    NonOrientableError,
+    OrientationError,
+    RepeatedVertexError,
+    UnreferencedVertexError,
+)
+
+__all__ = ["SimplicialComplex", "unique_rows", "inversion_parity", "simplex_volumes"]
+
+_MAX_LISTED = 8  # how many offending simplices an error message names
+
+
+def _name(indices, what: str) -> str:
+    """'face 3, 7 and 12 more' — the first offending indices for an error message."""
+    indices = np.asarray(indices).ravel()
+    shown = ", ".join(str(int(i)) for i in indices[:_MAX_LISTED])
+    more = f" (and {indices.size - _MAX_LISTED} more)" if indices.size > _MAX_LISTED else ""
+    plural = "s" if indices.size > 1 else ""
+    return f"{what}{plural} {shown}{more}"
+
+
+_SIMPLEX_NAMES = {0: "vertex", 1: "edge", 2: "triangle", 3: "tetrahedron"}
+_PLURALS = {"vertex": "vertices", "tetrahedron": "tetrahedra"}
+
+
+def _simplex_name(j: int) -> str:
+    return _SIMPLEX_NAMES.get(j, f"{j}-simplex")
+
+
+def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lexicographically sorted unique rows of an integer array and the inverse map.
+
+    Parameters
+    ----------
+    rows : (m, c) int64
+
+    Returns
+    -------
+    unique : (u, c) int64, rows sorted lexicographically (column 0 most significant)
+    inverse : (m,) int64 with ``unique[inverse] == rows``
+    """
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    m, c = rows.shape
+    if m == 0:
+        return rows.copy(), np.zeros(0, dtype=np.int64)
+    if c == 1:
+        unique, inverse = np.unique(rows[:, 0], return_inverse=True)
+        return unique[:, None], inverse.astype(np.int64)
+    # Pack into one int64 key when the values fit (fast path for edges and triangles).
+    top = int(rows.max()) + 1
+    bits = max(1, int(np.ceil(np.log2(top + 1))))
+    if bits * c <= 62:
+        key = np.zeros(m, dtype=np.int64)
+        for col in range(c):
+            key = (key << bits) | rows[:, col]
+        unique_key, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        return rows[first], inverse.astype(np.int64)
+    order = np.lexsort(rows.T[::-1])
+    sorted_rows = rows[order]
+    new = np.ones(m, dtype=bool)
+    new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
+    group = np.cumsum(new) - 1
+    inverse = np.empty(m, dtype=np.int64)
+    inverse[order] = group
+    return sorted_rows[new], inverse
+
+
+def inversion_parity(tuples: np.ndarray) -> np.ndarray:
+    """(-1)**(number of inversions) of each row (§2.3.3, the inversion table).
+
+    Parameters
+    ----------
+    tuples : (m, c) integer array
+
+    Returns
+    -------
+    (m,) int8, +1 for an even permutation of the sorted row, -1 for an odd one.
+    """
+    tuples = np.asarray(tuples)
+    c = tuples.shape[1]
+    inversions = np.zeros(tuples.shape[0], dtype=np.int64)
+    for a, b in combinations(range(c), 2):
+        inversions += tuples[:, a] > tuples[:, b]
+    return np.where(inversions % 2 == 0, 1, -1).astype(np.int8)
+
+
+def simplex_volumes(points: np.ndarray) -> np.ndarray:
+    """Unsigned j-dimensional volumes of simplices given by their corner points.
+
+    Parameters
+    ----------
+    points : (m, j+1, d) corner coordinates
+
+    Returns
+    -------
+    (m,) volumes ``sqrt(det(EᵀE)) / j!`` with ``E = [p1-p0, ..., pj-p0]`` (Gram determinant);
+    1 for j = 0.
+    """
+    j = points.shape[1] - 1
+    if j == 0:
+        return np.ones(points.shape[0])
+    edges = points[:, 1:, :] - points[:, :1, :]
+    if j == 1:
+        return np.linalg.norm(edges[:, 0], axis=1)
+    if j == 2 and points.shape[2] == 3:
+        return 0.5 * np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1)
+    if j == points.shape[2]:
+        return np.abs(np.linalg.det(edges)) / factorial(j)
+    gram = np.einsum("mai,mbi->mab", edges, edges)
+    return np.sqrt(np.clip(np.linalg.det(gram), 0.0, None)) / factorial(j)
+
+
+class SimplicialComplex:
+    """An oriented simplicial complex built from top simplices (§2.2, §2.3.3).
+
+    Parameters
+    ----------
+    vertices : (n0, d) array_like of float, d = 2 or 3 (any d >= dim works)
+        Vertex positions.
+    simplices : (m, k+1) array_like of int
+        The top simplices (k = 1 curves, 2 triangle meshes, 3 tetrahedral meshes, any k).
+    orient : {"check", "fix"}
+        ``check`` (default) raises :class:`OrientationError` when neighbouring top simplices
+        are inconsistently oriented (§2.3.4); ``fix`` re-orients each connected component
+        consistently, keeping the orientation most of its simplices had.
+        Non-orientable input raises :class:`NonOrientableError` either way.
+    unreferenced : {"error", "drop"}
+        What to do with vertices no simplex uses: raise (default) or drop them;
+        ``original_vertex_index`` then maps new vertex indices to input ones.
+    check_manifold : bool
+        Check that every (k-1)-face lies in at most two top simplices and that the star of
+        every vertex is a single (half-)ball fan (Fig. 2.11–2.12).
+    degenerate_tol : float
+        A top simplex is degenerate when its volume is below
+        ``degenerate_tol * h**k`` with ``h`` the mean edge length.
+
+    Raises
+    ------
+    MeshError subclasses naming the offending simplices or vertices.
+    """
+
+    def __init__(
+        self,
+        vertices,
+        simplices,
+        *,
+        orient: str = "check",
+        unreferenced: str = "error",
+        check_manifold: bool = True,
+        degenerate_tol: float = 1e-12,
+    ):
+        if orient not in ("check", "fix"):
+            raise ValueError(f"orient must be 'check' or 'fix', not {orient!r}")
+        if unreferenced not in ("error", "drop"):
+            raise ValueError(f"unreferenced must be 'error' or 'drop', not {unreferenced!r}")
+        vertices = np.asarray(vertices, dtype=np.float64)
+        simplices = np.asarray(simplices)
+        if vertices.ndim != 2 or vertices.shape[0] == 0:
+            raise MeshError(f"vertices must be a non-empty (n, d) array, got shape {vertices.shape}")
+        if simplices.ndim != 2 or simplices.shape[0] == 0 or simplices.shape[1] < 2:
+            raise MeshError(f"simplices must be a non-empty (m, k+1) array with k >= 1, got shape {simplices.shape}")
+        if not np.issubdtype(simplices.dtype, np.integer):
+            if not np.all(np.equal(np.mod(simplices, 1), 0)):
+                raise MeshError("simplices must hold integer vertex indices")
+        simplices = simplices.astype(np.int64)
+        self.dim = simplices.shape[1] - 1
+        if vertices.shape[1] < self.dim:
+            raise MeshError(
+                f"a {self.dim}-dimensional complex needs vertices in at least {self.dim} dimensions, "
+                f"got {vertices.shape[1]}"
+            )
+
+        _check_indices(vertices, simplices, self.dim)
+        self.original_vertex_index = np.arange(vertices.shape[0])
+        used = np.zeros(vertices.shape[0], dtype=bool)
+        used[simplices.ravel()] = True
+        if not used.all():
+            unused = np.flatnonzero(~used)
+            if unreferenced == "error":
+                raise UnreferencedVertexError(
+                    f"{_name(unused, 'vertex')} {'is' if unused.size == 1 else 'are'} used by no "
+                    f"{_simplex_name(self.dim)} (pass unreferenced='drop' to remove them)"
+                )
+            new_index = np.cumsum(used) - 1
+            simplices = new_index[simplices]
+            vertices = vertices[used]
+            self.original_vertex_index = np.flatnonzero(used)
+        bad = ~np.isfinite(vertices).all(axis=1)
+        if bad.any():
+            raise NonFiniteCoordinateError(f"{_name(np.flatnonzero(bad), 'vertex')} has NaN or infinite coordinates")
+
+        self.vertices = vertices
+        self.embedding_dim = vertices.shape[1]
+        n = self.dim
+
+        # Top simplices: sorted rows (input order) + parity of the input tuple (§2.3.3).
+        top_sorted = np.sort(simplices, axis=1)
+        unique_top, inverse = unique_rows(top_sorted)
+        if unique_top.shape[0] != top_sorted.shape[0]:
+            counts = np.bincount(inverse)
+            dup = np.flatnonzero(counts[inverse] > 1)
+            raise DuplicateSimplexError(f"{_name(dup, _simplex_name(n))} repeat the same vertices")
+        self._orientation = inversion_parity(simplices)
+        self._lists: dict[int, np.ndarray] = {n: top_sorted, 0: np.arange(vertices.shape[0])[:, None]}
+
+        # Every j-face of every top simplex, by local combinations of the sorted tuple.
+        # _top_faces[j] : (m, C(n+1, j+1)) global indices of the j-faces of each top simplex,
+        # columns in the order of combinations(range(n+1), j+1).
+        self._local = {j: list(combinations(range(n + 1), j + 1)) for j in range(n + 1)}
+        self._top_faces = {n: np.arange(top_sorted.shape[0])[:, None]}
+        self._top_faces[0] = top_sorted.copy()
+        for j in range(1, n):
+            cols = self._local[j]
+            faces = top_sorted[:, np.array(cols)]  # (m, C, j+1)
+            unique, inv = unique_rows(faces.reshape(-1, j + 1))
+            self._lists[j] = unique
+            self._top_faces[j] = inv.reshape(top_sorted.shape[0], len(cols))
+
+        self._check_degenerate(degenerate_tol)
+        if check_manifold:
+            self._check_faces_manifold()
+        self._orient(orient)
+        if check_manifold:
+            self._check_vertex_stars()
+
+    # ------------------------------------------------------------------ validation
+    def _check_degenerate(self, tol: float) -> None:
+        n = self.dim
+        points = self.vertices[self._lists[n]]
+        volumes = simplex_volumes(points)
+        edge_lengths = simplex_volumes(self.vertices[self._lists[1]]) if n > 1 else volumes
+        h = float(edge_lengths.mean()) if edge_lengths.size else 1.0
+        bad = volumes <= tol * h**n
+        if bad.any():
+            raise DegenerateSimplexError(
+                f"{_name(np.flatnonzero(bad), _simplex_name(n))} {'has' if bad.sum() == 1 else 'have'} zero volume "
+                f"(below {tol:g}·h^{n}, h = mean edge length {h:.3g})"
+            )
+        self._top_volumes = volumes
+
+    def _facet_incidence(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(facet index, top simplex, local facet position) for every facet slot."""
+        n = self.dim
+        m = self._lists[n].shape[0]
+        facets = self._top_faces[n - 1]  # (m, n+1) in combinations order
+        top = np.repeat(np.arange(m), n + 1)
+        return facets.ravel(), top, np.tile(np.arange(n + 1), m)
+
+    def _check_faces_manifold(self) -> None:
+        n = self.dim
+        facet, top, _ = self._facet_incidence()
+        counts = np.bincount(facet, minlength=self._lists[n - 1].shape[0])
+        over = np.flatnonzero(counts > 2)
+        if over.size:
+            tuples = self._lists[n - 1][over[:3]].tolist()
+            owners = np.unique(top[np.isin(facet, over)])
+            raise NonManifoldError(
+                f"non-manifold: {_name(over, _simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
+                f"{_simplex_name(n)}s ({_name(owners, _simplex_name(n))})"
+            )
+
+    def _facet_pairs(self):
+        """Interior facets and the two top simplices sharing each (with their local positions)."""
+        facet, top, local = self._facet_incidence()
+        order = np.argsort(facet, kind="stable")
+        facet, top, local = facet[order], top[order], local[order]
+        pair = np.flatnonzero(facet[1:] == facet[:-1])
+        return facet[pair], top[pair], top[pair + 1], local[pair], local[pair + 1]
+
+    def _orient(self, mode: str) -> None:
+        """Check (and optionally fix) consistent orientation by the δ_n column test (§2.3.4)."""
+        n = self.dim
+        m = self._lists[n].shape[0]
+        facet, t0, t1, l0, l1 = self._facet_pairs()
+        # Entry of δ_n for the facet in each simplex: (-1)^l * orientation. Consistent iff opposite.
+        s0 = np.where(l0 % 2 == 0, 1, -1) * self._orientation[t0]
+        s1 = np.where(l1 % 2 == 0, 1, -1) * self._orientation[t1]
+        bad = s0 == s1
+        if not bad.any():
+            return
+        # Signed graph 2-colouring on the doubled graph: node t (keep) and t+m (flip).
+        same = ~bad  # already consistent: both keep or both flip
+        rows = np.concatenate([t0[same], t0[same] + m, t0[bad], t0[bad] + m])
+        cols = np.concatenate([t1[same], t1[same] + m, t1[bad] + m, t1[bad]])
+        graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(2 * m, 2 * m))
+        _, label = connected_components(graph, directed=False)
+        contradiction = np.flatnonzero(label[:m] == label[m:])
+        if contradiction.size:
+            raise NonOrientableError(
+                f"the mesh is not orientable (like a Möbius strip): no consistent orientation exists for "
+                f"{_name(contradiction, _simplex_name(n))}"
+            )
+        if mode == "check":
+            pairs = np.stack([t0[bad], t1[bad]], axis=1)[:_MAX_LISTED].tolist()
+            raise OrientationError(
+                f"inconsistent orientation: {int(bad.sum())} {_simplex_name(n - 1)}(s) are traversed in the same "
+                f"direction by both neighbouring {_simplex_name(n)}s, e.g. {_simplex_name(n)} pairs {pairs} "
+                f"(§2.3.4; pass orient='fix' to re-orient each connected component)"
+            )
+        # Choose per original component the coloring where most simplices keep their orientation.
+        _, component = connected_components(
+            sp.coo_matrix((np.ones(t0.size), (t0, t1)), shape=(m, m)), directed=False
+        )
+        root = np.full(component.max() + 1, m, dtype=np.int64)
+        np.minimum.at(root, component, np.arange(m))
+        keep = label[:m] == label[root[component]]  # same colour as the root keeping orientation
+        keep_count = np.bincount(component, weights=keep, minlength=root.size)
+        size = np.bincount(component, minlength=root.size)
+        flip_component = keep_count < size / 2
+        keep = keep ^ flip_component[component]
+        self._orientation = np.where(keep, self._orientation, -self._orientation).astype(np.int8)
+
+    def _check_vertex_stars(self) -> None:
+        """Each vertex star must be one fan of top simplices glued along facets (Fig. 2.11–2.12).
+
+        Corners (top simplex, vertex) are linked across each interior facet containing the
+        vertex; a vertex whose corners form more than one group (a bowtie / wheel) is not a
+        ball or half-ball neighbourhood. For n = 2 with manifold edges this test is exact.
+        """
+        n = self.dim
+        if n < 2:
+            return
+        m = self._lists[n].shape[0]
+        facet, t0, t1, l0, l1 = self._facet_pairs()
+        corner_rows, corner_cols = [], []
+        tops = self._lists[n]
+        facet_vertices = self._lists[n - 1][facet]  # (p, n): the shared facet of each pair
+        for a in range(n):
+            v = facet_vertices[:, a]
+            pos0 = np.argmax(tops[t0] == v[:, None], axis=1)
+            pos1 = np.argmax(tops[t1] == v[:, None], axis=1)
+            corner_rows.append(t0 * (n + 1) + pos0)
+            corner_cols.append(t1 * (n + 1) + pos1)
+        rows = np.concatenate(corner_rows)
+        cols = np.concatenate(corner_cols)
+        graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(m * (n + 1), m * (n + 1)))
+        _, label = connected_components(graph, directed=False)
+        corner_vertex = tops.ravel()
+        pairs = unique_rows(np.stack([corner_vertex, label], axis=1))[0]
+        fans = np.bincount(pairs[:, 0], minlength=self.vertices.shape[0])
+        bad = np.flatnonzero(fans > 1)
+        if bad.size:
+            raise NonManifoldError(
+                f"non-manifold {_name(bad, 'vertex')}: the {_simplex_name(n)}s around "
+                f"{'it' if bad.size == 1 else 'each'} form {int(fans[bad[0]])} separate fans, not one disk or "
+                f"half-disk (a 'bowtie'/'wheel', Fig. 2.11)"
+            )
+
+    # ------------------------------------------------------------------ simplices
+    @property
+    def orientation(self) -> np.ndarray:
+        """(n_n,) int8: parity (±1) of each consistently oriented top simplex vs its sorted tuple."""
+        return self._orientation
+
+    def simplices(self, j: int) -> np.ndarray:
+        """(n_j, j+1) int64 vertex tuples of the j-simplices (sorted rows; see module doc)."""
+        self._check_degree(j)
+        return self._lists[j]
+
+    def num_simplices(self, j: int) -> int:
+        """Number of j-simplices."""
+        self._check_degree(j)
+        return self._lists[j].shape[0]
+
+    def oriented_simplices(self) -> np.ndarray:
+        """(n_n, n+1) top simplices in their consistent orientation (input order).
+
+        The sorted tuple with its first two vertices swapped where ``orientation`` is -1.
+        For triangle meshes these are the faces to use for normals and drawing.
+        """
+        top = self._lists[self.dim].copy()
+        flip = self._orientation < 0
+        top[flip, 0], top[flip, 1] = top[flip, 1], top[flip, 0].copy()
+        return top
+
+    def _check_degree(self, j: int) -> None:
+        if not 0 <= j <= self.dim:
+            raise IndexError(f"simplex dimension {j} outside 0..{self.dim}")
+
+    def face_indices(self, j: int) -> np.ndarray:
+        """(n_j, j+1) int64: index of the (j-1)-face of each j-simplex omitting local vertex l."""
+        return self._faces_and_signs(j)[0]
+
+    def face_signs(self, j: int) -> np.ndarray:
+        """(n_j, j+1) int8: the δ_j entries ``(-1)**l`` (times ``orientation`` for j = n)."""
+        return self._faces_and_signs(j)[1]
+
+    def _faces_and_signs(self, j: int):
+        if not 1 <= j <= self.dim:
+            raise IndexError(f"faces exist for dimensions 1..{self.dim}, not {j}")
+        cache = self.__dict__.setdefault("_faces_cache", {})
+        if j in cache:
+            return cache[j]
+        n = self.dim
+        nj = self._lists[j].shape[0]
+        # A representative (top simplex, local combination) for every j-simplex.
+        table = self._top_faces[j]
+        owner = np.empty(nj, dtype=np.int64)
+        slot = np.empty(nj, dtype=np.int64)
+        flat = table.ravel()
+        owner[flat] = np.repeat(np.arange(table.shape[0]), table.shape[1])
+        slot[flat] = np.tile(np.arange(table.shape[1]), table.shape[0])
+        sub_position = {c: i for i, c in enumerate(self._local[j - 1])}
+        local_faces = np.array(
+            [[sub_position[c[:l] + c[l + 1:]] for l in range(j + 1)] for c in self._local[j]], dtype=np.int64
+        )  # (C(n+1, j+1), j+1)
+        faces = self._top_faces[j - 1][owner[:, None], local_faces[slot]]
+        signs = np.tile(np.array([1 if l % 2 == 0 else -1 for l in range(j + 1)], dtype=np.int8), (nj, 1))
+        if j == n:
+            signs = signs * self._orientation[:, None]
+        cache[j] = (faces, signs.astype(np.int8))
+        return cache[j]
+
+    def boundary(self, j: int) -> sp.csr_matrix:
+        """δ_j (Fig. 2.20): sparse (n_{j-1}, n_j) float64 with entries ±1 (§2.2.4).
+
+        Column ``s`` is the border of the j-simplex ``s``: ``Σ_l (-1)^l {v_0..v̂_l..v_j}``
+        (times its orientation for top simplices). ``boundary(j-1) @ boundary(j) == 0``.
+        """
+        cache = self.__dict__.setdefault("_boundary_cache", {})
+        if j not in cache:
+            faces, signs = self._faces_and_signs(j)
+            nj = faces.shape[0]
+            cols = np.repeat(np.arange(nj), j + 1)
+            matrix = sp.csr_matrix(
+                (signs.ravel().astype(np.float64), (faces.ravel(), cols)),
+                shape=(self._lists[j - 1].shape[0], nj),
+            )
+            cache[j] = matrix
+        return cache[j]
+
+    def find_simplices(self, tuples) -> np.ndarray:
+        """Indices in ``simplices(j)`` of vertex tuples given in any vertex order; -1 if absent.
+
+        Parameters
+        ----------
+        tuples : (p, j+1) int
+
+        Returns
+        -------
+        (p,) int64
+        """
+        tuples = np.sort(np.atleast_2d(np.asarray(tuples, dtype=np.int64)), axis=1)
+        j = tuples.shape[1] - 1
+        self._check_degree(j)
+        lists = self._lists[j]
+        if j == self.dim:
+            order = np.lexsort(lists.T[::-1])
+            lists = lists[order]
+        else:
+            order = None
+        both = np.concatenate([lists, tuples])
+        _, inverse = unique_rows(both)
+        key_of_list = inverse[: lists.shape[0]]
+        lookup = np.full(inverse.max() + 1, -1, dtype=np.int64)
+        lookup[key_of_list] = np.arange(lists.shape[0])
+        found = lookup[inverse[lists.shape[0]:]]
+        if order is not None:
+            found = np.where(found >= 0, order[np.maximum(found, 0)], -1)
+        return found
+
+    # ------------------------------------------------------------------ topology
+    @cached_property
+    def euler_characteristic(self) -> int:
+        """χ = Σ_j (-1)^j n_j."""
+        return int(sum((-1) ** j * self._lists[j].shape[0] for j in range(self.dim + 1)))
+
+    def connected_components(self) -> tuple[int, np.ndarray]:
+        """(number of components, (n_n,) component label of each top simplex) — via shared vertices."""
+        cache = self.__dict__.get("_components")
+        if cache is None:
+            n = self.dim
+            m = self._lists[n].shape[0]
+            nv = self.vertices.shape[0]
+            rows = np.repeat(np.arange(m), n + 1)
+            graph = sp.coo_matrix((np.ones(rows.size), (rows, self._lists[n].ravel() + m)), shape=(m + nv, m + nv))
+            count, label = connected_components(graph, directed=False)
+            # relabel so labels are 0..c-1 over top simplices
+            _, top_label = np.unique(label[:m], return_inverse=True)
+            cache = (int(top_label.max()) + 1, top_label.astype(np.int64))
+            self.__dict__["_components"] = cache
+        return cache
+
+    def boundary_faces(self) -> tuple[np.ndarray, np.ndarray]:
+        """Border (n-1)-simplices: ``δ_n · 1`` (§2.3.4).
+
+        Returns
+        -------
+        index : (b,) int64 indices into ``simplices(n-1)``
+        sign : (b,) int8 the induced orientation (+1: the sorted tuple is oriented as the border)
+        """
+        chain = np.asarray(self.boundary(self.dim).sum(axis=1)).ravel()
+        index = np.flatnonzero(np.abs(chain) > 0.5)
+        return index, np.sign(chain[index]).astype(np.int8)
+
+    def boundary_vertices(self) -> np.ndarray:
+        """(n0,) bool: vertices on the border."""
+        mask = np.zeros(self.vertices.shape[0], dtype=bool)
+        index, _ = self.boundary_faces()
+        mask[self._lists[self.dim - 1][index].ravel()] = True
+        return mask
+
+    def boundary_complex(self) -> "SimplicialComplex | None":
+        """The border as an oriented (n-1)-complex (vertices renumbered; see ``original_vertex_index``).
+
+        Returns None for a closed complex.
+        """
+        index, sign = self.boundary_faces()
+        if index.size == 0:
+            return None
+        faces = self._lists[self.dim - 1][index].copy()
+        flip = sign < 0
+        if faces.shape[1] >= 2:
+            faces[flip, 0], faces[flip, 1] = faces[flip, 1], faces[flip, 0].copy()
+        if faces.shape[1] == 1:
+            raise MeshError("the border of a 1-complex is a set of points, not a complex")
+        border = SimplicialComplex(self.vertices, faces, unreferenced="drop", check_manifold=False, orient="check")
+        return border
+
+    def boundary_loops(self) -> list[np.ndarray]:
+        """Border components of a 2-manifold as ordered vertex cycles.
+
+        Each loop follows the orientation the complex induces on its border (§2.2.4): for a
+        counter-clockwise planar disk the outer loop runs counter-clockwise and holes run
+        clockwise. Loops are sorted longest (in length) first.
+
+        Returns
+        -------
+        list of (L,) int64 arrays; loop[i] -> loop[i+1] (cyclically) is a border edge.
+        """
+        if self.dim != 2:
+            raise ValueError("boundary_loops() is defined for 2-manifolds (triangle meshes)")
+        index, sign = self.boundary_faces()
+        if index.size == 0:
+            return []
+        edges = self._lists[1][index]
+        start = np.where(sign > 0, edges[:, 0], edges[:, 1])
+        end = np.where(sign > 0, edges[:, 1], edges[:, 0])
+        nv = self.vertices.shape[0]
+        successor = np.full(nv, -1, dtype=np.int64)
+        successor[start] = end
+        # Walk all loops at once: each step moves every loop one vertex along its successor.
+        graph = sp.coo_matrix((np.ones(start.size), (start, end)), shape=(nv, nv))
+        _, label = connected_components(graph, directed=False)
+        border_label = label[start]
+        components = np.unique(border_label)
+        root_of = np.full(label.max() + 1, nv, dtype=np.int64)
+        np.minimum.at(root_of, border_label, start)  # smallest vertex of each loop starts it
+        root_vertices = root_of[components]
+        lengths = np.bincount(border_label, minlength=label.max() + 1)[components]
+        walk = np.empty((root_vertices.size, lengths.max()), dtype=np.int64)
+        current = root_vertices
+        for step in range(lengths.max()):
+            walk[:, step] = current
+            current = successor[current]
+        loops = [walk[i, : lengths[i]] for i in range(root_vertices.size)]
+        lengths_geom = [
+            float(np.linalg.norm(self.vertices[np.roll(loop, -1)] - self.vertices[loop], axis=1).sum()) for loop in loops
+        ]
+        order = np.argsort(lengths_geom)[::-1]
+        return [loops[i] for i in order]
+
+    def betti_numbers(self) -> list[int]:
+        """Betti numbers b_0..b_n over the reals.
+
+        Exact for surfaces (b0 = components, b2 = closed components, b1 from χ), for
+        tetrahedral meshes embedded in R³ (b2 = border surfaces − components, Alexander
+        duality) and, for anything else, by dense rank computation (small complexes only).
+        """
+        n = self.dim
+        count, label = self.connected_components()
+        index, _ = self.boundary_faces()
+        chi = self.euler_characteristic
+        if n == 1:
+            # a 1-manifold component is a loop (b1 = 1) or a path (b1 = 0)
+            has_border = np.zeros(count, dtype=bool)
+            vertex_degree = np.bincount(self._lists[1].ravel(), minlength=self.vertices.shape[0])
+            ends = np.flatnonzero(vertex_degree == 1)
+            if ends.size:
+                edge_of_end = np.flatnonzero(np.isin(self._lists[1], ends).any(axis=1))
+                has_border[label[edge_of_end]] = True
+            closed = int((~has_border).sum())
+            return [count, closed]
+        if n == 2:
+            has_border = np.zeros(count, dtype=bool)
+            if index.size:
+                facet, top, _ = self._facet_incidence()
+                border_top = top[np.isin(facet, index)]
+                has_border[label[border_top]] = True
+            b2 = int((~has_border).sum())
+            return [count, count + b2 - chi, b2]
+        if n == 3 and self.embedding_dim == 3:
+            border = self.boundary_complex()
+            if border is None:
+                return self._betti_by_rank()
+            border_components = border.connected_components()[0]
+            b2 = border_components - count
+            b1 = count + b2 - chi
+            return [count, b1, b2, 0]
+        return self._betti_by_rank()
+
+    def _betti_by_rank(self) -> list[int]:
+        sizes = [self._lists[j].shape[0] for j in range(self.dim + 1)]
+        if max(sizes) > 4000:
+            raise NotImplementedError(
+                "betti_numbers(): dense rank computation is limited to complexes with at most 4000 simplices "
+                "per dimension for this kind of complex"
+            )
+        ranks = [0] + [int(np.linalg.matrix_rank(self.boundary(j).toarray())) for j in range(1, self.dim + 1)] + [0]
+        return [sizes[j] - ranks[j] - ranks[j + 1] for j in range(self.dim + 1)]
+
+    def __repr__(self) -> str:
+        counts = ", ".join(f"{self._lists[j].shape[0]} {_PLURALS.get(_simplex_name(j), _simplex_name(j) + 's')}" for j in range(self.dim + 1))
+        return f"SimplicialComplex(dim={self.dim}, {counts})"
+
+
+def _check_indices(vertices: np.ndarray, simplices: np.ndarray, n: int) -> None:
+    nv = vertices.shape[0]
+    out = (simplices < 0) | (simplices >= nv)
+    if out.any():
+        rows = np.flatnonzero(out.any(axis=1))
+        raise IndexOutOfRangeError(
+            f"{_name(rows, _simplex_name(n))} reference vertex indices outside 0..{nv - 1} "
+            f"(e.g. {int(simplices[out][0])})"
+        )
+    s = np.sort(simplices, axis=1)
+    repeated = np.flatnonzero((s[:, 1:] == s[:, :-1]).any(axis=1))
+    if repeated.size:
+        raise RepeatedVertexError(
+            f"{_name(repeated, _simplex_name(n))} list the same vertex twice (e.g. {simplices[repeated[0]].tolist()})"
+        )

@@ -49,12 +49,15 @@ def _name(indices, what: str) -> str:
     indices = np.asarray(indices).ravel()
     shown = ", ".join(str(int(i)) for i in indices[:_MAX_LISTED])
     more = f" (and {indices.size - _MAX_LISTED} more)" if indices.size > _MAX_LISTED else ""
-    plural = "s" if indices.size > 1 else ""
-    return f"{what}{plural} {shown}{more}"
+    return f"{_plural(what) if indices.size > 1 else what} {shown}{more}"
 
 
 _SIMPLEX_NAMES = {0: "vertex", 1: "edge", 2: "triangle", 3: "tetrahedron"}
 _PLURALS = {"vertex": "vertices", "tetrahedron": "tetrahedra"}
+
+
+def _plural(name: str) -> str:
+    return _PLURALS.get(name, name + "s")
 
 
 def _simplex_name(j: int) -> str:
@@ -205,6 +208,9 @@ class SimplicialComplex:
             )
 
         _check_indices(vertices, simplices, self.dim)
+        bad = ~np.isfinite(vertices).all(axis=1)
+        if bad.any():
+            raise NonFiniteCoordinateError(f"{_name(np.flatnonzero(bad), 'vertex')} has NaN or infinite coordinates")
         self.original_vertex_index = np.arange(vertices.shape[0])
         used = np.zeros(vertices.shape[0], dtype=bool)
         used[simplices.ravel()] = True
@@ -219,9 +225,6 @@ class SimplicialComplex:
             simplices = new_index[simplices]
             vertices = vertices[used]
             self.original_vertex_index = np.flatnonzero(used)
-        bad = ~np.isfinite(vertices).all(axis=1)
-        if bad.any():
-            raise NonFiniteCoordinateError(f"{_name(np.flatnonzero(bad), 'vertex')} has NaN or infinite coordinates")
 
         self.vertices = vertices
         self.embedding_dim = vertices.shape[1]
@@ -290,7 +293,7 @@ class SimplicialComplex:
             owners = np.unique(top[np.isin(facet, over)])
             raise NonManifoldError(
                 f"non-manifold: {_name(over, _simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
-                f"{_simplex_name(n)}s ({_name(owners, _simplex_name(n))})"
+                f"{_plural(_simplex_name(n))} ({_name(owners, _simplex_name(n))})"
             )
 
     def _facet_pairs(self):
@@ -328,7 +331,7 @@ class SimplicialComplex:
             pairs = np.stack([t0[bad], t1[bad]], axis=1)[:_MAX_LISTED].tolist()
             raise OrientationError(
                 f"inconsistent orientation: {int(bad.sum())} {_simplex_name(n - 1)}(s) are traversed in the same "
-                f"direction by both neighbouring {_simplex_name(n)}s, e.g. {_simplex_name(n)} pairs {pairs} "
+                f"direction by both neighbouring {_plural(_simplex_name(n))}, e.g. {_simplex_name(n)} pairs {pairs} "
                 f"(§2.3.4; pass orient='fix' to re-orient each connected component)"
             )
         # Choose per original component the coloring where most simplices keep their orientation.
@@ -375,7 +378,7 @@ class SimplicialComplex:
         bad = np.flatnonzero(fans > 1)
         if bad.size:
             raise NonManifoldError(
-                f"non-manifold {_name(bad, 'vertex')}: the {_simplex_name(n)}s around "
+                f"non-manifold {_name(bad, 'vertex')}: the {_plural(_simplex_name(n))} around "
                 f"{'it' if bad.size == 1 else 'each'} form {int(fans[bad[0]])} separate fans, not one disk or "
                 f"half-disk (a 'bowtie'/'wheel', Fig. 2.11)"
             )
@@ -644,7 +647,7 @@ class SimplicialComplex:
         return [sizes[j] - ranks[j] - ranks[j + 1] for j in range(self.dim + 1)]
 
     def __repr__(self) -> str:
-        counts = ", ".join(f"{self._lists[j].shape[0]} {_PLURALS.get(_simplex_name(j), _simplex_name(j) + 's')}" for j in range(self.dim + 1))
+        counts = ", ".join(f"{self._lists[j].shape[0]} {_plural(_simplex_name(j))}" for j in range(self.dim + 1))
         return f"SimplicialComplex(dim={self.dim}, {counts})"
 
 

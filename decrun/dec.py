@@ -251,7 +251,7 @@ class DEC:
             if zero.any():
                 warnings.warn(
                     f"⋆_{k} is zero on {int(zero.sum())} simplices (e.g. {np.flatnonzero(zero)[:5].tolist()}): "
-                    "their dual cells are degenerate (right angles); ⋆_{k}⁻¹ is infinite there",
+                    f"their dual cells are degenerate (right angles); ⋆_{k}⁻¹ is infinite there",
                     RuntimeWarning,
                     stacklevel=3,
                 )

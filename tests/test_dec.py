@@ -1,0 +1,195 @@
+"""DEC operators: the §4.5.5 example, exact identities to round-off, dual volumes, spectra."""
+
+from math import comb
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+import scipy.spatial
+
+from decrun.complex import SimplicialComplex
+from decrun.dec import DEC
+from decrun.errors import ConfigError
+from meshes_for_tests import grid_triangles, icosphere, kuhn_cube, random_planar, random_tets
+from test_complex import regular_tetrahedron_surface
+
+MESHES = {
+    "obtuse_planar": lambda: random_planar(150, seed=1),
+    "right_angled_grid": lambda: grid_triangles(6),
+    "jittered_grid": lambda: grid_triangles(8, jitter=0.3),
+    "icosphere": lambda: icosphere(2),
+    "random_tets": lambda: random_tets(100, seed=2),
+    "kuhn_tets": lambda: kuhn_cube(3),
+}
+
+
+def make(name, star="circumcentric"):
+    return DEC(SimplicialComplex(*MESHES[name](), orient="fix"), star=star)
+
+
+def test_section_4_5_5_hodge_stars():
+    dec = DEC(SimplicialComplex(*regular_tetrahedron_surface()))
+    np.testing.assert_allclose(dec.star_diagonal(0), np.sqrt(3) / 4, rtol=1e-14)
+    np.testing.assert_allclose(dec.star_diagonal(1), 1 / np.sqrt(3), rtol=1e-14)
+    np.testing.assert_allclose(dec.star_diagonal(2), 4 / np.sqrt(3), rtol=1e-14)
+    # d_dual: d^dual_0 = δ2, d^dual_1 = -δ1 (§4.5.5)
+    assert abs(dec.d_dual(0) - dec.K.boundary(2)).max() == 0
+    assert abs(dec.d_dual(1) + dec.K.boundary(1)).max() == 0
+
+
+@pytest.mark.parametrize("name", MESHES)
+def test_dd_zero_and_dual_dd_zero(name):
+    dec = make(name)
+    for k in range(dec.n - 1):
+        assert abs(dec.d(k + 1) @ dec.d(k)).max() == 0
+        assert abs(dec.d_dual(k + 1) @ dec.d_dual(k)).max() == 0
+
+
+@pytest.mark.parametrize("name", MESHES)
+def test_stokes_theorem(name):
+    # ⟨σ, d w⟩ = ⟨δσ, w⟩ for random chains σ and forms w (eq. 4.8)
+    dec = make(name)
+    rng = np.random.default_rng(0)
+    for k in range(dec.n):
+        w = rng.standard_normal(dec.K.num_simplices(k))
+        sigma = rng.integers(-2, 3, dec.K.num_simplices(k + 1))
+        assert sigma @ (dec.d(k) @ w) == pytest.approx((dec.K.boundary(k + 1) @ sigma) @ w, rel=1e-12, abs=1e-12)
+
+
+@pytest.mark.parametrize("name", ["obtuse_planar", "jittered_grid", "icosphere", "random_tets"])
+def test_codifferential_adjoint_and_nilpotent(name):
+    dec = make(name)
+    rng = np.random.default_rng(1)
+    for k in range(dec.n):
+        a = rng.standard_normal(dec.K.num_simplices(k))
+        b = rng.standard_normal(dec.K.num_simplices(k + 1))
+        left = dec.inner(k + 1, dec.d(k) @ a, b)
+        right = dec.inner(k, a, dec.codifferential(k + 1) @ b)
+        assert left == pytest.approx(right, rel=1e-10)
+    for k in range(2, dec.n + 1):
+        product = dec.codifferential(k - 1) @ dec.codifferential(k)
+        scale = abs(dec.codifferential(k - 1)).max() * abs(dec.codifferential(k)).max()
+        assert abs(product).max() <= 1e-12 * scale
+
+
+def test_adjointness_degree_zero_on_right_triangles():
+    dec = make("right_angled_grid")
+    rng = np.random.default_rng(2)
+    a, b = rng.standard_normal(dec.K.num_simplices(0)), rng.standard_normal(dec.K.num_simplices(1))
+    assert dec.inner(1, dec.d(0) @ a, b) == pytest.approx(dec.inner(0, a, dec.codifferential(1) @ b), rel=1e-12)
+
+
+@pytest.mark.parametrize("name", MESHES)
+def test_laplacians_positive_semidefinite_and_self_adjoint(name):
+    dec = make(name)
+    rng = np.random.default_rng(3)
+    # Where some ⋆_j (j < n) vanishes (right angles: grid diagonals, Kuhn cubes) δ_{j+1} is
+    # undefined, so only the Laplacians of degree ≤ that j are checked.
+    degenerate = [j for j in range(dec.n) if np.any(np.abs(dec.star_diagonal(j)) < 1e-12)]
+    top_degree = min(degenerate) if degenerate else dec.n
+    assert name not in ("obtuse_planar", "icosphere", "random_tets") or top_degree == dec.n
+    for k in range(top_degree + 1):
+        a, b = rng.standard_normal((2, dec.K.num_simplices(k)))
+        laplacian = dec.laplacian(k)
+        assert dec.inner(k, laplacian @ a, b) == pytest.approx(dec.inner(k, a, laplacian @ b), rel=1e-9)
+        symmetric = dec.laplacian_symmetric(k)
+        assert abs(symmetric - symmetric.T).max() <= 1e-10 * abs(symmetric).max()
+        np.testing.assert_allclose(symmetric @ a, dec.star_diagonal(k) * (laplacian @ a), rtol=1e-8,
+                                   atol=1e-10 * np.abs(symmetric @ a).max())
+    # k = 0: constants are harmonic and the operator is d0ᵀ⋆1 d0 (PSD when ⋆1 ≥ 0 …)
+    assert np.abs(dec.laplacian(0) @ np.ones(dec.K.num_simplices(0))).max() < 1e-9
+
+
+@pytest.mark.parametrize("name", ["obtuse_planar", "right_angled_grid", "jittered_grid"])
+def test_flat_dual_volume_identities(name):
+    dec = make(name)
+    area = scipy.spatial.ConvexHull(dec.K.vertices).volume
+    for star in ("circumcentric", "mixed_area", "barycentric"):
+        assert DEC(dec.K, star).star_diagonal(0).sum() == pytest.approx(area, rel=1e-12)
+    for k in range(3):
+        total = np.sum(dec.star_diagonal(k) * dec.primal_volumes(k) ** 2)
+        assert total == pytest.approx(comb(2, k) * area, rel=1e-12)
+
+
+@pytest.mark.parametrize("name", ["random_tets", "kuhn_tets"])
+def test_flat_dual_volume_identities_tets(name):
+    dec = make(name)
+    volume = scipy.spatial.ConvexHull(dec.K.vertices).volume
+    for k in range(4):
+        total = np.sum(dec.star_diagonal(k) * dec.primal_volumes(k) ** 2)
+        assert total == pytest.approx(comb(3, k) * volume, rel=1e-11)
+
+
+def test_closed_surface_total_area_with_obtuse_triangles():
+    vertices, faces = icosphere(2)
+    rng = np.random.default_rng(4)
+    vertices = vertices * (1 + 0.15 * rng.standard_normal((len(vertices), 1)))  # bumpy: obtuse triangles
+    dec = DEC(SimplicialComplex(vertices, faces))
+    area = dec.primal_volumes(2).sum()
+    assert (dec.dual_volumes(1) < 0).any()  # some non-Delaunay edges
+    for star in ("circumcentric", "mixed_area", "barycentric"):
+        assert DEC(dec.K, star).star_diagonal(0).sum() == pytest.approx(area, rel=1e-12)
+    # mixed area is positive even where the Voronoi area is not
+    assert (DEC(dec.K, "mixed_area").star_diagonal(0) > 0).all()
+
+
+def test_variants_change_only_star0():
+    K = SimplicialComplex(*random_planar(80, seed=5), orient="fix")
+    base = DEC(K)
+    for variant in ("mixed_area", "barycentric"):
+        other = DEC(K, variant)
+        assert not np.allclose(other.star_diagonal(0), base.star_diagonal(0))
+        for k in (1, 2):
+            np.testing.assert_array_equal(other.star_diagonal(k), base.star_diagonal(k))
+    with pytest.raises(ConfigError, match="operator.star"):
+        DEC(K, "voronoi")
+
+
+def test_cot_formula_matches_circumcentric_star1():
+    K = SimplicialComplex(*random_planar(60, seed=6), orient="fix")
+    dec = DEC(K)
+    cot_weight = np.zeros(K.num_simplices(1))
+    tri = K.simplices(2)
+    p = K.vertices[tri]
+    for i in range(3):
+        a, b = p[:, (i + 1) % 3] - p[:, i], p[:, (i + 2) % 3] - p[:, i]
+        cot = (a * b).sum(1) / np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+        edge = K.find_simplices(tri[:, [(i + 1) % 3, (i + 2) % 3]])
+        np.add.at(cot_weight, edge, 0.5 * cot)
+    np.testing.assert_allclose(dec.star_diagonal(1), cot_weight, rtol=1e-10, atol=1e-12)
+
+
+def sphere_eigenvalue_error(subdiv):
+    dec = DEC(SimplicialComplex(*icosphere(subdiv)))
+    values = spla.eigsh(dec.laplacian_symmetric(0).tocsc(), k=9, M=dec.star(0).tocsc(), sigma=-1e-2,
+                        return_eigenvectors=False)
+    values = np.sort(values)
+    exact = np.array([0, 2, 2, 2, 6, 6, 6, 6, 6.0])
+    return np.abs(values - exact).max()
+
+
+def test_sphere_spectrum_converges_quadratically():
+    errors = [sphere_eigenvalue_error(s) for s in (2, 3, 4)]
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert errors[-1] < 0.02
+    assert np.all(orders > 1.7), (errors, orders)
+
+
+def neumann_error(dec, exact):
+    values = spla.eigsh(dec.laplacian_symmetric(0).tocsc(), k=len(exact), M=dec.star(0).tocsc(), sigma=-1e-2,
+                        return_eigenvectors=False)
+    return np.abs(np.sort(values) - exact).max() / exact.max()
+
+
+def test_neumann_eigenvalues_unit_square():
+    exact = np.pi**2 * np.array([0, 1, 1, 2, 4, 4, 5, 5.0])
+    errors = [neumann_error(DEC(SimplicialComplex(*grid_triangles(n))), exact) for n in (8, 16, 32)]
+    assert errors[-1] < 0.01
+    assert errors[0] > 3 * errors[1] > 9 * errors[2]
+
+
+def test_neumann_eigenvalues_unit_cube_tets():
+    exact = np.pi**2 * np.array([0, 1, 1, 1, 2, 2, 2, 3.0])
+    errors = [neumann_error(DEC(SimplicialComplex(*kuhn_cube(n))), exact) for n in (4, 8)]
+    assert errors[-1] < 0.05
+    assert errors[0] > 3 * errors[1]

@@ -1,0 +1,154 @@
+"""Figures shared by the applications (matplotlib, no pyplot: figures are plain
+``matplotlib.figure.Figure`` objects rendered by the Agg canvas when saved, so nothing
+depends on a display or on global pyplot state).
+
+- :func:`plot_surface` — one triangle mesh on an axes: 3-D (shaded or coloured by a
+  per-vertex / per-face value) or 2-D (planar meshes, or a 3-D mesh seen from above).
+- :func:`before_after` — two meshes with the same triangles side by side (e.g. noisy and
+  smoothed), sharing a colour scale.
+- :func:`plot_series` — per-step curves (``Result.series``).
+"""
+
+from __future__ import annotations
+
+from typing import Iterable, Sequence
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+
+
+def new_figure(width: float = 8.0, height: float = 4.0, dpi: int = 110) -> Figure:
+    """A Figure not attached to pyplot (no GUI, garbage-collected normally)."""
+    return Figure(figsize=(width, height), dpi=dpi, layout="constrained")
+
+
+def _face_values(values: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    values = np.asarray(values, dtype=np.float64)
+    if values.shape[0] == len(faces) and values.shape[0] != n_vertices:
+        return values
+    if values.shape[0] == n_vertices:
+        return values[faces].mean(axis=1)
+    raise ValueError(f"values must have one entry per vertex ({n_vertices}) or per face ({len(faces)}), got {values.shape}")
+
+
+def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,
+                 cmap: str = "viridis", vmin: float | None = None, vmax: float | None = None,
+                 edgecolor: str | None = None, linewidth: float = 0.1, title: str | None = None,
+                 light: Sequence[float] = (0.4, 0.3, 1.0)):
+    """Draw the triangles ``faces (m, 3)`` over ``vertices (n, 2|3)`` on ``ax``.
+
+    ``ax`` is a 3-D axes (``fig.add_subplot(projection="3d")``) or a 2-D one; a 3-D mesh on
+    a 2-D axes is drawn from above (x, y). ``values`` (per vertex, averaged to faces, or per
+    face) colour the triangles with ``cmap``; without values the surface is grey with
+    Lambert shading from the direction ``light``. Returns the ScalarMappable (for a
+    colorbar) or None.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    mappable = None
+    if values is not None:
+        face_values = _face_values(values, faces, len(vertices))
+        finite = face_values[np.isfinite(face_values)]
+        lo = vmin if vmin is not None else (finite.min() if finite.size else 0.0)
+        hi = vmax if vmax is not None else (finite.max() if finite.size else 1.0)
+        norm = Normalize(lo, hi if hi > lo else lo + 1.0)
+        colours = colormaps[cmap](norm(face_values))
+        from matplotlib.cm import ScalarMappable
+
+        mappable = ScalarMappable(norm=norm, cmap=colormaps[cmap])
+    is_3d = getattr(ax, "name", "") == "3d"
+    if is_3d:
+        from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+        v3 = vertices if vertices.shape[1] == 3 else np.column_stack([vertices, np.zeros(len(vertices))])
+        triangles = v3[faces]
+        if values is None:
+            normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+            length = np.linalg.norm(normal, axis=1, keepdims=True)
+            normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+            direction = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
+            shade = 0.35 + 0.65 * np.abs(normal @ direction)
+            colours = np.column_stack([np.outer(shade, [0.75, 0.78, 0.85]), np.ones(len(faces))])
+        collection = Poly3DCollection(triangles, facecolors=colours, edgecolors=edgecolor or "none", linewidths=linewidth)
+        ax.add_collection3d(collection)
+        finite = v3[np.isfinite(v3).all(axis=1)]
+        if len(finite):
+            lo, hi = finite.min(axis=0), finite.max(axis=0)
+            center, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-12)
+            ax.set_xlim(center[0] - half, center[0] + half)
+            ax.set_ylim(center[1] - half, center[1] + half)
+            ax.set_zlim(center[2] - half, center[2] + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.set_axis_off()
+    else:
+        from matplotlib.collections import PolyCollection
+
+        triangles = vertices[:, :2][faces]
+        if values is None:
+            colours = (0.8, 0.82, 0.88, 1.0)
+        collection = PolyCollection(triangles, facecolors=colours, edgecolors=edgecolor or "0.35", linewidths=linewidth)
+        ax.add_collection(collection)
+        ax.autoscale_view()
+        ax.set_aspect("equal")
+        ax.set_axis_off()
+    if title:
+        ax.set_title(title, fontsize=9)
+    return mappable
+
+
+def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces: np.ndarray,
+                 values_before: np.ndarray | None = None, values_after: np.ndarray | None = None, *,
+                 titles: tuple[str, str] = ("before", "after"), suptitle: str | None = None,
+                 cmap: str = "viridis", colorbar_label: str | None = None) -> Figure:
+    """Figure with two panels: the mesh before and after (same ``faces``), same colour scale.
+
+    Meshes with 3-D vertices are drawn in 3-D, planar ones in 2-D.
+    """
+    three_d = np.asarray(vertices_before).shape[1] == 3
+    fig = new_figure(8.0, 4.0)
+    kwargs = {"projection": "3d"} if three_d else {}
+    axes = [fig.add_subplot(1, 2, i + 1, **kwargs) for i in range(2)]
+    vmin = vmax = None
+    if values_before is not None and values_after is not None:
+        both = np.concatenate([np.ravel(values_before), np.ravel(values_after)])
+        both = both[np.isfinite(both)]
+        if both.size:
+            vmin, vmax = float(both.min()), float(both.max())
+    mappable = None
+    for ax, vertices, values, title in zip(axes, (vertices_before, vertices_after), (values_before, values_after), titles):
+        m = plot_surface(ax, vertices, faces, values, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
+        mappable = mappable or m
+    if mappable is not None:
+        fig.colorbar(mappable, ax=axes, shrink=0.6, label=colorbar_label)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=10)
+    return fig
+
+
+def plot_series(series: dict[str, np.ndarray], names: Iterable[str] | None = None, *,
+                xlabel: str = "step", relative: bool = True, title: str | None = None) -> Figure:
+    """One figure with the per-step curves ``series[name]`` (divided by their first value
+    when ``relative``)."""
+    fig = new_figure(5.0, 3.2)
+    ax = fig.add_subplot(1, 1, 1)
+    for name in names or series:
+        y = np.asarray(series[name], dtype=np.float64)
+        if relative and y.size and np.isfinite(y[0]) and y[0] != 0:
+            y = y / y[0]
+        ax.plot(np.arange(len(y)), y, label=name + (" / initial" if relative else ""))
+    ax.set_xlabel(xlabel)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title, fontsize=9)
+    return fig
+
+
+def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
+    """Save ``fig`` as PNG through the Agg canvas (works without any display)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=dpi or fig.dpi)

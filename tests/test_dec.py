@@ -84,11 +84,11 @@ def test_laplacians_positive_semidefinite_and_self_adjoint(name):
     dec = make(name)
     rng = np.random.default_rng(3)
     # Where some ⋆_j (j < n) vanishes (right angles: grid diagonals, Kuhn cubes) δ_{j+1} is
-    # undefined, so only the Laplacians of degree ≤ that j are checked.
+    # undefined and so is Δ_j (it needs ⋆_j⁻¹): only the Laplacians of degree < j are checked.
     degenerate = [j for j in range(dec.n) if np.any(np.abs(dec.star_diagonal(j)) < 1e-12)]
-    top_degree = min(degenerate) if degenerate else dec.n
-    assert name not in ("obtuse_planar", "icosphere", "random_tets") or top_degree == dec.n
-    for k in range(top_degree + 1):
+    top_degree = min(degenerate) if degenerate else dec.n + 1
+    assert name not in ("obtuse_planar", "icosphere", "random_tets") or top_degree == dec.n + 1
+    for k in range(top_degree):
         a, b = rng.standard_normal((2, dec.K.num_simplices(k)))
         laplacian = dec.laplacian(k)
         assert dec.inner(k, laplacian @ a, b) == pytest.approx(dec.inner(k, a, laplacian @ b), rel=1e-9)

@@ -89,7 +89,7 @@ class MeshConfig:
     max_area: float = 0.005
     # post-processing, applied in the order of ``post`` (decrun.meshes.POST_STEPS);
     # each step is a no-op unless its option below enables it
-    post: List[str] = field(default_factory=lambda: ["clean", "refine", "normalize", "noise"])
+    post: List[str] = field(default_factory=lambda: ["holes", "clean", "refine", "normalize", "noise"])
     clean: bool = False  # drop unreferenced vertices, keep the largest component
     refine: str = "none"  # none | loop | midpoint | isotropic
     refine_iterations: int = 1
@@ -99,6 +99,10 @@ class MeshConfig:
     seed: int = 0
     # how the simplicial complex treats orientation: check (report) | fix (re-orient)
     orient: str = "check"
+    # holes (decrun.mesh_holes): remove the faces whose centroid lies in a ball
+    # [cx, cy, cz, r] or a box [xmin, ymin, zmin, xmax, ymax, zmax] (2-D: [cx, cy, r], [xmin, ymin, xmax, ymax])
+    hole_balls: List[List[float]] = field(default_factory=list)
+    hole_boxes: List[List[float]] = field(default_factory=list)
 
 
 # ----------------------------------------------------------------------------------

@@ -38,6 +38,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from decrun.errors import ConfigError, MeshError
+from decrun.mesh_holes import holes_step
 
 # ----------------------------------------------------------------------------------
 # the mesh record
@@ -406,6 +407,7 @@ POST_STEPS: dict[str, Callable[[Mesh, Any], Mesh]] = {
     "refine": refine_step,
     "normalize": normalize_step,
     "noise": noise_step,
+    "holes": holes_step,  # decrun.mesh_holes: cut balls/boxes out (hole_balls, hole_boxes)
 }
 
 

@@ -1,0 +1,600 @@
+"""Vector field design with DEC (thesis §6.4, after Fisher et al. [FSDH07]).
+
+A tangential vector field is a discrete 1-form ``w`` (one value per edge: the integral of
+the field along the edge, edges oriented from the smaller to the larger vertex index).
+The design problem of §6.1 is the weighted least-squares problem (eq. 6.5–6.6)
+
+    argmin_w ‖ (d ; δ ; Z) w − (r ; s ; c) ‖²_L ,   L = diag(⋆2, ⋆0, W)
+
+whose normal equations are
+
+    (dᵀ ⋆2 d + δᵀ ⋆0 δ + Zᵀ W Z) w = dᵀ ⋆2 r + δᵀ ⋆0 s + Zᵀ W c .                  (6.6)
+
+Here ``d = d_1`` (curl: a 2-form, integrated over each face), ``δ = δ_1`` (the
+codifferential, a 0-form: point value per vertex), ``Z`` selects the edges touched by
+stroke constraints and ``W`` is their diagonal weight.
+
+Sign conventions (written next to the equations they affect)
+------------------------------------------------------------
+* δ_1 = ⋆0⁻¹ d0ᵀ ⋆1 (eq. 4.14) is the *negative* divergence: for the gradient of a
+  function, δ d0 f = Δ0 f is the positive semi-definite Laplacian. A user's
+  ``divergence`` value ``q`` at vertex v is the **net outflow** through the dual cell of v
+  (a source has q > 0), so the δ-target is ``s_v = −q / ⋆0[v]``.
+* A user's ``curl`` value ``c`` on a face is the **circulation** around the face in the
+  orientation of the complex (counter-clockwise seen from the outside for a consistently
+  oriented closed surface), i.e. the 2-form target ``r_t = c`` directly (d1 w integrates
+  the curl over the face).
+  Both are integrated quantities, so a prescribed singularity has the same far field on a
+  coarse and a fine mesh.
+
+Boundary adaptation (§6.4.4)
+----------------------------
+``boundary="none"`` uses the unadapted δ_1. On a border vertex its dual cell is not
+closed and δ_1 only counts the flux through the interior dual edges, so δ w = 0 implicitly
+forbids flow through the border: the designed field is tangential to the border. These
+are the matrices for which d and δ are adjoint and the discrete Hodge decomposition holds.
+
+``boundary="flux"`` adds the flux through the border edges, estimated from the two other
+edges of the border triangle assuming zero curl there (eq. 6.10), half to each end vertex
+(the two matrices printed after eq. 6.10):
+
+    δ_flux = ⋆0⁻¹ (d0ᵀ ⋆1 − M_border F)
+
+where ``F`` (#edges × #edges, :func:`border_flux_matrix`) gives the outward flux through
+each border edge and ``M_border`` (#vertices × #edges, :func:`border_vertex_matrix`)
+distributes half of it to each end vertex. The field may now cross the border, but δ_flux
+is no longer the adjoint of d0 (⟨d0 a, w⟩ ≠ ⟨a, δ_flux w⟩) and the Hodge decomposition of
+Theorem 5 fails with it — as the thesis warns. :func:`adjointness_defect` measures this.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from decrun.complex import SimplicialComplex
+from decrun.dec import DEC
+from decrun.errors import ConfigError, TopologyError
+from decrun.forms import whitney_sharp
+from decrun.solvers import Solver
+
+__all__ = [
+    "BOUNDARY_MODES",
+    "MAGNITUDE_MODES",
+    "DesignConstraints",
+    "DesignSolution",
+    "nearest_vertices",
+    "nearest_faces",
+    "face_normals",
+    "corner_angles",
+    "border_flux_matrix",
+    "border_vertex_matrix",
+    "codifferential_1",
+    "adjointness_defect",
+    "divergence_target",
+    "stroke_face_directions",
+    "stroke_edge_targets",
+    "normal_matrix",
+    "solve_design",
+    "design_residuals",
+    "smoothness_energy",
+    "border_normal_flux",
+]
+
+BOUNDARY_MODES = ("none", "flux")
+MAGNITUDE_MODES = ("fixed", "precomputed")
+
+
+# ----------------------------------------------------------------------------------
+# geometry helpers
+# ----------------------------------------------------------------------------------
+
+
+def _require_surface(K: SimplicialComplex, what: str) -> None:
+    if K.dim != 2:
+        raise TopologyError(f"{what} needs a triangle mesh (a 2-complex), got a {K.dim}-complex")
+
+
+def _embed3(points: np.ndarray) -> np.ndarray:
+    """(N, 2 or 3) → (N, 3) with z = 0 for planar input."""
+    points = np.asarray(points, dtype=np.float64)
+    if points.shape[1] == 3:
+        return points
+    return np.concatenate([points, np.zeros((points.shape[0], 3 - points.shape[1]))], axis=1)
+
+
+def face_normals(K: SimplicialComplex) -> np.ndarray:
+    """(n2, 3) unit normals of the consistently oriented faces ``K.oriented_simplices()``
+    (right-hand rule; a planar mesh in the xy-plane oriented counter-clockwise gets +z)."""
+    _require_surface(K, "face_normals")
+    x = _embed3(K.vertices)
+    f = K.oriented_simplices()
+    normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
+    return normal / np.linalg.norm(normal, axis=1, keepdims=True)
+
+
+def corner_angles(K: SimplicialComplex) -> np.ndarray:
+    """(n2, 3) interior angles (radians) at the corners of ``K.oriented_simplices()``."""
+    x = _embed3(K.vertices)
+    f = K.oriented_simplices()
+    angles = np.empty(f.shape, dtype=np.float64)
+    for i in range(3):
+        a = x[f[:, (i + 1) % 3]] - x[f[:, i]]
+        b = x[f[:, (i + 2) % 3]] - x[f[:, i]]
+        angles[:, i] = np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("md,md->m", a, b))
+    return angles
+
+
+def nearest_vertices(K: SimplicialComplex, points) -> np.ndarray:
+    """Indices (P,) of the vertices nearest to ``points`` (P, d) — snapping of sources/sinks."""
+    points = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    _check_point_dim(K, points, "point")
+    return cKDTree(K.vertices).query(points)[1].astype(np.int64)
+
+
+def _check_point_dim(K: SimplicialComplex, points: np.ndarray, key: str) -> None:
+    if points.shape[1] != K.embedding_dim:
+        raise ConfigError(
+            f"app {key}: points must have {K.embedding_dim} coordinates (the mesh's embedding dimension), "
+            f"got {points.shape[1]}"
+        )
+
+
+def nearest_faces(K: SimplicialComplex, points, candidates: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """The face containing (or nearest to) each point and the point projected onto it.
+
+    Candidates are the ``candidates`` faces with the nearest barycenters; among them the
+    one with the smallest distance to the point (distance to the plane plus the distance
+    by which the projection falls outside the triangle) wins.
+
+    Parameters
+    ----------
+    points : (P, d)
+
+    Returns
+    -------
+    faces : (P,) int64 indices into ``K.simplices(2)``
+    projected : (P, 3) the points projected into the plane of their face, clamped into it
+    """
+    _require_surface(K, "nearest_faces")
+    points = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    _check_point_dim(K, points, "point")
+    points3 = _embed3(points)
+    x = _embed3(K.vertices)
+    top = K.simplices(2)
+    corners = x[top]  # (m, 3, 3)
+    barycenters = corners.mean(axis=1)
+    k = int(min(candidates, top.shape[0]))
+    _, cand = cKDTree(barycenters).query(points3, k=k)
+    cand = np.asarray(cand).reshape(points3.shape[0], k)
+    c = corners[cand]  # (P, k, 3, 3)
+    e1 = c[:, :, 1] - c[:, :, 0]
+    e2 = c[:, :, 2] - c[:, :, 0]
+    rel = points3[:, None, :] - c[:, :, 0]
+    g11 = np.einsum("pkd,pkd->pk", e1, e1)
+    g12 = np.einsum("pkd,pkd->pk", e1, e2)
+    g22 = np.einsum("pkd,pkd->pk", e2, e2)
+    r1 = np.einsum("pkd,pkd->pk", rel, e1)
+    r2 = np.einsum("pkd,pkd->pk", rel, e2)
+    det = g11 * g22 - g12 * g12
+    mu1 = (g22 * r1 - g12 * r2) / det
+    mu2 = (g11 * r2 - g12 * r1) / det
+    lam = np.stack([1.0 - mu1 - mu2, mu1, mu2], axis=-1)  # (P, k, 3)
+    in_plane = c[:, :, 0] + mu1[..., None] * e1 + mu2[..., None] * e2
+    plane_distance = np.linalg.norm(points3[:, None, :] - in_plane, axis=-1)
+    scale = np.sqrt(det) / np.sqrt(g11 + g22)  # ~ a triangle height
+    outside = np.clip(-lam, 0.0, None).sum(axis=-1) * scale
+    best = np.argmin(plane_distance + outside, axis=1)
+    rows = np.arange(points3.shape[0])
+    lam_best = np.clip(lam[rows, best], 0.0, None)
+    lam_best /= lam_best.sum(axis=1, keepdims=True)
+    projected = np.einsum("pc,pcd->pd", lam_best, c[rows, best])
+    return cand[rows, best].astype(np.int64), projected
+
+
+# ----------------------------------------------------------------------------------
+# boundary adaptation (§6.4.4)
+# ----------------------------------------------------------------------------------
+
+
+def _border_edge_frames(K: SimplicialComplex):
+    """For each border edge: its index, the face it lies in and the face's local (i, j, k)
+    with i → j the border edge in the face's orientation and k the opposite vertex."""
+    edges_idx, _ = K.boundary_faces()
+    top_sorted = K.simplices(2)
+    oriented = K.oriented_simplices()
+    opposite_edge = K.face_indices(2)  # (m, 3): edge opposite sorted local vertex l
+    owner = np.full(K.num_simplices(1), -1, dtype=np.int64)
+    slot = np.full(K.num_simplices(1), -1, dtype=np.int64)
+    owner[opposite_edge.ravel()] = np.repeat(np.arange(top_sorted.shape[0]), 3)
+    slot[opposite_edge.ravel()] = np.tile(np.arange(3), top_sorted.shape[0])
+    face = owner[edges_idx]
+    k_vertex = top_sorted[face, slot[edges_idx]]
+    # position of k in the oriented tuple; i and j follow it cyclically
+    pos = np.argmax(oriented[face] == k_vertex[:, None], axis=1)
+    rows = np.arange(face.size)
+    i_vertex = oriented[face, (pos + 1) % 3]
+    j_vertex = oriented[face, (pos + 2) % 3]
+    return edges_idx, face, i_vertex, j_vertex, k_vertex, rows
+
+
+def _signed_edge(K: SimplicialComplex, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Edge indices of the oriented pairs a → b and the sign (+1 when a < b, the
+    reference orientation, −1 otherwise): w(a → b) = sign · w[index]."""
+    index = K.find_simplices(np.stack([a, b], axis=1))
+    return index, np.where(a < b, 1.0, -1.0)
+
+
+def border_flux_matrix(dec: DEC) -> sp.csr_matrix:
+    """F (#edges, #edges): outward flux through each border edge, eq. 6.10.
+
+    For the border edge e_ij of the triangle t_ijk (i → j in the orientation of t, so the
+    outside is to the right of i → j), assuming zero curl on t the Whitney field (eq. 6.7)
+    is constant and its flux *out of the mesh* through e_ij is
+
+        f_out(e_ij) = w_ki cot θ_j − w_jk cot θ_i ,
+
+    the negative of eq. 6.10's f_ij, which is the flux through e_ij towards the inside of
+    t (the left of i → j; Fig. 6.11). θ_i, θ_j are the triangle's angles at i and j.
+    Rows of interior edges are zero; each border row has entries in the columns of e_jk
+    and e_ki, with signs for the reference edge orientations.
+    """
+    K = dec.K
+    _require_surface(K, "border flux (operator.boundary: flux)")
+    edges_idx, face, i_v, j_v, k_v, _ = _border_edge_frames(K)
+    x = _embed3(K.vertices)
+
+    def cot(at, p, q):
+        a, b = x[p] - x[at], x[q] - x[at]
+        return np.einsum("md,md->m", a, b) / np.linalg.norm(np.cross(a, b), axis=1)
+
+    cot_i = cot(i_v, j_v, k_v)
+    cot_j = cot(j_v, k_v, i_v)
+    e_ki, s_ki = _signed_edge(K, k_v, i_v)
+    e_jk, s_jk = _signed_edge(K, j_v, k_v)
+    rows = np.concatenate([edges_idx, edges_idx])
+    cols = np.concatenate([e_ki, e_jk])
+    vals = np.concatenate([s_ki * cot_j, -s_jk * cot_i])
+    n1 = K.num_simplices(1)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n1, n1))
+
+
+def border_vertex_matrix(K: SimplicialComplex) -> sp.csr_matrix:
+    """M_border (#vertices, #edges): half of each border edge's flux to each of its two
+    end vertices (the first matrix after eq. 6.10; the signs of the thesis' version are
+    absorbed into :func:`border_flux_matrix`, which already returns *outward* flux)."""
+    _require_surface(K, "border vertex matrix")
+    edges_idx, _ = K.boundary_faces()
+    ends = K.simplices(1)[edges_idx]
+    rows = ends.ravel()
+    cols = np.repeat(edges_idx, 2)
+    return sp.csr_matrix((np.full(rows.size, 0.5), (rows, cols)), shape=(K.num_simplices(0), K.num_simplices(1)))
+
+
+def codifferential_1(dec: DEC, boundary: str = "none") -> sp.csr_matrix:
+    """δ_1 (#vertices, #edges) for the boundary mode (§6.4.4).
+
+    ``none``: δ_1 = ⋆0⁻¹ d0ᵀ ⋆1 (eq. 4.14), adjoint of d0. ``flux``: the adapted
+    δ_flux = ⋆0⁻¹ (d0ᵀ ⋆1 − M_border F) that also counts the estimated flux through
+    border edges (identical to δ_1 on closed meshes). Both are −divergence.
+    """
+    if boundary not in BOUNDARY_MODES:
+        raise ConfigError(f"operator.boundary: unknown boundary mode {boundary!r}; choose one of {list(BOUNDARY_MODES)}")
+    delta = dec.codifferential(1)
+    if boundary == "none" or K_is_closed(dec.K):
+        return delta
+    adapted = dec.d(0).T @ dec.star(1) - border_vertex_matrix(dec.K) @ border_flux_matrix(dec)
+    return (dec.star_inv(0) @ adapted).tocsr()
+
+
+def K_is_closed(K: SimplicialComplex) -> bool:
+    """True when the complex has no border."""
+    return K.boundary_faces()[0].size == 0
+
+
+def adjointness_defect(dec: DEC, delta: sp.spmatrix, seed: int = 0) -> float:
+    """Relative failure of ⟨d0 a, w⟩_⋆1 = ⟨a, δ w⟩_⋆0 (eq. 6.4) for random a, w.
+
+    Returns |⟨d0 a, w⟩ − ⟨a, δ w⟩| / (‖d0 a‖ ‖w‖) in the ⋆ norms (with |⋆| weights, so
+    negative cot weights do not make the norm imaginary): ~1e-16 for the unadapted δ_1,
+    O(1) on a mesh with border for the flux-adapted one.
+    """
+    rng = np.random.default_rng(seed)
+    a = rng.standard_normal(dec.K.num_simplices(0))
+    w = rng.standard_normal(dec.K.num_simplices(1))
+    da = dec.d(0) @ a
+    lhs = dec.inner(1, da, w)
+    rhs = dec.inner(0, a, delta @ w)
+    s1 = np.abs(dec.star_diagonal(1))
+    norm = np.sqrt((da * s1 * da).sum() * (w * s1 * w).sum())
+    return float(abs(lhs - rhs) / norm)
+
+
+# ----------------------------------------------------------------------------------
+# constraints
+# ----------------------------------------------------------------------------------
+
+
+def divergence_target(dec: DEC, vertices: np.ndarray, outflow: np.ndarray) -> np.ndarray:
+    """The δ-target s (n0,) of eq. 6.5 for prescribed net outflows at vertices.
+
+    ``outflow[i]`` is the flux out of the dual cell of ``vertices[i]`` (source > 0,
+    sink < 0). Because δ_1 = −div as a point value, s_v = −outflow / ⋆0[v]; several entries
+    for the same vertex add up.
+    """
+    s = np.zeros(dec.K.num_simplices(0))
+    np.add.at(s, np.asarray(vertices, dtype=np.int64), -np.asarray(outflow, dtype=np.float64))
+    return s / dec.star_diagonal(0)
+
+
+def stroke_face_directions(
+    K: SimplicialComplex, polyline, closed: bool = False, step: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Faces crossed by a stroke and the stroke's unit direction in each (§6.4.2, Fig. 6.6).
+
+    The polyline is resampled with spacing ``step`` (default: a quarter of the mean edge
+    length); each piece is attached to the face nearest to its midpoint, projected into
+    that face's plane, and the pieces of one face are summed (length-weighted) and
+    normalized.
+
+    Parameters
+    ----------
+    polyline : (P, d) points, P ≥ 2 (d = the embedding dimension)
+    closed : also join the last point to the first
+
+    Returns
+    -------
+    faces : (F,) int64 distinct face indices, in the order the stroke first visits them
+    directions : (F, 3) unit tangent vectors (zero-sum faces — a stroke going back and forth —
+        are dropped)
+    """
+    _require_surface(K, "strokes")
+    points = np.atleast_2d(np.asarray(polyline, dtype=np.float64))
+    if points.shape[0] < 2:
+        raise ConfigError("app strokes: a stroke needs at least two points")
+    _check_point_dim(K, points, "strokes")
+    if closed:
+        points = np.concatenate([points, points[:1]])
+    points = _embed3(points)
+    if step is None:
+        x = K.vertices[K.simplices(1)]
+        step = 0.25 * float(np.linalg.norm(x[:, 1] - x[:, 0], axis=1).mean())
+    seg = np.diff(points, axis=0)
+    lengths = np.linalg.norm(seg, axis=1)
+    pieces = np.maximum(1, np.ceil(lengths / step).astype(np.int64))
+    seg_index = np.repeat(np.arange(seg.shape[0]), pieces)
+    local = (np.concatenate([np.arange(p) for p in pieces]) + 0.5) / pieces[seg_index]
+    midpoints = points[seg_index] + local[:, None] * seg[seg_index]
+    piece_vectors = seg[seg_index] / pieces[seg_index, None]
+    faces, _ = nearest_faces(K, midpoints[:, : K.embedding_dim])
+    normals = face_normals(K)[faces]
+    tangent = piece_vectors - np.einsum("pd,pd->p", piece_vectors, normals)[:, None] * normals
+    unique, first, inverse = np.unique(faces, return_index=True, return_inverse=True)
+    total = np.zeros((unique.size, 3))
+    np.add.at(total, inverse, tangent)
+    norm = np.linalg.norm(total, axis=1)
+    keep = norm > 1e-12 * max(float(norm.max(initial=0.0)), 1e-300)
+    order = np.argsort(first[keep])
+    return unique[keep][order], (total[keep] / norm[keep, None])[order]
+
+
+def stroke_edge_targets(K: SimplicialComplex, faces: np.ndarray, vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Edge targets c_z of the directional constraints (§6.4.2).
+
+    A constant vector v on face t samples to c = ⟨v, e.end − e.start⟩ on each edge of t
+    (§3.2.1, reference orientation: smaller → larger vertex index); an edge shared by
+    several constrained faces takes the mean (the thesis' ½(⟨v1, e⟩ + ⟨v2, e⟩)).
+
+    Parameters
+    ----------
+    faces : (F,) face indices; vectors : (F, 3) the vectors v_t (direction × magnitude)
+
+    Returns
+    -------
+    edges : (E,) int64 sorted edge indices; targets : (E,) float64
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    vectors = np.asarray(vectors, dtype=np.float64)
+    if faces.size == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    edge_of_face = K.face_indices(2)[faces]  # (F, 3)
+    edge_vertices = K.simplices(1)[edge_of_face]  # (F, 3, 2)
+    x = _embed3(K.vertices)
+    direction = x[edge_vertices[..., 1]] - x[edge_vertices[..., 0]]
+    values = np.einsum("fd,fed->fe", vectors, direction)
+    edges, inverse = np.unique(edge_of_face.ravel(), return_inverse=True)
+    total = np.bincount(inverse, weights=values.ravel(), minlength=edges.size)
+    count = np.bincount(inverse, minlength=edges.size)
+    return edges.astype(np.int64), total / count
+
+
+@dataclass
+class DesignConstraints:
+    """The right-hand sides of eq. 6.5 and the stroke selection.
+
+    Attributes
+    ----------
+    curl : (n2,) r_t, target of d1 w (circulation per face; 0 = curl-free)
+    codifferential : (n0,) s_v, target of δ1 w (point values; see :func:`divergence_target`)
+    stroke_edges : (E,) edges selected by Z;  stroke_targets : (E,) c_z
+    stroke_weights : (E,) diagonal of W
+    """
+
+    curl: np.ndarray
+    codifferential: np.ndarray
+    stroke_edges: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    stroke_targets: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stroke_weights: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @classmethod
+    def empty(cls, K: SimplicialComplex) -> "DesignConstraints":
+        return cls(curl=np.zeros(K.num_simplices(2)), codifferential=np.zeros(K.num_simplices(0)))
+
+    def without_strokes(self) -> "DesignConstraints":
+        return DesignConstraints(self.curl, self.codifferential)
+
+    def with_strokes(self, edges, targets, weights) -> "DesignConstraints":
+        return DesignConstraints(self.curl, self.codifferential, np.asarray(edges, dtype=np.int64),
+                                 np.asarray(targets, dtype=np.float64), np.asarray(weights, dtype=np.float64))
+
+
+def _selection(K: SimplicialComplex, edges: np.ndarray) -> sp.csr_matrix:
+    """Z: rows of the identity at the constrained edges, (E, n1)."""
+    return sp.csr_matrix((np.ones(edges.size), (np.arange(edges.size), edges)), shape=(edges.size, K.num_simplices(1)))
+
+
+def normal_matrix(dec: DEC, delta: sp.spmatrix, constraints: DesignConstraints) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Left and right side of the normal equation 6.6 with L = diag(⋆2, ⋆0, W).
+
+    Returns
+    -------
+    A : (n1, n1) dᵀ ⋆2 d + δᵀ ⋆0 δ + Zᵀ W Z  (symmetric positive semi-definite)
+    b : (n1,)    dᵀ ⋆2 r + δᵀ ⋆0 s + Zᵀ W c
+    """
+    d1 = dec.d(1)
+    star2, star0 = dec.star(2), dec.star(0)
+    A = d1.T @ star2 @ d1 + delta.T @ star0 @ delta
+    b = d1.T @ (star2 @ constraints.curl) + delta.T @ (star0 @ constraints.codifferential)
+    if constraints.stroke_edges.size:
+        Z = _selection(dec.K, constraints.stroke_edges)
+        W = sp.diags(constraints.stroke_weights)
+        A = A + Z.T @ W @ Z
+        b = b + Z.T @ (constraints.stroke_weights * constraints.stroke_targets)
+    return sp.csr_matrix(A), np.asarray(b, dtype=np.float64)
+
+
+@dataclass
+class DesignSolution:
+    """A solved design: the 1-form and how the solve went."""
+
+    omega: np.ndarray
+    normal_equation_residual: float  # ‖A w − b‖ / ‖b‖ (Euclidean; ‖A w‖ when b = 0)
+    refinement_steps: int  # iterative-refinement steps of the shifted factorization
+
+
+def solve_design(
+    dec: DEC,
+    solver: Solver,
+    constraints: DesignConstraints,
+    delta: sp.spmatrix,
+    shift: float = 1e-10,
+    tol: float = 1e-13,
+    max_steps: int = 50,
+) -> DesignSolution:
+    """Solve the normal equation 6.6 for the designed 1-form w (least squares, eq. 6.5).
+
+    The normal matrix A = Dᵀ L D can be singular: without strokes it vanishes exactly on the
+    forms with d w = 0 and δ w = 0 — the harmonic 1-forms for the unadapted δ (dimension
+    Betti_1, §6.3.6: "there is no constraint on the harmonic component"), and for the
+    flux-adapted δ on a flat domain also the constant fields, which now may cross the
+    border freely. Since b = Dᵀ L t always lies in im A, the problem is consistent; we
+    factorize A + ε M once (M = diag|⋆1|, ε = ``shift`` × the mean diagonal ratio) and
+    refine x ← x + (A + εM)⁻¹ (b − A x). Every iterate stays M-orthogonal to ker A, so the
+    result is the minimizer with no null-space (e.g. harmonic) component, and for a
+    regular A it is simply the solution.
+
+    Parameters
+    ----------
+    solver : a fresh decrun Solver (factorized here, once)
+    delta : the δ_1 of the boundary mode (:func:`codifferential_1`)
+    shift : relative size of the diagonal shift ε
+    tol : stop when ‖A w − b‖ ≤ tol ‖b‖
+
+    Returns
+    -------
+    DesignSolution
+    """
+    A, b = normal_matrix(dec, delta, constraints)
+    weight = np.abs(dec.star_diagonal(1))
+    weight = np.maximum(weight, 1e-3 * float(weight.mean()))
+    scale = float(np.abs(A.diagonal()).mean() / weight.mean()) or 1.0
+    solver.factorize(sp.csc_matrix(A + sp.diags(shift * scale * weight)))
+    norm_b = float(np.linalg.norm(b))
+    w = np.zeros_like(b)
+    residual = b.copy()
+    steps = 0
+    while steps < max_steps and np.linalg.norm(residual) > tol * norm_b:
+        w = w + np.asarray(solver.solve(residual), dtype=np.float64)
+        residual = b - A @ w
+        steps += 1
+    r = float(np.linalg.norm(residual))
+    return DesignSolution(omega=w, normal_equation_residual=r / norm_b if norm_b > 0 else r, refinement_steps=steps)
+
+
+# ----------------------------------------------------------------------------------
+# measurements
+# ----------------------------------------------------------------------------------
+
+
+def smoothness_energy(dec: DEC, delta: sp.spmatrix, omega: np.ndarray) -> float:
+    """⟨dω, dω⟩_⋆2 + ⟨δω, δω⟩_⋆0, the energy minimized away from constraints (§6.1)."""
+    curl = dec.d(1) @ omega
+    div = delta @ omega
+    return float(dec.inner(2, curl, curl) + dec.inner(0, div, div))
+
+
+def design_residuals(dec: DEC, delta: sp.spmatrix, constraints: DesignConstraints, omega: np.ndarray) -> dict:
+    """Constraint residuals of eq. 6.5 in the norms of L (eq. 6.6).
+
+    Returns a dict of floats:
+    ``curl_residual`` ‖d w − r‖_⋆2, ``divergence_residual`` ‖δ w − s‖_⋆0,
+    ``direction_residual`` ‖Z w − c‖_W, and each ``*_relative`` = residual / ‖target‖
+    (the absolute residual when the target is zero).
+    """
+    out = {}
+    pieces = {
+        "curl": (2, dec.d(1) @ omega - constraints.curl, constraints.curl),
+        "divergence": (0, delta @ omega - constraints.codifferential, constraints.codifferential),
+    }
+    for name, (k, residual, target) in pieces.items():
+        r = np.sqrt(max(dec.inner(k, residual, residual), 0.0))
+        t = np.sqrt(max(dec.inner(k, target, target), 0.0))
+        out[f"{name}_residual"] = float(r)
+        out[f"{name}_residual_relative"] = float(r / t) if t > 0 else float(r)
+    if constraints.stroke_edges.size:
+        residual = omega[constraints.stroke_edges] - constraints.stroke_targets
+        weights = constraints.stroke_weights
+        r = np.sqrt((weights * residual**2).sum())
+        t = np.sqrt((weights * constraints.stroke_targets**2).sum())
+        out["direction_residual"] = float(r)
+        out["direction_residual_relative"] = float(r / t) if t > 0 else float(r)
+    else:
+        out["direction_residual"] = 0.0
+        out["direction_residual_relative"] = 0.0
+    return out
+
+
+def border_normal_flux(K: SimplicialComplex, omega: np.ndarray) -> dict:
+    """How much the field crosses the border (§6.4.4, Fig. 6.9).
+
+    The Whitney field (eq. 6.7) of each border triangle is evaluated at the midpoint of its
+    border edge and split into the component along the outward normal and the tangential
+    one (the latter is w_e/|e| by construction).
+
+    Returns
+    -------
+    dict with ``boundary_normal_flux_mean`` (mean |u·n| over border edges, field units),
+    ``boundary_normal_fraction`` (mean |u·n| / mean |u| there; 0 = tangential field,
+    ~0.64 = directions uniformly random), ``boundary_edges`` (count). Zeros for closed meshes.
+    """
+    edges_idx, face, i_v, j_v, k_v, _ = _border_edge_frames(K)
+    if edges_idx.size == 0:
+        return {"boundary_normal_flux_mean": 0.0, "boundary_normal_fraction": 0.0, "boundary_edges": 0}
+    top = K.simplices(2)
+    lam = (top[face] == i_v[:, None]) * 0.5 + (top[face] == j_v[:, None]) * 0.5
+    u = _embed3(whitney_sharp(K, omega, barycentric=lam, faces=face))
+    x = _embed3(K.vertices)
+    tangent = x[j_v] - x[i_v]
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    outward = np.cross(tangent, face_normals(K)[face])  # right of i → j, in the face plane
+    normal_part = np.abs(np.einsum("ed,ed->e", u, outward))
+    magnitude = np.linalg.norm(u, axis=1)
+    mean_mag = float(magnitude.mean())
+    return {
+        "boundary_normal_flux_mean": float(normal_part.mean()),
+        "boundary_normal_fraction": float(normal_part.mean() / mean_mag) if mean_mag > 0 else 0.0,
+        "boundary_edges": int(edges_idx.size),
+    }

@@ -30,7 +30,11 @@ __all__ = ["HodgeParts", "HodgeDecomposer", "hodge_decomposition", "harmonic_bas
 
 @dataclass
 class HodgeParts:
-    """ω = exact + coexact + harmonic, exact = d_{k-1} α, coexact = δ_{k+1} β."""
+    """ω = exact + coexact + harmonic, exact = d_{k-1} α, coexact = δ_{k+1} β.
+
+    ``alpha`` is None for k = 0; ``beta`` is None for k = n or where ⋆_{k+1} is singular
+    (the coexact part itself only needs ⋆_k⁻¹).
+    """
 
     exact: np.ndarray
     coexact: np.ndarray
@@ -110,7 +114,9 @@ class HodgeDecomposer:
             d = dec.d(k)
             mu = self._coexact.solve(d @ omega)
             coexact = _column(1.0 / dec.star_diagonal(k), omega) * (d.T @ mu)
-            beta = _column(1.0 / dec.star_diagonal(k + 1), mu) * mu
+            star_next = dec.star_diagonal(k + 1)
+            if np.all(np.abs(star_next) > 1e-12 * np.abs(star_next).max()):
+                beta = _column(1.0 / star_next, mu) * mu  # else β is undefined (⋆_{k+1} not invertible)
         return HodgeParts(exact, coexact, omega - exact - coexact, alpha, beta)
 
 

@@ -1,0 +1,259 @@
+"""The ``decrun`` command (a Hydra app) and ``decrun-table``.
+
+``decrun [-v] [overrides...]`` composes ``conf/config.yaml`` (defaults: mesh, operator,
+app, solver), runs one experiment into ``outputs/runs/<stamp>/`` and prints what it
+wrote. ``decrun -m key=a,b ...`` runs a sweep into ``outputs/sweeps/<stamp>/<job>/`` and
+writes ``metrics.csv`` / ``metrics.md`` at the sweep root (one row per job, also for
+jobs that failed); it exits non-zero when a job failed.
+
+Data flow of one run (:func:`run_experiment`): validate the config nodes → load the mesh
+(:mod:`decrun.meshes`) → ``SimplicialComplex`` → ``DEC`` → solver → ``app.run`` →
+``result.h5`` (atomic) + ``metrics.json`` + figures (:func:`write_run`).
+
+Errors: a :class:`decrun.errors.DecrunError` (bad input) prints one line
+``error: <message>`` and exits 1 with no ``result.h5``; ``-v``/``--verbose`` or
+``hydra.verbose=true`` show the traceback. Config keys Hydra cannot compose (a misspelt
+key, a wrong type, an unknown option) are reported by Hydra before anything runs.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import secrets
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+from typing import Any, Callable
+
+import hydra
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig, OmegaConf
+
+from decrun.config import check_operator, config_dir, get_app, register_configs
+from decrun.errors import DecrunError
+from decrun.results import Result, write_metrics_json, write_result
+
+log = logging.getLogger("decrun")
+
+# ----------------------------------------------------------------------------------
+# directory names that never collide
+# ----------------------------------------------------------------------------------
+
+
+def unique_stamp() -> str:
+    """``YYYY-mm-dd_HH-MM-SS_<6 hex>``: a timestamp plus 24 random bits, so two runs or
+    sweeps started in the same second get different directories."""
+    return f"{datetime.now():%Y-%m-%d_%H-%M-%S}_{secrets.token_hex(3)}"
+
+
+if not OmegaConf.has_resolver("decrun.stamp"):
+    # cached: every job of a sweep (Hydra copies the resolver cache into each job's
+    # config, also across joblib processes) sees the sweep's single stamp
+    OmegaConf.register_new_resolver("decrun.stamp", unique_stamp, use_cache=True)
+
+register_configs()
+
+# ----------------------------------------------------------------------------------
+# one run, without Hydra's machinery (also used by the tests)
+# ----------------------------------------------------------------------------------
+
+
+def make_progress(enabled: bool = True) -> Callable:
+    """tqdm factory, a pass-through when disabled or stderr is not a terminal."""
+    if enabled and sys.stderr.isatty() and "PYTEST_CURRENT_TEST" not in os.environ:
+        from functools import partial
+
+        from tqdm import tqdm
+
+        return partial(tqdm, leave=False, dynamic_ncols=True)
+
+    def passthrough(iterable, total=None, desc=None, **_):
+        return iterable
+
+    return passthrough
+
+
+def validate(cfg: DictConfig):
+    """Check every config node before any work; return the application module."""
+    app = get_app(str(cfg.app.name))
+    OmegaConf.to_object(cfg.app)  # runs Config.__post_init__ checks (ConfigError)
+    check_operator(cfg.operator)
+    return app
+
+
+def run_experiment(cfg: DictConfig, progress: Callable | None = None) -> tuple[Result, Any, dict]:
+    """Compose mesh → complex → DEC → solver → app for ``cfg``; returns
+    ``(result, mesh, timings)``. Raises :class:`DecrunError` on bad input."""
+    from decrun.complex import SimplicialComplex
+    from decrun.dec import DEC
+    from decrun.meshes import load_mesh
+    from decrun.solvers import make_solver
+
+    timings: dict[str, float] = {}
+    t = time.perf_counter()
+    app = validate(cfg)
+    solver_options = OmegaConf.to_container(cfg.solver, resolve=True)
+    solver = make_solver(**solver_options)  # missing optional package → SolverError now
+    mesh = load_mesh(cfg.mesh)
+    timings["mesh_seconds"] = time.perf_counter() - t
+    t = time.perf_counter()
+    complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=str(cfg.mesh.orient))
+    complex_.meta = mesh.meta
+    dec = DEC(complex_, star=str(cfg.operator.star))
+    timings["complex_seconds"] = time.perf_counter() - t
+    t = time.perf_counter()
+    result = app.run(complex_, dec, solver, cfg.app, progress or make_progress(False))
+    timings["app_seconds"] = time.perf_counter() - t
+    result.metrics.setdefault("status", "ok")
+    result.metrics.setdefault("n_vertices", int(complex_.num_simplices(0)))
+    result.metrics.setdefault("n_faces", int(complex_.num_simplices(complex_.dim)))
+    return result, mesh, timings
+
+
+def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -> list[Path]:
+    """Write ``result.h5`` (atomic), ``metrics.json`` and the figures into ``out``."""
+    from decrun.plots import save_figure
+
+    written = []
+    t = time.perf_counter()
+    if cfg.get("figures", True):
+        for name, figure in result.figures.items():
+            path = out / f"{name}.png"
+            save_figure(figure, path)
+            written.append(path)
+    timings["figures_seconds"] = time.perf_counter() - t
+    timings["total_seconds"] = sum(v for k, v in timings.items() if k != "total_seconds")
+    result.metrics.setdefault("total_seconds", timings["total_seconds"])
+    h5 = write_result(out / "result.h5", result, vertices=mesh.vertices, simplices=mesh.simplices,
+                      config_yaml=OmegaConf.to_yaml(cfg, resolve=True), mesh_hash=mesh.meta.get("hash", ""),
+                      timings=timings)
+    metrics = write_metrics_json(out / "metrics.json", result.metrics)
+    return [h5, metrics, *written]
+
+
+# ----------------------------------------------------------------------------------
+# the Hydra task
+# ----------------------------------------------------------------------------------
+
+_VERBOSE = False
+
+
+def _is_multirun() -> bool:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    return HydraConfig.get().mode == RunMode.MULTIRUN
+
+
+def _verbose() -> bool:
+    from hydra.core.hydra_config import HydraConfig
+
+    return _VERBOSE or bool(HydraConfig.get().verbose)
+
+
+def _task(cfg: DictConfig) -> int:
+    from hydra.core.hydra_config import HydraConfig
+
+    out = Path(HydraConfig.get().runtime.output_dir)
+    multirun = _is_multirun()
+    try:
+        result, mesh, timings = run_experiment(cfg, make_progress(bool(cfg.get("progress", True)) and not multirun))
+        written = write_run(out, cfg, result, mesh, timings)
+    except Exception as exc:
+        message = str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}"
+        (out / "result.h5").unlink(missing_ok=True)
+        write_metrics_json(out / "metrics.json", {"status": "failed", "error": message})
+        if _verbose() or not isinstance(exc, DecrunError):
+            log.exception("error: %s", message)
+        else:
+            log.error("error: %s", message)
+        if multirun:
+            return 1
+        sys.exit(1)
+    metrics = result.metrics
+    shown = ", ".join(f"{k}={_short(v)}" for k, v in metrics.items() if k not in ("status",))
+    log.info("metrics: %s", shown)
+    if not multirun:
+        try:
+            where = out.relative_to(Path.cwd())
+        except ValueError:
+            where = out
+        print(f"decrun: wrote {where}/ ({', '.join(p.name for p in written)}, {HydraConfig.get().job.name}.log)")
+    return 0
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+@hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")
+def _hydra_main(cfg: DictConfig) -> int:
+    return _task(cfg)
+
+
+class SweepTable(Callback):
+    """Hydra callback (``hydra.callbacks.sweep_table`` in conf/config.yaml): at the end of a
+    sweep writes ``metrics.csv`` and ``metrics.md`` at the sweep root."""
+
+    failed = 0
+
+    def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
+        from decrun.tables import failed_jobs, to_markdown, write_sweep_table
+
+        sweep_dir = Path(str(config.hydra.sweep.dir))
+        table = write_sweep_table(sweep_dir)
+        bad = failed_jobs(table)
+        SweepTable.failed = len(bad)
+        shown = table.drop(columns=[c for c in ("error",) if c in table.columns and not len(bad)])
+        print(to_markdown(shown), end="")
+        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} failed) → {sweep_dir}/metrics.csv, metrics.md")
+        for row in bad.itertuples(index=False):
+            print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
+
+
+def main() -> None:
+    """Console script ``decrun``: ``-v``/``--verbose`` shows tracebacks; everything else is
+    Hydra's command line (overrides, ``-m``, ``--cfg job``, ``--help``...)."""
+    global _VERBOSE
+    args = [a for a in sys.argv[1:] if a not in ("-v", "--verbose")]
+    _VERBOSE = len(args) != len(sys.argv) - 1
+    if _VERBOSE:
+        os.environ["HYDRA_FULL_ERROR"] = "1"
+    sys.argv = [sys.argv[0], *args]
+    SweepTable.failed = 0
+    _hydra_main()
+    if SweepTable.failed:
+        sys.exit(1)
+
+
+# ----------------------------------------------------------------------------------
+# decrun-table
+# ----------------------------------------------------------------------------------
+
+
+def table_main(argv: list[str] | None = None) -> int:
+    """Console script ``decrun-table SWEEP_DIR [--csv]``: rebuild ``metrics.csv`` /
+    ``metrics.md`` of a sweep and print the table (markdown, or CSV with ``--csv``)."""
+    import argparse
+
+    from decrun.tables import failed_jobs, to_markdown, write_sweep_table
+
+    parser = argparse.ArgumentParser(prog="decrun-table", description=table_main.__doc__)
+    parser.add_argument("sweep_dir", help="a sweep directory, e.g. outputs/sweeps/<stamp>")
+    parser.add_argument("--csv", action="store_true", help="print CSV instead of markdown")
+    args = parser.parse_args(argv)
+    try:
+        table = write_sweep_table(args.sweep_dir)
+    except FileNotFoundError as exc:
+        print(f"decrun-table: error: {exc}", file=sys.stderr)
+        return 2
+    if table.empty:
+        print(f"decrun-table: error: no job directories (with .hydra/) in {args.sweep_dir}", file=sys.stderr)
+        return 2
+    print(table.to_csv(index=False) if args.csv else to_markdown(table), end="")
+    return 1 if len(failed_jobs(table)) else 0
+

@@ -1,0 +1,229 @@
+"""``app=hodge``: the discrete Hodge decomposition of a 1-form (§6.3.4–6.3.6, Theorem 5).
+
+A 1-form ω — sampled from an analytic vector field (§3.2.1), a seeded random form, or the
+1-form stored in a previous run's ``result.h5`` — is split ⋆1-orthogonally as
+
+    ω = dα + δβ + γ ,    γ harmonic (dγ = 0, δγ = 0),
+
+by :func:`decrun.hodge.hodge_decomposition` (two Poisson problems, the configured solver).
+The metrics check Theorem 5 (pairwise ⋆1-orthogonality, γ harmonic) and §6.3.6
+(dim ker Δ1 = Betti_1: 0 on a sphere, 2 on a torus, the number of holes of a planar
+domain). Theorem 5 needs d and δ adjoint, which holds for the unadapted operators only:
+``operator.boundary=flux`` (the §6.4.4 adaptation of the vector_field app) is rejected.
+
+Analytic fields (``app.analytic``; ``a`` = ``app.vector``, points x in model units):
+
+``gradient``          a, the gradient of the linear function a·x: sampled exactly as d0(a·x),
+                      so the decomposition is purely exact.
+``rotated_gradient``  (x/|x|) × a: on a sphere centred at the origin this is ⋆d(a·x) (the
+                      gradient rotated by 90° in the tangent plane): coexact up to sampling.
+``rotation``          a × x, the rigid rotation about the axis a.
+``toroidal``          ∇φ = (−y, x, 0)/(x² + y²), φ the angle about the z axis: closed but not
+                      exact on a torus around the z axis (mostly harmonic there).
+``mixed``             gradient + rotated_gradient + toroidal (on a torus: all three parts).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import List
+
+import numpy as np
+
+from decrun.errors import ConfigError, TopologyError
+from decrun.forms import sample_vector_field, whitney_sharp
+from decrun.hodge import HodgeDecomposer, harmonic_basis
+from decrun.results import Result
+from decrun.vector_design import _embed3
+
+FIELDS = ("analytic", "random", "result")
+ANALYTIC = ("gradient", "rotated_gradient", "rotation", "toroidal", "mixed")
+
+
+@dataclass
+class Config:
+    """Schema of ``cfg.app`` for the Hodge decomposition (conf/app/hodge.yaml)."""
+
+    name: str = "hodge"
+    input: str = "analytic"  # analytic | random | result
+    analytic: str = "mixed"  # see the module docstring
+    vector: List[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])  # a of the analytic fields
+    quadrature_order: int = 3  # Gauss points per edge when sampling (§3.2.1)
+    seed: int = 0  # random: ω_e = ξ_e |e|, ξ ~ N(0, 1)
+    input_path: str = ""  # result: path of a previous run's result.h5
+    input_field: str = "omega"  # result: name of its 1-form field
+    harmonic_dimension: bool = True  # compute dim ker Δ1 (a few extra solves)
+    boundary: str = ""  # conf/app/hodge.yaml: ${operator.boundary}; only `none` is accepted
+    figure_arrows: int = 500
+
+    def __post_init__(self):
+        if self.input not in FIELDS:
+            raise ConfigError(f"app.input: must be one of {list(FIELDS)}, got {self.input!r}")
+        if self.analytic not in ANALYTIC:
+            raise ConfigError(f"app.analytic: must be one of {list(ANALYTIC)}, got {self.analytic!r}")
+        if len(self.vector) != 3:
+            raise ConfigError(f"app.vector: must be three numbers, got {list(self.vector)}")
+        if self.quadrature_order < 1:
+            raise ConfigError(f"app.quadrature_order: must be >= 1, got {self.quadrature_order}")
+        if self.input == "result" and not self.input_path:
+            raise ConfigError("app.input_path: input=result needs the path of a previous run's result.h5")
+
+
+def analytic_field(name: str, a) -> callable:
+    """The vector field X: (N, 3) → (N, 3) called ``name`` (module docstring)."""
+    a = np.asarray(a, dtype=np.float64)
+
+    def gradient(x):
+        return np.broadcast_to(a, x.shape).copy()
+
+    def rotated_gradient(x):
+        return np.cross(x / np.linalg.norm(x, axis=1, keepdims=True), a)
+
+    def rotation(x):
+        return np.cross(a, x)
+
+    def toroidal(x):
+        r2 = x[:, 0] ** 2 + x[:, 1] ** 2
+        return np.stack([-x[:, 1] / r2, x[:, 0] / r2, np.zeros(len(x))], axis=1)
+
+    def mixed(x):
+        return gradient(x) + rotated_gradient(x) + toroidal(x)
+
+    return {"gradient": gradient, "rotated_gradient": rotated_gradient, "rotation": rotation,
+            "toroidal": toroidal, "mixed": mixed}[name]
+
+
+def input_form(K, cfg) -> np.ndarray:
+    """The 1-form to decompose, (n1,), as configured (``app.input``)."""
+    if cfg.input == "analytic":
+        X = analytic_field(cfg.analytic, cfg.vector)
+        if K.embedding_dim == 2:  # planar meshes: evaluate in the z = 0 plane
+            return sample_vector_field(K, lambda p: X(_embed3(p))[:, :2], order=int(cfg.quadrature_order))
+        return sample_vector_field(K, X, order=int(cfg.quadrature_order))
+    if cfg.input == "random":
+        x = K.vertices[K.simplices(1)]
+        length = np.linalg.norm(x[:, 1] - x[:, 0], axis=1)
+        return np.random.default_rng(int(cfg.seed)).standard_normal(length.size) * length
+    return _form_from_result(K, cfg)
+
+
+def _form_from_result(K, cfg) -> np.ndarray:
+    from pathlib import Path
+
+    from decrun.results import read_mesh, read_result
+
+    path = Path(cfg.input_path)
+    if not path.is_file():
+        raise ConfigError(f"app.input_path: no result file at {str(path)!r}")
+    result = read_result(path)
+    if cfg.input_field not in result.fields:
+        raise ConfigError(f"app.input_field: {path} has no field {cfg.input_field!r}; it has {sorted(result.fields)}")
+    omega = np.asarray(result.fields[cfg.input_field], dtype=np.float64)
+    if omega.shape != (K.num_simplices(1),):
+        raise ConfigError(f"app.input_field: {cfg.input_field!r} in {path} has shape {omega.shape}, "
+                          f"but this mesh has {K.num_simplices(1)} edges (use the same mesh config as that run)")
+    vertices, _ = read_mesh(path)
+    if vertices.shape != K.vertices.shape or not np.allclose(vertices, K.vertices):
+        raise ConfigError(f"app.input_path: the mesh stored in {path} differs from this run's mesh "
+                          "(use the same mesh config as that run)")
+    return omega
+
+
+def orthogonality_metrics(dec, omega: np.ndarray, parts: dict[str, np.ndarray]) -> dict:
+    """Theorem 5 checks. For each pair of parts |⟨a, b⟩_⋆1| / ‖ω‖²_⋆1, the energy fraction
+    ‖part‖² / ‖ω‖² of each part and the relative reconstruction error."""
+    total = dec.inner(1, omega, omega)
+    out = {}
+    names = list(parts)
+    worst = 0.0
+    for i, p in enumerate(names):
+        for q in names[i + 1:]:
+            value = abs(dec.inner(1, parts[p], parts[q])) / total if total > 0 else 0.0
+            out[f"orthogonality_{p}_{q}"] = float(value)
+            worst = max(worst, float(value))
+    out["orthogonality_max"] = worst
+    for p in names:
+        out[f"energy_fraction_{p}"] = float(dec.inner(1, parts[p], parts[p]) / total) if total > 0 else 0.0
+    rest = omega - sum(parts.values())
+    out["reconstruction_error_relative"] = float(np.sqrt(abs(dec.inner(1, rest, rest)) / total)) if total > 0 else 0.0
+    return out
+
+
+def run(complex, dec, solver, cfg, progress=None) -> Result:
+    """Decompose the configured 1-form; see the module docstring.
+
+    Fields: ``omega``, ``exact``, ``coexact``, ``harmonic`` (n1,) and their Whitney vectors
+    at barycenters ``*_vectors`` (n2, 3); ``alpha`` (n0,), ``beta`` (n2,) the potentials.
+
+    Metrics: ``orthogonality_exact_coexact`` / ``_exact_harmonic`` / ``_coexact_harmonic``
+    (|⟨a,b⟩_⋆1|/‖ω‖²) and ``orthogonality_max``; ``reconstruction_error_relative``;
+    ``energy_fraction_{exact,coexact,harmonic}``; ``harmonic_curl_relative`` ‖dγ‖_⋆2/‖dω‖_⋆2
+    and ``harmonic_codifferential_relative`` ‖δγ‖_⋆0/‖δω‖_⋆0 (γ is harmonic: both ≈ 0);
+    ``harmonic_dimension`` (dim ker Δ1, numerically), ``betti_1``,
+    ``harmonic_dimension_matches_betti``; ``solve_seconds``.
+    """
+    from decrun.apps.vector_field import as_config, boundary_mode, fresh_solver
+
+    K = complex
+    cfg = as_config(cfg, Config)
+    if K.dim != 2:
+        raise TopologyError(f"hodge needs a triangle mesh (dimension 2), got dimension {K.dim}")
+    mode = boundary_mode(dec, cfg.boundary)
+    if mode != "none":
+        raise ConfigError(
+            f"operator.boundary={mode}: the Hodge decomposition (Theorem 5) needs d and δ adjoint, which the "
+            "§6.4.4 flux adaptation breaks; use operator.boundary=none (its adjointness defect is reported by "
+            "app=vector_field as `adjointness_defect`)"
+        )
+    omega = input_form(K, cfg)
+    start = time.perf_counter()
+    harmonic_solver = fresh_solver(solver)  # unfactorized copies, taken before any use
+    decomposer = HodgeDecomposer(dec, 1, fresh_solver(solver))
+    parts = decomposer.decompose(omega)
+    seconds = time.perf_counter() - start
+    named = {"exact": parts.exact, "coexact": parts.coexact, "harmonic": parts.harmonic}
+    metrics = orthogonality_metrics(dec, omega, named)
+    d1, delta = dec.d(1), dec.codifferential(1)
+
+    def relative(op, k, part):
+        ref = np.sqrt(abs(dec.inner(k, op @ omega, op @ omega)))
+        val = np.sqrt(abs(dec.inner(k, op @ part, op @ part)))
+        return float(val / ref) if ref > 0 else float(val)
+
+    metrics["harmonic_curl_relative"] = relative(d1, 2, parts.harmonic)
+    metrics["harmonic_codifferential_relative"] = relative(delta, 0, parts.harmonic)
+    betti_1 = int(K.betti_numbers()[1])
+    metrics["betti_1"] = betti_1
+    if cfg.harmonic_dimension:
+        start = time.perf_counter()
+        h = harmonic_basis(dec, 1, harmonic_solver).shape[1]
+        seconds += time.perf_counter() - start
+        metrics["harmonic_dimension"] = int(h)
+        metrics["harmonic_dimension_matches_betti"] = bool(h == betti_1)
+    metrics["solve_seconds"] = seconds
+    metrics["input"] = str(cfg.input if cfg.input != "analytic" else cfg.analytic)
+    fields = {"omega": omega, **named}
+    for name, form in (("omega", omega), *named.items()):
+        fields[f"{name}_vectors"] = _embed3(whitney_sharp(K, form))
+    if parts.alpha is not None:
+        fields["alpha"] = parts.alpha
+    if parts.beta is not None:
+        fields["beta"] = parts.beta
+    figures = {"hodge_parts": parts_figure(K, fields, metrics, max_arrows=int(cfg.figure_arrows))}
+    return Result(fields=fields, metrics=metrics, figures=figures)
+
+
+def parts_figure(K, fields: dict, metrics: dict, *, max_arrows: int = 500):
+    """The input and its three Hodge parts side by side (arrows = direction, grey = |u|)."""
+    from decrun.apps.vector_field import draw_field
+    from decrun.plots import new_figure
+
+    planar = K.vertices.shape[1] == 2 or np.ptp(K.vertices[:, 2]) == 0
+    names = ("omega", "exact", "coexact", "harmonic")
+    fig = new_figure(4.0 * len(names), 4.4)
+    for i, name in enumerate(names):
+        ax = fig.add_subplot(1, len(names), i + 1, **({} if planar else {"projection": "3d", "computed_zorder": False}))
+        share = "" if name == "omega" else f", {100 * metrics.get(f'energy_fraction_{name}', 0):.1f}% energy"
+        draw_field(ax, K, fields[f"{name}_vectors"], None, max_arrows=max_arrows, title=f"{name}{share}")
+    return fig

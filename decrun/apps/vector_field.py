@@ -1,0 +1,437 @@
+"""``app=vector_field``: design a tangential vector field from a few constraints (§6.4).
+
+Sources/sinks (divergence at vertices), vortices (curl on faces) and strokes (directions
+on the faces a polyline crosses) become the least-squares problem eq. 6.5–6.6 with
+L = diag(⋆2, ⋆0, W), solved for a 1-form (see :mod:`decrun.vector_design` for the
+mathematics and the sign conventions, :mod:`decrun.singularities` for the indices).
+
+``operator.boundary``:
+
+* ``none`` — the unadapted δ_1: border dual cells are open, so δ w = 0 forbids flow
+  through the border and the field comes out **tangential to the border**; d and δ stay
+  adjoint (Hodge decomposition valid; metric ``adjointness_defect`` ≈ 1e-17).
+* ``flux`` — the §6.4.4 adaptation (eq. 6.10 and the two matrices after it): the flux
+  through border edges is estimated assuming zero curl on border triangles and added to
+  the border vertices' divergence, so the field may **cross the border**. The price: δ is
+  no longer the adjoint of d (``adjointness_defect`` > 0) and the Hodge decomposition
+  fails with these matrices — as the thesis warns.
+
+On closed meshes both modes are identical.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field
+from typing import List, Optional
+
+import numpy as np
+
+from decrun.errors import ConfigError, TopologyError
+from decrun.forms import whitney_sharp
+from decrun.results import Result
+from decrun.singularities import Singularities, find_singularities
+from decrun.vector_design import (
+    BOUNDARY_MODES,
+    MAGNITUDE_MODES,
+    DesignConstraints,
+    _embed3,
+    adjointness_defect,
+    border_normal_flux,
+    codifferential_1,
+    design_residuals,
+    divergence_target,
+    face_normals,
+    nearest_faces,
+    nearest_vertices,
+    smoothness_energy,
+    solve_design,
+    stroke_edge_targets,
+    stroke_face_directions,
+)
+
+try:  # let the runner's operator check accept `flux` (it validates operator.boundary)
+    from decrun.config import BOUNDARY_ADAPTATIONS
+
+    BOUNDARY_ADAPTATIONS.add("flux")
+except ImportError:  # pragma: no cover - config module absent
+    pass
+
+
+@dataclass
+class Source:
+    """A source (divergence > 0) or sink (< 0): ``point`` (snapped to the nearest vertex) or
+    ``vertex`` id. ``divergence`` is the net outflow through the vertex's dual cell."""
+
+    point: Optional[List[float]] = None
+    vertex: Optional[int] = None
+    divergence: float = 1.0
+
+
+@dataclass
+class Vortex:
+    """A vortex: ``point`` (nearest face) or ``face`` id. ``curl`` is the circulation around
+    the face (> 0: counter-clockwise about the outward normal)."""
+
+    point: Optional[List[float]] = None
+    face: Optional[int] = None
+    curl: float = 1.0
+
+
+@dataclass
+class Stroke:
+    """A painted stroke: polyline ``points`` (projected to the surface), optionally ``closed``."""
+
+    points: List[List[float]] = field(default_factory=list)
+    closed: bool = False
+
+
+@dataclass
+class Config:
+    """Schema of ``cfg.app`` for vector field design (conf/app/vector_field.yaml)."""
+
+    name: str = "vector_field"
+    sources: List[Source] = field(default_factory=list)
+    vortices: List[Vortex] = field(default_factory=list)
+    strokes: List[Stroke] = field(default_factory=list)
+    #: fixed: |v| = stroke_length (eq. 6.8) | precomputed: |v| = |ν_pre| of a solve without strokes (eq. 6.9)
+    stroke_magnitude: str = "precomputed"
+    stroke_length: float = 1.0  # λ of eq. 6.8 (field units)
+    #: κ of the stroke penalty κ ∫_stroke |u − v|² ds (units 1/length); the diagonal of W is
+    #: κ / h̄ (h̄ the mean edge length), so the strokes pull equally hard on coarse and fine meshes
+    stroke_weight: float = 100.0
+    #: faces whose unit normal n satisfies n·region_normal ≥ region_min_cos form the
+    #: "region" of the metric field_change_region_relative (empty list: no region)
+    region_normal: List[float] = field(default_factory=list)
+    region_min_cos: float = 0.9
+    #: none | flux (§6.4.4); conf/app/vector_field.yaml sets it to ${operator.boundary}
+    #: (empty: read dec.boundary if the caller set one, else none)
+    boundary: str = ""
+    figure_arrows: int = 700  # at most this many arrows in the figure
+
+    def __post_init__(self):
+        if self.stroke_magnitude not in MAGNITUDE_MODES:
+            raise ConfigError(f"app.stroke_magnitude: must be one of {list(MAGNITUDE_MODES)}, got {self.stroke_magnitude!r}")
+        if not self.stroke_weight > 0:
+            raise ConfigError(f"app.stroke_weight: the weight W must be > 0, got {self.stroke_weight}")
+        if not self.stroke_length > 0:
+            raise ConfigError(f"app.stroke_length: λ must be > 0, got {self.stroke_length}")
+        if self.boundary and self.boundary not in BOUNDARY_MODES:
+            raise ConfigError(f"app.boundary: must be one of {list(BOUNDARY_MODES)} (or empty), got {self.boundary!r}")
+        for i, s in enumerate(self.sources):
+            if (s.point is None) == (s.vertex is None):
+                raise ConfigError(f"app.sources[{i}]: give exactly one of `point` or `vertex`")
+        for i, v in enumerate(self.vortices):
+            if (v.point is None) == (v.face is None):
+                raise ConfigError(f"app.vortices[{i}]: give exactly one of `point` or `face`")
+        for i, s in enumerate(self.strokes):
+            if len(s.points) < 2:
+                raise ConfigError(f"app.strokes[{i}].points: a stroke needs at least two points, got {len(s.points)}")
+        if self.region_normal and len(self.region_normal) != 3:
+            raise ConfigError(f"app.region_normal: must be empty or three numbers, got {list(self.region_normal)}")
+
+
+# ----------------------------------------------------------------------------------
+# configuration helpers
+# ----------------------------------------------------------------------------------
+
+
+def boundary_mode(dec, app_value: str = "") -> str:
+    """The boundary adaptation to use: ``app.boundary`` (``app_value``) if set, else
+    ``operator.boundary`` as handed over by the runner (``dec.boundary`` or
+    ``dec.operator.boundary``), else ``none``. Raises ConfigError naming the key."""
+    value, key = app_value or "", "app.boundary"
+    if not value:
+        key = "operator.boundary"
+        operator = getattr(dec, "operator", None)
+        value = getattr(dec, "boundary", None) or (getattr(operator, "boundary", None) if operator is not None else None)
+        value = value or "none"
+    if value not in BOUNDARY_MODES:
+        raise ConfigError(f"{key}: the vector_field app supports {list(BOUNDARY_MODES)}, got {value!r}")
+    return str(value)
+
+
+def as_config(cfg, schema):
+    """The app config as a ``schema`` dataclass instance (runs its checks): the runner hands
+    over an OmegaConf node, tests may pass the dataclass itself."""
+    if isinstance(cfg, schema):
+        return cfg
+    from omegaconf import DictConfig, OmegaConf
+
+    if isinstance(cfg, DictConfig):
+        plain = OmegaConf.to_container(cfg, resolve=True)  # interpolations need the parent config
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), plain))
+    return schema(**dict(cfg))
+
+
+def fresh_solver(solver):
+    """An unfactorized copy of the runner's solver (several systems are solved here)."""
+    return solver() if callable(solver) and not hasattr(solver, "factorize") else copy.deepcopy(solver)
+
+
+def _as_list(value) -> list:
+    return [] if value is None else list(value)
+
+
+def _vertex_ids(K, items, key: str) -> tuple[np.ndarray, np.ndarray]:
+    ids, values = [], []
+    for i, item in enumerate(items):
+        if getattr(item, "vertex", None) is not None:
+            v = int(item.vertex)
+            if not 0 <= v < K.num_simplices(0):
+                raise ConfigError(f"app.{key}[{i}].vertex: {v} is not a vertex id of this mesh (0..{K.num_simplices(0) - 1})")
+        else:
+            v = int(nearest_vertices(K, [list(item.point)])[0])
+        ids.append(v)
+        values.append(float(item.divergence))
+    return np.asarray(ids, dtype=np.int64), np.asarray(values)
+
+
+def _face_ids(K, items, key: str) -> tuple[np.ndarray, np.ndarray]:
+    ids, values = [], []
+    for i, item in enumerate(items):
+        if getattr(item, "face", None) is not None:
+            t = int(item.face)
+            if not 0 <= t < K.num_simplices(2):
+                raise ConfigError(f"app.{key}[{i}].face: {t} is not a face id of this mesh (0..{K.num_simplices(2) - 1})")
+        else:
+            t = int(nearest_faces(K, [list(item.point)])[0][0])
+        ids.append(t)
+        values.append(float(item.curl))
+    return np.asarray(ids, dtype=np.int64), np.asarray(values)
+
+
+def build_constraints(K, dec, cfg) -> tuple[DesignConstraints, dict]:
+    """Curl and divergence targets of eq. 6.5 from ``cfg.sources`` / ``cfg.vortices`` and the
+    stroke geometry (faces, unit directions) from ``cfg.strokes``."""
+    constraints = DesignConstraints.empty(K)
+    src_ids, src_values = _vertex_ids(K, _as_list(cfg.sources), "sources")
+    if src_ids.size:
+        constraints.codifferential = divergence_target(dec, src_ids, src_values)
+    vort_ids, vort_values = _face_ids(K, _as_list(cfg.vortices), "vortices")
+    if vort_ids.size:
+        np.add.at(constraints.curl, vort_ids, vort_values)  # r_t: circulation = ∫_t curl
+    stroke_faces, stroke_dirs = [], []
+    for i, stroke in enumerate(_as_list(cfg.strokes)):
+        faces, dirs = stroke_face_directions(K, np.asarray(stroke.points, dtype=np.float64), closed=bool(stroke.closed))
+        stroke_faces.append(faces)
+        stroke_dirs.append(dirs)
+    geometry = {
+        "source_vertices": src_ids,
+        "vortex_faces": vort_ids,
+        "stroke_faces": np.concatenate(stroke_faces) if stroke_faces else np.zeros(0, dtype=np.int64),
+        "stroke_directions": np.concatenate(stroke_dirs) if stroke_dirs else np.zeros((0, 3)),
+    }
+    return constraints, geometry
+
+
+# ----------------------------------------------------------------------------------
+# the application
+# ----------------------------------------------------------------------------------
+
+
+def run(complex, dec, solver, cfg, progress=None) -> Result:
+    """Design the field; see the module docstring.
+
+    Fields: ``omega`` (n1,) the 1-form; ``face_vectors`` (n2, 3) Whitney ♯ (eq. 6.7) at the
+    barycenters; ``vertex_index`` (n0,) and ``face_index`` (n2,) singularity indices;
+    ``singular_vertices`` / ``singular_faces`` (ids); ``stroke_faces`` (ids) and
+    ``stroke_vectors`` (their target vectors v_t); ``omega_without_strokes`` (when strokes
+    are given).
+
+    Metrics: ``curl_residual``, ``divergence_residual``, ``direction_residual`` (⋆2, ⋆0 and
+    W norms; each also ``*_relative`` to its target), ``smoothness_energy``
+    (⟨dω,dω⟩ + ⟨δω,δω⟩), ``index_sum``, ``euler_characteristic``, ``poincare_hopf_holds``
+    (closed meshes), ``singularities`` (count) with ``singularities_positive`` /
+    ``_negative``, ``boundary_normal_flux_mean`` and ``boundary_normal_fraction``,
+    ``adjointness_defect``, ``field_change_relative`` / ``field_change_region_relative``
+    (strokes: change of the face vectors caused by the strokes, area-weighted L2, whole
+    mesh / region), ``normal_equation_residual``, ``solve_seconds``.
+    """
+    K = complex
+    cfg = as_config(cfg, Config)
+    if K.dim != 2:
+        raise TopologyError(f"vector_field needs a triangle mesh (dimension 2), got dimension {K.dim}")
+    mode = boundary_mode(dec, cfg.boundary)
+    delta = codifferential_1(dec, mode)
+    constraints, geometry = build_constraints(K, dec, cfg)
+
+    seconds = 0.0
+    start = time.perf_counter()
+    pre = solve_design(dec, fresh_solver(solver), constraints, delta)
+    seconds += time.perf_counter() - start
+    solution = pre
+    stroke_vectors = np.zeros((0, 3))
+    if geometry["stroke_faces"].size:
+        faces = geometry["stroke_faces"]
+        if cfg.stroke_magnitude == "fixed":  # eq. 6.8: |v| = λ
+            magnitude = np.full(faces.size, float(cfg.stroke_length))
+        else:  # eq. 6.9: |v| = |ν_pre|
+            magnitude = np.linalg.norm(whitney_sharp(K, pre.omega, faces=faces), axis=1)
+        stroke_vectors = geometry["stroke_directions"] * magnitude[:, None]
+        edges, targets = stroke_edge_targets(K, faces, stroke_vectors)
+        edge_points = _embed3(K.vertices)[K.simplices(1)]
+        mean_edge = float(np.linalg.norm(edge_points[:, 1] - edge_points[:, 0], axis=1).mean())
+        constraints = constraints.with_strokes(edges, targets, np.full(edges.size, float(cfg.stroke_weight) / mean_edge))
+        start = time.perf_counter()
+        solution = solve_design(dec, fresh_solver(solver), constraints, delta)
+        seconds += time.perf_counter() - start
+    omega = solution.omega
+
+    face_vectors = _embed3(whitney_sharp(K, omega))
+    singular = find_singularities(K, omega)
+    chi = int(K.euler_characteristic)
+    closed = K.boundary_faces()[0].size == 0
+    metrics = design_residuals(dec, delta, constraints, omega)
+    metrics.update(
+        smoothness_energy=smoothness_energy(dec, delta, omega),
+        index_sum=int(singular.index_sum),
+        euler_characteristic=chi,
+        poincare_hopf_holds=bool(closed and singular.index_sum == chi),
+        closed=bool(closed),
+        singularities=singular.count,
+        singularities_positive=int((singular.vertex_index > 0).sum() + (singular.face_index > 0).sum()),
+        singularities_negative=int((singular.vertex_index < 0).sum() + (singular.face_index < 0).sum()),
+        index_max_rounding=singular.max_rounding,
+        adjointness_defect=adjointness_defect(dec, delta),
+        boundary=mode,
+        sources=int(geometry["source_vertices"].size),
+        vortices=int(geometry["vortex_faces"].size),
+        stroke_faces=int(geometry["stroke_faces"].size),
+        stroke_edges=int(constraints.stroke_edges.size),
+        normal_equation_residual=solution.normal_equation_residual,
+        refinement_steps=solution.refinement_steps,
+        solve_seconds=seconds,
+    )
+    metrics.update(border_normal_flux(K, omega))
+    fields = {
+        "omega": omega,
+        "face_vectors": face_vectors,
+        "vertex_index": singular.vertex_index,
+        "face_index": singular.face_index,
+        "singular_vertices": singular.vertices,
+        "singular_faces": singular.faces,
+        "source_vertices": geometry["source_vertices"],
+        "vortex_faces": geometry["vortex_faces"],
+        "stroke_faces": geometry["stroke_faces"],
+        "stroke_vectors": stroke_vectors,
+    }
+    if geometry["stroke_faces"].size:
+        before = _embed3(whitney_sharp(K, pre.omega))
+        area = dec.primal_volumes(2)
+        metrics["field_change_relative"] = _relative_change(before, face_vectors, area, np.ones(area.size, bool))
+        fields["omega_without_strokes"] = pre.omega
+        if cfg.region_normal:
+            n = np.asarray(cfg.region_normal, dtype=np.float64)
+            region = face_normals(K) @ (n / np.linalg.norm(n)) >= float(cfg.region_min_cos)
+            metrics["field_change_region_relative"] = _relative_change(before, face_vectors, area, region)
+            metrics["region_faces"] = int(region.sum())
+            fields["region_faces"] = np.flatnonzero(region)
+    title = f"{mode} border" if not closed else "closed surface"
+    figures = {"field": field_figure(K, face_vectors, singular, geometry, title=f"designed field ({title})",
+                                     max_arrows=int(cfg.figure_arrows))}
+    return Result(fields=fields, metrics=metrics, figures=figures)
+
+
+def _relative_change(before: np.ndarray, after: np.ndarray, area: np.ndarray, region: np.ndarray) -> float:
+    """Area-weighted ‖after − before‖ / ‖before‖ over the faces in ``region`` (NaN if empty)."""
+    if not region.any():
+        return float("nan")
+    a = area[region, None]
+    diff = np.sqrt((a * (after[region] - before[region]) ** 2).sum())
+    ref = np.sqrt((a * before[region] ** 2).sum())
+    return float(diff / ref) if ref > 0 else float("inf") if diff > 0 else 0.0
+
+
+# ----------------------------------------------------------------------------------
+# figure
+# ----------------------------------------------------------------------------------
+
+_VIEW = (25.0, -60.0)  # matplotlib elevation, azimuth (degrees)
+
+
+def _view_direction(elev: float, azim: float) -> np.ndarray:
+    e, a = np.radians(elev), np.radians(azim)
+    return np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+
+
+def draw_field(ax, K, face_vectors: np.ndarray, singular: Singularities | None = None, *, max_arrows: int = 700,
+               colour_by_magnitude: bool = True, title: str | None = None, seed: int = 0, view=_VIEW):
+    """Draw the mesh coloured by |u| with arrows (unit direction, fixed length) at face
+    barycenters, at most ``max_arrows`` of them (a seeded subset; on 3-D meshes only faces
+    turned towards the viewer), and the singularities: index +1 red, −1 blue, others
+    black (vertex singularities as circles, face singularities as squares)."""
+    from decrun.plots import plot_surface
+
+    faces = K.oriented_simplices()
+    x = _embed3(K.vertices)
+    planar = K.vertices.shape[1] == 2 or np.ptp(x[:, 2]) < 1e-12 * max(np.ptp(x), 1e-300)
+    magnitude = np.linalg.norm(face_vectors, axis=1)
+    mappable = plot_surface(ax, K.vertices if planar else x, faces, magnitude if colour_by_magnitude else None,
+                            cmap="Greys", vmin=0.0, vmax=2.0 * float(np.percentile(magnitude, 95)) or 1.0, linewidth=0.05,
+                            title=title)
+    barycenters = x[faces].mean(axis=1)
+    candidates = np.flatnonzero(magnitude > 0)
+    if not planar:
+        direction_to_viewer = _view_direction(*view)
+        ax.view_init(*view)
+        candidates = candidates[face_normals(K)[candidates] @ direction_to_viewer > 0.05]
+    if candidates.size > max_arrows:
+        candidates = np.sort(np.random.default_rng(seed).choice(candidates, max_arrows, replace=False))
+    edge = x[K.simplices(1)]
+    length = 0.9 * float(np.linalg.norm(edge[:, 1] - edge[:, 0], axis=1).mean())
+    direction = face_vectors[candidates] / magnitude[candidates, None] * length
+    start = barycenters[candidates] - 0.5 * direction
+    if planar:
+        ax.quiver(start[:, 0], start[:, 1], direction[:, 0], direction[:, 1], angles="xy", scale_units="xy",
+                  scale=1.0, color="tab:orange", width=0.003, headwidth=4)
+    else:
+        lift = 0.02 * length * face_normals(K)[candidates]
+        ax.quiver(*(start + lift).T, *direction.T, color="tab:orange", linewidth=0.6, arrow_length_ratio=0.35,
+                  zorder=4)
+    if singular is not None and singular.count:
+        points, index = singular.positions(K)
+        if not planar:  # only the singularities on the visible side
+            visible = (points - x.mean(axis=0)) @ _view_direction(*view) > 0
+            points, index = points[visible], index[visible]
+            is_face_all = np.concatenate([np.zeros(singular.vertices.size, bool), np.ones(singular.faces.size, bool)])
+            kind_visible = is_face_all[visible]
+        kind = kind_visible if not planar else np.concatenate(
+            [np.zeros(singular.vertices.size, bool), np.ones(singular.faces.size, bool)])
+        colour = np.where(index > 0, "red", np.where(index < 0, "blue", "black"))
+        for is_face, marker in ((False, "o"), (True, "s")):
+            sel = kind == is_face
+            if sel.any():
+                if planar:
+                    ax.scatter(points[sel, 0], points[sel, 1], c=colour[sel], marker=marker, s=28, zorder=5)
+                else:
+                    ax.scatter(*points[sel].T, c=colour[sel], marker=marker, s=28, depthshade=False, zorder=5)
+    return mappable
+
+
+def field_figure(K, face_vectors, singular, geometry=None, *, title="designed field", max_arrows=700):
+    """The designed field with its singularities and the stroke faces (green dots): one
+    panel for planar meshes, two opposite views for surfaces in 3-D."""
+    from decrun.plots import new_figure
+
+    planar = K.vertices.shape[1] == 2 or np.ptp(K.vertices[:, 2]) == 0
+    views = [None] if planar else [_VIEW, (-_VIEW[0], _VIEW[1] + 180.0)]
+    fig = new_figure(6.0 * len(views), 6.0)
+    mappable = None
+    for i, view in enumerate(views):
+        ax = fig.add_subplot(1, len(views), i + 1, **({} if planar else {"projection": "3d", "computed_zorder": False}))
+        label = title if i == 0 else "opposite side"
+        mappable = draw_field(ax, K, face_vectors, singular, max_arrows=max_arrows, title=label,
+                              **({} if planar else {"view": view}))
+        if geometry is not None and geometry["stroke_faces"].size:
+            x = _embed3(K.vertices)
+            centre = x[K.simplices(2)[geometry["stroke_faces"]]].mean(axis=1)
+            if planar:
+                ax.plot(centre[:, 0], centre[:, 1], ".", color="tab:green", ms=3)
+            else:
+                centre = centre[(centre - x.mean(axis=0)) @ _view_direction(*view) > 0]
+                ax.plot(*centre.T, ".", color="tab:green", ms=3)
+    if mappable is not None:
+        fig.colorbar(mappable, ax=fig.axes, shrink=0.6, label="|u| (Whitney ♯ at barycenters)")
+    return fig

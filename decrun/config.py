@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from types import ModuleType
@@ -212,6 +213,9 @@ def discover_apps() -> dict[str, ModuleType]:
     """Import every ``decrun.apps.<name>`` module that defines ``Config`` and ``run``.
 
     Returns ``{name: module}``. A module without both is skipped (helpers, packages).
+    A module that fails to import is left out (with a warning) and recorded in
+    :data:`BROKEN_APPS`, so one broken application does not break the others;
+    :func:`get_app` reports its error when it is asked for.
     """
     import decrun.apps as apps_package
 
@@ -219,15 +223,28 @@ def discover_apps() -> dict[str, ModuleType]:
     for info in pkgutil.iter_modules(apps_package.__path__):
         if info.name.startswith("_"):
             continue
-        module = importlib.import_module(f"decrun.apps.{info.name}")
+        try:
+            module = importlib.import_module(f"decrun.apps.{info.name}")
+        except Exception as exc:
+            if info.name not in BROKEN_APPS:
+                warnings.warn(f"decrun.apps.{info.name} cannot be imported and is skipped: {type(exc).__name__}: {exc}",
+                              RuntimeWarning, stacklevel=2)
+            BROKEN_APPS[info.name] = f"{type(exc).__name__}: {exc}"
+            continue
         if hasattr(module, "Config") and callable(getattr(module, "run", None)):
             found[info.name] = module
     return found
 
 
+#: application modules that failed to import: name → error message
+BROKEN_APPS: dict[str, str] = {}
+
+
 def get_app(name: str) -> ModuleType:
     """The application module called ``name`` (``cfg.app.name``)."""
     apps = discover_apps()
+    if name in BROKEN_APPS and name not in apps:
+        raise ConfigError(f"app.name: application {name!r} cannot be imported: {BROKEN_APPS[name]}")
     try:
         return apps[name]
     except KeyError:

@@ -30,15 +30,19 @@ is rescaled after every step (the thesis' note) about the ⋆0-weighted centroid
 the flow itself leaves fixed: ``rescale: volume`` keeps the enclosed volume (closed
 surfaces only), ``area`` the surface area, ``none`` nothing.
 
-Blow-up: a step *diverges* when a coordinate is NaN/inf or when the distortion
+Blow-up: a step *diverges* when a coordinate is NaN/inf or when the roughness
 
-    ρ(v) = E(v) / (2 A(v)),   E(v) = Σ_xyz vᵀ S v  (Dirichlet energy w.r.t. the input mesh)
+    R(v) = Σ_xyz (v-c)ᵀ S (v-c) / Σ_xyz (v-c)ᵀ M (v-c)      (c: ⋆0-weighted centroid)
 
-exceeds ``blowup_factor``. Per triangle |∇v|² = σ1² + σ2² ≥ 2 σ1σ2, so ρ ≥ 1 for every
-position array and ρ = 1 exactly for the input (with the cot weights of ⋆1); it is
-scale-free (rescaling does not change it) and grows when the mesh zigzags (the explicit
-instability), folds, or collapses towards a curve. The run then stops and records
-``stable: false`` and ``diverged_at_step``.
+— the Rayleigh quotient of L, the ⋆0-weighted mean eigenvalue of the shape's spectrum,
+units 1/length², unchanged by rescaling — exceeds ``blowup_factor`` times its initial
+value. A stable step damps high eigenvalues more than low ones, so R does not grow;
+the explicit instability pumps the top eigenvector (R → λ_max). The run then stops and
+records ``stable: false`` and ``diverged_at_step``.
+
+Shape quality: the distortion ρ(v) = E(v) / (2 A(v)) with E(v) = Σ_xyz vᵀ S v (Dirichlet
+energy w.r.t. the input mesh). Per triangle |∇v|² = σ1² + σ2² ≥ 2 σ1σ2, so ρ ≥ 1 always
+and ρ = 1 exactly for the input; it grows when the mesh folds, crumples or flattens.
 
 Note: with the operator fixed on the input mesh, a *long* implicit run (dt·steps ≫ 1/λ₁)
 drifts towards the lowest eigenvector of L and degenerates (flattens) even though each
@@ -70,7 +74,7 @@ class Config:
     dt: float = 0.005  # time step (model units squared: L has units 1/length²)
     steps: int = 10
     rescale: str = "volume"  # volume | area | none, applied after every step
-    blowup_factor: float = 10.0  # divergence threshold on the distortion ρ (1 for the input)
+    blowup_factor: float = 10.0  # a step diverges when the roughness R exceeds this × R_0
     critical_dt: bool = True  # compute the explicit stability limit 2/λ_max (one eigsh)
 
     def __post_init__(self):
@@ -132,11 +136,12 @@ def run(complex, dec, solver, cfg, progress) -> Result:
 
     Metrics: ``area_ratio`` (final/initial area), ``volume_drift_rel`` (|V_end - V_0|/|V_0|,
     NaN for open or planar meshes), ``stable``, ``diverged_at_step`` (-1 when stable),
-    ``steps_done``, ``distortion_initial`` / ``distortion_final`` (ρ, 1 for the input), ``dt_critical_explicit`` and
+    ``steps_done``, ``roughness_ratio`` (R_end / R_0), ``distortion_final`` (ρ, 1 for the input), ``dt_critical_explicit`` and
     ``dt_over_critical``, ``distance_to_clean_rms`` and ``distance_to_clean_rms_initial``
     (RMS vertex distance to the noise-free mesh / its bounding-box diagonal, only with
     noise), ``negative_star1_fraction``, ``setup_seconds``, ``solve_seconds``.
-    Series (steps_done + 1 entries, initial state first): ``area``, ``volume``, ``distortion``.
+    Series (steps_done + 1 entries, initial state first): ``area``, ``volume``, ``roughness``,
+    ``distortion``.
     Fields: ``vertices_initial``, ``vertices_final`` (n0, d), ``faces`` (n2, 3),
     ``displacement`` (n0,).
     """
@@ -161,17 +166,22 @@ def run(complex, dec, solver, cfg, progress) -> Result:
         solver.factorize(sp.diags(M) + dt * S)  # (M + dt S) v_{n+1} = M v_n, once
     dt_crit = explicit_critical_dt(S, M) if cfg.critical_dt else float("nan")
     setup_seconds = time.perf_counter() - t0
+    centroid = (M @ vertices) / M.sum()  # conserved by both schemes: 1ᵀ S = 0
+
+    def roughness(v):
+        w = v - centroid
+        denominator = float(np.einsum("ij,ij->", w, M[:, None] * w))
+        return float(np.einsum("ij,ij->", w, S @ w)) / denominator if denominator > 0 else float("inf")
 
     def distortion(v):
         area = surface_area(v, faces)
         energy = float(np.einsum("ij,ij->", v, S @ v))
         return energy / (2.0 * area) if area > 0 else float("inf")
 
-    centroid = (M @ vertices) / M.sum()  # conserved by both schemes: 1ᵀ S = 0
     area0 = surface_area(vertices, faces)
     volume0 = enclosed_volume(vertices, faces) if has_volume else float("nan")
-    rho0 = distortion(vertices)
-    areas, volumes, distortions = [area0], [volume0], [rho0]
+    rho0, rough0 = distortion(vertices), roughness(vertices)
+    areas, volumes, distortions, roughs = [area0], [volume0], [rho0], [rough0]
     v = vertices.copy()
     diverged_at = -1
     t1 = time.perf_counter()
@@ -185,17 +195,20 @@ def run(complex, dec, solver, cfg, progress) -> Result:
             break
         if rescale == "volume":
             volume = enclosed_volume(v, faces)
-            if volume > 0:
-                v = centroid + np.cbrt(volume0 / volume) * (v - centroid)
+            if not volume > 0:  # flattened or turned inside out: cannot be rescaled
+                diverged_at = step
+                break
+            v = centroid + np.cbrt(volume0 / volume) * (v - centroid)
         elif rescale == "area":
             area = surface_area(v, faces)
             if area > 0:
                 v = centroid + np.sqrt(area0 / area) * (v - centroid)
-        rho = distortion(v)
+        rough = roughness(v)
         areas.append(surface_area(v, faces))
         volumes.append(enclosed_volume(v, faces) if has_volume else float("nan"))
-        distortions.append(rho)
-        if not (np.isfinite(areas[-1]) and rho <= cfg.blowup_factor):
+        distortions.append(distortion(v))
+        roughs.append(rough)
+        if not (np.isfinite(areas[-1]) and rough <= cfg.blowup_factor * rough0):
             diverged_at = step
             break
     solve_seconds = time.perf_counter() - t1
@@ -207,7 +220,7 @@ def run(complex, dec, solver, cfg, progress) -> Result:
         "steps_done": len(areas) - 1,
         "area_ratio": areas[-1] / area0,
         "volume_drift_rel": abs(volumes[-1] - volume0) / abs(volume0) if has_volume else float("nan"),
-        "distortion_initial": rho0,
+        "roughness_ratio": roughs[-1] / rough0,
         "distortion_final": distortions[-1],
         "dt_critical_explicit": dt_crit,
         "dt_over_critical": dt / dt_crit if np.isfinite(dt_crit) and dt_crit > 0 else float("nan"),
@@ -227,7 +240,7 @@ def run(complex, dec, solver, cfg, progress) -> Result:
     metrics["setup_seconds"] = setup_seconds
     metrics["solve_seconds"] = solve_seconds
 
-    series = {"area": np.array(areas), "volume": np.array(volumes), "distortion": np.array(distortions)}
+    series = {"area": np.array(areas), "volume": np.array(volumes), "roughness": np.array(roughs), "distortion": np.array(distortions)}
     fields = {
         "vertices_initial": vertices,
         "vertices_final": v,
@@ -246,7 +259,7 @@ def _figures(before, after, faces, series, cfg, stable, diverged_at):
     figures = {
         "smoothing": plots.before_after(before, shown_after, faces, titles=("input", f"after {state}"),
                                         suptitle=f"mean curvature flow (§1.3): {label}"),
-        "smoothing_series": plots.plot_series(series, ["area", "volume", "distortion"] if np.isfinite(series["volume"][0]) else ["area", "distortion"],
+        "smoothing_series": plots.plot_series(series, ["area", "volume", "roughness"] if np.isfinite(series["volume"][0]) else ["area", "roughness"],
                                               title=label),
     }
     return figures

@@ -112,6 +112,17 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None) -> tuple[R
     return result, mesh, timings
 
 
+def compose_config(overrides: list[str] | None = None) -> DictConfig:
+    """The config ``decrun <overrides>`` would run (same config dir, schemas and
+    defaults; the ``hydra`` node left out). For tests and notebooks."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides or []))
+
+
 def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -> list[Path]:
     """Write ``result.h5`` (atomic), ``metrics.json`` and the figures into ``out``."""
     from decrun.plots import save_figure

@@ -1,0 +1,213 @@
+"""Vector field design (§6.4) and singularity indices (§6.2): exact identities and analytic cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from decrun.complex import SimplicialComplex
+from decrun.config import MeshConfig
+from decrun.dec import DEC
+from decrun.errors import ConfigError
+from decrun.forms import sample_vector_field, whitney_sharp
+from decrun.meshes import load_mesh
+from decrun.singularities import find_singularities
+from decrun.solvers import make_solver
+from decrun import vector_design as vd
+
+
+def complex_of(**options) -> SimplicialComplex:
+    mesh = load_mesh(MeshConfig(**options))
+    return SimplicialComplex(mesh.vertices, mesh.simplices, orient="fix")
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return complex_of(source="icosphere", subdiv=3)
+
+
+@pytest.fixture(scope="module")
+def torus():  # noise breaks the cyclic quads (⋆1 = 0 on their diagonals)
+    return complex_of(source="torus", major_segments=24, minor_segments=12, noise=0.05)
+
+
+@pytest.fixture(scope="module")
+def square():
+    return complex_of(source="planar", outer=[[0, 0], [1, 0], [1, 1], [0, 1]], holes=[], max_area=0.004)
+
+
+def design(K, sources=(), vortices=(), boundary="none"):
+    dec = DEC(K)
+    constraints = vd.DesignConstraints.empty(K)
+    if sources:
+        ids = vd.nearest_vertices(K, [p for p, _ in sources])
+        constraints.codifferential = vd.divergence_target(dec, ids, [q for _, q in sources])
+    for p, c in vortices:
+        constraints.curl[vd.nearest_faces(K, [p])[0][0]] += c
+    delta = vd.codifferential_1(dec, boundary)
+    solution = vd.solve_design(dec, make_solver("direct"), constraints, delta)
+    return dec, delta, constraints, solution
+
+
+def test_consistent_constraints_have_zero_residual_and_poincare_hopf_on_sphere(sphere):
+    """A source and a sink of opposite flux are consistent on a closed surface (total
+    divergence zero): eq. 6.5 is solved exactly; the two singularities have index +1, Σ = χ = 2."""
+    dec, delta, constraints, solution = design(sphere, sources=[([0, 0, 1], 1.0), ([0, 0, -1], -1.0)])
+    residuals = vd.design_residuals(dec, delta, constraints, solution.omega)
+    assert residuals["divergence_residual_relative"] < 1e-10
+    assert residuals["curl_residual"] < 1e-10
+    singular = find_singularities(sphere, solution.omega)
+    assert singular.index_sum == sphere.euler_characteristic == 2
+    src = vd.nearest_vertices(sphere, [[0, 0, 1], [0, 0, -1]])
+    assert set(singular.vertices) == set(src) and singular.faces.size == 0
+    assert np.all(singular.vertex_index[src] == 1)
+    assert singular.max_rounding < 1e-9  # windings are integers (discrete Poincaré–Hopf)
+    # a source makes the field point away from it: Whitney vectors near the north pole point south
+    x = sphere.vertices[sphere.simplices(2)].mean(axis=1)
+    u = whitney_sharp(sphere, solution.omega)
+    near = x[:, 2] > 0.8
+    assert np.all(u[near, 2] < 0)
+
+
+def test_vortex_is_a_face_singularity_with_index_one(sphere):
+    """Curl +c on a face and −c on the antipodal face: consistent, circulation around the
+    faces; the singularities sit inside those faces with index +1 (centers)."""
+    dec, delta, constraints, solution = design(sphere, vortices=[([0, 0, 1], 1.0), ([0, 0, -1], -1.0)])
+    residuals = vd.design_residuals(dec, delta, constraints, solution.omega)
+    assert residuals["curl_residual_relative"] < 1e-10 and residuals["divergence_residual"] < 1e-10
+    singular = find_singularities(sphere, solution.omega)
+    assert singular.index_sum == 2
+    faces = [vd.nearest_faces(sphere, [p])[0][0] for p in ([0, 0, 1], [0, 0, -1])]
+    assert set(singular.faces) == set(faces) and np.all(singular.face_index[faces] == 1)
+    # the circulation around the top face is counter-clockwise about the outward normal
+    assert np.isclose((dec.d(1) @ solution.omega)[faces[0]], 1.0)
+
+
+def test_poincare_hopf_on_torus_source_sink_forces_saddles(torus):
+    """χ(torus) = 0: a source and a sink (+1 each) need saddles (−1) to sum to zero.
+    The torus has harmonic 1-forms the constraints cannot see; the solve returns the
+    minimizer without them (and the residuals still vanish)."""
+    dec, delta, constraints, solution = design(torus, sources=[([1.4, 0, 0], 1.0), ([-1.4, 0, 0], -1.0)])
+    residuals = vd.design_residuals(dec, delta, constraints, solution.omega)
+    assert residuals["divergence_residual_relative"] < 1e-10
+    singular = find_singularities(torus, solution.omega)
+    assert singular.index_sum == torus.euler_characteristic == 0
+    assert (singular.vertex_index == 1).sum() >= 2 and (singular.vertex_index == -1).sum() >= 2
+
+
+def test_index_sum_is_euler_characteristic_for_random_forms(sphere, torus):
+    """The discrete Poincaré–Hopf theorem holds for any 1-form (not only designed ones)."""
+    rng = np.random.default_rng(3)
+    for K in (sphere, torus):
+        for _ in range(3):
+            singular = find_singularities(K, rng.standard_normal(K.num_simplices(1)))
+            assert singular.index_sum == K.euler_characteristic
+            assert singular.max_rounding < 1e-9
+
+
+def test_border_flux_matrix_is_exact_for_constant_fields(square):
+    """Eq. 6.10 (zero curl) is exact for a constant field: F w = |e| (u · n_out) on border
+    edges, and the flux-adapted δ of a constant field vanishes everywhere (closed dual cells),
+    while the unadapted δ does not on the border."""
+    dec = DEC(square)
+    u = np.array([0.7, 0.3])
+    w = sample_vector_field(square, u)
+    edges, _ = square.boundary_faces()
+    ends = square.vertices[square.simplices(1)[edges]]
+    mid = ends.mean(axis=1)
+    outward = np.zeros_like(mid)
+    outward[np.isclose(mid[:, 0], 0)] = [-1, 0]
+    outward[np.isclose(mid[:, 0], 1)] = [1, 0]
+    outward[np.isclose(mid[:, 1], 0)] = [0, -1]
+    outward[np.isclose(mid[:, 1], 1)] = [0, 1]
+    length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    F = vd.border_flux_matrix(dec)
+    assert np.allclose((F @ w)[edges], length * (outward @ u), atol=1e-13)
+    interior_rows = np.setdiff1d(np.arange(square.num_simplices(1)), edges)
+    assert F[interior_rows].nnz == 0
+    scale = np.abs(dec.codifferential(1) @ w).max()
+    assert np.abs(vd.codifferential_1(dec, "flux") @ w).max() < 1e-12 * scale
+    border = square.boundary_vertices()
+    assert np.abs((dec.codifferential(1) @ w)[border]).min() > 1e-3 * scale
+    assert np.abs((dec.codifferential(1) @ w)[~border]).max() < 1e-10 * scale
+
+
+def test_flux_adaptation_breaks_adjointness_only_with_a_border(square, sphere):
+    """§6.4.4: the adapted δ is no longer the adjoint of d0 (Theorem 5 fails); on a closed
+    mesh both modes coincide."""
+    dec = DEC(square)
+    assert vd.adjointness_defect(dec, vd.codifferential_1(dec, "none")) < 1e-14
+    assert vd.adjointness_defect(dec, vd.codifferential_1(dec, "flux")) > 1e-4
+    dec_s = DEC(sphere)
+    assert (vd.codifferential_1(dec_s, "flux") - dec_s.codifferential(1)).nnz == 0
+    with pytest.raises(ConfigError, match="operator.boundary"):
+        vd.codifferential_1(dec, "dirichlet")
+
+
+def test_unadapted_field_is_tangential_flux_field_crosses_the_border(square):
+    """Fig. 6.9 in numbers: a single source in a square. `none` must spread the missing sink
+    over the domain and keeps the flow inside (small normal component on the border); `flux`
+    lets it leave through the border."""
+    results = {}
+    for mode in ("none", "flux"):
+        dec, delta, constraints, solution = design(square, sources=[([0.5, 0.5], 1.0)], boundary=mode)
+        results[mode] = vd.border_normal_flux(square, solution.omega)
+    assert results["flux"]["boundary_normal_flux_mean"] > 5 * results["none"]["boundary_normal_flux_mean"]
+    assert results["flux"]["boundary_normal_fraction"] > 1.5 * results["none"]["boundary_normal_fraction"]
+
+
+def test_stroke_targets_reproduce_a_constant_field(sphere):
+    """§6.4.2: a constant vector on the stroke faces samples to ⟨v, e⟩ on their edges; with
+    consistent vectors shared edges agree, so the averaged targets equal the sampled form."""
+    faces = np.arange(0, sphere.num_simplices(2), 7)
+    v = np.array([0.2, -0.4, 0.1])
+    edges, targets = vd.stroke_edge_targets(sphere, faces, np.tile(v, (faces.size, 1)))
+    assert np.allclose(targets, sample_vector_field(sphere, v)[edges], atol=1e-14)
+    assert np.all(np.isin(edges, sphere.face_indices(2)[faces]))
+
+
+def test_stroke_directions_follow_the_polyline(sphere):
+    """A stroke along the equator (towards +y at x = 1) gives unit tangent directions ≈ +y
+    on the faces it crosses near x = 1."""
+    angle = np.linspace(-0.3, 0.3, 7)
+    points = np.stack([np.cos(angle), np.sin(angle), np.zeros_like(angle)], axis=1)
+    faces, directions = vd.stroke_face_directions(sphere, points)
+    assert faces.size >= 5
+    assert np.allclose(np.linalg.norm(directions, axis=1), 1.0)
+    expected = np.stack([-np.sin(angle), np.cos(angle), 0 * angle], 1)
+    centre = sphere.vertices[sphere.simplices(2)[faces]].mean(axis=1)
+    tangent = np.stack([-centre[:, 1], centre[:, 0], 0 * centre[:, 0]], 1)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    assert np.all(np.einsum("fd,fd->f", directions, tangent) > 0.9)
+    assert expected.shape[0] == 7
+
+
+def test_strokes_are_followed_and_precomputed_changes_less_than_fixed(sphere):
+    """Eq. 6.8 vs 6.9 on a sphere with a source/sink: a stroke with a large fixed |v| = λ
+    changes the field more than one with the precomputed magnitudes."""
+    from decrun.apps import vector_field as app
+
+    base = dict(sources=[app.Source(point=[0, 0, 1], divergence=1.0), app.Source(point=[0, 0, -1], divergence=-1.0)],
+                strokes=[app.Stroke(points=[[1, 0, 0.1], [0.7, 0.7, 0.1]])])
+    change = {}
+    for mode in ("fixed", "precomputed"):
+        cfg = app.Config(**base, stroke_magnitude=mode, stroke_length=5.0)
+        result = app.run(sphere, DEC(sphere), make_solver("direct"), cfg)
+        change[mode] = result.metrics["field_change_relative"]
+        assert result.metrics["direction_residual_relative"] < 0.1
+        assert result.metrics["index_sum"] == 2 and result.metrics["poincare_hopf_holds"]
+        assert set(result.figures) == {"field"}
+    assert change["fixed"] > 3 * change["precomputed"]
+
+
+def test_app_validates_config():
+    from decrun.apps import vector_field as app
+
+    with pytest.raises(ConfigError, match="app.stroke_magnitude"):
+        app.Config(stroke_magnitude="auto")
+    with pytest.raises(ConfigError, match=r"app.sources\[0\]"):
+        app.Config(sources=[app.Source()])
+    with pytest.raises(ConfigError, match="app.boundary"):
+        app.Config(boundary="dirichlet")
+    with pytest.raises(ConfigError, match="operator.boundary"):
+        app.boundary_mode(type("D", (), {"boundary": "weird"})())

@@ -427,10 +427,12 @@ def parametrize(
 
     if border == "free":
         lscm = least_squares_conformal_map(dec, solver)
-        kind[K.boundary_vertices()] = PINNED
         if weights == "dec":
+            # the minimizer's border rows are the Cauchy–Riemann rows (two of them pins)
+            kind[K.boundary_vertices()] = CAUCHY_RIEMANN
             return Parametrization(normalize_to_unit_square(lscm), loops, kind, 0, reflex_mask,
                                    time.perf_counter() - start)
+        kind[K.boundary_vertices()] = PINNED
         pinned_uv[:] = lscm
     else:
         exterior_loop = loops[0]

@@ -233,3 +233,56 @@ def test_cut_holes_keeps_a_manifold_and_removes_the_right_faces():
     K = SimplicialComplex(vertices, faces)  # manifold, oriented
     assert len(K.boundary_loops()) == 1 and K.euler_characteristic == 1
     np.testing.assert_array_equal(v[kept], vertices)
+
+
+# ---------------------------------------------------------------------------- the experiment meshes
+EXPERIMENTS = ["fig5_5_flat_hole", "fig5_6_open_patch", "fig5_7_half_sphere_holes", "fig5_8_t_hole"]
+
+
+def experiment_mesh(name):
+    """The mesh of conf/experiment/<name>.yaml, built through decrun.meshes (no Hydra)."""
+    from pathlib import Path
+
+    import yaml
+
+    from decrun.config import MeshConfig
+    from decrun.meshes import load_mesh
+
+    text = (Path(__file__).resolve().parents[1] / "conf" / "experiment" / f"{name}.yaml").read_text()
+    options = yaml.safe_load(text)["mesh"]
+    return load_mesh(MeshConfig(**options))
+
+
+@pytest.mark.parametrize("name", EXPERIMENTS)
+@pytest.mark.parametrize("weights", ["uniform", "mean_value"])
+def test_tutte_maps_embed_every_experiment_mesh(name, weights):
+    mesh = experiment_mesh(name)
+    K, dec = complex_and_dec(mesh.vertices, mesh.simplices)
+    result = parametrize(dec, make_solver("direct"), border="circle", weights=weights)
+    metrics = parametrization_metrics(K.vertices, result.uv, K.oriented_simplices(), result.loops)
+    assert metrics["flipped_triangles"] == 0 and metrics["is_embedding"]
+
+
+def test_experiment_outcomes_of_the_thesis():
+    # Fig. 5.5: the conformal border keeps a flat mesh with a hole (exactly with Cauchy–Riemann rows)
+    K, dec = complex_and_dec(*(lambda m: (m.vertices, m.simplices))(experiment_mesh("fig5_5_flat_hole")))
+    flat = parametrize(dec, make_solver("direct"), border="conformal", weights="dec", reflex_rows="cauchy_riemann")
+    assert parametrization_metrics(K.vertices, flat.uv, K.oriented_simplices(), flat.loops)["angle_distortion_max_deg"] < 1e-6
+    # Fig. 5.8: the conformal border of the T hole is not an embedding, the free border is
+    mesh = experiment_mesh("fig5_8_t_hole")
+    K, dec = complex_and_dec(mesh.vertices, mesh.simplices)
+    bad = parametrize(dec, make_solver("direct"), border="conformal", weights="dec")
+    good = parametrize(dec, make_solver("direct"), border="free", weights="dec")
+    assert not parametrization_metrics(K.vertices, bad.uv, K.oriented_simplices(), bad.loops)["is_embedding"]
+    assert parametrization_metrics(K.vertices, good.uv, K.oriented_simplices(), good.loops)["is_embedding"]
+
+
+def test_app_run_returns_uv_metrics_and_figures():
+    from decrun.apps.parametrization import Config, run
+
+    K, dec = complex_and_dec(*wavy_disk())
+    result = run(K, dec, make_solver("direct"), Config(border="conformal", weights="dec", reflex_rows="cauchy_riemann"))
+    assert result.fields["uv"].shape == (K.num_simplices(0), 2)
+    assert result.metrics["angle_distortion_max_deg"] < 1e-6 and result.metrics["is_embedding"] is True
+    assert result.metrics["cauchy_riemann_rows"] == result.metrics["reflex_border_vertices_predicted"] > 0
+    assert set(result.figures) == {"uv_layout", "checkerboard"}

@@ -76,30 +76,55 @@ def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     unique : (u, c) int64, rows sorted lexicographically (column 0 most significant)
     inverse : (m,) int64 with ``unique[inverse] == rows``
     """
+    unique, inverse, _, _ = _group_rows(rows)
+    return unique, inverse
+
+
+def _group_rows(rows: np.ndarray):
+    """Group equal rows: (unique, inverse, order, starts).
+
+    ``order`` is a stable lexicographic sort of the rows, ``starts`` the position in
+    ``order`` where each group begins (plus a final ``m``), so the members of group g are
+    ``order[starts[g]:starts[g+1]]`` in input order. One stable sort, everything else O(m).
+    """
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     m, c = rows.shape
     if m == 0:
-        return rows.copy(), np.zeros(0, dtype=np.int64)
-    if c == 1:
-        unique, inverse = np.unique(rows[:, 0], return_inverse=True)
-        return unique[:, None], inverse.astype(np.int64)
-    # Pack into one int64 key when the values fit (fast path for edges and triangles).
+        return rows.copy(), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64)
     top = int(rows.max()) + 1
     bits = max(1, int(np.ceil(np.log2(top + 1))))
     if bits * c <= 62:
-        key = np.zeros(m, dtype=np.int64)
-        for col in range(c):
-            key = (key << bits) | rows[:, col]
-        unique_key, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-        return rows[first], inverse.astype(np.int64)
-    order = np.lexsort(rows.T[::-1])
-    sorted_rows = rows[order]
-    new = np.ones(m, dtype=bool)
-    new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
+        # Pack each row into one int64 key (edges and triangles of meshes up to ~2M vertices).
+        key = rows[:, 0].copy()
+        for col in range(1, c):
+            key <<= bits
+            key |= rows[:, col]
+        order = np.argsort(key, kind="stable")
+        sorted_key = key[order]
+        new = np.empty(m, dtype=bool)
+        new[0] = True
+        np.not_equal(sorted_key[1:], sorted_key[:-1], out=new[1:])
+    else:
+        order = np.lexsort(rows.T[::-1])
+        sorted_rows = rows[order]
+        new = np.empty(m, dtype=bool)
+        new[0] = True
+        new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
     group = np.cumsum(new) - 1
     inverse = np.empty(m, dtype=np.int64)
     inverse[order] = group
-    return sorted_rows[new], inverse
+    starts = np.append(np.flatnonzero(new), m)
+    return rows[order[new]], inverse, order, starts
+
+
+def _sort_rows(rows: np.ndarray) -> np.ndarray:
+    """Sort each (short) row; a min/max network for triangles, np.sort otherwise."""
+    if rows.shape[1] == 3:
+        a, b, c = rows[:, 0], rows[:, 1], rows[:, 2]
+        low = np.minimum(np.minimum(a, b), c)
+        high = np.maximum(np.maximum(a, b), c)
+        return np.stack([low, a + b + c - low - high, high], axis=1)
+    return np.sort(rows, axis=1)
 
 
 def inversion_parity(tuples: np.ndarray) -> np.ndarray:
@@ -136,6 +161,8 @@ def simplex_volumes(points: np.ndarray) -> np.ndarray:
     j = points.shape[1] - 1
     if j == 0:
         return np.ones(points.shape[0])
+    if j in (1, 2) and points.shape[2] in (2, 3):
+        return _small_simplex_volumes([points[:, i, :] for i in range(j + 1)])
     edges = points[:, 1:, :] - points[:, :1, :]
     if j == 1:
         return np.linalg.norm(edges[:, 0], axis=1)
@@ -145,6 +172,32 @@ def simplex_volumes(points: np.ndarray) -> np.ndarray:
         return np.abs(np.linalg.det(edges)) / factorial(j)
     gram = np.einsum("mai,mbi->mab", edges, edges)
     return np.sqrt(np.clip(np.linalg.det(gram), 0.0, None)) / factorial(j)
+
+
+def _small_simplex_volumes(corners: list) -> np.ndarray:
+    """Lengths of segments / areas of triangles from corner arrays (m, d), d = 2 or 3."""
+    d = corners[0].shape[1]
+    if len(corners) == 2:
+        total = 0.0
+        for axis in range(d):
+            diff = corners[1][:, axis] - corners[0][:, axis]
+            total = total + diff * diff
+        return np.sqrt(total)
+    u = [corners[1][:, axis] - corners[0][:, axis] for axis in range(d)]
+    v = [corners[2][:, axis] - corners[0][:, axis] for axis in range(d)]
+    if d == 2:
+        return 0.5 * np.abs(u[0] * v[1] - u[1] * v[0])
+    cx = u[1] * v[2] - u[2] * v[1]
+    cy = u[2] * v[0] - u[0] * v[2]
+    cz = u[0] * v[1] - u[1] * v[0]
+    return 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+
+
+def _vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
+    """Volumes of simplices given by vertex indices (fast path for edges and triangles)."""
+    if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
+        return _small_simplex_volumes([vertices[simplices[:, i]] for i in range(simplices.shape[1])])
+    return simplex_volumes(vertices[simplices])
 
 
 class SimplicialComplex:
@@ -231,31 +284,32 @@ class SimplicialComplex:
         n = self.dim
 
         # Top simplices: sorted rows (input order) + parity of the input tuple (§2.3.3).
-        top_sorted = np.sort(simplices, axis=1)
-        unique_top, inverse = unique_rows(top_sorted)
-        if unique_top.shape[0] != top_sorted.shape[0]:
-            counts = np.bincount(inverse)
-            dup = np.flatnonzero(counts[inverse] > 1)
-            raise DuplicateSimplexError(f"{_name(dup, _simplex_name(n))} repeat the same vertices")
+        top_sorted = _sort_rows(simplices)
         self._orientation = inversion_parity(simplices)
         self._lists: dict[int, np.ndarray] = {n: top_sorted, 0: np.arange(vertices.shape[0])[:, None]}
 
         # Every j-face of every top simplex, by local combinations of the sorted tuple.
         # _top_faces[j] : (m, C(n+1, j+1)) global indices of the j-faces of each top simplex,
         # columns in the order of combinations(range(n+1), j+1).
+        m = top_sorted.shape[0]
         self._local = {j: list(combinations(range(n + 1), j + 1)) for j in range(n + 1)}
-        self._top_faces = {n: np.arange(top_sorted.shape[0])[:, None]}
-        self._top_faces[0] = top_sorted.copy()
+        self._top_faces = {n: np.arange(m)[:, None], 0: top_sorted}
         for j in range(1, n):
             cols = self._local[j]
-            faces = top_sorted[:, np.array(cols)]  # (m, C, j+1)
-            unique, inv = unique_rows(faces.reshape(-1, j + 1))
+            faces = top_sorted[:, np.array(cols)].reshape(-1, j + 1)  # (m·C, j+1)
+            unique, inverse, order, starts = _group_rows(faces)
             self._lists[j] = unique
-            self._top_faces[j] = inv.reshape(top_sorted.shape[0], len(cols))
+            self._top_faces[j] = inverse.reshape(m, len(cols))
+            if j == n - 1:
+                self._facet_groups = (order, starts)
+        if n == 1:  # facets are the vertices themselves
+            slots = top_sorted.ravel()
+            order = np.argsort(slots, kind="stable")
+            starts = np.append(np.flatnonzero(np.r_[True, slots[order][1:] != slots[order][:-1]]), slots.size)
+            self._facet_groups = (order, starts)
 
         self._check_degenerate(degenerate_tol)
-        if check_manifold:
-            self._check_faces_manifold()
+        self._check_facets(check_manifold)
         self._orient(orient)
         if check_manifold:
             self._check_vertex_stars()
@@ -263,46 +317,52 @@ class SimplicialComplex:
     # ------------------------------------------------------------------ validation
     def _check_degenerate(self, tol: float) -> None:
         n = self.dim
-        points = self.vertices[self._lists[n]]
-        volumes = simplex_volumes(points)
-        edge_lengths = simplex_volumes(self.vertices[self._lists[1]]) if n > 1 else volumes
-        h = float(edge_lengths.mean()) if edge_lengths.size else 1.0
-        bad = volumes <= tol * h**n
+        volumes = _vertex_volumes(self.vertices, self._lists[n])
+        bad = volumes <= tol * volumes.mean()
         if bad.any():
             raise DegenerateSimplexError(
                 f"{_name(np.flatnonzero(bad), _simplex_name(n))} {'has' if bad.sum() == 1 else 'have'} zero volume "
-                f"(below {tol:g}·h^{n}, h = mean edge length {h:.3g})"
+                f"(below {tol:g} × the mean {_simplex_name(n)} volume {volumes.mean():.3g})"
             )
         self._top_volumes = volumes
 
-    def _facet_incidence(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(facet index, top simplex, local facet position) for every facet slot."""
+    def _check_facets(self, check_manifold: bool) -> None:
+        """Duplicates and (n-1)-faces in more than two top simplices; records facet pairs."""
         n = self.dim
-        m = self._lists[n].shape[0]
-        facets = self._top_faces[n - 1]  # (m, n+1) in combinations order
-        top = np.repeat(np.arange(m), n + 1)
-        return facets.ravel(), top, np.tile(np.arange(n + 1), m)
-
-    def _check_faces_manifold(self) -> None:
-        n = self.dim
-        facet, top, _ = self._facet_incidence()
-        counts = np.bincount(facet, minlength=self._lists[n - 1].shape[0])
+        order, starts = self._facet_groups
+        counts = np.diff(starts)
         over = np.flatnonzero(counts > 2)
         if over.size:
-            tuples = self._lists[n - 1][over[:3]].tolist()
-            owners = np.unique(top[np.isin(facet, over)])
-            raise NonManifoldError(
-                f"non-manifold: {_name(over, _simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
-                f"{_plural(_simplex_name(n))} ({_name(owners, _simplex_name(n))})"
-            )
+            self._check_duplicates()
+            if check_manifold:
+                facet_slots = order[np.concatenate([np.arange(starts[g], starts[g + 1]) for g in over[:3]])]
+                owners = np.unique(facet_slots // (n + 1))
+                tuples = self._lists[n - 1][over[:3]].tolist()
+                raise NonManifoldError(
+                    f"non-manifold: {_name(over, _simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
+                    f"{_plural(_simplex_name(n))} (e.g. {_name(owners, _simplex_name(n))})"
+                )
+        interior = np.flatnonzero(counts == 2)
+        first, second = order[starts[interior]], order[starts[interior] + 1]
+        self._pairs = (interior, first // (n + 1), second // (n + 1), first % (n + 1), second % (n + 1))
+        # Two simplices sharing a facet are duplicates iff their vertices opposite it agree
+        # (facet column c of combinations(range(n+1), n) omits sorted vertex n - c).
+        top = self._lists[n]
+        t0, t1, l0, l1 = self._pairs[1:]
+        if np.any(top[t0, n - l0] == top[t1, n - l1]):
+            self._check_duplicates()
+
+    def _check_duplicates(self) -> None:
+        n = self.dim
+        _, inverse = unique_rows(self._lists[n])
+        counts = np.bincount(inverse)
+        dup = np.flatnonzero(counts[inverse] > 1)
+        if dup.size:
+            raise DuplicateSimplexError(f"{_name(dup, _simplex_name(n))} repeat the same vertices")
 
     def _facet_pairs(self):
         """Interior facets and the two top simplices sharing each (with their local positions)."""
-        facet, top, local = self._facet_incidence()
-        order = np.argsort(facet, kind="stable")
-        facet, top, local = facet[order], top[order], local[order]
-        pair = np.flatnonzero(facet[1:] == facet[:-1])
-        return facet[pair], top[pair], top[pair + 1], local[pair], local[pair + 1]
+        return self._pairs
 
     def _orient(self, mode: str) -> None:
         """Check (and optionally fix) consistent orientation by the δ_n column test (§2.3.4)."""
@@ -350,31 +410,15 @@ class SimplicialComplex:
     def _check_vertex_stars(self) -> None:
         """Each vertex star must be one fan of top simplices glued along facets (Fig. 2.11–2.12).
 
-        Corners (top simplex, vertex) are linked across each interior facet containing the
-        vertex; a vertex whose corners form more than one group (a bowtie / wheel) is not a
-        ball or half-ball neighbourhood. For n = 2 with manifold edges this test is exact.
+        A vertex whose incident top simplices fall into more than one group connected across
+        shared facets (a bowtie / wheel) has no ball or half-ball neighbourhood. For n = 2
+        (with manifold edges) this test is exact; for n = 3 it finds pinched vertices but
+        not every exotic link.
         """
         n = self.dim
         if n < 2:
             return
-        m = self._lists[n].shape[0]
-        facet, t0, t1, l0, l1 = self._facet_pairs()
-        corner_rows, corner_cols = [], []
-        tops = self._lists[n]
-        facet_vertices = self._lists[n - 1][facet]  # (p, n): the shared facet of each pair
-        for a in range(n):
-            v = facet_vertices[:, a]
-            pos0 = np.argmax(tops[t0] == v[:, None], axis=1)
-            pos1 = np.argmax(tops[t1] == v[:, None], axis=1)
-            corner_rows.append(t0 * (n + 1) + pos0)
-            corner_cols.append(t1 * (n + 1) + pos1)
-        rows = np.concatenate(corner_rows)
-        cols = np.concatenate(corner_cols)
-        graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(m * (n + 1), m * (n + 1)))
-        _, label = connected_components(graph, directed=False)
-        corner_vertex = tops.ravel()
-        pairs = unique_rows(np.stack([corner_vertex, label], axis=1))[0]
-        fans = np.bincount(pairs[:, 0], minlength=self.vertices.shape[0])
+        fans = self._fans_per_vertex_surface() if n == 2 else self._fans_per_vertex_general()
         bad = np.flatnonzero(fans > 1)
         if bad.size:
             raise NonManifoldError(
@@ -382,6 +426,68 @@ class SimplicialComplex:
                 f"{'it' if bad.size == 1 else 'each'} form {int(fans[bad[0]])} separate fans, not one disk or "
                 f"half-disk (a 'bowtie'/'wheel', Fig. 2.11)"
             )
+
+    def _fans_per_vertex_surface(self) -> np.ndarray:
+        """Number of triangle fans around each vertex of an oriented edge-manifold surface.
+
+        Corner (t, i) steps to the corner of the same vertex in the triangle across the edge
+        leaving it in t's orientation; fans are the orbits of this step (paths at border
+        vertices, cycles inside). Orbits are counted by pointer jumping, O(m log valence).
+        """
+        top = self._lists[2]
+        m = top.shape[0]
+        _, t0, t1, l0, l1 = self._facet_pairs()
+        # partner[3t + s]: the edge slot (3t' + s') across edge slot s of triangle t, or -1
+        partner = np.full(3 * m, -1, dtype=np.int32)
+        slot0 = (3 * t0 + l0).astype(np.int32)
+        slot1 = (3 * t1 + l1).astype(np.int32)
+        partner[slot0] = slot1
+        partner[slot1] = slot0
+        # Corner i of a sorted triangle leaves along the edge to its successor in the
+        # triangle's orientation. Edge slots are (0,1)->0, (0,2)->1, (1,2)->2.
+        positive = (self._orientation > 0)[:, None]
+        leaving_slot = np.where(positive, np.array([0, 2, 1], dtype=np.int32), np.array([1, 0, 2], dtype=np.int32))
+        smaller = np.where(positive, np.array([1, 1, 0], dtype=np.int32), np.array([1, 0, 0], dtype=np.int32))
+        corner = np.arange(3 * m, dtype=np.int32)
+        across = partner[(corner - corner % 3) + leaving_slot.ravel()]
+        # position of our vertex in the triangle across: it is the smaller (or larger) vertex of the
+        # shared edge there too; table[smaller][slot] gives that sorted position.
+        position_table = np.array([1, 2, 2, 0, 0, 1], dtype=np.int32)  # larger: 1,2,2 ; smaller: 0,0,1
+        moving = across >= 0
+        following = np.where(
+            moving, (across - across % 3) + position_table[3 * smaller.ravel() + across % 3], corner
+        ).astype(np.int32)
+        # a corner has a predecessor iff some other corner steps to it (path ends step to themselves)
+        has_predecessor = np.zeros(3 * m, dtype=bool)
+        has_predecessor[following[moving]] = True
+        vertex = top.ravel()
+        valence = np.bincount(vertex, minlength=self.vertices.shape[0])
+        # label = smallest corner id seen along the orbit, or -1 once the orbit reaches a path end
+        label = np.where(moving, corner, np.int32(-1))
+        jump = following
+        for _ in range(int(np.ceil(np.log2(max(int(valence.max()), 2))))):
+            np.minimum(label, label[jump], out=label)
+            jump = jump[jump]
+        root = ~has_predecessor | (label == corner)
+        return np.bincount(vertex[root], minlength=self.vertices.shape[0])
+
+    def _fans_per_vertex_general(self) -> np.ndarray:
+        """Fans per vertex for any n via connected components of the corner graph."""
+        n = self.dim
+        m = self._lists[n].shape[0]
+        facet, t0, t1, l0, l1 = self._facet_pairs()
+        tops = self._lists[n]
+        facet_vertices = self._lists[n - 1][facet]
+        rows, cols = [], []
+        for a in range(n):
+            v = facet_vertices[:, a]
+            rows.append(t0 * (n + 1) + np.argmax(tops[t0] == v[:, None], axis=1))
+            cols.append(t1 * (n + 1) + np.argmax(tops[t1] == v[:, None], axis=1))
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(m * (n + 1), m * (n + 1)))
+        _, label = connected_components(graph, directed=False)
+        pairs = unique_rows(np.stack([tops.ravel(), label], axis=1))[0]
+        return np.bincount(pairs[:, 0], minlength=self.vertices.shape[0])
 
     # ------------------------------------------------------------------ simplices
     @property
@@ -430,22 +536,45 @@ class SimplicialComplex:
             return cache[j]
         n = self.dim
         nj = self._lists[j].shape[0]
-        # A representative (top simplex, local combination) for every j-simplex.
-        table = self._top_faces[j]
-        owner = np.empty(nj, dtype=np.int64)
-        slot = np.empty(nj, dtype=np.int64)
-        flat = table.ravel()
-        owner[flat] = np.repeat(np.arange(table.shape[0]), table.shape[1])
-        slot[flat] = np.tile(np.arange(table.shape[1]), table.shape[0])
-        sub_position = {c: i for i, c in enumerate(self._local[j - 1])}
-        local_faces = np.array(
-            [[sub_position[c[:l] + c[l + 1:]] for l in range(j + 1)] for c in self._local[j]], dtype=np.int64
-        )  # (C(n+1, j+1), j+1)
-        faces = self._top_faces[j - 1][owner[:, None], local_faces[slot]]
-        signs = np.tile(np.array([1 if l % 2 == 0 else -1 for l in range(j + 1)], dtype=np.int8), (nj, 1))
-        if j == n:
-            signs = signs * self._orientation[:, None]
-        cache[j] = (faces, signs.astype(np.int8))
+        alternating = np.array([1 if l % 2 == 0 else -1 for l in range(j + 1)], dtype=np.int8)
+        if j == 1 and n > 1:
+            faces = self._lists[1][:, ::-1]  # omit vertex 0 -> {v1} (+1), omit vertex 1 -> {v0} (-1)
+            signs = np.broadcast_to(alternating, (nj, 2))
+        elif j == n:
+            # combinations(range(n+1), n) lists the facets omitting vertex n, n-1, ..., 0
+            faces = self._top_faces[n - 1][:, ::-1]
+            signs = alternating[None, :] * self._orientation[:, None]
+        else:
+            # A representative (top simplex, local combination) for every j-simplex.
+            table = self._top_faces[j]
+            owner = np.empty(nj, dtype=np.int64)
+            slot = np.empty(nj, dtype=np.int64)
+            flat = table.ravel()
+            owner[flat] = np.repeat(np.arange(table.shape[0]), table.shape[1])
+            slot[flat] = np.tile(np.arange(table.shape[1]), table.shape[0])
+            sub_position = {c: i for i, c in enumerate(self._local[j - 1])}
+            local_faces = np.array(
+                [[sub_position[c[:l] + c[l + 1:]] for l in range(j + 1)] for c in self._local[j]], dtype=np.int64
+            )  # (C(n+1, j+1), j+1)
+            faces = self._top_faces[j - 1][owner[:, None], local_faces[slot]]
+            signs = np.broadcast_to(alternating, (nj, j + 1))
+        cache[j] = (np.ascontiguousarray(faces), np.ascontiguousarray(signs, dtype=np.int8))
+        return cache[j]
+
+    def incidence(self, j: int) -> sp.csr_matrix:
+        """δ_jᵀ: sparse (n_j, n_{j-1}) float64, row s holds the border of j-simplex s.
+
+        This is the exterior derivative d_{j-1} of §4.5.1, built directly in CSR form
+        (j+1 entries per row, no sorting).
+        """
+        cache = self.__dict__.setdefault("_incidence_cache", {})
+        if j not in cache:
+            faces, signs = self._faces_and_signs(j)
+            nj = faces.shape[0]
+            cache[j] = sp.csr_matrix(
+                (signs.ravel().astype(np.float64), faces.ravel(), np.arange(0, (j + 1) * nj + 1, j + 1)),
+                shape=(nj, self._lists[j - 1].shape[0]),
+            )
         return cache[j]
 
     def boundary(self, j: int) -> sp.csr_matrix:
@@ -456,14 +585,7 @@ class SimplicialComplex:
         """
         cache = self.__dict__.setdefault("_boundary_cache", {})
         if j not in cache:
-            faces, signs = self._faces_and_signs(j)
-            nj = faces.shape[0]
-            cols = np.repeat(np.arange(nj), j + 1)
-            matrix = sp.csr_matrix(
-                (signs.ravel().astype(np.float64), (faces.ravel(), cols)),
-                shape=(self._lists[j - 1].shape[0], nj),
-            )
-            cache[j] = matrix
+            cache[j] = self.incidence(j).T.tocsr()
         return cache[j]
 
     def find_simplices(self, tuples) -> np.ndarray:
@@ -621,9 +743,9 @@ class SimplicialComplex:
         if n == 2:
             has_border = np.zeros(count, dtype=bool)
             if index.size:
-                facet, top, _ = self._facet_incidence()
-                border_top = top[np.isin(facet, index)]
-                has_border[label[border_top]] = True
+                is_border = np.zeros(self._lists[1].shape[0], dtype=bool)
+                is_border[index] = True
+                has_border[label[is_border[self._top_faces[1]].any(axis=1)]] = True
             b2 = int((~has_border).sum())
             return [count, count + b2 - chi, b2]
         if n == 3 and self.embedding_dim == 3:
@@ -660,7 +782,7 @@ def _check_indices(vertices: np.ndarray, simplices: np.ndarray, n: int) -> None:
             f"{_name(rows, _simplex_name(n))} reference vertex indices outside 0..{nv - 1} "
             f"(e.g. {int(simplices[out][0])})"
         )
-    s = np.sort(simplices, axis=1)
+    s = _sort_rows(simplices)
     repeated = np.flatnonzero((s[:, 1:] == s[:, :-1]).any(axis=1))
     if repeated.size:
         raise RepeatedVertexError(

@@ -198,6 +198,21 @@ def test_validation_errors_name_the_simplex(vertices, simplices, error, named):
         SimplicialComplex(vertices, np.array(simplices), unreferenced="drop")
 
 
+def test_two_closed_fans_at_one_vertex_are_non_manifold():
+    # two tetrahedron surfaces touching at vertex 0: each fan around it is a closed cycle
+    vertices, faces = regular_tetrahedron_surface()
+    second = vertices.copy()
+    second[1:] = 2 * vertices[0] - vertices[1:]  # point reflection through vertex 0
+    all_vertices = np.vstack([vertices, second[1:]])
+    second_faces = faces.copy()
+    second_faces[second_faces > 0] += 3
+    second_faces = second_faces[:, ::-1]  # the reflection flips orientation back
+    with pytest.raises(errors.NonManifoldError, match="vertex 0: .* 2 separate fans"):
+        SimplicialComplex(all_vertices, np.vstack([faces, second_faces]), orient="fix")
+    # each half alone is fine
+    SimplicialComplex(vertices, faces)
+
+
 def test_unreferenced_error_names_vertex():
     with pytest.raises(errors.UnreferencedVertexError, match="vertices 3, 4"):
         SimplicialComplex(SQUARE, np.array([[0, 1, 2]]))

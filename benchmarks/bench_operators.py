@@ -1,0 +1,131 @@
+"""Benchmark: building the DEC operator set, against libigl as the reference.
+
+For each mesh, in a fresh subprocess (so peak memory is that case's alone):
+
+* decrun: ``SimplicialComplex(V, F)`` (with its validation) + ``d(0)``, ``d(1)``, ``⋆0..⋆2``
+  (circumcentric) — or, on tetrahedra, ``⋆0..⋆3``;
+* libigl (reference, triangles only): ``cotmatrix`` + ``massmatrix(VORONOI)``.
+
+Reports wall time (best of ``--repeat``) and peak resident memory above the process's
+memory after loading the mesh, and the ratios decrun / libigl. Requires the ``bench``
+extra (``pip install -e .[bench]``); without libigl the reference columns are skipped
+with a message.
+
+    python benchmarks/bench_operators.py            # full: up to 1.3M triangles, 1M tets
+    python benchmarks/bench_operators.py --quick    # small meshes, seconds
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+TRIANGLE_CASES = {"quick": [4, 5], "full": [5, 6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
+TET_CASES = {"quick": [8, 12], "full": [15, 25, 40, 55]}  # Kuhn cubes: 6·n³ tetrahedra
+
+
+def _current_rss_bytes() -> int:
+    with open("/proc/self/statm") as handle:
+        return int(handle.read().split()[1]) * resource.getpagesize()
+
+
+def _peak_rss_bytes() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: KiB
+
+
+def load_mesh(kind: str, size: int):
+    if kind == "icosphere":
+        import pymeshlab
+
+        ms = pymeshlab.MeshSet()
+        ms.create_sphere(radius=1.0, subdiv=size)
+        mesh = ms.current_mesh()
+        return mesh.vertex_matrix().astype(np.float64), mesh.face_matrix().astype(np.int64)
+    from decrun.primitives import kuhn_cube
+
+    return kuhn_cube(size)
+
+
+def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
+    """Runs inside the subprocess: one library on one mesh."""
+    vertices, simplices = load_mesh(kind, size)
+    if library == "decrun":
+        from decrun.complex import SimplicialComplex
+        from decrun.dec import DEC
+
+        def work():
+            K = SimplicialComplex(vertices, simplices)
+            dec = DEC(K)
+            ops = [dec.d(0), dec.d(1)] + [dec.star(k) for k in range(K.dim + 1)]
+            return ops
+    else:
+        import igl
+
+        def work():
+            return igl.cotmatrix(vertices, simplices), igl.massmatrix(vertices, simplices, igl.MASSMATRIX_TYPE_VORONOI)
+
+    baseline = _current_rss_bytes()
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = work()
+        times.append(time.perf_counter() - start)
+        del result
+    return {"seconds": min(times), "peak_mb": (_peak_rss_bytes() - baseline) / 2**20, "simplices": len(simplices)}
+
+
+def spawn(library: str, kind: str, size: int, repeat: int) -> dict:
+    out = subprocess.run(
+        [sys.executable, __file__, "--case", library, kind, str(size), "--repeat", str(repeat)],
+        capture_output=True, text=True, check=True,
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="small meshes only")
+    parser.add_argument("--repeat", type=int, default=3, help="timed repetitions per case (best is reported)")
+    parser.add_argument("--case", nargs=3, metavar=("LIBRARY", "KIND", "SIZE"), help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.case:
+        library, kind, size = args.case
+        print(json.dumps(run_case(library, kind, int(size), args.repeat)))
+        return 0
+
+    try:
+        import igl  # noqa: F401
+
+        have_igl = True
+    except ImportError:
+        have_igl = False
+        print("libigl is not installed (pip install -e .[bench]): reference columns skipped", file=sys.stderr)
+
+    level = "quick" if args.quick else "full"
+    print("| mesh | simplices | decrun s | decrun peak MB | libigl s | libigl peak MB | time ratio | memory ratio |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for size in TRIANGLE_CASES[level]:
+        ours = spawn("decrun", "icosphere", size, args.repeat)
+        row = f"| icosphere subdiv {size} | {ours['simplices']:,} | {ours['seconds']:.3f} | {ours['peak_mb']:.0f} |"
+        if have_igl:
+            ref = spawn("igl", "icosphere", size, args.repeat)
+            row += (f" {ref['seconds']:.3f} | {ref['peak_mb']:.0f} | {ours['seconds'] / ref['seconds']:.2f} |"
+                    f" {ours['peak_mb'] / max(ref['peak_mb'], 1e-9):.2f} |")
+        else:
+            row += " – | – | – | – |"
+        print(row, flush=True)
+    for size in TET_CASES[level]:
+        ours = spawn("decrun", "kuhn", size, 1 if size > 30 else args.repeat)
+        print(f"| Kuhn cube n={size} (tets, ⋆0–⋆3) | {ours['simplices']:,} | {ours['seconds']:.3f} |"
+              f" {ours['peak_mb']:.0f} | – | – | – | – |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -75,6 +75,14 @@ def _figures(K, uv, faces, face_angle_error_deg, flipped, checker_squares: int, 
     fig = new_figure(5.0, 5.0)
     ax = fig.add_subplot(projection="3d" if K.vertices.shape[1] == 3 else None)
     plot_surface(ax, K.vertices, faces, checker, cmap="gray", vmin=-0.3, vmax=1.0, title=f"checkerboard, {title}")
+    if K.vertices.shape[1] == 3:
+        # look at the surface along its area-weighted mean normal (the open side faces away)
+        p = K.vertices[faces]
+        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]).sum(axis=0)
+        if np.linalg.norm(normal) > 0:
+            normal = normal / np.linalg.norm(normal)
+            ax.view_init(elev=float(np.degrees(np.arcsin(np.clip(normal[2], -1, 1)))),
+                         azim=float(np.degrees(np.arctan2(normal[1], normal[0]))))
     figures["checkerboard"] = fig
     return figures
 

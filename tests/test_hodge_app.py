@@ -1,0 +1,147 @@
+"""Hodge decomposition app (§6.3.4–6.3.6): analytic fields with known parts, the flat torus,
+dim ker Δ1 = Betti_1, and the result.h5 input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from decrun.apps import hodge as app
+from decrun.complex import SimplicialComplex
+from decrun.config import MeshConfig
+from decrun.dec import DEC
+from decrun.errors import ConfigError
+from decrun.forms import sample_density, sample_vector_field
+from decrun.hodge import harmonic_basis, hodge_decomposition
+from decrun.meshes import load_mesh
+from decrun.results import Result, write_result
+from decrun.solvers import make_solver
+
+
+def complex_of(**options) -> SimplicialComplex:
+    mesh = load_mesh(MeshConfig(**options))
+    return SimplicialComplex(mesh.vertices, mesh.simplices, orient="fix")
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return complex_of(source="icosphere", subdiv=3)
+
+
+def fractions(dec, omega):
+    parts = hodge_decomposition(dec, omega)
+    total = dec.inner(1, omega, omega)
+    return {name: dec.inner(1, getattr(parts, name), getattr(parts, name)) / total
+            for name in ("exact", "coexact", "harmonic")}
+
+
+def test_gradient_on_sphere_is_exact_only(sphere):
+    """The constant vector a is the gradient of a·x; sampled along edges it is exactly d0(a·x)."""
+    dec = DEC(sphere)
+    f = fractions(dec, sample_vector_field(sphere, np.array([0.3, -0.5, 1.0])))
+    assert f["exact"] == pytest.approx(1.0, abs=1e-12)
+    assert f["coexact"] < 1e-20 and f["harmonic"] < 1e-20
+
+
+def test_rotated_gradient_on_sphere_is_coexact(sphere):
+    """⋆ of an exact form is coexact: exactly for the discrete δ2 β, up to sampling error for
+    the smooth rotated gradient n × ∇z = (x/|x|) × e_z."""
+    dec = DEC(sphere)
+    beta = sample_density(sphere, lambda x: x[:, 2] + x[:, 0] ** 2)
+    f = fractions(dec, dec.codifferential(2) @ beta)
+    assert f["coexact"] == pytest.approx(1.0, abs=1e-12) and f["exact"] < 1e-20 and f["harmonic"] < 1e-20
+    smooth = fractions(dec, sample_vector_field(sphere, app.analytic_field("rotated_gradient", [0, 0, 1])))
+    assert smooth["coexact"] > 0.999 and smooth["exact"] < 1e-3 and smooth["harmonic"] < 1e-12
+
+
+class FlatTorusDEC(DEC):
+    """DEC of the flat torus R²/(N a, M b) triangulated by the equilateral lattice (a = (1, 0),
+    b = (½, √3/2)): every triangle is equilateral with side 1, so ⋆0 = √3/2 (hexagonal
+    Voronoi cell), ⋆1 = 1/√3 (dual edge 1/√3 over edge 1), ⋆2 = 4/√3. The complex's vertex
+    positions (a torus in R³) only serve the combinatorics."""
+
+    STARS = {0: np.sqrt(3) / 2, 1: 1 / np.sqrt(3), 2: 4 / np.sqrt(3)}
+
+    def star_diagonal(self, k):
+        return np.full(self.K.num_simplices(k), self.STARS[k])
+
+
+def flat_torus(N: int = 12, M: int = 10):
+    i, j = np.meshgrid(np.arange(N), np.arange(M), indexing="ij")
+    index = lambda a, b: (a % N) * M + (b % M)  # noqa: E731
+    tri = np.concatenate([
+        np.stack([index(i, j), index(i + 1, j), index(i, j + 1)], -1).reshape(-1, 3),
+        np.stack([index(i + 1, j), index(i + 1, j + 1), index(i, j + 1)], -1).reshape(-1, 3),
+    ])
+    u, v = 2 * np.pi * i.ravel() / N, 2 * np.pi * j.ravel() / M
+    xyz = np.stack([(2 + np.cos(v)) * np.cos(u), (2 + np.cos(v)) * np.sin(u), np.sin(v)], 1)
+    K = SimplicialComplex(xyz, tri, orient="fix")
+    lattice = np.stack([i.ravel(), j.ravel()], 1)
+    return K, lattice, (N, M)
+
+
+def test_constant_field_on_flat_torus_is_harmonic():
+    K, lattice, (N, M) = flat_torus()
+    dec = FlatTorusDEC(K)
+    edges = K.simplices(1)
+    step = lattice[edges[:, 1]] - lattice[edges[:, 0]]
+    step = (step + [N // 2, M // 2]) % [N, M] - [N // 2, M // 2]  # the short way around
+    a, b = np.array([1.0, 0.0]), np.array([0.5, np.sqrt(3) / 2])
+    vectors = step[:, :1] * a + step[:, 1:] * b
+    for X in (np.array([1.0, 0.0]), np.array([0.3, -0.8])):
+        omega = vectors @ X
+        parts = hodge_decomposition(dec, omega)
+        scale = np.abs(omega).max()
+        assert np.abs(parts.exact).max() < 1e-10 * scale
+        assert np.abs(parts.coexact).max() < 1e-10 * scale
+        assert np.allclose(parts.harmonic, omega, atol=1e-10 * scale)
+    assert harmonic_basis(dec).shape[1] == 2 == K.betti_numbers()[1]
+
+
+@pytest.mark.parametrize(
+    "options, betti",
+    [
+        (dict(source="icosphere", subdiv=2), 0),
+        (dict(source="torus", major_segments=24, minor_segments=12, noise=0.05), 2),
+        (dict(source="planar", max_area=0.004, noise=0.05,
+              holes=[[[0.2, 0.2], [0.4, 0.2], [0.4, 0.4], [0.2, 0.4]], [[0.6, 0.6], [0.8, 0.6], [0.8, 0.8], [0.6, 0.8]]]), 2),
+    ],
+    ids=["sphere", "torus", "square_two_holes"],
+)
+def test_app_orthogonality_and_harmonic_dimension(options, betti):
+    K = complex_of(**options)
+    result = app.run(K, DEC(K), make_solver("direct"), app.Config(input="random", seed=1))
+    m = result.metrics
+    assert m["orthogonality_max"] < 1e-10
+    assert m["harmonic_dimension"] == m["betti_1"] == betti and m["harmonic_dimension_matches_betti"]
+    assert m["harmonic_curl_relative"] < 1e-8 and m["harmonic_codifferential_relative"] < 1e-8
+    assert sum(m[f"energy_fraction_{p}"] for p in ("exact", "coexact", "harmonic")) == pytest.approx(1.0, abs=1e-9)
+    assert (m["energy_fraction_harmonic"] > 1e-6) == (betti > 0)
+    assert set(result.figures) == {"hodge_parts"}
+    assert result.fields["exact_vectors"].shape == (K.num_simplices(2), 3)
+
+
+def test_app_reads_a_previous_result(tmp_path, sphere):
+    """input=result decomposes the 1-form stored by an earlier run on the same mesh."""
+    omega = sample_vector_field(sphere, np.array([0.0, 0.0, 1.0]))
+    path = write_result(tmp_path / "result.h5", Result(fields={"omega": omega}),
+                        vertices=sphere.vertices, simplices=sphere.oriented_simplices())
+    cfg = app.Config(input="result", input_path=str(path), harmonic_dimension=False)
+    result = app.run(sphere, DEC(sphere), make_solver("direct"), cfg)
+    assert np.array_equal(result.fields["omega"], omega)
+    assert result.metrics["energy_fraction_exact"] == pytest.approx(1.0, abs=1e-12)
+    other = complex_of(source="icosphere", subdiv=2)
+    with pytest.raises(ConfigError, match="app.input_field"):
+        app.run(other, DEC(other), make_solver("direct"), cfg)
+    with pytest.raises(ConfigError, match="app.input_path"):
+        app.run(sphere, DEC(sphere), make_solver("direct"),
+                app.Config(input="result", input_path=str(tmp_path / "missing.h5")))
+
+
+def test_app_rejects_flux_boundary_and_bad_config(sphere):
+    with pytest.raises(ConfigError, match="operator.boundary=flux"):
+        app.run(sphere, DEC(sphere), make_solver("direct"), app.Config(boundary="flux"))
+    with pytest.raises(ConfigError, match="app.input"):
+        app.Config(input="file")
+    with pytest.raises(ConfigError, match="app.analytic"):
+        app.Config(analytic="curl")

@@ -1,0 +1,190 @@
+"""Mesh sources and post-processing steps (decrun.meshes)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from decrun.complex import SimplicialComplex
+from decrun.config import MeshConfig
+from decrun.errors import ConfigError, MeshError
+from decrun.meshes import SAMPLE_MESHES, load_mesh, mean_edge_length, mesh_hash, sample_mesh_dir, vertex_normals
+
+
+def mesh(**kw):
+    return load_mesh(MeshConfig(**kw))
+
+
+@pytest.mark.parametrize("subdiv", [0, 1, 2, 3])
+def test_icosphere_counts_topology_and_radius(subdiv):
+    m = mesh(source="icosphere", subdiv=subdiv, radius=2.0)
+    assert len(m.vertices) == 10 * 4**subdiv + 2 and len(m.faces) == 20 * 4**subdiv
+    np.testing.assert_allclose(np.linalg.norm(m.vertices, axis=1), 2.0, rtol=1e-6)
+    K = SimplicialComplex(m.vertices, m.faces)
+    assert K.euler_characteristic == 2 and K.betti_numbers() == [1, 0, 1]
+
+
+@pytest.mark.parametrize(
+    "kw, betti",
+    [
+        (dict(source="torus"), [1, 2, 1]),
+        (dict(source="sphere_cap"), [1, 0, 0]),
+        (dict(source="annulus", refine="midpoint"), [1, 1, 0]),
+        (dict(source="grid", nx=5, ny=4), [1, 0, 0]),
+        (dict(source="cube", refine="loop", refine_iterations=1), [1, 0, 1]),
+        (dict(source="planar", holes=[[[0.3, 0.3], [0.6, 0.3], [0.6, 0.6], [0.3, 0.6]]]), [1, 1, 0]),
+    ],
+)
+def test_sources_have_the_expected_topology(kw, betti):
+    m = mesh(**kw)
+    assert SimplicialComplex(m.vertices, m.faces).betti_numbers() == betti
+
+
+def test_torus_and_grid_geometry():
+    t = mesh(source="torus", major_radius=1.0, minor_radius=0.25, major_segments=24, minor_segments=12)
+    assert len(t.vertices) == 24 * 12
+    ring = np.hypot(t.vertices[:, 0], t.vertices[:, 1])
+    np.testing.assert_allclose(np.hypot(ring - 1.0, t.vertices[:, 2]), 0.25, rtol=1e-5)
+    g = mesh(source="grid", nx=5, ny=4, width=2.0, height=3.0)
+    assert len(g.vertices) == 20 and len(g.faces) == 2 * 4 * 3
+    np.testing.assert_allclose(np.ptp(g.vertices, axis=0), [2.0, 3.0, 0.0], atol=1e-6)
+
+
+def test_planar_domain_area_quality_and_holes():
+    hole = [[0.3, 0.3], [0.6, 0.3], [0.6, 0.6], [0.3, 0.6]]
+    m = mesh(source="planar", holes=[hole], min_angle_deg=28.0, max_area=0.004)
+    assert m.vertices.shape[1] == 2
+    p = m.vertices[m.faces]
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    area = 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    assert np.all(area > 0)  # counter-clockwise
+    assert area.sum() == pytest.approx(1.0 - 0.09, rel=1e-12)  # the polygon is meshed exactly
+    assert area.max() <= 0.004 * (1 + 1e-9)
+    angles = []
+    for i in range(3):
+        u, v = p[:, (i + 1) % 3] - p[:, i], p[:, (i + 2) % 3] - p[:, i]
+        angles.append(np.degrees(np.arccos(np.sum(u * v, 1) / np.linalg.norm(u, axis=1) / np.linalg.norm(v, axis=1))))
+    assert np.min(angles) >= 28.0 - 1e-6
+    centroids = p.mean(axis=1)
+    assert not np.any(np.all((centroids > 0.3) & (centroids < 0.6), axis=1))  # nothing inside the hole
+
+
+def test_noise_is_seeded_normal_and_relative_to_the_edge_length():
+    clean = mesh(source="icosphere", subdiv=3)
+    a = mesh(source="icosphere", subdiv=3, noise=0.2, seed=7)
+    b = mesh(source="icosphere", subdiv=3, noise=0.2, seed=7)
+    c = mesh(source="icosphere", subdiv=3, noise=0.2, seed=8)
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    assert not np.allclose(a.vertices, c.vertices)
+    np.testing.assert_array_equal(a.meta["clean_vertices"], clean.vertices)
+    displacement = a.vertices - clean.vertices
+    normals = vertex_normals(clean.vertices, clean.faces)
+    # along the normals: no tangential part
+    tangential = displacement - np.sum(displacement * normals, axis=1, keepdims=True) * normals
+    assert np.abs(tangential).max() < 1e-12
+    h = mean_edge_length(clean.vertices, clean.faces)
+    assert a.meta["noise_amplitude"] == pytest.approx(0.2 * h)
+    rms = np.sqrt(np.mean(np.sum(displacement**2, axis=1)))
+    assert rms == pytest.approx(0.2 * h, rel=0.1)  # 642 samples of N(0, 1)
+    assert a.meta["hash"] != clean.meta["hash"] == mesh_hash(clean.vertices, clean.faces)
+
+
+def test_vertex_normals_of_a_sphere_point_outwards():
+    m = mesh(source="icosphere", subdiv=2)
+    n = vertex_normals(m.vertices, m.faces)
+    np.testing.assert_allclose(np.abs(np.sum(n * m.vertices, axis=1)), 1.0, atol=2e-2)
+
+
+def test_normalize_and_noise_keep_the_clean_copy_consistent():
+    m = mesh(source="torus", normalize=True, noise=0.1, post=["normalize", "noise"])
+    lo, hi = m.meta["clean_vertices"].min(0), m.meta["clean_vertices"].max(0)
+    assert np.linalg.norm(hi - lo) == pytest.approx(1.0)
+    np.testing.assert_allclose((hi + lo) / 2, 0.0, atol=1e-12)
+    m2 = mesh(source="torus", normalize=True, noise=0.1, post=["noise", "normalize"])
+    lo, hi = m2.vertices.min(0), m2.vertices.max(0)
+    assert np.linalg.norm(hi - lo) == pytest.approx(1.0)
+    assert m2.meta["steps"] == ["noise", "normalize"]
+
+
+def test_refine_loop_quadruples_faces():
+    m = mesh(source="icosphere", subdiv=1, refine="loop", refine_iterations=2)
+    assert len(m.faces) == 80 * 16 and len(m.vertices) == 642
+    assert "refine" in m.meta["steps"]
+
+
+def test_clean_keeps_the_largest_component(tmp_path):
+    # a cube (12 triangles) plus a separate triangle and an unreferenced vertex
+    cube = mesh(source="cube")
+    V = np.vstack([cube.vertices, [[5, 5, 5], [6, 5, 5], [5, 6, 5], [9, 9, 9]]])
+    F = np.vstack([cube.faces, [[8, 9, 10]]])
+    path = tmp_path / "two.obj"
+    path.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in V) + "".join(f"f {a+1} {b+1} {c+1}\n" for a, b, c in F))
+    raw = mesh(source="file", path=str(path))
+    assert len(raw.faces) == 13
+    cleaned = mesh(source="file", path=str(path), clean=True)
+    assert len(cleaned.faces) == 12 and len(cleaned.vertices) == 8
+    assert cleaned.meta["dropped_faces"] == 1 and cleaned.meta["dropped_vertices"] == len(raw.vertices) - 8
+    assert SimplicialComplex(cleaned.vertices, cleaned.faces).betti_numbers() == [1, 0, 1]
+
+
+def test_file_round_trip(tmp_path):
+    src = mesh(source="icosphere", subdiv=1)
+    path = tmp_path / "ico.obj"
+    path.write_text("".join(f"v {float(x)!r} {float(y)!r} {float(z)!r}\n" for x, y, z in src.vertices)
+                    + "".join(f"f {a+1} {b+1} {c+1}\n" for a, b, c in src.faces))
+    m = mesh(source="file", path=str(path))
+    np.testing.assert_allclose(m.vertices, src.vertices, rtol=1e-6)
+    np.testing.assert_array_equal(m.faces, src.faces)
+    assert m.meta["path"] == str(path)
+
+
+@pytest.mark.parametrize("name", ["bone", "cow", "bunny10k_textured"])
+def test_sample_meshes_shipped_with_pymeshlab(name):
+    assert (sample_mesh_dir() / SAMPLE_MESHES[name]).is_file()
+    m = mesh(source="sample", sample=name)
+    assert len(m.faces) > 1000 and m.meta["label"] == name
+
+
+def test_every_sample_name_points_to_a_file():
+    for name, rel in SAMPLE_MESHES.items():
+        assert (sample_mesh_dir() / rel).is_file(), name
+
+
+@pytest.mark.parametrize(
+    "kw, error, words",
+    [
+        (dict(source="file", path="/nonexistent/mesh.obj"), MeshError, ["mesh.path", "not found"]),
+        (dict(source="file", path=""), ConfigError, ["mesh.path"]),
+        (dict(source="sample", sample="dragon"), ConfigError, ["mesh.sample", "dragon"]),
+        (dict(source="blob"), ConfigError, ["mesh.source", "blob"]),
+        (dict(source="icosphere", subdiv=-1), ConfigError, ["mesh.subdiv"]),
+        (dict(source="icosphere", noise=-0.1), ConfigError, ["mesh.noise"]),
+        (dict(source="torus", major_radius=0.1, minor_radius=0.4), ConfigError, ["mesh.minor_radius"]),
+        (dict(source="planar", min_angle_deg=40), ConfigError, ["mesh.min_angle_deg"]),
+        (dict(source="planar", outer=[[0, 0], [1, 1]]), ConfigError, ["mesh.outer"]),
+        (dict(source="icosphere", post=["noise", "smooth"]), ConfigError, ["mesh.post", "smooth"]),
+        (dict(source="icosphere", refine="magic"), ConfigError, ["mesh.refine", "magic"]),
+    ],
+)
+def test_bad_options_name_the_key(kw, error, words):
+    with pytest.raises(error) as info:
+        mesh(**kw)
+    for word in words:
+        assert word in str(info.value)
+
+
+def test_empty_unreadable_and_faceless_files(tmp_path):
+    empty = tmp_path / "empty.obj"
+    empty.write_text("")
+    with pytest.raises(MeshError, match="empty"):
+        mesh(source="file", path=str(empty))
+    garbage = tmp_path / "garbage.ply"
+    garbage.write_bytes(b"ply\nthis is not a ply file\x00\x01")
+    with pytest.raises(MeshError, match="garbage.ply"):
+        mesh(source="file", path=str(garbage))
+    points = tmp_path / "points.obj"
+    points.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(MeshError, match="no faces"):
+        mesh(source="file", path=str(points))
+    with pytest.raises(MeshError, match="not a file"):
+        mesh(source="file", path=str(tmp_path))

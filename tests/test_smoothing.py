@@ -1,0 +1,148 @@
+"""Mean curvature flow smoothing (thesis §1.3, decrun.apps.smoothing): the mathematics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from matplotlib.figure import Figure
+
+from decrun.apps.smoothing import Config, enclosed_volume, run, surface_area
+from decrun.complex import SimplicialComplex
+from decrun.config import MeshConfig
+from decrun.dec import DEC
+from decrun.errors import ConfigError
+from decrun.meshes import load_mesh
+from decrun.solvers import make_solver
+
+
+def no_progress(iterable, **_):
+    return iterable
+
+
+def setup(star="circumcentric", **mesh_kw):
+    kw = dict(source="icosphere", subdiv=2, noise=0.3, seed=0) | mesh_kw
+    mesh = load_mesh(MeshConfig(**kw))
+    K = SimplicialComplex(mesh.vertices, mesh.faces)
+    K.meta = mesh.meta
+    return K, DEC(K, star=star)
+
+
+def smooth(K, dec, solver="direct", **cfg):
+    return run(K, dec, make_solver(solver), Config(**cfg), no_progress)
+
+
+def test_velocity_is_minus_the_area_gradient():
+    """The flow decreases the area at rate Σ (S v)ᵀ ⋆0⁻¹ (S v) (the area gradient is S v,
+    the cot formula), i.e. v' = -⋆0⁻¹ S v = Δ_M v with the right sign."""
+    K, dec = setup()
+    v = K.vertices
+    S, M = dec.laplacian_symmetric(0), dec.star_diagonal(0)
+    rate = np.sum((S @ v) ** 2 / M[:, None])
+    dt = 1e-7
+    r = smooth(K, dec, scheme="explicit", dt=dt, steps=1, rescale="none")
+    assert r.series["area"][1] - r.series["area"][0] == pytest.approx(-dt * rate, rel=1e-4)
+
+
+def test_area_gradient_is_half_the_cot_stiffness():
+    """Independent of the app: finite differences of the area equal S v (∂A/∂v_i =
+    ½ Σ_j (cot α_ij + cot β_ij)(v_i - v_j)); A is 2-homogeneous, so E(v0) = vᵀ S v = 2 A."""
+    K, dec = setup()
+    v, faces = K.vertices, K.oriented_simplices()
+    S = dec.laplacian_symmetric(0)
+    direction = np.random.default_rng(3).standard_normal(v.shape)
+    eps = 1e-6
+    fd = (surface_area(v + eps * direction, faces) - surface_area(v - eps * direction, faces)) / (2 * eps)
+    assert fd == pytest.approx(np.sum((S @ v) * direction), rel=1e-6)
+    assert np.einsum("ij,ij->", v, S @ v) == pytest.approx(2 * surface_area(v, faces), rel=1e-12)
+
+
+@pytest.mark.parametrize("star", ["circumcentric", "mixed_area", "barycentric"])
+def test_critical_dt_is_two_over_the_largest_eigenvalue(star):
+    K, dec = setup(star=star, subdiv=1)
+    S, M = dec.laplacian_symmetric(0).toarray(), dec.star_diagonal(0)
+    lam_max = sla.eigh(S, np.diag(M), eigvals_only=True)[-1]
+    r = smooth(K, dec, steps=0)
+    assert r.metrics["dt_critical_explicit"] == pytest.approx(2 / lam_max, rel=1e-8)
+
+
+def test_explicit_euler_is_stable_just_below_and_unstable_just_above_the_limit():
+    K, dec = setup()
+    dt_crit = smooth(K, dec, steps=0).metrics["dt_critical_explicit"]
+    below = smooth(K, dec, scheme="explicit", dt=0.97 * dt_crit, steps=150, rescale="none")
+    above = smooth(K, dec, scheme="explicit", dt=1.03 * dt_crit, steps=150, rescale="none")
+    assert below.metrics["stable"] and below.metrics["diverged_at_step"] == -1
+    assert not above.metrics["stable"] and 1 <= above.metrics["diverged_at_step"] <= 150
+    assert above.metrics["steps_done"] == above.metrics["diverged_at_step"]
+
+
+def test_implicit_step_solves_the_thesis_equation():
+    """(Id - dt Δ) v_{n+1} = v_n with Δ = -L (§1.3), solved densely, equals the app's step."""
+    K, dec = setup(subdiv=1)
+    dt = 0.05
+    L = dec.laplacian(0).toarray()
+    expected = np.linalg.solve(np.eye(len(L)) + dt * L, K.vertices)
+    for solver in ("direct", "cg"):
+        r = smooth(K, dec, solver=solver, scheme="implicit", dt=dt, steps=1, rescale="none")
+        np.testing.assert_allclose(r.fields["vertices_final"], expected, rtol=1e-8, atol=1e-10)
+
+
+def test_implicit_area_decreases_monotonically_without_rescaling():
+    K, dec = setup()
+    r = smooth(K, dec, scheme="implicit", dt=0.05, steps=20, rescale="none")
+    assert np.all(np.diff(r.series["area"]) < 0)
+    assert np.all(np.diff(r.series["roughness"]) <= 1e-12)
+
+
+@pytest.mark.parametrize("rescale, kept", [("volume", "volume"), ("area", "area")])
+def test_rescaling_keeps_volume_or_area_and_the_centroid(rescale, kept):
+    K, dec = setup()
+    r = smooth(K, dec, scheme="implicit", dt=0.1, steps=10, rescale=rescale)
+    np.testing.assert_allclose(r.series[kept], r.series[kept][0], rtol=1e-12)
+    M = dec.star_diagonal(0)
+    np.testing.assert_allclose(M @ r.fields["vertices_final"], M @ K.vertices, atol=1e-12)
+    faces = r.fields["faces"]
+    assert enclosed_volume(K.vertices, faces) > 0  # oriented outwards
+
+
+def test_smoothing_moves_the_noisy_sphere_towards_the_clean_one():
+    K, dec = setup(subdiv=3)
+    r = smooth(K, dec, scheme="implicit", dt=0.005, steps=10, rescale="volume")
+    m = r.metrics
+    assert m["distance_to_clean_rms"] < 0.35 * m["distance_to_clean_rms_initial"]
+    radius = np.linalg.norm(r.fields["vertices_final"] - r.fields["vertices_final"].mean(0), axis=1)
+    assert radius.std() / radius.mean() < 0.01  # round again
+
+
+def test_a_clean_sphere_stays_a_sphere():
+    K, dec = setup(noise=0.0, subdiv=3)
+    r = smooth(K, dec, scheme="implicit", dt=0.01, steps=20, rescale="volume")
+    v = r.fields["vertices_final"]
+    np.testing.assert_allclose(np.linalg.norm(v, axis=1), 1.0, atol=2e-3)
+    assert "distance_to_clean_rms" not in r.metrics
+
+
+def test_open_mesh_refuses_volume_rescaling_but_smooths_with_area():
+    K, dec = setup(source="sphere_cap", noise=0.2)
+    with pytest.raises(ConfigError, match="app.rescale=volume"):
+        smooth(K, dec, rescale="volume")
+    r = smooth(K, dec, scheme="implicit", dt=1e-4, steps=5, rescale="area")
+    assert r.metrics["stable"] and np.isnan(r.metrics["volume_drift_rel"])
+
+
+@pytest.mark.parametrize("kw, key", [(dict(dt=-0.1), "app.dt"), (dict(dt=0.0), "app.dt"), (dict(steps=-1), "app.steps"),
+                                     (dict(scheme="rk4"), "app.scheme"), (dict(rescale="mass"), "app.rescale"),
+                                     (dict(blowup_factor=0.5), "app.blowup_factor")])
+def test_config_values_are_checked(kw, key):
+    with pytest.raises(ConfigError, match=key):
+        Config(**kw)
+
+
+def test_result_has_figures_series_and_fields():
+    K, dec = setup(subdiv=1)
+    r = smooth(K, dec, steps=3)
+    assert set(r.figures) == {"smoothing", "smoothing_series"}
+    assert all(isinstance(f, Figure) for f in r.figures.values())
+    assert all(len(s) == 4 for s in r.series.values())
+    assert r.fields["vertices_final"].shape == K.vertices.shape
+    assert r.series["distortion"][0] == pytest.approx(1.0, rel=1e-12)  # E(v0) = 2 A(v0)

@@ -1,0 +1,113 @@
+"""Linear solvers behind one interface (decrun.solvers)."""
+
+from __future__ import annotations
+
+import builtins
+import sys
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from decrun.complex import SimplicialComplex
+from decrun.config import MeshConfig
+from decrun.dec import DEC
+from decrun.errors import ConfigError, SolverError
+from decrun.meshes import load_mesh
+from decrun.solvers import SOLVERS, make_solver
+
+ALL = sorted(SOLVERS)
+
+
+@pytest.fixture(scope="module")
+def heat_matrix():
+    """The implicit smoothing matrix ⋆0 + dt d0ᵀ⋆1 d0 of an icosphere: sparse SPD."""
+    m = load_mesh(MeshConfig(source="icosphere", subdiv=3))
+    dec = DEC(SimplicialComplex(m.vertices, m.faces))
+    return (sp.diags(dec.star_diagonal(0)) + 0.01 * dec.laplacian_symmetric(0)).tocsr()
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_every_solver_solves_an_spd_system_with_many_right_hand_sides(name, heat_matrix):
+    rng = np.random.default_rng(0)
+    x_true = rng.standard_normal((heat_matrix.shape[0], 3))
+    b = heat_matrix @ x_true
+    solver = make_solver(name)
+    solver.factorize(heat_matrix)
+    x = solver.solve(b)
+    assert x.shape == b.shape
+    np.testing.assert_allclose(x, x_true, rtol=1e-6, atol=1e-6)
+    x0 = solver.solve(b[:, 0])
+    assert x0.shape == (heat_matrix.shape[0],)
+    np.testing.assert_allclose(x0, x_true[:, 0], rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_factorize_once_for_the_same_matrix(name, heat_matrix):
+    solver = make_solver(name)
+    solver.factorize(heat_matrix)
+    solver.factorize(heat_matrix.copy())  # same values and pattern: cached
+    assert solver.factorizations == 1
+    changed = heat_matrix + sp.identity(heat_matrix.shape[0], format="csr")
+    solver.factorize(changed)
+    assert solver.factorizations == 2
+    b = np.ones(heat_matrix.shape[0])
+    np.testing.assert_allclose(changed @ solver.solve(b), b, rtol=1e-6, atol=1e-8)
+
+
+def test_cg_tolerance_is_honoured_and_iterations_recorded(heat_matrix):
+    b = np.random.default_rng(1).standard_normal(heat_matrix.shape[0])
+    loose, tight = make_solver("cg", tol=1e-4), make_solver("cg", tol=1e-12)
+    rel = []
+    for solver in (loose, tight):
+        x = solver.factorize(heat_matrix).solve(b)
+        rel.append(np.linalg.norm(heat_matrix @ x - b) / np.linalg.norm(b))
+    assert rel[0] <= 1e-4 and rel[1] <= 1e-12
+    assert tight.iterations[0] > loose.iterations[0]
+
+
+def test_cg_without_convergence_raises(heat_matrix):
+    solver = make_solver("cg", tol=1e-14, maxiter=2)
+    solver.factorize(heat_matrix)
+    with pytest.raises(SolverError, match="no convergence"):
+        solver.solve(np.ones(heat_matrix.shape[0]))
+
+
+def test_direct_singular_matrix_raises():
+    singular = sp.csr_matrix(np.array([[1.0, 1.0], [1.0, 1.0]]))
+    with pytest.raises(SolverError):
+        make_solver("direct").factorize(singular).solve(np.ones(2))
+
+
+def test_solve_before_factorize_and_bad_shapes():
+    for name in ALL:
+        with pytest.raises(SolverError, match="before factorize"):
+            make_solver(name).solve(np.ones(3))
+    with pytest.raises(SolverError, match="square"):
+        make_solver("cg").factorize(sp.csr_matrix(np.ones((2, 3))))
+
+
+def test_unknown_solver_and_bad_options():
+    with pytest.raises(ConfigError, match="solver.name"):
+        make_solver("gauss")
+    with pytest.raises(ConfigError, match="solver=cg"):
+        make_solver("cg", colour="blue")
+    with pytest.raises(ConfigError, match="solver.tol"):
+        make_solver("cg", tol=-1.0)
+    with pytest.raises(ConfigError, match="solver.preconditioner"):
+        make_solver("cg", preconditioner="ilu")
+
+
+@pytest.mark.parametrize("name, module", [("amg", "pyamg"), ("pardiso", "pypardiso")])
+def test_missing_optional_package_is_a_clear_solver_error(name, module, monkeypatch):
+    real_import = builtins.__import__
+
+    def fake_import(mod, *args, **kwargs):
+        if mod == module or mod.startswith(module + "."):
+            raise ImportError(f"No module named {module!r}")
+        return real_import(mod, *args, **kwargs)
+
+    monkeypatch.delitem(sys.modules, module, raising=False)
+    monkeypatch.setattr(builtins, "__import__", fake_import)
+    with pytest.raises(SolverError, match=f"pip install 'decrun\\[{name}\\]'"):
+        make_solver(name)

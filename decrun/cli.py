@@ -32,7 +32,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from decrun.config import check_operator, config_dir, get_app, register_configs
-from decrun.errors import DecrunError
+from decrun.errors import DecrunError, MeshError
 from decrun.results import Result, write_metrics_json, write_result
 
 log = logging.getLogger("decrun")
@@ -99,7 +99,11 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None) -> tuple[R
     mesh = load_mesh(cfg.mesh)
     timings["mesh_seconds"] = time.perf_counter() - t
     t = time.perf_counter()
-    complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=str(cfg.mesh.orient))
+    try:
+        complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=str(cfg.mesh.orient))
+    except MeshError as exc:  # name the mesh the complex refused
+        where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
+        raise type(exc)(f"{where}: {exc}") from exc
     complex_.meta = mesh.meta
     dec = DEC(complex_, star=str(cfg.operator.star))
     timings["complex_seconds"] = time.perf_counter() - t

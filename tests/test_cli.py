@@ -1,0 +1,207 @@
+"""The ``decrun`` command end to end: default run, bad input, sweeps, tables, installs."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from decrun.cli import compose_config, table_main, unique_stamp
+from decrun.config import BROKEN_APPS, config_dir, discover_apps
+from decrun.results import read_provenance, read_result
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def decrun(*args, cwd, env_extra=None, pythonpath=None, timeout=240):
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
+    env.update(env_extra or {})
+    if pythonpath:
+        env["PYTHONPATH"] = str(pythonpath)
+    return subprocess.run([sys.executable, "-m", "decrun", *args], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def only_run_dir(tmp_path):
+    runs = list((tmp_path / "outputs" / "runs").iterdir())
+    assert len(runs) == 1
+    return runs[0]
+
+
+def test_default_run_writes_result_metrics_figure_and_log(tmp_path):
+    proc = decrun(cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    run = only_run_dir(tmp_path)
+    assert f"decrun: wrote outputs/runs/{run.name}/" in proc.stdout
+    for name in ("result.h5", "metrics.json", "smoothing.png", "decrun.log", ".hydra/config.yaml"):
+        assert (run / name).is_file(), name
+    metrics = json.loads((run / "metrics.json").read_text())
+    result = read_result(run / "result.h5")
+    assert result.metrics == metrics
+    assert metrics["status"] == "ok" and metrics["stable"] is True
+    assert metrics["distance_to_clean_rms"] < 0.35 * metrics["distance_to_clean_rms_initial"]
+    attrs = read_provenance(run / "result.h5")
+    config = yaml.safe_load(attrs["config_yaml"])
+    assert config["mesh"]["source"] == "icosphere" and config["app"]["name"] == "smoothing"
+    assert attrs["mesh_hash"] and attrs["timings"]["app_seconds"] > 0
+    assert not list(run.glob(".*.tmp-*"))
+
+
+BAD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 0 -1 0\nf 1 2 3\nf 1 2 4\nf 1 2 5\n"
+
+
+@pytest.mark.parametrize(
+    "args, files, words",
+    [
+        (["mesh=file", "mesh.path=missing.obj"], {}, ["mesh.path", "missing.obj", "not found"]),
+        (["mesh=file", "mesh.path=garbage.ply"], {"garbage.ply": "ply\nformat nonsense\n"}, ["mesh.path", "garbage.ply", "cannot read"]),
+        (["mesh=file", "mesh.path=empty.obj"], {"empty.obj": ""}, ["mesh.path", "empty"]),
+        (["mesh=file", "mesh.path=points.obj"], {"points.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\n"}, ["points.obj", "no faces"]),
+        (["mesh=file", "mesh.path=fin.obj"], {"fin.obj": BAD_OBJ}, ["fin.obj", "non-manifold", "edge"]),
+        (["mesh.colour=red"], {}, ["mesh.colour", "MeshConfig"]),
+        (["app.dt=fast"], {}, ["app.dt", "Float"]),
+        (["app=nosuchapp"], {}, ["app/nosuchapp"]),
+        (["app.dt=-0.1"], {}, ["app.dt", "> 0"]),
+        (["app.steps=-3"], {}, ["app.steps", ">= 0"]),
+        (["operator.star=hexagonal"], {}, ["operator.star", "hexagonal"]),
+    ],
+    ids=["missing-file", "unreadable", "empty-file", "no-faces", "non-manifold", "unknown-key", "wrong-type",
+         "unknown-option", "negative-dt", "negative-steps", "unknown-star"],
+)
+def test_bad_input_gives_one_clear_message(tmp_path, args, files, words):
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    proc = decrun(*args, cwd=tmp_path)
+    assert proc.returncode != 0
+    assert "Traceback" not in proc.stderr + proc.stdout
+    for word in words:
+        assert word in proc.stderr, proc.stderr
+    assert not list(tmp_path.rglob("result.h5"))
+    assert not list(tmp_path.rglob("*.tmp-*"))
+
+
+def test_verbose_shows_the_traceback(tmp_path):
+    proc = decrun("-v", "app.dt=-1", cwd=tmp_path)
+    assert proc.returncode != 0 and "Traceback" in proc.stderr and "app.dt" in proc.stderr
+    proc = decrun("hydra.verbose=true", "app.dt=-1", cwd=tmp_path)
+    assert proc.returncode != 0 and "Traceback" in proc.stderr
+
+
+def test_sweeps_tables_failures_and_unique_dirs(tmp_path):
+    """A 2×3 joblib sweep and a failing basic sweep, started in the same second."""
+    common = ["mesh.subdiv=2", "app.steps=5", "figures=false"]
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
+    procs = [
+        subprocess.Popen([sys.executable, "-m", "decrun", "-m", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2",
+                          "app.scheme=explicit,implicit", "app.dt=0.001,0.01,0.1", *common],
+                         cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True),
+        subprocess.Popen([sys.executable, "-m", "decrun", "-m", "app.dt=0.01,-1", *common],
+                         cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True),
+    ]
+    (ok_out, ok_err), (bad_out, bad_err) = (p.communicate(timeout=300) for p in procs)
+    assert procs[0].returncode == 0, ok_err
+    assert procs[1].returncode != 0
+    sweeps = sorted((tmp_path / "outputs" / "sweeps").iterdir())
+    assert len(sweeps) == 2  # distinct directories
+    tables = {len(pd.read_csv(s / "metrics.csv")): s for s in sweeps}
+    assert set(tables) == {6, 2}
+    table = pd.read_csv(tables[6] / "metrics.csv")
+    # one column per overridden parameter, then status/error, then one per metric
+    assert list(table.columns[:8]) == ["job", "app.scheme", "app.dt", "mesh.subdiv", "app.steps", "figures",
+                                       "status", "error"]
+    assert sorted(zip(table["app.scheme"], table["app.dt"])) == sorted(
+        (s, d) for s in ("explicit", "implicit") for d in (0.001, 0.01, 0.1))
+    assert (table["status"] == "ok").all() and "stable" in table.columns and "area_ratio" in table.columns
+    assert (tables[6] / "metrics.md").read_text().startswith("| job |")
+    # explicit Euler at dt = 0.1 (3.6 × 2/λ_max) diverges; implicit does not
+    unstable = table[(table["app.scheme"] == "explicit") & (table["app.dt"] == 0.1)]
+    assert not unstable["stable"].iloc[0]
+    assert table[table["app.scheme"] == "implicit"]["stable"].all()
+    failed = pd.read_csv(tables[2] / "metrics.csv")
+    assert sorted(failed["status"]) == ["failed", "ok"]
+    assert "app.dt" in failed.loc[failed["status"] == "failed", "error"].iloc[0]
+    assert "failed" in bad_err
+    assert not (tables[2] / "1" / "result.h5").exists()
+    # decrun-table rebuilds the same table
+    (tables[6] / "metrics.csv").unlink()
+    assert table_main([str(tables[6])]) == 0
+    pd.testing.assert_frame_equal(pd.read_csv(tables[6] / "metrics.csv"), table)
+    assert table_main([str(tables[2])]) == 1  # a failed job
+    assert table_main([str(tmp_path / "nope")]) == 2
+
+
+def test_stamps_are_unique():
+    stamps = {unique_stamp() for _ in range(2000)}
+    assert len(stamps) == 2000
+
+
+def test_compose_rejects_misspelt_keys_before_any_work():
+    from omegaconf.errors import ConfigKeyError
+
+    with pytest.raises(Exception) as info:
+        compose_config(["app.stpes=3"])
+    assert "stpes" in str(info.value) or isinstance(info.value, ConfigKeyError)
+
+
+def test_every_app_module_is_registered_with_its_yaml():
+    """Contract: decrun/apps/<name>.py with Config + run ↔ conf/app/<name>.yaml extending base_app_<name>."""
+    assert not BROKEN_APPS, BROKEN_APPS
+    apps = discover_apps()
+    assert "smoothing" in apps
+    for name, module in apps.items():
+        yaml_path = config_dir() / "app" / f"{name}.yaml"
+        assert yaml_path.is_file(), yaml_path
+        assert f"base_app_{name}" in yaml.safe_load(yaml_path.read_text())["defaults"]
+        cfg = compose_config([f"app={name}"])
+        assert cfg.app.name == name
+
+
+def _copy_package(target: Path) -> Path:
+    """The package as a wheel lays it out: decrun/ with a real conf/ directory inside."""
+    site = target / "site"
+    shutil.copytree(REPO / "decrun", site / "decrun", symlinks=False,
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    assert (site / "decrun" / "conf").is_dir() and not (site / "decrun" / "conf").is_symlink()
+    return site
+
+
+def _check_installed_run(site: Path, cwd: Path):
+    proc = decrun("app.steps=2", cwd=cwd, pythonpath=site)
+    assert proc.returncode == 0, proc.stderr
+    run = only_run_dir(cwd)
+    assert (run / "result.h5").is_file()
+    hydra_cfg = yaml.safe_load((run / ".hydra" / "hydra.yaml").read_text())
+    sources = [s["path"] for s in hydra_cfg["hydra"]["runtime"]["config_sources"]]
+    assert any(str(site) in str(p) for p in sources), sources  # configs came from the install
+    where = subprocess.run([sys.executable, "-c", "import decrun; print(decrun.__file__)"], cwd=cwd, text=True,
+                           capture_output=True, env=dict(os.environ, PYTHONPATH=str(site))).stdout
+    assert where.startswith(str(site))
+
+
+def test_installed_elsewhere_layout_runs_from_another_directory(tmp_path):
+    site = _copy_package(tmp_path)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    _check_installed_run(site, elsewhere)
+
+
+@pytest.mark.slow
+def test_wheel_install_runs_from_another_directory(tmp_path):
+    """Build the wheel (pip, isolated build) and run decrun from it, outside the repo."""
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path / "wheel"), str(REPO)],
+                   check=True, capture_output=True, timeout=600)
+    wheel = next((tmp_path / "wheel").glob("decrun-*.whl"))
+    site = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(site), str(wheel)],
+                   check=True, capture_output=True, timeout=600)
+    assert (site / "decrun" / "conf" / "config.yaml").is_file()
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    _check_installed_run(site, elsewhere)

@@ -192,11 +192,13 @@ def test_installed_elsewhere_layout_runs_from_another_directory(tmp_path):
     _check_installed_run(site, elsewhere)
 
 
-@pytest.mark.slow
 def test_wheel_install_runs_from_another_directory(tmp_path):
-    """Build the wheel (pip, isolated build) and run decrun from it, outside the repo."""
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path / "wheel"), str(REPO)],
-                   check=True, capture_output=True, timeout=600)
+    """Build the wheel (pip, isolated build: ~5 s) and run decrun from it, outside the repo."""
+    build = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path / "wheel"),
+                            str(REPO)], capture_output=True, text=True, timeout=600)
+    if build.returncode != 0 and ("Could not find a version" in build.stderr or "No matching distribution" in build.stderr):
+        pytest.skip("no package index reachable for the build requirements (setuptools, wheel)")
+    assert build.returncode == 0, build.stderr
     wheel = next((tmp_path / "wheel").glob("decrun-*.whl"))
     site = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(site), str(wheel)],

@@ -194,8 +194,13 @@ def test_installed_elsewhere_layout_runs_from_another_directory(tmp_path):
 
 def test_wheel_install_runs_from_another_directory(tmp_path):
     """Build the wheel (pip, isolated build: ~5 s) and run decrun from it, outside the repo."""
+    source = tmp_path / "source"  # a clean copy: no stale build/ of the checkout gets packaged
+    for name in ("decrun", "conf"):
+        shutil.copytree(REPO / name, source / name, symlinks=True, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(REPO / name, source / name)
     build = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path / "wheel"),
-                            str(REPO)], capture_output=True, text=True, timeout=600)
+                            str(source)], capture_output=True, text=True, timeout=600)
     if build.returncode != 0 and ("Could not find a version" in build.stderr or "No matching distribution" in build.stderr):
         pytest.skip("no package index reachable for the build requirements (setuptools, wheel)")
     assert build.returncode == 0, build.stderr

@@ -146,3 +146,22 @@ def test_result_has_figures_series_and_fields():
     assert all(len(s) == 4 for s in r.series.values())
     assert r.fields["vertices_final"].shape == K.vertices.shape
     assert r.series["distortion"][0] == pytest.approx(1.0, rel=1e-12)  # E(v0) = 2 A(v0)
+
+
+def test_figures_render_for_planar_and_coloured_meshes(tmp_path):
+    from decrun import plots
+
+    K, dec = setup(source="planar", max_area=0.02, noise=0.1)
+    r = smooth(K, dec, scheme="implicit", dt=1e-3, steps=2, rescale="area")
+    for name, figure in r.figures.items():
+        plots.save_figure(figure, tmp_path / f"{name}.png")
+        assert (tmp_path / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    fig = plots.new_figure()
+    ax3 = fig.add_subplot(1, 2, 1, projection="3d")
+    K3, _ = setup(subdiv=1)
+    mappable = plots.plot_surface(ax3, K3.vertices, K3.oriented_simplices(), values=K3.vertices[:, 2])
+    assert mappable is not None and mappable.norm.vmin == pytest.approx(K3.vertices[:, 2][K3.oriented_simplices()].mean(1).min())
+    ax2 = fig.add_subplot(1, 2, 2)
+    assert plots.plot_surface(ax2, K.vertices, K.oriented_simplices()) is None
+    plots.save_figure(fig, tmp_path / "both.png")
+    assert (tmp_path / "both.png").stat().st_size > 1000

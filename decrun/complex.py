@@ -281,6 +281,8 @@ class SimplicialComplex:
 
         self.vertices = vertices
         self.embedding_dim = vertices.shape[1]
+        #: metadata of the mesh source (set by the runner: clean_vertices, noise_amplitude, hash, ...)
+        self.meta: dict = {}
         n = self.dim
 
         # Top simplices: sorted rows (input order) + parity of the input tuple (§2.3.3).

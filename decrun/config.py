@@ -36,6 +36,7 @@ from typing import Any, List, Optional
 from omegaconf import MISSING
 
 from decrun.errors import ConfigError
+from decrun.dec import STAR_VARIANTS as _DEC_STAR_VARIANTS
 
 # ----------------------------------------------------------------------------------
 # mesh
@@ -111,7 +112,7 @@ class MeshConfig:
 # ----------------------------------------------------------------------------------
 
 #: Hodge-star (dual mesh) variants of decrun.dec.DEC
-STAR_VARIANTS = {"circumcentric", "mixed_area", "barycentric"}
+STAR_VARIANTS = set(_DEC_STAR_VARIANTS)
 #: boundary adaptations; an application that implements one adds its name here at import
 #: (e.g. ``BOUNDARY_ADAPTATIONS.add("flux")``) and checks ``cfg`` for the ones it supports
 BOUNDARY_ADAPTATIONS = {"none"}

@@ -211,3 +211,14 @@ def test_app_validates_config():
         app.Config(boundary="dirichlet")
     with pytest.raises(ConfigError, match="operator.boundary"):
         app.boundary_mode(type("D", (), {"boundary": "weird"})())
+
+
+def test_precomputed_magnitude_without_other_constraints_is_rejected():
+    # eq. 6.9 takes |v| from a solve without the strokes; with nothing else that field is 0
+    from decrun.apps.vector_field import Config, Stroke
+    from decrun.errors import ConfigError
+
+    stroke = Stroke(points=[[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
+    with pytest.raises(ConfigError, match="app.stroke_magnitude=precomputed"):
+        Config(strokes=[stroke], stroke_magnitude="precomputed")
+    Config(strokes=[stroke], stroke_magnitude="fixed")  # eq. 6.8 needs nothing else

@@ -128,6 +128,12 @@ class Config:
         for i, s in enumerate(self.strokes):
             if len(s.points) < 2:
                 raise ConfigError(f"app.strokes[{i}].points: a stroke needs at least two points, got {len(s.points)}")
+        if self.strokes and self.stroke_magnitude == "precomputed" and not self.sources and not self.vortices:
+            raise ConfigError(
+                "app.stroke_magnitude=precomputed takes |v| from a solve without the strokes (eq. 6.9), but "
+                "there are no sources, sinks or vortices, so that field is zero and so would be the result: "
+                "use app.stroke_magnitude=fixed (eq. 6.8) or add a constraint"
+            )
         if self.region_normal and len(self.region_normal) != 3:
             raise ConfigError(f"app.region_normal: must be empty or three numbers, got {list(self.region_normal)}")
 

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import subprocess
 import sys
 import time
@@ -30,13 +29,29 @@ TRIANGLE_CASES = {"quick": [4, 5], "full": [5, 6, 7, 8]}  # icosphere subdivisio
 TET_CASES = {"quick": [8, 12], "full": [15, 25, 40, 55]}  # Kuhn cubes: 6·n³ tetrahedra
 
 
-def _current_rss_bytes() -> int:
-    with open("/proc/self/statm") as handle:
-        return int(handle.read().split()[1]) * resource.getpagesize()
+def _status_bytes(field: str) -> int:
+    """A memory line of /proc/self/status (VmRSS, VmHWM) in bytes."""
+    with open("/proc/self/status") as handle:
+        for line in handle:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(f"/proc/self/status has no {field}")
+
+
+def _reset_peak_rss() -> bool:
+    """Reset the resident high-water mark (VmHWM) so it measures only what follows.
+
+    Without this the peak would include the mesh generator's transient memory."""
+    try:
+        with open("/proc/self/clear_refs", "w") as handle:
+            handle.write("5")
+        return True
+    except OSError:
+        return False
 
 
 def _peak_rss_bytes() -> int:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: KiB
+    return _status_bytes("VmHWM")
 
 
 def load_mesh(kind: str, size: int):
@@ -70,7 +85,12 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
         def work():
             return igl.cotmatrix(vertices, simplices), igl.massmatrix(vertices, simplices, igl.MASSMATRIX_TYPE_VORONOI)
 
-    baseline = _current_rss_bytes()
+    import gc
+
+    gc.collect()
+    baseline = _status_bytes("VmRSS")
+    if not _reset_peak_rss():
+        print("warning: cannot reset the peak RSS; peaks include loading the mesh", file=sys.stderr)
     times = []
     for _ in range(repeat):
         start = time.perf_counter()

@@ -87,34 +87,77 @@ def _group_rows(rows: np.ndarray):
     ``order`` where each group begins (plus a final ``m``), so the members of group g are
     ``order[starts[g]:starts[g+1]]`` in input order. One stable sort, everything else O(m).
     """
-    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    if not isinstance(rows, _FaceRows):
+        rows = _FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
     m, c = rows.shape
     if m == 0:
-        return rows.copy(), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64)
-    top = int(rows.max()) + 1
-    bits = max(1, int(np.ceil(np.log2(top + 1))))
+        empty = np.zeros((0, c), dtype=np.int64)
+        return empty, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64)
+    bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
     if bits * c <= 62:
         # Pack each row into one int64 key (edges and triangles of meshes up to ~2M vertices).
-        key = rows[:, 0].copy()
-        for col in range(1, c):
-            key <<= bits
-            key |= rows[:, col]
+        key = rows.packed(bits)
         order = np.argsort(key, kind="stable")
         sorted_key = key[order]
+        del key
         new = np.empty(m, dtype=bool)
         new[0] = True
         np.not_equal(sorted_key[1:], sorted_key[:-1], out=new[1:])
+        unique_key = sorted_key[new]
+        del sorted_key
+        unique = np.empty((unique_key.size, c), dtype=np.int64)
+        mask = (1 << bits) - 1
+        for col in range(c - 1, -1, -1):
+            np.bitwise_and(unique_key, mask, out=unique[:, col])
+            unique_key >>= bits
     else:
+        rows = rows.materialize()
         order = np.lexsort(rows.T[::-1])
         sorted_rows = rows[order]
         new = np.empty(m, dtype=bool)
         new[0] = True
         new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
-    group = np.cumsum(new) - 1
+        unique = sorted_rows[new]
+        del sorted_rows
+    group = np.cumsum(new, dtype=np.int64)
+    group -= 1
     inverse = np.empty(m, dtype=np.int64)
     inverse[order] = group
+    del group
     starts = np.append(np.flatnonzero(new), m)
-    return rows[order[new]], inverse, order, starts
+    return unique, inverse, order, starts
+
+
+class _FaceRows:
+    """The rows ``top[:, cols]`` flattened to (m·C, len(cols[0])) without building them,
+    unless asked: packed integer keys are computed column by column."""
+
+    def __init__(self, top: np.ndarray, cols):
+        self.top, self.cols = top, cols
+        width = top.shape[1] if cols is None else len(cols[0])
+        count = top.shape[0] if cols is None else top.shape[0] * len(cols)
+        self.shape = (count, width)
+
+    def max(self) -> int:
+        return int(self.top.max()) if self.top.size else 0
+
+    def column(self, index: int) -> np.ndarray:
+        """(m·C,) entries ``index`` of every row, in row order."""
+        if self.cols is None:
+            return self.top[:, index]
+        return self.top[:, [c[index] for c in self.cols]].ravel()
+
+    def packed(self, bits: int) -> np.ndarray:
+        key = self.column(0).astype(np.int64)
+        for col in range(1, self.shape[1]):
+            key <<= bits
+            key |= self.column(col)
+        return key
+
+    def materialize(self) -> np.ndarray:
+        if self.cols is None:
+            return self.top
+        return self.top[:, np.array(self.cols)].reshape(self.shape)
 
 
 def _sort_rows(rows: np.ndarray) -> np.ndarray:
@@ -187,17 +230,46 @@ def _small_simplex_volumes(corners: list) -> np.ndarray:
     v = [corners[2][:, axis] - corners[0][:, axis] for axis in range(d)]
     if d == 2:
         return 0.5 * np.abs(u[0] * v[1] - u[1] * v[0])
-    cx = u[1] * v[2] - u[2] * v[1]
-    cy = u[2] * v[0] - u[0] * v[2]
-    cz = u[0] * v[1] - u[1] * v[0]
-    return 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+    total = np.zeros(u[0].shape[0])
+    for a, b in ((1, 2), (2, 0), (0, 1)):  # the components of u × v, squared and summed
+        component = u[a] * v[b]
+        component -= u[b] * v[a]
+        component *= component
+        total += component
+    np.sqrt(total, out=total)
+    total *= 0.5
+    return total
 
 
 def _vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     """Volumes of simplices given by vertex indices (fast path for edges and triangles)."""
     if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
-        return _small_simplex_volumes([vertices[simplices[:, i]] for i in range(simplices.shape[1])])
+        return _small_simplex_volumes(_CornerCoordinates(vertices, simplices))
     return simplex_volumes(vertices[simplices])
+
+
+class _CornerCoordinates:
+    """corners[i][:, axis] gathered one coordinate at a time (no (m, d) corner arrays)."""
+
+    def __init__(self, vertices: np.ndarray, simplices: np.ndarray):
+        self.columns = np.ascontiguousarray(vertices.T)  # (d, n0): contiguous per axis
+        self.simplices = simplices
+
+    def __len__(self) -> int:
+        return self.simplices.shape[1]
+
+    def __getitem__(self, i: int):
+        return _CornerColumn(self.columns, self.simplices[:, i])
+
+
+class _CornerColumn:
+    def __init__(self, columns, index):
+        self.columns, self.index = columns, index
+        self.shape = (index.shape[0], columns.shape[0])
+
+    def __getitem__(self, key):
+        _, axis = key
+        return self.columns[axis][self.index]
 
 
 class SimplicialComplex:
@@ -260,7 +332,8 @@ class SimplicialComplex:
                 f"got {vertices.shape[1]}"
             )
 
-        _check_indices(vertices, simplices, self.dim)
+        top_sorted = _sort_rows(simplices)
+        _check_indices(vertices, simplices, top_sorted, self.dim)
         bad = ~np.isfinite(vertices).all(axis=1)
         if bad.any():
             raise NonFiniteCoordinateError(f"{_name(np.flatnonzero(bad), 'vertex')} has NaN or infinite coordinates")
@@ -276,6 +349,7 @@ class SimplicialComplex:
                 )
             new_index = np.cumsum(used) - 1
             simplices = new_index[simplices]
+            top_sorted = new_index[top_sorted]
             vertices = vertices[used]
             self.original_vertex_index = np.flatnonzero(used)
 
@@ -286,7 +360,6 @@ class SimplicialComplex:
         n = self.dim
 
         # Top simplices: sorted rows (input order) + parity of the input tuple (§2.3.3).
-        top_sorted = _sort_rows(simplices)
         self._orientation = inversion_parity(simplices)
         self._lists: dict[int, np.ndarray] = {n: top_sorted, 0: np.arange(vertices.shape[0])[:, None]}
 
@@ -298,7 +371,7 @@ class SimplicialComplex:
         self._top_faces = {n: np.arange(m)[:, None], 0: top_sorted}
         for j in range(1, n):
             cols = self._local[j]
-            faces = top_sorted[:, np.array(cols)].reshape(-1, j + 1)  # (m·C, j+1)
+            faces = _FaceRows(top_sorted, cols)  # the (m·C, j+1) face tuples, built lazily
             unique, inverse, order, starts = _group_rows(faces)
             self._lists[j] = unique
             self._top_faces[j] = inverse.reshape(m, len(cols))
@@ -315,6 +388,8 @@ class SimplicialComplex:
         self._orient(orient)
         if check_manifold:
             self._check_vertex_stars()
+        # the facet pairs serve validation only: do not hold on to them
+        del self._pairs
 
     # ------------------------------------------------------------------ validation
     def _check_degenerate(self, tol: float) -> None:
@@ -346,7 +421,11 @@ class SimplicialComplex:
                 )
         interior = np.flatnonzero(counts == 2)
         first, second = order[starts[interior]], order[starts[interior] + 1]
-        self._pairs = (interior, first // (n + 1), second // (n + 1), first % (n + 1), second % (n + 1))
+        del self._facet_groups, order, starts, counts  # only needed to find the pairs
+        index_type = np.int32 if first.size and max(first.max(), second.max()) < 2**31 - 1 else np.int64
+        first, second = first.astype(index_type), second.astype(index_type)
+        width = index_type(n + 1)
+        self._pairs = (interior, first // width, second // width, first % width, second % width)
         # Two simplices sharing a facet are duplicates iff their vertices opposite it agree
         # (facet column c of combinations(range(n+1), n) omits sorted vertex n - c).
         top = self._lists[n]
@@ -452,6 +531,7 @@ class SimplicialComplex:
         smaller = np.where(positive, np.array([1, 1, 0], dtype=np.int32), np.array([1, 0, 0], dtype=np.int32))
         corner = np.arange(3 * m, dtype=np.int32)
         across = partner[(corner - corner % 3) + leaving_slot.ravel()]
+        del partner, leaving_slot
         # position of our vertex in the triangle across: it is the smaller (or larger) vertex of the
         # shared edge there too; table[smaller][slot] gives that sorted position.
         position_table = np.array([1, 2, 2, 0, 0, 1], dtype=np.int32)  # larger: 1,2,2 ; smaller: 0,0,1
@@ -459,6 +539,7 @@ class SimplicialComplex:
         following = np.where(
             moving, (across - across % 3) + position_table[3 * smaller.ravel() + across % 3], corner
         ).astype(np.int32)
+        del across, smaller
         # a corner has a predecessor iff some other corner steps to it (path ends step to themselves)
         has_predecessor = np.zeros(3 * m, dtype=bool)
         has_predecessor[following[moving]] = True
@@ -524,18 +605,15 @@ class SimplicialComplex:
 
     def face_indices(self, j: int) -> np.ndarray:
         """(n_j, j+1) int64: index of the (j-1)-face of each j-simplex omitting local vertex l."""
-        return self._faces_and_signs(j)[0]
+        return np.ascontiguousarray(self._faces_and_signs(j)[0], dtype=np.int64)
 
     def face_signs(self, j: int) -> np.ndarray:
         """(n_j, j+1) int8: the δ_j entries ``(-1)**l`` (times ``orientation`` for j = n)."""
-        return self._faces_and_signs(j)[1]
+        return np.ascontiguousarray(self._faces_and_signs(j)[1], dtype=np.int8)
 
     def _faces_and_signs(self, j: int):
         if not 1 <= j <= self.dim:
             raise IndexError(f"faces exist for dimensions 1..{self.dim}, not {j}")
-        cache = self.__dict__.setdefault("_faces_cache", {})
-        if j in cache:
-            return cache[j]
         n = self.dim
         nj = self._lists[j].shape[0]
         alternating = np.array([1 if l % 2 == 0 else -1 for l in range(j + 1)], dtype=np.int8)
@@ -560,8 +638,7 @@ class SimplicialComplex:
             )  # (C(n+1, j+1), j+1)
             faces = self._top_faces[j - 1][owner[:, None], local_faces[slot]]
             signs = np.broadcast_to(alternating, (nj, j + 1))
-        cache[j] = (np.ascontiguousarray(faces), np.ascontiguousarray(signs, dtype=np.int8))
-        return cache[j]
+        return faces, signs
 
     def incidence(self, j: int) -> sp.csr_matrix:
         """δ_jᵀ: sparse (n_j, n_{j-1}) float64, row s holds the border of j-simplex s.
@@ -573,8 +650,10 @@ class SimplicialComplex:
         if j not in cache:
             faces, signs = self._faces_and_signs(j)
             nj = faces.shape[0]
+            index_type = np.int32 if max((j + 1) * nj, self._lists[j - 1].shape[0]) < 2**31 - 1 else np.int64
             cache[j] = sp.csr_matrix(
-                (signs.ravel().astype(np.float64), faces.ravel(), np.arange(0, (j + 1) * nj + 1, j + 1)),
+                (signs.ravel().astype(np.float64), faces.ravel().astype(index_type),
+                 np.arange(0, (j + 1) * nj + 1, j + 1, dtype=index_type)),
                 shape=(nj, self._lists[j - 1].shape[0]),
             )
         return cache[j]
@@ -775,16 +854,19 @@ class SimplicialComplex:
         return f"SimplicialComplex(dim={self.dim}, {counts})"
 
 
-def _check_indices(vertices: np.ndarray, simplices: np.ndarray, n: int) -> None:
+def _check_indices(vertices: np.ndarray, simplices: np.ndarray, s: np.ndarray, n: int) -> None:
+    """Indices in range and no repeated vertex; ``s`` is ``simplices`` with sorted rows."""
     nv = vertices.shape[0]
-    out = (simplices < 0) | (simplices >= nv)
-    if out.any():
+    if s[:, 0].min() >= 0 and s[:, -1].max() < nv:
+        out = None
+    else:
+        out = (simplices < 0) | (simplices >= nv)
+    if out is not None:
         rows = np.flatnonzero(out.any(axis=1))
         raise IndexOutOfRangeError(
             f"{_name(rows, _simplex_name(n))} reference vertex indices outside 0..{nv - 1} "
             f"(e.g. {int(simplices[out][0])})"
         )
-    s = _sort_rows(simplices)
     repeated = np.flatnonzero((s[:, 1:] == s[:, :-1]).any(axis=1))
     if repeated.size:
         raise RepeatedVertexError(

@@ -34,7 +34,7 @@ from math import factorial
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.complex import SimplicialComplex, simplex_volumes
+from decrun.complex import SimplicialComplex, _vertex_volumes, simplex_volumes
 from decrun.errors import ConfigError
 
 __all__ = ["DEC", "STAR_VARIANTS", "circumcenter_barycentric"]
@@ -122,7 +122,7 @@ class DEC:
         self._check_form_degree(k)
         if k == self.n:
             return self.K._top_volumes
-        return self._cached(("primal", k), lambda: simplex_volumes(self.K.vertices[self.K.simplices(k)]))
+        return self._cached(("primal", k), lambda: _vertex_volumes(self.K.vertices, self.K.simplices(k)))
 
     def circumcenters(self, k: int | None = None) -> np.ndarray:
         """(n_k, d) circumcenters of the k-simplices (default: top simplices — the dual vertices)."""
@@ -210,27 +210,38 @@ class DEC:
         top = K.simplices(2)
         area = self.primal_volumes(2)
         # edge vectors opposite each sorted corner: e0 = p2 - p1, e1 = p0 - p2, e2 = p1 - p0,
-        # one contiguous coordinate at a time (much faster than (m, 3, d) row reductions)
-        sq = [0.0, 0.0, 0.0]
-        dots = [0.0, 0.0, 0.0]  # dots[i] = e_j · e_k for the two edges meeting at corner i
+        # one contiguous coordinate at a time, accumulated in place (few (m,) temporaries)
+        m = top.shape[0]
+        sq = np.zeros((3, m))  # sq[i] = |e_i|²
+        dots = np.zeros((3, m))  # dots[i] = e_j · e_k for the two edges meeting at corner i
+        edge = np.empty((3, m))
+        columns = np.ascontiguousarray(K.vertices.T)
         for axis in range(K.embedding_dim):
-            x = K.vertices[:, axis]
+            x = columns[axis]
             x0, x1, x2 = x[top[:, 0]], x[top[:, 1]], x[top[:, 2]]
-            e0, e1, e2 = x2 - x1, x0 - x2, x1 - x0
-            sq = [sq[0] + e0 * e0, sq[1] + e1 * e1, sq[2] + e2 * e2]
-            dots = [dots[0] + e1 * e2, dots[1] + e2 * e0, dots[2] + e0 * e1]
-        half_inverse_area = 0.5 / area
-        cot0, cot1, cot2 = (-dots[0] * half_inverse_area, -dots[1] * half_inverse_area, -dots[2] * half_inverse_area)
+            np.subtract(x2, x1, out=edge[0])
+            np.subtract(x0, x2, out=edge[1])
+            np.subtract(x1, x0, out=edge[2])
+            del x0, x1, x2
+            sq += edge * edge
+            dots[0] += edge[1] * edge[2]
+            dots[1] += edge[2] * edge[0]
+            dots[2] += edge[0] * edge[1]
+        del edge
+        cot = dots  # cot θ_i = -(e_j · e_k) / (2A), computed in place
+        cot *= -0.5 / area
         # dual edge piece ½ cot θ_i |e_i|; edge slots (0,1), (0,2), (1,2) are opposite corners 2, 1, 0
-        dual_edge = np.empty((top.shape[0], 3))
-        dual_edge[:, 0] = 0.5 * cot2 * np.sqrt(sq[2])
-        dual_edge[:, 1] = 0.5 * cot1 * np.sqrt(sq[1])
-        dual_edge[:, 2] = 0.5 * cot0 * np.sqrt(sq[0])
+        dual_edge = np.sqrt(sq[::-1].T)  # (m, 3) in slot order
+        dual_edge *= 0.5 * cot[::-1].T
         dual1 = np.bincount(K._top_faces[1].ravel(), weights=dual_edge.ravel(), minlength=K.num_simplices(1))
-        corner_area = np.empty((top.shape[0], 3))
-        corner_area[:, 0] = sq[2] * cot2 + sq[1] * cot1
-        corner_area[:, 1] = sq[0] * cot0 + sq[2] * cot2
-        corner_area[:, 2] = sq[1] * cot1 + sq[0] * cot0
+        del dual_edge
+        weighted = sq * cot  # |e_i|² cot θ_i
+        del sq, cot
+        corner_area = np.empty((m, 3))
+        np.add(weighted[2], weighted[1], out=corner_area[:, 0])
+        np.add(weighted[0], weighted[2], out=corner_area[:, 1])
+        np.add(weighted[1], weighted[0], out=corner_area[:, 2])
+        del weighted
         corner_area *= 0.125
         dual0 = np.bincount(top.ravel(), weights=corner_area.ravel(), minlength=K.num_simplices(0))
         return {0: dual0, 1: dual1, 2: np.ones(top.shape[0])}

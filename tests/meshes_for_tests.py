@@ -7,7 +7,16 @@ import pymeshlab
 import scipy.spatial
 import triangle
 
+from decrun.complex import SimplicialComplex
+from decrun.config import MeshConfig
+from decrun.meshes import load_mesh
 from decrun.primitives import grid_triangles, kuhn_cube  # noqa: F401
+
+
+def complex_of(**options) -> SimplicialComplex:
+    """The complex of a mesh built by decrun.meshes from MeshConfig fields (re-oriented)."""
+    mesh = load_mesh(MeshConfig(**options))
+    return SimplicialComplex(mesh.vertices, mesh.simplices, orient="fix")
 
 
 def icosphere(subdiv: int):

@@ -8,19 +8,14 @@ import pytest
 
 from decrun.apps import hodge as app
 from decrun.complex import SimplicialComplex
-from decrun.config import MeshConfig
 from decrun.dec import DEC
 from decrun.errors import ConfigError
 from decrun.forms import sample_density, sample_vector_field
 from decrun.hodge import harmonic_basis, hodge_decomposition
-from decrun.meshes import load_mesh
 from decrun.results import Result, write_result
 from decrun.solvers import make_solver
 
-
-def complex_of(**options) -> SimplicialComplex:
-    mesh = load_mesh(MeshConfig(**options))
-    return SimplicialComplex(mesh.vertices, mesh.simplices, orient="fix")
+from meshes_for_tests import complex_of
 
 
 @pytest.fixture(scope="module")

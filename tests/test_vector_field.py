@@ -5,20 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from decrun.complex import SimplicialComplex
-from decrun.config import MeshConfig
 from decrun.dec import DEC
 from decrun.errors import ConfigError
 from decrun.forms import sample_vector_field, whitney_sharp
-from decrun.meshes import load_mesh
 from decrun.singularities import find_singularities
 from decrun.solvers import make_solver
 from decrun import vector_design as vd
 
-
-def complex_of(**options) -> SimplicialComplex:
-    mesh = load_mesh(MeshConfig(**options))
-    return SimplicialComplex(mesh.vertices, mesh.simplices, orient="fix")
+from meshes_for_tests import complex_of
 
 
 @pytest.fixture(scope="module")

@@ -51,12 +51,9 @@ from decrun.vector_design import (
     stroke_face_directions,
 )
 
-try:  # let the runner's operator check accept `flux` (it validates operator.boundary)
-    from decrun.config import BOUNDARY_ADAPTATIONS
+from decrun.config import BOUNDARY_ADAPTATIONS
 
-    BOUNDARY_ADAPTATIONS.add("flux")
-except ImportError:  # pragma: no cover - config module absent
-    pass
+BOUNDARY_ADAPTATIONS.add("flux")  # the runner validates operator.boundary against this set (§6.4.4)
 
 
 @dataclass

@@ -20,14 +20,14 @@ uniformly scaled into [0, 1]² (thesis §5.2.2).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
 from decrun.complex import SimplicialComplex
 from decrun.errors import ConfigError, SolverError, TopologyError
-from decrun.parametrization_metrics import corner_angles
+from decrun.geometry import corner_angles
 
 __all__ = [
     "WEIGHTS",

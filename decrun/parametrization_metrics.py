@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from decrun.geometry import corner_angles, embed3, triangle_areas
+
 __all__ = [
     "corner_angles",
     "triangle_areas",
@@ -36,35 +38,6 @@ __all__ = [
     "is_embedding",
     "parametrization_metrics",
 ]
-
-
-def _as3(points: np.ndarray) -> np.ndarray:
-    points = np.asarray(points, dtype=np.float64)
-    if points.shape[1] == 2:
-        return np.column_stack([points, np.zeros(len(points))])
-    return points
-
-
-def corner_angles(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Interior angles of every triangle corner, in radians.
-
-    points (n, 2|3), faces (m, 3) -> (m, 3); entry ``[t, l]`` is the angle of triangle ``t``
-    at its local vertex ``l``. Unsigned (in [0, π]); computed with ``atan2(|a×b|, a·b)``,
-    which stays accurate for angles near 0 and π. A degenerate corner (zero-length edge)
-    gets angle 0.
-    """
-    p = _as3(points)[np.asarray(faces)]  # (m, 3, 3)
-    a = np.roll(p, -1, axis=1) - p  # edge to the next corner
-    b = np.roll(p, 1, axis=1) - p  # edge to the previous corner
-    cross = np.linalg.norm(np.cross(a, b), axis=2)
-    dot = np.einsum("mkd,mkd->mk", a, b)
-    return np.arctan2(cross, dot)
-
-
-def triangle_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unsigned triangle areas, points (n, 2|3), faces (m, 3) -> (m,)."""
-    p = _as3(points)[np.asarray(faces)]
-    return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
 
 
 def signed_uv_areas(uv: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -111,7 +84,7 @@ def _local_frames(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     Corner 0 at the origin, corner 1 on the positive first axis; the frame is right-handed with
     respect to the triangle's orientation, so an orientation-preserving map has det J > 0.
     """
-    p = _as3(vertices)[np.asarray(faces)]
+    p = embed3(vertices)[np.asarray(faces)]
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
     length1 = np.linalg.norm(e1, axis=1)
     normal = np.cross(e1, e2)

@@ -35,7 +35,8 @@ import numpy as np
 
 from decrun.complex import SimplicialComplex
 from decrun.forms import whitney_sharp
-from decrun.vector_design import _embed3, corner_angles, face_normals
+from decrun.geometry import corner_angles, embed3
+from decrun.vector_design import face_normals
 
 __all__ = ["corner_vectors", "vertex_indices", "face_indices", "Singularities", "find_singularities"]
 
@@ -53,7 +54,7 @@ def corner_vectors(K: SimplicialComplex, omega: np.ndarray) -> np.ndarray:
     for slot in range(3):
         lam = np.zeros(3)
         lam[slot] = 1.0
-        by_sorted[:, slot] = _embed3(whitney_sharp(K, omega, barycentric=lam))
+        by_sorted[:, slot] = embed3(whitney_sharp(K, omega, barycentric=lam))
     position = np.argmax(top[:, None, :] == oriented[:, :, None], axis=2)  # oriented corner → sorted slot
     return np.take_along_axis(by_sorted, position[:, :, None], axis=1)
 
@@ -102,15 +103,15 @@ def vertex_indices(K: SimplicialComplex, corners: np.ndarray) -> tuple[np.ndarra
     index : (n0,) int64 (0 on border vertices); winding : (n0,) float, the raw value
     (NaN on border vertices); interior : (n0,) bool
     """
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
     f = K.oriented_simplices()
-    m, n0 = f.shape[0], K.num_simplices(0)
+    n0 = K.num_simplices(0)
     normals = np.repeat(face_normals(K)[:, None, :], 3, axis=1)
     here = f
     nxt = np.roll(f, -1, axis=1)
     prv = np.roll(f, -2, axis=1)
     first_edge = x[nxt] - x[here]  # (m, 3, 3)
-    alpha = corner_angles(K)
+    alpha = corner_angles(K.vertices, K.oriented_simplices())
     psi = _signed_angle(first_edge, corners, normals)  # angle from the first edge
     psi_second = psi - alpha  # the same vector measured from the second edge
     # match each corner's second edge (v → prev) with the neighbour's first edge (v → next)
@@ -162,7 +163,7 @@ class Singularities:
 
     def positions(self, K: SimplicialComplex) -> tuple[np.ndarray, np.ndarray]:
         """(S, 3) locations (vertex positions, face barycenters) and (S,) indices."""
-        x = _embed3(K.vertices)
+        x = embed3(K.vertices)
         at_faces = x[K.simplices(2)[self.faces]].mean(axis=1)
         return (np.concatenate([x[self.vertices], at_faces]),
                 np.concatenate([self.vertex_index[self.vertices], self.face_index[self.faces]]))

@@ -59,6 +59,7 @@ from decrun.complex import SimplicialComplex
 from decrun.dec import DEC
 from decrun.errors import ConfigError, TopologyError
 from decrun.forms import whitney_sharp
+from decrun.geometry import embed3
 from decrun.solvers import Solver
 
 __all__ = [
@@ -69,7 +70,6 @@ __all__ = [
     "nearest_vertices",
     "nearest_faces",
     "face_normals",
-    "corner_angles",
     "border_flux_matrix",
     "border_vertex_matrix",
     "codifferential_1",
@@ -98,34 +98,14 @@ def _require_surface(K: SimplicialComplex, what: str) -> None:
         raise TopologyError(f"{what} needs a triangle mesh (a 2-complex), got a {K.dim}-complex")
 
 
-def _embed3(points: np.ndarray) -> np.ndarray:
-    """(N, 2 or 3) → (N, 3) with z = 0 for planar input."""
-    points = np.asarray(points, dtype=np.float64)
-    if points.shape[1] == 3:
-        return points
-    return np.concatenate([points, np.zeros((points.shape[0], 3 - points.shape[1]))], axis=1)
-
-
 def face_normals(K: SimplicialComplex) -> np.ndarray:
     """(n2, 3) unit normals of the consistently oriented faces ``K.oriented_simplices()``
     (right-hand rule; a planar mesh in the xy-plane oriented counter-clockwise gets +z)."""
     _require_surface(K, "face_normals")
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
     f = K.oriented_simplices()
     normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
     return normal / np.linalg.norm(normal, axis=1, keepdims=True)
-
-
-def corner_angles(K: SimplicialComplex) -> np.ndarray:
-    """(n2, 3) interior angles (radians) at the corners of ``K.oriented_simplices()``."""
-    x = _embed3(K.vertices)
-    f = K.oriented_simplices()
-    angles = np.empty(f.shape, dtype=np.float64)
-    for i in range(3):
-        a = x[f[:, (i + 1) % 3]] - x[f[:, i]]
-        b = x[f[:, (i + 2) % 3]] - x[f[:, i]]
-        angles[:, i] = np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("md,md->m", a, b))
-    return angles
 
 
 def nearest_vertices(K: SimplicialComplex, points) -> np.ndarray:
@@ -162,8 +142,8 @@ def nearest_faces(K: SimplicialComplex, points, candidates: int = 8) -> tuple[np
     _require_surface(K, "nearest_faces")
     points = np.atleast_2d(np.asarray(points, dtype=np.float64))
     _check_point_dim(K, points, "point")
-    points3 = _embed3(points)
-    x = _embed3(K.vertices)
+    points3 = embed3(points)
+    x = embed3(K.vertices)
     top = K.simplices(2)
     corners = x[top]  # (m, 3, 3)
     barycenters = corners.mean(axis=1)
@@ -245,7 +225,7 @@ def border_flux_matrix(dec: DEC) -> sp.csr_matrix:
     K = dec.K
     _require_surface(K, "border flux (operator.boundary: flux)")
     edges_idx, face, i_v, j_v, k_v, _ = _border_edge_frames(K)
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
 
     def cot(at, p, q):
         a, b = x[p] - x[at], x[q] - x[at]
@@ -358,7 +338,7 @@ def stroke_face_directions(
     _check_point_dim(K, points, "strokes")
     if closed:
         points = np.concatenate([points, points[:1]])
-    points = _embed3(points)
+    points = embed3(points)
     if step is None:
         x = K.vertices[K.simplices(1)]
         step = 0.25 * float(np.linalg.norm(x[:, 1] - x[:, 0], axis=1).mean())
@@ -402,7 +382,7 @@ def stroke_edge_targets(K: SimplicialComplex, faces: np.ndarray, vectors: np.nda
         return np.zeros(0, dtype=np.int64), np.zeros(0)
     edge_of_face = K.face_indices(2)[faces]  # (F, 3)
     edge_vertices = K.simplices(1)[edge_of_face]  # (F, 3, 2)
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
     direction = x[edge_vertices[..., 1]] - x[edge_vertices[..., 0]]
     values = np.einsum("fd,fed->fe", vectors, direction)
     edges, inverse = np.unique(edge_of_face.ravel(), return_inverse=True)
@@ -585,8 +565,8 @@ def border_normal_flux(K: SimplicialComplex, omega: np.ndarray) -> dict:
         return {"boundary_normal_flux_mean": 0.0, "boundary_normal_fraction": 0.0, "boundary_edges": 0}
     top = K.simplices(2)
     lam = (top[face] == i_v[:, None]) * 0.5 + (top[face] == j_v[:, None]) * 0.5
-    u = _embed3(whitney_sharp(K, omega, barycentric=lam, faces=face))
-    x = _embed3(K.vertices)
+    u = embed3(whitney_sharp(K, omega, barycentric=lam, faces=face))
+    x = embed3(K.vertices)
     tangent = x[j_v] - x[i_v]
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
     outward = np.cross(tangent, face_normals(K)[face])  # right of i → j, in the face plane

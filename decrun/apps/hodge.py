@@ -35,7 +35,7 @@ from decrun.errors import ConfigError, TopologyError
 from decrun.forms import sample_vector_field, whitney_sharp
 from decrun.hodge import HodgeDecomposer, harmonic_basis
 from decrun.results import Result
-from decrun.vector_design import _embed3
+from decrun.geometry import embed3
 
 FIELDS = ("analytic", "random", "result")
 ANALYTIC = ("gradient", "rotated_gradient", "rotation", "toroidal", "mixed")
@@ -99,7 +99,7 @@ def input_form(K, cfg) -> np.ndarray:
     if cfg.input == "analytic":
         X = analytic_field(cfg.analytic, cfg.vector)
         if K.embedding_dim == 2:  # planar meshes: evaluate in the z = 0 plane
-            return sample_vector_field(K, lambda p: X(_embed3(p))[:, :2], order=int(cfg.quadrature_order))
+            return sample_vector_field(K, lambda p: X(embed3(p))[:, :2], order=int(cfg.quadrature_order))
         return sample_vector_field(K, X, order=int(cfg.quadrature_order))
     if cfg.input == "random":
         x = K.vertices[K.simplices(1)]
@@ -205,7 +205,7 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
     metrics["input"] = str(cfg.input if cfg.input != "analytic" else cfg.analytic)
     fields = {"omega": omega, **named}
     for name, form in (("omega", omega), *named.items()):
-        fields[f"{name}_vectors"] = _embed3(whitney_sharp(K, form))
+        fields[f"{name}_vectors"] = embed3(whitney_sharp(K, form))
     if parts.alpha is not None:
         fields["alpha"] = parts.alpha
     if parts.beta is not None:

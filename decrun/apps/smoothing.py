@@ -59,6 +59,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from decrun.errors import ConfigError, TopologyError
+from decrun.geometry import triangle_areas
 from decrun.results import Result
 
 SCHEMES = ("explicit", "implicit")
@@ -97,11 +98,7 @@ class Config:
 
 def surface_area(vertices: np.ndarray, faces: np.ndarray) -> float:
     """Total area Σ ½|(p1-p0)×(p2-p0)| of the triangles (2-D or 3-D vertices)."""
-    p0, p1, p2 = (vertices[faces[:, i]] for i in range(3))
-    a, b = p1 - p0, p2 - p0
-    if vertices.shape[1] == 2:
-        return float(0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum())
-    return float(0.5 * np.linalg.norm(np.cross(a, b), axis=1).sum())
+    return float(triangle_areas(vertices, faces).sum())
 
 
 def enclosed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:

@@ -30,13 +30,13 @@ import numpy as np
 
 from decrun.errors import ConfigError, TopologyError
 from decrun.forms import whitney_sharp
+from decrun.geometry import embed3
 from decrun.results import Result
 from decrun.singularities import Singularities, find_singularities
 from decrun.vector_design import (
     BOUNDARY_MODES,
     MAGNITUDE_MODES,
     DesignConstraints,
-    _embed3,
     adjointness_defect,
     border_normal_flux,
     codifferential_1,
@@ -274,7 +274,7 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
             magnitude = np.linalg.norm(whitney_sharp(K, pre.omega, faces=faces), axis=1)
         stroke_vectors = geometry["stroke_directions"] * magnitude[:, None]
         edges, targets = stroke_edge_targets(K, faces, stroke_vectors)
-        edge_points = _embed3(K.vertices)[K.simplices(1)]
+        edge_points = embed3(K.vertices)[K.simplices(1)]
         mean_edge = float(np.linalg.norm(edge_points[:, 1] - edge_points[:, 0], axis=1).mean())
         constraints = constraints.with_strokes(edges, targets, np.full(edges.size, float(cfg.stroke_weight) / mean_edge))
         start = time.perf_counter()
@@ -282,7 +282,7 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
         seconds += time.perf_counter() - start
     omega = solution.omega
 
-    face_vectors = _embed3(whitney_sharp(K, omega))
+    face_vectors = embed3(whitney_sharp(K, omega))
     singular = find_singularities(K, omega)
     chi = int(K.euler_characteristic)
     closed = K.boundary_faces()[0].size == 0
@@ -321,7 +321,7 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
         "stroke_vectors": stroke_vectors,
     }
     if geometry["stroke_faces"].size:
-        before = _embed3(whitney_sharp(K, pre.omega))
+        before = embed3(whitney_sharp(K, pre.omega))
         area = dec.primal_volumes(2)
         metrics["field_change_relative"] = _relative_change(before, face_vectors, area, np.ones(area.size, bool))
         fields["omega_without_strokes"] = pre.omega
@@ -368,7 +368,7 @@ def draw_field(ax, K, face_vectors: np.ndarray, singular: Singularities | None =
     from decrun.plots import plot_surface
 
     faces = K.oriented_simplices()
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
     planar = K.vertices.shape[1] == 2 or np.ptp(x[:, 2]) < 1e-12 * max(np.ptp(x), 1e-300)
     magnitude = np.linalg.norm(face_vectors, axis=1)
     mappable = plot_surface(ax, K.vertices if planar else x, faces, magnitude if colour_by_magnitude else None,
@@ -428,7 +428,7 @@ def field_figure(K, face_vectors, singular, geometry=None, *, title="designed fi
         mappable = draw_field(ax, K, face_vectors, singular, max_arrows=max_arrows, title=label,
                               **({} if planar else {"view": view}))
         if geometry is not None and geometry["stroke_faces"].size:
-            x = _embed3(K.vertices)
+            x = embed3(K.vertices)
             centre = x[K.simplices(2)[geometry["stroke_faces"]]].mean(axis=1)
             if planar:
                 ax.plot(centre[:, 0], centre[:, 1], ".", color="tab:green", ms=3)

@@ -16,6 +16,7 @@ the circumcentric ⋆1); with negative cot weights ⟨·,·⟩_⋆ is indefinite
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,8 +81,10 @@ class HodgeDecomposer:
     def __init__(self, dec: DEC, k: int = 1, solver: str | Solver | None = None):
         self.dec, self.k = dec, k
         n = dec.n
-        make = (lambda: make_solver(solver or "direct")) if not isinstance(solver, Solver) else None
-        solvers = [make(), make()] if make else [solver, type(solver)()]
+        if isinstance(solver, Solver):  # a configured instance: the second problem gets a copy (same options)
+            solvers = [solver, copy.deepcopy(solver)]
+        else:
+            solvers = [make_solver(solver or "direct"), make_solver(solver or "direct")]
         self._exact = self._coexact = None
         if k > 0:
             d = dec.d(k - 1)

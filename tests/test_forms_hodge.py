@@ -158,3 +158,18 @@ def test_degenerate_star_gives_clear_error():
     dec = DEC(SimplicialComplex(*grid_triangles(4)))
     with pytest.raises(MeshError, match="invertible ⋆_1"):
         hodge_decomposition(dec, np.ones(dec.K.num_simplices(1)))
+
+
+def test_configured_solver_instance_serves_both_poisson_problems_with_its_options():
+    from decrun.solvers import make_solver
+
+    dec = DEC(SimplicialComplex(*icosphere(2)))
+    solver = make_solver("cg", tol=1e-13, preconditioner="none")
+    decomposer = HodgeDecomposer(dec, 1, solver)
+    exact_solver, coexact_solver = decomposer._exact.solver, decomposer._coexact.solver
+    assert exact_solver is not coexact_solver  # each problem keeps its own factorization
+    assert (coexact_solver.tol, coexact_solver.preconditioner) == (1e-13, "none")
+    omega = np.random.default_rng(13).standard_normal(dec.K.num_simplices(1))
+    parts = decomposer.decompose(omega)
+    assert relative_inner(dec, 1, parts.exact, parts.coexact) <= 1e-10
+    np.testing.assert_allclose(parts.exact + parts.coexact + parts.harmonic, omega, atol=1e-12)

@@ -62,7 +62,7 @@ def load_mesh(kind: str, size: int):
         ms.create_sphere(radius=1.0, subdiv=size)
         mesh = ms.current_mesh()
         return mesh.vertex_matrix().astype(np.float64), mesh.face_matrix().astype(np.int64)
-    from decrun.primitives import kuhn_cube
+    from decrun.core.primitives import kuhn_cube
 
     return kuhn_cube(size)
 
@@ -71,8 +71,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     """Runs inside the subprocess: one library on one mesh."""
     vertices, simplices = load_mesh(kind, size)
     if library == "decrun":
-        from decrun.complex import SimplicialComplex
-        from decrun.dec import DEC
+        from decrun.core.complex import SimplicialComplex
+        from decrun.core.dec import DEC
 
         def work():
             K = SimplicialComplex(vertices, simplices)

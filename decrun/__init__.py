@@ -1,4 +1,16 @@
-"""decrun — declarative, reproducible Discrete Exterior Calculus experiments."""
+"""decrun — declarative, reproducible Discrete Exterior Calculus experiments.
+
+Layers (each imports only the ones below it; ``tests/test_layers.py`` enforces it):
+
+``decrun.core``     the DEC core: complexes, geometry, Hodge stars, boundary adaptations,
+                    operators, forms, Hodge decomposition, linear solvers
+``decrun.methods``  the thesis' methods as pure functions of the complex and operators
+``decrun.apps``     thin adapters: typed config → method → Result
+``decrun.runner``   the Hydra command line, configs, mesh sources, result files, tables, plots
+
+``decrun.SimplicialComplex`` and ``decrun.DEC`` are imported lazily, so ``import decrun``
+(and ``decrun --help``) stays fast.
+"""
 
 from decrun.errors import (  # noqa: F401
     ConfigError,
@@ -9,3 +21,17 @@ from decrun.errors import (  # noqa: F401
 )
 
 __version__ = "0.1.0"
+
+__all__ = ["DEC", "SimplicialComplex", "ConfigError", "DecrunError", "MeshError", "SolverError", "TopologyError"]
+
+
+def __getattr__(name: str):
+    if name == "SimplicialComplex":
+        from decrun.core.complex import SimplicialComplex
+
+        return SimplicialComplex
+    if name == "DEC":
+        from decrun.core.dec import DEC
+
+        return DEC
+    raise AttributeError(f"module 'decrun' has no attribute {name!r}")

@@ -1,6 +1,6 @@
 """``python -m decrun`` = the ``decrun`` command."""
 
-from decrun.cli import main
+from decrun.runner.cli import main
 
 if __name__ == "__main__":
     main()

@@ -7,14 +7,14 @@ import pymeshlab
 import scipy.spatial
 import triangle
 
-from decrun.complex import SimplicialComplex
-from decrun.config import MeshConfig
-from decrun.meshes import load_mesh
-from decrun.primitives import grid_triangles, kuhn_cube  # noqa: F401
+from decrun.core.complex import SimplicialComplex
+from decrun.runner.config import MeshConfig
+from decrun.runner.meshes import load_mesh
+from decrun.core.primitives import grid_triangles, kuhn_cube  # noqa: F401
 
 
 def complex_of(**options) -> SimplicialComplex:
-    """The complex of a mesh built by decrun.meshes from MeshConfig fields (re-oriented)."""
+    """The complex of a mesh built by decrun.runner.meshes from MeshConfig fields (re-oriented)."""
     mesh = load_mesh(MeshConfig(**options))
     return SimplicialComplex(mesh.vertices, mesh.simplices, orient="fix")
 

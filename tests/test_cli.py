@@ -13,9 +13,9 @@ import pandas as pd
 import pytest
 import yaml
 
-from decrun.cli import compose_config, table_main, unique_stamp
-from decrun.config import BROKEN_APPS, config_dir, discover_apps
-from decrun.results import read_provenance, read_result
+from decrun.runner.cli import compose_config, table_main, unique_stamp
+from decrun.runner.config import BROKEN_APPS, config_dir, discover_apps
+from decrun.runner.results import read_provenance, read_result
 
 REPO = Path(__file__).resolve().parents[1]
 

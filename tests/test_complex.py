@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from decrun import errors
-from decrun.complex import SimplicialComplex, inversion_parity, unique_rows
+from decrun.core.complex import SimplicialComplex, inversion_parity, unique_rows
 from meshes_for_tests import (annulus, icosphere, kuhn_cube, planar_domain, random_planar, random_tets,
                               remeshed_torus)
 

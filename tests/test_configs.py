@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from decrun.cli import compose_config, run_experiment
-from decrun.meshes import SAMPLE_MESHES, sample_mesh_dir
+from decrun.runner.cli import compose_config, run_experiment
+from decrun.runner.meshes import SAMPLE_MESHES, sample_mesh_dir
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 

@@ -7,8 +7,8 @@ import pytest
 import scipy.sparse.linalg as spla
 import scipy.spatial
 
-from decrun.complex import SimplicialComplex
-from decrun.dec import DEC
+from decrun.core.complex import SimplicialComplex
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError
 from meshes_for_tests import grid_triangles, icosphere, kuhn_cube, random_planar, random_tets
 from test_complex import regular_tetrahedron_surface

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from decrun.complex import SimplicialComplex
-from decrun.dec import DEC
+from decrun.core.complex import SimplicialComplex
+from decrun.core.dec import DEC
 from decrun.errors import MeshError
-from decrun.forms import barycentric_gradients, sample_density, sample_function, sample_vector_field, whitney_sharp
-from decrun.hodge import HodgeDecomposer, harmonic_basis, hodge_decomposition
+from decrun.core.forms import barycentric_gradients, sample_density, sample_function, sample_vector_field, whitney_sharp
+from decrun.core.hodge import HodgeDecomposer, harmonic_basis, hodge_decomposition
 from meshes_for_tests import (annulus, grid_triangles, icosphere, kuhn_cube, planar_domain, random_planar,
                               random_tets, remeshed_torus)
 
@@ -161,7 +161,7 @@ def test_degenerate_star_gives_clear_error():
 
 
 def test_configured_solver_instance_serves_both_poisson_problems_with_its_options():
-    from decrun.solvers import make_solver
+    from decrun.core.solvers import make_solver
 
     dec = DEC(SimplicialComplex(*icosphere(2)))
     solver = make_solver("cg", tol=1e-13, preconditioner="none")

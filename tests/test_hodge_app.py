@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from decrun.apps import hodge as app
-from decrun.complex import SimplicialComplex
-from decrun.dec import DEC
+from decrun.core.complex import SimplicialComplex
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError
-from decrun.forms import sample_density, sample_vector_field
-from decrun.hodge import harmonic_basis, hodge_decomposition
-from decrun.results import Result, write_result
-from decrun.solvers import make_solver
+from decrun.core.forms import sample_density, sample_vector_field
+from decrun.core.hodge import harmonic_basis, hodge_decomposition
+from decrun.runner.results import Result, write_result
+from decrun.core.solvers import make_solver
 
 from meshes_for_tests import complex_of
 

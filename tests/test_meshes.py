@@ -1,14 +1,14 @@
-"""Mesh sources and post-processing steps (decrun.meshes)."""
+"""Mesh sources and post-processing steps (decrun.runner.meshes)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from decrun.complex import SimplicialComplex
-from decrun.config import MeshConfig
+from decrun.core.complex import SimplicialComplex
+from decrun.runner.config import MeshConfig
 from decrun.errors import ConfigError, MeshError
-from decrun.meshes import SAMPLE_MESHES, load_mesh, mean_edge_length, mesh_hash, sample_mesh_dir, vertex_normals
+from decrun.runner.meshes import SAMPLE_MESHES, load_mesh, mean_edge_length, mesh_hash, sample_mesh_dir, vertex_normals
 
 
 def mesh(**kw):

@@ -5,19 +5,19 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from decrun.complex import SimplicialComplex
-from decrun.dec import DEC
+from decrun.core.complex import SimplicialComplex
+from decrun.core.dec import DEC
 from decrun.errors import TopologyError
-from decrun.mesh_holes import cut_holes
-from decrun.parametrization import (
+from decrun.runner.mesh_holes import cut_holes
+from decrun.methods.parametrization import (
     conformal_border,
     conformal_border_rows,
     harmonic_matrix,
     parametrize,
     target_border_angles,
 )
-from decrun.parametrization_metrics import parametrization_metrics
-from decrun.solvers import make_solver
+from decrun.methods.parametrization_metrics import parametrization_metrics
+from decrun.core.solvers import make_solver
 from meshes_for_tests import icosphere, planar_domain, random_planar
 
 # a T on the front (y > 0) of the unit sphere: bar 1.0 × 0.2, stem 0.24 wide (thesis Fig. 5.8)
@@ -240,13 +240,13 @@ EXPERIMENTS = ["fig5_5_flat_hole", "fig5_6_open_patch", "fig5_7_half_sphere_hole
 
 
 def experiment_mesh(name):
-    """The mesh of conf/experiment/<name>.yaml, built through decrun.meshes (no Hydra)."""
+    """The mesh of conf/experiment/<name>.yaml, built through decrun.runner.meshes (no Hydra)."""
     from pathlib import Path
 
     import yaml
 
-    from decrun.config import MeshConfig
-    from decrun.meshes import load_mesh
+    from decrun.runner.config import MeshConfig
+    from decrun.runner.meshes import load_mesh
 
     text = (Path(__file__).resolve().parents[1] / "conf" / "experiment" / f"{name}.yaml").read_text()
     options = yaml.safe_load(text)["mesh"]

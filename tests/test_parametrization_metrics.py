@@ -1,9 +1,9 @@
-"""Distortion metrics on hand-made maps with known answers (decrun.parametrization_metrics)."""
+"""Distortion metrics on hand-made maps with known answers (decrun.methods.parametrization_metrics)."""
 
 import numpy as np
 import pytest
 
-from decrun.parametrization_metrics import (
+from decrun.methods.parametrization_metrics import (
     angle_distortion,
     area_distortion_std,
     border_turning_numbers,
@@ -14,7 +14,7 @@ from decrun.parametrization_metrics import (
     map_singular_values,
     parametrization_metrics,
 )
-from decrun.primitives import grid_triangles
+from decrun.core.primitives import grid_triangles
 
 RIGHT_TRIANGLE = (np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), np.array([[0, 1, 2]]))
 
@@ -92,7 +92,7 @@ def test_reflection_is_not_a_flip_and_a_folded_vertex_is():
 
 
 def _square_loops(vertices, faces):
-    from decrun.complex import SimplicialComplex
+    from decrun.core.complex import SimplicialComplex
 
     return SimplicialComplex(vertices, faces).boundary_loops()
 

@@ -1,4 +1,4 @@
-"""result.h5 round trip, provenance and atomic writing (decrun.results)."""
+"""result.h5 round trip, provenance and atomic writing (decrun.runner.results)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 import decrun
-from decrun.results import Result, read_mesh, read_provenance, read_result, write_metrics_json, write_result
+from decrun.runner.results import Result, read_mesh, read_provenance, read_result, write_metrics_json, write_result
 
 
 def sample_result():

@@ -8,12 +8,12 @@ import scipy.linalg as sla
 from matplotlib.figure import Figure
 
 from decrun.apps.smoothing import Config, enclosed_volume, run, surface_area
-from decrun.complex import SimplicialComplex
-from decrun.config import MeshConfig
-from decrun.dec import DEC
+from decrun.core.complex import SimplicialComplex
+from decrun.runner.config import MeshConfig
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError
-from decrun.meshes import load_mesh
-from decrun.solvers import make_solver
+from decrun.runner.meshes import load_mesh
+from decrun.core.solvers import make_solver
 
 
 def no_progress(iterable, **_):
@@ -149,7 +149,7 @@ def test_result_has_figures_series_and_fields():
 
 
 def test_figures_render_for_planar_and_coloured_meshes(tmp_path):
-    from decrun import plots
+    from decrun.runner import plots
 
     K, dec = setup(source="planar", max_area=0.02, noise=0.1)
     r = smooth(K, dec, scheme="implicit", dt=1e-3, steps=2, rescale="area")

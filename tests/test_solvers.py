@@ -1,4 +1,4 @@
-"""Linear solvers behind one interface (decrun.solvers)."""
+"""Linear solvers behind one interface (decrun.core.solvers)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from decrun.complex import SimplicialComplex
-from decrun.config import MeshConfig
-from decrun.dec import DEC
+from decrun.core.complex import SimplicialComplex
+from decrun.runner.config import MeshConfig
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError, SolverError
-from decrun.meshes import load_mesh
-from decrun.solvers import SOLVERS, make_solver
+from decrun.runner.meshes import load_mesh
+from decrun.core.solvers import SOLVERS, make_solver
 
 OPTIONAL = {"amg": "pyamg", "pardiso": "pypardiso"}  # extras decrun[amg], decrun[pardiso]
 

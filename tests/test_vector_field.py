@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from decrun.dec import DEC
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError
-from decrun.forms import sample_vector_field, whitney_sharp
-from decrun.singularities import find_singularities
-from decrun.solvers import make_solver
-from decrun import vector_design as vd
+from decrun.core.forms import sample_vector_field, whitney_sharp
+from decrun.methods.singularities import find_singularities
+from decrun.core.solvers import make_solver
+from decrun.methods import vector_design as vd
 
 from meshes_for_tests import complex_of
 

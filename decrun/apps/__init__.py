@@ -13,10 +13,10 @@ A module ``decrun/apps/<name>.py`` is an application when it defines
     instantiates the node (``OmegaConf.to_object``) before it loads the mesh, so bad values
     fail before any work.
 
-``run(complex, dec, solver, cfg, progress) -> decrun.results.Result``
-    ``complex``  the :class:`decrun.complex.SimplicialComplex` of the mesh (validated);
-    ``dec``      ``decrun.dec.DEC(complex, star=cfg.operator.star)``;
-    ``solver``   a fresh, unfactorized :class:`decrun.solvers.Solver` built from
+``run(complex, dec, solver, cfg, progress) -> decrun.runner.results.Result``
+    ``complex``  the :class:`decrun.core.complex.SimplicialComplex` of the mesh (validated);
+    ``dec``      ``decrun.core.dec.DEC(complex, star=cfg.operator.star)``;
+    ``solver``   a fresh, unfactorized :class:`decrun.core.solvers.Solver` built from
                  ``cfg.solver`` (``factorize(A)`` once, ``solve(b)`` many times);
     ``cfg``      the app's own config node (an ``omegaconf.DictConfig`` typed by
                  ``Config``); a value from elsewhere in the config can be pulled in by
@@ -25,13 +25,13 @@ A module ``decrun/apps/<name>.py`` is an application when it defines
                  (a silent pass-through when stderr is not a terminal or in tests).
 
     The application returns a ``Result`` (fields, series, metrics, figures as
-    ``matplotlib.figure.Figure``; see :mod:`decrun.plots`) and never touches the disk.
+    ``matplotlib.figure.Figure``; see :mod:`decrun.runner.plots`) and never touches the disk.
     Numerical blow-up is a result (``stable: false``), not an exception; bad input is a
     typed :class:`decrun.errors.DecrunError`.
 
 Mesh metadata: ``complex.meta``
     The runner sets ``complex.meta`` to the mesh source's metadata dict
-    (:class:`decrun.meshes.Mesh` ``.meta``) before calling ``run``. Keys an application may
+    (:class:`decrun.runner.meshes.Mesh` ``.meta``) before calling ``run``. Keys an application may
     use (check with ``in``, they are optional):
 
     - ``clean_vertices`` (n0, d): positions before ``mesh.noise`` was added (same
@@ -44,7 +44,7 @@ Mesh metadata: ``complex.meta``
 
 Boundary adaptations
     ``cfg.operator.boundary`` is checked against
-    :data:`decrun.config.BOUNDARY_ADAPTATIONS` before any work; an application that
+    :data:`decrun.runner.config.BOUNDARY_ADAPTATIONS` before any work; an application that
     implements a new adaptation adds its name to that set at import time and reads it via
     an interpolation in its YAML (``boundary: ${operator.boundary}``).
 """

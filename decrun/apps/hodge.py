@@ -5,7 +5,7 @@ A 1-form ω — sampled from an analytic vector field (§3.2.1), a seeded random
 
     ω = dα + δβ + γ ,    γ harmonic (dγ = 0, δγ = 0),
 
-by :func:`decrun.hodge.hodge_decomposition` (two Poisson problems, the configured solver).
+by :func:`decrun.core.hodge.hodge_decomposition` (two Poisson problems, the configured solver).
 The metrics check Theorem 5 (pairwise ⋆1-orthogonality, γ harmonic) and §6.3.6
 (dim ker Δ1 = Betti_1: 0 on a sphere, 2 on a torus, the number of holes of a planar
 domain). Theorem 5 needs d and δ adjoint, which holds for the unadapted operators only:
@@ -32,10 +32,10 @@ from typing import List
 import numpy as np
 
 from decrun.errors import ConfigError, TopologyError
-from decrun.forms import sample_vector_field, whitney_sharp
-from decrun.hodge import HodgeDecomposer, harmonic_basis
-from decrun.results import Result
-from decrun.geometry import embed3
+from decrun.core.forms import sample_vector_field, whitney_sharp
+from decrun.core.hodge import HodgeDecomposer, harmonic_basis
+from decrun.runner.results import Result
+from decrun.core.geometry import embed3
 
 FIELDS = ("analytic", "random", "result")
 ANALYTIC = ("gradient", "rotated_gradient", "rotation", "toroidal", "mixed")
@@ -111,7 +111,7 @@ def input_form(K, cfg) -> np.ndarray:
 def _form_from_result(K, cfg) -> np.ndarray:
     from pathlib import Path
 
-    from decrun.results import read_mesh, read_result
+    from decrun.runner.results import read_mesh, read_result
 
     path = Path(cfg.input_path)
     if not path.is_file():
@@ -217,7 +217,7 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
 def parts_figure(K, fields: dict, metrics: dict, *, max_arrows: int = 500):
     """The input and its three Hodge parts side by side (arrows = direction, grey = |u|)."""
     from decrun.apps.vector_field import draw_field
-    from decrun.plots import new_figure
+    from decrun.runner.plots import new_figure
 
     planar = K.vertices.shape[1] == 2 or np.ptp(K.vertices[:, 2]) == 0
     names = ("omega", "exact", "coexact", "harmonic")

@@ -3,8 +3,8 @@
 Solves the Dirichlet problem of eq. 5.2/5.3 for texture coordinates ``uv`` with a chosen
 border (``circle`` | ``circle_arclength`` | ``conformal`` (eq. 5.8–5.9) | ``free``) and
 interior weights (``dec`` = ⋆0⁻¹ d1^dual ⋆1 d0 | ``uniform`` (Tutte) | ``mean_value`` (Floater)),
-several borders as in §5.2.3 — see :func:`decrun.parametrization.parametrize` — and reports
-the distortion and validity metrics of :mod:`decrun.parametrization_metrics`.
+several borders as in §5.2.3 — see :func:`decrun.methods.parametrization.parametrize` — and reports
+the distortion and validity metrics of :mod:`decrun.methods.parametrization_metrics`.
 
 Laplacian used: eq. 5.3's ⋆0⁻¹ d1^dual ⋆1 d0, the Laplace–Beltrami operator (= −Δ0 of
 ``dec.laplacian(0)``), rows normalized as after eq. 5.7.
@@ -17,14 +17,14 @@ from typing import Optional
 
 import numpy as np
 
-from decrun.parametrization import (
+from decrun.methods.parametrization import (
     CAUCHY_RIEMANN,
     CONFORMAL,
     PINNED,
     harmonic_matrix,
     parametrize,
 )
-from decrun.parametrization_metrics import (
+from decrun.methods.parametrization_metrics import (
     angle_distortion,
     border_vertex_uv_angles,
     majority_orientation,
@@ -32,7 +32,7 @@ from decrun.parametrization_metrics import (
     quasi_conformal_distortion,
     signed_uv_areas,
 )
-from decrun.results import Result
+from decrun.runner.results import Result
 
 
 @dataclass
@@ -57,7 +57,7 @@ class Config:
 
 
 def _figures(K, uv, faces, face_angle_error_deg, flipped, checker_squares: int, title: str) -> dict:
-    from decrun.plots import new_figure, plot_surface
+    from decrun.runner.plots import new_figure, plot_surface
 
     figures = {}
     fig = new_figure(5.0, 5.0)

@@ -59,8 +59,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from decrun.errors import ConfigError, TopologyError
-from decrun.geometry import triangle_areas
-from decrun.results import Result
+from decrun.core.geometry import triangle_areas
+from decrun.runner.results import Result
 
 SCHEMES = ("explicit", "implicit")
 RESCALE = ("volume", "area", "none")
@@ -248,7 +248,7 @@ def run(complex, dec, solver, cfg, progress) -> Result:
 
 
 def _figures(before, after, faces, series, cfg, stable, diverged_at):
-    from decrun import plots
+    from decrun.runner import plots
 
     label = f"{cfg.scheme} Euler, dt={cfg.dt:g}, rescale={cfg.rescale}"
     state = f"{len(series['area']) - 1} steps" if stable else f"diverged at step {diverged_at}"

@@ -2,8 +2,8 @@
 
 Sources/sinks (divergence at vertices), vortices (curl on faces) and strokes (directions
 on the faces a polyline crosses) become the least-squares problem eq. 6.5–6.6 with
-L = diag(⋆2, ⋆0, W), solved for a 1-form (see :mod:`decrun.vector_design` for the
-mathematics and the sign conventions, :mod:`decrun.singularities` for the indices).
+L = diag(⋆2, ⋆0, W), solved for a 1-form (see :mod:`decrun.methods.vector_design` for the
+mathematics and the sign conventions, :mod:`decrun.methods.singularities` for the indices).
 
 ``operator.boundary``:
 
@@ -29,11 +29,11 @@ from typing import List, Optional
 import numpy as np
 
 from decrun.errors import ConfigError, TopologyError
-from decrun.forms import whitney_sharp
-from decrun.geometry import embed3
-from decrun.results import Result
-from decrun.singularities import Singularities, find_singularities
-from decrun.vector_design import (
+from decrun.core.forms import whitney_sharp
+from decrun.core.geometry import embed3
+from decrun.runner.results import Result
+from decrun.methods.singularities import Singularities, find_singularities
+from decrun.methods.vector_design import (
     BOUNDARY_MODES,
     MAGNITUDE_MODES,
     DesignConstraints,
@@ -51,7 +51,7 @@ from decrun.vector_design import (
     stroke_face_directions,
 )
 
-from decrun.config import BOUNDARY_ADAPTATIONS
+from decrun.runner.config import BOUNDARY_ADAPTATIONS
 
 BOUNDARY_ADAPTATIONS.add("flux")  # the runner validates operator.boundary against this set (§6.4.4)
 
@@ -365,7 +365,7 @@ def draw_field(ax, K, face_vectors: np.ndarray, singular: Singularities | None =
     barycenters, at most ``max_arrows`` of them (a seeded subset; on 3-D meshes only faces
     turned towards the viewer), and the singularities: index +1 red, −1 blue, others
     black (vertex singularities as circles, face singularities as squares)."""
-    from decrun.plots import plot_surface
+    from decrun.runner.plots import plot_surface
 
     faces = K.oriented_simplices()
     x = embed3(K.vertices)
@@ -416,7 +416,7 @@ def draw_field(ax, K, face_vectors: np.ndarray, singular: Singularities | None =
 def field_figure(K, face_vectors, singular, geometry=None, *, title="designed field", max_arrows=700):
     """The designed field with its singularities and the stroke faces (green dots): one
     panel for planar meshes, two opposite views for surfaces in 3-D."""
-    from decrun.plots import new_figure
+    from decrun.runner.plots import new_figure
 
     planar = K.vertices.shape[1] == 2 or np.ptp(K.vertices[:, 2]) == 0
     views = [None] if planar else [_VIEW, (-_VIEW[0], _VIEW[1] + 180.0)]

@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from decrun.cli import compose_config, run_experiment
+from decrun.runner.cli import compose_config, run_experiment
 
 HERE = Path(__file__).parent
 

@@ -33,10 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from decrun.complex import SimplicialComplex
-from decrun.forms import whitney_sharp
-from decrun.geometry import corner_angles, embed3
-from decrun.vector_design import face_normals
+from decrun.core.complex import SimplicialComplex
+from decrun.core.forms import whitney_sharp
+from decrun.core.geometry import corner_angles, embed3
+from decrun.methods.vector_design import face_normals
 
 __all__ = ["corner_vectors", "vertex_indices", "face_indices", "Singularities", "find_singularities"]
 

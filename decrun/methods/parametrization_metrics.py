@@ -3,7 +3,7 @@
 Everything here is plain numpy on arrays — ``vertices (n, 3)`` (or ``(n, 2)``), consistently
 oriented ``faces (m, 3)``, per-vertex texture coordinates ``uv (n, 2)`` and border loops
 (vertex cycles traversed with the surface on their left, as
-:meth:`decrun.complex.SimplicialComplex.boundary_loops` returns them) — so the measures can be
+:meth:`decrun.core.complex.SimplicialComplex.boundary_loops` returns them) — so the measures can be
 checked on hand-made maps without any DEC machinery.
 
 The map of one triangle ``T`` onto its image is affine; its linear part ``J_T`` (2×2, from an
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from decrun.geometry import corner_angles, embed3, triangle_areas
+from decrun.core.geometry import corner_angles, embed3, triangle_areas
 
 __all__ = [
     "corner_angles",

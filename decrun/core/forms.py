@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from decrun.complex import SimplicialComplex
+from decrun.core.complex import SimplicialComplex
 
 __all__ = ["sample_function", "sample_vector_field", "sample_density", "whitney_sharp", "barycentric_gradients"]
 
@@ -103,7 +103,7 @@ def sample_density(K: SimplicialComplex, rho, order: int = 2) -> np.ndarray:
     corners = K.vertices[K.simplices(n)]
     points = np.einsum("qc,mcd->mqd", bary, corners).reshape(-1, K.embedding_dim)
     values = _evaluate(rho, points, "sample_density", ()).reshape(corners.shape[0], -1)
-    from decrun.complex import simplex_volumes
+    from decrun.core.complex import simplex_volumes
 
     return simplex_volumes(corners) * (values @ weights)
 

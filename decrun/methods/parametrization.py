@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.complex import SimplicialComplex
+from decrun.core.complex import SimplicialComplex
 from decrun.errors import ConfigError, SolverError, TopologyError
-from decrun.geometry import corner_angles
+from decrun.core.geometry import corner_angles
 
 __all__ = [
     "WEIGHTS",

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.dec import DEC
+from decrun.core.dec import DEC
 from decrun.errors import MeshError
-from decrun.solvers import Solver, make_solver
+from decrun.core.solvers import Solver, make_solver
 
 __all__ = ["HodgeParts", "HodgeDecomposer", "hodge_decomposition", "harmonic_basis"]
 

@@ -2,7 +2,7 @@
 
 This makes the thesis' test subjects (Fig. 5.7: a half sphere with eyes, a smile and 'ears';
 Fig. 5.8: a sphere with a T-shaped hole) out of generated spheres. After the cut the result
-is made a manifold with border again, so :class:`decrun.complex.SimplicialComplex` accepts it:
+is made a manifold with border again, so :class:`decrun.core.complex.SimplicialComplex` accepts it:
 
 1. faces whose centroid lies in any ball ``[cx, cy, cz, r]`` or axis-aligned box
    ``[xmin, ymin, zmin, xmax, ymax, zmax]`` are removed (2-D meshes: ``[cx, cy, r]`` and

@@ -55,12 +55,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from decrun.complex import SimplicialComplex
-from decrun.dec import DEC
+from decrun.core.complex import SimplicialComplex
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError, TopologyError
-from decrun.forms import whitney_sharp
-from decrun.geometry import embed3
-from decrun.solvers import Solver
+from decrun.core.forms import whitney_sharp
+from decrun.core.geometry import embed3
+from decrun.core.solvers import Solver
 
 __all__ = [
     "BOUNDARY_MODES",

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from decrun.complex import _vertex_volumes
+from decrun.core.complex import _vertex_volumes
 
 __all__ = ["embed3", "triangle_areas", "corner_angles"]
 

@@ -36,13 +36,13 @@ from typing import Any, List, Optional
 from omegaconf import MISSING
 
 from decrun.errors import ConfigError
-from decrun.dec import STAR_VARIANTS as _DEC_STAR_VARIANTS
+from decrun.core.dec import STAR_VARIANTS as _DEC_STAR_VARIANTS
 
 # ----------------------------------------------------------------------------------
 # mesh
 # ----------------------------------------------------------------------------------
 
-#: mesh sources understood by :func:`decrun.meshes.load_mesh`
+#: mesh sources understood by :func:`decrun.runner.meshes.load_mesh`
 MESH_SOURCES = ("icosphere", "torus", "sphere_cap", "annulus", "grid", "cube", "sample", "file", "planar")
 
 
@@ -80,7 +80,7 @@ class MeshConfig:
     height: float = 1.0
     # cube: edge length
     size: float = 1.0
-    # sample: a mesh shipped inside pymeshlab (see decrun.meshes.SAMPLE_MESHES)
+    # sample: a mesh shipped inside pymeshlab (see decrun.runner.meshes.SAMPLE_MESHES)
     sample: str = "bunny10k_textured"
     # file: any format pymeshlab reads (obj, ply, off, stl, ...)
     path: str = ""
@@ -89,7 +89,7 @@ class MeshConfig:
     holes: List[List[List[float]]] = field(default_factory=list)
     min_angle_deg: float = 25.0
     max_area: float = 0.005
-    # post-processing, applied in the order of ``post`` (decrun.meshes.POST_STEPS);
+    # post-processing, applied in the order of ``post`` (decrun.runner.meshes.POST_STEPS);
     # each step is a no-op unless its option below enables it
     post: List[str] = field(default_factory=lambda: ["holes", "clean", "refine", "normalize", "noise"])
     clean: bool = False  # drop unreferenced vertices, keep the largest component
@@ -101,7 +101,7 @@ class MeshConfig:
     seed: int = 0
     # how the simplicial complex treats orientation: check (report) | fix (re-orient)
     orient: str = "check"
-    # holes (decrun.mesh_holes): remove the faces whose centroid lies in a ball
+    # holes (decrun.runner.mesh_holes): remove the faces whose centroid lies in a ball
     # [cx, cy, cz, r] or a box [xmin, ymin, zmin, xmax, ymax, zmax] (2-D: [cx, cy, r], [xmin, ymin, xmax, ymax])
     hole_balls: List[List[float]] = field(default_factory=list)
     hole_boxes: List[List[float]] = field(default_factory=list)
@@ -111,7 +111,7 @@ class MeshConfig:
 # operator
 # ----------------------------------------------------------------------------------
 
-#: Hodge-star (dual mesh) variants of decrun.dec.DEC
+#: Hodge-star (dual mesh) variants of decrun.core.dec.DEC
 STAR_VARIANTS = set(_DEC_STAR_VARIANTS)
 #: boundary adaptations; an application that implements one adds its name here at import
 #: (e.g. ``BOUNDARY_ADAPTATIONS.add("flux")``) and checks ``cfg`` for the ones it supports

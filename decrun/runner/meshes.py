@@ -1,6 +1,6 @@
 """Mesh sources: pymeshlab primitives, pymeshlab's sample meshes, files, planar domains.
 
-:func:`load_mesh` turns the ``cfg.mesh`` node (schema :class:`decrun.config.MeshConfig`)
+:func:`load_mesh` turns the ``cfg.mesh`` node (schema :class:`decrun.runner.config.MeshConfig`)
 into a :class:`Mesh`:
 
 1. the **source** (``cfg.source``) makes vertices and triangles
@@ -12,7 +12,7 @@ into a :class:`Mesh`:
 To add a step: write ``def my_step(mesh: Mesh, cfg) -> Mesh``, register it in
 :data:`POST_STEPS`, add its option fields to ``MeshConfig`` and its name to the default
 ``MeshConfig.post`` list. Deeper checks (manifold, orientation, degenerate triangles) are
-done by :class:`decrun.complex.SimplicialComplex`; a bad mesh is reported, never silently
+done by :class:`decrun.core.complex.SimplicialComplex`; a bad mesh is reported, never silently
 repaired (``clean`` is off by default).
 
 ``Mesh.meta`` carries what the source knows and the complex does not, for the
@@ -38,7 +38,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from decrun.errors import ConfigError, MeshError
-from decrun.mesh_holes import holes_step
+from decrun.runner.mesh_holes import holes_step
 
 # ----------------------------------------------------------------------------------
 # the mesh record
@@ -407,7 +407,7 @@ POST_STEPS: dict[str, Callable[[Mesh, Any], Mesh]] = {
     "refine": refine_step,
     "normalize": normalize_step,
     "noise": noise_step,
-    "holes": holes_step,  # decrun.mesh_holes: cut balls/boxes out (hole_balls, hole_boxes)
+    "holes": holes_step,  # decrun.runner.mesh_holes: cut balls/boxes out (hole_balls, hole_boxes)
 }
 
 

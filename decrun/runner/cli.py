@@ -7,7 +7,7 @@ writes ``metrics.csv`` / ``metrics.md`` at the sweep root (one row per job, also
 jobs that failed); it exits non-zero when a job failed.
 
 Data flow of one run (:func:`run_experiment`): validate the config nodes → load the mesh
-(:mod:`decrun.meshes`) → ``SimplicialComplex`` → ``DEC`` → solver → ``app.run`` →
+(:mod:`decrun.runner.meshes`) → ``SimplicialComplex`` → ``DEC`` → solver → ``app.run`` →
 ``result.h5`` (atomic) + ``metrics.json`` + figures (:func:`write_run`).
 
 Errors: a :class:`decrun.errors.DecrunError` (bad input) prints one line
@@ -31,9 +31,9 @@ import hydra
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from decrun.config import check_operator, config_dir, get_app, register_configs
+from decrun.runner.config import check_operator, config_dir, get_app, register_configs
 from decrun.errors import DecrunError, MeshError
-from decrun.results import Result, write_metrics_json, write_result
+from decrun.runner.results import Result, write_metrics_json, write_result
 
 log = logging.getLogger("decrun")
 
@@ -86,10 +86,10 @@ def validate(cfg: DictConfig):
 def run_experiment(cfg: DictConfig, progress: Callable | None = None) -> tuple[Result, Any, dict]:
     """Compose mesh → complex → DEC → solver → app for ``cfg``; returns
     ``(result, mesh, timings)``. Raises :class:`DecrunError` on bad input."""
-    from decrun.complex import SimplicialComplex
-    from decrun.dec import DEC
-    from decrun.meshes import load_mesh
-    from decrun.solvers import make_solver
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.runner.meshes import load_mesh
+    from decrun.core.solvers import make_solver
 
     timings: dict[str, float] = {}
     t = time.perf_counter()
@@ -129,7 +129,7 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
 
 def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -> list[Path]:
     """Write ``result.h5`` (atomic), ``metrics.json`` and the figures into ``out``."""
-    from decrun.plots import save_figure
+    from decrun.runner.plots import save_figure
 
     written = []
     t = time.perf_counter()
@@ -217,7 +217,7 @@ class SweepTable(Callback):
     failed = 0
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        from decrun.tables import failed_jobs, to_markdown, write_sweep_table
+        from decrun.runner.tables import failed_jobs, to_markdown, write_sweep_table
 
         sweep_dir = Path(str(config.hydra.sweep.dir))
         table = write_sweep_table(sweep_dir)
@@ -255,7 +255,7 @@ def table_main(argv: list[str] | None = None) -> int:
     ``metrics.md`` of a sweep and print the table (markdown, or CSV with ``--csv``)."""
     import argparse
 
-    from decrun.tables import failed_jobs, to_markdown, write_sweep_table
+    from decrun.runner.tables import failed_jobs, to_markdown, write_sweep_table
 
     parser = argparse.ArgumentParser(prog="decrun-table", description=table_main.__doc__)
     parser.add_argument("sweep_dir", help="a sweep directory, e.g. outputs/sweeps/<stamp>")

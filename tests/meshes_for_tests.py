@@ -8,15 +8,25 @@ import scipy.spatial
 import triangle
 
 from decrun.core.complex import SimplicialComplex
-from decrun.runner.config import MeshConfig
-from decrun.runner.meshes import load_mesh
 from decrun.core.primitives import grid_triangles, kuhn_cube  # noqa: F401
+from decrun.runner.config import config_dir
+from decrun.runner.meshes import MeshSource
+from decrun.runner.plugins import build
 
 
-def complex_of(**options) -> SimplicialComplex:
-    """The complex of a mesh built by decrun.runner.meshes from MeshConfig fields (re-oriented)."""
-    mesh = load_mesh(MeshConfig(**options))
-    return SimplicialComplex(mesh.vertices, mesh.simplices, orient="fix")
+def mesh(source: str = "icosphere", **options):
+    """The mesh of source ``conf/mesh/<source>.yaml`` with its *class* defaults (no noise, no
+    refinement unless asked) and ``options``."""
+    from omegaconf import OmegaConf
+
+    target = OmegaConf.load(config_dir() / "mesh" / f"{source}.yaml")["_target_"]
+    return build({"_target_": target, **options}, "mesh", MeshSource).load()
+
+
+def complex_of(source: str = "icosphere", **options) -> SimplicialComplex:
+    """The complex of ``mesh(source, **options)`` (re-oriented)."""
+    m = mesh(source, **options)
+    return SimplicialComplex(m.vertices, m.simplices, orient="fix")
 
 
 def icosphere(subdiv: int):

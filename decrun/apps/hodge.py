@@ -9,7 +9,7 @@ by :func:`decrun.core.hodge.hodge_decomposition` (two Poisson problems, the conf
 The metrics check Theorem 5 (pairwise ⋆1-orthogonality, γ harmonic) and §6.3.6
 (dim ker Δ1 = Betti_1: 0 on a sphere, 2 on a torus, the number of holes of a planar
 domain). Theorem 5 needs d and δ adjoint, which holds for the unadapted operators only:
-``operator.boundary=flux`` (the §6.4.4 adaptation of the vector_field app) is rejected.
+``boundary=flux`` (the §6.4.4 adaptation of the vector_field app) is rejected.
 
 Analytic fields (``app.analytic``; ``a`` = ``app.vector``, points x in model units):
 
@@ -31,21 +31,24 @@ from typing import List
 
 import numpy as np
 
-from decrun.errors import ConfigError, TopologyError
+from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.forms import sample_vector_field, whitney_sharp
-from decrun.core.hodge import HodgeDecomposer, harmonic_basis
-from decrun.runner.results import Result
 from decrun.core.geometry import embed3
+from decrun.core.hodge import HodgeDecomposer, harmonic_basis
+from decrun.errors import ConfigError, TopologyError
 
 FIELDS = ("analytic", "random", "result")
 ANALYTIC = ("gradient", "rotated_gradient", "rotation", "toroidal", "mixed")
 
 
 @dataclass
-class Config:
-    """Schema of ``cfg.app`` for the Hodge decomposition (conf/app/hodge.yaml)."""
+class Hodge(App):
+    """Options of ``app=hodge`` (conf/app/hodge.yaml)."""
 
-    name: str = "hodge"
+    name = "hodge"
+    form_degrees = (0, 1, 2)
+    boundary_note = ("the Hodge decomposition (Theorem 5) needs d and δ adjoint, which the §6.4.4 flux "
+                     "adaptation breaks; app=vector_field reports that as adjointness_defect")
     input: str = "analytic"  # analytic | random | result
     analytic: str = "mixed"  # see the module docstring
     vector: List[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])  # a of the analytic fields
@@ -54,7 +57,6 @@ class Config:
     input_path: str = ""  # result: path of a previous run's result.h5
     input_field: str = "omega"  # result: name of its 1-form field
     harmonic_dimension: bool = True  # compute dim ker Δ1 (a few extra solves)
-    boundary: str = ""  # conf/app/hodge.yaml: ${operator.boundary}; only `none` is accepted
     figure_arrows: int = 500
 
     def __post_init__(self):
@@ -67,7 +69,64 @@ class Config:
         if self.quadrature_order < 1:
             raise ConfigError(f"app.quadrature_order: must be >= 1, got {self.quadrature_order}")
         if self.input == "result" and not self.input_path:
-            raise ConfigError("app.input_path: input=result needs the path of a previous run's result.h5")
+            raise ConfigError("app.input_path: app.input=result needs the path of a previous run's result.h5, "
+                              "e.g. app.input_path=outputs/runs/<stamp>/result.h5")
+
+    def check(self, K, dec) -> None:
+        if K.dim != 2:
+            raise TopologyError(f"app=hodge needs a triangle mesh (dimension 2), got dimension {K.dim}")
+
+    def run(self, ctx: Context) -> Result:
+        """Decompose the configured 1-form; see the module docstring.
+
+        Fields: ``omega``, ``exact``, ``coexact``, ``harmonic`` (n1,) 1-forms and their Whitney
+        vectors at barycenters ``*_vectors`` (n2, 3); ``alpha`` (n0,), ``beta`` (n2,) the
+        potentials.
+
+        Metrics: ``orthogonality_exact_coexact`` / ``_exact_harmonic`` / ``_coexact_harmonic``
+        (|⟨a,b⟩_⋆1|/‖ω‖²) and ``orthogonality_max``; ``reconstruction_error_relative``;
+        ``energy_fraction_{exact,coexact,harmonic}``; ``harmonic_curl_relative`` ‖dγ‖_⋆2/‖dω‖_⋆2
+        and ``harmonic_codifferential_relative`` ‖δγ‖_⋆0/‖δω‖_⋆0 (γ is harmonic: both ≈ 0);
+        ``harmonic_dimension`` (dim ker Δ1, numerically), ``betti_1``,
+        ``harmonic_dimension_matches_betti``; ``solve_seconds``.
+        """
+        K, dec = ctx.complex, ctx.dec
+        omega = input_form(K, self, ctx)
+        start = time.perf_counter()
+        parts = HodgeDecomposer(dec, 1, ctx.new_solver).decompose(omega)
+        seconds = time.perf_counter() - start
+        named = {"exact": parts.exact, "coexact": parts.coexact, "harmonic": parts.harmonic}
+        metrics = orthogonality_metrics(dec, omega, named)
+        d1, delta = dec.d(1), dec.codifferential(1)
+
+        def relative(op, k, part):
+            ref = np.sqrt(abs(dec.inner(k, op @ omega, op @ omega)))
+            val = np.sqrt(abs(dec.inner(k, op @ part, op @ part)))
+            return float(val / ref) if ref > 0 else float(val)
+
+        metrics["harmonic_curl_relative"] = relative(d1, 2, parts.harmonic)
+        metrics["harmonic_codifferential_relative"] = relative(delta, 0, parts.harmonic)
+        betti_1 = int(K.betti_numbers()[1])
+        metrics["betti_1"] = betti_1
+        if self.harmonic_dimension:
+            start = time.perf_counter()
+            h = harmonic_basis(dec, 1, ctx.new_solver).shape[1]
+            seconds += time.perf_counter() - start
+            metrics["harmonic_dimension"] = int(h)
+            metrics["harmonic_dimension_matches_betti"] = bool(h == betti_1)
+        metrics["solve_seconds"] = seconds
+        metrics["input"] = str(self.input if self.input != "analytic" else self.analytic)
+        fields = {"omega": FieldOnEdges(omega), **{name: FieldOnEdges(form) for name, form in named.items()}}
+        vectors = {f"{name}_vectors": embed3(whitney_sharp(K, form)) for name, form in (("omega", omega), *named.items())}
+        fields.update(vectors)
+        if parts.alpha is not None:
+            fields["alpha"] = parts.alpha
+        if parts.beta is not None:
+            fields["beta"] = parts.beta
+        figures = {"hodge_parts": Figure("decrun.runner.plots.fields.hodge_parts_figure", dict(
+            vectors=vectors, energy={name: metrics.get(f"energy_fraction_{name}", 0.0) for name in named},
+            max_arrows=int(self.figure_arrows)))}
+        return Result(fields=fields, metrics=metrics, figures=figures)
 
 
 def analytic_field(name: str, a) -> callable:
@@ -94,36 +153,31 @@ def analytic_field(name: str, a) -> callable:
             "toroidal": toroidal, "mixed": mixed}[name]
 
 
-def input_form(K, cfg) -> np.ndarray:
-    """The 1-form to decompose, (n1,), as configured (``app.input``)."""
+def input_form(K, cfg, ctx: Context | None = None) -> np.ndarray:
+    """The 1-form to decompose, (n1,), as configured (``app.input``); ``input=result``
+    reads the previous run through ``ctx.read_result``."""
     if cfg.input == "analytic":
         X = analytic_field(cfg.analytic, cfg.vector)
         if K.embedding_dim == 2:  # planar meshes: evaluate in the z = 0 plane
             return sample_vector_field(K, lambda p: X(embed3(p))[:, :2], order=int(cfg.quadrature_order))
         return sample_vector_field(K, X, order=int(cfg.quadrature_order))
     if cfg.input == "random":
-        x = K.vertices[K.simplices(1)]
-        length = np.linalg.norm(x[:, 1] - x[:, 0], axis=1)
+        length = K.edge_lengths()
         return np.random.default_rng(int(cfg.seed)).standard_normal(length.size) * length
-    return _form_from_result(K, cfg)
+    if ctx is None:
+        raise ConfigError("app.input=result needs a context that can read result files (the decrun runner)")
+    return _form_from_result(K, cfg, ctx)
 
 
-def _form_from_result(K, cfg) -> np.ndarray:
-    from pathlib import Path
-
-    from decrun.runner.results import read_mesh, read_result
-
-    path = Path(cfg.input_path)
-    if not path.is_file():
-        raise ConfigError(f"app.input_path: no result file at {str(path)!r}")
-    result = read_result(path)
+def _form_from_result(K, cfg, ctx: Context) -> np.ndarray:
+    path = cfg.input_path
+    result, vertices = ctx.read_result(path)
     if cfg.input_field not in result.fields:
         raise ConfigError(f"app.input_field: {path} has no field {cfg.input_field!r}; it has {sorted(result.fields)}")
     omega = np.asarray(result.fields[cfg.input_field], dtype=np.float64)
     if omega.shape != (K.num_simplices(1),):
         raise ConfigError(f"app.input_field: {cfg.input_field!r} in {path} has shape {omega.shape}, "
                           f"but this mesh has {K.num_simplices(1)} edges (use the same mesh config as that run)")
-    vertices, _ = read_mesh(path)
     if vertices.shape != K.vertices.shape or not np.allclose(vertices, K.vertices):
         raise ConfigError(f"app.input_path: the mesh stored in {path} differs from this run's mesh "
                           "(use the same mesh config as that run)")
@@ -148,82 +202,3 @@ def orthogonality_metrics(dec, omega: np.ndarray, parts: dict[str, np.ndarray]) 
     rest = omega - sum(parts.values())
     out["reconstruction_error_relative"] = float(np.sqrt(abs(dec.inner(1, rest, rest)) / total)) if total > 0 else 0.0
     return out
-
-
-def run(complex, dec, solver, cfg, progress=None) -> Result:
-    """Decompose the configured 1-form; see the module docstring.
-
-    Fields: ``omega``, ``exact``, ``coexact``, ``harmonic`` (n1,) and their Whitney vectors
-    at barycenters ``*_vectors`` (n2, 3); ``alpha`` (n0,), ``beta`` (n2,) the potentials.
-
-    Metrics: ``orthogonality_exact_coexact`` / ``_exact_harmonic`` / ``_coexact_harmonic``
-    (|⟨a,b⟩_⋆1|/‖ω‖²) and ``orthogonality_max``; ``reconstruction_error_relative``;
-    ``energy_fraction_{exact,coexact,harmonic}``; ``harmonic_curl_relative`` ‖dγ‖_⋆2/‖dω‖_⋆2
-    and ``harmonic_codifferential_relative`` ‖δγ‖_⋆0/‖δω‖_⋆0 (γ is harmonic: both ≈ 0);
-    ``harmonic_dimension`` (dim ker Δ1, numerically), ``betti_1``,
-    ``harmonic_dimension_matches_betti``; ``solve_seconds``.
-    """
-    from decrun.apps.vector_field import as_config, boundary_mode, fresh_solver
-
-    K = complex
-    cfg = as_config(cfg, Config)
-    if K.dim != 2:
-        raise TopologyError(f"hodge needs a triangle mesh (dimension 2), got dimension {K.dim}")
-    mode = boundary_mode(dec, cfg.boundary)
-    if mode != "none":
-        raise ConfigError(
-            f"operator.boundary={mode}: the Hodge decomposition (Theorem 5) needs d and δ adjoint, which the "
-            "§6.4.4 flux adaptation breaks; use operator.boundary=none (its adjointness defect is reported by "
-            "app=vector_field as `adjointness_defect`)"
-        )
-    omega = input_form(K, cfg)
-    start = time.perf_counter()
-    harmonic_solver = fresh_solver(solver)  # unfactorized copies, taken before any use
-    decomposer = HodgeDecomposer(dec, 1, fresh_solver(solver))
-    parts = decomposer.decompose(omega)
-    seconds = time.perf_counter() - start
-    named = {"exact": parts.exact, "coexact": parts.coexact, "harmonic": parts.harmonic}
-    metrics = orthogonality_metrics(dec, omega, named)
-    d1, delta = dec.d(1), dec.codifferential(1)
-
-    def relative(op, k, part):
-        ref = np.sqrt(abs(dec.inner(k, op @ omega, op @ omega)))
-        val = np.sqrt(abs(dec.inner(k, op @ part, op @ part)))
-        return float(val / ref) if ref > 0 else float(val)
-
-    metrics["harmonic_curl_relative"] = relative(d1, 2, parts.harmonic)
-    metrics["harmonic_codifferential_relative"] = relative(delta, 0, parts.harmonic)
-    betti_1 = int(K.betti_numbers()[1])
-    metrics["betti_1"] = betti_1
-    if cfg.harmonic_dimension:
-        start = time.perf_counter()
-        h = harmonic_basis(dec, 1, harmonic_solver).shape[1]
-        seconds += time.perf_counter() - start
-        metrics["harmonic_dimension"] = int(h)
-        metrics["harmonic_dimension_matches_betti"] = bool(h == betti_1)
-    metrics["solve_seconds"] = seconds
-    metrics["input"] = str(cfg.input if cfg.input != "analytic" else cfg.analytic)
-    fields = {"omega": omega, **named}
-    for name, form in (("omega", omega), *named.items()):
-        fields[f"{name}_vectors"] = embed3(whitney_sharp(K, form))
-    if parts.alpha is not None:
-        fields["alpha"] = parts.alpha
-    if parts.beta is not None:
-        fields["beta"] = parts.beta
-    figures = {"hodge_parts": parts_figure(K, fields, metrics, max_arrows=int(cfg.figure_arrows))}
-    return Result(fields=fields, metrics=metrics, figures=figures)
-
-
-def parts_figure(K, fields: dict, metrics: dict, *, max_arrows: int = 500):
-    """The input and its three Hodge parts side by side (arrows = direction, grey = |u|)."""
-    from decrun.apps.vector_field import draw_field
-    from decrun.runner.plots import new_figure
-
-    planar = K.vertices.shape[1] == 2 or np.ptp(K.vertices[:, 2]) == 0
-    names = ("omega", "exact", "coexact", "harmonic")
-    fig = new_figure(4.0 * len(names), 4.4)
-    for i, name in enumerate(names):
-        ax = fig.add_subplot(1, len(names), i + 1, **({} if planar else {"projection": "3d", "computed_zorder": False}))
-        share = "" if name == "omega" else f", {100 * metrics.get(f'energy_fraction_{name}', 0):.1f}% energy"
-        draw_field(ax, K, fields[f"{name}_vectors"], None, max_arrows=max_arrows, title=f"{name}{share}")
-    return fig

@@ -21,25 +21,22 @@ On closed meshes both modes are identical.
 
 from __future__ import annotations
 
-import copy
 import time
 from dataclasses import dataclass, field
 from typing import List, Optional
 
 import numpy as np
 
-from decrun.errors import ConfigError, TopologyError
+from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.forms import whitney_sharp
 from decrun.core.geometry import embed3
-from decrun.runner.results import Result
-from decrun.methods.singularities import Singularities, find_singularities
+from decrun.errors import ConfigError, TopologyError
+from decrun.methods.singularities import find_singularities
 from decrun.methods.vector_design import (
-    BOUNDARY_MODES,
     MAGNITUDE_MODES,
     DesignConstraints,
     adjointness_defect,
     border_normal_flux,
-    codifferential_1,
     design_residuals,
     divergence_target,
     face_normals,
@@ -50,10 +47,6 @@ from decrun.methods.vector_design import (
     stroke_edge_targets,
     stroke_face_directions,
 )
-
-from decrun.runner.config import BOUNDARY_ADAPTATIONS
-
-BOUNDARY_ADAPTATIONS.add("flux")  # the runner validates operator.boundary against this set (§6.4.4)
 
 
 @dataclass
@@ -85,10 +78,12 @@ class Stroke:
 
 
 @dataclass
-class Config:
-    """Schema of ``cfg.app`` for vector field design (conf/app/vector_field.yaml)."""
+class VectorField(App):
+    """Options of ``app=vector_field`` (conf/app/vector_field.yaml)."""
 
-    name: str = "vector_field"
+    name = "vector_field"
+    boundaries = ("none", "flux")
+    form_degrees = (0, 1, 2)
     sources: List[Source] = field(default_factory=list)
     vortices: List[Vortex] = field(default_factory=list)
     strokes: List[Stroke] = field(default_factory=list)
@@ -102,9 +97,6 @@ class Config:
     #: "region" of the metric field_change_region_relative (empty list: no region)
     region_normal: List[float] = field(default_factory=list)
     region_min_cos: float = 0.9
-    #: none | flux (§6.4.4); conf/app/vector_field.yaml sets it to ${operator.boundary}
-    #: (empty: read dec.boundary if the caller set one, else none)
-    boundary: str = ""
     figure_arrows: int = 700  # at most this many arrows in the figure
 
     def __post_init__(self):
@@ -114,8 +106,6 @@ class Config:
             raise ConfigError(f"app.stroke_weight: the weight W must be > 0, got {self.stroke_weight}")
         if not self.stroke_length > 0:
             raise ConfigError(f"app.stroke_length: λ must be > 0, got {self.stroke_length}")
-        if self.boundary and self.boundary not in BOUNDARY_MODES:
-            raise ConfigError(f"app.boundary: must be one of {list(BOUNDARY_MODES)} (or empty), got {self.boundary!r}")
         for i, s in enumerate(self.sources):
             if (s.point is None) == (s.vertex is None):
                 raise ConfigError(f"app.sources[{i}]: give exactly one of `point` or `vertex`")
@@ -139,38 +129,13 @@ class Config:
 # configuration helpers
 # ----------------------------------------------------------------------------------
 
+    def check(self, K, dec) -> None:
+        if K.dim != 2:
+            raise TopologyError(f"app=vector_field needs a triangle mesh (dimension 2), got dimension {K.dim}")
 
-def boundary_mode(dec, app_value: str = "") -> str:
-    """The boundary adaptation to use: ``app.boundary`` (``app_value``) if set, else
-    ``operator.boundary`` as handed over by the runner (``dec.boundary`` or
-    ``dec.operator.boundary``), else ``none``. Raises ConfigError naming the key."""
-    value, key = app_value or "", "app.boundary"
-    if not value:
-        key = "operator.boundary"
-        operator = getattr(dec, "operator", None)
-        value = getattr(dec, "boundary", None) or (getattr(operator, "boundary", None) if operator is not None else None)
-        value = value or "none"
-    if value not in BOUNDARY_MODES:
-        raise ConfigError(f"{key}: the vector_field app supports {list(BOUNDARY_MODES)}, got {value!r}")
-    return str(value)
-
-
-def as_config(cfg, schema):
-    """The app config as a ``schema`` dataclass instance (runs its checks): the runner hands
-    over an OmegaConf node, tests may pass the dataclass itself."""
-    if isinstance(cfg, schema):
-        return cfg
-    from omegaconf import DictConfig, OmegaConf
-
-    if isinstance(cfg, DictConfig):
-        plain = OmegaConf.to_container(cfg, resolve=True)  # interpolations need the parent config
-        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), plain))
-    return schema(**dict(cfg))
-
-
-def fresh_solver(solver):
-    """An unfactorized copy of the runner's solver (several systems are solved here)."""
-    return solver() if callable(solver) and not hasattr(solver, "factorize") else copy.deepcopy(solver)
+    def run(self, ctx: Context) -> Result:
+        """Design the field (see :func:`_design` for fields and metrics)."""
+        return _design(self, ctx)
 
 
 def _as_list(value) -> list:
@@ -234,7 +199,7 @@ def build_constraints(K, dec, cfg) -> tuple[DesignConstraints, dict]:
 # ----------------------------------------------------------------------------------
 
 
-def run(complex, dec, solver, cfg, progress=None) -> Result:
+def _design(self, ctx: Context) -> Result:
     """Design the field; see the module docstring.
 
     Fields: ``omega`` (n1,) the 1-form; ``face_vectors`` (n2, 3) Whitney ♯ (eq. 6.7) at the
@@ -252,17 +217,14 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
     (strokes: change of the face vectors caused by the strokes, area-weighted L2, whole
     mesh / region), ``normal_equation_residual``, ``solve_seconds``.
     """
-    K = complex
-    cfg = as_config(cfg, Config)
-    if K.dim != 2:
-        raise TopologyError(f"vector_field needs a triangle mesh (dimension 2), got dimension {K.dim}")
-    mode = boundary_mode(dec, cfg.boundary)
-    delta = codifferential_1(dec, mode)
+    K, dec, cfg = ctx.complex, ctx.dec, self
+    mode = dec.boundary.name
+    delta = dec.codifferential(1)
     constraints, geometry = build_constraints(K, dec, cfg)
 
     seconds = 0.0
     start = time.perf_counter()
-    pre = solve_design(dec, fresh_solver(solver), constraints, delta)
+    pre = solve_design(dec, ctx.new_solver(), constraints, delta)
     seconds += time.perf_counter() - start
     solution = pre
     stroke_vectors = np.zeros((0, 3))
@@ -274,11 +236,10 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
             magnitude = np.linalg.norm(whitney_sharp(K, pre.omega, faces=faces), axis=1)
         stroke_vectors = geometry["stroke_directions"] * magnitude[:, None]
         edges, targets = stroke_edge_targets(K, faces, stroke_vectors)
-        edge_points = embed3(K.vertices)[K.simplices(1)]
-        mean_edge = float(np.linalg.norm(edge_points[:, 1] - edge_points[:, 0], axis=1).mean())
-        constraints = constraints.with_strokes(edges, targets, np.full(edges.size, float(cfg.stroke_weight) / mean_edge))
+        constraints = constraints.with_strokes(edges, targets,
+                                               np.full(edges.size, float(cfg.stroke_weight) / K.mean_edge_length))
         start = time.perf_counter()
-        solution = solve_design(dec, fresh_solver(solver), constraints, delta)
+        solution = solve_design(dec, ctx.new_solver(), constraints, delta)
         seconds += time.perf_counter() - start
     omega = solution.omega
 
@@ -291,7 +252,6 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
         smoothness_energy=smoothness_energy(dec, delta, omega),
         index_sum=int(singular.index_sum),
         euler_characteristic=chi,
-        poincare_hopf_holds=bool(closed and singular.index_sum == chi),
         closed=bool(closed),
         singularities=singular.count,
         singularities_positive=int((singular.vertex_index > 0).sum() + (singular.face_index > 0).sum()),
@@ -307,9 +267,11 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
         refinement_steps=solution.refinement_steps,
         solve_seconds=seconds,
     )
+    if closed:  # Poincaré–Hopf applies to closed surfaces only
+        metrics["poincare_hopf_holds"] = bool(singular.index_sum == chi)
     metrics.update(border_normal_flux(K, omega))
     fields = {
-        "omega": omega,
+        "omega": FieldOnEdges(omega),
         "face_vectors": face_vectors,
         "vertex_index": singular.vertex_index,
         "face_index": singular.face_index,
@@ -324,7 +286,7 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
         before = embed3(whitney_sharp(K, pre.omega))
         area = dec.primal_volumes(2)
         metrics["field_change_relative"] = _relative_change(before, face_vectors, area, np.ones(area.size, bool))
-        fields["omega_without_strokes"] = pre.omega
+        fields["omega_without_strokes"] = FieldOnEdges(pre.omega)
         if cfg.region_normal:
             n = np.asarray(cfg.region_normal, dtype=np.float64)
             region = face_normals(K) @ (n / np.linalg.norm(n)) >= float(cfg.region_min_cos)
@@ -332,8 +294,9 @@ def run(complex, dec, solver, cfg, progress=None) -> Result:
             metrics["region_faces"] = int(region.sum())
             fields["region_faces"] = np.flatnonzero(region)
     title = f"{mode} border" if not closed else "closed surface"
-    figures = {"field": field_figure(K, face_vectors, singular, geometry, title=f"designed field ({title})",
-                                     max_arrows=int(cfg.figure_arrows))}
+    figures = {"field": Figure("decrun.runner.plots.fields.field_figure", dict(
+        face_vectors=face_vectors, vertex_index=singular.vertex_index, face_index=singular.face_index,
+        stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows)))}
     return Result(fields=fields, metrics=metrics, figures=figures)
 
 
@@ -345,96 +308,3 @@ def _relative_change(before: np.ndarray, after: np.ndarray, area: np.ndarray, re
     diff = np.sqrt((a * (after[region] - before[region]) ** 2).sum())
     ref = np.sqrt((a * before[region] ** 2).sum())
     return float(diff / ref) if ref > 0 else float("inf") if diff > 0 else 0.0
-
-
-# ----------------------------------------------------------------------------------
-# figure
-# ----------------------------------------------------------------------------------
-
-_VIEW = (25.0, -60.0)  # matplotlib elevation, azimuth (degrees)
-
-
-def _view_direction(elev: float, azim: float) -> np.ndarray:
-    e, a = np.radians(elev), np.radians(azim)
-    return np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-
-
-def draw_field(ax, K, face_vectors: np.ndarray, singular: Singularities | None = None, *, max_arrows: int = 700,
-               colour_by_magnitude: bool = True, title: str | None = None, seed: int = 0, view=_VIEW):
-    """Draw the mesh coloured by |u| with arrows (unit direction, fixed length) at face
-    barycenters, at most ``max_arrows`` of them (a seeded subset; on 3-D meshes only faces
-    turned towards the viewer), and the singularities: index +1 red, −1 blue, others
-    black (vertex singularities as circles, face singularities as squares)."""
-    from decrun.runner.plots import plot_surface
-
-    faces = K.oriented_simplices()
-    x = embed3(K.vertices)
-    planar = K.vertices.shape[1] == 2 or np.ptp(x[:, 2]) < 1e-12 * max(np.ptp(x), 1e-300)
-    magnitude = np.linalg.norm(face_vectors, axis=1)
-    mappable = plot_surface(ax, K.vertices if planar else x, faces, magnitude if colour_by_magnitude else None,
-                            cmap="Greys", vmin=0.0, vmax=2.0 * float(np.percentile(magnitude, 95)) or 1.0, linewidth=0.05,
-                            title=title)
-    barycenters = x[faces].mean(axis=1)
-    candidates = np.flatnonzero(magnitude > 0)
-    if not planar:
-        direction_to_viewer = _view_direction(*view)
-        ax.view_init(*view)
-        candidates = candidates[face_normals(K)[candidates] @ direction_to_viewer > 0.05]
-    if candidates.size > max_arrows:
-        candidates = np.sort(np.random.default_rng(seed).choice(candidates, max_arrows, replace=False))
-    edge = x[K.simplices(1)]
-    length = 0.9 * float(np.linalg.norm(edge[:, 1] - edge[:, 0], axis=1).mean())
-    direction = face_vectors[candidates] / magnitude[candidates, None] * length
-    start = barycenters[candidates] - 0.5 * direction
-    if planar:
-        ax.quiver(start[:, 0], start[:, 1], direction[:, 0], direction[:, 1], angles="xy", scale_units="xy",
-                  scale=1.0, color="tab:orange", width=0.003, headwidth=4)
-    else:
-        lift = 0.02 * length * face_normals(K)[candidates]
-        ax.quiver(*(start + lift).T, *direction.T, color="tab:orange", linewidth=0.6, arrow_length_ratio=0.35,
-                  zorder=4)
-    if singular is not None and singular.count:
-        points, index = singular.positions(K)
-        if not planar:  # only the singularities on the visible side
-            visible = (points - x.mean(axis=0)) @ _view_direction(*view) > 0
-            points, index = points[visible], index[visible]
-            is_face_all = np.concatenate([np.zeros(singular.vertices.size, bool), np.ones(singular.faces.size, bool)])
-            kind_visible = is_face_all[visible]
-        kind = kind_visible if not planar else np.concatenate(
-            [np.zeros(singular.vertices.size, bool), np.ones(singular.faces.size, bool)])
-        colour = np.where(index > 0, "red", np.where(index < 0, "blue", "black"))
-        for is_face, marker in ((False, "o"), (True, "s")):
-            sel = kind == is_face
-            if sel.any():
-                if planar:
-                    ax.scatter(points[sel, 0], points[sel, 1], c=colour[sel], marker=marker, s=28, zorder=5)
-                else:
-                    ax.scatter(*points[sel].T, c=colour[sel], marker=marker, s=28, depthshade=False, zorder=5)
-    return mappable
-
-
-def field_figure(K, face_vectors, singular, geometry=None, *, title="designed field", max_arrows=700):
-    """The designed field with its singularities and the stroke faces (green dots): one
-    panel for planar meshes, two opposite views for surfaces in 3-D."""
-    from decrun.runner.plots import new_figure
-
-    planar = K.vertices.shape[1] == 2 or np.ptp(K.vertices[:, 2]) == 0
-    views = [None] if planar else [_VIEW, (-_VIEW[0], _VIEW[1] + 180.0)]
-    fig = new_figure(6.0 * len(views), 6.0)
-    mappable = None
-    for i, view in enumerate(views):
-        ax = fig.add_subplot(1, len(views), i + 1, **({} if planar else {"projection": "3d", "computed_zorder": False}))
-        label = title if i == 0 else "opposite side"
-        mappable = draw_field(ax, K, face_vectors, singular, max_arrows=max_arrows, title=label,
-                              **({} if planar else {"view": view}))
-        if geometry is not None and geometry["stroke_faces"].size:
-            x = embed3(K.vertices)
-            centre = x[K.simplices(2)[geometry["stroke_faces"]]].mean(axis=1)
-            if planar:
-                ax.plot(centre[:, 0], centre[:, 1], ".", color="tab:green", ms=3)
-            else:
-                centre = centre[(centre - x.mean(axis=0)) @ _view_direction(*view) > 0]
-                ax.plot(*centre.T, ".", color="tab:green", ms=3)
-    if mappable is not None:
-        fig.colorbar(mappable, ax=fig.axes, shrink=0.6, label="|u| (Whitney ♯ at barycenters)")
-    return fig

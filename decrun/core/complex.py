@@ -18,7 +18,6 @@ Conventions (``shared/DESIGN.md``):
 
 from __future__ import annotations
 
-from functools import cached_property
 from itertools import combinations
 from math import factorial
 
@@ -37,6 +36,17 @@ from decrun.errors import (
     OrientationError,
     RepeatedVertexError,
     UnreferencedVertexError,
+)
+
+from decrun.core.cache import Cached
+from decrun.core.simplex_arrays import (  # noqa: F401  (re-exported)
+    FaceRows,
+    group_rows,
+    inversion_parity,
+    simplex_volumes,
+    sort_rows,
+    unique_rows,
+    vertex_volumes,
 )
 
 __all__ = ["SimplicialComplex", "unique_rows", "inversion_parity", "simplex_volumes"]
@@ -64,215 +74,7 @@ def _simplex_name(j: int) -> str:
     return _SIMPLEX_NAMES.get(j, f"{j}-simplex")
 
 
-def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lexicographically sorted unique rows of an integer array and the inverse map.
-
-    Parameters
-    ----------
-    rows : (m, c) int64
-
-    Returns
-    -------
-    unique : (u, c) int64, rows sorted lexicographically (column 0 most significant)
-    inverse : (m,) int64 with ``unique[inverse] == rows``
-    """
-    unique, inverse, _, _ = _group_rows(rows)
-    return unique, inverse
-
-
-def _group_rows(rows: np.ndarray):
-    """Group equal rows: (unique, inverse, order, starts).
-
-    ``order`` is a stable lexicographic sort of the rows, ``starts`` the position in
-    ``order`` where each group begins (plus a final ``m``), so the members of group g are
-    ``order[starts[g]:starts[g+1]]`` in input order. One stable sort, everything else O(m).
-    """
-    if not isinstance(rows, _FaceRows):
-        rows = _FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
-    m, c = rows.shape
-    if m == 0:
-        empty = np.zeros((0, c), dtype=np.int64)
-        return empty, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64)
-    bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
-    if bits * c <= 62:
-        # Pack each row into one int64 key (edges and triangles of meshes up to ~2M vertices).
-        key = rows.packed(bits)
-        order = np.argsort(key, kind="stable")
-        sorted_key = key[order]
-        del key
-        new = np.empty(m, dtype=bool)
-        new[0] = True
-        np.not_equal(sorted_key[1:], sorted_key[:-1], out=new[1:])
-        unique_key = sorted_key[new]
-        del sorted_key
-        unique = np.empty((unique_key.size, c), dtype=np.int64)
-        mask = (1 << bits) - 1
-        for col in range(c - 1, -1, -1):
-            np.bitwise_and(unique_key, mask, out=unique[:, col])
-            unique_key >>= bits
-    else:
-        rows = rows.materialize()
-        order = np.lexsort(rows.T[::-1])
-        sorted_rows = rows[order]
-        new = np.empty(m, dtype=bool)
-        new[0] = True
-        new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
-        unique = sorted_rows[new]
-        del sorted_rows
-    group = np.cumsum(new, dtype=np.int64)
-    group -= 1
-    inverse = np.empty(m, dtype=np.int64)
-    inverse[order] = group
-    del group
-    starts = np.append(np.flatnonzero(new), m)
-    return unique, inverse, order, starts
-
-
-class _FaceRows:
-    """The rows ``top[:, cols]`` flattened to (m·C, len(cols[0])) without building them,
-    unless asked: packed integer keys are computed column by column."""
-
-    def __init__(self, top: np.ndarray, cols):
-        self.top, self.cols = top, cols
-        width = top.shape[1] if cols is None else len(cols[0])
-        count = top.shape[0] if cols is None else top.shape[0] * len(cols)
-        self.shape = (count, width)
-
-    def max(self) -> int:
-        return int(self.top.max()) if self.top.size else 0
-
-    def column(self, index: int) -> np.ndarray:
-        """(m·C,) entries ``index`` of every row, in row order."""
-        if self.cols is None:
-            return self.top[:, index]
-        return self.top[:, [c[index] for c in self.cols]].ravel()
-
-    def packed(self, bits: int) -> np.ndarray:
-        key = self.column(0).astype(np.int64)
-        for col in range(1, self.shape[1]):
-            key <<= bits
-            key |= self.column(col)
-        return key
-
-    def materialize(self) -> np.ndarray:
-        if self.cols is None:
-            return self.top
-        return self.top[:, np.array(self.cols)].reshape(self.shape)
-
-
-def _sort_rows(rows: np.ndarray) -> np.ndarray:
-    """Sort each (short) row; a min/max network for triangles, np.sort otherwise."""
-    if rows.shape[1] == 3:
-        a, b, c = rows[:, 0], rows[:, 1], rows[:, 2]
-        low = np.minimum(np.minimum(a, b), c)
-        high = np.maximum(np.maximum(a, b), c)
-        return np.stack([low, a + b + c - low - high, high], axis=1)
-    return np.sort(rows, axis=1)
-
-
-def inversion_parity(tuples: np.ndarray) -> np.ndarray:
-    """(-1)**(number of inversions) of each row (§2.3.3, the inversion table).
-
-    Parameters
-    ----------
-    tuples : (m, c) integer array
-
-    Returns
-    -------
-    (m,) int8, +1 for an even permutation of the sorted row, -1 for an odd one.
-    """
-    tuples = np.asarray(tuples)
-    c = tuples.shape[1]
-    inversions = np.zeros(tuples.shape[0], dtype=np.int64)
-    for a, b in combinations(range(c), 2):
-        inversions += tuples[:, a] > tuples[:, b]
-    return np.where(inversions % 2 == 0, 1, -1).astype(np.int8)
-
-
-def simplex_volumes(points: np.ndarray) -> np.ndarray:
-    """Unsigned j-dimensional volumes of simplices given by their corner points.
-
-    Parameters
-    ----------
-    points : (m, j+1, d) corner coordinates
-
-    Returns
-    -------
-    (m,) volumes ``sqrt(det(EᵀE)) / j!`` with ``E = [p1-p0, ..., pj-p0]`` (Gram determinant);
-    1 for j = 0.
-    """
-    j = points.shape[1] - 1
-    if j == 0:
-        return np.ones(points.shape[0])
-    if j in (1, 2) and points.shape[2] in (2, 3):
-        return _small_simplex_volumes([points[:, i, :] for i in range(j + 1)])
-    edges = points[:, 1:, :] - points[:, :1, :]
-    if j == 1:
-        return np.linalg.norm(edges[:, 0], axis=1)
-    if j == 2 and points.shape[2] == 3:
-        return 0.5 * np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1)
-    if j == points.shape[2]:
-        return np.abs(np.linalg.det(edges)) / factorial(j)
-    gram = np.einsum("mai,mbi->mab", edges, edges)
-    return np.sqrt(np.clip(np.linalg.det(gram), 0.0, None)) / factorial(j)
-
-
-def _small_simplex_volumes(corners: list) -> np.ndarray:
-    """Lengths of segments / areas of triangles from corner arrays (m, d), d = 2 or 3."""
-    d = corners[0].shape[1]
-    if len(corners) == 2:
-        total = 0.0
-        for axis in range(d):
-            diff = corners[1][:, axis] - corners[0][:, axis]
-            total = total + diff * diff
-        return np.sqrt(total)
-    u = [corners[1][:, axis] - corners[0][:, axis] for axis in range(d)]
-    v = [corners[2][:, axis] - corners[0][:, axis] for axis in range(d)]
-    if d == 2:
-        return 0.5 * np.abs(u[0] * v[1] - u[1] * v[0])
-    total = np.zeros(u[0].shape[0])
-    for a, b in ((1, 2), (2, 0), (0, 1)):  # the components of u × v, squared and summed
-        component = u[a] * v[b]
-        component -= u[b] * v[a]
-        component *= component
-        total += component
-    np.sqrt(total, out=total)
-    total *= 0.5
-    return total
-
-
-def _vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
-    """Volumes of simplices given by vertex indices (fast path for edges and triangles)."""
-    if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
-        return _small_simplex_volumes(_CornerCoordinates(vertices, simplices))
-    return simplex_volumes(vertices[simplices])
-
-
-class _CornerCoordinates:
-    """corners[i][:, axis] gathered one coordinate at a time (no (m, d) corner arrays)."""
-
-    def __init__(self, vertices: np.ndarray, simplices: np.ndarray):
-        self.columns = np.ascontiguousarray(vertices.T)  # (d, n0): contiguous per axis
-        self.simplices = simplices
-
-    def __len__(self) -> int:
-        return self.simplices.shape[1]
-
-    def __getitem__(self, i: int):
-        return _CornerColumn(self.columns, self.simplices[:, i])
-
-
-class _CornerColumn:
-    def __init__(self, columns, index):
-        self.columns, self.index = columns, index
-        self.shape = (index.shape[0], columns.shape[0])
-
-    def __getitem__(self, key):
-        _, axis = key
-        return self.columns[axis][self.index]
-
-
-class SimplicialComplex:
+class SimplicialComplex(Cached):
     """An oriented simplicial complex built from top simplices (§2.2, §2.3.3).
 
     Parameters
@@ -332,7 +134,7 @@ class SimplicialComplex:
                 f"got {vertices.shape[1]}"
             )
 
-        top_sorted = _sort_rows(simplices)
+        top_sorted = sort_rows(simplices)
         _check_indices(vertices, simplices, top_sorted, self.dim)
         bad = ~np.isfinite(vertices).all(axis=1)
         if bad.any():
@@ -371,8 +173,8 @@ class SimplicialComplex:
         self._top_faces = {n: np.arange(m)[:, None], 0: top_sorted}
         for j in range(1, n):
             cols = self._local[j]
-            faces = _FaceRows(top_sorted, cols)  # the (m·C, j+1) face tuples, built lazily
-            unique, inverse, order, starts = _group_rows(faces)
+            faces = FaceRows(top_sorted, cols)  # the (m·C, j+1) face tuples, built lazily
+            unique, inverse, order, starts = group_rows(faces)
             self._lists[j] = unique
             self._top_faces[j] = inverse.reshape(m, len(cols))
             if j == n - 1:
@@ -394,7 +196,7 @@ class SimplicialComplex:
     # ------------------------------------------------------------------ validation
     def _check_degenerate(self, tol: float) -> None:
         n = self.dim
-        volumes = _vertex_volumes(self.vertices, self._lists[n])
+        volumes = vertex_volumes(self.vertices, self._lists[n])
         bad = volumes <= tol * volumes.mean()
         if bad.any():
             raise DegenerateSimplexError(
@@ -603,11 +405,11 @@ class SimplicialComplex:
         if not 0 <= j <= self.dim:
             raise IndexError(f"simplex dimension {j} outside 0..{self.dim}")
 
-    def face_indices(self, j: int) -> np.ndarray:
+    def facet_indices(self, j: int) -> np.ndarray:
         """(n_j, j+1) int64: index of the (j-1)-face of each j-simplex omitting local vertex l."""
         return np.ascontiguousarray(self._faces_and_signs(j)[0], dtype=np.int64)
 
-    def face_signs(self, j: int) -> np.ndarray:
+    def facet_signs(self, j: int) -> np.ndarray:
         """(n_j, j+1) int8: the δ_j entries ``(-1)**l`` (times ``orientation`` for j = n)."""
         return np.ascontiguousarray(self._faces_and_signs(j)[1], dtype=np.int8)
 
@@ -640,23 +442,47 @@ class SimplicialComplex:
             signs = np.broadcast_to(alternating, (nj, j + 1))
         return faces, signs
 
+    def top_face_indices(self, j: int) -> np.ndarray:
+        """(n_n, C(n+1, j+1)) int64: index into ``simplices(j)`` of every j-face of every top
+        simplex; columns in the order of ``itertools.combinations(range(n+1), j+1)`` over the
+        sorted top tuple (e.g. edge slots (0,1), (0,2), (1,2) of a triangle)."""
+        self._check_degree(j)
+        return self._top_faces[j]
+
+    def edge_lengths(self) -> np.ndarray:
+        """(n1,) lengths of the edges ``simplices(1)`` (model units), cached."""
+        from decrun.core.geometry import edge_lengths
+
+        return self.require("edge_lengths", lambda: edge_lengths(self.vertices, self.simplices(1)))
+
+    @property
+    def mean_edge_length(self) -> float:
+        """Mean edge length h̄ (model units): the scale of noise, strokes and time steps."""
+        return float(self.edge_lengths().mean())
+
+    @property
+    def top_volumes(self) -> np.ndarray:
+        """(n_n,) unsigned volumes of the top simplices (areas of triangles, volumes of tets)."""
+        return self._top_volumes
+
     def incidence(self, j: int) -> sp.csr_matrix:
         """δ_jᵀ: sparse (n_j, n_{j-1}) float64, row s holds the border of j-simplex s.
 
         This is the exterior derivative d_{j-1} of §4.5.1, built directly in CSR form
         (j+1 entries per row, no sorting).
         """
-        cache = self.__dict__.setdefault("_incidence_cache", {})
-        if j not in cache:
+
+        def compute():
             faces, signs = self._faces_and_signs(j)
             nj = faces.shape[0]
             index_type = np.int32 if max((j + 1) * nj, self._lists[j - 1].shape[0]) < 2**31 - 1 else np.int64
-            cache[j] = sp.csr_matrix(
+            return sp.csr_matrix(
                 (signs.ravel().astype(np.float64), faces.ravel().astype(index_type),
                  np.arange(0, (j + 1) * nj + 1, j + 1, dtype=index_type)),
                 shape=(nj, self._lists[j - 1].shape[0]),
             )
-        return cache[j]
+
+        return self.require(("incidence", j), compute)
 
     def boundary(self, j: int) -> sp.csr_matrix:
         """δ_j (Fig. 2.20): sparse (n_{j-1}, n_j) float64 with entries ±1 (§2.2.4).
@@ -664,10 +490,7 @@ class SimplicialComplex:
         Column ``s`` is the border of the j-simplex ``s``: ``Σ_l (-1)^l {v_0..v̂_l..v_j}``
         (times its orientation for top simplices). ``boundary(j-1) @ boundary(j) == 0``.
         """
-        cache = self.__dict__.setdefault("_boundary_cache", {})
-        if j not in cache:
-            cache[j] = self.incidence(j).T.tocsr()
-        return cache[j]
+        return self.require(("boundary", j), lambda: self.incidence(j).T.tocsr())
 
     def find_simplices(self, tuples) -> np.ndarray:
         """Indices in ``simplices(j)`` of vertex tuples given in any vertex order; -1 if absent.
@@ -700,26 +523,26 @@ class SimplicialComplex:
         return found
 
     # ------------------------------------------------------------------ topology
-    @cached_property
+    @property
     def euler_characteristic(self) -> int:
         """χ = Σ_j (-1)^j n_j."""
         return int(sum((-1) ** j * self._lists[j].shape[0] for j in range(self.dim + 1)))
 
     def connected_components(self) -> tuple[int, np.ndarray]:
         """(number of components, (n_n,) component label of each top simplex) — via shared vertices."""
-        cache = self.__dict__.get("_components")
-        if cache is None:
+
+        def compute():
             n = self.dim
             m = self._lists[n].shape[0]
             nv = self.vertices.shape[0]
             rows = np.repeat(np.arange(m), n + 1)
             graph = sp.coo_matrix((np.ones(rows.size), (rows, self._lists[n].ravel() + m)), shape=(m + nv, m + nv))
-            count, label = connected_components(graph, directed=False)
+            _, label = connected_components(graph, directed=False)
             # relabel so labels are 0..c-1 over top simplices
             _, top_label = np.unique(label[:m], return_inverse=True)
-            cache = (int(top_label.max()) + 1, top_label.astype(np.int64))
-            self.__dict__["_components"] = cache
-        return cache
+            return int(top_label.max()) + 1, top_label.astype(np.int64)
+
+        return self.require("components", compute)
 
     def boundary_faces(self) -> tuple[np.ndarray, np.ndarray]:
         """Border (n-1)-simplices: ``δ_n · 1`` (§2.3.4).

@@ -1,16 +1,34 @@
-"""Per-triangle measurements shared by the applications (plain arrays in, arrays out).
+"""Geometry of simplicial meshes, measured from plain arrays (one home for every formula).
 
-These take explicit ``points`` so they also measure moved vertices (a smoothing step) and
-parameter-space positions (uv), not only the complex's own geometry.
+Functions take explicit ``points`` so they also measure moved vertices (a smoothing step)
+and parameter-space positions (uv), not only a complex's own geometry; the complex caches
+the ones it uses on its own vertices (``SimplicialComplex.require``).
+
+Shapes: ``points (n, 2|3) float64``, ``faces (m, 3) int64`` (triangles), ``edges (e, 2)``.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
-from decrun.core.complex import _vertex_volumes
+from decrun.core.simplex_arrays import vertex_volumes
 
-__all__ = ["embed3", "triangle_areas", "corner_angles"]
+__all__ = [
+    "PLANAR_TOLERANCE",
+    "embed3",
+    "edge_lengths",
+    "mean_edge_length",
+    "triangle_areas",
+    "corner_angles",
+    "corner_cotangents",
+    "face_normals",
+    "vertex_normals",
+    "is_planar",
+]
+
+#: relative tolerance of :func:`is_planar` (spread of z over the bounding-box diagonal)
+PLANAR_TOLERANCE = 1e-12
 
 
 def embed3(points: np.ndarray) -> np.ndarray:
@@ -21,9 +39,26 @@ def embed3(points: np.ndarray) -> np.ndarray:
     return np.concatenate([points, np.zeros((points.shape[0], 3 - points.shape[1]))], axis=1)
 
 
+def unique_edges(faces: np.ndarray) -> np.ndarray:
+    """(e, 2) int64 sorted vertex pairs of the distinct edges of triangles ``faces`` (m, 3)."""
+    faces = np.asarray(faces, dtype=np.int64)
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    return np.unique(np.sort(edges, axis=1), axis=0)
+
+
+def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Lengths |p_j − p_i| (model units) of the edges (e, 2) → (e,)."""
+    return vertex_volumes(np.asarray(points, dtype=np.float64), np.asarray(edges))
+
+
+def mean_edge_length(points: np.ndarray, faces: np.ndarray) -> float:
+    """Mean length of the distinct edges of the triangles ``faces`` (model units)."""
+    return float(edge_lengths(points, unique_edges(faces)).mean())
+
+
 def triangle_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Unsigned areas ½|(p1−p0)×(p2−p0)|: points (n, 2|3), faces (m, 3) -> (m,)."""
-    return _vertex_volumes(np.asarray(points, dtype=np.float64), np.asarray(faces))
+    return vertex_volumes(np.asarray(points, dtype=np.float64), np.asarray(faces))
 
 
 def corner_angles(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -40,3 +75,50 @@ def corner_angles(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     cross = np.linalg.norm(np.cross(a, b), axis=2)
     dot = np.einsum("mkd,mkd->mk", a, b)
     return np.arctan2(cross, dot)
+
+
+def corner_cotangents(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """cot θ of every triangle corner: (m, 3), entry ``[t, l]`` at local vertex ``l``.
+
+    cot θ = (a·b) / |a×b| for the two edges a, b leaving the corner — the weights of the
+    cotangent formula ⋆1 = ½(cot α + cot β) (§4.5.5). Negative for obtuse corners.
+    """
+    p = embed3(points)[np.asarray(faces)]
+    a = np.roll(p, -1, axis=1) - p
+    b = np.roll(p, 1, axis=1) - p
+    return np.einsum("mkd,mkd->mk", a, b) / np.linalg.norm(np.cross(a, b), axis=2)
+
+
+def face_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(m, 3) unit normals of the triangles (right-hand rule over the given vertex order):
+    a planar mesh in the xy-plane oriented counter-clockwise gets +z. Pass
+    ``K.oriented_simplices()`` for the consistent orientation of a complex."""
+    x = embed3(points)
+    f = np.asarray(faces)
+    normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
+    return normal / np.linalg.norm(normal, axis=1, keepdims=True)
+
+
+def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit vertex normals ``(n, 3)``: the area-weighted sum of the incident triangles' normals.
+
+    Vertices whose weighted sum vanishes get the zero vector.
+    """
+    x = embed3(points)
+    f = np.asarray(faces)
+    face_normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])  # length = 2 * area
+    n, m = len(x), len(f)
+    incidence = sp.csr_matrix((np.ones(3 * m), (f.ravel(), np.repeat(np.arange(m), 3))), shape=(n, m))
+    normals = incidence @ face_normal
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+
+
+def is_planar(points: np.ndarray, tol: float = PLANAR_TOLERANCE) -> bool:
+    """True for 2-D points or 3-D points whose z spread is below ``tol`` × the bounding-box
+    diagonal (the meshes decrun treats as planar domains in the xy-plane)."""
+    points = np.asarray(points, dtype=np.float64)
+    if points.shape[1] == 2:
+        return True
+    diagonal = float(np.linalg.norm(np.ptp(points, axis=0))) or 1.0
+    return float(np.ptp(points[:, 2])) <= tol * diagonal

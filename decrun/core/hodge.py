@@ -16,15 +16,13 @@ the circumcentric ⋆1); with negative cot weights ⟨·,·⟩_⋆ is indefinite
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from decrun.core.dec import DEC
+from decrun.core.solvers import SingularSolve, solver_factory
 from decrun.errors import MeshError
-from decrun.core.solvers import Solver, make_solver
 
 __all__ = ["HodgeParts", "HodgeDecomposer", "hodge_decomposition", "harmonic_basis"]
 
@@ -44,29 +42,6 @@ class HodgeParts:
     beta: np.ndarray | None
 
 
-class _SingularSolve:
-    """Solve A x = b for symmetric PSD singular A and b ∈ im A: factorize A + εI once,
-    then iterative refinement x ← x + (A + εI)⁻¹ (b − A x)."""
-
-    def __init__(self, A: sp.spmatrix, solver: Solver, shift: float = 1e-10, tol: float = 1e-14, max_iter: int = 30):
-        self.A = A.tocsr()
-        scale = float(np.abs(self.A.diagonal()).mean()) or 1.0
-        self.solver = solver
-        self.solver.factorize((self.A + shift * scale * sp.identity(A.shape[0], format="csr")).tocsc())
-        self.tol, self.max_iter = tol, max_iter
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        x = np.zeros_like(b, dtype=np.float64)
-        norm_b = np.linalg.norm(b) or 1.0
-        residual = b.astype(np.float64)
-        for _ in range(self.max_iter):
-            x = x + self.solver.solve(residual)
-            residual = b - self.A @ x
-            if np.linalg.norm(residual) <= self.tol * norm_b:
-                break
-        return x
-
-
 class HodgeDecomposer:
     """Factorize the two Poisson problems of degree k once; decompose many k-forms.
 
@@ -74,21 +49,18 @@ class HodgeDecomposer:
     ----------
     dec : DEC
     k : form degree, 0 ≤ k ≤ n
-    solver : a decrun Solver name or instance (default ``direct``); two independent
-        instances are used, one per Poisson problem.
+    solver : a solver name, a configured Solver or a factory (default ``direct``); each
+        Poisson problem gets its own fresh solver (``solver_factory``).
     """
 
-    def __init__(self, dec: DEC, k: int = 1, solver: str | Solver | None = None):
+    def __init__(self, dec: DEC, k: int = 1, solver=None):
         self.dec, self.k = dec, k
         n = dec.n
-        if isinstance(solver, Solver):  # a configured instance: the second problem gets a copy (same options)
-            solvers = [solver, copy.deepcopy(solver)]
-        else:
-            solvers = [make_solver(solver or "direct"), make_solver(solver or "direct")]
+        new_solver = solver_factory(solver)
         self._exact = self._coexact = None
         if k > 0:
             d = dec.d(k - 1)
-            self._exact = _SingularSolve(d.T @ dec.star(k) @ d, solvers[0])
+            self._exact = SingularSolve(d.T @ dec.star(k) @ d, new_solver())
         if k < n:
             star = dec.star_diagonal(k)
             zero = np.abs(star) <= 1e-12 * np.abs(star).max()
@@ -97,10 +69,10 @@ class HodgeDecomposer:
                     f"Hodge decomposition of {k}-forms needs an invertible ⋆_{k}, but it is zero on "
                     f"{int(zero.sum())} simplices (e.g. {np.flatnonzero(zero)[:5].tolist()}): their circumcentric dual "
                     "cells are degenerate, as on the diagonals of a split grid of cyclic quads. Remesh "
-                    "(mesh.refine: remesh) or perturb the mesh."
+                    "(mesh.refine=isotropic) or perturb the mesh (mesh.noise=0.05)."
                 )
             d = dec.d(k)
-            self._coexact = _SingularSolve(d @ dec.star_inv(k) @ d.T, solvers[1])
+            self._coexact = SingularSolve(d @ dec.star_inv(k) @ d.T, new_solver())
 
     def decompose(self, omega: np.ndarray) -> HodgeParts:
         """Split ``omega`` ((n_k,) or (n_k, s) for s forms at once) into its Hodge parts."""
@@ -127,7 +99,7 @@ def _column(values: np.ndarray, like: np.ndarray) -> np.ndarray:
     return values.reshape((-1,) + (1,) * (like.ndim - 1))
 
 
-def hodge_decomposition(dec: DEC, omega: np.ndarray, k: int = 1, solver: str | Solver | None = None) -> HodgeParts:
+def hodge_decomposition(dec: DEC, omega: np.ndarray, k: int = 1, solver=None) -> HodgeParts:
     """Hodge decomposition of a k-form (Theorem 5): ω = dα + δβ + γ.
 
     Parameters
@@ -144,7 +116,7 @@ def hodge_decomposition(dec: DEC, omega: np.ndarray, k: int = 1, solver: str | S
     return HodgeDecomposer(dec, k, solver).decompose(omega)
 
 
-def harmonic_basis(dec: DEC, k: int = 1, solver: str | Solver | None = None, samples: int = 16, seed: int = 0,
+def harmonic_basis(dec: DEC, k: int = 1, solver=None, samples: int = 16, seed: int = 0,
                    rank_tol: float = 1e-8) -> np.ndarray:
     """A ⋆-orthonormal basis of the harmonic k-forms (ker Δ_k, §6.3.5).
 

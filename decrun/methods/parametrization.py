@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from decrun.core.complex import SimplicialComplex
 from decrun.errors import ConfigError, SolverError, TopologyError
 from decrun.core.geometry import corner_angles
+from decrun.core.solvers import solve_with_fixed
 
 __all__ = [
     "WEIGHTS",
@@ -288,13 +289,7 @@ def conformal_border(K: SimplicialComplex, loop: np.ndarray, solver) -> np.ndarr
     a, b = _far_apart(K.vertices[loop])
     pinned = np.array([a, b, L + a, L + b])
     pinned_values = np.array([0.0, 1.0, 0.0, 0.0])
-    free = np.setdiff1d(np.arange(2 * L), pinned)
-    system = local[:, free]
-    rhs = -local[:, pinned] @ pinned_values
-    normal = (system.T @ system).tocsc()
-    solution = np.empty(2 * L)
-    solution[pinned] = pinned_values
-    solution[free] = solver.factorize(normal).solve(system.T @ rhs)
+    solution = solve_with_fixed(local, np.zeros(2 * L), pinned, pinned_values, solver, least_squares=True)
     return normalize_to_unit_square(np.column_stack([solution[:L], solution[L:]]))
 
 
@@ -343,12 +338,7 @@ def least_squares_conformal_map(dec, solver, pins: tuple[int, int] | None = None
     distance = float(np.linalg.norm(K.vertices[a] - K.vertices[b]))
     pinned = np.array([a, b, n0 + a, n0 + b])
     pinned_values = np.array([0.0, distance, 0.0, 0.0])
-    free = np.setdiff1d(np.arange(2 * n0), pinned)
-    H_free = H[free][:, free].tocsc()
-    rhs = -(H[free][:, pinned] @ pinned_values)
-    z = np.empty(2 * n0)
-    z[pinned] = pinned_values
-    z[free] = solver.factorize(H_free).solve(rhs)
+    z = solve_with_fixed(H, np.zeros(2 * n0), pinned, pinned_values, solver)
     return np.column_stack([z[:n0], z[n0:]])
 
 
@@ -382,7 +372,7 @@ REFLEX_ROWS = ("harmonic", "cauchy_riemann")
 
 def parametrize(
     dec,
-    solver,
+    new_solver,
     border: str = "conformal",
     weights: str = "dec",
     exterior: int | None = None,
@@ -406,6 +396,9 @@ def parametrize(
     * ``free``: every border vertex pinned where the least-squares conformal map puts it
       (:func:`least_squares_conformal_map`); with ``weights=dec`` that already is the answer.
 
+    ``new_solver()`` returns a fresh decrun Solver for each linear system
+    (:func:`decrun.core.solvers.solver_factory`).
+
     Returns a :class:`Parametrization` with uv in [0, 1]². Raises :class:`TopologyError` for a
     mesh that is not a connected genus-0 surface with border, before any solve.
     """
@@ -426,7 +419,7 @@ def parametrize(
     start = time.perf_counter()
 
     if border == "free":
-        lscm = least_squares_conformal_map(dec, solver)
+        lscm = least_squares_conformal_map(dec, new_solver())
         if weights == "dec":
             # the minimizer's border rows are the Cauchy–Riemann rows (two of them pins)
             kind[K.boundary_vertices()] = CAUCHY_RIEMANN
@@ -441,7 +434,7 @@ def parametrize(
             reflex = alpha > np.pi + 1e-9
             reflex_mask[exterior_loop[reflex]] = True
             kind[exterior_loop[~reflex]] = PINNED
-            pinned_uv[exterior_loop] = conformal_border(K, exterior_loop, solver)
+            pinned_uv[exterior_loop] = conformal_border(K, exterior_loop, new_solver())
         else:
             kind[exterior_loop] = PINNED
             pinned_uv[exterior_loop] = circle_border(K, exterior_loop, arclength=border == "circle_arclength")
@@ -462,12 +455,12 @@ def parametrize(
     pinned_rhs = pinned_uv * (kind == PINNED)[:, None]
     if coupling.nnz == 0:
         # x and y decouple (eq. 5.4): factorize once, solve both right-hand sides.
-        uv = solver.factorize(block.tocsc()).solve(pinned_rhs)
+        uv = new_solver().factorize(block.tocsc()).solve(pinned_rhs)
     else:
         # Eq. 5.9 / Cauchy–Riemann rows couple x and y: one (2 n0)² system, their rows replace
         # both rows of their vertex (the block rows of those vertices are empty).
         M = (sp.block_diag([block, block]) + coupling).tocsc()
-        z = solver.factorize(M).solve(pinned_rhs.T.ravel())
+        z = new_solver().factorize(M).solve(pinned_rhs.T.ravel())
         uv = np.column_stack([z[:n0], z[n0:]])
     seconds = time.perf_counter() - start
     if not np.all(np.isfinite(uv)):

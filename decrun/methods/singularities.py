@@ -35,10 +35,9 @@ import numpy as np
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.forms import whitney_sharp
-from decrun.core.geometry import corner_angles, embed3
-from decrun.methods.vector_design import face_normals
+from decrun.core.geometry import corner_angles, embed3, face_normals
 
-__all__ = ["corner_vectors", "vertex_indices", "face_indices", "Singularities", "find_singularities"]
+__all__ = ["corner_vectors", "vertex_indices", "face_winding_indices", "Singularities", "find_singularities"]
 
 
 def corner_vectors(K: SimplicialComplex, omega: np.ndarray) -> np.ndarray:
@@ -64,7 +63,7 @@ def _signed_angle(a: np.ndarray, b: np.ndarray, normal: np.ndarray) -> np.ndarra
     return np.arctan2(np.einsum("...d,...d->...", np.cross(a, b), normal), np.einsum("...d,...d->...", a, b))
 
 
-def face_indices(K: SimplicialComplex, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def face_winding_indices(K: SimplicialComplex, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Index of the field's zero inside each face (0 if none).
 
     Parameters
@@ -76,7 +75,7 @@ def face_indices(K: SimplicialComplex, corners: np.ndarray) -> tuple[np.ndarray,
     index : (n2,) int64 in {−1, 0, 1}; winding : (n2,) float, the raw winding number
     (integer up to rounding; a corner value of exactly zero makes it undefined: NaN).
     """
-    normals = face_normals(K)[:, None, :]
+    normals = face_normals(K.vertices, K.oriented_simplices())[:, None, :]
     turning = _signed_angle(corners, np.roll(corners, -1, axis=1), normals).sum(axis=1)
     winding = turning / (2 * np.pi)
     degenerate = (np.linalg.norm(corners, axis=2) == 0).any(axis=1)
@@ -106,7 +105,7 @@ def vertex_indices(K: SimplicialComplex, corners: np.ndarray) -> tuple[np.ndarra
     x = embed3(K.vertices)
     f = K.oriented_simplices()
     n0 = K.num_simplices(0)
-    normals = np.repeat(face_normals(K)[:, None, :], 3, axis=1)
+    normals = np.repeat(face_normals(K.vertices, K.oriented_simplices())[:, None, :], 3, axis=1)
     here = f
     nxt = np.roll(f, -1, axis=1)
     prv = np.roll(f, -2, axis=1)
@@ -173,7 +172,7 @@ def find_singularities(K: SimplicialComplex, omega: np.ndarray) -> Singularities
     """Vertex and face indices of the Whitney field of ``omega`` (n1,) — see the module doc."""
     corners = corner_vectors(K, omega)
     v_index, v_wind, interior = vertex_indices(K, corners)
-    f_index, f_wind = face_indices(K, corners)
+    f_index, f_wind = face_winding_indices(K, corners)
     rounding = np.concatenate([np.abs(v_wind - np.rint(v_wind)), np.abs(f_wind - np.rint(f_wind))])
     rounding = rounding[np.isfinite(rounding)]
     return Singularities(

@@ -29,22 +29,10 @@ Sign conventions (written next to the equations they affect)
 
 Boundary adaptation (§6.4.4)
 ----------------------------
-``boundary="none"`` uses the unadapted δ_1. On a border vertex its dual cell is not
-closed and δ_1 only counts the flux through the interior dual edges, so δ w = 0 implicitly
-forbids flow through the border: the designed field is tangential to the border. These
-are the matrices for which d and δ are adjoint and the discrete Hodge decomposition holds.
-
-``boundary="flux"`` adds the flux through the border edges, estimated from the two other
-edges of the border triangle assuming zero curl there (eq. 6.10), half to each end vertex
-(the two matrices printed after eq. 6.10):
-
-    δ_flux = ⋆0⁻¹ (d0ᵀ ⋆1 − M_border F)
-
-where ``F`` (#edges × #edges, :func:`border_flux_matrix`) gives the outward flux through
-each border edge and ``M_border`` (#vertices × #edges, :func:`border_vertex_matrix`)
-distributes half of it to each end vertex. The field may now cross the border, but δ_flux
-is no longer the adjoint of d0 (⟨d0 a, w⟩ ≠ ⟨a, δ_flux w⟩) and the Hodge decomposition of
-Theorem 5 fails with it — as the thesis warns. :func:`adjointness_defect` measures this.
+The δ_1 passed to :func:`normal_matrix` / :func:`solve_design` is ``dec.codifferential(1)`` of
+the configured adaptation (:mod:`decrun.core.boundary`): ``boundary=none`` makes the field
+tangential to the border and keeps d, δ adjoint; ``boundary=flux`` (eq. 6.10) lets it cross
+the border at the price of adjointness, which :func:`adjointness_defect` measures.
 """
 
 from __future__ import annotations
@@ -59,20 +47,18 @@ from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.errors import ConfigError, TopologyError
 from decrun.core.forms import whitney_sharp
+from decrun.core import geometry
+from decrun.core.boundary import border_edge_frames
 from decrun.core.geometry import embed3
-from decrun.core.solvers import Solver
+from decrun.core.solvers import SingularSolve, Solver
 
 __all__ = [
-    "BOUNDARY_MODES",
     "MAGNITUDE_MODES",
     "DesignConstraints",
     "DesignSolution",
     "nearest_vertices",
     "nearest_faces",
     "face_normals",
-    "border_flux_matrix",
-    "border_vertex_matrix",
-    "codifferential_1",
     "adjointness_defect",
     "divergence_target",
     "stroke_face_directions",
@@ -84,7 +70,6 @@ __all__ = [
     "border_normal_flux",
 ]
 
-BOUNDARY_MODES = ("none", "flux")
 MAGNITUDE_MODES = ("fixed", "precomputed")
 
 
@@ -102,10 +87,7 @@ def face_normals(K: SimplicialComplex) -> np.ndarray:
     """(n2, 3) unit normals of the consistently oriented faces ``K.oriented_simplices()``
     (right-hand rule; a planar mesh in the xy-plane oriented counter-clockwise gets +z)."""
     _require_surface(K, "face_normals")
-    x = embed3(K.vertices)
-    f = K.oriented_simplices()
-    normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
-    return normal / np.linalg.norm(normal, axis=1, keepdims=True)
+    return geometry.face_normals(K.vertices, K.oriented_simplices())
 
 
 def nearest_vertices(K: SimplicialComplex, points) -> np.ndarray:
@@ -176,103 +158,8 @@ def nearest_faces(K: SimplicialComplex, points, candidates: int = 8) -> tuple[np
 
 
 # ----------------------------------------------------------------------------------
-# boundary adaptation (§6.4.4)
+# boundary adaptation (§6.4.4): decrun.core.boundary.flux; here only its measurement
 # ----------------------------------------------------------------------------------
-
-
-def _border_edge_frames(K: SimplicialComplex):
-    """For each border edge: its index, the face it lies in and the face's local (i, j, k)
-    with i → j the border edge in the face's orientation and k the opposite vertex."""
-    edges_idx, _ = K.boundary_faces()
-    top_sorted = K.simplices(2)
-    oriented = K.oriented_simplices()
-    opposite_edge = K.face_indices(2)  # (m, 3): edge opposite sorted local vertex l
-    owner = np.full(K.num_simplices(1), -1, dtype=np.int64)
-    slot = np.full(K.num_simplices(1), -1, dtype=np.int64)
-    owner[opposite_edge.ravel()] = np.repeat(np.arange(top_sorted.shape[0]), 3)
-    slot[opposite_edge.ravel()] = np.tile(np.arange(3), top_sorted.shape[0])
-    face = owner[edges_idx]
-    k_vertex = top_sorted[face, slot[edges_idx]]
-    # position of k in the oriented tuple; i and j follow it cyclically
-    pos = np.argmax(oriented[face] == k_vertex[:, None], axis=1)
-    rows = np.arange(face.size)
-    i_vertex = oriented[face, (pos + 1) % 3]
-    j_vertex = oriented[face, (pos + 2) % 3]
-    return edges_idx, face, i_vertex, j_vertex, k_vertex, rows
-
-
-def _signed_edge(K: SimplicialComplex, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Edge indices of the oriented pairs a → b and the sign (+1 when a < b, the
-    reference orientation, −1 otherwise): w(a → b) = sign · w[index]."""
-    index = K.find_simplices(np.stack([a, b], axis=1))
-    return index, np.where(a < b, 1.0, -1.0)
-
-
-def border_flux_matrix(dec: DEC) -> sp.csr_matrix:
-    """F (#edges, #edges): outward flux through each border edge, eq. 6.10.
-
-    For the border edge e_ij of the triangle t_ijk (i → j in the orientation of t, so the
-    outside is to the right of i → j), assuming zero curl on t the Whitney field (eq. 6.7)
-    is constant and its flux *out of the mesh* through e_ij is
-
-        f_out(e_ij) = w_ki cot θ_j − w_jk cot θ_i ,
-
-    the negative of eq. 6.10's f_ij, which is the flux through e_ij towards the inside of
-    t (the left of i → j; Fig. 6.11). θ_i, θ_j are the triangle's angles at i and j.
-    Rows of interior edges are zero; each border row has entries in the columns of e_jk
-    and e_ki, with signs for the reference edge orientations.
-    """
-    K = dec.K
-    _require_surface(K, "border flux (operator.boundary: flux)")
-    edges_idx, face, i_v, j_v, k_v, _ = _border_edge_frames(K)
-    x = embed3(K.vertices)
-
-    def cot(at, p, q):
-        a, b = x[p] - x[at], x[q] - x[at]
-        return np.einsum("md,md->m", a, b) / np.linalg.norm(np.cross(a, b), axis=1)
-
-    cot_i = cot(i_v, j_v, k_v)
-    cot_j = cot(j_v, k_v, i_v)
-    e_ki, s_ki = _signed_edge(K, k_v, i_v)
-    e_jk, s_jk = _signed_edge(K, j_v, k_v)
-    rows = np.concatenate([edges_idx, edges_idx])
-    cols = np.concatenate([e_ki, e_jk])
-    vals = np.concatenate([s_ki * cot_j, -s_jk * cot_i])
-    n1 = K.num_simplices(1)
-    return sp.csr_matrix((vals, (rows, cols)), shape=(n1, n1))
-
-
-def border_vertex_matrix(K: SimplicialComplex) -> sp.csr_matrix:
-    """M_border (#vertices, #edges): half of each border edge's flux to each of its two
-    end vertices (the first matrix after eq. 6.10; the signs of the thesis' version are
-    absorbed into :func:`border_flux_matrix`, which already returns *outward* flux)."""
-    _require_surface(K, "border vertex matrix")
-    edges_idx, _ = K.boundary_faces()
-    ends = K.simplices(1)[edges_idx]
-    rows = ends.ravel()
-    cols = np.repeat(edges_idx, 2)
-    return sp.csr_matrix((np.full(rows.size, 0.5), (rows, cols)), shape=(K.num_simplices(0), K.num_simplices(1)))
-
-
-def codifferential_1(dec: DEC, boundary: str = "none") -> sp.csr_matrix:
-    """δ_1 (#vertices, #edges) for the boundary mode (§6.4.4).
-
-    ``none``: δ_1 = ⋆0⁻¹ d0ᵀ ⋆1 (eq. 4.14), adjoint of d0. ``flux``: the adapted
-    δ_flux = ⋆0⁻¹ (d0ᵀ ⋆1 − M_border F) that also counts the estimated flux through
-    border edges (identical to δ_1 on closed meshes). Both are −divergence.
-    """
-    if boundary not in BOUNDARY_MODES:
-        raise ConfigError(f"operator.boundary: unknown boundary mode {boundary!r}; choose one of {list(BOUNDARY_MODES)}")
-    delta = dec.codifferential(1)
-    if boundary == "none" or K_is_closed(dec.K):
-        return delta
-    adapted = dec.d(0).T @ dec.star(1) - border_vertex_matrix(dec.K) @ border_flux_matrix(dec)
-    return (dec.star_inv(0) @ adapted).tocsr()
-
-
-def K_is_closed(K: SimplicialComplex) -> bool:
-    """True when the complex has no border."""
-    return K.boundary_faces()[0].size == 0
 
 
 def adjointness_defect(dec: DEC, delta: sp.spmatrix, seed: int = 0) -> float:
@@ -340,8 +227,7 @@ def stroke_face_directions(
         points = np.concatenate([points, points[:1]])
     points = embed3(points)
     if step is None:
-        x = K.vertices[K.simplices(1)]
-        step = 0.25 * float(np.linalg.norm(x[:, 1] - x[:, 0], axis=1).mean())
+        step = 0.25 * K.mean_edge_length
     seg = np.diff(points, axis=0)
     lengths = np.linalg.norm(seg, axis=1)
     pieces = np.maximum(1, np.ceil(lengths / step).astype(np.int64))
@@ -380,7 +266,7 @@ def stroke_edge_targets(K: SimplicialComplex, faces: np.ndarray, vectors: np.nda
     vectors = np.asarray(vectors, dtype=np.float64)
     if faces.size == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0)
-    edge_of_face = K.face_indices(2)[faces]  # (F, 3)
+    edge_of_face = K.facet_indices(2)[faces]  # (F, 3)
     edge_vertices = K.simplices(1)[edge_of_face]  # (F, 3, 2)
     x = embed3(K.vertices)
     direction = x[edge_vertices[..., 1]] - x[edge_vertices[..., 0]]
@@ -479,7 +365,7 @@ def solve_design(
     Parameters
     ----------
     solver : a fresh decrun Solver (factorized here, once)
-    delta : the δ_1 of the boundary mode (:func:`codifferential_1`)
+    delta : the δ_1 in use (``dec.codifferential(1)`` of the configured boundary adaptation)
     shift : relative size of the diagonal shift ε
     tol : stop when ‖A w − b‖ ≤ tol ‖b‖
 
@@ -490,17 +376,11 @@ def solve_design(
     A, b = normal_matrix(dec, delta, constraints)
     weight = np.abs(dec.star_diagonal(1))
     weight = np.maximum(weight, 1e-3 * float(weight.mean()))
-    scale = float(np.abs(A.diagonal()).mean() / weight.mean()) or 1.0
-    solver.factorize(sp.csc_matrix(A + sp.diags(shift * scale * weight)))
+    singular = SingularSolve(A, solver, weight=weight, shift=shift, tol=tol, max_steps=max_steps)
+    w = singular.solve(b)
+    steps = singular.steps
+    r = float(np.linalg.norm(b - A @ w))
     norm_b = float(np.linalg.norm(b))
-    w = np.zeros_like(b)
-    residual = b.copy()
-    steps = 0
-    while steps < max_steps and np.linalg.norm(residual) > tol * norm_b:
-        w = w + np.asarray(solver.solve(residual), dtype=np.float64)
-        residual = b - A @ w
-        steps += 1
-    r = float(np.linalg.norm(residual))
     return DesignSolution(omega=w, normal_equation_residual=r / norm_b if norm_b > 0 else r, refinement_steps=steps)
 
 
@@ -560,7 +440,7 @@ def border_normal_flux(K: SimplicialComplex, omega: np.ndarray) -> dict:
     ``boundary_normal_fraction`` (mean |u·n| / mean |u| there; 0 = tangential field,
     ~0.64 = directions uniformly random), ``boundary_edges`` (count). Zeros for closed meshes.
     """
-    edges_idx, face, i_v, j_v, k_v, _ = _border_edge_frames(K)
+    edges_idx, face, i_v, j_v, k_v = border_edge_frames(K)
     if edges_idx.size == 0:
         return {"boundary_normal_flux_mean": 0.0, "boundary_normal_fraction": 0.0, "boundary_edges": 0}
     top = K.simplices(2)

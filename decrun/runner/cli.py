@@ -31,9 +31,11 @@ import hydra
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from decrun.runner.config import check_operator, config_dir, get_app, register_configs
 from decrun.errors import DecrunError, MeshError
-from decrun.runner.results import Result, write_metrics_json, write_result
+from decrun.runner.config import config_dir, register_configs
+
+if False:  # typing only
+    from decrun.apps.base import Result
 
 log = logging.getLogger("decrun")
 
@@ -75,44 +77,73 @@ def make_progress(enabled: bool = True) -> Callable:
     return passthrough
 
 
-def validate(cfg: DictConfig):
-    """Check every config node before any work; return the application module."""
-    app = get_app(str(cfg.app.name))
-    OmegaConf.to_object(cfg.app)  # runs Config.__post_init__ checks (ConfigError)
-    check_operator(cfg.operator)
-    return app
+class Experiment:
+    """The plugins of one run, built and checked from ``cfg`` before any work.
+
+    Attributes: ``mesh_source``, ``operator`` (Hodge-star variant), ``boundary``, ``app``,
+    ``solver`` — instances of the classes named by the config's ``_target_`` keys.
+    """
+
+    def __init__(self, cfg: DictConfig):
+        from decrun.apps.base import App
+        from decrun.core.boundary import BoundaryAdaptation
+        from decrun.core.solvers import Solver
+        from decrun.core.stars import HodgeStar
+        from decrun.runner.meshes import MeshSource
+        from decrun.runner.plugins import build
+
+        self.app = build(cfg.app, "app", App)
+        self.operator = build(cfg.operator, "operator", HodgeStar)
+        self.boundary = build(cfg.boundary, "boundary", BoundaryAdaptation)
+        self.solver = build(cfg.solver, "solver", Solver)  # a missing optional package → SolverError now
+        self.mesh_source = build(cfg.mesh, "mesh", MeshSource)
 
 
-def run_experiment(cfg: DictConfig, progress: Callable | None = None) -> tuple[Result, Any, dict]:
-    """Compose mesh → complex → DEC → solver → app for ``cfg``; returns
-    ``(result, mesh, timings)``. Raises :class:`DecrunError` on bad input."""
+def validate(cfg: DictConfig) -> Experiment:
+    """Build and type-check every plugin node of ``cfg`` (ConfigError naming the key)."""
+    return Experiment(cfg)
+
+
+def run_experiment(cfg: DictConfig, progress: Callable | None = None, recorder=None) -> tuple[Result, Any, dict]:
+    """Compose mesh → complex → DEC → app for ``cfg``; returns ``(result, mesh, timings)``.
+
+    Every plugin is built and checked before the mesh is loaded, and the app checks the
+    mesh and operators before any solve. Raises :class:`DecrunError` on bad input.
+    ``recorder`` (optional) receives ``ctx.record`` calls as the run goes.
+    """
     from decrun.core.complex import SimplicialComplex
     from decrun.core.dec import DEC
-    from decrun.runner.meshes import load_mesh
-    from decrun.core.solvers import make_solver
+    from decrun.runner.context import RunContext
 
     timings: dict[str, float] = {}
     t = time.perf_counter()
-    app = validate(cfg)
-    solver_options = OmegaConf.to_container(cfg.solver, resolve=True)
-    solver = make_solver(**solver_options)  # missing optional package → SolverError now
-    mesh = load_mesh(cfg.mesh)
+    experiment = validate(cfg)
+    mesh = experiment.mesh_source.load()
     timings["mesh_seconds"] = time.perf_counter() - t
     t = time.perf_counter()
     try:
-        complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=str(cfg.mesh.orient))
+        complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
     except MeshError as exc:  # name the mesh the complex refused
         where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
         raise type(exc)(f"{where}: {exc}") from exc
     complex_.meta = mesh.meta
-    dec = DEC(complex_, star=str(cfg.operator.star))
+    dec = DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
+    app = experiment.app
+    app.check_operators(dec)
+    app.check(complex_, dec)
     timings["complex_seconds"] = time.perf_counter() - t
     t = time.perf_counter()
-    result = app.run(complex_, dec, solver, cfg.app, progress or make_progress(False))
+    ctx = RunContext(app, complex_, dec, new_solver=experiment.solver.fresh, meta=mesh.meta,
+                     progress=progress or make_progress(False), recorder=recorder, logger=log)
+    result = app.run(ctx)
+    if recorder is None:
+        for name, values in ctx.series.items():
+            result.series.setdefault(name, values)
     timings["app_seconds"] = time.perf_counter() - t
     result.metrics.setdefault("status", "ok")
     result.metrics.setdefault("n_vertices", int(complex_.num_simplices(0)))
     result.metrics.setdefault("n_faces", int(complex_.num_simplices(complex_.dim)))
+    mesh.complex = complex_
     return result, mesh, timings
 
 
@@ -129,19 +160,19 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
 
 def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -> list[Path]:
     """Write ``result.h5`` (atomic), ``metrics.json`` and the figures into ``out``."""
-    from decrun.runner.plots import save_figure
+    from decrun.runner.results import write_metrics_json, write_result
 
     written = []
     t = time.perf_counter()
-    if cfg.get("figures", True):
-        for name, figure in result.figures.items():
-            path = out / f"{name}.png"
-            save_figure(figure, path)
-            written.append(path)
+    if cfg.get("figures", True) and result.figures:
+        from decrun.runner.plots.common import draw_figures
+
+        written += draw_figures(result.figures, out, mesh.complex)
     timings["figures_seconds"] = time.perf_counter() - t
     timings["total_seconds"] = sum(v for k, v in timings.items() if k != "total_seconds")
     result.metrics.setdefault("total_seconds", timings["total_seconds"])
     h5 = write_result(out / "result.h5", result, vertices=mesh.vertices, simplices=mesh.simplices,
+                      edges=mesh.complex.simplices(1) if mesh.complex is not None else None,
                       config_yaml=OmegaConf.to_yaml(cfg, resolve=True), mesh_hash=mesh.meta.get("hash", ""),
                       timings=timings)
     metrics = write_metrics_json(out / "metrics.json", result.metrics)
@@ -179,6 +210,8 @@ def _task(cfg: DictConfig) -> int:
     except Exception as exc:
         message = str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}"
         (out / "result.h5").unlink(missing_ok=True)
+        from decrun.runner.results import write_metrics_json
+
         write_metrics_json(out / "metrics.json", {"status": "failed", "error": message})
         if _verbose() or not isinstance(exc, DecrunError):
             log.exception("error: %s", message)
@@ -230,6 +263,33 @@ class SweepTable(Callback):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
 
 
+def fast_help() -> str:
+    """``decrun --help`` without composing through Hydra (which deep-copies its whole config
+    store once per config group): the header, the options of each config group (the YAML
+    files of ``conf/``) and the default config (``config.yaml``'s defaults merged in order).
+    With overrides (``decrun app=hodge --help``) Hydra's own help runs."""
+    root = config_dir()
+    main_cfg = OmegaConf.load(root / "config.yaml")
+    lines = [str(main_cfg.hydra.help.header).rstrip(), "", "== Configuration groups ==",
+             "Compose your configuration from those groups (group=option)", ""]
+    for group in sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))):
+        options = sorted(f.stem for f in (root / group).glob("*.yaml"))
+        if options:
+            lines.append(f"{group}: {', '.join(options)}")
+    merged = OmegaConf.create()
+    for entry in main_cfg.defaults:
+        if isinstance(entry, str) or entry is None:
+            continue
+        for group, option in entry.items():
+            node = OmegaConf.load(root / group / f"{option}.yaml")
+            merged[group] = node
+    body = {k: v for k, v in OmegaConf.to_container(main_cfg).items() if k not in ("defaults", "hydra")}
+    merged = OmegaConf.merge(merged, body)
+    lines += ["", "", "== Config ==", "Override anything in the config (foo.bar=value)", "",
+              OmegaConf.to_yaml(merged).rstrip(), "", str(main_cfg.hydra.help.footer).rstrip(), ""]
+    return "\n".join(lines)
+
+
 def main() -> None:
     """Console script ``decrun``: ``-v``/``--verbose`` shows tracebacks; everything else is
     Hydra's command line (overrides, ``-m``, ``--cfg job``, ``--help``...)."""
@@ -239,6 +299,9 @@ def main() -> None:
     if _VERBOSE:
         os.environ["HYDRA_FULL_ERROR"] = "1"
     sys.argv = [sys.argv[0], *args]
+    if args in (["--help"], ["-h"]):
+        print(fast_help(), end="")
+        return
     SweepTable.failed = 0
     _hydra_main()
     if SweepTable.failed:

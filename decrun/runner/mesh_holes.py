@@ -16,7 +16,7 @@ Pure numpy/scipy; :func:`holes_step` is the ``mesh.post`` step wrapper.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -97,19 +97,3 @@ def cut_holes(vertices: np.ndarray, faces: np.ndarray, balls: Sequence = (), box
     used[kept.ravel()] = True
     new_index = np.cumsum(used) - 1
     return vertices[used], new_index[kept], np.flatnonzero(used)
-
-
-def holes_step(mesh, cfg: Any):
-    """``mesh.post`` step ``holes``: cut ``cfg.hole_balls`` and ``cfg.hole_boxes`` (no-op when both are empty).
-
-    Records ``meta['holes_removed_faces']``; drops ``meta['clean_vertices']`` rows of removed vertices.
-    """
-    balls = list(getattr(cfg, "hole_balls", None) or [])
-    boxes = list(getattr(cfg, "hole_boxes", None) or [])
-    if not balls and not boxes:
-        return mesh
-    vertices, faces, kept = cut_holes(mesh.vertices, mesh.simplices, balls, boxes)
-    meta = dict(mesh.meta, holes_removed_faces=int(len(mesh.simplices) - len(faces)))
-    if "clean_vertices" in meta:
-        meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
-    return type(mesh)(vertices, faces, meta)

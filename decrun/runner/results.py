@@ -7,7 +7,9 @@ Layout of ``result.h5`` (written by :func:`write_result`, read by :func:`read_re
 
     /mesh/vertices   (n0, d) float64      the mesh the run used (after noise etc.)
     /mesh/simplices  (n2, 3) int64
-    /fields/<name>   arrays of Result.fields
+    /mesh/edges      (n1, 2) int64        the edge list that orders the 1-forms
+    /fields/<name>   arrays of Result.fields; 1-forms carry the attribute
+                     ``edges = "mesh/edges"`` (their row order)
     /series/<name>   1-D arrays of Result.series
     /metrics         group whose attributes are the metrics (browsable);
                      the exact values (with their Python types) are in the root
@@ -29,38 +31,16 @@ import math
 import os
 import subprocess
 import sys
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from decrun.apps.base import FieldOnEdges, Result
+
+__all__ = ["Result", "write_result", "read_result", "read_provenance", "read_mesh", "write_metrics_json"]
+
 FORMAT = "decrun-result-1"
-
-
-@dataclass
-class Result:
-    """What an application returns.
-
-    Attributes
-    ----------
-    fields : dict[str, np.ndarray]
-        Named arrays living on the mesh: per vertex ``(n0, ...)``, per edge ``(n1, ...)``,
-        per face ``(n2, ...)`` (the first axis says which), plus any other array a figure or
-        a later run needs (e.g. ``uv``, ``vertices_final``).
-    series : dict[str, np.ndarray]
-        Per-step 1-D arrays (e.g. ``area`` of each time step).
-    metrics : dict[str, float | int | bool | str]
-        Flat scalars. Names say their unit or meaning (``solve_seconds``,
-        ``angle_distortion_mean_deg``, ``stable``).
-    figures : dict[str, Any]
-        Optional matplotlib figures, keyed by file stem; the runner saves them as PNG.
-    """
-
-    fields: dict[str, np.ndarray] = field(default_factory=dict)
-    series: dict[str, np.ndarray] = field(default_factory=dict)
-    metrics: dict[str, Any] = field(default_factory=dict)
-    figures: dict[str, Any] = field(default_factory=dict)
 
 
 # ----------------------------------------------------------------------------------
@@ -148,6 +128,7 @@ def write_result(
     *,
     vertices: np.ndarray | None = None,
     simplices: np.ndarray | None = None,
+    edges: np.ndarray | None = None,
     config_yaml: str = "",
     mesh_hash: str = "",
     timings: dict[str, float] | None = None,
@@ -185,13 +166,21 @@ def write_result(
                 mesh.create_dataset("vertices", data=np.asarray(vertices, dtype=np.float64))
             if simplices is not None:
                 mesh.create_dataset("simplices", data=np.asarray(simplices, dtype=np.int64))
+            if edges is not None:
+                mesh.create_dataset("edges", data=np.asarray(edges, dtype=np.int64))
             for group_name, arrays in (("fields", result.fields), ("series", result.series)):
                 group = f.create_group(group_name)
                 for name, array in arrays.items():
-                    array = np.asarray(array)
+                    one_form = isinstance(array, FieldOnEdges)
+                    array = np.asarray(array.values if one_form else array)
                     if array.dtype == object:
                         raise TypeError(f"Result.{group_name}[{name!r}] is not a numeric array")
-                    group.create_dataset(name, data=array, compression="gzip" if array.size > 4096 else None)
+                    dataset = group.create_dataset(name, data=array, compression="gzip" if array.size > 4096 else None)
+                    if one_form:
+                        if edges is None or len(edges) != len(array):
+                            raise ValueError(f"Result.fields[{name!r}] is a 1-form with {len(array)} values, "
+                                             f"but the mesh has {0 if edges is None else len(edges)} edges")
+                        dataset.attrs["edges"] = "mesh/edges"
             metrics = f.create_group("metrics")
             for name, value in result.metrics.items():
                 value = plain(value)

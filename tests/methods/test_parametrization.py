@@ -126,50 +126,50 @@ def test_planar_border_satisfies_conformal_border_rows_and_angle_sums():
 # ---------------------------------------------------------------------------- exact reproduction
 @pytest.mark.parametrize("border,weights", [("free", "dec"), ("free", "mean_value"),
                                             ("conformal", "dec"), ("conformal", "mean_value")])
-def test_flat_mesh_with_hole_is_reproduced_up_to_similarity(border, weights):
+def test_flat_mesh_with_hole_is_reproduced_up_to_similarity(border, weights, new_solver):
     K, dec = complex_and_dec(*wavy_disk())
-    result = parametrize(dec, make_solver("direct"), border=border, weights=weights, reflex_rows="cauchy_riemann")
+    result = parametrize(dec, new_solver, border=border, weights=weights, reflex_rows="cauchy_riemann")
     assert similarity_residual(K.vertices, result.uv) < 1e-9
     metrics = parametrization_metrics(K.vertices, result.uv, K.oriented_simplices(), result.loops)
     assert metrics["angle_distortion_max_deg"] < 1e-6 and metrics["is_embedding"]
     assert metrics["uv_orientation"] == 1  # the map keeps the complex's orientation
 
 
-def test_thesis_reflex_rows_distort_a_flat_mesh_with_reflex_border_vertices():
+def test_thesis_reflex_rows_distort_a_flat_mesh_with_reflex_border_vertices(new_solver):
     # The thesis gives reflex border vertices the one-sided harmonic row, which a similarity does
     # not satisfy: measurable distortion on a flat mesh (unlike reflex_rows=cauchy_riemann).
     K, dec = complex_and_dec(*wavy_disk())
-    result = parametrize(dec, make_solver("direct"), border="conformal", weights="dec", reflex_rows="harmonic")
+    result = parametrize(dec, new_solver, border="conformal", weights="dec", reflex_rows="harmonic")
     assert result.reflex_predicted > 0
     metrics = parametrization_metrics(K.vertices, result.uv, K.oriented_simplices(), result.loops)
     assert metrics["angle_distortion_mean_deg"] > 1.0 and metrics["is_embedding"]
 
 
-def test_convex_flat_disk_is_reproduced_by_the_thesis_conformal_border():
+def test_convex_flat_disk_is_reproduced_by_the_thesis_conformal_border(new_solver):
     K, dec = complex_and_dec(*planar_domain(holes=0, max_area=0.01))
-    result = parametrize(dec, make_solver("direct"), border="conformal", weights="dec")
+    result = parametrize(dec, new_solver, border="conformal", weights="dec")
     assert result.reflex_predicted == 0
     assert similarity_residual(K.vertices, result.uv) < 1e-9
 
 
 @pytest.mark.parametrize("border", ["free", "conformal"])
-def test_bent_rectangle_is_developed_isometrically(border):
+def test_bent_rectangle_is_developed_isometrically(border, new_solver):
     vertices, faces, flat = bent_rectangle()
     K, dec = complex_and_dec(vertices, faces)
-    result = parametrize(dec, make_solver("direct"), border=border, weights="dec")
+    result = parametrize(dec, new_solver, border=border, weights="dec")
     assert similarity_residual(flat, result.uv) < 1e-9
     metrics = parametrization_metrics(K.vertices, result.uv, K.oriented_simplices(), result.loops)
     assert metrics["qc_distortion_max"] == pytest.approx(1.0, abs=1e-8)
     assert metrics["area_distortion_std"] < 1e-8
 
 
-def test_star_variant_does_not_change_the_map():
+def test_star_variant_does_not_change_the_map(new_solver):
     # ⋆0 scales each harmonic row, whose right-hand side is 0: the solution is the same.
     vertices, faces = wavy_disk()
     maps = []
     for star in ("circumcentric", "mixed_area", "barycentric"):
         _, dec = complex_and_dec(vertices, faces, star=star)
-        maps.append(parametrize(dec, make_solver("direct"), border="circle", weights="dec").uv)
+        maps.append(parametrize(dec, new_solver, border="circle", weights="dec").uv)
     assert np.abs(maps[0] - maps[1]).max() < 1e-12 and np.abs(maps[0] - maps[2]).max() < 1e-12
 
 
@@ -184,7 +184,7 @@ class ExplodingSolver:
 def test_closed_surface_is_rejected_before_solving():
     K, dec = complex_and_dec(*icosphere(1))
     with pytest.raises(TopologyError, match="closed"):
-        parametrize(dec, ExplodingSolver())
+        parametrize(dec, ExplodingSolver)
 
 
 def test_two_components_are_rejected():
@@ -193,7 +193,7 @@ def test_two_components_are_rejected():
     faces = np.concatenate([f, f + len(v)])
     _, dec = complex_and_dec(vertices, faces)
     with pytest.raises(TopologyError, match="2 connected components"):
-        parametrize(dec, ExplodingSolver())
+        parametrize(dec, ExplodingSolver)
 
 
 def test_torus_with_a_hole_has_genus_one():
@@ -205,18 +205,18 @@ def test_torus_with_a_hole_has_genus_one():
     vertices, faces, _ = cut_holes(m.vertex_matrix(), m.face_matrix(), balls=[[1.4, 0.0, 0.0, 0.25]])
     _, dec = complex_and_dec(vertices, faces)
     with pytest.raises(TopologyError, match="genus 1"):
-        parametrize(dec, ExplodingSolver())
+        parametrize(dec, ExplodingSolver)
 
 
 # ---------------------------------------------------------------------------- thesis Fig. 5.8
-def test_t_hole_sphere_circle_embeds_conformal_does_not():
+def test_t_hole_sphere_circle_embeds_conformal_does_not(new_solver):
     v, f = icosphere(4)
     vertices, faces, _ = cut_holes(v, f, boxes=T_HOLE)
     K, dec = complex_and_dec(vertices, faces)
     assert len(K.boundary_loops()) == 1
     outcome = {}
     for border, weights in [("circle", "uniform"), ("circle", "mean_value"), ("conformal", "dec"), ("free", "dec")]:
-        result = parametrize(dec, make_solver("direct"), border=border, weights=weights)
+        result = parametrize(dec, new_solver, border=border, weights=weights)
         outcome[border, weights] = parametrization_metrics(K.vertices, result.uv, K.oriented_simplices(), result.loops)
     assert outcome["circle", "uniform"]["is_embedding"] and outcome["circle", "uniform"]["flipped_triangles"] == 0
     assert outcome["circle", "mean_value"]["is_embedding"]
@@ -240,48 +240,41 @@ EXPERIMENTS = ["fig5_5_flat_hole", "fig5_6_open_patch", "fig5_7_half_sphere_hole
 
 
 def experiment_mesh(name):
-    """The mesh of conf/experiment/<name>.yaml, built through decrun.runner.meshes (no Hydra)."""
-    from pathlib import Path
+    """The mesh ``decrun +experiment=<name>`` runs on."""
+    from decrun.runner.cli import compose_config, validate
 
-    import yaml
-
-    from decrun.runner.config import MeshConfig
-    from decrun.runner.meshes import load_mesh
-
-    text = (Path(__file__).resolve().parents[1] / "conf" / "experiment" / f"{name}.yaml").read_text()
-    options = yaml.safe_load(text)["mesh"]
-    return load_mesh(MeshConfig(**options))
+    return validate(compose_config([f"+experiment={name}"])).mesh_source.load()
 
 
 @pytest.mark.parametrize("name", EXPERIMENTS)
 @pytest.mark.parametrize("weights", ["uniform", "mean_value"])
-def test_tutte_maps_embed_every_experiment_mesh(name, weights):
+def test_tutte_maps_embed_every_experiment_mesh(name, weights, new_solver):
     mesh = experiment_mesh(name)
     K, dec = complex_and_dec(mesh.vertices, mesh.simplices)
-    result = parametrize(dec, make_solver("direct"), border="circle", weights=weights)
+    result = parametrize(dec, new_solver, border="circle", weights=weights)
     metrics = parametrization_metrics(K.vertices, result.uv, K.oriented_simplices(), result.loops)
     assert metrics["flipped_triangles"] == 0 and metrics["is_embedding"]
 
 
-def test_experiment_outcomes_of_the_thesis():
+def test_experiment_outcomes_of_the_thesis(new_solver):
     # Fig. 5.5: the conformal border keeps a flat mesh with a hole (exactly with Cauchy–Riemann rows)
     K, dec = complex_and_dec(*(lambda m: (m.vertices, m.simplices))(experiment_mesh("fig5_5_flat_hole")))
-    flat = parametrize(dec, make_solver("direct"), border="conformal", weights="dec", reflex_rows="cauchy_riemann")
+    flat = parametrize(dec, new_solver, border="conformal", weights="dec", reflex_rows="cauchy_riemann")
     assert parametrization_metrics(K.vertices, flat.uv, K.oriented_simplices(), flat.loops)["angle_distortion_max_deg"] < 1e-6
     # Fig. 5.8: the conformal border of the T hole is not an embedding, the free border is
     mesh = experiment_mesh("fig5_8_t_hole")
     K, dec = complex_and_dec(mesh.vertices, mesh.simplices)
-    bad = parametrize(dec, make_solver("direct"), border="conformal", weights="dec")
-    good = parametrize(dec, make_solver("direct"), border="free", weights="dec")
+    bad = parametrize(dec, new_solver, border="conformal", weights="dec")
+    good = parametrize(dec, new_solver, border="free", weights="dec")
     assert not parametrization_metrics(K.vertices, bad.uv, K.oriented_simplices(), bad.loops)["is_embedding"]
     assert parametrization_metrics(K.vertices, good.uv, K.oriented_simplices(), good.loops)["is_embedding"]
 
 
-def test_app_run_returns_uv_metrics_and_figures():
-    from decrun.apps.parametrization import Config, run
+def test_app_run_returns_uv_metrics_and_figures(run_app):
+    from decrun.apps.parametrization import Parametrization
 
     K, dec = complex_and_dec(*wavy_disk())
-    result = run(K, dec, make_solver("direct"), Config(border="conformal", weights="dec", reflex_rows="cauchy_riemann"))
+    result, _ = run_app(Parametrization(border="conformal", weights="dec", reflex_rows="cauchy_riemann"), K)
     assert result.fields["uv"].shape == (K.num_simplices(0), 2)
     assert result.metrics["angle_distortion_max_deg"] < 1e-6 and result.metrics["is_embedding"] is True
     assert result.metrics["cauchy_riemann_rows"] == result.metrics["reflex_border_vertices_predicted"] > 0

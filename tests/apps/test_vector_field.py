@@ -38,7 +38,7 @@ def design(K, sources=(), vortices=(), boundary="none"):
         constraints.codifferential = vd.divergence_target(dec, ids, [q for _, q in sources])
     for p, c in vortices:
         constraints.curl[vd.nearest_faces(K, [p])[0][0]] += c
-    delta = vd.codifferential_1(dec, boundary)
+    delta = DEC(K, boundary=boundary).codifferential(1)
     solution = vd.solve_design(dec, make_solver("direct"), constraints, delta)
     return dec, delta, constraints, solution
 
@@ -99,45 +99,6 @@ def test_index_sum_is_euler_characteristic_for_random_forms(sphere, torus):
             assert singular.max_rounding < 1e-9
 
 
-def test_border_flux_matrix_is_exact_for_constant_fields(square):
-    """Eq. 6.10 (zero curl) is exact for a constant field: F w = |e| (u · n_out) on border
-    edges, and the flux-adapted δ of a constant field vanishes everywhere (closed dual cells),
-    while the unadapted δ does not on the border."""
-    dec = DEC(square)
-    u = np.array([0.7, 0.3])
-    w = sample_vector_field(square, u)
-    edges, _ = square.boundary_faces()
-    ends = square.vertices[square.simplices(1)[edges]]
-    mid = ends.mean(axis=1)
-    outward = np.zeros_like(mid)
-    outward[np.isclose(mid[:, 0], 0)] = [-1, 0]
-    outward[np.isclose(mid[:, 0], 1)] = [1, 0]
-    outward[np.isclose(mid[:, 1], 0)] = [0, -1]
-    outward[np.isclose(mid[:, 1], 1)] = [0, 1]
-    length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
-    F = vd.border_flux_matrix(dec)
-    assert np.allclose((F @ w)[edges], length * (outward @ u), atol=1e-13)
-    interior_rows = np.setdiff1d(np.arange(square.num_simplices(1)), edges)
-    assert F[interior_rows].nnz == 0
-    scale = np.abs(dec.codifferential(1) @ w).max()
-    assert np.abs(vd.codifferential_1(dec, "flux") @ w).max() < 1e-12 * scale
-    border = square.boundary_vertices()
-    assert np.abs((dec.codifferential(1) @ w)[border]).min() > 1e-3 * scale
-    assert np.abs((dec.codifferential(1) @ w)[~border]).max() < 1e-10 * scale
-
-
-def test_flux_adaptation_breaks_adjointness_only_with_a_border(square, sphere):
-    """§6.4.4: the adapted δ is no longer the adjoint of d0 (Theorem 5 fails); on a closed
-    mesh both modes coincide."""
-    dec = DEC(square)
-    assert vd.adjointness_defect(dec, vd.codifferential_1(dec, "none")) < 1e-14
-    assert vd.adjointness_defect(dec, vd.codifferential_1(dec, "flux")) > 1e-4
-    dec_s = DEC(sphere)
-    assert (vd.codifferential_1(dec_s, "flux") - dec_s.codifferential(1)).nnz == 0
-    with pytest.raises(ConfigError, match="operator.boundary"):
-        vd.codifferential_1(dec, "dirichlet")
-
-
 def test_unadapted_field_is_tangential_flux_field_crosses_the_border(square):
     """Fig. 6.9 in numbers: a single source in a square. `none` must spread the missing sink
     over the domain and keeps the flow inside (small normal component on the border); `flux`
@@ -157,7 +118,7 @@ def test_stroke_targets_reproduce_a_constant_field(sphere):
     v = np.array([0.2, -0.4, 0.1])
     edges, targets = vd.stroke_edge_targets(sphere, faces, np.tile(v, (faces.size, 1)))
     assert np.allclose(targets, sample_vector_field(sphere, v)[edges], atol=1e-14)
-    assert np.all(np.isin(edges, sphere.face_indices(2)[faces]))
+    assert np.all(np.isin(edges, sphere.facet_indices(2)[faces]))
 
 
 def test_stroke_directions_follow_the_polyline(sphere):
@@ -176,7 +137,7 @@ def test_stroke_directions_follow_the_polyline(sphere):
     assert expected.shape[0] == 7
 
 
-def test_strokes_are_followed_and_precomputed_changes_less_than_fixed(sphere):
+def test_strokes_are_followed_and_precomputed_changes_less_than_fixed(sphere, run_app):
     """Eq. 6.8 vs 6.9 on a sphere with a source/sink: a stroke with a large fixed |v| = λ
     changes the field more than one with the precomputed magnitudes."""
     from decrun.apps import vector_field as app
@@ -185,8 +146,7 @@ def test_strokes_are_followed_and_precomputed_changes_less_than_fixed(sphere):
                 strokes=[app.Stroke(points=[[1, 0, 0.1], [0.7, 0.7, 0.1]])])
     change = {}
     for mode in ("fixed", "precomputed"):
-        cfg = app.Config(**base, stroke_magnitude=mode, stroke_length=5.0)
-        result = app.run(sphere, DEC(sphere), make_solver("direct"), cfg)
+        result, _ = run_app(app.VectorField(**base, stroke_magnitude=mode, stroke_length=5.0), sphere)
         change[mode] = result.metrics["field_change_relative"]
         assert result.metrics["direction_residual_relative"] < 0.1
         assert result.metrics["index_sum"] == 2 and result.metrics["poincare_hopf_holds"]
@@ -198,18 +158,15 @@ def test_app_validates_config():
     from decrun.apps import vector_field as app
 
     with pytest.raises(ConfigError, match="app.stroke_magnitude"):
-        app.Config(stroke_magnitude="auto")
+        app.VectorField(stroke_magnitude="auto")
     with pytest.raises(ConfigError, match=r"app.sources\[0\]"):
-        app.Config(sources=[app.Source()])
-    with pytest.raises(ConfigError, match="app.boundary"):
-        app.Config(boundary="dirichlet")
-    with pytest.raises(ConfigError, match="operator.boundary"):
-        app.boundary_mode(type("D", (), {"boundary": "weird"})())
+        app.VectorField(sources=[app.Source()])
 
 
 def test_precomputed_magnitude_without_other_constraints_is_rejected():
     # eq. 6.9 takes |v| from a solve without the strokes; with nothing else that field is 0
-    from decrun.apps.vector_field import Config, Stroke
+    from decrun.apps.vector_field import Stroke
+    from decrun.apps.vector_field import VectorField as Config
     from decrun.errors import ConfigError
 
     stroke = Stroke(points=[[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])

@@ -152,3 +152,31 @@ def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
 
     FigureCanvasAgg(fig)
     fig.savefig(path, dpi=dpi or fig.dpi)
+
+
+def draw_figures(figures: dict, out_dir, K=None) -> list:
+    """Draw the :class:`decrun.apps.base.Figure` descriptions of a result into ``out_dir``:
+    ``<name>.png`` for each (a drawing function may instead write its own file, e.g. an
+    animation, and return its path). Returns the written paths."""
+    import importlib
+    import inspect
+    from pathlib import Path
+
+    written = []
+    for name, figure in figures.items():
+        module_name, _, function_name = figure.draw.rpartition(".")
+        draw = getattr(importlib.import_module(module_name), function_name)
+        data = dict(figure.data)
+        parameters = inspect.signature(draw).parameters
+        if "K" in parameters:
+            data["K"] = K
+        if "out_path" in parameters:
+            data["out_path"] = Path(out_dir) / name
+        made = draw(**data)
+        if isinstance(made, (str, Path)):
+            written.append(Path(made))
+        else:
+            path = Path(out_dir) / f"{name}.png"
+            save_figure(made, path)
+            written.append(path)
+    return written

@@ -10,11 +10,13 @@ import pytest
 import scipy.sparse as sp
 
 from decrun.core.complex import SimplicialComplex
-from decrun.runner.config import MeshConfig
 from decrun.core.dec import DEC
+from decrun.core.plugins import builtin_names
+from decrun.core.solvers import Solver, make_solver
 from decrun.errors import ConfigError, SolverError
-from decrun.runner.meshes import load_mesh
-from decrun.core.solvers import SOLVERS, make_solver
+from meshes_for_tests import mesh
+
+SOLVERS = builtin_names("decrun.core.solvers", Solver)
 
 OPTIONAL = {"amg": "pyamg", "pardiso": "pypardiso"}  # extras decrun[amg], decrun[pardiso]
 
@@ -34,7 +36,7 @@ ALL = [pytest.param(name, marks=pytest.mark.skipif(not _installed(name), reason=
 @pytest.fixture(scope="module")
 def heat_matrix():
     """The implicit smoothing matrix ⋆0 + dt d0ᵀ⋆1 d0 of an icosphere: sparse SPD."""
-    m = load_mesh(MeshConfig(source="icosphere", subdiv=3))
+    m = mesh("icosphere", subdiv=3)
     dec = DEC(SimplicialComplex(m.vertices, m.faces))
     return (sp.diags(dec.star_diagonal(0)) + 0.01 * dec.laplacian_symmetric(0)).tocsr()
 
@@ -100,7 +102,7 @@ def test_solve_before_factorize_and_bad_shapes():
 
 
 def test_unknown_solver_and_bad_options():
-    with pytest.raises(ConfigError, match="solver.name"):
+    with pytest.raises(ConfigError, match="solver=gauss: unknown Solver; choose one of solver=amg \\| solver=cg \\| solver=direct \\| solver=pardiso"):
         make_solver("gauss")
     with pytest.raises(ConfigError, match="solver=cg"):
         make_solver("cg", colour="blue")
@@ -121,5 +123,5 @@ def test_missing_optional_package_is_a_clear_solver_error(name, module, monkeypa
 
     monkeypatch.delitem(sys.modules, module, raising=False)
     monkeypatch.setattr(builtins, "__import__", fake_import)
-    with pytest.raises(SolverError, match=f"pip install 'decrun\\[{name}\\]'"):
+    with pytest.raises(SolverError, match=f"pip install -e '.\\[{name}\\]'"):
         make_solver(name)

@@ -3,16 +3,20 @@ dim ker Δ1 = Betti_1, and the result.h5 input."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 
 from decrun.apps import hodge as app
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
+from decrun.core.stars import HodgeStar
 from decrun.errors import ConfigError
 from decrun.core.forms import sample_density, sample_vector_field
 from decrun.core.hodge import harmonic_basis, hodge_decomposition
-from decrun.runner.results import Result, write_result
+from decrun.apps.base import FieldOnEdges, Result
+from decrun.runner.results import write_result
 from decrun.core.solvers import make_solver
 
 from meshes_for_tests import complex_of
@@ -49,16 +53,19 @@ def test_rotated_gradient_on_sphere_is_coexact(sphere):
     assert smooth["coexact"] > 0.999 and smooth["exact"] < 1e-3 and smooth["harmonic"] < 1e-12
 
 
-class FlatTorusDEC(DEC):
-    """DEC of the flat torus R²/(N a, M b) triangulated by the equilateral lattice (a = (1, 0),
-    b = (½, √3/2)): every triangle is equilateral with side 1, so ⋆0 = √3/2 (hexagonal
-    Voronoi cell), ⋆1 = 1/√3 (dual edge 1/√3 over edge 1), ⋆2 = 4/√3. The complex's vertex
-    positions (a torus in R³) only serve the combinatorics."""
+@dataclass
+class FlatTorusStar(HodgeStar):
+    """Hodge stars of the flat torus R²/(N a, M b) triangulated by the equilateral lattice
+    (a = (1, 0), b = (½, √3/2)): every triangle is equilateral with side 1, so ⋆0 = √3/2
+    (hexagonal Voronoi cell), ⋆1 = 1/√3 (dual edge 1/√3 over edge 1), ⋆2 = 4/√3. The
+    complex's vertex positions (a torus in R³) only serve the combinatorics. A star variant
+    passed to DEC as an object, through the same seam as the built-in ones."""
 
+    name = "flat_torus"
     STARS = {0: np.sqrt(3) / 2, 1: 1 / np.sqrt(3), 2: 4 / np.sqrt(3)}
 
-    def star_diagonal(self, k):
-        return np.full(self.K.num_simplices(k), self.STARS[k])
+    def diagonal(self, dec, k):
+        return np.full(dec.K.num_simplices(k), self.STARS[k])
 
 
 def flat_torus(N: int = 12, M: int = 10):
@@ -77,7 +84,7 @@ def flat_torus(N: int = 12, M: int = 10):
 
 def test_constant_field_on_flat_torus_is_harmonic():
     K, lattice, (N, M) = flat_torus()
-    dec = FlatTorusDEC(K)
+    dec = DEC(K, star=FlatTorusStar())
     edges = K.simplices(1)
     step = lattice[edges[:, 1]] - lattice[edges[:, 0]]
     step = (step + [N // 2, M // 2]) % [N, M] - [N // 2, M // 2]  # the short way around
@@ -103,9 +110,9 @@ def test_constant_field_on_flat_torus_is_harmonic():
     ],
     ids=["sphere", "torus", "square_two_holes"],
 )
-def test_app_orthogonality_and_harmonic_dimension(options, betti):
+def test_app_orthogonality_and_harmonic_dimension(options, betti, run_app):
     K = complex_of(**options)
-    result = app.run(K, DEC(K), make_solver("direct"), app.Config(input="random", seed=1))
+    result, _ = run_app(app.Hodge(input="random", seed=1), K)
     m = result.metrics
     assert m["orthogonality_max"] < 1e-10
     assert m["harmonic_dimension"] == m["betti_1"] == betti and m["harmonic_dimension_matches_betti"]
@@ -118,25 +125,30 @@ def test_app_orthogonality_and_harmonic_dimension(options, betti):
 
 def test_app_reads_a_previous_result(tmp_path, sphere):
     """input=result decomposes the 1-form stored by an earlier run on the same mesh."""
+    from decrun.runner.context import RunContext
+
     omega = sample_vector_field(sphere, np.array([0.0, 0.0, 1.0]))
-    path = write_result(tmp_path / "result.h5", Result(fields={"omega": omega}),
-                        vertices=sphere.vertices, simplices=sphere.oriented_simplices())
-    cfg = app.Config(input="result", input_path=str(path), harmonic_dimension=False)
-    result = app.run(sphere, DEC(sphere), make_solver("direct"), cfg)
-    assert np.array_equal(result.fields["omega"], omega)
+    path = write_result(tmp_path / "result.h5", Result(fields={"omega": FieldOnEdges(omega)}),
+                        vertices=sphere.vertices, simplices=sphere.oriented_simplices(), edges=sphere.simplices(1))
+    cfg = app.Hodge(input="result", input_path=str(path), harmonic_dimension=False)
+
+    def run(K, cfg):
+        return cfg.run(RunContext(cfg, K, DEC(K)))
+
+    result = run(sphere, cfg)
+    assert np.array_equal(result.fields["omega"].values, omega)
     assert result.metrics["energy_fraction_exact"] == pytest.approx(1.0, abs=1e-12)
     other = complex_of(source="icosphere", subdiv=2)
     with pytest.raises(ConfigError, match="app.input_field"):
-        app.run(other, DEC(other), make_solver("direct"), cfg)
+        run(other, cfg)
     with pytest.raises(ConfigError, match="app.input_path"):
-        app.run(sphere, DEC(sphere), make_solver("direct"),
-                app.Config(input="result", input_path=str(tmp_path / "missing.h5")))
+        run(sphere, app.Hodge(input="result", input_path=str(tmp_path / "missing.h5")))
 
 
-def test_app_rejects_flux_boundary_and_bad_config(sphere):
-    with pytest.raises(ConfigError, match="operator.boundary=flux"):
-        app.run(sphere, DEC(sphere), make_solver("direct"), app.Config(boundary="flux"))
+def test_app_rejects_flux_boundary_and_bad_config(sphere, run_app):
+    with pytest.raises(ConfigError, match="boundary=flux: app=hodge supports boundary=none \\(the Hodge decomposition"):
+        run_app(app.Hodge(), sphere, boundary="flux")
     with pytest.raises(ConfigError, match="app.input"):
-        app.Config(input="file")
+        app.Hodge(input="file")
     with pytest.raises(ConfigError, match="app.analytic"):
-        app.Config(analytic="curl")
+        app.Hodge(analytic="curl")

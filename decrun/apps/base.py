@@ -1,0 +1,178 @@
+"""The application contract: :class:`App`, :class:`Context`, :class:`Result`, :class:`Figure`.
+
+An application is a dataclass subclassing :class:`App` — its fields are the options of
+``cfg.app`` (declared once; the runner type-checks the config node against them) — with a
+method ``run(ctx) -> Result``. Its config file ``conf/app/<name>.yaml`` names it with
+``_target_: <module>.<Class>`` and sets the defaults; that is all the runner needs.
+
+The context ``ctx`` (:class:`Context`; the runner passes a subclass that streams to
+``result.h5``, tests and notebooks use :class:`Context` itself, which keeps the series in
+memory) carries:
+
+``ctx.config``      the app instance itself (typed options)
+``ctx.complex``     the :class:`decrun.core.complex.SimplicialComplex` (validated)
+``ctx.dec``         ``decrun.core.dec.DEC(complex, star=<operator>, boundary=<boundary>)``
+``ctx.meta``        the mesh source's metadata (``clean_vertices``, ``noise_amplitude``,
+                    ``hash``, ``label``, ``path`` …; optional keys: test with ``in``)
+``ctx.new_solver()`` a fresh, unfactorized solver with the configured options, for every
+                    linear system the app solves (factorize once, solve many)
+``ctx.progress(iterable, total=…, desc=…)``  a tqdm-like wrapper (silent when not a terminal)
+``ctx.record(step, **values)``  appends per-step scalars or fixed-shape arrays to the
+                    run's series (``series/<name>`` in result.h5, written as the run goes)
+
+Applications never open files, never import the runner, hydra or matplotlib, and never
+import another application. They declare what they accept:
+
+``boundaries``      the boundary adaptations supported (``boundary=<name>``); anything else
+                    is a ConfigError before any work
+``form_degrees``    the form degrees whose operators the app uses on the mesh's own
+                    simplices; a Hodge-star variant that does not provide them (intrinsic
+                    Delaunay: 0-forms only) is rejected before any work
+``check(K, dec)``   further checks on the mesh before any work (topology, dimension)
+
+Numerical blow-up is a result (``stable: false``), never an exception; bad input is a typed
+:class:`decrun.errors.DecrunError` naming the key. A metric that does not apply is absent,
+never ``false``. Figures are :class:`Figure` descriptions — which drawing function of the
+runner to call with which arrays — so apps stay free of matplotlib.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+
+from decrun.errors import ConfigError
+
+__all__ = ["App", "Context", "Figure", "Result", "FieldOnEdges"]
+
+
+@dataclass
+class Figure:
+    """A figure to draw: ``draw`` is the dotted path of a function ``draw(K, **data) ->
+    matplotlib.figure.Figure`` (e.g. ``decrun.runner.plots.common.before_after``), ``data``
+    its arrays and options. The runner draws it (unless ``figures=false``) and saves
+    ``<name>.png``; a function may instead write its own file (an animation) and return
+    its path."""
+
+    draw: str
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class FieldOnEdges:
+    """A 1-form (n1,) together with the edge list ``(n1, 2)`` that orders it; stored in
+    result.h5 as ``fields/<name>`` with the attribute ``edges = "mesh/edges"``."""
+
+    values: np.ndarray
+
+
+@dataclass
+class Result:
+    """What an application returns.
+
+    fields : dict[str, np.ndarray | FieldOnEdges]
+        Named arrays on the mesh: per vertex ``(n0, ...)``, per edge (1-forms: wrap them in
+        :class:`FieldOnEdges` so the file carries their edge order), per face ``(n2, ...)``,
+        or any other array a figure or a later run needs (``uv``, ``vertices_final``).
+    series : dict[str, np.ndarray]
+        Short per-step arrays an app prefers to return at the end; long runs use
+        ``ctx.record`` instead.
+    metrics : dict[str, float | int | bool | str]
+        Flat scalars whose names say their unit or meaning.
+    figures : dict[str, Figure]
+        Keyed by file stem.
+    """
+
+    fields: dict[str, Any] = field(default_factory=dict)
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+    metrics: dict[str, Any] = field(default_factory=dict)
+    figures: dict[str, Figure] = field(default_factory=dict)
+
+
+@dataclass
+class App:
+    """Base of the applications (a dataclass; subclasses add their options as fields)."""
+
+    name: ClassVar[str] = ""
+    boundaries: ClassVar[tuple[str, ...]] = ("none",)
+    #: why other adaptations are not supported (appended to the error message)
+    boundary_note: ClassVar[str] = ""
+    form_degrees: ClassVar[tuple[int, ...]] = (0, 1, 2)
+
+    def check(self, K, dec) -> None:
+        """Raise a DecrunError when the mesh does not suit the app (before any work)."""
+
+    def run(self, ctx: "Context") -> Result:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def check_operators(self, dec) -> None:
+        """Reject a boundary adaptation or Hodge-star variant this app cannot use, with the
+        override that fixes it. Called by the runner before any work."""
+        if dec.boundary.name not in self.boundaries:
+            note = f" ({self.boundary_note})" if self.boundary_note else ""
+            raise ConfigError(f"boundary={dec.boundary.name}: app={self.name} supports "
+                              f"{' | '.join(f'boundary={b}' for b in self.boundaries)}{note}")
+        degrees = dec.star_variant.form_degrees
+        if degrees is not None:
+            missing = [k for k in self.form_degrees if k <= dec.n and k not in degrees]
+            if missing:
+                raise ConfigError(f"operator={dec.star_variant.name} provides operators on {list(degrees)}-forms "
+                                  f"only, but app={self.name} needs {missing}-forms on the mesh's own simplices: "
+                                  f"use operator=circumcentric, operator=mixed_area or operator=barycentric")
+
+
+def _passthrough(iterable, total=None, desc=None, **_):
+    return iterable
+
+
+class Context:
+    """What ``App.run`` receives; this base keeps recorded series in memory.
+
+    Parameters
+    ----------
+    config : App
+    complex, dec : the complex and its operators
+    new_solver : callable returning a fresh solver (default: ``direct``)
+    meta : mesh metadata (default: ``complex.meta``)
+    progress : tqdm-like factory (default: silent)
+    """
+
+    def __init__(self, config: App, complex, dec, new_solver: Callable | None = None, meta: dict | None = None,
+                 progress: Callable | None = None):
+        from decrun.core.solvers import solver_factory
+
+        self.config = config
+        self.complex = complex
+        self.dec = dec
+        self.new_solver = solver_factory(new_solver)
+        self.meta = meta if meta is not None else getattr(complex, "meta", {})
+        self.progress = progress or _passthrough
+        self._series: dict[str, list] = {}
+        self._steps: list[int] = []
+
+    def record(self, step: int, **values) -> None:
+        """Append one record: ``step`` (int) and named scalars or fixed-shape arrays."""
+        self._steps.append(int(step))
+        for name, value in values.items():
+            self._series.setdefault(name, []).append(np.asarray(value))
+
+    @property
+    def series(self) -> dict[str, np.ndarray]:
+        """The recorded series stacked: ``step`` and each name (records, *shape)."""
+        out = {name: np.stack(values) for name, values in self._series.items()}
+        if self._steps:
+            out["step"] = np.asarray(self._steps)
+        return out
+
+    def read_result(self, path: str):
+        """``(Result, vertices)`` of a previous run's ``result.h5`` (``app.input_path``);
+        only the runner's context can read files."""
+        raise ConfigError(f"app.input_path={path!r}: reading result files needs the decrun runner "
+                          "(run through the `decrun` command)")
+
+    def log(self, message: str) -> None:
+        """A progress message for the user (stderr here; the run log in the runner)."""
+        print(message, file=sys.stderr)

@@ -1,0 +1,89 @@
+"""The :class:`Solver` interface: a dataclass of options with ``factorize`` / ``solve``."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+
+from decrun.errors import SolverError
+
+__all__ = ["Solver", "fingerprint"]
+
+
+def fingerprint(A: sp.csr_matrix) -> str:
+    """sha1 of the shape, sparsity pattern and values of a CSR matrix."""
+    h = hashlib.sha1()
+    h.update(repr(A.shape).encode())
+    for array in (A.indptr, A.indices, A.data):
+        h.update(np.ascontiguousarray(array).tobytes())
+    return h.hexdigest()
+
+
+@dataclass
+class Solver:
+    """Base of the solvers. Subclasses are dataclasses whose fields are their options.
+
+    Class attributes: ``name`` (``solver=<name>``) and ``needs_spd`` (True when the method
+    converges only for symmetric positive definite matrices).
+    """
+
+    name: ClassVar[str] = ""
+    needs_spd: ClassVar[bool] = False
+
+    def __post_init__(self):
+        self._key: str | None = None
+        self.shape: tuple[int, int] | None = None
+        self.factorizations = 0  # how many times a matrix was actually prepared
+
+    def fresh(self) -> "Solver":
+        """A new, unfactorized solver with the same options."""
+        return dataclasses.replace(self)
+
+    def factorize(self, A) -> "Solver":
+        """Prepare repeated solves with the square sparse matrix ``A`` (n, n).
+
+        A no-op when ``A`` equals (values and pattern) the matrix prepared last.
+        """
+        A = sp.csr_matrix(A, dtype=np.float64)
+        if A.shape[0] != A.shape[1]:
+            raise SolverError(f"{self.name} solver: matrix must be square, got {A.shape}")
+        A.sum_duplicates()
+        key = fingerprint(A)
+        if key == self._key:
+            return self
+        self._prepare(A)
+        self._key, self.shape = key, A.shape
+        self.factorizations += 1
+        return self
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """Solve ``A x = b`` for ``b`` of shape (n,) or (n, m); returns x of b's shape."""
+        if self._key is None:
+            raise SolverError(f"{self.name} solver: solve() called before factorize()")
+        b = np.asarray(b, dtype=np.float64)
+        if b.shape[0] != self.shape[0]:
+            raise SolverError(f"{self.name} solver: right-hand side has {b.shape[0]} rows, matrix {self.shape}")
+        if b.ndim == 1:
+            return self._solve_one(b)
+        return np.column_stack([self._solve_one(b[:, j]) for j in range(b.shape[1])]).reshape(b.shape)
+
+    def _prepare(self, A: sp.csr_matrix) -> None:
+        raise NotImplementedError
+
+    def _solve_one(self, b: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+def check_tolerance(tol: float, maxiter) -> None:
+    """``solver.tol`` > 0 and ``solver.maxiter`` ≥ 1 or None (ConfigError otherwise)."""
+    from decrun.errors import ConfigError
+
+    if not tol > 0:
+        raise ConfigError(f"solver.tol: must be > 0, got {tol}")
+    if maxiter is not None and maxiter < 1:
+        raise ConfigError(f"solver.maxiter: must be >= 1 or null, got {maxiter}")

@@ -1,0 +1,93 @@
+"""Numerical kernels shared by the methods: singular PSD solves and fixed values.
+
+* :class:`SingularSolve` — A x = b for a symmetric positive *semi*-definite A with b ∈ im A
+  (Poisson problems on closed meshes, least squares with a kernel): factorize A + εW once,
+  then iterative refinement x ← x + (A + εW)⁻¹ (b − A x). Every iterate stays W-orthogonal
+  to ker A, so the result is the solution with no kernel component.
+* :func:`condense` / :func:`solve_with_fixed` — A x = b with some entries of x given
+  (Dirichlet values, pinned vertices), by eliminating them (scikit-fem's ``condense``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["SingularSolve", "condense", "solve_with_fixed"]
+
+
+class SingularSolve:
+    """Solve A x = b for symmetric PSD, possibly singular A and consistent b.
+
+    Parameters
+    ----------
+    A : (n, n) sparse symmetric PSD
+    solver : a fresh decrun Solver; ``A + ε W`` is factorized once
+    weight : (n,) positive diagonal W of the shift (default: identity)
+    shift : ε relative to mean|diag A| / mean W
+    tol, max_steps : refinement stops when ‖b − A x‖ ≤ tol ‖b‖ or after max_steps
+    """
+
+    def __init__(self, A, solver, weight: np.ndarray | None = None, shift: float = 1e-10,
+                 tol: float = 1e-14, max_steps: int = 30):
+        self.A = sp.csr_matrix(A)
+        n = self.A.shape[0]
+        weight = np.ones(n) if weight is None else np.asarray(weight, dtype=np.float64)
+        scale = float(np.abs(self.A.diagonal()).mean() / weight.mean()) if n else 1.0
+        self.solver = solver
+        self.solver.factorize((self.A + sp.diags((shift * (scale or 1.0)) * weight)).tocsc())
+        self.tol, self.max_steps = tol, max_steps
+        self.steps = 0  # refinement steps of the last solve
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """x with A x = b (the solution W-orthogonal to ker A); b (n,) or (n, s)."""
+        b = np.asarray(b, dtype=np.float64)
+        x = np.zeros_like(b)
+        norm_b = float(np.linalg.norm(b)) or 1.0
+        residual = b.copy()
+        self.steps = 0
+        while self.steps < self.max_steps and np.linalg.norm(residual) > self.tol * norm_b:
+            x = x + np.asarray(self.solver.solve(residual), dtype=np.float64)
+            residual = b - self.A @ x
+            self.steps += 1
+        return x
+
+    def relative_residual(self, x: np.ndarray, b: np.ndarray) -> float:
+        """‖b − A x‖ / ‖b‖ (‖b − A x‖ when b = 0)."""
+        r = float(np.linalg.norm(b - self.A @ x))
+        norm_b = float(np.linalg.norm(b))
+        return r / norm_b if norm_b > 0 else r
+
+
+def condense(A, b: np.ndarray, fixed: np.ndarray, values: np.ndarray, all_rows: bool = False):
+    """Eliminate the fixed unknowns x[fixed] = values from A x = b.
+
+    Returns ``(A_ff, b_f, free)`` with A_ff = A[free, free] and b_f = b[free] − A[free, fixed] values.
+    With ``all_rows=True`` (least squares; A may be rectangular) only the columns are split:
+    A_f = A[:, free], b_f = b − A[:, fixed] values.
+    """
+    A = sp.csr_matrix(A)
+    fixed = np.asarray(fixed, dtype=np.int64)
+    free = np.setdiff1d(np.arange(A.shape[1]), fixed)
+    columns_free, columns_fixed = A[:, free], A[:, fixed]
+    rows = slice(None) if all_rows else free
+    rhs = np.asarray(b, dtype=np.float64)[rows] - columns_fixed[rows] @ np.asarray(values, dtype=np.float64)
+    return columns_free[rows].tocsc(), rhs, free
+
+
+def solve_with_fixed(A, b: np.ndarray, fixed: np.ndarray, values: np.ndarray, solver,
+                     least_squares: bool = False) -> np.ndarray:
+    """x with x[fixed] = values solving the remaining equations of A x = b.
+
+    Square A: the free rows, A_ff x_f = b_f. ``least_squares=True`` (A may be rectangular):
+    min ‖A x − b‖ over x_f through the normal equations A_fᵀ A_f x_f = A_fᵀ b_f.
+    ``solver`` is a fresh decrun Solver (factorized once here).
+    """
+    A_free, rhs, free = condense(A, b, fixed, values, all_rows=least_squares)
+    if least_squares:
+        rhs = A_free.T @ rhs
+        A_free = (A_free.T @ A_free).tocsc()
+    x = np.empty(sp.csr_matrix(A).shape[1])
+    x[np.asarray(fixed, dtype=np.int64)] = values
+    x[free] = solver.factorize(A_free).solve(rhs)
+    return x

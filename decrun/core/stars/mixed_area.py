@@ -1,0 +1,56 @@
+"""Mixed-area ⋆0 (Meyer, Desbrun, Schröder, Barr 2003, cited in §4.5.4 and §5.2.1).
+
+⋆0 is the mixed Voronoi area: the Voronoi contribution in non-obtuse triangles; in an
+obtuse triangle, half its area to the obtuse corner and a quarter to each other one —
+always positive. Every other ⋆_k is circumcentric (so ⋆1 is still the cot formula and can be
+negative). Triangle meshes only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from decrun.core.geometry import corner_cotangents
+from decrun.core.stars import HodgeStar
+from decrun.core.stars.circumcentric import Circumcentric
+from decrun.errors import ConfigError
+
+__all__ = ["MixedArea", "mixed_area_star0"]
+
+
+def mixed_area_star0(vertices: np.ndarray, triangles: np.ndarray, areas: np.ndarray) -> np.ndarray:
+    """(n0,) mixed Voronoi areas (Meyer et al. 2003, Fig. 4) of the vertices of ``triangles``
+    (m, 3) with areas (m,): Voronoi parts (|e_ij|² cot θ_l + |e_il|² cot θ_j) / 8 in
+    non-obtuse triangles, area/2 to an obtuse corner and area/4 to the two others."""
+    p = vertices[triangles]
+    cot = corner_cotangents(vertices, triangles)
+    # squared length of the edge opposite corner i
+    sq = np.stack([np.einsum("md,md->m", p[:, (i + 2) % 3] - p[:, (i + 1) % 3], p[:, (i + 2) % 3] - p[:, (i + 1) % 3])
+                   for i in range(3)], axis=1)
+    contribution = np.empty_like(cot)
+    for i in range(3):
+        j, l = (i + 1) % 3, (i + 2) % 3
+        contribution[:, i] = (sq[:, l] * cot[:, l] + sq[:, j] * cot[:, j]) / 8.0
+    obtuse = cot < 0
+    any_obtuse = obtuse.any(axis=1)
+    contribution[any_obtuse] = np.where(obtuse[any_obtuse], 0.5, 0.25) * areas[any_obtuse, None]
+    return np.bincount(triangles.ravel(), weights=contribution.ravel(), minlength=len(vertices))
+
+
+@dataclass
+class MixedArea(Circumcentric):
+    """``operator=mixed_area``: ⋆0 = mixed area (> 0), other stars circumcentric."""
+
+    name = "mixed_area"
+
+    def check(self, K) -> None:
+        if K.dim != 2:
+            raise ConfigError(f"operator=mixed_area is defined for triangle meshes, not dimension {K.dim}; "
+                              "use operator=barycentric or operator=circumcentric")
+
+    def diagonal(self, dec, k: int) -> np.ndarray:
+        if k == 0:
+            return mixed_area_star0(dec.K.vertices, dec.K.simplices(2), dec.K.top_volumes)
+        return super().diagonal(dec, k)

@@ -1,0 +1,115 @@
+"""Figures of tangent vector fields: arrows of the Whitney ♯ field with singularities
+(``app=vector_field``) and the Hodge parts side by side (``app=hodge``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from decrun.core.geometry import embed3, face_normals, is_planar
+from decrun.runner.plots.common import new_figure, plot_surface
+
+__all__ = ["draw_field", "field_figure", "hodge_parts_figure"]
+
+_VIEW = (25.0, -60.0)  # matplotlib elevation, azimuth (degrees)
+
+
+def _view_direction(elev: float, azim: float) -> np.ndarray:
+    e, a = np.radians(elev), np.radians(azim)
+    return np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+
+
+def _singular_points(K, vertex_index, face_index):
+    """(S, 3) positions (vertices, face barycenters), (S,) indices and (S,) is-face flags."""
+    x = embed3(K.vertices)
+    vertices = np.flatnonzero(vertex_index)
+    faces = np.flatnonzero(face_index)
+    at_faces = x[K.simplices(2)[faces]].mean(axis=1)
+    return (np.concatenate([x[vertices], at_faces]),
+            np.concatenate([vertex_index[vertices], face_index[faces]]),
+            np.concatenate([np.zeros(vertices.size, bool), np.ones(faces.size, bool)]))
+
+
+def draw_field(ax, K, face_vectors: np.ndarray, vertex_index=None, face_index=None, *, max_arrows: int = 700,
+               colour_by_magnitude: bool = True, title: str | None = None, seed: int = 0, view=_VIEW):
+    """Draw the mesh coloured by |u| with arrows (unit direction, fixed length) at face
+    barycenters, at most ``max_arrows`` of them (a seeded subset; on 3-D meshes only faces
+    turned towards the viewer), and the singularities (``vertex_index`` (n0,), ``face_index``
+    (n2,)): index +1 red, −1 blue, others black (vertices as circles, faces as squares)."""
+    faces = K.oriented_simplices()
+    x = embed3(K.vertices)
+    planar = is_planar(K.vertices)
+    normals = face_normals(K.vertices, faces)
+    magnitude = np.linalg.norm(face_vectors, axis=1)
+    mappable = plot_surface(ax, K.vertices if planar else x, faces, magnitude if colour_by_magnitude else None,
+                            cmap="Greys", vmin=0.0, vmax=2.0 * float(np.percentile(magnitude, 95)) or 1.0, linewidth=0.05,
+                            title=title)
+    barycenters = x[faces].mean(axis=1)
+    candidates = np.flatnonzero(magnitude > 0)
+    if not planar:
+        ax.view_init(*view)
+        candidates = candidates[normals[candidates] @ _view_direction(*view) > 0.05]
+    if candidates.size > max_arrows:
+        candidates = np.sort(np.random.default_rng(seed).choice(candidates, max_arrows, replace=False))
+    length = 0.9 * K.mean_edge_length
+    direction = face_vectors[candidates] / magnitude[candidates, None] * length
+    start = barycenters[candidates] - 0.5 * direction
+    if planar:
+        ax.quiver(start[:, 0], start[:, 1], direction[:, 0], direction[:, 1], angles="xy", scale_units="xy",
+                  scale=1.0, color="tab:orange", width=0.003, headwidth=4)
+    else:
+        lift = 0.02 * length * normals[candidates]
+        ax.quiver(*(start + lift).T, *direction.T, color="tab:orange", linewidth=0.6, arrow_length_ratio=0.35,
+                  zorder=4)
+    if vertex_index is not None and face_index is not None:
+        points, index, is_face = _singular_points(K, np.asarray(vertex_index), np.asarray(face_index))
+        if not planar:  # only the singularities on the visible side
+            visible = (points - x.mean(axis=0)) @ _view_direction(*view) > 0
+            points, index, is_face = points[visible], index[visible], is_face[visible]
+        colour = np.where(index > 0, "red", np.where(index < 0, "blue", "black"))
+        for face_kind, marker in ((False, "o"), (True, "s")):
+            sel = is_face == face_kind
+            if sel.any():
+                if planar:
+                    ax.scatter(points[sel, 0], points[sel, 1], c=colour[sel], marker=marker, s=28, zorder=5)
+                else:
+                    ax.scatter(*points[sel].T, c=colour[sel], marker=marker, s=28, depthshade=False, zorder=5)
+    return mappable
+
+
+def field_figure(K, face_vectors, vertex_index=None, face_index=None, stroke_faces=None, *,
+                 title="designed field", max_arrows=700):
+    """The designed field with its singularities and the stroke faces (green dots): one
+    panel for planar meshes, two opposite views for surfaces in 3-D."""
+    planar = is_planar(K.vertices)
+    views = [None] if planar else [_VIEW, (-_VIEW[0], _VIEW[1] + 180.0)]
+    fig = new_figure(6.0 * len(views), 6.0)
+    mappable = None
+    x = embed3(K.vertices)
+    for i, view in enumerate(views):
+        ax = fig.add_subplot(1, len(views), i + 1, **({} if planar else {"projection": "3d", "computed_zorder": False}))
+        label = title if i == 0 else "opposite side"
+        mappable = draw_field(ax, K, face_vectors, vertex_index, face_index, max_arrows=max_arrows, title=label,
+                              **({} if planar else {"view": view}))
+        if stroke_faces is not None and len(stroke_faces):
+            centre = x[K.simplices(2)[np.asarray(stroke_faces)]].mean(axis=1)
+            if planar:
+                ax.plot(centre[:, 0], centre[:, 1], ".", color="tab:green", ms=3)
+            else:
+                centre = centre[(centre - x.mean(axis=0)) @ _view_direction(*view) > 0]
+                ax.plot(*centre.T, ".", color="tab:green", ms=3)
+    if mappable is not None:
+        fig.colorbar(mappable, ax=fig.axes, shrink=0.6, label="|u| (Whitney ♯ at barycenters)")
+    return fig
+
+
+def hodge_parts_figure(K, vectors: dict, energy: dict, *, max_arrows: int = 500):
+    """The input and its three Hodge parts side by side (arrows = direction, grey = |u|);
+    ``vectors`` maps ``omega``/``exact``/``coexact``/``harmonic`` + ``_vectors`` to (n2, 3)."""
+    planar = is_planar(K.vertices)
+    names = ("omega", "exact", "coexact", "harmonic")
+    fig = new_figure(4.0 * len(names), 4.4)
+    for i, name in enumerate(names):
+        ax = fig.add_subplot(1, len(names), i + 1, **({} if planar else {"projection": "3d", "computed_zorder": False}))
+        share = "" if name == "omega" else f", {100 * energy.get(name, 0.0):.1f}% energy"
+        draw_field(ax, K, vectors[f"{name}_vectors"], max_arrows=max_arrows, title=f"{name}{share}")
+    return fig

@@ -1,0 +1,137 @@
+"""One registration mechanism for every pluggable kind: ``_target_`` + the dataclass schema.
+
+A plugin — mesh source, Hodge-star variant, boundary adaptation, solver, application — is a
+dataclass whose fields are its options, declared once. Its config file
+``conf/<group>/<name>.yaml`` names it with Hydra's ``_target_`` key and sets defaults:
+
+.. code-block:: yaml
+
+    # conf/solver/cg.yaml
+    _target_: decrun.core.solvers.cg.CGSolver
+    tol: 1.0e-10
+
+:func:`build` type-checks the composed node against the dataclass (unknown keys, wrong
+types and the dataclass' own ``__post_init__`` checks become one :class:`ConfigError`
+naming the key) and returns the instance — the same object
+``hydra.utils.instantiate(node)`` would build. Nothing is registered in Python: a plugin
+outside decrun is one module on the Python path plus one YAML file in a config directory
+added with ``hydra.searchpath`` (README, "Extending decrun").
+
+Because Hydra only reads YAML here, composing a config (``decrun --help``, completion,
+every sweep job) imports no numerical code.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import typing
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationError
+
+from decrun.errors import ConfigError
+
+__all__ = ["target_class", "build", "plain_values"]
+
+
+def target_class(node: Any, key: str, base: type) -> type:
+    """The class named by ``node._target_``, checked to be a dataclass subclass of ``base``."""
+    target = node.get("_target_") if isinstance(node, (dict, DictConfig)) else None
+    if not target:
+        raise ConfigError(f"{key}: the config node names no `_target_` (the {base.__name__} class to build), "
+                          f"e.g. `_target_: decrun...`; choose a {key} option from conf/{key}/")
+    module_name, _, class_name = str(target).rpartition(".")
+    try:
+        cls = getattr(importlib.import_module(module_name), class_name)
+    except ImportError as exc:
+        raise ConfigError(f"{key}._target_={target!r}: cannot import {module_name!r}: {exc}") from exc
+    except AttributeError:
+        raise ConfigError(f"{key}._target_={target!r}: module {module_name!r} has no {class_name!r}") from None
+    if not (isinstance(cls, type) and issubclass(cls, base) and dataclasses.is_dataclass(cls)):
+        raise ConfigError(f"{key}._target_={target!r} is not a {base.__name__} dataclass")
+    return cls
+
+
+def plain_values(node: Any) -> dict:
+    """The node's values as plain Python containers, without ``_target_``."""
+    values = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node)
+    values.pop("_target_", None)
+    return values
+
+
+def _widen(hint, value):
+    """``value`` with ints widened to floats wherever the type hint expects a float
+    (``[[1, 0, 0, 0.5]]`` for List[List[float]]): the value is used as given, only its
+    type changes. Recurses through lists, Optional and nested dataclasses."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is float:
+        return float(value) if isinstance(value, int) and not isinstance(value, bool) else value
+    if origin is typing.Union:
+        for arg in args:
+            if arg is not type(None) and value is not None:
+                return _widen(arg, value)
+        return value
+    if origin in (list, typing.List) and isinstance(value, list) and args:
+        return [_widen(args[0], item) for item in value]
+    if dataclasses.is_dataclass(hint) and isinstance(value, dict):
+        hints = typing.get_type_hints(hint)
+        return {k: _widen(hints[k], v) if k in hints else v for k, v in value.items()}
+    return value
+
+
+def build(node: Any, key: str, base: type) -> Any:
+    """Type-check ``node`` against the dataclass named by its ``_target_`` and build it.
+
+    Parameters
+    ----------
+    node : DictConfig or dict with ``_target_`` and option values
+    key : the config key in error messages (``mesh``, ``solver``, ``app`` ...)
+    base : the plugin kind's base class (``MeshSource``, ``Solver``, ``App`` ...)
+
+    Raises :class:`ConfigError` naming ``<key>.<option>`` for an unknown option, a value of the
+    wrong type or a value the plugin's checks reject.
+    """
+    cls = target_class(node, key, base)
+    values = _widen(cls, plain_values(node))
+    schema = OmegaConf.structured(cls)
+    try:
+        merged = OmegaConf.merge(schema, values)
+        return OmegaConf.to_object(merged)
+    except ConfigKeyError as exc:
+        name = exc.key if getattr(exc, "key", None) else str(exc).split("'")[1] if "'" in str(exc) else "?"
+        known = sorted(f.name for f in dataclasses.fields(cls))
+        raise ConfigError(f"{key}.{name}: unknown option of {key}={cls.name or cls.__name__}; "
+                          f"it has {known}") from None
+    except ValidationError as exc:
+        where = getattr(exc, "full_key", None) or getattr(exc, "key", None) or "?"
+        message = str(exc).splitlines()[0]
+        raise ConfigError(f"{key}.{where}: {message}") from None
+    except OmegaConfBaseException as exc:
+        raise ConfigError(f"{key}: {str(exc).splitlines()[0]}") from None
+
+
+#: the base class of each plugin group (imported lazily by :func:`option`)
+GROUP_BASES = {
+    "mesh": "decrun.runner.meshes.MeshSource",
+    "operator": "decrun.core.stars.HodgeStar",
+    "boundary": "decrun.core.boundary.BoundaryAdaptation",
+    "solver": "decrun.core.solvers.Solver",
+    "app": "decrun.apps.base.App",
+}
+
+
+def option(group: str, name: str, **overrides) -> Any:
+    """The plugin ``conf/<group>/<name>.yaml`` with ``overrides`` applied, built — e.g.
+    ``option("mesh", "torus", noise=0.1).load()`` or ``option("solver", "cg", tol=1e-8)``.
+    For notebooks and tests: the same defaults and checks as ``decrun <group>=<name>``."""
+    from decrun.runner.config import config_dir
+
+    path = config_dir() / group / f"{name}.yaml"
+    if group not in GROUP_BASES or not path.is_file():
+        raise ConfigError(f"{group}={name}: no such option (conf/{group}/{name}.yaml)")
+    module_name, _, class_name = GROUP_BASES[group].rpartition(".")
+    base = getattr(importlib.import_module(module_name), class_name)
+    node = OmegaConf.merge(OmegaConf.load(path), overrides)
+    return build(node, group, base)

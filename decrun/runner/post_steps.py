@@ -1,0 +1,117 @@
+"""Post-processing steps of the mesh sources (``mesh.post``): one function per step.
+
+Each step is ``step(mesh, source) -> Mesh``, reads its options from the source
+(:class:`decrun.runner.meshes.MeshSource` fields) and returns the mesh unchanged (the same
+object) unless its option enables it. ``mesh.post`` lists the names of these functions in
+the order they run; adding a step is adding a function here (and its option field to
+``MeshSource``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from decrun.core.geometry import mean_edge_length, vertex_normals
+from decrun.errors import MeshError
+from decrun.runner.mesh_holes import cut_holes
+from decrun.runner.meshes import Mesh, from_meshset, require, to_meshset
+
+__all__ = ["holes", "clean", "refine", "normalize", "noise"]
+
+
+def holes(mesh: Mesh, cfg) -> Mesh:
+    """``holes``: cut ``cfg.hole_balls`` and ``cfg.hole_boxes`` (no-op when both are empty).
+
+    Records ``meta['holes_removed_faces']``; drops ``meta['clean_vertices']`` rows of removed vertices.
+    """
+    balls = list(getattr(cfg, "hole_balls", None) or [])
+    boxes = list(getattr(cfg, "hole_boxes", None) or [])
+    if not balls and not boxes:
+        return mesh
+    vertices, faces, kept = cut_holes(mesh.vertices, mesh.simplices, balls, boxes)
+    meta = dict(mesh.meta, holes_removed_faces=int(len(mesh.simplices) - len(faces)))
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
+    return type(mesh)(vertices, faces, meta)
+
+
+def clean(mesh: Mesh, cfg) -> Mesh:
+    """``clean``: keep the largest connected component (by triangle count, components
+    joined through shared vertices) and drop unreferenced vertices."""
+    if not cfg.clean:
+        return mesh
+    V, F = mesh.vertices, mesh.simplices
+    m = len(F)
+    incidence = sp.csr_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), F.ravel())), shape=(m, len(V)))
+    _, label = connected_components(incidence @ incidence.T, directed=False)
+    keep_faces = label == np.argmax(np.bincount(label))
+    F = F[keep_faces]
+    used = np.zeros(len(V), dtype=bool)
+    used[F.ravel()] = True
+    remap = np.cumsum(used) - 1
+    meta = dict(mesh.meta, dropped_vertices=int((~used).sum()), dropped_faces=int((~keep_faces).sum()))
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = meta["clean_vertices"][used]
+    return Mesh(V[used], remap[F], meta)
+
+
+def refine(mesh: Mesh, cfg) -> Mesh:
+    """``refine``: ``loop`` / ``midpoint`` subdivision or ``isotropic`` remeshing (pymeshlab),
+    ``refine_iterations`` times. Drops ``clean_vertices`` (the connectivity changed)."""
+    import pymeshlab
+
+    if cfg.refine == "none":
+        return mesh
+    require(cfg.refine in ("loop", "midpoint", "isotropic"), "refine", f"unknown {cfg.refine!r}; choose none|loop|midpoint|isotropic")
+    require(1 <= cfg.refine_iterations <= 10, "refine_iterations", f"must be in 1..10, got {cfg.refine_iterations}")
+    dim = mesh.vertices.shape[1]
+    ms = to_meshset(mesh.vertices, mesh.simplices)
+    if cfg.refine == "loop":
+        ms.meshing_surface_subdivision_loop(iterations=int(cfg.refine_iterations), threshold=pymeshlab.PercentageValue(0.0))
+    elif cfg.refine == "midpoint":
+        ms.meshing_surface_subdivision_midpoint(iterations=int(cfg.refine_iterations), threshold=pymeshlab.PercentageValue(0.0))
+    else:
+        require(cfg.refine_target_edge >= 0, "refine_target_edge", "must be >= 0")
+        target = cfg.refine_target_edge or mean_edge_length(mesh.vertices, mesh.simplices)
+        ms.meshing_isotropic_explicit_remeshing(iterations=int(cfg.refine_iterations), targetlen=pymeshlab.PureValue(float(target)))
+    vertices, faces = _fromto_meshset(ms, f"mesh.refine={cfg.refine}")
+    meta = {k: v for k, v in mesh.meta.items() if k != "clean_vertices"}
+    return Mesh(vertices[:, :dim], faces, meta)
+
+
+def normalize(mesh: Mesh, cfg) -> Mesh:
+    """``normalize``: translate the bounding-box centre to the origin, scale to unit diagonal."""
+    if not cfg.normalize:
+        return mesh
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    center, diagonal = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+    if diagonal == 0:
+        raise MeshError("mesh.normalize: all vertices coincide")
+    meta = dict(mesh.meta)
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = (meta["clean_vertices"] - center) / diagonal
+    return Mesh((mesh.vertices - center) / diagonal, mesh.simplices, meta)
+
+
+def noise(mesh: Mesh, cfg) -> Mesh:
+    """``noise``: displace every vertex by ``noise · h · ξ_i`` along its unit normal, where
+    ``h`` is the mean edge length and ``ξ_i ~ N(0, 1)`` (generator seeded by ``seed``).
+    For planar (2-D) meshes, which have no normal, the direction is a random in-plane unit
+    vector. Keeps the noise-free positions in ``meta['clean_vertices']``."""
+    require(cfg.noise >= 0, "noise", f"must be >= 0, got {cfg.noise}")
+    if cfg.noise == 0:
+        return mesh
+    rng = np.random.default_rng(int(cfg.seed))
+    V, F = mesh.vertices, mesh.simplices
+    h = mean_edge_length(V, F)
+    if V.shape[1] == 3:
+        direction = vertex_normals(V, F)
+    else:
+        angle = rng.uniform(0, 2 * np.pi, len(V))
+        direction = np.column_stack([np.cos(angle), np.sin(angle)])
+    amplitude = float(cfg.noise) * h
+    displaced = V + amplitude * rng.standard_normal(len(V))[:, None] * direction
+    meta = dict(mesh.meta, clean_vertices=V.copy(), noise_amplitude=amplitude)
+    return Mesh(displaced, F, meta)

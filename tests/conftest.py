@@ -1,0 +1,50 @@
+"""Shared fixtures. ``tests/`` is on ``sys.path`` (this file's folder), so test modules in
+the sub-folders (which mirror decrun's layers: core/, methods/, apps/, runner/) import the
+mesh helpers with ``from meshes_for_tests import ...``."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import pytest
+
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+
+@pytest.fixture
+def new_solver():
+    """A factory of fresh direct solvers (what ``ctx.new_solver`` is in a default run)."""
+    from decrun.core.solvers import solver_factory
+
+    return solver_factory("direct")
+
+
+@pytest.fixture
+def run_app():
+    """``run_app(app, K, star=..., boundary=..., solver=...)`` → (Result, Context): an app run
+    outside the runner, with the in-memory context (recorded series in ``ctx.series``)."""
+    from decrun.apps.base import Context
+    from decrun.core.dec import DEC
+
+    def run(app, K, star="circumcentric", boundary="none", solver="direct", meta=None):
+        dec = DEC(K, star=star, boundary=boundary)
+        app.check_operators(dec)
+        app.check(K, dec)
+        ctx = Context(app, K, dec, new_solver=solver, meta=meta)
+        return app.run(ctx), ctx
+
+    return run
+
+
+@pytest.fixture
+def decrun_cli(tmp_path):
+    """Run the real ``decrun`` command (``python -m decrun``) in a temporary directory."""
+    import subprocess
+
+    def run(*args, cwd=None, env=None, timeout=300):
+        environment = dict(os.environ, MPLBACKEND="Agg", **(env or {}))
+        return subprocess.run([sys.executable, "-m", "decrun", *args], cwd=cwd or tmp_path, capture_output=True,
+                              text=True, timeout=timeout, env=environment)
+
+    return run

@@ -32,7 +32,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import DecrunError, MeshError
-from decrun.runner.config import config_dir, register_configs
+from decrun.runner.config import config_dir, load_option, register_configs
 
 if False:  # typing only
     from decrun.apps.base import Result
@@ -273,7 +273,7 @@ def fast_help() -> str:
     lines = [str(main_cfg.hydra.help.header).rstrip(), "", "== Configuration groups ==",
              "Compose your configuration from those groups (group=option)", ""]
     for group in sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))):
-        options = sorted(f.stem for f in (root / group).glob("*.yaml"))
+        options = sorted(f.stem for f in (root / group).glob("*.yaml") if not f.stem.startswith("_"))
         if options:
             lines.append(f"{group}: {', '.join(options)}")
     merged = OmegaConf.create()
@@ -281,8 +281,7 @@ def fast_help() -> str:
         if isinstance(entry, str) or entry is None:
             continue
         for group, option in entry.items():
-            node = OmegaConf.load(root / group / f"{option}.yaml")
-            merged[group] = node
+            merged[group] = load_option(group, option)
     body = {k: v for k, v in OmegaConf.to_container(main_cfg).items() if k not in ("defaults", "hydra")}
     merged = OmegaConf.merge(merged, body)
     lines += ["", "", "== Config ==", "Override anything in the config (foo.bar=value)", "",

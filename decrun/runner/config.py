@@ -16,7 +16,7 @@ from omegaconf import MISSING
 
 from decrun.errors import ConfigError
 
-__all__ = ["DecrunConfig", "PLUGIN_GROUPS", "register_configs", "config_dir"]
+__all__ = ["DecrunConfig", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option"]
 
 #: config groups whose node is a plugin (built with ``_target_``)
 PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver")
@@ -60,3 +60,18 @@ def config_dir() -> Path:
         if (candidate / "config.yaml").is_file():
             return candidate.resolve()
     raise ConfigError(f"cannot find the decrun configs (config.yaml) next to {here}")
+
+
+def load_option(group: str, name: str):
+    """``conf/<group>/<name>.yaml`` as Hydra composes it on its own: the same-group files of
+    its ``defaults`` list merged first (e.g. ``mesh/_post_processing``), without Hydra's
+    machinery (fast; for ``decrun --help`` and :func:`decrun.runner.plugins.option`)."""
+    from omegaconf import OmegaConf
+
+    root = config_dir()
+    path = root / group / f"{name}.yaml"
+    if not path.is_file():
+        raise ConfigError(f"{group}={name}: no such option (conf/{group}/{name}.yaml)")
+    node = OmegaConf.load(path)
+    parts = [load_option(group, entry) for entry in node.pop("defaults", []) if entry != "_self_"]
+    return OmegaConf.merge(*parts, node)

@@ -126,12 +126,11 @@ def option(group: str, name: str, **overrides) -> Any:
     """The plugin ``conf/<group>/<name>.yaml`` with ``overrides`` applied, built — e.g.
     ``option("mesh", "torus", noise=0.1).load()`` or ``option("solver", "cg", tol=1e-8)``.
     For notebooks and tests: the same defaults and checks as ``decrun <group>=<name>``."""
-    from decrun.runner.config import config_dir
+    from decrun.runner.config import load_option
 
-    path = config_dir() / group / f"{name}.yaml"
-    if group not in GROUP_BASES or not path.is_file():
-        raise ConfigError(f"{group}={name}: no such option (conf/{group}/{name}.yaml)")
+    if group not in GROUP_BASES:
+        raise ConfigError(f"{group}: not a plugin group; choose one of {sorted(GROUP_BASES)}")
     module_name, _, class_name = GROUP_BASES[group].rpartition(".")
     base = getattr(importlib.import_module(module_name), class_name)
-    node = OmegaConf.merge(OmegaConf.load(path), overrides)
+    node = OmegaConf.merge(load_option(group, name), overrides)
     return build(node, group, base)

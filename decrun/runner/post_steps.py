@@ -76,7 +76,7 @@ def refine(mesh: Mesh, cfg) -> Mesh:
         require(cfg.refine_target_edge >= 0, "refine_target_edge", "must be >= 0")
         target = cfg.refine_target_edge or mean_edge_length(mesh.vertices, mesh.simplices)
         ms.meshing_isotropic_explicit_remeshing(iterations=int(cfg.refine_iterations), targetlen=pymeshlab.PureValue(float(target)))
-    vertices, faces = _fromto_meshset(ms, f"mesh.refine={cfg.refine}")
+    vertices, faces = from_meshset(ms, f"mesh.refine={cfg.refine}")
     meta = {k: v for k, v in mesh.meta.items() if k != "clean_vertices"}
     return Mesh(vertices[:, :dim], faces, meta)
 

@@ -14,10 +14,10 @@ import pytest
 import yaml
 
 from decrun.runner.cli import compose_config, table_main, unique_stamp
-from decrun.runner.config import BROKEN_APPS, config_dir, discover_apps
+from decrun.runner.config import config_dir
 from decrun.runner.results import read_provenance, read_result
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def decrun(*args, cwd, env_extra=None, pythonpath=None, timeout=240):
@@ -49,7 +49,7 @@ def test_default_run_writes_result_metrics_figure_and_log(tmp_path):
     assert metrics["distance_to_clean_rms"] < 0.35 * metrics["distance_to_clean_rms_initial"]
     attrs = read_provenance(run / "result.h5")
     config = yaml.safe_load(attrs["config_yaml"])
-    assert config["mesh"]["source"] == "icosphere" and config["app"]["name"] == "smoothing"
+    assert config["mesh"]["_target_"].endswith("Icosphere") and config["app"]["_target_"].endswith("Smoothing")
     assert attrs["mesh_hash"] and attrs["timings"]["app_seconds"] > 0
     assert not list(run.glob(".*.tmp-*"))
 
@@ -65,15 +65,21 @@ BAD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 0 -1 0\nf 1 2 3\nf 1 2 4\nf 1 2
         (["mesh=file", "mesh.path=empty.obj"], {"empty.obj": ""}, ["mesh.path", "empty"]),
         (["mesh=file", "mesh.path=points.obj"], {"points.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\n"}, ["points.obj", "no faces"]),
         (["mesh=file", "mesh.path=fin.obj"], {"fin.obj": BAD_OBJ}, ["fin.obj", "non-manifold", "edge"]),
-        (["mesh.colour=red"], {}, ["mesh.colour", "MeshConfig"]),
+        (["mesh.colour=red"], {}, ["mesh.colour"]),
+        (["+mesh.colour=red"], {}, ["mesh.colour: unknown option of mesh=icosphere"]),
+        (["+app.stpes=3"], {}, ["app.stpes: unknown option of app=smoothing"]),
+        (["mesh.major_radius=2"], {}, ["mesh.major_radius"]),
         (["app.dt=fast"], {}, ["app.dt", "Float"]),
         (["app=nosuchapp"], {}, ["app/nosuchapp"]),
         (["app.dt=-0.1"], {}, ["app.dt", "> 0"]),
         (["app.steps=-3"], {}, ["app.steps", ">= 0"]),
-        (["operator.star=hexagonal"], {}, ["operator.star", "hexagonal"]),
+        (["operator=hexagonal"], {}, ["operator/hexagonal"]),
+        (["boundary=flux"], {}, ["boundary=flux: app=smoothing supports boundary=none"]),
+        (["app=hodge", "mesh=sample", "mesh.sample=dragon"], {}, ["mesh.sample", "dragon"]),
     ],
-    ids=["missing-file", "unreadable", "empty-file", "no-faces", "non-manifold", "unknown-key", "wrong-type",
-         "unknown-option", "negative-dt", "negative-steps", "unknown-star"],
+    ids=["missing-file", "unreadable", "empty-file", "no-faces", "non-manifold", "unknown-key", "unknown-key-plus",
+         "unknown-app-key-plus", "other-source-key", "wrong-type", "unknown-option", "negative-dt", "negative-steps",
+         "unknown-star", "unsupported-boundary", "unknown-sample"],
 )
 def test_bad_input_gives_one_clear_message(tmp_path, args, files, words):
     for name, text in files.items():
@@ -150,17 +156,28 @@ def test_compose_rejects_misspelt_keys_before_any_work():
     assert "stpes" in str(info.value) or isinstance(info.value, ConfigKeyError)
 
 
-def test_every_app_module_is_registered_with_its_yaml():
-    """Contract: decrun/apps/<name>.py with Config + run ↔ conf/app/<name>.yaml extending base_app_<name>."""
-    assert not BROKEN_APPS, BROKEN_APPS
-    apps = discover_apps()
-    assert "smoothing" in apps
-    for name, module in apps.items():
-        yaml_path = config_dir() / "app" / f"{name}.yaml"
-        assert yaml_path.is_file(), yaml_path
-        assert f"base_app_{name}" in yaml.safe_load(yaml_path.read_text())["defaults"]
-        cfg = compose_config([f"app={name}"])
-        assert cfg.app.name == name
+def test_every_plugin_yaml_names_a_class_of_its_kind():
+    """Contract: every conf/<group>/<option>.yaml names with `_target_` a dataclass of the
+    group's kind, and its keys are options of that class (declared once, in the class)."""
+    import dataclasses
+
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import PLUGIN_GROUPS
+    from decrun.runner.plugins import GROUP_BASES, option, target_class
+
+    for group in PLUGIN_GROUPS:
+        files = sorted(p for p in (config_dir() / group).glob("*.yaml") if not p.stem.startswith("_"))
+        assert files, group
+        for path in files:
+            node = compose_config([f"{group}={path.stem}"])[group]
+            module, _, name = GROUP_BASES[group].rpartition(".")
+            cls = target_class(node, group, getattr(__import__(module, fromlist=[name]), name))
+            fields = {f.name for f in dataclasses.fields(cls)}
+            # every option is in the composed node (overridable as group.key=value), nothing else is
+            assert set(node) - {"_target_"} == fields, (path, set(node) ^ fields)
+            if path.stem != "file":
+                option(group, path.stem)  # builds with its defaults
 
 
 def _copy_package(target: Path) -> Path:

@@ -6,13 +6,11 @@ import numpy as np
 import pytest
 
 from decrun.core.complex import SimplicialComplex
-from decrun.runner.config import MeshConfig
+from decrun.core.geometry import mean_edge_length, vertex_normals
 from decrun.errors import ConfigError, MeshError
-from decrun.runner.meshes import SAMPLE_MESHES, load_mesh, mean_edge_length, mesh_hash, sample_mesh_dir, vertex_normals
-
-
-def mesh(**kw):
-    return load_mesh(MeshConfig(**kw))
+from decrun.runner.meshes import mesh_hash
+from decrun.runner.sources.files import SAMPLE_MESHES, sample_mesh_dir
+from meshes_for_tests import mesh
 
 
 @pytest.mark.parametrize("subdiv", [0, 1, 2, 3])
@@ -92,7 +90,9 @@ def test_noise_is_seeded_normal_and_relative_to_the_edge_length():
 def test_vertex_normals_of_a_sphere_point_outwards():
     m = mesh(source="icosphere", subdiv=2)
     n = vertex_normals(m.vertices, m.faces)
-    np.testing.assert_allclose(np.abs(np.sum(n * m.vertices, axis=1)), 1.0, atol=2e-2)
+    np.testing.assert_allclose(np.sum(n * m.vertices, axis=1), 1.0, atol=2e-2)  # outwards: no abs()
+    flipped = vertex_normals(m.vertices, m.faces[:, ::-1])
+    np.testing.assert_allclose(np.sum(flipped * m.vertices, axis=1), -1.0, atol=2e-2)
 
 
 def test_normalize_and_noise_keep_the_clean_copy_consistent():
@@ -156,7 +156,6 @@ def test_every_sample_name_points_to_a_file():
         (dict(source="file", path="/nonexistent/mesh.obj"), MeshError, ["mesh.path", "not found"]),
         (dict(source="file", path=""), ConfigError, ["mesh.path"]),
         (dict(source="sample", sample="dragon"), ConfigError, ["mesh.sample", "dragon"]),
-        (dict(source="blob"), ConfigError, ["mesh.source", "blob"]),
         (dict(source="icosphere", subdiv=-1), ConfigError, ["mesh.subdiv"]),
         (dict(source="icosphere", noise=-0.1), ConfigError, ["mesh.noise"]),
         (dict(source="torus", major_radius=0.1, minor_radius=0.4), ConfigError, ["mesh.minor_radius"]),
@@ -188,3 +187,18 @@ def test_empty_unreadable_and_faceless_files(tmp_path):
         mesh(source="file", path=str(points))
     with pytest.raises(MeshError, match="not a file"):
         mesh(source="file", path=str(tmp_path))
+
+
+def test_each_source_has_only_its_own_options():
+    """Per-source schemas: a torus key on an icosphere is an error naming the key and the
+    options the source has; an unknown source option is not silently ignored."""
+    with pytest.raises(ConfigError, match=r"mesh.major_radius: unknown option of mesh=icosphere; it has \[.*'subdiv'"):
+        mesh(source="icosphere", major_radius=2.0)
+
+
+def test_int_lists_are_accepted_where_floats_are_expected():
+    """`'mesh.hole_balls=[[1,0,0,0.5]]'` (ints) is used as given, widened to floats."""
+    cut = mesh(source="icosphere", subdiv=2, hole_balls=[[1, 0, 0, 0.5]])
+    whole = mesh(source="icosphere", subdiv=2)
+    assert 0 < len(cut.faces) < len(whole.faces)
+    assert cut.meta["holes_removed_faces"] == len(whole.faces) - len(cut.faces)

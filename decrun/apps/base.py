@@ -28,6 +28,8 @@ import another application. They declare what they accept:
 ``form_degrees``    the form degrees whose operators the app uses on the mesh's own
                     simplices; a Hodge-star variant that does not provide them (intrinsic
                     Delaunay: 0-forms only) is rejected before any work
+``unsymmetric_systems``  why its linear systems are not SPD (empty when they are): cg and
+                    amg are then rejected before any work
 ``check(K, dec)``   further checks on the mesh before any work (topology, dimension)
 
 Numerical blow-up is a result (``stable: false``), never an exception; bad input is a typed
@@ -101,12 +103,21 @@ class App:
     #: why other adaptations are not supported (appended to the error message)
     boundary_note: ClassVar[str] = ""
     form_degrees: ClassVar[tuple[int, ...]] = (0, 1, 2)
+    #: why the app's linear systems are not symmetric positive definite ("" when they are);
+    #: solvers that need SPD matrices (cg, amg) are then rejected before any work
+    unsymmetric_systems: ClassVar[str] = ""
 
     def check(self, K, dec) -> None:
         """Raise a DecrunError when the mesh does not suit the app (before any work)."""
 
     def run(self, ctx: "Context") -> Result:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    def check_solver(self, solver) -> None:
+        """Reject a solver that cannot solve this app's systems (before any work)."""
+        if getattr(solver, "needs_spd", False) and self.unsymmetric_systems:
+            raise ConfigError(f"solver={solver.name}: app={self.name} solves systems that are not symmetric positive "
+                              f"definite ({self.unsymmetric_systems}); use solver=direct or solver=pardiso")
 
     def check_operators(self, dec) -> None:
         """Reject a boundary adaptation or Hodge-star variant this app cannot use, with the

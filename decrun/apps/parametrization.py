@@ -52,6 +52,7 @@ class Parametrization(App):
 
     name = "parametrization"
     form_degrees = (0,)
+    unsymmetric_systems = "border rows replace the harmonic rows of eq. 5.3, and eq. 5.9 couples x and y"
     border: str = "conformal"
     weights: str = "dec"
     reflex_rows: str = "harmonic"

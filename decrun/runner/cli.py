@@ -97,6 +97,7 @@ class Experiment:
         self.boundary = build(cfg.boundary, "boundary", BoundaryAdaptation)
         self.solver = build(cfg.solver, "solver", Solver)  # a missing optional package → SolverError now
         self.mesh_source = build(cfg.mesh, "mesh", MeshSource)
+        self.app.check_solver(self.solver)
 
 
 def validate(cfg: DictConfig) -> Experiment:

@@ -127,6 +127,17 @@ def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces:
     return fig
 
 
+def surface_figure(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,
+                   title: str | None = None, cmap: str = "viridis", colorbar_label: str | None = None) -> Figure:
+    """One mesh (3-D or planar), optionally coloured by per-vertex or per-face ``values``."""
+    fig = new_figure(5.0, 5.0)
+    ax = fig.add_subplot(1, 1, 1, **({"projection": "3d"} if np.asarray(vertices).shape[1] == 3 else {}))
+    mappable = plot_surface(ax, vertices, faces, values, cmap=cmap, title=title)
+    if mappable is not None:
+        fig.colorbar(mappable, ax=ax, shrink=0.6, label=colorbar_label)
+    return fig
+
+
 def plot_series(series: dict[str, np.ndarray], names: Iterable[str] | None = None, *,
                 xlabel: str = "step", relative: bool = True, title: str | None = None) -> Figure:
     """One figure with the per-step curves ``series[name]`` (divided by their first value

@@ -111,7 +111,7 @@ def _now() -> str:
 
 def _write_error(what: Path, exc: BaseException, left: str) -> ResultWriteError:
     code = getattr(exc, "errno", None)
-    reason = os.strerror(code) if isinstance(code, int) else str(exc).splitlines()[0]
+    reason = (getattr(exc, "strerror", None) or (os.strerror(code) if isinstance(code, int) else str(exc))).splitlines()[0]
     error = ResultWriteError(f"cannot write {what}: {reason}; {left}")
     error.errno = code
     return error
@@ -321,56 +321,148 @@ def _series_options(sample: np.ndarray, n_records: int) -> dict:
     return options
 
 
+class _QuietFile:
+    """The temporary file as h5py sees it (``h5py.File(fileobj)``): a write error is
+    never reported to HDF5 -- it is kept in :attr:`error`, later writes are skipped, and
+    the caller raises it once HDF5 has closed the file. Measured reason: when HDF5's own
+    writes fail with ENOSPC, its file stays half-open and the process segfaults at exit
+    (HDF5 2.0 / h5py 3.16)."""
+
+    def __init__(self, path: Path):
+        self._file = open(path, "w+b", buffering=0)
+        self.error: OSError | None = None
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        if self.error is None:
+            try:
+                done = 0
+                while done < len(view):
+                    done += self._file.write(view[done:])
+                return len(view)
+            except OSError as exc:
+                self.error = exc
+        self._file.seek(len(view), os.SEEK_CUR)
+        return len(view)
+
+    def read(self, size: int = -1) -> bytes:
+        data = self._file.read(size)
+        if size > 0 and len(data) < size:  # a region whose write was skipped
+            data += b"\0" * (size - len(data))
+        return data
+
+    def readinto(self, buffer) -> int:
+        view = memoryview(buffer).cast("B")
+        got = self._file.readinto(view) or 0
+        view[got:] = b"\0" * (len(view) - got)
+        return len(view)
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        return self._file.seek(offset, whence)
+
+    def tell(self) -> int:
+        return self._file.tell()
+
+    def truncate(self, size: int | None = None) -> int:
+        try:
+            return self._file.truncate(size)
+        except OSError as exc:
+            self.error = self.error or exc
+            return self._file.tell() if size is None else size
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def _check_free_space(directory: Path, needed: int) -> None:
+    """Fail early (before HDF5 starts) when the disk cannot hold ``needed`` bytes."""
+    stat = os.statvfs(directory)
+    free = stat.f_bavail * stat.f_frsize
+    if free < needed:
+        raise OSError(_errno.ENOSPC, f"No space left on device (needs up to {needed / 1e6:.1f} MB, "
+                                     f"{free / 1e6:.1f} MB free)")
+
+
+def _bytes_needed(result: Result, journal: Journal | None, mesh: dict, attrs: dict) -> int:
+    """An upper bound of the size of result.h5 (uncompressed data + generous metadata)."""
+    arrays = [*result.fields.values(), *result.series.values(), *mesh.values()]
+    data = sum(np.asarray(a).nbytes for a in arrays if np.asarray(a).dtype != object)
+    objects = len(arrays) + 16
+    if journal is not None:
+        data += journal.n_records * (8 + sum(c.nbytes for c in journal.columns))
+        objects += len(journal.columns) + 1
+        data += 64 * journal.n_records  # chunk index entries, at most one chunk per record
+    text = len(json.dumps(attrs, default=str)) + len(metrics_to_json(result.metrics)) + 64 * len(result.metrics)
+    return int(1.02 * data) + 4096 * objects + 2 * text + (64 << 10)
+
+
 def _write_h5(path: Path, result: Result, timings: dict, forms: dict, *, journal: Journal | None,
               mesh: dict[str, np.ndarray], attrs: dict, status: str, error: str) -> None:
     """Write everything to ``.<name>.tmp-<pid>`` and rename it to ``path``; the
-    temporary file is removed on any error."""
+    temporary file is removed on any error (a write error is raised as the OSError)."""
     import h5py
 
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = FORMAT
-            f.attrs["created"] = attrs["created"]
-            f.attrs["finished"] = _now()
-            f.attrs["config_yaml"] = attrs["config_yaml"]
-            provenance = attrs.get("provenance") or {**package_versions(), "git_commit": git_commit()}
-            for key, value in provenance.items():
-                if value is not None:
-                    f.attrs[key] = value
-            f.attrs["mesh_hash"] = attrs["mesh_hash"]
-            f.attrs["timings_json"] = json.dumps(timings)
-            for key, value in timings.items():
-                f.attrs[f"timing_{key}"] = float(value)
-            f.attrs["metrics_json"] = metrics_to_json(result.metrics)
-            f.attrs["figures"] = json.dumps(sorted(result.figures))
-            for key, value in attrs["extra"].items():
-                f.attrs[key] = value
-            f.attrs["complete"] = status == "ok"
-            f.attrs["status"] = status
-            f.attrs["steps_recorded"] = journal.n_records if journal is not None else 0
-            if error:
-                f.attrs["error"] = error
-            group = f.create_group("mesh")
-            for name, array in mesh.items():
-                group.create_dataset(name, data=array)
-            _write_fields(f.create_group("fields"), result.fields, forms, mesh)
-            series = f.create_group("series")
-            if journal is not None:
-                _copy_journal(series, journal)
-            for name, array in result.series.items():
-                array = np.asarray(array)
-                if array.dtype.kind not in "biufc":
-                    raise TypeError(f"Result.series[{name!r}] is not a numeric array")
-                series.create_dataset(name, data=array, compression="gzip" if array.size > 4096 else None)
-            group = f.create_group("metrics")
-            for name, value in result.metrics.items():
-                value = plain(value)
-                group.attrs[name] = "null" if value is None else value
+        _check_free_space(path.parent, _bytes_needed(result, journal, mesh, attrs))
+        target = _QuietFile(tmp)
+        try:
+            _fill_h5(h5py.File(target, "w"), result, timings, forms, journal=journal, mesh=mesh, attrs=attrs,
+                     status=status, error=error)
+        finally:
+            target.close()
+        if target.error is not None:
+            raise target.error
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _fill_h5(f, result: Result, timings: dict, forms: dict, *, journal: Journal | None,
+             mesh: dict[str, np.ndarray], attrs: dict, status: str, error: str) -> None:
+    """The content of result.h5 (closes ``f``)."""
+    with f:
+        f.attrs["format"] = FORMAT
+        f.attrs["created"] = attrs["created"]
+        f.attrs["finished"] = _now()
+        f.attrs["config_yaml"] = attrs["config_yaml"]
+        provenance = attrs.get("provenance") or {**package_versions(), "git_commit": git_commit()}
+        for key, value in provenance.items():
+            if value is not None:
+                f.attrs[key] = value
+        f.attrs["mesh_hash"] = attrs["mesh_hash"]
+        f.attrs["timings_json"] = json.dumps(timings)
+        for key, value in timings.items():
+            f.attrs[f"timing_{key}"] = float(value)
+        f.attrs["metrics_json"] = metrics_to_json(result.metrics)
+        f.attrs["figures"] = json.dumps(sorted(result.figures))
+        for key, value in attrs["extra"].items():
+            f.attrs[key] = value
+        f.attrs["complete"] = status == "ok"
+        f.attrs["status"] = status
+        f.attrs["steps_recorded"] = journal.n_records if journal is not None else 0
+        if error:
+            f.attrs["error"] = error
+        group = f.create_group("mesh")
+        for name, array in mesh.items():
+            group.create_dataset(name, data=array)
+        _write_fields(f.create_group("fields"), result.fields, forms, mesh)
+        series = f.create_group("series")
+        if journal is not None:
+            _copy_journal(series, journal)
+        for name, array in result.series.items():
+            array = np.asarray(array)
+            if array.dtype.kind not in "biufc":
+                raise TypeError(f"Result.series[{name!r}] is not a numeric array")
+            series.create_dataset(name, data=array, compression="gzip" if array.size > 4096 else None)
+        group = f.create_group("metrics")
+        for name, value in result.metrics.items():
+            value = plain(value)
+            group.attrs[name] = "null" if value is None else value
 
 
 def _write_fields(group, fields: dict, forms: dict, mesh: dict) -> None:

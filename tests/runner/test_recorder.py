@@ -158,12 +158,14 @@ def _check_what_a_kill_left(path: Path) -> str:
     """'absent' | 'complete' | 'partial:<k>'; fails unless the state is one of these,
     fully consistent."""
     if not path.exists() and not journal_path(path).exists():
+        assert recover_result(path) is None and files_in(path.parent) == []  # temporaries tidied
         return "absent"
     back = read_result_any(path)
     if back.complete:
         assert path.exists() and back.status == "ok" and back.steps_recorded == KILL_STEPS
         assert_series_are_steps(back.series, KILL_STEPS, KILL_SIZE)
         np.testing.assert_array_equal(back.fields["final"], row(KILL_STEPS, KILL_SIZE))
+        assert recover_result(path) is None and files_in(path.parent) == ["result.h5"]
         return "complete"
     assert not path.exists() and back.status == "unfinished"
     k = back.steps_recorded
@@ -171,7 +173,7 @@ def _check_what_a_kill_left(path: Path) -> str:
     np.testing.assert_array_equal(back.mesh["vertices"], VERTICES)
     assert back.provenance["config_yaml"] == "kill: true\n"
     # the leftover journal converts to an HDF5 file marked incomplete, same steps
-    assert recover_result(path) == path and not journal_path(path).exists()
+    assert recover_result(path) == path and files_in(path.parent) == ["result.h5"]
     again = read_result_any(path)
     assert not again.complete and again.status == "killed" and again.steps_recorded == k
     assert_series_are_steps(again.series, k, KILL_SIZE)
@@ -181,11 +183,12 @@ def _check_what_a_kill_left(path: Path) -> str:
 def test_sigkill_at_random_moments_leaves_nothing_or_a_consistent_file(tmp_path):
     fork = multiprocessing.get_context("fork")
     start = time.perf_counter()
-    whole = fork.Process(target=_recording_process, args=(str(tmp_path / "whole.h5"),))
+    (tmp_path / "whole").mkdir()
+    whole = fork.Process(target=_recording_process, args=(str(tmp_path / "whole" / "result.h5"),))
     whole.start()
     whole.join()
     duration = time.perf_counter() - start
-    assert whole.exitcode == 0 and _check_what_a_kill_left(tmp_path / "whole.h5") == "complete"
+    assert whole.exitcode == 0 and _check_what_a_kill_left(tmp_path / "whole" / "result.h5") == "complete"
     rng = random.Random(12345)
     outcomes = []
     for trial in range(20):

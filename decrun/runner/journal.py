@@ -151,6 +151,8 @@ class JournalWriter:
         for part in parts:
             crc = zlib.crc32(part, crc)
         parts.insert(0, _RECORD_HEAD.pack(crc, RECORD_MARK, step))
+        if len(parts) > 512:  # writev takes at most IOV_MAX (1024 on Linux) buffers
+            parts = [b"".join(bytes(p) for p in parts)]
         good_size = self.data_offset + self.n_records * self.record_size
         try:
             written = os.writev(self._fd, parts)

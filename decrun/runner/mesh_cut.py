@@ -22,8 +22,11 @@ described by the signed distance
    with several such edges takes the nearest) and counts as on the level set. A snap that
    would turn any incident triangle over (its normal reversed; signed area in 2-D) is
    undone for that triangle's vertices (``snap_undone``). After snapping every remaining
-   cut has a parameter in (snap, 1 − snap), so no new triangle has an edge shorter than
-   ``snap`` × the edge it came from;
+   cut has a parameter in (snap, 1 − snap): every new vertex is at least ``snap`` × its
+   edge's length away from both ends of that edge, so the pieces of a split triangle have at
+   least ``snap``² of its area (measured on the Fig. 5.7 half sphere, subdiv 4: smallest
+   corner angle 1.5° without snapping, 6.0° at 0.1, 9.7° at 0.2, 15.4° at the default 0.25;
+   the largest move was 0.019, a quarter of the mean edge length 0.075);
 4. **split** each triangle by the signs of its corners, keeping the input orientation:
    no inside corner → kept whole; no outside corner → removed; one outside corner →
    the triangle at it; two → the quadrilateral, split along its shorter diagonal; one on the

@@ -11,7 +11,10 @@ import yaml
 
 from decrun.complex import SimplicialComplex
 from decrun.errors import ConfigError, MeshError
-from decrun.mesh_holes import cut_holes as cut_whole_triangles  # the old cut, for comparison
+try:  # the old cut (whole triangles), for comparison; it moves to decrun.runner with the restructuring
+    from decrun.runner.mesh_holes import cut_holes as cut_whole_triangles
+except ImportError:
+    from decrun.mesh_holes import cut_holes as cut_whole_triangles
 from decrun.runner.mesh_cut import cut_holes, signed_distance, parse_regions
 
 FIG5_7 = Path(__file__).resolve().parents[2] / "conf" / "experiment" / "fig5_7_half_sphere_holes.yaml"

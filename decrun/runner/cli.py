@@ -105,12 +105,19 @@ def validate(cfg: DictConfig) -> Experiment:
     return Experiment(cfg)
 
 
-def run_experiment(cfg: DictConfig, progress: Callable | None = None, recorder=None) -> tuple[Result, Any, dict]:
+def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path | None = None
+                   ) -> tuple[Result, Any, dict]:
     """Compose mesh → complex → DEC → app for ``cfg``; returns ``(result, mesh, timings)``.
 
     Every plugin is built and checked before the mesh is loaded, and the app checks the
     mesh and operators before any solve. Raises :class:`DecrunError` on bad input.
-    ``recorder`` (optional) receives ``ctx.record`` calls as the run goes.
+
+    With ``out`` (a run directory) the app's ``ctx.record`` calls stream to
+    ``out/result.h5`` through a :class:`decrun.runner.recorder.ResultRecorder`
+    (``mesh.recorder``; :func:`write_run` finishes it). If the app raises, the steps
+    recorded so far are kept in an incomplete result.h5 (status failed / interrupted);
+    nothing is written when nothing was recorded. Without ``out`` the recorded series end
+    up in ``result.series``.
     """
     from decrun.core.complex import SimplicialComplex
     from decrun.core.dec import DEC
@@ -134,9 +141,23 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, recorder=N
     app.check(complex_, dec)
     timings["complex_seconds"] = time.perf_counter() - t
     t = time.perf_counter()
+    recorder = None
+    if out is not None:
+        from decrun.runner.recorder import ResultRecorder
+
+        recorder = ResultRecorder(Path(out) / "result.h5", vertices=mesh.vertices, simplices=mesh.simplices,
+                                  edges=complex_.simplices(1), config_yaml=OmegaConf.to_yaml(cfg, resolve=True),
+                                  mesh_hash=mesh.meta.get("hash", ""))
+    mesh.recorder = recorder
     ctx = RunContext(app, complex_, dec, new_solver=experiment.solver.fresh, meta=mesh.meta,
                      progress=progress or make_progress(False), recorder=recorder, logger=log)
-    result = app.run(ctx)
+    try:
+        result = app.run(ctx)
+    except BaseException as exc:
+        if recorder is not None:  # keep what was recorded, marked incomplete
+            status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+            recorder.abort(status, str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}")
+        raise
     if recorder is None:
         for name, values in ctx.series.items():
             result.series.setdefault(name, values)
@@ -160,7 +181,8 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
 
 
 def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -> list[Path]:
-    """Write ``result.h5`` (atomic), ``metrics.json`` and the figures into ``out``."""
+    """Write ``result.h5`` (atomic; finishing the run's recorder when it has one),
+    ``metrics.json`` and the figures into ``out``."""
     from decrun.runner.results import write_metrics_json, write_result
 
     written = []
@@ -172,10 +194,13 @@ def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -
     timings["figures_seconds"] = time.perf_counter() - t
     timings["total_seconds"] = sum(v for k, v in timings.items() if k != "total_seconds")
     result.metrics.setdefault("total_seconds", timings["total_seconds"])
-    h5 = write_result(out / "result.h5", result, vertices=mesh.vertices, simplices=mesh.simplices,
-                      edges=mesh.complex.simplices(1) if mesh.complex is not None else None,
-                      config_yaml=OmegaConf.to_yaml(cfg, resolve=True), mesh_hash=mesh.meta.get("hash", ""),
-                      timings=timings)
+    if getattr(mesh, "recorder", None) is not None:
+        h5 = mesh.recorder.finish(result, timings)
+    else:
+        h5 = write_result(out / "result.h5", result, vertices=mesh.vertices, simplices=mesh.simplices,
+                          edges=mesh.complex.simplices(1) if mesh.complex is not None else None,
+                          config_yaml=OmegaConf.to_yaml(cfg, resolve=True), mesh_hash=mesh.meta.get("hash", ""),
+                          timings=timings)
     metrics = write_metrics_json(out / "metrics.json", result.metrics)
     return [h5, metrics, *written]
 
@@ -206,11 +231,17 @@ def _task(cfg: DictConfig) -> int:
     out = Path(HydraConfig.get().runtime.output_dir)
     multirun = _is_multirun()
     try:
-        result, mesh, timings = run_experiment(cfg, make_progress(bool(cfg.get("progress", True)) and not multirun))
+        result, mesh, timings = run_experiment(cfg, make_progress(bool(cfg.get("progress", True)) and not multirun),
+                                               out=out)
         written = write_run(out, cfg, result, mesh, timings)
+    except KeyboardInterrupt:
+        from decrun.runner.results import write_metrics_json
+
+        write_metrics_json(out / "metrics.json", {"status": "interrupted", "error": "interrupted (Ctrl-C)"})
+        print(f"decrun: interrupted; what was recorded is in {out}/", file=sys.stderr)
+        sys.exit(130)
     except Exception as exc:
         message = str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}"
-        (out / "result.h5").unlink(missing_ok=True)
         from decrun.runner.results import write_metrics_json
 
         write_metrics_json(out / "metrics.json", {"status": "failed", "error": message})

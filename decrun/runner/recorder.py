@@ -95,7 +95,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from decrun.errors import DecrunError
-from decrun.results import FORMAT, Result, git_commit, metrics_to_json, package_versions, plain
+from decrun.apps.base import FieldOnEdges, Result
+from decrun.runner.results import FORMAT, git_commit, metrics_to_json, package_versions, plain
 from decrun.runner.journal import Column, Journal, JournalWriter, read_journal
 
 __all__ = ["RecordedResult", "ResultRecorder", "ResultWriteError", "read_result_any", "recover_result"]
@@ -259,7 +260,15 @@ class ResultRecorder:
         for name in result.series:
             if name == "step" and self._journal is not None or name in {c.name for c in self._columns}:
                 raise ValueError(f"finish(): Result.series[{name!r}] clashes with a recorded series")
-        self._convert(result, dict(timings or {}), dict(forms or {}), status="ok", error="")
+        forms = dict(forms or {})
+        fields = {}
+        for name, value in result.fields.items():  # 1-forms wrapped by the app carry their degree
+            if isinstance(value, FieldOnEdges):
+                forms.setdefault(name, 1)
+                value = value.values
+            fields[name] = value
+        result = Result(fields=fields, series=result.series, metrics=result.metrics, figures=result.figures)
+        self._convert(result, dict(timings or {}), forms, status="ok", error="")
         return self.path
 
     def abort(self, status: str = "failed", error: str = "") -> Path | None:

@@ -1,31 +1,15 @@
-"""Results of one run: :class:`Result` (what an application returns) and its HDF5 file.
+"""Result files: provenance, ``metrics.json`` and reading/writing ``result.h5``.
 
-Applications never touch the disk; the runner writes a ``Result`` to ``result.h5`` and
-``metrics.json``.
-
-Layout of ``result.h5`` (written by :func:`write_result`, read by :func:`read_result`)::
-
-    /mesh/vertices   (n0, d) float64      the mesh the run used (after noise etc.)
-    /mesh/simplices  (n2, 3) int64
-    /mesh/edges      (n1, 2) int64        the edge list that orders the 1-forms
-    /fields/<name>   arrays of Result.fields; 1-forms carry the attribute
-                     ``edges = "mesh/edges"`` (their row order)
-    /series/<name>   1-D arrays of Result.series
-    /metrics         group whose attributes are the metrics (browsable);
-                     the exact values (with their Python types) are in the root
-                     attribute ``metrics_json``
-    root attributes: format, created (UTC ISO time), config_yaml (resolved config),
-                     decrun_version, numpy_version, scipy_version, pymeshlab_version,
-                     h5py_version, python_version, mesh_hash, git_commit (when the
-                     package lives in a git checkout), timings_json, figures (names)
-
-The file is written under a temporary name in the same directory and renamed when
-complete, so a killed run never leaves a ``result.h5`` that looks complete.
+Applications never touch the disk; the runner streams a run's recorded series and writes
+its :class:`~decrun.apps.base.Result` through :class:`decrun.runner.recorder.ResultRecorder`,
+whose docstring gives the layout of ``result.h5`` (mesh, fields — 1-forms with
+``form_degree = 1`` and ``on = "mesh/edges"`` — series, metrics, provenance attributes)
+and the crash semantics: ``result.h5`` is either absent or whole; a killed run leaves its
+recorded steps readable (:func:`read_result`, ``.complete`` False).
 """
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 import math
 import os
@@ -36,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from decrun.apps.base import FieldOnEdges, Result
+from decrun.apps.base import Result
 
 __all__ = ["Result", "write_result", "read_result", "read_provenance", "read_mesh", "write_metrics_json"]
 
@@ -134,74 +118,23 @@ def write_result(
     timings: dict[str, float] | None = None,
     attrs: dict[str, Any] | None = None,
 ) -> Path:
-    """Write ``result`` (and the mesh, config and provenance) to ``path`` atomically.
+    """Write a finished ``result`` (and the mesh, config and provenance) to ``path``
+    atomically: a :class:`decrun.runner.recorder.ResultRecorder` with no recorded steps.
+    1-forms (:class:`decrun.apps.base.FieldOnEdges`) need ``edges``."""
+    from decrun.runner.recorder import ResultRecorder
 
-    Returns the final path. On any error the temporary file is removed and nothing is
-    left at ``path``.
-    """
-    import h5py
-
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = FORMAT
-            f.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-            f.attrs["config_yaml"] = config_yaml
-            for key, value in package_versions().items():
-                f.attrs[key] = value
-            f.attrs["mesh_hash"] = mesh_hash
-            commit = git_commit()
-            if commit:
-                f.attrs["git_commit"] = commit
-            f.attrs["timings_json"] = json.dumps(timings or {})
-            for key, value in (timings or {}).items():
-                f.attrs[f"timing_{key}"] = float(value)
-            f.attrs["metrics_json"] = metrics_to_json(result.metrics)
-            f.attrs["figures"] = json.dumps(sorted(result.figures))
-            for key, value in (attrs or {}).items():
-                f.attrs[key] = value
-            mesh = f.create_group("mesh")
-            if vertices is not None:
-                mesh.create_dataset("vertices", data=np.asarray(vertices, dtype=np.float64))
-            if simplices is not None:
-                mesh.create_dataset("simplices", data=np.asarray(simplices, dtype=np.int64))
-            if edges is not None:
-                mesh.create_dataset("edges", data=np.asarray(edges, dtype=np.int64))
-            for group_name, arrays in (("fields", result.fields), ("series", result.series)):
-                group = f.create_group(group_name)
-                for name, array in arrays.items():
-                    one_form = isinstance(array, FieldOnEdges)
-                    array = np.asarray(array.values if one_form else array)
-                    if array.dtype == object:
-                        raise TypeError(f"Result.{group_name}[{name!r}] is not a numeric array")
-                    dataset = group.create_dataset(name, data=array, compression="gzip" if array.size > 4096 else None)
-                    if one_form:
-                        if edges is None or len(edges) != len(array):
-                            raise ValueError(f"Result.fields[{name!r}] is a 1-form with {len(array)} values, "
-                                             f"but the mesh has {0 if edges is None else len(edges)} edges")
-                        dataset.attrs["edges"] = "mesh/edges"
-            metrics = f.create_group("metrics")
-            for name, value in result.metrics.items():
-                value = plain(value)
-                metrics.attrs[name] = "null" if value is None else value
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    recorder = ResultRecorder(path, vertices=vertices, simplices=simplices, edges=edges, config_yaml=config_yaml,
+                              mesh_hash=mesh_hash, attrs=attrs)
+    return recorder.finish(result, timings)
 
 
-def read_result(path: str | os.PathLike) -> Result:
-    """Read the :class:`Result` written by :func:`write_result` (fields, series, metrics
-    equal to what was written; ``figures`` is empty: they live beside it as PNG files)."""
-    import h5py
+def read_result(path: str | os.PathLike):
+    """The :class:`Result` stored for a run — complete, or incomplete (killed, failed,
+    interrupted: ``.complete`` is False and the series hold the steps recorded so far); see
+    :func:`decrun.runner.recorder.read_result_any`. ``figures`` is empty (they are PNG files)."""
+    from decrun.runner.recorder import read_result_any
 
-    with h5py.File(path, "r") as f:
-        fields = {name: f["fields"][name][()] for name in f["fields"]}
-        series = {name: f["series"][name][()] for name in f["series"]}
-        metrics = json.loads(f.attrs["metrics_json"])
-    return Result(fields=fields, series=series, metrics=metrics, figures={})
+    return read_result_any(path)
 
 
 def read_provenance(path: str | os.PathLike) -> dict[str, Any]:

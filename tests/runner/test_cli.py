@@ -229,3 +229,40 @@ def test_wheel_install_runs_from_another_directory(tmp_path):
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     _check_installed_run(site, elsewhere)
+
+
+def test_a_long_run_killed_with_sigkill_leaves_a_readable_incomplete_result(tmp_path):
+    """SIGKILL in the middle of a long smoothing run: the steps recorded so far are on disk
+    (the run's journal beside result.h5), read back as incomplete with every series of the
+    same length; decrun-table turns it into an incomplete result.h5 (status killed)."""
+    import signal
+    import time
+
+    from decrun.runner.recorder import journal_path, recover_result
+
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
+    proc = subprocess.Popen([sys.executable, "-m", "decrun", "mesh.subdiv=2", "app.steps=1000000", "app.dt=1e-6",
+                             "app.critical_dt=false", "figures=false"], cwd=tmp_path, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    journal = None
+    while time.time() < deadline:
+        runs = list((tmp_path / "outputs" / "runs").glob("*/result.h5.partial"))
+        if runs and runs[0].stat().st_size > 200_000:
+            journal = runs[0]
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    assert journal is not None, "the run recorded nothing within 60 s"
+    result_path = journal.with_name("result.h5")
+    assert not result_path.exists() and journal == journal_path(result_path)
+    partial = read_result(result_path)
+    assert not partial.complete and partial.status == "unfinished" and partial.steps_recorded > 10
+    lengths = {name: len(values) for name, values in partial.series.items()}
+    assert set(lengths) == {"step", "area", "volume", "roughness", "distortion"}
+    assert set(lengths.values()) == {partial.steps_recorded}
+    assert list(partial.series["step"]) == list(range(partial.steps_recorded))
+    assert recover_result(result_path) == result_path
+    killed = read_result(result_path)
+    assert not killed.complete and killed.status == "killed" and killed.steps_recorded == partial.steps_recorded

@@ -24,7 +24,8 @@ import pytest
 from decrun.complex import SimplicialComplex
 from decrun.dec import DEC
 from decrun.errors import DecrunError
-from decrun.results import Result, read_provenance, read_result, write_result
+from decrun.apps.base import Result
+from decrun.runner.results import read_provenance, read_result, write_result
 from decrun.runner import journal as journal_module
 from decrun.runner.journal import read_journal
 from decrun.runner.recorder import ResultRecorder, ResultWriteError, journal_path, read_result_any, recover_result
@@ -94,7 +95,7 @@ def test_a_finished_run_round_trips_exactly(tmp_path):
         assert f["series/step"].maxshape == (None,)
 
 
-def test_same_layout_and_attributes_as_write_result(tmp_path):
+def test_write_result_has_the_recorder_layout_and_attributes(tmp_path):
     result = Result(fields={"u": np.linspace(0, 1, 5000)}, series={"area": np.array([1.0, 0.9])},
                     metrics={"stable": False, "diverged_at_step": 3}, figures={"plot": None})
     old = write_result(tmp_path / "old.h5", result, vertices=VERTICES, simplices=TRIANGLES, config_yaml="a: 1\n",
@@ -111,8 +112,9 @@ def test_same_layout_and_attributes_as_write_result(tmp_path):
     old_attrs, old_objects = layout(old)
     new_attrs, new_objects = layout(new)
     assert new_objects == old_objects
-    assert new_attrs - old_attrs == {"complete", "status", "steps_recorded", "finished"}
-    assert old_attrs <= new_attrs
+    assert new_attrs == old_attrs  # write_result is a recorder with no recorded steps
+    assert {"complete", "status", "steps_recorded", "finished", "config_yaml", "mesh_hash", "metrics_json",
+            "timings_json", "figures", "format", "decrun_version", "numpy_version"} <= new_attrs
     a, b = read_result(old), read_result(new)
     assert a.metrics == b.metrics and a.fields.keys() == b.fields.keys()
     np.testing.assert_array_equal(a.fields["u"], b.fields["u"])
@@ -410,7 +412,7 @@ def test_a_full_disk_is_one_clear_error_and_leaves_nothing_corrupt(tiny_disk):
 _FULL_DISK_DURING_HDF5_WRITE = """
 import os, sys, numpy as np
 import decrun.runner.recorder as recorder_module
-from decrun.results import Result
+from decrun.apps.base import Result
 directory = sys.argv[1]
 # the early free-space check passes (as when another process fills the disk meanwhile):
 # HDF5's own writes then meet ENOSPC

@@ -8,6 +8,9 @@ scattered with ``np.add.at``, and the cotangent Laplacian of ``decrun.dec.DEC``.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pymeshlab
 import pytest
@@ -18,7 +21,9 @@ from decrun.complex import SimplicialComplex
 from decrun.core.whitney import top_face_table, whitney_lumped_mass, whitney_mass_matrix
 from decrun.dec import DEC
 from decrun.primitives import grid_triangles, kuhn_cube
-from tests.meshes_for_tests import annulus, icosphere, random_planar, random_tets
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the shared test meshes
+from meshes_for_tests import annulus, icosphere, random_planar, random_tets  # noqa: E402
 
 
 # ---------------------------------------------------------------- meshes

@@ -37,6 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.complex import SimplicialComplex
+from decrun.dec import DEC
 
 __all__ = ["whitney_mass_matrix", "whitney_lumped_mass", "top_face_table", "barycentric_gradient_gram"]
 
@@ -228,9 +229,9 @@ def whitney_mass_matrix(K: SimplicialComplex, k: int) -> sp.csr_matrix:
     """
     _check(K, k)
     n = K.dim
-    geometry = _TopGeometry(K)
-    volume = geometry.volume
     size = K.num_simplices(k)
+    if k in (0, n):
+        volume = DEC(K).primal_volumes(n)  # the complex's cached top volumes
     if k == n:
         return sp.diags(1.0 / volume).tocsr()
     if k == 0:
@@ -247,6 +248,7 @@ def whitney_mass_matrix(K: SimplicialComplex, k: int) -> sp.csr_matrix:
         cols = np.concatenate([edges[:, 1], edges[:, 0], np.arange(size)]).astype(index)
         data = np.concatenate([off, off, diagonal])
         return sp.csr_matrix((data, (rows, cols)), shape=(size, size))
+    geometry = _TopGeometry(K)
     faces = top_face_table(K, k)  # (m, C)
     local = list(combinations(range(n + 1), k + 1))
     C = len(local)
@@ -300,13 +302,14 @@ def whitney_lumped_mass(K: SimplicialComplex, k: int) -> np.ndarray:
     """
     _check(K, k)
     n = K.dim
-    geometry = _TopGeometry(K)
-    volume = geometry.volume
     size = K.num_simplices(k)
+    if k in (0, n):
+        volume = DEC(K).primal_volumes(n)
     if k == n:
         return 1.0 / volume
     if k == 0:
         return np.bincount(K.simplices(n).ravel(), weights=np.repeat(volume / (n + 1), n + 1), minlength=size)
+    geometry = _TopGeometry(K)
     faces = top_face_table(K, k)
     local = list(combinations(range(n + 1), k + 1))
     diagonal = np.zeros(size)

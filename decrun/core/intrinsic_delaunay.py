@@ -180,7 +180,8 @@ def _build(vertices: np.ndarray, faces: np.ndarray, mollify: float, border: str)
         bad = np.flatnonzero(counts > 2)
         sides = order[starts[bad[:3]]]
         pairs = np.stack([tail[sides], head[sides]], axis=1).tolist()
-        raise NonManifoldError(f"non-manifold: {bad.size} edge(s) lie in more than two triangles, e.g. vertex pairs {pairs}")
+        raise NonManifoldError(
+            f"non-manifold: {bad.size} edge(s) lie in more than two triangles, e.g. vertex pairs {pairs}")
     first = order[starts[:-1]]
     second = np.where(counts == 2, order[np.minimum(starts[:-1] + 1, order.size - 1)], -1)
     interior = counts == 2

@@ -44,7 +44,8 @@ __all__ = ["whitney_mass_matrix", "whitney_lumped_mass", "top_face_table", "bary
 
 def _check(K: SimplicialComplex, k: int) -> None:
     if K.dim not in (2, 3):
-        raise ValueError(f"Whitney mass matrices are implemented for triangle and tetrahedral meshes, not dimension {K.dim}")
+        raise ValueError(
+            f"Whitney mass matrices are implemented for triangle and tetrahedral meshes, not dimension {K.dim}")
     if not 0 <= k <= K.dim:
         raise IndexError(f"form degree {k} outside 0..{K.dim}")
 

@@ -65,7 +65,8 @@ def grid_with_holes(holes: int = 3, cells: int = 12):
     h = 1.0 / cells
     for i in range(holes):
         x0 = (2 + 3 * i) * h
-        inside = (centroid[:, 0] > x0) & (centroid[:, 0] < x0 + 2 * h) & (centroid[:, 1] > 5 * h) & (centroid[:, 1] < 7 * h)
+        inside = ((centroid[:, 0] > x0) & (centroid[:, 0] < x0 + 2 * h)
+                  & (centroid[:, 1] > 5 * h) & (centroid[:, 1] < 7 * h))
         keep &= ~inside
     return SimplicialComplex(V, F[keep], orient="fix", unreferenced="drop")
 
@@ -106,8 +107,9 @@ TET_RULE = (np.array([[_a, _b, _b, _b], [_b, _a, _b, _b], [_b, _b, _a, _b], [_b,
 def whitney_proxies(K, k, lam):
     """Vector proxies of the local Whitney k-forms at barycentric point ``lam``: (m, C, dim).
 
-    k = 1: W_ab = λ_a∇λ_b − λ_b∇λ_a.  k = 2 on tets: W_abc = 2(λ_a ∇λ_b×∇λ_c − λ_b ∇λ_a×∇λ_c +
-    λ_c ∇λ_a×∇λ_b) (the 2-form as the vector of its flux density)."""
+    k = 1: W_ab = λ_a∇λ_b − λ_b∇λ_a.
+    k = 2 on tets: W_abc = 2(λ_a ∇λ_b×∇λ_c − λ_b ∇λ_a×∇λ_c + λ_c ∇λ_a×∇λ_b), the 2-form as
+    the vector of its flux density."""
     from itertools import combinations
 
     g = gradients_by_pinv(K)

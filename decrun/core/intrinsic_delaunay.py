@@ -323,8 +323,10 @@ def intrinsic_delaunay(vertices, faces, mollify: float = 0.0, border: str = "tuf
         0 disables it
     border : ``"tufted"`` (default; Sharp & Crane 2020: flip on the tufted cover, so border
         weights are ≥ 0 too) or ``"fixed"`` (border edges never flip)
-    delaunay_tol : an interior edge is flipped when its weight ½(cot α + cot β) < −delaunay_tol
-        (0: exactly Delaunay; geometry-central and robust_laplacian use 1e-6)
+    delaunay_tol : an interior edge is flipped when its weight ½(cot α + cot β) < −delaunay_tol.
+        The default 1e-12 is round-off (with 0, the two diagonals of a cocircular quad can
+        flip back and forth forever); weights left in [−1e-12, 0) are reported as 0.
+        geometry-central and robust_laplacian use 1e-6.
     max_rounds : safety limit on the number of rounds
 
     Returns

@@ -1,0 +1,166 @@
+"""Benchmark: the intrinsic Delaunay Laplacian against robust_laplacian (Sharp & Crane 2020).
+
+For each mesh, in a fresh subprocess (so peak memory is that case's alone):
+
+* decrun: ``intrinsic_delaunay_operators(V, F, mollify=1e-5)`` (stiffness + star0);
+* robust_laplacian: ``mesh_laplacian(V, F, mollify_factor=1e-5)`` (L + M), its default.
+
+Meshes: pymeshlab's bunny10k (with borders: the tufted cover is flipped), an icosphere
+with 1.3M triangles (already Delaunay: no flips) and the same icosphere stretched ×10
+along z (about a million flips). Reports wall time (best of ``--repeat``), peak resident
+memory above the loaded mesh, decrun's flips and rounds, and the largest entry difference
+of the two stiffness matrices relative to the largest entry.
+
+    python benchmarks/bench_intrinsic_delaunay.py            # full
+    python benchmarks/bench_intrinsic_delaunay.py --quick    # small meshes, seconds
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+CASES = {
+    "quick": [("bunny10k", 0), ("icosphere", 5), ("stretched icosphere", 5)],
+    "full": [("bunny10k", 0), ("icosphere", 8), ("stretched icosphere", 8)],
+}
+MOLLIFY = 1e-5
+
+
+def _status_bytes(field: str) -> int:
+    """A memory line of /proc/self/status (VmRSS, VmHWM) in bytes."""
+    with open("/proc/self/status") as handle:
+        for line in handle:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(f"/proc/self/status has no {field}")
+
+
+def _reset_peak_rss() -> bool:
+    """Reset VmHWM (write 5 to /proc/self/clear_refs) so the peak covers only what follows."""
+    try:
+        with open("/proc/self/clear_refs", "w") as handle:
+            handle.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def load_mesh(kind: str, size: int):
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    if kind == "bunny10k":
+        ms.load_new_mesh(str(Path(pymeshlab.__file__).parent / "tests/sample_meshes/bunny10k_textured.obj"))
+    else:
+        ms.create_sphere(radius=1.0, subdiv=size)
+    mesh = ms.current_mesh()
+    vertices = mesh.vertex_matrix().astype(np.float64)
+    if kind == "stretched icosphere":
+        vertices[:, 2] *= 10.0
+    return np.ascontiguousarray(vertices), mesh.face_matrix().astype(np.int64)
+
+
+def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
+    """Runs inside the subprocess: one library on one mesh."""
+    vertices, faces = load_mesh(kind, size)
+    if library == "decrun":
+        from decrun.core.intrinsic_delaunay import intrinsic_delaunay_operators
+
+        def work():
+            return intrinsic_delaunay_operators(vertices, faces, mollify=MOLLIFY)
+    else:
+        import robust_laplacian
+
+        def work():
+            return robust_laplacian.mesh_laplacian(vertices, faces, mollify_factor=MOLLIFY)
+
+    gc.collect()
+    baseline = _status_bytes("VmRSS")
+    if not _reset_peak_rss():
+        print("warning: cannot reset the peak RSS; peaks include loading the mesh", file=sys.stderr)
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = work()
+        times.append(time.perf_counter() - start)
+    report = {"seconds": min(times), "peak_mb": (_status_bytes("VmHWM") - baseline) / 2**20, "faces": len(faces)}
+    if library == "decrun":
+        report.update(flips=result.flips, rounds=result.rounds)
+        stiffness = result.stiffness
+    else:
+        stiffness = result[0]
+    np.save(_matrix_path(library, kind, size), _triplets(stiffness))
+    return report
+
+
+def _matrix_path(library: str, kind: str, size: int) -> str:
+    return f"/tmp/bench_intrinsic_delaunay_{library}_{kind.replace(' ', '_')}_{size}.npy"
+
+
+def _triplets(matrix) -> np.ndarray:
+    coo = matrix.tocoo()
+    return np.stack([coo.row.astype(np.float64), coo.col.astype(np.float64), coo.data])
+
+
+def _difference(kind: str, size: int) -> float:
+    import scipy.sparse as sp
+
+    mats = []
+    for library in ("decrun", "robust"):
+        path = _matrix_path(library, kind, size)
+        row, col, data = np.load(path)
+        Path(path).unlink()
+        mats.append(sp.csr_matrix((data, (row.astype(np.int64), col.astype(np.int64)))))
+    return float(abs(mats[0] - mats[1]).max() / abs(mats[1]).max())
+
+
+def spawn(library: str, kind: str, size: int, repeat: int) -> dict:
+    out = subprocess.run(
+        [sys.executable, __file__, "--case", library, kind, str(size), "--repeat", str(repeat)],
+        capture_output=True, text=True, check=True,
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="small meshes only")
+    parser.add_argument("--repeat", type=int, default=3, help="timed repetitions per case (best is reported)")
+    parser.add_argument("--case", nargs=3, metavar=("LIBRARY", "KIND", "SIZE"), help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.case:
+        library, kind, size = args.case
+        print(json.dumps(run_case(library, kind, int(size), args.repeat)))
+        return 0
+    try:
+        import robust_laplacian  # noqa: F401
+    except ImportError:
+        print("robust_laplacian is not installed (pip install robust-laplacian): nothing to compare", file=sys.stderr)
+        return 1
+
+    level = "quick" if args.quick else "full"
+    print("| mesh | triangles | flips | rounds | decrun s | decrun peak MB | robust_laplacian s | robust peak MB "
+          "| time ratio | memory ratio | max rel. diff of L |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for kind, size in CASES[level]:
+        repeat = 1 if size >= 8 else args.repeat
+        ours = spawn("decrun", kind, size, repeat)
+        ref = spawn("robust", kind, size, repeat)
+        name = kind if kind == "bunny10k" else f"{kind} subdiv {size}"
+        print(f"| {name} | {ours['faces']:,} | {ours['flips']:,} | {ours['rounds']} | {ours['seconds']:.3f} |"
+              f" {ours['peak_mb']:.0f} | {ref['seconds']:.3f} | {ref['peak_mb']:.0f} |"
+              f" {ours['seconds'] / ref['seconds']:.2f} | {ours['peak_mb'] / max(ref['peak_mb'], 1e-9):.2f} |"
+              f" {_difference(kind, size):.1e} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,151 @@
+"""Benchmark: Whitney (Galerkin) mass matrices M_0..M_n, against libigl as the reference.
+
+For each mesh, in a fresh subprocess (so peak memory is that case's alone):
+
+* decrun: ``whitney_mass_matrix(K, k)`` for k = 0..n on a ``SimplicialComplex`` built
+  before the clock starts (its build time is reported in its own column: every operator
+  variant shares it);
+* libigl (reference, triangles only): ``cotmatrix`` + ``massmatrix(FULL)`` — the P1
+  stiffness and mass, i.e. d0ᵀ M1 d0 and M0 — from (V, F).
+
+Reports wall time (best of ``--repeat``) and the peak resident memory above the memory
+the process holds before the timed work (mesh, and for decrun the complex), with the
+high-water mark reset first; and the ratios decrun / libigl. Requires libigl
+(``pip install -e .[bench]``); without it the reference columns are skipped.
+
+    python benchmarks/bench_whitney.py            # up to 1.3M triangles and ~1M tets
+    python benchmarks/bench_whitney.py --quick    # small meshes, seconds
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+TRIANGLE_CASES = {"quick": [4, 5], "full": [6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
+TET_CASES = {"quick": [8, 12], "full": [25, 40, 55]}  # Kuhn cubes: 6·n³ tetrahedra
+
+
+def _status_bytes(field: str) -> int:
+    """A memory line of /proc/self/status (VmRSS, VmHWM) in bytes."""
+    with open("/proc/self/status") as handle:
+        for line in handle:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(f"/proc/self/status has no {field}")
+
+
+def _reset_peak_rss() -> bool:
+    """Reset VmHWM (write 5 to /proc/self/clear_refs) so the peak covers only what follows."""
+    try:
+        with open("/proc/self/clear_refs", "w") as handle:
+            handle.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def load_mesh(kind: str, size: int):
+    if kind == "icosphere":
+        import pymeshlab
+
+        ms = pymeshlab.MeshSet()
+        ms.create_sphere(radius=1.0, subdiv=size)
+        mesh = ms.current_mesh()
+        return mesh.vertex_matrix().astype(np.float64), mesh.face_matrix().astype(np.int64)
+    from decrun.primitives import kuhn_cube
+
+    return kuhn_cube(size)
+
+
+def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
+    """Runs inside the subprocess: one library on one mesh."""
+    vertices, simplices = load_mesh(kind, size)
+    build_seconds = None
+    if library == "decrun":
+        from decrun.complex import SimplicialComplex
+        from decrun.core.whitney import whitney_mass_matrix
+
+        start = time.perf_counter()
+        K = SimplicialComplex(vertices, simplices)
+        build_seconds = time.perf_counter() - start
+
+        def work():
+            return [whitney_mass_matrix(K, k) for k in range(K.dim + 1)]
+    else:
+        import igl
+
+        def work():
+            return igl.cotmatrix(vertices, simplices), igl.massmatrix(vertices, simplices, igl.MASSMATRIX_TYPE_FULL)
+
+    gc.collect()
+    baseline = _status_bytes("VmRSS")
+    if not _reset_peak_rss():
+        print("warning: cannot reset the peak RSS; peaks include loading the mesh", file=sys.stderr)
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = work()
+        times.append(time.perf_counter() - start)
+        del result
+        gc.collect()
+    return {"seconds": min(times), "peak_mb": (_status_bytes("VmHWM") - baseline) / 2**20,
+            "simplices": len(simplices), "complex_seconds": build_seconds}
+
+
+def spawn(library: str, kind: str, size: int, repeat: int) -> dict:
+    out = subprocess.run(
+        [sys.executable, __file__, "--case", library, kind, str(size), "--repeat", str(repeat)],
+        capture_output=True, text=True, check=True,
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="small meshes only")
+    parser.add_argument("--repeat", type=int, default=3, help="timed repetitions per case (best is reported)")
+    parser.add_argument("--case", nargs=3, metavar=("LIBRARY", "KIND", "SIZE"), help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.case:
+        library, kind, size = args.case
+        print(json.dumps(run_case(library, kind, int(size), args.repeat)))
+        return 0
+    try:
+        import igl  # noqa: F401
+
+        have_igl = True
+    except ImportError:
+        have_igl = False
+        print("libigl is not installed (pip install -e .[bench]): reference columns skipped", file=sys.stderr)
+
+    level = "quick" if args.quick else "full"
+    print("| mesh | simplices | complex s | Whitney M_0..M_n s | peak MB | libigl cot+mass s | libigl peak MB "
+          "| time ratio | memory ratio |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for size in TRIANGLE_CASES[level]:
+        ours = spawn("decrun", "icosphere", size, args.repeat)
+        row = (f"| icosphere subdiv {size} | {ours['simplices']:,} | {ours['complex_seconds']:.2f} |"
+               f" {ours['seconds']:.3f} | {ours['peak_mb']:.0f} |")
+        if have_igl:
+            ref = spawn("igl", "icosphere", size, args.repeat)
+            row += (f" {ref['seconds']:.3f} | {ref['peak_mb']:.0f} | {ours['seconds'] / ref['seconds']:.2f} |"
+                    f" {ours['peak_mb'] / max(ref['peak_mb'], 1e-9):.2f} |")
+        else:
+            row += " – | – | – | – |"
+        print(row, flush=True)
+    for size in TET_CASES[level]:
+        ours = spawn("decrun", "kuhn", size, 1 if size > 30 else args.repeat)
+        print(f"| Kuhn cube n={size} (tets, M_0..M_3) | {ours['simplices']:,} | {ours['complex_seconds']:.2f} |"
+              f" {ours['seconds']:.3f} | {ours['peak_mb']:.0f} | – | – | – | – |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -59,7 +59,7 @@ def load_mesh(kind: str, size: int):
         ms.create_sphere(radius=1.0, subdiv=size)
         mesh = ms.current_mesh()
         return mesh.vertex_matrix().astype(np.float64), mesh.face_matrix().astype(np.int64)
-    from decrun.primitives import kuhn_cube
+    from decrun.core.primitives import kuhn_cube
 
     return kuhn_cube(size)
 
@@ -69,7 +69,7 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     vertices, simplices = load_mesh(kind, size)
     build_seconds = None
     if library == "decrun":
-        from decrun.complex import SimplicialComplex
+        from decrun.core.complex import SimplicialComplex
         from decrun.core.whitney import whitney_mass_matrix
 
         start = time.perf_counter()

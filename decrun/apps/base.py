@@ -106,6 +106,9 @@ class App:
     #: why the app's linear systems are not symmetric positive definite ("" when they are);
     #: solvers that need SPD matrices (cg, amg) are then rejected before any work
     unsymmetric_systems: ClassVar[str] = ""
+    #: why the app needs diagonal Hodge stars ("" when any SPD ⋆ works): a non-diagonal
+    #: (Galerkin) variant is then rejected before any work, with the lumped override
+    diagonal_stars: ClassVar[str] = ""
 
     def check(self, K, dec) -> None:
         """Raise a DecrunError when the mesh does not suit the app (before any work)."""
@@ -113,8 +116,9 @@ class App:
     def run(self, ctx: "Context") -> Result:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def check_solver(self, solver) -> None:
-        """Reject a solver that cannot solve this app's systems (before any work)."""
+    def check_solver(self, solver, dec=None) -> None:
+        """Reject a solver that cannot solve this app's systems (before any work; ``dec``
+        given once the operators are chosen)."""
         if getattr(solver, "needs_spd", False) and self.unsymmetric_systems:
             raise ConfigError(f"solver={solver.name}: app={self.name} solves systems that are not symmetric positive "
                               f"definite ({self.unsymmetric_systems}); use solver=direct or solver=pardiso")
@@ -126,13 +130,19 @@ class App:
             note = f" ({self.boundary_note})" if self.boundary_note else ""
             raise ConfigError(f"boundary={dec.boundary.name}: app={self.name} supports "
                               f"{' | '.join(f'boundary={b}' for b in self.boundaries)}{note}")
+        if self.diagonal_stars:
+            nondiagonal = [k for k in self.form_degrees if k <= dec.n and not dec.star_is_diagonal(k)]
+            if nondiagonal:
+                raise ConfigError(f"operator={dec.star_variant.name}: ⋆_k is not diagonal for k in {nondiagonal}, "
+                                  f"but app={self.name} needs diagonal stars ({self.diagonal_stars}); use "
+                                  f"operator.lumped=true or operator=circumcentric")
         degrees = dec.star_variant.form_degrees
         if degrees is not None:
             missing = [k for k in self.form_degrees if k <= dec.n and k not in degrees]
             if missing:
                 raise ConfigError(f"operator={dec.star_variant.name} provides operators on {list(degrees)}-forms "
                                   f"only, but app={self.name} needs {missing}-forms on the mesh's own simplices: "
-                                  f"use operator=circumcentric, operator=mixed_area or operator=barycentric")
+                                  f"use operator=mixed_area, operator=circumcentric or operator=whitney")
 
 
 def _passthrough(iterable, total=None, desc=None, **_):

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -37,7 +38,11 @@ class Smoothing(App):
     name = "smoothing"
     form_degrees = (0,)
     scheme: str = "implicit"  # explicit | implicit (Euler, §1.3)
-    dt: float = 0.005  # time step (model units squared: L has units 1/length²)
+    #: time step (model units squared: L has units 1/length²); null: dt_factor × dt_crit
+    dt: Optional[float] = None
+    #: with dt null, the time step as a multiple of the explicit critical step 2/λ_max of the
+    #: mesh — scale-free, so every mesh gets the same relative step (0.75: the default run)
+    dt_factor: float = 0.75
     steps: int = 10
     rescale: str = "volume"  # volume | area | none, applied after every step
     blowup_factor: float = 10.0  # a step diverges when the roughness R exceeds this × R_0
@@ -48,8 +53,13 @@ class Smoothing(App):
             raise ConfigError(f"app.scheme: must be one of {list(SCHEMES)}, got {self.scheme!r}")
         if self.rescale not in RESCALE:
             raise ConfigError(f"app.rescale: must be one of {list(RESCALE)}, got {self.rescale!r}")
-        if not (self.dt > 0 and math.isfinite(self.dt)):
-            raise ConfigError(f"app.dt: the time step must be > 0, got {self.dt}")
+        if self.dt is not None and not (self.dt > 0 and math.isfinite(self.dt)):
+            raise ConfigError(f"app.dt: the time step must be > 0 (or null for app.dt_factor), got {self.dt}")
+        if not (self.dt_factor > 0 and math.isfinite(self.dt_factor)):
+            raise ConfigError(f"app.dt_factor: must be > 0, got {self.dt_factor}")
+        if self.dt is None and not self.critical_dt:
+            raise ConfigError("app.critical_dt=false leaves no critical step for app.dt_factor: give the step "
+                              "itself, e.g. app.dt=0.005")
         if self.steps < 0:
             raise ConfigError(f"app.steps: must be >= 0, got {self.steps}")
         if not self.blowup_factor > 1:
@@ -84,8 +94,19 @@ class Smoothing(App):
         has_volume = not bool(K.boundary_vertices().any()) and vertices.shape[1] == 3
 
         t0 = time.perf_counter()
-        flow = MeanCurvatureFlow(dec, self.scheme, self.dt, ctx.new_solver() if self.scheme == "implicit" else None)
-        dt_crit = flow.critical_dt() if self.critical_dt else float("nan")
+        dt_crit = float("nan")
+        if self.critical_dt:  # 2/λ_max of S φ = λ ⋆0 φ (one eigen-solve)
+            dt_crit = MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt()
+        dt = self.dt
+        if dt is None:
+            if not (np.isfinite(dt_crit) and dt_crit > 0):
+                raise ConfigError(
+                    f"app.dt_factor: the explicit critical step 2/λ_max does not exist for operator="
+                    f"{dec.star_variant.name} on this mesh (⋆0 is not positive on "
+                    f"{int(np.sum(dec.star_diagonal_or_none(0) <= 0)) if dec.star_is_diagonal(0) else 0} vertices); "
+                    "give the step itself, e.g. app.dt=0.005, or use operator=mixed_area")
+            dt = self.dt_factor * dt_crit
+        flow = MeanCurvatureFlow(dec, self.scheme, dt, ctx.new_solver() if self.scheme == "implicit" else None)
         setup_seconds = time.perf_counter() - t0
         centroid = flow.centroid(vertices)
 
@@ -125,7 +146,10 @@ class Smoothing(App):
         stable = diverged_at < 0
         last = {name: values[-1] for name, values in series.items()}
 
+        edges = K.simplices(1)
+        weights = -np.asarray(flow.S[edges[:, 0], edges[:, 1]]).ravel()  # cot weights on the mesh edges
         metrics = {
+            "dt": dt,
             "stable": stable,
             "diverged_at_step": diverged_at,
             "steps_done": len(series["area"]) - 1,
@@ -133,9 +157,12 @@ class Smoothing(App):
             "roughness_ratio": last["roughness"] / first["roughness"],
             "distortion_final": last["distortion"],
             "dt_critical_explicit": dt_crit,
-            "dt_over_critical": self.dt / dt_crit if np.isfinite(dt_crit) and dt_crit > 0 else float("nan"),
-            "negative_star1_fraction": float(np.mean(dec.star_diagonal(1) < 0)) if dec.star_is_diagonal(1) else 0.0,
+            "negative_star1_fraction": float(np.mean(weights < 0)),
         }
+        if np.isfinite(dt_crit) and dt_crit > 0:
+            metrics["dt_over_critical"] = dt / dt_crit
+        if flow.M is not None:
+            metrics["nonpositive_star0_vertices"] = int(np.sum(flow.M <= 0))
         if has_volume:
             metrics["volume_drift_rel"] = abs(last["volume"] - first["volume"]) / abs(first["volume"])
         clean = ctx.meta.get("clean_vertices")
@@ -154,7 +181,7 @@ class Smoothing(App):
         series = {name: np.array(values) for name, values in series.items()}
         fields = {"vertices_initial": vertices, "vertices_final": v, "faces": faces,
                   "displacement": np.linalg.norm(v - vertices, axis=1)}
-        label = f"{self.scheme} Euler, dt={self.dt:g}, rescale={self.rescale}"
+        label = f"{self.scheme} Euler, dt={dt:.3g}, rescale={self.rescale}"
         state = f"{metrics['steps_done']} steps" if stable else f"diverged at step {diverged_at}"
         shown = ["area", "volume", "roughness"] if has_volume else ["area", "roughness"]
         figures = {

@@ -84,6 +84,7 @@ class VectorField(App):
     name = "vector_field"
     boundaries = ("none", "flux")
     form_degrees = (0, 1, 2)
+    diagonal_stars = "the least squares of eq. 6.5 weighs with ⋆0, ⋆2 and divides the divergence targets by ⋆0"
     sources: List[Source] = field(default_factory=list)
     vortices: List[Vortex] = field(default_factory=list)
     strokes: List[Stroke] = field(default_factory=list)

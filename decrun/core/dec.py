@@ -108,13 +108,15 @@ class DEC(Cached):
 
     # ---------------------------------------------------------------- Hodge stars
     def star_is_diagonal(self, k: int) -> bool:
-        """True when the variant's ⋆_k is diagonal."""
-        return self.star_diagonal_or_none(k) is not None
+        """True when the variant's ⋆_k is diagonal (asked without computing it)."""
+        return self.star_variant.is_diagonal(self.K, k)
 
     def star_diagonal_or_none(self, k: int) -> np.ndarray | None:
         """(n_k,) diagonal of ⋆_k, or None for a non-diagonal variant."""
         self._check_form_degree(k)
         self._check_variant_degree(k)
+        if not self.star_is_diagonal(k):
+            return None
         return self.require(("star_diagonal", k), lambda: self.star_variant.diagonal(self, k))
 
     def star_diagonal(self, k: int) -> np.ndarray:

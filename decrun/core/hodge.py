@@ -11,7 +11,9 @@ Both matrices are singular (their kernels are ker d_{k-1} and ker d_kᵀ) but th
 sides are compatible, and the kernels do not change dα or δβ. We factorize each matrix
 once with a tiny diagonal shift and remove the shift's error by iterative refinement.
 The decomposition is exactly orthogonal when ⋆_k is positive (e.g. Delaunay meshes for
-the circumcentric ⋆1); with negative cot weights ⟨·,·⟩_⋆ is indefinite.
+the circumcentric ⋆1); with negative cot weights ⟨·,·⟩_⋆ is indefinite. With a Galerkin
+(non-diagonal, SPD) ⋆_k = M (``operator=whitney``) it is M-orthogonal on every mesh; the
+coexact part then comes from a saddle-point system (:class:`_GalerkinCoexact`), never M⁻¹.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from decrun.core.dec import DEC
 from decrun.core.solvers import SingularSolve, solver_factory
@@ -61,7 +64,9 @@ class HodgeDecomposer:
         if k > 0:
             d = dec.d(k - 1)
             self._exact = SingularSolve(d.T @ dec.star(k) @ d, new_solver())
-        if k < n:
+        if k < n and not dec.star_is_diagonal(k):
+            self._coexact = _GalerkinCoexact(dec, k, new_solver())
+        elif k < n:
             star = dec.star_diagonal(k)
             zero = np.abs(star) <= 1e-12 * np.abs(star).max()
             if zero.any():
@@ -83,9 +88,12 @@ class HodgeDecomposer:
         alpha = beta = None
         if self._exact is not None:
             d = dec.d(k - 1)
-            alpha = self._exact.solve(d.T @ (_column(dec.star_diagonal(k), omega) * omega))
+            alpha = self._exact.solve(d.T @ (dec.star(k) @ omega))
             exact = d @ alpha
-        if self._coexact is not None:
+        if isinstance(self._coexact, _GalerkinCoexact):
+            coexact, mu = self._coexact.solve(omega)
+            beta = dec.star_solve(k + 1, mu)
+        elif self._coexact is not None:
             d = dec.d(k)
             mu = self._coexact.solve(d @ omega)
             coexact = _column(1.0 / dec.star_diagonal(k), omega) * (d.T @ mu)
@@ -93,6 +101,47 @@ class HodgeDecomposer:
             if np.all(np.abs(star_next) > 1e-12 * np.abs(star_next).max()):
                 beta = _column(1.0 / star_next, mu) * mu  # else β is undefined (⋆_{k+1} not invertible)
         return HodgeParts(exact, coexact, omega - exact - coexact, alpha, beta)
+
+
+class _GalerkinCoexact:
+    """The coexact part for a non-diagonal (Galerkin) ⋆_k = M without forming M⁻¹.
+
+    c = M⁻¹ d_kᵀ μ with d_k c = d_k ω is the symmetric saddle-point system
+
+        [ M    d_kᵀ ] [  c ]   [   0   ]
+        [ d_k   0   ] [ −μ ] = [ d_k ω ],
+
+    singular in μ exactly on ker d_kᵀ (which leaves c unchanged). It is factorized once
+    with −ε I in the lower block (quasi-definite, so LU needs no pivoting there) and the
+    regularization is removed by iterative refinement against the exact system. The matrix
+    is indefinite: it needs a direct solver (``direct``, ``pardiso``), not cg/amg.
+    """
+
+    def __init__(self, dec: DEC, k: int, solver, shift: float = 1e-10, tol: float = 1e-13, max_steps: int = 30):
+        M = sp.csr_matrix(dec.star(k))
+        self.d = dec.d(k)
+        self.n = M.shape[0]
+        m = self.d.shape[0]
+        self.A = sp.bmat([[M, self.d.T], [self.d, None]], format="csr")
+        scale = float(np.abs(M.diagonal()).mean()) or 1.0
+        regularized = self.A + sp.diags(np.concatenate([np.zeros(self.n), np.full(m, -shift * scale)]))
+        self.solver = solver
+        self.solver.factorize(regularized.tocsc())
+        self.tol, self.max_steps = tol, max_steps
+
+    def solve(self, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(coexact part c, μ = M_{k+1} β) for ``omega`` (n_k,) or (n_k, s)."""
+        top = self.d @ omega
+        b = np.concatenate([np.zeros_like(omega), top])
+        x = np.zeros_like(b)
+        residual = b.copy()
+        norm_b = float(np.linalg.norm(b)) or 1.0
+        for _ in range(self.max_steps):
+            if np.linalg.norm(residual) <= self.tol * norm_b:
+                break
+            x = x + np.asarray(self.solver.solve(residual), dtype=np.float64)
+            residual = b - self.A @ x
+        return x[: self.n], -x[self.n:]
 
 
 def _column(values: np.ndarray, like: np.ndarray) -> np.ndarray:

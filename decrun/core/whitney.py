@@ -36,8 +36,7 @@ from math import factorial
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.complex import SimplicialComplex
-from decrun.dec import DEC
+from decrun.core.complex import SimplicialComplex
 
 __all__ = ["whitney_mass_matrix", "whitney_lumped_mass", "top_face_table", "barycentric_gradient_gram"]
 
@@ -66,26 +65,9 @@ def top_face_table(K: SimplicialComplex, k: int) -> np.ndarray:
     -------
     (n_n, C(n+1, k+1)) int: entry [t, c] is the index in ``K.simplices(k)`` of the face of
     top simplex t spanned by local vertices ``combinations(range(n+1), k+1)[c]`` of its
-    sorted row. Built from ``K.face_indices`` (the faces omitting one vertex), composed
-    down from the top simplices — no search.
+    sorted row — the complex's own cached table (``K.top_face_indices``).
     """
-    n = K.dim
-    top = K.simplices(n)
-    m = top.shape[0]
-    if k == n:
-        return np.arange(m)[:, None]
-    if k == 0:
-        return top
-    upper = top_face_table(K, k + 1)
-    upper_cols = {c: i for i, c in enumerate(combinations(range(n + 1), k + 2))}
-    facets = K.face_indices(k + 1)  # (n_{k+1}, k+2): face omitting local vertex l
-    local = list(combinations(range(n + 1), k + 1))
-    table = np.empty((m, len(local)), dtype=np.int64)
-    for col, c in enumerate(local):
-        extra = next(v for v in range(n + 1) if v not in c)
-        bigger = tuple(sorted(c + (extra,)))
-        table[:, col] = facets[upper[:, upper_cols[bigger]], bigger.index(extra)]
-    return table
+    return K.top_face_indices(k)
 
 
 def _cross(u, v):
@@ -232,7 +214,7 @@ def whitney_mass_matrix(K: SimplicialComplex, k: int) -> sp.csr_matrix:
     n = K.dim
     size = K.num_simplices(k)
     if k in (0, n):
-        volume = DEC(K).primal_volumes(n)  # the complex's cached top volumes
+        volume = K.top_volumes  # the complex's cached top volumes
     if k == n:
         return sp.diags(1.0 / volume).tocsr()
     if k == 0:
@@ -305,7 +287,7 @@ def whitney_lumped_mass(K: SimplicialComplex, k: int) -> np.ndarray:
     n = K.dim
     size = K.num_simplices(k)
     if k in (0, n):
-        volume = DEC(K).primal_volumes(n)
+        volume = K.top_volumes
     if k == n:
         return 1.0 / volume
     if k == 0:

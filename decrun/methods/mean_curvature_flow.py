@@ -84,20 +84,26 @@ class MeanCurvatureFlow:
     """
 
     def __init__(self, dec, scheme: str, dt: float, solver=None):
-        self.scheme, self.dt = scheme, float(dt)
-        self.M = dec.star_diagonal(0)  # ⋆0: dual vertex areas
+        self.dec, self.scheme, self.dt = dec, scheme, float(dt)
+        self.M = dec.star_diagonal_or_none(0)  # ⋆0: dual vertex areas, or None for a Galerkin ⋆0
+        self.mass = dec.star(0)  # ⋆0 as a sparse matrix (the P1 mass matrix for operator=whitney)
         self.S = dec.laplacian_symmetric(0)  # d0ᵀ ⋆1 d0 (or the variant's stiffness), symmetric PSD
-        self.L = dec.laplacian(0)  # M⁻¹ S, PSD; Δ_M = -L
-        self.centroid_weights = self.M / self.M.sum()
+        self.L = dec.laplacian(0)  # M⁻¹ S, PSD; Δ_M = -L (a LinearOperator for a Galerkin ⋆0)
+        row_sums = np.asarray(self.mass.sum(axis=1)).ravel()
+        self.centroid_weights = row_sums / row_sums.sum()
         if scheme == "implicit":
             self.solver = solver
-            self.solver.factorize(sp.diags(self.M) + self.dt * self.S)  # (M + dt S) v_{n+1} = M v_n
+            self.solver.factorize(self.mass + self.dt * self.S)  # (M + dt S) v_{n+1} = M v_n
 
     def step(self, v: np.ndarray) -> np.ndarray:
         """v_{n+1} from v_n (n0, d)."""
         if self.scheme == "explicit":
-            return v - self.dt * (self.L @ v)  # v_{n+1} = v_n + dt Δ_M v_n
-        return self.solver.solve(self.M[:, None] * v)  # (M + dt S) v_{n+1} = M v_n
+            if self.M is not None:
+                return v - self.dt * (self.L @ v)  # v_{n+1} = v_n + dt Δ_M v_n
+            return v - self.dt * self.dec.star_solve(0, self.S @ v)  # M⁻¹ by the factorized ⋆0
+        if self.M is not None:
+            return self.solver.solve(self.M[:, None] * v)  # (M + dt S) v_{n+1} = M v_n
+        return self.solver.solve(self.mass @ v)
 
     def centroid(self, v: np.ndarray) -> np.ndarray:
         """The ⋆0-weighted centroid (conserved by both schemes: 1ᵀ S = 0)."""
@@ -106,7 +112,8 @@ class MeanCurvatureFlow:
     def roughness(self, v: np.ndarray, centroid: np.ndarray) -> float:
         """R(v), the Rayleigh quotient of L about ``centroid`` (module docstring)."""
         w = v - centroid
-        denominator = float(np.einsum("ij,ij->", w, self.M[:, None] * w))
+        weighted = self.M[:, None] * w if self.M is not None else self.mass @ w
+        denominator = float(np.einsum("ij,ij->", w, weighted))
         return float(np.einsum("ij,ij->", w, self.S @ w)) / denominator if denominator > 0 else float("inf")
 
     def distortion(self, v: np.ndarray, faces: np.ndarray) -> float:
@@ -117,4 +124,11 @@ class MeanCurvatureFlow:
 
     def critical_dt(self) -> float:
         """dt_crit = 2/λ_max of explicit Euler (:func:`explicit_critical_dt`)."""
-        return explicit_critical_dt(self.S, self.M)
+        if self.M is not None:
+            return explicit_critical_dt(self.S, self.M)
+        try:  # generalized S φ = λ M φ with the SPD Galerkin mass
+            lam = spla.eigsh(self.S, k=1, M=self.mass.tocsc(), which="LA", tol=1e-8, return_eigenvectors=False,
+                             v0=np.ones(self.S.shape[0]), maxiter=20 * self.S.shape[0])[0]
+        except (spla.ArpackNoConvergence, ValueError):
+            return float("nan")
+        return float(2.0 / lam) if lam > 0 else float("inf")

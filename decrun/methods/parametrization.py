@@ -141,8 +141,12 @@ def harmonic_matrix(dec, weights: str = "dec") -> sp.csr_matrix:
     All three satisfy eq. 5.5 (neighbours only) and 5.6 (zero row sums).
     """
     d0 = dec.d(0)
-    if weights == "dec":
-        return (dec.star_inv(0) @ dec.d_dual(1) @ dec.star(1) @ d0).tocsr()
+    if weights == "dec":  # d1^dual ⋆1 d0 = −d0ᵀ ⋆1 d0 = −(the variant's stiffness)
+        # a Galerkin ⋆0 is lumped (row sums) here: the rows' scale does not change the map
+        lumped = dec.star_diagonal_or_none(0)
+        if lumped is None:
+            lumped = np.asarray(dec.star(0).sum(axis=1)).ravel()
+        return (-(sp.diags(1.0 / lumped) @ dec.laplacian_symmetric(0))).tocsr()
     if weights == "uniform":
         return (-(d0.T @ d0)).tocsr()
     if weights == "mean_value":
@@ -159,8 +163,8 @@ def convex_combination_rows(dec, weights: str = "dec") -> sp.csr_matrix:
     ⋆0⁻¹ cancels, which is why the ⋆0 variant (``operator.star``) does not change the map.
     Computed from ``d1^dual ⋆1 d0`` directly so a zero ⋆0 cannot produce ∞/∞.
     """
-    if weights == "dec":
-        A = (dec.d_dual(1) @ dec.star(1) @ dec.d(0)).tocsr()
+    if weights == "dec":  # d1^dual ⋆1 d0 = −(stiffness); the variant's own for intrinsic Delaunay
+        A = (-dec.laplacian_symmetric(0)).tocsr()
     else:
         A = harmonic_matrix(dec, weights)
     diagonal = A.diagonal()

@@ -138,6 +138,7 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     dec = DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
     app = experiment.app
     app.check_operators(dec)
+    app.check_solver(experiment.solver, dec)
     app.check(complex_, dec)
     timings["complex_seconds"] = time.perf_counter() - t
     t = time.perf_counter()

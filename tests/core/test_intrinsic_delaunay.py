@@ -3,7 +3,6 @@ planar Delaunay triangulation (scipy/Qhull), and its M-matrix property."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,13 +11,12 @@ import pytest
 import scipy.sparse as sp
 import scipy.spatial
 
-from decrun.complex import SimplicialComplex
+from decrun.core.complex import SimplicialComplex
 from decrun.core.intrinsic_delaunay import intrinsic_delaunay, intrinsic_delaunay_operators
-from decrun.dec import DEC
+from decrun.core.dec import DEC
 from decrun.errors import DegenerateSimplexError, NonManifoldError, OrientationError
-from decrun.primitives import grid_triangles
+from decrun.core.primitives import grid_triangles
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the shared test meshes
 from meshes_for_tests import icosphere  # noqa: E402
 
 

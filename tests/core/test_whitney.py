@@ -3,12 +3,11 @@
 References used here are computed differently from the module: barycentric gradients by
 pseudo-inverse, Whitney forms evaluated pointwise as vector proxies and integrated with
 quadrature rules that are exact for their degree-2 integrands, closed-form P1 matrices
-scattered with ``np.add.at``, and the cotangent Laplacian of ``decrun.dec.DEC``.
+scattered with ``np.add.at``, and the cotangent Laplacian of ``decrun.core.dec.DEC``.
 """
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,12 +16,11 @@ import pytest
 import scipy.linalg
 import scipy.sparse as sp
 
-from decrun.complex import SimplicialComplex
+from decrun.core.complex import SimplicialComplex
 from decrun.core.whitney import top_face_table, whitney_lumped_mass, whitney_mass_matrix
-from decrun.dec import DEC
-from decrun.primitives import grid_triangles, kuhn_cube
+from decrun.core.dec import DEC
+from decrun.core.primitives import grid_triangles, kuhn_cube
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the shared test meshes
 from meshes_for_tests import annulus, icosphere, random_planar, random_tets  # noqa: E402
 
 

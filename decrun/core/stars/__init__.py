@@ -9,6 +9,9 @@ module                    variant
 ``circumcentric``         the thesis' Voronoi dual (§4.5.2–4.5.5), any dimension
 ``mixed_area``            ⋆0 = Meyer et al.'s mixed area, the rest circumcentric
 ``barycentric``           ⋆0 = lumped barycentric area, the rest circumcentric
+``whitney``               Galerkin: ⋆_k = the Whitney mass matrix M_k (SPD, not
+                          diagonal), or its lumped diagonal (``lumped: true``)
+``intrinsic_delaunay``    0-form operators of the intrinsic Delaunay triangulation
 ========================  ====================================================
 
 A variant supplies either a diagonal (``diagonal(dec, k)`` returns the (n_k,) array) or a
@@ -50,6 +53,10 @@ class HodgeStar:
 
     def check(self, K: "SimplicialComplex") -> None:
         """Raise :class:`decrun.errors.ConfigError` when the variant does not apply to ``K``."""
+
+    def is_diagonal(self, K: "SimplicialComplex", k: int) -> bool:
+        """Whether ⋆_k is diagonal (answered without computing it)."""
+        return True
 
     def diagonal(self, dec: "DEC", k: int) -> "np.ndarray | None":
         """(n_k,) diagonal of ⋆_k, or None when this variant's ⋆_k is not diagonal."""

@@ -1,0 +1,223 @@
+"""Vectorized tokenizer for line-based text mesh formats (OBJ, OFF, ASCII PLY/STL).
+
+:class:`TextTokens` splits a byte buffer into lines and whitespace-separated tokens with
+numpy only (no Python work per line): a token is a maximal run of non-whitespace bytes,
+and every token knows its line. Numbers are parsed by gathering the selected tokens into
+a fixed-width ``S`` array and casting it (numpy's C string-to-number conversion).
+Every parse error names the line (1-based) and the offending token.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from decrun.errors import MeshError
+
+_WHITESPACE = np.zeros(256, dtype=bool)
+_WHITESPACE[[9, 10, 11, 12, 13, 32]] = True  # \t \n \v \f \r space
+_MAX_NUMBER_WIDTH = 64  # no decimal number in a mesh file is longer
+
+
+class TextTokens:
+    """Lines and tokens of a text buffer.
+
+    Attributes (L lines, T tokens; positions are byte offsets into ``buffer``):
+
+    - ``buffer`` (N,) uint8, the file with a final ``\\n`` appended
+    - ``line_start``, ``line_end`` (L,) int64, a line spans ``[start, end)`` without ``\\n``
+    - ``token_start``, ``token_end`` (T,) int64
+    - ``line_first_token``, ``line_token_count`` (L,) int64
+
+    ``comment`` (a byte such as ``b"#"``), if given, starts a comment that runs to the end
+    of its line; comment bytes are treated as whitespace. ``first_line`` is the file line
+    number of the buffer's first line (for a body that follows a header).
+    """
+
+    def __init__(self, raw: bytes, where: str, comment: bytes | None = None, first_line: int = 1):
+        self.where, self.first_line = where, first_line
+        # zero bytes after the final newline let fixed-width gathers run past a token's end
+        self._padded = np.frombuffer(raw + b"\n" + bytes(_MAX_NUMBER_WIDTH), dtype=np.uint8)
+        buffer = self.buffer = self._padded[:len(raw) + 1]
+        newline = np.flatnonzero(buffer == 10)
+        self.line_start = np.concatenate([[0], newline[:-1] + 1]).astype(np.int64)
+        self.line_end = newline.astype(np.int64)
+        blank = (buffer == 32) | ((buffer >= 9) & (buffer <= 13))  # _WHITESPACE, without a gather
+        if comment is not None:
+            hashes = np.flatnonzero(buffer == comment[0])
+            if hashes.size:
+                hash_line = np.searchsorted(newline, hashes)
+                first = np.ones(hashes.size, dtype=bool)
+                first[1:] = hash_line[1:] != hash_line[:-1]
+                # +1 at the first comment byte of a line, -1 at that line's newline
+                step = np.zeros(buffer.size, dtype=np.int8)
+                step[hashes[first]] += 1
+                step[newline[hash_line[first]]] -= 1
+                blank |= np.cumsum(step, dtype=np.int8) > 0
+        # +1 where blank follows solid (a token ends), -1 where solid follows blank (one starts)
+        change = np.diff(blank.view(np.int8), prepend=np.int8(1))
+        self.token_start = np.flatnonzero(change == -1)
+        self.token_end = np.flatnonzero(change == 1)
+        self.newline = newline
+        self.line_first_token = np.searchsorted(self.token_start, self.line_start).astype(np.int64)
+        self.line_token_count = np.searchsorted(self.token_start, self.line_end) - self.line_first_token
+
+    # ------------------------------------------------------------------ text access
+
+    def token_text(self, token: int) -> str:
+        """The text of one token (for messages)."""
+        a, b = int(self.token_start[token]), int(self.token_end[token])
+        text = self.buffer[a:min(b, a + 40)].tobytes().decode("latin-1")
+        return text + ("..." if b - a > 40 else "")
+
+    def line_text(self, line: int) -> str:
+        """The text of one 0-based line, shortened (for messages)."""
+        a, b = int(self.line_start[line]), int(self.line_end[line])
+        text = self.buffer[a:min(b, a + 60)].tobytes().decode("latin-1").strip()
+        return text + (" ..." if b - a > 60 else "")
+
+    def line_tokens(self, lines: np.ndarray, skip: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """All tokens of ``lines`` after the first ``skip`` of each line, line by line.
+
+        Returns ``(tokens, offsets)``: token indices (Σ counts,) and (len(lines)+1,) offsets
+        so that line ``lines[i]``'s tokens are ``tokens[offsets[i]:offsets[i+1]]``.
+        """
+        lines = np.asarray(lines, dtype=np.int64)
+        counts = np.maximum(self.line_token_count[lines] - skip, 0)
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        first = self.line_first_token[lines] + skip
+        tokens = np.repeat(first - offsets[:-1], counts) + np.arange(offsets[-1], dtype=np.int64)
+        return tokens, offsets
+
+    def characters(self, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """Byte ranges ``[starts, ends)`` as a (len, width) uint8 matrix, zero-padded;
+        ranges longer than ``_MAX_NUMBER_WIDTH`` are cut there."""
+        starts = np.asarray(starts, dtype=np.int64)
+        lengths = np.asarray(ends, dtype=np.int64) - starts
+        width = int(min(max(lengths.max(initial=1), 1), _MAX_NUMBER_WIDTH))
+        column = np.arange(width)
+        chars = self._padded[starts[:, None] + column]
+        chars[column >= lengths[:, None]] = 0
+        return chars
+
+    def gather(self, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """Byte ranges ``[starts, ends)`` as a fixed-width ``S`` array (shorter ones zero-padded)."""
+        chars = self.characters(starts, ends)
+        return chars.view(f"S{chars.shape[1]}").ravel()
+
+    # ------------------------------------------------------------------ numbers
+
+    def line_number(self, line):
+        """File line number (1-based) of 0-based buffer line index(es) ``line``."""
+        return line + self.first_line
+
+    def line_at(self, position: int) -> int:
+        """File line number (1-based) of a byte position."""
+        return int(np.searchsorted(self.newline, position)) + self.first_line
+
+    def token_numbers(self, tokens: np.ndarray, dtype, what: str) -> np.ndarray:
+        """Parse whole tokens (indices) as numbers, see :meth:`numbers`."""
+        tokens = np.asarray(tokens, dtype=np.int64)
+        return self.numbers(self.token_start[tokens], self.token_end[tokens], dtype, what)
+
+    def numbers(self, starts: np.ndarray, ends: np.ndarray, dtype, what: str) -> np.ndarray:
+        """Parse byte ranges as ``float64`` or ``int64``; ``what`` names them in errors
+        (e.g. ``"vertex coordinate"``).
+
+        Plain decimals (``[+-]digits[.digits]``, at most 15 significant digits) are parsed
+        by integer arithmetic on the digit columns: mantissa and power of ten are exact, so
+        one IEEE division rounds correctly, the same value ``float()`` gives. Everything
+        else (exponents, nan, inf, long mantissas) goes through numpy's string cast.
+        """
+        starts = np.asarray(starts, dtype=np.int64)
+        ends = np.asarray(ends, dtype=np.int64)
+        if starts.size == 0:
+            return np.zeros(0, dtype=dtype)
+        lengths = ends - starts
+        bad = np.flatnonzero((lengths <= 0) | (lengths > _MAX_NUMBER_WIDTH))
+        if bad.size:
+            self._number_error(starts, ends, bad[0], what, dtype)
+        integer = np.dtype(dtype).kind == "i"
+        values, done = _plain_decimals(self._padded, starts, ends, integer)
+        if done.all():
+            return values.astype(dtype)
+        rest = np.flatnonzero(~done)
+        chars = self.characters(starts[rest], ends[rest])
+        text = chars.view(f"S{chars.shape[1]}").ravel()
+        underscore = np.flatnonzero((chars == ord("_")).any(axis=1))  # Python accepts 1_000
+        if underscore.size:
+            self._number_error(starts, ends, rest[underscore[0]], what, dtype)
+        out = values.astype(dtype)
+        try:
+            out[rest] = text.astype(dtype)
+        except (ValueError, OverflowError):
+            # the error path only: find the first token that does not parse
+            for i in range(text.size):
+                try:
+                    text[i:i + 1].astype(dtype)
+                except (ValueError, OverflowError):
+                    self._number_error(starts, ends, rest[i], what, dtype)
+            raise  # pragma: no cover - the loop above always finds the culprit
+        return out
+
+    def _number_error(self, starts, ends, i, what, dtype) -> None:
+        a, b = int(starts[i]), int(ends[i])
+        token = self.buffer[a:min(b, a + 40)].tobytes().decode("latin-1")
+        kind = "an integer" if np.dtype(dtype).kind == "i" else "a number"
+        shown = repr(token) if b > a else "nothing"
+        raise MeshError(f"{self.where}: line {self.line_at(a)}: {what} {shown} is not {kind}")
+
+
+_FAST_PLACES = 15  # digits and dot of a fast-path token: 10**15 < 2**53, all exact
+
+
+def _plain_decimals(buffer: np.ndarray, starts: np.ndarray, ends: np.ndarray, integer: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Values of tokens ``[+-]digits[.digits]`` (no dot if ``integer``) with at most 15
+    digits and dot, and the mask of tokens that have this form (others: value 0).
+
+    The tokens are right-aligned in a (T, w <= 15) digit matrix; with the dot read as digit 0,
+    ``raw = digits @ 10**(w-1..0) = left·10**(f+1) + right`` (f digits after the dot), all
+    exact in float64; the mantissa ``left·10**f + right`` and 10**f are exact, so one
+    division rounds correctly, to the value ``float()`` gives."""
+    count = starts.size
+    width = int(min(_FAST_PLACES, (ends - starts).max()))
+    signed = (buffer[starts] == 45) | (buffer[starts] == 43)
+    body = starts + signed
+    places = ends - body
+    column = np.arange(width)
+    index = ends[:, None] - width + column
+    inside = index >= body[:, None]
+    chars = buffer[np.maximum(index, 0)]
+    digit = chars - np.uint8(48)  # bytes below '0' wrap around to >= 10
+    is_digit = (digit < 10) & inside
+    is_dot = (chars == 46) & inside
+    bad = inside & ~is_digit if integer else inside & ~is_digit & ~is_dot
+    bad_rows = np.flatnonzero(bad.ravel()) // width
+    dot_at = np.flatnonzero(is_dot.ravel())
+    dots = np.bincount(dot_at // width, minlength=count)
+    ok = (places > dots) & (places <= width) & (dots <= 1)
+    ok[bad_rows] = False
+    fraction = np.zeros(count, dtype=np.int64)
+    fraction[dot_at // width] = width - 1 - dot_at % width
+    raw = np.where(is_digit, digit, np.uint8(0)).astype(np.float64) @ (10.0 ** np.arange(width - 1, -1, -1))
+    if integer:
+        value = raw
+    else:
+        scale = 10.0 ** fraction
+        right = np.fmod(raw, scale)
+        left = np.floor(raw / (scale * 10))
+        value = np.where(dots > 0, (left * scale + right) / scale, raw)
+    value = np.where(buffer[starts] == 45, -value, value)
+    return np.where(ok, value, 0), ok
+
+
+def is_text(raw: bytes) -> int:
+    """-1 if ``raw`` looks like text (no control byte other than whitespace, no DEL),
+    else the offset of the first byte that is not text."""
+    data = np.frombuffer(raw, dtype=np.uint8)
+    whitespace = sum(np.count_nonzero(data == c) for c in (9, 10, 11, 12, 13))  # five byte values
+    if np.count_nonzero(data < 32) == whitespace and not np.count_nonzero(data == 127):
+        return -1
+    control = np.ones(256, dtype=bool)
+    control[32:127] = control[128:] = False
+    control[_WHITESPACE] = False
+    return int(np.flatnonzero(control[data])[0])

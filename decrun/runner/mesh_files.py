@@ -132,7 +132,8 @@ def _suffix(path: Path) -> str | None:
 
 
 def compare_with_loaded(meshfile: MeshFile, vertices, faces, *, loader: str = "pymeshlab") -> None:
-    """Raise :class:`MeshError` if a loader returned fewer vertices or faces than the file holds.
+    """Raise :class:`MeshError` if a loader returned fewer vertices or faces than the file
+    holds, or faces that reference a vertex it did not return.
 
     ``vertices`` (n', ≥2) and ``faces`` (m', k) are what ``loader`` produced from
     ``meshfile.path``. The file holds ``len(meshfile.vertices)`` vertices and
@@ -143,6 +144,12 @@ def compare_with_loaded(meshfile: MeshFile, vertices, faces, *, loader: str = "p
     vertices, faces = np.asarray(vertices), np.asarray(faces, dtype=np.int64)
     n_file, m_file = len(meshfile.vertices), len(meshfile.cells)
     n_load, m_load = len(vertices), len(faces)
+    outside = np.flatnonzero(((faces < 0) | (faces >= n_load)).reshape(len(faces), -1).any(axis=1))
+    if outside.size:
+        raise MeshError(
+            f"{meshfile.where}: {loader} returned face {int(outside[0])} {faces[outside[0]].tolist()} referencing a "
+            f"vertex outside 0..{n_load - 1} ({outside.size} such faces); its output cannot be used"
+        )
     if n_load >= n_file and m_load >= m_file:
         return
     message = (

@@ -46,13 +46,12 @@ def read_obj(raw: bytes, where: str) -> RawMesh:
     keywords, kind_of = np.unique(text.gather(keyword_start, keyword_end), return_inverse=True)
     kinds = np.array([_STATEMENTS.get(bytes(k), -1) for k in keywords], dtype=np.int64)  # distinct keywords only
     kind = kinds[kind_of.ravel()] if used.size else np.zeros(0, dtype=np.int64)
-    _reject(text, used, kind)
-
     last_token = text.line_first_token[used] + text.line_token_count[used] - 1
     continued = text.buffer[text.token_end[last_token] - 1] == ord("\\")
     if continued.any():
         line = int(used[np.flatnonzero(continued)[0]]) + 1
         raise MeshError(f"{where}: line {line}: line continuation '\\' is not supported")
+    _reject(text, used, kind)
 
     vertex_lines = used[kind == _VERTEX]
     vertices = _vertices(text, vertex_lines)

@@ -11,6 +11,8 @@ carry no line numbers, so errors name the cell's position in the file's cell lis
 
 from __future__ import annotations
 
+import contextlib
+import io
 from pathlib import Path
 
 import numpy as np
@@ -33,11 +35,14 @@ def read_volume(path: Path, where: str) -> RawMesh:
     """Read ``path`` with meshio into a :class:`RawMesh` (faces or tetrahedra)."""
     import meshio
 
+    printed = io.StringIO()
     try:
-        mesh = meshio.read(str(path))
-    except Exception as exc:  # meshio.ReadError, but its readers raise anything on garbage
-        reason = str(exc).strip() or type(exc).__name__
-        raise MeshError(f"{where}: meshio cannot read it: {reason}") from exc
+        # meshio.read prints each reader's ReadError and then calls sys.exit(1)
+        with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(printed):
+            mesh = meshio.read(str(path))
+    except (Exception, SystemExit) as exc:  # its readers raise anything on garbage
+        reason = " ".join(printed.getvalue().split()) or str(exc).strip() or type(exc).__name__
+        raise MeshError(f"{where}: meshio cannot read it: {reason[:300]}") from None
     points = np.asarray(mesh.points, dtype=np.float64)
     counts: dict[str, int] = {}
     if points.ndim != 2 or points.shape[1] not in (2, 3):

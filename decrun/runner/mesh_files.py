@@ -142,9 +142,13 @@ def compare_with_loaded(meshfile: MeshFile, vertices, faces, *, loader: str = "p
     with their file face and line.
     """
     vertices, faces = np.asarray(vertices), np.asarray(faces, dtype=np.int64)
+    if faces.size == 0:
+        faces = faces.reshape(0, meshfile.cells.shape[1])
+    if faces.ndim != 2:
+        raise ValueError(f"faces must be an (m, k) index array, got shape {faces.shape}")
     n_file, m_file = len(meshfile.vertices), len(meshfile.cells)
     n_load, m_load = len(vertices), len(faces)
-    outside = np.flatnonzero(((faces < 0) | (faces >= n_load)).reshape(len(faces), -1).any(axis=1))
+    outside = np.flatnonzero(((faces < 0) | (faces >= n_load)).any(axis=1))
     if outside.size:
         raise MeshError(
             f"{meshfile.where}: {loader} returned face {int(outside[0])} {faces[outside[0]].tolist()} referencing a "
@@ -156,7 +160,7 @@ def compare_with_loaded(meshfile: MeshFile, vertices, faces, *, loader: str = "p
         f"{meshfile.where}: {loader} loaded {n_load} of the {n_file} vertices and {m_load} of the "
         f"{m_file} {'tetrahedra' if meshfile.is_volume else 'triangles'} the file holds"
     )
-    if n_load == n_file and m_load < m_file and faces.ndim == 2 and faces.shape[1] == meshfile.cells.shape[1]:
+    if n_load == n_file and m_load < m_file and faces.shape[1] == meshfile.cells.shape[1]:
         missing = _missing_rows(meshfile.cells, faces)
         if missing.size:
             shown = []

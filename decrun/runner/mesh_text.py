@@ -168,6 +168,7 @@ class TextTokens:
 
 
 _FAST_PLACES = 15  # digits and dot of a fast-path token: 10**15 < 2**53, all exact
+_POWERS_OF_TEN = 10 ** np.arange(_FAST_PLACES + 2, dtype=np.int64)
 
 
 def _plain_decimals(buffer: np.ndarray, starts: np.ndarray, ends: np.ndarray, integer: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -175,39 +176,48 @@ def _plain_decimals(buffer: np.ndarray, starts: np.ndarray, ends: np.ndarray, in
     digits and dot, and the mask of tokens that have this form (others: value 0).
 
     The tokens are right-aligned in a (T, w <= 15) digit matrix; with the dot read as digit 0,
-    ``raw = digits @ 10**(w-1..0) = left·10**(f+1) + right`` (f digits after the dot), all
-    exact in float64; the mantissa ``left·10**f + right`` and 10**f are exact, so one
+    Horner's rule gives the int64 ``raw = left·10**(f+1) + right`` (f digits after the dot);
+    the mantissa ``left·10**f + right`` < 10**15 and 10**f are exact in float64, so one
     division rounds correctly, to the value ``float()`` gives."""
     count = starts.size
     width = int(min(_FAST_PLACES, (ends - starts).max()))
-    signed = (buffer[starts] == 45) | (buffer[starts] == 43)
-    body = starts + signed
+    first = buffer[starts]
+    negative = first == 45
+    signed = negative | (first == 43)
+    index_type = np.int32 if buffer.size < 2**31 else np.int64
+    body = (starts + signed).astype(index_type)
     places = ends - body
-    column = np.arange(width)
-    index = ends[:, None] - width + column
-    inside = index >= body[:, None]
-    chars = buffer[np.maximum(index, 0)]
+    index = ends.astype(index_type)[:, None] + np.arange(-width, 0, dtype=index_type)
+    outside = index < body[:, None]
+    chars = buffer[index]  # index >= -width: wraps into the zero padding at the end
     digit = chars - np.uint8(48)  # bytes below '0' wrap around to >= 10
-    is_digit = (digit < 10) & inside
-    is_dot = (chars == 46) & inside
-    bad = inside & ~is_digit if integer else inside & ~is_digit & ~is_dot
-    bad_rows = np.flatnonzero(bad.ravel()) // width
-    dot_at = np.flatnonzero(is_dot.ravel())
-    dots = np.bincount(dot_at // width, minlength=count)
-    ok = (places > dots) & (places <= width) & (dots <= 1)
-    ok[bad_rows] = False
-    fraction = np.zeros(count, dtype=np.int64)
-    fraction[dot_at // width] = width - 1 - dot_at % width
-    raw = np.where(is_digit, digit, np.uint8(0)).astype(np.float64) @ (10.0 ** np.arange(width - 1, -1, -1))
+    digit[outside] = 0
+    bad = digit >= 10
+    if not integer:
+        is_dot = digit == np.uint8(254)  # "." is 46 = 48 - 2
+        bad &= ~is_dot
+        digit[is_dot] = 0
+        dot_at = np.flatnonzero(is_dot.ravel())
+        dots = np.bincount(dot_at // width, minlength=count)
+    ok = (places <= width) & (places > (0 if integer else dots))
+    if not integer:
+        ok &= dots <= 1
+    ok[np.flatnonzero(bad.ravel()) // width] = False
+    digit[~ok] = 0
+    raw = np.zeros(count, dtype=np.int64)
+    for j in range(width):  # Horner over the (at most 15) digit columns
+        raw *= 10
+        raw += digit[:, j]
     if integer:
         value = raw
     else:
-        scale = 10.0 ** fraction
-        right = np.fmod(raw, scale)
-        left = np.floor(raw / (scale * 10))
-        value = np.where(dots > 0, (left * scale + right) / scale, raw)
-    value = np.where(buffer[starts] == 45, -value, value)
-    return np.where(ok, value, 0), ok
+        fraction = np.zeros(count, dtype=np.int64)
+        fraction[dot_at // width] = width - 1 - dot_at % width
+        scale = _POWERS_OF_TEN[fraction]
+        mantissa = np.where(dots > 0, raw // (scale * 10) * scale + raw % scale, raw)
+        value = mantissa / scale.astype(np.float64)
+    np.negative(value, out=value, where=negative)
+    return value, ok
 
 
 def is_text(raw: bytes) -> int:

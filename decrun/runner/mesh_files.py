@@ -125,9 +125,13 @@ def read_mesh_file(path, *, key: str = "mesh.path") -> MeshFile:
 
 
 def _suffix(path: Path) -> str | None:
-    """The supported extension ``path`` ends with (longest match, case-insensitive)."""
+    """The supported extension ``path`` ends with (longest match, case-insensitive); meshio
+    (a slow import) is consulted only for endings decrun does not read itself."""
     name = path.name.lower()
-    matches = [ext for ext in supported_extensions() if name.endswith(ext)]
+    own = [ext for ext in (*_TEXT_READERS, *_BYTES_READERS) if name.endswith(ext)]
+    if own:
+        return own[0]
+    matches = [ext for ext in meshio_extensions() if name.endswith(ext)]
     return max(matches, key=len) if matches else None
 
 

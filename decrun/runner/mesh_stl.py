@@ -78,6 +78,8 @@ def _ascii(raw: bytes, where: str) -> RawMesh:
     second = text.line_first_token[inner[code == _OUTER]] + 1
     if not (text.gather(text.token_start[second], text.token_end[second]) == b"loop").all():
         raise MeshError(f"{where}: an 'outer' line does not read 'outer loop'")
+    normals = (text.line_first_token[inner[code == _FACET], None] + np.arange(2, 5)).ravel()
+    text.token_numbers(normals, np.float64, "facet normal component")  # unused, but must be numbers
     vertex_lines = inner[code == _VERTEX]
     xyz = (text.line_first_token[vertex_lines, None] + np.arange(1, 4)).ravel()
     corners = text.token_numbers(xyz, np.float64, "vertex coordinate")

@@ -2,9 +2,9 @@
 
 :class:`TextTokens` splits a byte buffer into lines and whitespace-separated tokens with
 numpy only (no Python work per line): a token is a maximal run of non-whitespace bytes,
-and every token knows its line. Numbers are parsed by gathering the selected tokens into
-a fixed-width ``S`` array and casting it (numpy's C string-to-number conversion).
-Every parse error names the line (1-based) and the offending token.
+and lines know their tokens. Plain decimals are parsed exactly by integer arithmetic on
+right-aligned digit columns; anything else (exponents, nan, inf) by numpy's C
+string-to-number cast. Every parse error names the line (1-based) and the offending token.
 """
 
 from __future__ import annotations

@@ -164,9 +164,11 @@ BAD = [
     ("variant.off", "COFF\n3 1 0\n", MeshError, ["OFF variant 'COFF' is not supported"]),
     ("count.off", OFF_HEAD + "4 0 1 2\n", MeshError, ["line 6: face 0 should be 'k i_1 ... i_k [colour]'"]),
     ("no_faces.off", "OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n", MeshError, ["holds 3 vertices and no faces"]),
+    ("zeros.off", bytes(64), MeshError, ["not a text OFF file: binary content at byte 0"]),
     # PLY -------------------------------------------------------------------------
     ("range.ply", PLY_HEAD + "3 0 1 5\n", IndexOutOfRangeError, ["line 13: face 0 references vertex 5"]),
     ("too_many.ply", PLY_HEAD + "3 0 1 2 9\n", MeshError, ["line 13: face 0 has too many values"]),
+    ("garbage.ply", b"\x89PNG\r\n\x1a\n" + bytes(100), MeshError, ["not a PLY file: the first line is not 'ply'"]),
     ("no_end.ply", "ply\nformat ascii 1.0\nelement vertex 0\n", MeshError, ["no 'end_header' line"]),
     ("format.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n", MeshError, ["line 2: unsupported PLY format"]),
     ("no_z.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n",
@@ -182,6 +184,8 @@ BAD = [
     # STL -------------------------------------------------------------------------
     ("garbage.stl", b"\x13\x37" * 100, MeshError, ["not an STL file", "size 200 bytes"]),
     ("structure.stl", "solid x\n" + STL_FACET.replace("endloop\n", "") + "endsolid x\n", MeshError, ["line 7: expected 'endloop', got 'endfacet'"]),
+    ("normal.stl", "solid x\n" + STL_FACET.replace("normal 0 0 1", "normal 0 zero 1") + "endsolid x\n", MeshError,
+     ["line 2: facet normal component 'zero' is not a number"]),
     ("degenerate.stl", stl_ascii(TET_V, np.array([[0, 1, 1]])), RepeatedVertexError, ["line 2: face 0", "lists vertex 1 twice"]),
     ("nan.stl", stl_binary(np.array([[0, 0, 0], [np.nan, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]])), NonFiniteCoordinateError, ["facet 0 corner 1"]),
     # meshio formats -------------------------------------------------------------
@@ -254,6 +258,23 @@ def test_tetrahedron_surface_reads_exactly_and_as_pymeshlab_loads_it(tmp_path, k
     assert np.array_equal(loaded.vertex_matrix(), mesh.vertices)
     assert np.array_equal(loaded.face_matrix(), mesh.cells)
     compare_with_loaded(mesh, loaded.vertex_matrix(), loaded.face_matrix())
+
+
+def test_text_format_variants_read_the_same_mesh(tmp_path):
+    """CRLF line ends, comments, OFF counts on the keyword line or with no keyword, OFF face
+    colours, PLY comment/obj_info lines: all the same tetrahedron."""
+    variants = {
+        "crlf.obj": obj_text(TET_V, TET_F).replace(b"\n", b"\r\n"),
+        "comments.obj": b"# header\n" + obj_text(TET_V, TET_F).replace(b"\nf", b" # trailing\n\n  f") + b"# end",
+        "inline.off": b"OFF 4 4 6\n# comment\n" + b"\n".join(off_text(TET_V, TET_F).split(b"\n")[2:]),
+        "bare.off": b"\n".join(off_text(TET_V, TET_F).split(b"\n")[1:]),
+        "colours.off": b"\n".join(line + (b" 0.5 0.5 0.5 1" if line.startswith(b"3 ") else b"")
+                                   for line in off_text(TET_V, TET_F).split(b"\n")),
+        "crlf.ply": ply_bytes(TET_V, TET_F).replace(b"\n", b"\r\n").replace(b"comment test", b"obj_info x\r\ncomment y"),
+    }
+    for name, content in variants.items():
+        mesh = read_mesh_file(write(tmp_path, name, content))
+        assert np.array_equal(mesh.vertices, TET_V) and np.array_equal(mesh.cells, TET_F), name
 
 
 @pytest.mark.parametrize("writer", [stl_ascii, stl_binary])

@@ -29,7 +29,6 @@ from decrun.runner.mesh_obj import read_obj
 from decrun.runner.mesh_off import read_off
 from decrun.runner.mesh_ply import read_ply
 from decrun.runner.mesh_stl import read_stl
-from decrun.runner.mesh_text import is_text
 from decrun.runner.mesh_volume import meshio_extensions, read_volume
 
 __all__ = ["MeshFile", "read_mesh_file", "compare_with_loaded", "supported_extensions"]
@@ -109,9 +108,6 @@ def read_mesh_file(path, *, key: str = "mesh.path") -> MeshFile:
     if size == 0:
         raise MeshError(f"{where}: the file is empty")
     if suffix in _TEXT_READERS:
-        bad = is_text(raw)
-        if bad >= 0:
-            raise MeshError(f"{where}: not a text {suffix[1:].upper()} file: binary content at byte {bad}")
         rawmesh = _TEXT_READERS[suffix](raw, where)
     elif suffix in _BYTES_READERS:
         rawmesh = _BYTES_READERS[suffix](raw, where)

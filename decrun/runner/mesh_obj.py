@@ -124,11 +124,11 @@ def _faces(text: TextTokens, lines: np.ndarray, before: dict, totals: dict) -> t
     face = np.repeat(np.arange(len(lines), dtype=np.int64), sizes)
     token_line = lines[face]  # 0-based line of every corner token
     slashes = np.flatnonzero(text.buffer == ord("/"))
-    slashes = np.append(slashes, text.buffer.size)  # sentinel
-    s1 = slashes[np.searchsorted(slashes, start)]
-    s1 = np.minimum(s1, end)
-    s2 = np.minimum(slashes[np.searchsorted(slashes, s1 + 1)], end)
-    s3 = np.minimum(slashes[np.searchsorted(slashes, s2 + 1)], end)
+    slashes = np.append(slashes, [text.buffer.size] * 3)  # sentinels
+    after = np.searchsorted(slashes, start)  # the first slash at or after each corner's start
+    s1 = np.minimum(slashes[after], end)  # = end: no slash in this corner
+    s2 = np.minimum(slashes[after + 1], end)
+    s3 = np.minimum(slashes[after + 2], end)
     extra = np.flatnonzero(s3 < end)
     if extra.size:
         k = int(extra[0])

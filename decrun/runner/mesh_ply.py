@@ -283,7 +283,7 @@ class _AsciiBody:
     """ASCII body: one record per line, elements in header order."""
 
     def __init__(self, raw: bytes, offset: int, header_lines: int, where: str):
-        self.text = TextTokens(raw[offset:], where, first_line=header_lines + 1)
+        self.text = TextTokens(raw[offset:], where, first_line=header_lines + 1, first_byte=offset)
         self.where = where
         self.lines = np.flatnonzero(self.text.line_token_count > 0)
         self.next = 0  # index into self.lines

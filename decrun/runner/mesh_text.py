@@ -29,19 +29,28 @@ class TextTokens:
     - ``line_first_token``, ``line_token_count`` (L,) int64
 
     ``comment`` (a byte such as ``b"#"``), if given, starts a comment that runs to the end
-    of its line; comment bytes are treated as whitespace. ``first_line`` is the file line
-    number of the buffer's first line (for a body that follows a header).
+    of its line; comment bytes are treated as whitespace. ``first_line`` and ``first_byte``
+    place the buffer in its file (for a body that follows a header). A control byte other
+    than whitespace (NUL, ...) is a :class:`MeshError`: the file is not text.
     """
 
-    def __init__(self, raw: bytes, where: str, comment: bytes | None = None, first_line: int = 1):
+    def __init__(self, raw: bytes, where: str, comment: bytes | None = None, first_line: int = 1, first_byte: int = 0):
         self.where, self.first_line = where, first_line
         # zero bytes after the final newline let fixed-width gathers run past a token's end
-        self._padded = np.frombuffer(raw + b"\n" + bytes(_MAX_NUMBER_WIDTH), dtype=np.uint8)
-        buffer = self.buffer = self._padded[:len(raw) + 1]
-        newline = np.flatnonzero(buffer == 10)
+        n = len(raw)
+        self._padded = np.zeros(n + 1 + _MAX_NUMBER_WIDTH, dtype=np.uint8)
+        self._padded[:n] = np.frombuffer(raw, dtype=np.uint8)
+        self._padded[n] = 10
+        buffer = self.buffer = self._padded[:n + 1]
+        control = np.flatnonzero(buffer < 32)
+        control_byte = buffer[control]
+        binary = np.flatnonzero(~_WHITESPACE[control_byte])
+        if binary.size:
+            raise MeshError(f"{where}: not a text file: binary content at byte {int(control[binary[0]]) + first_byte}")
+        newline = control[control_byte == 10]
         self.line_start = np.concatenate([[0], newline[:-1] + 1]).astype(np.int64)
         self.line_end = newline.astype(np.int64)
-        blank = (buffer == 32) | ((buffer >= 9) & (buffer <= 13))  # _WHITESPACE, without a gather
+        blank = buffer <= 32  # the text check above leaves only whitespace below 33
         if comment is not None:
             hashes = np.flatnonzero(buffer == comment[0])
             if hashes.size:
@@ -49,17 +58,20 @@ class TextTokens:
                 first = np.ones(hashes.size, dtype=bool)
                 first[1:] = hash_line[1:] != hash_line[:-1]
                 # +1 at the first comment byte of a line, -1 at that line's newline
-                step = np.zeros(buffer.size, dtype=np.int8)
-                step[hashes[first]] += 1
-                step[newline[hash_line[first]]] -= 1
-                blank |= np.cumsum(step, dtype=np.int8) > 0
+                lo, hi = int(hashes[0]), int(newline[hash_line[-1]]) + 1  # only where comments are
+                step = np.zeros(hi - lo, dtype=np.int8)
+                step[hashes[first] - lo] += 1
+                step[newline[hash_line[first]] - lo] -= 1
+                blank[lo:hi] |= np.cumsum(step, dtype=np.int8) > 0
         # +1 where blank follows solid (a token ends), -1 where solid follows blank (one starts)
         change = np.diff(blank.view(np.int8), prepend=np.int8(1))
         self.token_start = np.flatnonzero(change == -1)
         self.token_end = np.flatnonzero(change == 1)
         self.newline = newline
-        self.line_first_token = np.searchsorted(self.token_start, self.line_start).astype(np.int64)
-        self.line_token_count = np.searchsorted(self.token_start, self.line_end) - self.line_first_token
+        # no token starts at a newline, so line i's first token is the first after line i-1's end
+        tokens_before_end = np.searchsorted(self.token_start, self.line_end)
+        self.line_first_token = np.concatenate([[0], tokens_before_end[:-1]]).astype(np.int64)
+        self.line_token_count = tokens_before_end - self.line_first_token
 
     # ------------------------------------------------------------------ text access
 
@@ -94,9 +106,11 @@ class TextTokens:
         starts = np.asarray(starts, dtype=np.int64)
         lengths = np.asarray(ends, dtype=np.int64) - starts
         width = int(min(max(lengths.max(initial=1), 1), _MAX_NUMBER_WIDTH))
-        column = np.arange(width)
-        chars = self._padded[starts[:, None] + column]
-        chars[column >= lengths[:, None]] = 0
+        position = starts.astype(np.int32 if self._padded.size < 2**31 else np.int64)
+        chars = np.empty((starts.size, width), dtype=np.uint8)
+        for j in range(width):  # one gather per character column (at most 64), not per token
+            chars[:, j] = self._padded[position + j]
+        chars[np.arange(width) >= lengths[:, None]] = 0
         return chars
 
     def gather(self, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -137,7 +151,14 @@ class TextTokens:
         if bad.size:
             self._number_error(starts, ends, bad[0], what, dtype)
         integer = np.dtype(dtype).kind == "i"
-        values, done = _plain_decimals(self._padded, starts, ends, integer)
+        values = np.zeros(starts.size, dtype=np.int64 if integer else np.float64)
+        done = np.zeros(starts.size, dtype=bool)
+        short = lengths <= _FAST_PLACES + 1  # sign, digits, dot: candidates for the fast path
+        if short.all():
+            values, done = _plain_decimals(self._padded, starts, ends, integer)
+        elif short.any():
+            pick = np.flatnonzero(short)
+            values[pick], done[pick] = _plain_decimals(self._padded, starts[pick], ends[pick], integer)
         if done.all():
             return values.astype(dtype)
         rest = np.flatnonzero(~done)
@@ -167,18 +188,29 @@ class TextTokens:
         raise MeshError(f"{self.where}: line {self.line_at(a)}: {what} {shown} is not {kind}")
 
 
-_FAST_PLACES = 15  # digits and dot of a fast-path token: 10**15 < 2**53, all exact
-_POWERS_OF_TEN = 10 ** np.arange(_FAST_PLACES + 2, dtype=np.int64)
+_FAST_PLACES = 19  # digits and dot of a fast-path token: 10**19 < 2**64, a uint64
+_EXACT_DIGITS = 15  # 10**15 < 2**53: the mantissa is an exact float64
+_POWERS = 10 ** np.arange(_FAST_PLACES + 1, dtype=np.uint64)
+# x87 extended precision (64-bit significand) where numpy has it, else None
+_EXTENDED = np.longdouble if np.finfo(np.longdouble).nmant >= 63 else None
+if _EXTENDED is not None:  # 10**k, exact for k <= 27 (5**27 < 2**64)
+    _EXTENDED_POWERS = np.cumprod(np.concatenate([[_EXTENDED(1)], np.full(_FAST_PLACES, _EXTENDED(10))]))
 
 
 def _plain_decimals(buffer: np.ndarray, starts: np.ndarray, ends: np.ndarray, integer: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Values of tokens ``[+-]digits[.digits]`` (no dot if ``integer``) with at most 15
-    digits and dot, and the mask of tokens that have this form (others: value 0).
+    """Values of tokens ``[+-]digits[.digits]`` (no dot if ``integer``) and the mask of the
+    tokens that have this form and were converted exactly (others: value 0, mask False).
 
-    The tokens are right-aligned in a (T, w <= 15) digit matrix; with the dot read as digit 0,
-    Horner's rule gives the int64 ``raw = left·10**(f+1) + right`` (f digits after the dot);
-    the mantissa ``left·10**f + right`` < 10**15 and 10**f are exact in float64, so one
-    division rounds correctly, to the value ``float()`` gives."""
+    The tokens are right-aligned in a (T, w <= 19) digit matrix; Horner's rule over the
+    columns, reading the dot as a 0 digit, gives the uint64 ``raw = left·10**(f+1) + right``
+    (f digits after the dot), hence the mantissa ``M = left·10**f + right`` (<= 18 digits)
+    and the value M / 10**f:
+
+    - M < 10**15 < 2**53: M and 10**f are exact doubles, one IEEE division rounds correctly;
+    - 16..18 digits: M and 10**f are exact in x87 extended precision, the quotient q is
+      rounded once to 64 bits; rounding q to double is then correct unless q lies exactly
+      on a midpoint between two doubles (the true value may lie on either side): those
+      few tokens, and all of them without extended precision, go to the string cast."""
     count = starts.size
     width = int(min(_FAST_PLACES, (ends - starts).max()))
     first = buffer[starts]
@@ -193,29 +225,42 @@ def _plain_decimals(buffer: np.ndarray, starts: np.ndarray, ends: np.ndarray, in
     digit = chars - np.uint8(48)  # bytes below '0' wrap around to >= 10
     digit[outside] = 0
     bad = digit >= 10
+    dots = np.zeros(count, dtype=np.int64)
     if not integer:
         is_dot = digit == np.uint8(254)  # "." is 46 = 48 - 2
         bad &= ~is_dot
         digit[is_dot] = 0
         dot_at = np.flatnonzero(is_dot.ravel())
         dots = np.bincount(dot_at // width, minlength=count)
-    ok = (places <= width) & (places > (0 if integer else dots))
-    if not integer:
-        ok &= dots <= 1
+    digits = places - dots
+    ok = (places <= width) & (digits > 0) & (digits <= 18) & (dots <= 1)
     ok[np.flatnonzero(bad.ravel()) // width] = False
     digit[~ok] = 0
-    raw = np.zeros(count, dtype=np.int64)
-    for j in range(width):  # Horner over the (at most 15) digit columns
-        raw *= 10
+    raw = np.zeros(count, dtype=np.uint64)
+    ten = np.uint64(10)
+    for j in range(width):  # Horner over the (at most 19) digit columns
+        raw *= ten
         raw += digit[:, j]
     if integer:
-        value = raw
+        value = raw.astype(np.int64)
     else:
         fraction = np.zeros(count, dtype=np.int64)
         fraction[dot_at // width] = width - 1 - dot_at % width
-        scale = _POWERS_OF_TEN[fraction]
-        mantissa = np.where(dots > 0, raw // (scale * 10) * scale + raw % scale, raw)
-        value = mantissa / scale.astype(np.float64)
+        scale = _POWERS[fraction]
+        mantissa = np.where(dots > 0, raw // (scale * ten) * scale + raw % scale, raw)
+        value = mantissa.astype(np.float64) / scale.astype(np.float64)
+        long = np.flatnonzero(ok & (digits > _EXACT_DIGITS))
+        if long.size and _EXTENDED is None:
+            ok[long] = False
+        elif long.size:
+            q = mantissa[long].astype(_EXTENDED) / _EXTENDED_POWERS[fraction[long]]
+            nearest = q.astype(np.float64)
+            middle = nearest.astype(_EXTENDED)
+            up = np.nextafter(nearest, np.inf).astype(_EXTENDED)
+            down = np.nextafter(nearest, -np.inf).astype(_EXTENDED)
+            tie = (q == (middle + up) / 2) | (q == (middle + down) / 2)
+            value[long] = nearest
+            ok[long[tie]] = False
     np.negative(value, out=value, where=negative)
     return value, ok
 

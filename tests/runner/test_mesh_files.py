@@ -164,10 +164,11 @@ BAD = [
     ("variant.off", "COFF\n3 1 0\n", MeshError, ["OFF variant 'COFF' is not supported"]),
     ("count.off", OFF_HEAD + "4 0 1 2\n", MeshError, ["line 6: face 0 should be 'k i_1 ... i_k [colour]'"]),
     ("no_faces.off", "OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n", MeshError, ["holds 3 vertices and no faces"]),
-    ("zeros.off", bytes(64), MeshError, ["not a text OFF file: binary content at byte 0"]),
+    ("zeros.off", bytes(64), MeshError, ["not a text file: binary content at byte 0"]),
     # PLY -------------------------------------------------------------------------
     ("range.ply", PLY_HEAD + "3 0 1 5\n", IndexOutOfRangeError, ["line 13: face 0 references vertex 5"]),
     ("too_many.ply", PLY_HEAD + "3 0 1 2 9\n", MeshError, ["line 13: face 0 has too many values"]),
+    ("binary_body.ply", PLY_HEAD.encode() + b"3 0 1\x002\n", MeshError, ["not a text file: binary content at byte 177"]),
     ("garbage.ply", b"\x89PNG\r\n\x1a\n" + bytes(100), MeshError, ["not a PLY file: the first line is not 'ply'"]),
     ("no_end.ply", "ply\nformat ascii 1.0\nelement vertex 0\n", MeshError, ["no 'end_header' line"]),
     ("format.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n", MeshError, ["line 2: unsupported PLY format"]),

@@ -1,13 +1,17 @@
 """OFF (Object File Format, geomview) reader, vectorized, with line numbers in every error.
 
-Layout (geomview OFF spec): an optional ``OFF`` keyword; ``n_vertices n_faces n_edges``
-(on the keyword line or the next one); ``n_vertices`` lines ``x y z``; ``n_faces`` lines
-``k i_1 ... i_k [colour]`` with 0-based indices and an optional colour of 3 or 4 values.
-``#`` starts a comment; blank lines are skipped. The counts must match the body exactly:
-a missing or an extra line is an error. Variants (COFF, NOFF, 4OFF, ...) are rejected.
+Layout (geomview OFF spec): an optional keyword ``[ST][C][N]OFF``; ``n_vertices n_faces
+n_edges`` (on the keyword line or the next one); ``n_vertices`` lines ``x y z`` followed by
+the per-vertex extras the keyword announces (N: normal nx ny nz, C: colour of 3 or 4
+values, ST: texture s t; read past); ``n_faces`` lines ``k i_1 ... i_k [colour]`` with
+0-based indices and an optional colour of 3 or 4 values. ``#`` starts a comment; blank
+lines are skipped. The counts must match the body exactly: a missing or an extra line is
+an error. 4OFF and nOFF (other dimensions) are rejected.
 """
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 
@@ -24,6 +28,12 @@ def read_off(raw: bytes, where: str) -> RawMesh:
         raise MeshError(f"{where}: the file holds no OFF header, only blanks and comments")
     first = int(lines[0])
     keyword = text.token_text(int(text.line_first_token[first]))
+    variant = re.fullmatch(r"(ST)?(C)?(N)?OFF", keyword)
+    extras = {0}
+    if variant:
+        base = 3 * bool(variant[3]) + 2 * bool(variant[1])
+        extras = {base + 3, base + 4} if variant[2] else {base}
+        keyword = "OFF"
     if keyword == "OFF" and text.line_token_count[first] == 4:  # "OFF n_v n_f n_e"
         count_line, body = first, lines[1:]
         count_tokens = text.line_first_token[first] + np.arange(1, 4)
@@ -35,7 +45,7 @@ def read_off(raw: bytes, where: str) -> RawMesh:
     elif keyword == "OFF":
         raise MeshError(f"{where}: line {first + 1}: expected 'OFF' then 'n_vertices n_faces n_edges', got {text.line_text(first)!r}")
     elif keyword.endswith("OFF"):
-        raise MeshError(f"{where}: line {first + 1}: OFF variant {keyword!r} is not supported (plain OFF only)")
+        raise MeshError(f"{where}: line {first + 1}: OFF variant {keyword!r} is not supported (3-D [ST][C][N]OFF only)")
     elif text.line_token_count[first] == 3 and keyword.lstrip("+-").isdigit():  # no keyword (allowed)
         count_line, body = first, lines[1:]
         count_tokens = text.line_first_token[first] + np.arange(3)
@@ -57,10 +67,14 @@ def read_off(raw: bytes, where: str) -> RawMesh:
             f"{n_vertices} vertices and {n_faces} faces the header (line {count_line + 1}) announces"
         )
     vertex_lines, face_lines = body[:n_vertices], body[n_vertices:]
-    wrong = np.flatnonzero(text.line_token_count[vertex_lines] != 3)
+    wrong = np.flatnonzero(~np.isin(text.line_token_count[vertex_lines] - 3, list(extras)))
     if wrong.size:
         line = int(vertex_lines[wrong[0]])
-        raise MeshError(f"{where}: line {line + 1}: vertex {int(wrong[0])} should be 'x y z', got {text.line_text(line)!r}")
+        expected = " or ".join(str(3 + e) for e in sorted(extras))
+        raise MeshError(
+            f"{where}: line {line + 1}: vertex {int(wrong[0])} should have {expected} values "
+            f"(x y z and what {text.token_text(int(text.line_first_token[first]))!r} announces), got {text.line_text(line)!r}"
+        )
     xyz = (text.line_first_token[vertex_lines, None] + np.arange(3)).ravel()
     vertices = text.token_numbers(xyz, np.float64, "vertex coordinate")
     corners, offsets = _faces(text, face_lines)

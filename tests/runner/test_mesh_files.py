@@ -161,7 +161,8 @@ BAD = [
     ("short.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n", MeshError, ["announces 4 vertices but the file ends after 2"]),
     ("extra.off", OFF_HEAD + "3 0 1 2\n3 0 2 1\n", MeshError, ["line 7: unexpected content '3 0 2 1'"]),
     ("not.off", "ply\nformat ascii 1.0\n", MeshError, ["line 1: not an OFF file"]),
-    ("variant.off", "COFF\n3 1 0\n", MeshError, ["OFF variant 'COFF' is not supported"]),
+    ("variant.off", "4OFF\n3 1 0\n", MeshError, ["OFF variant '4OFF' is not supported"]),
+    ("noff.off", "NOFF\n3 1 0\n0 0 0 0 0 1\n1 0 0\n0 1 0 0 0 1\n3 0 1 2\n", MeshError, ["line 4: vertex 1 should have 6 values"]),
     ("count.off", OFF_HEAD + "4 0 1 2\n", MeshError, ["line 6: face 0 should be 'k i_1 ... i_k [colour]'"]),
     ("no_faces.off", "OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n", MeshError, ["holds 3 vertices and no faces"]),
     ("zeros.off", bytes(64), MeshError, ["not a text file: binary content at byte 0"]),
@@ -269,6 +270,8 @@ def test_text_format_variants_read_the_same_mesh(tmp_path):
         "comments.obj": b"# header\n" + obj_text(TET_V, TET_F).replace(b"\nf", b" # trailing\n\n  f") + b"# end",
         "inline.off": b"OFF 4 4 6\n# comment\n" + b"\n".join(off_text(TET_V, TET_F).split(b"\n")[2:]),
         "bare.off": b"\n".join(off_text(TET_V, TET_F).split(b"\n")[1:]),
+        "noff.off": off_text(TET_V, TET_F).replace(b"OFF", b"NOFF").replace(b".0\n", b".0 0 0 1\n"),
+        "cnoff.off": off_text(TET_V, TET_F).replace(b"OFF", b"CNOFF").replace(b".0\n", b".0 0 0 1 255 0 0 255\n"),
         "colours.off": b"\n".join(line + (b" 0.5 0.5 0.5 1" if line.startswith(b"3 ") else b"")
                                    for line in off_text(TET_V, TET_F).split(b"\n")),
         "crlf.ply": ply_bytes(TET_V, TET_F).replace(b"\n", b"\r\n").replace(b"comment test", b"obj_info x\r\ncomment y"),
@@ -276,6 +279,28 @@ def test_text_format_variants_read_the_same_mesh(tmp_path):
     for name, content in variants.items():
         mesh = read_mesh_file(write(tmp_path, name, content))
         assert np.array_equal(mesh.vertices, TET_V) and np.array_equal(mesh.cells, TET_F), name
+
+
+@pytest.mark.parametrize("options", [{}, {"binary": False}, {"save_vertex_normal": False}], ids=["default", "ascii", "no_normals"])
+@pytest.mark.parametrize("ext", ["obj", "off", "ply", "stl"])
+def test_files_pymeshlab_writes_read_back_as_pymeshlab_loads_them(tmp_path, ext, options):
+    """pymeshlab's own writers (full-precision floats, NOFF, vn lines, binary PLY/STL)."""
+    if "binary" in options and ext not in ("ply", "stl") or "save_vertex_normal" in options and ext == "stl":
+        pytest.skip("option not offered by pymeshlab's writer for this format")
+    ms = pymeshlab.MeshSet()
+    ms.create_torus(hsubdiv=12, vsubdiv=8)
+    path = tmp_path / f"torus.{ext}"
+    ms.save_current_mesh(str(path), **options)
+    mesh = read_mesh_file(path)
+    loaded = pymeshlab.MeshSet()
+    loaded.load_new_mesh(str(path))
+    V, F = loaded.current_mesh().vertex_matrix(), loaded.current_mesh().face_matrix()
+    compare_with_loaded(mesh, V, F)
+    assert np.array_equal(mesh.cells, F)
+    if ext == "stl":  # VCG parses ASCII STL into float32; decrun keeps the decimal exactly
+        assert np.array_equal(mesh.vertices.astype(np.float32), V.astype(np.float32))
+    else:
+        assert np.array_equal(mesh.vertices, V)
 
 
 @pytest.mark.parametrize("writer", [stl_ascii, stl_binary])

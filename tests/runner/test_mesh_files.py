@@ -364,6 +364,26 @@ def test_binary_ply_with_mixed_polygon_sizes_matches_the_ascii_file(tmp_path):
     assert ascii_mesh.counts["camera"] == 1
 
 
+def test_ply_faces_with_two_lists_and_a_scalar_read_in_both_encodings(tmp_path):
+    """Record layout 'ushort list of uint indices, uchar list of float texcoords, uchar
+    material' with varying lengths: the record walker steps over every property."""
+    rng = np.random.default_rng(1)
+    V = rng.random((12, 3))
+    polygons = [rng.choice(12, size=int(k), replace=False) for k in rng.integers(3, 6, size=20)]
+    header = ("ply\nformat {} 1.0\nelement vertex 12\nproperty double x\nproperty double y\nproperty double z\n"
+              "element face 20\nproperty list ushort uint vertex_indices\nproperty list uchar float texcoord\n"
+              "property uchar material\nend_header\n")
+    ascii_body = "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in V.tolist())
+    ascii_body += "".join(f"{len(p)} {' '.join(map(str, p))} {2 * len(p)} {' '.join(['0.5'] * 2 * len(p))} 3\n" for p in polygons)
+    binary_body = V.astype("<f8").tobytes() + b"".join(
+        struct.pack(f"<H{len(p)}IB{2 * len(p)}fB", len(p), *map(int, p), 2 * len(p), *[0.5] * (2 * len(p)), 3) for p in polygons
+    )
+    as_text = read_mesh_file(write(tmp_path, "t.ply", (header.format("ascii") + ascii_body).encode()))
+    as_binary = read_mesh_file(write(tmp_path, "b.ply", header.format("binary_little_endian").encode() + binary_body))
+    for mesh in (as_text, as_binary):
+        assert np.array_equal(mesh.vertices, V) and np.array_equal(mesh.cells, fan(polygons))
+
+
 def test_obj_index_forms_all_give_the_same_mesh(tmp_path):
     """1-based, negative-relative and v/vt/vn corners of one mesh read identically."""
     V, Q = quad_grid(2)

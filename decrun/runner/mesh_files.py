@@ -12,8 +12,11 @@ Vertex and face numbers are 0-based positions in the file's lists; OBJ indices a
 as written. Polygons with more than 3 corners are split into a fan and counted in
 ``counts['triangulated_faces']``; nothing is dropped or repaired silently.
 
-:func:`compare_with_loaded` is the guard against loaders that drop elements silently
-(pymeshlab drops OBJ faces with a bad index or a repeated vertex, and NaN vertices).
+:func:`compare_with_loaded` is the guard against loaders that drop elements silently.
+pymeshlab (2025.7) drops OBJ faces with a repeated vertex, NaN vertices with the faces
+using them, and PLY faces whose ``flags`` property has VCG's "deleted" bit; it turns OBJ
+index 0 into an out-of-range face and aborts (heap corruption) on an index above the
+vertex count.
 """
 
 from __future__ import annotations

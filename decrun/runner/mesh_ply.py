@@ -10,8 +10,8 @@ other elements (``camera``, ``edge``, ``material``, ...) are read past and count
 Binary records with lists have variable size. If every list of an element has the same
 length (the usual all-triangle case) the records are one strided array; otherwise the
 record starts are found by pointer doubling over "the next record would start at" for
-every byte offset (O(log m) vectorized rounds, O(bytes) memory). ASCII records are one
-per line (as every writer does); an error names the line.
+every byte offset (O(log m) vectorized rounds; two int32 tables the size of the element's
+bytes). ASCII records are one per line (as every writer does); an error names the line.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ _TYPES = {
 }
 _FORMATS = {"ascii": "", "binary_little_endian": "<", "binary_big_endian": ">"}
 _INDEX_LISTS = ("vertex_indices", "vertex_index")
+_CHUNK = 1 << 22  # byte offsets walked at once when records vary in size
 
 
 @dataclass
@@ -248,10 +249,12 @@ class _BinaryBody:
         n = len(self.raw)
         span = n - self.offset
         index_type = np.int32 if span + 2 < 2**31 else np.int64
-        ends, _, _ = self._walk(element, self.offset + np.arange(span, dtype=np.int64))
         # relative next-start for every byte offset; span = "exactly at the end", span + 1 = invalid
         jump = np.empty(span + 2, dtype=index_type)
-        jump[:span] = np.minimum(ends - self.offset, span + 1)
+        for lo in range(0, span, _CHUNK):  # blocks of byte offsets bound the walk's temporaries
+            hi = min(lo + _CHUNK, span)
+            ends, _, _ = self._walk(element, self.offset + np.arange(lo, hi, dtype=np.int64))
+            jump[lo:hi] = np.minimum(ends - self.offset, span + 1)
         jump[span:] = span + 1
         record = np.arange(count, dtype=np.int64)
         starts = np.zeros(count, dtype=index_type)

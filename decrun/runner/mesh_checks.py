@@ -50,6 +50,7 @@ class RawMesh:
 
     @property
     def face_count(self) -> int:
+        """Number of polygon faces f."""
         return len(self.face_offsets) - 1
 
     def where_vertex(self, i: int) -> str:

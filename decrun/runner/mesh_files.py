@@ -67,10 +67,12 @@ class MeshFile:
 
     @property
     def where(self) -> str:
+        """``key='path'``, the prefix of every message about this file."""
         return f"{self.key}={self.path!r}"
 
     @property
     def is_volume(self) -> bool:
+        """True for tetrahedra (cells (m, 4)), False for triangles (m, 3)."""
         return self.cells.shape[1] == 4
 
 

@@ -41,6 +41,8 @@ class TextTokens:
         self._padded = np.zeros(n + 1 + _MAX_NUMBER_WIDTH, dtype=np.uint8)
         self._padded[:n] = np.frombuffer(raw, dtype=np.uint8)
         self._padded[n] = 10
+        if raw.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark reads as blanks
+            self._padded[:3] = 32
         buffer = self.buffer = self._padded[:n + 1]
         control = np.flatnonzero(buffer < 32)
         control_byte = buffer[control]

@@ -263,10 +263,11 @@ def test_tetrahedron_surface_reads_exactly_and_as_pymeshlab_loads_it(tmp_path, k
 
 
 def test_text_format_variants_read_the_same_mesh(tmp_path):
-    """CRLF line ends, comments, OFF counts on the keyword line or with no keyword, OFF face
+    """CRLF line ends, a UTF-8 byte order mark, comments, OFF counts on the keyword line or with no keyword, OFF face
     colours, PLY comment/obj_info lines: all the same tetrahedron."""
     variants = {
         "crlf.obj": obj_text(TET_V, TET_F).replace(b"\n", b"\r\n"),
+        "bom.obj": b"\xef\xbb\xbf" + obj_text(TET_V, TET_F),
         "comments.obj": b"# header\n" + obj_text(TET_V, TET_F).replace(b"\nf", b" # trailing\n\n  f") + b"# end",
         "inline.off": b"OFF 4 4 6\n# comment\n" + b"\n".join(off_text(TET_V, TET_F).split(b"\n")[2:]),
         "bare.off": b"\n".join(off_text(TET_V, TET_F).split(b"\n")[1:]),

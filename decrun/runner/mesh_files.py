@@ -96,7 +96,7 @@ def read_mesh_file(path, *, key: str = "mesh.path") -> MeshFile:
     if not path.exists():
         raise MeshError(f"{where}: file not found")
     if path.is_dir():
-        raise MeshError(f"{where}: is a directory, not a mesh file")
+        raise MeshError(f"{where}: is a directory, not a file")
     if not path.is_file():
         raise MeshError(f"{where}: not a regular file")
     suffix = _suffix(path)

@@ -123,7 +123,8 @@ def _faces(text: TextTokens, lines: np.ndarray, before: dict, totals: dict) -> t
     start, end = text.token_start[tokens], text.token_end[tokens]
     face = np.repeat(np.arange(len(lines), dtype=np.int64), sizes)
     token_line = lines[face]  # 0-based line of every corner token
-    slashes = np.flatnonzero(text.buffer == ord("/"))
+    lo, hi = (int(start[0]), int(end[-1])) if start.size else (0, 0)  # the bytes of all corners
+    slashes = np.flatnonzero(text.buffer[lo:hi] == ord("/")) + lo
     slashes = np.append(slashes, [text.buffer.size] * 3)  # sentinels
     after = np.searchsorted(slashes, start)  # the first slash at or after each corner's start
     s1 = np.minimum(slashes[after], end)  # = end: no slash in this corner

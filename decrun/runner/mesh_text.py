@@ -16,6 +16,7 @@ from decrun.errors import MeshError
 _WHITESPACE = np.zeros(256, dtype=bool)
 _WHITESPACE[[9, 10, 11, 12, 13, 32]] = True  # \t \n \v \f \r space
 _MAX_NUMBER_WIDTH = 64  # no decimal number in a mesh file is longer
+_BLOCK = 1 << 15  # tokens parsed at once: their (block, <= 19) digit matrices stay in cache
 
 
 class TextTokens:
@@ -65,10 +66,12 @@ class TextTokens:
                 step[hashes[first] - lo] += 1
                 step[newline[hash_line[first]] - lo] -= 1
                 blank[lo:hi] |= np.cumsum(step, dtype=np.int8) > 0
-        # +1 where blank follows solid (a token ends), -1 where solid follows blank (one starts)
-        change = np.diff(blank.view(np.int8), prepend=np.int8(1))
-        self.token_start = np.flatnonzero(change == -1)
-        self.token_end = np.flatnonzero(change == 1)
+        # blank/solid changes alternate: token starts and ends (the buffer ends blank)
+        change = np.flatnonzero(blank[1:] != blank[:-1]) + 1
+        if not blank[0]:
+            change = np.concatenate([[0], change])
+        self.token_start = np.ascontiguousarray(change[0::2])
+        self.token_end = np.ascontiguousarray(change[1::2])
         self.newline = newline
         # no token starts at a newline, so line i's first token is the first after line i-1's end
         tokens_before_end = np.searchsorted(self.token_start, self.line_end)
@@ -155,12 +158,10 @@ class TextTokens:
         integer = np.dtype(dtype).kind == "i"
         values = np.zeros(starts.size, dtype=np.int64 if integer else np.float64)
         done = np.zeros(starts.size, dtype=bool)
-        short = lengths <= _FAST_PLACES + 1  # sign, digits, dot: candidates for the fast path
-        if short.all():
-            values, done = _plain_decimals(self._padded, starts, ends, integer)
-        elif short.any():
-            pick = np.flatnonzero(short)
-            values[pick], done[pick] = _plain_decimals(self._padded, starts[pick], ends[pick], integer)
+        pick = np.flatnonzero(lengths <= _FAST_PLACES + 1)  # sign, digits, dot: fast-path candidates
+        for lo in range(0, pick.size, _BLOCK):  # blocks keep the digit matrices in cache
+            block = pick[lo:lo + _BLOCK]
+            values[block], done[block] = _plain_decimals(self._padded, starts[block], ends[block], integer)
         if done.all():
             return values.astype(dtype)
         rest = np.flatnonzero(~done)

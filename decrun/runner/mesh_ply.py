@@ -228,6 +228,9 @@ class _BinaryBody:
     def _records(self, element: _Element):
         """Record starts, per-property offsets and list lengths of an element with lists."""
         n, count = len(self.raw), element.count
+        smallest = sum(np.dtype(p.count_type or p.type).itemsize for p in element.properties)  # empty lists
+        if self.offset + count * smallest > n:
+            self._truncated(element, (n - self.offset) // max(smallest, 1))
         if count == 0:
             return np.zeros(0, dtype=np.int64), [np.zeros(0, dtype=np.int64)] * len(element.properties), [np.zeros(0, dtype=np.int64)] * len(element.properties)
         end0, _, counts0 = self._walk(element, np.array([self.offset]))

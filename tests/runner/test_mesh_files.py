@@ -176,6 +176,8 @@ BAD = [
     ("no_z.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n",
      MeshError, ["line 3: the 'vertex' element has no scalar property 'z'"]),
     ("truncated.ply", ply_bytes(TET_V, TET_F, "binary_little_endian")[:-6], MeshError, ["ends inside element 'face'"]),
+    ("huge_count.ply", ply_bytes(TET_V, TET_F, "binary_little_endian").replace(b"element face 4", b"element face 99999999999999"),
+     MeshError, ["99999999999999 records declared"]),
     ("trailing.ply", ply_bytes(TET_V, TET_F, "binary_little_endian") + b"\0\0", MeshError, ["2 bytes follow the last element ('face')"]),
     ("range_binary.ply", ply_bytes(TET_V, [[0, 1, 2], [0, 1, 9]], "binary_big_endian"), IndexOutOfRangeError, ["face 1 references vertex 9"]),
     ("nan_binary.ply", ply_bytes(np.array([[0, 0, 0], [np.nan, 0, 0], [0, 1, 0]]), [[0, 1, 2]], "binary_little_endian"),
@@ -507,3 +509,38 @@ def test_reading_bunny_is_at_most_about_twice_pymeshlab_load():
         ms.load_new_mesh(str(path))
         theirs.append(time.perf_counter() - start)
     assert min(ours) < 2.5 * min(theirs), (min(ours), min(theirs))
+
+
+def test_damaged_files_fail_only_with_mesh_errors_that_name_the_file(tmp_path):
+    """Seeded mutations (byte flips, cuts, deletions, inserted number-ish bytes) of good
+    files in every format: reading either succeeds or raises MeshError naming the file —
+    never an IndexError, ValueError, struct or numpy error from inside a reader."""
+    V, Q = quad_grid(2)
+    seeds = {
+        "a.obj": obj_text(V, Q), "b.obj": obj_text(V, Q, lambda i, j: f"{i - len(V)}/{i + 1}/1"),
+        "a.off": off_text(V, Q), "a.ply": ply_bytes(V, Q), "b.ply": ply_bytes(V, Q, "binary_little_endian", face_flags=True),
+        "c.ply": ply_bytes(TET_V, TET_F, "binary_big_endian"), "a.stl": stl_ascii(TET_V, TET_F), "b.stl": stl_binary(TET_V, TET_F),
+    }
+    rng = np.random.default_rng(2024)
+    alphabet = np.frombuffer(b" 0123456789-./\nfv#e", dtype=np.uint8)
+    failures = 0
+    for _ in range(60):
+        for name, content in seeds.items():
+            data = bytearray(content)
+            at = int(rng.integers(len(data)))
+            operation = int(rng.integers(4))
+            if operation == 0:
+                data[at] = int(rng.integers(256))
+            elif operation == 1:
+                data = data[:at]
+            elif operation == 2:
+                del data[at:at + int(rng.integers(1, 8))]
+            else:
+                data[at:at] = rng.choice(alphabet, int(rng.integers(1, 6))).tobytes()
+            path = write(tmp_path, name, bytes(data))
+            try:
+                read_mesh_file(path)
+            except MeshError as error:
+                failures += 1
+                assert str(error).startswith(f"mesh.path={str(path)!r}: "), error
+    assert failures > 100  # the mutations do break most files

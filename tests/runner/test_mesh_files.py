@@ -350,6 +350,10 @@ def test_quad_mesh_is_fan_triangulated_and_counted_in_every_format(tmp_path):
         ms = pymeshlab.MeshSet()
         ms.load_new_mesh(str(path))
         assert np.array_equal(ms.current_mesh().face_matrix(), expected), name  # pymeshlab fans the same way
+    vtu = meshio_file("grid.vtu", V, [("quad", Q)])(tmp_path)
+    mesh = read_mesh_file(vtu)
+    assert np.array_equal(mesh.vertices, V) and np.array_equal(mesh.cells, expected)
+    assert mesh.counts["quad"] == 9 and mesh.counts["triangulated_faces"] == 9
 
 
 def test_binary_ply_with_mixed_polygon_sizes_matches_the_ascii_file(tmp_path):

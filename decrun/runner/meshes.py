@@ -111,8 +111,8 @@ def check_mesh(mesh: Mesh, what: str = "mesh") -> None:
     V, F = mesh.vertices, mesh.simplices
     if V.ndim != 2 or V.shape[1] not in (2, 3) or len(V) == 0:
         raise MeshError(f"{what}: vertices must be a non-empty (n, 2|3) array, got shape {V.shape}")
-    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0:
-        raise MeshError(f"{what}: need a non-empty (m, 3) triangle array, got shape {F.shape}")
+    if F.ndim != 2 or F.shape[1] not in (3, 4) or len(F) == 0:
+        raise MeshError(f"{what}: need a non-empty (m, 3) triangle or (m, 4) tetrahedron array, got shape {F.shape}")
     bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
     if len(bad):
         raise MeshError(f"{what}: vertex {int(bad[0])} has a non-finite coordinate {V[bad[0]].tolist()} ({len(bad)} such vertices)")
@@ -187,6 +187,7 @@ class MeshSource:
         check_mesh(mesh, f"mesh {label} after {applied}")
         mesh.meta.setdefault("source", self.name)
         mesh.meta["steps"] = applied
-        mesh.meta["mean_edge_length"] = mean_edge_length(mesh.vertices, mesh.simplices)
+        if mesh.simplices.shape[1] == 3:
+            mesh.meta["mean_edge_length"] = mean_edge_length(mesh.vertices, mesh.simplices)
         mesh.meta["hash"] = mesh_hash(mesh.vertices, mesh.simplices)
         return mesh

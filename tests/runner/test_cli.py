@@ -61,7 +61,13 @@ BAD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 0 -1 0\nf 1 2 3\nf 1 2 4\nf 1 2
     "args, files, words",
     [
         (["mesh=file", "mesh.path=missing.obj"], {}, ["mesh.path", "missing.obj", "not found"]),
-        (["mesh=file", "mesh.path=garbage.ply"], {"garbage.ply": "ply\nformat nonsense\n"}, ["mesh.path", "garbage.ply", "cannot read"]),
+        (["mesh=file", "mesh.path=garbage.ply"], {"garbage.ply": "ply\nformat nonsense\n"}, ["mesh.path", "garbage.ply", "end_header"]),
+        (["mesh=file", "mesh.path=zero.obj"], {"zero.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"},
+         ["mesh.path='zero.obj'", "line 4", "vertex 0 (OBJ indices start at 1)"]),
+        (["mesh=file", "mesh.path=repeat.obj"], {"repeat.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 2 2 3\n"},
+         ["mesh.path='repeat.obj'", "line 5"]),
+        (["mesh=file", "mesh.path=nan.obj"], {"nan.obj": "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n"},
+         ["mesh.path='nan.obj'", "line 2"]),
         (["mesh=file", "mesh.path=empty.obj"], {"empty.obj": ""}, ["mesh.path", "empty"]),
         (["mesh=file", "mesh.path=points.obj"], {"points.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\n"}, ["points.obj", "no faces"]),
         (["mesh=file", "mesh.path=fin.obj"], {"fin.obj": BAD_OBJ}, ["fin.obj", "non-manifold", "edge"]),
@@ -77,7 +83,7 @@ BAD_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 0 -1 0\nf 1 2 3\nf 1 2 4\nf 1 2
         (["boundary=flux"], {}, ["boundary=flux: app=smoothing supports boundary=none"]),
         (["app=hodge", "mesh=sample", "mesh.sample=dragon"], {}, ["mesh.sample", "dragon"]),
     ],
-    ids=["missing-file", "unreadable", "empty-file", "no-faces", "non-manifold", "unknown-key", "unknown-key-plus",
+    ids=["missing-file", "unreadable", "obj-index-0", "repeated-vertex", "nan-vertex", "empty-file", "no-faces", "non-manifold", "unknown-key", "unknown-key-plus",
          "unknown-app-key-plus", "other-source-key", "wrong-type", "unknown-option", "negative-dt", "negative-steps",
          "unknown-star", "unsupported-boundary", "unknown-sample"],
 )

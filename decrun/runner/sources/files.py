@@ -5,8 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from decrun.errors import MeshError
-from decrun.runner.meshes import Mesh, MeshSource, from_meshset, require
+from decrun.runner.meshes import Mesh, MeshSource, require
 
 __all__ = ["File", "Sample", "SAMPLE_MESHES", "sample_mesh_dir", "read_file"]
 
@@ -31,27 +30,22 @@ def sample_mesh_dir() -> Path:
 
 
 def read_file(path: Path, key: str, label: str) -> Mesh:
-    """The triangle mesh in ``path`` (read by pymeshlab); ``key`` names the config key in errors."""
-    import pymeshlab
+    """The mesh in ``path`` read and validated by :func:`decrun.runner.mesh_files.read_mesh_file`
+    before anything native sees it (pymeshlab silently drops faces with a repeated vertex,
+    NaN vertices, or crashes on OBJ index 0). Triangles (polygons split into fans, counted)
+    or tetrahedra; ``meta`` records the format and what the file held (``file_counts``)."""
+    from decrun.runner.mesh_files import read_mesh_file
 
-    if not path.exists():
-        raise MeshError(f"{key}={str(path)!r}: file not found")
-    if not path.is_file():
-        raise MeshError(f"{key}={str(path)!r}: not a file")
-    if path.stat().st_size == 0:
-        raise MeshError(f"{key}={str(path)!r}: the file is empty")
-    ms = pymeshlab.MeshSet()
-    try:
-        ms.load_new_mesh(str(path))
-    except Exception as exc:  # pymeshlab.PyMeshLabException and friends
-        raise MeshError(f"{key}={str(path)!r}: pymeshlab cannot read it: {str(exc).strip()}") from exc
-    vertices, faces = from_meshset(ms, f"{key}={str(path)!r}")
-    return Mesh(vertices, faces, {"source": label, "label": path.stem, "path": str(path)})
+    found = read_mesh_file(path, key=key)
+    meta = {"source": label, "label": Path(path).stem, "path": str(path), "file_format": found.format,
+            "file_counts": dict(found.counts)}
+    return Mesh(found.vertices, found.cells, meta)
 
 
 @dataclass
 class File(MeshSource):
-    """Any triangle mesh pymeshlab reads (obj, ply, off, stl, ...), by ``path``."""
+    """A triangle or tetrahedral mesh file by ``path``: OBJ, OFF, PLY, STL (decrun's own
+    validating readers) and the volume formats meshio reads (VTK, VTU, Gmsh, Medit, ...)."""
 
     name = "file"
     path: str = ""

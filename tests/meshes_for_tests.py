@@ -97,3 +97,41 @@ def annulus(max_area: float = 0.002):
     result = triangle.triangulate({"vertices": vertices, "segments": segments, "holes": [[0.0, 0.0]]},
                                   f"pq25a{max_area}")
     return result["vertices"], result["triangles"].astype(np.int64)
+
+
+def spiral_strip(turns: float = 1.5, segments: int = 90, rise: float = 0.0):
+    """A strip between radii 1 + 0.1 t and 1.5 + 0.1 t (t = θ / (2π turns)) over ``turns`` turns,
+    (vertices (2 (segments+1), 3), counter-clockwise faces (2 segments, 3)): a disk. With
+    ``rise`` = 0 it is a flat map that overlaps itself after one turn — no flipped triangle,
+    border turning number +1, but its border crosses itself; with ``rise`` > 0 (z = rise θ) it
+    is an embedded helical ramp in 3-D whose isometric layout overlaps in the same way."""
+    theta = np.linspace(0.0, 2 * np.pi * turns, segments + 1)
+    t = theta / theta[-1]
+    rings = [(1.0 + 0.1 * t), (1.5 + 0.1 * t)]
+    vertices = np.concatenate([np.column_stack([r * np.cos(theta), r * np.sin(theta), rise * theta]) for r in rings])
+    i = np.arange(segments)
+    inner, outer = i, i + segments + 1
+    faces = np.concatenate([np.stack([inner, outer + 1, inner + 1], 1), np.stack([inner, outer, outer + 1], 1)])
+    return vertices, faces.astype(np.int64)
+
+
+def flux_through_circle(K: SimplicialComplex, omega: np.ndarray, center, radius: float, samples: int = 720) -> float:
+    """Outward flux ∮ u·n ds of the Whitney field u = ♯ω (eq. 6.7) of a planar 1-form through
+    the circle |x − center| = radius (midpoint rule on ``samples`` arcs; each sample located in
+    its triangle by barycentric coordinates computed here, independently of decrun's search)."""
+    from decrun.core.forms import whitney_sharp
+
+    angle = (np.arange(samples) + 0.5) * 2 * np.pi / samples
+    normal = np.column_stack([np.cos(angle), np.sin(angle)])
+    points = np.asarray(center, dtype=np.float64) + radius * normal
+    corners = K.vertices[K.simplices(2)][:, :, :2]  # sorted tuples, as whitney_sharp wants
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    rel = points[:, None, :] - a[None]
+    l1 = (rel[..., 0] * (c[:, 1] - a[:, 1]) - rel[..., 1] * (c[:, 0] - a[:, 0])) / det
+    l2 = ((b[:, 0] - a[:, 0]) * rel[..., 1] - (b[:, 1] - a[:, 1]) * rel[..., 0]) / det
+    lam = np.stack([1 - l1 - l2, l1, l2], axis=-1)  # (samples, faces, 3)
+    face = np.argmax(lam.min(axis=-1), axis=1)
+    assert np.all(lam[np.arange(samples), face].min(axis=1) > -1e-12), "circle leaves the mesh"
+    u = whitney_sharp(K, omega, barycentric=lam[np.arange(samples), face], faces=face)[:, :2]
+    return float(np.sum(np.einsum("sd,sd->s", u, normal)) * 2 * np.pi * radius / samples)

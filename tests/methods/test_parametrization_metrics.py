@@ -8,6 +8,7 @@ from decrun.methods.parametrization_metrics import (
     area_distortion_std,
     border_turning_numbers,
     border_vertex_uv_angles,
+    degenerate_triangles,
     boundary_self_intersections,
     flipped_triangles,
     is_embedding,
@@ -15,6 +16,7 @@ from decrun.methods.parametrization_metrics import (
     parametrization_metrics,
 )
 from decrun.core.primitives import grid_triangles
+from meshes_for_tests import spiral_strip
 
 RIGHT_TRIANGLE = (np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), np.array([[0, 1, 2]]))
 
@@ -127,3 +129,43 @@ def test_uv_vertex_angles_and_winding_of_a_flat_map():
     assert metrics["border_winding_exterior_turns"] == pytest.approx(1.0)
     assert metrics["reflex_border_vertices_uv"] == 0
     assert metrics["qc_distortion_max"] == pytest.approx(1.0)
+
+
+def test_overlapping_map_without_flips_is_not_an_embedding():
+    """A 1.5-turn strip laid flat: every triangle counter-clockwise (0 flips, none degenerate),
+    the border turns exactly once — only the border crossing itself shows that the map is
+    not injective (Gortler's condition: disjoint simple border curves)."""
+    vertices, faces = spiral_strip(turns=1.5)
+    uv = vertices[:, :2]
+    loops = _square_loops(uv, faces)
+    assert len(loops) == 1
+    assert flipped_triangles(uv, faces) == 0 and degenerate_triangles(uv, faces) == 0
+    assert border_turning_numbers(uv, loops)[0] == pytest.approx(1.0, abs=1e-12)
+    assert boundary_self_intersections(uv, loops) > 0
+    assert not is_embedding(uv, faces, loops)
+    metrics = parametrization_metrics(vertices, uv, faces, loops)
+    assert metrics["border_winding_ok"] and metrics["flipped_triangles"] == 0
+    assert metrics["is_embedding"] is False
+    # one turn less and the same strip is an embedding: the test above is not vacuous
+    vertices, faces = spiral_strip(turns=0.75)
+    loops = _square_loops(vertices[:, :2], faces)
+    assert is_embedding(vertices[:, :2], faces, loops)
+    assert parametrization_metrics(vertices, vertices[:, :2], faces, loops)["is_embedding"] is True
+
+
+def test_degenerate_uv_triangles_are_counted_and_are_no_embedding():
+    """Move interior vertex (h, h) of a grid onto its neighbour (2h, h): the two triangles of
+    the collapsed edge have zero area — counted as degenerate (not as flips), no embedding."""
+    vertices, faces = grid_triangles(4, 4)
+    h = 0.25
+    index = int(np.flatnonzero(np.all(np.isclose(vertices, [h, h]), axis=1))[0])
+    neighbour = int(np.flatnonzero(np.all(np.isclose(vertices, [2 * h, h]), axis=1))[0])
+    uv = vertices.copy()
+    uv[index] = vertices[neighbour]
+    on_edge = np.sum(np.isin(faces, [index, neighbour]), axis=1) == 2
+    assert on_edge.sum() == 2
+    assert degenerate_triangles(uv, faces) == 2 and degenerate_triangles(vertices, faces) == 0
+    loops = _square_loops(vertices, faces)
+    assert not is_embedding(uv, faces, loops)
+    metrics = parametrization_metrics(np.column_stack([vertices, np.zeros(len(vertices))]), uv, faces, loops)
+    assert metrics["degenerate_triangles"] == 2 and metrics["is_embedding"] is False

@@ -68,14 +68,38 @@ def test_critical_dt_is_two_over_the_largest_eigenvalue(star):
     assert r.metrics["dt_critical_explicit"] == pytest.approx(2 / lam_max, rel=1e-8)
 
 
-def test_explicit_euler_is_stable_just_below_and_unstable_just_above_the_limit():
-    K, dec = setup()
+def predicted_divergence_step(dec, vertices, dt, steps, blowup_factor=10.0):
+    """The first step n ≤ ``steps`` at which explicit Euler (no rescaling) pushes the roughness
+    R_n above ``blowup_factor`` × R_0, predicted from the dense eigen-decomposition
+    S φ_i = λ_i ⋆0 φ_i (⋆0-orthonormal) instead of by stepping: with a_i = φ_iᵀ ⋆0 (v_0 − c),
+    v_n − c = Σ φ_i (1 − dt λ_i)ⁿ a_i, so R_n = Σ λ_i g_i²ⁿ |a_i|² / Σ g_i²ⁿ |a_i|², g_i = 1 − dt λ_i.
+    −1 when it stays below."""
+    S, M = dec.laplacian_symmetric(0).toarray(), dec.star_diagonal(0)
+    lam, phi = sla.eigh(S, np.diag(M))
+    centred = vertices - (M @ vertices) / M.sum()
+    weight = np.sum((phi.T @ (M[:, None] * centred)) ** 2, axis=1)  # |a_i|²
+    n = np.arange(steps + 1)[:, None]
+    growth = np.abs(1 - dt * lam)[None, :] ** (2 * n) * weight[None, :]
+    roughness = (growth @ lam) / growth.sum(axis=1)
+    above = np.flatnonzero(roughness > blowup_factor * roughness[0])
+    return int(above[0]) if above.size else -1
+
+
+@pytest.mark.parametrize("mesh", [dict(source="icosphere", subdiv=2), dict(source="torus", noise=0.2)],
+                         ids=["icosphere", "torus"])
+def test_explicit_euler_diverges_at_the_predicted_step_just_above_the_limit(mesh):
+    """Below dt_crit = 2/λ_max every |g_i| < 1: stable for all 150 steps; 3 % above it the
+    λ_max mode grows by |1 − dt λ_max| per step and the blow-up is detected at exactly the
+    step the spectral prediction gives — on two meshes."""
+    K, dec = setup(**mesh)
     dt_crit = smooth(K, dec, steps=0).metrics["dt_critical_explicit"]
-    below = smooth(K, dec, scheme="explicit", dt=0.97 * dt_crit, steps=150, rescale="none")
-    above = smooth(K, dec, scheme="explicit", dt=1.03 * dt_crit, steps=150, rescale="none")
-    assert below.metrics["stable"] and below.metrics["diverged_at_step"] == -1
-    assert not above.metrics["stable"] and 1 <= above.metrics["diverged_at_step"] <= 150
-    assert above.metrics["steps_done"] == above.metrics["diverged_at_step"]
+    for factor in (0.97, 1.03):
+        r = smooth(K, dec, scheme="explicit", dt=factor * dt_crit, steps=150, rescale="none")
+        expected = predicted_divergence_step(dec, K.vertices, factor * dt_crit, 150)
+        assert (expected == -1) is (factor < 1)
+        assert r.metrics["diverged_at_step"] == expected
+        assert r.metrics["stable"] is (expected == -1)
+        assert r.metrics["steps_done"] == (150 if expected == -1 else expected)
 
 
 def test_implicit_step_solves_the_thesis_equation():

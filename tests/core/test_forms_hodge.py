@@ -96,7 +96,10 @@ def test_barycentric_gradients_are_the_thesis_perpendiculars():
 
 
 def relative_inner(dec, k, a, b):
-    return abs(dec.inner(k, a, b)) / np.sqrt(dec.inner(k, a, a) * dec.inner(k, b, b))
+    """|⟨a, b⟩_⋆| / (‖a‖ ‖b‖) with the norms taken in |⋆_k| (⋆ is indefinite where cot weights
+    are negative, e.g. random tets: ⟨a, a⟩_⋆ may be negative)."""
+    weight = np.abs(dec.star_diagonal(k))
+    return abs(dec.inner(k, a, b)) / np.sqrt(np.sum(weight * a**2) * np.sum(weight * b**2))
 
 
 def dense_projections(dec, omega):

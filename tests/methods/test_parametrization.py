@@ -235,39 +235,9 @@ def test_cut_holes_keeps_a_manifold_and_removes_the_right_faces():
     np.testing.assert_array_equal(v[kept], vertices)
 
 
-# ---------------------------------------------------------------------------- the experiment meshes
-EXPERIMENTS = ["fig5_5_flat_hole", "fig5_6_open_patch", "fig5_7_half_sphere_holes", "fig5_8_t_hole"]
-
-
-def experiment_mesh(name):
-    """The mesh ``decrun +experiment=<name>`` runs on."""
-    from decrun.runner.cli import compose_config, validate
-
-    return validate(compose_config([f"+experiment={name}"])).mesh_source.load()
-
-
-@pytest.mark.parametrize("name", EXPERIMENTS)
-@pytest.mark.parametrize("weights", ["uniform", "mean_value"])
-def test_tutte_maps_embed_every_experiment_mesh(name, weights, new_solver):
-    mesh = experiment_mesh(name)
-    K, dec = complex_and_dec(mesh.vertices, mesh.simplices)
-    result = parametrize(dec, new_solver, border="circle", weights=weights)
-    metrics = parametrization_metrics(K.vertices, result.uv, K.oriented_simplices(), result.loops)
-    assert metrics["flipped_triangles"] == 0 and metrics["is_embedding"]
-
-
-def test_experiment_outcomes_of_the_thesis(new_solver):
-    # Fig. 5.5: the conformal border keeps a flat mesh with a hole (exactly with Cauchy–Riemann rows)
-    K, dec = complex_and_dec(*(lambda m: (m.vertices, m.simplices))(experiment_mesh("fig5_5_flat_hole")))
-    flat = parametrize(dec, new_solver, border="conformal", weights="dec", reflex_rows="cauchy_riemann")
-    assert parametrization_metrics(K.vertices, flat.uv, K.oriented_simplices(), flat.loops)["angle_distortion_max_deg"] < 1e-6
-    # Fig. 5.8: the conformal border of the T hole is not an embedding, the free border is
-    mesh = experiment_mesh("fig5_8_t_hole")
-    K, dec = complex_and_dec(mesh.vertices, mesh.simplices)
-    bad = parametrize(dec, new_solver, border="conformal", weights="dec")
-    good = parametrize(dec, new_solver, border="free", weights="dec")
-    assert not parametrization_metrics(K.vertices, bad.uv, K.oriented_simplices(), bad.loops)["is_embedding"]
-    assert parametrization_metrics(K.vertices, good.uv, K.oriented_simplices(), good.loops)["is_embedding"]
+# The Tutte maps and the conformal / free borders of the experiment meshes (Fig. 5.5-5.8) have
+# one home: tests/regression/parametrization.yaml pins their distortions, flips, border
+# crossings and orientation through the same composition as `decrun`.
 
 
 def test_app_run_returns_uv_metrics_and_figures(run_app):

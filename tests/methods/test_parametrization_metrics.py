@@ -169,3 +169,16 @@ def test_degenerate_uv_triangles_are_counted_and_are_no_embedding():
     assert not is_embedding(uv, faces, loops)
     metrics = parametrization_metrics(np.column_stack([vertices, np.zeros(len(vertices))]), uv, faces, loops)
     assert metrics["degenerate_triangles"] == 2 and metrics["is_embedding"] is False
+
+
+def test_a_map_onto_a_line_is_all_degenerate_and_no_flip():
+    """Every triangle of a map onto a line has zero area: all counted degenerate, none
+    flipped (no orientation), infinite quasi-conformal distortion, no embedding — even
+    though the border of the image does not cross itself transversally."""
+    vertices, faces = grid_triangles(3, 3)
+    uv = np.column_stack([vertices[:, 0] + 0.5 * vertices[:, 1], np.zeros(len(vertices))])
+    metrics = parametrization_metrics(np.column_stack([vertices, np.zeros(len(vertices))]), uv, faces,
+                                      _square_loops(vertices, faces))
+    assert metrics["degenerate_triangles"] == len(faces) and metrics["flipped_triangles"] == 0
+    assert metrics["qc_distortion_max"] == np.inf
+    assert metrics["is_embedding"] is False

@@ -249,3 +249,23 @@ def test_app_run_returns_uv_metrics_and_figures(run_app):
     assert result.metrics["angle_distortion_max_deg"] < 1e-6 and result.metrics["is_embedding"] is True
     assert result.metrics["cauchy_riemann_rows"] == result.metrics["reflex_border_vertices_predicted"] > 0
     assert set(result.figures) == {"uv_layout", "checkerboard"}
+
+
+@pytest.mark.parametrize("border", ["circle", "circle_arclength"])
+def test_circle_border_keeps_the_orientation_of_the_complex(border, new_solver):
+    """§5.2.2 with (cos, sin): the border loop (surface on its left) runs counter-clockwise on
+    the circle, so a counter-clockwise planar mesh keeps every triangle counter-clockwise
+    (the thesis' (sin, cos) would mirror the map: all triangles clockwise)."""
+    vertices, faces = planar_domain(0, max_area=0.01)
+    K, dec = complex_and_dec(vertices, faces)
+    result = parametrize(dec, new_solver, border=border, weights="uniform")
+    loop = result.loops[0]
+    x, y = result.uv[loop, 0], result.uv[loop, 1]
+    assert 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0  # shoelace: counter-clockwise
+    tri = K.oriented_simplices()
+
+    def side(p):  # sign of each triangle's signed area
+        u, v = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        return np.sign(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
+
+    np.testing.assert_array_equal(side(result.uv[tri]), side(vertices[tri]))

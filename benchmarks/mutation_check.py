@@ -9,7 +9,7 @@ tests. A mutation *survives* when no test fails. Before any mutation the unmutat
 pass every selection (otherwise a "kill" would mean nothing), and a replacement whose old
 text is not found exactly once is an error (a stale mutation is reported, never skipped).
 
-    .venv/bin/python benchmarks/mutation_check.py              # every mutation (~10 min)
+    .venv/bin/python benchmarks/mutation_check.py              # every mutation (~20 min)
     .venv/bin/python benchmarks/mutation_check.py -k flux      # mutations whose name has "flux"
     .venv/bin/python benchmarks/mutation_check.py --list
 

@@ -92,12 +92,28 @@ class Experiment:
         from decrun.runner.meshes import MeshSource
         from decrun.runner.plugins import build
 
+        check_root_keys(cfg)
         self.app = build(cfg.app, "app", App)
         self.operator = build(cfg.operator, "operator", HodgeStar)
         self.boundary = build(cfg.boundary, "boundary", BoundaryAdaptation)
         self.solver = build(cfg.solver, "solver", Solver)  # a missing optional package → SolverError now
         self.mesh_source = build(cfg.mesh, "mesh", MeshSource)
         self.app.check_solver(self.solver)
+
+
+def check_root_keys(cfg: DictConfig) -> None:
+    """ConfigError for a root key the schema :class:`decrun.runner.config.DecrunConfig` does
+    not have: Hydra's ``+foo=1`` adds keys even to a struct config, and nothing would read it."""
+    import dataclasses
+
+    from decrun.errors import ConfigError
+    from decrun.runner.config import DecrunConfig
+
+    known = [f.name for f in dataclasses.fields(DecrunConfig)]
+    unknown = [key for key in cfg if key not in known]
+    if unknown:
+        raise ConfigError(f"{unknown[0]}: unknown root key (nothing reads it); the config has {known}: "
+                          f"drop +{unknown[0]}=..., or put the option under its group (e.g. +app.{unknown[0]}=...)")
 
 
 def validate(cfg: DictConfig) -> Experiment:

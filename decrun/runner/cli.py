@@ -33,6 +33,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import DecrunError, MeshError
 from decrun.runner.config import config_dir, load_option, register_configs
+from decrun.runner.failures import (exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message,
+                                    record_status)
 
 if False:  # typing only
     from decrun.apps.base import Result
@@ -173,7 +175,13 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     except BaseException as exc:
         if recorder is not None:  # keep what was recorded, marked incomplete
             status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
-            recorder.abort(status, str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}")
+            error = (f"interrupted ({interrupt_cause(exc)})" if isinstance(exc, KeyboardInterrupt) else str(exc)
+                     if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}")
+            try:
+                recorder.abort(status, error)
+            except (OSError, RuntimeError) as write_error:  # e.g. the disk is full: report the first error
+                if not isinstance(exc, OSError):
+                    exc.add_note(str(write_error))
         raise
     if recorder is None:
         for name, values in ctx.series.items():
@@ -251,21 +259,20 @@ def _task(cfg: DictConfig) -> int:
         result, mesh, timings = run_experiment(cfg, make_progress(bool(cfg.get("progress", True)) and not multirun),
                                                out=out)
         written = write_run(out, cfg, result, mesh, timings)
-    except KeyboardInterrupt:
-        from decrun.runner.results import write_metrics_json
-
-        write_metrics_json(out / "metrics.json", {"status": "interrupted", "error": "interrupted (Ctrl-C)"})
-        print(f"decrun: interrupted; what was recorded is in {out}/", file=sys.stderr)
-        sys.exit(130)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (failures.Terminated)
+        cause = interrupt_cause(exc)
+        note = record_status(out, "interrupted", f"interrupted ({cause})")
+        print(f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}", file=sys.stderr)
+        sys.exit(exit_code(exc))
     except Exception as exc:
-        message = str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}"
-        from decrun.runner.results import write_metrics_json
-
-        write_metrics_json(out / "metrics.json", {"status": "failed", "error": message})
-        if _verbose() or not isinstance(exc, DecrunError):
-            log.exception("error: %s", message)
+        os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)
+        message = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None
+                   else f"{type(exc).__name__}: {exc}")
+        note = record_status(out, "failed", message)
+        if _verbose() or not (isinstance(exc, DecrunError) or os_error is not None):
+            log.exception("error: %s%s", message, note)
         else:
-            log.error("error: %s", message)
+            log.error("error: %s%s", message, note)
         if multirun:
             return 1
         sys.exit(1)
@@ -351,9 +358,45 @@ def main() -> None:
         print(fast_help(), end="")
         return
     SweepTable.failed = 0
-    _hydra_main()
+    install_sigterm()
+    # a log file that cannot be written (full disk) must not print logging's tracebacks;
+    # the error itself is reported on the console
+    logging.raiseExceptions = False
+    # Hydra prints a traceback for an exception outside the task (creating the run
+    # directory, saving .hydra/, Ctrl-C while composing); let them reach _report instead
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    try:
+        _hydra_main()
+    except Exception as exc:
+        sys.exit(_report(exc))
+    except KeyboardInterrupt as exc:
+        print(f"decrun: interrupted ({interrupt_cause(exc)}) before the run started", file=sys.stderr)
+        sys.exit(exit_code(exc))
     if SweepTable.failed:
         sys.exit(1)
+
+
+def _report(exc: Exception) -> int:
+    """Print an exception Hydra let through (see :func:`main`) as one line, as Hydra itself
+    would for its own errors; returns the exit code. With -v: the traceback."""
+    from hydra.errors import CompactHydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    if _VERBOSE:
+        raise exc
+    if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
+        print(str(exc), file=sys.stderr)
+        if isinstance(exc.__cause__, OmegaConfBaseException):
+            print(str(exc.__cause__), file=sys.stderr)
+        return 1
+    if isinstance(exc, DecrunError):
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    os_error = find_os_error(exc)
+    if os_error is not None:
+        print(f"error: {os_error_message(os_error)}", file=sys.stderr)
+        return 1
+    raise exc  # a bug: show it
 
 
 # ----------------------------------------------------------------------------------

@@ -38,7 +38,8 @@ import numpy as np
 from decrun.core.geometry import mean_edge_length
 from decrun.errors import ConfigError, MeshError
 
-__all__ = ["Mesh", "MeshSource", "mesh_hash", "require", "from_meshset", "to_meshset", "pymeshlab_primitive"]
+__all__ = ["Mesh", "MeshSource", "mesh_hash", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
+           "from_meshset", "to_meshset", "pymeshlab_primitive"]
 
 
 @dataclass
@@ -67,6 +68,28 @@ def mesh_hash(vertices: np.ndarray, simplices: np.ndarray) -> str:
     h.update(v.tobytes())
     h.update(s.tobytes())
     return h.hexdigest()
+
+
+#: the most triangles a source or post step may produce: 4·10⁶ triangles are ~2 GB of
+#: complex and operators; beyond that pymeshlab or triangle would be killed for memory
+#: (a 10×10 grid refined 10 times, 162·4¹⁰ = 1.7·10⁸ triangles, was: exit 137, no message)
+MAX_TRIANGLES = 4_000_000
+
+
+def require_triangles(count: float, key: str, fix: str) -> None:
+    """ConfigError naming ``key`` when ``count`` (the predicted number of triangles) exceeds
+    :data:`MAX_TRIANGLES`; ``fix`` is the override that keeps it below."""
+    if count > MAX_TRIANGLES:
+        raise ConfigError(f"{key}: would make about {count:.3g} triangles, more than decrun's limit "
+                          f"{MAX_TRIANGLES:.0e} (memory); use {fix}")
+
+
+def require_surface(mesh: "Mesh", key: str, fix: str) -> None:
+    """ConfigError naming ``key`` unless the mesh is made of triangles (a post step that
+    works on surfaces, given a tetrahedral mesh); ``fix`` is the override that drops it."""
+    if mesh.simplices.shape[1] != 3:
+        raise ConfigError(f"{key}: needs a triangle surface; this mesh is made of "
+                          f"{len(mesh.simplices)} tetrahedra: use {fix}")
 
 
 def require(condition: bool, key: str, message: str) -> None:

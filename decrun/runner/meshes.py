@@ -144,6 +144,26 @@ def check_mesh(mesh: Mesh, what: str = "mesh") -> None:
         raise MeshError(f"{what}: face {int(out[0])} {F[out[0]].tolist()} references a vertex outside [0, {len(V)})")
 
 
+#: the range of mesh sizes (bounding-box diagonal, model units) decrun computes with: areas
+#: squared (L⁴) and tetrahedron volumes squared (L⁶) stay inside float64's normal range
+#: (1e-308 .. 1e308) with a wide margin; outside it they under- or overflow silently
+SIZE_RANGE = (1e-30, 1e30)
+
+
+def check_size(mesh: Mesh, what: str) -> None:
+    """MeshError unless the mesh's bounding-box diagonal lies in :data:`SIZE_RANGE`
+    (coordinates of 1e300 otherwise give overflow warnings and a singular factorization)."""
+    V = mesh.vertices
+    extent = V.max(axis=0) - V.min(axis=0)
+    scale = float(np.max(np.abs(extent)))
+    diagonal = scale * float(np.sqrt(np.sum((extent / scale) ** 2))) if scale > 0 else 0.0
+    lo, hi = SIZE_RANGE
+    if not lo <= diagonal <= hi:
+        raise MeshError(f"{what}: the mesh's size (bounding-box diagonal {diagonal:.3g}) is outside decrun's range "
+                        f"[{lo:g}, {hi:g}] (lengths to the 4th and 6th power would under- or overflow float64): "
+                        f"rescale it with mesh.normalize=true")
+
+
 def _default_post() -> List[str]:
     return ["holes", "clean", "refine", "normalize", "noise"]
 
@@ -200,14 +220,19 @@ class MeshSource:
         mesh = replace(mesh, simplices=np.asarray(mesh.simplices, dtype=np.int64),
                        vertices=np.asarray(mesh.vertices, dtype=np.float64))
         label = mesh.meta.get("label", self.name)
-        check_mesh(mesh, f"mesh {label}")
+        if self.name == "file" and "path" in mesh.meta:  # name the file as the user gave it
+            label = f"mesh.path={mesh.meta['path']!r}"
+        else:
+            label = f"mesh {label}"
+        check_mesh(mesh, label)
         applied = []
         for step in self.post:
             before = mesh
             mesh = getattr(post_steps, step)(mesh, self)
             if mesh is not before:
                 applied.append(step)
-        check_mesh(mesh, f"mesh {label} after {applied}")
+        check_mesh(mesh, f"{label} after {applied}")
+        check_size(mesh, label + (f" after {applied}" if applied else ""))
         mesh.meta.setdefault("source", self.name)
         mesh.meta["steps"] = applied
         if mesh.simplices.shape[1] == 3:

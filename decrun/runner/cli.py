@@ -118,6 +118,32 @@ def check_root_keys(cfg: DictConfig) -> None:
                           f"drop +{unknown[0]}=..., or put the option under its group (e.g. +app.{unknown[0]}=...)")
 
 
+#: a message starting with one of these names its config key already
+_KEYS = ("mesh", "operator", "boundary", "app", "solver", "progress", "figures")
+
+
+def name_the_key(exc: DecrunError, experiment: Experiment, where: str) -> DecrunError:
+    """``exc`` with the config key it comes from in front, when its message (raised by the
+    core, which knows no config) does not start with one: the mesh (``where``) for mesh
+    and topology errors, ``solver=<name>`` for solver errors, ``app=<name>`` otherwise.
+    Errors about files (an OSError such as ResultWriteError) name their file already."""
+    from decrun.errors import SolverError, TopologyError
+
+    message = str(exc)
+    if message.startswith(_KEYS) or isinstance(exc, OSError):
+        return exc
+    if isinstance(exc, (MeshError, TopologyError)):
+        prefix = where
+    elif isinstance(exc, SolverError):
+        prefix = f"solver={experiment.solver.name} (app={experiment.app.name})"
+    else:
+        prefix = f"app={experiment.app.name}"
+    try:
+        return type(exc)(f"{prefix}: {message}")
+    except TypeError:  # a subclass with another signature: keep it as it is
+        return exc
+
+
 def validate(cfg: DictConfig) -> Experiment:
     """Build and type-check every plugin node of ``cfg`` (ConfigError naming the key)."""
     return Experiment(cfg)
@@ -147,17 +173,17 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     mesh = experiment.mesh_source.load()
     timings["mesh_seconds"] = time.perf_counter() - t
     t = time.perf_counter()
+    where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
     try:
         complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
-    except MeshError as exc:  # name the mesh the complex refused
-        where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
-        raise type(exc)(f"{where}: {exc}") from exc
-    complex_.meta = mesh.meta
-    dec = DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
-    app = experiment.app
-    app.check_operators(dec)
-    app.check_solver(experiment.solver, dec)
-    app.check(complex_, dec)
+        complex_.meta = mesh.meta
+        dec = DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
+        app = experiment.app
+        app.check_operators(dec)
+        app.check_solver(experiment.solver, dec)
+        app.check(complex_, dec)
+    except DecrunError as exc:
+        raise name_the_key(exc, experiment, where) from exc
     timings["complex_seconds"] = time.perf_counter() - t
     t = time.perf_counter()
     recorder = None
@@ -173,15 +199,18 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     try:
         result = app.run(ctx)
     except BaseException as exc:
+        named = name_the_key(exc, experiment, where) if isinstance(exc, DecrunError) else exc
         if recorder is not None:  # keep what was recorded, marked incomplete
             status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
-            error = (f"interrupted ({interrupt_cause(exc)})" if isinstance(exc, KeyboardInterrupt) else str(exc)
+            error = (f"interrupted ({interrupt_cause(exc)})" if isinstance(exc, KeyboardInterrupt) else str(named)
                      if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}")
             try:
                 recorder.abort(status, error)
             except (OSError, RuntimeError) as write_error:  # e.g. the disk is full: report the first error
                 if not isinstance(exc, OSError):
                     exc.add_note(str(write_error))
+        if named is not exc:
+            raise named from exc
         raise
     if recorder is None:
         for name, values in ctx.series.items():

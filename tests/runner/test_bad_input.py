@@ -118,6 +118,9 @@ CASES = {
                      ["mesh.holes[1]: the hole lies inside mesh.holes[0]"]),
     "planar-too-fine": ([*PLANAR, "mesh.max_area=1e-12"], {}, ["mesh.max_area", "triangles", "mesh.max_area="]),
     # post steps that would crash native code or exhaust memory
+    "grid-too-fine": (["mesh=grid", "mesh.nx=100000", "mesh.ny=100000"], {}, ["mesh.nx: would make about 2e+10 triangles"]),
+    "torus-too-fine": (["mesh=torus", "mesh.major_segments=100000", "mesh.minor_segments=1000"], {},
+                       ["mesh.major_segments: would make about 2e+08 triangles"]),
     "refine-too-many": (["mesh=grid", "mesh.refine=loop", "mesh.refine_iterations=10"], {},
                         ["mesh.refine_iterations", "mesh.refine_iterations=6"]),
     "remesh-too-fine": (["mesh=file", "mesh.path=octa.obj", "mesh.refine=isotropic", "mesh.refine_target_edge=1e-5"],

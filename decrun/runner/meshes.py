@@ -36,7 +36,7 @@ from typing import Any, ClassVar, List
 import numpy as np
 
 from decrun.core.geometry import mean_edge_length
-from decrun.errors import ConfigError, MeshError
+from decrun.errors import ConfigError, IndexOutOfRangeError, MeshError, NonFiniteCoordinateError
 
 __all__ = ["Mesh", "MeshSource", "mesh_hash", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
            "from_meshset", "to_meshset", "pymeshlab_primitive"]
@@ -138,10 +138,10 @@ def check_mesh(mesh: Mesh, what: str = "mesh") -> None:
         raise MeshError(f"{what}: need a non-empty (m, 3) triangle or (m, 4) tetrahedron array, got shape {F.shape}")
     bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
     if len(bad):
-        raise MeshError(f"{what}: vertex {int(bad[0])} has a non-finite coordinate {V[bad[0]].tolist()} ({len(bad)} such vertices)")
+        raise NonFiniteCoordinateError(f"{what}: vertex {int(bad[0])} has a non-finite coordinate {V[bad[0]].tolist()} ({len(bad)} such vertices)")
     out = np.flatnonzero(((F < 0) | (F >= len(V))).any(axis=1))
     if len(out):
-        raise MeshError(f"{what}: face {int(out[0])} {F[out[0]].tolist()} references a vertex outside [0, {len(V)})")
+        raise IndexOutOfRangeError(f"{what}: face {int(out[0])} {F[out[0]].tolist()} references a vertex outside [0, {len(V)})")
 
 
 #: the range of mesh sizes (bounding-box diagonal, model units) decrun computes with: areas
@@ -231,7 +231,7 @@ class MeshSource:
             mesh = getattr(post_steps, step)(mesh, self)
             if mesh is not before:
                 applied.append(step)
-        check_mesh(mesh, f"{label} after {applied}")
+                check_mesh(mesh, f"{label} after the mesh.post step {step!r}")  # names the step that broke it
         check_size(mesh, label + (f" after {applied}" if applied else ""))
         mesh.meta.setdefault("source", self.name)
         mesh.meta["steps"] = applied

@@ -396,3 +396,22 @@ def test_an_interrupt_before_the_run_starts_is_one_line(tmp_path, signum, code):
     if proc.returncode == code and "what was recorded" in proc.stderr:
         pytest.skip("this machine reached the run within 0.6 s")
     assert_one_clear_line(proc, "before the run started", code=code)
+
+
+def test_a_post_step_that_breaks_the_mesh_is_named(monkeypatch):
+    """A step that produced non-finite coordinates is reported by name, not as a strange
+    error far away (e.g. "app.rescale=volume needs a closed surface")."""
+    from decrun.errors import NonFiniteCoordinateError
+    from decrun.runner import post_steps
+    from decrun.runner.meshes import Mesh
+    from decrun.runner.plugins import option
+
+    def broken(mesh, cfg):
+        vertices = mesh.vertices.copy()
+        vertices[7] = np.nan
+        return Mesh(vertices, mesh.simplices, dict(mesh.meta))
+
+    monkeypatch.setattr(post_steps, "noise", broken)
+    with pytest.raises(NonFiniteCoordinateError, match=r"^mesh icosphere1 after the mesh.post step 'noise': vertex 7 has a "
+                                        r"non-finite coordinate \[nan, nan, nan\] \(1 such vertices\)$"):
+        option("mesh", "icosphere", subdiv=1).load()

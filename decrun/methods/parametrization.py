@@ -75,7 +75,7 @@ def check_disk_topology(K: SimplicialComplex) -> int:
     if not loops:
         raise TopologyError(
             "mesh: parametrization needs a disk-like surface with a border, this mesh is closed "
-            f"(χ = {K.euler_characteristic}, no border edges); cut it open first (mesh.holes)"
+            f"(χ = {K.euler_characteristic}, no border edges); cut it open first, e.g. mesh.hole_balls=[[0.0,0.0,1.0,0.3]]"
         )
     genus2 = 2 - len(loops) - K.euler_characteristic
     if genus2 != 0:

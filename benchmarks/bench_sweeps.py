@@ -16,6 +16,7 @@ user waits for them):
 
     python benchmarks/bench_sweeps.py                # both, best of --repeat (default 2)
     python benchmarks/bench_sweeps.py --only overhead --repeat 3
+    PYTHONPATH=/path/to/old/checkout python benchmarks/bench_sweeps.py   # "before" numbers
 """
 
 from __future__ import annotations
@@ -36,15 +37,16 @@ HEAVY = ["mesh.subdiv=4", "app.scheme=explicit", "app.steps=300", "app.dt=1e-5",
 HEAVY_SEEDS = list(range(8))
 
 LOOP = """
-import sys, time
+import inspect, sys, time
 from pathlib import Path
 from decrun.runner.cli import compose_config, run_experiment, write_run
 out = Path(sys.argv[1]); overrides = sys.argv[2].split()
 cfg = compose_config(overrides)
+cache = {{"cache": True}} if "cache" in inspect.signature(run_experiment).parameters else {{}}  # older decrun: none
 for i, dt in enumerate({dts}):
     cfg.app.dt = dt
     job = out / str(i); job.mkdir(parents=True)
-    result, mesh, timings = run_experiment(cfg, out=job, cache=True)
+    result, mesh, timings = run_experiment(cfg, out=job, **cache)
     write_run(job, cfg, result, mesh, timings)
 """
 

@@ -138,3 +138,16 @@ def test_ray_launcher_on_a_local_cluster_gives_the_basic_launchers_table(tmp_pat
     ray = _launcher_table(tmp_path, ["hydra/launcher=ray", "+hydra.launcher.ray.init.num_cpus=2",
                                      "+hydra.launcher.ray.init.include_dashboard=false"], "ray")
     pd.testing.assert_frame_equal(ray, basic)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_submitit_launcher") is None,
+                    reason="hydra-submitit-launcher is not installed (pip install 'decrun[slurm]')")
+def test_the_readme_slurm_launcher_config_composes(tmp_path):
+    """README's SLURM example (conf/hydra/launcher/slurm_example.yaml) is a valid
+    submitit_slurm launcher config (there is no SLURM cluster here to run it)."""
+    proc = decrun("hydra/launcher=slurm_example", "--cfg", "hydra", "--package", "hydra.launcher", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    launcher = yaml.safe_load(proc.stdout)
+    launcher = launcher.get("hydra", {}).get("launcher", launcher)
+    assert launcher["_target_"] == "hydra_plugins.hydra_submitit_launcher.submitit_launcher.SlurmLauncher"
+    assert (launcher["partition"], launcher["timeout_min"], launcher["array_parallelism"]) == ("compute", 60, 64)

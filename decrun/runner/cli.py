@@ -356,7 +356,8 @@ def fast_help() -> str:
         if isinstance(entry, str) or entry is None:
             continue
         for group, option in entry.items():
-            merged[group] = load_option(group, option)
+            if not group.startswith(("override ", "hydra/")):  # Hydra's own groups are not the task's
+                merged[group] = load_option(group, option)
     body = {k: v for k, v in OmegaConf.to_container(main_cfg).items() if k not in ("defaults", "hydra")}
     merged = OmegaConf.merge(merged, body)
     lines += ["", "", "== Config ==", "Override anything in the config (foo.bar=value)", "",

@@ -153,3 +153,22 @@ def test_jobs_of_one_process_share_mesh_complex_and_operators():
     other, _, _ = run_experiment(compose_config([*common, "app.dt=0.002", "mesh.seed=1"]), cache=True)
     assert other.metrics["distance_to_clean_rms_initial"] != first.metrics["distance_to_clean_rms_initial"]
     job_cache.clear()
+
+
+def test_other_sweepers_refuse_a_non_empty_sweep_dir(tmp_path, capsys):
+    """Sweepers without a manifest (optuna) cannot resume: the end-of-sweep callback
+    refuses to mix a new sweep into an old directory, in one line."""
+    from omegaconf import OmegaConf
+
+    from decrun.runner.cli import SweepTable
+
+    old = tmp_path / "old"
+    (old / "0").mkdir(parents=True)
+    config = OmegaConf.create({"hydra": {"sweep": {"dir": str(old)},
+                                         "sweeper": {"_target_": "hydra_plugins.hydra_optuna_sweeper.optuna_sweeper.OptunaSweeper"}}})
+    with pytest.raises(SystemExit) as info:
+        SweepTable().on_multirun_start(config)
+    assert info.value.code == 1
+    assert "is not empty" in capsys.readouterr().err
+    SweepTable().on_multirun_start(OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path / "new")},
+                                                               "sweeper": config.hydra.sweeper}}))

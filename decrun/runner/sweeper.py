@@ -17,6 +17,7 @@ launcher. Hydra loads sweepers only from the ``hydra_plugins`` namespace:
 
 from __future__ import annotations
 
+import copy
 import logging
 import os
 import shutil
@@ -27,6 +28,7 @@ from typing import Any, Dict, List, Optional, Sequence
 
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import OverrideType
 from hydra.errors import CompactHydraException
 from omegaconf import OmegaConf
 
@@ -83,11 +85,11 @@ class DecrunSweeper(BasicSweeper):
         parser = OverridesParser.create(config_loader=loader)
         overrides = parser.parse_overrides(self._parse_config() + list(arguments))
         planned = [job for batch in self.split_arguments(overrides, None) for job in batch]
-        jobs, configs = [], {}
-        for i, job in enumerate(planned):
-            launched = (*job, f"hydra.sweep.subdir={i}")
-            configs[launched] = loader.load_sweep_config(self.config, list(launched))
-            jobs.append({"job": str(i), "overrides": list(job), "config_hash": config_hash(configs[launched])})
+        composer = Composer(loader, self.config)
+        launched = [(*job, f"hydra.sweep.subdir={i}") for i, job in enumerate(planned)]
+        configs = composer.compose_all(launched)
+        jobs = [{"job": str(i), "overrides": list(job), "config_hash": config_hash(configs[key])}
+                for i, (job, key) in enumerate(zip(planned, launched))]
         if not isinstance(loader, PlannedConfigs):
             self.hydra_context.config_loader = PlannedConfigs(loader, configs)  # the launcher's too (same object)
         return jobs
@@ -157,6 +159,69 @@ class DecrunSweeper(BasicSweeper):
         run["jobs"] = [j["job"] for j in todo]
         manifest.setdefault("runs", []).append(run)
         return manifest, todo
+
+
+class Composer:
+    """Composes a sweep's jobs as Hydra does, faster: jobs that differ from an already
+    composed one only in plain values (``app.dt=0.1`` → ``app.dt=0.2``: no config group,
+    no ``+``/``~``, no dict or list) are derived from it — a copy with Hydra's own
+    ``_apply_overrides_to_config`` and the override lists and ``override_dirname`` Hydra
+    would write. A full Hydra composition costs ~0.3 s; the copy a few ms.
+
+    Checked, not trusted: the last job of every template is also composed by Hydra, and if
+    the two differ the template's jobs are all composed by Hydra (with a message)."""
+
+    def __init__(self, loader, master):
+        self.loader, self.master = loader, master
+        self.parser = OverridesParser.create(config_loader=loader)
+
+    def _plain(self, override) -> bool:
+        return (override.type == OverrideType.CHANGE and override.package is None
+                and not self.loader.repository.group_exists(override.key_or_group.replace(".", "/"))
+                and isinstance(override.value(), (str, int, float, bool, type(None))))
+
+    def compose_all(self, jobs: list[tuple[str, ...]]) -> dict[tuple[str, ...], Any]:
+        groups: dict[tuple, list[tuple[tuple[str, ...], list]]] = {}
+        for job in jobs:
+            parsed = self.parser.parse_overrides(list(job))
+            shape = tuple((o.key_or_group, None if self._plain(o) else o.input_line) for o in parsed)
+            groups.setdefault(shape, []).append((job, parsed))
+        configs = {}
+        for members in groups.values():
+            (first, _), rest = members[0], members[1:]
+            template = self.loader.load_sweep_config(self.master, list(first))
+            configs[first] = template
+            if not rest:
+                continue
+            pristine = copy.deepcopy(template)
+            for job, parsed in rest:
+                configs[job] = self._derive(pristine, parsed)
+            last, _ = rest[-1]
+            fresh = self.loader.load_sweep_config(self.master, list(last))
+            if OmegaConf.to_yaml(fresh) != OmegaConf.to_yaml(configs[last]):
+                print(f"decrun: derived composition of {' '.join(last)} differs from Hydra's; composing "
+                      f"each of its {len(members)} jobs with Hydra", file=sys.stderr)
+                for job, _ in rest:
+                    configs[job] = self.loader.load_sweep_config(self.master, list(job))
+            configs[last] = fresh
+        return configs
+
+    def _derive(self, pristine, parsed):
+        from hydra._internal.config_loader_impl import ConfigLoaderImpl, get_overrides_dirname
+
+        cfg = copy.deepcopy(pristine)
+        ConfigLoaderImpl._apply_overrides_to_config([o for o in parsed if self._plain(o)], cfg)
+        hydra_lines = [o.input_line for o in parsed if o.is_hydra_override()]
+        task = [o for o in parsed if not o.is_hydra_override()]
+        fixed = list(cfg.hydra.overrides.hydra)[:len(cfg.hydra.overrides.hydra) - len(hydra_lines)]
+        cfg.hydra.overrides.hydra = fixed + hydra_lines
+        cfg.hydra.overrides.task = [o.input_line for o in task]
+        dirname = cfg.hydra.job.config.override_dirname
+        cfg.hydra.job.override_dirname = get_overrides_dirname(overrides=task, kv_sep=dirname.kv_sep,
+                                                               item_sep=dirname.item_sep,
+                                                               exclude_keys=dirname.exclude_keys)
+        OmegaConf.copy_cache(from_config=self.master, to_config=cfg)
+        return cfg
 
 
 class PlannedConfigs:

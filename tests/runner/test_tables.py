@@ -172,3 +172,42 @@ def test_other_sweepers_refuse_a_non_empty_sweep_dir(tmp_path, capsys):
     assert "is not empty" in capsys.readouterr().err
     SweepTable().on_multirun_start(OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path / "new")},
                                                                "sweeper": config.hydra.sweeper}}))
+
+
+def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
+    """The sweeper derives jobs that differ only in plain values from one composition:
+    every derived config (hydra node included) is the one Hydra composes; when a
+    derivation differs, the sweeper says so and uses Hydra's."""
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.types import RunMode
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import config_dir
+    from decrun.runner.sweeper import Composer
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
+        loader = GlobalHydra.instance().config_loader()
+        master = loader.load_configuration("config", ["hydra.sweep.dir=x"], RunMode.MULTIRUN)
+        jobs = [(f"app.dt={dt}", f"operator={op}", "mesh.subdiv=2", f"hydra.sweep.subdir={i}")
+                for i, (dt, op) in enumerate((dt, op) for op in ("mixed_area", "barycentric") for dt in (0.1, 0.2, 0.4))]
+        derived = Composer(loader, master).compose_all(jobs)
+        for job in jobs:
+            assert OmegaConf.to_yaml(derived[job]) == OmegaConf.to_yaml(loader.load_sweep_config(master, list(job))), job
+        assert derived[jobs[1]].app.dt == 0.2 and derived[jobs[1]].hydra.sweep.subdir == "1"
+        assert derived[jobs[4]].operator != derived[jobs[1]].operator  # the other group option
+        assert list(derived[jobs[1]].hydra.overrides.task) == list(jobs[1][:-1])
+        capsys.readouterr()
+
+        def wrong(self, pristine, parsed):
+            cfg = Composer._derive_original(self, pristine, parsed)
+            cfg.app.steps = 99
+            return cfg
+
+        monkeypatch.setattr(Composer, "_derive_original", Composer._derive, raising=False)
+        monkeypatch.setattr(Composer, "_derive", wrong)
+        checked = Composer(loader, master).compose_all(jobs[:3])
+        assert "differs from Hydra's" in capsys.readouterr().err
+        assert all(checked[job].app.steps != 99 for job in jobs[:3])
+    GlobalHydra.instance().clear()

@@ -87,15 +87,15 @@ def os_error_message(exc: OSError) -> str:
     return f"cannot write {where}: {cause}{hint}"
 
 
-def record_status(out: Path, status: str, error: str) -> str:
-    """Write ``{"status": status, "error": error}`` to ``out/metrics.json`` if ``out`` is a
-    directory; returns "" or, when that is impossible, a note saying why (for the message)."""
+def record_status(out: Path, status: str, error: str, extra: dict | None = None) -> str:
+    """Write ``{"status": status, "error": error, **extra}`` to ``out/metrics.json`` if ``out``
+    is a directory; returns "" or, when that is impossible, a note saying why (for the message)."""
     from decrun.runner.results import write_metrics_json
 
     if not Path(out).is_dir():
         return ""
     try:
-        write_metrics_json(Path(out) / "metrics.json", {"status": status, "error": error})
+        write_metrics_json(Path(out) / "metrics.json", {"status": status, "error": error, **(extra or {})})
     except OSError as exc:
         return f" (metrics.json could not be written either: {os.strerror(exc.errno) if exc.errno else exc})"
     return ""

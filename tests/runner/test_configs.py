@@ -4,6 +4,7 @@ same composition as the ``decrun`` command (figures are built but not written)."
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
@@ -100,6 +101,12 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     "fig6_8_saddle": lambda m: m["singularities_negative"] == 1 and m["singularities_positive"] == 3,
     "fig6_8_spiral": lambda m: m["singularities"] == m["singularities_positive"] == 2,
     "fig6_8_vortex": lambda m: m["singularities"] == m["singularities_positive"] == 2,
+    # the optimizer's single run: explicit Euler at dt = 0.01 (0.36 dt_crit) is stable for all
+    # 200 steps, and the critical step is not computed (the search must not be told it)
+    "dt_crit_search": lambda m: m["stable"] and m["steps_done"] == 200 and math.isnan(m["dt_critical_explicit"]),
+    # the operator comparison's single run: a clean sphere is a fixed point of the rescaled flow
+    "operator_variants": lambda m: (m["stable"] and abs(m["roughness_ratio"] - 1) < 1e-5
+                                    and abs(m["area_ratio"] - 1) < 1e-5),
     # Fig. 6.9: one source in a square, unadapted border: one singularity, flow tangential to the border
     "fig6_9_square": lambda m: (m["singularities"] == m["index_sum"] == 1 and m["boundary"] == "none"
                                 and m["boundary_normal_fraction"] < 0.2),

@@ -13,6 +13,13 @@ d. circulation Γ around each backtracked cell, trapezoid rule
    *border cells* the full u. A border cell is the cell of a border vertex or any cell one of
    whose backtracked corners was clamped at a wall. w = Γ / ⋆0; on closed surfaces the
    ⋆0-weighted mean is removed (Σ ⋆0 w = 0);
+   curvature correction (``circulation_correction=True``, a deviation from the thesis):
+   on a curved surface the trapezoid circulation Γ⁰ of the *unmoved* cell differs from
+   ⋆0 w by O(h²) (the polygon of circumcenters cuts across the bent dual edges), and
+   applied every step that error acts like a diffusion that depends on the number of
+   steps, not on time. Interior cells therefore take w + (Γ − Γ⁰) / ⋆0, the change of
+   circulation caused by the motion. On planar meshes Γ⁰ = ⋆0 w exactly at interior
+   vertices, so the correction changes nothing there;
 e. viscosity, implicit: (⋆0 + ν dt d0ᵀ ⋆1 d0) w_new = ⋆0 w;
 f. forces: w += dt ⋆0⁻¹ d0ᵀ ⋆1 f for a force flux f;
 g. recovery (eq. 7.14 × ⋆0): (d0ᵀ ⋆1 d0 + μ d0ᵀ I_B d0) ψ = ⋆0 w with one pinned vertex
@@ -57,12 +64,15 @@ class VorticityFluid:
     penalty : μ of eq. 7.14 (default 1e6 · max ⋆1)
     blowup_factor : the run is reported unstable when the kinetic energy exceeds this
         factor times the largest legitimate energy (initial, harmonic, or after a forced step)
-    max_rounds, max_segment_time : passed to the backtracking walk
+    max_rounds, max_segment_time, integrator : passed to the backtracking walk
+        (``integrator="euler", max_segment_time=None`` is Fig. 7.9 with stepSize = ∞)
+    circulation_correction : see step d above
     """
 
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
-                 blowup_factor: float = 1e6, max_rounds: int = 500, max_segment_time: float | None = None):
+                 blowup_factor: float = 1e6, max_rounds: int = 500, max_segment_time: float | None = None,
+                 integrator: str = "midpoint", circulation_correction: bool = True):
         if not dt > 0:
             raise ValueError(f"dt must be > 0, got {dt}")
         if not viscosity >= 0:
@@ -70,7 +80,8 @@ class VorticityFluid:
         K = dec.K
         self.dec, self.K = dec, K
         self.dt, self.viscosity = float(dt), float(viscosity)
-        self.max_rounds, self.max_segment_time = max_rounds, max_segment_time
+        self.max_rounds, self.max_segment_time, self.integrator = max_rounds, max_segment_time, integrator
+        self.circulation_correction = circulation_correction
         self.blowup_factor = blowup_factor
         self.cells = build_dual_cells(dec)
         self.face_normal = self.cells.face_normal
@@ -168,15 +179,17 @@ class VorticityFluid:
 
         m = self.cells.n_circumcenters
         result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity,
-                                       max_rounds=self.max_rounds, max_segment_time=self.max_segment_time)
+                                       max_rounds=self.max_rounds, max_segment_time=self.max_segment_time,
+                                       integrator=self.integrator)
         v = self.interpolator.velocity(result.triangle, result.position, both, normal)
         clamped = result.wall_edge >= 0
         v[clamped, :, 0] = 0.0
         v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
         return result, v
 
-    def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray) -> np.ndarray:
-        """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule.
+    def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray):
+        """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule, and the
+        (n0,) bool mask of border cells (which use the full u; the others the d0 ψ part).
 
         position (m, 3), velocity (m, 3, 2) of the backtracked circumcenters; clamped (m,) bool.
         """
@@ -191,7 +204,18 @@ class VorticityFluid:
         u = velocities[corners, :, field[:, None]]  # (n0, K, 3)
         p_next = np.roll(p, -1, axis=1)
         u_next = np.roll(u, -1, axis=1)
-        return 0.5 * np.einsum("nkd,nkd->n", u + u_next, p_next - p)
+        return 0.5 * np.einsum("nkd,nkd->n", u + u_next, p_next - p), border_cell
+
+    def backtracked_vorticity(self, result, velocity) -> np.ndarray:
+        """Steps c–d: the vorticity (n0,) carried to the vertices, before viscosity and forces."""
+        gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0)
+        w = gamma / self.star0
+        if self.circulation_correction:
+            m = self.cells.n_circumcenters
+            rest = self._point_velocities()[:m]
+            gamma0, _ = self.circulation(self.cells.points[:m], rest, np.zeros(m, dtype=bool))
+            w = np.where(border_cell, w, self.vorticity + (gamma - gamma0) / self.star0)
+        return self._remove_mean(w)
 
     # ------------------------------------------------------------------ stepping
     def step(self, force_flux: np.ndarray | None = None) -> dict:
@@ -214,8 +238,7 @@ class VorticityFluid:
             try:
                 with np.errstate(all="ignore"):
                     result, velocity = self.backtrack()
-                    gamma = self.circulation(result.position, velocity, result.wall_edge >= 0)
-                    w = self._remove_mean(gamma / self.star0)
+                    w = self.backtracked_vorticity(result, velocity)
                     if self._diffusion is not None:
                         w = self._diffusion.solve(self.star0 * w) if np.all(np.isfinite(w)) else w
                     if force_flux is not None:

@@ -1,13 +1,23 @@
 """Backtracking of the dual vertices along −u (thesis §7.2.3, Fig. 7.9; ETK07 §4.2).
 
-All points walk at once; each *round* moves every still-active point in a straight line
-inside its current triangle, with the interpolated velocity at its current position,
-until the remaining time is used up or it reaches an edge. At an edge it crosses into
-the neighbour and the direction is unfolded into the neighbour's plane (rotation about
-the shared edge). Unlike the printed pseudocode, a point always advances (a step equal
-to the distance to the edge moves it onto the edge). If the velocity evaluated in the
-new triangle points straight back out through the edge just crossed, the unfolded
-previous direction is used instead, so no point can ping-pong on an edge.
+The basic move is a *walk*: all points advance at once along fixed directions for a
+given time; each round moves every still-active point in a straight line inside its
+current triangle until its time is used up or it reaches an edge, where it crosses into
+the neighbour and its direction is unfolded into the neighbour's plane (rotation about
+the shared edge). Unlike the printed pseudocode a point always advances (a step equal to
+the distance to the edge moves it onto the edge), and the edge it came through is not
+an exit in the next round, so no point ping-pongs on an edge.
+
+Integrators (per substep of length τ = dt / substeps):
+
+* ``"midpoint"`` (default): d1 = −u(x); walk τ/2 along d1 to x_m; d2 = −u(x_m); the
+  end point x + τ d2 is reached by walking on from x_m along d2 − d1/2 (d1 unfolded to
+  x_m's triangle) for τ — exact on planar meshes, O(h κ) off on curved ones. A point
+  that reaches a wall in the half step is clamped there. Second order; a rigid rotation
+  by θ = Ω τ inflates a cell's area by (1 + θ⁴/4), i.e. its vorticity by that factor.
+* ``"euler"``: walk τ along −u(x). The area factor is (1 + θ²).
+* ``"per_triangle"``: Fig. 7.9 with stepSize = τ: Euler, but the velocity is evaluated
+  again each time a point enters a triangle (as many velocity evaluations as rounds).
 
 At a border edge the point stops (clamped to the wall; the rest of the time step is
 dropped) and the border edge is recorded: the caller gives such points the wall's
@@ -79,6 +89,7 @@ class TriangleWalker:
             h = h - (np.einsum("md,md->m", h, direction) / np.einsum("md,md->m", direction, direction))[:, None] * direction
             gradients[:, i] = h / np.einsum("md,md->m", h, h)[:, None]
         self.gradient = gradients  # ∇λ_i, (m, 3, 3)
+        self.planar = bool(np.all(np.abs(face_normal - face_normal[:1]) < 1e-12))
         self.centroid = p.mean(axis=1)
 
     def barycentric(self, triangle: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -88,6 +99,8 @@ class TriangleWalker:
     def unfold(self, direction: np.ndarray, triangle: np.ndarray, slot: np.ndarray, neighbor: np.ndarray) -> np.ndarray:
         """Rotate ``direction`` (P, 3) about the edge (opposite ``slot`` of ``triangle``) into the
         plane of ``neighbor``: d' = <d, ê> ê + <d, N×ê> (N'×ê)."""
+        if self.planar:
+            return direction
         a = self.top[triangle, (slot + 1) % 3]
         b = self.top[triangle, (slot + 2) % 3]
         e = self.x[b] - self.x[a]
@@ -97,28 +110,85 @@ class TriangleWalker:
         return (np.einsum("pd,pd->p", direction, e)[:, None] * e
                 + np.einsum("pd,pd->p", direction, old)[:, None] * new)
 
-    def _direction_checked(self, d, t, lam, came, fallback):
-        """Replace directions that leave at once through the entry edge by ``fallback``."""
-        rate = np.einsum("pcd,pd->pc", self.gradient[t], d)
-        rows = np.arange(t.size)
-        slot = np.maximum(came, 0)
-        back = (came >= 0) & (rate[rows, slot] < 0) & (lam[rows, slot] <= 1e-12)
-        if back.any():
-            d = d.copy()
-            d[back] = fallback[back]
-            rate[back] = np.einsum("pcd,pd->pc", self.gradient[t[back]], d[back])
-        return d, rate
-
     @staticmethod
-    def _exit(lam, rate):
+    def _exit(lam, rate, entry):
+        """Time to the first edge along the barycentric rates (entry edge excluded)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             exit_time = np.where(rate < 0, lam / -rate, np.inf)
+        came = entry >= 0
+        exit_time[np.flatnonzero(came), entry[came]] = np.inf
         slot = np.argmin(exit_time, axis=1)
         return exit_time[np.arange(slot.size), slot], slot
 
+    def _advance(self, position, tri, direction, remaining, entry, wall, active):
+        """One walking round for the ``active`` points (arrays updated in place)."""
+        t, x, r, d = tri[active], position[active], remaining[active], direction[active]
+        lam = np.clip(self.barycentric(t, x), 0.0, None)
+        rate = np.einsum("pcd,pd->pc", self.gradient[t], d)
+        s, slot = self._exit(lam, rate, entry[active])
+        inside = s >= r
+        position[active[inside]] = x[inside] + r[inside, None] * d[inside]
+        remaining[active[inside]] = 0.0
+        cross = np.flatnonzero(~inside)
+        if cross.size:
+            idx = active[cross]
+            tc, sc, lc = t[cross], s[cross], slot[cross]
+            lam_new = lam[cross] + sc[:, None] * rate[cross]
+            lam_new[np.arange(cross.size), lc] = 0.0
+            lam_new = np.clip(lam_new, 0.0, None)
+            lam_new /= lam_new.sum(axis=1, keepdims=True)
+            position[idx] = np.einsum("pc,pcd->pd", lam_new, self.x[self.top[tc]])
+            remaining[idx] = r[cross] - sc
+            nb = self.neighbor[tc, lc]
+            at_wall = nb < 0
+            wall[idx[at_wall]] = self.edge[tc[at_wall], lc[at_wall]]
+            remaining[idx[at_wall]] = 0.0
+            go = ~at_wall
+            direction[idx[go]] = self.unfold(d[cross][go], tc[go], lc[go], nb[go])
+            entry[idx[go]] = self.neighbor_slot[tc[go], lc[go]]
+            tri[idx[go]] = nb[go]
+        return inside
+
+    def walk(self, start: np.ndarray, triangle: np.ndarray, direction: np.ndarray, time: float,
+             max_rounds: int = 1000):
+        """Move points along fixed (unfolded) directions for ``time``.
+
+        Parameters
+        ----------
+        start : (P, 3) positions; triangle : (P,) their triangles
+        direction : (P, 3) velocities tangent to the triangles (mesh units / s)
+        time : s
+
+        Returns
+        -------
+        position (P, 3), triangle (P,), wall_edge (P,) (-1 or the border edge where the point
+        stopped), direction (P, 3) unfolded into the final triangle, rounds, unfinished count
+        """
+        position = np.array(start, dtype=np.float64)
+        tri = np.array(triangle, dtype=np.int64)
+        direction = np.array(direction, dtype=np.float64)
+        P = position.shape[0]
+        remaining = np.full(P, float(time))
+        entry = np.full(P, -1, dtype=np.int64)
+        wall = np.full(P, -1, dtype=np.int64)
+        active = np.flatnonzero(remaining > 0)
+        rounds = 0
+        while active.size and rounds < max_rounds:
+            rounds += 1
+            self._advance(position, tri, direction, remaining, entry, wall, active)
+            active = active[remaining[active] > 0]
+        return position, tri, wall, direction, rounds, int(active.size)
+
+    def to_plane(self, vectors: np.ndarray, triangle: np.ndarray) -> np.ndarray:
+        """Tangential projection onto the triangles' planes, keeping the lengths."""
+        n = self.face_normal[triangle]
+        projected = vectors - np.einsum("pd,pd->p", vectors, n)[:, None] * n
+        length = np.linalg.norm(vectors, axis=1)
+        new_length = np.linalg.norm(projected, axis=1)
+        return projected * np.where(new_length > 0, length / np.where(new_length > 0, new_length, 1.0), 0.0)[:, None]
+
     def backtrack(self, start: np.ndarray, triangle: np.ndarray, dt: float, velocity,
-                  max_rounds: int = 500, max_segment_time: float | None = None,
-                  integrator: str = "midpoint") -> BacktrackResult:
+                  integrator: str = "midpoint", substeps: int = 1, max_rounds: int = 1000) -> BacktrackResult:
         """Follow −u for time ``dt`` from every start point.
 
         Parameters
@@ -127,62 +197,63 @@ class TriangleWalker:
         dt : time step (s)
         velocity : callable (triangles (Q,), positions (Q, 3)) -> (Q, 3) the interpolated
             velocity (mesh units / s) tangent to the given triangles
-        max_rounds : safety bound on walking rounds (unfinished points are reported)
-        max_segment_time : longest straight segment (s), the stepSize of Fig. 7.9; default:
-            a segment ends only at the remaining time or at the triangle's edge
-        integrator : "euler" — each segment follows the velocity at its start (Fig. 7.9);
-            "midpoint" — each segment follows the velocity at the midpoint of the Euler
-            segment (explicit midpoint rule; the trial midpoint lies in the same triangle).
-            Euler inflates rotating cells by a factor 1 + (Ω τ)² per segment of length τ,
-            which shows as vorticity growth in vortex cores; the midpoint rule by 1 + (Ω τ)⁴/4.
+        integrator : "midpoint" | "euler" | "per_triangle" (see the module docstring)
+        substeps : number of substeps of length dt / substeps
+        max_rounds : safety bound on walking rounds per walk (unfinished points are reported)
         """
-        if integrator not in ("euler", "midpoint"):
-            raise ValueError(f"integrator must be 'euler' or 'midpoint', not {integrator!r}")
+        if integrator not in ("euler", "midpoint", "per_triangle"):
+            raise ValueError(f"integrator must be 'midpoint', 'euler' or 'per_triangle', not {integrator!r}")
+        if substeps < 1:
+            raise ValueError(f"substeps must be >= 1, got {substeps}")
         position = np.array(start, dtype=np.float64)
         tri = np.array(triangle, dtype=np.int64)
+        wall = np.full(position.shape[0], -1, dtype=np.int64)
+        tau = float(dt) / substeps
+        rounds = unfinished = 0
+        for _ in range(substeps):  # a fixed small number of substeps
+            moving = np.flatnonzero(wall < 0)
+            t, x = tri[moving], position[moving]
+            if integrator == "per_triangle":
+                x, t, hit, r, left = self._walk_per_triangle(x, t, tau, velocity, max_rounds)
+            else:
+                d = -velocity(t, x)
+                if integrator == "midpoint":
+                    # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint (d1 unfolded there)
+                    xm, tm, hit, d1, r1, _ = self.walk(x, t, d, 0.5 * tau, max_rounds)
+                    d = -velocity(tm, xm) - 0.5 * d1
+                    d[hit >= 0] = 0.0  # clamped during the half step: stays at the wall
+                    x, t = xm, tm
+                    rounds += r1
+                else:
+                    hit = np.full(x.shape[0], -1, dtype=np.int64)
+                x, t, hit2, _, r, left = self.walk(x, t, d, tau, max_rounds)
+                hit = np.where(hit >= 0, hit, hit2)
+            position[moving], tri[moving], wall[moving] = x, t, hit
+            rounds += r
+            unfinished = max(unfinished, left)
+        return BacktrackResult(position, tri, wall, rounds, unfinished)
+
+    def _walk_per_triangle(self, x, t, tau, velocity, max_rounds):
+        """Fig. 7.9: Euler with the velocity evaluated again in every triangle entered."""
+        position, tri = x.copy(), t.copy()
         P = position.shape[0]
-        remaining = np.full(P, float(dt))
-        wall = np.full(P, -1, dtype=np.int64)
+        remaining = np.full(P, tau)
         entry = np.full(P, -1, dtype=np.int64)
-        previous = np.zeros((P, 3))
-        active = np.flatnonzero(remaining > 0)
+        wall = np.full(P, -1, dtype=np.int64)
+        direction = np.zeros((P, 3))
+        active = np.arange(P)
         rounds = 0
         while active.size and rounds < max_rounds:
             rounds += 1
-            t, x, r = tri[active], position[active], remaining[active]
+            fresh = -velocity(tri[active], position[active])
+            previous = direction[active]
+            # a fresh velocity leaving at once through the entry edge: keep the unfolded one
+            lam = np.clip(self.barycentric(tri[active], position[active]), 0.0, None)
+            rate = np.einsum("pcd,pd->pc", self.gradient[tri[active]], fresh)
             came = entry[active]
-            lam = np.clip(self.barycentric(t, x), 0.0, None)
-            d, rate = self._direction_checked(-velocity(t, x), t, lam, came, previous[active])
-            limit = r if max_segment_time is None else np.minimum(r, max_segment_time)
-            if integrator == "midpoint":
-                s, _ = self._exit(lam, rate)
-                tau = np.minimum(limit, s)
-                middle = x + 0.5 * tau[:, None] * d
-                d, rate = self._direction_checked(-velocity(t, middle), t, lam, came, d)
-            s, slot = self._exit(lam, rate)
-            inside = s >= limit
-            # points that stay inside their triangle: move the full (segment) time
-            position[active[inside]] = x[inside] + limit[inside, None] * d[inside]
-            remaining[active[inside]] = r[inside] - limit[inside]
-            entry[active[inside]] = -1
-            # points reaching an edge: move onto it exactly, then cross or stop at the wall
-            cross = np.flatnonzero(~inside)
-            if cross.size:
-                idx = active[cross]
-                tc, sc, lc = t[cross], s[cross], slot[cross]
-                lam_new = lam[cross] + sc[:, None] * rate[cross]
-                lam_new[np.arange(cross.size), lc] = 0.0
-                lam_new = np.clip(lam_new, 0.0, None)
-                lam_new /= lam_new.sum(axis=1, keepdims=True)
-                position[idx] = np.einsum("pc,pcd->pd", lam_new, self.x[self.top[tc]])
-                remaining[idx] = r[cross] - sc
-                nb = self.neighbor[tc, lc]
-                at_wall = nb < 0
-                wall[idx[at_wall]] = self.edge[tc[at_wall], lc[at_wall]]
-                remaining[idx[at_wall]] = 0.0
-                go = ~at_wall
-                previous[idx[go]] = self.unfold(d[cross][go], tc[go], lc[go], nb[go])
-                entry[idx[go]] = self.neighbor_slot[tc[go], lc[go]]
-                tri[idx[go]] = nb[go]
-            active = np.flatnonzero(remaining > 0)
-        return BacktrackResult(position, tri, wall, rounds, int(active.size))
+            rows = np.arange(active.size)
+            back = (came >= 0) & (rate[rows, np.maximum(came, 0)] < 0) & (lam[rows, np.maximum(came, 0)] <= 1e-12)
+            direction[active] = np.where(back[:, None], previous, fresh)
+            self._advance(position, tri, direction, remaining, entry, wall, active)
+            active = active[remaining[active] > 0]
+        return position, tri, wall, rounds, int(active.size)

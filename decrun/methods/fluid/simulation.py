@@ -64,14 +64,14 @@ class VorticityFluid:
     penalty : μ of eq. 7.14 (default 1e6 · max ⋆1)
     blowup_factor : the run is reported unstable when the kinetic energy exceeds this
         factor times the largest legitimate energy (initial, harmonic, or after a forced step)
-    max_rounds, max_segment_time, integrator : passed to the backtracking walk
-        (``integrator="euler", max_segment_time=None`` is Fig. 7.9 with stepSize = ∞)
+    integrator, substeps, max_rounds : passed to the backtracking (backtrack.py;
+        ``integrator="per_triangle"`` is Fig. 7.9 with stepSize = dt / substeps)
     circulation_correction : see step d above
     """
 
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
-                 blowup_factor: float = 1e6, max_rounds: int = 500, max_segment_time: float | None = None,
+                 blowup_factor: float = 1e6, max_rounds: int = 1000, substeps: int = 1,
                  integrator: str = "midpoint", circulation_correction: bool = True):
         if not dt > 0:
             raise ValueError(f"dt must be > 0, got {dt}")
@@ -80,7 +80,7 @@ class VorticityFluid:
         K = dec.K
         self.dec, self.K = dec, K
         self.dt, self.viscosity = float(dt), float(viscosity)
-        self.max_rounds, self.max_segment_time, self.integrator = max_rounds, max_segment_time, integrator
+        self.max_rounds, self.substeps, self.integrator = max_rounds, substeps, integrator
         self.circulation_correction = circulation_correction
         self.blowup_factor = blowup_factor
         self.cells = build_dual_cells(dec)
@@ -179,8 +179,8 @@ class VorticityFluid:
 
         m = self.cells.n_circumcenters
         result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity,
-                                       max_rounds=self.max_rounds, max_segment_time=self.max_segment_time,
-                                       integrator=self.integrator)
+                                       integrator=self.integrator, substeps=self.substeps,
+                                       max_rounds=self.max_rounds)
         v = self.interpolator.velocity(result.triangle, result.position, both, normal)
         clamped = result.wall_edge >= 0
         v[clamped, :, 0] = 0.0

@@ -5,7 +5,8 @@ inside out otherwise) and finer triangles near the obstacles. The thesis used an
 adaptive distmesh (Persson & Strang 2004); here the channel [0, L] × [0, H] with
 circular or polygonal holes is meshed by ``triangle`` (Shewchuk) with a quality bound
 and a graded maximum area, then improved by rounds of ODT smoothing (each interior
-vertex moves to the area-weighted mean of the circumcenters of its triangles; Chen &
+vertex moves to the mean of the circumcenters of its triangles weighted by area × h⁻⁴ with
+h the target size; Chen &
 Xu 2004, Alliez et al. 2005) with constrained Delaunay re-triangulation in between.
 Border vertices never move, so border loops keep their vertex ids.
 """
@@ -100,10 +101,10 @@ def channel_mesh(length: float = 2.0, height: float = 1.0, obstacles=None, *, ta
 
     Parameters
     ----------
-    obstacles : list of (k, 2) counter-clockwise polygons (see :func:`circle`, which
-        samples a circle with ``count`` points — it is re-sampled at the local size here
-        when it has fewer than 3 points per local edge length); default one circle of radius
-        0.1·height at (0.25·length, 0.5·height)
+    obstacles : list of obstacles, each ``("circle", center, radius)`` (sampled at the
+        finest size, with a ring of near-equilateral triangles around it) or a (k, 2)
+        counter-clockwise polygon (its sides are sampled at the local size); default one
+        circle of radius 0.1·height at (0.25·length, 0.5·height)
     target_faces : the face count aimed at (the result is within a few percent)
     refinement : edge length far away / edge length at the obstacles
     gradation : growth of the edge length with the distance from the obstacles
@@ -141,7 +142,13 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
             _, center, radius = obstacle
             polys.append(circle(np.asarray(center, float), radius, max(8, int(np.ceil(2 * np.pi * radius / h_min)))))
         else:
-            polys.append(np.asarray(obstacle, dtype=np.float64))
+            corners_of = np.asarray(obstacle, dtype=np.float64)
+            polys.append(corners_of)
+    for index, obstacle in enumerate(obstacles):  # polygon sides sampled at the local size
+        if not (isinstance(obstacle, tuple) and obstacle and obstacle[0] == "circle"):
+            poly = polys[index]
+            polys[index] = np.concatenate([_resample_segment(poly[i], poly[(i + 1) % len(poly)], size)
+                                           for i in range(len(poly))])
     rings = []
     for obstacle, poly in zip(obstacles, polys):  # a layer of near-equilateral triangles round circles
         if isinstance(obstacle, tuple) and obstacle and obstacle[0] == "circle":
@@ -189,7 +196,8 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
         if low.any():
             vertices = vertices[~low]
             faces = cdt(vertices, "pY")["triangles"].astype(np.int64)
-        area, center, _ = _triangle_geometry(vertices, faces)
+        area, center, centroid = _triangle_geometry(vertices, faces)
+        area = area / size(centroid) ** 4  # density-weighted (ρ ∝ h⁻⁴): keeps the grading
         weight = np.bincount(faces.ravel(), weights=np.repeat(area, 3), minlength=vertices.shape[0])
         moved = np.stack([np.bincount(faces.ravel(), weights=np.repeat(area * center[:, a], 3),
                                       minlength=vertices.shape[0]) for a in range(2)], 1) / weight[:, None]
@@ -199,9 +207,15 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
         new[n_fixed:][~inside] = vertices[n_fixed:][~inside]
         vertices = new
         faces = cdt(vertices, "pY")["triangles"].astype(np.int64)
-    for _ in range(4 * rounds):  # Thales repair of the obtuse triangles left
+    for _ in range(8 * rounds):  # Thales repair of the obtuse triangles left
         if obtuse_count(vertices, faces) == 0:
             break
+        valence = np.bincount(faces.ravel(), minlength=vertices.shape[0])
+        low = valence <= 4
+        low[:n_fixed] = False
+        if low.any():
+            vertices = vertices[~low]
+            faces = cdt(vertices, "pY")["triangles"].astype(np.int64)
         new = _thales_step(vertices, faces, n_fixed)
         inside = _inside_domain(new[n_fixed:], length, height, polys)
         new[n_fixed:][~inside] = vertices[n_fixed:][~inside]

@@ -91,10 +91,12 @@ class TriangleWalker:
         self.gradient = gradients  # ∇λ_i, (m, 3, 3)
         self.planar = bool(np.all(np.abs(face_normal - face_normal[:1]) < 1e-12))
         self.centroid = p.mean(axis=1)
+        self.corner_x = np.ascontiguousarray(p)  # (m, 3, 3) corner positions
 
     def barycentric(self, triangle: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(P, 3) barycentric coordinates of x (P, 3) in the plane of ``triangle`` (P,)."""
-        return 1.0 / 3.0 + np.einsum("pcd,pd->pc", self.gradient[triangle], x - self.centroid[triangle])
+        return 1.0 / 3.0 + np.einsum("pcd,pd->pc", np.take(self.gradient, triangle, axis=0),
+                                     x - np.take(self.centroid, triangle, axis=0))
 
     def unfold(self, direction: np.ndarray, triangle: np.ndarray, slot: np.ndarray, neighbor: np.ndarray) -> np.ndarray:
         """Rotate ``direction`` (P, 3) about the edge (opposite ``slot`` of ``triangle``) into the
@@ -122,9 +124,12 @@ class TriangleWalker:
 
     def _advance(self, position, tri, direction, remaining, entry, wall, active):
         """One walking round for the ``active`` points (arrays updated in place)."""
-        t, x, r, d = tri[active], position[active], remaining[active], direction[active]
-        lam = np.clip(self.barycentric(t, x), 0.0, None)
-        rate = np.einsum("pcd,pd->pc", self.gradient[t], d)
+        t, r = tri[active], remaining[active]
+        x, d = np.take(position, active, axis=0), np.take(direction, active, axis=0)
+        gradient = np.take(self.gradient, t, axis=0)
+        lam = 1.0 / 3.0 + np.einsum("pcd,pd->pc", gradient, x - np.take(self.centroid, t, axis=0))
+        np.maximum(lam, 0.0, out=lam)
+        rate = np.einsum("pcd,pd->pc", gradient, d)
         s, slot = self._exit(lam, rate, entry[active])
         inside = s >= r
         position[active[inside]] = x[inside] + r[inside, None] * d[inside]
@@ -137,7 +142,7 @@ class TriangleWalker:
             lam_new[np.arange(cross.size), lc] = 0.0
             lam_new = np.clip(lam_new, 0.0, None)
             lam_new /= lam_new.sum(axis=1, keepdims=True)
-            position[idx] = np.einsum("pc,pcd->pd", lam_new, self.x[self.top[tc]])
+            position[idx] = np.einsum("pc,pcd->pd", lam_new, np.take(self.corner_x, tc, axis=0))
             remaining[idx] = r[cross] - sc
             nb = self.neighbor[tc, lc]
             at_wall = nb < 0
@@ -188,7 +193,8 @@ class TriangleWalker:
         return projected * np.where(new_length > 0, length / np.where(new_length > 0, new_length, 1.0), 0.0)[:, None]
 
     def backtrack(self, start: np.ndarray, triangle: np.ndarray, dt: float, velocity,
-                  integrator: str = "midpoint", substeps: int = 1, max_rounds: int = 1000) -> BacktrackResult:
+                  integrator: str = "midpoint", substeps: int = 1, max_rounds: int = 1000,
+                  start_velocity: np.ndarray | None = None) -> BacktrackResult:
         """Follow −u for time ``dt`` from every start point.
 
         Parameters
@@ -200,6 +206,9 @@ class TriangleWalker:
         integrator : "midpoint" | "euler" | "per_triangle" (see the module docstring)
         substeps : number of substeps of length dt / substeps
         max_rounds : safety bound on walking rounds per walk (unfinished points are reported)
+        start_velocity : (P, 3) optional velocity at the start points (saves one evaluation;
+            at the circumcenters it is the triangle's velocity, which the interpolation
+            reproduces there exactly)
         """
         if integrator not in ("euler", "midpoint", "per_triangle"):
             raise ValueError(f"integrator must be 'midpoint', 'euler' or 'per_triangle', not {integrator!r}")
@@ -210,13 +219,13 @@ class TriangleWalker:
         wall = np.full(position.shape[0], -1, dtype=np.int64)
         tau = float(dt) / substeps
         rounds = unfinished = 0
-        for _ in range(substeps):  # a fixed small number of substeps
+        for substep in range(substeps):  # a fixed small number of substeps
             moving = np.flatnonzero(wall < 0)
             t, x = tri[moving], position[moving]
             if integrator == "per_triangle":
                 x, t, hit, r, left = self._walk_per_triangle(x, t, tau, velocity, max_rounds)
             else:
-                d = -velocity(t, x)
+                d = -(start_velocity if substep == 0 and start_velocity is not None else velocity(t, x))
                 if integrator == "midpoint":
                     # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint (d1 unfolded there)
                     xm, tm, hit, d1, r1, _ = self.walk(x, t, d, 0.5 * tau, max_rounds)

@@ -154,11 +154,21 @@ class CellInterpolator:
         self.scale = self.tiny * np.abs(self.det).max(axis=1)
         self.last = self.count - 1
         self.flat_corners = q
+        closing = self.count - 1  # column 0 repeats the closing edge, so corner j sits between columns j, j+1
+        rows = np.arange(self.count.size)
+        edge_table = np.stack([self.offset, self.n1, self.n2], axis=1)  # (n0, 3, K)
+        edge_table = np.concatenate([edge_table[rows, :, closing][:, :, None], edge_table], axis=2)
+        det = np.concatenate([np.zeros((self.count.size, 1)), self.det], axis=1)
+        self.table = np.ascontiguousarray(np.concatenate([edge_table, det[:, None, :]], axis=1))  # (n0, 4, K+1)
+        self.frames = np.ascontiguousarray(np.stack([self.e1, self.e2], axis=1))
+        self.n_points = cells.points.shape[0]
+        normal = cells.vertex_normal
+        self.planar = bool(np.all(np.abs(normal - normal[:1]) < 1e-12))
         self.vertex_columns = [np.ascontiguousarray(self.vertices[:, a]) for a in range(3)]
 
     def nearest_vertex(self, triangle: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(P,) the corner of ``triangle`` (P,) nearest to ``x`` (P, 3): the dual cell holding x."""
-        corners = self.triangles[triangle]  # (P, 3)
+        corners = np.take(self.triangles, triangle, axis=0)  # (P, 3)
         distance = np.zeros(corners.shape)
         for a in range(3):
             diff = self.vertex_columns[a][corners] - x[:, a, None]
@@ -172,16 +182,26 @@ class CellInterpolator:
 
     def weights(self, vertex: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(P, Ki) WSHD07 weights of the corners ``interpolation_corners[vertex]`` at x (P, 3)."""
-        flat = self.flatten(vertex, x)
-        h = self.offset[vertex]
-        h -= self.n1[vertex] * flat[:, 0, None]
-        h -= self.n2[vertex] * flat[:, 1, None]
-        np.maximum(h, self.scale[vertex, None], out=h)
-        h_previous = np.roll(h, 1, axis=1)
-        h_previous[:, 0] = h[np.arange(h.shape[0]), self.last[vertex]]
-        c = self.det[vertex] / (h_previous * h)
+        relative = x - np.take(self.vertices, vertex, axis=0)
+        frame = np.take(self.frames, vertex, axis=0)  # (P, 2, 3)
+        f1 = np.einsum("pd,pd->p", relative, frame[:, 0])
+        f2 = np.einsum("pd,pd->p", relative, frame[:, 1])
+        table = np.take(self.table, vertex, axis=0)  # (P, 4, K+1): offset, n1, n2 of edges (last, 0..K-1), det of corners
+        h = table[:, 0] - table[:, 1] * f1[:, None] - table[:, 2] * f2[:, None]
+        np.maximum(h, np.take(self.scale, vertex)[:, None], out=h)
+        c = h[:, :-1] * h[:, 1:]  # h of the edge before and after each corner
+        np.divide(table[:, 3, 1:], c, out=c)
         c /= c.sum(axis=1, keepdims=True)
         return c
+
+    def matrix(self, triangle: np.ndarray, x: np.ndarray) -> sp.csr_matrix:
+        """Sparse (P, n_points) interpolation matrix at points x (P, 3) in ``triangle`` (P,):
+        row p holds the WSHD07 weights of the corners of the dual cell holding x_p."""
+        vertex = self.nearest_vertex(triangle, x)
+        w = self.weights(vertex, x)
+        P, Kc = w.shape
+        return sp.csr_matrix((w.ravel(), self.ids[vertex].ravel(), np.arange(0, P * Kc + 1, Kc)),
+                             shape=(P, self.n_points))
 
     def velocity(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,
                  face_normal: np.ndarray) -> np.ndarray:
@@ -191,12 +211,15 @@ class CellInterpolator:
         """
         vertex = self.nearest_vertex(triangle, x)
         w = self.weights(vertex, x)
-        corner = self.ids[vertex]  # (P, K)
-        U = np.zeros((x.shape[0],) + point_velocity.shape[1:])
-        for k in range(corner.shape[1]):  # a fixed small number of corner slots
-            U += w[:, k, None, None] * point_velocity[corner[:, k]]
-        n_v = self.cells.vertex_normal[vertex]
-        n_t = face_normal[triangle]
-        ratio = np.einsum("pdf,pd->pf", U, n_t) / (n_v * n_t).sum(axis=1)[:, None]
+        P, Kc = w.shape
+        W = sp.csr_matrix((w.ravel(), np.take(self.ids, vertex, axis=0).ravel(), np.arange(0, P * Kc + 1, Kc)),
+                          shape=(P, self.n_points))
+        F = point_velocity.shape[2]
+        U = (W @ point_velocity.reshape(self.n_points, 3 * F)).reshape(P, 3, F)
+        if self.planar:
+            return U
+        n_v = np.take(self.cells.vertex_normal, vertex, axis=0)
+        n_t = np.take(face_normal, triangle, axis=0)
+        ratio = np.einsum("pdf,pd->pf", U, n_t) / np.einsum("pd,pd->p", n_v, n_t)[:, None]
         U -= n_v[:, :, None] * ratio[:, None, :]
         return U

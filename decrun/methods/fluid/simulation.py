@@ -98,6 +98,7 @@ class VorticityFluid:
         self.d0T = K.boundary(1)
         self.stiffness = dec.laplacian_symmetric(0)  # d0ᵀ ⋆1 d0 (PSD)
         self.harmonic = harmonic_flux(dec, self.face_normal, self.label, inflow_velocity, new_solver)
+        self._build_dual_edges()
 
         n0 = K.num_simplices(0)
         if self.viscosity > 0:
@@ -180,16 +181,44 @@ class VorticityFluid:
         m = self.cells.n_circumcenters
         result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity,
                                        integrator=self.integrator, substeps=self.substeps,
-                                       max_rounds=self.max_rounds)
+                                       max_rounds=self.max_rounds, start_velocity=both[:m, :, 1])
         v = self.interpolator.velocity(result.triangle, result.position, both, normal)
         clamped = result.wall_edge >= 0
         v[clamped, :, 0] = 0.0
         v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
         return result, v
 
+    def _build_dual_edges(self) -> None:
+        """The dual cells' sides as unique dual edges (a, b), a < b, and the signed
+        incidence D (n0, n_dual_edges): Γ = D g with g the trapezoid integral along a → b."""
+        corners = self.cells.corners
+        a, b = corners, np.roll(corners, -1, axis=1)
+        keep = a != b  # padding repeats the first corner: no side
+        n_points = self.cells.points.shape[0]
+        first, second = np.minimum(a, b)[keep], np.maximum(a, b)[keep]
+        key, inverse = np.unique(first * n_points + second, return_inverse=True)
+        self._edge_a, self._edge_b = key // n_points, key % n_points
+        rows = np.broadcast_to(np.arange(corners.shape[0])[:, None], corners.shape)[keep]
+        sign = np.where(a[keep] < b[keep], 1.0, -1.0)
+        self._dual_incidence = sp.csr_matrix((sign, (rows, inverse)), shape=(corners.shape[0], key.size))
+        # Γ⁰ of the unmoved cells is linear in ψ: D · (trapezoid of the circumcenter velocities) · M · d0
+        m = self.cells.n_circumcenters
+        half = 0.5 * (self.cells.points[self._edge_b] - self.cells.points[self._edge_a])  # (E, 3)
+        rows, cols, vals = [], [], []
+        for end in (self._edge_a, self._edge_b):
+            moving = end < m
+            for d in range(3):
+                rows.append(np.flatnonzero(moving))
+                cols.append(3 * end[moving] + d)
+                vals.append(half[moving, d])
+        trapezoid = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                  shape=(key.size, 3 * m))
+        self._rest_circulation = (self._dual_incidence @ trapezoid @ self.velocity_matrix @ self.d0).tocsr()
+
     def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray):
-        """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule, and the
-        (n0,) bool mask of border cells (which use the full u; the others the d0 ψ part).
+        """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule
+        Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2, and the (n0,) bool mask of border
+        cells (which use the full u; the others the d0 ψ part).
 
         position (m, 3), velocity (m, 3, 2) of the backtracked circumcenters; clamped (m,) bool.
         """
@@ -197,23 +226,22 @@ class VorticityFluid:
         m = cells.n_circumcenters
         points = np.concatenate([position, cells.points[m:]])
         velocities = np.concatenate([velocity, self._fixed_velocity])
-        corners = cells.corners
-        border_cell = cells.border_vertex | np.any((corners < m) & clamped[np.minimum(corners, m - 1)], axis=1)
-        field = border_cell.astype(np.int64)
-        p = points[corners]  # (n0, K, 3)
-        u = velocities[corners, :, field[:, None]]  # (n0, K, 3)
-        p_next = np.roll(p, -1, axis=1)
-        u_next = np.roll(u, -1, axis=1)
-        return 0.5 * np.einsum("nkd,nkd->n", u + u_next, p_next - p), border_cell
+        a, b = self._edge_a, self._edge_b
+        side = points[b] - points[a]  # (E, 3)
+        g = 0.5 * np.einsum("edf,ed->ef", velocities[a] + velocities[b], side)  # (E, 2)
+        gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
+        touched = np.zeros(m + 1, dtype=bool)
+        touched[:m] = clamped
+        corners = np.where(cells.corners < m, cells.corners, m)
+        border_cell = cells.border_vertex | touched[corners].any(axis=1)
+        return np.where(border_cell, gamma[:, 1], gamma[:, 0]), border_cell
 
     def backtracked_vorticity(self, result, velocity) -> np.ndarray:
         """Steps c–d: the vorticity (n0,) carried to the vertices, before viscosity and forces."""
         gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0)
         w = gamma / self.star0
         if self.circulation_correction:
-            m = self.cells.n_circumcenters
-            rest = self._point_velocities()[:m]
-            gamma0, _ = self.circulation(self.cells.points[:m], rest, np.zeros(m, dtype=bool))
+            gamma0 = self._rest_circulation @ self.psi
             w = np.where(border_cell, w, self.vorticity + (gamma - gamma0) / self.star0)
         return self._remove_mean(w)
 

@@ -134,21 +134,32 @@ class TriangleWalker:
             return done
         idx = active[safe]
         target = np.take(position, idx, axis=0) + time * d[safe]
-        _, cand = self._locator.query(target[:, :2], k=6)
         found = np.zeros(idx.size, dtype=bool)
         choice = np.full(idx.size, -1, dtype=np.int64)
         open_ = np.arange(idx.size)
-        for k in range(cand.shape[1]):  # nearest centroid first; few points need more candidates
-            c = cand[open_, k]
-            affine = np.take(self._affine, c, axis=0)  # (Q, 3, 3)
-            x = target[open_]
+
+        def test(candidates, which):
+            affine = np.take(self._affine, candidates, axis=0)  # (Q, 3, 3)
+            x = target[which]
             lam = affine[..., 0] * x[:, None, 0] + affine[..., 1] * x[:, None, 1] + affine[..., 2]
             hit = lam.min(axis=1) >= -1e-12
-            found[open_[hit]] = True
-            choice[open_[hit]] = c[hit]
-            open_ = open_[~hit]
-            if not open_.size:
-                break
+            found[which[hit]] = True
+            choice[which[hit]] = candidates[hit]
+            return which[~hit]
+
+        open_ = test(t[safe], open_)  # still in the start triangle
+        if open_.size:  # the triangle with the nearest centroid, then its neighbours
+            _, nearest = self._locator.query(target[open_, :2], k=1)
+            nearest = np.asarray(nearest, dtype=np.int64).reshape(-1)
+            rest = test(nearest, open_)
+            for k in range(3):  # fixed small number of neighbour slots
+                if not rest.size:
+                    break
+                slot_of = np.searchsorted(open_, rest)
+                neighbour = self.neighbor[nearest[slot_of], k]
+                inside_mesh = neighbour >= 0
+                rest = np.concatenate([test(neighbour[inside_mesh], rest[inside_mesh]), rest[~inside_mesh]])
+                rest.sort()
         position[idx[found]] = target[found]
         tri[idx[found]] = choice[found]
         done[np.flatnonzero(safe)[found]] = True

@@ -194,15 +194,6 @@ class CellInterpolator:
         c /= c.sum(axis=1, keepdims=True)
         return c
 
-    def matrix(self, triangle: np.ndarray, x: np.ndarray) -> sp.csr_matrix:
-        """Sparse (P, n_points) interpolation matrix at points x (P, 3) in ``triangle`` (P,):
-        row p holds the WSHD07 weights of the corners of the dual cell holding x_p."""
-        vertex = self.nearest_vertex(triangle, x)
-        w = self.weights(vertex, x)
-        P, Kc = w.shape
-        return sp.csr_matrix((w.ravel(), self.ids[vertex].ravel(), np.arange(0, P * Kc + 1, Kc)),
-                             shape=(P, self.n_points))
-
     def velocity(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,
                  face_normal: np.ndarray) -> np.ndarray:
         """Interpolated velocities (P, 3, F) at points x (P, 3) lying in ``triangle`` (P,).

@@ -31,7 +31,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
 from scipy.spatial import cKDTree
 
 from decrun.dec import DEC
@@ -122,7 +121,24 @@ class TriangleWalker:
         # barycentric coordinates as an affine map of (x, y, 1): λ = B[t] @ (x, y, 1)
         g = self.gradient[:, :, :2]
         self._affine = np.concatenate([g, (1.0 / 3.0 - np.einsum("mcd,md->mc", g, self.centroid[:, :2]))[..., None]], 2)
-        self._locator = cKDTree(self.centroid[:, :2])
+        # a uniform grid of buckets: each holds the triangles whose bounding box meets the cell
+        corners = self.corner_x[:, :, :2]
+        low, high = corners.min(axis=1), corners.max(axis=1)
+        size = 0.5 * float(np.percentile(edge_length, 10))
+        origin = low.min(axis=0)
+        shape = np.floor((high.max(axis=0) - origin) / size).astype(np.int64) + 1
+        first = np.floor((low - origin) / size).astype(np.int64)
+        last = np.floor((high - origin) / size).astype(np.int64)
+        span = last - first + 1
+        count = span[:, 0] * span[:, 1]
+        owner = np.repeat(np.arange(count.size), count)
+        k = np.arange(owner.size) - np.repeat(np.cumsum(count) - count, count)
+        cell = (first[owner, 1] + k // span[owner, 0]) * shape[0] + first[owner, 0] + k % span[owner, 0]
+        order = np.argsort(cell, kind="stable")
+        self._bucket_triangles = owner[order]
+        self._bucket_start = np.searchsorted(cell[order], np.arange(shape[0] * shape[1] + 1))
+        self._grid = (origin, size, shape)
+        self._locator = True
 
     def _jump(self, position, tri, direction, time, active) -> np.ndarray:
         """Planar fast path of :meth:`walk`; returns the mask (over ``active``) of points done."""
@@ -148,18 +164,21 @@ class TriangleWalker:
             return which[~hit]
 
         open_ = test(t[safe], open_)  # still in the start triangle
-        if open_.size:  # the triangle with the nearest centroid, then its neighbours
-            _, nearest = self._locator.query(target[open_, :2], k=1)
-            nearest = np.asarray(nearest, dtype=np.int64).reshape(-1)
-            rest = test(nearest, open_)
-            for k in range(3):  # fixed small number of neighbour slots
-                if not rest.size:
+        if open_.size:  # the triangles of the grid bucket holding the target
+            origin, size, shape = self._grid
+            cell_xy = np.clip(np.floor((target[open_, :2] - origin) / size).astype(np.int64), 0, shape - 1)
+            cell = cell_xy[:, 1] * shape[0] + cell_xy[:, 0]
+            begin = np.zeros(idx.size, dtype=np.int64)
+            length = np.zeros(idx.size, dtype=np.int64)
+            begin[open_] = self._bucket_start[cell]
+            length[open_] = self._bucket_start[cell + 1] - begin[open_]
+            slot = 0
+            while open_.size:  # bucket slots, at most the largest bucket
+                open_ = open_[length[open_] > slot]
+                if not open_.size:
                     break
-                slot_of = np.searchsorted(open_, rest)
-                neighbour = self.neighbor[nearest[slot_of], k]
-                inside_mesh = neighbour >= 0
-                rest = np.concatenate([test(neighbour[inside_mesh], rest[inside_mesh]), rest[~inside_mesh]])
-                rest.sort()
+                open_ = test(self._bucket_triangles[begin[open_] + slot], open_)
+                slot += 1
         position[idx[found]] = target[found]
         tri[idx[found]] = choice[found]
         done[np.flatnonzero(safe)[found]] = True

@@ -194,6 +194,7 @@ def test_velocity_stays_divergence_free_every_step():
     mesh, dec = channel(1400)
     sim = VorticityFluid(dec, new_solver, dt=0.005, viscosity=0.02, inflow_velocity=(10.0, 0.0),
                          obstacle_loops=mesh.obstacle_loops)
+    assert sim.obtuse_triangles == 0 and sim.nonconvex_cells == 0
     for _ in range(10):
         d = sim.step()
         assert np.abs(dec.d(1) @ sim.flux).max() <= 1e-12 * np.abs(sim.flux).max()

@@ -40,7 +40,7 @@ import scipy.sparse as sp
 from decrun.dec import DEC
 from decrun.errors import SolverError
 from decrun.methods.fluid.backtrack import TriangleWalker
-from decrun.methods.fluid.dual_cells import _embed3, build_dual_cells
+from decrun.methods.fluid.dual_cells import _embed3, build_dual_cells, obtuse_triangle_count
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
 from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
 
@@ -86,6 +86,9 @@ class VorticityFluid:
         self.cells = build_dual_cells(dec)
         self.face_normal = self.cells.face_normal
         self.interpolator = CellInterpolator(self.cells, K.simplices(2), K.vertices)
+        #: mesh quality the method relies on (§7.3): obtuse triangles and non-convex flattened cells
+        self.obtuse_triangles = obtuse_triangle_count(K.vertices, K.simplices(2))
+        self.nonconvex_cells = int((~self.interpolator.convex).sum())
         self.walker = TriangleWalker(dec, self.face_normal)
         self.velocity_matrix = triangle_velocity_matrix(dec, self.face_normal)
         self.closed = not self.cells.border_vertex.any()

@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.dec import DEC
-from decrun.errors import SolverError
+from decrun.errors import ConfigError, SolverError
 from decrun.methods.fluid.backtrack import TriangleWalker
 from decrun.methods.fluid.dual_cells import _embed3, build_dual_cells, obtuse_triangle_count
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
@@ -74,9 +74,9 @@ class VorticityFluid:
                  blowup_factor: float = 1e6, max_rounds: int = 1000, substeps: int = 1,
                  integrator: str = "midpoint", circulation_correction: bool = True):
         if not dt > 0:
-            raise ValueError(f"dt must be > 0, got {dt}")
+            raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
-            raise ValueError(f"viscosity must be >= 0, got {viscosity}")
+            raise ConfigError(f"fluid: the viscosity must be >= 0, got {viscosity}")
         K = dec.K
         self.dec, self.K = dec, K
         self.dt, self.viscosity = float(dt), float(viscosity)
@@ -131,7 +131,7 @@ class VorticityFluid:
 
         w0 = np.zeros(n0) if initial_vorticity is None else np.array(initial_vorticity, dtype=np.float64)
         if w0.shape != (n0,):
-            raise ValueError(f"initial_vorticity must have shape ({n0},), got {w0.shape}")
+            raise ConfigError(f"fluid: initial_vorticity must have one value per vertex ({n0},), got {w0.shape}")
         self.vorticity = self._remove_mean(w0)
         self.psi = self._recover(self.vorticity)
         self.flux = self.d0 @ self.psi + self.harmonic

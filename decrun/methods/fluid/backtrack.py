@@ -98,9 +98,9 @@ class TriangleWalker:
             self._prepare_jumps(K)
 
     def _prepare_jumps(self, K) -> None:
-        """Planar meshes: a point whose straight path stays farther from the border than its
-        triangle's clearance can jump to its end point, located among the triangles with the
-        nearest centroids, instead of walking (same result, no rounds)."""
+        """Planar meshes: a point whose straight path cannot reach the border (its length is
+        below a lower bound of the point's distance to the border) jumps to its end point,
+        located in a uniform grid of triangle buckets, instead of walking (same result)."""
         x2 = self.x[:, :2]
         border, _ = K.boundary_faces()
         edge_length = np.linalg.norm(self.corner_x - np.roll(self.corner_x, 1, axis=1), axis=2).max(axis=1)
@@ -115,9 +115,9 @@ class TriangleWalker:
             exact = np.linalg.norm(x2[:, None] - a[cand] - t[..., None] * ab, axis=2).min(axis=1)
             half = 0.5 * np.linalg.norm(b - a, axis=1).max()
             vertex_clearance = np.minimum(exact, distance[:, -1] - half)
-            self.clearance = vertex_clearance[self.top].min(axis=1) - edge_length
+            self.vertex_clearance = vertex_clearance
         else:
-            self.clearance = np.full(self.top.shape[0], np.inf)
+            self.vertex_clearance = np.full(self.x.shape[0], np.inf)
         # barycentric coordinates as an affine map of (x, y, 1): λ = B[t] @ (x, y, 1)
         g = self.gradient[:, :, :2]
         self._affine = np.concatenate([g, (1.0 / 3.0 - np.einsum("mcd,md->mc", g, self.centroid[:, :2]))[..., None]], 2)
@@ -144,12 +144,17 @@ class TriangleWalker:
         """Planar fast path of :meth:`walk`; returns the mask (over ``active``) of points done."""
         t = tri[active]
         d = np.take(direction, active, axis=0)
-        safe = time * np.linalg.norm(d, axis=1) < self.clearance[t]
+        start = np.take(position, active, axis=0)
+        # distance to the border ≥ clearance(v) − |x − v| for each corner v (1-Lipschitz)
+        corner = np.take(self.corner_x, t, axis=0)  # (P, 3, 3)
+        bound = np.take(self.vertex_clearance, np.take(self.top, t, axis=0)) - np.linalg.norm(
+            corner - start[:, None, :], axis=2)
+        safe = time * np.linalg.norm(d, axis=1) < bound.max(axis=1)
         done = np.zeros(active.size, dtype=bool)
         if not safe.any():
             return done
         idx = active[safe]
-        target = np.take(position, idx, axis=0) + time * d[safe]
+        target = start[safe] + time * d[safe]
         found = np.zeros(idx.size, dtype=bool)
         choice = np.full(idx.size, -1, dtype=np.int64)
         open_ = np.arange(idx.size)

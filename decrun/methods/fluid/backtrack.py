@@ -120,7 +120,8 @@ class TriangleWalker:
             self.vertex_clearance = np.full(self.x.shape[0], np.inf)
         # barycentric coordinates as an affine map of (x, y, 1): λ = B[t] @ (x, y, 1)
         g = self.gradient[:, :, :2]
-        self._affine = np.concatenate([g, (1.0 / 3.0 - np.einsum("mcd,md->mc", g, self.centroid[:, :2]))[..., None]], 2)
+        affine = np.concatenate([g, (1.0 / 3.0 - np.einsum("mcd,md->mc", g, self.centroid[:, :2]))[..., None]], 2)
+        self._affine_rows = np.ascontiguousarray(affine.reshape(-1, 9))
         # a uniform grid of buckets: each holds the triangles whose bounding box meets the cell
         corners = self.corner_x[:, :, :2]
         low, high = corners.min(axis=1), corners.max(axis=1)
@@ -139,18 +140,97 @@ class TriangleWalker:
         self._bucket_start = np.searchsorted(cell[order], np.arange(shape[0] * shape[1] + 1))
         self._grid = (origin, size, shape)
         self._locator = True
+        self._border = None
+        if border.size:  # border edges in a coarser grid: first crossings of straight paths
+            ends = K.simplices(1)[border]
+            a, b = x2[ends[:, 0]], x2[ends[:, 1]]
+            owner = np.full(K.num_simplices(1), -1, dtype=np.int64)
+            owner[self.edge.ravel()] = np.repeat(np.arange(self.top.shape[0]), 3)
+            inner = self.centroid[owner[border], :2]
+            e = b - a
+            normal = np.stack([e[:, 1], -e[:, 0]], axis=1)
+            normal *= np.where(np.einsum("bd,bd->b", normal, inner - a) > 0, -1.0, 1.0)[:, None]  # outward
+            cell_size = float(np.linalg.norm(e, axis=1).max())
+            b_origin = np.minimum(a, b).min(axis=0) - cell_size
+            b_shape = np.floor((np.maximum(a, b).max(axis=0) + cell_size - b_origin) / cell_size).astype(np.int64) + 1
+            first = np.floor((np.minimum(a, b) - b_origin) / cell_size).astype(np.int64)
+            last = np.floor((np.maximum(a, b) - b_origin) / cell_size).astype(np.int64)
+            span = last - first + 1
+            count = span[:, 0] * span[:, 1]
+            which = np.repeat(np.arange(count.size), count)
+            k = np.arange(which.size) - np.repeat(np.cumsum(count) - count, count)
+            cell = (first[which, 1] + k // span[which, 0]) * b_shape[0] + first[which, 0] + k % span[which, 0]
+            order = np.argsort(cell, kind="stable")
+            self._border = dict(a=a, e=e, normal=normal, edge=border, triangle=owner[border],
+                                members=which[order], start=np.searchsorted(cell[order], np.arange(b_shape.prod() + 1)),
+                                origin=b_origin, size=cell_size, shape=b_shape)
 
-    def _jump(self, position, tri, direction, time, active) -> np.ndarray:
-        """Planar fast path of :meth:`walk`; returns the mask (over ``active``) of points done."""
+    def _first_crossing(self, start: np.ndarray, end: np.ndarray):
+        """First border edge crossed outwards by the segments start → end (Q, 2).
+
+        Returns (s, k): the segment parameter in [0, 1] of the crossing (inf if none) and the
+        index into the border-edge table (-1 if none)."""
+        B = self._border
+        Q = start.shape[0]
+        low = np.clip(np.floor((np.minimum(start, end) - B["origin"]) / B["size"]).astype(np.int64), 0, B["shape"] - 1)
+        high = np.clip(np.floor((np.maximum(start, end) - B["origin"]) / B["size"]).astype(np.int64), 0, B["shape"] - 1)
+        span = high - low + 1
+        count = span[:, 0] * span[:, 1]
+        point = np.repeat(np.arange(Q), count)
+        k = np.arange(point.size) - np.repeat(np.cumsum(count) - count, count)
+        cell = (low[point, 1] + k // span[point, 0]) * B["shape"][0] + low[point, 0] + k % span[point, 0]
+        begin, length = B["start"][cell], B["start"][cell + 1] - B["start"][cell]
+        pair_point = np.repeat(point, length)
+        offset = np.arange(pair_point.size) - np.repeat(np.cumsum(length) - length, length)
+        member = B["members"][np.repeat(begin, length) + offset]
+        p, d = start[pair_point], end[pair_point] - start[pair_point]
+        a, e = B["a"][member], B["e"][member]
+        den = d[:, 0] * e[:, 1] - d[:, 1] * e[:, 0]
+        ap = a - p
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (ap[:, 0] * e[:, 1] - ap[:, 1] * e[:, 0]) / den
+            r = (ap[:, 0] * d[:, 1] - ap[:, 1] * d[:, 0]) / den
+        outward = np.einsum("qd,qd->q", d, B["normal"][member]) > 0
+        crossing = outward & (s >= -1e-12) & (s <= 1 + 1e-12) & (r >= -1e-12) & (r <= 1 + 1e-12)
+        best_s = np.full(Q, np.inf)
+        best = np.full(Q, -1, dtype=np.int64)
+        if crossing.any():
+            cs, cp, cm = np.clip(s[crossing], 0.0, 1.0), pair_point[crossing], member[crossing]
+            order = np.lexsort((cs, cp))
+            first = np.ones(order.size, dtype=bool)
+            first[1:] = cp[order][1:] != cp[order][:-1]
+            chosen = order[first]
+            best_s[cp[chosen]] = cs[chosen]
+            best[cp[chosen]] = cm[chosen]
+        return best_s, best
+
+    def _jump(self, position, tri, direction, time, active, wall) -> np.ndarray:
+        """Planar fast path of :meth:`walk`; returns the mask (over ``active``) of points done.
+
+        A straight path that cannot reach the border, or reaches no border edge, ends at
+        its target (located in the triangle grid); one that leaves through a border edge
+        stops on it (the wall)."""
         t = tri[active]
         d = np.take(direction, active, axis=0)
         start = np.take(position, active, axis=0)
         # distance to the border ≥ clearance(v) − |x − v| for each corner v (1-Lipschitz)
         corner = np.take(self.corner_x, t, axis=0)  # (P, 3, 3)
-        bound = np.take(self.vertex_clearance, np.take(self.top, t, axis=0)) - np.linalg.norm(
-            corner - start[:, None, :], axis=2)
-        safe = time * np.linalg.norm(d, axis=1) < bound.max(axis=1)
+        gap = corner - start[:, None, :]
+        bound = np.take(self.vertex_clearance, np.take(self.top, t, axis=0)) - np.sqrt(np.einsum("pcd,pcd->pc", gap, gap))
+        bound = np.maximum(np.maximum(bound[:, 0], bound[:, 1]), bound[:, 2])
+        safe = time * time * np.einsum("pd,pd->p", d, d) < bound * np.abs(bound)
         done = np.zeros(active.size, dtype=bool)
+        if self._border is not None and not safe.all():
+            near = np.flatnonzero(~safe)
+            s_cross, k = self._first_crossing(start[near, :2], start[near, :2] + time * d[near, :2])
+            out = np.isfinite(s_cross)
+            safe[near[~out]] = True  # its straight path stays inside: same as a safe jump
+            stop = near[out]
+            B = self._border
+            position[active[stop]] = start[stop] + (s_cross[out] * time)[:, None] * d[stop]
+            tri[active[stop]] = B["triangle"][k[out]]
+            wall[active[stop]] = B["edge"][k[out]]
+            done[stop] = True
         if not safe.any():
             return done
         idx = active[safe]
@@ -160,15 +240,15 @@ class TriangleWalker:
         open_ = np.arange(idx.size)
 
         def test(candidates, which):
-            affine = np.take(self._affine, candidates, axis=0)  # (Q, 3, 3)
-            x = target[which]
-            lam = affine[..., 0] * x[:, None, 0] + affine[..., 1] * x[:, None, 1] + affine[..., 2]
-            hit = lam.min(axis=1) >= -1e-12
+            affine = np.take(self._affine_rows, candidates, axis=0)  # (Q, 9)
+            x, y = target[which, 0], target[which, 1]
+            hit = affine[:, 0] * x + affine[:, 1] * y + affine[:, 2] >= -1e-12
+            hit &= affine[:, 3] * x + affine[:, 4] * y + affine[:, 5] >= -1e-12
+            hit &= affine[:, 6] * x + affine[:, 7] * y + affine[:, 8] >= -1e-12
             found[which[hit]] = True
             choice[which[hit]] = candidates[hit]
             return which[~hit]
 
-        open_ = test(t[safe], open_)  # still in the start triangle
         if open_.size:  # the triangles of the grid bucket holding the target
             origin, size, shape = self._grid
             cell_xy = np.clip(np.floor((target[open_, :2] - origin) / size).astype(np.int64), 0, shape - 1)
@@ -274,7 +354,7 @@ class TriangleWalker:
         wall = np.full(P, -1, dtype=np.int64)
         active = np.flatnonzero(remaining > 0)
         if self._locator is not None and active.size and time > 0:
-            active = active[~self._jump(position, tri, direction, float(time), active)]
+            active = active[~self._jump(position, tri, direction, float(time), active, wall)]
         rounds = 0
         while active.size and rounds < max_rounds:
             rounds += 1

@@ -183,9 +183,12 @@ class CellInterpolator:
     def weights(self, vertex: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(P, Ki) WSHD07 weights of the corners ``interpolation_corners[vertex]`` at x (P, 3)."""
         relative = x - np.take(self.vertices, vertex, axis=0)
-        frame = np.take(self.frames, vertex, axis=0)  # (P, 2, 3)
-        f1 = np.einsum("pd,pd->p", relative, frame[:, 0])
-        f2 = np.einsum("pd,pd->p", relative, frame[:, 1])
+        if self.planar:  # one frame for all cells
+            f1, f2 = relative @ self.e1[0], relative @ self.e2[0]
+        else:
+            frame = np.take(self.frames, vertex, axis=0)  # (P, 2, 3)
+            f1 = np.einsum("pd,pd->p", relative, frame[:, 0])
+            f2 = np.einsum("pd,pd->p", relative, frame[:, 1])
         table = np.take(self.table, vertex, axis=0)  # (P, 4, K+1): offset, n1, n2 of edges (last, 0..K-1), det of corners
         h = table[:, 0] - table[:, 1] * f1[:, None] - table[:, 2] * f2[:, None]
         np.maximum(h, np.take(self.scale, vertex)[:, None], out=h)

@@ -190,6 +190,26 @@ def test_backtracking_in_a_uniform_flow_moves_by_minus_v_dt(integrator):
     assert d["relative_divergence"] <= 1e-12
 
 
+def test_planar_jumps_agree_with_walking_across_triangles():
+    """On planar meshes straight paths jump (located in a grid, stopped at the first border
+    crossing); walking triangle by triangle must give the same end points, triangles, walls."""
+    mesh, dec = channel(1400)
+    sim = VorticityFluid(dec, new_solver, dt=0.02, viscosity=0.0, inflow_velocity=(10.0, 0.0),
+                         obstacle_loops=mesh.obstacle_loops, initial_vorticity=random_vorticity(dec, 1, amplitude=50))
+    m = sim.cells.n_circumcenters
+    start = sim.cells.points[:m]
+    direction = -sim.triangle_velocities()
+    jumped = sim.walker.walk(start, np.arange(m), direction, sim.dt)
+    sim.walker._locator = None  # force the walk
+    walked = sim.walker.walk(start, np.arange(m), direction, sim.dt)
+    assert (walked[2] >= 0).sum() > 20 and walked[4] > 3  # many wall hits, several rounds
+    np.testing.assert_array_equal(jumped[2], walked[2])
+    np.testing.assert_allclose(jumped[0], walked[0], atol=1e-12)
+    same = jumped[1] == walked[1]  # a point exactly on an edge may be given either triangle
+    lam = sim.walker.barycentric(jumped[1][~same], jumped[0][~same])
+    assert np.all(lam > -1e-9)
+
+
 def test_velocity_stays_divergence_free_every_step():
     mesh, dec = channel(1400)
     sim = VorticityFluid(dec, new_solver, dt=0.005, viscosity=0.02, inflow_velocity=(10.0, 0.0),

@@ -46,6 +46,7 @@ class BacktrackResult:
     position : (P, 3); triangle : (P,) the triangle holding each position
     wall_edge : (P,) border edge id where a point was clamped, -1 otherwise
     rounds : walking rounds used; unfinished : points still walking after ``max_rounds``
+    substeps : the largest number of substeps any point took
     """
 
     position: np.ndarray
@@ -53,6 +54,7 @@ class BacktrackResult:
     wall_edge: np.ndarray
     rounds: int
     unfinished: int
+    substeps: int = 1
 
 
 class TriangleWalker:
@@ -93,6 +95,7 @@ class TriangleWalker:
         self.planar = bool(np.all(np.abs(face_normal - face_normal[:1]) < 1e-12))
         self.centroid = p.mean(axis=1)
         self.corner_x = np.ascontiguousarray(p)  # (m, 3, 3) corner positions
+        self.size = np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2).mean(axis=1)  # mean edge length
         self._locator = None
         if self.planar:
             self._prepare_jumps(K)
@@ -205,6 +208,7 @@ class TriangleWalker:
         return best_s, best
 
     def _jump(self, position, tri, direction, time, active, wall) -> np.ndarray:
+        # time: (len(active),) the time each active point moves
         """Planar fast path of :meth:`walk`; returns the mask (over ``active``) of points done.
 
         A straight path that cannot reach the border, or reaches no border edge, ends at
@@ -219,22 +223,23 @@ class TriangleWalker:
         bound = np.take(self.vertex_clearance, np.take(self.top, t, axis=0)) - np.sqrt(np.einsum("pcd,pcd->pc", gap, gap))
         bound = np.maximum(np.maximum(bound[:, 0], bound[:, 1]), bound[:, 2])
         safe = time * time * np.einsum("pd,pd->p", d, d) < bound * np.abs(bound)
+        time = time[:, None]
         done = np.zeros(active.size, dtype=bool)
         if self._border is not None and not safe.all():
             near = np.flatnonzero(~safe)
-            s_cross, k = self._first_crossing(start[near, :2], start[near, :2] + time * d[near, :2])
+            s_cross, k = self._first_crossing(start[near, :2], start[near, :2] + time[near] * d[near, :2])
             out = np.isfinite(s_cross)
             safe[near[~out]] = True  # its straight path stays inside: same as a safe jump
             stop = near[out]
             B = self._border
-            position[active[stop]] = start[stop] + (s_cross[out] * time)[:, None] * d[stop]
+            position[active[stop]] = start[stop] + (s_cross[out, None] * time[stop]) * d[stop]
             tri[active[stop]] = B["triangle"][k[out]]
             wall[active[stop]] = B["edge"][k[out]]
             done[stop] = True
         if not safe.any():
             return done
         idx = active[safe]
-        target = start[safe] + time * d[safe]
+        target = start[safe] + time[safe] * d[safe]
         found = np.zeros(idx.size, dtype=bool)
         choice = np.full(idx.size, -1, dtype=np.int64)
         open_ = np.arange(idx.size)
@@ -330,7 +335,7 @@ class TriangleWalker:
             tri[idx[go]] = nb[go]
         return inside
 
-    def walk(self, start: np.ndarray, triangle: np.ndarray, direction: np.ndarray, time: float,
+    def walk(self, start: np.ndarray, triangle: np.ndarray, direction: np.ndarray, time,
              max_rounds: int = 1000):
         """Move points along fixed (unfolded) directions for ``time``.
 
@@ -338,7 +343,7 @@ class TriangleWalker:
         ----------
         start : (P, 3) positions; triangle : (P,) their triangles
         direction : (P, 3) velocities tangent to the triangles (mesh units / s)
-        time : s
+        time : s, a scalar or (P,) per point
 
         Returns
         -------
@@ -349,12 +354,12 @@ class TriangleWalker:
         tri = np.array(triangle, dtype=np.int64)
         direction = np.array(direction, dtype=np.float64)
         P = position.shape[0]
-        remaining = np.full(P, float(time))
+        remaining = np.array(np.broadcast_to(np.asarray(time, dtype=np.float64), (P,)))
         entry = np.full(P, -1, dtype=np.int64)
         wall = np.full(P, -1, dtype=np.int64)
         active = np.flatnonzero(remaining > 0)
-        if self._locator is not None and active.size and time > 0:
-            active = active[~self._jump(position, tri, direction, float(time), active, wall)]
+        if self._locator is not None and active.size:
+            active = active[~self._jump(position, tri, direction, remaining[active], active, wall)]
         rounds = 0
         while active.size and rounds < max_rounds:
             rounds += 1
@@ -372,7 +377,8 @@ class TriangleWalker:
 
     def backtrack(self, start: np.ndarray, triangle: np.ndarray, dt: float, velocity,
                   integrator: str = "midpoint", substeps: int = 1, max_rounds: int = 1000,
-                  start_velocity: np.ndarray | None = None) -> BacktrackResult:
+                  start_velocity: np.ndarray | None = None, max_cfl: float | None = None,
+                  max_substeps: int = 64) -> BacktrackResult:
         """Follow −u for time ``dt`` from every start point.
 
         Parameters
@@ -382,11 +388,14 @@ class TriangleWalker:
         velocity : callable (triangles (Q,), positions (Q, 3)) -> (Q, 3) the interpolated
             velocity (mesh units / s) tangent to the given triangles
         integrator : "midpoint" | "euler" | "per_triangle" (see the module docstring)
-        substeps : number of substeps of length dt / substeps
+        substeps : least number of substeps (of length dt / substeps)
         max_rounds : safety bound on walking rounds per walk (unfinished points are reported)
         start_velocity : (P, 3) optional velocity at the start points (saves one evaluation;
             at the circumcenters it is the triangle's velocity, which the interpolation
             reproduces there exactly)
+        max_cfl : if given, each point takes enough substeps that one substep moves it at most
+            ``max_cfl`` times the mean edge length of its start triangle (|u| dt / h / k ≤ max_cfl,
+            the stepSize of Fig. 7.9 made per point), capped at ``max_substeps``
         """
         if integrator not in ("euler", "midpoint", "per_triangle"):
             raise ValueError(f"integrator must be 'midpoint', 'euler' or 'per_triangle', not {integrator!r}")
@@ -394,16 +403,25 @@ class TriangleWalker:
             raise ValueError(f"substeps must be >= 1, got {substeps}")
         position = np.array(start, dtype=np.float64)
         tri = np.array(triangle, dtype=np.int64)
-        wall = np.full(position.shape[0], -1, dtype=np.int64)
-        tau = float(dt) / substeps
+        P = position.shape[0]
+        wall = np.full(P, -1, dtype=np.int64)
+        count = np.full(P, substeps, dtype=np.int64)
+        if max_cfl is not None:
+            speed_at_start = start_velocity if start_velocity is not None else velocity(tri, position)
+            cfl = np.linalg.norm(speed_at_start, axis=1) * dt / self.size[tri]
+            count = np.clip(np.ceil(cfl / max_cfl).astype(np.int64), substeps, max(max_substeps, substeps))
+        tau_of = float(dt) / count
         rounds = unfinished = 0
-        for substep in range(substeps):  # a fixed small number of substeps
-            moving = np.flatnonzero(wall < 0)
-            t, x = tri[moving], position[moving]
+        for substep in range(int(count.max())):  # a bounded number of substeps
+            moving = np.flatnonzero((wall < 0) & (count > substep))
+            t, x, tau = tri[moving], position[moving], tau_of[moving]
             if integrator == "per_triangle":
                 x, t, hit, r, left = self._walk_per_triangle(x, t, tau, velocity, max_rounds)
             else:
-                d = -(start_velocity if substep == 0 and start_velocity is not None else velocity(t, x))
+                if substep == 0 and start_velocity is not None:
+                    d = -start_velocity[moving]
+                else:
+                    d = -velocity(t, x)
                 if integrator == "midpoint":
                     # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint (d1 unfolded there)
                     xm, tm, hit, d1, r1, _ = self.walk(x, t, d, 0.5 * tau, max_rounds)
@@ -418,13 +436,13 @@ class TriangleWalker:
             position[moving], tri[moving], wall[moving] = x, t, hit
             rounds += r
             unfinished = max(unfinished, left)
-        return BacktrackResult(position, tri, wall, rounds, unfinished)
+        return BacktrackResult(position, tri, wall, rounds, unfinished, int(count.max()))
 
     def _walk_per_triangle(self, x, t, tau, velocity, max_rounds):
         """Fig. 7.9: Euler with the velocity evaluated again in every triangle entered."""
         position, tri = x.copy(), t.copy()
         P = position.shape[0]
-        remaining = np.full(P, tau)
+        remaining = np.array(np.broadcast_to(np.asarray(tau, dtype=np.float64), (P,)))
         entry = np.full(P, -1, dtype=np.int64)
         wall = np.full(P, -1, dtype=np.int64)
         direction = np.zeros((P, 3))

@@ -64,15 +64,18 @@ class VorticityFluid:
     penalty : μ of eq. 7.14 (default 1e6 · max ⋆1)
     blowup_factor : the run is reported unstable when the kinetic energy exceeds this
         factor times the largest legitimate energy (initial, harmonic, or after a forced step)
-    integrator, substeps, max_rounds : passed to the backtracking (backtrack.py;
-        ``integrator="per_triangle"`` is Fig. 7.9 with stepSize = dt / substeps)
+    integrator, substeps, max_cfl, max_rounds : passed to the backtracking (backtrack.py):
+        each point takes at least ``substeps`` substeps and enough that one substep moves it
+        at most ``max_cfl`` mean edge lengths of its start triangle (None: no such bound).
+        ``integrator="per_triangle", max_cfl=None`` is Fig. 7.9 with stepSize = dt / substeps
     circulation_correction : see step d above
     """
 
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
-                 blowup_factor: float = 1e6, max_rounds: int = 1000, substeps: int = 1,
-                 integrator: str = "midpoint", circulation_correction: bool = True):
+                 blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
+                 max_cfl: float | None = 1.0, integrator: str = "midpoint",
+                 circulation_correction: bool = True):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
@@ -81,6 +84,7 @@ class VorticityFluid:
         self.dec, self.K = dec, K
         self.dt, self.viscosity = float(dt), float(viscosity)
         self.max_rounds, self.substeps, self.integrator = max_rounds, substeps, integrator
+        self.max_cfl = max_cfl
         self.circulation_correction = circulation_correction
         self.blowup_factor = blowup_factor
         self.cells = build_dual_cells(dec)
@@ -184,7 +188,8 @@ class VorticityFluid:
         m = self.cells.n_circumcenters
         result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity,
                                        integrator=self.integrator, substeps=self.substeps,
-                                       max_rounds=self.max_rounds, start_velocity=both[:m, :, 1])
+                                       max_rounds=self.max_rounds, start_velocity=both[:m, :, 1],
+                                       max_cfl=self.max_cfl)
         v = self.interpolator.velocity(result.triangle, result.position, both, normal)
         clamped = result.wall_edge >= 0
         v[clamped, :, 0] = 0.0
@@ -286,6 +291,7 @@ class VorticityFluid:
                 self.vorticity, self.psi = w, psi
                 self.flux = self.d0 @ psi + self.harmonic
                 extra = {"backtrack_rounds": result.rounds, "backtrack_unfinished": result.unfinished,
+                         "backtrack_substeps": result.substeps,
                          "clamped_points": int((result.wall_edge >= 0).sum())}
                 if force_flux is not None:
                     self._energy_reference = max(self._energy_reference, self.kinetic_energy(), before)

@@ -5,8 +5,10 @@ Cases: unit icospheres of 1.3k, 5k, 20k and 82k faces (a smooth random vorticity
 obstacle, ν = 0.02). The cost of a step grows with the number of triangles a backtracked
 point crosses, so each case states its CFL number (max displacement per step / mean edge
 length): the spheres run at CFL ≈ 1, the channel at the thesis' dt = 0.005 (CFL ≈ 2 in
-the coarse part, ≈ 5 at the obstacle) and at dt = 0.0025. Wall and CPU time are both
-reported: on a shared machine the CPU time of the process is the steadier number.
+the coarse part, ≈ 5 at the obstacle) and at dt = 0.0025, each with the default per-point
+substeps (max_cfl = 1) and with one substep (max_cfl = None, the cheapest; it blew up at
+ν = 0.005 on 5.3k faces). Wall and CPU time are both reported: on a shared machine the
+CPU time of the process is the steadier number.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_fluid.py            # all cases
     OMP_NUM_THREADS=1 python benchmarks/bench_fluid.py --quick    # the two smallest spheres
@@ -66,6 +68,7 @@ def run(name: str, dec: DEC, seconds: float, **options) -> dict:
         rounds += d.get("backtrack_rounds", 0)
     elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu_start
     return {"case": name, "faces": dec.K.num_simplices(2), "dt": sim.dt, "cfl": cfl, "setup_s": setup,
+            "substeps": d.get("backtrack_substeps", 1),
             "steps_per_s": steps / elapsed, "ms_per_step": 1e3 * elapsed / steps, "walk_rounds": rounds / steps,
             "cpu_steps_per_s": steps / cpu, "cpu_ms_per_step": 1e3 * cpu / steps,
             "stable": d["stable"]}
@@ -88,18 +91,18 @@ def main() -> None:
     if not args.quick:
         mesh = channel_mesh(target_faces=12000)
         dec = DEC(SimplicialComplex(mesh.vertices, mesh.faces))
-        for dt in (0.005, 0.0025):
-            rows.append(run(f"channel dt={dt}", dec, args.seconds, dt=dt, viscosity=0.02, inflow_velocity=(10.0, 0.0),
-                            obstacle_loops=mesh.obstacle_loops))
+        for dt, max_cfl in ((0.005, 1.0), (0.005, None), (0.0025, 1.0), (0.0025, None)):
+            rows.append(run(f"channel dt={dt} max_cfl={max_cfl}", dec, args.seconds, dt=dt, viscosity=0.02,
+                            inflow_velocity=(10.0, 0.0), obstacle_loops=mesh.obstacle_loops, max_cfl=max_cfl))
             print(rows[-1], flush=True)
     print()
     print("| case | faces | dt | CFL | setup s | steps/s (wall) | ms/step (wall) | steps/s (CPU) | ms/step (CPU) "
-          "| walk rounds/step | stable |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "| walk rounds/step | max substeps | stable |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['case']} | {r['faces']} | {r['dt']:.4g} | {r['cfl']:.2f} | {r['setup_s']:.2f} | "
               f"{r['steps_per_s']:.1f} | {r['ms_per_step']:.1f} | {r['cpu_steps_per_s']:.1f} | "
-              f"{r['cpu_ms_per_step']:.1f} | {r['walk_rounds']:.1f} | {r['stable']} |")
+              f"{r['cpu_ms_per_step']:.1f} | {r['walk_rounds']:.1f} | {r['substeps']} | {r['stable']} |")
 
 
 if __name__ == "__main__":

@@ -172,12 +172,17 @@ def test_harmonic_part_around_an_obstacle_has_no_flux_no_circulation_and_matches
 
 
 # ---------------------------------------------------------------- the step
-@pytest.mark.parametrize("integrator", ["midpoint", "euler", "per_triangle"])
-def test_backtracking_in_a_uniform_flow_moves_by_minus_v_dt(integrator):
+@pytest.mark.parametrize("integrator, max_cfl", [("midpoint", 1.0), ("midpoint", None), ("midpoint", 0.2),
+                                                  ("euler", None), ("per_triangle", None)])
+def test_backtracking_in_a_uniform_flow_moves_by_minus_v_dt(integrator, max_cfl):
     _, dec = channel(1400, obstacle=False)
     v = np.array([10.0, 3.0, 0.0])
-    sim = VorticityFluid(dec, new_solver, dt=0.004, viscosity=0.0, inflow_velocity=v[:2], integrator=integrator)
+    sim = VorticityFluid(dec, new_solver, dt=0.004, viscosity=0.0, inflow_velocity=v[:2], integrator=integrator,
+                         max_cfl=max_cfl)
     result, velocity = sim.backtrack()
+    h = sim.walker.size
+    cfl = np.linalg.norm(v) * sim.dt / h.min()
+    assert result.substeps == (1 if max_cfl is None else max(1, int(np.ceil(cfl / max_cfl))))
     start = sim.cells.points[: sim.cells.n_circumcenters]
     expected = start - v * sim.dt
     inside = (expected[:, 0] > 1e-9) & (expected[:, 1] > 1e-9) & (expected[:, 1] < 1 - 1e-9)

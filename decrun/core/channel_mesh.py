@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import triangle as triangle_library
 
+from decrun.core.geometry import obtuse_triangle_count
+
 __all__ = ["ChannelMesh", "circle", "channel_mesh", "obtuse_count"]
 
 
@@ -25,16 +27,6 @@ def circle(center, radius: float, count: int) -> np.ndarray:
     """(count, 2) counter-clockwise points on a circle."""
     angle = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
     return np.stack([center[0] + radius * np.cos(angle), center[1] + radius * np.sin(angle)], axis=1)
-
-
-def obtuse_count(vertices: np.ndarray, faces: np.ndarray, tol_deg: float = 1e-9) -> int:
-    """Number of triangles with an angle above 90° + ``tol_deg``."""
-    p = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
-    a = np.roll(p, -1, axis=1) - p
-    b = np.roll(p, 1, axis=1) - p
-    cross = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    angle = np.degrees(np.arctan2(np.abs(cross), np.einsum("mkd,mkd->mk", a, b)))
-    return int((angle.max(axis=1) > 90.0 + tol_deg).sum())
 
 
 @dataclass
@@ -187,7 +179,7 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
     vertices, faces = result["vertices"].copy(), result["triangles"].astype(np.int64)
     n_fixed = sum(loop.shape[0] for loop in loops)  # ring points may move
     for _ in range(rounds):  # ODT smoothing of interior vertices + constrained Delaunay
-        if obtuse_count(vertices, faces) == 0:
+        if obtuse_triangle_count(vertices, faces) == 0:
             break
         # a vertex of valence ≤ 4 has a mean angle ≥ 90°: remove such interior vertices
         valence = np.bincount(faces.ravel(), minlength=vertices.shape[0])
@@ -208,7 +200,7 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
         vertices = new
         faces = cdt(vertices, "pY")["triangles"].astype(np.int64)
     for _ in range(8 * rounds):  # Thales repair of the obtuse triangles left
-        if obtuse_count(vertices, faces) == 0:
+        if obtuse_triangle_count(vertices, faces) == 0:
             break
         valence = np.bincount(faces.ravel(), minlength=vertices.shape[0])
         low = valence <= 4
@@ -227,7 +219,7 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
     a, b = np.roll(p, -1, axis=1) - p, np.roll(p, 1, axis=1) - p
     angle = np.degrees(np.arctan2(np.abs(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]), np.einsum("mkd,mkd->mk", a, b)))
     return ChannelMesh(vertices, faces, loops_ids, ["outer"] + [f"obstacle {i}" for i in range(len(polys))],
-                       obtuse_count(vertices, faces), float(angle.max()))
+                       obtuse_triangle_count(vertices, faces), float(angle.max()))
 
 
 def _thales_step(vertices: np.ndarray, faces: np.ndarray, n_fixed: int, margin: float = 0.02,

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from decrun.complex import SimplicialComplex
-from decrun.core.channel_mesh import channel_mesh, obtuse_count
+from decrun.core.channel_mesh import channel_mesh
+from decrun.core.geometry import obtuse_triangle_count as obtuse_count
 
 
 def edge_lengths_near(mesh, center, inner, outer):

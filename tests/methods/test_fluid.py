@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from meshes_for_tests import icosphere  # noqa: E402
 
@@ -25,7 +24,7 @@ from decrun.methods.fluid.initial import (random_vorticity, solid_body_rotation,
 from decrun.methods.fluid.interpolation import (CellInterpolator, triangle_velocity_matrix,  # noqa: E402
                                                 wachspress_weights)
 from decrun.methods.fluid.simulation import VorticityFluid  # noqa: E402
-from decrun.solvers import DirectSolver  # noqa: E402
+from decrun.core.solvers.direct import DirectSolver  # noqa: E402
 
 
 def new_solver():
@@ -130,10 +129,10 @@ def test_triangle_velocity_has_the_edge_fluxes():
         u = dec.d(0) @ psi
         v = (triangle_velocity_matrix(dec, cells.face_normal) @ u).reshape(-1, 3)
         x = np.pad(dec.K.vertices, ((0, 0), (0, 3 - dec.K.vertices.shape[1])))
-        edges = dec.K.simplices(1)[dec.K.face_indices(2)]  # (m, 3, 2)
+        edges = dec.K.simplices(1)[dec.K.facet_indices(2)]  # (m, 3, 2)
         t = x[edges[..., 1]] - x[edges[..., 0]]
         flux = np.einsum("md,med->me", v, np.cross(t, cells.face_normal[:, None, :]))
-        np.testing.assert_allclose(flux, u[dec.K.face_indices(2)], atol=1e-12 * np.abs(u).max())
+        np.testing.assert_allclose(flux, u[dec.K.facet_indices(2)], atol=1e-12 * np.abs(u).max())
 
 
 # ---------------------------------------------------------------- harmonic part (§7.2.5)

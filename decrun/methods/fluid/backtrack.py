@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from decrun.dec import DEC
-from decrun.methods.fluid.dual_cells import _embed3
+from decrun.core.dec import DEC
+from decrun.core.geometry import embed3
 
 __all__ = ["TriangleWalker", "BacktrackResult"]
 
@@ -67,11 +67,11 @@ class TriangleWalker:
 
     def __init__(self, dec: DEC, face_normal: np.ndarray):
         K = dec.K
-        self.x = _embed3(K.vertices)
+        self.x = embed3(K.vertices)
         self.top = K.simplices(2)
         m = self.top.shape[0]
         self.face_normal = face_normal
-        self.edge = K.face_indices(2)  # (m, 3) edge opposite local vertex l
+        self.edge = K.facet_indices(2)  # (m, 3) edge opposite local vertex l
         flat_edge = self.edge.ravel()
         order = np.argsort(flat_edge, kind="stable")
         sorted_edge = flat_edge[order]

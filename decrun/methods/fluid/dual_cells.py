@@ -11,7 +11,7 @@ border vertex is closed by the midpoints of its two border edges and the vertex 
 
 Cells are stored as padded integer arrays; no Python loop runs over vertices or faces.
 On obtuse triangles the circumcenter leaves its triangle and the cell turns inside out
-(§7.3): :func:`obtuse_triangle_count` measures that.
+(§7.3): :func:`decrun.core.geometry.obtuse_triangle_count` measures that.
 """
 
 from __future__ import annotations
@@ -20,17 +20,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from decrun.dec import DEC
+from decrun.core import geometry
+from decrun.core.dec import DEC
+from decrun.core.geometry import embed3
 from decrun.errors import TopologyError
 
-__all__ = ["DualCells", "build_dual_cells", "face_normals", "vertex_normals", "obtuse_triangle_count"]
-
-
-def _embed3(points: np.ndarray) -> np.ndarray:
-    points = np.asarray(points, dtype=np.float64)
-    if points.shape[1] == 3:
-        return points
-    return np.concatenate([points, np.zeros((points.shape[0], 3 - points.shape[1]))], axis=1)
+__all__ = ["DualCells", "build_dual_cells", "face_normals", "vertex_normals"]
 
 
 def _normalize(vectors: np.ndarray) -> np.ndarray:
@@ -43,9 +38,7 @@ def face_normals(dec: DEC) -> np.ndarray:
 
     A planar mesh whose triangles run counter-clockwise in the xy-plane gets +z.
     """
-    x = _embed3(dec.K.vertices)
-    f = dec.K.oriented_simplices()
-    return _normalize(np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]]))
+    return geometry.face_normals(dec.K.vertices, dec.K.oriented_simplices())
 
 
 def vertex_normals(dec: DEC, relative_tol: float = 1e-8) -> np.ndarray:
@@ -59,7 +52,7 @@ def vertex_normals(dec: DEC, relative_tol: float = 1e-8) -> np.ndarray:
     60° from the face normal (saddles with noise).
     """
     K = dec.K
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
     f = K.oriented_simplices()
     area_normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])  # 2·area·n
     face_average = np.zeros_like(x)
@@ -73,15 +66,6 @@ def vertex_normals(dec: DEC, relative_tol: float = 1e-8) -> np.ndarray:
     use = (size * np.sqrt(np.abs(dec.star_diagonal(0))) > relative_tol) & (np.abs(cosine) > 0.5)
     use &= ~K.boundary_vertices()
     return np.where(use[:, None], np.sign(cosine)[:, None] * curvature_unit, face_average)
-
-
-def obtuse_triangle_count(points: np.ndarray, faces: np.ndarray, tol_deg: float = 1e-9) -> int:
-    """Number of triangles with an angle above 90° + ``tol_deg`` (points (n, 2|3), faces (m, 3))."""
-    p = _embed3(points)[np.asarray(faces)]
-    a = np.roll(p, -1, axis=1) - p
-    b = np.roll(p, 1, axis=1) - p
-    angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=2), np.einsum("mkd,mkd->mk", a, b)))
-    return int((angle.max(axis=1) > 90.0 + tol_deg).sum())
 
 
 @dataclass
@@ -154,7 +138,7 @@ def build_dual_cells(dec: DEC, duplicate_tol: float = 1e-9) -> DualCells:
     if K.dim != 2:
         raise TopologyError(f"the fluid solver needs a triangle mesh (a 2-complex), got a {K.dim}-complex")
     n0, m = K.num_simplices(0), K.num_simplices(2)
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
     f = K.oriented_simplices()
     corner_vertex = f.ravel()
     local = np.tile(np.arange(3), m)
@@ -223,7 +207,7 @@ def build_dual_cells(dec: DEC, duplicate_tol: float = 1e-9) -> DualCells:
         raise TopologyError("a border fan does not start and end at border edges")
 
     points = np.concatenate([
-        _embed3(dec.circumcenters()),
+        embed3(dec.circumcenters()),
         0.5 * (x[edges[border_edges, 0]] + x[edges[border_edges, 1]]),
         x[border_ids],
     ])

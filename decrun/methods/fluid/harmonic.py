@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.dec import DEC
-from decrun.methods.fluid.dual_cells import _embed3
+from decrun.core.dec import DEC
+from decrun.core.geometry import embed3
 
 __all__ = ["border_layout", "uniform_flux", "harmonic_flux", "harmonic_flux_least_squares"]
 
@@ -61,11 +61,11 @@ def uniform_flux(dec: DEC, face_normal: np.ndarray, velocity) -> np.ndarray:
     edge; on a planar mesh this is exact: d0 of χ = <N × v, x>.
     """
     K = dec.K
-    x = _embed3(K.vertices)
-    v = _embed3(np.atleast_2d(np.asarray(velocity, dtype=np.float64)))[0]
+    x = embed3(K.vertices)
+    v = embed3(np.atleast_2d(np.asarray(velocity, dtype=np.float64)))[0]
     edges = K.simplices(1)
     owner = np.empty(edges.shape[0], dtype=np.int64)
-    opposite = K.face_indices(2)
+    opposite = K.facet_indices(2)
     owner[opposite.ravel()] = np.repeat(np.arange(opposite.shape[0]), 3)
     t = x[edges[:, 1]] - x[edges[:, 0]]
     return np.einsum("d,ed->e", v, np.cross(t, face_normal[owner]))
@@ -104,8 +104,8 @@ def harmonic_flux(dec: DEC, face_normal: np.ndarray, label: np.ndarray, inflow_v
     n0 = K.num_simplices(0)
     if inflow_velocity is None or not np.any(label == 0):
         return np.zeros(K.num_simplices(1))
-    x = _embed3(K.vertices)
-    v = _embed3(np.atleast_2d(np.asarray(inflow_velocity, dtype=np.float64)))[0]
+    x = embed3(K.vertices)
+    v = embed3(np.atleast_2d(np.asarray(inflow_velocity, dtype=np.float64)))[0]
     # χ = <N × v, x> on the outer border, with the average vertex normal there (exact when planar)
     normal = np.zeros(3)
     F = K.oriented_simplices()

@@ -12,9 +12,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
-from decrun.dec import DEC
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError
-from decrun.methods.fluid.dual_cells import _embed3, face_normals
+from decrun.core.geometry import embed3
+from decrun.methods.fluid.dual_cells import face_normals
 
 __all__ = ["zero_vorticity", "solid_body_rotation", "vortex_blobs", "sphere_vortex_pair", "random_vorticity",
            "stroke_force"]
@@ -31,7 +32,7 @@ def solid_body_rotation(dec: DEC, axis=(0.0, 0.0, 1.0), angular_velocity: float 
     The velocity Ω â × x has vorticity 2Ω <â, n> with n = x / |x| the sphere normal; on the
     unit sphere its stream function is ψ = Ω <â, x> (a degree-1 harmonic, Δψ = 2ψ).
     """
-    x = _embed3(dec.K.vertices)
+    x = embed3(dec.K.vertices)
     a = np.asarray(axis, dtype=np.float64)
     a = a / np.linalg.norm(a)
     return 2.0 * angular_velocity * (x @ a) / np.linalg.norm(x, axis=1)
@@ -46,8 +47,8 @@ def vortex_blobs(dec: DEC, centers, circulations, radius: float) -> np.ndarray:
     centers : (k, 2|3) blob centres; circulations : (k,) Γ_k (mesh units² / s)
     radius : r (mesh units)
     """
-    x = _embed3(dec.K.vertices)
-    centers = _embed3(np.atleast_2d(np.asarray(centers, dtype=np.float64)))
+    x = embed3(dec.K.vertices)
+    centers = embed3(np.atleast_2d(np.asarray(centers, dtype=np.float64)))
     circulations = np.atleast_1d(np.asarray(circulations, dtype=np.float64))
     star0 = dec.star_diagonal(0)
     w = np.zeros(x.shape[0])
@@ -88,7 +89,7 @@ def random_vorticity(dec: DEC, seed: int = 0, correlation_length: float = 0.2, a
 def _locate_faces(dec: DEC, points: np.ndarray, candidates: int = 8) -> np.ndarray:
     """(P,) the face containing (or nearest to) each point among the faces with the nearest
     barycenters (distance to the plane plus the distance outside the triangle)."""
-    x = _embed3(dec.K.vertices)
+    x = embed3(dec.K.vertices)
     top = dec.K.simplices(2)
     corners = x[top]
     k = int(min(candidates, top.shape[0]))
@@ -119,10 +120,10 @@ def stroke_force(dec: DEC, polyline, strength: float, step: float | None = None)
     In the step, w += dt ⋆0⁻¹ d0ᵀ ⋆1 f is then dt times the curl of F.
     """
     K = dec.K
-    points = _embed3(np.atleast_2d(np.asarray(polyline, dtype=np.float64)))
+    points = embed3(np.atleast_2d(np.asarray(polyline, dtype=np.float64)))
     if points.shape[0] < 2:
         raise ConfigError("stroke: a stroke needs at least two points")
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
     edges = K.simplices(1)
     if step is None:
         step = 0.25 * float(np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1).mean())
@@ -141,7 +142,7 @@ def stroke_force(dec: DEC, polyline, strength: float, step: float | None = None)
     length = np.linalg.norm(total, axis=1)
     keep = length > 1e-12 * max(float(length.max(initial=0.0)), 1e-300)
     unique, force = unique[keep], strength * total[keep] / length[keep, None]
-    edge_of_face = K.face_indices(2)[unique]  # (F, 3)
+    edge_of_face = K.facet_indices(2)[unique]  # (F, 3)
     t = x[edges[edge_of_face, 1]] - x[edges[edge_of_face, 0]]  # (F, 3, 3)
     values = np.einsum("fd,fed->fe", force, np.cross(t, normal[unique][:, None, :]))
     n1 = K.num_simplices(1)

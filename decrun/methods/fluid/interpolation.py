@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.dec import DEC
-from decrun.methods.fluid.dual_cells import DualCells, _embed3
+from decrun.core.dec import DEC
+from decrun.core.geometry import embed3
+from decrun.methods.fluid.dual_cells import DualCells
 
 __all__ = ["triangle_velocity_matrix", "wachspress_weights", "CellInterpolator"]
 
@@ -37,7 +38,7 @@ def triangle_velocity_matrix(dec: DEC, face_normal: np.ndarray) -> sp.csr_matrix
     edge a → b (the flux to the right of the edge, §7.2.1).
     """
     K = dec.K
-    x = _embed3(K.vertices)
+    x = embed3(K.vertices)
     top = K.simplices(2)
     p = x[top]  # (m, 3, 3) sorted vertex order
     gradients = np.empty_like(p)
@@ -48,7 +49,7 @@ def triangle_velocity_matrix(dec: DEC, face_normal: np.ndarray) -> sp.csr_matrix
         h = h - (np.einsum("md,md->m", h, edge) / np.einsum("md,md->m", edge, edge))[:, None] * edge
         gradients[:, i] = h / np.einsum("md,md->m", h, h)[:, None]
     rotated = np.cross(gradients, face_normal[:, None, :])  # ∇λ_i × N
-    opposite = K.face_indices(2)  # edge opposite local vertex l: (1,2), (0,2), (0,1)
+    opposite = K.facet_indices(2)  # edge opposite local vertex l: (1,2), (0,2), (0,1)
     pairs = [(1, 2, 0), (0, 2, 1), (0, 1, 2)]  # (a, b, l): edge a<b opposite l
     m = top.shape[0]
     rows, cols, vals = [], [], []
@@ -124,7 +125,7 @@ class CellInterpolator:
     def __init__(self, cells: DualCells, triangles: np.ndarray, vertices: np.ndarray, tiny: float = 1e-13):
         self.cells = cells
         self.triangles = np.asarray(triangles, dtype=np.int64)
-        self.vertices = _embed3(vertices)
+        self.vertices = embed3(vertices)
         self.tiny = tiny
         normal = cells.vertex_normal
         helper = np.where(np.abs(normal[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))

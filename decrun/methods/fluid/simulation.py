@@ -37,10 +37,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.dec import DEC
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError, SolverError
 from decrun.methods.fluid.backtrack import TriangleWalker
-from decrun.methods.fluid.dual_cells import _embed3, build_dual_cells, obtuse_triangle_count
+from decrun.core.geometry import embed3, obtuse_triangle_count
+from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
 from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
 
@@ -97,7 +98,7 @@ class VorticityFluid:
         self.velocity_matrix = triangle_velocity_matrix(dec, self.face_normal)
         self.closed = not self.cells.border_vertex.any()
         self.obstacles, self.label = border_layout(dec, obstacle_loops)
-        self.inflow = np.zeros(3) if inflow_velocity is None else _embed3(
+        self.inflow = np.zeros(3) if inflow_velocity is None else embed3(
             np.atleast_2d(np.asarray(inflow_velocity, dtype=np.float64)))[0]
         self.star0 = dec.star_diagonal(0)
         self.star1 = dec.star_diagonal(1)
@@ -167,7 +168,7 @@ class VorticityFluid:
     def velocity_at(self, triangle: np.ndarray, points: np.ndarray) -> np.ndarray:
         """(P, 3) interpolated full velocity at ``points`` (P, 3) inside ``triangle`` (P,) (step b)."""
         full = self._point_velocities()[..., 1:2]
-        return self.interpolator.velocity(np.asarray(triangle), _embed3(points), full, self.face_normal)[:, :, 0]
+        return self.interpolator.velocity(np.asarray(triangle), embed3(points), full, self.face_normal)[:, :, 0]
 
     def _point_velocities(self) -> np.ndarray:
         """(P, 3, 2) velocities of all dual points: [d0 ψ part, full u]."""

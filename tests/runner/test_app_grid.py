@@ -10,10 +10,11 @@ import pytest
 from decrun.errors import ConfigError
 from decrun.runner.cli import compose_config, run_experiment, validate
 
-APPS = ["smoothing", "parametrization", "hodge", "vector_field"]
+APPS = ["smoothing", "parametrization", "hodge", "vector_field", "fluid"]
 SOLVERS = ["direct", "cg", "amg", "pardiso"]
 APP_MESH = {"parametrization": ["mesh=sphere_cap", "mesh.subdiv=2"], "hodge": ["mesh.subdiv=2", "mesh.noise=0.05"],
-            "smoothing": ["mesh.subdiv=2"], "vector_field": ["mesh.subdiv=2"]}
+            "smoothing": ["mesh.subdiv=2"], "vector_field": ["mesh.subdiv=2"],
+            "fluid": ["mesh.subdiv=2", "mesh.noise=0.0", "app.steps=5", "app.animation=false"]}
 EXTRA = {"amg": "pyamg", "pardiso": "pypardiso"}
 
 

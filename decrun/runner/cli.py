@@ -433,6 +433,9 @@ def main() -> None:
     if args in (["--help"], ["-h"]):
         print(fast_help(), end="")
         return
+    if any(a.startswith("query=") for a in args) and any(a in ("-sc", "--shell-completion") for a in args):
+        _completion()
+        return
     SweepTable.failed = 0
     install_sigterm()
     # a log file that cannot be written (full disk) must not print logging's tracebacks;
@@ -450,6 +453,23 @@ def main() -> None:
         sys.exit(exit_code(exc))
     if SweepTable.failed:
         sys.exit(1)
+
+
+def _completion() -> None:
+    """Hydra's shell completion, without the files that are shared pieces of a group rather
+    than options (names starting with ``_``, e.g. ``mesh/_post_processing``)."""
+    import contextlib
+    import io
+    import re
+
+    captured = io.StringIO()
+    with contextlib.redirect_stdout(captured):
+        try:
+            _hydra_main()
+        except SystemExit:
+            pass
+    words = [w for w in captured.getvalue().split() if not re.search(r"[=/]_[^/=]*$", w)]
+    print(" ".join(words))
 
 
 def _report(exc: Exception) -> int:

@@ -44,8 +44,9 @@ class Parametrization(App):
     border: circle | circle_arclength | conformal | free
     weights: dec | uniform | mean_value (interior rows; with ``free`` they solve the interior
         against the free border, ``dec`` is the least-squares conformal map itself)
-    reflex_rows: harmonic (thesis §5.2.3) | cauchy_riemann (DEC row closed by ⋆dx = dy on the
-        border; exact on flat meshes) — the row of border vertices reflex under eq. 5.8
+    reflex_rows: cauchy_riemann (default: the DEC row closed by ⋆dx = dy on the border — exact
+        on developable patches, where the thesis' rule is not) | harmonic (the thesis' rule,
+        §5.2.3: ``app.reflex_rows=harmonic``) — the row of border vertices reflex under eq. 5.8
     exterior_border: index into the border loops sorted longest first; null = the longest
     checker_squares: squares per side of the checkerboard texture figure
     """
@@ -55,7 +56,7 @@ class Parametrization(App):
     unsymmetric_systems = "border rows replace the harmonic rows of eq. 5.3, and eq. 5.9 couples x and y"
     border: str = "conformal"
     weights: str = "dec"
-    reflex_rows: str = "harmonic"
+    reflex_rows: str = "cauchy_riemann"
     exterior_border: Optional[int] = None
     checker_squares: int = 10
 

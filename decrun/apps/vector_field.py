@@ -31,7 +31,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.forms import whitney_sharp
 from decrun.core.geometry import embed3
 from decrun.errors import ConfigError, TopologyError
-from decrun.methods.singularities import find_singularities
+from decrun.methods.singularities import cluster_singularities, find_singularities
 from decrun.methods.vector_design import (
     MAGNITUDE_MODES,
     DesignConstraints,
@@ -99,6 +99,9 @@ class VectorField(App):
     region_normal: List[float] = field(default_factory=list)
     region_min_cos: float = 0.9
     figure_arrows: int = 700  # at most this many arrows in the figure
+    #: singular sites closer than this (in mean edge lengths) form one cluster whose index is
+    #: their sum (metrics singularity_clusters, singularity_cluster_indices)
+    cluster_radius: float = 3.0
 
     def __post_init__(self):
         if self.stroke_magnitude not in MAGNITUDE_MODES:
@@ -122,6 +125,8 @@ class VectorField(App):
                 "there are no sources, sinks or vortices, so that field is zero and so would be the result: "
                 "use app.stroke_magnitude=fixed (eq. 6.8) or add a constraint"
             )
+        if not self.cluster_radius >= 0:
+            raise ConfigError(f"app.cluster_radius: must be >= 0 (mean edge lengths), got {self.cluster_radius}")
         if self.region_normal and len(self.region_normal) != 3:
             raise ConfigError(f"app.region_normal: must be empty or three numbers, got {list(self.region_normal)}")
 
@@ -212,8 +217,10 @@ def _design(self, ctx: Context) -> Result:
     Metrics: ``curl_residual``, ``divergence_residual``, ``direction_residual`` (⋆2, ⋆0 and
     W norms; each also ``*_relative`` to its target), ``smoothness_energy``
     (⟨dω,dω⟩ + ⟨δω,δω⟩), ``index_sum``, ``euler_characteristic``, ``poincare_hopf_holds``
-    (closed meshes), ``singularities`` (count) with ``singularities_positive`` /
-    ``_negative``, ``boundary_normal_flux_mean`` and ``boundary_normal_fraction``,
+    (closed meshes), ``singularities`` (count of singular vertices and faces) with
+    ``singularities_positive`` / ``_negative``, ``singularity_clusters`` (sites within
+    ``cluster_radius`` mean edge lengths merged, index-0 clusters left out) and
+    ``singularity_cluster_indices`` (their indices, e.g. ``"+1,+1"``), ``boundary_normal_flux_mean`` and ``boundary_normal_fraction``,
     ``adjointness_defect``, ``field_change_relative`` / ``field_change_region_relative``
     (strokes: change of the face vectors caused by the strokes, area-weighted L2, whole
     mesh / region), ``normal_equation_residual``, ``solve_seconds``.
@@ -246,6 +253,7 @@ def _design(self, ctx: Context) -> Result:
 
     face_vectors = embed3(whitney_sharp(K, omega))
     singular = find_singularities(K, omega)
+    clusters = cluster_singularities(K, singular, cfg.cluster_radius * K.mean_edge_length)
     chi = int(K.euler_characteristic)
     closed = K.boundary_faces()[0].size == 0
     metrics = design_residuals(dec, delta, constraints, omega)
@@ -258,6 +266,8 @@ def _design(self, ctx: Context) -> Result:
         singularities_positive=int((singular.vertex_index > 0).sum() + (singular.face_index > 0).sum()),
         singularities_negative=int((singular.vertex_index < 0).sum() + (singular.face_index < 0).sum()),
         index_max_rounding=singular.max_rounding,
+        singularity_clusters=int(clusters.nonzero.sum()),
+        singularity_cluster_indices=clusters.summary(),
         adjointness_defect=adjointness_defect(dec, delta),
         boundary=mode,
         sources=int(geometry["source_vertices"].size),
@@ -278,6 +288,8 @@ def _design(self, ctx: Context) -> Result:
         "face_index": singular.face_index,
         "singular_vertices": singular.vertices,
         "singular_faces": singular.faces,
+        "cluster_positions": clusters.positions,
+        "cluster_indices": clusters.indices,
         "source_vertices": geometry["source_vertices"],
         "vortex_faces": geometry["vortex_faces"],
         "stroke_faces": geometry["stroke_faces"],
@@ -297,7 +309,8 @@ def _design(self, ctx: Context) -> Result:
     title = f"{mode} border" if not closed else "closed surface"
     figures = {"field": Figure("decrun.runner.plots.fields.field_figure", dict(
         face_vectors=face_vectors, vertex_index=singular.vertex_index, face_index=singular.face_index,
-        stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows)))}
+        stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows),
+        cluster_positions=clusters.positions[clusters.nonzero], cluster_indices=clusters.indices[clusters.nonzero]))}
     return Result(fields=fields, metrics=metrics, figures=figures)
 
 

@@ -101,10 +101,12 @@ def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
 def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces: np.ndarray,
                  values_before: np.ndarray | None = None, values_after: np.ndarray | None = None, *,
                  titles: tuple[str, str] = ("before", "after"), suptitle: str | None = None,
-                 cmap: str = "viridis", colorbar_label: str | None = None) -> Figure:
+                 cmap: str = "viridis", colorbar_label: str | None = None, share_axes: bool = True) -> Figure:
     """Figure with two panels: the mesh before and after (same ``faces``), same colour scale.
 
-    Meshes with 3-D vertices are drawn in 3-D, planar ones in 2-D.
+    Meshes with 3-D vertices are drawn in 3-D, planar ones in 2-D. With ``share_axes`` both
+    panels show the same box (the union of both meshes' bounding boxes, equal aspect), so a
+    result that shrank, exploded or moved looks like it.
     """
     three_d = np.asarray(vertices_before).shape[1] == 3
     fig = new_figure(8.0, 4.0)
@@ -120,11 +122,28 @@ def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces:
     for ax, vertices, values, title in zip(axes, (vertices_before, vertices_after), (values_before, values_after), titles):
         m = plot_surface(ax, vertices, faces, values, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
         mappable = mappable or m
+    if share_axes:
+        _share_limits(axes, [np.asarray(vertices_before), np.asarray(vertices_after)])
     if mappable is not None:
         fig.colorbar(mappable, ax=axes, shrink=0.6, label=colorbar_label)
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
     return fig
+
+
+def _share_limits(axes, vertex_sets) -> None:
+    """Give every axes the same cube (3-D) or rectangle (2-D): the union of the finite
+    vertices' bounding boxes."""
+    points = np.concatenate([v[np.isfinite(v).all(axis=1)] for v in vertex_sets])
+    if not len(points):
+        return
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    center, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-12)
+    for ax in axes:
+        ax.set_xlim(center[0] - half, center[0] + half)
+        ax.set_ylim(center[1] - half, center[1] + half)
+        if getattr(ax, "name", "") == "3d":
+            ax.set_zlim(center[2] - half, center[2] + half)
 
 
 def surface_figure(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,

@@ -121,7 +121,7 @@ class App:
         given once the operators are chosen)."""
         if getattr(solver, "needs_spd", False) and self.unsymmetric_systems:
             raise ConfigError(f"solver={solver.name}: app={self.name} solves systems that are not symmetric positive "
-                              f"definite ({self.unsymmetric_systems}); use solver=direct or solver=pardiso")
+                              f"definite ({self.unsymmetric_systems}); use `solver=direct` (or `solver=pardiso`)")
 
     def check_operators(self, dec) -> None:
         """Reject a boundary adaptation or Hodge-star variant this app cannot use, with the
@@ -135,14 +135,14 @@ class App:
             if nondiagonal:
                 raise ConfigError(f"operator={dec.star_variant.name}: ⋆_k is not diagonal for k in {nondiagonal}, "
                                   f"but app={self.name} needs diagonal stars ({self.diagonal_stars}); use "
-                                  f"operator.lumped=true or operator=circumcentric")
+                                  f"`operator.lumped=true` (or `operator=circumcentric`)")
         degrees = dec.star_variant.form_degrees
         if degrees is not None:
             missing = [k for k in self.form_degrees if k <= dec.n and k not in degrees]
             if missing:
                 raise ConfigError(f"operator={dec.star_variant.name} provides operators on {list(degrees)}-forms "
                                   f"only, but app={self.name} needs {missing}-forms on the mesh's own simplices: "
-                                  f"use operator=mixed_area, operator=circumcentric or operator=whitney")
+                                  f"use `operator=mixed_area` (or `operator=circumcentric`)")
 
 
 def _passthrough(iterable, total=None, desc=None, **_):

@@ -81,7 +81,7 @@ class Hodge(App):
         if dec is not None and getattr(solver, "needs_spd", False) and not dec.star_is_diagonal(1):
             raise ConfigError(f"solver={solver.name}: with a Galerkin ⋆1 (operator={dec.star_variant.name}) the "
                               "coexact part of app=hodge is a symmetric indefinite saddle-point system; use "
-                              "solver=direct or solver=pardiso (or operator.lumped=true)")
+                              "`solver=direct` (or `operator.lumped=true`)")
 
     def run(self, ctx: Context) -> Result:
         """Decompose the configured 1-form; see the module docstring.

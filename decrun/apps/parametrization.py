@@ -37,6 +37,15 @@ from decrun.methods.parametrization_metrics import (
 )
 
 
+def hole_override(K) -> str:
+    """The override cutting a ball around the vertex of largest z out of ``K`` (radius: a
+    quarter of the bounding-box diagonal), e.g. ``mesh.hole_balls=[[0.0,0.0,1.0,0.5]]``."""
+    x = np.asarray(K.vertices, dtype=np.float64)
+    top = x[int(np.argmax(x[:, 2]))]
+    radius = 0.25 * float(np.linalg.norm(x.max(axis=0) - x.min(axis=0)))
+    return "mesh.hole_balls=[[" + ",".join(f"{c:.4g}" for c in (*top, radius)) + "]]"
+
+
 @dataclass
 class Parametrization(App):
     """Options of ``app=parametrization`` (conf/app/parametrization.yaml).
@@ -63,6 +72,10 @@ class Parametrization(App):
     def check(self, K, dec) -> None:
         if K.dim != 2:
             raise TopologyError(f"app=parametrization needs a triangle mesh (dimension 2), got dimension {K.dim}")
+        if not K.boundary_vertices().any() and K.embedding_dim == 3:
+            raise TopologyError(f"app=parametrization needs a disk-like surface with a border; this mesh is closed "
+                                f"(χ = {K.euler_characteristic}): cut a hole into it, e.g. "
+                                f"`{hole_override(K)}`")
         check_disk_topology(K)
 
     def run(self, ctx: Context) -> Result:

@@ -62,7 +62,7 @@ class Smoothing(App):
             raise ConfigError(f"app.dt_factor: must be > 0, got {self.dt_factor}")
         if self.dt is None and not self.critical_dt:
             raise ConfigError("app.critical_dt=false leaves no critical step for app.dt_factor: give the step "
-                              "itself, e.g. app.dt=0.005")
+                              "itself, e.g. `app.dt=0.005`")
         if self.steps < 0:
             raise ConfigError(f"app.steps: must be >= 0, got {self.steps}")
         if not self.blowup_factor > 1:
@@ -109,7 +109,7 @@ class Smoothing(App):
                     f"app.dt_factor: the explicit critical step 2/λ_max does not exist for operator="
                     f"{dec.star_variant.name} on this mesh (⋆0 is not positive on "
                     f"{int(np.sum(dec.star_diagonal_or_none(0) <= 0)) if dec.star_is_diagonal(0) else 0} vertices); "
-                    "give the step itself, e.g. app.dt=0.005, or use operator=mixed_area")
+                    "use `operator=mixed_area` (positive ⋆0) or give the step itself, e.g. `app.dt=0.005`")
             dt = self.dt_factor * dt_crit
         flow = MeanCurvatureFlow(dec, self.scheme, dt, ctx.new_solver() if self.scheme == "implicit" else None)
         setup_seconds = time.perf_counter() - t0

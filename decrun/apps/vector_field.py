@@ -123,7 +123,7 @@ class VectorField(App):
             raise ConfigError(
                 "app.stroke_magnitude=precomputed takes |v| from a solve without the strokes (eq. 6.9), but "
                 "there are no sources, sinks or vortices, so that field is zero and so would be the result: "
-                "use app.stroke_magnitude=fixed (eq. 6.8) or add a constraint"
+                "use `app.stroke_magnitude=fixed` (eq. 6.8) or add a constraint"
             )
         if not self.cluster_radius >= 0:
             raise ConfigError(f"app.cluster_radius: must be >= 0 (mean edge lengths), got {self.cluster_radius}")

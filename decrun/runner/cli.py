@@ -131,9 +131,14 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     t = time.perf_counter()
     try:
         complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
-    except MeshError as exc:  # name the mesh the complex refused
-        where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
-        raise type(exc)(f"{where}: {exc}") from exc
+    except MeshError as exc:  # name the mesh the complex refused, with the override that fixes it
+        from decrun.runner.hints import cli_message
+
+        if mesh.meta.get("source") == "sample":
+            where = f"mesh.sample={mesh.meta.get('label', '')}"
+        else:
+            where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
+        raise type(exc)(f"{where}: {cli_message(exc, experiment.mesh_source)}") from exc
     complex_.meta = mesh.meta
     dec = DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
     app = experiment.app

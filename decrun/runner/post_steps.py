@@ -30,9 +30,9 @@ def repair(mesh: Mesh, cfg) -> Mesh:
     if not cfg.repair:
         return mesh
     require(mesh.simplices.shape[1] == 3, "repair", "repairs triangle meshes only; this mesh has tetrahedra: "
-            "use mesh.repair=false")
+            "use `mesh.repair=false`")
     if "clean_vertices" in mesh.meta:  # repair runs before noise in the default order
-        raise MeshError("mesh.repair: runs on the noise-free mesh; put `repair` before `noise` in mesh.post")
+        raise MeshError("mesh.repair: runs on the noise-free mesh; list repair before noise in mesh.post")
     vertices, faces, report = repair_mesh(mesh.vertices, mesh.simplices)
     changed = {k: v for k, v in report.items() if isinstance(v, (int, np.integer)) and not isinstance(v, bool)
                and v and k not in ("vertices_in", "faces_in", "vertices_out", "faces_out", "rounds")}
@@ -50,7 +50,7 @@ def up_axis(mesh: Mesh, cfg) -> Mesh:
     axis = resolved_up_axis(mesh, cfg)
     if axis == "z":
         return mesh
-    require(mesh.vertices.shape[1] == 3, "up_axis", f"a planar mesh has no up axis; use mesh.up_axis=z")
+    require(mesh.vertices.shape[1] == 3, "up_axis", "a planar mesh has no up axis; use `mesh.up_axis=z`")
     meta = dict(mesh.meta, up_axis=axis)
     if "clean_vertices" in meta:
         meta["clean_vertices"] = up_axis_to_z(meta["clean_vertices"], axis)

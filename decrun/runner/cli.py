@@ -355,7 +355,7 @@ def table_main(argv: list[str] | None = None) -> int:
     ``metrics.md`` of a sweep and print the table (markdown, or CSV with ``--csv``)."""
     import argparse
 
-    from decrun.runner.tables import failed_jobs, to_markdown, write_sweep_table
+    from decrun.runner.tables import NotASweepError, failed_jobs, to_markdown, write_sweep_table
 
     parser = argparse.ArgumentParser(prog="decrun-table", description=table_main.__doc__)
     parser.add_argument("sweep_dir", help="a sweep directory, e.g. outputs/sweeps/<stamp>")
@@ -363,7 +363,7 @@ def table_main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         table = write_sweep_table(args.sweep_dir)
-    except FileNotFoundError as exc:
+    except (FileNotFoundError, NotASweepError) as exc:
         print(f"decrun-table: error: {exc}", file=sys.stderr)
         return 2
     if table.empty:

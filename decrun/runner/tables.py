@@ -60,11 +60,28 @@ def _metrics(job: Path) -> dict[str, Any]:
         return {"status": "missing", "error": f"unreadable metrics.json: {exc}"}
 
 
-def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
-    """Table of a sweep: columns ``job, <overridden keys...>, status, error, <metrics...>``."""
-    sweep_dir = Path(sweep_dir)
+class NotASweepError(ValueError):
+    """The directory is not a sweep root (no ``multirun.yaml``, which ``decrun -m`` writes)."""
+
+
+def check_sweep_dir(sweep_dir: Path) -> None:
+    """Raise :class:`FileNotFoundError` / :class:`NotASweepError` unless ``sweep_dir`` is the
+    root of a sweep, so that a table is never written into ``outputs/runs`` or a run."""
     if not sweep_dir.is_dir():
         raise FileNotFoundError(f"sweep directory {str(sweep_dir)!r} does not exist")
+    if not (sweep_dir / "multirun.yaml").is_file():
+        if (sweep_dir / ".hydra").is_dir():
+            raise NotASweepError(f"{str(sweep_dir)!r} is a single run, not a sweep: its metrics are in "
+                                 f"{str(sweep_dir / 'metrics.json')!r}")
+        raise NotASweepError(f"{str(sweep_dir)!r} is not a sweep directory (no multirun.yaml, which `decrun -m` "
+                             "writes at the sweep root); give one of outputs/sweeps/<stamp>")
+
+
+def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
+    """Table of a sweep: columns ``job, <overridden keys...>, status, error, <metrics...>``.
+    Raises :class:`NotASweepError` for a directory that is not a sweep root."""
+    sweep_dir = Path(sweep_dir)
+    check_sweep_dir(sweep_dir)
     rows, override_keys, metric_keys = [], [], []
     for job in _job_dirs(sweep_dir):
         overrides, metrics = _overrides(job), _metrics(job)

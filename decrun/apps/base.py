@@ -17,6 +17,8 @@ memory) carries:
 ``ctx.new_solver()`` a fresh, unfactorized solver with the configured options, for every
                     linear system the app solves (factorize once, solve many)
 ``ctx.progress(iterable, total=…, desc=…)``  a tqdm-like wrapper (silent when not a terminal)
+``with ctx.task(desc):``  shows ``desc`` and the elapsed time around one long call that
+                    cannot report steps (an eigen-solve, a factorization); silent likewise
 ``ctx.record(step, **values)``  appends per-step scalars or fixed-shape arrays to the
                     run's series (``series/<name>`` in result.h5, written as the run goes)
 
@@ -187,6 +189,14 @@ class Context:
         if self._steps:
             out["step"] = np.asarray(self._steps)
         return out
+
+    def task(self, desc: str):
+        """Context manager around one long call: the progress factory's ``task(desc)`` when
+        it has one (the runner's, on a terminal), else nothing."""
+        from contextlib import nullcontext
+
+        method = getattr(self.progress, "task", None)
+        return method(desc) if method is not None else nullcontext()
 
     def read_result(self, path: str):
         """``(Result, vertices)`` of a previous run's ``result.h5`` (``app.input_path``);

@@ -100,7 +100,8 @@ class Hodge(App):
         K, dec = ctx.complex, ctx.dec
         omega = input_form(K, self, ctx)
         start = time.perf_counter()
-        parts = HodgeDecomposer(dec, 1, ctx.new_solver).decompose(omega)
+        with ctx.task("Hodge decomposition (two Poisson solves)"):
+            parts = HodgeDecomposer(dec, 1, ctx.new_solver).decompose(omega)
         seconds = time.perf_counter() - start
         named = {"exact": parts.exact, "coexact": parts.coexact, "harmonic": parts.harmonic}
         metrics = orthogonality_metrics(dec, omega, named)
@@ -117,7 +118,8 @@ class Hodge(App):
         metrics["betti_1"] = betti_1
         if self.harmonic_dimension:
             start = time.perf_counter()
-            h = harmonic_basis(dec, 1, ctx.new_solver).shape[1]
+            with ctx.task("harmonic basis (dim ker Δ1)"):
+                h = harmonic_basis(dec, 1, ctx.new_solver).shape[1]
             seconds += time.perf_counter() - start
             metrics["harmonic_dimension"] = int(h)
             metrics["harmonic_dimension_matches_betti"] = bool(h == betti_1)

@@ -90,8 +90,9 @@ class Parametrization(App):
         given eq. 5.9 — a failed Gortler condition 5).
         """
         K, dec = ctx.complex, ctx.dec
-        result = parametrize(dec, ctx.new_solver, border=self.border, weights=self.weights,
-                             exterior=self.exterior_border, reflex_rows=self.reflex_rows)
+        with ctx.task(f"parametrization ({self.border} border, {self.weights} weights)"):
+            result = parametrize(dec, ctx.new_solver, border=self.border, weights=self.weights,
+                                 exterior=self.exterior_border, reflex_rows=self.reflex_rows)
         faces = K.oriented_simplices()
         uv = result.uv
         metrics = parametrization_metrics(K.vertices, uv, faces, result.loops)

@@ -100,8 +100,8 @@ class Smoothing(App):
         t0 = time.perf_counter()
         dt_crit = float("nan")
         if self.critical_dt:  # 2/λ_max of S φ = λ ⋆0 φ (one eigen-solve)
-            ctx.log("smoothing: computing the explicit critical step 2/λ_max (one eigen-solve)")
-            dt_crit = MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt()
+            with ctx.task("critical time step 2/λ_max (eigen-solve)"):
+                dt_crit = MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt()
         dt = self.dt
         if dt is None:
             if not (np.isfinite(dt_crit) and dt_crit > 0):
@@ -111,7 +111,8 @@ class Smoothing(App):
                     f"{int(np.sum(dec.star_diagonal_or_none(0) <= 0)) if dec.star_is_diagonal(0) else 0} vertices); "
                     "use `operator=mixed_area` (positive ⋆0) or give the step itself, e.g. `app.dt=0.005`")
             dt = self.dt_factor * dt_crit
-        flow = MeanCurvatureFlow(dec, self.scheme, dt, ctx.new_solver() if self.scheme == "implicit" else None)
+        with ctx.task(f"factorizing ({self.scheme} Euler)"):
+            flow = MeanCurvatureFlow(dec, self.scheme, dt, ctx.new_solver() if self.scheme == "implicit" else None)
         setup_seconds = time.perf_counter() - t0
         centroid = flow.centroid(vertices)
 

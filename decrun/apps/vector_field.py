@@ -232,7 +232,8 @@ def _design(self, ctx: Context) -> Result:
 
     seconds = 0.0
     start = time.perf_counter()
-    pre = solve_design(dec, ctx.new_solver(), constraints, delta)
+    with ctx.task("vector field: least squares (eq. 6.5-6.6)"):
+        pre = solve_design(dec, ctx.new_solver(), constraints, delta)
     seconds += time.perf_counter() - start
     solution = pre
     stroke_vectors = np.zeros((0, 3))
@@ -247,7 +248,8 @@ def _design(self, ctx: Context) -> Result:
         constraints = constraints.with_strokes(edges, targets,
                                                np.full(edges.size, float(cfg.stroke_weight) / K.mean_edge_length))
         start = time.perf_counter()
-        solution = solve_design(dec, ctx.new_solver(), constraints, delta)
+        with ctx.task("vector field: least squares with the strokes"):
+            solution = solve_design(dec, ctx.new_solver(), constraints, delta)
         seconds += time.perf_counter() - start
     omega = solution.omega
 

@@ -62,19 +62,7 @@ register_configs()
 # ----------------------------------------------------------------------------------
 
 
-def make_progress(enabled: bool = True) -> Callable:
-    """tqdm factory, a pass-through when disabled or stderr is not a terminal."""
-    if enabled and sys.stderr.isatty() and "PYTEST_CURRENT_TEST" not in os.environ:
-        from functools import partial
-
-        from tqdm import tqdm
-
-        return partial(tqdm, leave=False, dynamic_ncols=True)
-
-    def passthrough(iterable, total=None, desc=None, **_):
-        return iterable
-
-    return passthrough
+from decrun.runner.progress import make_progress  # noqa: E402  (re-exported: the run's ctx.progress)
 
 
 class Experiment:
@@ -125,12 +113,17 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 
     timings: dict[str, float] = {}
     t = time.perf_counter()
+    from decrun.runner.progress import task
+
     experiment = validate(cfg)
-    mesh = experiment.mesh_source.load()
+    progress = progress or make_progress(False)
+    with task(progress, f"loading mesh={experiment.mesh_source.name}"):
+        mesh = experiment.mesh_source.load()
     timings["mesh_seconds"] = time.perf_counter() - t
     t = time.perf_counter()
     try:
-        complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
+        with task(progress, "building and checking the simplicial complex"):
+            complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
     except MeshError as exc:  # name the mesh the complex refused, with the override that fixes it
         from decrun.runner.hints import cli_message
 
@@ -156,7 +149,7 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
                                   mesh_hash=mesh.meta.get("hash", ""))
     mesh.recorder = recorder
     ctx = RunContext(app, complex_, dec, new_solver=experiment.solver.fresh, meta=mesh.meta,
-                     progress=progress or make_progress(False), recorder=recorder, logger=log)
+                     progress=progress, recorder=recorder, logger=log)
     try:
         result = app.run(ctx)
     except BaseException as exc:
@@ -286,10 +279,26 @@ class SweepTable(Callback):
     sweep writes ``metrics.csv`` and ``metrics.md`` at the sweep root."""
 
     failed = 0
+    _progress = None
+
+    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        """Jobs done / total with ETA in the submitting process (a terminal only)."""
+        from decrun.runner.progress import SweepProgress, sweep_size, terminal
+
+        enabled = terminal(bool(config.get("progress", True)))
+        if not enabled:
+            return
+        params = config.hydra.sweeper.get("params") or {}
+        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
+        total = sweep_size(list(config.hydra.overrides.task), params)
+        SweepTable._progress = SweepProgress(Path(str(config.hydra.sweep.dir)), total, enabled=True).start()
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         from decrun.runner.tables import failed_jobs, to_markdown, write_sweep_table
 
+        if SweepTable._progress is not None:
+            SweepTable._progress.stop()
+            SweepTable._progress = None
         sweep_dir = Path(str(config.hydra.sweep.dir))
         table = write_sweep_table(sweep_dir)
         bad = failed_jobs(table)

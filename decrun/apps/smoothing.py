@@ -192,7 +192,7 @@ class Smoothing(App):
         fields = {"vertices_initial": vertices, "vertices_final": v, "faces": faces,
                   "displacement": np.linalg.norm(v - vertices, axis=1)}
         label = f"{self.scheme} Euler, dt={dt:.3g}, rescale={rescale}"
-        state = f"{metrics['steps_done']} steps" if stable else f"diverged at step {diverged_at}"
+        state = f"{metrics['steps_done']} steps" + ("" if stable else f" (diverged at step {diverged_at})")
         shown = ["area", "volume", "roughness"] if has_volume else ["area", "roughness"]
         figures = {
             "smoothing": Figure("decrun.runner.plots.common.before_after", dict(

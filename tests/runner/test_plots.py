@@ -23,7 +23,7 @@ def test_before_after_panels_share_one_box_so_a_shrunk_result_looks_shrunk():
 
 
 def test_checker_squares_follow_the_median_scale_of_the_map():
-    V, F = grid_triangles(11, 11)  # the unit square, planar
+    V, F = grid_triangles(60, 60)  # the unit square, planar, fine enough for 10 squares
     uv = np.asarray(V, dtype=np.float64)  # the identity map: isometric, scale 1 everywhere
     assert checker_square_size(uv, uv, F, squares=10) == pytest.approx(0.1, rel=1e-12)
     # a map that shrinks everything 100-fold gets squares 100 times smaller: still 10 per side
@@ -33,3 +33,7 @@ def test_checker_squares_follow_the_median_scale_of_the_map():
     corner = (uv[:, 0] < 0.45) & (uv[:, 1] < 0.45)
     shrunk[corner] *= 0.01
     assert checker_square_size(uv, shrunk, F, squares=10) == pytest.approx(0.1, rel=1e-12)
+    # a coarse mesh (12 × 12 vertices, median edge 1/11): squares of 4 median edge lengths
+    V, F = grid_triangles(11, 11)
+    coarse = np.asarray(V, dtype=np.float64)
+    assert checker_square_size(coarse, coarse, F, squares=10) == pytest.approx(4 / 11, rel=1e-9)

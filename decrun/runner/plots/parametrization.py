@@ -31,8 +31,11 @@ def checker_square_size(vertices: np.ndarray, uv: np.ndarray, faces: np.ndarray,
     square covers about 1/``squares`` of √(mesh area) — ``squares`` per side on an
     isometric map of a square patch, and still visible where a conformal map shrinks most
     of the surface into a small part of [0, 1]² (its area distortion varies over decades).
+    Triangles are coloured whole, so a square spans at least 4 median uv edge lengths
+    (coarse meshes get fewer, larger squares instead of noise).
 
-    scale_t = √(uv area_t / mesh area_t) per triangle; side = median(scale) · √A / squares.
+    scale_t = √(uv area_t / mesh area_t) per triangle;
+    side = max(median(scale) · √A / squares, 4 · median uv edge length).
     """
     from decrun.core.geometry import triangle_areas
 
@@ -42,6 +45,8 @@ def checker_square_size(vertices: np.ndarray, uv: np.ndarray, faces: np.ndarray,
     scale = np.sqrt(uv_area[good] / mesh_area[good])
     median = float(np.median(scale)) if scale.size else 1.0
     side = median * np.sqrt(mesh_area.sum()) / squares
+    edges = np.linalg.norm(uv[faces] - uv[np.roll(faces, -1, axis=1)], axis=2)
+    side = max(side, 4.0 * float(np.median(edges)))
     return side if side > 0 and np.isfinite(side) else 1.0 / squares
 
 

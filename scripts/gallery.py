@@ -61,12 +61,19 @@ GALLERY = {
         ([], "field", ["singularities", "singularity_cluster_indices", "index_sum"]),
     ]),
     "fig6_9_square": ("Fig. 6.9 — a source and a stroke in a square: `boundary=none` keeps the field "
-                      "tangential to the border, `flux` lets it cross (its kernel of constant fields is "
-                      "removed: the minimum-norm solution, README).", [
+                      "tangential to the border, `flux` lets it cross. With `flux` the constant fields are "
+                      "in the kernel and the minimum-norm solution is taken (README): without the stroke it "
+                      "shows two saddles; with it a saddle next to the source (a cluster of index 0, left "
+                      "unmarked).", [
         (["boundary=none"], "field", ["boundary_normal_flux_mean", "adjointness_defect"]),
         (["boundary=flux"], "field", ["boundary_normal_flux_mean", "adjointness_defect"]),
+        (["boundary=flux", "app.strokes=[]"], "field", ["singularity_cluster_indices", "boundary_normal_flux_mean"]),
     ]),
 }
+
+
+#: figures the README shows outside the gallery: docs/figures/<file> ← (overrides, figure stem)
+README_FIGURES = {"smoothing_default.png": ([], "smoothing")}
 
 
 def _value(value) -> str:
@@ -75,11 +82,12 @@ def _value(value) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
 
-def run_entry(experiment: str, overrides: list[str], figure: str, scratch: Path, target: Path) -> dict:
-    """One single run; copies ``<figure>.png`` to ``target``; returns the metrics."""
+def run_entry(experiment: str | None, overrides: list[str], figure: str, scratch: Path, target: Path) -> dict:
+    """One single run (of ``+experiment=<experiment>`` unless None); copies ``<figure>.png``
+    to ``target``; returns the metrics."""
     from decrun.runner.cli import compose_config, run_experiment, write_run
 
-    cfg = compose_config([f"+experiment={experiment}", *overrides])
+    cfg = compose_config(([f"+experiment={experiment}"] if experiment else []) + list(overrides))
     out = Path(tempfile.mkdtemp(dir=scratch))
     result, mesh, timings = run_experiment(cfg, out=out)
     write_run(out, cfg, result, mesh, timings)
@@ -112,6 +120,10 @@ def build(out: Path, only: list[str] | None = None) -> Path:
                                                           if k in metrics))
             lines += ["| " + " | ".join(cells) + " |", "|" + "---|" * len(cells), ""]
             lines += [f"- {note}" for note in notes] + [""]
+        if not only:
+            (out / "figures").mkdir(exist_ok=True)
+            for name, (overrides, figure) in README_FIGURES.items():
+                run_entry(None, overrides, figure, Path(scratch), out / "figures" / name)
     path = out / "gallery.md"
     path.write_text("\n".join(lines))
     return path

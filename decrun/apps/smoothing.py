@@ -80,11 +80,14 @@ class Smoothing(App):
         """Smooth the mesh; see the module docstring.
 
         Metrics: ``area_ratio`` (final/initial area), ``volume_drift_rel`` (|V_end − V_0|/|V_0|,
-        closed surfaces only), ``stable``, ``diverged_at_step`` (−1 when stable), ``steps_done``,
+        closed surfaces only), ``stable``, ``diverged_at_step`` (−1 when stable), ``steps_done``
+        (steps computed and recorded, the diverging one included, so it equals
+        ``diverged_at_step`` when unstable), ``rescale`` (the resolved choice),
         ``roughness_ratio`` (R_end / R_0), ``distortion_final`` (ρ, 1 for the input),
         ``dt_critical_explicit`` and ``dt_over_critical``, ``distance_to_clean_rms`` and
         ``distance_to_clean_rms_initial`` (RMS vertex distance to the noise-free mesh / its
-        bounding-box diagonal, only with noise), ``negative_star1_fraction``,
+        bounding-box diagonal, only with noise; the final one only when stable),
+        ``negative_star1_fraction``,
         ``setup_seconds``, ``solve_seconds``.
         Series (recorded per step, the initial state as step 0): ``area``, ``volume``,
         ``roughness``, ``distortion``.

@@ -42,6 +42,8 @@ def files(tmp: Path) -> dict[str, str]:
         "unreferenced": write_obj(tmp / "unused.obj", SQUARE + [[5, 5, 5]], FAN),
         "flipped": write_obj(tmp / "flipped.obj", SQUARE, FAN[:3] + [[0, 3, 4]]),
         "bowtie": write_obj(tmp / "bowtie.obj", bowtie_v, FAN + [[2, 5, 6], [2, 6, 7]]),
+        "duplicate": write_obj(tmp / "duplicate.obj", SQUARE, FAN + [FAN[0]]),
+        "degenerate": write_obj(tmp / "degenerate.obj", SQUARE + [[2, 0, 0]], FAN + [[0, 1, 5]]),
         "tets": str(tets),
     }
 
@@ -69,6 +71,8 @@ CASES = {
     "file_with_unreferenced_vertex": (["mesh=file", "mesh.path={unreferenced}", "app.steps=1"], ["mesh.repair=true"]),
     "file_with_flipped_triangle": (["mesh=file", "mesh.path={flipped}", "app.steps=1"], ["mesh.orient=fix"]),
     "file_with_bowtie_vertex": (["mesh=file", "mesh.path={bowtie}", "app.steps=1"], ["mesh.repair=true"]),
+    "file_with_duplicate_triangle": (["mesh=file", "mesh.path={duplicate}", "app.steps=1"], ["mesh.repair=true"]),
+    "file_with_zero_area_triangle": (["mesh=file", "mesh.path={degenerate}", "app.steps=1"], ["mesh.repair=true"]),
     # no app runs on tetrahedra yet: the hinted override gets past its error to the app's
     # "needs a triangle mesh" (TETS_APP_ERROR), which is what these cases check
     "repair_of_tetrahedra": (["mesh=file", "mesh.path={tets}", "app=hodge", "operator=barycentric", "mesh.repair=true"],

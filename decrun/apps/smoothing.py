@@ -132,27 +132,30 @@ class Smoothing(App):
         t1 = time.perf_counter()
         bar = ctx.progress(range(1, self.steps + 1), total=self.steps, desc=f"smoothing ({self.scheme})")
         for step in bar:
-            v = flow.step(v)
-            failed = not np.all(np.isfinite(v))
-            if not failed and rescale == "volume":
-                volume = enclosed_volume(v, faces)
-                failed = not volume > 0  # flattened or turned inside out: cannot be rescaled
-                if not failed:
-                    v = centroid + np.cbrt(first["volume"] / volume) * (v - centroid)
-            elif not failed and rescale == "area":
-                area = surface_area(v, faces)
-                if area > 0:
-                    v = centroid + np.sqrt(first["area"] / area) * (v - centroid)
-            # every attempted step is recorded (NaN when non-finite): steps_done == diverged_at_step
-            now = measure(v) if np.all(np.isfinite(v)) else {name: float("nan") for name in first}
-            for name, value in now.items():
-                series[name].append(value)
-            ctx.record(step, **now)
-            if np.all(np.isfinite(v)):
-                last_finite = v
-            if failed or not (np.isfinite(now["area"]) and now["roughness"] <= self.blowup_factor * first["roughness"]):
-                diverged_at = step
-                break
+            # a blow-up is a result (stable: false), not a floating-point warning
+            with np.errstate(over="ignore", invalid="ignore"):
+                v = flow.step(v)
+                failed = not np.all(np.isfinite(v))
+                if not failed and rescale == "volume":
+                    volume = enclosed_volume(v, faces)
+                    failed = not volume > 0  # flattened or turned inside out: cannot be rescaled
+                    if not failed:
+                        v = centroid + np.cbrt(first["volume"] / volume) * (v - centroid)
+                elif not failed and rescale == "area":
+                    area = surface_area(v, faces)
+                    if area > 0:
+                        v = centroid + np.sqrt(first["area"] / area) * (v - centroid)
+                # every attempted step is recorded (NaN when non-finite): steps_done == diverged_at_step
+                now = measure(v) if np.all(np.isfinite(v)) else {name: float("nan") for name in first}
+                for name, value in now.items():
+                    series[name].append(value)
+                ctx.record(step, **now)
+                if np.all(np.isfinite(v)):
+                    last_finite = v
+                rough = now["roughness"] <= self.blowup_factor * first["roughness"]
+                if failed or not (np.isfinite(now["area"]) and rough):
+                    diverged_at = step
+                    break
         solve_seconds = time.perf_counter() - t1
         stable = diverged_at < 0
         last = {name: values[-1] for name, values in series.items()}

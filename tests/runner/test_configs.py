@@ -38,7 +38,8 @@ def test_every_mesh_option_runs_with_the_default_app(mesh):
     assert result.metrics["rescale"] == ("volume" if closed else "area")
 
 
-@pytest.mark.parametrize("sample", sorted(SAMPLE_MESHES))
+@pytest.mark.parametrize("sample", [pytest.param(s, marks=pytest.mark.slow) if s == "face" else s
+                                    for s in sorted(SAMPLE_MESHES)])  # face: 82k vertices, 11 s
 def test_every_sample_runs_with_the_default_app(sample):
     """The raw samples have unreferenced vertices (airplane, bone) and bowties (face):
     mesh=sample repairs and cleans them by default, and turns the Y-up ones Z-up."""

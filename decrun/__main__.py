@@ -1,6 +1,6 @@
 """``python -m decrun`` = the ``decrun`` command."""
 
-from decrun.runner.cli import main
+from decrun.runner.failures import console_main
 
 if __name__ == "__main__":
-    main()
+    console_main()

@@ -157,21 +157,21 @@ class Context:
     Parameters
     ----------
     config : App
-    complex, dec : the complex and its operators
+    K, dec : the simplicial complex and its operators (``ctx.complex``, ``ctx.dec``)
     new_solver : callable returning a fresh solver (default: ``direct``)
     meta : mesh metadata (default: ``complex.meta``)
     progress : tqdm-like factory (default: silent)
     """
 
-    def __init__(self, config: App, complex, dec, new_solver: Callable | None = None, meta: dict | None = None,
+    def __init__(self, config: App, K, dec, new_solver: Callable | None = None, meta: dict | None = None,
                  progress: Callable | None = None):
         from decrun.core.solvers import solver_factory
 
         self.config = config
-        self.complex = complex
+        self.complex = K
         self.dec = dec
         self.new_solver = solver_factory(new_solver)
-        self.meta = meta if meta is not None else getattr(complex, "meta", {})
+        self.meta = meta if meta is not None else getattr(K, "meta", {})
         self.progress = progress or _passthrough
         self._series: dict[str, list] = {}
         self._steps: list[int] = []

@@ -78,6 +78,14 @@ class Hodge(App):
 
     def check_solver(self, solver, dec=None) -> None:
         super().check_solver(solver, dec)
+        if dec is not None and getattr(solver, "needs_spd", False) and dec.star_is_diagonal(1):
+            star1 = dec.star_diagonal(1)
+            bad = int(np.sum(star1 <= 1e-12 * np.abs(star1).max()))
+            if bad:
+                raise ConfigError(f"solver={solver.name}: ⋆1 of operator={dec.star_variant.name} is not positive on "
+                                  f"{bad} edges (non-Delaunay or right-angled triangles), so the Poisson systems of "
+                                  "app=hodge are indefinite; use operator=whitney (SPD ⋆1 on every mesh) or "
+                                  "solver=direct")
         if dec is not None and getattr(solver, "needs_spd", False) and not dec.star_is_diagonal(1):
             raise ConfigError(f"solver={solver.name}: with a Galerkin ⋆1 (operator={dec.star_variant.name}) the "
                               "coexact part of app=hodge is a symmetric indefinite saddle-point system; use "

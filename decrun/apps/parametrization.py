@@ -18,11 +18,12 @@ from typing import Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, Figure, Result
-from decrun.errors import TopologyError
+from decrun.errors import ConfigError, TopologyError
 from decrun.methods.parametrization import (
     CAUCHY_RIEMANN,
     CONFORMAL,
     PINNED,
+    SYMMETRIC_WEIGHTS,
     check_disk_topology,
     harmonic_matrix,
     parametrize,
@@ -62,12 +63,29 @@ class Parametrization(App):
 
     name = "parametrization"
     form_degrees = (0,)
-    unsymmetric_systems = "border rows replace the harmonic rows of eq. 5.3, and eq. 5.9 couples x and y"
     border: str = "conformal"
     weights: str = "dec"
     reflex_rows: str = "cauchy_riemann"
     exterior_border: Optional[int] = None
     checker_squares: int = 10
+
+    def check_solver(self, solver, dec=None) -> None:
+        """Pinned borders with symmetric weights give SPD systems (cg, amg apply); the
+        conformal border's eq. 5.9 rows, the Cauchy–Riemann rows and the mean-value weights do
+        not: those need solver=direct or solver=pardiso."""
+        if not getattr(solver, "needs_spd", False):
+            return
+        reasons = []
+        if self.weights not in SYMMETRIC_WEIGHTS:
+            reasons.append(f"app.weights={self.weights} is not symmetric")
+        if self.border == "conformal":
+            reasons.append("app.border=conformal adds the eq. 5.9 rows coupling x and y")
+        if dec is not None and self.border != "free" and len(dec.K.boundary_loops()) > 1:
+            reasons.append("the holes' border rows are eq. 5.9 (§5.2.3), coupling x and y")
+        if reasons:
+            raise ConfigError(f"solver={solver.name}: app=parametrization solves unsymmetric systems here "
+                              f"({'; '.join(reasons)}); use `solver=direct` (or `solver=pardiso`), or "
+                              f"`app.border=circle` with app.weights=dec|uniform")
 
     def check(self, K, dec) -> None:
         if K.dim != 2:

@@ -102,9 +102,10 @@ class Smoothing(App):
 
         t0 = time.perf_counter()
         dt_crit = float("nan")
-        if self.critical_dt:  # 2/λ_max of S φ = λ ⋆0 φ (one eigen-solve)
+        if self.critical_dt:  # 2/λ_max of S φ = λ ⋆0 φ (one eigen-solve per DEC, kept by it)
             with ctx.task("critical time step 2/λ_max (eigen-solve)"):
-                dt_crit = MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt()
+                dt_crit = dec.require(("mcf_critical_dt",),
+                                      lambda: MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt())
         dt = self.dt
         if dt is None:
             if not (np.isfinite(dt_crit) and dt_crit > 0):

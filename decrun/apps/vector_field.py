@@ -51,8 +51,9 @@ from decrun.methods.vector_design import (
 
 @dataclass
 class Source:
-    """A source (divergence > 0) or sink (< 0): ``point`` (snapped to the nearest vertex) or
-    ``vertex`` id. ``divergence`` is the net outflow through the vertex's dual cell."""
+    """A source (divergence > 0) or sink (< 0): ``point`` (snapped to the nearest vertex; it
+    must lie within ``app.point_tolerance`` mean edge lengths of the surface) or ``vertex``
+    id. ``divergence`` is the net outflow through the vertex's dual cell."""
 
     point: Optional[List[float]] = None
     vertex: Optional[int] = None
@@ -61,8 +62,9 @@ class Source:
 
 @dataclass
 class Vortex:
-    """A vortex: ``point`` (nearest face) or ``face`` id. ``curl`` is the circulation around
-    the face (> 0: counter-clockwise about the outward normal)."""
+    """A vortex: ``point`` (nearest face, within ``app.point_tolerance``) or ``face`` id.
+    ``curl`` is the circulation around the face (> 0: counter-clockwise about the outward
+    normal)."""
 
     point: Optional[List[float]] = None
     face: Optional[int] = None
@@ -99,6 +101,9 @@ class VectorField(App):
     region_normal: List[float] = field(default_factory=list)
     region_min_cos: float = 0.9
     figure_arrows: int = 700  # at most this many arrows in the figure
+    #: a source, vortex or stroke point farther than this × the mean edge length h̄ from
+    #: the surface is an error (it would otherwise be silently snapped to a far vertex/face)
+    point_tolerance: float = 2.0
     #: singular sites closer than this (in mean edge lengths) form one cluster whose index is
     #: their sum (metrics singularity_clusters, singularity_cluster_indices)
     cluster_radius: float = 3.0
@@ -125,6 +130,8 @@ class VectorField(App):
                 "there are no sources, sinks or vortices, so that field is zero and so would be the result: "
                 "use `app.stroke_magnitude=fixed` (eq. 6.8) or add a constraint"
             )
+        if not self.point_tolerance >= 0:
+            raise ConfigError(f"app.point_tolerance: must be >= 0 (in mean edge lengths), got {self.point_tolerance}")
         if not self.cluster_radius >= 0:
             raise ConfigError(f"app.cluster_radius: must be >= 0 (mean edge lengths), got {self.cluster_radius}")
         if self.region_normal and len(self.region_normal) != 3:
@@ -148,7 +155,31 @@ def _as_list(value) -> list:
     return [] if value is None else list(value)
 
 
-def _vertex_ids(K, items, key: str) -> tuple[np.ndarray, np.ndarray]:
+def check_points_on_surface(K, points, key: str, tolerance: float) -> None:
+    """ConfigError naming ``key`` (``app.sources[0].point``) unless every point (P, d) has
+    the mesh's embedding dimension d and lies within ``tolerance`` × h̄ (h̄ the mean edge
+    length) of the surface. The distance is to the point's projection onto the nearest of
+    the candidate faces of :func:`nearest_faces` (exact near the surface, an upper bound
+    far from it). Points are snapped (to a vertex, a face) only within this tolerance."""
+    points = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    if points.shape[1] != K.embedding_dim:
+        raise ConfigError(f"{key}: a point needs {K.embedding_dim} coordinates (the mesh's embedding dimension), "
+                          f"got {points[0].tolist()}")
+    _, projected = nearest_faces(K, points)
+    distance = np.linalg.norm(embed3(points) - projected, axis=1)
+    h = float(K.mean_edge_length)
+    far = np.flatnonzero(distance > tolerance * h)
+    if far.size:
+        i = int(far[0])
+        where = f"{key}[{i}]" if len(points) > 1 else key
+        needed = float(np.ceil(distance[i] / h * 10) / 10 + 0.1)
+        raise ConfigError(
+            f"{where}: {points[i].tolist()} lies {distance[i]:.3g} from the surface (nearest surface point "
+            f"{np.round(projected[i], 6).tolist()}), more than app.point_tolerance={tolerance:g} mean edge lengths "
+            f"(h̄ = {h:.3g}); move the point onto the mesh, or accept the snap with app.point_tolerance={needed:g}")
+
+
+def _vertex_ids(K, items, key: str, tolerance: float = float("inf")) -> tuple[np.ndarray, np.ndarray]:
     ids, values = [], []
     for i, item in enumerate(items):
         if getattr(item, "vertex", None) is not None:
@@ -156,13 +187,14 @@ def _vertex_ids(K, items, key: str) -> tuple[np.ndarray, np.ndarray]:
             if not 0 <= v < K.num_simplices(0):
                 raise ConfigError(f"app.{key}[{i}].vertex: {v} is not a vertex id of this mesh (0..{K.num_simplices(0) - 1})")
         else:
+            check_points_on_surface(K, [list(item.point)], f"app.{key}[{i}].point", tolerance)
             v = int(nearest_vertices(K, [list(item.point)])[0])
         ids.append(v)
         values.append(float(item.divergence))
     return np.asarray(ids, dtype=np.int64), np.asarray(values)
 
 
-def _face_ids(K, items, key: str) -> tuple[np.ndarray, np.ndarray]:
+def _face_ids(K, items, key: str, tolerance: float = float("inf")) -> tuple[np.ndarray, np.ndarray]:
     ids, values = [], []
     for i, item in enumerate(items):
         if getattr(item, "face", None) is not None:
@@ -170,6 +202,7 @@ def _face_ids(K, items, key: str) -> tuple[np.ndarray, np.ndarray]:
             if not 0 <= t < K.num_simplices(2):
                 raise ConfigError(f"app.{key}[{i}].face: {t} is not a face id of this mesh (0..{K.num_simplices(2) - 1})")
         else:
+            check_points_on_surface(K, [list(item.point)], f"app.{key}[{i}].point", tolerance)
             t = int(nearest_faces(K, [list(item.point)])[0][0])
         ids.append(t)
         values.append(float(item.curl))
@@ -180,14 +213,16 @@ def build_constraints(K, dec, cfg) -> tuple[DesignConstraints, dict]:
     """Curl and divergence targets of eq. 6.5 from ``cfg.sources`` / ``cfg.vortices`` and the
     stroke geometry (faces, unit directions) from ``cfg.strokes``."""
     constraints = DesignConstraints.empty(K)
-    src_ids, src_values = _vertex_ids(K, _as_list(cfg.sources), "sources")
+    tolerance = float(getattr(cfg, "point_tolerance", float("inf")))
+    src_ids, src_values = _vertex_ids(K, _as_list(cfg.sources), "sources", tolerance)
     if src_ids.size:
         constraints.codifferential = divergence_target(dec, src_ids, src_values)
-    vort_ids, vort_values = _face_ids(K, _as_list(cfg.vortices), "vortices")
+    vort_ids, vort_values = _face_ids(K, _as_list(cfg.vortices), "vortices", tolerance)
     if vort_ids.size:
         np.add.at(constraints.curl, vort_ids, vort_values)  # r_t: circulation = ∫_t curl
     stroke_faces, stroke_dirs = [], []
     for i, stroke in enumerate(_as_list(cfg.strokes)):
+        check_points_on_surface(K, stroke.points, f"app.strokes[{i}].points", tolerance)
         faces, dirs = stroke_face_directions(K, np.asarray(stroke.points, dtype=np.float64), closed=bool(stroke.closed))
         stroke_faces.append(faces)
         stroke_dirs.append(dirs)

@@ -155,6 +155,19 @@ def harmonic_matrix(dec, weights: str = "dec") -> sp.csr_matrix:
     raise ConfigError(f"app.weights: unknown weights {weights!r}; choose one of {list(WEIGHTS)}")
 
 
+#: interior weights whose harmonic matrix is symmetric (−stiffness): their systems are SPD
+SYMMETRIC_WEIGHTS = ("dec", "uniform")
+
+
+def harmonic_numerator(dec, weights: str = "dec") -> sp.csr_matrix:
+    """The harmonic rows without their ⋆0⁻¹ (the right side is 0, so the scale cancels):
+    −(the operator's stiffness) for ``dec``, −d0ᵀd0 for ``uniform`` (both symmetric, negative
+    semi-definite), the unsymmetric mean-value rows otherwise."""
+    if weights == "dec":
+        return (-dec.laplacian_symmetric(0)).tocsr()
+    return harmonic_matrix(dec, weights)
+
+
 def convex_combination_rows(dec, weights: str = "dec") -> sp.csr_matrix:
     """Rows of :func:`harmonic_matrix` divided by −a_ii: −1 on the diagonal, w_ij = −a_ij/a_ii off it.
 
@@ -163,10 +176,7 @@ def convex_combination_rows(dec, weights: str = "dec") -> sp.csr_matrix:
     ⋆0⁻¹ cancels, which is why the ⋆0 variant (``operator.star``) does not change the map.
     Computed from ``d1^dual ⋆1 d0`` directly so a zero ⋆0 cannot produce ∞/∞.
     """
-    if weights == "dec":  # d1^dual ⋆1 d0 = −(stiffness); the variant's own for intrinsic Delaunay
-        A = (-dec.laplacian_symmetric(0)).tocsr()
-    else:
-        A = harmonic_matrix(dec, weights)
+    A = harmonic_numerator(dec, weights)  # d1^dual ⋆1 d0 = −(stiffness) for dec
     diagonal = A.diagonal()
     bad = np.flatnonzero(~(np.abs(diagonal) > 1e-300))
     if bad.size:
@@ -454,9 +464,24 @@ def parametrize(
             selected = np.concatenate([reflex_mask, reflex_mask]).astype(float)
             coupling = coupling + sp.diags(selected) @ (-conformal_energy_matrix(dec))
 
+    pinned_rhs = pinned_uv * (kind == PINNED)[:, None]
+    if coupling.nnz == 0 and weights in SYMMETRIC_WEIGHTS:
+        # Symmetric weights, every border vertex pinned: eliminate the pinned values and solve
+        # the interior rows S_II x_I = −S_IB x_B with the SPD stiffness (condensation), so
+        # cg and amg apply; both coordinates share one factorization.
+        stiffness = -harmonic_numerator(dec, weights)
+        pinned = np.flatnonzero(kind == PINNED)
+        free = np.flatnonzero(kind != PINNED)
+        system = stiffness[free][:, free].tocsc()
+        rhs = -(stiffness[free][:, pinned] @ pinned_uv[pinned])
+        uv = pinned_uv.copy()
+        uv[free] = new_solver().factorize(system).solve(rhs)
+        seconds = time.perf_counter() - start
+        if not np.all(np.isfinite(uv)):
+            raise SolverError(f"app: the parametrization system (border={border}, weights={weights}) gave non-finite uv")
+        return Parametrization(normalize_to_unit_square(uv), loops, kind, int(reflex_mask.sum()), reflex_mask, seconds)
     A = convex_combination_rows(dec, weights)
     block = (sp.diags((kind == HARMONIC).astype(float)) @ A + sp.diags((kind == PINNED).astype(float))).tocsr()
-    pinned_rhs = pinned_uv * (kind == PINNED)[:, None]
     if coupling.nnz == 0:
         # x and y decouple (eq. 5.4): factorize once, solve both right-hand sides.
         uv = new_solver().factorize(block.tocsc()).solve(pinned_rhs)

@@ -33,6 +33,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import DecrunError, MeshError
 from decrun.runner.config import config_dir, load_option, register_configs
+from decrun.runner.failures import (exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message,
+                                    record_status)
 
 if False:  # typing only
     from decrun.apps.base import Result
@@ -80,6 +82,7 @@ class Experiment:
         from decrun.runner.meshes import MeshSource
         from decrun.runner.plugins import build
 
+        check_root_keys(cfg)
         self.app = build(cfg.app, "app", App)
         self.operator = build(cfg.operator, "operator", HodgeStar)
         self.boundary = build(cfg.boundary, "boundary", BoundaryAdaptation)
@@ -88,12 +91,60 @@ class Experiment:
         self.app.check_solver(self.solver)
 
 
+def check_root_keys(cfg: DictConfig) -> None:
+    """ConfigError for a root key the schema :class:`decrun.runner.config.DecrunConfig` does
+    not have: Hydra's ``+foo=1`` adds keys even to a struct config, and nothing would read it."""
+    import dataclasses
+
+    from decrun.errors import ConfigError
+    from decrun.runner.config import DecrunConfig
+
+    known = [f.name for f in dataclasses.fields(DecrunConfig)]
+    unknown = [key for key in cfg if key not in known]
+    if unknown:
+        raise ConfigError(f"{unknown[0]}: unknown root key (nothing reads it); the config has {known}: "
+                          f"drop +{unknown[0]}=..., or put the option under its group (e.g. +app.{unknown[0]}=...)")
+
+
+#: a message starting with one of these names its config key already
+_KEYS = ("mesh", "operator", "boundary", "app", "solver", "progress", "figures")
+
+
+def name_the_key(exc: DecrunError, experiment: Experiment, where: str) -> DecrunError:
+    """``exc`` with the config key it comes from in front, when its message (raised by the
+    core, which knows no config) does not start with one: the mesh (``where``) for mesh
+    and topology errors, ``solver=<name>`` for solver errors, ``app=<name>`` otherwise.
+    Errors about files (an OSError such as ResultWriteError) name their file already."""
+    from decrun.errors import SolverError, TopologyError
+
+    message = str(exc)
+    if message.startswith(_KEYS) or isinstance(exc, OSError):
+        return exc
+    if isinstance(exc, (MeshError, TopologyError)):
+        prefix = where
+    elif isinstance(exc, SolverError):
+        prefix = f"solver={experiment.solver.name} (app={experiment.app.name})"
+    else:
+        prefix = f"app={experiment.app.name}"
+    try:
+        return type(exc)(f"{prefix}: {message}")
+    except TypeError:  # a subclass with another signature: keep it as it is
+        return exc
+
+
+def mesh_where(mesh) -> str:
+    """How an error names the mesh: ``mesh.sample=<name>``, ``mesh.path='<file>'`` or ``mesh <label>``."""
+    if mesh.meta.get("source") == "sample":
+        return f"mesh.sample={mesh.meta.get('label', '')}"
+    return f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
+
+
 def validate(cfg: DictConfig) -> Experiment:
     """Build and type-check every plugin node of ``cfg`` (ConfigError naming the key)."""
     return Experiment(cfg)
 
 
-def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path | None = None
+def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path | None = None, cache: bool = False
                    ) -> tuple[Result, Any, dict]:
     """Compose mesh → complex → DEC → app for ``cfg``; returns ``(result, mesh, timings)``.
 
@@ -106,6 +157,10 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     recorded so far are kept in an incomplete result.h5 (status failed / interrupted);
     nothing is written when nothing was recorded. Without ``out`` the recorded series end
     up in ``result.series``.
+
+    With ``cache`` (sweep jobs) the mesh, complex and DEC come from the per-process cache
+    :mod:`decrun.runner.job_cache` when an earlier job had the same mesh / operator /
+    boundary config (``mesh_seconds`` is then 0).
     """
     from decrun.core.complex import SimplicialComplex
     from decrun.core.dec import DEC
@@ -117,28 +172,43 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 
     experiment = validate(cfg)
     progress = progress or make_progress(False)
-    with task(progress, f"loading mesh={experiment.mesh_source.name}"):
-        mesh = experiment.mesh_source.load()
-    timings["mesh_seconds"] = time.perf_counter() - t
-    t = time.perf_counter()
-    try:
-        with task(progress, "building and checking the simplicial complex"):
-            complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
-    except MeshError as exc:  # name the mesh the complex refused, with the override that fixes it
-        from decrun.runner.hints import cli_message
+    timings["mesh_seconds"] = 0.0
 
-        if mesh.meta.get("source") == "sample":
-            where = f"mesh.sample={mesh.meta.get('label', '')}"
-        else:
-            where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
-        raise type(exc)(f"{where}: {cli_message(exc, experiment.mesh_source)}") from exc
-    complex_.meta = mesh.meta
-    dec = DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
+    def load_mesh():
+        with task(progress, f"loading mesh={experiment.mesh_source.name}"):
+            mesh = experiment.mesh_source.load()
+        timings["mesh_seconds"] = time.perf_counter() - t
+        return mesh
+
+    def build_dec(mesh):
+        try:
+            with task(progress, "building and checking the simplicial complex"):
+                complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
+        except MeshError as exc:  # name the mesh the complex refused, with the override that fixes it
+            from decrun.runner.hints import cli_message
+
+            raise type(exc)(f"{mesh_where(mesh)}: {cli_message(exc, experiment.mesh_source)}") from exc
+        complex_.meta = mesh.meta
+        return complex_, DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
+
+    if cache:
+        from decrun.runner.job_cache import mesh_and_dec
+
+        mesh, complex_, dec = mesh_and_dec(cfg, load_mesh, build_dec)
+    else:
+        mesh = load_mesh()
+        complex_, dec = build_dec(mesh)
+    timings["complex_seconds"] = time.perf_counter() - t - timings["mesh_seconds"]
+    t = time.perf_counter()
+    where = mesh_where(mesh)
     app = experiment.app
-    app.check_operators(dec)
-    app.check_solver(experiment.solver, dec)
-    app.check(complex_, dec)
-    timings["complex_seconds"] = time.perf_counter() - t
+    try:
+        app.check_operators(dec)
+        app.check_solver(experiment.solver, dec)
+        app.check(complex_, dec)
+    except DecrunError as exc:
+        raise name_the_key(exc, experiment, where) from exc
+    timings["complex_seconds"] += time.perf_counter() - t
     t = time.perf_counter()
     recorder = None
     if out is not None:
@@ -153,9 +223,18 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     try:
         result = app.run(ctx)
     except BaseException as exc:
+        named = name_the_key(exc, experiment, where) if isinstance(exc, DecrunError) else exc
         if recorder is not None:  # keep what was recorded, marked incomplete
             status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
-            recorder.abort(status, str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}")
+            error = (f"interrupted ({interrupt_cause(exc)})" if isinstance(exc, KeyboardInterrupt) else str(named)
+                     if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}")
+            try:
+                recorder.abort(status, error)
+            except (OSError, RuntimeError) as write_error:  # e.g. the disk is full: report the first error
+                if not isinstance(exc, OSError):
+                    exc.add_note(str(write_error))
+        if named is not exc:
+            raise named from exc
         raise
     if recorder is None:
         for name, values in ctx.series.items():
@@ -224,36 +303,48 @@ def _verbose() -> bool:
     return _VERBOSE or bool(HydraConfig.get().verbose)
 
 
-def _task(cfg: DictConfig) -> int:
+def _task(cfg: DictConfig) -> int | float:
+    """One job. Returns 0 (1 for a failed sweep job), or with ``optimize.metric`` set the
+    objective :meth:`decrun.runner.config.OptimizeConfig.objective` for a sweeper."""
     from hydra.core.hydra_config import HydraConfig
+
+    from decrun.runner.config import OptimizeConfig
+    from decrun.runner.sweeps import config_hash
 
     out = Path(HydraConfig.get().runtime.output_dir)
     multirun = _is_multirun()
+    identity = {"config_hash": config_hash(cfg)} if multirun else {}  # ties metrics.json to the manifest
+    optimize = None
     try:
+        optimize = OptimizeConfig(**OmegaConf.to_container(cfg.optimize)) if "optimize" in cfg else OptimizeConfig()
         result, mesh, timings = run_experiment(cfg, make_progress(bool(cfg.get("progress", True)) and not multirun),
-                                               out=out)
+                                               out=out, cache=multirun)
+        result.metrics.update(identity)
         written = write_run(out, cfg, result, mesh, timings)
-    except KeyboardInterrupt:
-        from decrun.runner.results import write_metrics_json
-
-        write_metrics_json(out / "metrics.json", {"status": "interrupted", "error": "interrupted (Ctrl-C)"})
-        print(f"decrun: interrupted; what was recorded is in {out}/", file=sys.stderr)
-        sys.exit(130)
+        objective = optimize.objective(result.metrics) if optimize.metric else 0
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (failures.Terminated)
+        cause = interrupt_cause(exc)
+        note = record_status(out, "interrupted", f"interrupted ({cause})", identity)
+        print(f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}", file=sys.stderr)
+        sys.exit(exit_code(exc))
     except Exception as exc:
-        message = str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}"
-        from decrun.runner.results import write_metrics_json
-
-        write_metrics_json(out / "metrics.json", {"status": "failed", "error": message})
-        if _verbose() or not isinstance(exc, DecrunError):
-            log.exception("error: %s", message)
+        os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)
+        message = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None
+                   else f"{type(exc).__name__}: {exc}")
+        note = record_status(out, "failed", message, identity)
+        if _verbose() or not (isinstance(exc, DecrunError) or os_error is not None):
+            log.exception("error: %s%s", message, note)
         else:
-            log.error("error: %s", message)
+            log.error("error: %s%s", message, note)
         if multirun:
-            return 1
+            return optimize.objective(None) if optimize is not None and optimize.metric else 1
         sys.exit(1)
     metrics = result.metrics
-    shown = ", ".join(f"{k}={_short(v)}" for k, v in metrics.items() if k not in ("status",))
+    shown = ", ".join(f"{k}={_short(v)}" for k, v in metrics.items() if k not in ("status", "config_hash"))
     log.info("metrics: %s", shown)
+    if optimize.metric:
+        log.info("optimize: %s %s = %s", optimize.direction, optimize.metric, objective)
+        return objective
     if not multirun:
         try:
             where = out.relative_to(Path.cwd())
@@ -275,8 +366,10 @@ def _hydra_main(cfg: DictConfig) -> int:
 
 
 class SweepTable(Callback):
-    """Hydra callback (``hydra.callbacks.sweep_table`` in conf/config.yaml): at the end of a
-    sweep writes ``metrics.csv`` and ``metrics.md`` at the sweep root."""
+    """Hydra callback (``hydra.callbacks.sweep_table`` in conf/config.yaml): before a sweep,
+    refuses a non-empty ``hydra.sweep.dir`` for sweepers without resume (the ``decrun``
+    sweeper checks it itself, see :mod:`decrun.runner.sweeper`); at its end writes
+    ``metrics.csv`` and ``metrics.md`` at the sweep root and prints the table."""
 
     failed = 0
     _progress = None
@@ -293,19 +386,27 @@ class SweepTable(Callback):
         total = sweep_size(list(config.hydra.overrides.task), params)
         SweepTable._progress = SweepProgress(Path(str(config.hydra.sweep.dir)), total, enabled=True).start()
 
+    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        sweep_dir = Path(str(config.hydra.sweep.dir))
+        target = str(config.hydra.sweeper.get("_target_", ""))
+        if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):
+            from decrun.runner.sweeper import SweepError, refuse
+
+            refuse(SweepError(f"error: hydra.sweep.dir={sweep_dir} is not empty; its old jobs would mix into the "
+                             f"new table: choose a new hydra.sweep.dir (only hydra/sweeper=decrun resumes)"))
+
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        from decrun.runner.tables import failed_jobs, to_markdown, write_sweep_table
+        from decrun.runner.tables import failed_jobs, select, to_markdown, write_sweep_table
 
         if SweepTable._progress is not None:
             SweepTable._progress.stop()
             SweepTable._progress = None
         sweep_dir = Path(str(config.hydra.sweep.dir))
-        table = write_sweep_table(sweep_dir)
+        table = write_sweep_table(sweep_dir, sweep=True)
         bad = failed_jobs(table)
         SweepTable.failed = len(bad)
-        shown = table.drop(columns=[c for c in ("error",) if c in table.columns and not len(bad)])
-        print(to_markdown(shown), end="")
-        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} failed) → {sweep_dir}/metrics.csv, metrics.md")
+        print(to_markdown(select(table, drop_constant=True)), end="")
+        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok) → {sweep_dir}/metrics.csv, metrics.md")
         for row in bad.itertuples(index=False):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
 
@@ -328,7 +429,8 @@ def fast_help() -> str:
         if isinstance(entry, str) or entry is None:
             continue
         for group, option in entry.items():
-            merged[group] = load_option(group, option)
+            if not group.startswith(("override ", "hydra/")):  # Hydra's own groups are not the task's
+                merged[group] = load_option(group, option)
     body = {k: v for k, v in OmegaConf.to_container(main_cfg).items() if k not in ("defaults", "hydra")}
     merged = OmegaConf.merge(merged, body)
     lines += ["", "", "== Config ==", "Override anything in the config (foo.bar=value)", "",
@@ -349,9 +451,45 @@ def main() -> None:
         print(fast_help(), end="")
         return
     SweepTable.failed = 0
-    _hydra_main()
+    install_sigterm()
+    # a log file that cannot be written (full disk) must not print logging's tracebacks;
+    # the error itself is reported on the console
+    logging.raiseExceptions = False
+    # Hydra prints a traceback for an exception outside the task (creating the run
+    # directory, saving .hydra/, Ctrl-C while composing); let them reach _report instead
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    try:
+        _hydra_main()
+    except Exception as exc:
+        sys.exit(_report(exc))
+    except KeyboardInterrupt as exc:
+        print(f"decrun: interrupted ({interrupt_cause(exc)}) before the run started", file=sys.stderr)
+        sys.exit(exit_code(exc))
     if SweepTable.failed:
         sys.exit(1)
+
+
+def _report(exc: Exception) -> int:
+    """Print an exception Hydra let through (see :func:`main`) as one line, as Hydra itself
+    would for its own errors; returns the exit code. With -v: the traceback."""
+    from hydra.errors import CompactHydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    if _VERBOSE:
+        raise exc
+    if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
+        print(str(exc), file=sys.stderr)
+        if isinstance(exc.__cause__, OmegaConfBaseException):
+            print(str(exc.__cause__), file=sys.stderr)
+        return 1
+    if isinstance(exc, DecrunError):
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    os_error = find_os_error(exc)
+    if os_error is not None:
+        print(f"error: {os_error_message(os_error)}", file=sys.stderr)
+        return 1
+    raise exc  # a bug: show it
 
 
 # ----------------------------------------------------------------------------------
@@ -360,24 +498,40 @@ def main() -> None:
 
 
 def table_main(argv: list[str] | None = None) -> int:
-    """Console script ``decrun-table SWEEP_DIR [--csv]``: rebuild ``metrics.csv`` /
-    ``metrics.md`` of a sweep and print the table (markdown, or CSV with ``--csv``)."""
+    """Console script ``decrun-table SWEEP [SWEEP ...]``: rebuild each sweep's ``metrics.csv``
+    / ``metrics.md`` (only in directories a sweep wrote) and print the table — several
+    sweeps stacked with a ``sweep`` column. Exit 1 when a job is not ok, 2 on an error."""
     import argparse
 
-    from decrun.runner.tables import NotASweepError, failed_jobs, to_markdown, write_sweep_table
+    from decrun.runner.tables import failed_jobs, is_sweep_dir, select, stack, to_markdown, write_sweep_table
 
     parser = argparse.ArgumentParser(prog="decrun-table", description=table_main.__doc__)
-    parser.add_argument("sweep_dir", help="a sweep directory, e.g. outputs/sweeps/<stamp>")
+    parser.add_argument("sweep_dirs", nargs="+", metavar="SWEEP", help="a sweep directory, e.g. outputs/sweeps/<stamp>")
     parser.add_argument("--csv", action="store_true", help="print CSV instead of markdown")
+    parser.add_argument("--metrics", help="comma-separated metric columns to show (default: all)")
+    parser.add_argument("--sort", help="comma-separated columns to sort the rows by")
+    parser.add_argument("--descending", action="store_true", help="sort in descending order")
+    parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
+                        help="drop columns with one value in every row (default: on for markdown, off for --csv)")
     args = parser.parse_args(argv)
+    split = (lambda text: [k.strip() for k in text.split(",") if k.strip()] if text else None)
     try:
-        table = write_sweep_table(args.sweep_dir)
-    except (FileNotFoundError, NotASweepError) as exc:
-        print(f"decrun-table: error: {exc}", file=sys.stderr)
+        for sweep_dir in args.sweep_dirs:
+            if not Path(sweep_dir).is_dir():
+                raise FileNotFoundError(f"sweep directory {sweep_dir!r} does not exist")
+            if is_sweep_dir(sweep_dir):
+                write_sweep_table(sweep_dir)
+        table = stack(args.sweep_dirs)
+        if len(args.sweep_dirs) == 1:
+            table = table.drop(columns="sweep")
+        drop = (not args.csv) if args.drop_constant is None else args.drop_constant
+        shown = select(table, split(args.metrics), split(args.sort), args.descending, drop)
+    except (FileNotFoundError, KeyError, DecrunError) as exc:
+        print(f"decrun-table: error: {exc.args[0] if isinstance(exc, KeyError) else exc}", file=sys.stderr)
         return 2
     if table.empty:
-        print(f"decrun-table: error: no job directories (with .hydra/) in {args.sweep_dir}", file=sys.stderr)
+        print(f"decrun-table: error: no jobs (no manifest.json, no job directories with .hydra/) in "
+              f"{', '.join(args.sweep_dirs)}", file=sys.stderr)
         return 2
-    print(table.to_csv(index=False) if args.csv else to_markdown(table), end="")
+    print(shown.to_csv(index=False) if args.csv else to_markdown(shown), end="")
     return 1 if len(failed_jobs(table)) else 0
-

@@ -8,18 +8,55 @@ composes YAML only; the runner type-checks each node against its class before an
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 from omegaconf import MISSING
 
 from decrun.errors import ConfigError
 
-__all__ = ["DecrunConfig", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option"]
+__all__ = ["DecrunConfig", "OptimizeConfig", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option"]
 
 #: config groups whose node is a plugin (built with ``_target_``)
 PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver")
+
+
+#: directions of ``optimize.direction`` (those of Hydra's optimising sweepers)
+DIRECTIONS = ("minimize", "maximize")
+
+
+@dataclass
+class OptimizeConfig:
+    """``optimize``: what a job returns to an optimising Hydra sweeper
+    (``hydra/sweeper=optuna``). Without ``metric`` a job returns its exit status."""
+
+    #: name of the metric the job returns (e.g. ``dt``, ``distance_to_clean_rms``)
+    metric: Optional[str] = None
+    #: minimize | maximize; must agree with the sweeper's ``direction``
+    direction: str = "minimize"
+    #: name of a boolean metric that must be true (e.g. ``stable``); a job where it is false,
+    #: or that failed, returns the worst value (+inf when minimizing, -inf when maximizing)
+    require: Optional[str] = None
+
+    def __post_init__(self):
+        if self.direction not in DIRECTIONS:
+            raise ConfigError(f"optimize.direction: must be one of {list(DIRECTIONS)}, got {self.direction!r}")
+
+    def objective(self, metrics: dict | None) -> float:
+        """The value a job returns: ``metrics[metric]``, or the worst value when the job
+        failed (``metrics`` None) or ``metrics[require]`` is false. A metric the job does
+        not have is a ConfigError naming the metrics it has."""
+        worst = float("inf") if self.direction == "minimize" else float("-inf")
+        if metrics is None:
+            return worst
+        for key in (self.metric, self.require):
+            if key is not None and key not in metrics:
+                raise ConfigError(f"optimize: the run has no metric {key!r}; its metrics are {sorted(metrics)}")
+        if self.require is not None and not metrics[self.require]:
+            return worst
+        value = float(metrics[self.metric])
+        return value if value == value else worst  # NaN → worst
 
 
 @dataclass
@@ -36,6 +73,8 @@ class DecrunConfig:
     progress: bool = True
     #: render the application's figures to PNG
     figures: bool = True
+    #: the metric a sweep job returns to an optimising sweeper (hydra/sweeper=optuna)
+    optimize: OptimizeConfig = field(default_factory=OptimizeConfig)
 
 
 _registered = False

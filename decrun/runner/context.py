@@ -31,8 +31,15 @@ class RunContext(Context):
 
         if not Path(path).is_file():
             raise ConfigError(f"app.input_path: no result file at {str(path)!r}")
-        result = read_result(path)
-        vertices, _ = read_mesh(path)
+        try:
+            result = read_result(path)
+            vertices, _ = read_mesh(path)
+        except KeyError as exc:  # h5py: a group or attribute of the layout is missing
+            raise ConfigError(f"app.input_path={str(path)!r}: an HDF5 file but not a decrun result.h5 "
+                              f"({_first_line(exc)})") from None
+        except (OSError, ValueError, TypeError) as exc:  # not HDF5, truncated, corrupt, damaged JSON
+            raise ConfigError(f"app.input_path={str(path)!r}: cannot read it as a decrun result.h5 "
+                              f"({_first_line(exc)})") from None
         return result, vertices
 
     def log(self, message: str) -> None:
@@ -40,3 +47,9 @@ class RunContext(Context):
             self.logger.info(message)
         else:
             super().log(message)
+
+
+def _first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (h5py's KeyError text is quoted)."""
+    text = (exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)) or type(exc).__name__
+    return str(text).strip().splitlines()[0]

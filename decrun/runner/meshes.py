@@ -41,9 +41,10 @@ from typing import Any, ClassVar, List
 import numpy as np
 
 from decrun.core.geometry import mean_edge_length
-from decrun.errors import ConfigError, MeshError
+from decrun.errors import ConfigError, IndexOutOfRangeError, MeshError, NonFiniteCoordinateError
 
-__all__ = ["Mesh", "MeshSource", "mesh_hash", "require", "from_meshset", "to_meshset", "pymeshlab_primitive"]
+__all__ = ["Mesh", "MeshSource", "mesh_hash", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
+           "from_meshset", "to_meshset", "pymeshlab_primitive"]
 
 
 @dataclass
@@ -72,6 +73,28 @@ def mesh_hash(vertices: np.ndarray, simplices: np.ndarray) -> str:
     h.update(v.tobytes())
     h.update(s.tobytes())
     return h.hexdigest()
+
+
+#: the most triangles a source or post step may produce: 4·10⁶ triangles are ~2 GB of
+#: complex and operators; beyond that pymeshlab or triangle would be killed for memory
+#: (a 10×10 grid refined 10 times, 162·4¹⁰ = 1.7·10⁸ triangles, was: exit 137, no message)
+MAX_TRIANGLES = 4_000_000
+
+
+def require_triangles(count: float, key: str, fix: str) -> None:
+    """ConfigError naming ``key`` when ``count`` (the predicted number of triangles) exceeds
+    :data:`MAX_TRIANGLES`; ``fix`` is the override that keeps it below."""
+    if count > MAX_TRIANGLES:
+        raise ConfigError(f"{key}: would make about {count:.3g} triangles, more than decrun's limit "
+                          f"{MAX_TRIANGLES:.0e} (memory); use {fix}")
+
+
+def require_surface(mesh: "Mesh", key: str, fix: str) -> None:
+    """ConfigError naming ``key`` unless the mesh is made of triangles (a post step that
+    works on surfaces, given a tetrahedral mesh); ``fix`` is the override that drops it."""
+    if mesh.simplices.shape[1] != 3:
+        raise ConfigError(f"{key}: needs a triangle surface; this mesh is made of "
+                          f"{len(mesh.simplices)} tetrahedra: use {fix}")
 
 
 def require(condition: bool, key: str, message: str) -> None:
@@ -120,10 +143,30 @@ def check_mesh(mesh: Mesh, what: str = "mesh") -> None:
         raise MeshError(f"{what}: need a non-empty (m, 3) triangle or (m, 4) tetrahedron array, got shape {F.shape}")
     bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
     if len(bad):
-        raise MeshError(f"{what}: vertex {int(bad[0])} has a non-finite coordinate {V[bad[0]].tolist()} ({len(bad)} such vertices)")
+        raise NonFiniteCoordinateError(f"{what}: vertex {int(bad[0])} has a non-finite coordinate {V[bad[0]].tolist()} ({len(bad)} such vertices)")
     out = np.flatnonzero(((F < 0) | (F >= len(V))).any(axis=1))
     if len(out):
-        raise MeshError(f"{what}: face {int(out[0])} {F[out[0]].tolist()} references a vertex outside [0, {len(V)})")
+        raise IndexOutOfRangeError(f"{what}: face {int(out[0])} {F[out[0]].tolist()} references a vertex outside [0, {len(V)})")
+
+
+#: the range of mesh sizes (bounding-box diagonal, model units) decrun computes with: areas
+#: squared (L⁴) and tetrahedron volumes squared (L⁶) stay inside float64's normal range
+#: (1e-308 .. 1e308) with a wide margin; outside it they under- or overflow silently
+SIZE_RANGE = (1e-30, 1e30)
+
+
+def check_size(mesh: Mesh, what: str) -> None:
+    """MeshError unless the mesh's bounding-box diagonal lies in :data:`SIZE_RANGE`
+    (coordinates of 1e300 otherwise give overflow warnings and a singular factorization)."""
+    V = mesh.vertices
+    extent = V.max(axis=0) - V.min(axis=0)
+    scale = float(np.max(np.abs(extent)))
+    diagonal = scale * float(np.sqrt(np.sum((extent / scale) ** 2))) if scale > 0 else 0.0
+    lo, hi = SIZE_RANGE
+    if not lo <= diagonal <= hi:
+        raise MeshError(f"{what}: the mesh's size (bounding-box diagonal {diagonal:.3g}) is outside decrun's range "
+                        f"[{lo:g}, {hi:g}] (lengths to the 4th and 6th power would under- or overflow float64): "
+                        f"rescale it with mesh.normalize=true")
 
 
 def _default_post() -> List[str]:
@@ -194,14 +237,19 @@ class MeshSource:
         mesh = replace(mesh, simplices=np.asarray(mesh.simplices, dtype=np.int64),
                        vertices=np.asarray(mesh.vertices, dtype=np.float64))
         label = mesh.meta.get("label", self.name)
-        check_mesh(mesh, f"mesh {label}")
+        if self.name == "file" and "path" in mesh.meta:  # name the file as the user gave it
+            label = f"mesh.path={mesh.meta['path']!r}"
+        else:
+            label = f"mesh {label}"
+        check_mesh(mesh, label)
         applied = []
         for step in self.post:
             before = mesh
             mesh = getattr(post_steps, step)(mesh, self)
             if mesh is not before:
                 applied.append(step)
-        check_mesh(mesh, f"mesh {label} after {applied}")
+                check_mesh(mesh, f"{label} after the mesh.post step {step!r}")  # names the step that broke it
+        check_size(mesh, label + (f" after {applied}" if applied else ""))
         mesh.meta.setdefault("source", self.name)
         mesh.meta["steps"] = applied
         if mesh.simplices.shape[1] == 3:

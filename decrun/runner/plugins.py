@@ -12,7 +12,8 @@ dataclass whose fields are its options, declared once. Its config file
 
 :func:`build` type-checks the composed node against the dataclass (unknown keys, wrong
 types and the dataclass' own ``__post_init__`` checks become one :class:`ConfigError`
-naming the key) and returns the instance — the same object
+naming the key; so does a NaN, an infinity or a number beyond ±1e150 anywhere in the
+node, see :func:`check_numbers`) and returns the instance — the same object
 ``hydra.utils.instantiate(node)`` would build. Nothing is registered in Python: a plugin
 outside decrun is one module on the Python path plus one YAML file in a config directory
 added with ``hydra.searchpath`` (README, "Extending decrun").
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import math
 import typing
 from typing import Any
 
@@ -59,6 +61,30 @@ def plain_values(node: Any) -> dict:
     values = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node)
     values.pop("_target_", None)
     return values
+
+
+#: |value| above this is rejected in every option (the limit of mesh-file coordinates:
+#: squares and products of two squares must stay far below the float64 maximum 1.8e308)
+MAX_ABS_OPTION = 1e150
+
+
+def check_numbers(value: Any, where: str) -> None:
+    """Raise ConfigError naming ``where`` (``app.sources[0].point[2]``) for a NaN, an
+    infinity or a number beyond ±MAX_ABS_OPTION anywhere in ``value`` (nested lists and
+    dicts): such a value is never a meaningful length, weight or tolerance, and left in
+    it would surface far away as a misleading error, an overflow or a silent no-op."""
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ConfigError(f"{where}: must be a finite number, got {value}")
+        if abs(value) > MAX_ABS_OPTION:
+            raise ConfigError(f"{where}: {value:g} is beyond ±{MAX_ABS_OPTION:g} (squares of it would overflow "
+                              f"float64); give a number of sensible size")
+    elif isinstance(value, dict):
+        for name, item in value.items():
+            check_numbers(item, f"{where}.{name}")
+    elif isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            check_numbers(item, f"{where}[{i}]")
 
 
 def _widen(hint, value):
@@ -98,6 +124,7 @@ def build(node: Any, key: str, base: type) -> Any:
     schema = OmegaConf.structured(cls)
     try:
         merged = OmegaConf.merge(schema, values)
+        check_numbers(OmegaConf.to_container(merged), key)  # as converted ("nan" → nan)
         return OmegaConf.to_object(merged)
     except ConfigKeyError as exc:
         name = exc.key if getattr(exc, "key", None) else str(exc).split("'")[1] if "'" in str(exc) else "?"

@@ -13,11 +13,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from decrun.core.geometry import mean_edge_length, vertex_normals
+from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
 from decrun.runner import mesh_cut, mesh_holes
 from decrun.runner.mesh_repair import repair_mesh, up_axis_to_z
-from decrun.runner.meshes import Mesh, from_meshset, require, to_meshset
+from decrun.runner.meshes import (MAX_TRIANGLES, Mesh, from_meshset, require, require_surface, require_triangles,
+                                  to_meshset)
 
 __all__ = ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
 
@@ -130,16 +131,32 @@ def refine(mesh: Mesh, cfg) -> Mesh:
         return mesh
     require(cfg.refine in ("loop", "midpoint", "isotropic"), "refine", f"unknown {cfg.refine!r}; choose none|loop|midpoint|isotropic")
     require(1 <= cfg.refine_iterations <= 10, "refine_iterations", f"must be in 1..10, got {cfg.refine_iterations}")
+    require_surface(mesh, f"mesh.refine={cfg.refine}", "mesh.refine=none")
     dim = mesh.vertices.shape[1]
-    ms = to_meshset(mesh.vertices, mesh.simplices)
-    if cfg.refine == "loop":
-        ms.meshing_surface_subdivision_loop(iterations=int(cfg.refine_iterations), threshold=pymeshlab.PercentageValue(0.0))
-    elif cfg.refine == "midpoint":
-        ms.meshing_surface_subdivision_midpoint(iterations=int(cfg.refine_iterations), threshold=pymeshlab.PercentageValue(0.0))
+    m, iterations = len(mesh.simplices), int(cfg.refine_iterations)
+    if cfg.refine in ("loop", "midpoint"):  # each iteration splits a triangle into 4
+        fits = max(0, int(np.floor(np.log(MAX_TRIANGLES / m) / np.log(4))))
+        require_triangles(m * 4.0 ** iterations, "mesh.refine_iterations",
+                          f"mesh.refine_iterations={fits}" if fits else "a coarser mesh")
     else:
         require(cfg.refine_target_edge >= 0, "refine_target_edge", "must be >= 0")
         target = cfg.refine_target_edge or mean_edge_length(mesh.vertices, mesh.simplices)
-        ms.meshing_isotropic_explicit_remeshing(iterations=int(cfg.refine_iterations), targetlen=pymeshlab.PureValue(float(target)))
+        area = float(triangle_areas(mesh.vertices, mesh.simplices).sum())
+        equilateral = np.sqrt(3) / 4 * target**2
+        shortest = np.sqrt(area / (MAX_TRIANGLES * np.sqrt(3) / 4))  # the target that makes MAX_TRIANGLES
+        require_triangles(area / equilateral, "mesh.refine_target_edge", f"mesh.refine_target_edge={1.1 * shortest:.2g}")
+    ms = to_meshset(mesh.vertices, mesh.simplices)
+    try:
+        if cfg.refine == "loop":
+            ms.meshing_surface_subdivision_loop(iterations=iterations, threshold=pymeshlab.PercentageValue(0.0))
+        elif cfg.refine == "midpoint":
+            ms.meshing_surface_subdivision_midpoint(iterations=iterations, threshold=pymeshlab.PercentageValue(0.0))
+        else:
+            ms.meshing_isotropic_explicit_remeshing(iterations=iterations, targetlen=pymeshlab.PureValue(float(target)))
+    except pymeshlab.PyMeshLabException as exc:
+        reason = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        raise MeshError(f"mesh.refine={cfg.refine}: pymeshlab refused the mesh ({reason}); repair the mesh "
+                        f"or use mesh.refine=none") from None
     vertices, faces = from_meshset(ms, f"mesh.refine={cfg.refine}")
     meta = {k: v for k, v in mesh.meta.items() if k != "clean_vertices"}
     return Mesh(vertices[:, :dim], faces, meta)
@@ -167,6 +184,7 @@ def noise(mesh: Mesh, cfg) -> Mesh:
     require(cfg.noise >= 0, "noise", f"must be >= 0, got {cfg.noise}")
     if cfg.noise == 0:
         return mesh
+    require_surface(mesh, "mesh.noise", "mesh.noise=0")
     rng = np.random.default_rng(int(cfg.seed))
     V, F = mesh.vertices, mesh.simplices
     h = mean_edge_length(V, F)

@@ -3,8 +3,8 @@
 :class:`ResultRecorder` backs ``ctx.record(step, **values)``: every call appends one
 record (scalars and fixed-shape arrays) to the run's journal ``<path>.partial``, so
 memory stays flat over any number of steps. :meth:`ResultRecorder.finish` turns the
-journal plus the application's :class:`~decrun.results.Result` into ``result.h5`` --
-the layout and attributes of :func:`decrun.results.write_result`, plus the status
+journal plus the application's :class:`~decrun.apps.base.Result` into ``result.h5`` --
+the layout and attributes of :func:`decrun.runner.results.write_result`, plus the status
 attributes below -- and removes the journal.
 
 Crash semantics (what is on disk when the process dies at any instant)
@@ -53,7 +53,7 @@ noise) where resize + write + flush straight into HDF5 took ~700 µs; peak RSS g
 0.06 MiB over 5,000 such records. ``finish()`` copies in 8 MiB blocks: 400 MB took
 1.3 s uncompressed (+26 MiB peak RSS), 3.7 s when the series was worth gzip (→ 36 MB).
 
-Layout of ``result.h5`` (superset of :func:`decrun.results.write_result`)
+Layout of ``result.h5`` (superset of :func:`decrun.runner.results.write_result`)
 -------------------------------------------------------------------------
 ::
 
@@ -145,7 +145,7 @@ class ResultRecorder:
     vertices : (n0, d) float64 mesh vertices; simplices : (n_top, k+1) int64 top simplices;
     edges : optional (n1, 2) int64 sorted edge list (``complex.simplices(1)``), needed to
         store 1-forms (``finish(forms={name: 1})``).
-    config_yaml, mesh_hash : provenance, as for :func:`decrun.results.write_result`.
+    config_yaml, mesh_hash : provenance, as for :func:`decrun.runner.results.write_result`.
     attrs : extra root attributes (str, numbers, bools).
     """
 
@@ -548,7 +548,7 @@ def _copy_journal(group, journal: Journal) -> None:
 
 @dataclass
 class RecordedResult(Result):
-    """A :class:`~decrun.results.Result` read back from ``result.h5`` or its journal.
+    """A :class:`~decrun.apps.base.Result` read back from ``result.h5`` or its journal.
 
     Extra attributes: ``complete`` (True only for a finished run), ``status`` ("ok" |
     "failed" | "interrupted" | "killed" | "unfinished" (journal only: the writer was

@@ -96,8 +96,12 @@ def write_metrics_json(path: str | os.PathLike, metrics: dict[str, Any]) -> Path
     """Write ``metrics.json`` atomically (temporary name, then rename)."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(metrics_to_json(metrics) + "\n")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(metrics_to_json(metrics) + "\n")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 

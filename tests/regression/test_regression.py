@@ -11,6 +11,8 @@ Case file format::
           metric: value              # exact (bool, int, str) or float within 1e-12
           metric: {value: x, rtol: r, atol: a}
           metric: {min: lo, max: hi} # bounds; a bound may be "<factor> * <other metric>"
+        expect_error: "words"        # instead of expect: the run must fail with a DecrunError
+                                     # whose message matches these words (a regex)
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from decrun.errors import DecrunError
 from decrun.runner.cli import compose_config, run_experiment
 
 HERE = Path(__file__).parent
@@ -32,7 +35,8 @@ def _cases():
         common = list(spec.get("common", []))
         cases = spec.get("cases") or [dict(name="case", overrides=spec.get("overrides", []), expect=spec["expect"])]
         for case in cases:
-            yield pytest.param(common + list(case.get("overrides", [])), case["expect"],
+            expect = case["expect"] if "expect" in case else {"__error__": case["expect_error"]}
+            yield pytest.param(common + list(case.get("overrides", [])), expect,
                                id=f"{path.stem}::{case.get('name', 'case')}")
 
 
@@ -71,6 +75,10 @@ def check(metrics: dict, expect: dict) -> list[str]:
 @pytest.mark.parametrize("overrides, expect", list(_cases()))
 def test_regression_case(overrides, expect):
     cfg = compose_config(overrides)
+    if "__error__" in expect:  # a case whose point is a clear refusal (expect_error: words)
+        with pytest.raises(DecrunError, match=expect["__error__"]):
+            run_experiment(cfg)
+        return
     result, _, _ = run_experiment(cfg)
     problems = check(result.metrics, expect)
     assert not problems, f"decrun {' '.join(overrides)}:\n  " + "\n  ".join(problems)

@@ -26,13 +26,41 @@ def test_every_app_runs_with_every_solver_or_refuses_before_work(app, solver, mo
     try:
         validate(cfg)
     except ConfigError as exc:
+        assert app == "parametrization" and solver in ("cg", "amg")  # the default conformal border only
         assert f"solver={solver}" in str(exc) and "use `solver=direct`" in str(exc)
-        # the hint works: the suggested override runs
-        result, _, _ = run_experiment(compose_config([f"app={app}", "solver=direct", "figures=false", *APP_MESH[app]]))
-        assert result.metrics["status"] == "ok"
+        # the hints work: the suggested overrides run
+        for hint in (["solver=direct"], [f"solver={solver}", "app.border=circle"]):
+            result, _, _ = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app], *hint]))
+            assert result.metrics["status"] == "ok"
         return
     result, _, _ = run_experiment(cfg)
     assert result.metrics["status"] == "ok"
+
+
+@pytest.mark.parametrize("solver", ["cg", "amg"])
+def test_iterative_solvers_give_the_direct_answer(solver):
+    """The systems handed to cg/amg are the SPD ones: same result as the direct solver."""
+    if importlib.util.find_spec(EXTRA.get(solver, "scipy")) is None:
+        pytest.skip(f"{EXTRA[solver]} is not installed")
+    for app, extra, metric in (("parametrization", ["app.border=circle"], "angle_distortion_mean_deg"),
+                               ("hodge", [], "energy_fraction_harmonic"), ("smoothing", [], "distance_to_clean_rms"),
+                               ("vector_field", [], "smoothness_energy")):
+        values = []
+        for name in ("direct", solver):
+            result, _, _ = run_experiment(compose_config([f"app={app}", f"solver={name}", "figures=false",
+                                                          *APP_MESH[app], *extra]))
+            values.append(result.metrics[metric])
+        assert values[1] == pytest.approx(values[0], rel=1e-6, abs=1e-9), app
+
+
+def test_hodge_with_indefinite_star1_refuses_cg_and_names_whitney():
+    """A planar grid of right triangles: circumcentric ⋆1 = 0 on the diagonals, so the Poisson
+    systems are singular-indefinite for cg; operator=whitney (SPD) is the override that works."""
+    overrides = ["app=hodge", "mesh=grid", "mesh.nx=8", "mesh.ny=8", "figures=false"]
+    with pytest.raises(ConfigError, match="use operator=whitney"):
+        run_experiment(compose_config([*overrides, "operator=circumcentric", "solver=cg"]))
+    result, _, _ = run_experiment(compose_config([*overrides, "operator=whitney", "operator.lumped=true", "solver=cg"]))
+    assert result.metrics["harmonic_dimension"] == result.metrics["betti_1"] == 0
 
 
 @pytest.mark.parametrize("app", ["smoothing", "parametrization", "hodge"])

@@ -273,15 +273,3 @@ def test_a_long_run_killed_with_sigkill_leaves_a_readable_incomplete_result(tmp_
     killed = read_result(result_path)
     assert not killed.complete and killed.status == "killed" and killed.steps_recorded == partial.steps_recorded
 
-
-def test_decrun_table_refuses_a_directory_that_is_not_a_sweep(tmp_path, capsys):
-    """`decrun-table outputs/runs` (or one run) writes nothing there: it is not a sweep root."""
-    runs = tmp_path / "outputs" / "runs"
-    run = runs / "2026-01-01_00-00-00_abcdef"
-    (run / ".hydra").mkdir(parents=True)
-    (run / "metrics.json").write_text('{"status": "ok"}')
-    assert table_main([str(runs)]) == 2
-    assert "not a sweep directory" in capsys.readouterr().err
-    assert table_main([str(run)]) == 2
-    assert "a single run, not a sweep" in capsys.readouterr().err
-    assert not list(runs.rglob("metrics.csv")) and not list(runs.rglob("metrics.md"))

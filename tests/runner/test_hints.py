@@ -55,7 +55,7 @@ CASES = {
     "no_critical_step_on_a_scan": (["mesh=sample", "operator=circumcentric", "app.steps=1"],
                                    ["operator=mixed_area", "app.dt=0.005"]),
     "spd_solver_for_unsymmetric_system": (["app=parametrization", "mesh=sphere_cap", "solver=cg"],
-                                          ["solver=direct", "solver=pardiso"]),
+                                          ["solver=direct", "solver=pardiso", "app.border=circle"]),
     "nondiagonal_star": (["app=vector_field", "mesh.subdiv=2", "operator=whitney"],
                          ["operator.lumped=true", "operator=circumcentric"]),
     "zero_form_only_star": (["app=vector_field", "mesh.subdiv=2", "operator=intrinsic_delaunay"],

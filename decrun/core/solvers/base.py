@@ -53,6 +53,10 @@ class Solver:
         if A.shape[0] != A.shape[1]:
             raise SolverError(f"{self.name} solver: matrix must be square, got {A.shape}")
         A.sum_duplicates()
+        if not np.isfinite(A.data).all():  # never hand NaN/inf to native code (SuperLU, PARDISO)
+            bad = int((~np.isfinite(A.data)).sum())
+            raise SolverError(f"{self.name} solver: the {A.shape} matrix has {bad} non-finite entries (NaN or inf): "
+                              "the mesh or the operator variant produced them")
         key = fingerprint(A)
         if key == self._key:
             return self

@@ -191,14 +191,33 @@ def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
     fig.savefig(path, dpi=dpi or fig.dpi)
 
 
-def draw_figures(figures: dict, out_dir, K=None) -> list:
+class RecordedSeries:
+    """The series a run recorded with ``ctx.record``, read on first use from the run's
+    ``result.h5`` or its journal (a mapping name → (records, *shape) array)."""
+
+    def __init__(self, path, series: dict | None = None):
+        self.path, self._series = path, series
+
+    def __getitem__(self, name: str):
+        if self._series is None:
+            from decrun.runner.results import read_result
+
+            self._series = read_result(self.path).series
+        return self._series[name]
+
+
+def draw_figures(figures: dict, out_dir, K=None, series: dict | None = None) -> list:
     """Draw the :class:`decrun.apps.base.Figure` descriptions of a result into ``out_dir``:
     ``<name>.png`` for each (a drawing function may instead write its own file, e.g. an
-    animation, and return its path). Returns the written paths."""
+    animation, and return its path). A drawing function may take ``K`` (the complex),
+    ``recorded`` (:class:`RecordedSeries`: the series recorded during the run — ``series``
+    when given, else read from ``out_dir/result.h5`` or its journal) and ``out_path``.
+    Returns the written paths."""
     import importlib
     import inspect
     from pathlib import Path
 
+    recorded = RecordedSeries(Path(out_dir) / "result.h5", series)
     written = []
     for name, figure in figures.items():
         module_name, _, function_name = figure.draw.rpartition(".")
@@ -207,6 +226,8 @@ def draw_figures(figures: dict, out_dir, K=None) -> list:
         parameters = inspect.signature(draw).parameters
         if "K" in parameters:
             data["K"] = K
+        if "recorded" in parameters:
+            data["recorded"] = recorded
         if "out_path" in parameters:
             data["out_path"] = Path(out_dir) / name
         made = draw(**data)

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from decrun.runner.meshes import Mesh, MeshSource, pymeshlab_primitive, require
+import numpy as np
+
+from decrun.runner.meshes import MAX_TRIANGLES, Mesh, MeshSource, pymeshlab_primitive, require, require_triangles
 
 __all__ = ["Icosphere", "Torus", "SphereCap", "Annulus", "Grid", "Cube"]
 
@@ -43,6 +45,9 @@ class Torus(MeshSource):
         super().__post_init__()
         require(self.major_radius > self.minor_radius > 0, "minor_radius", "need major_radius > minor_radius > 0")
         require(self.major_segments >= 3 and self.minor_segments >= 3, "major_segments", "need >= 3 segments each way")
+        fits = int(np.sqrt(MAX_TRIANGLES / 2))
+        require_triangles(2.0 * self.major_segments * self.minor_segments, "mesh.major_segments",
+                          f"mesh.major_segments={fits} mesh.minor_segments={fits} or fewer")
 
     def make(self) -> Mesh:
         return pymeshlab_primitive("create_torus", "torus", hradius=float(self.major_radius),
@@ -82,6 +87,7 @@ class Annulus(MeshSource):
         super().__post_init__()
         require(self.outer_radius > self.inner_radius > 0, "inner_radius", "need outer_radius > inner_radius > 0")
         require(self.sides >= 3, "sides", f"must be >= 3, got {self.sides}")
+        require_triangles(2.0 * self.sides, "mesh.sides", f"mesh.sides={MAX_TRIANGLES // 2}")
 
     def make(self) -> Mesh:
         return pymeshlab_primitive("create_annulus", "annulus", internalradius=float(self.inner_radius),
@@ -102,6 +108,9 @@ class Grid(MeshSource):
         super().__post_init__()
         require(self.nx >= 2 and self.ny >= 2, "nx", f"need nx, ny >= 2, got {self.nx}, {self.ny}")
         require(self.width > 0 and self.height > 0, "width", "need width, height > 0")
+        fits = int(np.sqrt(MAX_TRIANGLES / 2)) + 1
+        require_triangles(2.0 * (self.nx - 1) * (self.ny - 1), "mesh.nx",
+                          f"mesh.nx={fits} mesh.ny={fits} or fewer vertices per side")
 
     def make(self) -> Mesh:
         return pymeshlab_primitive("create_grid", "grid", numvertx=int(self.nx), numverty=int(self.ny),

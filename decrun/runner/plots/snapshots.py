@@ -1,0 +1,80 @@
+"""Time series of per-vertex fields: a grid of snapshots and an animation (GIF).
+
+Used by time-dependent applications (``app=fluid``: vorticity over time). The frames are the
+series the run recorded with ``ctx.record`` (``recorded[name]``: (records, n0)), read from the
+run's result file after the run, so memory during the run stays flat.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from decrun.core.geometry import is_planar
+from decrun.runner.plots.common import new_figure, plot_surface
+
+__all__ = ["snapshot_grid", "animation"]
+
+
+def _scale(frames: np.ndarray, symmetric: bool) -> tuple[float, float]:
+    finite = frames[np.isfinite(frames)]
+    if not finite.size:
+        return -1.0, 1.0
+    hi = float(np.percentile(np.abs(finite), 99)) if symmetric else float(np.percentile(finite, 99))
+    lo = -hi if symmetric else float(np.percentile(finite, 1))
+    return (lo, hi) if hi > lo else (lo - 1.0, lo + 1.0)
+
+
+def _axes(fig, rows, cols, index, planar):
+    return fig.add_subplot(rows, cols, index, **({} if planar else {"projection": "3d"}))
+
+
+def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times_name: str = "time",
+                  cmap: str = "RdBu_r", title: str = "", symmetric: bool = True):
+    """``count`` evenly spaced recorded frames of ``recorded[name]`` (records, n0) side by side,
+    one shared colour scale (symmetric about 0 for signed fields such as vorticity)."""
+    frames = np.asarray(recorded[name])
+    times = np.asarray(recorded[times_name]) if times_name else np.arange(len(frames))
+    picks = np.unique(np.linspace(0, len(frames) - 1, min(count, len(frames))).round().astype(int))
+    planar = is_planar(K.vertices)
+    cols = min(3, len(picks))
+    rows = int(np.ceil(len(picks) / cols))
+    fig = new_figure(4.0 * cols, 3.6 * rows if planar else 4.0 * rows)
+    lo, hi = _scale(frames[picks], symmetric)
+    faces = K.oriented_simplices()
+    mappable = None
+    for slot, index in enumerate(picks):
+        ax = _axes(fig, rows, cols, slot + 1, planar)
+        mappable = plot_surface(ax, K.vertices, faces, frames[index], cmap=cmap, vmin=lo, vmax=hi, linewidth=0.0,
+                                title=f"t = {times[index]:.3g}") or mappable
+    fig.colorbar(mappable, ax=fig.axes, shrink=0.7, label=name)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str = "time", fps: int = 12,
+              max_frames: int = 120, cmap: str = "RdBu_r", title: str = "", symmetric: bool = True) -> Path:
+    """An animated GIF of ``recorded[name]`` over time (at most ``max_frames`` evenly spaced
+    frames, one colour scale), written with matplotlib's Pillow writer to ``out_path``.gif."""
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    frames = np.asarray(recorded[name])
+    times = np.asarray(recorded[times_name]) if times_name else np.arange(len(frames))
+    picks = np.unique(np.linspace(0, len(frames) - 1, min(max_frames, len(frames))).round().astype(int))
+    planar = is_planar(K.vertices)
+    lo, hi = _scale(frames[picks], symmetric)
+    faces = K.oriented_simplices()
+    fig = new_figure(5.0, 4.0 if planar else 5.0, dpi=90)
+    ax = _axes(fig, 1, 1, 1, planar)
+
+    def draw(index):
+        ax.clear()
+        plot_surface(ax, K.vertices, faces, frames[picks[index]], cmap=cmap, vmin=lo, vmax=hi, linewidth=0.0,
+                     title=f"{title} t = {times[picks[index]]:.3g}".strip())
+        return []
+
+    path = Path(out_path).with_suffix(".gif")
+    FuncAnimation(fig, draw, frames=len(picks), blit=False).save(path, writer=PillowWriter(fps=fps))
+    return path

@@ -1,0 +1,213 @@
+"""Sweep tables from job directories (no decrun process): one row per planned job with
+its state, nullable integers, the result column, load_sweep == read_csv, stacking and
+selection; the objective a job returns to an optimising sweeper; the job cache."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from decrun.errors import ConfigError
+from decrun.runner.cli import table_main
+from decrun.runner.config import OptimizeConfig
+from decrun.runner.recorder import ResultRecorder
+from decrun.runner.sweeps import FORMAT, MANIFEST
+from decrun.runner.tables import load_sweep, select, stack, sweep_table, write_sweep_table
+
+
+def make_sweep(root, jobs: dict[str, dict | str | None], hashes: dict[str, str] | None = None):
+    """A sweep directory with a manifest planning ``jobs`` (name → metrics.json content,
+    "killed" for a journal without metrics, None for a job that never started)."""
+    root.mkdir(parents=True)
+    hashes = hashes or {}
+    planned = [{"job": name, "overrides": [f"app.dt={0.1 * (i + 1):g}", "mesh.subdiv=2"],
+                "config_hash": hashes.get(name, f"h{name}")} for i, name in enumerate(jobs)]
+    (root / MANIFEST).write_text(json.dumps({"format": FORMAT, "overrides": ["app.dt=0.1,0.2"], "jobs": planned,
+                                             "runs": [{"started": "t", "jobs": list(jobs), "finished": None}]}))
+    (root / "multirun.yaml").write_text("hydra: {}\n")
+    for name, content in jobs.items():
+        if content is None:
+            continue
+        job = root / name
+        (job / ".hydra").mkdir(parents=True)
+        if content == "killed":
+            recorder = ResultRecorder(job / "result.h5", vertices=np.zeros((3, 3)), simplices=np.array([[0, 1, 2]]))
+            for step in range(5):
+                recorder.record(step, energy=float(step))
+            continue
+        (job / "metrics.json").write_text(json.dumps({"config_hash": f"h{name}", **content}))
+        if content.get("status") == "ok":
+            (job / "result.h5").write_bytes(b"")
+    return root
+
+
+def test_every_planned_job_has_a_row_with_its_state(tmp_path):
+    sweep = make_sweep(tmp_path / "s", {
+        "0": {"status": "ok", "iterations": 10240, "stable": True, "energy": 0.5},
+        "1": {"status": "failed", "error": "app.dt: must be > 0"},
+        "2": "killed",
+        "3": None,
+    })
+    table = sweep_table(sweep)
+    assert list(table["status"]) == ["ok", "failed", "killed", "missing"]
+    assert "5 recorded steps" in table.loc[2, "error"] and table.loc[3, "error"] == "never started"
+    # the planned overrides are known also for the jobs that never wrote anything
+    assert list(table["app.dt"]) == [0.1, 0.2, 0.3, 0.4]
+    assert list(table["result"]) == ["0/result.h5", "", "2/result.h5.partial", ""]
+    # integers stay integers where a row lacks them
+    assert str(table["iterations"].dtype) == "Int64"
+    written = write_sweep_table(sweep)
+    csv = (sweep / "metrics.csv").read_text()
+    assert ",10240," in csv and "10240.0" not in csv and "1.024e+04" not in (sweep / "metrics.md").read_text()
+    pd.testing.assert_frame_equal(load_sweep(sweep), pd.read_csv(sweep / "metrics.csv"))
+    assert len(written) == 4 and "config_hash" not in written.columns
+    assert table_main([str(sweep)]) == 1  # a killed sweep never looks complete
+
+
+def test_a_job_directory_from_another_config_is_stale(tmp_path):
+    sweep = make_sweep(tmp_path / "s", {"0": {"status": "ok", "x": 1}}, hashes={"0": "other"})
+    row = sweep_table(sweep).iloc[0]
+    assert row["status"] == "stale" and "other" in row["error"]
+
+
+def test_stack_select_sort_and_drop_constant(tmp_path):
+    a = make_sweep(tmp_path / "a", {"0": {"status": "ok", "e": 3.0, "n": 7}, "1": {"status": "ok", "e": 1.0, "n": 7}})
+    b = make_sweep(tmp_path / "b", {"0": {"status": "ok", "e": 2.0, "n": 7, "extra": 1}})
+    table = stack([a, b])
+    assert list(table.columns[:2]) == ["sweep", "job"] and list(table["sweep"]) == [str(a), str(a), str(b)]
+    assert table["extra"].isna().tolist() == [True, True, False]
+    shown = select(table, metrics=["e"], sort=["e"], drop_constant=True)
+    assert list(shown["e"]) == [1.0, 2.0, 3.0]
+    # mesh.subdiv, status-less error and n are constant: dropped; sweep/job/status kept
+    assert list(shown.columns) == ["sweep", "job", "app.dt", "status", "e", "result"]
+    assert list(select(table, sort=["e"], descending=True)["e"]) == [3.0, 2.0, 1.0]
+    with pytest.raises(KeyError, match="no column 'nope'"):
+        select(table, metrics=["nope"])
+
+
+def test_decrun_table_options_and_exit_codes(tmp_path, capsys):
+    a = make_sweep(tmp_path / "a", {"0": {"status": "ok", "e": 3.0, "n": 7}, "1": {"status": "ok", "e": 1.0, "n": 7}})
+    b = make_sweep(tmp_path / "b", {"0": {"status": "ok", "e": 2.0, "n": 7}})
+    capsys.readouterr()
+    assert table_main([str(a), str(b), "--csv", "--metrics", "e", "--sort", "e"]) == 0
+    csv = capsys.readouterr().out.splitlines()
+    # CSV keeps constant columns unless asked
+    assert csv[0] == "sweep,job,app.dt,mesh.subdiv,status,error,e,result"
+    assert [line.split(",")[6] for line in csv[1:]] == ["1.0", "2.0", "3.0"]
+    assert table_main([str(a), "--drop-constant", "--csv"]) == 0
+    assert "mesh.subdiv" not in capsys.readouterr().out.splitlines()[0]
+    assert table_main([str(a)]) == 0  # markdown: constant columns dropped by default
+    assert capsys.readouterr().out.splitlines()[0] == "| job | app.dt | status | e | result |"
+    assert table_main([str(a), "--sort", "nope"]) == 2
+    assert "no column 'nope'" in capsys.readouterr().err
+
+
+def test_decrun_table_does_not_write_into_a_directory_of_single_runs(tmp_path, capsys):
+    runs = tmp_path / "outputs" / "runs"
+    for name, metrics in (("2026-01-01_00-00-00_aaaaaa", {"status": "ok", "e": 1.0}),
+                          ("2026-01-01_00-00-01_bbbbbb", {"status": "ok", "e": 2.0})):
+        (runs / name / ".hydra").mkdir(parents=True)
+        (runs / name / "metrics.json").write_text(json.dumps(metrics))
+    before = sorted(p.name for p in runs.iterdir())
+    assert table_main([str(runs)]) == 0
+    assert "| 2026-01-01_00-00-01_bbbbbb |" in capsys.readouterr().out
+    assert sorted(p.name for p in runs.iterdir()) == before
+    with pytest.raises(NotADirectoryError):
+        write_sweep_table(runs)
+
+
+def test_the_objective_a_job_returns():
+    maximize = OptimizeConfig(metric="dt", direction="maximize", require="stable")
+    assert maximize.objective({"dt": 0.02, "stable": True}) == 0.02
+    assert maximize.objective({"dt": 0.03, "stable": False}) == -math.inf
+    assert maximize.objective(None) == -math.inf  # a failed job
+    minimize = OptimizeConfig(metric="err")
+    assert minimize.objective({"err": float("nan")}) == math.inf
+    with pytest.raises(ConfigError, match="no metric 'err'"):
+        minimize.objective({"dt": 1.0})
+    with pytest.raises(ConfigError, match="optimize.direction"):
+        OptimizeConfig(metric="dt", direction="up")
+
+
+def test_jobs_of_one_process_share_mesh_complex_and_operators():
+    from decrun.runner import job_cache
+    from decrun.runner.cli import compose_config, run_experiment
+
+    job_cache.clear()
+    common = ["mesh.subdiv=2", "app.steps=2", "figures=false"]
+    plain, _, _ = run_experiment(compose_config([*common, "app.dt=0.002"]))
+    hits = job_cache.stats["hits"]
+    first, mesh1, _ = run_experiment(compose_config([*common, "app.dt=0.002"]), cache=True)
+    second, mesh2, timings = run_experiment(compose_config([*common, "app.dt=0.004"]), cache=True)
+    assert job_cache.stats["hits"] == hits + 2  # mesh and DEC of the second job
+    assert mesh1.complex is mesh2.complex and mesh1 is not mesh2 and timings["mesh_seconds"] == 0
+    assert mesh2.complex is not None
+    # the critical step was solved once and kept by the shared DEC; results are unchanged
+    assert second.metrics["dt_critical_explicit"] == first.metrics["dt_critical_explicit"]
+    for key in ("area_ratio", "roughness_ratio", "dt_critical_explicit", "distance_to_clean_rms"):
+        assert first.metrics[key] == plain.metrics[key]
+    other, _, _ = run_experiment(compose_config([*common, "app.dt=0.002", "mesh.seed=1"]), cache=True)
+    assert other.metrics["distance_to_clean_rms_initial"] != first.metrics["distance_to_clean_rms_initial"]
+    job_cache.clear()
+
+
+def test_other_sweepers_refuse_a_non_empty_sweep_dir(tmp_path, capsys):
+    """Sweepers without a manifest (optuna) cannot resume: the end-of-sweep callback
+    refuses to mix a new sweep into an old directory, in one line."""
+    from omegaconf import OmegaConf
+
+    from decrun.runner.cli import SweepTable
+
+    old = tmp_path / "old"
+    (old / "0").mkdir(parents=True)
+    config = OmegaConf.create({"hydra": {"sweep": {"dir": str(old)},
+                                         "sweeper": {"_target_": "hydra_plugins.hydra_optuna_sweeper.optuna_sweeper.OptunaSweeper"}}})
+    with pytest.raises(SystemExit) as info:
+        SweepTable().on_multirun_start(config)
+    assert info.value.code == 1
+    assert "is not empty" in capsys.readouterr().err
+    SweepTable().on_multirun_start(OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path / "new")},
+                                                               "sweeper": config.hydra.sweeper}}))
+
+
+def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
+    """The sweeper derives jobs that differ only in plain values from one composition:
+    every derived config (hydra node included) is the one Hydra composes; when a
+    derivation differs, the sweeper says so and uses Hydra's."""
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.types import RunMode
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import config_dir
+    from decrun.runner.sweeper import Composer
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
+        loader = GlobalHydra.instance().config_loader()
+        master = loader.load_configuration("config", ["hydra.sweep.dir=x"], RunMode.MULTIRUN)
+        jobs = [(f"app.dt={dt}", f"operator={op}", "mesh.subdiv=2", f"hydra.sweep.subdir={i}")
+                for i, (dt, op) in enumerate((dt, op) for op in ("mixed_area", "barycentric") for dt in (0.1, 0.2, 0.4))]
+        derived = Composer(loader, master).compose_all(jobs)
+        for job in jobs:
+            assert OmegaConf.to_yaml(derived[job]) == OmegaConf.to_yaml(loader.load_sweep_config(master, list(job))), job
+        assert derived[jobs[1]].app.dt == 0.2 and derived[jobs[1]].hydra.sweep.subdir == "1"
+        assert derived[jobs[4]].operator != derived[jobs[1]].operator  # the other group option
+        assert list(derived[jobs[1]].hydra.overrides.task) == list(jobs[1][:-1])
+        capsys.readouterr()
+
+        def wrong(self, pristine, parsed):
+            cfg = Composer._derive_original(self, pristine, parsed)
+            cfg.app.steps = 99
+            return cfg
+
+        monkeypatch.setattr(Composer, "_derive_original", Composer._derive, raising=False)
+        monkeypatch.setattr(Composer, "_derive", wrong)
+        checked = Composer(loader, master).compose_all(jobs[:3])
+        assert "differs from Hydra's" in capsys.readouterr().err
+        assert all(checked[job].app.steps != 99 for job in jobs[:3])
+    GlobalHydra.instance().clear()

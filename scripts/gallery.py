@@ -1,4 +1,5 @@
-"""Regenerate the gallery: one figure (or a pair to compare) per experiment of conf/experiment/.
+"""Regenerate the gallery: one figure (or a pair to compare) per thesis-figure experiment
+(conf/experiment/fig*.yaml).
 
     python scripts/gallery.py [--out docs] [--only fig5_8_t_hole ...]
 

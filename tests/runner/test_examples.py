@@ -27,7 +27,15 @@ COMMAND = re.compile(r"^(?:\.venv/bin/)?(?:decrun(?:-table)?|python -m decrun)(?
 #: placeholders in examples → what the test substitutes
 PLACEHOLDERS = {"/data/dragon.ply": str(sample_mesh_dir() / SAMPLE_MESHES["cow"])}
 #: lines that show syntax, not a command to run
-SYNTAX = ("decrun -v ...", "python -m decrun ...")
+SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]")
+#: examples of bad input: they must fail with this message
+EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key"}
+#: commands an example needs to have run first (in the same directory)
+PREREQUISITES = {
+    "hydra.sweeper.resume=true": ["-m", "app.dt=0.001,0.002", "hydra.sweep.dir=outputs/sweeps/dt"],
+    "outputs/sweeps/A outputs/sweeps/B": ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/A"],
+}
+PREREQUISITES_B = ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/B"]
 
 
 def _commands_in(text: str) -> list[str]:
@@ -88,9 +96,15 @@ def test_the_examples_are_found():
 @pytest.mark.parametrize("where, command", SINGLE, ids=[c for _, c in SINGLE])
 def test_single_run_example_runs(where, command, tmp_path, decrun_cli):
     args = arguments(command, tmp_path)
-    if "--cfg" in args:  # prints the config, runs nothing: the real command
+    if "--cfg" in args or "--help" in args:  # prints the config, runs nothing: the real command
         done = decrun_cli(*args)
         assert done.returncode == 0 and "mesh:" in done.stdout, done.stderr
+        return
+    if command in EXPECTED_ERRORS:
+        from decrun.errors import DecrunError
+
+        with pytest.raises(DecrunError, match=EXPECTED_ERRORS[command]):
+            run_experiment(compose_config(args))
         return
     if any("outputs/runs/<stamp>/result.h5" in a for a in args):  # a previous run's result
         previous = compose_config(["app=hodge"])
@@ -113,6 +127,21 @@ def test_sweep_example_runs(where, command, tmp_path):
     """The real command in a scratch directory; ``decrun-table`` runs on a sweep made first."""
     args = arguments(command, tmp_path)
     env_python = [sys.executable, "-m", "decrun"]
+    if any(a.startswith("hydra/launcher=slurm") for a in args):
+        pytest.skip("needs a SLURM cluster (sbatch); the launcher config's composition is tested in test_sweeps")
+    if any(a.startswith("hydra/sweeper=dt_crit_search") for a in args):
+        pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
+    for marker, needed in PREREQUISITES.items():
+        if marker in command:
+            for prerequisite in [needed] + ([PREREQUISITES_B] if "outputs/sweeps/B" in command else []):
+                done = subprocess.run([*env_python, *prerequisite], cwd=tmp_path, capture_output=True, text=True)
+                assert done.returncode == 0, done.stderr[-2000:]
+    if command.startswith("decrun-table") and "<stamp>" not in command:
+        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+                               "sys.exit(table_main(sys.argv[1:]))", *args], cwd=tmp_path, capture_output=True,
+                              text=True)
+        assert done.returncode == 0 and "| " in done.stdout, done.stderr
+        return
     if command.startswith("decrun-table"):
         sweep = subprocess.run([*env_python, "-m", "app.steps=1,2"], cwd=tmp_path, capture_output=True, text=True)
         assert sweep.returncode == 0, sweep.stderr

@@ -84,8 +84,8 @@ class Hodge(App):
             if bad:
                 raise ConfigError(f"solver={solver.name}: ⋆1 of operator={dec.star_variant.name} is not positive on "
                                   f"{bad} edges (non-Delaunay or right-angled triangles), so the Poisson systems of "
-                                  "app=hodge are indefinite; use operator=whitney (SPD ⋆1 on every mesh) or "
-                                  "solver=direct")
+                                  "app=hodge are indefinite; use `operator=whitney` with `operator.lumped=true` "
+                                  "(an SPD ⋆1 on every mesh)")
         if dec is not None and getattr(solver, "needs_spd", False) and not dec.star_is_diagonal(1):
             raise ConfigError(f"solver={solver.name}: with a Galerkin ⋆1 (operator={dec.star_variant.name}) the "
                               "coexact part of app=hodge is a symmetric indefinite saddle-point system; use "

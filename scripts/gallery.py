@@ -70,6 +70,23 @@ GALLERY = {
         (["boundary=flux"], "field", ["boundary_normal_flux_mean", "adjointness_defect"]),
         (["boundary=flux", "app.strokes=[]"], "field", ["singularity_cluster_indices", "boundary_normal_flux_mean"]),
     ]),
+    "fig7_1_stirred_sphere": ("Fig. 7.1 / 7.18 — a viscous fluid on a clean icosphere (1280 triangles, none "
+                              "obtuse), stirred by a stroke for half a second: vorticity over time.", [
+        ([], "vorticity", ["stable", "max_abs_divergence", "circulation_drift", "steps_per_second"]),
+    ]),
+    "fig7_14_one_obstacle": ("Fig. 7.14 — flow past one obstacle in a channel meshed without obtuse triangles "
+                             "(~1400 faces), inflow from the left: the obstacle sheds vorticity of both signs.", [
+        ([], "vorticity", ["stable", "max_abs_divergence", "obtuse_triangles", "n_faces"]),
+    ]),
+    "fig7_15_density_and_time_step": ("Fig. 7.15 — the same flow (inflow 10 units/s) on 1400 and 5300 faces: "
+                                      "interpolation diffusion smears the wake on the coarse mesh.", [
+        (["mesh.target_faces=1400"], "vorticity", ["stable", "enstrophy_final", "n_faces"]),
+        (["mesh.target_faces=5300"], "vorticity", ["stable", "enstrophy_final", "n_faces"]),
+    ]),
+    "fig7_17_viscosity": ("Fig. 7.17 — the channel flow at 2800 faces without and with viscosity.", [
+        (["app.viscosity=0.0"], "vorticity", ["stable", "enstrophy_final"]),
+        (["app.viscosity=0.08"], "vorticity", ["stable", "enstrophy_final"]),
+    ]),
 }
 
 

@@ -61,7 +61,7 @@ def test_options_and_meshes_that_do_not_fit_are_refused(sphere, run_app):
         Fluid(stirs=[Stir(points=[[0, 0, 1], [0, 1, 0]], start=1.0, stop=0.5)])
     with pytest.raises(ConfigError, match="app.inflow: a closed surface has no border"):
         run_app(Fluid(inflow=[1.0, 0.0, 0.0], stirs=[]), sphere)
-    with pytest.raises(ConfigError, match="operator.lumped=true or operator=circumcentric"):
+    with pytest.raises(ConfigError, match="use `operator.lumped=true` \\(or `operator=circumcentric`\\)"):
         run_app(Fluid(stirs=[]), sphere, star="whitney")
 
 

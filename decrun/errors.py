@@ -6,7 +6,21 @@ message (no traceback unless asked) and exits non-zero.
 
 
 class DecrunError(Exception):
-    """Base class of every user-facing decrun error."""
+    """Base class of every user-facing decrun error.
+
+    ``python_hint`` is the fix for Python callers (``orient='fix'``), appended in brackets to
+    the message; the runner replaces it with the CLI override that fixes the same problem
+    (:func:`decrun.runner.hints.cli_message`), so a command-line user never reads about
+    keyword arguments.
+    """
+
+    def __init__(self, message: str = "", *, python_hint: str = ""):
+        super().__init__(message)
+        self.message = message
+        self.python_hint = python_hint
+
+    def __str__(self) -> str:
+        return f"{self.message} ({self.python_hint})" if self.python_hint else self.message
 
 
 class MeshError(DecrunError, ValueError):

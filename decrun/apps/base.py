@@ -17,6 +17,8 @@ memory) carries:
 ``ctx.new_solver()`` a fresh, unfactorized solver with the configured options, for every
                     linear system the app solves (factorize once, solve many)
 ``ctx.progress(iterable, total=…, desc=…)``  a tqdm-like wrapper (silent when not a terminal)
+``with ctx.task(desc):``  shows ``desc`` and the elapsed time around one long call that
+                    cannot report steps (an eigen-solve, a factorization); silent likewise
 ``ctx.record(step, **values)``  appends per-step scalars or fixed-shape arrays to the
                     run's series (``series/<name>`` in result.h5, written as the run goes)
 
@@ -121,7 +123,7 @@ class App:
         given once the operators are chosen)."""
         if getattr(solver, "needs_spd", False) and self.unsymmetric_systems:
             raise ConfigError(f"solver={solver.name}: app={self.name} solves systems that are not symmetric positive "
-                              f"definite ({self.unsymmetric_systems}); use solver=direct or solver=pardiso")
+                              f"definite ({self.unsymmetric_systems}); use `solver=direct` (or `solver=pardiso`)")
 
     def check_operators(self, dec) -> None:
         """Reject a boundary adaptation or Hodge-star variant this app cannot use, with the
@@ -135,14 +137,14 @@ class App:
             if nondiagonal:
                 raise ConfigError(f"operator={dec.star_variant.name}: ⋆_k is not diagonal for k in {nondiagonal}, "
                                   f"but app={self.name} needs diagonal stars ({self.diagonal_stars}); use "
-                                  f"operator.lumped=true or operator=circumcentric")
+                                  f"`operator.lumped=true` (or `operator=circumcentric`)")
         degrees = dec.star_variant.form_degrees
         if degrees is not None:
             missing = [k for k in self.form_degrees if k <= dec.n and k not in degrees]
             if missing:
                 raise ConfigError(f"operator={dec.star_variant.name} provides operators on {list(degrees)}-forms "
                                   f"only, but app={self.name} needs {missing}-forms on the mesh's own simplices: "
-                                  f"use operator=mixed_area, operator=circumcentric or operator=whitney")
+                                  f"use `operator=mixed_area` (or `operator=circumcentric`)")
 
 
 def _passthrough(iterable, total=None, desc=None, **_):
@@ -187,6 +189,14 @@ class Context:
         if self._steps:
             out["step"] = np.asarray(self._steps)
         return out
+
+    def task(self, desc: str):
+        """Context manager around one long call: the progress factory's ``task(desc)`` when
+        it has one (the runner's, on a terminal), else nothing."""
+        from contextlib import nullcontext
+
+        method = getattr(self.progress, "task", None)
+        return method(desc) if method is not None else nullcontext()
 
     def read_result(self, path: str):
         """``(Result, vertices)`` of a previous run's ``result.h5`` (``app.input_path``);

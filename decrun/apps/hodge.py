@@ -84,12 +84,12 @@ class Hodge(App):
             if bad:
                 raise ConfigError(f"solver={solver.name}: ⋆1 of operator={dec.star_variant.name} is not positive on "
                                   f"{bad} edges (non-Delaunay or right-angled triangles), so the Poisson systems of "
-                                  "app=hodge are indefinite; use operator=whitney (SPD ⋆1 on every mesh) or "
-                                  "solver=direct")
+                                  "app=hodge are indefinite; use `operator=whitney` with `operator.lumped=true` "
+                                  "(an SPD ⋆1 on every mesh)")
         if dec is not None and getattr(solver, "needs_spd", False) and not dec.star_is_diagonal(1):
             raise ConfigError(f"solver={solver.name}: with a Galerkin ⋆1 (operator={dec.star_variant.name}) the "
                               "coexact part of app=hodge is a symmetric indefinite saddle-point system; use "
-                              "solver=direct or solver=pardiso (or operator.lumped=true)")
+                              "`solver=direct` (or `operator.lumped=true`)")
 
     def run(self, ctx: Context) -> Result:
         """Decompose the configured 1-form; see the module docstring.
@@ -108,7 +108,8 @@ class Hodge(App):
         K, dec = ctx.complex, ctx.dec
         omega = input_form(K, self, ctx)
         start = time.perf_counter()
-        parts = HodgeDecomposer(dec, 1, ctx.new_solver).decompose(omega)
+        with ctx.task("Hodge decomposition (two Poisson solves)"):
+            parts = HodgeDecomposer(dec, 1, ctx.new_solver).decompose(omega)
         seconds = time.perf_counter() - start
         named = {"exact": parts.exact, "coexact": parts.coexact, "harmonic": parts.harmonic}
         metrics = orthogonality_metrics(dec, omega, named)
@@ -125,7 +126,8 @@ class Hodge(App):
         metrics["betti_1"] = betti_1
         if self.harmonic_dimension:
             start = time.perf_counter()
-            h = harmonic_basis(dec, 1, ctx.new_solver).shape[1]
+            with ctx.task("harmonic basis (dim ker Δ1)"):
+                h = harmonic_basis(dec, 1, ctx.new_solver).shape[1]
             seconds += time.perf_counter() - start
             metrics["harmonic_dimension"] = int(h)
             metrics["harmonic_dimension_matches_betti"] = bool(h == betti_1)

@@ -38,6 +38,15 @@ from decrun.methods.parametrization_metrics import (
 )
 
 
+def hole_override(K) -> str:
+    """The override cutting a ball around the vertex of largest z out of ``K`` (radius: a
+    quarter of the bounding-box diagonal), e.g. ``mesh.hole_balls=[[0.0,0.0,1.0,0.5]]``."""
+    x = np.asarray(K.vertices, dtype=np.float64)
+    top = x[int(np.argmax(x[:, 2]))]
+    radius = 0.25 * float(np.linalg.norm(x.max(axis=0) - x.min(axis=0)))
+    return "mesh.hole_balls=[[" + ",".join(f"{c:.4g}" for c in (*top, radius)) + "]]"
+
+
 @dataclass
 class Parametrization(App):
     """Options of ``app=parametrization`` (conf/app/parametrization.yaml).
@@ -45,8 +54,9 @@ class Parametrization(App):
     border: circle | circle_arclength | conformal | free
     weights: dec | uniform | mean_value (interior rows; with ``free`` they solve the interior
         against the free border, ``dec`` is the least-squares conformal map itself)
-    reflex_rows: harmonic (thesis §5.2.3) | cauchy_riemann (DEC row closed by ⋆dx = dy on the
-        border; exact on flat meshes) — the row of border vertices reflex under eq. 5.8
+    reflex_rows: cauchy_riemann (default: the DEC row closed by ⋆dx = dy on the border — exact
+        on developable patches, where the thesis' rule is not) | harmonic (the thesis' rule,
+        §5.2.3: ``app.reflex_rows=harmonic``) — the row of border vertices reflex under eq. 5.8
     exterior_border: index into the border loops sorted longest first; null = the longest
     checker_squares: squares per side of the checkerboard texture figure
     """
@@ -55,7 +65,7 @@ class Parametrization(App):
     form_degrees = (0,)
     border: str = "conformal"
     weights: str = "dec"
-    reflex_rows: str = "harmonic"
+    reflex_rows: str = "cauchy_riemann"
     exterior_border: Optional[int] = None
     checker_squares: int = 10
 
@@ -74,12 +84,16 @@ class Parametrization(App):
             reasons.append("the holes' border rows are eq. 5.9 (§5.2.3), coupling x and y")
         if reasons:
             raise ConfigError(f"solver={solver.name}: app=parametrization solves unsymmetric systems here "
-                              f"({'; '.join(reasons)}); use solver=direct or solver=pardiso, or "
-                              f"app.border=circle with app.weights=dec|uniform")
+                              f"({'; '.join(reasons)}); use `solver=direct` (or `solver=pardiso`), or "
+                              f"`app.border=circle` with app.weights=dec|uniform")
 
     def check(self, K, dec) -> None:
         if K.dim != 2:
             raise TopologyError(f"app=parametrization needs a triangle mesh (dimension 2), got dimension {K.dim}")
+        if not K.boundary_vertices().any() and K.embedding_dim == 3:
+            raise TopologyError(f"app=parametrization needs a disk-like surface with a border; this mesh is closed "
+                                f"(χ = {K.euler_characteristic}): cut a hole into it, e.g. "
+                                f"`{hole_override(K)}`")
         check_disk_topology(K)
 
     def run(self, ctx: Context) -> Result:
@@ -94,8 +108,9 @@ class Parametrization(App):
         given eq. 5.9 — a failed Gortler condition 5).
         """
         K, dec = ctx.complex, ctx.dec
-        result = parametrize(dec, ctx.new_solver, border=self.border, weights=self.weights,
-                             exterior=self.exterior_border, reflex_rows=self.reflex_rows)
+        with ctx.task(f"parametrization ({self.border} border, {self.weights} weights)"):
+            result = parametrize(dec, ctx.new_solver, border=self.border, weights=self.weights,
+                                 exterior=self.exterior_border, reflex_rows=self.reflex_rows)
         faces = K.oriented_simplices()
         uv = result.uv
         metrics = parametrization_metrics(K.vertices, uv, faces, result.loops)

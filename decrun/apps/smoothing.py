@@ -3,7 +3,8 @@
 The flow and its measurements are :mod:`decrun.methods.mean_curvature_flow`; this adapter
 runs the steps, rescales after every step (the thesis' note: the flow shrinks the mesh)
 about the ⋆0-weighted centroid — ``rescale: volume`` keeps the enclosed volume (closed
-surfaces only), ``area`` the surface area, ``none`` nothing — detects blow-up and records
+surfaces only), ``area`` the surface area, ``none`` nothing, ``auto`` (default) volume on
+closed surfaces in 3-D and area on open or planar ones — detects blow-up and records
 ``area``, ``volume``, ``roughness`` and ``distortion`` per step (``ctx.record``).
 
 Blow-up: a step *diverges* when a coordinate is non-finite, the volume cannot be rescaled,
@@ -28,7 +29,7 @@ from decrun.apps.base import App, Context, Figure, Result
 from decrun.errors import ConfigError, TopologyError
 from decrun.methods.mean_curvature_flow import SCHEMES, MeanCurvatureFlow, enclosed_volume, surface_area
 
-RESCALE = ("volume", "area", "none")
+RESCALE = ("auto", "volume", "area", "none")
 
 
 @dataclass
@@ -44,7 +45,9 @@ class Smoothing(App):
     #: mesh — scale-free, so every mesh gets the same relative step (0.75: the default run)
     dt_factor: float = 0.75
     steps: int = 10
-    rescale: str = "volume"  # volume | area | none, applied after every step
+    #: auto (volume on closed surfaces in 3-D, area on open or planar ones) | volume | area |
+    #: none, applied after every step
+    rescale: str = "auto"
     blowup_factor: float = 10.0  # a step diverges when the roughness R exceeds this × R_0
     critical_dt: bool = True  # compute the explicit stability limit 2/λ_max (one eigsh)
 
@@ -59,7 +62,7 @@ class Smoothing(App):
             raise ConfigError(f"app.dt_factor: must be > 0, got {self.dt_factor}")
         if self.dt is None and not self.critical_dt:
             raise ConfigError("app.critical_dt=false leaves no critical step for app.dt_factor: give the step "
-                              "itself, e.g. app.dt=0.005")
+                              "itself, e.g. `app.dt=0.005`")
         if self.steps < 0:
             raise ConfigError(f"app.steps: must be >= 0, got {self.steps}")
         if not self.blowup_factor > 1:
@@ -71,17 +74,20 @@ class Smoothing(App):
         closed = not bool(K.boundary_vertices().any())
         if self.rescale == "volume" and not (closed and K.embedding_dim == 3):
             raise ConfigError("app.rescale=volume needs a closed surface in 3-D; this mesh has a border "
-                              "or is planar: use app.rescale=area or app.rescale=none")
+                              "or is planar: use `app.rescale=auto` (area on open surfaces)")
 
     def run(self, ctx: Context) -> Result:
         """Smooth the mesh; see the module docstring.
 
         Metrics: ``area_ratio`` (final/initial area), ``volume_drift_rel`` (|V_end − V_0|/|V_0|,
-        closed surfaces only), ``stable``, ``diverged_at_step`` (−1 when stable), ``steps_done``,
+        closed surfaces only), ``stable``, ``diverged_at_step`` (−1 when stable), ``steps_done``
+        (steps computed and recorded, the diverging one included, so it equals
+        ``diverged_at_step`` when unstable), ``rescale`` (the resolved choice),
         ``roughness_ratio`` (R_end / R_0), ``distortion_final`` (ρ, 1 for the input),
         ``dt_critical_explicit`` and ``dt_over_critical``, ``distance_to_clean_rms`` and
         ``distance_to_clean_rms_initial`` (RMS vertex distance to the noise-free mesh / its
-        bounding-box diagonal, only with noise), ``negative_star1_fraction``,
+        bounding-box diagonal, only with noise; the final one only when stable),
+        ``negative_star1_fraction``,
         ``setup_seconds``, ``solve_seconds``.
         Series (recorded per step, the initial state as step 0): ``area``, ``volume``,
         ``roughness``, ``distortion``.
@@ -92,11 +98,14 @@ class Smoothing(App):
         faces = K.oriented_simplices()
         vertices = np.array(K.vertices, dtype=np.float64)
         has_volume = not bool(K.boundary_vertices().any()) and vertices.shape[1] == 3
+        rescale = self.rescale if self.rescale != "auto" else ("volume" if has_volume else "area")
 
         t0 = time.perf_counter()
         dt_crit = float("nan")
         if self.critical_dt:  # 2/λ_max of S φ = λ ⋆0 φ (one eigen-solve per DEC, kept by it)
-            dt_crit = dec.require(("mcf_critical_dt",), lambda: MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt())
+            with ctx.task("critical time step 2/λ_max (eigen-solve)"):
+                dt_crit = dec.require(("mcf_critical_dt",),
+                                      lambda: MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt())
         dt = self.dt
         if dt is None:
             if not (np.isfinite(dt_crit) and dt_crit > 0):
@@ -104,9 +113,10 @@ class Smoothing(App):
                     f"app.dt_factor: the explicit critical step 2/λ_max does not exist for operator="
                     f"{dec.star_variant.name} on this mesh (⋆0 is not positive on "
                     f"{int(np.sum(dec.star_diagonal_or_none(0) <= 0)) if dec.star_is_diagonal(0) else 0} vertices); "
-                    "give the step itself, e.g. app.dt=0.005, or use operator=mixed_area")
+                    "use `operator=mixed_area` (positive ⋆0) or give the step itself, e.g. `app.dt=0.005`")
             dt = self.dt_factor * dt_crit
-        flow = MeanCurvatureFlow(dec, self.scheme, dt, ctx.new_solver() if self.scheme == "implicit" else None)
+        with ctx.task(f"factorizing ({self.scheme} Euler)"):
+            flow = MeanCurvatureFlow(dec, self.scheme, dt, ctx.new_solver() if self.scheme == "implicit" else None)
         setup_seconds = time.perf_counter() - t0
         centroid = flow.centroid(vertices)
 
@@ -118,30 +128,35 @@ class Smoothing(App):
         series = {name: [value] for name, value in first.items()}
         ctx.record(0, **first)
         v = vertices.copy()
+        last_finite = v
         diverged_at = -1
         t1 = time.perf_counter()
-        for step in ctx.progress(range(1, self.steps + 1), total=self.steps, desc=f"smoothing ({self.scheme})"):
-            v = flow.step(v)
-            if not np.all(np.isfinite(v)):
-                diverged_at = step
-                break
-            if self.rescale == "volume":
-                volume = enclosed_volume(v, faces)
-                if not volume > 0:  # flattened or turned inside out: cannot be rescaled
+        bar = ctx.progress(range(1, self.steps + 1), total=self.steps, desc=f"smoothing ({self.scheme})")
+        for step in bar:
+            # a blow-up is a result (stable: false), not a floating-point warning
+            with np.errstate(over="ignore", invalid="ignore"):
+                v = flow.step(v)
+                failed = not np.all(np.isfinite(v))
+                if not failed and rescale == "volume":
+                    volume = enclosed_volume(v, faces)
+                    failed = not volume > 0  # flattened or turned inside out: cannot be rescaled
+                    if not failed:
+                        v = centroid + np.cbrt(first["volume"] / volume) * (v - centroid)
+                elif not failed and rescale == "area":
+                    area = surface_area(v, faces)
+                    if area > 0:
+                        v = centroid + np.sqrt(first["area"] / area) * (v - centroid)
+                # every attempted step is recorded (NaN when non-finite): steps_done == diverged_at_step
+                now = measure(v) if np.all(np.isfinite(v)) else {name: float("nan") for name in first}
+                for name, value in now.items():
+                    series[name].append(value)
+                ctx.record(step, **now)
+                if np.all(np.isfinite(v)):
+                    last_finite = v
+                rough = now["roughness"] <= self.blowup_factor * first["roughness"]
+                if failed or not (np.isfinite(now["area"]) and rough):
                     diverged_at = step
                     break
-                v = centroid + np.cbrt(first["volume"] / volume) * (v - centroid)
-            elif self.rescale == "area":
-                area = surface_area(v, faces)
-                if area > 0:
-                    v = centroid + np.sqrt(first["area"] / area) * (v - centroid)
-            now = measure(v)
-            for name, value in now.items():
-                series[name].append(value)
-            ctx.record(step, **now)
-            if not (np.isfinite(now["area"]) and now["roughness"] <= self.blowup_factor * first["roughness"]):
-                diverged_at = step
-                break
         solve_seconds = time.perf_counter() - t1
         stable = diverged_at < 0
         last = {name: values[-1] for name, values in series.items()}
@@ -150,6 +165,7 @@ class Smoothing(App):
         weights = -np.asarray(flow.S[edges[:, 0], edges[:, 1]]).ravel()  # cot weights on the mesh edges
         metrics = {
             "dt": dt,
+            "rescale": rescale,
             "stable": stable,
             "diverged_at_step": diverged_at,
             "steps_done": len(series["area"]) - 1,
@@ -173,7 +189,8 @@ class Smoothing(App):
             def rms(x):
                 return float(np.sqrt(np.mean(np.sum((x - clean) ** 2, axis=1))) / diagonal)
 
-            metrics["distance_to_clean_rms"] = rms(v) if stable else float("nan")
+            if stable:  # a diverged run has no meaningful distance: absent
+                metrics["distance_to_clean_rms"] = rms(v)
             metrics["distance_to_clean_rms_initial"] = rms(vertices)
         metrics["setup_seconds"] = setup_seconds
         metrics["solve_seconds"] = solve_seconds
@@ -181,12 +198,12 @@ class Smoothing(App):
         series = {name: np.array(values) for name, values in series.items()}
         fields = {"vertices_initial": vertices, "vertices_final": v, "faces": faces,
                   "displacement": np.linalg.norm(v - vertices, axis=1)}
-        label = f"{self.scheme} Euler, dt={dt:.3g}, rescale={self.rescale}"
-        state = f"{metrics['steps_done']} steps" if stable else f"diverged at step {diverged_at}"
+        label = f"{self.scheme} Euler, dt={dt:.3g}, rescale={rescale}"
+        state = f"{metrics['steps_done']} steps" + ("" if stable else f" (diverged at step {diverged_at})")
         shown = ["area", "volume", "roughness"] if has_volume else ["area", "roughness"]
         figures = {
             "smoothing": Figure("decrun.runner.plots.common.before_after", dict(
-                vertices_before=vertices, vertices_after=v if np.all(np.isfinite(v)) else vertices, faces=faces,
+                vertices_before=vertices, vertices_after=last_finite, faces=faces, share_axes=True,
                 titles=("input", f"after {state}"), suptitle=f"mean curvature flow (§1.3): {label}")),
             "smoothing_series": Figure("decrun.runner.plots.common.plot_series", dict(
                 series={name: series[name] for name in shown}, title=label)),

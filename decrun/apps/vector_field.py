@@ -31,7 +31,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.forms import whitney_sharp
 from decrun.core.geometry import embed3
 from decrun.errors import ConfigError, TopologyError
-from decrun.methods.singularities import find_singularities
+from decrun.methods.singularities import cluster_singularities, find_singularities
 from decrun.methods.vector_design import (
     MAGNITUDE_MODES,
     DesignConstraints,
@@ -104,6 +104,9 @@ class VectorField(App):
     #: a source, vortex or stroke point farther than this × the mean edge length h̄ from
     #: the surface is an error (it would otherwise be silently snapped to a far vertex/face)
     point_tolerance: float = 2.0
+    #: singular sites closer than this (in mean edge lengths) form one cluster whose index is
+    #: their sum (metrics singularity_clusters, singularity_cluster_indices)
+    cluster_radius: float = 3.0
 
     def __post_init__(self):
         if self.stroke_magnitude not in MAGNITUDE_MODES:
@@ -125,10 +128,12 @@ class VectorField(App):
             raise ConfigError(
                 "app.stroke_magnitude=precomputed takes |v| from a solve without the strokes (eq. 6.9), but "
                 "there are no sources, sinks or vortices, so that field is zero and so would be the result: "
-                "use app.stroke_magnitude=fixed (eq. 6.8) or add a constraint"
+                "use `app.stroke_magnitude=fixed` (eq. 6.8) or add a constraint"
             )
         if not self.point_tolerance >= 0:
             raise ConfigError(f"app.point_tolerance: must be >= 0 (in mean edge lengths), got {self.point_tolerance}")
+        if not self.cluster_radius >= 0:
+            raise ConfigError(f"app.cluster_radius: must be >= 0 (mean edge lengths), got {self.cluster_radius}")
         if self.region_normal and len(self.region_normal) != 3:
             raise ConfigError(f"app.region_normal: must be empty or three numbers, got {list(self.region_normal)}")
 
@@ -247,8 +252,10 @@ def _design(self, ctx: Context) -> Result:
     Metrics: ``curl_residual``, ``divergence_residual``, ``direction_residual`` (⋆2, ⋆0 and
     W norms; each also ``*_relative`` to its target), ``smoothness_energy``
     (⟨dω,dω⟩ + ⟨δω,δω⟩), ``index_sum``, ``euler_characteristic``, ``poincare_hopf_holds``
-    (closed meshes), ``singularities`` (count) with ``singularities_positive`` /
-    ``_negative``, ``boundary_normal_flux_mean`` and ``boundary_normal_fraction``,
+    (closed meshes), ``singularities`` (count of singular vertices and faces) with
+    ``singularities_positive`` / ``_negative``, ``singularity_clusters`` (sites within
+    ``cluster_radius`` mean edge lengths merged, index-0 clusters left out) and
+    ``singularity_cluster_indices`` (their indices, e.g. ``"+1,+1"``), ``boundary_normal_flux_mean`` and ``boundary_normal_fraction``,
     ``adjointness_defect``, ``field_change_relative`` / ``field_change_region_relative``
     (strokes: change of the face vectors caused by the strokes, area-weighted L2, whole
     mesh / region), ``normal_equation_residual``, ``solve_seconds``.
@@ -260,7 +267,8 @@ def _design(self, ctx: Context) -> Result:
 
     seconds = 0.0
     start = time.perf_counter()
-    pre = solve_design(dec, ctx.new_solver(), constraints, delta)
+    with ctx.task("vector field: least squares (eq. 6.5-6.6)"):
+        pre = solve_design(dec, ctx.new_solver(), constraints, delta)
     seconds += time.perf_counter() - start
     solution = pre
     stroke_vectors = np.zeros((0, 3))
@@ -275,12 +283,14 @@ def _design(self, ctx: Context) -> Result:
         constraints = constraints.with_strokes(edges, targets,
                                                np.full(edges.size, float(cfg.stroke_weight) / K.mean_edge_length))
         start = time.perf_counter()
-        solution = solve_design(dec, ctx.new_solver(), constraints, delta)
+        with ctx.task("vector field: least squares with the strokes"):
+            solution = solve_design(dec, ctx.new_solver(), constraints, delta)
         seconds += time.perf_counter() - start
     omega = solution.omega
 
     face_vectors = embed3(whitney_sharp(K, omega))
     singular = find_singularities(K, omega)
+    clusters = cluster_singularities(K, singular, cfg.cluster_radius * K.mean_edge_length)
     chi = int(K.euler_characteristic)
     closed = K.boundary_faces()[0].size == 0
     metrics = design_residuals(dec, delta, constraints, omega)
@@ -293,6 +303,8 @@ def _design(self, ctx: Context) -> Result:
         singularities_positive=int((singular.vertex_index > 0).sum() + (singular.face_index > 0).sum()),
         singularities_negative=int((singular.vertex_index < 0).sum() + (singular.face_index < 0).sum()),
         index_max_rounding=singular.max_rounding,
+        singularity_clusters=int(clusters.nonzero.sum()),
+        singularity_cluster_indices=clusters.summary(),
         adjointness_defect=adjointness_defect(dec, delta),
         boundary=mode,
         sources=int(geometry["source_vertices"].size),
@@ -313,6 +325,8 @@ def _design(self, ctx: Context) -> Result:
         "face_index": singular.face_index,
         "singular_vertices": singular.vertices,
         "singular_faces": singular.faces,
+        "cluster_positions": clusters.positions,
+        "cluster_indices": clusters.indices,
         "source_vertices": geometry["source_vertices"],
         "vortex_faces": geometry["vortex_faces"],
         "stroke_faces": geometry["stroke_faces"],
@@ -332,7 +346,8 @@ def _design(self, ctx: Context) -> Result:
     title = f"{mode} border" if not closed else "closed surface"
     figures = {"field": Figure("decrun.runner.plots.fields.field_figure", dict(
         face_vectors=face_vectors, vertex_index=singular.vertex_index, face_index=singular.face_index,
-        stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows)))}
+        stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows),
+        cluster_positions=clusters.positions[clusters.nonzero], cluster_indices=clusters.indices[clusters.nonzero]))}
     return Result(fields=fields, metrics=metrics, figures=figures)
 
 

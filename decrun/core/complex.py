@@ -147,7 +147,7 @@ class SimplicialComplex(Cached):
             if unreferenced == "error":
                 raise UnreferencedVertexError(
                     f"{_name(unused, 'vertex')} {'is' if unused.size == 1 else 'are'} used by no "
-                    f"{_simplex_name(self.dim)} (pass unreferenced='drop' to remove them)"
+                    f"{_simplex_name(self.dim)}", python_hint="pass unreferenced='drop' to remove them"
                 )
             new_index = np.cumsum(used) - 1
             simplices = new_index[simplices]
@@ -275,7 +275,7 @@ class SimplicialComplex(Cached):
             raise OrientationError(
                 f"inconsistent orientation: {int(bad.sum())} {_simplex_name(n - 1)}(s) are traversed in the same "
                 f"direction by both neighbouring {_plural(_simplex_name(n))}, e.g. {_simplex_name(n)} pairs {pairs} "
-                f"(§2.3.4; pass orient='fix' to re-orient each connected component)"
+                f"(§2.3.4)", python_hint="pass orient='fix' to re-orient each connected component"
             )
         # Choose per original component the coloring where most simplices keep their orientation.
         _, component = connected_components(

@@ -128,8 +128,8 @@ class DEC(Cached):
         diagonal = self.star_diagonal_or_none(k)
         if diagonal is None:
             raise ConfigError(f"operator={self.star_variant.name}: ⋆_{k} is not diagonal; this computation needs a "
-                              f"diagonal star (try operator.lumped=true or a diagonal variant such as "
-                              f"operator=circumcentric)")
+                              f"diagonal star (use `operator.lumped=true`, or a "
+                              f"diagonal variant such as `operator=circumcentric`)")
         return diagonal
 
     def star(self, k: int) -> sp.csr_matrix:

@@ -25,6 +25,7 @@ __all__ = [
     "face_normals",
     "vertex_normals",
     "is_planar",
+    "obtuse_triangle_count",
 ]
 
 #: relative tolerance of :func:`is_planar` (spread of z over the bounding-box diagonal)
@@ -122,3 +123,9 @@ def is_planar(points: np.ndarray, tol: float = PLANAR_TOLERANCE) -> bool:
         return True
     diagonal = float(np.linalg.norm(np.ptp(points, axis=0))) or 1.0
     return float(np.ptp(points[:, 2])) <= tol * diagonal
+
+
+def obtuse_triangle_count(points: np.ndarray, faces: np.ndarray, tol_deg: float = 1e-9) -> int:
+    """Number of triangles with an angle above 90° + ``tol_deg`` (points (n, 2|3), faces (m, 3)):
+    the triangles whose circumcentric dual pieces are negative (§4.5.2, Fig. 4.17)."""
+    return int((np.degrees(corner_angles(points, faces)).max(axis=1) > 90.0 + tol_deg).sum())

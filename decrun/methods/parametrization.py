@@ -75,7 +75,7 @@ def check_disk_topology(K: SimplicialComplex) -> int:
     if not loops:
         raise TopologyError(
             "mesh: parametrization needs a disk-like surface with a border, this mesh is closed "
-            f"(χ = {K.euler_characteristic}, no border edges); cut it open first, e.g. mesh.hole_balls=[[0.0,0.0,1.0,0.3]]"
+            f"(χ = {K.euler_characteristic}, no border edges); cut it open first"
         )
     genus2 = 2 - len(loops) - K.euler_characteristic
     if genus2 != 0:
@@ -182,7 +182,7 @@ def convex_combination_rows(dec, weights: str = "dec") -> sp.csr_matrix:
     if bad.size:
         raise SolverError(
             f"app.weights={weights}: the harmonic row of vertex {bad[:5].tolist()} has a zero diagonal "
-            "(the cot weights around it cancel); use weights=mean_value or uniform"
+            "(the cot weights around it cancel); use `app.weights=mean_value` (or `app.weights=uniform`)"
         )
     return (sp.diags(-1.0 / diagonal) @ A).tocsr()
 

@@ -37,7 +37,8 @@ from decrun.core.complex import SimplicialComplex
 from decrun.core.forms import whitney_sharp
 from decrun.core.geometry import corner_angles, embed3, face_normals
 
-__all__ = ["corner_vectors", "vertex_indices", "face_winding_indices", "Singularities", "find_singularities"]
+__all__ = ["corner_vectors", "vertex_indices", "face_winding_indices", "Singularities", "find_singularities",
+           "SingularityClusters", "cluster_singularities"]
 
 
 def corner_vectors(K: SimplicialComplex, omega: np.ndarray) -> np.ndarray:
@@ -184,3 +185,54 @@ def find_singularities(K: SimplicialComplex, omega: np.ndarray) -> Singularities
         interior=interior,
         max_rounding=float(rounding.max(initial=0.0)),
     )
+
+
+@dataclass
+class SingularityClusters:
+    """Singularities merged into clusters (a robust reading of :class:`Singularities`).
+
+    On a fine mesh one singularity of the smooth field often shows up as a few neighbouring
+    discrete ones whose indices add up to it (a +1 pole seen as +1, +1, −1). Two singular
+    sites closer than ``radius`` join the same cluster (transitively); a cluster's index is
+    the sum of its members' indices (the index of a loop around the cluster, by additivity
+    of the winding number), and its position their mean.
+
+    Attributes
+    ----------
+    positions : (C, 3) cluster positions, indices : (C,) int, sizes : (C,) int
+    radius : the merge distance (model units)
+    """
+
+    positions: np.ndarray
+    indices: np.ndarray
+    sizes: np.ndarray
+    radius: float
+
+    @property
+    def nonzero(self) -> np.ndarray:
+        """(C,) bool: clusters whose indices do not cancel (the singularities of the field)."""
+        return self.indices != 0
+
+    def summary(self) -> str:
+        """The non-zero cluster indices, sorted, e.g. ``"+1,+1"`` (``""`` when none)."""
+        return ",".join(f"{int(i):+d}" for i in np.sort(self.indices[self.nonzero])[::-1])
+
+
+def cluster_singularities(K: SimplicialComplex, singular: Singularities, radius: float) -> SingularityClusters:
+    """Merge the singular vertices and faces of ``singular`` that lie within ``radius``
+    (model units; e.g. a few mean edge lengths) of each other, transitively (connected
+    components of the "closer than radius" graph). See :class:`SingularityClusters`."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    points, index = singular.positions(K)
+    if not len(points):
+        return SingularityClusters(np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64), float(radius))
+    pairs = cKDTree(points).query_pairs(float(radius), output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points), len(points)))
+    count, label = connected_components(graph, directed=False)
+    sizes = np.bincount(label, minlength=count)
+    positions = np.stack([np.bincount(label, weights=points[:, d], minlength=count) for d in range(3)], axis=1)
+    return SingularityClusters(positions / sizes[:, None], np.bincount(label, weights=index, minlength=count)
+                               .round().astype(np.int64), sizes, float(radius))

@@ -46,10 +46,18 @@ log = logging.getLogger("decrun")
 # ----------------------------------------------------------------------------------
 
 
+_ISSUED_STAMPS: set[str] = set()
+
+
 def unique_stamp() -> str:
     """``YYYY-mm-dd_HH-MM-SS_<6 hex>``: a timestamp plus 24 random bits, so two runs or
-    sweeps started in the same second get different directories."""
-    return f"{datetime.now():%Y-%m-%d_%H-%M-%S}_{secrets.token_hex(3)}"
+    sweeps started in the same second get different directories (two processes collide with
+    probability 2⁻²⁴); within one process a stamp is never issued twice."""
+    while True:
+        stamp = f"{datetime.now():%Y-%m-%d_%H-%M-%S}_{secrets.token_hex(3)}"
+        if stamp not in _ISSUED_STAMPS:
+            _ISSUED_STAMPS.add(stamp)
+            return stamp
 
 
 if not OmegaConf.has_resolver("decrun.stamp"):
@@ -64,19 +72,7 @@ register_configs()
 # ----------------------------------------------------------------------------------
 
 
-def make_progress(enabled: bool = True) -> Callable:
-    """tqdm factory, a pass-through when disabled or stderr is not a terminal."""
-    if enabled and sys.stderr.isatty() and "PYTEST_CURRENT_TEST" not in os.environ:
-        from functools import partial
-
-        from tqdm import tqdm
-
-        return partial(tqdm, leave=False, dynamic_ncols=True)
-
-    def passthrough(iterable, total=None, desc=None, **_):
-        return iterable
-
-    return passthrough
+from decrun.runner.progress import make_progress  # noqa: E402  (re-exported: the run's ctx.progress)
 
 
 class Experiment:
@@ -144,6 +140,13 @@ def name_the_key(exc: DecrunError, experiment: Experiment, where: str) -> Decrun
         return exc
 
 
+def mesh_where(mesh) -> str:
+    """How an error names the mesh: ``mesh.sample=<name>``, ``mesh.path='<file>'`` or ``mesh <label>``."""
+    if mesh.meta.get("source") == "sample":
+        return f"mesh.sample={mesh.meta.get('label', '')}"
+    return f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
+
+
 def validate(cfg: DictConfig) -> Experiment:
     """Build and type-check every plugin node of ``cfg`` (ConfigError naming the key)."""
     return Experiment(cfg)
@@ -173,20 +176,26 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 
     timings: dict[str, float] = {}
     t = time.perf_counter()
+    from decrun.runner.progress import task
+
     experiment = validate(cfg)
+    progress = progress or make_progress(False)
     timings["mesh_seconds"] = 0.0
 
     def load_mesh():
-        mesh = experiment.mesh_source.load()
+        with task(progress, f"loading mesh={experiment.mesh_source.name}"):
+            mesh = experiment.mesh_source.load()
         timings["mesh_seconds"] = time.perf_counter() - t
         return mesh
 
     def build_dec(mesh):
         try:
-            complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
-        except MeshError as exc:  # name the mesh the complex refused
-            where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
-            raise type(exc)(f"{where}: {exc}") from exc
+            with task(progress, "building and checking the simplicial complex"):
+                complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
+        except MeshError as exc:  # name the mesh the complex refused, with the override that fixes it
+            from decrun.runner.hints import cli_message
+
+            raise type(exc)(f"{mesh_where(mesh)}: {cli_message(exc, experiment.mesh_source)}") from exc
         complex_.meta = mesh.meta
         return complex_, DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
 
@@ -199,7 +208,7 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
         complex_, dec = build_dec(mesh)
     timings["complex_seconds"] = time.perf_counter() - t - timings["mesh_seconds"]
     t = time.perf_counter()
-    where = f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
+    where = mesh_where(mesh)
     app = experiment.app
     try:
         app.check_operators(dec)
@@ -218,7 +227,7 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
                                   mesh_hash=mesh.meta.get("hash", ""))
     mesh.recorder = recorder
     ctx = RunContext(app, complex_, dec, new_solver=experiment.solver.fresh, meta=mesh.meta,
-                     progress=progress or make_progress(False), recorder=recorder, logger=log)
+                     progress=progress, recorder=recorder, logger=log)
     try:
         result = app.run(ctx)
     except BaseException as exc:
@@ -371,6 +380,19 @@ class SweepTable(Callback):
     ``metrics.csv`` and ``metrics.md`` at the sweep root and prints the table."""
 
     failed = 0
+    _progress = None
+
+    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        """Jobs done / total with ETA in the submitting process (a terminal only)."""
+        from decrun.runner.progress import SweepProgress, sweep_size, terminal
+
+        enabled = terminal(bool(config.get("progress", True)))
+        if not enabled:
+            return
+        params = config.hydra.sweeper.get("params") or {}
+        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
+        total = sweep_size(list(config.hydra.overrides.task), params)
+        SweepTable._progress = SweepProgress(Path(str(config.hydra.sweep.dir)), total, enabled=True).start()
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))
@@ -384,6 +406,9 @@ class SweepTable(Callback):
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         from decrun.runner.tables import failed_jobs, select, to_markdown, write_sweep_table
 
+        if SweepTable._progress is not None:
+            SweepTable._progress.stop()
+            SweepTable._progress = None
         sweep_dir = Path(str(config.hydra.sweep.dir))
         table = write_sweep_table(sweep_dir, sweep=True)
         bad = failed_jobs(table)
@@ -433,6 +458,9 @@ def main() -> None:
     if args in (["--help"], ["-h"]):
         print(fast_help(), end="")
         return
+    if any(a.startswith("query=") for a in args) and any(a in ("-sc", "--shell-completion") for a in args):
+        _completion()
+        return
     SweepTable.failed = 0
     install_sigterm()
     # a log file that cannot be written (full disk) must not print logging's tracebacks;
@@ -450,6 +478,23 @@ def main() -> None:
         sys.exit(exit_code(exc))
     if SweepTable.failed:
         sys.exit(1)
+
+
+def _completion() -> None:
+    """Hydra's shell completion, without the files that are shared pieces of a group rather
+    than options (names starting with ``_``, e.g. ``mesh/_post_processing``)."""
+    import contextlib
+    import io
+    import re
+
+    captured = io.StringIO()
+    with contextlib.redirect_stdout(captured):
+        try:
+            _hydra_main()
+        except SystemExit:
+            pass
+    words = [w for w in captured.getvalue().split() if not re.search(r"[=/]_[^/=]*$", w)]
+    print(" ".join(words))
 
 
 def _report(exc: Exception) -> int:

@@ -11,7 +11,10 @@ is made a manifold with border again, so :class:`decrun.core.complex.SimplicialC
    faces, repeated until no pinch is left (the holes grow by one ring there);
 3. only the largest edge-connected piece is kept and unreferenced vertices are dropped.
 
-Pure numpy/scipy; :func:`holes_step` is the ``mesh.post`` step wrapper.
+Pure numpy/scipy. The ``holes`` post step (:func:`decrun.runner.post_steps.holes`) uses it
+with ``mesh.hole_cut=whole_triangles``; its default cut, ``split``, is
+:func:`decrun.runner.mesh_cut.cut_holes` (triangles split along the region borders, smooth
+holes), so this module is kept for reproducing the earlier sawtooth-border experiments.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from scipy.sparse.csgraph import connected_components
 
 from decrun.errors import ConfigError, MeshError
 
-__all__ = ["faces_in_regions", "cut_holes", "holes_step"]
+__all__ = ["faces_in_regions", "cut_holes"]
 
 
 def faces_in_regions(vertices: np.ndarray, faces: np.ndarray, balls: Sequence = (), boxes: Sequence = ()) -> np.ndarray:

@@ -14,7 +14,9 @@ ones the post-processing every source offers. ``conf/mesh/<name>.yaml`` names it
 
 Deeper checks (manifold, orientation, degenerate triangles) are done by
 :class:`decrun.core.complex.SimplicialComplex`; a bad mesh is reported, never silently
-repaired (``clean`` is off by default).
+repaired: ``repair`` and ``clean`` are off by default for generated meshes and files (the
+error names ``mesh.repair=true``), on for ``mesh=sample`` (pymeshlab's samples are raw scans
+and models with known defects), and what they change is counted in ``meta``.
 
 ``Mesh.meta`` carries what the source knows and the complex does not, for the applications
 (``ctx.meta``):
@@ -25,6 +27,9 @@ repaired (``clean`` is off by default).
 - ``clean_vertices``: ``(n0, d)`` positions before ``noise`` was added (only when noise > 0)
 - ``noise_amplitude``: the absolute noise standard deviation (``noise * mean edge length``)
 - ``dropped_vertices`` / ``dropped_faces``: what ``clean`` removed (only when clean ran)
+- ``repair``: the counts of :func:`decrun.runner.mesh_repair.repair_mesh` (only when repair ran)
+- ``up_axis``: the axis rotated to +z (only when not z)
+- ``holes``: the cut's counts, ``holes_removed_faces`` (only when holes were cut)
 """
 
 from __future__ import annotations
@@ -165,7 +170,7 @@ def check_size(mesh: Mesh, what: str) -> None:
 
 
 def _default_post() -> List[str]:
-    return ["holes", "clean", "refine", "normalize", "noise"]
+    return ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
 
 
 @dataclass
@@ -179,11 +184,20 @@ class MeshSource:
 
     name: ClassVar[str] = ""
     post: List[str] = field(default_factory=_default_post)
-    #: holes: remove the faces whose centroid lies in a ball [cx, cy, cz, r] or a box
-    #: [xmin, ymin, zmin, xmax, ymax, zmax] (2-D: [cx, cy, r], [xmin, ymin, xmax, ymax])
+    #: pymeshlab's repair filters (duplicates, non-manifold edges/vertices, unreferenced
+    #: vertices, orientation), every change counted in meta['repair'] and the log
+    repair: bool = False
+    #: the model's up axis, rotated to +z: x | y | z | -x | -y | -z | auto (a sample's own)
+    up_axis: str = "z"
+    clean: bool = False  # drop unreferenced vertices, keep the largest component
+    #: holes: cut out balls [cx, cy, cz, r] and boxes [xmin, ymin, zmin, xmax, ymax, zmax]
+    #: (2-D: [cx, cy, r], [xmin, ymin, xmax, ymax])
     hole_balls: List[List[float]] = field(default_factory=list)
     hole_boxes: List[List[float]] = field(default_factory=list)
-    clean: bool = False  # drop unreferenced vertices, keep the largest component
+    #: split: triangles split along the region borders (smooth holes) | whole_triangles:
+    #: remove triangles whose centroid is inside (sawtooth borders, the earlier cut)
+    hole_cut: str = "split"
+    hole_snap: float = 0.25  # split: crossings this close (× edge length) to a vertex move it instead
     refine: str = "none"  # none | loop | midpoint | isotropic
     refine_iterations: int = 1
     refine_target_edge: float = 0.0  # isotropic only; 0 = keep the mean edge length
@@ -199,6 +213,9 @@ class MeshSource:
         for step in self.post:
             if step not in post_steps.__all__:
                 raise ConfigError(f"mesh.post: unknown step {step!r}; choose from {sorted(post_steps.__all__)}")
+        require(self.hole_cut in ("split", "whole_triangles"), "hole_cut",
+                f"must be split or whole_triangles, got {self.hole_cut!r}")
+        require(0 <= self.hole_snap < 0.5, "hole_snap", f"must be in [0, 0.5), got {self.hole_snap}")
         if self.orient not in ("check", "fix"):
             raise ConfigError(f"mesh.orient: must be check or fix, got {self.orient!r}")
         require(self.noise >= 0, "noise", f"must be >= 0, got {self.noise}")

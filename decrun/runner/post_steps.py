@@ -15,26 +15,90 @@ from scipy.sparse.csgraph import connected_components
 
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
-from decrun.runner.mesh_holes import cut_holes
+from decrun.runner import mesh_cut, mesh_holes
+from decrun.runner.mesh_repair import repair_mesh, up_axis_to_z
 from decrun.runner.meshes import (MAX_TRIANGLES, Mesh, from_meshset, require, require_surface, require_triangles,
                                   to_meshset)
 
-__all__ = ["holes", "clean", "refine", "normalize", "noise"]
+__all__ = ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
+
+
+def repair(mesh: Mesh, cfg) -> Mesh:
+    """``repair``: pymeshlab's cleaning filters (:func:`decrun.runner.mesh_repair.repair_mesh`):
+    duplicate vertices and faces, zero-area and degenerate faces, non-manifold edges and
+    vertices (bowties split), unreferenced vertices, coherent orientation. Every count goes
+    to ``meta['repair']`` and the run log; triangle meshes only."""
+    if not cfg.repair:
+        return mesh
+    require(mesh.simplices.shape[1] == 3, "repair", "repairs triangle meshes only; this mesh has tetrahedra: "
+            "use `mesh.repair=false`")
+    if "clean_vertices" in mesh.meta:  # repair runs before noise in the default order
+        raise MeshError("mesh.repair: runs on the noise-free mesh; list repair before noise in mesh.post")
+    vertices, faces, report = repair_mesh(mesh.vertices, mesh.simplices)
+    changed = {k: v for k, v in report.items() if isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+               and v and k not in ("vertices_in", "faces_in", "vertices_out", "faces_out", "rounds")}
+    import logging
+
+    logging.getLogger("decrun").info("mesh.repair: %s", ", ".join(f"{k}={v}" for k, v in changed.items())
+                                     or "nothing to repair")
+    return Mesh(vertices, faces, dict(mesh.meta, repair=report))
+
+
+def up_axis(mesh: Mesh, cfg) -> Mesh:
+    """``up_axis``: rotate the model so that its up axis (``x, y, z, -x, -y, -z``; ``auto``:
+    the sample's own, :data:`decrun.runner.mesh_repair.UP_AXIS`, else ``z``) points along +z,
+    the axis the figures draw upwards. A proper rotation: lengths, angles, orientation kept."""
+    axis = resolved_up_axis(mesh, cfg)
+    if axis == "z":
+        return mesh
+    require(mesh.vertices.shape[1] == 3, "up_axis", "a planar mesh has no up axis; use `mesh.up_axis=z`")
+    meta = dict(mesh.meta, up_axis=axis)
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = up_axis_to_z(meta["clean_vertices"], axis)
+    return Mesh(up_axis_to_z(mesh.vertices, axis), mesh.simplices, meta)
+
+
+def resolved_up_axis(mesh: Mesh, cfg) -> str:
+    """``cfg.up_axis`` with ``auto`` resolved (the sample's up axis, else ``z``)."""
+    from decrun.runner.mesh_repair import ROTATION_TO_Z_UP, UP_AXIS
+
+    axis = str(getattr(cfg, "up_axis", "z"))
+    if axis == "auto":
+        axis = UP_AXIS.get(str(getattr(cfg, "sample", "")), "z") if mesh.meta.get("source") == "sample" else "z"
+    require(axis in ROTATION_TO_Z_UP, "up_axis", f"must be auto or one of {sorted(ROTATION_TO_Z_UP)}, got {axis!r}")
+    return axis
 
 
 def holes(mesh: Mesh, cfg) -> Mesh:
     """``holes``: cut ``cfg.hole_balls`` and ``cfg.hole_boxes`` (no-op when both are empty).
 
-    Records ``meta['holes_removed_faces']``; drops ``meta['clean_vertices']`` rows of removed vertices.
+    ``hole_cut: split`` (default) splits the triangles along the balls' spheres and the
+    boxes' faces (:func:`decrun.runner.mesh_cut.cut_holes`: smooth borders, new vertices on
+    the surfaces, ``hole_snap`` against slivers); ``hole_cut: whole_triangles`` removes the
+    triangles whose centroid lies inside (:func:`decrun.runner.mesh_holes.cut_holes`: the
+    sawtooth borders of the earlier experiments). Records ``meta['holes']`` (the cut's counts)
+    and carries ``meta['clean_vertices']`` onto the cut mesh.
     """
     balls = list(getattr(cfg, "hole_balls", None) or [])
     boxes = list(getattr(cfg, "hole_boxes", None) or [])
     if not balls and not boxes:
         return mesh
-    vertices, faces, kept = cut_holes(mesh.vertices, mesh.simplices, balls, boxes)
-    meta = dict(mesh.meta, holes_removed_faces=int(len(mesh.simplices) - len(faces)))
-    if "clean_vertices" in meta:
-        meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
+    method = getattr(cfg, "hole_cut", "split")
+    require(method in ("split", "whole_triangles"), "hole_cut", f"must be split or whole_triangles, got {method!r}")
+    meta = dict(mesh.meta)
+    if method == "whole_triangles":
+        vertices, faces, kept = mesh_holes.cut_holes(mesh.vertices, mesh.simplices, balls, boxes)
+        if "clean_vertices" in meta:
+            meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
+        meta["holes"] = {"removed_faces": int(len(mesh.simplices) - len(faces))}
+    else:
+        vertices, faces, info = mesh_cut.cut_holes(mesh.vertices, mesh.simplices, balls, boxes,
+                                                   snap=float(getattr(cfg, "hole_snap", 0.25)))
+        if "clean_vertices" in meta:
+            meta["clean_vertices"] = info["interpolation"] @ np.asarray(meta["clean_vertices"])
+        meta["holes"] = {k: v for k, v in info.items() if np.isscalar(v)}
+        meta["hole_border_vertices"] = int(np.sum(info["on_border"]))
+    meta["holes_removed_faces"] = int(meta["holes"]["removed_faces"])
     return type(mesh)(vertices, faces, meta)
 
 

@@ -190,3 +190,24 @@ def test_figures_render_for_planar_and_coloured_meshes(tmp_path):
     assert plots.plot_surface(ax2, K.vertices, K.oriented_simplices()) is None
     plots.save_figure(fig, tmp_path / "both.png")
     assert (tmp_path / "both.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("blowup_factor", [10.0, 1e300])
+def test_step_counters_agree_whether_the_roughness_or_the_coordinates_blow_up(blowup_factor):
+    """steps_done counts the recorded steps, the diverging one included: it equals
+    diverged_at_step also when the coordinates overflow (NaN recorded for that step)."""
+    K, dec = setup()
+    r = smooth(K, dec, scheme="explicit", dt_factor=50.0, steps=400, rescale="none", blowup_factor=blowup_factor)
+    m = r.metrics
+    assert not m["stable"] and m["steps_done"] == m["diverged_at_step"] >= 1
+    assert len(r.series["area"]) == m["steps_done"] + 1  # step 0 and every attempted step
+    assert "distance_to_clean_rms" not in m and "distance_to_clean_rms_initial" in m
+
+
+def test_rescale_auto_keeps_the_volume_of_closed_and_the_area_of_open_surfaces():
+    closed, closed_dec = setup()
+    r = smooth(closed, closed_dec, scheme="implicit", dt=0.01, steps=5)
+    assert r.metrics["rescale"] == "volume" and r.metrics["volume_drift_rel"] < 1e-12
+    open_, open_dec = setup(source="sphere_cap", subdiv=3)
+    r = smooth(open_, open_dec, scheme="implicit", dt=0.001, steps=5)
+    assert r.metrics["rescale"] == "area" and r.metrics["area_ratio"] == pytest.approx(1.0, abs=1e-12)

@@ -10,10 +10,11 @@ import pytest
 from decrun.errors import ConfigError
 from decrun.runner.cli import compose_config, run_experiment, validate
 
-APPS = ["smoothing", "parametrization", "hodge", "vector_field"]
+APPS = ["smoothing", "parametrization", "hodge", "vector_field", "fluid"]
 SOLVERS = ["direct", "cg", "amg", "pardiso"]
 APP_MESH = {"parametrization": ["mesh=sphere_cap", "mesh.subdiv=2"], "hodge": ["mesh.subdiv=2", "mesh.noise=0.05"],
-            "smoothing": ["mesh.subdiv=2"], "vector_field": ["mesh.subdiv=2"]}
+            "smoothing": ["mesh.subdiv=2"], "vector_field": ["mesh.subdiv=2"],
+            "fluid": ["mesh.subdiv=2", "mesh.noise=0.0", "app.steps=5", "app.animation=false"]}
 EXTRA = {"amg": "pyamg", "pardiso": "pypardiso"}
 
 
@@ -27,7 +28,7 @@ def test_every_app_runs_with_every_solver_or_refuses_before_work(app, solver, mo
         validate(cfg)
     except ConfigError as exc:
         assert app == "parametrization" and solver in ("cg", "amg")  # the default conformal border only
-        assert f"solver={solver}" in str(exc) and "use solver=direct or solver=pardiso" in str(exc)
+        assert f"solver={solver}" in str(exc) and "use `solver=direct`" in str(exc)
         # the hints work: the suggested overrides run
         for hint in (["solver=direct"], [f"solver={solver}", "app.border=circle"]):
             result, _, _ = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app], *hint]))
@@ -57,7 +58,7 @@ def test_hodge_with_indefinite_star1_refuses_cg_and_names_whitney():
     """A planar grid of right triangles: circumcentric ⋆1 = 0 on the diagonals, so the Poisson
     systems are singular-indefinite for cg; operator=whitney (SPD) is the override that works."""
     overrides = ["app=hodge", "mesh=grid", "mesh.nx=8", "mesh.ny=8", "figures=false"]
-    with pytest.raises(ConfigError, match="use operator=whitney"):
+    with pytest.raises(ConfigError, match="use `operator=whitney` with `operator.lumped=true`"):
         run_experiment(compose_config([*overrides, "operator=circumcentric", "solver=cg"]))
     result, _, _ = run_experiment(compose_config([*overrides, "operator=whitney", "operator.lumped=true", "solver=cg"]))
     assert result.metrics["harmonic_dimension"] == result.metrics["betti_1"] == 0

@@ -272,3 +272,17 @@ def test_a_long_run_killed_with_sigkill_leaves_a_readable_incomplete_result(tmp_
     assert recover_result(result_path) == result_path
     killed = read_result(result_path)
     assert not killed.complete and killed.status == "killed" and killed.steps_recorded == partial.steps_recorded
+
+
+def test_help_and_completion_list_options_not_schema_pieces(tmp_path):
+    """`decrun --help` and shell completion list the options of each group, never the shared
+    pieces of a group (conf/mesh/_post_processing.yaml) or schema nodes."""
+    help_text = decrun("--help", cwd=tmp_path).stdout
+    assert "mesh: annulus, bunny, channel" in help_text and "_post_processing" not in help_text
+    assert "base_" not in help_text and "boundary: flux, none" in help_text
+    env_extra = {"COMP_LINE": "decrun mesh=", "COMP_POINT": "12"}
+    words = decrun("-sc", "query=bash", cwd=tmp_path, env_extra=env_extra).stdout.split()
+    assert "mesh=icosphere" in words and "mesh=channel" in words
+    assert not [w for w in words if "_post" in w or "base_" in w]
+    script = decrun("-sc", "install=bash", cwd=tmp_path).stdout
+    assert "complete -o nospace" in script and "\n" in script  # the install script is printed verbatim

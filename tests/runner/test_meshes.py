@@ -197,8 +197,67 @@ def test_each_source_has_only_its_own_options():
 
 
 def test_int_lists_are_accepted_where_floats_are_expected():
-    """`'mesh.hole_balls=[[1,0,0,0.5]]'` (ints) is used as given, widened to floats."""
-    cut = mesh(source="icosphere", subdiv=2, hole_balls=[[1, 0, 0, 0.5]])
-    whole = mesh(source="icosphere", subdiv=2)
-    assert 0 < len(cut.faces) < len(whole.faces)
-    assert cut.meta["holes_removed_faces"] == len(whole.faces) - len(cut.faces)
+    """`'mesh.hole_balls=[[1,0,0,0.5]]'` (ints) is used as given, widened to floats — through
+    the plugin builder and through the full CLI composition (experiment keys, app lists)."""
+    from decrun.runner.cli import compose_config, run_experiment
+
+    ints = mesh(source="icosphere", subdiv=2, hole_balls=[[1, 0, 0, 1]])
+    floats = mesh(source="icosphere", subdiv=2, hole_balls=[[1.0, 0.0, 0.0, 1.0]])
+    np.testing.assert_array_equal(ints.vertices, floats.vertices)
+    result, _, _ = run_experiment(compose_config([
+        "app=vector_field", "mesh.subdiv=2", "mesh.hole_balls=[[1,0,0,1]]", "mesh.hole_boxes=[[-2,-2,-2,2,2,-1]]",
+        "app.sources=[{point: [0, 0, 1], divergence: 1}]", "app.region_normal=[0,0,1]",
+        "app.strokes=[{points: [[0,1,0],[0,0,1]]}]"]))
+    assert result.metrics["status"] == "ok" and result.metrics["sources"] == 1
+
+
+def test_holes_are_split_along_the_ball_by_default_and_whole_triangles_on_request():
+    ball = [0.0, 0.0, 1.0, 0.6]
+    split = mesh(source="icosphere", subdiv=3, hole_balls=[ball], noise=0.1)
+    whole = mesh(source="icosphere", subdiv=3, hole_balls=[ball], noise=0.1, hole_cut="whole_triangles")
+    K = SimplicialComplex(split.vertices, split.faces)
+    border = np.unique(np.concatenate(K.boundary_loops()))
+    # the smooth border lies on the ball's sphere (before noise, which moves the vertices after)
+    clean = split.meta["clean_vertices"]
+    np.testing.assert_allclose(np.linalg.norm(clean[border] - ball[:3], axis=1), ball[3], rtol=1e-9)
+    assert clean.shape == split.vertices.shape  # carried through the cut
+    Kw = SimplicialComplex(whole.vertices, whole.faces)
+    border_w = np.unique(np.concatenate(Kw.boundary_loops()))
+    off = np.abs(np.linalg.norm(whole.meta["clean_vertices"][border_w] - ball[:3], axis=1) - ball[3])
+    assert off.max() > 0.05  # the sawtooth border of whole triangles is off the sphere
+    assert split.meta["holes"]["split_faces"] > 0 and "removed_faces" in whole.meta["holes"]
+
+
+def test_post_processing_yaml_equals_the_mesh_source_defaults():
+    """conf/mesh/_post_processing.yaml declares exactly MeshSource's post-processing fields with
+    the same defaults (the dataclass is the schema, the YAML what --help shows)."""
+    import dataclasses
+
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import config_dir
+    from decrun.runner.meshes import MeshSource
+
+    yaml_values = OmegaConf.to_container(OmegaConf.load(config_dir() / "mesh" / "_post_processing.yaml"))
+    fields = {f.name: (f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default)
+              for f in dataclasses.fields(MeshSource)}
+    assert yaml_values == fields
+
+
+def test_samples_are_repaired_cleaned_and_turned_z_up_by_default_files_are_not(tmp_path):
+    from decrun.runner.mesh_repair import UP_AXIS
+
+    face = mesh(source="sample", sample="face")
+    assert face.meta["repair"]["non_manifold_vertices_split"] == 6 and "repair" in face.meta["steps"]
+    SimplicialComplex(face.vertices, face.faces)  # valid as loaded
+    cow = mesh(source="sample", sample="cow")
+    raw = mesh(source="sample", sample="cow", up_axis="z", repair=False, clean=False)
+    assert UP_AXIS["cow"] == "y" and cow.meta["up_axis"] == "y"
+    np.testing.assert_allclose(np.ptp(cow.vertices, axis=0), np.ptp(raw.vertices, axis=0)[[0, 2, 1]], rtol=1e-12)
+    as_file = mesh(source="file", path=str(sample_mesh_dir() / SAMPLE_MESHES["face"]))
+    assert "repair" not in as_file.meta and as_file.meta["steps"] == []
+
+
+def test_up_axis_on_a_planar_mesh_is_an_error_naming_the_fix():
+    with pytest.raises(ConfigError, match="`mesh.up_axis=z`"):
+        mesh(source="planar", up_axis="y")

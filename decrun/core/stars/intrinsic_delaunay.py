@@ -41,7 +41,7 @@ class IntrinsicDelaunay(HodgeStar):
     def check(self, K) -> None:
         if K.dim != 2:
             raise ConfigError(f"operator=intrinsic_delaunay needs a triangle mesh, not dimension {K.dim}; "
-                              "use operator=circumcentric or operator=whitney")
+                              "use `operator=whitney` (or `operator=circumcentric`)")
 
     def operators(self, dec):
         """(stiffness, star0, flips, rounds) of ``dec``'s mesh, computed once."""

@@ -48,7 +48,7 @@ class MixedArea(Circumcentric):
     def check(self, K) -> None:
         if K.dim != 2:
             raise ConfigError(f"operator=mixed_area is defined for triangle meshes, not dimension {K.dim}; "
-                              "use operator=barycentric or operator=circumcentric")
+                              "use `operator=barycentric` (or `operator=circumcentric`)")
 
     def diagonal(self, dec, k: int) -> np.ndarray:
         if k == 0:

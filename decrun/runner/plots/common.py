@@ -15,8 +15,12 @@ from typing import Iterable, Sequence
 
 import numpy as np
 from matplotlib import colormaps
-from matplotlib.colors import Normalize
+from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
+
+
+#: two contrasting colours for checkerboard textures (0 → dark blue, 1 → light sand)
+CHECKER = ListedColormap([(0.16, 0.27, 0.52), (0.98, 0.93, 0.80)], name="checker")
 
 
 def new_figure(width: float = 8.0, height: float = 4.0, dpi: int = 110) -> Figure:
@@ -36,14 +40,15 @@ def _face_values(values: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.n
 def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,
                  cmap: str = "viridis", vmin: float | None = None, vmax: float | None = None,
                  edgecolor: str | None = None, linewidth: float = 0.1, title: str | None = None,
-                 light: Sequence[float] = (0.4, 0.3, 1.0)):
+                 light: Sequence[float] = (0.4, 0.3, 1.0), shade: bool = False):
     """Draw the triangles ``faces (m, 3)`` over ``vertices (n, 2|3)`` on ``ax``.
 
     ``ax`` is a 3-D axes (``fig.add_subplot(projection="3d")``) or a 2-D one; a 3-D mesh on
     a 2-D axes is drawn from above (x, y). ``values`` (per vertex, averaged to faces, or per
-    face) colour the triangles with ``cmap``; without values the surface is grey with
-    Lambert shading from the direction ``light``. Returns the ScalarMappable (for a
-    colorbar) or None.
+    face) colour the triangles with ``cmap`` (``"checker"``: two contrasting colours);
+    without values the surface is grey with Lambert shading from the direction ``light``,
+    and with ``shade`` the value colours are shaded too (3-D axes). Returns the
+    ScalarMappable (for a colorbar) or None.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
@@ -54,23 +59,25 @@ def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
         lo = vmin if vmin is not None else (finite.min() if finite.size else 0.0)
         hi = vmax if vmax is not None else (finite.max() if finite.size else 1.0)
         norm = Normalize(lo, hi if hi > lo else lo + 1.0)
-        colours = colormaps[cmap](norm(face_values))
+        colour_map = CHECKER if cmap == "checker" else colormaps[cmap]
+        colours = colour_map(norm(face_values))
         from matplotlib.cm import ScalarMappable
 
-        mappable = ScalarMappable(norm=norm, cmap=colormaps[cmap])
+        mappable = ScalarMappable(norm=norm, cmap=colour_map)
     is_3d = getattr(ax, "name", "") == "3d"
     if is_3d:
         from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
         v3 = vertices if vertices.shape[1] == 3 else np.column_stack([vertices, np.zeros(len(vertices))])
         triangles = v3[faces]
-        if values is None:
+        if values is None or shade:
             normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
             length = np.linalg.norm(normal, axis=1, keepdims=True)
             normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
             direction = np.asarray(light, dtype=np.float64) / np.linalg.norm(light)
-            shade = 0.35 + 0.65 * np.abs(normal @ direction)
-            colours = np.column_stack([np.outer(shade, [0.75, 0.78, 0.85]), np.ones(len(faces))])
+            lambert = 0.35 + 0.65 * np.abs(normal @ direction)
+            base = np.tile([0.75, 0.78, 0.85], (len(faces), 1)) if values is None else colours[:, :3]
+            colours = np.column_stack([lambert[:, None] * base, np.ones(len(faces))])
         collection = Poly3DCollection(triangles, facecolors=colours, edgecolors=edgecolor or "none", linewidths=linewidth)
         ax.add_collection3d(collection)
         finite = v3[np.isfinite(v3).all(axis=1)]
@@ -101,10 +108,12 @@ def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
 def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces: np.ndarray,
                  values_before: np.ndarray | None = None, values_after: np.ndarray | None = None, *,
                  titles: tuple[str, str] = ("before", "after"), suptitle: str | None = None,
-                 cmap: str = "viridis", colorbar_label: str | None = None) -> Figure:
+                 cmap: str = "viridis", colorbar_label: str | None = None, share_axes: bool = True) -> Figure:
     """Figure with two panels: the mesh before and after (same ``faces``), same colour scale.
 
-    Meshes with 3-D vertices are drawn in 3-D, planar ones in 2-D.
+    Meshes with 3-D vertices are drawn in 3-D, planar ones in 2-D. With ``share_axes`` both
+    panels show the same box (the union of both meshes' bounding boxes, equal aspect), so a
+    result that shrank, exploded or moved looks like it.
     """
     three_d = np.asarray(vertices_before).shape[1] == 3
     fig = new_figure(8.0, 4.0)
@@ -120,11 +129,28 @@ def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces:
     for ax, vertices, values, title in zip(axes, (vertices_before, vertices_after), (values_before, values_after), titles):
         m = plot_surface(ax, vertices, faces, values, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
         mappable = mappable or m
+    if share_axes:
+        _share_limits(axes, [np.asarray(vertices_before), np.asarray(vertices_after)])
     if mappable is not None:
         fig.colorbar(mappable, ax=axes, shrink=0.6, label=colorbar_label)
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
     return fig
+
+
+def _share_limits(axes, vertex_sets) -> None:
+    """Give every axes the same cube (3-D) or rectangle (2-D): the union of the finite
+    vertices' bounding boxes."""
+    points = np.concatenate([v[np.isfinite(v).all(axis=1)] for v in vertex_sets])
+    if not len(points):
+        return
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    center, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-12)
+    for ax in axes:
+        ax.set_xlim(center[0] - half, center[0] + half)
+        ax.set_ylim(center[1] - half, center[1] + half)
+        if getattr(ax, "name", "") == "3d":
+            ax.set_zlim(center[2] - half, center[2] + half)
 
 
 def surface_figure(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,

@@ -77,9 +77,11 @@ def draw_field(ax, K, face_vectors: np.ndarray, vertex_index=None, face_index=No
 
 
 def field_figure(K, face_vectors, vertex_index=None, face_index=None, stroke_faces=None, *,
-                 title="designed field", max_arrows=700):
+                 title="designed field", max_arrows=700, cluster_positions=None, cluster_indices=None):
     """The designed field with its singularities and the stroke faces (green dots): one
-    panel for planar meshes, two opposite views for surfaces in 3-D."""
+    panel for planar meshes, two opposite views for surfaces in 3-D. Singularity clusters
+    (``cluster_positions`` (C, 3), ``cluster_indices`` (C,)) are circled and labelled with
+    their summed index."""
     planar = is_planar(K.vertices)
     views = [None] if planar else [_VIEW, (-_VIEW[0], _VIEW[1] + 180.0)]
     fig = new_figure(6.0 * len(views), 6.0)
@@ -97,9 +99,27 @@ def field_figure(K, face_vectors, vertex_index=None, face_index=None, stroke_fac
             else:
                 centre = centre[(centre - x.mean(axis=0)) @ _view_direction(*view) > 0]
                 ax.plot(*centre.T, ".", color="tab:green", ms=3)
+        if cluster_positions is not None and len(cluster_positions):
+            _draw_clusters(ax, x, np.asarray(cluster_positions), np.asarray(cluster_indices), planar, view)
     if mappable is not None:
         fig.colorbar(mappable, ax=fig.axes, shrink=0.6, label="|u| (Whitney ♯ at barycenters)")
     return fig
+
+
+def _draw_clusters(ax, x, positions, indices, planar, view) -> None:
+    """Open circles with the summed index beside them, on the visible side only."""
+    if not planar:
+        visible = (positions - x.mean(axis=0)) @ _view_direction(*view) > 0
+        positions, indices = positions[visible], indices[visible]
+    for p, i in zip(positions, indices):
+        colour = "red" if i > 0 else "blue"
+        if planar:
+            ax.scatter([p[0]], [p[1]], s=220, facecolors="none", edgecolors=colour, linewidths=1.5, zorder=6)
+            ax.annotate(f"{int(i):+d}", (p[0], p[1]), xytext=(8, 8), textcoords="offset points", color=colour)
+        else:
+            ax.scatter([p[0]], [p[1]], [p[2]], s=220, facecolors="none", edgecolors=colour, linewidths=1.5,
+                       depthshade=False, zorder=6)
+            ax.text(p[0], p[1], p[2], f" {int(i):+d}", color=colour, zorder=7)
 
 
 def hodge_parts_figure(K, vectors: dict, energy: dict, *, max_arrows: int = 500):

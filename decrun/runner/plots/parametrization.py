@@ -26,14 +26,41 @@ def uv_layout(K, uv: np.ndarray, faces: np.ndarray, angle_distortion_deg: np.nda
     return fig
 
 
+def checker_square_size(vertices: np.ndarray, uv: np.ndarray, faces: np.ndarray, squares: int) -> float:
+    """Side (uv units) of the checker squares so that where the map has its median scale a
+    square covers about 1/``squares`` of √(mesh area) — ``squares`` per side on an
+    isometric map of a square patch, and still visible where a conformal map shrinks most
+    of the surface into a small part of [0, 1]² (its area distortion varies over decades).
+    Triangles are coloured whole, so a square spans at least 4 median uv edge lengths
+    (coarse meshes get fewer, larger squares instead of noise).
+
+    scale_t = √(uv area_t / mesh area_t) per triangle;
+    side = max(median(scale) · √A / squares, 4 · median uv edge length).
+    """
+    from decrun.core.geometry import triangle_areas
+
+    mesh_area = triangle_areas(vertices, faces)
+    uv_area = np.abs(triangle_areas(uv, faces))
+    good = mesh_area > 0
+    scale = np.sqrt(uv_area[good] / mesh_area[good])
+    median = float(np.median(scale)) if scale.size else 1.0
+    side = median * np.sqrt(mesh_area.sum()) / squares
+    edges = np.linalg.norm(uv[faces] - uv[np.roll(faces, -1, axis=1)], axis=2)
+    side = max(side, 4.0 * float(np.median(edges)))
+    return side if side > 0 and np.isfinite(side) else 1.0 / squares
+
+
 def checkerboard(K, uv: np.ndarray, faces: np.ndarray, *, squares: int = 10, title: str = "") -> "Figure":  # noqa: F821
-    """The mesh textured with a ``squares`` × ``squares`` checkerboard in uv ∈ [0, 1]², seen
+    """The mesh textured with a checkerboard in uv (squares sized by
+    :func:`checker_square_size`), shaded by the light so the shape stays readable, seen
     along its area-weighted mean normal (the open side faces away)."""
+    side = checker_square_size(K.vertices, uv, faces, squares)
     centroid = uv[faces].mean(axis=1)
-    checker = (np.floor(centroid[:, 0] * squares) + np.floor(centroid[:, 1] * squares)) % 2
+    checker = (np.floor(centroid[:, 0] / side) + np.floor(centroid[:, 1] / side)) % 2
     fig = new_figure(5.0, 5.0)
     ax = fig.add_subplot(projection="3d" if K.vertices.shape[1] == 3 else None)
-    plot_surface(ax, K.vertices, faces, checker, cmap="gray", vmin=-0.3, vmax=1.0, title=f"checkerboard, {title}")
+    plot_surface(ax, K.vertices, faces, checker, cmap="checker", vmin=0.0, vmax=1.0, shade=True,
+                 title=f"checkerboard (square {side:.3g} in uv), {title}")
     if K.vertices.shape[1] == 3:
         p = K.vertices[faces]
         normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]).sum(axis=0)

@@ -17,12 +17,16 @@ from decrun.runner.plots.common import new_figure, plot_surface
 __all__ = ["snapshot_grid", "animation"]
 
 
-def _scale(frames: np.ndarray, symmetric: bool) -> tuple[float, float]:
+def _scale(frames: np.ndarray, symmetric: bool, percentile: float = 95.0) -> tuple[float, float]:
+    """Colour limits: the ``percentile`` of |values| (symmetric) or of the values, over all
+    frames — the thin, strong layers at no-slip walls would otherwise wash out the wake."""
     finite = frames[np.isfinite(frames)]
+    nonzero = finite[finite != 0]
+    finite = nonzero if nonzero.size else finite
     if not finite.size:
         return -1.0, 1.0
-    hi = float(np.percentile(np.abs(finite), 99)) if symmetric else float(np.percentile(finite, 99))
-    lo = -hi if symmetric else float(np.percentile(finite, 1))
+    hi = float(np.percentile(np.abs(finite), percentile)) if symmetric else float(np.percentile(finite, percentile))
+    lo = -hi if symmetric else float(np.percentile(finite, 100.0 - percentile))
     return (lo, hi) if hi > lo else (lo - 1.0, lo + 1.0)
 
 
@@ -30,10 +34,18 @@ def _axes(fig, rows, cols, index, planar):
     return fig.add_subplot(rows, cols, index, **({} if planar else {"projection": "3d"}))
 
 
+def _look_at(ax, towards):
+    """Turn a 3-D axes to look at the surface from the direction ``towards`` (3,)."""
+    if towards is not None and getattr(ax, "name", "") == "3d":
+        x, y, z = np.asarray(towards, dtype=np.float64) / (np.linalg.norm(towards) or 1.0)
+        ax.view_init(elev=float(np.degrees(np.arcsin(np.clip(z, -1, 1)))), azim=float(np.degrees(np.arctan2(y, x))))
+
+
 def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times_name: str = "time",
-                  cmap: str = "RdBu_r", title: str = "", symmetric: bool = True):
+                  cmap: str = "RdBu_r", title: str = "", symmetric: bool = True, towards=None):
     """``count`` evenly spaced recorded frames of ``recorded[name]`` (records, n0) side by side,
-    one shared colour scale (symmetric about 0 for signed fields such as vorticity)."""
+    one shared colour scale (symmetric about 0 for signed fields such as vorticity); 3-D
+    surfaces are seen from the direction ``towards`` (e.g. where they were stirred)."""
     frames = np.asarray(recorded[name])
     times = np.asarray(recorded[times_name]) if times_name else np.arange(len(frames))
     picks = np.unique(np.linspace(0, len(frames) - 1, min(count, len(frames))).round().astype(int))
@@ -48,6 +60,7 @@ def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times
         ax = _axes(fig, rows, cols, slot + 1, planar)
         mappable = plot_surface(ax, K.vertices, faces, frames[index], cmap=cmap, vmin=lo, vmax=hi, linewidth=0.0,
                                 title=f"t = {times[index]:.3g}") or mappable
+        _look_at(ax, towards)
     fig.colorbar(mappable, ax=fig.axes, shrink=0.7, label=name)
     if title:
         fig.suptitle(title, fontsize=10)
@@ -55,7 +68,8 @@ def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times
 
 
 def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str = "time", fps: int = 12,
-              max_frames: int = 120, cmap: str = "RdBu_r", title: str = "", symmetric: bool = True) -> Path:
+              max_frames: int = 120, cmap: str = "RdBu_r", title: str = "", symmetric: bool = True,
+              towards=None) -> Path:
     """An animated GIF of ``recorded[name]`` over time (at most ``max_frames`` evenly spaced
     frames, one colour scale), written with matplotlib's Pillow writer to ``out_path``.gif."""
     from matplotlib.animation import FuncAnimation, PillowWriter
@@ -73,6 +87,7 @@ def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str
         ax.clear()
         plot_surface(ax, K.vertices, faces, frames[picks[index]], cmap=cmap, vmin=lo, vmax=hi, linewidth=0.0,
                      title=f"{title} t = {times[picks[index]]:.3g}".strip())
+        _look_at(ax, towards)
         return []
 
     path = Path(out_path).with_suffix(".gif")

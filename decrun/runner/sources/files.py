@@ -60,10 +60,16 @@ class File(MeshSource):
 
 @dataclass
 class Sample(MeshSource):
-    """A mesh shipped with pymeshlab, by name (:data:`SAMPLE_MESHES`)."""
+    """A mesh shipped with pymeshlab, by name (:data:`SAMPLE_MESHES`). The samples are raw
+    scans and models with known defects (unreferenced vertices, bowtie vertices), so
+    ``repair`` and ``clean`` are on by default, and Y-up models are turned Z-up
+    (``up_axis: auto``, :data:`decrun.runner.mesh_repair.UP_AXIS`)."""
 
     name = "sample"
     sample: str = "bunny10k_textured"
+    repair: bool = True
+    clean: bool = True
+    up_axis: str = "auto"
 
     def __post_init__(self):
         super().__post_init__()

@@ -1,0 +1,183 @@
+"""``app=fluid``: vorticity fluids on surfaces and planar domains (thesis ch. 7, Elcott et al. 2007).
+
+The solver is :class:`decrun.methods.fluid.VorticityFluid` (the velocity as a flux 1-form,
+the stream function ψ as a 0-form, the vorticity as a dual 2-form per vertex; see its module
+docstring for one step and the corrections of the printed formulas); this adapter sets up the
+initial vorticity, the stirring force and the inflow from the options, runs the steps with a
+progress bar and records, every ``record_every`` steps, the vorticity per vertex, the flux per
+edge and the scalar diagnostics (``ctx.record``: memory stays flat, a killed run keeps them).
+
+Domains: closed surfaces (``mesh=icosphere mesh.noise=0``, any closed mesh file), and planar
+domains with borders — the outer border carries the uniform inflow ``inflow`` (eq. 7.10; a
+slip wall along it), every other border loop is a no-slip obstacle (``mesh=channel``). The
+circumcentric dual cells the interpolation needs turn inside out on obtuse triangles (§7.3):
+the app reports their count (``obtuse_triangles``) and warns.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import List, Optional
+
+import numpy as np
+
+from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.errors import ConfigError, TopologyError
+
+INITIAL = ("zero", "rotation", "vortex_pair", "random")
+SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
+           "vorticity_max")
+
+
+@dataclass
+class Stir:
+    """A stirring stroke: polyline ``points`` (projected to the surface) pushed with
+    ``strength`` (mesh units / s²) from ``start`` to ``stop`` (seconds)."""
+
+    points: List[List[float]] = field(default_factory=list)
+    strength: float = 10.0
+    start: float = 0.0
+    stop: float = 0.5
+
+
+@dataclass
+class Fluid(App):
+    """Options of ``app=fluid`` (conf/app/fluid.yaml)."""
+
+    name = "fluid"
+    form_degrees = (0, 1, 2)
+    diagonal_stars = "the scheme divides by ⋆0 and ⋆1 entrywise (vorticity = circulation / ⋆0)"
+    dt: float = 0.005  # time step (s)
+    steps: int = 200
+    t_end: Optional[float] = None  # if set: steps = ceil(t_end / dt)
+    viscosity: float = 0.03  # ν (mesh units² / s)
+    inflow: List[float] = field(default_factory=list)  # uniform velocity on the outer border ([] : none)
+    initial: str = "zero"  # zero | rotation | vortex_pair | random
+    initial_strength: float = 1.0  # Ω (rotation), Γ (vortex_pair), max |w| (random)
+    vortex_separation_deg: float = 60.0  # vortex_pair: angular distance on the unit sphere
+    vortex_radius: float = 0.15  # vortex_pair: blob radius
+    seed: int = 0
+    stirs: List[Stir] = field(default_factory=list)
+    record_every: int = 5
+    snapshots: int = 6
+    animation: bool = True
+
+    def __post_init__(self):
+        if not (self.dt > 0 and math.isfinite(self.dt)):
+            raise ConfigError(f"app.dt: must be > 0, got {self.dt}")
+        if self.steps < 1 and self.t_end is None:
+            raise ConfigError(f"app.steps: must be >= 1, got {self.steps}")
+        if self.t_end is not None and not self.t_end > 0:
+            raise ConfigError(f"app.t_end: must be > 0 or null, got {self.t_end}")
+        if not self.viscosity >= 0:
+            raise ConfigError(f"app.viscosity: must be >= 0, got {self.viscosity}")
+        if self.initial not in INITIAL:
+            raise ConfigError(f"app.initial: must be one of {list(INITIAL)}, got {self.initial!r}")
+        if self.record_every < 1:
+            raise ConfigError(f"app.record_every: must be >= 1, got {self.record_every}")
+        for i, stir in enumerate(self.stirs):
+            if len(stir.points) < 2:
+                raise ConfigError(f"app.stirs[{i}].points: a stroke needs at least two points")
+            if not stir.stop > stir.start:
+                raise ConfigError(f"app.stirs[{i}].stop: must be after start ({stir.start})")
+
+    @property
+    def total_steps(self) -> int:
+        return int(math.ceil(self.t_end / self.dt - 1e-9)) if self.t_end is not None else int(self.steps)
+
+    def check(self, K, dec) -> None:
+        if K.dim != 2:
+            raise TopologyError(f"app=fluid needs a triangle mesh (dimension 2), got dimension {K.dim}")
+        closed = K.boundary_faces()[0].size == 0
+        if self.inflow and closed:
+            raise ConfigError("app.inflow: a closed surface has no border to flow in through; use app.inflow=[]")
+        if self.inflow and len(self.inflow) != K.embedding_dim:
+            raise ConfigError(f"app.inflow: needs {K.embedding_dim} components (the mesh's dimension), "
+                              f"got {list(self.inflow)}")
+        if self.initial in ("rotation", "vortex_pair") and not closed:
+            raise ConfigError(f"app.initial={self.initial} is defined on the unit sphere; use app.initial=random "
+                              "or zero on domains with borders")
+
+    def run(self, ctx: Context) -> Result:
+        """Run the fluid; see the module docstring.
+
+        Metrics: ``stable``, ``diverged_at_step`` (when it diverged), ``steps_done``,
+        ``energy_ratio`` (final / initial kinetic energy, when the initial one is > 0),
+        ``enstrophy_ratio``, ``max_abs_divergence`` (over the run), ``circulation_drift``
+        (|Σ⋆0 w| at the end, closed surfaces), ``steps_per_second``, ``obtuse_triangles``.
+        Series (every ``record_every`` steps): ``vorticity`` (n0), ``flux`` (n1) and the scalars
+        ``time``, ``kinetic_energy``, ``enstrophy``, ``total_circulation``, ``max_abs_divergence``,
+        ``vorticity_min``, ``vorticity_max``. Fields: the final ``vorticity``, ``psi``, ``flux``.
+        """
+        from decrun.methods.fluid import initial as initial_vorticity
+        from decrun.methods.fluid.simulation import VorticityFluid
+
+        K, dec = ctx.complex, ctx.dec
+        w0 = self._initial_vorticity(dec, initial_vorticity)
+        fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
+                               inflow_velocity=list(self.inflow) or None, initial_vorticity=w0)
+        obtuse = int(getattr(fluid, "obtuse_triangles", 0))
+        if obtuse:
+            ctx.log(f"fluid: {obtuse} obtuse triangles — their circumcentric dual cells turn inside out (§7.3); "
+                    "use a mesh without obtuse triangles (e.g. mesh=channel, or mesh.noise=0 on the icosphere)")
+        forces = [(stir, initial_vorticity.stroke_force(dec, np.asarray(stir.points, dtype=np.float64), stir.strength))
+                  for stir in self.stirs]
+        first = fluid.diagnostics()
+        ctx.record(0, vorticity=fluid.vorticity, flux=fluid.flux, **{k: first[k] for k in SCALARS})
+        max_divergence = first["max_abs_divergence"]
+        last = first
+        start = time.perf_counter()
+        total = self.total_steps
+        for step in ctx.progress(range(1, total + 1), total=total, desc="fluid"):
+            active = [force for stir, force in forces if stir.start <= fluid.time < stir.stop]
+            last = fluid.step(np.sum(active, axis=0) if active else None)
+            max_divergence = max(max_divergence, last["max_abs_divergence"])
+            if "diverged_at_step" in last or not last["stable"]:
+                break
+            if step % self.record_every == 0 or step == total:
+                ctx.record(step, vorticity=fluid.vorticity, flux=fluid.flux, **{k: last[k] for k in SCALARS})
+        seconds = time.perf_counter() - start
+        steps_done = int(last["step"])
+        stable = bool(last["stable"]) and "diverged_at_step" not in last
+        metrics = {
+            "stable": stable,
+            "steps_done": steps_done,
+            "max_abs_divergence": float(max_divergence),
+            "enstrophy_final": float(last["enstrophy"]),
+            "kinetic_energy_final": float(last["kinetic_energy"]),
+            "steps_per_second": steps_done / seconds if seconds > 0 else float("inf"),
+            "obtuse_triangles": obtuse,
+            "solve_seconds": seconds,
+        }
+        if not stable:
+            metrics["diverged_at_step"] = int(last.get("diverged_at_step", steps_done))
+        if first["kinetic_energy"] > 0:
+            metrics["energy_ratio"] = float(last["kinetic_energy"] / first["kinetic_energy"])
+        if first["enstrophy"] > 0:
+            metrics["enstrophy_ratio"] = float(last["enstrophy"] / first["enstrophy"])
+        if K.boundary_faces()[0].size == 0:
+            metrics["circulation_drift"] = abs(float(last["total_circulation"]))
+        fields = {"vorticity": fluid.vorticity, "psi": fluid.psi, "flux": FieldOnEdges(fluid.flux)}
+        title = f"vorticity, dt={self.dt:g}, ν={self.viscosity:g}"
+        strokes = [np.asarray(stir.points, dtype=np.float64) for stir in self.stirs]
+        towards = np.concatenate(strokes).mean(axis=0) if strokes and K.embedding_dim == 3 else None
+        view = {"towards": None if towards is None or not np.linalg.norm(towards) > 0 else towards.tolist()}
+        figures = {"vorticity": Figure("decrun.runner.plots.snapshots.snapshot_grid",
+                                       dict(name="vorticity", count=int(self.snapshots), title=title, **view))}
+        if self.animation:
+            figures["vorticity_animation"] = Figure("decrun.runner.plots.snapshots.animation",
+                                                    dict(name="vorticity", title="vorticity", **view))
+        return Result(fields=fields, metrics=metrics, figures=figures)
+
+    def _initial_vorticity(self, dec, initial_vorticity) -> np.ndarray:
+        if self.initial == "zero":
+            return np.zeros(dec.K.num_simplices(0))
+        if self.initial == "rotation":
+            return initial_vorticity.solid_body_rotation(dec, angular_velocity=self.initial_strength)
+        if self.initial == "vortex_pair":
+            w, _ = initial_vorticity.sphere_vortex_pair(dec, np.radians(self.vortex_separation_deg),
+                                                        self.initial_strength, self.vortex_radius)
+            return w
+        return initial_vorticity.random_vorticity(dec, seed=self.seed, amplitude=self.initial_strength)

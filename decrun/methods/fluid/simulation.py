@@ -1,0 +1,326 @@
+"""The vorticity fluid of thesis ch. 7 (Elcott, Tong, Kanso, Schröder, Desbrun 2007).
+
+State (§7.2.1, primal and dual roles swapped): the stream function ψ (n0), the flux
+1-form u = d0 ψ + c through the primal edges (n1; edge a → b, a < b, flux to its right
+on the oriented surface) and the vorticity w = ⋆0⁻¹ d0ᵀ ⋆1 u per vertex (n0). One step
+(Fig. 7.4 / 7.6, with the corrections of FLUIDS.md):
+
+a. constant velocity per triangle from u (and from d0 ψ alone) — the circumcenter velocity;
+b. WSHD07 interpolation over the flattened dual cells (interpolation.py);
+c. backtrack every circumcenter along −u for dt (backtrack.py);
+d. circulation Γ around each backtracked cell, trapezoid rule
+   Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2; interior cells use the d0 ψ part,
+   *border cells* the full u. A border cell is the cell of a border vertex or any cell one of
+   whose backtracked corners was clamped at a wall. w = Γ / ⋆0; on closed surfaces the
+   ⋆0-weighted mean is removed (Σ ⋆0 w = 0);
+   curvature correction (``circulation_correction=True``, a deviation from the thesis):
+   on a curved surface the trapezoid circulation Γ⁰ of the *unmoved* cell differs from
+   ⋆0 w by O(h²) (the polygon of circumcenters cuts across the bent dual edges), and
+   applied every step that error acts like a diffusion that depends on the number of
+   steps, not on time. Interior cells therefore take w + (Γ − Γ⁰) / ⋆0, the change of
+   circulation caused by the motion. On planar meshes Γ⁰ = ⋆0 w exactly at interior
+   vertices, so the correction changes nothing there;
+e. viscosity, implicit: (⋆0 + ν dt d0ᵀ ⋆1 d0) w_new = ⋆0 w;
+f. forces: w += dt ⋆0⁻¹ d0ᵀ ⋆1 f for a force flux f;
+g. recovery (eq. 7.14 × ⋆0): (d0ᵀ ⋆1 d0 + μ d0ᵀ I_B d0) ψ = ⋆0 w with one pinned vertex
+   (on the outer border when there is one), then u = d0 ψ + c.
+
+Border velocities (no-slip): the border-edge midpoints and border vertices that close
+border cells, and points clamped at a wall, move with their wall: 0 on obstacles, the
+uniform inflow velocity v on the outer border (so the outer border is a slip wall
+along v and fluid entering through the inflow border carries v and no vorticity).
+The d0 ψ part is 0 there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from decrun.core.dec import DEC
+from decrun.errors import ConfigError, SolverError
+from decrun.methods.fluid.backtrack import TriangleWalker
+from decrun.core.geometry import embed3, obtuse_triangle_count
+from decrun.methods.fluid.dual_cells import build_dual_cells
+from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
+from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
+
+__all__ = ["VorticityFluid"]
+
+
+class VorticityFluid:
+    """Vorticity fluid on a triangle mesh (planar with borders, or a closed surface).
+
+    Parameters
+    ----------
+    dec : DEC on a triangle mesh without obtuse triangles (circumcentric stars)
+    new_solver : callable () -> solver with ``factorize(A)`` and ``solve(b)``; one per system
+    dt : time step (s)
+    viscosity : ν ≥ 0 (mesh units² / s)
+    inflow_velocity : uniform velocity v (2 or 3 components) imposed on the outer border
+        (eq. 7.10), or None (outer border is a wall at rest)
+    obstacle_loops : list of vertex-id arrays of the obstacle border loops; default every
+        border loop except the longest
+    initial_vorticity : (n0,) w at t = 0 (default 0)
+    penalty : μ of eq. 7.14 (default 1e6 · max ⋆1)
+    blowup_factor : the run is reported unstable when the kinetic energy exceeds this
+        factor times the largest legitimate energy (initial, harmonic, or after a forced step)
+    integrator, substeps, max_cfl, max_rounds : passed to the backtracking (backtrack.py):
+        each point takes at least ``substeps`` substeps and enough that one substep moves it
+        at most ``max_cfl`` mean edge lengths of its start triangle (None: no such bound).
+        ``integrator="per_triangle", max_cfl=None`` is Fig. 7.9 with stepSize = dt / substeps
+    circulation_correction : see step d above
+    """
+
+    def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
+                 obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
+                 blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
+                 max_cfl: float | None = 1.0, integrator: str = "midpoint",
+                 circulation_correction: bool = True):
+        if not dt > 0:
+            raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
+        if not viscosity >= 0:
+            raise ConfigError(f"fluid: the viscosity must be >= 0, got {viscosity}")
+        K = dec.K
+        self.dec, self.K = dec, K
+        self.dt, self.viscosity = float(dt), float(viscosity)
+        self.max_rounds, self.substeps, self.integrator = max_rounds, substeps, integrator
+        self.max_cfl = max_cfl
+        self.circulation_correction = circulation_correction
+        self.blowup_factor = blowup_factor
+        self.cells = build_dual_cells(dec)
+        self.face_normal = self.cells.face_normal
+        self.interpolator = CellInterpolator(self.cells, K.simplices(2), K.vertices)
+        #: mesh quality the method relies on (§7.3): obtuse triangles and non-convex flattened cells
+        self.obtuse_triangles = obtuse_triangle_count(K.vertices, K.simplices(2))
+        self.nonconvex_cells = int((~self.interpolator.convex).sum())
+        self.walker = TriangleWalker(dec, self.face_normal)
+        self.velocity_matrix = triangle_velocity_matrix(dec, self.face_normal)
+        self.closed = not self.cells.border_vertex.any()
+        self.obstacles, self.label = border_layout(dec, obstacle_loops)
+        self.inflow = np.zeros(3) if inflow_velocity is None else embed3(
+            np.atleast_2d(np.asarray(inflow_velocity, dtype=np.float64)))[0]
+        self.star0 = dec.star_diagonal(0)
+        self.star1 = dec.star_diagonal(1)
+        self.d0 = K.incidence(1)
+        self.d0T = K.boundary(1)
+        self.stiffness = dec.laplacian_symmetric(0)  # d0ᵀ ⋆1 d0 (PSD)
+        self.harmonic = harmonic_flux(dec, self.face_normal, self.label, inflow_velocity, new_solver)
+        self._build_dual_edges()
+
+        n0 = K.num_simplices(0)
+        if self.viscosity > 0:
+            self._diffusion = new_solver()
+            self._diffusion.factorize((sp.diags(self.star0) + self.viscosity * self.dt * self.stiffness).tocsr())
+        else:
+            self._diffusion = None
+        border_edge = np.zeros(K.num_simplices(1))
+        border_edge[self.cells.border_edges] = 1.0
+        self.penalty = float(1e6 * np.abs(self.star1).max()) if penalty is None else float(penalty)
+        A = (self.stiffness + self.penalty * (self.d0T @ sp.diags(border_edge) @ self.d0)).tolil()
+        outer = np.flatnonzero(self.label == 0)
+        self.pinned = int(outer[0]) if outer.size else 0
+        A[self.pinned, :] = 0.0
+        A[:, self.pinned] = 0.0
+        A[self.pinned, self.pinned] = 1.0
+        self._poisson = new_solver()
+        self._poisson.factorize(A.tocsr())
+
+        # velocities of the fixed border dual points: [d0 ψ part, full u]
+        m = self.cells.n_circumcenters
+        fixed_vertex = self.cells.point_vertex[m:]
+        self._fixed_velocity = np.zeros((fixed_vertex.size, 3, 2))
+        self._fixed_velocity[:, :, 1] = np.where((self.label[fixed_vertex] == 0)[:, None], self.inflow[None, :], 0.0)
+        edges = K.simplices(1)
+        self._edge_wall_velocity = np.where((self.label[edges[:, 0]] == 0)[:, None], self.inflow[None, :], 0.0)
+
+        w0 = np.zeros(n0) if initial_vorticity is None else np.array(initial_vorticity, dtype=np.float64)
+        if w0.shape != (n0,):
+            raise ConfigError(f"fluid: initial_vorticity must have one value per vertex ({n0},), got {w0.shape}")
+        self.vorticity = self._remove_mean(w0)
+        self.psi = self._recover(self.vorticity)
+        self.flux = self.d0 @ self.psi + self.harmonic
+        self.time, self.steps = 0.0, 0
+        self.diverged_at_step: int | None = None
+        self._energy_reference = max(self.kinetic_energy(), 0.5 * self.harmonic @ (self.star1 * self.harmonic), 1e-300)
+
+    # ------------------------------------------------------------------ pieces
+    def _remove_mean(self, w: np.ndarray) -> np.ndarray:
+        if not self.closed:
+            return w
+        return w - (self.star0 @ w) / self.star0.sum()
+
+    def _recover(self, w: np.ndarray) -> np.ndarray:
+        """Step g: ψ from (d0ᵀ⋆1 d0 + μ d0ᵀ I_B d0) ψ = ⋆0 w, ψ[pinned] = 0 (eq. 7.14 × ⋆0)."""
+        rhs = self.star0 * w
+        rhs[self.pinned] = 0.0
+        return self._poisson.solve(rhs)
+
+    def kinetic_energy(self) -> float:
+        """½ uᵀ ⋆1 u (mesh units⁴ / s², per unit density: ½ ∫ |v|² dA)."""
+        return float(0.5 * self.flux @ (self.star1 * self.flux))
+
+    def triangle_velocities(self, flux: np.ndarray | None = None) -> np.ndarray:
+        """(m, 3) constant velocity per triangle (= at its circumcenter) of a flux form (step a)."""
+        flux = self.flux if flux is None else flux
+        return (self.velocity_matrix @ flux).reshape(-1, 3)
+
+    def velocity_at(self, triangle: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """(P, 3) interpolated full velocity at ``points`` (P, 3) inside ``triangle`` (P,) (step b)."""
+        full = self._point_velocities()[..., 1:2]
+        return self.interpolator.velocity(np.asarray(triangle), embed3(points), full, self.face_normal)[:, :, 0]
+
+    def _point_velocities(self) -> np.ndarray:
+        """(P, 3, 2) velocities of all dual points: [d0 ψ part, full u]."""
+        stream = self.triangle_velocities(self.d0 @ self.psi)
+        full = self.triangle_velocities(self.flux)
+        return np.concatenate([np.stack([stream, full], axis=2), self._fixed_velocity])
+
+    def backtrack(self):
+        """Step c: the circumcenters dt ago (a BacktrackResult) and the two velocity fields there
+        ((m, 3, 2): [d0 ψ part, full u], wall velocities at clamped points)."""
+        both = self._point_velocities()
+        full = np.ascontiguousarray(both[..., 1:2])
+        normal = self.face_normal
+
+        def velocity(triangle, x):
+            return self.interpolator.velocity(triangle, x, full, normal)[:, :, 0]
+
+        m = self.cells.n_circumcenters
+        result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity,
+                                       integrator=self.integrator, substeps=self.substeps,
+                                       max_rounds=self.max_rounds, start_velocity=both[:m, :, 1],
+                                       max_cfl=self.max_cfl)
+        v = self.interpolator.velocity(result.triangle, result.position, both, normal)
+        clamped = result.wall_edge >= 0
+        v[clamped, :, 0] = 0.0
+        v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
+        return result, v
+
+    def _build_dual_edges(self) -> None:
+        """The dual cells' sides as unique dual edges (a, b), a < b, and the signed
+        incidence D (n0, n_dual_edges): Γ = D g with g the trapezoid integral along a → b."""
+        corners = self.cells.corners
+        a, b = corners, np.roll(corners, -1, axis=1)
+        keep = a != b  # padding repeats the first corner: no side
+        n_points = self.cells.points.shape[0]
+        first, second = np.minimum(a, b)[keep], np.maximum(a, b)[keep]
+        key, inverse = np.unique(first * n_points + second, return_inverse=True)
+        self._edge_a, self._edge_b = key // n_points, key % n_points
+        rows = np.broadcast_to(np.arange(corners.shape[0])[:, None], corners.shape)[keep]
+        sign = np.where(a[keep] < b[keep], 1.0, -1.0)
+        self._dual_incidence = sp.csr_matrix((sign, (rows, inverse)), shape=(corners.shape[0], key.size))
+        # Γ⁰ of the unmoved cells is linear in ψ: D · (trapezoid of the circumcenter velocities) · M · d0
+        m = self.cells.n_circumcenters
+        half = 0.5 * (self.cells.points[self._edge_b] - self.cells.points[self._edge_a])  # (E, 3)
+        rows, cols, vals = [], [], []
+        for end in (self._edge_a, self._edge_b):
+            moving = end < m
+            for d in range(3):
+                rows.append(np.flatnonzero(moving))
+                cols.append(3 * end[moving] + d)
+                vals.append(half[moving, d])
+        trapezoid = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                  shape=(key.size, 3 * m))
+        self._rest_circulation = (self._dual_incidence @ trapezoid @ self.velocity_matrix @ self.d0).tocsr()
+
+    def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray):
+        """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule
+        Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2, and the (n0,) bool mask of border
+        cells (which use the full u; the others the d0 ψ part).
+
+        position (m, 3), velocity (m, 3, 2) of the backtracked circumcenters; clamped (m,) bool.
+        """
+        cells = self.cells
+        m = cells.n_circumcenters
+        points = np.concatenate([position, cells.points[m:]])
+        velocities = np.concatenate([velocity, self._fixed_velocity])
+        a, b = self._edge_a, self._edge_b
+        side = points[b] - points[a]  # (E, 3)
+        g = 0.5 * np.einsum("edf,ed->ef", velocities[a] + velocities[b], side)  # (E, 2)
+        gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
+        touched = np.zeros(m + 1, dtype=bool)
+        touched[:m] = clamped
+        corners = np.where(cells.corners < m, cells.corners, m)
+        border_cell = cells.border_vertex | touched[corners].any(axis=1)
+        return np.where(border_cell, gamma[:, 1], gamma[:, 0]), border_cell
+
+    def backtracked_vorticity(self, result, velocity) -> np.ndarray:
+        """Steps c–d: the vorticity (n0,) carried to the vertices, before viscosity and forces."""
+        gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0)
+        w = gamma / self.star0
+        if self.circulation_correction:
+            gamma0 = self._rest_circulation @ self.psi
+            w = np.where(border_cell, w, self.vorticity + (gamma - gamma0) / self.star0)
+        return self._remove_mean(w)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, force_flux: np.ndarray | None = None) -> dict:
+        """Advance one time step (a–g above) and return diagnostics.
+
+        Parameters
+        ----------
+        force_flux : (n1,) optional force f sampled as a flux 1-form (mesh units³ / s²)
+
+        Returns
+        -------
+        dict with step, time, kinetic_energy, vortical_energy, enstrophy, total_circulation,
+        max_abs_divergence, relative_divergence, vorticity_min, vorticity_max,
+        backtrack_rounds, backtrack_unfinished, clamped_points, finite, stable
+        (and diverged_at_step once a step produced non-finite values; later steps do nothing).
+        """
+        extra = {}
+        if self.diverged_at_step is None:
+            before = self.kinetic_energy()
+            try:
+                with np.errstate(all="ignore"):
+                    result, velocity = self.backtrack()
+                    w = self.backtracked_vorticity(result, velocity)
+                    if self._diffusion is not None:
+                        w = self._diffusion.solve(self.star0 * w) if np.all(np.isfinite(w)) else w
+                    if force_flux is not None:
+                        w = w + self.dt * (self.d0T @ (self.star1 * np.asarray(force_flux, dtype=np.float64))) / self.star0
+                        w = self._remove_mean(w)
+                    if not np.all(np.isfinite(w)):
+                        raise FloatingPointError
+                    psi = self._recover(w)
+                    if not np.all(np.isfinite(psi)):
+                        raise FloatingPointError
+            except (FloatingPointError, SolverError):
+                self.diverged_at_step = self.steps + 1
+            else:
+                self.vorticity, self.psi = w, psi
+                self.flux = self.d0 @ psi + self.harmonic
+                extra = {"backtrack_rounds": result.rounds, "backtrack_unfinished": result.unfinished,
+                         "backtrack_substeps": result.substeps,
+                         "clamped_points": int((result.wall_edge >= 0).sum())}
+                if force_flux is not None:
+                    self._energy_reference = max(self._energy_reference, self.kinetic_energy(), before)
+        self.steps += 1
+        self.time += self.dt
+        return {**self.diagnostics(), **extra}
+
+    def diagnostics(self) -> dict:
+        """Scalars describing the current state (see :meth:`step`)."""
+        w, u = self.vorticity, self.flux
+        energy = self.kinetic_energy()
+        finite = bool(np.all(np.isfinite(w)) and np.all(np.isfinite(u))) and self.diverged_at_step is None
+        divergence = self.K.incidence(2) @ u
+        max_u = float(np.abs(u).max()) if u.size else 0.0
+        result = {
+            "step": self.steps,
+            "time": self.time,
+            "kinetic_energy": energy,
+            "vortical_energy": float(0.5 * self.psi @ (self.stiffness @ self.psi)),
+            "enstrophy": float(0.5 * self.star0 @ (w * w)),
+            "total_circulation": float(self.star0 @ w),
+            "max_abs_divergence": float(np.abs(divergence).max()),
+            "relative_divergence": float(np.abs(divergence).max() / max_u) if max_u > 0 else 0.0,
+            "vorticity_min": float(w.min()),
+            "vorticity_max": float(w.max()),
+            "finite": finite,
+            "stable": finite and energy <= self.blowup_factor * self._energy_reference,
+        }
+        if self.diverged_at_step is not None:
+            result["diverged_at_step"] = self.diverged_at_step
+        return result

@@ -1,0 +1,160 @@
+"""Regenerate the gallery: one figure (or a pair to compare) per thesis-figure experiment
+(conf/experiment/fig*.yaml).
+
+    python scripts/gallery.py [--out docs] [--only fig5_8_t_hole ...]
+
+Each entry runs single runs of ``+experiment=<name>`` with a few overrides through the same
+composition as ``decrun``, copies the named figure to ``<out>/gallery/<name>__<n>.png`` and
+writes ``<out>/gallery.md`` with the images, the overrides and the metrics they show.
+Takes about a minute on two cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+#: experiment → (caption, [(overrides, figure stem, metrics shown), ...])
+GALLERY = {
+    "fig1_2_smoothing": ("Fig. 1.2 — the noisy scanned bunny smoothed by mean curvature flow at 2× the explicit "
+                         "critical step: implicit Euler smooths, explicit Euler blows up (shared axes).", [
+        (["app.scheme=implicit", "app.dt_factor=2.0"], "smoothing",
+         ["stable", "distance_to_clean_rms_initial", "distance_to_clean_rms", "volume_drift_rel"]),
+        (["app.scheme=explicit", "app.dt_factor=2.0"], "smoothing", ["stable", "diverged_at_step"]),
+    ]),
+    "fig5_5_flat_hole": ("Fig. 5.5 — a flat mesh with a hole: the conformal border is exact with the default "
+                         "Cauchy–Riemann rows at reflex border vertices, not with the thesis' harmonic rows.", [
+        ([], "uv_layout", ["angle_distortion_mean_deg", "is_embedding"]),
+        (["app.reflex_rows=harmonic"], "uv_layout", ["angle_distortion_mean_deg", "is_embedding"]),
+    ]),
+    "fig5_6_open_patch": ("Fig. 5.6 — a nearly flat patch cut straight along a plane (holes split along the "
+                          "box surface): conformal border, both reflex-row rules.", [
+        ([], "checkerboard", ["angle_distortion_mean_deg", "is_embedding"]),
+        (["app.reflex_rows=harmonic"], "uv_layout", ["angle_distortion_mean_deg", "is_embedding"]),
+    ]),
+    "fig5_7_half_sphere_holes": ("Fig. 5.7 — a half sphere with eyes, a smile and ears cut along the balls' "
+                                 "spheres; several borders (§5.2.3).", [
+        ([], "uv_layout", ["angle_distortion_mean_deg", "border_loops", "is_embedding"]),
+        (["app.reflex_rows=harmonic"], "uv_layout", ["angle_distortion_mean_deg", "is_embedding"]),
+    ]),
+    "fig5_8_t_hole": ("Fig. 5.8 — a sphere with a T-shaped hole: the conformal border fails (not an "
+                      "embedding), the free border does not.", [
+        ([], "uv_layout", ["angle_distortion_mean_deg", "flipped_triangles", "is_embedding"]),
+        (["app.border=free"], "uv_layout", ["angle_distortion_mean_deg", "flipped_triangles", "is_embedding"]),
+    ]),
+    "fig6_7_cube": ("Fig. 6.7 — source and sink on the front of a cube, a stroke on the back: `fixed` "
+                    "magnitude changes the front, `precomputed` barely.", [
+        (["app.stroke_magnitude=fixed", "app.stroke_length=5.0"], "field", ["field_change_region_relative"]),
+        (["app.stroke_magnitude=precomputed"], "field", ["field_change_region_relative"]),
+    ]),
+    "fig6_8_vortex": ("Fig. 6.8 (a) — a closed stroke around the clean sphere: two +1 singularities "
+                      "(clusters of neighbouring discrete singularities merged).", [
+        ([], "field", ["singularities", "singularity_cluster_indices", "index_sum"]),
+    ]),
+    "fig6_8_saddle": ("Fig. 6.8 (b) — four strokes make a saddle at the north pole.", [
+        ([], "field", ["singularities", "singularity_cluster_indices", "index_sum"]),
+    ]),
+    "fig6_8_spiral": ("Fig. 6.8 (c) — source and sink with a spiralling stroke.", [
+        ([], "field", ["singularities", "singularity_cluster_indices", "index_sum"]),
+    ]),
+    "fig6_9_square": ("Fig. 6.9 — a source and a stroke in a square: `boundary=none` keeps the field "
+                      "tangential to the border, `flux` lets it cross. With `flux` the constant fields are "
+                      "in the kernel and the minimum-norm solution is taken (README): without the stroke it "
+                      "shows two saddles; with it a saddle next to the source (a cluster of index 0, left "
+                      "unmarked).", [
+        (["boundary=none"], "field", ["boundary_normal_flux_mean", "adjointness_defect"]),
+        (["boundary=flux"], "field", ["boundary_normal_flux_mean", "adjointness_defect"]),
+        (["boundary=flux", "app.strokes=[]"], "field", ["singularity_cluster_indices", "boundary_normal_flux_mean"]),
+    ]),
+    "fig7_1_stirred_sphere": ("Fig. 7.1 / 7.18 — a viscous fluid on a clean icosphere (1280 triangles, none "
+                              "obtuse), stirred by a stroke for half a second: vorticity over time.", [
+        ([], "vorticity", ["stable", "max_abs_divergence", "circulation_drift", "steps_per_second"]),
+    ]),
+    "fig7_14_one_obstacle": ("Fig. 7.14 — flow past one obstacle in a channel meshed without obtuse triangles "
+                             "(~1400 faces), inflow from the left: the obstacle sheds vorticity of both signs.", [
+        ([], "vorticity", ["stable", "max_abs_divergence", "obtuse_triangles", "n_faces"]),
+    ]),
+    "fig7_15_density_and_time_step": ("Fig. 7.15 — the same flow (inflow 10 units/s) on 1400 and 5300 faces: "
+                                      "interpolation diffusion smears the wake on the coarse mesh.", [
+        (["mesh.target_faces=1400"], "vorticity", ["stable", "enstrophy_final", "n_faces"]),
+        (["mesh.target_faces=5300"], "vorticity", ["stable", "enstrophy_final", "n_faces"]),
+    ]),
+    "fig7_17_viscosity": ("Fig. 7.17 — the channel flow at 2800 faces without and with viscosity.", [
+        (["app.viscosity=0.0"], "vorticity", ["stable", "enstrophy_final"]),
+        (["app.viscosity=0.08"], "vorticity", ["stable", "enstrophy_final"]),
+    ]),
+}
+
+
+#: figures the README shows outside the gallery: docs/figures/<file> ← (overrides, figure stem)
+README_FIGURES = {"smoothing_default.png": ([], "smoothing")}
+
+
+def _value(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def run_entry(experiment: str | None, overrides: list[str], figure: str, scratch: Path, target: Path) -> dict:
+    """One single run (of ``+experiment=<experiment>`` unless None); copies ``<figure>.png``
+    to ``target``; returns the metrics."""
+    from decrun.runner.cli import compose_config, run_experiment, write_run
+
+    cfg = compose_config(([f"+experiment={experiment}"] if experiment else []) + list(overrides))
+    out = Path(tempfile.mkdtemp(dir=scratch))
+    result, mesh, timings = run_experiment(cfg, out=out)
+    write_run(out, cfg, result, mesh, timings)
+    shutil.copyfile(out / f"{figure}.png", target)
+    return result.metrics
+
+
+def build(out: Path, only: list[str] | None = None) -> Path:
+    """Run the entries and write ``out/gallery.md`` and ``out/gallery/*.png``; returns the .md path."""
+    images = out / "gallery"
+    images.mkdir(parents=True, exist_ok=True)
+    lines = ["# Gallery", "", "One figure (or a pair to compare) per experiment of `conf/experiment/`, "
+             "regenerated by `python scripts/gallery.py`. Each image is a single run of "
+             "`decrun +experiment=<name> <overrides>`; the numbers are that run's metrics.", ""]
+    with tempfile.TemporaryDirectory() as scratch:
+        for experiment, (caption, entries) in GALLERY.items():
+            if only and experiment not in only:
+                continue
+            lines += [f"## {experiment}", "", caption, ""]
+            cells, notes = [], []
+            for n, (overrides, figure, shown) in enumerate(entries):
+                name = f"{experiment}__{n}.png"
+                start = time.perf_counter()
+                metrics = run_entry(experiment, overrides, figure, Path(scratch), images / name)
+                print(f"gallery: {experiment} {' '.join(overrides)} ({time.perf_counter() - start:.1f} s)",
+                      file=sys.stderr)
+                command = " ".join(["decrun", f"+experiment={experiment}", *overrides])
+                cells.append(f"![{experiment} {' '.join(overrides)}](gallery/{name})")
+                notes.append(f"`{command}`: " + ", ".join(f"{k} = {_value(metrics[k])}" for k in shown
+                                                          if k in metrics))
+            lines += ["| " + " | ".join(cells) + " |", "|" + "---|" * len(cells), ""]
+            lines += [f"- {note}" for note in notes] + [""]
+        if not only:
+            (out / "figures").mkdir(exist_ok=True)
+            for name, (overrides, figure) in README_FIGURES.items():
+                run_entry(None, overrides, figure, Path(scratch), out / "figures" / name)
+    path = out / "gallery.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs"))
+    parser.add_argument("--only", nargs="*", help="experiments to regenerate (default: all)")
+    args = parser.parse_args(argv)
+    print(build(Path(args.out), args.only))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

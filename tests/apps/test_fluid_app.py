@@ -1,0 +1,95 @@
+"""``app=fluid`` (thesis ch. 7) end to end: the adapter's options, streamed series, metrics,
+figures and refusals. The solver's physics (divergence-free steps, steady modes, viscous decay,
+Kelvin, energy decay, vortex-pair drift, shedding) is tested in tests/methods/test_fluid.py."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from decrun.apps.fluid import Fluid, Stir
+from decrun.errors import ConfigError
+from meshes_for_tests import complex_of
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return complex_of(source="icosphere", subdiv=2)
+
+
+def test_stirred_sphere_records_every_step_it_says_and_stays_divergence_free(sphere, run_app):
+    stir = Stir(points=[[1.0, 0.0, 0.3], [0.0, 1.0, 0.3]], strength=20.0, start=0.0, stop=0.1)
+    app = Fluid(dt=0.01, steps=30, viscosity=0.01, stirs=[stir], record_every=10)
+    result, ctx = run_app(app, sphere)
+    series = ctx.series
+    assert list(series["step"]) == [0, 10, 20, 30]
+    assert series["vorticity"].shape == (4, sphere.num_simplices(0))
+    assert series["flux"].shape == (4, sphere.num_simplices(1))
+    np.testing.assert_allclose(series["time"], [0.0, 0.1, 0.2, 0.3], atol=1e-12)
+    m = result.metrics
+    assert m["stable"] and m["steps_done"] == 30
+    assert m["max_abs_divergence"] <= 1e-12 * np.abs(series["flux"]).max()
+    assert m["circulation_drift"] < 1e-12  # Σ ⋆0 w = 0 on a closed surface (Kelvin)
+    assert series["enstrophy"][0] == 0 and series["enstrophy"][1] > 0  # the stroke spun the fluid up
+    # without forces, viscosity only removes energy and enstrophy after the stirring stopped
+    assert np.all(np.diff(series["kinetic_energy"][1:]) <= 1e-12 * series["kinetic_energy"][1])
+    assert np.all(np.diff(series["enstrophy"][1:]) <= 1e-12 * series["enstrophy"][1])
+    assert result.fields["flux"].values.shape == (sphere.num_simplices(1),)
+    assert set(result.figures) == {"vorticity", "vorticity_animation"}
+
+
+def test_rigid_rotation_has_no_energy_ratio_change_without_viscosity(sphere, run_app):
+    """ψ ∝ z is steady at ν = 0: the kinetic energy stays within the scheme's drift."""
+    result, _ = run_app(Fluid(dt=0.01, steps=20, viscosity=0.0, initial="rotation", stirs=[], animation=False), sphere)
+    assert result.metrics["stable"] and abs(result.metrics["energy_ratio"] - 1.0) < 0.05
+
+
+def test_viscosity_decays_the_energy(sphere, run_app):
+    results = [run_app(Fluid(dt=0.01, steps=20, viscosity=nu, initial="rotation", stirs=[], animation=False),
+                       sphere)[0].metrics["energy_ratio"] for nu in (0.0, 0.05)]
+    # degree-1 mode: factor (1 + ν dt λ_1)^-2 per step on the energy, λ_1 ≈ 2
+    assert results[1] < results[0]
+    assert results[1] == pytest.approx(results[0] * (1 + 0.05 * 0.01 * 2.0) ** -40, rel=0.05)
+
+
+def test_options_and_meshes_that_do_not_fit_are_refused(sphere, run_app):
+    with pytest.raises(ConfigError, match="app.dt"):
+        Fluid(dt=0.0)
+    with pytest.raises(ConfigError, match="app.initial"):
+        Fluid(initial="swirl")
+    with pytest.raises(ConfigError, match=r"app.stirs\[0\].stop"):
+        Fluid(stirs=[Stir(points=[[0, 0, 1], [0, 1, 0]], start=1.0, stop=0.5)])
+    with pytest.raises(ConfigError, match="app.inflow: a closed surface has no border"):
+        run_app(Fluid(inflow=[1.0, 0.0, 0.0], stirs=[]), sphere)
+    with pytest.raises(ConfigError, match="use `operator.lumped=true` \\(or `operator=circumcentric`\\)"):
+        run_app(Fluid(stirs=[]), sphere, star="whitney")
+
+
+def test_channel_flow_through_the_cli_sheds_and_reports(decrun_cli, tmp_path):
+    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=600", "app.inflow=[1.0,0.0]", "app.stirs=[]",
+                      "app.steps=40", "app.viscosity=0.002", "app.record_every=20")
+    assert proc.returncode == 0, proc.stderr
+    run = next((tmp_path / "outputs" / "runs").iterdir())
+    assert (run / "vorticity.png").is_file() and (run / "vorticity_animation.gif").is_file()
+    from decrun.runner.results import read_result
+
+    result = read_result(run / "result.h5")
+    assert result.complete and list(result.series["step"]) == [0, 20, 40]
+    assert result.metrics["obtuse_triangles"] == 0 and result.metrics["stable"]
+    final = result.series["vorticity"][-1]
+    assert final.min() < 0 < final.max()  # the obstacle sheds vorticity of both signs
+
+
+def test_obtuse_triangles_are_counted(run_app):
+    """§7.3: the circumcentric dual cells of obtuse triangles turn inside out; the app counts
+    them (independently recomputed here from the corner angles) and still runs."""
+    from decrun.complex import SimplicialComplex
+    from meshes_for_tests import random_planar
+
+    K = SimplicialComplex(*random_planar(150, seed=3))
+    p = K.vertices[K.oriented_simplices()]
+    cosines = [np.einsum("md,md->m", p[:, (i + 1) % 3] - p[:, i], p[:, (i + 2) % 3] - p[:, i]) for i in range(3)]
+    expected = int((np.min(cosines, axis=0) < 0).sum())
+    assert expected > 0
+    result, _ = run_app(Fluid(dt=0.01, steps=2, stirs=[], initial="random", animation=False), K)
+    assert result.metrics["obtuse_triangles"] == expected

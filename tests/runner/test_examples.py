@@ -1,0 +1,167 @@
+"""Every ``decrun`` example in README.md and in the comments of conf/ runs.
+
+The examples are extracted from the text (README code blocks and backticked spans, conf
+comment lines), not copied here, so an example that is edited or added is tested as it
+reads. Single runs go through the same composition as ``decrun`` (in process, fast);
+sweeps (``-m``) and ``decrun-table`` run the real commands and are marked slow.
+
+Placeholders are replaced by real values (:data:`PLACEHOLDERS`); a line that only shows
+syntax (``decrun -v ...``) is not an example and is listed in :data:`SYNTAX`.
+"""
+
+from __future__ import annotations
+
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from decrun.runner.cli import compose_config, run_experiment, write_run
+from decrun.runner.sources.files import SAMPLE_MESHES, sample_mesh_dir
+
+ROOT = Path(__file__).resolve().parents[2]
+COMMAND = re.compile(r"^(?:\.venv/bin/)?(?:decrun(?:-table)?|python -m decrun)(?=\s|$)")
+#: placeholders in examples → what the test substitutes
+PLACEHOLDERS = {"/data/dragon.ply": str(sample_mesh_dir() / SAMPLE_MESHES["cow"])}
+#: lines that show syntax, not a command to run
+SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]")
+#: examples of bad input: they must fail with this message
+EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key"}
+#: commands an example needs to have run first (in the same directory)
+PREREQUISITES = {
+    "hydra.sweeper.resume=true": ["-m", "app.dt=0.001,0.002", "hydra.sweep.dir=outputs/sweeps/dt"],
+    "outputs/sweeps/A outputs/sweeps/B": ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/A"],
+}
+PREREQUISITES_B = ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/B"]
+
+
+def _commands_in(text: str) -> list[str]:
+    found = []
+    for block in re.findall(r"```bash\n(.*?)```", text, flags=re.S):
+        for line in block.splitlines():
+            command = line.split("  #", 1)[0].strip()
+            if COMMAND.match(command) and "pip install" not in command:
+                found.append(command)
+    for span in re.findall(r"(?<!`)`([^`\n]+)`(?!`)", text):
+        if COMMAND.match(span.strip()):
+            found.append(span.strip())
+    return found
+
+
+def examples() -> list[tuple[str, str]]:
+    """(where, command) of every example in README.md and conf/**/*.yaml comments."""
+    found = [("README.md", c) for c in _commands_in((ROOT / "README.md").read_text())]
+    for path in sorted((ROOT / "conf").rglob("*.yaml")):
+        where = str(path.relative_to(ROOT))
+        for line in path.read_text().splitlines():
+            comment = line.split("#", 1)[1] if "#" in line else ""
+            match = re.match(r"\s+(decrun\s.*)$", comment)
+            if match:
+                found.append((where, match.group(1).strip()))
+            found += [(where, c) for c in _commands_in(comment)]
+            example = re.search(r"Example: ((?:[\w.+/]+=\S+ ?)+)", comment)
+            if example:
+                found.append((where, "decrun " + example.group(1).strip()))
+    unique = {}
+    for where, command in found:
+        if command not in SYNTAX:
+            unique.setdefault(command, where)
+    return [(where, command) for command, where in unique.items()]
+
+
+EXAMPLES = examples()
+SINGLE = [(w, c) for w, c in EXAMPLES if " -m " not in f"{c} " and not c.startswith("decrun-table")]
+SWEEPS = [(w, c) for w, c in EXAMPLES if (w, c) not in SINGLE]
+
+
+def arguments(command: str, tmp_path: Path) -> list[str]:
+    for placeholder, value in PLACEHOLDERS.items():
+        command = command.replace(placeholder, value)
+    words = shlex.split(command)
+    return words[2:] if words[0] == "python" else words[1:]
+
+
+def test_the_examples_are_found():
+    """The extraction sees the examples it must (a broken regex would test nothing)."""
+    commands = [c for _, c in EXAMPLES]
+    assert "decrun mesh=torus mesh.noise=0.2 app.rescale=area" in commands
+    assert any("app=vector_field mesh=planar" in c for c in commands)
+    assert any("+experiment=fig6_9_square" in c for c in commands)
+    assert len(SINGLE) >= 10 and len(SWEEPS) >= 9
+
+
+@pytest.mark.parametrize("where, command", SINGLE, ids=[c for _, c in SINGLE])
+def test_single_run_example_runs(where, command, tmp_path, decrun_cli):
+    args = arguments(command, tmp_path)
+    if "--cfg" in args or "--help" in args:  # prints the config, runs nothing: the real command
+        done = decrun_cli(*args)
+        assert done.returncode == 0 and "mesh:" in done.stdout, done.stderr
+        return
+    if command in EXPECTED_ERRORS:
+        from decrun.errors import DecrunError
+
+        with pytest.raises(DecrunError, match=EXPECTED_ERRORS[command]):
+            run_experiment(compose_config(args))
+        return
+    if any("outputs/runs/<stamp>/result.h5" in a for a in args):  # a previous run's result
+        previous = compose_config(["app=hodge"])
+        result, mesh, timings = run_experiment(previous)
+        write_run(tmp_path, previous, result, mesh, timings)
+        args = [a.replace("outputs/runs/<stamp>/result.h5", str(tmp_path / "result.h5")) for a in args]
+    assert "<" not in " ".join(args), f"{where}: unresolved placeholder in {command!r}"
+    cfg = compose_config(args)
+    out = tmp_path / "run"
+    out.mkdir()
+    result, mesh, timings = run_experiment(cfg, out=out)
+    written = write_run(out, cfg, result, mesh, timings)  # the figures too
+    assert result.metrics.get("status") == "ok", (where, command, result.metrics)
+    assert (out / "result.h5").is_file() and any(p.suffix == ".png" for p in written)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("where, command", SWEEPS, ids=[c for _, c in SWEEPS])
+def test_sweep_example_runs(where, command, tmp_path):
+    """The real command in a scratch directory; ``decrun-table`` runs on a sweep made first."""
+    args = arguments(command, tmp_path)
+    env_python = [sys.executable, "-m", "decrun"]
+    if any(a.startswith("hydra/launcher=slurm") for a in args):
+        pytest.skip("needs a SLURM cluster (sbatch); the launcher config's composition is tested in test_sweeps")
+    if any(a.startswith("hydra/sweeper=dt_crit_search") for a in args):
+        pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
+    for marker, needed in PREREQUISITES.items():
+        if marker in command:
+            for prerequisite in [needed] + ([PREREQUISITES_B] if "outputs/sweeps/B" in command else []):
+                done = subprocess.run([*env_python, *prerequisite], cwd=tmp_path, capture_output=True, text=True)
+                assert done.returncode == 0, done.stderr[-2000:]
+    if command.startswith("decrun-table") and "<stamp>" not in command:
+        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+                               "sys.exit(table_main(sys.argv[1:]))", *args], cwd=tmp_path, capture_output=True,
+                              text=True)
+        assert done.returncode == 0 and "| " in done.stdout, done.stderr
+        return
+    if command.startswith("decrun-table"):
+        sweep = subprocess.run([*env_python, "-m", "app.steps=1,2"], cwd=tmp_path, capture_output=True, text=True)
+        assert sweep.returncode == 0, sweep.stderr
+        stamp = next((tmp_path / "outputs" / "sweeps").iterdir()).name
+        args = [a.replace("<stamp>", stamp) for a in args]
+        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+                               "sys.exit(table_main(sys.argv[1:]))", *args], cwd=tmp_path, capture_output=True,
+                              text=True)
+        assert done.returncode == 0 and "| job |" in done.stdout, done.stderr
+        return
+    if any(a.startswith("hydra/launcher=joblib") for a in args):
+        pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    done = subprocess.run([*env_python, *args], cwd=tmp_path, capture_output=True, text=True, timeout=1800)
+    if "+experiment=operator_variants" in args:  # refusals are part of that table, each with its reason
+        import pandas as pd
+
+        table = pd.read_csv(next((tmp_path / "outputs" / "sweeps").iterdir()) / "metrics.csv")
+        refused = table[table["status"] != "ok"]
+        assert len(table) == 50 and len(refused) < len(table)
+        assert refused["error"].str.contains("`").all(), refused["error"].tolist()  # a backticked override
+        return
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert re.search(r"\(0 (failed|not ok)\)", done.stdout), done.stdout[-500:]

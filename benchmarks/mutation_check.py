@@ -51,7 +51,7 @@ class Mutation:
 MUTATIONS = [
     # ---------------------------------------------------------------- the list
     Mutation("is_embedding ignores border self-intersections", "decrun/methods/parametrization_metrics.py",
-             [("    if boundary_self_intersections(uv, loops):\n        return False\n", ""),
+             [("    if border_self_intersections(uv, loops):\n        return False\n", ""),
               ("flips == 0 and degenerate == 0 and intersections == 0 and winding_ok",
                "flips == 0 and degenerate == 0 and winding_ok")],
              [["tests/methods/test_parametrization_metrics.py"], ["tests/runner/test_cli_signs.py", "-k", "overlapping"],

@@ -66,9 +66,9 @@ GALLERY = {
                       "in the kernel and the minimum-norm solution is taken (README): without the stroke it "
                       "shows two saddles; with it a saddle next to the source (a cluster of index 0, left "
                       "unmarked).", [
-        (["boundary=none"], "field", ["boundary_normal_flux_mean", "adjointness_defect"]),
-        (["boundary=flux"], "field", ["boundary_normal_flux_mean", "adjointness_defect"]),
-        (["boundary=flux", "app.strokes=[]"], "field", ["singularity_cluster_indices", "boundary_normal_flux_mean"]),
+        (["boundary=none"], "field", ["border_normal_flux_mean", "adjointness_defect"]),
+        (["boundary=flux"], "field", ["border_normal_flux_mean", "adjointness_defect"]),
+        (["boundary=flux", "app.strokes=[]"], "field", ["singularity_cluster_indices", "border_normal_flux_mean"]),
     ]),
     "fig7_1_stirred_sphere": ("Fig. 7.1 / 7.18 — a viscous fluid on a clean icosphere (1280 triangles, none "
                               "obtuse), stirred by a stroke for half a second: vorticity over time.", [

@@ -90,7 +90,7 @@ class Fluid(App):
     def check(self, K, dec) -> None:
         if K.dim != 2:
             raise TopologyError(f"app=fluid needs a triangle mesh (dimension 2), got dimension {K.dim}")
-        closed = K.boundary_faces()[0].size == 0
+        closed = K.border_faces()[0].size == 0
         if self.inflow and closed:
             raise ConfigError("app.inflow: a closed surface has no border to flow in through; use app.inflow=[]")
         if self.inflow and len(self.inflow) != K.embedding_dim:
@@ -157,7 +157,7 @@ class Fluid(App):
             metrics["energy_ratio"] = float(last["kinetic_energy"] / first["kinetic_energy"])
         if first["enstrophy"] > 0:
             metrics["enstrophy_ratio"] = float(last["enstrophy"] / first["enstrophy"])
-        if K.boundary_faces()[0].size == 0:
+        if K.border_faces()[0].size == 0:
             metrics["circulation_drift"] = abs(float(last["total_circulation"]))
         fields = {"vorticity": fluid.vorticity, "psi": fluid.psi, "flux": FieldOnEdges(fluid.flux)}
         title = f"vorticity, dt={self.dt:g}, ν={self.viscosity:g}"

@@ -80,7 +80,7 @@ class Parametrization(App):
             reasons.append(f"app.weights={self.weights} is not symmetric")
         if self.border == "conformal":
             reasons.append("app.border=conformal adds the eq. 5.9 rows coupling x and y")
-        if dec is not None and self.border != "free" and len(dec.K.boundary_loops()) > 1:
+        if dec is not None and self.border != "free" and len(dec.K.border_loops()) > 1:
             reasons.append("the holes' border rows are eq. 5.9 (§5.2.3), coupling x and y")
         if reasons:
             raise ConfigError(f"solver={solver.name}: app=parametrization solves unsymmetric systems here "
@@ -90,7 +90,7 @@ class Parametrization(App):
     def check(self, K, dec) -> None:
         if K.dim != 2:
             raise TopologyError(f"app=parametrization needs a triangle mesh (dimension 2), got dimension {K.dim}")
-        if not K.boundary_vertices().any() and K.embedding_dim == 3:
+        if not K.border_vertices().any() and K.embedding_dim == 3:
             raise TopologyError(f"app=parametrization needs a disk-like surface with a border; this mesh is closed "
                                 f"(χ = {K.euler_characteristic}): cut a hole into it, e.g. "
                                 f"`{hole_override(K)}`")

@@ -71,7 +71,7 @@ class Smoothing(App):
     def check(self, K, dec) -> None:
         if K.dim != 2:
             raise TopologyError(f"app=smoothing needs a triangle mesh (dimension 2), got dimension {K.dim}")
-        closed = not bool(K.boundary_vertices().any())
+        closed = not bool(K.border_vertices().any())
         if self.rescale == "volume" and not (closed and K.embedding_dim == 3):
             raise ConfigError("app.rescale=volume needs a closed surface in 3-D; this mesh has a border "
                               "or is planar: use `app.rescale=auto` (area on open surfaces)")
@@ -97,7 +97,7 @@ class Smoothing(App):
         K, dec = ctx.complex, ctx.dec
         faces = K.oriented_simplices()
         vertices = np.array(K.vertices, dtype=np.float64)
-        has_volume = not bool(K.boundary_vertices().any()) and vertices.shape[1] == 3
+        has_volume = not bool(K.border_vertices().any()) and vertices.shape[1] == 3
         rescale = self.rescale if self.rescale != "auto" else ("volume" if has_volume else "area")
 
         t0 = time.perf_counter()

@@ -255,7 +255,7 @@ def _design(self, ctx: Context) -> Result:
     (closed meshes), ``singularities`` (count of singular vertices and faces) with
     ``singularities_positive`` / ``_negative``, ``singularity_clusters`` (sites within
     ``cluster_radius`` mean edge lengths merged, index-0 clusters left out) and
-    ``singularity_cluster_indices`` (their indices, e.g. ``"+1,+1"``), ``boundary_normal_flux_mean`` and ``boundary_normal_fraction``,
+    ``singularity_cluster_indices`` (their indices, e.g. ``"+1,+1"``), ``border_normal_flux_mean`` and ``border_normal_fraction``,
     ``adjointness_defect``, ``field_change_relative`` / ``field_change_region_relative``
     (strokes: change of the face vectors caused by the strokes, area-weighted L2, whole
     mesh / region), ``normal_equation_residual``, ``solve_seconds``.
@@ -292,7 +292,7 @@ def _design(self, ctx: Context) -> Result:
     singular = find_singularities(K, omega)
     clusters = cluster_singularities(K, singular, cfg.cluster_radius * K.mean_edge_length)
     chi = int(K.euler_characteristic)
-    closed = K.boundary_faces()[0].size == 0
+    closed = K.border_faces()[0].size == 0
     metrics = design_residuals(dec, delta, constraints, omega)
     metrics.update(
         smoothness_energy=smoothness_energy(dec, delta, omega),

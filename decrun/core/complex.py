@@ -3,7 +3,7 @@
 A :class:`SimplicialComplex` is built from vertex positions and a list of top simplices
 (triangles, tetrahedra, edges, ...). It stores every j-simplex list as **sorted** vertex
 tuples in lexicographic order (§2.3.3), the parity of each top simplex relative to its
-sorted tuple (the inversion count), and the border operators δ_j (Fig. 2.20) as sparse
+sorted tuple (the inversion count), and the boundary operators δ_j (Fig. 2.20) as sparse
 matrices. Everything is vectorized: there is no Python loop over simplices.
 
 Conventions (``shared/DESIGN.md``):
@@ -11,6 +11,9 @@ Conventions (``shared/DESIGN.md``):
 * ``simplices(j)`` for ``j < n`` are sorted tuples in lexicographic order; ``simplices(n)``
   are the top simplices in *input order*, each row sorted, with ``orientation`` (±1)
   the parity of the consistently oriented input tuple relative to the sorted one.
+* Words: *boundary* is the operator δ_j (§2.2.4); *border* is the mesh's ∂M — the
+  (n-1)-simplices in one top simplex only (``border_faces``, ``border_vertices``,
+  ``border_loops``, ``border_complex``; §2.3.4 calls it the border).
 * ``boundary(j)`` is δ_j with shape ``(#(j-1)-simplices, #j-simplices)``; the entry of
   face ``l`` (the face omitting local vertex ``l`` of the sorted tuple) is ``(-1)**l``,
   times ``orientation`` for top simplices (§2.2.4, §2.3.3).
@@ -544,7 +547,7 @@ class SimplicialComplex(Cached):
 
         return self.require("components", compute)
 
-    def boundary_faces(self) -> tuple[np.ndarray, np.ndarray]:
+    def border_faces(self) -> tuple[np.ndarray, np.ndarray]:
         """Border (n-1)-simplices: ``δ_n · 1`` (§2.3.4).
 
         Returns
@@ -556,19 +559,19 @@ class SimplicialComplex(Cached):
         index = np.flatnonzero(np.abs(chain) > 0.5)
         return index, np.sign(chain[index]).astype(np.int8)
 
-    def boundary_vertices(self) -> np.ndarray:
+    def border_vertices(self) -> np.ndarray:
         """(n0,) bool: vertices on the border."""
         mask = np.zeros(self.vertices.shape[0], dtype=bool)
-        index, _ = self.boundary_faces()
+        index, _ = self.border_faces()
         mask[self._lists[self.dim - 1][index].ravel()] = True
         return mask
 
-    def boundary_complex(self) -> "SimplicialComplex | None":
+    def border_complex(self) -> "SimplicialComplex | None":
         """The border as an oriented (n-1)-complex (vertices renumbered; see ``original_vertex_index``).
 
         Returns None for a closed complex.
         """
-        index, sign = self.boundary_faces()
+        index, sign = self.border_faces()
         if index.size == 0:
             return None
         faces = self._lists[self.dim - 1][index].copy()
@@ -580,7 +583,7 @@ class SimplicialComplex(Cached):
         border = SimplicialComplex(self.vertices, faces, unreferenced="drop", check_manifold=False, orient="check")
         return border
 
-    def boundary_loops(self) -> list[np.ndarray]:
+    def border_loops(self) -> list[np.ndarray]:
         """Border components of a 2-manifold as ordered vertex cycles.
 
         Each loop follows the orientation the complex induces on its border (§2.2.4): for a
@@ -592,8 +595,8 @@ class SimplicialComplex(Cached):
         list of (L,) int64 arrays; loop[i] -> loop[i+1] (cyclically) is a border edge.
         """
         if self.dim != 2:
-            raise ValueError("boundary_loops() is defined for 2-manifolds (triangle meshes)")
-        index, sign = self.boundary_faces()
+            raise ValueError("border_loops() is defined for 2-manifolds (triangle meshes)")
+        index, sign = self.border_faces()
         if index.size == 0:
             return []
         edges = self._lists[1][index]
@@ -632,7 +635,7 @@ class SimplicialComplex(Cached):
         """
         n = self.dim
         count, label = self.connected_components()
-        index, _ = self.boundary_faces()
+        index, _ = self.border_faces()
         chi = self.euler_characteristic
         if n == 1:
             # a 1-manifold component is a loop (b1 = 1) or a path (b1 = 0)
@@ -653,7 +656,7 @@ class SimplicialComplex(Cached):
             b2 = int((~has_border).sum())
             return [count, count + b2 - chi, b2]
         if n == 3 and self.embedding_dim == 3:
-            border = self.boundary_complex()
+            border = self.border_complex()
             if border is None:
                 return self._betti_by_rank()
             border_components = border.connected_components()[0]

@@ -73,8 +73,9 @@ class HodgeDecomposer:
                 raise MeshError(
                     f"Hodge decomposition of {k}-forms needs an invertible ⋆_{k}, but it is zero on "
                     f"{int(zero.sum())} simplices (e.g. {np.flatnonzero(zero)[:5].tolist()}): their circumcentric dual "
-                    "cells are degenerate, as on the diagonals of a split grid of cyclic quads: perturb "
-                    "the mesh, `mesh.noise=0.05`, or remesh it, `mesh.refine=isotropic`"
+                    "cells are degenerate, as on the diagonals of a split grid of cyclic quads: use the "
+                    "Galerkin stars, `operator=whitney` (SPD on every mesh), perturb the mesh, "
+                    "`mesh.noise=0.05`, or remesh it, `mesh.refine=isotropic`"
                 )
             d = dec.d(k)
             self._coexact = SingularSolve(d @ dec.star_inv(k) @ d.T, new_solver())

@@ -10,7 +10,7 @@ so the work splits into
   or a free border from the least-squares conformal energy written with DEC operators
   (:func:`least_squares_conformal_map`, beyond the thesis); several borders as in §5.2.3.
 
-Orientation convention: ``K.boundary_loops()`` runs every border with the surface on its
+Orientation convention: ``K.border_loops()`` runs every border with the surface on its
 left (the exterior counter-clockwise, holes clockwise for a counter-clockwise mesh), and
 every border construction here produces a uv map that keeps the complex's orientation
 (consistently oriented triangles come out counter-clockwise). Final uv are translated and
@@ -71,7 +71,7 @@ def check_disk_topology(K: SimplicialComplex) -> int:
             f"mesh: parametrization needs one connected surface, this mesh has {count} connected "
             "components (parametrize them separately or remove the small ones)"
         )
-    loops = K.boundary_loops()
+    loops = K.border_loops()
     if not loops:
         raise TopologyError(
             "mesh: parametrization needs a disk-like surface with a border, this mesh is closed "
@@ -90,10 +90,10 @@ def check_disk_topology(K: SimplicialComplex) -> int:
 def ordered_border_loops(K: SimplicialComplex, exterior: int | None = None) -> list[np.ndarray]:
     """Border loops with the exterior one first.
 
-    ``exterior``: index into ``K.boundary_loops()`` (sorted longest first, by length);
+    ``exterior``: index into ``K.border_loops()`` (sorted longest first, by length);
     ``None`` picks the longest. Each loop keeps the orientation induced by the complex.
     """
-    loops = K.boundary_loops()
+    loops = K.border_loops()
     if exterior is None:
         return loops
     if not -len(loops) <= exterior < len(loops):
@@ -313,7 +313,7 @@ def conformal_energy_matrix(dec) -> sp.csr_matrix:
 
     E_C = E_D − A with E_D = ½ xᵀ(d0ᵀ⋆1 d0)x + ½ yᵀ(d0ᵀ⋆1 d0)y (cot stiffness,
     ``dec.laplacian_symmetric(0)``) and the uv area A = ∫_M dx∧dy = ∮_∂M x dy (Stokes)
-    = xᵀ Pᵀ diag(c) d0 y, where c = δ2·1 is the border 1-chain (``K.boundary_faces``) and
+    = xᵀ Pᵀ diag(c) d0 y, where c = δ2·1 is the border 1-chain (``K.border_faces``) and
     P = |d0|/2 averages a 0-form onto edges. Symmetric PSD; its kernel holds the similarities.
 
     Row v of −H z at a border vertex v with border neighbours p → v → q is
@@ -323,7 +323,7 @@ def conformal_energy_matrix(dec) -> sp.csr_matrix:
     K = dec.K
     d0 = dec.d(0)
     stiffness = dec.laplacian_symmetric(0)
-    index, sign = K.boundary_faces()
+    index, sign = K.border_faces()
     chain = np.zeros(K.num_simplices(1))
     chain[index] = sign
     average = 0.5 * abs(d0)
@@ -345,7 +345,7 @@ def least_squares_conformal_map(dec, solver, pins: tuple[int, int] | None = None
     n0 = K.num_simplices(0)
     H = conformal_energy_matrix(dec)
     if pins is None:
-        border = np.flatnonzero(K.boundary_vertices())
+        border = np.flatnonzero(K.border_vertices())
         a, b = _far_apart(K.vertices[border])
         pins = (int(border[a]), int(border[b]))
     a, b = pins
@@ -436,10 +436,10 @@ def parametrize(
         lscm = least_squares_conformal_map(dec, new_solver())
         if weights == "dec":
             # the minimizer's border rows are the Cauchy–Riemann rows (two of them pins)
-            kind[K.boundary_vertices()] = CAUCHY_RIEMANN
+            kind[K.border_vertices()] = CAUCHY_RIEMANN
             return Parametrization(normalize_to_unit_square(lscm), loops, kind, 0, reflex_mask,
                                    time.perf_counter() - start)
-        kind[K.boundary_vertices()] = PINNED
+        kind[K.border_vertices()] = PINNED
         pinned_uv[:] = lscm
     else:
         exterior_loop = loops[0]

@@ -3,7 +3,7 @@
 Everything here is plain numpy on arrays — ``vertices (n, 3)`` (or ``(n, 2)``), consistently
 oriented ``faces (m, 3)``, per-vertex texture coordinates ``uv (n, 2)`` and border loops
 (vertex cycles traversed with the surface on their left, as
-:meth:`decrun.core.complex.SimplicialComplex.boundary_loops` returns them) — so the measures can be
+:meth:`decrun.core.complex.SimplicialComplex.border_loops` returns them) — so the measures can be
 checked on hand-made maps without any DEC machinery.
 
 The map of one triangle ``T`` onto its image is affine; its linear part ``J_T`` (2×2, from an
@@ -32,7 +32,7 @@ __all__ = [
     "area_distortion_std",
     "flipped_triangles",
     "degenerate_triangles",
-    "boundary_self_intersections",
+    "border_self_intersections",
     "border_turning_numbers",
     "border_vertex_uv_angles",
     "is_embedding",
@@ -157,7 +157,7 @@ def _segments_from_loops(uv: np.ndarray, loops: list[np.ndarray]) -> tuple[np.nd
     return np.stack([starts, ends], axis=1), np.asarray(uv, dtype=np.float64)
 
 
-def boundary_self_intersections(uv: np.ndarray, loops: list[np.ndarray], chunk: int = 2048) -> int:
+def border_self_intersections(uv: np.ndarray, loops: list[np.ndarray], chunk: int = 2048) -> int:
     """Number of pairs of border segments (over all loops) that intersect or touch in uv.
 
     Segments sharing a mesh vertex are skipped (they meet at that vertex by construction).
@@ -252,7 +252,7 @@ def is_embedding(uv: np.ndarray, faces: np.ndarray, loops: list[np.ndarray]) -> 
     """
     if flipped_triangles(uv, faces) or degenerate_triangles(uv, faces):
         return False
-    if boundary_self_intersections(uv, loops):
+    if border_self_intersections(uv, loops):
         return False
     turns = border_turning_numbers(uv, loops) * majority_orientation(uv, faces)
     expected = np.array([1.0] + [-1.0] * (len(loops) - 1))
@@ -281,7 +281,7 @@ def parametrization_metrics(
         uv_angle = border_vertex_uv_angles(uv, faces, len(uv))[border]
         reflex = int(np.sum(uv_angle > np.pi + 1e-9))
     flips, degenerate = flipped_triangles(uv, faces), degenerate_triangles(uv, faces)
-    intersections = boundary_self_intersections(uv, loops)
+    intersections = border_self_intersections(uv, loops)
     winding_ok = bool(len(turns) > 0 and abs(turns[0] - 1) < 1e-6 and np.all(np.abs(turns[1:] + 1) < 1e-6))
     return {
         "angle_distortion_mean_deg": float(np.sum(weight * angle_error.mean(axis=1))),
@@ -291,7 +291,7 @@ def parametrization_metrics(
         "area_distortion_std": area_distortion_std(vertices, uv, faces),
         "flipped_triangles": flips,
         "degenerate_triangles": degenerate,
-        "boundary_self_intersections": intersections,
+        "border_self_intersections": intersections,
         "border_winding_exterior_turns": float(turns[0]) if len(turns) else 0.0,
         "border_winding_inner_turns_min": float(turns[1:].min()) if len(turns) > 1 else 0.0,
         "border_winding_inner_turns_max": float(turns[1:].max()) if len(turns) > 1 else 0.0,

@@ -436,13 +436,13 @@ def border_normal_flux(K: SimplicialComplex, omega: np.ndarray) -> dict:
 
     Returns
     -------
-    dict with ``boundary_normal_flux_mean`` (mean |u·n| over border edges, field units),
-    ``boundary_normal_fraction`` (mean |u·n| / mean |u| there; 0 = tangential field,
-    ~0.64 = directions uniformly random), ``boundary_edges`` (count). Zeros for closed meshes.
+    dict with ``border_normal_flux_mean`` (mean |u·n| over border edges, field units),
+    ``border_normal_fraction`` (mean |u·n| / mean |u| there; 0 = tangential field,
+    ~0.64 = directions uniformly random), ``border_edges`` (count). Zeros for closed meshes.
     """
     edges_idx, face, i_v, j_v, k_v = border_edge_frames(K)
     if edges_idx.size == 0:
-        return {"boundary_normal_flux_mean": 0.0, "boundary_normal_fraction": 0.0, "boundary_edges": 0}
+        return {"border_normal_flux_mean": 0.0, "border_normal_fraction": 0.0, "border_edges": 0}
     top = K.simplices(2)
     lam = (top[face] == i_v[:, None]) * 0.5 + (top[face] == j_v[:, None]) * 0.5
     u = embed3(whitney_sharp(K, omega, barycentric=lam, faces=face))
@@ -454,7 +454,7 @@ def border_normal_flux(K: SimplicialComplex, omega: np.ndarray) -> dict:
     magnitude = np.linalg.norm(u, axis=1)
     mean_mag = float(magnitude.mean())
     return {
-        "boundary_normal_flux_mean": float(normal_part.mean()),
-        "boundary_normal_fraction": float(normal_part.mean() / mean_mag) if mean_mag > 0 else 0.0,
-        "boundary_edges": int(edges_idx.size),
+        "border_normal_flux_mean": float(normal_part.mean()),
+        "border_normal_fraction": float(normal_part.mean() / mean_mag) if mean_mag > 0 else 0.0,
+        "border_edges": int(edges_idx.size),
     }

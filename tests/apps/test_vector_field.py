@@ -113,8 +113,8 @@ def test_unadapted_field_is_tangential_flux_field_crosses_the_border(square):
     for mode in ("none", "flux"):
         dec, delta, constraints, solution = design(square, sources=[([0.5, 0.5], 1.0)], boundary=mode)
         results[mode] = vd.border_normal_flux(square, solution.omega)
-    assert results["flux"]["boundary_normal_flux_mean"] > 5 * results["none"]["boundary_normal_flux_mean"]
-    assert results["flux"]["boundary_normal_fraction"] > 1.5 * results["none"]["boundary_normal_fraction"]
+    assert results["flux"]["border_normal_flux_mean"] > 5 * results["none"]["border_normal_flux_mean"]
+    assert results["flux"]["border_normal_fraction"] > 1.5 * results["none"]["border_normal_fraction"]
 
 
 @pytest.mark.parametrize("boundary", ["none", "flux"])

@@ -30,7 +30,7 @@ def test_border_flux_matrix_is_exact_for_constant_fields(square):
     dec = DEC(square)
     u = np.array([0.7, 0.3])
     w = sample_vector_field(square, u)
-    edges, _ = square.boundary_faces()
+    edges, _ = square.border_faces()
     ends = square.vertices[square.simplices(1)[edges]]
     mid = ends.mean(axis=1)
     outward = np.zeros_like(mid)
@@ -45,7 +45,7 @@ def test_border_flux_matrix_is_exact_for_constant_fields(square):
     assert F[interior_rows].nnz == 0
     scale = np.abs(dec.codifferential(1) @ w).max()
     assert np.abs(DEC(square, boundary="flux").codifferential(1) @ w).max() < 1e-12 * scale
-    border = square.boundary_vertices()
+    border = square.border_vertices()
     assert np.abs((dec.codifferential(1) @ w)[border]).min() > 1e-3 * scale
     assert np.abs((dec.codifferential(1) @ w)[~border]).max() < 1e-10 * scale
 

@@ -37,8 +37,8 @@ def test_default_channel_has_no_obtuse_triangle_and_a_graded_valid_mesh():
     on_rectangle = np.isclose(x, 0) | np.isclose(x, 2) | np.isclose(y, 0) | np.isclose(y, 1)
     assert on_rectangle.all()
     np.testing.assert_allclose(np.linalg.norm(mesh.vertices[hole] - [0.5, 0.5], axis=1), 0.1, rtol=1e-12)
-    assert set(np.flatnonzero(K.boundary_vertices())) == set(outer) | set(hole)
-    loops = K.boundary_loops()
+    assert set(np.flatnonzero(K.border_vertices())) == set(outer) | set(hole)
+    loops = K.border_loops()
     assert {frozenset(loop.tolist()) for loop in loops} == {frozenset(outer.tolist()), frozenset(hole.tolist())}
     # graded: edges at the obstacle are markedly shorter than far away
     near = edge_lengths_near(mesh, np.array([0.5, 0.5]), 0.1, 0.13)

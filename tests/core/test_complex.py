@@ -98,7 +98,7 @@ def test_orientation_of_top_simplices_matches_input():
     oriented = K.oriented_simplices()
     np.testing.assert_array_equal(inversion_parity(oriented), inversion_parity(faces))
     # closed surface: δ2·1 = 0 (no border), outward normals preserved
-    assert K.boundary_faces()[0].size == 0
+    assert K.border_faces()[0].size == 0
 
 
 @pytest.mark.parametrize("mesh, betti", [
@@ -131,7 +131,7 @@ def test_boundary_loops_orientation_and_order():
     cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
     faces[cross < 0] = faces[cross < 0][:, ::-1]
     K = SimplicialComplex(vertices, faces)
-    loops = K.boundary_loops()
+    loops = K.border_loops()
     assert len(loops) == 4
 
     def signed_area(loop):
@@ -141,7 +141,7 @@ def test_boundary_loops_orientation_and_order():
     assert signed_area(loops[0]) > 3.0  # outer unit circle, counter-clockwise
     assert all(signed_area(loop) < 0 for loop in loops[1:])  # holes clockwise
     # every consecutive pair is a border edge
-    border = set(map(tuple, np.sort(K.simplices(1)[K.boundary_faces()[0]], axis=1).tolist()))
+    border = set(map(tuple, np.sort(K.simplices(1)[K.border_faces()[0]], axis=1).tolist()))
     for loop in loops:
         pairs = np.sort(np.stack([loop, np.roll(loop, -1)], 1), axis=1)
         assert set(map(tuple, pairs.tolist())) <= border
@@ -150,10 +150,10 @@ def test_boundary_loops_orientation_and_order():
 
 def test_boundary_complex_is_closed():
     K = SimplicialComplex(*kuhn_cube(3))
-    border = K.boundary_complex()
+    border = K.border_complex()
     assert border.dim == 2
     assert border.betti_numbers() == [1, 0, 1]
-    assert border.boundary_faces()[0].size == 0
+    assert border.border_faces()[0].size == 0
 
 
 def test_orientation_fix_keeps_majority_and_makes_consistent():

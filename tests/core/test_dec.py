@@ -136,7 +136,7 @@ def test_dual_derivatives_are_stokes_on_the_circumcentric_dual():
         segment = z - a
         normal = np.stack([segment[:, 1], -segment[:, 0]], 1)  # rotate by −90°: along +e for ⋆e = +90°·e
         flux[use] += np.einsum("md,md->m", (0.5 * (a + z)) @ A + c, normal)
-    inner_vertex = ~K.boundary_vertices()
+    inner_vertex = ~K.border_vertices()
     np.testing.assert_allclose((dec.d_dual(1) @ flux)[inner_vertex], (np.trace(A) * dec.star_diagonal(0))[inner_vertex],
                                rtol=1e-9, atol=1e-12)
 

@@ -310,7 +310,7 @@ def test_lumped_one_form_mass_is_five_sixths_of_star1_on_equilateral_lattice():
     a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
     K = SimplicialComplex(V, np.concatenate([np.stack([a, b, d], 1), np.stack([b, c, d], 1)]))
     interior = np.ones(K.num_simplices(1), dtype=bool)
-    interior[K.boundary_faces()[0]] = False
+    interior[K.border_faces()[0]] = False
     lumped = whitney_lumped_mass(K, 1)[interior]
     star1 = DEC(K).star_diagonal(1)[interior]
     np.testing.assert_allclose(star1, 1 / np.sqrt(3), rtol=1e-12)

@@ -110,7 +110,7 @@ def test_dual_cells_tile_the_plane_and_close_border_cells():
     area = 0.5 * np.einsum("nkd,nd->n", np.cross(p, np.roll(p, -1, axis=1)), cells.vertex_normal)
     np.testing.assert_allclose(area, dec.star_diagonal(0), rtol=1e-12)  # CCW polygons of area ⋆0
     border = cells.border_vertex
-    assert np.array_equal(border, dec.K.boundary_vertices())
+    assert np.array_equal(border, dec.K.border_vertices())
     valence = np.bincount(dec.K.simplices(2).ravel())
     np.testing.assert_array_equal(cells.count, np.where(border, valence + 3, valence))
 
@@ -316,7 +316,7 @@ def test_an_obstacle_in_the_channel_sheds_vorticity_of_both_signs():
         d = sim.step()
     assert d["stable"]
     x, y = dec.K.vertices.T
-    interior = ~dec.K.boundary_vertices()
+    interior = ~dec.K.border_vertices()
     wake = interior & (x > 0.65) & (x < 1.5)
     above, below = wake & (y > 0.52), wake & (y < 0.48)
     w = sim.vorticity * sim.star0

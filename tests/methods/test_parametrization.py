@@ -100,7 +100,7 @@ def test_mean_value_weights_reproduce_linear_functions_inside():
     # Floater's coordinates have linear precision at interior vertices
     K, dec = complex_and_dec(*planar_domain(holes=0, max_area=0.01))
     A = harmonic_matrix(dec, "mean_value")
-    interior = ~K.boundary_vertices()
+    interior = ~K.border_vertices()
     residual = A @ K.vertices[:, :2]
     assert np.abs(residual[interior]).max() < 1e-10 * abs(A).max()
 
@@ -108,7 +108,7 @@ def test_mean_value_weights_reproduce_linear_functions_inside():
 # ---------------------------------------------------------------------------- eq. 5.8–5.9
 def test_planar_border_satisfies_conformal_border_rows_and_angle_sums():
     K, _ = complex_and_dec(*wavy_disk())
-    loops = K.boundary_loops()
+    loops = K.border_loops()
     exterior, hole = loops
     alpha = target_border_angles(K, exterior, exterior=True)
     assert alpha.sum() == pytest.approx((len(exterior) - 2) * np.pi)
@@ -213,7 +213,7 @@ def test_t_hole_sphere_circle_embeds_conformal_does_not(new_solver):
     v, f = icosphere(4)
     vertices, faces, _ = cut_holes(v, f, boxes=T_HOLE)
     K, dec = complex_and_dec(vertices, faces)
-    assert len(K.boundary_loops()) == 1
+    assert len(K.border_loops()) == 1
     outcome = {}
     for border, weights in [("circle", "uniform"), ("circle", "mean_value"), ("conformal", "dec"), ("free", "dec")]:
         result = parametrize(dec, new_solver, border=border, weights=weights)
@@ -231,7 +231,7 @@ def test_cut_holes_keeps_a_manifold_and_removes_the_right_faces():
     centroid_z = vertices[faces].mean(axis=1)[:, 2]
     assert np.all(centroid_z > 0)
     K = SimplicialComplex(vertices, faces)  # manifold, oriented
-    assert len(K.boundary_loops()) == 1 and K.euler_characteristic == 1
+    assert len(K.border_loops()) == 1 and K.euler_characteristic == 1
     np.testing.assert_array_equal(v[kept], vertices)
 
 

@@ -9,7 +9,7 @@ from decrun.methods.parametrization_metrics import (
     border_turning_numbers,
     border_vertex_uv_angles,
     degenerate_triangles,
-    boundary_self_intersections,
+    border_self_intersections,
     flipped_triangles,
     is_embedding,
     map_singular_values,
@@ -96,24 +96,24 @@ def test_reflection_is_not_a_flip_and_a_folded_vertex_is():
 def _square_loops(vertices, faces):
     from decrun.core.complex import SimplicialComplex
 
-    return SimplicialComplex(vertices, faces).boundary_loops()
+    return SimplicialComplex(vertices, faces).border_loops()
 
 
 def test_border_self_intersections_and_turning_numbers():
     square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
     loop = np.arange(4)
-    assert boundary_self_intersections(square, [loop]) == 0
+    assert border_self_intersections(square, [loop]) == 0
     np.testing.assert_allclose(border_turning_numbers(square, [loop, loop[::-1]]), [1.0, -1.0])
     bowtie = np.array([[0, 0], [1, 1], [1, 0], [0, 1]], dtype=float)
-    assert boundary_self_intersections(bowtie, [loop]) == 1  # segments 0-1 and 2-3 cross
+    assert border_self_intersections(bowtie, [loop]) == 1  # segments 0-1 and 2-3 cross
     assert border_turning_numbers(bowtie, [loop])[0] == pytest.approx(0.0, abs=1e-12)
     # a hole that pokes out of the exterior square: two crossings
     hole = np.array([[0.5, 0.5], [0.5, 1.5], [0.6, 1.5], [0.6, 0.5]])
     points = np.concatenate([square, hole])
-    assert boundary_self_intersections(points, [loop, 4 + np.arange(4)]) == 2
+    assert border_self_intersections(points, [loop, 4 + np.arange(4)]) == 2
     # a vertex lying exactly on a non-adjacent segment counts (touching)
     touching = np.array([[0, 0], [2, 0], [1, 0], [1, 1]], dtype=float)
-    assert boundary_self_intersections(touching, [np.arange(4)]) >= 1
+    assert border_self_intersections(touching, [np.arange(4)]) >= 1
 
 
 def test_uv_vertex_angles_and_winding_of_a_flat_map():
@@ -141,7 +141,7 @@ def test_overlapping_map_without_flips_is_not_an_embedding():
     assert len(loops) == 1
     assert flipped_triangles(uv, faces) == 0 and degenerate_triangles(uv, faces) == 0
     assert border_turning_numbers(uv, loops)[0] == pytest.approx(1.0, abs=1e-12)
-    assert boundary_self_intersections(uv, loops) > 0
+    assert border_self_intersections(uv, loops) > 0
     assert not is_embedding(uv, faces, loops)
     metrics = parametrization_metrics(vertices, uv, faces, loops)
     assert metrics["border_winding_ok"] and metrics["flipped_triangles"] == 0

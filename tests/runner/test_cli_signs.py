@@ -38,7 +38,7 @@ def test_overlapping_parametrization_of_a_mesh_file_is_no_embedding(tmp_path, de
     assert metrics["flipped_triangles"] == 0 and metrics["degenerate_triangles"] == 0
     assert metrics["border_winding_ok"] is True
     assert metrics["angle_distortion_max_deg"] < 1e-6  # the layout is isometric
-    assert (metrics["boundary_self_intersections"] > 0) is overlapping
+    assert (metrics["border_self_intersections"] > 0) is overlapping
     assert metrics["is_embedding"] is (not overlapping)
 
 

@@ -101,7 +101,7 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     "fig5_6_open_patch": lambda m: m["is_embedding"] and m["angle_distortion_mean_deg"] < 3,
     "fig5_7_half_sphere_holes": lambda m: m["is_embedding"] and m["angle_distortion_mean_deg"] < 10,
     "fig5_8_t_hole": lambda m: (not m["is_embedding"] and m["flipped_triangles"] > 0
-                                and m["boundary_self_intersections"] > 0),
+                                and m["border_self_intersections"] > 0),
     # §6.4: a source and a sink (+ strokes) on the cube; the strokes change the field locally
     "fig6_7_cube": lambda m: (m["singularities"] == m["singularities_positive"] == 2
                               and m["field_change_region_relative"] < 0.1 * m["field_change_relative"]),
@@ -125,7 +125,7 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     "fig7_17_viscosity": lambda m: m["stable"] and m["max_abs_divergence"] <= 1e-10,
     # Fig. 6.9: one source in a square, unadapted border: one singularity, flow tangential to the border
     "fig6_9_square": lambda m: (m["singularities"] == m["index_sum"] == 1 and m["boundary"] == "none"
-                                and m["boundary_normal_fraction"] < 0.2),
+                                and m["border_normal_fraction"] < 0.2),
 }
 
 

@@ -61,7 +61,7 @@ def test_ball_cut_border_lies_on_the_ball_and_is_one_closed_loop():
     V, F = icosphere(4)
     v, f, info = cut_holes(V, F, balls=[BALL])
     K = SimplicialComplex(v, f, orient="check")  # valid, manifold, the input orientation kept
-    loops = K.boundary_loops()
+    loops = K.border_loops()
     assert len(loops) == 1
     border = info["on_border"]
     assert set(loops[0].tolist()) == set(np.flatnonzero(border).tolist())
@@ -119,7 +119,7 @@ def test_planar_circular_hole_border_length_and_area_converge():
         P, F = square_grid(nx)
         v, f, info = cut_holes(P, F, balls=[[*centre, r]])
         K = SimplicialComplex(v, f, orient="check")
-        loops = K.boundary_loops()
+        loops = K.border_loops()
         assert len(loops) == 2  # the square and the hole
         hole = min(loops, key=lambda loop: np.linalg.norm(v[loop] - centre, axis=1).max())
         assert np.abs(np.linalg.norm(v[hole] - centre, axis=1) - r).max() <= 1e-12
@@ -159,7 +159,7 @@ def test_two_holes_touching_at_a_vertex_split_the_pinch():
     origin = np.flatnonzero(np.all(v == 0.0, axis=1))
     assert origin.size == 2  # two copies of the origin, one per fan
     # the figure-8 hole's border is now one simple loop passing through both copies
-    loops = K.boundary_loops()
+    loops = K.border_loops()
     assert len(loops) == 2 and all(np.isin(origin, loops[0]) | np.isin(origin, loops[1]))
 
 
@@ -178,7 +178,7 @@ def reflex_counts(K):
     """Per loop (longest = exterior first): vertices reflex under the target angles of eq. 5.8."""
     alpha = _border_angles(K)
     counts = []
-    for i, loop in enumerate(K.boundary_loops()):
+    for i, loop in enumerate(K.border_loops()):
         total = (len(loop) - 2) * np.pi if i == 0 else (len(loop) + 2) * np.pi
         counts.append(int((alpha[loop] * total / alpha[loop].sum() > np.pi + 1e-9).sum()))
     return counts
@@ -191,7 +191,7 @@ def test_fig5_7_half_sphere_borders_are_smooth():
     v, f, info = cut_holes(V, F, mesh["hole_balls"], mesh["hole_boxes"])
     K_old, K = SimplicialComplex(old_v, old_f, orient="check"), SimplicialComplex(v, f, orient="check")
     assert reflex_counts(K_old) == [32, 24, 12, 12]  # 80: the sawtooth the old cut leaves
-    loops = K.boundary_loops()
+    loops = K.border_loops()
     assert len(loops) == 4  # the half-sphere rim with the ear notches, the smile, two eyes
     # the eyes are round holes: smooth borders turn one way only, so every vertex is reflex (the
     # surface wraps around the hole, Gortler's condition 5); the old sawtooth left ~half convex
@@ -200,12 +200,12 @@ def test_fig5_7_half_sphere_borders_are_smooth():
     assert len(eyes) == 2
     counts = reflex_counts(K)
     assert all(counts[i] == len(loops[i]) for i in eyes)
-    assert reflex_counts(K_old)[2:] == [12, 12] and [len(x) for x in K_old.boundary_loops()][2:] == [22, 22]
+    assert reflex_counts(K_old)[2:] == [12, 12] and [len(x) for x in K_old.border_loops()][2:] == [22, 22]
     # the rim away from the ears follows the equator: α ≈ π (it is a geodesic) instead of the
     # ±72° zig-zag of whole triangles
     ears = np.array([b[:3] for b in mesh["hole_balls"][-2:]])
     for K_, max_mean_deviation_deg in ((K, 1.0), (K_old, None)):
-        rim = K_.boundary_loops()[0]
+        rim = K_.border_loops()[0]
         far = np.linalg.norm(K_.vertices[rim][:, None] - ears[None], axis=2).min(axis=1) > 0.35
         deviation = np.degrees(np.abs(np.pi - _border_angles(K_)[rim[far]])).mean()
         if max_mean_deviation_deg is None:

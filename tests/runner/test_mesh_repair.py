@@ -86,7 +86,7 @@ def test_hand_made_mesh_counts_duplicate_face_unreferenced_vertex_and_bowtie():
     assert sorted(int(np.isin(face, at_origin).sum()) for face in f) == [1, 1]
     assert not np.intersect1d(f[0], f[1]).size  # the triangles no longer share a vertex
     K = SimplicialComplex(v, f)
-    assert K.num_simplices(0) == 6 and len(K.boundary_loops()) == 2
+    assert K.num_simplices(0) == 6 and len(K.border_loops()) == 2
 
 
 def test_non_manifold_edge_zero_area_face_and_flip_are_counted():

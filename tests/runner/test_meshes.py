@@ -216,13 +216,13 @@ def test_holes_are_split_along_the_ball_by_default_and_whole_triangles_on_reques
     split = mesh(source="icosphere", subdiv=3, hole_balls=[ball], noise=0.1)
     whole = mesh(source="icosphere", subdiv=3, hole_balls=[ball], noise=0.1, hole_cut="whole_triangles")
     K = SimplicialComplex(split.vertices, split.faces)
-    border = np.unique(np.concatenate(K.boundary_loops()))
+    border = np.unique(np.concatenate(K.border_loops()))
     # the smooth border lies on the ball's sphere (before noise, which moves the vertices after)
     clean = split.meta["clean_vertices"]
     np.testing.assert_allclose(np.linalg.norm(clean[border] - ball[:3], axis=1), ball[3], rtol=1e-9)
     assert clean.shape == split.vertices.shape  # carried through the cut
     Kw = SimplicialComplex(whole.vertices, whole.faces)
-    border_w = np.unique(np.concatenate(Kw.boundary_loops()))
+    border_w = np.unique(np.concatenate(Kw.border_loops()))
     off = np.abs(np.linalg.norm(whole.meta["clean_vertices"][border_w] - ball[:3], axis=1) - ball[3])
     assert off.max() > 0.05  # the sawtooth border of whole triangles is off the sphere
     assert split.meta["holes"]["split_faces"] > 0 and "removed_faces" in whole.meta["holes"]

@@ -54,7 +54,7 @@ def border_edge_frames(K):
     each lies in, and the face's vertices with i → j the border edge in the face's
     orientation (the outside is to the right of i → j) and k the opposite vertex.
     """
-    edges_idx, _ = K.boundary_faces()
+    edges_idx, _ = K.border_faces()
     top_sorted = K.simplices(2)
     oriented = K.oriented_simplices()
     opposite_edge = K.facet_indices(2)  # (m, 3): edge opposite sorted local vertex l

@@ -70,7 +70,7 @@ def border_vertex_matrix(K) -> sp.csr_matrix:
     end vertices (the first matrix after eq. 6.10; the signs of the thesis' version are
     absorbed into :func:`border_flux_matrix`, which already returns *outward* flux)."""
     _require_triangles(K, "the border vertex matrix")
-    edges_idx, _ = K.boundary_faces()
+    edges_idx, _ = K.border_faces()
     ends = K.simplices(1)[edges_idx]
     rows = ends.ravel()
     cols = np.repeat(edges_idx, 2)
@@ -88,7 +88,7 @@ class Flux(BoundaryAdaptation):
 
     def codifferential(self, dec, k: int):
         """δ_flux = ⋆0⁻¹ (d0ᵀ ⋆1 − M_border F) for k = 1 on meshes with a border."""
-        if k != 1 or dec.K.boundary_faces()[0].size == 0:
+        if k != 1 or dec.K.border_faces()[0].size == 0:
             return None
         adapted = dec.d(0).T @ dec.star(1) - border_vertex_matrix(dec.K) @ border_flux_matrix(dec)
         return (dec.star_inv(0) @ adapted).tocsr()

@@ -105,7 +105,7 @@ class TriangleWalker:
         below a lower bound of the point's distance to the border) jumps to its end point,
         located in a uniform grid of triangle buckets, instead of walking (same result)."""
         x2 = self.x[:, :2]
-        border, _ = K.boundary_faces()
+        border, _ = K.border_faces()
         edge_length = np.linalg.norm(self.corner_x - np.roll(self.corner_x, 1, axis=1), axis=2).max(axis=1)
         if border.size:
             ends = K.simplices(1)[border]

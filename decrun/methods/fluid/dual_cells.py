@@ -64,7 +64,7 @@ def vertex_normals(dec: DEC, relative_tol: float = 1e-8) -> np.ndarray:
     curvature_unit = _normalize(curvature)
     cosine = np.einsum("nd,nd->n", curvature_unit, face_average)
     use = (size * np.sqrt(np.abs(dec.star_diagonal(0))) > relative_tol) & (np.abs(cosine) > 0.5)
-    use &= ~K.boundary_vertices()
+    use &= ~K.border_vertices()
     return np.where(use[:, None], np.sign(cosine)[:, None] * curvature_unit, face_average)
 
 
@@ -183,7 +183,7 @@ def build_dual_cells(dec: DEC, duplicate_tol: float = 1e-9) -> DualCells:
     def edge_id(a, b):
         return np.searchsorted(edge_key, np.minimum(a, b) * n0 + np.maximum(a, b))
 
-    border_edges, _ = K.boundary_faces()
+    border_edges, _ = K.border_faces()
     border_edges = np.asarray(border_edges, dtype=np.int64)
     midpoint_of_edge = np.full(edges.shape[0], -1, dtype=np.int64)
     midpoint_of_edge[border_edges] = m + np.arange(border_edges.size)

@@ -40,13 +40,13 @@ def border_layout(dec: DEC, obstacle_loops=None) -> tuple[list[np.ndarray], np.n
     label : (n0,) int64: -1 interior, 0 outer border, i+1 on obstacle i
     """
     K = dec.K
-    loops = K.boundary_loops()
+    loops = K.border_loops()
     if obstacle_loops is None:
         obstacles = [np.asarray(loop, dtype=np.int64) for loop in loops[1:]]
     else:
         obstacles = [np.asarray(loop, dtype=np.int64) for loop in obstacle_loops]
     label = np.full(K.num_simplices(0), -1, dtype=np.int64)
-    label[K.boundary_vertices()] = 0
+    label[K.border_vertices()] = 0
     for i, loop in enumerate(obstacles):
         if not np.all(label[loop] >= 0):
             raise ValueError(f"obstacle loop {i} contains vertices that are not on the border")
@@ -146,7 +146,7 @@ def harmonic_flux_least_squares(dec: DEC, label: np.ndarray, border_flux: np.nda
     d_tilde = (R.T @ d0T).tocsr()
     star0_tilde = R.T @ dec.star_diagonal(0)
     border = np.zeros(n1)
-    border[K.boundary_faces()[0]] = 1.0
+    border[K.border_faces()[0]] = 1.0
     star1 = dec.star(1)
     d1 = dec.d(1)
     A_core = d1.T @ dec.star(2) @ d1 + star1 @ d_tilde.T @ sp.diags(1.0 / star0_tilde) @ d_tilde @ star1

@@ -65,7 +65,7 @@ MUTATIONS = [
              [["tests/apps/test_smoothing.py"], REG_SMOOTHING]),
     Mutation("sign of the dual derivative d_dual", "decrun/core/dec.py",
              [("((-1) ** k * self.K.boundary(k))", "((-1) ** (k + 1) * self.K.boundary(k))")],
-             [CORE]),
+             [CORE, ["tests/runner/test_cli_signs.py", "-k", "reversed"], REG_VECTOR]),
     Mutation("source/sink sign in vector design", "decrun/methods/vector_design.py",
              [("np.add.at(s, np.asarray(vertices, dtype=np.int64), -np.asarray(outflow",
                "np.add.at(s, np.asarray(vertices, dtype=np.int64), np.asarray(outflow")],

@@ -177,7 +177,8 @@ class DEC(Cached):
 
     # ---------------------------------------------------------------- codifferential, Laplacians
     def codifferential(self, k: int):
-        """δ_k = ⋆_{k-1}⁻¹ d_{k-1}ᵀ ⋆_k (eq. 4.14): maps k-forms to (k-1)-forms, (n_{k-1}, n_k).
+        """δ_k = (−1)^k ⋆_{k-1}⁻¹ d^dual_{n-k} ⋆_k = ⋆_{k-1}⁻¹ d_{k-1}ᵀ ⋆_k (§4.5.6, eq. 4.13,
+        4.14): maps k-forms to (k-1)-forms, (n_{k-1}, n_k).
 
         Adjoint of d under the ⋆ inner product: ⟨d a, b⟩ = ⟨a, δ b⟩ (§4.5.6) — unless the
         boundary adaptation replaces it (``boundary=flux`` for k = 1, §6.4.4). A sparse
@@ -189,7 +190,9 @@ class DEC(Cached):
             adapted = self.boundary.codifferential(self, k)
             if adapted is not None:
                 return adapted
-            weak = (self.d(k - 1).T @ self.star(k)).tocsr()
+            # the thesis' form ∂_k = (−1)^k ⋆⁻¹ d^dual_{n−k} ⋆ (§4.5.6); by eq. 4.13
+            # (−1)^k d^dual_{n−k} = d_{k−1}ᵀ exactly, so this is eq. 4.14
+            weak = ((-1) ** k * self.d_dual(self.n - k) @ self.star(k)).tocsr()
             if self.star_is_diagonal(k - 1):
                 return (self.star_inv(k - 1) @ weak).tocsr()
             return spla.LinearOperator(weak.shape, matvec=lambda x: self.star_solve(k - 1, weak @ x), dtype=np.float64)

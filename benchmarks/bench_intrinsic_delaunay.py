@@ -27,30 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
+from harness import have_libigl, icosphere_or_kuhn_cube, peak_rss_bytes, reset_peak_rss, spawn, status_bytes  # noqa: E402,F401
+
 CASES = {
     "quick": [("bunny10k", 0), ("icosphere", 5), ("stretched icosphere", 5)],
     "full": [("bunny10k", 0), ("icosphere", 8), ("stretched icosphere", 8)],
 }
 MOLLIFY = 1e-5
-
-
-def _status_bytes(field: str) -> int:
-    """A memory line of /proc/self/status (VmRSS, VmHWM) in bytes."""
-    with open("/proc/self/status") as handle:
-        for line in handle:
-            if line.startswith(field + ":"):
-                return int(line.split()[1]) * 1024
-    raise RuntimeError(f"/proc/self/status has no {field}")
-
-
-def _reset_peak_rss() -> bool:
-    """Reset VmHWM (write 5 to /proc/self/clear_refs) so the peak covers only what follows."""
-    try:
-        with open("/proc/self/clear_refs", "w") as handle:
-            handle.write("5")
-        return True
-    except OSError:
-        return False
 
 
 def load_mesh(kind: str, size: int):
@@ -83,15 +66,15 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
             return robust_laplacian.mesh_laplacian(vertices, faces, mollify_factor=MOLLIFY)
 
     gc.collect()
-    baseline = _status_bytes("VmRSS")
-    if not _reset_peak_rss():
+    baseline = status_bytes("VmRSS")
+    if not reset_peak_rss():
         print("warning: cannot reset the peak RSS; peaks include loading the mesh", file=sys.stderr)
     times = []
     for _ in range(repeat):
         start = time.perf_counter()
         result = work()
         times.append(time.perf_counter() - start)
-    report = {"seconds": min(times), "peak_mb": (_status_bytes("VmHWM") - baseline) / 2**20, "faces": len(faces)}
+    report = {"seconds": min(times), "peak_mb": (status_bytes("VmHWM") - baseline) / 2**20, "faces": len(faces)}
     if library == "decrun":
         report.update(flips=result.flips, rounds=result.rounds)
         stiffness = result.stiffness
@@ -122,14 +105,6 @@ def _difference(kind: str, size: int) -> float:
     return float(abs(mats[0] - mats[1]).max() / abs(mats[1]).max())
 
 
-def spawn(library: str, kind: str, size: int, repeat: int) -> dict:
-    out = subprocess.run(
-        [sys.executable, __file__, "--case", library, kind, str(size), "--repeat", str(repeat)],
-        capture_output=True, text=True, check=True,
-    )
-    return json.loads(out.stdout.strip().splitlines()[-1])
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="small meshes only")
@@ -152,8 +127,8 @@ def main(argv=None) -> int:
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for kind, size in CASES[level]:
         repeat = 1 if size >= 8 else args.repeat
-        ours = spawn("decrun", kind, size, repeat)
-        ref = spawn("robust", kind, size, repeat)
+        ours = spawn(__file__, "decrun", kind, size, repeat)
+        ref = spawn(__file__, "robust", kind, size, repeat)
         name = kind if kind == "bunny10k" else f"{kind} subdiv {size}"
         print(f"| {name} | {ours['faces']:,} | {ours['flips']:,} | {ours['rounds']} | {ours['seconds']:.3f} |"
               f" {ours['peak_mb']:.0f} | {ref['seconds']:.3f} | {ref['peak_mb']:.0f} |"

@@ -28,45 +28,15 @@ import time
 
 import numpy as np
 
+from harness import have_libigl, icosphere_or_kuhn_cube, peak_rss_bytes, reset_peak_rss, spawn, status_bytes  # noqa: E402,F401
+
 TRIANGLE_CASES = {"quick": [4, 5], "full": [6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
 TET_CASES = {"quick": [8, 12], "full": [25, 40, 55]}  # Kuhn cubes: 6·n³ tetrahedra
 
 
-def _status_bytes(field: str) -> int:
-    """A memory line of /proc/self/status (VmRSS, VmHWM) in bytes."""
-    with open("/proc/self/status") as handle:
-        for line in handle:
-            if line.startswith(field + ":"):
-                return int(line.split()[1]) * 1024
-    raise RuntimeError(f"/proc/self/status has no {field}")
-
-
-def _reset_peak_rss() -> bool:
-    """Reset VmHWM (write 5 to /proc/self/clear_refs) so the peak covers only what follows."""
-    try:
-        with open("/proc/self/clear_refs", "w") as handle:
-            handle.write("5")
-        return True
-    except OSError:
-        return False
-
-
-def load_mesh(kind: str, size: int):
-    if kind == "icosphere":
-        import pymeshlab
-
-        ms = pymeshlab.MeshSet()
-        ms.create_sphere(radius=1.0, subdiv=size)
-        mesh = ms.current_mesh()
-        return mesh.vertex_matrix().astype(np.float64), mesh.face_matrix().astype(np.int64)
-    from decrun.core.primitives import kuhn_cube
-
-    return kuhn_cube(size)
-
-
 def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     """Runs inside the subprocess: one library on one mesh."""
-    vertices, simplices = load_mesh(kind, size)
+    vertices, simplices = icosphere_or_kuhn_cube(kind, size)
     build_seconds = None
     if library == "decrun":
         from decrun.core.complex import SimplicialComplex
@@ -85,8 +55,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
             return igl.cotmatrix(vertices, simplices), igl.massmatrix(vertices, simplices, igl.MASSMATRIX_TYPE_FULL)
 
     gc.collect()
-    baseline = _status_bytes("VmRSS")
-    if not _reset_peak_rss():
+    baseline = status_bytes("VmRSS")
+    if not reset_peak_rss():
         print("warning: cannot reset the peak RSS; peaks include loading the mesh", file=sys.stderr)
     times = []
     for _ in range(repeat):
@@ -95,16 +65,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
         times.append(time.perf_counter() - start)
         del result
         gc.collect()
-    return {"seconds": min(times), "peak_mb": (_status_bytes("VmHWM") - baseline) / 2**20,
+    return {"seconds": min(times), "peak_mb": (status_bytes("VmHWM") - baseline) / 2**20,
             "simplices": len(simplices), "complex_seconds": build_seconds}
-
-
-def spawn(library: str, kind: str, size: int, repeat: int) -> dict:
-    out = subprocess.run(
-        [sys.executable, __file__, "--case", library, kind, str(size), "--repeat", str(repeat)],
-        capture_output=True, text=True, check=True,
-    )
-    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def main(argv=None) -> int:
@@ -117,31 +79,25 @@ def main(argv=None) -> int:
         library, kind, size = args.case
         print(json.dumps(run_case(library, kind, int(size), args.repeat)))
         return 0
-    try:
-        import igl  # noqa: F401
-
-        have_igl = True
-    except ImportError:
-        have_igl = False
-        print("libigl is not installed (pip install -e .[bench]): reference columns skipped", file=sys.stderr)
+    have_igl = have_libigl()
 
     level = "quick" if args.quick else "full"
     print("| mesh | simplices | complex s | Whitney M_0..M_n s | peak MB | libigl cot+mass s | libigl peak MB "
           "| time ratio | memory ratio |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for size in TRIANGLE_CASES[level]:
-        ours = spawn("decrun", "icosphere", size, args.repeat)
+        ours = spawn(__file__, "decrun", "icosphere", size, args.repeat)
         row = (f"| icosphere subdiv {size} | {ours['simplices']:,} | {ours['complex_seconds']:.2f} |"
                f" {ours['seconds']:.3f} | {ours['peak_mb']:.0f} |")
         if have_igl:
-            ref = spawn("igl", "icosphere", size, args.repeat)
+            ref = spawn(__file__, "igl", "icosphere", size, args.repeat)
             row += (f" {ref['seconds']:.3f} | {ref['peak_mb']:.0f} | {ours['seconds'] / ref['seconds']:.2f} |"
                     f" {ours['peak_mb'] / max(ref['peak_mb'], 1e-9):.2f} |")
         else:
             row += " – | – | – | – |"
         print(row, flush=True)
     for size in TET_CASES[level]:
-        ours = spawn("decrun", "kuhn", size, 1 if size > 30 else args.repeat)
+        ours = spawn(__file__, "decrun", "kuhn", size, 1 if size > 30 else args.repeat)
         print(f"| Kuhn cube n={size} (tets, M_0..M_3) | {ours['simplices']:,} | {ours['complex_seconds']:.2f} |"
               f" {ours['seconds']:.3f} | {ours['peak_mb']:.0f} | – | – | – | – |", flush=True)
     return 0

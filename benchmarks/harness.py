@@ -1,0 +1,76 @@
+"""What every operator benchmark shares: peak-memory accounting, the test meshes, and running
+each case in its own process (so one case's memory and caches do not leak into the next).
+
+Imported by the ``bench_*.py`` scripts of this folder (run as scripts, the folder is on
+``sys.path``).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+__all__ = ["status_bytes", "reset_peak_rss", "peak_rss_bytes", "icosphere_or_kuhn_cube", "spawn", "have_libigl"]
+
+
+def status_bytes(field: str) -> int:
+    """A memory line of /proc/self/status (VmRSS, VmHWM) in bytes."""
+    with open("/proc/self/status") as handle:
+        for line in handle:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError(f"/proc/self/status has no {field}")
+
+
+def reset_peak_rss() -> bool:
+    """Reset the resident high-water mark (VmHWM: write 5 to /proc/self/clear_refs) so the
+    peak measures only what follows — not, e.g., the mesh generator's transient memory."""
+    try:
+        with open("/proc/self/clear_refs", "w") as handle:
+            handle.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def peak_rss_bytes() -> int:
+    """The resident high-water mark since the last :func:`reset_peak_rss`, in bytes."""
+    return status_bytes("VmHWM")
+
+
+def icosphere_or_kuhn_cube(kind: str, size: int):
+    """(vertices, simplices): pymeshlab's icosphere subdivided ``size`` times (20·4^size
+    triangles) or the Kuhn cube of ``size``³ cells (6·size³ tetrahedra)."""
+    if kind == "icosphere":
+        import pymeshlab
+
+        ms = pymeshlab.MeshSet()
+        ms.create_sphere(radius=1.0, subdiv=size)
+        mesh = ms.current_mesh()
+        return mesh.vertex_matrix().astype(np.float64), mesh.face_matrix().astype(np.int64)
+    from decrun.core.primitives import kuhn_cube
+
+    return kuhn_cube(size)
+
+
+def spawn(script: str, library: str, kind: str, size: int, repeat: int) -> dict:
+    """Run ``script --case library kind size --repeat repeat`` in a fresh process and return
+    the JSON dict it prints last."""
+    out = subprocess.run(
+        [sys.executable, script, "--case", library, kind, str(size), "--repeat", str(repeat)],
+        capture_output=True, text=True, check=True,
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def have_libigl() -> bool:
+    """Whether the libigl reference is installed (``pip install -e .[bench]``); says so if not."""
+    try:
+        import igl  # noqa: F401
+    except ImportError:
+        print("libigl is not installed (pip install -e .[bench]): reference columns skipped", file=sys.stderr)
+        return False
+    return True

@@ -12,17 +12,10 @@ from decrun.complex import SimplicialComplex
 from decrun.errors import NonOrientableError
 from decrun.runner.mesh_repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
 
-SAMPLE_DIR = Path(pymeshlab.__file__).resolve().parent / "tests" / "sample_meshes"
-SAMPLES = {
-    "bunny": "bunny.obj",
-    "bunny10k_textured": "bunny10k_textured.obj",
-    "cow": "cow.obj",
-    "airplane": "airplane.obj",
-    "colored_airplane": "colored_airplane.ply",
-    "bone": "bone.ply",
-    "face": "rangemaps/face000.ply",
-    "cube": "cube.obj",
-}
+from decrun.runner.sources.files import SAMPLE_MESHES as SAMPLES  # noqa: E402
+from decrun.runner.sources.files import sample_mesh_dir  # noqa: E402
+
+SAMPLE_DIR = sample_mesh_dir()
 
 
 def load(name: str):

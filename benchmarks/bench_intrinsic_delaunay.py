@@ -17,16 +17,13 @@ of the two stiffness matrices relative to the largest entry.
 
 from __future__ import annotations
 
-import argparse
-import gc
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from harness import have_libigl, icosphere_or_kuhn_cube, peak_rss_bytes, reset_peak_rss, spawn, status_bytes  # noqa: E402,F401
+from harness import best_of, parse_or_run_case, spawn  # noqa: E402
 
 CASES = {
     "quick": [("bunny10k", 0), ("icosphere", 5), ("stretched icosphere", 5)],
@@ -64,16 +61,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
         def work():
             return robust_laplacian.mesh_laplacian(vertices, faces, mollify_factor=MOLLIFY)
 
-    gc.collect()
-    baseline = status_bytes("VmRSS")
-    if not reset_peak_rss():
-        print("warning: cannot reset the peak RSS; peaks include loading the mesh", file=sys.stderr)
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = work()
-        times.append(time.perf_counter() - start)
-    report = {"seconds": min(times), "peak_mb": (status_bytes("VmHWM") - baseline) / 2**20, "faces": len(faces)}
+    seconds, peak_mb, result = best_of(work, repeat)
+    report = {"seconds": seconds, "peak_mb": peak_mb, "faces": len(faces)}
     if library == "decrun":
         report.update(flips=result.flips, rounds=result.rounds)
         stiffness = result.stiffness
@@ -105,14 +94,8 @@ def _difference(kind: str, size: int) -> float:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="small meshes only")
-    parser.add_argument("--repeat", type=int, default=3, help="timed repetitions per case (best is reported)")
-    parser.add_argument("--case", nargs=3, metavar=("LIBRARY", "KIND", "SIZE"), help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
-    if args.case:
-        library, kind, size = args.case
-        print(json.dumps(run_case(library, kind, int(size), args.repeat)))
+    args = parse_or_run_case(__doc__, run_case, argv)
+    if args is None:
         return 0
     try:
         import robust_laplacian  # noqa: F401

@@ -19,15 +19,11 @@ high-water mark reset first; and the ratios decrun / libigl. Requires libigl
 
 from __future__ import annotations
 
-import argparse
-import gc
-import json
-import sys
 import time
 
 import numpy as np
 
-from harness import have_libigl, icosphere_or_kuhn_cube, peak_rss_bytes, reset_peak_rss, spawn, status_bytes  # noqa: E402,F401
+from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E402
 
 TRIANGLE_CASES = {"quick": [4, 5], "full": [6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
 TET_CASES = {"quick": [8, 12], "full": [25, 40, 55]}  # Kuhn cubes: 6·n³ tetrahedra
@@ -53,30 +49,13 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
         def work():
             return igl.cotmatrix(vertices, simplices), igl.massmatrix(vertices, simplices, igl.MASSMATRIX_TYPE_FULL)
 
-    gc.collect()
-    baseline = status_bytes("VmRSS")
-    if not reset_peak_rss():
-        print("warning: cannot reset the peak RSS; peaks include loading the mesh", file=sys.stderr)
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = work()
-        times.append(time.perf_counter() - start)
-        del result
-        gc.collect()
-    return {"seconds": min(times), "peak_mb": (status_bytes("VmHWM") - baseline) / 2**20,
-            "simplices": len(simplices), "complex_seconds": build_seconds}
+    seconds, peak_mb, _ = best_of(work, repeat)
+    return {"seconds": seconds, "peak_mb": peak_mb, "simplices": len(simplices), "complex_seconds": build_seconds}
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="small meshes only")
-    parser.add_argument("--repeat", type=int, default=3, help="timed repetitions per case (best is reported)")
-    parser.add_argument("--case", nargs=3, metavar=("LIBRARY", "KIND", "SIZE"), help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
-    if args.case:
-        library, kind, size = args.case
-        print(json.dumps(run_case(library, kind, int(size), args.repeat)))
+    args = parse_or_run_case(__doc__, run_case, argv)
+    if args is None:
         return 0
     have_igl = have_libigl()
 

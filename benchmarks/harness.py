@@ -13,7 +13,8 @@ import sys
 
 import numpy as np
 
-__all__ = ["status_bytes", "reset_peak_rss", "peak_rss_bytes", "icosphere_or_kuhn_cube", "spawn", "have_libigl"]
+__all__ = ["status_bytes", "reset_peak_rss", "peak_rss_bytes", "icosphere_or_kuhn_cube", "spawn", "have_libigl",
+           "best_of", "parse_or_run_case"]
 
 
 def status_bytes(field: str) -> int:
@@ -74,3 +75,43 @@ def have_libigl() -> bool:
         print("libigl is not installed (pip install -e .[bench]): reference columns skipped", file=sys.stderr)
         return False
     return True
+
+
+def best_of(work, repeat: int) -> tuple[float, float, object]:
+    """Call ``work()`` ``repeat`` times; returns (best seconds, peak MB above the resident
+    memory before the first call, the last result). The peak counts only the work measured
+    (the high-water mark is reset first; a warning when the kernel does not allow it)."""
+    import gc
+    import time
+
+    gc.collect()
+    baseline = status_bytes("VmRSS")
+    if not reset_peak_rss():
+        print("warning: cannot reset the peak RSS; peaks include loading the mesh", file=sys.stderr)
+    times, result = [], None
+    for _ in range(repeat):
+        del result
+        gc.collect()
+        start = time.perf_counter()
+        result = work()
+        times.append(time.perf_counter() - start)
+    return min(times), (peak_rss_bytes() - baseline) / 2**20, result
+
+
+def parse_or_run_case(description: str, run_case, argv=None):
+    """The command line every benchmark shares: ``--quick``, ``--repeat`` and the hidden
+    ``--case LIBRARY KIND SIZE`` its own subprocesses use (:func:`spawn`). With ``--case``
+    runs ``run_case(library, kind, size, repeat)``, prints its JSON and returns None;
+    otherwise returns the parsed arguments."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="small meshes only")
+    parser.add_argument("--repeat", type=int, default=3, help="timed repetitions per case (best is reported)")
+    parser.add_argument("--case", nargs=3, metavar=("LIBRARY", "KIND", "SIZE"), help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.case:
+        library, kind, size = args.case
+        print(json.dumps(run_case(library, kind, int(size), args.repeat)))
+        return None
+    return args

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import triangle as triangle_library
 
-from decrun.core.geometry import obtuse_triangle_count
+from decrun.core.geometry import corner_angles, obtuse_triangle_count
 
 __all__ = ["ChannelMesh", "circle", "channel_mesh", "obtuse_count"]
 
@@ -178,16 +178,28 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
         result = triangle_library.triangulate(data, f"rpq{min_angle}Ya")
     vertices, faces = result["vertices"].copy(), result["triangles"].astype(np.int64)
     n_fixed = sum(loop.shape[0] for loop in loops)  # ring points may move
-    for _ in range(rounds):  # ODT smoothing of interior vertices + constrained Delaunay
-        if obtuse_triangle_count(vertices, faces) == 0:
-            break
-        # a vertex of valence ≤ 4 has a mean angle ≥ 90°: remove such interior vertices
+
+    def without_low_valence(vertices, faces):
+        """Interior vertices of valence ≤ 4 (their mean angle is ≥ 90°) removed, re-triangulated."""
         valence = np.bincount(faces.ravel(), minlength=vertices.shape[0])
         low = valence <= 4
         low[:n_fixed] = False
-        if low.any():
-            vertices = vertices[~low]
-            faces = cdt(vertices, "pY")["triangles"].astype(np.int64)
+        if not low.any():
+            return vertices, faces
+        vertices = vertices[~low]
+        return vertices, cdt(vertices, "pY")["triangles"].astype(np.int64)
+
+    def moved_inside(new, vertices):
+        """The moved interior vertices that stay in the domain (the others keep their old
+        place), re-triangulated (constrained Delaunay)."""
+        inside = _inside_domain(new[n_fixed:], length, height, polys)
+        new[n_fixed:][~inside] = vertices[n_fixed:][~inside]
+        return new, cdt(new, "pY")["triangles"].astype(np.int64)
+
+    for _ in range(rounds):  # ODT smoothing of interior vertices + constrained Delaunay
+        if obtuse_triangle_count(vertices, faces) == 0:
+            break
+        vertices, faces = without_low_valence(vertices, faces)
         area, center, centroid = _triangle_geometry(vertices, faces)
         area = area / size(centroid) ** 4  # density-weighted (ρ ∝ h⁻⁴): keeps the grading
         weight = np.bincount(faces.ravel(), weights=np.repeat(area, 3), minlength=vertices.shape[0])
@@ -195,29 +207,15 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
                                       minlength=vertices.shape[0]) for a in range(2)], 1) / weight[:, None]
         new = vertices.copy()
         new[n_fixed:] = moved[n_fixed:]
-        inside = _inside_domain(new[n_fixed:], length, height, polys)
-        new[n_fixed:][~inside] = vertices[n_fixed:][~inside]
-        vertices = new
-        faces = cdt(vertices, "pY")["triangles"].astype(np.int64)
+        vertices, faces = moved_inside(new, vertices)
     for _ in range(8 * rounds):  # Thales repair of the obtuse triangles left
         if obtuse_triangle_count(vertices, faces) == 0:
             break
-        valence = np.bincount(faces.ravel(), minlength=vertices.shape[0])
-        low = valence <= 4
-        low[:n_fixed] = False
-        if low.any():
-            vertices = vertices[~low]
-            faces = cdt(vertices, "pY")["triangles"].astype(np.int64)
-        new = _thales_step(vertices, faces, n_fixed)
-        inside = _inside_domain(new[n_fixed:], length, height, polys)
-        new[n_fixed:][~inside] = vertices[n_fixed:][~inside]
-        vertices = new
-        faces = cdt(vertices, "pY")["triangles"].astype(np.int64)
+        vertices, faces = without_low_valence(vertices, faces)
+        vertices, faces = moved_inside(_thales_step(vertices, faces, n_fixed), vertices)
     loops_ids = [np.arange(o, o + len(loop)) for o, loop in zip(offsets[:-1], loops)]
     loops_ids = [loop if i == 0 else loop[::-1] for i, loop in enumerate(loops_ids)]  # holes run clockwise
-    p = vertices[faces]
-    a, b = np.roll(p, -1, axis=1) - p, np.roll(p, 1, axis=1) - p
-    angle = np.degrees(np.arctan2(np.abs(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]), np.einsum("mkd,mkd->mk", a, b)))
+    angle = np.degrees(corner_angles(vertices, faces))
     return ChannelMesh(vertices, faces, loops_ids, ["outer"] + [f"obstacle {i}" for i in range(len(polys))],
                        obtuse_triangle_count(vertices, faces), float(angle.max()))
 

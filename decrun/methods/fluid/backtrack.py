@@ -39,6 +39,21 @@ from decrun.core.geometry import embed3
 __all__ = ["TriangleWalker", "BacktrackResult"]
 
 
+def _box_buckets(low: np.ndarray, high: np.ndarray, origin: np.ndarray, size: float, shape: np.ndarray):
+    """A uniform grid of square cells (side ``size``, ``shape`` = (nx, ny) cells from ``origin``)
+    listing the boxes [low_i, high_i] (b, 2) that meet each cell, vectorized: returns
+    (members, start) with the boxes of cell c = iy·nx + ix in ``members[start[c]:start[c+1]]``."""
+    first = np.floor((low - origin) / size).astype(np.int64)
+    last = np.floor((high - origin) / size).astype(np.int64)
+    span = last - first + 1
+    count = span[:, 0] * span[:, 1]
+    box = np.repeat(np.arange(count.size), count)
+    k = np.arange(box.size) - np.repeat(np.cumsum(count) - count, count)
+    cell = (first[box, 1] + k // span[box, 0]) * shape[0] + first[box, 0] + k % span[box, 0]
+    order = np.argsort(cell, kind="stable")
+    return box[order], np.searchsorted(cell[order], np.arange(int(np.prod(shape)) + 1))
+
+
 @dataclass
 class BacktrackResult:
     """Where the points were ``dt`` earlier.
@@ -131,16 +146,7 @@ class TriangleWalker:
         size = 0.5 * float(np.percentile(edge_length, 10))
         origin = low.min(axis=0)
         shape = np.floor((high.max(axis=0) - origin) / size).astype(np.int64) + 1
-        first = np.floor((low - origin) / size).astype(np.int64)
-        last = np.floor((high - origin) / size).astype(np.int64)
-        span = last - first + 1
-        count = span[:, 0] * span[:, 1]
-        owner = np.repeat(np.arange(count.size), count)
-        k = np.arange(owner.size) - np.repeat(np.cumsum(count) - count, count)
-        cell = (first[owner, 1] + k // span[owner, 0]) * shape[0] + first[owner, 0] + k % span[owner, 0]
-        order = np.argsort(cell, kind="stable")
-        self._bucket_triangles = owner[order]
-        self._bucket_start = np.searchsorted(cell[order], np.arange(shape[0] * shape[1] + 1))
+        self._bucket_triangles, self._bucket_start = _box_buckets(low, high, origin, size, shape)
         self._grid = (origin, size, shape)
         self._locator = True
         self._border = None
@@ -156,17 +162,9 @@ class TriangleWalker:
             cell_size = float(np.linalg.norm(e, axis=1).max())
             b_origin = np.minimum(a, b).min(axis=0) - cell_size
             b_shape = np.floor((np.maximum(a, b).max(axis=0) + cell_size - b_origin) / cell_size).astype(np.int64) + 1
-            first = np.floor((np.minimum(a, b) - b_origin) / cell_size).astype(np.int64)
-            last = np.floor((np.maximum(a, b) - b_origin) / cell_size).astype(np.int64)
-            span = last - first + 1
-            count = span[:, 0] * span[:, 1]
-            which = np.repeat(np.arange(count.size), count)
-            k = np.arange(which.size) - np.repeat(np.cumsum(count) - count, count)
-            cell = (first[which, 1] + k // span[which, 0]) * b_shape[0] + first[which, 0] + k % span[which, 0]
-            order = np.argsort(cell, kind="stable")
-            self._border = dict(a=a, e=e, normal=normal, edge=border, triangle=owner[border],
-                                members=which[order], start=np.searchsorted(cell[order], np.arange(b_shape.prod() + 1)),
-                                origin=b_origin, size=cell_size, shape=b_shape)
+            members, start = _box_buckets(np.minimum(a, b), np.maximum(a, b), b_origin, cell_size, b_shape)
+            self._border = dict(a=a, e=e, normal=normal, edge=border, triangle=owner[border], members=members,
+                                start=start, origin=b_origin, size=cell_size, shape=b_shape)
 
     def _first_crossing(self, start: np.ndarray, end: np.ndarray):
         """First border edge crossed outwards by the segments start → end (Q, 2).

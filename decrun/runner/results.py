@@ -11,7 +11,6 @@ recorded steps readable (:func:`read_result`, ``.complete`` False).
 from __future__ import annotations
 
 import json
-import math
 import os
 import subprocess
 import sys
@@ -157,16 +156,3 @@ def read_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
 
     with h5py.File(path, "r") as f:
         return f["mesh"]["vertices"][()], f["mesh"]["simplices"][()]
-
-
-def isclose_metrics(a: dict[str, Any], b: dict[str, Any]) -> bool:
-    """True when two metric dicts have the same keys and equal values (NaN equals NaN)."""
-    if a.keys() != b.keys():
-        return False
-    for key in a:
-        x, y = a[key], b[key]
-        if isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y):
-            continue
-        if x != y:
-            return False
-    return True

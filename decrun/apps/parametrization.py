@@ -22,6 +22,7 @@ from decrun.errors import ConfigError, TopologyError
 from decrun.methods.parametrization import (
     CAUCHY_RIEMANN,
     CONFORMAL,
+    HOLES,
     PINNED,
     SYMMETRIC_WEIGHTS,
     check_disk_topology,
@@ -59,6 +60,9 @@ class Parametrization(App):
         §5.2.3: ``app.reflex_rows=harmonic``) — the row of border vertices reflex under eq. 5.8
     exterior_border: index into the border loops sorted longest first; null = the longest
     checker_squares: squares per side of the checkerboard texture figure
+    holes: auto | fill | conformal — inner borders closed by a virtual vertex each (``fill``:
+        the disk theorem applies, so Tutte/Floater maps stay embeddings) or given eq. 5.9 rows
+        (``conformal``, §5.2.3); ``auto`` fills under circle borders
     """
 
     name = "parametrization"
@@ -68,6 +72,7 @@ class Parametrization(App):
     reflex_rows: str = "cauchy_riemann"
     exterior_border: Optional[int] = None
     checker_squares: int = 10
+    holes: str = "auto"
 
     def check_solver(self, solver, dec=None) -> None:
         """Pinned borders with symmetric weights give SPD systems (cg, amg apply); the
@@ -80,14 +85,21 @@ class Parametrization(App):
             reasons.append(f"app.weights={self.weights} is not symmetric")
         if self.border == "conformal":
             reasons.append("app.border=conformal adds the eq. 5.9 rows coupling x and y")
-        if dec is not None and self.border != "free" and len(dec.K.border_loops()) > 1:
+        if dec is not None and self.border != "free" and len(dec.K.border_loops()) > 1 and not self.fills_holes:
             reasons.append("the holes' border rows are eq. 5.9 (§5.2.3), coupling x and y")
         if reasons:
             raise ConfigError(f"solver={solver.name}: app=parametrization solves unsymmetric systems here "
                               f"({'; '.join(reasons)}); use `solver=direct` (or `solver=pardiso`), or "
                               f"`app.border=circle` with app.weights=dec|uniform")
 
+    @property
+    def fills_holes(self) -> bool:
+        """True when inner borders are closed by virtual vertices (``app.holes``)."""
+        return self.holes == "fill" or (self.holes == "auto" and self.border in ("circle", "circle_arclength"))
+
     def check(self, K, dec) -> None:
+        if self.holes not in HOLES:
+            raise ConfigError(f"app.holes: choose one of {list(HOLES)}, got {self.holes!r}")
         if K.dim != 2:
             raise TopologyError(f"app=parametrization needs a triangle mesh (dimension 2), got dimension {K.dim}")
         if not K.border_vertices().any() and K.embedding_dim == 3:
@@ -110,7 +122,8 @@ class Parametrization(App):
         K, dec = ctx.complex, ctx.dec
         with ctx.task(f"parametrization ({self.border} border, {self.weights} weights)"):
             result = parametrize(dec, ctx.new_solver, border=self.border, weights=self.weights,
-                                 exterior=self.exterior_border, reflex_rows=self.reflex_rows)
+                                 exterior=self.exterior_border, reflex_rows=self.reflex_rows,
+                                 holes=self.holes)
         faces = K.oriented_simplices()
         uv = result.uv
         metrics = parametrization_metrics(K.vertices, uv, faces, result.loops)

@@ -50,6 +50,10 @@ __all__ = [
 
 WEIGHTS = ("dec", "uniform", "mean_value")
 BORDERS = ("circle", "circle_arclength", "conformal", "free")
+#: how inner borders are treated: ``fill`` closes each with a virtual vertex (a disk for
+#: Tutte/Floater), ``conformal`` gives them eq. 5.9 rows (§5.2.3); ``auto`` = fill under a
+#: circle border, conformal under ``border=conformal``
+HOLES = ("auto", "fill", "conformal")
 
 
 # ---------------------------------------------------------------------------- topology
@@ -102,6 +106,24 @@ def ordered_border_loops(K: SimplicialComplex, exterior: int | None = None) -> l
         )
     exterior %= len(loops)
     return [loops[exterior]] + [loop for i, loop in enumerate(loops) if i != exterior]
+
+
+def fill_holes(K: SimplicialComplex, holes: list[np.ndarray]) -> SimplicialComplex:
+    """``K`` with every inner border loop closed by a virtual vertex (the loop's centroid)
+    joined to the loop's vertices by a fan of triangles.
+
+    A genus-0 surface with b borders becomes a disk whose only border is the exterior loop, so
+    Tutte's theorem (convex weights, convex pinned border) gives an embedding of the filled
+    disk and hence of ``K`` (Floater 2003, §5.1 Theorem 2). Vertices ``n0 .. n0 + len(holes) − 1``
+    are the virtual ones; the original vertices and triangles keep their indices. The fan
+    triangles (loop[i+1], loop[i], c) run against the loop, whose direction is the one the
+    surface induces (:meth:`SimplicialComplex.border_loops`), so the orientation stays consistent.
+    """
+    n0 = K.num_simplices(0)
+    centres = np.array([K.vertices[loop].mean(axis=0) for loop in holes])
+    fans = [np.column_stack([np.roll(loop, -1), loop, np.full(loop.size, n0 + h)]) for h, loop in enumerate(holes)]
+    return SimplicialComplex(np.vstack([K.vertices, centres]), np.vstack([K.oriented_simplices(), *fans]),
+                             degenerate_tol=0.0)
 
 
 # ---------------------------------------------------------------------------- interior rows
@@ -391,6 +413,7 @@ def parametrize(
     weights: str = "dec",
     exterior: int | None = None,
     reflex_rows: str = "harmonic",
+    holes: str = "auto",
 ) -> Parametrization:
     """Parametrize a disk with holes: thesis §5.2.3 "overall linear equation".
 
@@ -410,6 +433,11 @@ def parametrize(
     * ``free``: every border vertex pinned where the least-squares conformal map puts it
       (:func:`least_squares_conformal_map`); with ``weights=dec`` that already is the answer.
 
+    ``holes``: ``fill`` closes every inner border with a virtual vertex (:func:`fill_holes`) and
+    solves the disk, so the hole vertices get harmonic rows — with convex weights (uniform,
+    mean_value) and a circle border the map is an embedding (Tutte/Floater); ``conformal``
+    gives them the eq. 5.9 rows above; ``auto`` (default) fills under circle borders.
+
     ``new_solver()`` returns a fresh decrun Solver for each linear system
     (:func:`decrun.core.solvers.solver_factory`).
 
@@ -423,9 +451,20 @@ def parametrize(
         raise ConfigError(f"app.weights: unknown weights {weights!r}; choose one of {list(WEIGHTS)}")
     if reflex_rows not in REFLEX_ROWS:
         raise ConfigError(f"app.reflex_rows: unknown choice {reflex_rows!r}; choose one of {list(REFLEX_ROWS)}")
+    if holes not in HOLES:
+        raise ConfigError(f"app.holes: unknown choice {holes!r}; choose one of {list(HOLES)}")
+    if holes == "fill" and border == "free":
+        raise ConfigError("app.holes=fill: with app.border=free every border is pinned where the least-squares "
+                          "conformal map puts it; use `app.holes=auto`")
     check_disk_topology(K)
     loops = ordered_border_loops(K, exterior)
     n0 = K.num_simplices(0)
+    if len(loops) > 1 and (holes == "fill" or (holes == "auto" and border in ("circle", "circle_arclength"))):
+        filled = type(dec)(fill_holes(K, loops[1:]), star=dec.star_variant, boundary="none")
+        disk = parametrize(filled, new_solver, border=border, weights=weights, reflex_rows=reflex_rows,
+                           holes="conformal")
+        return Parametrization(disk.uv[:n0], loops, disk.row_kind[:n0], disk.reflex_predicted,
+                               disk.predicted_reflex_mask[:n0], disk.solve_seconds)
     kind = np.full(n0, HARMONIC, dtype=np.int8)
     reflex_mask = np.zeros(n0, dtype=bool)
     pinned_uv = np.zeros((n0, 2))

@@ -38,3 +38,40 @@ def test_fig5_5_flat_mesh_is_reproduced_exactly_by_the_default_only(rows, exact)
     result, _, _ = run_experiment(compose_config(["+experiment=fig5_5_flat_hole", f"app.reflex_rows={rows}"]))
     error = result.metrics["angle_distortion_mean_deg"]
     assert (error < 1e-6) if exact else (error > 1.0)  # 3.7° with the thesis' harmonic rows
+
+
+def _cli_metrics(decrun_cli, tmp_path, *overrides):
+    import json
+
+    proc = decrun_cli(*overrides, "figures=false", f"hydra.run.dir={tmp_path / 'run'}")
+    assert proc.returncode == 0, proc.stderr
+    return json.loads((tmp_path / "run" / "metrics.json").read_text())
+
+
+def test_floater_map_of_a_five_border_scan_is_an_embedding_through_the_cli(decrun_cli, tmp_path):
+    """bunny10k_textured has 5 borders: with eq. 5.9 rows on its 4 holes the mean-value map
+    flips a triangle; filling each hole with a virtual vertex (the default under a circle
+    border) makes it a disk, where Floater's convex weights guarantee an embedding."""
+    common = ("app=parametrization", "mesh=sample", "mesh.sample=bunny10k_textured", "app.border=circle",
+              "app.weights=mean_value")
+    filled = _cli_metrics(decrun_cli, tmp_path / "filled", *common)
+    assert filled["border_loops"] == 5
+    assert filled["flipped_triangles"] == 0 and filled["is_embedding"] is True
+    assert filled["border_winding_inner_turns_min"] == pytest.approx(-1) == filled["border_winding_inner_turns_max"]
+    rows = _cli_metrics(decrun_cli, tmp_path / "rows", *common, "app.holes=conformal")
+    assert rows["flipped_triangles"] >= 1 and rows["is_embedding"] is False
+
+
+def test_filled_holes_keep_the_original_vertices_and_orientation():
+    """fill_holes adds one vertex per hole and a consistently oriented fan: the filled complex
+    is a disk (one border, χ = 1) and the original triangles come first, unchanged."""
+    from decrun.methods.parametrization import fill_holes, ordered_border_loops
+
+    from meshes_for_tests import planar_domain
+
+    K = SimplicialComplex(*planar_domain(holes=2, max_area=0.01))
+    loops = ordered_border_loops(K)
+    filled = fill_holes(K, loops[1:])
+    assert filled.num_simplices(0) == K.num_simplices(0) + len(loops) - 1
+    assert len(filled.border_loops()) == 1 and filled.euler_characteristic == 1
+    np.testing.assert_array_equal(filled.oriented_simplices()[: K.num_simplices(2)], K.oriented_simplices())

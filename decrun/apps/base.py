@@ -106,7 +106,8 @@ class App:
     boundary_note: ClassVar[str] = ""
     form_degrees: ClassVar[tuple[int, ...]] = (0, 1, 2)
     #: why the app's linear systems are not symmetric positive definite ("" when they are);
-    #: solvers that need SPD matrices (cg, amg) are then rejected before any work
+    #: solvers that need SPD matrices (cg, amg) are then rejected before any work (solver=iterative
+    #: picks a Krylov method that fits each matrix)
     unsymmetric_systems: ClassVar[str] = ""
     #: why the app needs diagonal Hodge stars ("" when any SPD ⋆ works): a non-diagonal
     #: (Galerkin) variant is then rejected before any work, with the lumped override
@@ -123,7 +124,8 @@ class App:
         given once the operators are chosen)."""
         if getattr(solver, "needs_spd", False) and self.unsymmetric_systems:
             raise ConfigError(f"solver={solver.name}: app={self.name} solves systems that are not symmetric positive "
-                              f"definite ({self.unsymmetric_systems}); use `solver=direct` (or `solver=pardiso`)")
+                              f"definite ({self.unsymmetric_systems}); use `solver=iterative` (GMRES/MINRES), "
+                              "`solver=direct` (or `solver=pardiso`)")
 
     def check_operators(self, dec) -> None:
         """Reject a boundary adaptation or Hodge-star variant this app cannot use, with the

@@ -80,16 +80,21 @@ class Hodge(App):
         super().check_solver(solver, dec)
         if dec is not None and getattr(solver, "needs_spd", False) and dec.star_is_diagonal(1):
             star1 = dec.star_diagonal(1)
-            bad = int(np.sum(star1 <= 1e-12 * np.abs(star1).max()))
+            tiny = 1e-12 * np.abs(star1).max()
+            bad, zero = int(np.sum(star1 <= tiny)), int(np.sum(np.abs(star1) <= tiny))
             if bad:
+                # a zero ⋆1 cannot be inverted by any solver (HodgeDecomposer reports it); a
+                # negative one only makes the systems indefinite, which MINRES solves
+                other = "" if zero else "; or `solver=iterative` (MINRES for symmetric indefinite systems)"
                 raise ConfigError(f"solver={solver.name}: ⋆1 of operator={dec.star_variant.name} is not positive on "
                                   f"{bad} edges (non-Delaunay or right-angled triangles), so the Poisson systems of "
                                   "app=hodge are indefinite; use `operator=whitney` with `operator.lumped=true` "
-                                  "(an SPD ⋆1 on every mesh)")
+                                  f"(an SPD ⋆1 on every mesh){other}")
         if dec is not None and getattr(solver, "needs_spd", False) and not dec.star_is_diagonal(1):
             raise ConfigError(f"solver={solver.name}: with a Galerkin ⋆1 (operator={dec.star_variant.name}) the "
                               "coexact part of app=hodge is a symmetric indefinite saddle-point system; use "
-                              "`solver=direct` (or `operator.lumped=true`)")
+                              "`solver=iterative` (GMRES with an incomplete LU), `solver=direct` (or "
+                              "`operator.lumped=true`)")
 
     def run(self, ctx: Context) -> Result:
         """Decompose the configured 1-form; see the module docstring.

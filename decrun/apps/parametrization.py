@@ -89,7 +89,8 @@ class Parametrization(App):
             reasons.append("the holes' border rows are eq. 5.9 (§5.2.3), coupling x and y")
         if reasons:
             raise ConfigError(f"solver={solver.name}: app=parametrization solves unsymmetric systems here "
-                              f"({'; '.join(reasons)}); use `solver=direct` (or `solver=pardiso`), or "
+                              f"({'; '.join(reasons)}); use `solver=iterative` (GMRES with an incomplete LU), "
+                              f"`solver=direct` (or `solver=pardiso`), or "
                               f"`app.border=circle` with app.weights=dec|uniform")
 
     @property

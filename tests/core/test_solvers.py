@@ -102,7 +102,7 @@ def test_solve_before_factorize_and_bad_shapes():
 
 
 def test_unknown_solver_and_bad_options():
-    with pytest.raises(ConfigError, match="solver=gauss: unknown Solver; choose one of solver=amg \\| solver=cg \\| solver=direct \\| solver=pardiso"):
+    with pytest.raises(ConfigError, match="solver=gauss: unknown Solver; choose one of solver=amg \\| solver=cg \\| solver=direct \\| solver=iterative \\| solver=pardiso"):
         make_solver("gauss")
     with pytest.raises(ConfigError, match="solver=cg"):
         make_solver("cg", colour="blue")

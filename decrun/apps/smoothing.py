@@ -28,6 +28,7 @@ import numpy as np
 from decrun.apps.base import App, Context, Figure, Result
 from decrun.errors import ConfigError, TopologyError
 from decrun.methods.mean_curvature_flow import SCHEMES, MeanCurvatureFlow, enclosed_volume, surface_area
+from decrun.methods.smoothing_metrics import degeneration, normal_deviation_deg
 
 RESCALE = ("auto", "volume", "area", "none")
 
@@ -80,13 +81,18 @@ class Smoothing(App):
         """Smooth the mesh; see the module docstring.
 
         Metrics: ``area_ratio`` (final/initial area), ``volume_drift_rel`` (|V_end − V_0|/|V_0|,
-        closed surfaces only), ``stable``, ``diverged_at_step`` (−1 when stable), ``steps_done``
+        closed surfaces only), ``stable`` (false when a step blew up or the result is degenerate,
+        :func:`decrun.methods.smoothing_metrics.degeneration`), ``unstable_reason`` (only when
+        not stable), ``diverged_at_step`` (−1 when no step blew up), ``steps_done``
         (steps computed and recorded, the diverging one included, so it equals
         ``diverged_at_step`` when unstable), ``rescale`` (the resolved choice),
         ``roughness_ratio`` (R_end / R_0), ``distortion_final`` (ρ, 1 for the input),
         ``dt_critical_explicit`` and ``dt_over_critical``, ``distance_to_clean_rms`` and
         ``distance_to_clean_rms_initial`` (RMS vertex distance to the noise-free mesh / its
-        bounding-box diagonal, only with noise; the final one only when stable),
+        bounding-box diagonal, only with noise; the final one only when stable; it adds the
+        flow's shrinkage and drift to the noise), ``normal_deviation_to_clean_deg`` (+
+        ``_initial``; area-weighted face-normal angle to the clean mesh, 3-D only, final only
+        when stable: what denoising removes, blind to translation and scale),
         ``negative_star1_fraction``,
         ``setup_seconds``, ``solve_seconds``.
         Series (recorded per step, the initial state as step 0): ``area``, ``volume``,
@@ -159,6 +165,9 @@ class Smoothing(App):
                     break
         solve_seconds = time.perf_counter() - t1
         stable = diverged_at < 0
+        # a flow that did not blow up may still have collapsed the surface (a needle, a sheet)
+        degenerate = degeneration(vertices, v, faces, has_volume) if stable else ""
+        stable = stable and not degenerate
         last = {name: values[-1] for name, values in series.items()}
 
         edges = K.simplices(1)
@@ -168,6 +177,8 @@ class Smoothing(App):
             "rescale": rescale,
             "stable": stable,
             "diverged_at_step": diverged_at,
+            **({"unstable_reason": f"diverged at step {diverged_at}" if diverged_at >= 0 else
+                f"degenerate: {degenerate}"} if not stable else {}),
             "steps_done": len(series["area"]) - 1,
             "area_ratio": last["area"] / first["area"],
             "roughness_ratio": last["roughness"] / first["roughness"],
@@ -189,9 +200,13 @@ class Smoothing(App):
             def rms(x):
                 return float(np.sqrt(np.mean(np.sum((x - clean) ** 2, axis=1))) / diagonal)
 
-            if stable:  # a diverged run has no meaningful distance: absent
+            if stable:  # a diverged or degenerate run has no meaningful distance: absent
                 metrics["distance_to_clean_rms"] = rms(v)
             metrics["distance_to_clean_rms_initial"] = rms(vertices)
+            if vertices.shape[1] == 3:  # planar meshes have one normal: absent
+                if stable:
+                    metrics["normal_deviation_to_clean_deg"] = normal_deviation_deg(v, clean, faces)
+                metrics["normal_deviation_to_clean_deg_initial"] = normal_deviation_deg(vertices, clean, faces)
         metrics["setup_seconds"] = setup_seconds
         metrics["solve_seconds"] = solve_seconds
 
@@ -199,7 +214,8 @@ class Smoothing(App):
         fields = {"vertices_initial": vertices, "vertices_final": v, "faces": faces,
                   "displacement": np.linalg.norm(v - vertices, axis=1)}
         label = f"{self.scheme} Euler, dt={dt:.3g}, rescale={rescale}"
-        state = f"{metrics['steps_done']} steps" + ("" if stable else f" (diverged at step {diverged_at})")
+        state = f"{metrics['steps_done']} steps" + (
+            "" if stable else f" (diverged at step {diverged_at})" if diverged_at >= 0 else " (degenerate)")
         shown = ["area", "volume", "roughness"] if has_volume else ["area", "roughness"]
         figures = {
             "smoothing": Figure("decrun.runner.plots.common.before_after", dict(

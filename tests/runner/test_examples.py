@@ -87,7 +87,7 @@ def arguments(command: str, tmp_path: Path) -> list[str]:
 def test_the_examples_are_found():
     """The extraction sees the examples it must (a broken regex would test nothing)."""
     commands = [c for _, c in EXAMPLES]
-    assert "decrun mesh=torus mesh.noise=0.2 app.rescale=area" in commands
+    assert "decrun mesh=torus mesh.noise=0.2 app.dt_factor=0.3 app.steps=3" in commands
     assert any("app=vector_field mesh=planar" in c for c in commands)
     assert any("+experiment=fig6_9_square" in c for c in commands)
     assert len(SINGLE) >= 10 and len(SWEEPS) >= 9

@@ -113,7 +113,9 @@ def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces:
 
     Meshes with 3-D vertices are drawn in 3-D, planar ones in 2-D. With ``share_axes`` both
     panels show the same box (the union of both meshes' bounding boxes, equal aspect), so a
-    result that shrank, exploded or moved looks like it.
+    result that shrank, exploded or moved looks like it — unless their extents differ more
+    than :data:`SHARE_EXTENT_RATIO`-fold: then the smaller one would be a dot, so each panel
+    gets its own box and the larger one's title says by how much.
     """
     three_d = np.asarray(vertices_before).shape[1] == 3
     fig = new_figure(8.0, 4.0)
@@ -129,13 +131,36 @@ def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces:
     for ax, vertices, values, title in zip(axes, (vertices_before, vertices_after), (values_before, values_after), titles):
         m = plot_surface(ax, vertices, faces, values, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
         mappable = mappable or m
-    if share_axes:
-        _share_limits(axes, [np.asarray(vertices_before), np.asarray(vertices_after)])
+    sets = [np.asarray(vertices_before), np.asarray(vertices_after)]
+    ratio = _extent_ratio(*sets)
+    if share_axes and ratio <= SHARE_EXTENT_RATIO:
+        _share_limits(axes, sets)
+    elif share_axes:  # one would be a dot beside the other: each on its own box, said in the title
+        for ax, vertices, title in zip(axes, sets, titles):
+            _share_limits([ax], [vertices])
+        bigger = int(_extent(sets[1]) > _extent(sets[0]))
+        axes[bigger].set_title(f"{titles[bigger]}\n(own scale: {ratio:.3g}× the other's extent)", fontsize=9)
     if mappable is not None:
         fig.colorbar(mappable, ax=axes, shrink=0.6, label=colorbar_label)
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
     return fig
+
+
+#: with ``share_axes``, meshes whose extents differ more than this factor get their own boxes
+SHARE_EXTENT_RATIO = 5.0
+
+
+def _extent(vertices: np.ndarray) -> float:
+    """Largest side of the bounding box of the finite vertices (0 when there are none)."""
+    finite = vertices[np.isfinite(vertices).all(axis=1)]
+    return float((finite.max(axis=0) - finite.min(axis=0)).max()) if len(finite) else 0.0
+
+
+def _extent_ratio(a: np.ndarray, b: np.ndarray) -> float:
+    """max/min of the two meshes' extents (inf when one is a point or empty)."""
+    small, large = sorted((_extent(a), _extent(b)))
+    return large / small if small > 0 else float("inf")
 
 
 def _share_limits(axes, vertex_sets) -> None:

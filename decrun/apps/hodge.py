@@ -38,6 +38,8 @@ from decrun.core.hodge import HodgeDecomposer, harmonic_basis
 from decrun.errors import ConfigError, TopologyError
 
 FIELDS = ("analytic", "random", "result")
+#: a part whose norm is ≤ ROUNDOFF × ‖ω‖ (energy share ≤ ROUNDOFF²) is zero to round-off
+ROUNDOFF = 1e-8
 ANALYTIC = ("gradient", "rotated_gradient", "rotation", "toroidal", "mixed")
 
 
@@ -106,7 +108,9 @@ class Hodge(App):
         Metrics: ``orthogonality_exact_coexact`` / ``_exact_harmonic`` / ``_coexact_harmonic``
         (|⟨a,b⟩_⋆1|/‖ω‖²) and ``orthogonality_max``; ``reconstruction_error_relative``;
         ``energy_fraction_{exact,coexact,harmonic}``; ``harmonic_curl_relative`` ‖dγ‖_⋆2/‖dω‖_⋆2
-        and ``harmonic_codifferential_relative`` ‖δγ‖_⋆0/‖δω‖_⋆0 (γ is harmonic: both ≈ 0);
+        and ``harmonic_codifferential_relative`` ‖δγ‖_⋆0/‖δω‖_⋆0 (γ is harmonic: both ≈ 0; absent
+        when γ or dω / δω is zero to round-off (energy share ≤ ``ROUNDOFF``²): a ratio of
+        round-off means nothing);
         ``harmonic_dimension`` (dim ker Δ1, numerically), ``betti_1``,
         ``harmonic_dimension_matches_betti``; ``solve_seconds``.
         """
@@ -120,13 +124,22 @@ class Hodge(App):
         metrics = orthogonality_metrics(dec, omega, named)
         d1, delta = dec.d(1), dec.codifferential(1)
 
-        def relative(op, k, part):
-            ref = np.sqrt(abs(dec.inner(k, op @ omega, op @ omega)))
-            val = np.sqrt(abs(dec.inner(k, op @ part, op @ part)))
-            return float(val / ref) if ref > 0 else float(val)
+        energy = {name: metrics[f"energy_fraction_{name}"] for name in named}
 
-        metrics["harmonic_curl_relative"] = relative(d1, 2, parts.harmonic)
-        metrics["harmonic_codifferential_relative"] = relative(delta, 0, parts.harmonic)
+        def relative(op, k, part, sources):
+            """‖op part‖ / ‖op ω‖, or None when that is a ratio of round-off: the part is zero
+            to round-off, or so is op ω — op kills the exact part (d) or the coexact part (δ),
+            so op ω comes from ``sources`` only (energy share ≤ ROUNDOFF² each)."""
+            if energy["harmonic"] <= ROUNDOFF ** 2 or sum(energy[s] for s in sources) <= ROUNDOFF ** 2:
+                return None
+            ref = np.sqrt(abs(dec.inner(k, op @ omega, op @ omega)))
+            return float(np.sqrt(abs(dec.inner(k, op @ part, op @ part))) / ref) if ref > 0 else None
+
+        for name, value in (("harmonic_curl_relative", relative(d1, 2, parts.harmonic, ("coexact", "harmonic"))),
+                            ("harmonic_codifferential_relative", relative(delta, 0, parts.harmonic,
+                                                                          ("exact", "harmonic")))):
+            if value is not None:  # a ratio of round-off is absent, not a number
+                metrics[name] = value
         betti_1 = int(K.betti_numbers()[1])
         metrics["betti_1"] = betti_1
         if self.harmonic_dimension:

@@ -30,21 +30,26 @@ def _singular_points(K, vertex_index, face_index):
 
 
 def draw_field(ax, K, face_vectors: np.ndarray, vertex_index=None, face_index=None, *, max_arrows: int = 700,
-               colour_by_magnitude: bool = True, title: str | None = None, seed: int = 0, view=_VIEW):
+               colour_by_magnitude: bool = True, title: str | None = None, seed: int = 0, view=_VIEW,
+               vmax: float | None = None, min_magnitude: float = 0.0):
     """Draw the mesh coloured by |u| with arrows (unit direction, fixed length) at face
     barycenters, at most ``max_arrows`` of them (a seeded subset; on 3-D meshes only faces
     turned towards the viewer), and the singularities (``vertex_index`` (n0,), ``face_index``
-    (n2,)): index +1 red, −1 blue, others black (vertices as circles, faces as squares)."""
+    (n2,)): index +1 red, −1 blue, others black (vertices as circles, faces as squares).
+    ``vmax``: the top of the grey scale (default 2 × the 95th percentile of |u|; pass one value
+    to several panels to compare them); arrows only where |u| > ``min_magnitude``."""
     faces = K.oriented_simplices()
     x = embed3(K.vertices)
     planar = is_planar(K.vertices)
     normals = face_normals(K.vertices, faces)
     magnitude = np.linalg.norm(face_vectors, axis=1)
     mappable = plot_surface(ax, K.vertices if planar else x, faces, magnitude if colour_by_magnitude else None,
-                            cmap="Greys", vmin=0.0, vmax=2.0 * float(np.percentile(magnitude, 95)) or 1.0, linewidth=0.05,
-                            title=title)
+                            cmap="Greys", vmin=0.0, vmax=vmax or 2.0 * float(np.percentile(magnitude, 95)) or 1.0,
+                            linewidth=0.05, title=title)
+    if mappable is not None:
+        ax.field_clim = mappable.get_clim()  # the grey scale of this panel (read by tests)
     barycenters = x[faces].mean(axis=1)
-    candidates = np.flatnonzero(magnitude > 0)
+    candidates = np.flatnonzero(magnitude > min_magnitude)
     if not planar:
         ax.view_init(*view)
         candidates = candidates[normals[candidates] @ _view_direction(*view) > 0.05]
@@ -122,14 +127,34 @@ def _draw_clusters(ax, x, positions, indices, planar, view) -> None:
             ax.text(p[0], p[1], p[2], f" {int(i):+d}", color=colour, zorder=7)
 
 
+#: arrows are drawn where |u| exceeds this fraction of the input's scale (2 × its 95th
+#: percentile): a part of round-off size (energy ~1e-30) shows as an empty panel, not a field
+ARROW_FLOOR = 1e-6
+
+
 def hodge_parts_figure(K, vectors: dict, energy: dict, *, max_arrows: int = 500):
-    """The input and its three Hodge parts side by side (arrows = direction, grey = |u|);
-    ``vectors`` maps ``omega``/``exact``/``coexact``/``harmonic`` + ``_vectors`` to (n2, 3)."""
+    """The input and its three Hodge parts side by side (arrows = direction, grey = |u|).
+
+    ``vectors`` maps ``omega``/``exact``/``coexact``/``harmonic`` + ``_vectors`` to (n2, 3),
+    ``energy`` the parts to their energy share ‖part‖²/‖ω‖². All panels share ω's grey scale
+    (one colour bar) and draw arrows only where |u| > :data:`ARROW_FLOOR` × that scale, so a
+    part that is zero to round-off is an empty panel; each title gives the energy share.
+    """
     planar = is_planar(K.vertices)
     names = ("omega", "exact", "coexact", "harmonic")
-    fig = new_figure(4.0 * len(names), 4.4)
+    fig = new_figure(4.0 * len(names) + 0.8, 4.4)
+    scale = 2.0 * float(np.percentile(np.linalg.norm(vectors["omega_vectors"], axis=1), 95)) or 1.0
+    axes, mappable = [], None
     for i, name in enumerate(names):
         ax = fig.add_subplot(1, len(names), i + 1, **({} if planar else {"projection": "3d", "computed_zorder": False}))
-        share = "" if name == "omega" else f", {100 * energy.get(name, 0.0):.1f}% energy"
-        draw_field(ax, K, vectors[f"{name}_vectors"], max_arrows=max_arrows, title=f"{name}{share}")
+        share = energy.get(name, 0.0)
+        label = ("" if name == "omega" else f", {100 * share:.1f}% energy" if share >= 1e-4 else
+                 f", {100 * share:.1e}% energy" if share > ARROW_FLOOR ** 2 else
+                 f"\n{100 * share:.0e}% energy: zero to round-off")
+        m = draw_field(ax, K, vectors[f"{name}_vectors"], max_arrows=max_arrows, title=f"{name}{label}", vmax=scale,
+                       min_magnitude=ARROW_FLOOR * scale)
+        mappable = mappable or m
+        axes.append(ax)
+    if mappable is not None:
+        fig.colorbar(mappable, ax=axes, shrink=0.6, label="|u| (one scale for all panels)")
     return fig

@@ -112,6 +112,8 @@ class App:
     #: why the app needs diagonal Hodge stars ("" when any SPD ⋆ works): a non-diagonal
     #: (Galerkin) variant is then rejected before any work, with the lumped override
     diagonal_stars: ClassVar[str] = ""
+    #: the metrics a sweep table shows by default (``decrun-table --all`` shows every one)
+    headline_metrics: ClassVar[tuple[str, ...]] = ()
 
     def check(self, K, dec) -> None:
         """Raise a DecrunError when the mesh does not suit the app (before any work)."""

@@ -47,6 +47,7 @@ class Fluid(App):
     """Options of ``app=fluid`` (conf/app/fluid.yaml)."""
 
     name = "fluid"
+    headline_metrics = ("stable", "diverged_at_step", "max_abs_divergence", "energy_ratio", "enstrophy_ratio")
     form_degrees = (0, 1, 2)
     diagonal_stars = "the scheme divides by ⋆0 and ⋆1 entrywise (vorticity = circulation / ⋆0)"
     dt: float = 0.005  # time step (s)

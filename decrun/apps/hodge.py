@@ -48,6 +48,8 @@ class Hodge(App):
     """Options of ``app=hodge`` (conf/app/hodge.yaml)."""
 
     name = "hodge"
+    headline_metrics = ("orthogonality_max", "energy_fraction_exact", "energy_fraction_coexact",
+                        "energy_fraction_harmonic", "harmonic_dimension_matches_betti")
     form_degrees = (0, 1, 2)
     boundary_note = ("the Hodge decomposition (Theorem 5) needs d and δ adjoint, which the §6.4.4 flux "
                      "adaptation breaks; app=vector_field reports that as adjointness_defect")

@@ -66,6 +66,7 @@ class Parametrization(App):
     """
 
     name = "parametrization"
+    headline_metrics = ("is_embedding", "flipped_triangles", "angle_distortion_mean_deg", "qc_distortion_max")
     form_degrees = (0,)
     border: str = "conformal"
     weights: str = "dec"

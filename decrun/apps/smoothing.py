@@ -38,6 +38,8 @@ class Smoothing(App):
     """Options of ``app=smoothing`` (conf/app/smoothing.yaml)."""
 
     name = "smoothing"
+    headline_metrics = ("stable", "unstable_reason", "distance_to_clean_rms", "normal_deviation_to_clean_deg",
+                        "area_ratio", "dt_over_critical")
     form_degrees = (0,)
     scheme: str = "implicit"  # explicit | implicit (Euler, §1.3)
     #: time step (model units squared: L has units 1/length²); null: dt_factor × dt_crit

@@ -84,6 +84,8 @@ class VectorField(App):
     """Options of ``app=vector_field`` (conf/app/vector_field.yaml)."""
 
     name = "vector_field"
+    headline_metrics = ("singularity_cluster_indices", "poincare_hopf_holds", "smoothness_energy",
+                        "adjointness_defect")
     boundaries = ("none", "flux")
     form_degrees = (0, 1, 2)
     diagonal_stars = "the least squares of eq. 6.5 weighs with ⋆0, ⋆2 and divides the divergence targets by ⋆0"

@@ -99,7 +99,11 @@ class SweepTable(Callback):
         table = write_sweep_table(sweep_dir, sweep=True)
         bad = failed_jobs(table)
         SweepTable.failed = len(bad)
-        print(to_markdown(select(table, drop_constant=True)), end="")
+        shown = select(table, drop_constant=True, narrow=True)
+        print(to_markdown(shown), end="")
+        hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
+        if hidden:
+            print(f"decrun: {hidden} more columns in metrics.md (`decrun-table --all {sweep_dir}`)")
         print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok) → {sweep_dir}/metrics.csv, metrics.md")
         for row in bad.itertuples(index=False):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
@@ -223,7 +227,9 @@ def table_main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="decrun-table", description=table_main.__doc__)
     parser.add_argument("sweep_dirs", nargs="+", metavar="SWEEP", help="a sweep directory, e.g. outputs/sweeps/<stamp>")
     parser.add_argument("--csv", action="store_true", help="print CSV instead of markdown")
-    parser.add_argument("--metrics", help="comma-separated metric columns to show (default: all)")
+    parser.add_argument("--metrics", help="comma-separated metric columns to show (default: the apps' headline "
+                                          "metrics in markdown, all in --csv)")
+    parser.add_argument("--all", action="store_true", help="show every metric column")
     parser.add_argument("--sort", help="comma-separated columns to sort the rows by")
     parser.add_argument("--descending", action="store_true", help="sort in descending order")
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
@@ -240,7 +246,8 @@ def table_main(argv: list[str] | None = None) -> int:
         if len(args.sweep_dirs) == 1:
             table = table.drop(columns="sweep")
         drop = (not args.csv) if args.drop_constant is None else args.drop_constant
-        shown = select(table, split(args.metrics), split(args.sort), args.descending, drop)
+        shown = select(table, split(args.metrics), split(args.sort), args.descending, drop,
+                       narrow=not (args.all or args.csv))
     except (FileNotFoundError, KeyError, DecrunError) as exc:
         print(f"decrun-table: error: {exc.args[0] if isinstance(exc, KeyError) else exc}", file=sys.stderr)
         return 2

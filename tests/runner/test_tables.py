@@ -100,8 +100,12 @@ def test_decrun_table_options_and_exit_codes(tmp_path, capsys):
     assert [line.split(",")[6] for line in csv[1:]] == ["1.0", "2.0", "3.0"]
     assert table_main([str(a), "--drop-constant", "--csv"]) == 0
     assert "mesh.subdiv" not in capsys.readouterr().out.splitlines()[0]
-    assert table_main([str(a)]) == 0  # markdown: constant columns dropped by default
+    assert table_main([str(a), "--all"]) == 0  # markdown: constant columns dropped by default
     assert capsys.readouterr().out.splitlines()[0] == "| job | app.dt | status | e | result |"
+    assert table_main([str(a)]) == 0  # by default only the apps' headline metrics (e is none)
+    assert capsys.readouterr().out.splitlines()[0] == "| job | app.dt | status | result |"
+    assert table_main([str(a), "--metrics", "n"]) == 0  # asked for: kept although constant
+    assert capsys.readouterr().out.splitlines()[0] == "| job | app.dt | status | n | result |"
     assert table_main([str(a), "--sort", "nope"]) == 2
     assert "no column 'nope'" in capsys.readouterr().err
 
@@ -212,3 +216,27 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
         assert "differs from Hydra's" in capsys.readouterr().err
         assert all(checked[job].app.steps != 99 for job in jobs[:3])
     GlobalHydra.instance().clear()
+
+
+def test_a_real_sweep_table_is_narrow_by_default_and_keeps_asked_columns(decrun_cli, tmp_path):
+    """A 2-job smoothing sweep through the CLI: the printed table shows the swept key and the
+    smoothing headline metrics (8 columns; 14 with ``--all``, constant ones dropped), and
+    ``--metrics dt`` keeps dt although every job has the same."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    sweep = tmp_path / "sweep"
+    proc = decrun_cli("-m", "app.steps=1,2", "mesh.subdiv=1", "figures=false", f"hydra.sweep.dir={sweep}")
+    assert proc.returncode == 0, proc.stderr
+    assert "more columns in metrics.md (`decrun-table --all" in proc.stdout
+    table = str(Path(sys.executable).parent / "decrun-table")
+
+    def header(*args):
+        out = subprocess.run([table, str(sweep), *args], capture_output=True, text=True, check=True).stdout
+        return out.splitlines()[0].strip("| ").split(" | ")
+
+    narrow, wide = header(), header("--all")
+    assert narrow[:3] == ["job", "app.steps", "status"] and "distance_to_clean_rms" in narrow
+    assert "roughness_ratio" not in narrow and "roughness_ratio" in wide and len(wide) >= len(narrow) + 5
+    assert "dt" not in narrow and header("--metrics", "dt") == ["job", "app.steps", "status", "dt", "result"]

@@ -31,7 +31,7 @@ import yaml
 
 from decrun.runner.sweep.manifest import job_state, read_manifest
 
-__all__ = ["sweep_table", "load_sweep", "stack", "select", "to_markdown", "write_sweep_table", "failed_jobs",
+__all__ = ["sweep_table", "load_sweep", "stack", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
 
 LEADING = ("job", "status", "error")
@@ -149,23 +149,40 @@ def stack(sweep_dirs: Sequence[str | os.PathLike]) -> pd.DataFrame:
     return table[leading + [c for c in table.columns if c not in leading]]
 
 
+def headline_metrics() -> tuple[str, ...]:
+    """The metrics a table shows by default: every app's ``headline_metrics`` and ``total_seconds``."""
+    import importlib
+    import pkgutil
+
+    import decrun.apps
+    from decrun.apps.base import App
+
+    for module in pkgutil.iter_modules(decrun.apps.__path__):
+        importlib.import_module(f"decrun.apps.{module.name}")
+    names = [name for cls in App.__subclasses__() for name in cls.headline_metrics]
+    return tuple(dict.fromkeys([*names, "total_seconds"]))
+
+
 def select(table: pd.DataFrame, metrics: Sequence[str] | None = None, sort: Sequence[str] | None = None,
-           descending: bool = False, drop_constant: bool = False) -> pd.DataFrame:
+           descending: bool = False, drop_constant: bool = False, narrow: bool = False) -> pd.DataFrame:
     """A view for reading: only the metric columns ``metrics`` (the ``sweep``/``job``/
-    override/``status``/``error``/``result`` columns stay), rows sorted by ``sort``,
-    constant columns dropped (except ``sweep``, ``job``, ``status``). An unknown column is
-    a ``KeyError`` naming the columns there are."""
+    override/``status``/``error``/``result`` columns stay) — with ``narrow`` and no
+    ``metrics``, the apps' :func:`headline_metrics` — rows sorted by ``sort``, constant
+    columns dropped (except ``sweep``, ``job``, ``status`` and the ``metrics`` asked for). An
+    unknown column is a ``KeyError`` naming the columns there are."""
     for key in [*(metrics or []), *(sort or [])]:
         if key not in table.columns:
             raise KeyError(f"no column {key!r}; the columns are {', '.join(map(str, table.columns))}")
-    if metrics:
+    keep = list(metrics or (headline_metrics() if narrow else []))
+    if keep:
         status_at = list(table.columns).index("status")
         fixed = list(table.columns[:status_at + 2]) + ["result"]
-        table = table[[c for c in table.columns if c in fixed or c in metrics]]
+        table = table[[c for c in table.columns if c in fixed or c in keep or c in (sort or [])]]
     if sort:
         table = table.sort_values(list(sort), ascending=not descending, kind="stable", na_position="last")
     if drop_constant and len(table) > 1:
-        constant = [c for c in table.columns if c not in KEPT and table[c].astype(str).nunique(dropna=False) <= 1]
+        constant = [c for c in table.columns if c not in KEPT and c not in (metrics or [])
+                    and table[c].astype(str).nunique(dropna=False) <= 1]
         table = table.drop(columns=constant)
     return table
 

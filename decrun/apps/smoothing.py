@@ -27,7 +27,13 @@ import numpy as np
 
 from decrun.apps.base import App, Context, Figure, Result
 from decrun.errors import ConfigError, TopologyError
-from decrun.methods.mean_curvature_flow import SCHEMES, MeanCurvatureFlow, enclosed_volume, surface_area
+from decrun.methods.mean_curvature_flow import (
+    SCHEMES,
+    MeanCurvatureFlow,
+    enclosed_volume,
+    gershgorin_safe_dt,
+    surface_area,
+)
 from decrun.methods.smoothing_metrics import degeneration, normal_deviation_deg
 
 RESCALE = ("auto", "volume", "area", "none")
@@ -63,9 +69,6 @@ class Smoothing(App):
             raise ConfigError(f"app.dt: the time step must be > 0 (or null for app.dt_factor), got {self.dt}")
         if not (self.dt_factor > 0 and math.isfinite(self.dt_factor)):
             raise ConfigError(f"app.dt_factor: must be > 0, got {self.dt_factor}")
-        if self.dt is None and not self.critical_dt:
-            raise ConfigError("app.critical_dt=false leaves no critical step for app.dt_factor: give the step "
-                              "itself, e.g. `app.dt=0.005`")
         if self.steps < 0:
             raise ConfigError(f"app.steps: must be >= 0, got {self.steps}")
         if not self.blowup_factor > 1:
@@ -74,6 +77,13 @@ class Smoothing(App):
     def check(self, K, dec) -> None:
         if K.dim != 2:
             raise TopologyError(f"app=smoothing needs a triangle mesh (dimension 2), got dimension {K.dim}")
+        if self.dt is None and not self.critical_dt:
+            # a step computed from this mesh: Gershgorin's bound, ≤ the critical step, no eigen-solve
+            safe = gershgorin_safe_dt(dec.laplacian_symmetric(0), dec.star_diagonal_or_none(0))
+            value = f"`app.dt={safe:.3g}` (Gershgorin's bound, ≤ the explicit critical step of this mesh) or " \
+                if np.isfinite(safe) else ""
+            raise ConfigError(f"app.critical_dt=false leaves no critical step for app.dt_factor: give the step "
+                              f"itself, {value}use `app.critical_dt=true`")
         closed = not bool(K.border_vertices().any())
         if self.rescale == "volume" and not (closed and K.embedding_dim == 3):
             raise ConfigError("app.rescale=volume needs a closed surface in 3-D; this mesh has a border "
@@ -121,7 +131,8 @@ class Smoothing(App):
                     f"app.dt_factor: the explicit critical step 2/λ_max does not exist for operator="
                     f"{dec.star_variant.name} on this mesh (⋆0 is not positive on "
                     f"{int(np.sum(dec.star_diagonal_or_none(0) <= 0)) if dec.star_is_diagonal(0) else 0} vertices); "
-                    "use `operator=mixed_area` (positive ⋆0) or give the step itself, e.g. `app.dt=0.005`")
+                    "use `operator=mixed_area` (positive ⋆0, so app.dt_factor scales its critical step); with "
+                    "a negative ⋆0 a given app.dt may diverge (the implicit matrix is indefinite)")
             dt = self.dt_factor * dt_crit
         with ctx.task(f"factorizing ({self.scheme} Euler)"):
             flow = MeanCurvatureFlow(dec, self.scheme, dt, ctx.new_solver() if self.scheme == "implicit" else None)

@@ -92,6 +92,16 @@ def largest_eigenvalue(S: sp.spmatrix, M: np.ndarray | sp.spmatrix) -> float:
         return float("nan")
 
 
+def gershgorin_safe_dt(S: sp.spmatrix, M: np.ndarray) -> float:
+    """2 / max_i (Σ_j |S_ij|) / M_i: a time step ≤ the explicit critical step 2/λ_max without an
+    eigen-solve (Gershgorin's discs bound λ_max of S φ = λ M φ for a positive diagonal M (n,)).
+    NaN when M is not a positive diagonal."""
+    if sp.issparse(M) or M is None or np.any(np.asarray(M) <= 0):
+        return float("nan")
+    bound = float(np.max(np.asarray(abs(sp.csr_matrix(S)).sum(axis=1)).ravel() / np.asarray(M)))
+    return 2.0 / bound if bound > 0 else float("inf")
+
+
 def explicit_critical_dt(S: sp.spmatrix, M: np.ndarray) -> float:
     """dt_crit = 2 / λ_max for explicit Euler on v' = -M⁻¹ S v (λ_max: largest eigenvalue of
     S φ = λ M φ, :func:`largest_eigenvalue`; M the diagonal ⋆0 (n,) or a sparse Galerkin

@@ -268,3 +268,16 @@ def test_a_collapsed_bone_is_not_stable_and_its_input_stays_visible(decrun_cli, 
     # a stable default run keeps the shared box (a shrunk result looks shrunk)
     shared = before_after(before, before * 0.5, fields["faces"], share_axes=True)
     assert shared.axes[0].get_xlim() == shared.axes[1].get_xlim()
+
+
+def test_the_critical_dt_off_hint_names_a_step_computed_from_the_mesh(decrun_cli, tmp_path):
+    """app.critical_dt=false without app.dt: the hint's app.dt is Gershgorin's bound on this
+    mesh (no eigen-solve), below the explicit critical step, so explicit Euler is stable."""
+    import re
+
+    failing = decrun_cli("mesh.subdiv=1", "app.critical_dt=false", "app.scheme=explicit", "app.steps=20")
+    assert failing.returncode != 0
+    hinted = re.search(r"`(app\.dt=[0-9.e-]+)`", failing.stderr).group(1)
+    m = _cli_metrics(decrun_cli, tmp_path / "run", "mesh.subdiv=1", "app.scheme=explicit", "app.steps=20", hinted,
+                     "figures=false")
+    assert m["stable"] is True and 0.3 < m["dt_over_critical"] <= 1.0  # measured 0.67

@@ -262,3 +262,16 @@ def test_samples_are_repaired_cleaned_and_turned_z_up_by_default_files_are_not(t
 def test_up_axis_on_a_planar_mesh_is_an_error_naming_the_fix():
     with pytest.raises(ConfigError, match="`mesh.up_axis=z`"):
         mesh(source="planar", up_axis="y")
+
+
+@pytest.mark.parametrize("name, sample", [("bunny", "bunny10k_textured"), ("cow", "cow")])
+def test_mesh_bunny_and_cow_are_upright_like_mesh_sample(name, sample, decrun_cli, tmp_path):
+    """``mesh=bunny`` / ``mesh=cow`` turn the Y-up samples Z-up (up_axis: auto) as
+    ``mesh=sample`` does: the stored mesh's z extent is the raw model's y extent."""
+    from decrun.runner.results.reading import read_mesh
+
+    proc = decrun_cli(f"mesh={name}", "app.steps=0", "figures=false", f"hydra.run.dir={tmp_path / 'run'}")
+    assert proc.returncode == 0, proc.stderr
+    vertices, _ = read_mesh(tmp_path / "run" / "result.h5")
+    raw = mesh(source="sample", sample=sample, up_axis="z", repair=False, clean=False)
+    np.testing.assert_allclose(np.ptp(vertices, axis=0), np.ptp(raw.vertices, axis=0)[[0, 2, 1]], rtol=1e-9)

@@ -43,9 +43,10 @@ def draw_field(ax, K, face_vectors: np.ndarray, vertex_index=None, face_index=No
     planar = is_planar(K.vertices)
     normals = face_normals(K.vertices, faces)
     magnitude = np.linalg.norm(face_vectors, axis=1)
+    empty = not np.any(magnitude > min_magnitude)  # no arrows: draw the edges so the mesh shows
     mappable = plot_surface(ax, K.vertices if planar else x, faces, magnitude if colour_by_magnitude else None,
                             cmap="Greys", vmin=0.0, vmax=vmax or 2.0 * float(np.percentile(magnitude, 95)) or 1.0,
-                            linewidth=0.05, title=title)
+                            linewidth=0.3 if empty else 0.05, edgecolor="0.75" if empty else None, title=title)
     if mappable is not None:
         ax.field_clim = mappable.get_clim()  # the grey scale of this panel (read by tests)
     barycenters = x[faces].mean(axis=1)

@@ -132,7 +132,8 @@ def load_option(group: str, name: str):
     if not path.is_file():
         raise ConfigError(f"{group}={name}: no such option (conf/{group}/{name}.yaml)")
     node = OmegaConf.load(path)
-    parts = [load_option(group, entry) for entry in node.pop("defaults", []) if entry != "_self_"]
+    # same-group entries only: an override of another group (app/hodge's operator) is not part of this node
+    parts = [load_option(group, entry) for entry in node.pop("defaults", []) if isinstance(entry, str) and entry != "_self_"]
     return OmegaConf.merge(*parts, node)
 
 

@@ -150,7 +150,7 @@ def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces:
 
 
 #: with ``share_axes``, meshes whose extents differ more than this factor get their own boxes
-SHARE_EXTENT_RATIO = 5.0
+SHARE_EXTENT_RATIO = 20.0
 
 
 def _extent(vertices: np.ndarray) -> float:

@@ -1,0 +1,67 @@
+"""Hydra's own plugin test suites (``hydra.test_utils.launcher_common_tests``) against the
+``decrun`` sweeper: ``LauncherTestSuite`` and ``IntegrationTestSuite`` over the basic,
+joblib, submitit_local and ray launchers with ``hydra/sweeper=decrun``, parametrized as the
+launchers' own test modules parametrize them, and ``BatchedSweeperTestSuite`` (the
+sweeper's ``max_batch_size``) on the basic and joblib launchers. The suites' fixtures reset
+Hydra's singletons before each test, so every test also re-scans the plugins (the sweeper
+must survive any number of scans). Launchers whose extra is not installed are skipped."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import pytest
+from hydra.test_utils.launcher_common_tests import BatchedSweeperTestSuite, IntegrationTestSuite, LauncherTestSuite
+
+SWEEPER = "hydra/sweeper=decrun"
+
+
+def _installed(plugin: str, extra: str):
+    return pytest.mark.skipif(importlib.util.find_spec(f"hydra_plugins.{plugin}") is None,
+                              reason=f"{plugin} is not installed (pip install 'decrun[{extra}]')")
+
+
+#: launcher → (its Hydra name, the overrides its own test module passes, marks)
+RAY_INIT = "+hydra.launcher.ray.init.object_store_memory=78643200"
+LAUNCHERS = {
+    "basic": ("basic", [], []),
+    "joblib": ("joblib", [], [_installed("hydra_joblib_launcher", "parallel")]),
+    "submitit_local": ("submitit_local", ["hydra.launcher.timeout_min=2"],
+                       [_installed("hydra_submitit_launcher", "slurm")]),
+    "ray": ("ray", [RAY_INIT, "+hydra.launcher.ray.init.num_cpus=2"],
+            [_installed("hydra_ray_launcher", "ray"), pytest.mark.slow]),
+}
+#: the extra flags of each launcher's IntegrationTestSuite in its own test module
+INTEGRATION_FLAGS = {
+    "basic": ["hydra/launcher=basic", "hydra/hydra_logging=disabled", "hydra/job_logging=disabled"],
+    "joblib": ["hydra/job_logging=hydra_debug", "hydra/job_logging=disabled", "hydra/launcher=joblib"],
+    "submitit_local": ["hydra/hydra_logging=disabled", "hydra/job_logging=disabled", "hydra/launcher=submitit_local",
+                       "hydra.launcher.gpus_per_node=0", "hydra.launcher.timeout_min=1"],
+    "ray": ["hydra/launcher=ray", "hydra/hydra_logging=hydra_debug", "hydra/job_logging=disabled", RAY_INIT,
+            "+hydra.launcher.ray.init.num_cpus=2"],
+}
+
+
+def _launcher_params():
+    return [pytest.param(name, [SWEEPER, *overrides], id=key, marks=marks)
+            for key, (name, overrides, marks) in LAUNCHERS.items()]
+
+
+@pytest.mark.parametrize("launcher_name, overrides", _launcher_params())
+class TestDecrunSweeperWithLaunchers(LauncherTestSuite):
+    """Hydra's launcher suite, each launcher driven by the decrun sweeper."""
+
+
+@pytest.mark.parametrize("launcher_name, overrides",
+                         [pytest.param(name, [SWEEPER, "hydra.sweeper.max_batch_size=2", *overrides], id=key,
+                                       marks=marks)
+                          for key, (name, overrides, marks) in LAUNCHERS.items() if key in ("basic", "joblib")])
+class TestDecrunSweeperBatches(BatchedSweeperTestSuite):
+    """Hydra's batched-sweeper suite: 6 jobs in 3 launcher calls of 2."""
+
+
+@pytest.mark.parametrize("task_launcher_cfg, extra_flags",
+                         [pytest.param({}, ["-m", SWEEPER, *INTEGRATION_FLAGS[key]], id=key, marks=LAUNCHERS[key][2])
+                          for key in LAUNCHERS])
+class TestDecrunSweeperIntegration(IntegrationTestSuite):
+    """Hydra's integration suite (a task script run as a process), with the decrun sweeper."""

@@ -33,6 +33,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import DecrunError, MeshError
 from decrun.runner.config import config_dir, load_option, register_configs
+from decrun.runner.sweeper import register_check
 from decrun.runner.failures import (exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message,
                                     record_status)
 
@@ -108,7 +109,7 @@ def check_root_keys(cfg: DictConfig) -> None:
     from decrun.runner.config import DecrunConfig
 
     known = [f.name for f in dataclasses.fields(DecrunConfig)]
-    unknown = [key for key in cfg if key not in known]
+    unknown = [key for key in cfg if key not in known and key != "hydra"]  # hydra: a sweep job's own node
     if unknown:
         raise ConfigError(f"{unknown[0]}: unknown root key (nothing reads it); the config has {known}: "
                           f"drop +{unknown[0]}=..., or put the option under its group (e.g. +app.{unknown[0]}=...)")
@@ -368,9 +369,12 @@ def _short(value: Any) -> str:
     return str(value)
 
 
-@hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")
-def _hydra_main(cfg: DictConfig) -> int:
+def _hydra_task(cfg: DictConfig) -> int | float:
     return _task(cfg)
+
+
+_hydra_main = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_hydra_task)
+register_check(_hydra_task, validate)  # every job of a sweep is type-checked before the first starts
 
 
 class SweepTable(Callback):

@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from decrun.runner.sweeps import job_state, read_manifest
+from decrun.runner.sweeps import job_dir_name, job_state, read_manifest
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
@@ -81,10 +81,10 @@ def _overrides(job: Path) -> dict[str, Any]:
     return parse_overrides(yaml.safe_load(path.read_text()) or [])
 
 
-def _result_path(sweep_dir: Path, job: str) -> str:
+def _result_path(sweep_dir: Path, job_dir: str) -> str:
     for name in ("result.h5", "result.h5.partial"):
-        if (sweep_dir / job / name).is_file():
-            return f"{job}/{name}"
+        if (sweep_dir / job_dir / name).is_file():
+            return f"{Path(job_dir).as_posix()}/{name}"
     return ""
 
 
@@ -99,14 +99,15 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
     if not sweep_dir.is_dir():
         raise FileNotFoundError(f"sweep directory {str(sweep_dir)!r} does not exist")
     manifest = read_manifest(sweep_dir)
-    planned: list[tuple[str, dict, str | None]] = []  # (job, overrides, hash)
+    planned: list[tuple[str, str, dict, str | None]] = []  # (job, its directory, overrides, hash)
     if manifest is not None:
-        planned = [(j["job"], parse_overrides(j["overrides"]), j["config_hash"]) for j in manifest["jobs"]]
-    known = {name for name, _, _ in planned}
-    planned += [(p.name, _overrides(p), None) for p in _job_dirs(sweep_dir) if p.name not in known]
+        planned = [(j["job"], job_dir_name(j), parse_overrides(j["overrides"]), j["config_hash"])
+                   for j in manifest["jobs"]]
+    known = {os.path.normpath(where) for _, where, _, _ in planned}
+    planned += [(p.name, p.name, _overrides(p), None) for p in _job_dirs(sweep_dir) if p.name not in known]
     rows, override_keys, metric_keys = [], [], []
-    for name, overrides, expected in planned:
-        job_dir = sweep_dir / name
+    for name, where, overrides, expected in planned:
+        job_dir = sweep_dir / where
         metrics = job_state(job_dir, expected)
         if expected is None and job_dir.is_dir():
             overrides = _overrides(job_dir) or overrides
@@ -116,7 +117,7 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
         for key in metrics:
             if key not in metric_keys and key not in LEADING:
                 metric_keys.append(key)
-        rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, name)})
+        rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, where)})
     columns = ["job", *override_keys, "status", "error", *[k for k in metric_keys if k != "result"], "result"]
     return _typed(pd.DataFrame(rows, columns=columns), rows)
 

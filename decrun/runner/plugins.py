@@ -25,6 +25,7 @@ every sweep job) imports no numerical code.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import importlib
 import math
 import typing
@@ -129,8 +130,9 @@ def build(node: Any, key: str, base: type) -> Any:
     except ConfigKeyError as exc:
         name = exc.key if getattr(exc, "key", None) else str(exc).split("'")[1] if "'" in str(exc) else "?"
         known = sorted(f.name for f in dataclasses.fields(cls))
-        raise ConfigError(f"{key}.{name}: unknown option of {key}={cls.name or cls.__name__}; "
-                          f"it has {known}") from None
+        close = difflib.get_close_matches(str(name), known, n=1)
+        raise ConfigError(f"{key}.{name}: unknown option of {key}={cls.name or cls.__name__}; it has {known}"
+                          + (f"; did you mean {key}.{close[0]}?" if close else "")) from None
     except ValidationError as exc:
         where = getattr(exc, "full_key", None) or getattr(exc, "key", None) or "?"
         message = str(exc).splitlines()[0]

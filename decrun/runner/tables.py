@@ -8,8 +8,10 @@ one row per *planned* job — ``ok``, ``failed``, ``killed``, ``missing`` (never
 no metrics) or ``stale`` — so a killed sweep never looks complete; without one (another
 sweeper, an older sweep, ``outputs/runs``) one row per job directory.
 
-Columns: ``job``, the overridden keys, ``status``, ``error``, the metrics (in the order
-the jobs wrote them), ``result`` (the job's ``result.h5`` — or its journal
+Columns: ``job``, the overridden keys as written (``app.dt``, ``boundary``), ``status``,
+``error``, the metrics (in the order the jobs wrote them; ``metric.<name>`` for a metric
+named like a config root key or group, e.g. vector_field's ``metric.boundary``:
+:func:`metric_column`), ``result`` (the job's ``result.h5`` — or its journal
 ``result.h5.partial`` when it was killed — relative to the sweep directory; empty when
 there is none). Integer metrics stay integers when a row lacks them (pandas ``Int64``).
 
@@ -19,6 +21,8 @@ gives; :func:`stack` puts several sweeps under each other with a ``sweep`` colum
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import io
 import math
 import os
@@ -28,13 +32,16 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 import pandas as pd
 import yaml
+from hydra.core.override_parser.overrides_parser import OverridesParser
 
+from decrun.runner.config import DecrunConfig, config_dir
 from decrun.runner.sweeps import job_dir_name, job_state, read_manifest
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
 
 LEADING = ("job", "status", "error")
+_PARSER = OverridesParser.create()
 #: columns :func:`select` never drops as constant
 KEPT = ("sweep", "job", "status")
 
@@ -57,21 +64,33 @@ def _job_dirs(sweep_dir: Path) -> list[Path]:
 
 
 def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
-    """``["app.dt=0.1", "+x=a", "hydra.foo=1"]`` → ``{"app.dt": 0.1, "x": "a"}``: values
-    parsed as YAML scalars (lists and dicts kept as text); Hydra's own keys left out."""
+    """``["app.dt=1e-3", "+x=a", "hydra.foo=1"]`` → ``{"app.dt": 0.001, "x": "a"}``: each
+    override read by Hydra's own parser (values typed as Hydra types them; lists and dicts
+    kept as the text written), Hydra's own keys left out, a deletion ``~key`` → None."""
     out: dict[str, Any] = {}
-    for item in items:
-        key, _, value = str(item).partition("=")
-        key = key.lstrip("+~")
-        if key.startswith("hydra.") or key.startswith("hydra/"):
+    for override in _PARSER.parse_overrides([str(item) for item in items]):
+        if override.is_hydra_override():
             continue
-        try:
-            out[key] = yaml.safe_load(value)
-        except yaml.YAMLError:
-            out[key] = value
-        if isinstance(out[key], (list, dict)):
-            out[key] = value
+        value = override.value() if override.value_type is not None else None
+        if isinstance(value, (list, dict)):
+            value = override.input_line.partition("=")[2]
+        out[override.key_or_group] = value
     return out
+
+
+def metric_column(name: str) -> str:
+    """The column of a metric: its name, or ``metric.<name>`` when the name is also a
+    possible override column (a root key or config group of decrun's config, e.g.
+    ``boundary``: vector_field reports the boundary adaptation it used) or one of the
+    table's own columns. Override columns are the config keys as written (``app.dt``,
+    ``boundary``); metric names have no dot, so the two never share a column."""
+    return f"metric.{name}" if name in _reserved() else name
+
+
+@functools.lru_cache(maxsize=1)
+def _reserved() -> frozenset[str]:
+    groups = {p.name for p in config_dir().iterdir() if p.is_dir() and not p.name.startswith((".", "_"))}
+    return frozenset({*(f.name for f in dataclasses.fields(DecrunConfig)), *groups, "job", "sweep", "result"})
 
 
 def _overrides(job: Path) -> dict[str, Any]:
@@ -114,11 +133,12 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
         for key in overrides:
             if key not in override_keys:
                 override_keys.append(key)
+        metrics = {key if key in LEADING else metric_column(key): value for key, value in metrics.items()}
         for key in metrics:
             if key not in metric_keys and key not in LEADING:
                 metric_keys.append(key)
         rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, where)})
-    columns = ["job", *override_keys, "status", "error", *[k for k in metric_keys if k != "result"], "result"]
+    columns = ["job", *override_keys, "status", "error", *metric_keys, "result"]
     return _typed(pd.DataFrame(rows, columns=columns), rows)
 
 

@@ -2,7 +2,9 @@
 ``decrun`` sweeper: ``LauncherTestSuite`` and ``IntegrationTestSuite`` over the basic,
 joblib, submitit_local and ray launchers with ``hydra/sweeper=decrun``, parametrized as the
 launchers' own test modules parametrize them, and ``BatchedSweeperTestSuite`` (the
-sweeper's ``max_batch_size``) on the basic and joblib launchers. The suites' fixtures reset
+sweeper's ``max_batch_size``) on the basic and joblib launchers. The default run has every
+suite on basic and the launcher suites on joblib and submitit_local; ``-m slow`` adds the
+integration suite on those two and everything on ray. The suites' fixtures reset
 Hydra's singletons before each test, so every test also re-scans the plugins (the sweeper
 must survive any number of scans). Launchers whose extra is not installed are skipped."""
 
@@ -11,6 +13,7 @@ from __future__ import annotations
 import importlib.util
 
 import pytest
+from hydra.core.plugins import Plugins
 from hydra.test_utils.launcher_common_tests import BatchedSweeperTestSuite, IntegrationTestSuite, LauncherTestSuite
 
 SWEEPER = "hydra/sweeper=decrun"
@@ -55,6 +58,13 @@ INTEGRATION_FLAGS = {
 }
 
 
+# Hydra's first plugin scan now, as each launcher's own test module triggers it by importing the
+# launcher: some launchers register their config (hydra/launcher=ray) only when the scan first
+# imports their private modules, and the suites' fixture restores Hydra's state to the one
+# before each test, so a registration made inside a test would not outlive it
+Plugins.instance()
+
+
 def _launcher_params():
     return [pytest.param(name, [SWEEPER, *overrides], id=key, marks=marks)
             for key, (name, overrides, marks) in LAUNCHERS.items()]
@@ -73,8 +83,16 @@ class TestDecrunSweeperBatches(BatchedSweeperTestSuite):
     """Hydra's batched-sweeper suite: 6 jobs in 3 launcher calls of 2."""
 
 
+#: the integration suite starts a task process per test (~3 s with the basic launcher); with
+#: joblib and submitit it also starts the launcher's worker processes (~8 s a test, ~2 min a
+#: launcher): those run with -m slow, as everything on ray (a local cluster: ~30 s to start)
+SLOW_INTEGRATION = ("joblib", "submitit_local", "ray")
+
+
 @pytest.mark.parametrize("task_launcher_cfg, extra_flags",
-                         [pytest.param({}, ["-m", SWEEPER, *INTEGRATION_FLAGS[key]], id=key, marks=LAUNCHERS[key][2])
+                         [pytest.param({}, ["-m", SWEEPER, *INTEGRATION_FLAGS[key]], id=key,
+                                       marks=[*LAUNCHERS[key][2], *([pytest.mark.slow] if key in SLOW_INTEGRATION
+                                                                    else [])])
                           for key in LAUNCHERS])
 class TestDecrunSweeperIntegration(IntegrationTestSuite):
     """Hydra's integration suite (a task script run as a process), with the decrun sweeper."""

@@ -387,18 +387,10 @@ class SweepTable(Callback):
     _progress = None
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
-        """Jobs done / total with ETA in the submitting process (a terminal only)."""
+        """Refuse a non-empty sweep dir for sweepers without resume; then show jobs done /
+        total with ETA in the submitting process (a terminal only)."""
         from decrun.runner.progress import SweepProgress, sweep_size, terminal
 
-        enabled = terminal(bool(config.get("progress", True)))
-        if not enabled:
-            return
-        params = config.hydra.sweeper.get("params") or {}
-        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
-        total = sweep_size(list(config.hydra.overrides.task), params)
-        SweepTable._progress = SweepProgress(Path(str(config.hydra.sweep.dir)), total, enabled=True).start()
-
-    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))
         target = str(config.hydra.sweeper.get("_target_", ""))
         if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):
@@ -406,6 +398,12 @@ class SweepTable(Callback):
 
             refuse(SweepError(f"error: hydra.sweep.dir={sweep_dir} is not empty; its old jobs would mix into the "
                              f"new table: choose a new hydra.sweep.dir (only hydra/sweeper=decrun resumes)"))
+        if not terminal(bool(config.get("progress", True))):
+            return
+        params = config.hydra.sweeper.get("params") or {}
+        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
+        total = sweep_size(list(config.hydra.overrides.task), params)
+        SweepTable._progress = SweepProgress(sweep_dir, total, enabled=True).start()
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         from decrun.runner.tables import failed_jobs, select, to_markdown, write_sweep_table
@@ -509,6 +507,10 @@ def _report(exc: Exception) -> int:
 
     if _VERBOSE:
         raise exc
+    message = typo_message(exc) or missing_plugin_message(exc)
+    if message:
+        print(message, file=sys.stderr)
+        return 1
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
         print(str(exc), file=sys.stderr)
         if isinstance(exc.__cause__, OmegaConfBaseException):
@@ -522,6 +524,60 @@ def _report(exc: Exception) -> int:
         print(f"error: {os_error_message(os_error)}", file=sys.stderr)
         return 1
     raise exc  # a bug: show it
+
+
+def typo_message(exc: Exception) -> str | None:
+    """For an option of a plugin group Hydra refuses to override (``app.stpes=3``: not in
+    the group's config), the decrun message of its ``+`` form — the group's options and the
+    closest one — instead of Hydra's advice to append it. None for any other error."""
+    import re
+
+    from omegaconf.errors import ConfigAttributeError, ConfigKeyError
+
+    from decrun.runner.config import PLUGIN_GROUPS
+
+    match = re.match(r"Could not override '([^']+)'", str(exc))
+    if match is None or not isinstance(exc.__cause__, (ConfigAttributeError, ConfigKeyError)):
+        return None
+    key = match.group(1)
+    if key.split(".", 1)[0] not in PLUGIN_GROUPS:
+        return None
+    overrides = []  # the group choices and experiments of the command, the key in its + form
+    for arg in sys.argv[1:]:
+        name, sep, value = arg.partition("=")
+        bare = name.lstrip("+~")
+        if not sep or bare.startswith(("hydra.", "hydra/")):
+            continue
+        if bare == key:
+            overrides.append(f"+{key}={value.split(',')[0]}")  # a sweep: its first value
+        elif "." not in bare:
+            overrides.append(f"{name}={value.split(',')[0]}")
+    try:
+        validate(compose_config(overrides))
+    except DecrunError as error:
+        return f"error: {error}"
+    except Exception:  # the command cannot be recomposed this way: Hydra's message stands
+        return None
+    return None
+
+
+def missing_plugin_message(exc: Exception) -> str | None:
+    """For a Hydra launcher or sweeper whose plugin is not installed (``hydra/launcher=ray``
+    without the extra), the pip line that installs it (:data:`decrun.runner.hints.PLUGIN_EXTRAS`)."""
+    import re
+
+    from hydra.errors import MissingConfigException
+
+    from decrun.runner.hints import PLUGIN_EXTRAS
+
+    if not isinstance(exc, MissingConfigException):
+        return None
+    match = re.search(r"Could not (?:find|load) '(hydra/(?:launcher|sweeper))/([^']+)'", str(exc))
+    if match is None or match.group(2) not in PLUGIN_EXTRAS.get(match.group(1), {}):
+        return None
+    group, name = match.groups()
+    plugin, extra = PLUGIN_EXTRAS[group][name]
+    return f'error: {group}={name}: {plugin} is not installed; pip install "decrun[{extra}]"'
 
 
 # ----------------------------------------------------------------------------------

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import importlib
 import math
 import typing
@@ -108,6 +109,13 @@ def _widen(hint, value):
     return value
 
 
+@functools.lru_cache(maxsize=None)
+def _schema(cls: type) -> DictConfig:
+    """``OmegaConf.structured(cls)``, made once per class (``OmegaConf.merge`` copies it; a
+    sweep builds every plugin of every job twice: before the first starts, then in it)."""
+    return OmegaConf.structured(cls)
+
+
 def build(node: Any, key: str, base: type) -> Any:
     """Type-check ``node`` against the dataclass named by its ``_target_`` and build it.
 
@@ -122,7 +130,7 @@ def build(node: Any, key: str, base: type) -> Any:
     """
     cls = target_class(node, key, base)
     values = _widen(cls, plain_values(node))
-    schema = OmegaConf.structured(cls)
+    schema = _schema(cls)
     try:
         merged = OmegaConf.merge(schema, values)
         check_numbers(OmegaConf.to_container(merged), key)  # as converted ("nan" → nan)

@@ -87,7 +87,8 @@ def profile() -> None:
     import hydra.core.utils as hydra_utils
 
     import decrun.runner.cli as cli
-    import decrun.runner.sweeper as sweeper
+    import decrun.runner.run as run
+    import decrun.runner.sweep.sweeper as sweeper
 
     totals, calls = collections.defaultdict(float), collections.Counter()
 
@@ -108,9 +109,9 @@ def profile() -> None:
     timed(hydra_utils, "run_job", "hydra run_job (Hydra's per-job work + the job)")
     timed(hydra_utils, "_save_config", "  hydra: .hydra/*.yaml")
     timed(hydra_config.HydraConfig, "set_config", "  hydra: HydraConfig.set_config")
-    timed(cli, "_task", "  decrun job (_task)")
-    timed(cli, "run_experiment", "    run_experiment")
-    timed(cli, "write_run", "    write_run")
+    timed(run, "run", "  decrun job (run)")
+    timed(run, "run_experiment", "    run_experiment")
+    timed(run, "write_run", "    write_run")
     timed(sweeper.ManifestSweeper, "plan", "sweeper: plan (compose + check every job)")
     timed(sweeper.Composer, "compose_all", "  compose_all")
     with tempfile.TemporaryDirectory() as tmp:

@@ -1,5 +1,5 @@
 """The ``decrun`` Hydra sweeper (``hydra/sweeper=decrun``, decrun's default): Hydra's basic
-grid sweeper plus a manifest and resume (:class:`decrun.runner.sweeper.ManifestSweeper`).
+grid sweeper plus a manifest and resume (:class:`decrun.runner.sweep.sweeper.ManifestSweeper`).
 
 Hydra instantiates sweepers only from classes defined in the ``hydra_plugins`` namespace,
 and every plugin scan re-executes this module and, before it, Hydra's
@@ -10,7 +10,7 @@ joblib job restoring Hydra's state in-process)."""
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.config_store import ConfigStore
 
-from decrun.runner.sweeper import DecrunSweeperConf, ManifestSweeper
+from decrun.runner.sweep.sweeper import DecrunSweeperConf, ManifestSweeper
 
 __all__ = ["DecrunSweeper"]
 

@@ -14,9 +14,9 @@ import pytest
 from decrun.errors import ConfigError
 from decrun.runner.cli import table_main
 from decrun.runner.config import OptimizeConfig
-from decrun.runner.recorder import ResultRecorder
-from decrun.runner.sweeps import FORMAT, MANIFEST
-from decrun.runner.tables import load_sweep, select, stack, sweep_table, write_sweep_table
+from decrun.runner.results.recorder import ResultRecorder
+from decrun.runner.sweep.manifest import FORMAT, MANIFEST
+from decrun.runner.sweep.tables import load_sweep, select, stack, sweep_table, write_sweep_table
 
 
 def make_sweep(root, jobs: dict[str, dict | str | None], hashes: dict[str, str] | None = None):
@@ -134,8 +134,11 @@ def test_the_objective_a_job_returns():
 
 
 def test_jobs_of_one_process_share_mesh_complex_and_operators():
-    from decrun.runner import job_cache
-    from decrun.runner.cli import compose_config, run_experiment
+    from decrun.runner.sweep import job_cache
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
 
     job_cache.clear()
     common = ["mesh.subdiv=2", "app.steps=2", "figures=false"]
@@ -184,7 +187,7 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
     from omegaconf import OmegaConf
 
     from decrun.runner.config import config_dir
-    from decrun.runner.sweeper import Composer
+    from decrun.runner.sweep.sweeper import Composer
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
@@ -214,7 +217,7 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
 
 
 def test_overrides_are_read_by_hydras_parser():
-    from decrun.runner.tables import parse_overrides
+    from decrun.runner.sweep.tables import parse_overrides
 
     assert parse_overrides(["app.dt=1e-3", "+x=a", "hydra.verbose=true", "figures=False", "~app.rescale",
                             "mesh.path='a b.obj'", "app.strokes=[{points:[[0.1,0.2]]}]", "solver.tol=1e-10"]) == {
@@ -233,8 +236,11 @@ def test_no_override_shares_a_column_with_a_metric(app, tmp_path):
     each, the override's value under its key, each metric under :func:`metric_column`."""
     from test_app_grid import APP_MESH
 
-    from decrun.runner.cli import compose_config, run_experiment
-    from decrun.runner.tables import metric_column
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+    from decrun.runner.sweep.tables import metric_column, reserved_names
 
     result, _, _ = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app]]))
     metrics = {k: v for k, v in result.metrics.items() if isinstance(v, (bool, int, float, str))}
@@ -243,11 +249,14 @@ def test_no_override_shares_a_column_with_a_metric(app, tmp_path):
     manifest = json.loads((sweep / MANIFEST).read_text())
     manifest["jobs"][0]["overrides"] = overrides
     (sweep / MANIFEST).write_text(json.dumps(manifest))
+    (sweep / "multirun.yaml").write_text(OmegaConf.to_yaml(compose_config([f"app={app}"])))  # the root keys
     table = sweep_table(sweep)
     assert table.columns.is_unique
+    reserved = reserved_names(sweep)
+    assert {"mesh", "boundary", "figures", "optimize"} <= reserved  # in every decrun sweep, overridden or not
     assert table.loc[0, "app"] == app and table.loc[0, "boundary"] == "none" and table.loc[0, "experiment"] == \
         "operator_variants"
     for name, value in metrics.items():
         if name not in ("status", "error"):
-            assert table.loc[0, metric_column(name)] == value, name
+            assert table.loc[0, metric_column(name, reserved | {"experiment", "app"})] == value, name
     assert table_main([str(sweep)]) == 0

@@ -2,9 +2,9 @@
 same jobs in the same order as Hydra's basic sweeper) that
 
 1. composes and checks every planned job before any runs (a bad override or value stops
-   the sweep before anything is written, naming the job: ``hydra.sweeper.check``) and
+   the sweep before anything is written, naming the job: :func:`~decrun.runner.sweep.checks.register_check`) and
    writes the plan — each job's directory, overrides and
-   :func:`~decrun.runner.sweeps.config_hash` — to ``<sweep dir>/manifest.json``;
+   :func:`~decrun.runner.sweep.manifest.config_hash` — to ``<sweep dir>/manifest.json``;
 2. refuses a sweep directory that is not empty, unless ``hydra.sweeper.resume=true``;
 3. with ``resume=true`` checks that the planned jobs are the manifest's (same overrides,
    same config hash: same config files) and launches only the jobs that are not ``ok``
@@ -36,26 +36,16 @@ from hydra.errors import CompactHydraException
 from omegaconf import OmegaConf, open_dict, read_write
 
 from decrun.errors import ConfigError, DecrunError
-from decrun.runner.sweeps import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now, read_manifest,
-                                  write_manifest)
+from decrun.runner.sweep.checks import CHECKS
+from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
+                                          read_manifest, write_manifest)
 
 log = logging.getLogger("decrun")
 
-__all__ = ["ManifestSweeper", "DecrunSweeperConf", "SweepError", "register_check"]
+__all__ = ["ManifestSweeper", "DecrunSweeperConf", "SweepError"]
 
 #: what a job directory may hold that a resumed job must not inherit
 _JOB_OUTPUTS = ("metrics.json", "result.h5", "result.h5.partial")
-
-
-#: task function → the check run on every planned job's config before the first job starts
-CHECKS: dict[Callable, Callable[[Any], Any]] = {}
-
-
-def register_check(task_function: Callable, check: Callable[[Any], Any]) -> None:
-    """Run ``check(job_config)`` on each planned job of ``task_function`` (the function
-    ``@hydra.main`` wraps) before any job starts; a :class:`~decrun.errors.DecrunError` it
-    raises stops the sweep in one line naming the job. Other Hydra apps get no check."""
-    CHECKS[task_function] = check
 
 
 class SweepError(ConfigError, CompactHydraException):

@@ -3,7 +3,7 @@ per metric.
 
 A sweep directory (``outputs/sweeps/<stamp>/``) holds one sub-directory per job with
 Hydra's ``.hydra/overrides.yaml`` and (when the job got that far) ``metrics.json``. With
-a manifest (:mod:`decrun.runner.sweeps`, written by the ``decrun`` sweeper) the table has
+a manifest (:mod:`decrun.runner.sweep.manifest`, written by the ``decrun`` sweeper) the table has
 one row per *planned* job — ``ok``, ``failed``, ``killed``, ``missing`` (never started or
 no metrics) or ``stale`` — so a killed sweep never looks complete; without one (another
 sweeper, an older sweep, ``outputs/runs``) one row per job directory.
@@ -21,21 +21,18 @@ gives; :func:`stack` puts several sweeps under each other with a ``sweep`` colum
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 import io
 import math
 import os
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Collection, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
 import yaml
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
-from decrun.runner.config import DecrunConfig, config_dir
-from decrun.runner.sweeps import job_dir_name, job_state, read_manifest
+from decrun.runner.sweep.manifest import job_dir_name, job_state, read_manifest
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
@@ -78,19 +75,30 @@ def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
     return out
 
 
-def metric_column(name: str) -> str:
-    """The column of a metric: its name, or ``metric.<name>`` when the name is also a
-    possible override column (a root key or config group of decrun's config, e.g.
-    ``boundary``: vector_field reports the boundary adaptation it used) or one of the
-    table's own columns. Override columns are the config keys as written (``app.dt``,
-    ``boundary``); metric names have no dot, so the two never share a column."""
-    return f"metric.{name}" if name in _reserved() else name
+def metric_column(name: str, reserved: Collection[str]) -> str:
+    """The column of a metric: its name, or ``metric.<name>`` when the name is ``reserved``
+    (:func:`reserved_names`: a possible override column, e.g. ``boundary`` — vector_field
+    reports the boundary adaptation it used — or one of the table's own columns). Override
+    columns are the config keys as written (``app.dt``, ``boundary``), so the two never
+    share a column."""
+    return f"metric.{name}" if name in reserved else name
 
 
-@functools.lru_cache(maxsize=1)
-def _reserved() -> frozenset[str]:
-    groups = {p.name for p in config_dir().iterdir() if p.is_dir() and not p.name.startswith((".", "_"))}
-    return frozenset({*(f.name for f in dataclasses.fields(DecrunConfig)), *groups, "job", "sweep", "result"})
+def reserved_names(sweep_dir: Path, override_keys: Iterable[str] = ()) -> frozenset[str]:
+    """Names a metric column must not take in this sweep's table: the table's own columns,
+    the sweep's override columns, and every root key and chosen config group of the sweep's
+    config (from its ``multirun.yaml``: the same in every decrun sweep, so a metric keeps its
+    column from one sweep to the next)."""
+    names = {"job", "sweep", "result", *override_keys}
+    path = Path(sweep_dir) / "multirun.yaml"
+    if path.is_file():
+        try:
+            config = yaml.safe_load(path.read_text()) or {}
+        except yaml.YAMLError:
+            config = {}
+        choices = ((config.get("hydra") or {}).get("runtime") or {}).get("choices") or {}
+        names.update(key for key in [*config, *choices] if key != "hydra" and not str(key).startswith("hydra/"))
+    return frozenset(names)
 
 
 def _overrides(job: Path) -> dict[str, Any]:
@@ -124,7 +132,9 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
                    for j in manifest["jobs"]]
     known = {os.path.normpath(where) for _, where, _, _ in planned}
     planned += [(p.name, p.name, _overrides(p), None) for p in _job_dirs(sweep_dir) if p.name not in known]
-    rows, override_keys, metric_keys = [], [], []
+    override_keys = list(dict.fromkeys(key for _, _, overrides, _ in planned for key in overrides))
+    reserved = reserved_names(sweep_dir, override_keys)
+    rows, metric_keys = [], []
     for name, where, overrides, expected in planned:
         job_dir = sweep_dir / where
         metrics = job_state(job_dir, expected)
@@ -133,7 +143,7 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
         for key in overrides:
             if key not in override_keys:
                 override_keys.append(key)
-        metrics = {key if key in LEADING else metric_column(key): value for key, value in metrics.items()}
+        metrics = {key if key in LEADING else metric_column(key, reserved): value for key, value in metrics.items()}
         for key in metrics:
             if key not in metric_keys and key not in LEADING:
                 metric_keys.append(key)

@@ -47,7 +47,7 @@ class Hide:
         if name.startswith("hydra_plugins.hydra_ray_launcher"):
             raise ModuleNotFoundError(name)
 sys.meta_path.insert(0, Hide())
-from decrun.runner.failures import console_main
+from decrun.__main__ import console_main
 sys.argv = ["decrun", *sys.argv[1:]]
 console_main()
 """
@@ -65,10 +65,10 @@ def test_a_launcher_that_is_not_installed_gives_the_pip_line(tmp_path):
 def test_the_sweep_progress_bar_starts_and_counts_jobs_in_any_subdir(tmp_path, monkeypatch):
     from omegaconf import OmegaConf
 
-    from decrun.runner import progress
+    from decrun.runner import cli
     from decrun.runner.cli import SweepTable
 
-    monkeypatch.setattr(progress, "terminal", lambda enabled=True: enabled)
+    monkeypatch.setattr(cli, "terminal", lambda enabled=True: enabled)
     config = OmegaConf.create({"progress": True, "hydra": {"sweep": {"dir": str(tmp_path / "s")},
                                                          "sweeper": {"_target_": "hydra_plugins.decrun_sweeper.DecrunSweeper"},
                                                          "overrides": {"task": ["app.dt=0.1,0.2,0.3"]}}})

@@ -130,6 +130,8 @@ class ManifestSweeper:
         with read_write(cfg.hydra), open_dict(cfg.hydra):
             cfg.hydra.job.num = num
             cfg.hydra.job.id = num
+        if "${hydra:" not in OmegaConf.to_container(cfg.hydra.sweep, resolve=False)["subdir"]:
+            return str(OmegaConf.select(cfg, "hydra.sweep.subdir"))
         state = HydraConfig.instance()
         before = state.cfg
         state.set_config(cfg)  # for ${hydra:...} in the pattern (as the launcher's job sees it)

@@ -69,7 +69,9 @@ def _check_job(cfg: DictConfig) -> None:
 
 
 _hydra_main = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_hydra_task)
-register_check(_hydra_task, _check_job)  # every job of a sweep is type-checked before the first starts
+# every job of a sweep is type-checked before the first starts; joblib's workers import the
+# numerical stack while the sweep is planned
+register_check(_hydra_task, _check_job, warm=("decrun.runner.run", "decrun.runner.results.recorder"))
 
 
 class SweepTable(Callback):

@@ -26,6 +26,7 @@ import logging
 import os
 import shutil
 import sys
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence
@@ -36,7 +37,7 @@ from hydra.errors import CompactHydraException
 from omegaconf import OmegaConf, open_dict, read_write
 
 from decrun.errors import ConfigError, DecrunError
-from decrun.runner.sweep.checks import CHECKS
+from decrun.runner.sweep.checks import CHECKS, WARM, import_modules
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
 
@@ -91,6 +92,7 @@ class ManifestSweeper:
     def setup(self, *, hydra_context, task_function, config) -> None:
         super().setup(hydra_context=hydra_context, task_function=task_function, config=config)
         self.check = CHECKS.get(task_function)
+        self.warm = WARM.get(task_function, ())
 
     def plan(self, arguments: List[str]) -> list[dict[str, Any]]:
         """The jobs of the sweep, in Hydra's order: ``{"job", "dir", "overrides",
@@ -158,6 +160,31 @@ class ManifestSweeper:
         self.hydra_context.config_loader = PlannedConfigs(self.hydra_context.config_loader, configs)
         return launched
 
+    def _warm_workers(self) -> Optional[threading.Thread]:
+        """With Hydra's joblib launcher, start its loky workers now, each importing the
+        task's modules (:data:`~decrun.runner.sweep.checks.WARM`), while this process
+        plans the sweep: the launcher's ``Parallel`` call with the same options reuses
+        them (loky's reusable executor). None for other launchers and other Hydra apps."""
+        options = getattr(self.launcher, "joblib", None)
+        if not self.warm or type(self.launcher).__name__ != "JoblibLauncher" or not isinstance(options, dict):
+            return None
+        from joblib import Parallel, delayed, effective_n_jobs
+
+        options = {**options, "backend": "loky"}
+        workers = effective_n_jobs(options.get("n_jobs") or 1)
+        if workers <= 1:
+            return None
+
+        def start():
+            try:
+                Parallel(**options)(delayed(import_modules)(self.warm) for _ in range(workers))
+            except Exception as exc:  # only time is lost: the jobs import what they need themselves
+                log.debug("joblib workers not warmed: %s", exc)
+
+        thread = threading.Thread(target=start, name="decrun-warm-workers", daemon=True)
+        thread.start()
+        return thread
+
     def sweep(self, arguments: List[str]) -> Any:
         try:
             return self._sweep(arguments)
@@ -166,7 +193,12 @@ class ManifestSweeper:
 
     def _sweep(self, arguments: List[str]) -> Any:
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
-        jobs = self.plan(arguments)
+        warming = self._warm_workers()
+        try:
+            jobs = self.plan(arguments)
+        finally:
+            if warming is not None:
+                warming.join()
         manifest, todo = self._start(sweep_dir, jobs, arguments)
         sweep_dir.mkdir(parents=True, exist_ok=True)
         OmegaConf.save(self.config, sweep_dir / "multirun.yaml")

@@ -1,0 +1,44 @@
+"""Compiled kernels without paying for numba at import time.
+
+``@njit`` marks a kernel written in numba's subset of Python; it is compiled by
+``numba.njit(cache=True)`` on its **first call** (so ``import decrun`` and ``decrun --help``
+never import numba) and the machine code is cached next to the module (``__pycache__``): a
+sweep compiles once per install, not once per job.
+
+Every kernel lives next to its numpy twin, which stays the reference the tests compare it
+with. ``DECRUN_NUMBA=0`` in the environment makes :func:`enabled` false, so callers take the
+numpy path everywhere (to rule out a kernel when chasing a bug).
+"""
+
+from __future__ import annotations
+
+import os
+from functools import update_wrapper
+
+__all__ = ["njit", "enabled"]
+
+
+def enabled() -> bool:
+    """False when the environment sets ``DECRUN_NUMBA=0`` (numpy twins everywhere)."""
+    return os.environ.get("DECRUN_NUMBA", "1") != "0"
+
+
+class _LazyKernel:
+    """A Python function compiled with ``numba.njit(cache=True)`` on its first call."""
+
+    def __init__(self, function):
+        self.function = function
+        self.compiled = None
+        update_wrapper(self, function)
+
+    def __call__(self, *args):
+        if self.compiled is None:
+            import numba
+
+            self.compiled = numba.njit(cache=True)(self.function)
+        return self.compiled(*args)
+
+
+def njit(function):
+    """Decorator: ``function`` becomes a kernel compiled (and disk-cached) at first call."""
+    return _LazyKernel(function)

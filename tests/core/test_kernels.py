@@ -173,7 +173,7 @@ def test_bowtie_fans_counted_alike():
 
 
 def test_config_composition_does_not_import_numba():
-    code = ("import sys, contextlib, io; from decrun.runner.failures import console_main\n"
+    code = ("import sys, contextlib, io; from decrun.__main__ import console_main\n"
             "sys.argv = ['decrun', '--cfg', 'job']; shown = io.StringIO()\n"
             "with contextlib.redirect_stdout(shown):\n"
             "    try: console_main()\n"

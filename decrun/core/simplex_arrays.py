@@ -44,12 +44,8 @@ def group_rows(rows: np.ndarray):
     """
     if not isinstance(rows, FaceRows):
         rows = FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
-    m, c = rows.shape
-    if m == 0:
-        empty = np.zeros((0, c), dtype=np.int64)
-        return empty, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64)
     bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
-    if bits * c <= 62 and jit.enabled():
+    if rows.shape[0] and bits * rows.shape[1] <= 62 and jit.enabled():
         return _group_packed_kernel(np.ascontiguousarray(rows.top, dtype=np.int64), rows.column_table(), bits)
     return group_rows_numpy(rows)
 

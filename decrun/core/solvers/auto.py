@@ -54,14 +54,9 @@ class AutoSolver(Solver):
             raise SolverError(f"auto solver: cannot factorize the {A.shape} matrix: {exc}") from exc
         self.method = "superlu"
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        if self._key is None:
-            raise SolverError("auto solver: solve() called before factorize()")
-        b = np.ascontiguousarray(b, dtype=np.float64)
-        if b.shape[0] != self.shape[0]:
-            raise SolverError(f"auto solver: right-hand side has {b.shape[0]} rows, matrix {self.shape}")
+    def _solve_block(self, b: np.ndarray) -> np.ndarray:
         if self._factor is not None:
-            return cholesky_solve(self._factor, b)
+            return cholesky_solve(self._factor, np.ascontiguousarray(b))
         x = self._lu.solve(b)
         if not np.all(np.isfinite(x)):
             raise SolverError("auto solver: the solution is not finite (matrix numerically singular?)")

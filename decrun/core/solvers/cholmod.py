@@ -62,13 +62,8 @@ class CholmodSolver(Solver):
     def _prepare(self, A) -> None:
         self._factor = cholesky_factor(A, self.name)
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        if self._key is None:
-            raise SolverError(f"{self.name} solver: solve() called before factorize()")
-        b = np.ascontiguousarray(b, dtype=np.float64)
-        if b.shape[0] != self.shape[0]:
-            raise SolverError(f"{self.name} solver: right-hand side has {b.shape[0]} rows, matrix {self.shape}")
-        return cholesky_solve(self._factor, b)
+    def _solve_block(self, b: np.ndarray) -> np.ndarray:
+        return cholesky_solve(self._factor, np.ascontiguousarray(b))
 
 
 def cholesky_factor(A: sp.csr_matrix, name: str):

@@ -1,7 +1,8 @@
 """Compiled kernels without paying for numba at import time.
 
 ``@njit`` marks a kernel written in numba's subset of Python; it is compiled by
-``numba.njit(cache=True)`` on its **first call** (so ``import decrun`` and ``decrun --help``
+``numba.njit(cache=True)`` on its **first call** (a kernel may call the other kernels of its
+module) (so ``import decrun`` and ``decrun --help``
 never import numba) and the machine code is cached next to the module (``__pycache__``): a
 sweep compiles once per install, not once per job.
 
@@ -31,12 +32,23 @@ class _LazyKernel:
         self.compiled = None
         update_wrapper(self, function)
 
-    def __call__(self, *args):
+    def dispatcher(self):
+        """The numba dispatcher (created once; it compiles per argument types when called).
+
+        Kernels called from this one must be numba functions when it is compiled: every
+        lazy kernel among the module's globals is replaced by its dispatcher first."""
         if self.compiled is None:
             import numba
 
+            namespace = self.function.__globals__
             self.compiled = numba.njit(cache=True)(self.function)
-        return self.compiled(*args)
+            for name, value in list(namespace.items()):
+                if isinstance(value, _LazyKernel):
+                    namespace[name] = value.dispatcher()
+        return self.compiled
+
+    def __call__(self, *args):
+        return self.dispatcher()(*args)
 
 
 def njit(function):

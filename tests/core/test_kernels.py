@@ -181,3 +181,30 @@ def test_config_composition_does_not_import_numba():
             "print('app:' in shown.getvalue(), 'numba' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "True False"  # composed, and numba not imported
+
+
+FLIP_CASES = {
+    "stretched sphere (many rounds)": (lambda: icosphere(3), {"border": "tufted"}, 4.0),
+    "planar obtuse, tufted border": (lambda: random_planar(150), {"border": "tufted"}, 4.0),
+    "planar obtuse, fixed border": (lambda: random_planar(150), {"border": "fixed"}, 4.0),
+    "annulus, mollified": (lambda: annulus(max_area=0.01), {"border": "tufted", "mollify": 1e-5}, 3.0),
+    "spiral strip": (lambda: spiral_strip(), {"border": "tufted"}, 3.0),
+}
+
+
+@pytest.mark.parametrize("name", FLIP_CASES)
+def test_flip_rounds_kernel_equals_the_numpy_rounds(name, monkeypatch):
+    from decrun.core.intrinsic_delaunay import intrinsic_delaunay
+
+    build, options, stretch = FLIP_CASES[name]
+    vertices, faces = build()
+    vertices = np.asarray(vertices, dtype=np.float64).copy()
+    vertices[:, -1] *= stretch
+
+    def flipped():
+        T = intrinsic_delaunay(vertices, faces, **options)
+        return [T.faces, T.face_edges, T.edge_lengths, T.edge_sides, T.flips, T.rounds]
+
+    compiled, reference = _both(monkeypatch, flipped)
+    assert reference[4] > 0  # the case flips
+    _assert_same(compiled, reference)

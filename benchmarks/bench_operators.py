@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E402
+from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn, warm_up_kernels  # noqa: E402
 
 TRIANGLE_CASES = {"quick": [4, 5], "full": [5, 6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
 TET_CASES = {"quick": [8, 12], "full": [15, 25, 40, 55]}  # Kuhn cubes: 6·n³ tetrahedra
@@ -33,6 +33,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     if library == "decrun":
         from decrun.core.complex import SimplicialComplex
         from decrun.core.dec import DEC
+
+        warm_up_kernels()  # numba's import and the kernel cache: once per process, reported by --jit
 
         def work():
             K = SimplicialComplex(vertices, simplices)

@@ -13,8 +13,28 @@ import sys
 
 import numpy as np
 
-__all__ = ["status_bytes", "reset_peak_rss", "peak_rss_bytes", "icosphere_or_kuhn_cube", "spawn", "have_libigl",
+__all__ = ["warm_up_kernels", "status_bytes", "reset_peak_rss", "peak_rss_bytes", "icosphere_or_kuhn_cube", "spawn", "have_libigl",
            "best_of", "parse_or_run_case"]
+
+
+def warm_up_kernels() -> float:
+    """Load decrun's numba kernels (compiled once per install, then read from the cache) on a
+    tiny mesh, so a case measures the work and not numba's import; returns the seconds taken
+    (the first-call cost a fresh process pays once)."""
+    import time
+
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.core.intrinsic_delaunay import intrinsic_delaunay
+    from decrun.core.primitives import grid_triangles, kuhn_cube
+
+    start = time.perf_counter()
+    vertices, faces = grid_triangles(4, 4, jitter=0.2)
+    dec = DEC(SimplicialComplex(vertices, faces), star="circumcentric")
+    [dec.d(0), dec.d(1)] + [dec.star(k) for k in range(3)]
+    intrinsic_delaunay(vertices * [1.0, 5.0], faces)
+    DEC(SimplicialComplex(*kuhn_cube(2)), star="circumcentric").star(0)
+    return time.perf_counter() - start
 
 
 def status_bytes(field: str) -> int:

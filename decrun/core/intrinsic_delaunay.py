@@ -521,7 +521,7 @@ def intrinsic_delaunay(vertices, faces, mollify: float = 0.0, border: str = "tuf
         raise DegenerateSimplexError(
             f"triangles {bad[:8].tolist()} have zero area in their edge lengths (pass mollify > 0, e.g. 1e-5)")
 
-    flip_rounds = _flip_rounds_kernel if jit.enabled() else flip_rounds_numpy
+    flip_rounds = _flip_rounds_kernel if jit.enabled(faces.shape[0]) else flip_rounds_numpy
     flips, rounds, finished = flip_rounds(faces, face_edges, sides, lengths, float(delaunay_tol), int(max_rounds))
     if not finished:
         raise RuntimeError(f"intrinsic Delaunay flipping did not finish in {max_rounds} rounds")

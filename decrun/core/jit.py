@@ -7,8 +7,12 @@ never import numba) and the machine code is cached next to the module (``__pycac
 sweep compiles once per install, not once per job.
 
 Every kernel lives next to its numpy twin, which stays the reference the tests compare it
-with. ``DECRUN_NUMBA=0`` in the environment makes :func:`enabled` false, so callers take the
-numpy path everywhere (to rule out a kernel when chasing a bug).
+with, and both give the same bits. A caller takes the kernel when :func:`enabled` says so for
+the size of its input: by default from :data:`MIN_SIZE` items on, where the time saved
+outweighs what a fresh process pays once to import numba and load the cached kernels
+(~0.7 s on an idle 2-core machine; ``benchmarks/bench_operators.py --jit``). The environment
+variable ``DECRUN_NUMBA`` overrides it: ``1`` always the kernels, ``0`` always numpy (to rule
+out a kernel when chasing a bug).
 """
 
 from __future__ import annotations
@@ -16,12 +20,19 @@ from __future__ import annotations
 import os
 from functools import update_wrapper
 
-__all__ = ["njit", "enabled"]
+__all__ = ["njit", "enabled", "MIN_SIZE"]
+
+#: inputs from this many items (simplices, faces, rows) on take the compiled kernels
+MIN_SIZE = 500_000
 
 
-def enabled() -> bool:
-    """False when the environment sets ``DECRUN_NUMBA=0`` (numpy twins everywhere)."""
-    return os.environ.get("DECRUN_NUMBA", "1") != "0"
+def enabled(size: int | None = None) -> bool:
+    """Whether to run the kernel for an input of ``size`` items (None: any size):
+    ``DECRUN_NUMBA=1`` always, ``0`` never, unset from :data:`MIN_SIZE` items on."""
+    setting = os.environ.get("DECRUN_NUMBA", "")
+    if setting in ("0", "1"):
+        return setting == "1"
+    return size is None or size >= MIN_SIZE
 
 
 class _LazyKernel:

@@ -49,7 +49,7 @@ MESHES = {
 
 def _both(monkeypatch, build):
     """(result with kernels, result with the numpy twins)."""
-    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    monkeypatch.setenv("DECRUN_NUMBA", "1")  # the kernels even on these small meshes
     compiled = build()
     monkeypatch.setenv("DECRUN_NUMBA", "0")
     reference = build()
@@ -127,6 +127,7 @@ def test_group_rows_kernel_on_wide_buckets_and_duplicates(monkeypatch):
     # a fan: vertex 0 leads 300 rows (the merge-sorted bucket), plus many duplicates
     fan = np.stack([np.zeros(300, dtype=np.int64), rng.integers(1, 50, 300), rng.integers(50, 90, 300)], axis=1)
     rows = np.vstack([fan, rng.integers(0, 90, (2000, 3)), fan[:40]])
+    monkeypatch.setenv("DECRUN_NUMBA", "1")
     for table in (rows, FaceRows(sort_rows(rows), [(0, 1), (0, 2), (1, 2)])):
         _assert_same(group_rows(table), group_rows_numpy(table))
 
@@ -138,7 +139,8 @@ def test_sorted_rows_and_parity_kernel(monkeypatch):
 
 
 @pytest.mark.parametrize("dimension", [2, 3])
-def test_volume_kernel(dimension):
+def test_volume_kernel(dimension, monkeypatch):
+    monkeypatch.setenv("DECRUN_NUMBA", "1")
     vertices, faces = icosphere(2)
     vertices = vertices[:, :dimension].copy()
     edges = np.unique(np.sort(faces[:, :2], axis=1), axis=0)
@@ -170,6 +172,17 @@ def test_bowtie_fans_counted_alike():
     assert compiled[0] == 2
     _assert_same(compiled, checks.fans_per_vertex_surface(top, orientation, pairs, 5))
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[1], pairs, 5))
+
+
+def test_small_inputs_take_numpy_and_large_ones_the_kernels(monkeypatch):
+    from decrun.core import jit
+
+    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    assert not jit.enabled(jit.MIN_SIZE - 1) and jit.enabled(jit.MIN_SIZE)
+    monkeypatch.setenv("DECRUN_NUMBA", "1")
+    assert jit.enabled(1)
+    monkeypatch.setenv("DECRUN_NUMBA", "0")
+    assert not jit.enabled(10**9)
 
 
 def test_config_composition_does_not_import_numba():

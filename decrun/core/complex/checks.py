@@ -163,7 +163,7 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
                 f"non-manifold: {name_indices(over, simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
                 f"{plural(simplex_name(n))} (e.g. {name_indices(owners, simplex_name(n))})"
             )
-    if jit.enabled():
+    if jit.enabled(order.shape[0]):
         pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top))
         index_type = np.int32 if pairs[1].size and top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
         pairs = FacetPairs(pairs[0], *(a.astype(index_type) for a in pairs[1:]))
@@ -242,7 +242,7 @@ def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int) -> np.ndarr
     """
     _, t0, t1, l0, l1 = pairs
     m = parity.shape[0]
-    if jit.enabled() and _consistent_kernel(t0, t1, l0, l1, parity):
+    if jit.enabled(t0.shape[0]) and _consistent_kernel(t0, t1, l0, l1, parity):
         return parity
     bad = inconsistent_facets(pairs, parity)
     if not bad.any():
@@ -325,7 +325,7 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
 def fans_per_vertex(top, facets, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
     """(n0,) int64 number of fans (top simplices connected across shared facets) around each
     vertex: the compiled :func:`_fans_kernel`, or its numpy twins when ``DECRUN_NUMBA=0``."""
-    if jit.enabled():
+    if jit.enabled(top.shape[0]):
         return _fans_kernel(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
                             pairs.second_slot, n_vertices)
     if top.shape[1] == 3:

@@ -13,10 +13,12 @@ with a message.
 
     python benchmarks/bench_operators.py            # full: up to 1.3M triangles, 1M tets
     python benchmarks/bench_operators.py --quick    # small meshes, seconds
+    python benchmarks/bench_operators.py --jit      # numba's first-call cost: cold vs warm cache
 """
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -51,7 +53,31 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     return {"seconds": seconds, "peak_mb": peak_mb, "simplices": len(simplices)}
 
 
+def jit_times() -> None:
+    """First-call cost of the kernels in fresh processes: an empty cache (compile) and then the
+    cache it wrote (load), besides numba's import alone."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    code = ("import time, sys; sys.path.insert(0, %r); t = time.perf_counter(); import numba; "
+            "imported = time.perf_counter() - t; from harness import warm_up_kernels; "
+            "print(imported, warm_up_kernels())" % os.path.dirname(os.path.abspath(__file__)))
+    print("| numba cache | numba import s | kernels' first call s (incl. compile or load) |")
+    print("|---|---:|---:|")
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, DECRUN_NUMBA="1")
+        for label in ("cold (empty)", "warm", "warm"):
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+            imported, first = (float(v) for v in out.stdout.split())
+            print(f"| {label} | {imported:.2f} | {first:.2f} |", flush=True)
+
+
 def main(argv=None) -> int:
+    if argv is None and "--jit" in sys.argv:
+        jit_times()
+        return 0
     args = parse_or_run_case(__doc__, run_case, argv)
     if args is None:
         return 0

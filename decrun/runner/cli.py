@@ -71,16 +71,8 @@ class SweepTable(Callback):
     _progress = None
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
-        """Jobs done / total with ETA in the submitting process (a terminal only)."""
-        enabled = terminal(bool(config.get("progress", True)))
-        if not enabled:
-            return
-        params = config.hydra.sweeper.get("params") or {}
-        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
-        total = sweep_size(list(config.hydra.overrides.task), params)
-        SweepTable._progress = SweepProgress(Path(str(config.hydra.sweep.dir)), total, enabled=True).start()
-
-    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        """Refuse a non-empty sweep dir for sweepers without resume; then show jobs done /
+        total with ETA in the submitting process (a terminal only)."""
         sweep_dir = Path(str(config.hydra.sweep.dir))
         target = str(config.hydra.sweeper.get("_target_", ""))
         if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):
@@ -88,6 +80,12 @@ class SweepTable(Callback):
 
             refuse(SweepError(f"error: hydra.sweep.dir={sweep_dir} is not empty; its old jobs would mix into the "
                              f"new table: choose a new hydra.sweep.dir (only hydra/sweeper=decrun resumes)"))
+        if not terminal(bool(config.get("progress", True))):
+            return
+        params = config.hydra.sweeper.get("params") or {}
+        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
+        total = sweep_size(list(config.hydra.overrides.task), params)
+        SweepTable._progress = SweepProgress(sweep_dir, total, enabled=True).start()
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         from decrun.runner.sweep.tables import failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
@@ -229,7 +227,10 @@ def table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
                         help="drop columns with one value in every row (default: on for markdown, off for --csv)")
     args = parser.parse_args(argv)
-    split = (lambda text: [k.strip() for k in text.split(",") if k.strip()] if text else None)
+
+    def split(text: str | None) -> list[str] | None:
+        return [k.strip() for k in text.split(",") if k.strip()] if text else None
+
     try:
         for sweep_dir in args.sweep_dirs:
             if not Path(sweep_dir).is_dir():

@@ -28,6 +28,7 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
+from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
 from decrun.runner.failures import exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message
@@ -190,6 +191,10 @@ def _report(exc: Exception) -> int:
     if _VERBOSE:
         raise exc
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
+        choices = _choices_of(exc.__cause__)
+        if choices is not None:  # a schema field with a closed set of values (optimize.direction)
+            print(f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}", file=sys.stderr)
+            return 1
         print(str(exc), file=sys.stderr)
         if isinstance(exc.__cause__, OmegaConfBaseException):
             print(str(exc.__cause__), file=sys.stderr)
@@ -202,6 +207,23 @@ def _report(exc: Exception) -> int:
         print(f"error: {os_error_message(os_error)}", file=sys.stderr)
         return 1
     raise exc  # a bug: show it
+
+
+def _choices_of(cause: BaseException | None) -> type[Choice] | None:
+    """The :class:`~decrun.core.choices.Choice` type of the schema field an OmegaConf
+    ValidationError is about, or None (another error, or a field of another type)."""
+    import typing
+
+    from omegaconf.errors import ValidationError
+
+    owner, key = getattr(cause, "object_type", None), getattr(cause, "key", None)
+    if not (isinstance(cause, ValidationError) and isinstance(owner, type) and isinstance(key, str)):
+        return None
+    try:
+        hint = typing.get_type_hints(owner).get(key)
+    except Exception:  # an owner whose annotations cannot be resolved
+        return None
+    return hint if isinstance(hint, type) and issubclass(hint, Choice) else None
 
 
 # ----------------------------------------------------------------------------------

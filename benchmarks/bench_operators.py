@@ -19,9 +19,6 @@ with a message.
 from __future__ import annotations
 
 import sys
-import time
-
-import numpy as np
 
 from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn, warm_up_kernels  # noqa: E402
 

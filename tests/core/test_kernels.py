@@ -26,7 +26,8 @@ from decrun.core.simplex_arrays import (
     vertex_volumes,
     vertex_volumes_numpy,
 )
-from tests.meshes_for_tests import annulus, icosphere, kuhn_cube, planar_domain, random_planar, random_tets, spiral_strip
+from tests.meshes_for_tests import (annulus, icosphere, kuhn_cube, planar_domain, random_planar, random_tets,
+                                     spiral_strip)
 
 
 def _polyline(count: int = 40):

@@ -28,6 +28,7 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
+from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
 from decrun.runner.failures import exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message
@@ -207,6 +208,10 @@ def _report(exc: Exception) -> int:
         print(message, file=sys.stderr)
         return 1
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
+        choices = _choices_of(exc.__cause__)
+        if choices is not None:  # a schema field with a closed set of values (optimize.direction)
+            print(f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}", file=sys.stderr)
+            return 1
         print(str(exc), file=sys.stderr)
         if isinstance(exc.__cause__, OmegaConfBaseException):
             print(str(exc.__cause__), file=sys.stderr)
@@ -278,6 +283,23 @@ def missing_plugin_message(exc: Exception) -> str | None:
     return f'error: {group}={name}: {plugin} is not installed; pip install "decrun[{extra}]"'
 
 
+def _choices_of(cause: BaseException | None) -> type[Choice] | None:
+    """The :class:`~decrun.core.choices.Choice` type of the schema field an OmegaConf
+    ValidationError is about, or None (another error, or a field of another type)."""
+    import typing
+
+    from omegaconf.errors import ValidationError
+
+    owner, key = getattr(cause, "object_type", None), getattr(cause, "key", None)
+    if not (isinstance(cause, ValidationError) and isinstance(owner, type) and isinstance(key, str)):
+        return None
+    try:
+        hint = typing.get_type_hints(owner).get(key)
+    except Exception:  # an owner whose annotations cannot be resolved
+        return None
+    return hint if isinstance(hint, type) and issubclass(hint, Choice) else None
+
+
 # ----------------------------------------------------------------------------------
 # decrun-table
 # ----------------------------------------------------------------------------------
@@ -301,7 +323,10 @@ def table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
                         help="drop columns with one value in every row (default: on for markdown, off for --csv)")
     args = parser.parse_args(argv)
-    split = (lambda text: [k.strip() for k in text.split(",") if k.strip()] if text else None)
+
+    def split(text: str | None) -> list[str] | None:
+        return [k.strip() for k in text.split(",") if k.strip()] if text else None
+
     try:
         for sweep_dir in args.sweep_dirs:
             if not Path(sweep_dir).is_dir():

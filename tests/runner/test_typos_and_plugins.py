@@ -34,7 +34,7 @@ def test_a_misspelt_option_names_the_groups_options_and_the_closest(decrun_cli, 
 
 
 def test_solver_options_without_a_close_one_are_listed(decrun_cli):
-    proc = decrun_cli("solver.tol=1e-3", *SMALL)
+    proc = decrun_cli("solver=direct", "solver.tol=1e-3", *SMALL)
     assert proc.returncode == 1
     assert proc.stderr.strip() == "error: solver.tol: unknown option of solver=direct; it has ['permc_spec']"
 

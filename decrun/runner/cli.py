@@ -28,10 +28,12 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
+from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
 from decrun.runner.failures import exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message
 from decrun.runner.progress import SweepProgress, sweep_size, terminal
+from decrun.runner.sweep.checks import register_check
 
 register_configs()
 
@@ -50,8 +52,7 @@ def _verbose() -> bool:
     return _VERBOSE or bool(HydraConfig.get().verbose)
 
 
-@hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")
-def _hydra_main(cfg: DictConfig) -> int | float:
+def _hydra_task(cfg: DictConfig) -> int | float:
     """The Hydra task: :func:`decrun.runner.run.run` in the directory Hydra made."""
     # lazy: the numerical stack loads only once a run starts, not for --help or a bad override (start-up speed)
     from decrun.runner.run import run
@@ -59,6 +60,19 @@ def _hydra_main(cfg: DictConfig) -> int | float:
     hydra_cfg = HydraConfig.get()
     return run(cfg, Path(hydra_cfg.runtime.output_dir), multirun=_is_multirun(), verbose=_verbose(),
                log_name=hydra_cfg.job.name)
+
+
+def _check_job(cfg: DictConfig) -> None:
+    """The sweeper's check of each planned job: :func:`decrun.runner.run.validate`."""
+    from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
+
+    validate(cfg)
+
+
+_hydra_main = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_hydra_task)
+# every job of a sweep is type-checked before the first starts; joblib's workers import the
+# numerical stack while the sweep is planned
+register_check(_hydra_task, _check_job, warm=("decrun.runner.run", "decrun.runner.results.recorder"))
 
 
 class SweepTable(Callback):
@@ -71,16 +85,8 @@ class SweepTable(Callback):
     _progress = None
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
-        """Jobs done / total with ETA in the submitting process (a terminal only)."""
-        enabled = terminal(bool(config.get("progress", True)))
-        if not enabled:
-            return
-        params = config.hydra.sweeper.get("params") or {}
-        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
-        total = sweep_size(list(config.hydra.overrides.task), params)
-        SweepTable._progress = SweepProgress(Path(str(config.hydra.sweep.dir)), total, enabled=True).start()
-
-    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        """Refuse a non-empty sweep dir for sweepers without resume; then show jobs done /
+        total with ETA in the submitting process (a terminal only)."""
         sweep_dir = Path(str(config.hydra.sweep.dir))
         target = str(config.hydra.sweeper.get("_target_", ""))
         if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):
@@ -88,6 +94,12 @@ class SweepTable(Callback):
 
             refuse(SweepError(f"error: hydra.sweep.dir={sweep_dir} is not empty; its old jobs would mix into the "
                              f"new table: choose a new hydra.sweep.dir (only hydra/sweeper=decrun resumes)"))
+        if not terminal(bool(config.get("progress", True))):
+            return
+        params = config.hydra.sweeper.get("params") or {}
+        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
+        total = sweep_size(list(config.hydra.overrides.task), params)
+        SweepTable._progress = SweepProgress(sweep_dir, total, enabled=True).start()
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         from decrun.runner.sweep.tables import failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
@@ -195,7 +207,15 @@ def _report(exc: Exception) -> int:
 
     if _VERBOSE:
         raise exc
+    message = typo_message(exc) or missing_plugin_message(exc)
+    if message:
+        print(message, file=sys.stderr)
+        return 1
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
+        choices = _choices_of(exc.__cause__)
+        if choices is not None:  # a schema field with a closed set of values (optimize.direction)
+            print(f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}", file=sys.stderr)
+            return 1
         print(str(exc), file=sys.stderr)
         if isinstance(exc.__cause__, OmegaConfBaseException):
             print(str(exc.__cause__), file=sys.stderr)
@@ -208,6 +228,80 @@ def _report(exc: Exception) -> int:
         print(f"error: {os_error_message(os_error)}", file=sys.stderr)
         return 1
     raise exc  # a bug: show it
+
+
+def typo_message(exc: Exception) -> str | None:
+    """For an option of a plugin group Hydra refuses to override (``app.stpes=3``: not in
+    the group's config), the decrun message of its ``+`` form — the group's options and the
+    closest one — instead of Hydra's advice to append it. None for any other error."""
+    import re
+
+    from omegaconf.errors import ConfigAttributeError, ConfigKeyError
+
+    from decrun.runner.config import PLUGIN_GROUPS
+
+    match = re.match(r"Could not override '([^']+)'", str(exc))
+    if match is None or not isinstance(exc.__cause__, (ConfigAttributeError, ConfigKeyError)):
+        return None
+    key = match.group(1)
+    if key.split(".", 1)[0] not in PLUGIN_GROUPS:
+        return None
+    overrides = []  # the group choices and experiments of the command, the key in its + form
+    for arg in sys.argv[1:]:
+        name, sep, value = arg.partition("=")
+        bare = name.lstrip("+~")
+        if not sep or bare.startswith(("hydra.", "hydra/")):
+            continue
+        if bare == key:
+            overrides.append(f"+{key}={value.split(',')[0]}")  # a sweep: its first value
+        elif "." not in bare:
+            overrides.append(f"{name}={value.split(',')[0]}")
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
+
+    try:
+        validate(compose_config(overrides))
+    except DecrunError as error:
+        return f"error: {error}"
+    except Exception:  # the command cannot be recomposed this way: Hydra's message stands
+        return None
+    return None
+
+
+def missing_plugin_message(exc: Exception) -> str | None:
+    """For a Hydra launcher or sweeper whose plugin is not installed (``hydra/launcher=ray``
+    without the extra), the pip line that installs it (:data:`decrun.runner.hints.PLUGIN_EXTRAS`)."""
+    import re
+
+    from hydra.errors import MissingConfigException
+
+    from decrun.runner.hints import PLUGIN_EXTRAS
+
+    if not isinstance(exc, MissingConfigException):
+        return None
+    match = re.search(r"Could not (?:find|load) '(hydra/(?:launcher|sweeper))/([^']+)'", str(exc))
+    if match is None or match.group(2) not in PLUGIN_EXTRAS.get(match.group(1), {}):
+        return None
+    group, name = match.groups()
+    plugin, extra = PLUGIN_EXTRAS[group][name]
+    return f'error: {group}={name}: {plugin} is not installed; pip install "decrun[{extra}]"'
+
+
+def _choices_of(cause: BaseException | None) -> type[Choice] | None:
+    """The :class:`~decrun.core.choices.Choice` type of the schema field an OmegaConf
+    ValidationError is about, or None (another error, or a field of another type)."""
+    import typing
+
+    from omegaconf.errors import ValidationError
+
+    owner, key = getattr(cause, "object_type", None), getattr(cause, "key", None)
+    if not (isinstance(cause, ValidationError) and isinstance(owner, type) and isinstance(key, str)):
+        return None
+    try:
+        hint = typing.get_type_hints(owner).get(key)
+    except Exception:  # an owner whose annotations cannot be resolved
+        return None
+    return hint if isinstance(hint, type) and issubclass(hint, Choice) else None
 
 
 # ----------------------------------------------------------------------------------
@@ -235,7 +329,10 @@ def table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
                         help="drop columns with one value in every row (default: on for markdown, off for --csv)")
     args = parser.parse_args(argv)
-    split = (lambda text: [k.strip() for k in text.split(",") if k.strip()] if text else None)
+
+    def split(text: str | None) -> list[str] | None:
+        return [k.strip() for k in text.split(",") if k.strip()] if text else None
+
     try:
         for sweep_dir in args.sweep_dirs:
             if not Path(sweep_dir).is_dir():

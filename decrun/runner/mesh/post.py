@@ -10,15 +10,14 @@ the order they run; adding a step is adding a function here (and its option fiel
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
+from decrun.core.connectivity import drop_unreferenced, largest_component
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
+from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, Mesh, Refine, from_meshset, require, require_surface,
+                                     require_triangles, to_meshset)
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
-from decrun.runner.mesh.base import (MAX_TRIANGLES, Mesh, from_meshset, require, require_surface, require_triangles,
-                                  to_meshset)
 from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
 
 __all__ = ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
@@ -82,10 +81,9 @@ def holes(mesh: Mesh, cfg) -> Mesh:
     boxes = list(getattr(cfg, "hole_boxes", None) or [])
     if not balls and not boxes:
         return mesh
-    method = getattr(cfg, "hole_cut", "split")
-    require(method in ("split", "whole_triangles"), "hole_cut", f"must be split or whole_triangles, got {method!r}")
+    method = HoleCut.of(getattr(cfg, "hole_cut", HoleCut.split), "mesh.hole_cut")
     meta = dict(mesh.meta)
-    if method == "whole_triangles":
+    if method == HoleCut.whole_triangles:
         vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes)
         if "clean_vertices" in meta:
             meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
@@ -106,19 +104,12 @@ def clean(mesh: Mesh, cfg) -> Mesh:
     joined through shared vertices) and drop unreferenced vertices."""
     if not cfg.clean:
         return mesh
-    V, F = mesh.vertices, mesh.simplices
-    m = len(F)
-    incidence = sp.csr_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), F.ravel())), shape=(m, len(V)))
-    _, label = connected_components(incidence @ incidence.T, directed=False)
-    keep_faces = label == np.argmax(np.bincount(label))
-    F = F[keep_faces]
-    used = np.zeros(len(V), dtype=bool)
-    used[F.ravel()] = True
-    remap = np.cumsum(used) - 1
+    keep_faces = largest_component(mesh.simplices, len(mesh.vertices), through="vertices")
+    V, F, used = drop_unreferenced(mesh.vertices, mesh.simplices[keep_faces])
     meta = dict(mesh.meta, dropped_vertices=int((~used).sum()), dropped_faces=int((~keep_faces).sum()))
     if "clean_vertices" in meta:
         meta["clean_vertices"] = meta["clean_vertices"][used]
-    return Mesh(V[used], remap[F], meta)
+    return Mesh(V, F, meta)
 
 
 def refine(mesh: Mesh, cfg) -> Mesh:
@@ -126,9 +117,8 @@ def refine(mesh: Mesh, cfg) -> Mesh:
     ``refine_iterations`` times. Drops ``clean_vertices`` (the connectivity changed)."""
     import pymeshlab
 
-    if cfg.refine == "none":
+    if Refine.of(cfg.refine, "mesh.refine") == Refine.none:
         return mesh
-    require(cfg.refine in ("loop", "midpoint", "isotropic"), "refine", f"unknown {cfg.refine!r}; choose none|loop|midpoint|isotropic")
     require(1 <= cfg.refine_iterations <= 10, "refine_iterations", f"must be in 1..10, got {cfg.refine_iterations}")
     require_surface(mesh, f"mesh.refine={cfg.refine}", "mesh.refine=none")
     dim = mesh.vertices.shape[1]

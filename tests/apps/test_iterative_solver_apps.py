@@ -16,7 +16,7 @@ CASES = {
     "parametrization_conformal_border": ["app=parametrization", "mesh=sphere_cap"],
     "parametrization_holes_eq_5_9": ["+experiment=fig5_5_flat_hole", "app.border=conformal"],
     "parametrization_mean_value": ["+experiment=fig5_5_flat_hole", "app.border=circle", "app.weights=mean_value"],
-    "hodge_galerkin": ["app=hodge", "mesh=torus", "mesh.noise=0.05"],
+    "hodge_galerkin": ["app=hodge", "mesh=torus", "mesh.major_segments=16", "mesh.minor_segments=8", "mesh.noise=0.05"],
     "hodge_negative_cot_weights": ["app=hodge", "mesh=grid", "mesh.nx=8", "mesh.ny=8", "mesh.noise=0.1",
                                    "operator=circumcentric"],
     "vector_field": ["app=vector_field", "mesh.subdiv=2"],

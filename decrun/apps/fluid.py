@@ -24,6 +24,7 @@ from typing import List, Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.apps.surface_points import check_points_on_surface
 from decrun.errors import ConfigError, TopologyError
 
 INITIAL = ("zero", "rotation", "vortex_pair", "random")
@@ -60,6 +61,11 @@ class Fluid(App):
     vortex_radius: float = 0.15  # vortex_pair: blob radius
     seed: int = 0
     stirs: List[Stir] = field(default_factory=list)
+    velocity: str = "least_squares"  # least_squares | wshd07 (the thesis' interpolation, §7.2.3)
+    circulation: str = "swept"  # swept | corrected_trapezoid | trapezoid (the thesis' rule)
+    shadow: bool = False  # also run a shadow with a 1e-10 perturbation: perturbation_growth_per_s (shadow.py)
+    shadow_perturbation: float = 1e-10  # relative size of the shadow's perturbation
+    shadow_max_growth_per_step: float = 0.1  # stable: false when the mean growth per step exceeds this
     record_every: int = 5
     snapshots: int = 6
     animation: bool = True
@@ -75,6 +81,19 @@ class Fluid(App):
             raise ConfigError(f"app.viscosity: must be >= 0, got {self.viscosity}")
         if self.initial not in INITIAL:
             raise ConfigError(f"app.initial: must be one of {list(INITIAL)}, got {self.initial!r}")
+        from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS
+        from decrun.methods.fluid.simulation import CIRCULATIONS
+
+        if self.velocity not in VELOCITY_RECONSTRUCTIONS:
+            raise ConfigError(f"app.velocity: must be one of {list(VELOCITY_RECONSTRUCTIONS)}, got {self.velocity!r}")
+        if self.circulation not in CIRCULATIONS:
+            raise ConfigError(f"app.circulation: must be one of {list(CIRCULATIONS)}, got {self.circulation!r}")
+        if self.velocity == "least_squares" and self.circulation != "swept":
+            raise ConfigError(f"app.circulation={self.circulation} with app.velocity=least_squares is unstable; "
+                              "use app.velocity=wshd07 (the thesis' pair: app.velocity=wshd07 "
+                              "app.circulation=trapezoid)")
+        if not self.shadow_perturbation > 0:
+            raise ConfigError(f"app.shadow_perturbation: must be > 0, got {self.shadow_perturbation}")
         if self.record_every < 1:
             raise ConfigError(f"app.record_every: must be >= 1, got {self.record_every}")
         for i, stir in enumerate(self.stirs):
@@ -96,6 +115,12 @@ class Fluid(App):
         if self.inflow and len(self.inflow) != K.embedding_dim:
             raise ConfigError(f"app.inflow: needs {K.embedding_dim} components (the mesh's dimension), "
                               f"got {list(self.inflow)}")
+        for i, stir in enumerate(self.stirs):  # projected onto the surface, so no distance bound
+            try:
+                check_points_on_surface(K, stir.points, f"app.stirs[{i}].points", tolerance=float("inf"))
+            except ConfigError as error:
+                raise ConfigError(f"{error}; give strokes in the mesh's coordinates or drop them with app.stirs=[]") \
+                    from None
         if self.initial in ("rotation", "vortex_pair") and not closed:
             raise ConfigError(f"app.initial={self.initial} is defined on the unit sphere; use app.initial=random "
                               "or zero on domains with borders")
@@ -103,7 +128,10 @@ class Fluid(App):
     def run(self, ctx: Context) -> Result:
         """Run the fluid; see the module docstring.
 
-        Metrics: ``stable``, ``diverged_at_step`` (when it diverged), ``steps_done``,
+        Metrics: ``stable`` (the energy stayed bounded and, with ``shadow``, the perturbation
+        grew by at most ``shadow_max_growth_per_step`` per step on average), ``diverged_at_step``
+        (when the energy bound broke), ``perturbation_growth_per_s``, ``perturbation_growth_per_step``,
+        ``perturbation_stable`` (with ``shadow``), ``steps_done``,
         ``energy_ratio`` (final / initial kinetic energy, when the initial one is > 0),
         ``enstrophy_ratio``, ``max_abs_divergence`` (over the run), ``circulation_drift``
         (|Σ⋆0 w| at the end, closed surfaces), ``steps_per_second``, ``obtuse_triangles``.
@@ -117,13 +145,20 @@ class Fluid(App):
         K, dec = ctx.complex, ctx.dec
         w0 = self._initial_vorticity(dec, initial_vorticity)
         fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
-                               inflow_velocity=list(self.inflow) or None, initial_vorticity=w0)
+                               inflow_velocity=list(self.inflow) or None, initial_vorticity=w0,
+                               velocity=self.velocity, circulation=self.circulation)
         obtuse = int(getattr(fluid, "obtuse_triangles", 0))
         if obtuse:
             ctx.log(f"fluid: {obtuse} obtuse triangles — their circumcentric dual cells turn inside out (§7.3); "
                     "use a mesh without obtuse triangles (e.g. mesh=channel, or mesh.noise=0 on the icosphere)")
         forces = [(stir, initial_vorticity.stroke_force(dec, np.asarray(stir.points, dtype=np.float64), stir.strength))
                   for stir in self.stirs]
+        shadow = None
+        if self.shadow:
+            from decrun.methods.fluid.shadow import Shadow
+
+            shadow = Shadow(fluid, self.shadow_perturbation, seed=self.seed + 1,
+                            max_growth_per_step=self.shadow_max_growth_per_step)
         first = fluid.diagnostics()
         ctx.record(0, vorticity=fluid.vorticity, flux=fluid.flux, **{k: first[k] for k in SCALARS})
         max_divergence = first["max_abs_divergence"]
@@ -132,7 +167,10 @@ class Fluid(App):
         total = self.total_steps
         for step in ctx.progress(range(1, total + 1), total=total, desc="fluid"):
             active = [force for stir, force in forces if stir.start <= fluid.time < stir.stop]
-            last = fluid.step(np.sum(active, axis=0) if active else None)
+            force = np.sum(active, axis=0) if active else None
+            last = fluid.step(force)
+            if shadow is not None:
+                shadow.step(force)
             max_divergence = max(max_divergence, last["max_abs_divergence"])
             if "diverged_at_step" in last or not last["stable"]:
                 break
@@ -140,7 +178,9 @@ class Fluid(App):
                 ctx.record(step, vorticity=fluid.vorticity, flux=fluid.flux, **{k: last[k] for k in SCALARS})
         seconds = time.perf_counter() - start
         steps_done = int(last["step"])
-        stable = bool(last["stable"]) and "diverged_at_step" not in last
+        bounded = bool(last["stable"]) and "diverged_at_step" not in last
+        chaos = shadow.metrics() if shadow is not None else {}
+        stable = bounded and chaos.get("perturbation_stable", True)
         metrics = {
             "stable": stable,
             "steps_done": steps_done,
@@ -151,8 +191,9 @@ class Fluid(App):
             "obtuse_triangles": obtuse,
             "solve_seconds": seconds,
         }
-        if not stable:
+        if not bounded:
             metrics["diverged_at_step"] = int(last.get("diverged_at_step", steps_done))
+        metrics.update(chaos)
         if first["kinetic_energy"] > 0:
             metrics["energy_ratio"] = float(last["kinetic_energy"] / first["kinetic_energy"])
         if first["enstrophy"] > 0:

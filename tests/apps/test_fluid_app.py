@@ -66,8 +66,8 @@ def test_options_and_meshes_that_do_not_fit_are_refused(sphere, run_app):
 
 
 def test_channel_flow_through_the_cli_sheds_and_reports(decrun_cli, tmp_path):
-    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=600", "app.inflow=[1.0,0.0]", "app.stirs=[]",
-                      "app.steps=40", "app.viscosity=0.002", "app.record_every=20")
+    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=600", "app.inflow=[1.0,0.0]",
+                      "app.steps=40", "app.viscosity=0.002", "app.record_every=20")  # no stroke by default
     assert proc.returncode == 0, proc.stderr
     run = next((tmp_path / "outputs" / "runs").iterdir())
     assert (run / "vorticity.png").is_file() and (run / "vorticity_animation.gif").is_file()
@@ -93,3 +93,30 @@ def test_obtuse_triangles_are_counted(run_app):
     assert expected > 0
     result, _ = run_app(Fluid(dt=0.01, steps=2, stirs=[], initial="random", animation=False), K)
     assert result.metrics["obtuse_triangles"] == expected
+
+
+def test_a_3d_stroke_on_the_planar_channel_is_refused_naming_the_key(decrun_cli):
+    stroke = "app.stirs=[{points: [[1.0, 0.0, 0.3], [0.0, 1.0, 0.3]], strength: 20.0}]"
+    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.steps=2", stroke)
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    message = proc.stderr.strip().splitlines()[-1]
+    assert "app.stirs[0].points" in message and "needs 2 coordinates" in message and "app.stirs=[]" in message
+    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.steps=2", stroke, "app.stirs=[]")
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_the_unstable_pair_of_reconstruction_and_circulation_is_refused_with_the_fix(decrun_cli):
+    common = ("app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=2", "app.initial=random", "app.animation=false")
+    proc = decrun_cli(*common, "app.circulation=trapezoid")
+    assert proc.returncode != 0 and "app.velocity=wshd07" in proc.stderr
+    proc = decrun_cli(*common, "app.circulation=trapezoid", "app.velocity=wshd07")
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_the_shadow_reports_the_perturbation_growth(sphere, run_app):
+    """ν > 0 on a sphere: a 1e-10 perturbation decays (negative growth), the run is stable."""
+    app = Fluid(dt=0.02, steps=10, viscosity=0.05, initial="random", shadow=True, animation=False)
+    m = run_app(app, sphere)[0].metrics
+    assert m["perturbation_growth_per_s"] < 0 and m["perturbation_stable"] and m["stable"]
+    assert m["perturbation_growth_per_step"] == pytest.approx(m["perturbation_growth_per_s"] * 0.02)
+    assert "perturbation_growth_per_s" not in run_app(Fluid(dt=0.02, steps=2, animation=False), sphere)[0].metrics

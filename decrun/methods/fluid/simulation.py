@@ -86,7 +86,7 @@ class VorticityFluid:
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
                  max_cfl: float | None = 1.0, integrator: str = "midpoint",
-                 circulation: str = "swept", velocity: str = "least_squares", swept_cfl: float = 0.5):
+                 circulation: str = "swept", velocity: str = "least_squares", swept_cfl: float = 1.0):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:

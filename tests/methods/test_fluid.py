@@ -177,7 +177,8 @@ def test_backtracking_in_a_uniform_flow_moves_by_minus_v_dt(integrator, max_cfl,
     _, dec = channel(1400, obstacle=False)
     v = np.array([10.0, 3.0, 0.0])
     sim = VorticityFluid(dec, new_solver, dt=0.004, viscosity=0.0, inflow_velocity=v[:2], integrator=integrator,
-                         max_cfl=max_cfl, circulation=circulation)
+                         max_cfl=max_cfl, circulation=circulation,
+                         velocity="least_squares" if circulation == "swept" else "wshd07")
     result, velocity = sim.backtrack()
     h = sim.walker.size
     cfl = np.linalg.norm(v) * sim.dt / h.min()

@@ -5,9 +5,12 @@ State (§7.2.1, primal and dual roles swapped): the stream function ψ (n0), the
 on the oriented surface) and the vorticity w = ⋆0⁻¹ d0ᵀ ⋆1 u per vertex (n0). One step
 (Fig. 7.4 / 7.6, with the corrections of FLUIDS.md):
 
-a. constant velocity per triangle from u (and from d0 ψ alone) — the circumcenter velocity;
-b. WSHD07 interpolation over the flattened dual cells (interpolation.py);
-c. backtrack every circumcenter along −u for dt (backtrack.py);
+a.–b. a continuous velocity from u (and from d0 ψ alone), by ``velocity`` (reconstruction.py):
+   ``"least_squares"`` (default) per-vertex least-squares fit to the edge fluxes, linear in each
+   triangle; ``"wshd07"`` (the thesis) the constant per triangle at its circumcenter,
+   interpolated over the flattened dual cells with the WSHD07 weights (interpolation.py);
+c. backtrack every circumcenter along −u for dt (backtrack.py); with ``circulation="swept"``
+   in equal intervals of at most ``swept_cfl`` edge lengths;
 d. circulation Γ around each backtracked cell. *Border cells* (the cell of a border vertex or
    any cell one of whose backtracked corners was clamped at a wall) take the trapezoid rule
    Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2 of the full u (the wall velocities enter

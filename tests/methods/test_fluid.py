@@ -459,3 +459,50 @@ def test_the_shadow_flags_the_chaotic_channel_of_the_former_scheme():
     assert not growth["wshd07"]["perturbation_stable"] and growth["wshd07"]["perturbation_growth_per_step"] > 0.5
     assert growth["least_squares"]["perturbation_stable"]
     assert growth["least_squares"]["perturbation_growth_per_s"] < 0.2 * growth["wshd07"]["perturbation_growth_per_s"]
+
+
+def test_least_squares_velocity_reproduces_linear_fields_at_vertices_and_inside_triangles():
+    """reconstruction.py: the flux of a linear field through an edge is exactly
+    v(midpoint)·(x_b − x_a) × N, so the per-vertex fit is exact for any linear field — at every
+    vertex, border corners (2-ring fits) included — and its P1 interpolation is exact inside."""
+    from meshes_for_tests import square_lattice
+    from decrun.methods.fluid.reconstruction import LeastSquaresVelocity
+
+    v, f = square_lattice(6, jitter=0.15)
+    for dec in (lattice(), DEC(SimplicialComplex(v, f))):
+        cells = build_dual_cells(dec)
+        x = np.pad(dec.K.vertices, ((0, 0), (0, 1)))
+        A, b = np.array([[0.7, -1.2, 0.0], [0.4, 0.3, 0.0], [0.0, 0.0, 0.0]]), np.array([0.5, -2.0, 0.0])
+        edges = dec.K.simplices(1)
+        mid = 0.5 * (x[edges[:, 0]] + x[edges[:, 1]])
+        flux = np.einsum("ed,ed->e", mid @ A.T + b, np.cross(x[edges[:, 1]] - x[edges[:, 0]], [0.0, 0.0, 1.0]))
+        ls = LeastSquaresVelocity(dec, cells, cells.face_normal)
+        at_vertices = ls.fields(flux[:, None])[:, :, 0]
+        np.testing.assert_allclose(at_vertices, x @ A.T + b, atol=1e-11)
+        lam = np.random.default_rng(2).dirichlet([1, 1, 1], size=dec.K.num_simplices(2))
+        points = np.einsum("mc,mcd->md", lam, x[dec.K.simplices(2)])
+        inside = ls.velocity(np.arange(points.shape[0]), points, ls.fields(flux[:, None]))[:, :, 0]
+        np.testing.assert_allclose(inside, points @ A.T + b, atol=1e-11)
+        m = cells.n_circumcenters
+        np.testing.assert_allclose((ls.circumcenter_matrix @ flux).reshape(m, 3), cells.points[:m] @ A.T + b,
+                                   atol=1e-11)
+
+
+def test_swept_vorticity_of_a_constant_is_the_area_change_and_sums_to_zero():
+    """swept.py: for ω ≡ 1 the change of every cell is exactly area(X(C)) − area(C) (shoelace),
+    and with the border points fixed the moved cells still tile the domain: Σ change = 0."""
+    dec = lattice()
+    sim = VorticityFluid(dec, new_solver, dt=0.01, viscosity=0.0)
+    m = sim.cells.n_circumcenters
+    before = sim.cells.points
+    after = before.copy()
+    after[:m, :2] += np.random.default_rng(5).uniform(-0.05, 0.05, (m, 2))
+    ones = np.ones(before.shape[0])
+    change = sim._swept.change(before, after, ones, ones)
+
+    def areas(p):
+        q = p[sim.cells.corners]
+        return 0.5 * np.cross(q, np.roll(q, -1, axis=1))[..., 2].sum(axis=1)
+
+    np.testing.assert_allclose(change, areas(after) - areas(before), atol=1e-14)
+    assert abs(change.sum()) < 1e-13

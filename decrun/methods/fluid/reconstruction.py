@@ -35,6 +35,7 @@ import scipy.sparse as sp
 
 from decrun.core.dec import DEC
 from decrun.core.geometry import embed3
+from decrun.methods.fluid.backtrack import TriangleWalker
 from decrun.methods.fluid.dual_cells import DualCells
 from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
 
@@ -148,8 +149,6 @@ class LeastSquaresVelocity:
     name = "least_squares"
 
     def __init__(self, dec: DEC, cells: DualCells, face_normal: np.ndarray, walker=None, min_triangles: int = 4):
-        from decrun.methods.fluid.backtrack import TriangleWalker
-
         self.K = dec.K
         self.top = dec.K.simplices(2)
         self.face_normal = face_normal

@@ -39,6 +39,13 @@ from decrun.core.geometry import embed3
 __all__ = ["TriangleWalker", "BacktrackResult"]
 
 
+def _check_integrator(integrator: str, substeps: int) -> None:
+    if integrator not in ("euler", "midpoint", "per_triangle"):
+        raise ValueError(f"integrator must be 'midpoint', 'euler' or 'per_triangle', not {integrator!r}")
+    if substeps < 1:
+        raise ValueError(f"substeps must be >= 1, got {substeps}")
+
+
 def _box_buckets(low: np.ndarray, high: np.ndarray, origin: np.ndarray, size: float, shape: np.ndarray):
     """A uniform grid of square cells (side ``size``, ``shape`` = (nx, ny) cells from ``origin``)
     listing the boxes [low_i, high_i] (b, 2) that meet each cell, vectorized: returns
@@ -373,6 +380,82 @@ class TriangleWalker:
         new_length = np.linalg.norm(projected, axis=1)
         return projected * np.where(new_length > 0, length / np.where(new_length > 0, new_length, 1.0), 0.0)[:, None]
 
+    def substep_counts(self, triangle: np.ndarray, dt: float, speed_at_start, substeps: int,
+                       max_cfl: float | None, max_substeps: int) -> np.ndarray:
+        """(P,) substeps per point: ``substeps``, or with ``max_cfl`` enough that one substep moves
+        the point at most ``max_cfl`` mean edge lengths of its start triangle (|u| dt / h / k ≤
+        max_cfl, ``speed_at_start`` (P, 3) the velocity there), capped at ``max_substeps``."""
+        count = np.full(np.shape(triangle)[0], substeps, dtype=np.int64)
+        if max_cfl is not None:
+            cfl = np.linalg.norm(speed_at_start, axis=1) * dt / self.size[triangle]
+            count = np.clip(np.ceil(cfl / max_cfl).astype(np.int64), substeps, max(max_substeps, substeps))
+        return count
+
+    def kernel_tables(self) -> tuple:
+        """The tables the numba kernels (compiled.py) read, as two tuples.
+
+        walk: vertices (n0, 3), triangles (m, 3), ∇λ (m, 3, 3), centroids (m, 3), corners
+        (m, 3, 3), neighbour and its slot (m, 3), edge ids (m, 3), face normals (m, 3), planar.
+        jump (planar meshes, else empty): vertex clearance (n0,), barycentric affine rows (m, 9),
+        the triangle buckets (members, start), their grid (origin x, origin y, cell size) and
+        shape (nx, ny); the border edges (a, e, outward normal: (b, 6); edge id, triangle: (b, 2)),
+        their buckets (members, start), grid and shape.
+        """
+        jumps = self._locator is not None
+        cache = self.__dict__.setdefault("_kernel_tables", {})
+        if jumps not in cache:
+            c = np.ascontiguousarray
+            real, integer = (lambda a: c(a, dtype=np.float64)), (lambda a: c(a, dtype=np.int64))
+            walk = (real(self.x), integer(self.top), real(self.gradient), real(self.centroid), real(self.corner_x),
+                    integer(self.neighbor), integer(self.neighbor_slot), integer(self.edge), real(self.face_normal),
+                    bool(self.planar))
+            none_real, none_int = np.zeros(0), np.zeros(0, dtype=np.int64)
+            grid, border = (none_real, np.zeros(3), none_int), (np.zeros((0, 6)), np.zeros((0, 2), dtype=np.int64),
+                                                                none_int, np.zeros(1, dtype=np.int64), np.ones(3),
+                                                                np.ones(2, dtype=np.int64))
+            if jumps:
+                origin, size, shape = self._grid
+                grid = (real(self.vertex_clearance), real(np.r_[origin, size]), integer(shape))
+                B = self._border
+                if B is not None:
+                    border = (real(np.concatenate([B["a"], B["e"], B["normal"]], axis=1)),
+                              integer(np.stack([B["edge"], B["triangle"]], axis=1)), integer(B["members"]),
+                              integer(B["start"]), real(np.r_[B["origin"], B["size"]]), integer(B["shape"]))
+                jump = (grid[0], real(self._affine_rows), integer(self._bucket_triangles), integer(self._bucket_start),
+                        grid[1], grid[2]) + border
+            else:
+                jump = (none_real, np.zeros((0, 9)), none_int, np.zeros(1, dtype=np.int64), np.ones(3),
+                        np.ones(2, dtype=np.int64)) + border
+            cache[jumps] = (walk, jump)
+        return cache[jumps]
+
+    def backtrack_compiled(self, start: np.ndarray, triangle: np.ndarray, dt: float, interpolator,
+                           point_velocity: np.ndarray, integrator: str = "midpoint", substeps: int = 1,
+                           max_rounds: int = 1000, start_velocity: np.ndarray | None = None,
+                           max_cfl: float | None = None, max_substeps: int = 64) -> BacktrackResult:
+        """:meth:`backtrack` by the numba kernel (compiled.py), point by point.
+
+        The velocity is the interpolation by ``interpolator`` (a CellInterpolator) of field 1 of
+        ``point_velocity`` (n_points, 3, F ≥ 2: [d0 ψ part, full u] at the dual points) instead of
+        a callable; the other parameters and the result are those of :meth:`backtrack`.
+        """
+        from decrun.methods.fluid import compiled
+
+        _check_integrator(integrator, substeps)
+        position = np.ascontiguousarray(start, dtype=np.float64)
+        tri = np.ascontiguousarray(triangle, dtype=np.int64)
+        point_velocity = np.ascontiguousarray(point_velocity, dtype=np.float64)
+        normal = np.ascontiguousarray(self.face_normal, dtype=np.float64)
+        if start_velocity is None:
+            start_velocity = interpolator.velocity_compiled(tri, position, point_velocity, normal)[:, :, 1]
+        start_velocity = np.ascontiguousarray(start_velocity, dtype=np.float64)
+        count = self.substep_counts(tri, dt, start_velocity, substeps, max_cfl, max_substeps)
+        position, tri, wall, rounds, unfinished = compiled.backtrack_points(
+            *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, normal, position, tri,
+            start_velocity, count, float(dt), compiled.INTEGRATOR_CODE[integrator], int(max_rounds))
+        return BacktrackResult(position, tri, wall, int(rounds.sum()), int(unfinished.max(initial=0)),
+                               int(count.max(initial=1)))
+
     def backtrack(self, start: np.ndarray, triangle: np.ndarray, dt: float, velocity,
                   integrator: str = "midpoint", substeps: int = 1, max_rounds: int = 1000,
                   start_velocity: np.ndarray | None = None, max_cfl: float | None = None,
@@ -395,19 +478,15 @@ class TriangleWalker:
             ``max_cfl`` times the mean edge length of its start triangle (|u| dt / h / k ≤ max_cfl,
             the stepSize of Fig. 7.9 made per point), capped at ``max_substeps``
         """
-        if integrator not in ("euler", "midpoint", "per_triangle"):
-            raise ValueError(f"integrator must be 'midpoint', 'euler' or 'per_triangle', not {integrator!r}")
-        if substeps < 1:
-            raise ValueError(f"substeps must be >= 1, got {substeps}")
+        _check_integrator(integrator, substeps)
         position = np.array(start, dtype=np.float64)
         tri = np.array(triangle, dtype=np.int64)
         P = position.shape[0]
         wall = np.full(P, -1, dtype=np.int64)
-        count = np.full(P, substeps, dtype=np.int64)
+        speed_at_start = None
         if max_cfl is not None:
             speed_at_start = start_velocity if start_velocity is not None else velocity(tri, position)
-            cfl = np.linalg.norm(speed_at_start, axis=1) * dt / self.size[tri]
-            count = np.clip(np.ceil(cfl / max_cfl).astype(np.int64), substeps, max(max_substeps, substeps))
+        count = self.substep_counts(tri, dt, speed_at_start, substeps, max_cfl, max_substeps)
         tau_of = float(dt) / count
         rounds = unfinished = 0
         for substep in range(int(count.max())):  # a bounded number of substeps

@@ -218,3 +218,25 @@ class CellInterpolator:
         ratio = np.einsum("pdf,pd->pf", U, n_t) / np.einsum("pd,pd->p", n_v, n_t)[:, None]
         U -= n_v[:, :, None] * ratio[:, None, :]
         return U
+
+    def kernel_tables(self) -> tuple:
+        """The interpolation tables as the tuple the numba kernels (compiled.py) read: triangles
+        (m, 3), vertices (n0, 3), frames (n0, 2, 3), edge/corner table (n0, 4, K+1), clamp scale
+        (n0,), corner ids (n0, K), vertex normals (n0, 3), planar."""
+        if getattr(self, "_kernel_tables", None) is None:
+            c = np.ascontiguousarray
+            self._kernel_tables = (c(self.triangles, dtype=np.int64), c(self.vertices, dtype=np.float64),
+                                   c(self.frames, dtype=np.float64), c(self.table, dtype=np.float64),
+                                   c(self.scale, dtype=np.float64), c(self.ids, dtype=np.int64),
+                                   c(self.cells.vertex_normal, dtype=np.float64), bool(self.planar))
+        return self._kernel_tables
+
+    def velocity_compiled(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,
+                          face_normal: np.ndarray) -> np.ndarray:
+        """:meth:`velocity` by the numba kernel (compiled.py): (P, 3, F), equal to round-off."""
+        from decrun.methods.fluid import compiled
+
+        return compiled.velocity_points(self.kernel_tables(), np.ascontiguousarray(triangle, dtype=np.int64),
+                                        np.ascontiguousarray(x, dtype=np.float64),
+                                        np.ascontiguousarray(point_velocity, dtype=np.float64),
+                                        np.ascontiguousarray(face_normal, dtype=np.float64))

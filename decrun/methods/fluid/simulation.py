@@ -45,7 +45,9 @@ from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
 from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
 
-__all__ = ["VorticityFluid"]
+__all__ = ["VorticityFluid", "KERNELS"]
+
+KERNELS = ("numba", "numpy")  # compiled loops (compiled.py) or their numpy twins
 
 
 class VorticityFluid:
@@ -70,17 +72,23 @@ class VorticityFluid:
         at most ``max_cfl`` mean edge lengths of its start triangle (None: no such bound).
         ``integrator="per_triangle", max_cfl=None`` is Fig. 7.9 with stepSize = dt / substeps
     circulation_correction : see step d above
+    kernels : "numba" (default) runs the backtracking, the interpolation and the circulation
+        as compiled loops (compiled.py); "numpy" runs their vectorized numpy twins, the tested
+        reference. Both give the same step to round-off.
     """
 
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
                  max_cfl: float | None = 1.0, integrator: str = "midpoint",
-                 circulation_correction: bool = True):
+                 circulation_correction: bool = True, kernels: str = "numba"):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
             raise ConfigError(f"fluid: the viscosity must be >= 0, got {viscosity}")
+        if kernels not in KERNELS:
+            raise ConfigError(f"fluid: kernels must be one of {list(KERNELS)}, got {kernels!r}")
+        self.kernels = kernels
         K = dec.K
         self.dec, self.K = dec, K
         self.dt, self.viscosity = float(dt), float(viscosity)
@@ -187,11 +195,15 @@ class VorticityFluid:
             return self.interpolator.velocity(triangle, x, full, normal)[:, :, 0]
 
         m = self.cells.n_circumcenters
-        result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity,
-                                       integrator=self.integrator, substeps=self.substeps,
-                                       max_rounds=self.max_rounds, start_velocity=both[:m, :, 1],
-                                       max_cfl=self.max_cfl)
-        v = self.interpolator.velocity(result.triangle, result.position, both, normal)
+        options = dict(integrator=self.integrator, substeps=self.substeps, max_rounds=self.max_rounds,
+                       start_velocity=both[:m, :, 1], max_cfl=self.max_cfl)
+        if self.kernels == "numba":
+            result = self.walker.backtrack_compiled(self.cells.points[:m], np.arange(m), self.dt, self.interpolator,
+                                                    both, **options)
+            v = self.interpolator.velocity_compiled(result.triangle, result.position, both, normal)
+        else:
+            result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity, **options)
+            v = self.interpolator.velocity(result.triangle, result.position, both, normal)
         clamped = result.wall_edge >= 0
         v[clamped, :, 0] = 0.0
         v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
@@ -207,6 +219,7 @@ class VorticityFluid:
         first, second = np.minimum(a, b)[keep], np.maximum(a, b)[keep]
         key, inverse = np.unique(first * n_points + second, return_inverse=True)
         self._edge_a, self._edge_b = key // n_points, key % n_points
+        self._fixed_points = np.ascontiguousarray(self.cells.points[self.cells.n_circumcenters:], dtype=np.float64)
         rows = np.broadcast_to(np.arange(corners.shape[0])[:, None], corners.shape)[keep]
         sign = np.where(a[keep] < b[keep], 1.0, -1.0)
         self._dual_incidence = sp.csr_matrix((sign, (rows, inverse)), shape=(corners.shape[0], key.size))
@@ -233,12 +246,20 @@ class VorticityFluid:
         """
         cells = self.cells
         m = cells.n_circumcenters
-        points = np.concatenate([position, cells.points[m:]])
-        velocities = np.concatenate([velocity, self._fixed_velocity])
         a, b = self._edge_a, self._edge_b
-        side = points[b] - points[a]  # (E, 3)
-        g = 0.5 * np.einsum("edf,ed->ef", velocities[a] + velocities[b], side)  # (E, 2)
-        gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
+        if self.kernels == "numba":
+            from decrun.methods.fluid.compiled import circulation_sums
+
+            D = self._dual_incidence
+            gamma = circulation_sums(np.ascontiguousarray(position, dtype=np.float64), self._fixed_points,
+                                     np.ascontiguousarray(velocity, dtype=np.float64), self._fixed_velocity,
+                                     a, b, D.indptr, D.indices, D.data)
+        else:
+            points = np.concatenate([position, cells.points[m:]])
+            velocities = np.concatenate([velocity, self._fixed_velocity])
+            side = points[b] - points[a]  # (E, 3)
+            g = 0.5 * np.einsum("edf,ed->ef", velocities[a] + velocities[b], side)  # (E, 2)
+            gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
         touched = np.zeros(m + 1, dtype=bool)
         touched[:m] = clamped
         corners = np.where(cells.corners < m, cells.corners, m)

@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 
 from decrun.core.dec import DEC
 from decrun.core.geometry import embed3
+from decrun.methods.fluid.interpolation import dot3
 
 __all__ = ["TriangleWalker", "BacktrackResult"]
 
@@ -225,9 +226,9 @@ class TriangleWalker:
         # distance to the border ≥ clearance(v) − |x − v| for each corner v (1-Lipschitz)
         corner = np.take(self.corner_x, t, axis=0)  # (P, 3, 3)
         gap = corner - start[:, None, :]
-        bound = np.take(self.vertex_clearance, np.take(self.top, t, axis=0)) - np.sqrt(np.einsum("pcd,pcd->pc", gap, gap))
+        bound = np.take(self.vertex_clearance, np.take(self.top, t, axis=0)) - np.sqrt(dot3(gap, gap))
         bound = np.maximum(np.maximum(bound[:, 0], bound[:, 1]), bound[:, 2])
-        safe = time * time * np.einsum("pd,pd->p", d, d) < bound * np.abs(bound)
+        safe = time * time * dot3(d, d) < bound * np.abs(bound)
         time = time[:, None]
         done = np.zeros(active.size, dtype=bool)
         if self._border is not None and not safe.all():
@@ -281,8 +282,8 @@ class TriangleWalker:
 
     def barycentric(self, triangle: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(P, 3) barycentric coordinates of x (P, 3) in the plane of ``triangle`` (P,)."""
-        return 1.0 / 3.0 + np.einsum("pcd,pd->pc", np.take(self.gradient, triangle, axis=0),
-                                     x - np.take(self.centroid, triangle, axis=0))
+        return 1.0 / 3.0 + dot3(np.take(self.gradient, triangle, axis=0),
+                                (x - np.take(self.centroid, triangle, axis=0))[:, None, :])
 
     def unfold(self, direction: np.ndarray, triangle: np.ndarray, slot: np.ndarray, neighbor: np.ndarray) -> np.ndarray:
         """Rotate ``direction`` (P, 3) about the edge (opposite ``slot`` of ``triangle``) into the
@@ -295,8 +296,7 @@ class TriangleWalker:
         e /= np.linalg.norm(e, axis=1, keepdims=True)
         old = np.cross(self.face_normal[triangle], e)
         new = np.cross(self.face_normal[neighbor], e)
-        return (np.einsum("pd,pd->p", direction, e)[:, None] * e
-                + np.einsum("pd,pd->p", direction, old)[:, None] * new)
+        return dot3(direction, e)[:, None] * e + dot3(direction, old)[:, None] * new
 
     @staticmethod
     def _exit(lam, rate, entry):
@@ -313,9 +313,9 @@ class TriangleWalker:
         t, r = tri[active], remaining[active]
         x, d = np.take(position, active, axis=0), np.take(direction, active, axis=0)
         gradient = np.take(self.gradient, t, axis=0)
-        lam = 1.0 / 3.0 + np.einsum("pcd,pd->pc", gradient, x - np.take(self.centroid, t, axis=0))
+        lam = 1.0 / 3.0 + dot3(gradient, (x - np.take(self.centroid, t, axis=0))[:, None, :])
         np.maximum(lam, 0.0, out=lam)
-        rate = np.einsum("pcd,pd->pc", gradient, d)
+        rate = dot3(gradient, d[:, None, :])
         s, slot = self._exit(lam, rate, entry[active])
         inside = s >= r
         position[active[inside]] = x[inside] + r[inside, None] * d[inside]
@@ -531,7 +531,7 @@ class TriangleWalker:
             previous = direction[active]
             # a fresh velocity leaving at once through the entry edge: keep the unfolded one
             lam = np.clip(self.barycentric(tri[active], position[active]), 0.0, None)
-            rate = np.einsum("pcd,pd->pc", self.gradient[tri[active]], fresh)
+            rate = dot3(self.gradient[tri[active]], fresh[:, None, :])
             came = entry[active]
             rows = np.arange(active.size)
             back = (came >= 0) & (rate[rows, np.maximum(came, 0)] < 0) & (lam[rows, np.maximum(came, 0)] <= 1e-12)

@@ -43,7 +43,7 @@ from decrun.methods.fluid.backtrack import TriangleWalker
 from decrun.core.geometry import embed3, obtuse_triangle_count
 from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
-from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
+from decrun.methods.fluid.interpolation import CellInterpolator, dot3, triangle_velocity_matrix
 
 __all__ = ["VorticityFluid", "KERNELS"]
 
@@ -258,7 +258,7 @@ class VorticityFluid:
             points = np.concatenate([position, cells.points[m:]])
             velocities = np.concatenate([velocity, self._fixed_velocity])
             side = points[b] - points[a]  # (E, 3)
-            g = 0.5 * np.einsum("edf,ed->ef", velocities[a] + velocities[b], side)  # (E, 2)
+            g = 0.5 * dot3(np.moveaxis(velocities[a] + velocities[b], 1, 2), side[:, None, :])  # (E, 2)
             gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
         touched = np.zeros(m + 1, dtype=bool)
         touched[:m] = clamped

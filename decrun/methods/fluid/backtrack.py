@@ -392,40 +392,45 @@ class TriangleWalker:
         return count
 
     def kernel_tables(self) -> tuple:
-        """The tables the numba kernels (compiled.py) read, as two tuples.
+        """The tables the numba kernels (compiled.py) read, as two tuples (column layouts in
+        compiled.py: one row per triangle holds what a point there reads).
 
-        walk: vertices (n0, 3), triangles (m, 3), ∇λ (m, 3, 3), centroids (m, 3), corners
-        (m, 3, 3), neighbour and its slot (m, 3), edge ids (m, 3), face normals (m, 3), planar.
-        jump (planar meshes, else empty): vertex clearance (n0,), barycentric affine rows (m, 9),
-        the triangle buckets (members, start), their grid (origin x, origin y, cell size) and
-        shape (nx, ny); the border edges (a, e, outward normal: (b, 6); edge id, triangle: (b, 2)),
-        their buckets (members, start), grid and shape.
+        walk: vertices (n0, 3), tri_real (m, 27) ∇λ, centroid, corners, face normal, corner
+        clearances; tri_int (m, 12) vertices, neighbours, their slots, edges; face normals, planar.
+        jump (planar meshes; empty otherwise): the barycentric affine rows of the bucket members
+        in bucket order (slots, 9), buckets (cell starts, then member triangles), the border edges
+        (b, 8: a, e, outward normal, edge id, triangle), their buckets, the two grids (origin x, y,
+        cell size; twice), their shapes (nx, ny; twice), the affine rows per triangle (m, 9).
         """
         jumps = self._locator is not None
         cache = self.__dict__.setdefault("_kernel_tables", {})
         if jumps not in cache:
-            c = np.ascontiguousarray
-            real, integer = (lambda a: c(a, dtype=np.float64)), (lambda a: c(a, dtype=np.int64))
-            walk = (real(self.x), integer(self.top), real(self.gradient), real(self.centroid), real(self.corner_x),
-                    integer(self.neighbor), integer(self.neighbor_slot), integer(self.edge), real(self.face_normal),
-                    bool(self.planar))
-            none_real, none_int = np.zeros(0), np.zeros(0, dtype=np.int64)
-            grid, border = (none_real, np.zeros(3), none_int), (np.zeros((0, 6)), np.zeros((0, 2), dtype=np.int64),
-                                                                none_int, np.zeros(1, dtype=np.int64), np.ones(3),
-                                                                np.ones(2, dtype=np.int64))
+            m = self.top.shape[0]
+            clearance = self.vertex_clearance[self.top] if self.planar else np.zeros((m, 3))
+            tri_real = np.concatenate([self.gradient.reshape(m, 9), self.centroid, self.corner_x.reshape(m, 9),
+                                       self.face_normal, clearance], axis=1)
+            tri_int = np.concatenate([self.top, self.neighbor, self.neighbor_slot, self.edge], axis=1)
+            walk = (np.ascontiguousarray(self.x, dtype=np.float64), np.ascontiguousarray(tri_real, dtype=np.float64),
+                    np.ascontiguousarray(tri_int, dtype=np.int64),
+                    np.ascontiguousarray(self.face_normal, dtype=np.float64), bool(self.planar))
+            grid, shape = np.ones(6), np.ones(4, dtype=np.int64)
+            affine, buckets = np.zeros((0, 9)), np.zeros(1, dtype=np.int64)
+            border, border_buckets = np.zeros((0, 8)), np.zeros(2, dtype=np.int64)
             if jumps:
-                origin, size, shape = self._grid
-                grid = (real(self.vertex_clearance), real(np.r_[origin, size]), integer(shape))
+                origin, size, cells = self._grid
+                grid[:3], shape[:2] = (origin[0], origin[1], size), cells
+                affine = self._affine_rows[self._bucket_triangles]
+                buckets = np.concatenate([self._bucket_start, self._bucket_triangles])
                 B = self._border
                 if B is not None:
-                    border = (real(np.concatenate([B["a"], B["e"], B["normal"]], axis=1)),
-                              integer(np.stack([B["edge"], B["triangle"]], axis=1)), integer(B["members"]),
-                              integer(B["start"]), real(np.r_[B["origin"], B["size"]]), integer(B["shape"]))
-                jump = (grid[0], real(self._affine_rows), integer(self._bucket_triangles), integer(self._bucket_start),
-                        grid[1], grid[2]) + border
-            else:
-                jump = (none_real, np.zeros((0, 9)), none_int, np.zeros(1, dtype=np.int64), np.ones(3),
-                        np.ones(2, dtype=np.int64)) + border
+                    grid[3:], shape[2:] = (B["origin"][0], B["origin"][1], B["size"]), B["shape"]
+                    border = np.concatenate([B["a"], B["e"], B["normal"], B["edge"][:, None], B["triangle"][:, None]],
+                                            axis=1)
+                    border_buckets = np.concatenate([B["start"], B["members"]])
+            near = self._affine_rows if jumps else np.zeros((0, 9))
+            real, integer = (lambda a: np.ascontiguousarray(a, dtype=np.float64)), \
+                (lambda a: np.ascontiguousarray(a, dtype=np.int64))
+            jump = (real(affine), integer(buckets), real(border), integer(border_buckets), grid, shape, real(near))
             cache[jumps] = (walk, jump)
         return cache[jumps]
 
@@ -451,8 +456,8 @@ class TriangleWalker:
         start_velocity = np.ascontiguousarray(start_velocity, dtype=np.float64)
         count = self.substep_counts(tri, dt, start_velocity, substeps, max_cfl, max_substeps)
         position, tri, wall, rounds, unfinished = compiled.backtrack_points(
-            *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, normal, position, tri,
-            start_velocity, count, float(dt), compiled.INTEGRATOR_CODE[integrator], int(max_rounds))
+            *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, position, tri, start_velocity, count,
+            float(dt), compiled.INTEGRATOR_CODE[integrator], int(max_rounds))
         return BacktrackResult(position, tri, wall, int(rounds.sum()), int(unfinished.max(initial=0)),
                                int(count.max(initial=1)))
 

@@ -227,14 +227,16 @@ class CellInterpolator:
 
     def kernel_tables(self) -> tuple:
         """The interpolation tables as the tuple the numba kernels (compiled.py) read: triangles
-        (m, 3), vertices (n0, 3), frames (n0, 2, 3), edge/corner table (n0, 4, K+1), clamp scale
-        (n0,), corner ids (n0, K), vertex normals (n0, 3), planar."""
+        (m, 3); one row per vertex (n0, 13 + 4 (K+1)): position, frame (e1, e2), normal, clamp
+        scale, then the edge/corner table (offset, n1, n2, det; K+1 columns each); corner ids
+        (n0, K); planar."""
         if getattr(self, "_kernel_tables", None) is None:
-            c = np.ascontiguousarray
-            self._kernel_tables = (c(self.triangles, dtype=np.int64), c(self.vertices, dtype=np.float64),
-                                   c(self.frames, dtype=np.float64), c(self.table, dtype=np.float64),
-                                   c(self.scale, dtype=np.float64), c(self.ids, dtype=np.int64),
-                                   c(self.cells.vertex_normal, dtype=np.float64), bool(self.planar))
+            n0 = self.vertices.shape[0]
+            cell_real = np.concatenate([self.vertices, self.frames.reshape(n0, 6), self.cells.vertex_normal,
+                                        self.scale[:, None], self.table.reshape(n0, -1)], axis=1)
+            self._kernel_tables = (np.ascontiguousarray(self.triangles, dtype=np.int64),
+                                   np.ascontiguousarray(cell_real, dtype=np.float64),
+                                   np.ascontiguousarray(self.ids, dtype=np.int64), bool(self.planar))
         return self._kernel_tables
 
     def velocity_compiled(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,

@@ -70,6 +70,8 @@ class BacktrackResult:
     wall_edge : (P,) border edge id where a point was clamped, -1 otherwise
     rounds : walking rounds used; unfinished : points still walking after ``max_rounds``
     substeps : the largest number of substeps any point took
+    velocity : (P, 3, F) the interpolated velocities of all fields at the end points
+        (:meth:`TriangleWalker.backtrack_compiled` only; None otherwise)
     """
 
     position: np.ndarray
@@ -78,6 +80,7 @@ class BacktrackResult:
     rounds: int
     unfinished: int
     substeps: int = 1
+    velocity: np.ndarray | None = None
 
 
 class TriangleWalker:
@@ -442,7 +445,8 @@ class TriangleWalker:
 
         The velocity is the interpolation by ``interpolator`` (a CellInterpolator) of field 1 of
         ``point_velocity`` (n_points, 3, F ≥ 2: [d0 ψ part, full u] at the dual points) instead of
-        a callable; the other parameters and the result are those of :meth:`backtrack`.
+        a callable; the other parameters and the result are those of :meth:`backtrack`, plus
+        ``result.velocity``: all fields of ``point_velocity`` interpolated at the end points.
         """
         from decrun.methods.fluid import compiled
 
@@ -455,11 +459,11 @@ class TriangleWalker:
             start_velocity = interpolator.velocity_compiled(tri, position, point_velocity, normal)[:, :, 1]
         start_velocity = np.ascontiguousarray(start_velocity, dtype=np.float64)
         count = self.substep_counts(tri, dt, start_velocity, substeps, max_cfl, max_substeps)
-        position, tri, wall, rounds, unfinished = compiled.backtrack_points(
+        position, tri, wall, rounds, unfinished, velocity = compiled.backtrack_points(
             *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, position, tri, start_velocity, count,
             float(dt), compiled.INTEGRATOR_CODE[integrator], int(max_rounds))
         return BacktrackResult(position, tri, wall, int(rounds.sum()), int(unfinished.max(initial=0)),
-                               int(count.max(initial=1)))
+                               int(count.max(initial=1)), velocity)
 
     def backtrack(self, start: np.ndarray, triangle: np.ndarray, dt: float, velocity,
                   integrator: str = "midpoint", substeps: int = 1, max_rounds: int = 1000,

@@ -337,7 +337,8 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
     count : (P,) substeps per point (each of length dt / count); integrator : INTEGRATOR_CODE
     Returns position (P, 3), triangle (P,), wall edge (P,) (-1: none), rounds (S, 2) the most
     rounds any point walked in substep s (column 0: the midpoint half step, 1: the full step),
-    unfinished (S,) points still walking after ``max_rounds`` in substep s.
+    unfinished (S,) points still walking after ``max_rounds`` in substep s, and the velocities
+    (P, 3, F) of all F fields interpolated at the end points (velocity_points there).
 
     per_triangle (Fig. 7.9, TriangleWalker._walk_per_triangle): every round takes a fresh
     velocity in the triangle entered, unless it leaves at once through the entry edge.
@@ -358,6 +359,8 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
     w, h = np.empty(K), np.empty(K + 1)
     state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
     d, d1, x = np.empty(3), np.empty(3), np.empty(3)
+    F = point_velocity.shape[2]
+    velocity = np.empty((P, 3, F))
     for p in range(P):
         t = tri[p]
         x[0], x[1], x[2] = position[p, 0], position[p, 1], position[p, 2]
@@ -417,7 +420,12 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
                 break
         position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
         tri[p], wall[p] = t, hit
-    return position, tri, wall, rounds, unfinished
+        v = _nearest_vertex(triangles, cell_real, t, x[0], x[1], x[2])  # the end point's velocities
+        _weights(cell_real, v, x[0], x[1], x[2], w, h)
+        for f in range(F):
+            _combine(cell_real, ids, field_planar, point_velocity, f, v, t, face_normal, w, d)
+            velocity[p, 0, f], velocity[p, 1, f], velocity[p, 2, f] = d[0], d[1], d[2]
+    return position, tri, wall, rounds, unfinished, velocity
 
 
 # ---------------------------------------------------------------- circulation (simulation.py)

@@ -200,7 +200,7 @@ class VorticityFluid:
         if self.kernels == "numba":
             result = self.walker.backtrack_compiled(self.cells.points[:m], np.arange(m), self.dt, self.interpolator,
                                                     both, **options)
-            v = self.interpolator.velocity_compiled(result.triangle, result.position, both, normal)
+            v = result.velocity
         else:
             result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity, **options)
             v = self.interpolator.velocity(result.triangle, result.position, both, normal)

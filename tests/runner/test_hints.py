@@ -15,7 +15,8 @@ import pytest
 
 from decrun.core.primitives import kuhn_cube
 from decrun.errors import DecrunError
-from decrun.runner.cli import compose_config, run_experiment
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment
 
 SOURCES = Path(__file__).resolve().parents[2] / "decrun"
 #: `key=value` in single backticks (not the ``double`` ones of docstrings)

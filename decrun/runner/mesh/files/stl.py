@@ -18,8 +18,8 @@ import re
 import numpy as np
 
 from decrun.errors import MeshError, NonFiniteCoordinateError
-from decrun.runner.mesh_checks import RawMesh
-from decrun.runner.mesh_text import TextTokens, is_text
+from decrun.runner.mesh.files.checks import RawMesh
+from decrun.runner.mesh.files.text import TextTokens, is_text
 
 _BINARY_RECORD = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
 # ASCII statements and the number of tokens each line must have

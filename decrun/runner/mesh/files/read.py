@@ -3,7 +3,7 @@
 :func:`read_mesh_file` reads OBJ, OFF, PLY (ASCII/binary), STL (ASCII/binary) with
 decrun's own vectorized readers and tetrahedral/other formats (VTK, VTU, Gmsh ``.msh``,
 Medit ``.mesh``, TetGen, XDMF, ...) through meshio, and validates the raw content before
-any native code sees it (``mesh_checks.validate``). Every problem is one
+any native code sees it (:func:`decrun.runner.mesh.files.checks.validate`). Every problem is one
 :class:`decrun.errors.MeshError` (or a subclass: ``IndexOutOfRangeError``,
 ``RepeatedVertexError``, ``NonFiniteCoordinateError``) whose message starts with
 ``mesh.path='<file>':`` and names the cause and the place, e.g.
@@ -27,12 +27,12 @@ from pathlib import Path
 import numpy as np
 
 from decrun.errors import MeshError
-from decrun.runner.mesh_checks import validate
-from decrun.runner.mesh_obj import read_obj
-from decrun.runner.mesh_off import read_off
-from decrun.runner.mesh_ply import read_ply
-from decrun.runner.mesh_stl import read_stl
-from decrun.runner.mesh_volume import meshio_extensions, read_volume
+from decrun.runner.mesh.files.checks import validate
+from decrun.runner.mesh.files.obj import read_obj
+from decrun.runner.mesh.files.off import read_off
+from decrun.runner.mesh.files.ply import read_ply
+from decrun.runner.mesh.files.stl import read_stl
+from decrun.runner.mesh.files.volume import meshio_extensions, read_volume
 
 __all__ = ["MeshFile", "read_mesh_file", "compare_with_loaded", "supported_extensions"]
 

@@ -5,7 +5,7 @@ typed cell blocks; this module only turns those into a :class:`RawMesh` and refu
 it cannot represent: cell types other than ``triangle``, ``quad``, ``polygon`` and
 ``tetra`` are an error that names the type and count (nothing is dropped), and points of
 dimension 2 are padded with z = 0 (recorded as ``counts['planar_points']``). Index and
-coordinate checks follow in :func:`decrun.runner.mesh_checks.validate`; binary formats
+coordinate checks follow in :func:`decrun.runner.mesh.files.checks.validate`; binary formats
 carry no line numbers, so errors name the cell's position in the file's cell list.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from decrun.errors import MeshError
-from decrun.runner.mesh_checks import RawMesh, polygon_offsets
+from decrun.runner.mesh.files.checks import RawMesh, polygon_offsets
 
 _SURFACE = ("triangle", "quad", "polygon")
 

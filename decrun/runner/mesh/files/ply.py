@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from decrun.errors import MeshError
-from decrun.runner.mesh_checks import RawMesh, polygon_offsets
-from decrun.runner.mesh_text import TextTokens
+from decrun.runner.mesh.files.checks import RawMesh, polygon_offsets
+from decrun.runner.mesh.files.text import TextTokens
 
 _TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",

@@ -4,19 +4,19 @@
 record (scalars and fixed-shape arrays) to the run's journal ``<path>.partial``, so
 memory stays flat over any number of steps. :meth:`ResultRecorder.finish` turns the
 journal plus the application's :class:`~decrun.apps.base.Result` into ``result.h5`` --
-the layout and attributes of :func:`decrun.runner.results.write_result`, plus the status
+the layout and attributes of :func:`write_result`, plus the status
 attributes below -- and removes the journal.
 
 Crash semantics (what is on disk when the process dies at any instant)
 ---------------------------------------------------------------------
 ``result.h5`` only ever appears by an atomic rename of a fully written temporary file,
 so it is either absent or whole. While the run goes, the steps live in the append-only
-journal ``result.h5.partial`` (:mod:`decrun.runner.journal`): fixed-size checksummed
+journal ``result.h5.partial`` (:mod:`decrun.runner.results.journal`): fixed-size checksummed
 records, one ``writev`` each, whose only possible damage from a kill is a short last
 record, which readers drop. Hence after SIGKILL / the OOM killer:
 
 =====================================  ===============================================
-killed ...                             on disk (read by :func:`read_result_any`)
+killed ...                             on disk (read by :func:`~decrun.runner.results.reading.read_result`)
 =====================================  ===============================================
 before the first ``record()`` ends     nothing but perhaps a ``.result.h5.partial.tmp-*``
                                        (a stale ``result.h5`` at the path is removed
@@ -53,7 +53,7 @@ noise) where resize + write + flush straight into HDF5 took ~700 µs; peak RSS g
 0.06 MiB over 5,000 such records. ``finish()`` copies in 8 MiB blocks: 400 MB took
 1.3 s uncompressed (+26 MiB peak RSS), 3.7 s when the series was worth gzip (→ 36 MB).
 
-Layout of ``result.h5`` (superset of :func:`decrun.runner.results.write_result`)
+Layout of ``result.h5`` (superset of :func:`write_result`)
 -------------------------------------------------------------------------
 ::
 
@@ -88,34 +88,26 @@ import errno as _errno
 import json
 import os
 import zlib
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
-from decrun.errors import DecrunError
 from decrun.apps.base import FieldOnEdges, Result
-from decrun.runner.results import FORMAT, git_commit, metrics_to_json, package_versions, plain
-from decrun.runner.journal import Column, Journal, JournalWriter, read_journal
+from decrun.errors import DecrunError
+from decrun.runner.results.journal import BLOCK_BYTES, Column, Journal, JournalWriter, journal_path, read_journal
+from decrun.runner.results.provenance import FORMAT, git_commit, metrics_to_json, package_versions, plain
 
-__all__ = ["RecordedResult", "ResultRecorder", "ResultWriteError", "read_result_any", "recover_result"]
+__all__ = ["ResultRecorder", "ResultWriteError", "write_result", "recover_result"]
 
 _WORTH_GZIP_RATIO = 0.5  # gzip a series when a sample shrinks below this fraction
 _GZIP_MIN_BYTES = 64 << 10  # ... and it is at least this big
 _CHUNK_BYTES = 1 << 20  # target size of one HDF5 chunk of a recorded series
-_BLOCK_BYTES = 8 << 20  # journal → HDF5 copy block (bounds memory of finish())
 
 
 class ResultWriteError(DecrunError, OSError):
     """``result.h5`` or its journal could not be written (disk full, permissions). The
     message names the file and says what is left on disk."""
-
-
-def journal_path(path: str | os.PathLike) -> Path:
-    """The journal beside ``path``: ``result.h5`` → ``result.h5.partial``."""
-    path = Path(path)
-    return path.with_name(path.name + ".partial")
 
 
 def _now() -> str:
@@ -145,7 +137,7 @@ class ResultRecorder:
     vertices : (n0, d) float64 mesh vertices; simplices : (n_top, k+1) int64 top simplices;
     edges : optional (n1, 2) int64 sorted edge list (``complex.simplices(1)``), needed to
         store 1-forms (``finish(forms={name: 1})``).
-    config_yaml, mesh_hash : provenance, as for :func:`decrun.runner.results.write_result`.
+    config_yaml, mesh_hash : provenance, as for :func:`write_result`.
     attrs : extra root attributes (str, numbers, bools).
     """
 
@@ -523,7 +515,7 @@ def _copy_journal(group, journal: Journal) -> None:
     """Recorded series → chunked, resizable datasets, copied block by block."""
     n = journal.n_records
     datasets = {}
-    for start, records in journal.blocks(_BLOCK_BYTES):
+    for start, records in journal.blocks(BLOCK_BYTES):
         if not datasets:
             datasets["step"] = group.create_dataset("step", shape=(n,), maxshape=(None,), dtype=np.int64,
                                                     **_series_options(records["step"], n))
@@ -539,78 +531,6 @@ def _copy_journal(group, journal: Journal) -> None:
         for column in journal.columns:
             group.create_dataset(column.name, shape=(0, *column.shape), maxshape=(None, *column.shape),
                                  dtype=column.dtype, chunks=(1, *column.shape) if column.shape else (1024,))
-
-
-# ----------------------------------------------------------------------------------
-# reading complete and incomplete results
-# ----------------------------------------------------------------------------------
-
-
-@dataclass
-class RecordedResult(Result):
-    """A :class:`~decrun.apps.base.Result` read back from ``result.h5`` or its journal.
-
-    Extra attributes: ``complete`` (True only for a finished run), ``status`` ("ok" |
-    "failed" | "interrupted" | "killed" | "unfinished" (journal only: the writer was
-    killed, or is still running)), ``error``, ``steps_recorded``, ``provenance`` (root
-    attributes), ``mesh`` (vertices / simplices / edges arrays), ``field_on`` (field
-    name → mesh dataset for declared forms), ``source`` (the file read).
-    """
-
-    complete: bool = False
-    status: str = ""
-    error: str = ""
-    steps_recorded: int = 0
-    provenance: dict[str, Any] = field(default_factory=dict)
-    mesh: dict[str, np.ndarray] = field(default_factory=dict)
-    field_on: dict[str, str] = field(default_factory=dict)
-    source: Path | None = None
-
-
-def read_result_any(path: str | os.PathLike) -> RecordedResult:
-    """Read a run's result whatever state it was left in: ``result.h5`` (complete, or
-    marked incomplete by ``abort``/``recover_result``; also files of ``write_result``,
-    which are complete) or, when absent, its journal ``result.h5.partial`` (incomplete,
-    the whole valid records). Raises ``FileNotFoundError`` when neither exists."""
-    path = Path(path)
-    if path.exists():
-        return _read_h5(path)
-    partial = journal_path(path)
-    if partial.exists():
-        return _read_journal(read_journal(partial))
-    raise FileNotFoundError(_errno.ENOENT, f"no result: neither {path} nor {partial} exists", str(path))
-
-
-def _read_h5(path: Path) -> RecordedResult:
-    import h5py
-
-    with h5py.File(path, "r") as f:
-        fields = {name: f["fields"][name][()] for name in f["fields"]}
-        field_on = {name: plain(f["fields"][name].attrs["on"]) for name in f["fields"] if "on" in f["fields"][name].attrs}
-        series = {name: f["series"][name][()] for name in f["series"]}
-        mesh = {name: f["mesh"][name][()] for name in f["mesh"]} if "mesh" in f else {}
-        provenance = {key: plain(f.attrs[key]) for key in f.attrs}
-    metrics = json.loads(provenance["metrics_json"])
-    steps = provenance.get("steps_recorded", len(series.get("step", ())))
-    return RecordedResult(fields=fields, series=series, metrics=metrics, figures={},
-                          complete=bool(provenance.get("complete", True)), status=str(provenance.get("status", "ok")),
-                          error=str(provenance.get("error", "")), steps_recorded=int(steps), provenance=provenance,
-                          mesh=mesh, field_on=field_on, source=path)
-
-
-def _read_journal(journal: Journal) -> RecordedResult:
-    n = journal.n_records
-    series = {"step": np.empty(n, np.int64)}
-    series.update({c.name: np.empty((n, *c.shape), c.dtype) for c in journal.columns})
-    for start, records in journal.blocks(_BLOCK_BYTES):
-        for name, array in series.items():
-            array[start:start + len(records)] = records[name]
-    attrs = journal.attrs
-    provenance = {"config_yaml": attrs["config_yaml"], "mesh_hash": attrs["mesh_hash"], "created": attrs["created"],
-                  **{k: v for k, v in attrs["provenance"].items() if v is not None}, **attrs["extra"]}
-    mesh = {name.split("/", 1)[1]: array for name, array in journal.blobs.items()}
-    return RecordedResult(series=series, complete=False, status="unfinished", steps_recorded=n, provenance=provenance,
-                          mesh=mesh, source=journal.path)
 
 
 def recover_result(path: str | os.PathLike) -> Path | None:
@@ -643,3 +563,23 @@ def recover_result(path: str | os.PathLike) -> Path | None:
         raise _write_error(path, exc, f"the journal {partial} is kept") from exc
     partial.unlink()
     return path
+
+
+def write_result(
+    path: str | os.PathLike,
+    result: Result,
+    *,
+    vertices: np.ndarray | None = None,
+    simplices: np.ndarray | None = None,
+    edges: np.ndarray | None = None,
+    config_yaml: str = "",
+    mesh_hash: str = "",
+    timings: dict[str, float] | None = None,
+    attrs: dict[str, Any] | None = None,
+) -> Path:
+    """Write a finished ``result`` (and the mesh, config and provenance) to ``path``
+    atomically: a :class:`ResultRecorder` with no recorded steps.
+    1-forms (:class:`decrun.apps.base.FieldOnEdges`) need ``edges``."""
+    recorder = ResultRecorder(path, vertices=vertices, simplices=simplices, edges=edges, config_yaml=config_yaml,
+                              mesh_hash=mesh_hash, attrs=attrs)
+    return recorder.finish(result, timings)

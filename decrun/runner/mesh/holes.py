@@ -11,9 +11,9 @@ is made a manifold with border again, so :class:`decrun.core.complex.SimplicialC
    faces, repeated until no pinch is left (the holes grow by one ring there);
 3. only the largest edge-connected piece is kept and unreferenced vertices are dropped.
 
-Pure numpy/scipy. The ``holes`` post step (:func:`decrun.runner.post_steps.holes`) uses it
+Pure numpy/scipy. The ``holes`` post step (:func:`decrun.runner.mesh.post.holes`) uses it
 with ``mesh.hole_cut=whole_triangles``; its default cut, ``split``, is
-:func:`decrun.runner.mesh_cut.cut_holes` (triangles split along the region borders, smooth
+:func:`decrun.runner.mesh.cut.cut_holes` (triangles split along the region borders, smooth
 holes), so this module is kept for reproducing the earlier sawtooth-border experiments.
 """
 

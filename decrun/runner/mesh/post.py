@@ -1,7 +1,7 @@
 """Post-processing steps of the mesh sources (``mesh.post``): one function per step.
 
 Each step is ``step(mesh, source) -> Mesh``, reads its options from the source
-(:class:`decrun.runner.meshes.MeshSource` fields) and returns the mesh unchanged (the same
+(:class:`decrun.runner.mesh.source.MeshSource` fields) and returns the mesh unchanged (the same
 object) unless its option enables it. ``mesh.post`` lists the names of these functions in
 the order they run; adding a step is adding a function here (and its option field to
 ``MeshSource``).
@@ -15,16 +15,17 @@ from scipy.sparse.csgraph import connected_components
 
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
-from decrun.runner import mesh_cut, mesh_holes
-from decrun.runner.mesh_repair import repair_mesh, up_axis_to_z
-from decrun.runner.meshes import (MAX_TRIANGLES, Mesh, from_meshset, require, require_surface, require_triangles,
+from decrun.runner.mesh.cut import cut_holes as split_along_holes
+from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
+from decrun.runner.mesh.base import (MAX_TRIANGLES, Mesh, from_meshset, require, require_surface, require_triangles,
                                   to_meshset)
+from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
 
 __all__ = ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
 
 
 def repair(mesh: Mesh, cfg) -> Mesh:
-    """``repair``: pymeshlab's cleaning filters (:func:`decrun.runner.mesh_repair.repair_mesh`):
+    """``repair``: pymeshlab's cleaning filters (:func:`decrun.runner.mesh.repair.repair_mesh`):
     duplicate vertices and faces, zero-area and degenerate faces, non-manifold edges and
     vertices (bowties split), unreferenced vertices, coherent orientation. Every count goes
     to ``meta['repair']`` and the run log; triangle meshes only."""
@@ -46,7 +47,7 @@ def repair(mesh: Mesh, cfg) -> Mesh:
 
 def up_axis(mesh: Mesh, cfg) -> Mesh:
     """``up_axis``: rotate the model so that its up axis (``x, y, z, -x, -y, -z``; ``auto``:
-    the sample's own, :data:`decrun.runner.mesh_repair.UP_AXIS`, else ``z``) points along +z,
+    the sample's own, :data:`decrun.runner.mesh.repair.UP_AXIS`, else ``z``) points along +z,
     the axis the figures draw upwards. A proper rotation: lengths, angles, orientation kept."""
     axis = resolved_up_axis(mesh, cfg)
     if axis == "z":
@@ -60,8 +61,6 @@ def up_axis(mesh: Mesh, cfg) -> Mesh:
 
 def resolved_up_axis(mesh: Mesh, cfg) -> str:
     """``cfg.up_axis`` with ``auto`` resolved (the sample's up axis, else ``z``)."""
-    from decrun.runner.mesh_repair import ROTATION_TO_Z_UP, UP_AXIS
-
     axis = str(getattr(cfg, "up_axis", "z"))
     if axis == "auto":
         axis = UP_AXIS.get(str(getattr(cfg, "sample", "")), "z") if mesh.meta.get("source") == "sample" else "z"
@@ -73,9 +72,9 @@ def holes(mesh: Mesh, cfg) -> Mesh:
     """``holes``: cut ``cfg.hole_balls`` and ``cfg.hole_boxes`` (no-op when both are empty).
 
     ``hole_cut: split`` (default) splits the triangles along the balls' spheres and the
-    boxes' faces (:func:`decrun.runner.mesh_cut.cut_holes`: smooth borders, new vertices on
+    boxes' faces (:func:`decrun.runner.mesh.cut.cut_holes`: smooth borders, new vertices on
     the surfaces, ``hole_snap`` against slivers); ``hole_cut: whole_triangles`` removes the
-    triangles whose centroid lies inside (:func:`decrun.runner.mesh_holes.cut_holes`: the
+    triangles whose centroid lies inside (:func:`decrun.runner.mesh.holes.cut_holes`: the
     sawtooth borders of the earlier experiments). Records ``meta['holes']`` (the cut's counts)
     and carries ``meta['clean_vertices']`` onto the cut mesh.
     """
@@ -87,13 +86,13 @@ def holes(mesh: Mesh, cfg) -> Mesh:
     require(method in ("split", "whole_triangles"), "hole_cut", f"must be split or whole_triangles, got {method!r}")
     meta = dict(mesh.meta)
     if method == "whole_triangles":
-        vertices, faces, kept = mesh_holes.cut_holes(mesh.vertices, mesh.simplices, balls, boxes)
+        vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes)
         if "clean_vertices" in meta:
             meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
         meta["holes"] = {"removed_faces": int(len(mesh.simplices) - len(faces))}
     else:
-        vertices, faces, info = mesh_cut.cut_holes(mesh.vertices, mesh.simplices, balls, boxes,
-                                                   snap=float(getattr(cfg, "hole_snap", 0.25)))
+        vertices, faces, info = split_along_holes(mesh.vertices, mesh.simplices, balls, boxes,
+                                              snap=float(getattr(cfg, "hole_snap", 0.25)))
         if "clean_vertices" in meta:
             meta["clean_vertices"] = info["interpolation"] @ np.asarray(meta["clean_vertices"])
         meta["holes"] = {k: v for k, v in info.items() if np.isscalar(v)}

@@ -1,5 +1,5 @@
 """An append-only file of fixed-size, checksummed records: the crash-safe half of a run's
-per-step series (the HDF5 half is :mod:`decrun.runner.recorder`).
+per-step series (the HDF5 half is :mod:`decrun.runner.results.recorder`).
 
 Why not HDF5 directly: an HDF5 file updated in place is only consistent at the moments
 its metadata has been flushed, and HDF5 promises nothing for a writer killed
@@ -50,6 +50,14 @@ FORMAT = "decrun-journal-1"
 RECORD_MARK = 0x52454344
 _RECORD_HEAD = struct.Struct("<IIq")  # crc32, mark, step
 _ALIGN = 8
+#: the block of records read at a time when a journal is copied or read whole (bounds memory)
+BLOCK_BYTES = 8 << 20
+
+
+def journal_path(path: str | os.PathLike) -> Path:
+    """The journal beside ``path``: ``result.h5`` → ``result.h5.partial``."""
+    path = Path(path)
+    return path.with_name(path.name + ".partial")
 
 
 def _aligned(n: int) -> int:

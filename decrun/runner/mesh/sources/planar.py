@@ -8,7 +8,8 @@ from typing import List
 import numpy as np
 
 from decrun.errors import ConfigError, MeshError
-from decrun.runner.meshes import MAX_TRIANGLES, Mesh, MeshSource, require, require_triangles
+from decrun.runner.mesh.base import MAX_TRIANGLES, Mesh, require, require_triangles
+from decrun.runner.mesh.source import MeshSource
 
 __all__ = ["Planar"]
 

@@ -20,7 +20,7 @@ A job's state (:func:`job_state`) is read from its directory only:
 ``ok``      ``metrics.json`` with ``status: ok`` (and the manifest's hash, when it has one)
 ``failed``  ``metrics.json`` with ``status: failed`` / ``interrupted`` (its ``error``)
 ``killed``  no ``metrics.json`` but the run's journal ``result.h5.partial``: the process
-            died while recording (:func:`decrun.runner.recorder.recover_result` turns it
+            died while recording (:func:`decrun.runner.results.recorder.recover_result` turns it
             into an incomplete ``result.h5``)
 ``missing`` no ``metrics.json`` and no journal: never started, killed before its first
             step, or still running
@@ -40,6 +40,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import ConfigError
+from decrun.runner.results.journal import journal_path, read_journal
 
 __all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "DONE"]
 
@@ -114,15 +115,11 @@ def read_metrics(job_dir: Path) -> dict[str, Any] | None:
 def job_state(job_dir: Path, expected_hash: str | None = None) -> dict[str, Any]:
     """``{"status", "error", **metrics}`` of one job directory (table in the module
     docstring). ``expected_hash``: the manifest's hash for this job."""
-    from decrun.runner.recorder import journal_path
-
     metrics = read_metrics(job_dir)
     if metrics is None:
         journal = journal_path(job_dir / "result.h5")
         if journal.is_file():
             try:
-                from decrun.runner.journal import read_journal
-
                 steps = read_journal(journal, verify=False).n_records
             except (OSError, ValueError):
                 steps = 0

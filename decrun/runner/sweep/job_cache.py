@@ -12,7 +12,7 @@ by the sha256 of the resolved config nodes that determine them:
 The DEC computes its operators lazily and keeps them (:class:`decrun.core.cache.Cached`),
 so a later job on the same key also reuses every operator — and anything an app stores
 with ``dec.require`` (smoothing's critical time step, one eigen-solve). Cached objects are
-shared read-only: every job gets its own :class:`~decrun.runner.meshes.Mesh` record (the
+shared read-only: every job gets its own :class:`~decrun.runner.mesh.Mesh` record (the
 runner sets its recorder), the arrays are the same. At most :data:`SIZE` entries are kept
 (least recently used dropped), so memory stays that of a couple of meshes.
 """

@@ -1,6 +1,6 @@
 """Checks on the raw content of a mesh file, before anything native sees it.
 
-A format reader (``mesh_obj``, ``mesh_off``, ``mesh_ply``, ``mesh_stl``, ``mesh_volume``)
+A format reader (:mod:`.obj`, :mod:`.off`, :mod:`.ply`, :mod:`.stl`, :mod:`.volume`)
 returns a :class:`RawMesh`: vertices and faces exactly as the file lists them (faces as
 polygons of any size, indices already 0-based), or tetrahedra, plus where each came from.
 :func:`validate` checks it and fan-triangulates polygons; every failure is one

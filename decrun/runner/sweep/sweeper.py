@@ -3,7 +3,7 @@ same jobs in the same order as Hydra's basic sweeper) that
 
 1. composes every planned job once before any runs (a bad override stops the sweep
    before anything is written) and writes the plan — each job's overrides and
-   :func:`~decrun.runner.sweeps.config_hash` — to ``<sweep dir>/manifest.json``;
+   :func:`~decrun.runner.sweep.manifest.config_hash` — to ``<sweep dir>/manifest.json``;
 2. refuses a sweep directory that is not empty, unless ``hydra.sweeper.resume=true``;
 3. with ``resume=true`` checks that the planned jobs are the manifest's (same overrides,
    same config hash: same config files) and launches only the jobs that are not ``ok``
@@ -33,7 +33,7 @@ from hydra.errors import CompactHydraException
 from omegaconf import OmegaConf
 
 from decrun.errors import ConfigError
-from decrun.runner.sweeps import DONE, FORMAT, MANIFEST, config_hash, job_state, now, read_manifest, write_manifest
+from decrun.runner.sweep.manifest import DONE, FORMAT, MANIFEST, config_hash, job_state, now, read_manifest, write_manifest
 
 log = logging.getLogger("decrun")
 

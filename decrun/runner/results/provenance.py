@@ -1,11 +1,10 @@
-"""Result files: provenance, ``metrics.json`` and reading/writing ``result.h5``.
+"""What a result records about how it was made, and its metrics as plain JSON.
 
-Applications never touch the disk; the runner streams a run's recorded series and writes
-its :class:`~decrun.apps.base.Result` through :class:`decrun.runner.recorder.ResultRecorder`,
-whose docstring gives the layout of ``result.h5`` (mesh, fields — 1-forms with
-``form_degree = 1`` and ``on = "mesh/edges"`` — series, metrics, provenance attributes)
-and the crash semantics: ``result.h5`` is either absent or whole; a killed run leaves its
-recorded steps readable (:func:`read_result`, ``.complete`` False).
+The format name, decrun's and the numerical stack's versions and the git commit that
+:class:`decrun.runner.results.recorder.ResultRecorder` writes as root attributes of
+``result.h5`` (:func:`read_provenance` reads them back), and ``metrics.json``
+(:func:`write_metrics_json`). The recorder and the reader both build on this module and
+on :mod:`decrun.runner.results.journal`, never on each other.
 """
 
 from __future__ import annotations
@@ -19,9 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from decrun.apps.base import Result
-
-__all__ = ["Result", "write_result", "read_result", "read_provenance", "read_mesh", "write_metrics_json"]
+__all__ = ["FORMAT", "package_versions", "git_commit", "plain", "metrics_to_json", "write_metrics_json", "read_provenance"]
 
 FORMAT = "decrun-result-1"
 
@@ -104,42 +101,6 @@ def write_metrics_json(path: str | os.PathLike, metrics: dict[str, Any]) -> Path
     return path
 
 
-# ----------------------------------------------------------------------------------
-# HDF5
-# ----------------------------------------------------------------------------------
-
-
-def write_result(
-    path: str | os.PathLike,
-    result: Result,
-    *,
-    vertices: np.ndarray | None = None,
-    simplices: np.ndarray | None = None,
-    edges: np.ndarray | None = None,
-    config_yaml: str = "",
-    mesh_hash: str = "",
-    timings: dict[str, float] | None = None,
-    attrs: dict[str, Any] | None = None,
-) -> Path:
-    """Write a finished ``result`` (and the mesh, config and provenance) to ``path``
-    atomically: a :class:`decrun.runner.recorder.ResultRecorder` with no recorded steps.
-    1-forms (:class:`decrun.apps.base.FieldOnEdges`) need ``edges``."""
-    from decrun.runner.recorder import ResultRecorder
-
-    recorder = ResultRecorder(path, vertices=vertices, simplices=simplices, edges=edges, config_yaml=config_yaml,
-                              mesh_hash=mesh_hash, attrs=attrs)
-    return recorder.finish(result, timings)
-
-
-def read_result(path: str | os.PathLike):
-    """The :class:`Result` stored for a run — complete, or incomplete (killed, failed,
-    interrupted: ``.complete`` is False and the series hold the steps recorded so far); see
-    :func:`decrun.runner.recorder.read_result_any`. ``figures`` is empty (they are PNG files)."""
-    from decrun.runner.recorder import read_result_any
-
-    return read_result_any(path)
-
-
 def read_provenance(path: str | os.PathLike) -> dict[str, Any]:
     """The root attributes of a ``result.h5`` (config_yaml, versions, mesh_hash, timings...)."""
     import h5py
@@ -148,11 +109,3 @@ def read_provenance(path: str | os.PathLike) -> dict[str, Any]:
         out = {key: plain(f.attrs[key]) for key in f.attrs}
     out["timings"] = json.loads(out.pop("timings_json", "{}"))
     return out
-
-
-def read_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """``(vertices, simplices)`` stored in a ``result.h5``."""
-    import h5py
-
-    with h5py.File(path, "r") as f:
-        return f["mesh"]["vertices"][()], f["mesh"]["simplices"][()]

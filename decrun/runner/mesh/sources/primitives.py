@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from decrun.runner.meshes import MAX_TRIANGLES, Mesh, MeshSource, pymeshlab_primitive, require, require_triangles
+from decrun.runner.mesh.base import MAX_TRIANGLES, Mesh, pymeshlab_primitive, require, require_triangles
+from decrun.runner.mesh.source import MeshSource
 
 __all__ = ["Icosphere", "Torus", "SphereCap", "Annulus", "Grid", "Cube"]
 

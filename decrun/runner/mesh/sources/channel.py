@@ -5,7 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import List
 
-from decrun.runner.meshes import Mesh, MeshSource, require
+from decrun.runner.mesh.base import Mesh, require
+from decrun.runner.mesh.source import MeshSource
 
 __all__ = ["Channel"]
 

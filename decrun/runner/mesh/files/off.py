@@ -16,8 +16,8 @@ import re
 import numpy as np
 
 from decrun.errors import MeshError
-from decrun.runner.mesh_checks import RawMesh, polygon_offsets
-from decrun.runner.mesh_text import TextTokens
+from decrun.runner.mesh.files.checks import RawMesh, polygon_offsets
+from decrun.runner.mesh.files.text import TextTokens
 
 
 def read_off(raw: bytes, where: str) -> RawMesh:

@@ -5,7 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from decrun.runner.meshes import Mesh, MeshSource, require
+from decrun.runner.mesh.base import Mesh, require
+from decrun.runner.mesh.files.read import read_mesh_file
+from decrun.runner.mesh.source import MeshSource
 
 __all__ = ["File", "Sample", "SAMPLE_MESHES", "sample_mesh_dir", "read_file"]
 
@@ -30,12 +32,10 @@ def sample_mesh_dir() -> Path:
 
 
 def read_file(path: Path, key: str, label: str) -> Mesh:
-    """The mesh in ``path`` read and validated by :func:`decrun.runner.mesh_files.read_mesh_file`
+    """The mesh in ``path`` read and validated by :func:`decrun.runner.mesh.files.read.read_mesh_file`
     before anything native sees it (pymeshlab silently drops faces with a repeated vertex,
     NaN vertices, or crashes on OBJ index 0). Triangles (polygons split into fans, counted)
     or tetrahedra; ``meta`` records the format and what the file held (``file_counts``)."""
-    from decrun.runner.mesh_files import read_mesh_file
-
     found = read_mesh_file(path, key=key)
     meta = {"source": label, "label": Path(path).stem, "path": str(path), "file_format": found.format,
             "file_counts": dict(found.counts)}
@@ -63,7 +63,7 @@ class Sample(MeshSource):
     """A mesh shipped with pymeshlab, by name (:data:`SAMPLE_MESHES`). The samples are raw
     scans and models with known defects (unreferenced vertices, bowtie vertices), so
     ``repair`` and ``clean`` are on by default, and Y-up models are turned Z-up
-    (``up_axis: auto``, :data:`decrun.runner.mesh_repair.UP_AXIS`)."""
+    (``up_axis: auto``, :data:`decrun.runner.mesh.repair.UP_AXIS`)."""
 
     name = "sample"
     sample: str = "bunny10k_textured"

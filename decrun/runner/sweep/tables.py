@@ -3,7 +3,7 @@ per metric.
 
 A sweep directory (``outputs/sweeps/<stamp>/``) holds one sub-directory per job with
 Hydra's ``.hydra/overrides.yaml`` and (when the job got that far) ``metrics.json``. With
-a manifest (:mod:`decrun.runner.sweeps`, written by the ``decrun`` sweeper) the table has
+a manifest (:mod:`decrun.runner.sweep.manifest`, written by the ``decrun`` sweeper) the table has
 one row per *planned* job — ``ok``, ``failed``, ``killed``, ``missing`` (never started or
 no metrics) or ``stale`` — so a killed sweep never looks complete; without one (another
 sweeper, an older sweep, ``outputs/runs``) one row per job directory.
@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from decrun.runner.sweeps import job_state, read_manifest
+from decrun.runner.sweep.manifest import job_state, read_manifest
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]

@@ -39,7 +39,7 @@ import numpy as np
 
 __all__ = ["repair_mesh", "up_axis_to_z", "UP_AXIS", "ROTATION_TO_Z_UP"]
 
-#: Up axis of each pymeshlab sample (``decrun.runner.sources.files.SAMPLE_MESHES`` names), judged by
+#: Up axis of each pymeshlab sample (``decrun.runner.mesh.sources.files.SAMPLE_MESHES`` names), judged by
 #: rendering each sample (after :func:`repair_mesh`) with matplotlib, z drawn upwards, before
 #: and after :func:`up_axis_to_z` and looking at the images:
 #:

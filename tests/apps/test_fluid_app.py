@@ -93,3 +93,22 @@ def test_obtuse_triangles_are_counted(run_app):
     assert expected > 0
     result, _ = run_app(Fluid(dt=0.01, steps=2, stirs=[], initial="random", animation=False), K)
     assert result.metrics["obtuse_triangles"] == expected
+
+
+def test_kernels_option_through_the_cli_numba_and_numpy_runs_are_identical(decrun_cli, tmp_path):
+    """``app.kernels`` picks the compiled loops or their numpy twins; a bad value names the
+    override that fixes it, and both kernels give the same run, bit for bit."""
+    from decrun.runner.results import read_result
+
+    base = ["app=fluid", "mesh=channel", "mesh.target_faces=600", "app.inflow=[10.0,0.0]", "app.stirs=[]",
+            "app.steps=10", "app.viscosity=0.02", "app.record_every=5", "figures=false"]
+    bad = decrun_cli(*base, "app.kernels=fortran", "hydra.run.dir=bad")
+    assert bad.returncode != 0 and "use app.kernels=numba" in bad.stderr
+    runs = {}
+    for kernels in ("numba", "numpy"):
+        proc = decrun_cli(*base, f"app.kernels={kernels}", f"hydra.run.dir={kernels}")
+        assert proc.returncode == 0, proc.stderr
+        runs[kernels] = read_result(tmp_path / kernels / "result.h5")
+    assert runs["numba"].metrics["stable"] and runs["numba"].metrics["steps_done"] == 10
+    np.testing.assert_array_equal(runs["numba"].series["vorticity"], runs["numpy"].series["vorticity"])
+    np.testing.assert_array_equal(runs["numba"].series["flux"], runs["numpy"].series["flux"])

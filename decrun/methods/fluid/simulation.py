@@ -151,8 +151,20 @@ class VorticityFluid:
         self.time, self.steps = 0.0, 0
         self.diverged_at_step: int | None = None
         self._energy_reference = max(self.kinetic_energy(), 0.5 * self.harmonic @ (self.star1 * self.harmonic), 1e-300)
+        if self.kernels == "numba":
+            self._load_kernels()
 
     # ------------------------------------------------------------------ pieces
+    def _load_kernels(self) -> None:
+        """Load (or, once per install, compile) the numba kernels now, on empty inputs, so the
+        first step — and ``steps_per_second`` — does not include it."""
+        none = np.zeros((0, 3))
+        self.walker.backtrack_compiled(none, np.zeros(0, dtype=np.int64), self.dt, self.interpolator,
+                                       self._point_velocities(), integrator=self.integrator,
+                                       start_velocity=none)
+        self.circulation(self.cells.points[: self.cells.n_circumcenters],
+                         np.zeros((self.cells.n_circumcenters, 3, 2)), np.zeros(self.cells.n_circumcenters, bool))
+
     def _remove_mean(self, w: np.ndarray) -> np.ndarray:
         if not self.closed:
             return w

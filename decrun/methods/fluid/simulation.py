@@ -74,7 +74,7 @@ class VorticityFluid:
     circulation_correction : see step d above
     kernels : "numba" (default) runs the backtracking, the interpolation and the circulation
         as compiled loops (compiled.py); "numpy" runs their vectorized numpy twins, the tested
-        reference. Both give the same step to round-off.
+        reference. Both do the same arithmetic in the same order: the same step, bit for bit.
     """
 
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,

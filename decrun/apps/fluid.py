@@ -24,11 +24,20 @@ from typing import List, Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.core.choices import Choice
 from decrun.errors import ConfigError, TopologyError
 
 INITIAL = ("zero", "rotation", "vortex_pair", "random")
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
+
+
+class Kernels(Choice):
+    """``app.kernels``: ``numba`` (compiled loops, decrun/methods/fluid/compiled.py) or ``numpy``
+    (their reference twins); both give the same run, bit for bit."""
+
+    numba = "numba"
+    numpy = "numpy"
 
 
 @dataclass
@@ -63,7 +72,7 @@ class Fluid(App):
     record_every: int = 5
     snapshots: int = 6
     animation: bool = True
-    kernels: str = "numba"  # numba (compiled loops, methods/fluid/compiled.py) | numpy (their reference twins)
+    kernels: Kernels = Kernels.numba  # numba (compiled loops) | numpy (their reference twins)
 
     def __post_init__(self):
         if not (self.dt > 0 and math.isfinite(self.dt)):
@@ -76,8 +85,7 @@ class Fluid(App):
             raise ConfigError(f"app.viscosity: must be >= 0, got {self.viscosity}")
         if self.initial not in INITIAL:
             raise ConfigError(f"app.initial: must be one of {list(INITIAL)}, got {self.initial!r}")
-        if self.kernels not in ("numba", "numpy"):
-            raise ConfigError(f"app.kernels: must be numba or numpy, got {self.kernels!r}; use app.kernels=numba")
+        self.kernels = Kernels.of(self.kernels, "app.kernels")
         if self.record_every < 1:
             raise ConfigError(f"app.record_every: must be >= 1, got {self.record_every}")
         for i, stir in enumerate(self.stirs):
@@ -121,7 +129,7 @@ class Fluid(App):
         w0 = self._initial_vorticity(dec, initial_vorticity)
         fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
                                inflow_velocity=list(self.inflow) or None, initial_vorticity=w0,
-                               kernels=self.kernels)
+                               kernels=str(self.kernels))
         obtuse = int(getattr(fluid, "obtuse_triangles", 0))
         if obtuse:
             ctx.log(f"fluid: {obtuse} obtuse triangles — their circumcentric dual cells turn inside out (§7.3); "

@@ -24,18 +24,7 @@ from decrun.core.solvers.direct import DirectSolver
 from decrun.dec import DEC
 from decrun.methods.fluid.initial import random_vorticity
 from decrun.methods.fluid.simulation import VorticityFluid
-from meshes_for_tests import icosphere, random_planar
-
-def lattice(nx: int = 12, ny: int = 10, jitter: float = 0.04, seed: int = 0) -> DEC:
-    """A parallelogram of equilateral triangles, interior vertices jittered (no obtuse angle)."""
-    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
-    points = np.stack([i + 0.5 * j, j * np.sqrt(3) / 2], -1).reshape(-1, 2).astype(float)
-    border = ((i == 0) | (j == 0) | (i == nx - 1) | (j == ny - 1)).ravel()
-    points += np.random.default_rng(seed).normal(scale=jitter, size=points.shape) * ~border[:, None]
-    a = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
-    faces = np.concatenate([np.stack([a, a + 1, a + nx], 1), np.stack([a + 1, a + nx + 1, a + nx], 1)])
-    return DEC(SimplicialComplex(points, faces))
-
+from meshes_for_tests import icosphere, jittered_lattice, random_planar
 
 @lru_cache(maxsize=None)
 def case(name: str):
@@ -49,7 +38,7 @@ def case(name: str):
         return dec, dict(dt=0.01, viscosity=0.02, inflow_velocity=(10.0, 0.0), obstacle_loops=mesh.obstacle_loops,
                          initial_vorticity=random_vorticity(dec, 1, amplitude=50))
     if name == "lattice":
-        dec = lattice()
+        dec = DEC(SimplicialComplex(*jittered_lattice()))
         return dec, dict(dt=1.5, viscosity=0.0, inflow_velocity=(1.0, 0.5),
                          initial_vorticity=random_vorticity(dec, 3, amplitude=3))
     if name == "obtuse":  # random Delaunay: obtuse triangles, non-convex flattened cells

@@ -35,6 +35,7 @@ import numpy as np  # noqa: E402
 
 from decrun.complex import SimplicialComplex  # noqa: E402
 from decrun.core.channel_mesh import channel_mesh  # noqa: E402
+from decrun.core.solvers.auto import AutoSolver  # noqa: E402
 from decrun.core.solvers.direct import DirectSolver  # noqa: E402
 from decrun.dec import DEC  # noqa: E402
 from decrun.methods.fluid.initial import random_vorticity  # noqa: E402
@@ -95,8 +96,11 @@ class Split:
         return timed
 
 
-def compare(name: str, dec, options: dict, seconds: float) -> dict:
-    sims = {k: VorticityFluid(dec, DirectSolver, kernels=k, **options) for k in ("numpy", "numba")}
+SOLVERS = {"auto": AutoSolver, "direct": DirectSolver}  # solver=auto (CHOLMOD for SPD, the default) | SuperLU
+
+
+def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto") -> dict:
+    sims = {k: VorticityFluid(dec, SOLVERS[solver], kernels=k, **options) for k in ("numpy", "numba")}
     for sim in sims.values():
         sim.step()  # warm-up (loads or compiles the kernels)
     split = Split(sims["numba"])
@@ -113,7 +117,7 @@ def compare(name: str, dec, options: dict, seconds: float) -> dict:
         steps += 1
     same = bool(np.array_equal(sims["numba"].vorticity, sims["numpy"].vorticity))
     kind = name.split()[0]
-    return {"case": name, "faces": dec.K.num_simplices(2), "steps": steps, "substeps": d.get("backtrack_substeps", 1),
+    return {"case": name, "solver": solver, "faces": dec.K.num_simplices(2), "steps": steps, "substeps": d.get("backtrack_substeps", 1),
             "numpy_steps_per_s": steps / cpu["numpy"], "numba_steps_per_s": steps / cpu["numba"],
             "ratio": cpu["numpy"] / cpu["numba"], "wall_ratio": wall["numpy"] / wall["numba"],
             "numba_wall_steps_per_s": steps / wall["numba"], "target": TARGET[kind],
@@ -156,6 +160,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seconds", type=float, default=4.0, help="time per kernel and case")
     parser.add_argument("--jit", action="store_true", help="first-call JIT times, cold and warm cache")
+    parser.add_argument("--solver", choices=sorted(SOLVERS), default="auto", help="the two SPD systems' solver")
     parser.add_argument("--case", choices=["sphere", "channel", "channel1"], action="append",
                         help="only these cases (default: all three)")
     args = parser.parse_args()
@@ -169,13 +174,14 @@ def main() -> None:
     rows = []
     for case in cases:
         if case == "sphere":
-            rows.append(compare("sphere", *sphere_case(), args.seconds))
+            rows.append(compare("sphere", *sphere_case(), args.seconds, args.solver))
         else:
             max_cfl = 1.0 if case == "channel" else None
             rows.append(compare("channel " + ("CFL <= 1 substeps" if max_cfl else "one substep"),
-                                *channel_case(max_cfl), args.seconds))
+                                *channel_case(max_cfl), args.seconds, args.solver))
         print(json.dumps(rows[-1]), flush=True)
     print()
+    print(f"solver={args.solver}")
     print("| case | faces | numpy steps/s | numba steps/s | ratio | target | numba ms/step: kernel + solves + rest "
           "| bitwise equal |")
     print("|---|---:|---:|---:|---:|---:|---|---|")

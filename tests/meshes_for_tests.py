@@ -53,6 +53,18 @@ def random_planar(n_points: int = 120, seed: int = 0):
     return points, scipy.spatial.Delaunay(points).simplices.astype(np.int64)
 
 
+def jittered_lattice(nx: int = 12, ny: int = 10, jitter: float = 0.04, seed: int = 0):
+    """A parallelogram of equilateral triangles, interior vertices jittered (no obtuse angle):
+    (vertices (n, 2), faces)."""
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    points = np.stack([i + 0.5 * j, j * np.sqrt(3) / 2], -1).reshape(-1, 2).astype(float)
+    border = ((i == 0) | (j == 0) | (i == nx - 1) | (j == ny - 1)).ravel()
+    points += np.random.default_rng(seed).normal(scale=jitter, size=points.shape) * ~border[:, None]
+    a = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
+    faces = np.concatenate([np.stack([a, a + 1, a + nx], 1), np.stack([a + 1, a + nx + 1, a + nx], 1)])
+    return points, faces
+
+
 def random_tets(n_points: int = 80, seed: int = 0):
     """Delaunay tetrahedralization of random points in the unit cube."""
     points = np.random.default_rng(seed).random((n_points, 3))

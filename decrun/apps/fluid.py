@@ -25,11 +25,20 @@ import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.apps.surface_points import check_points_on_surface
+from decrun.core.choices import Choice
 from decrun.errors import ConfigError, TopologyError
 
 INITIAL = ("zero", "rotation", "vortex_pair", "random")
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
+
+
+class Kernels(Choice):
+    """``app.kernels``: ``numba`` (compiled loops, decrun/methods/fluid/compiled.py) or ``numpy``
+    (their reference twins); both give the same run, bit for bit."""
+
+    numba = "numba"
+    numpy = "numpy"
 
 
 @dataclass
@@ -69,6 +78,7 @@ class Fluid(App):
     record_every: int = 5
     snapshots: int = 6
     animation: bool = True
+    kernels: Kernels = Kernels.numba  # numba (compiled loops) | numpy (their reference twins)
 
     def __post_init__(self):
         if not (self.dt > 0 and math.isfinite(self.dt)):
@@ -94,6 +104,7 @@ class Fluid(App):
                               "app.circulation=trapezoid)")
         if not self.shadow_perturbation > 0:
             raise ConfigError(f"app.shadow_perturbation: must be > 0, got {self.shadow_perturbation}")
+        self.kernels = Kernels.of(self.kernels, "app.kernels")
         if self.record_every < 1:
             raise ConfigError(f"app.record_every: must be >= 1, got {self.record_every}")
         for i, stir in enumerate(self.stirs):
@@ -146,7 +157,8 @@ class Fluid(App):
         w0 = self._initial_vorticity(dec, initial_vorticity)
         fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
                                inflow_velocity=list(self.inflow) or None, initial_vorticity=w0,
-                               velocity=self.velocity, circulation=self.circulation)
+                               velocity=self.velocity, circulation=self.circulation,
+                               kernels=str(self.kernels))
         obtuse = int(getattr(fluid, "obtuse_triangles", 0))
         if obtuse:
             ctx.log(f"fluid: {obtuse} obtuse triangles — their circumcentric dual cells turn inside out (§7.3); "

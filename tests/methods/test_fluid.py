@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 
-from meshes_for_tests import icosphere  # noqa: E402
+from meshes_for_tests import icosphere, jittered_lattice  # noqa: E402
 
 from decrun.complex import SimplicialComplex  # noqa: E402
 from decrun.core.channel_mesh import channel_mesh  # noqa: E402
@@ -43,13 +43,7 @@ def channel(target: int = 1400, obstacle: bool = True):
 
 def lattice(nx: int = 12, ny: int = 10, jitter: float = 0.04, seed: int = 0) -> DEC:
     """A parallelogram of equilateral triangles, interior vertices jittered (no obtuse angle)."""
-    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
-    points = np.stack([i + 0.5 * j, j * np.sqrt(3) / 2], -1).reshape(-1, 2).astype(float)
-    border = ((i == 0) | (j == 0) | (i == nx - 1) | (j == ny - 1)).ravel()
-    points += np.random.default_rng(seed).normal(scale=jitter, size=points.shape) * ~border[:, None]
-    a = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
-    faces = np.concatenate([np.stack([a, a + 1, a + nx], 1), np.stack([a + 1, a + nx + 1, a + nx], 1)])
-    return DEC(SimplicialComplex(points, faces))
+    return DEC(SimplicialComplex(*jittered_lattice(nx, ny, jitter, seed)))
 
 
 def relative(a, b, weight):

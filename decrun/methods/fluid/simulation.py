@@ -46,14 +46,16 @@ from decrun.methods.fluid.backtrack import BacktrackResult, TriangleWalker
 from decrun.core.geometry import embed3, obtuse_triangle_count
 from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
-from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
+from decrun.methods.fluid.interpolation import CellInterpolator, dot3, triangle_velocity_matrix
 from decrun.methods.fluid.swept import SweptVorticity, rest_point_interpolation
 from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS, make_reconstruction
 
-__all__ = ["VorticityFluid", "CIRCULATIONS"]
+__all__ = ["VorticityFluid", "CIRCULATIONS", "KERNELS"]
 
 #: the circulation rules of step d for interior cells
 CIRCULATIONS = ("swept", "corrected_trapezoid", "trapezoid")
+
+KERNELS = ("numba", "numpy")  # compiled loops (compiled.py) or their numpy twins
 
 
 class VorticityFluid:
@@ -83,13 +85,19 @@ class VorticityFluid:
     velocity : the velocity reconstruction of steps b–d, a key of
         ``reconstruction.VELOCITY_RECONSTRUCTIONS``: ``"wshd07"`` (the thesis) or
         ``"least_squares"`` (per-vertex least-squares velocity, linear in each triangle)
+    kernels : "numba" (default) runs the circulation sum and, with ``velocity="wshd07"``, the
+        backtracking walk with its WSHD07 interpolation as compiled loops (compiled.py; the
+        least-squares reconstruction has no compiled walk yet and walks in numpy); "numpy" runs
+        their vectorized numpy twins, the tested reference. Both do the same arithmetic in the
+        same order: the same step, bit for bit.
     """
 
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
                  max_cfl: float | None = 1.0, integrator: str = "midpoint",
-                 circulation: str = "swept", velocity: str = "least_squares", swept_cfl: float = 1.0):
+                 circulation: str = "swept", velocity: str = "least_squares", swept_cfl: float = 1.0,
+                 kernels: str = "numba"):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
@@ -101,6 +109,11 @@ class VorticityFluid:
         if velocity == "least_squares" and circulation != "swept":
             raise ConfigError("fluid: velocity=least_squares is stable only with circulation=swept (its trapezoid "
                               "circulation grew enstrophy x14 in 5 s on a sphere); use circulation=swept")
+        if kernels not in KERNELS:
+            raise ConfigError(f"fluid: kernels must be one of {list(KERNELS)}, got {kernels!r}")
+        self.kernels = kernels
+        #: the compiled walk interpolates with the WSHD07 tables (compiled.py)
+        self.compiled_walk = kernels == "numba" and velocity == "wshd07"
         K = dec.K
         self.dec, self.K = dec, K
         self.dt, self.viscosity = float(dt), float(viscosity)
@@ -167,8 +180,21 @@ class VorticityFluid:
         self.time, self.steps = 0.0, 0
         self.diverged_at_step: int | None = None
         self._energy_reference = max(self.kinetic_energy(), 0.5 * self.harmonic @ (self.star1 * self.harmonic), 1e-300)
+        if self.kernels == "numba":
+            self._load_kernels()
 
     # ------------------------------------------------------------------ pieces
+    def _load_kernels(self) -> None:
+        """Load (or, once per install, compile) the numba kernels now, on empty inputs, so the
+        first step — and ``steps_per_second`` — does not include it."""
+        none = np.zeros((0, 3))
+        if self.compiled_walk:
+            self.walker.backtrack_compiled(none, np.zeros(0, dtype=np.int64), self.dt, self.interpolator,
+                                           self._point_velocities(), integrator=self.integrator,
+                                           start_velocity=none)
+        self.circulation(self.cells.points[: self.cells.n_circumcenters],
+                         np.zeros((self.cells.n_circumcenters, 3, 2)), np.zeros(self.cells.n_circumcenters, bool))
+
     def _remove_mean(self, w: np.ndarray) -> np.ndarray:
         if not self.closed:
             return w
@@ -214,17 +240,28 @@ class VorticityFluid:
         options = dict(integrator=self.integrator, substeps=self.substeps, max_rounds=self.max_rounds,
                        max_cfl=self.max_cfl)
         if self.circulation_rule != "swept":
-            result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity,
-                                           start_velocity=start, **options)
+            result = self._walk(self.cells.points[:m], np.arange(m), self.dt, velocity, both, start, options)
         else:
-            result = self._backtrack_sweeping(velocity, start, options)
-        v = reconstruction.velocity(result.triangle, result.position, both)
+            result = self._backtrack_sweeping(velocity, both, start, options)
+        if self.compiled_walk and self.circulation_rule != "swept":
+            v = result.velocity  # the kernel interpolated every field at the end points
+        else:
+            v = reconstruction.velocity(result.triangle, result.position, both)
         clamped = result.wall_edge >= 0
         v[clamped, :, 0] = 0.0
         v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
         return result, v
 
-    def _backtrack_sweeping(self, velocity, start, options):
+    def _walk(self, points, triangles, dt, velocity, both, start_velocity, options):
+        """One backtracking walk of ``points`` (P, 3) in ``triangles`` (P,) over ``dt``: the
+        compiled kernel (WSHD07 interpolation of field 1 of ``both``) or its numpy twin with
+        the reconstruction's ``velocity`` callable."""
+        if self.compiled_walk:
+            return self.walker.backtrack_compiled(points, triangles, dt, self.interpolator, both,
+                                                  start_velocity=start_velocity, **options)
+        return self.walker.backtrack(points, triangles, dt, velocity, start_velocity=start_velocity, **options)
+
+    def _backtrack_sweeping(self, velocity, both, start, options):
         """Step c for ``circulation="swept"``: backtrack in k equal intervals of dt / k, k the
         smallest number that moves every point at most ``swept_cfl`` of its triangle's mean edge
         length per interval (at the start velocity), and add up the swept-vorticity change of
@@ -242,8 +279,8 @@ class VorticityFluid:
         rounds = unfinished = substeps = 0
         for interval in range(k):  # k small: a few intervals per step
             free = np.flatnonzero(wall < 0)
-            part = self.walker.backtrack(position[free], triangle[free], self.dt / k, velocity,
-                                         start_velocity=start[free] if interval == 0 else None, **options)
+            part = self._walk(position[free], triangle[free], self.dt / k, velocity, both,
+                              start[free] if interval == 0 else None, options)
             rounds, unfinished = rounds + part.rounds, max(unfinished, part.unfinished)
             substeps = max(substeps, part.substeps)
             position[free], triangle[free], wall[free] = part.position, part.triangle, part.wall_edge
@@ -267,6 +304,7 @@ class VorticityFluid:
         first, second = np.minimum(a, b)[keep], np.maximum(a, b)[keep]
         key, inverse = np.unique(first * n_points + second, return_inverse=True)
         self._edge_a, self._edge_b = key // n_points, key % n_points
+        self._fixed_points = np.ascontiguousarray(self.cells.points[self.cells.n_circumcenters:], dtype=np.float64)
         rows = np.broadcast_to(np.arange(corners.shape[0])[:, None], corners.shape)[keep]
         sign = np.where(a[keep] < b[keep], 1.0, -1.0)
         self._dual_incidence = sp.csr_matrix((sign, (rows, inverse)), shape=(corners.shape[0], key.size))
@@ -299,12 +337,20 @@ class VorticityFluid:
         """
         cells = self.cells
         m = cells.n_circumcenters
-        points = np.concatenate([position, cells.points[m:]])
-        velocities = np.concatenate([velocity, self._fixed_velocity])
         a, b = self._edge_a, self._edge_b
-        side = points[b] - points[a]  # (E, 3)
-        g = 0.5 * np.einsum("edf,ed->ef", velocities[a] + velocities[b], side)  # (E, 2)
-        gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
+        if self.kernels == "numba":
+            from decrun.methods.fluid.compiled import circulation_sums
+
+            D = self._dual_incidence
+            gamma = circulation_sums(np.ascontiguousarray(position, dtype=np.float64), self._fixed_points,
+                                     np.ascontiguousarray(velocity, dtype=np.float64), self._fixed_velocity,
+                                     a, b, D.indptr, D.indices, D.data)
+        else:
+            points = np.concatenate([position, cells.points[m:]])
+            velocities = np.concatenate([velocity, self._fixed_velocity])
+            side = points[b] - points[a]  # (E, 3)
+            g = 0.5 * dot3(np.moveaxis(velocities[a] + velocities[b], 1, 2), side[:, None, :])  # (E, 2)
+            gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
         touched = np.zeros(m + 1, dtype=bool)
         touched[:m] = clamped
         corners = np.where(cells.corners < m, cells.corners, m)

@@ -88,8 +88,6 @@ class Fluid(App):
         return int(math.ceil(self.t_end / self.dt - 1e-9)) if self.t_end is not None else int(self.steps)
 
     def check(self, K, dec) -> None:
-        if K.dim != 2:
-            raise TopologyError(f"app=fluid needs a triangle mesh (dimension 2), got dimension {K.dim}")
         closed = K.border_faces()[0].size == 0
         if self.inflow and closed:
             raise ConfigError("app.inflow: a closed surface has no border to flow in through; use app.inflow=[]")

@@ -143,8 +143,6 @@ class VectorField(App):
 # ----------------------------------------------------------------------------------
 
     def check(self, K, dec) -> None:
-        if K.dim != 2:
-            raise TopologyError(f"app=vector_field needs a triangle mesh (dimension 2), got dimension {K.dim}")
 
     def run(self, ctx: Context) -> Result:
         """Design the field (see :func:`_design` for fields and metrics)."""

@@ -197,6 +197,10 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 
             raise type(exc)(f"{mesh_where(mesh)}: {cli_message(exc, experiment.mesh_source)}") from exc
         complex_.meta = mesh.meta
+        try:  # before the operators: a Hodge-star variant may not exist in this dimension either
+            experiment.app.check_dimension(complex_)
+        except DecrunError as exc:
+            raise name_the_key(exc, experiment, mesh_where(mesh)) from exc
         return complex_, DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
 
     if cache:
@@ -211,6 +215,7 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     where = mesh_where(mesh)
     app = experiment.app
     try:
+        app.check_dimension(complex_)  # again: a cached complex was checked for another app
         app.check_operators(dec)
         app.check_solver(experiment.solver, dec)
         app.check(complex_, dec)

@@ -40,7 +40,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from decrun.core.solvers import solver_factory
-from decrun.errors import ConfigError, MeshError
+from decrun.errors import ConfigError, MeshError, SolverError
 
 __all__ = ["Eigenpairs", "Domain", "laplacian_eigenpairs", "check_stars", "needs_indefinite_solve", "analytic_spectrum",
            "detect_domain", "spectrum_errors"]
@@ -82,19 +82,22 @@ def needs_indefinite_solve(dec, k: int) -> bool:
     return _galerkin_lower(dec, k) or not _star_positive(dec, k)
 
 
+def _zero_entries(dec, j: int) -> np.ndarray:
+    star = dec.star_diagonal(j)
+    return np.flatnonzero(np.abs(star) <= 1e-12 * np.abs(star).max())
+
+
 def check_stars(dec, k: int) -> None:
-    """MeshError when a diagonal ⋆_{k-1} or ⋆_k has zero entries (degenerate dual cells, as in
-    Kuhn cubes): ⋆_{k-1}⁻¹ in Δ_k is then infinite, and a zero in ⋆_k makes the mass of the
-    eigenproblem singular."""
-    for j, why in ((k - 1, f"Δ_{k} contains ⋆_{k - 1}⁻¹"), (k, f"⋆_{k} is the mass of the eigenproblem")):
-        if j < 0 or not dec.star_is_diagonal(j) or (j == k - 1 and _galerkin_lower(dec, k)):
-            continue
-        star = dec.star_diagonal(j)
-        zero = np.abs(star) <= 1e-12 * np.abs(star).max()
-        if zero.any():
-            raise MeshError(f"{why}, but ⋆_{j} of operator={dec.star_variant.name} is zero on {int(zero.sum())} "
-                            f"simplices (e.g. {np.flatnonzero(zero)[:5].tolist()}: degenerate dual cells, as in Kuhn "
-                            "cubes); use `operator=whitney` (Galerkin stars, SPD on every mesh)")
+    """MeshError when a diagonal ⋆_{k-1} has zero entries (degenerate dual cells, as in Kuhn
+    cubes): ⋆_{k-1}⁻¹ in Δ_k is then infinite. (Zeros in ⋆_k only make the mass singular:
+    infinite eigenvalues, which the shift-invert solve never reaches.)"""
+    if k == 0 or _galerkin_lower(dec, k):
+        return
+    zero = _zero_entries(dec, k - 1)
+    if zero.size:
+        raise MeshError(f"Δ_{k} contains ⋆_{k - 1}⁻¹, but ⋆_{k - 1} of operator={dec.star_variant.name} is zero on "
+                        f"{zero.size} simplices (e.g. {zero[:5].tolist()}: degenerate dual cells, as in Kuhn cubes); "
+                        "use `operator=whitney` (Galerkin stars, SPD on every mesh)")
 
 
 def _default_shift(dec) -> float:
@@ -109,7 +112,16 @@ def _shifted_inverse(dec, k: int, shift: float, solver) -> spla.LinearOperator:
     M = sp.csr_matrix(dec.star(k))
     if not _galerkin_lower(dec, k):
         T = sp.csr_matrix(dec.laplacian_symmetric(k)) - shift * M
-        solver.factorize(T)
+        try:
+            solver.factorize(T)
+        except SolverError as exc:
+            zero = _zero_entries(dec, k) if dec.star_is_diagonal(k) else np.zeros(0)
+            if not zero.size:
+                raise
+            raise MeshError(f"the shifted eigen-system of Δ_{k} is singular: ⋆_{k} of operator="
+                            f"{dec.star_variant.name} is zero on {zero.size} simplices (e.g. {zero[:5].tolist()}: "
+                            "degenerate dual cells, as in Kuhn cubes) and Δ_k does not reach them; use "
+                            "`operator=whitney` (Galerkin stars, SPD on every mesh)") from exc
         return spla.LinearOperator((size, size), matvec=lambda f: solver.solve(np.ravel(f)), dtype=np.float64)
     lower = sp.csr_matrix(dec.star(k - 1))
     star_d = (M @ dec.d(k - 1)).tocsr()

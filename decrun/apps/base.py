@@ -124,7 +124,7 @@ class App:
         kinds = {1: "a curve (dimension 1)", 2: "a triangle mesh (dimension 2)", 3: "a tetrahedral mesh (dimension 3)"}
         wanted = " or ".join(kinds.get(d, f"dimension {d}") for d in self.dimensions)
         if K.dim == 3:
-            fix = "use `app=spectrum` (or `app=hodge`), which run on tetrahedra, or a surface mesh such as `mesh=icosphere`"
+            fix = "use `app=spectrum` (app=hodge runs on tetrahedra too), or a surface mesh such as `mesh=icosphere`"
         else:
             fix = "use a mesh of that dimension"
         raise TopologyError(f"app={self.name} runs on {wanted}, but this mesh is "

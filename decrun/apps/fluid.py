@@ -24,7 +24,7 @@ from typing import List, Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
-from decrun.errors import ConfigError, TopologyError
+from decrun.errors import ConfigError
 
 INITIAL = ("zero", "rotation", "vortex_pair", "random")
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",

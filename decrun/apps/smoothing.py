@@ -26,7 +26,7 @@ from typing import Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, Figure, Result
-from decrun.errors import ConfigError, TopologyError
+from decrun.errors import ConfigError
 from decrun.methods.mean_curvature_flow import SCHEMES, MeanCurvatureFlow, enclosed_volume, surface_area
 
 RESCALE = ("auto", "volume", "area", "none")

@@ -30,7 +30,7 @@ import numpy as np
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.forms import whitney_sharp
 from decrun.core.geometry import embed3
-from decrun.errors import ConfigError, TopologyError
+from decrun.errors import ConfigError
 from decrun.methods.singularities import cluster_singularities, find_singularities
 from decrun.methods.vector_design import (
     MAGNITUDE_MODES,
@@ -141,8 +141,6 @@ class VectorField(App):
 # ----------------------------------------------------------------------------------
 # configuration helpers
 # ----------------------------------------------------------------------------------
-
-    def check(self, K, dec) -> None:
 
     def run(self, ctx: Context) -> Result:
         """Design the field (see :func:`_design` for fields and metrics)."""

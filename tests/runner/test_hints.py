@@ -76,16 +76,24 @@ CASES = {
     "file_with_bowtie_vertex": (["mesh=file", "mesh.path={bowtie}", "app.steps=1"], ["mesh.repair=true"]),
     "file_with_duplicate_triangle": (["mesh=file", "mesh.path={duplicate}", "app.steps=1"], ["mesh.repair=true"]),
     "file_with_zero_area_triangle": (["mesh=file", "mesh.path={degenerate}", "app.steps=1"], ["mesh.repair=true"]),
-    # no app runs on tetrahedra yet: the hinted override gets past its error to the app's
-    # "needs a triangle mesh" (TETS_APP_ERROR), which is what these cases check
-    "repair_of_tetrahedra": (["mesh=file", "mesh.path={tets}", "app=hodge", "operator=barycentric", "mesh.repair=true"],
+    "repair_of_tetrahedra": (["mesh=file", "mesh.path={tets}", "app=spectrum", "mesh.repair=true"],
                              ["mesh.repair=false"]),
-    "mixed_area_on_tetrahedra": (["mesh=file", "mesh.path={tets}", "app=hodge", "operator=mixed_area"],
-                                 ["operator=barycentric", "operator=circumcentric"]),
-    "intrinsic_delaunay_on_tetrahedra": (["mesh=file", "mesh.path={tets}", "app=hodge",
+    "mixed_area_refusing_tetrahedra": (["mesh=file", "mesh.path={tets}", "app=spectrum", "operator=mixed_area",
+                                        "operator.tetrahedra=error"], ["operator=barycentric", "operator=circumcentric"]),
+    "intrinsic_delaunay_on_tetrahedra": (["mesh=file", "mesh.path={tets}", "app=spectrum",
                                           "operator=intrinsic_delaunay"], ["operator=whitney", "operator=circumcentric"]),
+    "surface_app_on_tetrahedra": (["mesh=file", "mesh.path={tets}", "app=smoothing"], ["app=spectrum", "mesh=icosphere"]),
+    "spectrum_degree_above_the_dimension": (["mesh.subdiv=1", "app=spectrum", "app.degree=3"], ["app.degree=2"]),
+    "spectrum_count_above_the_size": (["mesh.subdiv=1", "app=spectrum", "app.count=50"], ["app.count=10"]),
+    "spectrum_analytic_shape_not_found": (["mesh.subdiv=1", "app=spectrum", "app.analytic=box"],
+                                          ["app.analytic=auto"]),
+    "spectrum_degenerate_star": (["mesh=file", "mesh.path={tets}", "app=spectrum", "app.degree=2"],
+                                 ["operator=whitney"]),
+    "spectrum_galerkin_with_cg": (["mesh.subdiv=2", "mesh.noise=0", "app=spectrum", "app.degree=1",
+                                   "operator=whitney", "solver=cg"], ["solver=direct"]),
+    "hodge_degree_two_on_a_surface": (["app=hodge", "mesh.subdiv=2", "mesh.noise=0", "app.degree=2"],
+                                      ["app.degree=1"]),
 }
-TETS_APP_ERROR = "app=hodge needs a triangle mesh (dimension 2), got dimension 3"
 
 #: backticked overrides in the sources that no CLI run can reach, and why
 UNREACHABLE = {
@@ -122,11 +130,9 @@ def test_each_hint_is_an_override_that_fixes_the_run(name, tmp_path):
         if fix == ["solver=pardiso"] and importlib.util.find_spec("pypardiso") is None:
             continue  # the optional extra is not installed here
         keys = {override.split("=", 1)[0] for override in fix}
-        fixed = [item for item in failing if item.split("=", 1)[0] not in keys] + fix
-        if name.endswith("_tetrahedra"):
-            with pytest.raises(DecrunError, match=re.escape(TETS_APP_ERROR)):
-                run(fixed)
-            continue
+        # a new group choice (`mesh=icosphere`) drops the old choice's options (mesh.path=...)
+        fixed = [item for item in failing
+                 if not any(item.split("=", 1)[0] == key or item.startswith(key + ".") for key in keys)] + fix
         result = run(fixed)
         assert result.metrics["status"] == "ok", (fix, result.metrics)
 

@@ -216,7 +216,7 @@ def _sorted_normalized(values, vectors, M, imaginary, shift, count=None) -> Eige
 class Domain:
     """A shape with a known spectrum.
 
-    kind : ``sphere`` (sizes = (radius,)), ``box`` (sizes = side lengths, one per dimension:
+    kind : ``sphere`` or ``ball`` (sizes = (radius,)), ``box`` (sizes = side lengths, one per dimension:
         a rectangle or a cuboid; the unadapted operators give absolute (Neumann-type)
         boundary conditions) or ``flat_torus`` (sizes = the periods 2π r_i)
     """
@@ -248,6 +248,28 @@ def _lattice_values(steps, low, count: int) -> np.ndarray:
         bound *= 2
 
 
+def _ball_neumann(radius: float, count: int) -> np.ndarray:
+    """Neumann eigenvalues of the ball: (a/r)² for the zeros a > 0 of j_l' (spherical Bessel),
+    multiplicity 2l + 1, and 0 (the constants)."""
+    from scipy.optimize import brentq
+    from scipy.special import spherical_jn
+
+    limit = 8.0
+    while True:
+        values = [0.0]
+        grid = np.linspace(1e-6, limit, int(400 * limit))
+        for degree in range(int(limit) + 2):
+            f = spherical_jn(degree, grid, derivative=True)
+            for i in np.flatnonzero(np.sign(f[:-1]) * np.sign(f[1:]) < 0):
+                root = brentq(lambda x: spherical_jn(degree, x, derivative=True), grid[i], grid[i + 1])
+                values += [(root / radius) ** 2] * (2 * degree + 1)
+        values.sort()
+        # every zero of j_l' exceeds l (McMahon), so zeros beyond `limit` come from l < limit + 2
+        if len(values) >= count and values[count - 1] < (limit / radius) ** 2:
+            return np.array(values[:count])
+        limit *= 2
+
+
 def analytic_spectrum(domain: Domain, k: int, count: int) -> np.ndarray:
     """The ``count`` lowest eigenvalues of the smooth Hodge Laplacian Δ_k on ``domain``, with
     multiplicity, ascending.
@@ -260,7 +282,13 @@ def analytic_spectrum(domain: Domain, k: int, count: int) -> np.ndarray:
       λ = Σ_i (m_i π / L_i)² (k = 0: Neumann, k = n: Dirichlet).
     - flat torus with periods P_i: C(n, k) copies of the functions' spectrum
       Σ_i (2π m_i / P_i)², m_i ∈ ℤ.
+    - ball of radius r (k = 0, Neumann): (a/r)², a the positive zeros of j_l', multiplicity
+      2l + 1, and 0.
     """
+    if domain.kind == "ball":
+        if k != 0:
+            raise ValueError("the ball's spectrum is known here for functions (k = 0) only")
+        return _ball_neumann(domain.sizes[0], count)
     if domain.kind == "sphere":
         (radius,) = domain.sizes
         if k not in (0, 1, 2):
@@ -290,7 +318,7 @@ def detect_domain(K, rtol: float = 1e-6) -> Domain | None:
     """The :class:`Domain` ``K`` approximates, or None.
 
     - sphere: a closed triangle mesh in R³ whose vertices all lie at one distance r from
-      their mean (to ``rtol``);
+      their mean (to ``rtol``); ball: a tetrahedral mesh whose border vertices do;
     - box: a triangle mesh in a plane z = const or a tetrahedral mesh in R³ whose area/volume
       equals that of its axis-aligned bounding box (to ``rtol``): a rectangle or cuboid with
       no holes;
@@ -305,6 +333,12 @@ def detect_domain(K, rtol: float = 1e-6) -> Domain | None:
             return Domain("flat_torus", (2 * np.pi * r1.mean(), 2 * np.pi * r2.mean()))
         return None
     border, _ = K.border_faces()
+    if n == 3 and V.shape[1] == 3 and len(border):
+        on_border = np.unique(K.simplices(2)[border])
+        center = V[on_border].mean(axis=0)
+        radius = np.linalg.norm(V[on_border] - center, axis=1)
+        if np.ptp(radius) <= rtol * radius.mean() and np.linalg.norm(V - center, axis=1).max() <= radius.max():
+            return Domain("ball", (float(radius.mean()),))
     if n == 2 and V.shape[1] == 3 and len(border) == 0:
         radius = np.linalg.norm(V - V.mean(axis=0), axis=1)
         if np.ptp(radius) <= rtol * radius.mean():

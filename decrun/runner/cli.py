@@ -195,7 +195,7 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
         except MeshError as exc:  # name the mesh the complex refused, with the override that fixes it
             from decrun.runner.hints import cli_message
 
-            raise type(exc)(f"{mesh_where(mesh)}: {cli_message(exc, experiment.mesh_source)}") from exc
+            raise type(exc)(f"{mesh_where(mesh)}: {cli_message(exc, experiment.mesh_source, mesh.simplices.shape[1] - 1)}") from exc
         complex_.meta = mesh.meta
         try:  # before the operators: a Hodge-star variant may not exist in this dimension either
             experiment.app.check_dimension(complex_)

@@ -189,11 +189,19 @@ def input_form(K, cfg, ctx: Context | None = None) -> np.ndarray:
     k = int(getattr(cfg, "degree", 1))
     if cfg.input == "analytic":
         X = analytic_field(cfg.analytic, cfg.vector)
-        if k == 2:
-            return sample_flux(K, X, order=min(int(cfg.quadrature_order), 2))
-        if K.embedding_dim == 2:  # planar meshes: evaluate in the z = 0 plane
-            return sample_vector_field(K, lambda p: X(embed3(p))[:, :2], order=int(cfg.quadrature_order))
-        return sample_vector_field(K, X, order=int(cfg.quadrature_order))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if k == 2:
+                omega = sample_flux(K, X, order=min(int(cfg.quadrature_order), 2))
+            elif K.embedding_dim == 2:  # planar meshes: evaluate in the z = 0 plane
+                omega = sample_vector_field(K, lambda p: X(embed3(p))[:, :2], order=int(cfg.quadrature_order))
+            else:
+                omega = sample_vector_field(K, X, order=int(cfg.quadrature_order))
+        bad = np.flatnonzero(~np.isfinite(omega))
+        if bad.size:
+            raise ConfigError(f"app.analytic={cfg.analytic}: the field is not finite on {bad.size} {k}-simplices "
+                              f"(e.g. {bad[:5].tolist()}: the toroidal part is singular on the z axis, the rotated "
+                              "gradient at the origin); use `app.input=random` (or `app.analytic=gradient`)")
+        return omega
     if cfg.input == "random":
         size = simplex_volumes(K.vertices[K.simplices(k)])
         return np.random.default_rng(int(cfg.seed)).standard_normal(size.size) * size

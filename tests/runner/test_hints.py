@@ -91,6 +91,12 @@ CASES = {
                                  ["operator=whitney"]),
     "spectrum_galerkin_with_cg": (["mesh.subdiv=2", "mesh.noise=0", "app=spectrum", "app.degree=1",
                                    "operator=whitney", "solver=cg"], ["solver=direct"]),
+    "tetrahedralize_unknown_surface": (["mesh=tetrahedralize", "mesh.surface=nowhere", "app=spectrum"],
+                                       ["mesh.surface=icosphere"]),
+    "hodge_zero_star1_on_tetrahedra": (["app=hodge", "mesh=box", "mesh.cells=3", "app.input=random"],
+                                       ["operator=whitney"]),
+    "hodge_singular_analytic_field": (["app=hodge", "mesh=box", "mesh.cells=3", "operator=whitney"],
+                                      ["app.input=random", "app.analytic=gradient"]),
     "hodge_degree_two_on_a_surface": (["app=hodge", "mesh.subdiv=2", "mesh.noise=0", "app.degree=2"],
                                       ["app.degree=1"]),
 }

@@ -81,7 +81,7 @@ class Box(MeshSource):
         require(self.cells >= 1, "cells", f"must be >= 1, got {self.cells}")
         require(6 * self.cells**3 <= MAX_TETRAHEDRA, "cells",
                 f"would make {6 * self.cells**3:.3g} tetrahedra, more than decrun's limit {MAX_TETRAHEDRA:.0e}; "
-                f"use `mesh.cells={int((MAX_TETRAHEDRA / 6) ** (1 / 3))}` or fewer")
+                f"use mesh.cells={int((MAX_TETRAHEDRA / 6) ** (1 / 3))} or fewer")
         require(len(self.size) == 3 and all(s > 0 for s in self.size), "size",
                 f"must be three positive lengths, got {list(self.size)}")
         require(0 <= self.jitter < 0.5, "jitter", f"must be in [0, 0.5) cells, got {self.jitter}")
@@ -106,11 +106,16 @@ class Box(MeshSource):
         size = np.asarray(self.size, dtype=np.float64)
         holes = [*self.tunnels, *self.cavities]
 
+        keys = [f"tunnels[{i}]" for i in range(len(self.tunnels))] + [f"cavities[{i}]" for i in range(len(self.cavities))]
+
         def keep(centers):
             centers = centers * size
             removed = np.zeros(len(centers), dtype=bool)
-            for box in holes:
-                removed |= _inside(centers, box)
+            for key, box in zip(keys, holes):
+                inside = _inside(centers, box)
+                require(bool(inside.any()), key, f"{list(box)} contains no cell centre (cells of "
+                        f"{(size / self.cells).round(6).tolist()}), so it would remove nothing: enlarge it")
+                removed |= inside
             return ~removed
 
         vertices, tets = kuhn_cube(int(self.cells), keep_cell=keep if holes else None)

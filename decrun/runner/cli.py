@@ -96,6 +96,9 @@ class Experiment:
         self.boundary = build(cfg.boundary, "boundary", BoundaryAdaptation)
         self.solver = build(cfg.solver, "solver", Solver)  # a missing optional package → SolverError now
         self.mesh_source = build(cfg.mesh, "mesh", MeshSource)
+        from decrun.runner.export import Export
+
+        self.export = build(cfg.export, "export", Export) if "export" in cfg else None
         self.app.check_solver(self.solver)
 
 
@@ -115,7 +118,7 @@ def check_root_keys(cfg: DictConfig) -> None:
 
 
 #: a message starting with one of these names its config key already
-_KEYS = ("mesh", "operator", "boundary", "app", "solver", "progress", "figures")
+_KEYS = ("mesh", "operator", "boundary", "app", "solver", "export", "progress", "figures")
 
 
 def name_the_key(exc: DecrunError, experiment: Experiment, where: str) -> DecrunError:
@@ -293,7 +296,13 @@ def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -
                           config_yaml=OmegaConf.to_yaml(cfg, resolve=True), mesh_hash=mesh.meta.get("hash", ""),
                           timings=timings)
     metrics = write_metrics_json(out / "metrics.json", result.metrics)
-    return [h5, metrics, *written]
+    exported = []
+    if cfg.get("export") is not None:
+        from decrun.runner.export import Export
+        from decrun.runner.plugins import build
+
+        exported = build(cfg.export, "export", Export).write(out, result, mesh)
+    return [h5, metrics, *written, *exported]
 
 
 # ----------------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from decrun.errors import ConfigError
 __all__ = ["DecrunConfig", "OptimizeConfig", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option"]
 
 #: config groups whose node is a plugin (built with ``_target_``)
-PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver")
+PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver", "export")
 
 
 #: directions of ``optimize.direction`` (those of Hydra's optimising sweepers)
@@ -69,6 +69,8 @@ class DecrunConfig:
     boundary: Any = MISSING
     app: Any = MISSING
     solver: Any = MISSING
+    #: files for other programs (VTU, XDMF time series, PLY, OBJ): decrun.runner.export
+    export: Any = MISSING
     #: show progress bars (only when stderr is a terminal)
     progress: bool = True
     #: render the application's figures to PNG

@@ -6,8 +6,8 @@ user waits for them):
 1. **overhead**: an 8-job ``app.dt`` sweep on the default mesh (icosphere subdiv 3, 642
    vertices; implicit smoothing, 10 steps, ``figures=false``) on Hydra's basic launcher,
    against one ``python`` process that composes the config once and calls
-   :func:`decrun.runner.cli.run_experiment` (with the per-process mesh/operator cache a
-   sweep job uses) + :func:`~decrun.runner.cli.write_run` for the same 8 time steps (the
+   :func:`decrun.runner.run.run_experiment` (with the per-process mesh/operator cache a
+   sweep job uses) + :func:`~decrun.runner.run.write_run` for the same 8 time steps (the
    same work, the same files). Target: sweep ≤ 2 × loop.
 2. **parallel**: 8 jobs of ~1 s each (``mesh.subdiv=4``, explicit steps) on the basic
    launcher against ``hydra/launcher=joblib hydra.launcher.n_jobs=2``. Target: joblib
@@ -39,7 +39,8 @@ HEAVY_SEEDS = list(range(8))
 LOOP = """
 import inspect, sys, time
 from pathlib import Path
-from decrun.runner.cli import compose_config, run_experiment, write_run
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment, write_run
 out = Path(sys.argv[1]); overrides = sys.argv[2].split()
 cfg = compose_config(overrides)
 cache = {{"cache": True}} if "cache" in inspect.signature(run_experiment).parameters else {{}}  # older decrun: none

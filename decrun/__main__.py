@@ -1,6 +1,22 @@
-"""``python -m decrun`` = the ``decrun`` command."""
+"""``python -m decrun`` = the ``decrun`` command (:func:`console_main`, its console script)."""
 
-from decrun.runner.failures import console_main
+import sys
+
+from decrun.runner.failures import exit_code, install_sigterm, interrupt_cause
+
+
+def console_main() -> None:
+    """The ``decrun`` console script: SIGTERM handled and Ctrl-C reported in one line from
+    the first instant, also while the command imports Hydra and numpy (~0.5 s), then
+    :func:`decrun.runner.cli.main`."""
+    install_sigterm()
+    try:
+        from decrun.runner.cli import main  # lazy: after the signal handler (reports a Ctrl-C during the imports)
+    except KeyboardInterrupt as exc:
+        print(f"decrun: interrupted ({interrupt_cause(exc)}) before the run started", file=sys.stderr)
+        sys.exit(exit_code(exc))
+    main()
+
 
 if __name__ == "__main__":
     console_main()

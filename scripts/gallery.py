@@ -103,7 +103,8 @@ def _value(value) -> str:
 def run_entry(experiment: str | None, overrides: list[str], figure: str, scratch: Path, target: Path) -> dict:
     """One single run (of ``+experiment=<experiment>`` unless None); copies ``<figure>.png``
     to ``target``; returns the metrics."""
-    from decrun.runner.cli import compose_config, run_experiment, write_run
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment, write_run
 
     cfg = compose_config(([f"+experiment={experiment}"] if experiment else []) + list(overrides))
     out = Path(tempfile.mkdtemp(dir=scratch))

@@ -10,7 +10,7 @@ import triangle
 from decrun.core.complex import SimplicialComplex
 from decrun.core.primitives import grid_triangles, kuhn_cube  # noqa: F401
 from decrun.runner.config import config_dir
-from decrun.runner.meshes import MeshSource
+from decrun.runner.mesh import MeshSource
 from decrun.runner.plugins import build
 
 

@@ -8,15 +8,18 @@ composes YAML only; the runner type-checks each node against its class before an
 
 from __future__ import annotations
 
+import secrets
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Optional
 
-from omegaconf import MISSING
+from omegaconf import MISSING, DictConfig, OmegaConf
 
 from decrun.errors import ConfigError
 
-__all__ = ["DecrunConfig", "OptimizeConfig", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option"]
+__all__ = ["DecrunConfig", "OptimizeConfig", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option",
+           "compose_config", "unique_stamp"]
 
 #: config groups whose node is a plugin (built with ``_target_``)
 PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver", "export")
@@ -69,7 +72,7 @@ class DecrunConfig:
     boundary: Any = MISSING
     app: Any = MISSING
     solver: Any = MISSING
-    #: files for other programs (VTU, XDMF time series, PLY, OBJ): decrun.runner.export
+    #: files for other programs (VTU, XDMF time series, PLY, OBJ): decrun.runner.results.export
     export: Any = MISSING
     #: show progress bars (only when stderr is a terminal)
     progress: bool = True
@@ -79,16 +82,35 @@ class DecrunConfig:
     optimize: OptimizeConfig = field(default_factory=OptimizeConfig)
 
 
+_ISSUED_STAMPS: set[str] = set()
+
+
+def unique_stamp() -> str:
+    """``YYYY-mm-dd_HH-MM-SS_<6 hex>``: a timestamp plus 24 random bits, so two runs or
+    sweeps started in the same second get different directories (two processes collide with
+    probability 2⁻²⁴); within one process a stamp is never issued twice."""
+    while True:
+        stamp = f"{datetime.now():%Y-%m-%d_%H-%M-%S}_{secrets.token_hex(3)}"
+        if stamp not in _ISSUED_STAMPS:
+            _ISSUED_STAMPS.add(stamp)
+            return stamp
+
+
 _registered = False
 
 
 def register_configs() -> None:
-    """Store the root schema in Hydra's ConfigStore (idempotent)."""
+    """Store the root schema in Hydra's ConfigStore and register the ``decrun.stamp``
+    resolver of the output directories (idempotent)."""
     global _registered
     if _registered:
         return
-    from hydra.core.config_store import ConfigStore
+    from hydra.core.config_store import ConfigStore  # lazy: Hydra's config store only when composing (start-up speed)
 
+    if not OmegaConf.has_resolver("decrun.stamp"):
+        # cached: every job of a sweep (Hydra copies the resolver cache into each job's
+        # config, also across joblib processes) sees the sweep's single stamp
+        OmegaConf.register_new_resolver("decrun.stamp", unique_stamp, use_cache=True)
     ConfigStore.instance().store(name="base_config", node=DecrunConfig)
     _registered = True
 
@@ -107,8 +129,6 @@ def load_option(group: str, name: str):
     """``conf/<group>/<name>.yaml`` as Hydra composes it on its own: the same-group files of
     its ``defaults`` list merged first (e.g. ``mesh/_post_processing``), without Hydra's
     machinery (fast; for ``decrun --help`` and :func:`decrun.runner.plugins.option`)."""
-    from omegaconf import OmegaConf
-
     root = config_dir()
     path = root / group / f"{name}.yaml"
     if not path.is_file():
@@ -116,3 +136,15 @@ def load_option(group: str, name: str):
     node = OmegaConf.load(path)
     parts = [load_option(group, entry) for entry in node.pop("defaults", []) if entry != "_self_"]
     return OmegaConf.merge(*parts, node)
+
+
+def compose_config(overrides: list[str] | None = None) -> DictConfig:
+    """The config ``decrun <overrides>`` would run (same config dir, schemas and
+    defaults; the ``hydra`` node left out). For tests and notebooks."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    register_configs()
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides or []))

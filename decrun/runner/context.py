@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from decrun.apps.base import Context
+from decrun.errors import ConfigError
+from decrun.runner.results import read_mesh, read_result
 
 __all__ = ["RunContext"]
 
@@ -24,11 +28,6 @@ class RunContext(Context):
 
     def read_result(self, path: str):
         """``(Result, vertices)`` of a previous run's result.h5 (complete or not)."""
-        from pathlib import Path
-
-        from decrun.errors import ConfigError
-        from decrun.runner.results import read_mesh, read_result
-
         if not Path(path).is_file():
             raise ConfigError(f"app.input_path: no result file at {str(path)!r}")
         try:

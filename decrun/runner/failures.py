@@ -29,7 +29,7 @@ from pathlib import Path
 
 from decrun.errors import DecrunError
 
-__all__ = ["Terminated", "console_main", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message", "record_status"]
+__all__ = ["Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message", "record_status"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -90,7 +90,8 @@ def os_error_message(exc: OSError) -> str:
 def record_status(out: Path, status: str, error: str, extra: dict | None = None) -> str:
     """Write ``{"status": status, "error": error, **extra}`` to ``out/metrics.json`` if ``out``
     is a directory; returns "" or, when that is impossible, a note saying why (for the message)."""
-    from decrun.runner.results import write_metrics_json
+    # lazy: the decrun command imports this module first, before numpy (start-up speed)
+    from decrun.runner.results.provenance import write_metrics_json
 
     if not Path(out).is_dir():
         return ""
@@ -99,18 +100,3 @@ def record_status(out: Path, status: str, error: str, extra: dict | None = None)
     except OSError as exc:
         return f" (metrics.json could not be written either: {os.strerror(exc.errno) if exc.errno else exc})"
     return ""
-
-
-def console_main() -> None:
-    """The ``decrun`` console script: SIGTERM handled and Ctrl-C reported in one line from
-    the first instant, also while the command imports Hydra and numpy (~0.5 s), then
-    :func:`decrun.runner.cli.main`."""
-    import sys
-
-    install_sigterm()
-    try:
-        from decrun.runner.cli import main
-    except KeyboardInterrupt as exc:
-        print(f"decrun: interrupted ({interrupt_cause(exc)}) before the run started", file=sys.stderr)
-        sys.exit(exit_code(exc))
-    main()

@@ -34,6 +34,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationError
 
 from decrun.errors import ConfigError
+from decrun.runner.config import load_option
 
 __all__ = ["target_class", "build", "plain_values"]
 
@@ -141,7 +142,7 @@ def build(node: Any, key: str, base: type) -> Any:
 
 #: the base class of each plugin group (imported lazily by :func:`option`)
 GROUP_BASES = {
-    "mesh": "decrun.runner.meshes.MeshSource",
+    "mesh": "decrun.runner.mesh.MeshSource",
     "operator": "decrun.core.stars.HodgeStar",
     "boundary": "decrun.core.boundary.BoundaryAdaptation",
     "solver": "decrun.core.solvers.Solver",
@@ -153,8 +154,6 @@ def option(group: str, name: str, **overrides) -> Any:
     """The plugin ``conf/<group>/<name>.yaml`` with ``overrides`` applied, built — e.g.
     ``option("mesh", "torus", noise=0.1).load()`` or ``option("solver", "cg", tol=1e-8)``.
     For notebooks and tests: the same defaults and checks as ``decrun <group>=<name>``."""
-    from decrun.runner.config import load_option
-
     if group not in GROUP_BASES:
         raise ConfigError(f"{group}: not a plugin group; choose one of {sorted(GROUP_BASES)}")
     module_name, _, class_name = GROUP_BASES[group].rpartition(".")

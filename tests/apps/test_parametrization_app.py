@@ -9,7 +9,8 @@ import pytest
 
 from decrun.apps.parametrization import Parametrization
 from decrun.core.complex import SimplicialComplex
-from decrun.runner.cli import compose_config, run_experiment
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment
 from decrun.runner.plugins import option
 
 

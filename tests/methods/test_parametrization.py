@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.errors import TopologyError
-from decrun.runner.mesh_holes import cut_holes
+from decrun.runner.mesh.holes import cut_holes
 from decrun.methods.parametrization import (
     conformal_border,
     conformal_border_rows,

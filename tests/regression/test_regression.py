@@ -24,7 +24,8 @@ import pytest
 import yaml
 
 from decrun.errors import DecrunError
-from decrun.runner.cli import compose_config, run_experiment
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment
 
 HERE = Path(__file__).parent
 

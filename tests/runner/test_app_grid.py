@@ -8,7 +8,8 @@ import importlib.util
 import pytest
 
 from decrun.errors import ConfigError
-from decrun.runner.cli import compose_config, run_experiment, validate
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment, validate
 
 APPS = ["smoothing", "parametrization", "hodge", "vector_field", "fluid"]
 SOLVERS = ["direct", "cg", "amg", "pardiso"]

@@ -25,8 +25,9 @@ import pytest
 import scipy.sparse as sp
 
 from decrun.errors import DecrunError, SolverError
-from decrun.runner.cli import compose_config, run_experiment
-from decrun.runner.meshes import MAX_TRIANGLES
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment
+from decrun.runner.mesh import MAX_TRIANGLES
 
 OCTAHEDRON = ("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
               "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n")
@@ -402,8 +403,8 @@ def test_a_post_step_that_breaks_the_mesh_is_named(monkeypatch):
     """A step that produced non-finite coordinates is reported by name, not as a strange
     error far away (e.g. "app.rescale=volume needs a closed surface")."""
     from decrun.errors import NonFiniteCoordinateError
-    from decrun.runner import post_steps
-    from decrun.runner.meshes import Mesh
+    from decrun.runner.mesh import post as post_steps
+    from decrun.runner.mesh import Mesh
     from decrun.runner.plugins import option
 
     def broken(mesh, cfg):

@@ -13,7 +13,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from decrun.runner.cli import compose_config, table_main, unique_stamp
+from decrun.runner.cli import table_main
+from decrun.runner.config import compose_config, unique_stamp
 from decrun.runner.config import config_dir
 from decrun.runner.results import read_provenance, read_result
 
@@ -244,7 +245,8 @@ def test_a_long_run_killed_with_sigkill_leaves_a_readable_incomplete_result(tmp_
     import signal
     import time
 
-    from decrun.runner.recorder import journal_path, recover_result
+    from decrun.runner.results import recover_result
+    from decrun.runner.results.journal import journal_path
 
     env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
     proc = subprocess.Popen([sys.executable, "-m", "decrun", "mesh.subdiv=2", "app.steps=1000000", "app.dt=1e-6",

@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from decrun.runner.cli import compose_config, run_experiment
-from decrun.runner.sources.files import SAMPLE_MESHES, sample_mesh_dir
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment
+from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
 
 CONF = Path(__file__).resolve().parents[2] / "conf"
 

@@ -19,8 +19,9 @@ from pathlib import Path
 
 import pytest
 
-from decrun.runner.cli import compose_config, run_experiment, write_run
-from decrun.runner.sources.files import SAMPLE_MESHES, sample_mesh_dir
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment, write_run
+from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMAND = re.compile(r"^(?:\.venv/bin/)?(?:decrun(?:-table)?|python -m decrun)(?=\s|$)")

@@ -15,7 +15,8 @@ import pytest
 
 from decrun.core.primitives import kuhn_cube
 from decrun.errors import DecrunError
-from decrun.runner.cli import compose_config, run_experiment
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment
 
 SOURCES = Path(__file__).resolve().parents[2] / "decrun"
 #: `key=value` in single backticks (not the ``double`` ones of docstrings)
@@ -51,7 +52,7 @@ def files(tmp: Path) -> dict[str, str]:
 
 def _result_file(tmp: Path) -> str:
     """A finished run's result.h5 (a small spectrum run) for mesh=result."""
-    from decrun.runner.cli import write_run
+    from decrun.runner.run import write_run
 
     cfg = compose_config(["mesh.subdiv=1", "app=spectrum", "figures=false"])
     result, mesh, timings = run_experiment(cfg)

@@ -1,4 +1,4 @@
-"""decrun.runner.mesh_cut: holes cut along the level set — exact borders, analytic areas/lengths."""
+"""decrun.runner.mesh.cut: holes cut along the level set — exact borders, analytic areas/lengths."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import yaml
 from decrun.complex import SimplicialComplex
 from decrun.errors import ConfigError, MeshError
 try:  # the old cut (whole triangles), for comparison; it moves to decrun.runner with the restructuring
-    from decrun.runner.mesh_holes import cut_holes as cut_whole_triangles
+    from decrun.runner.mesh.holes import cut_holes as cut_whole_triangles
 except ImportError:
     from decrun.mesh_holes import cut_holes as cut_whole_triangles
-from decrun.runner.mesh_cut import cut_holes, signed_distance, parse_regions
+from decrun.runner.mesh.cut import cut_holes, signed_distance, parse_regions
 
 FIG5_7 = Path(__file__).resolve().parents[2] / "conf" / "experiment" / "fig5_7_half_sphere_holes.yaml"
 BALL = np.array([0.3, 0.5, 0.8, 0.5])  # centre at distance 0.99 from the origin, radius 0.5

@@ -1,4 +1,4 @@
-"""decrun.runner.mesh_files: every bad file is one typed MeshError naming file, cause and
+"""decrun.runner.mesh.files.read: every bad file is one typed MeshError naming file, cause and
 place; every good file reads exactly what it holds, in every format, and agrees with
 pymeshlab wherever pymeshlab drops nothing."""
 
@@ -19,8 +19,8 @@ from decrun.errors import (
     NonFiniteCoordinateError,
     RepeatedVertexError,
 )
-from decrun.runner.mesh_files import compare_with_loaded, read_mesh_file
-from decrun.runner.mesh_text import TextTokens
+from decrun.runner.mesh.files.read import compare_with_loaded, read_mesh_file
+from decrun.runner.mesh.files.text import TextTokens
 
 SAMPLES = Path(pymeshlab.__file__).resolve().parent / "tests" / "sample_meshes"
 

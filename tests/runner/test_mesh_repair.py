@@ -1,4 +1,4 @@
-"""decrun.runner.mesh_repair: every pymeshlab sample becomes a valid complex; exact repair counts."""
+"""decrun.runner.mesh.repair: every pymeshlab sample becomes a valid complex; exact repair counts."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pytest
 
 from decrun.complex import SimplicialComplex
 from decrun.errors import NonOrientableError
-from decrun.runner.mesh_repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
+from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
 
-from decrun.runner.sources.files import SAMPLE_MESHES as SAMPLES  # noqa: E402
-from decrun.runner.sources.files import sample_mesh_dir  # noqa: E402
+from decrun.runner.mesh.sources.files import SAMPLE_MESHES as SAMPLES  # noqa: E402
+from decrun.runner.mesh.sources.files import sample_mesh_dir  # noqa: E402
 
 SAMPLE_DIR = sample_mesh_dir()
 

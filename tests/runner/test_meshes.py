@@ -1,4 +1,4 @@
-"""Mesh sources and post-processing steps (decrun.runner.meshes)."""
+"""Mesh sources and post-processing steps (decrun.runner.mesh)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 from decrun.core.complex import SimplicialComplex
 from decrun.core.geometry import mean_edge_length, vertex_normals
 from decrun.errors import ConfigError, MeshError
-from decrun.runner.meshes import mesh_hash
-from decrun.runner.sources.files import SAMPLE_MESHES, sample_mesh_dir
+from decrun.runner.mesh import mesh_hash
+from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
 from meshes_for_tests import mesh
 
 
@@ -199,7 +199,8 @@ def test_each_source_has_only_its_own_options():
 def test_int_lists_are_accepted_where_floats_are_expected():
     """`'mesh.hole_balls=[[1,0,0,0.5]]'` (ints) is used as given, widened to floats — through
     the plugin builder and through the full CLI composition (experiment keys, app lists)."""
-    from decrun.runner.cli import compose_config, run_experiment
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
 
     ints = mesh(source="icosphere", subdiv=2, hole_balls=[[1, 0, 0, 1]])
     floats = mesh(source="icosphere", subdiv=2, hole_balls=[[1.0, 0.0, 0.0, 1.0]])
@@ -236,7 +237,7 @@ def test_post_processing_yaml_equals_the_mesh_source_defaults():
     from omegaconf import OmegaConf
 
     from decrun.runner.config import config_dir
-    from decrun.runner.meshes import MeshSource
+    from decrun.runner.mesh import MeshSource
 
     yaml_values = OmegaConf.to_container(OmegaConf.load(config_dir() / "mesh" / "_post_processing.yaml"))
     fields = {f.name: (f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default)
@@ -245,7 +246,7 @@ def test_post_processing_yaml_equals_the_mesh_source_defaults():
 
 
 def test_samples_are_repaired_cleaned_and_turned_z_up_by_default_files_are_not(tmp_path):
-    from decrun.runner.mesh_repair import UP_AXIS
+    from decrun.runner.mesh.repair import UP_AXIS
 
     face = mesh(source="sample", sample="face")
     assert face.meta["repair"]["non_manifold_vertices_split"] == 6 and "repair" in face.meta["steps"]

@@ -1,4 +1,4 @@
-"""decrun.runner.recorder: per-step series streamed to disk, never corrupt after a kill.
+"""decrun.runner.results.recorder: per-step series streamed to disk, never corrupt after a kill.
 
 The central test kills a recording process with SIGKILL at random moments and checks
 that what is left is either nothing, the complete result, or a readable incomplete
@@ -26,9 +26,10 @@ from decrun.dec import DEC
 from decrun.errors import DecrunError
 from decrun.apps.base import Result
 from decrun.runner.results import read_provenance, read_result, write_result
-from decrun.runner import journal as journal_module
-from decrun.runner.journal import read_journal
-from decrun.runner.recorder import ResultRecorder, ResultWriteError, journal_path, read_result_any, recover_result
+from decrun.runner.results import journal as journal_module
+from decrun.runner.results.journal import read_journal
+from decrun.runner.results.journal import journal_path
+from decrun.runner.results.recorder import ResultRecorder, ResultWriteError, recover_result
 
 VERTICES = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.5, 0.2]])
 TRIANGLES = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
@@ -75,7 +76,7 @@ def test_a_finished_run_round_trips_exactly(tmp_path):
         recorder.finish(Result(fields=fields, series={"residual": np.geomspace(1, 1e-9, 5)},
                                metrics={"stable": True, "energy_drift_rel": 1e-12}), {"app_seconds": 2.5})
     assert files_in(tmp_path) == ["result.h5"]
-    back = read_result_any(path)
+    back = read_result(path)
     assert back.complete and back.status == "ok" and back.steps_recorded == 40 and back.error == ""
     assert_series_are_steps({k: v for k, v in back.series.items() if k != "residual"}, 40, 300)
     np.testing.assert_array_equal(back.series["residual"], np.geomspace(1, 1e-9, 5))
@@ -120,7 +121,7 @@ def test_write_result_has_the_recorder_layout_and_attributes(tmp_path):
     np.testing.assert_array_equal(a.fields["u"], b.fields["u"])
     assert read_provenance(new)["figures"] == read_provenance(old)["figures"] == '["plot"]'
     # files written by write_result are complete by construction and read as such
-    assert read_result_any(old).complete and read_result_any(old).status == "ok"
+    assert read_result(old).complete and read_result(old).status == "ok"
 
 
 def test_a_one_form_field_names_its_edge_list(tmp_path):
@@ -134,7 +135,7 @@ def test_a_one_form_field_names_its_edge_list(tmp_path):
         recorder.finish(Result(fields={"f0": f0}), forms={"f0": 1})
     assert files_in(tmp_path) == []
     recorder.finish(Result(fields={"df": df, "f0": f0}), forms={"df": 1, "f0": 0})
-    back = read_result_any(tmp_path / "result.h5")
+    back = read_result(tmp_path / "result.h5")
     assert back.field_on == {"df": "mesh/edges", "f0": "mesh/vertices"}
     with h5py.File(tmp_path / "result.h5") as f:
         edges = f[f["fields/df"].attrs["on"]][()]
@@ -162,7 +163,7 @@ def _check_what_a_kill_left(path: Path) -> str:
     if not path.exists() and not journal_path(path).exists():
         assert recover_result(path) is None and files_in(path.parent) == []  # temporaries tidied
         return "absent"
-    back = read_result_any(path)
+    back = read_result(path)
     if back.complete:
         assert path.exists() and back.status == "ok" and back.steps_recorded == KILL_STEPS
         assert_series_are_steps(back.series, KILL_STEPS, KILL_SIZE)
@@ -176,7 +177,7 @@ def _check_what_a_kill_left(path: Path) -> str:
     assert back.provenance["config_yaml"] == "kill: true\n"
     # the leftover journal converts to an HDF5 file marked incomplete, same steps
     assert recover_result(path) == path and files_in(path.parent) == ["result.h5"]
-    again = read_result_any(path)
+    again = read_result(path)
     assert not again.complete and again.status == "killed" and again.steps_recorded == k
     assert_series_are_steps(again.series, k, KILL_SIZE)
     return f"partial:{k}"
@@ -214,7 +215,7 @@ def test_a_torn_or_damaged_tail_is_dropped(tmp_path):
     partial = journal_path(path)
     with open(partial, "ab") as f:  # half a record, as a kill inside writev leaves it
         f.write(b"\x01" * (read_journal(partial).record_size // 2))
-    assert_series_are_steps(read_result_any(path).series, 10, 50)
+    assert_series_are_steps(read_result(path).series, 10, 50)
     # a damaged byte inside record 6 (e.g. a torn page after a power cut): the checksum
     # stops the valid prefix there
     journal = read_journal(partial)
@@ -224,7 +225,7 @@ def test_a_torn_or_damaged_tail_is_dropped(tmp_path):
         f.seek(-1, os.SEEK_CUR)
         f.write(bytes([byte[0] ^ 0xFF]))
     assert read_journal(partial).n_records == 6
-    assert_series_are_steps(read_result_any(path).series, 6, 50)
+    assert_series_are_steps(read_result(path).series, 6, 50)
 
 
 def test_an_exception_keeps_the_steps_and_removes_temporaries(tmp_path):
@@ -234,7 +235,7 @@ def test_an_exception_keeps_the_steps_and_removes_temporaries(tmp_path):
             record_steps(recorder, range(7), 20)
             1 / 0
     assert files_in(tmp_path) == ["result.h5"]
-    back = read_result_any(path)
+    back = read_result(path)
     assert not back.complete and back.status == "failed" and back.steps_recorded == 7
     assert back.error == "ZeroDivisionError: division by zero" and back.metrics["status"] == "failed"
     assert_series_are_steps(back.series, 7, 20)
@@ -243,7 +244,7 @@ def test_an_exception_keeps_the_steps_and_removes_temporaries(tmp_path):
         with ResultRecorder(path) as recorder:
             record_steps(recorder, range(3), 20)
             raise KeyboardInterrupt
-    back = read_result_any(path)
+    back = read_result(path)
     assert (back.status, back.steps_recorded, back.complete) == ("interrupted", 3, False)
     assert files_in(tmp_path) == ["result.h5"]
 
@@ -262,7 +263,7 @@ def test_a_failing_finish_leaves_an_incomplete_file_and_no_temporary(tmp_path):
             record_steps(recorder, range(5), 20)
             recorder.finish(Result(fields={"ok": np.zeros(3), "bad": np.array([object()], dtype=object)}))
     assert files_in(tmp_path) == ["result.h5"]
-    back = read_result_any(path)
+    back = read_result(path)
     assert back.status == "failed" and back.error == "TypeError: Result.fields['bad'] is not a numeric array"
     assert_series_are_steps(back.series, 5, 20)
 
@@ -289,7 +290,7 @@ def test_the_first_record_fixes_keys_shapes_and_dtypes(tmp_path):
         recorder.record(0, energy=1.0, w=np.zeros(4), n=np.int32(1))
     recorder.record(1, n=np.int16(2), w=np.ones(4), energy=np.float32(0.5))  # safe casts, any key order
     assert recorder.steps_recorded == 2  # the rejected calls wrote nothing
-    back = read_result_any(tmp_path / "result.h5")
+    back = read_result(tmp_path / "result.h5")
     np.testing.assert_array_equal(back.series["w"], [np.zeros(4), np.ones(4)])
     np.testing.assert_array_equal(back.series["energy"], [1.0, 0.5])
     assert back.series["n"].dtype == np.int32 and list(back.series["n"]) == [1, 2]
@@ -361,11 +362,11 @@ def test_a_failed_append_is_truncated_away(tmp_path, monkeypatch):
                                                r"step 4 was not recorded; the 4 steps before it are kept") as info:
         record_steps(recorder, [4], 100)
     assert isinstance(info.value, OSError) and info.value.errno == errno.ENOSPC
-    assert_series_are_steps(read_result_any(path).series, 4, 100)
+    assert_series_are_steps(read_result(path).series, 4, 100)
     monkeypatch.setattr(journal_module.os, "writev", real_writev)
     record_steps(recorder, range(4, 9), 100)
     recorder.finish(Result())
-    assert_series_are_steps(read_result_any(path).series, 9, 100)
+    assert_series_are_steps(read_result(path).series, 9, 100)
 
 
 @pytest.fixture
@@ -392,7 +393,7 @@ def test_a_full_disk_is_one_clear_error_and_leaves_nothing_corrupt(tiny_disk):
     assert isinstance(info.value, OSError) and isinstance(info.value, DecrunError)
     # abort() could not write result.h5 either: no temporary file, the journal stays valid
     assert files_in(path.parent) == ["result.h5.partial"]
-    back = read_result_any(path)
+    back = read_result(path)
     assert not back.complete and 50 < back.steps_recorded < 10_000
     assert_series_are_steps(back.series, back.steps_recorded, 1000)
     journal_path(path).unlink()
@@ -406,13 +407,14 @@ def test_a_full_disk_is_one_clear_error_and_leaves_nothing_corrupt(tiny_disk):
                                                r".* MB free\); the 75 recorded steps are kept in .*result.h5.partial"):
         recorder.finish(Result())
     assert files_in(path.parent) == ["result.h5.partial"]
-    assert_series_are_steps(read_result_any(path).series, 75, 1000)
+    assert_series_are_steps(read_result(path).series, 75, 1000)
 
 
 _FULL_DISK_DURING_HDF5_WRITE = """
 import os, sys, numpy as np
-import decrun.runner.recorder as recorder_module
+import decrun.runner.results.recorder as recorder_module
 from decrun.apps.base import Result
+from decrun.runner.results import read_result
 directory = sys.argv[1]
 # the early free-space check passes (as when another process fills the disk meanwhile):
 # HDF5's own writes then meet ENOSPC
@@ -425,7 +427,7 @@ try:
 except recorder_module.ResultWriteError as error:
     print(error)
 print(sorted(os.listdir(directory)))
-back = recorder_module.read_result_any(os.path.join(directory, "result.h5"))
+back = read_result(os.path.join(directory, "result.h5"))
 expected = np.array([np.random.default_rng(i).random(1000) for i in range(75)])
 print(back.steps_recorded, bool((back.series["w"] == expected).all()))
 """

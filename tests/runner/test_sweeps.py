@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 from decrun.runner.cli import table_main
-from decrun.runner.tables import load_sweep
+from decrun.runner.sweep.tables import load_sweep
 
 # 4 jobs of ~0.5 s: explicit Euler on 162 vertices, no eigen-solve, well below dt_crit 0.0278
 SWEEP = ["-m", "app.dt=0.001,0.002,0.003,0.004", "mesh.subdiv=2", "app.scheme=explicit", "app.steps=1500",
@@ -98,7 +98,8 @@ def test_a_sweep_killed_mid_job_resumes_to_the_table_of_an_uninterrupted_sweep(t
 def test_optuna_finds_the_critical_time_step_within_5_percent(tmp_path):
     """Regression case of conf/experiment/dt_crit_search.yaml: the search maximises the
     stable app.dt without the eigen-solve; dt_crit = 2/λ_max from the same mesh."""
-    from decrun.runner.cli import compose_config, run_experiment
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
 
     proc = decrun("-m", "hydra/sweeper=dt_crit_search", "+experiment=dt_crit_search", "hydra.sweep.dir=search",
                   cwd=tmp_path, timeout=600)

@@ -14,9 +14,9 @@ import pytest
 from decrun.errors import ConfigError
 from decrun.runner.cli import table_main
 from decrun.runner.config import OptimizeConfig
-from decrun.runner.recorder import ResultRecorder
-from decrun.runner.sweeps import FORMAT, MANIFEST
-from decrun.runner.tables import load_sweep, select, stack, sweep_table, write_sweep_table
+from decrun.runner.results.recorder import ResultRecorder
+from decrun.runner.sweep.manifest import FORMAT, MANIFEST
+from decrun.runner.sweep.tables import load_sweep, select, stack, sweep_table, write_sweep_table
 
 
 def make_sweep(root, jobs: dict[str, dict | str | None], hashes: dict[str, str] | None = None):
@@ -134,8 +134,9 @@ def test_the_objective_a_job_returns():
 
 
 def test_jobs_of_one_process_share_mesh_complex_and_operators():
-    from decrun.runner import job_cache
-    from decrun.runner.cli import compose_config, run_experiment
+    from decrun.runner.sweep import job_cache
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
 
     job_cache.clear()
     common = ["mesh.subdiv=2", "app.steps=2", "figures=false"]
@@ -184,7 +185,7 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
     from omegaconf import OmegaConf
 
     from decrun.runner.config import config_dir
-    from decrun.runner.sweeper import Composer
+    from decrun.runner.sweep.sweeper import Composer
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):

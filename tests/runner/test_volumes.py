@@ -11,7 +11,8 @@ import pytest
 
 from decrun.core.primitives import kuhn_cube
 from decrun.errors import ConfigError, DegenerateSimplexError
-from decrun.runner.cli import compose_config, run_experiment
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment
 
 TUNNEL = "mesh.tunnels=[[0.4,0.4,-1,0.6,0.6,2]]"
 CAVITY = "mesh.cavities=[[0.4,0.4,0.4,0.6,0.6,0.6]]"

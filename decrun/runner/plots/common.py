@@ -18,6 +18,8 @@ from matplotlib import colormaps
 from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 
+from decrun.runner.results import read_result
+
 
 #: two contrasting colours for checkerboard textures (0 → dark blue, 1 → light sand)
 CHECKER = ListedColormap([(0.16, 0.27, 0.52), (0.98, 0.93, 0.80)], name="checker")
@@ -200,8 +202,6 @@ class RecordedSeries:
 
     def __getitem__(self, name: str):
         if self._series is None:
-            from decrun.runner.results import read_result
-
             self._series = read_result(self.path).series
         return self._series[name]
 

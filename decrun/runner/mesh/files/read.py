@@ -1,0 +1,185 @@
+"""Mesh files that never slip through: read, validate, and guard other loaders.
+
+:func:`read_mesh_file` reads OBJ, OFF, PLY (ASCII/binary), STL (ASCII/binary) with
+decrun's own vectorized readers and tetrahedral/other formats (VTK, VTU, Gmsh ``.msh``,
+Medit ``.mesh``, TetGen, XDMF, ...) through meshio, and validates the raw content before
+any native code sees it (:func:`decrun.runner.mesh.files.checks.validate`). Every problem is one
+:class:`decrun.errors.MeshError` (or a subclass: ``IndexOutOfRangeError``,
+``RepeatedVertexError``, ``NonFiniteCoordinateError``) whose message starts with
+``mesh.path='<file>':`` and names the cause and the place, e.g.
+``mesh.path='fin.obj': line 14: face 3 references vertex 0 (OBJ indices start at 1)``.
+Vertex and face numbers are 0-based positions in the file's lists; OBJ indices are quoted
+as written. Polygons with more than 3 corners are split into a fan and counted in
+``counts['triangulated_faces']``; nothing is dropped or repaired silently.
+
+:func:`compare_with_loaded` is the guard against loaders that drop elements silently.
+pymeshlab (2025.7) drops OBJ faces with a repeated vertex, NaN vertices with the faces
+using them, and PLY faces whose ``flags`` property has VCG's "deleted" bit; it turns OBJ
+index 0 into an out-of-range face and aborts (heap corruption) on an index above the
+vertex count.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from decrun.errors import MeshError
+from decrun.runner.mesh.files.checks import validate
+from decrun.runner.mesh.files.obj import read_obj
+from decrun.runner.mesh.files.off import read_off
+from decrun.runner.mesh.files.ply import read_ply
+from decrun.runner.mesh.files.stl import read_stl
+from decrun.runner.mesh.files.volume import meshio_extensions, read_volume
+
+__all__ = ["MeshFile", "read_mesh_file", "compare_with_loaded", "supported_extensions"]
+
+_TEXT_READERS = {".obj": read_obj, ".off": read_off}
+_BYTES_READERS = {".ply": read_ply, ".stl": read_stl}
+
+
+@dataclass(frozen=True)
+class MeshFile:
+    """A validated mesh file.
+
+    - ``vertices`` (n, 3) float64 (model units, as in the file; 2-D points padded with z = 0)
+    - ``cells`` (m, 3) int64 triangles or (m, 4) int64 tetrahedra, 0-based, in file order
+      (a polygon's fan triangles are consecutive)
+    - ``cell_face`` (m,) int64: the file face (or tetrahedron) each cell comes from
+    - ``face_line`` (f,) int64 1-based line of each file face, or None (binary formats)
+    - ``counts``: element kind → number read (``vertices``, ``faces``, ``cells``,
+      ``triangulated_faces``, ``normals``, ``texture_coordinates``, other PLY elements ...)
+    - ``format``: ``obj``, ``off``, ``ply-ascii``, ``ply-binary_little_endian``,
+      ``stl-binary``, ``stl-ascii``, ``meshio-<ext>``
+    - ``path``, ``key``: the file and the config key it came from (for messages)
+    """
+
+    path: str
+    key: str
+    format: str
+    vertices: np.ndarray
+    cells: np.ndarray
+    cell_face: np.ndarray
+    face_line: np.ndarray | None
+    counts: dict[str, int]
+
+    @property
+    def where(self) -> str:
+        """``key='path'``, the prefix of every message about this file."""
+        return f"{self.key}={self.path!r}"
+
+    @property
+    def is_volume(self) -> bool:
+        """True for tetrahedra (cells (m, 4)), False for triangles (m, 3)."""
+        return self.cells.shape[1] == 4
+
+
+def supported_extensions() -> list[str]:
+    """All file endings :func:`read_mesh_file` accepts (lower case, with the dot)."""
+    return sorted([*_TEXT_READERS, *_BYTES_READERS, *meshio_extensions()])
+
+
+def read_mesh_file(path, *, key: str = "mesh.path") -> MeshFile:
+    """Read and validate the mesh file ``path`` (str or Path).
+
+    Raises :class:`MeshError` (or a subclass) for a missing path, a directory, an empty or
+    unreadable file, an unsupported extension, malformed content, index 0 in OBJ, indices
+    out of range (positive or negative-relative), a vertex repeated in a face, NaN/inf or
+    |x| > 1e150 coordinates, faces with < 3 corners, vertices without faces, and
+    triangles mixed with tetrahedra. The message starts with ``{key}='{path}':``.
+    """
+    given = str(path)
+    where = f"{key}={given!r}"
+    path = Path(given).expanduser()
+    if not path.exists():
+        raise MeshError(f"{where}: file not found")
+    if path.is_dir():
+        raise MeshError(f"{where}: is a directory, not a file")
+    if not path.is_file():
+        raise MeshError(f"{where}: not a regular file")
+    suffix = _suffix(path)
+    if suffix is None:
+        raise MeshError(
+            f"{where}: unsupported file extension {path.suffix or '(none)'!r}; "
+            f"supported: {' '.join(supported_extensions())}"
+        )
+    try:
+        size = path.stat().st_size
+        raw = path.read_bytes() if suffix in _TEXT_READERS or suffix in _BYTES_READERS else b""
+    except OSError as exc:
+        raise MeshError(f"{where}: cannot read the file: {exc.strerror or exc}") from exc
+    if size == 0:
+        raise MeshError(f"{where}: the file is empty")
+    if suffix in _TEXT_READERS:
+        rawmesh = _TEXT_READERS[suffix](raw, where)
+    elif suffix in _BYTES_READERS:
+        rawmesh = _BYTES_READERS[suffix](raw, where)
+    else:
+        rawmesh = read_volume(path, where)
+    vertices, cells, cell_face, counts = validate(rawmesh, where)
+    return MeshFile(
+        path=given, key=key, format=rawmesh.format, vertices=vertices, cells=cells,
+        cell_face=cell_face, face_line=rawmesh.face_line, counts=counts,
+    )
+
+
+def _suffix(path: Path) -> str | None:
+    """The supported extension ``path`` ends with (longest match, case-insensitive); meshio
+    (a slow import) is consulted only for endings decrun does not read itself."""
+    name = path.name.lower()
+    own = [ext for ext in (*_TEXT_READERS, *_BYTES_READERS) if name.endswith(ext)]
+    if own:
+        return own[0]
+    matches = [ext for ext in meshio_extensions() if name.endswith(ext)]
+    return max(matches, key=len) if matches else None
+
+
+def compare_with_loaded(meshfile: MeshFile, vertices, faces, *, loader: str = "pymeshlab") -> None:
+    """Raise :class:`MeshError` if a loader returned fewer vertices or faces than the file
+    holds, or faces that reference a vertex it did not return.
+
+    ``vertices`` (n', ≥2) and ``faces`` (m', k) are what ``loader`` produced from
+    ``meshfile.path``. The file holds ``len(meshfile.vertices)`` vertices and
+    ``len(meshfile.cells)`` cells (after fan triangulation). When the vertex counts agree
+    (so indices are comparable) the message names the first cells missing from the load,
+    with their file face and line.
+    """
+    vertices, faces = np.asarray(vertices), np.asarray(faces, dtype=np.int64)
+    if faces.size == 0:
+        faces = faces.reshape(0, meshfile.cells.shape[1])
+    if faces.ndim != 2:
+        raise ValueError(f"faces must be an (m, k) index array, got shape {faces.shape}")
+    n_file, m_file = len(meshfile.vertices), len(meshfile.cells)
+    n_load, m_load = len(vertices), len(faces)
+    outside = np.flatnonzero(((faces < 0) | (faces >= n_load)).any(axis=1))
+    if outside.size:
+        raise MeshError(
+            f"{meshfile.where}: {loader} returned face {int(outside[0])} {faces[outside[0]].tolist()} referencing a "
+            f"vertex outside 0..{n_load - 1} ({outside.size} such faces); its output cannot be used"
+        )
+    if n_load >= n_file and m_load >= m_file:
+        return
+    message = (
+        f"{meshfile.where}: {loader} loaded {n_load} of the {n_file} vertices and {m_load} of the "
+        f"{m_file} {'tetrahedra' if meshfile.is_volume else 'triangles'} the file holds"
+    )
+    if n_load == n_file and m_load < m_file and faces.shape[1] == meshfile.cells.shape[1]:
+        missing = _missing_rows(meshfile.cells, faces)
+        if missing.size:
+            shown = []
+            for c in missing[:3].tolist():  # at most three named in the message
+                face = int(meshfile.cell_face[c])
+                line = f"line {int(meshfile.face_line[face])}: " if meshfile.face_line is not None else ""
+                shown.append(f"{line}face {face} {meshfile.cells[c].tolist()}")
+            message += f"; missing: {'; '.join(shown)}" + (f" (and {missing.size - 3} more)" if missing.size > 3 else "")
+    raise MeshError(message + "; it dropped part of the mesh silently")
+
+
+def _missing_rows(cells: np.ndarray, loaded: np.ndarray) -> np.ndarray:
+    """Indices of ``cells`` whose vertex set is not among the rows of ``loaded``."""
+    a = np.ascontiguousarray(np.sort(cells, axis=1))
+    b = np.ascontiguousarray(np.sort(loaded, axis=1))
+    row = np.dtype((np.void, a.dtype.itemsize * a.shape[1]))
+    return np.flatnonzero(~np.isin(a.view(row).ravel(), b.view(row).ravel()))

@@ -1,0 +1,198 @@
+"""Post-processing steps of the mesh sources (``mesh.post``): one function per step.
+
+Each step is ``step(mesh, source) -> Mesh``, reads its options from the source
+(:class:`decrun.runner.mesh.source.MeshSource` fields) and returns the mesh unchanged (the same
+object) unless its option enables it. ``mesh.post`` lists the names of these functions in
+the order they run; adding a step is adding a function here (and its option field to
+``MeshSource``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
+from decrun.errors import MeshError
+from decrun.runner.mesh.cut import cut_holes as split_along_holes
+from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
+from decrun.runner.mesh.base import (MAX_TRIANGLES, Mesh, from_meshset, require, require_surface, require_triangles,
+                                  to_meshset)
+from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
+
+__all__ = ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
+
+
+def repair(mesh: Mesh, cfg) -> Mesh:
+    """``repair``: pymeshlab's cleaning filters (:func:`decrun.runner.mesh.repair.repair_mesh`):
+    duplicate vertices and faces, zero-area and degenerate faces, non-manifold edges and
+    vertices (bowties split), unreferenced vertices, coherent orientation. Every count goes
+    to ``meta['repair']`` and the run log; triangle meshes only."""
+    if not cfg.repair:
+        return mesh
+    require(mesh.simplices.shape[1] == 3, "repair", "repairs triangle meshes only; this mesh has tetrahedra: "
+            "use `mesh.repair=false`")
+    if "clean_vertices" in mesh.meta:  # repair runs before noise in the default order
+        raise MeshError("mesh.repair: runs on the noise-free mesh; list repair before noise in mesh.post")
+    vertices, faces, report = repair_mesh(mesh.vertices, mesh.simplices)
+    changed = {k: v for k, v in report.items() if isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+               and v and k not in ("vertices_in", "faces_in", "vertices_out", "faces_out", "rounds")}
+    import logging
+
+    logging.getLogger("decrun").info("mesh.repair: %s", ", ".join(f"{k}={v}" for k, v in changed.items())
+                                     or "nothing to repair")
+    return Mesh(vertices, faces, dict(mesh.meta, repair=report))
+
+
+def up_axis(mesh: Mesh, cfg) -> Mesh:
+    """``up_axis``: rotate the model so that its up axis (``x, y, z, -x, -y, -z``; ``auto``:
+    the sample's own, :data:`decrun.runner.mesh.repair.UP_AXIS`, else ``z``) points along +z,
+    the axis the figures draw upwards. A proper rotation: lengths, angles, orientation kept."""
+    axis = resolved_up_axis(mesh, cfg)
+    if axis == "z":
+        return mesh
+    require(mesh.vertices.shape[1] == 3, "up_axis", "a planar mesh has no up axis; use `mesh.up_axis=z`")
+    meta = dict(mesh.meta, up_axis=axis)
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = up_axis_to_z(meta["clean_vertices"], axis)
+    return Mesh(up_axis_to_z(mesh.vertices, axis), mesh.simplices, meta)
+
+
+def resolved_up_axis(mesh: Mesh, cfg) -> str:
+    """``cfg.up_axis`` with ``auto`` resolved (the sample's up axis, else ``z``)."""
+    axis = str(getattr(cfg, "up_axis", "z"))
+    if axis == "auto":
+        axis = UP_AXIS.get(str(getattr(cfg, "sample", "")), "z") if mesh.meta.get("source") == "sample" else "z"
+    require(axis in ROTATION_TO_Z_UP, "up_axis", f"must be auto or one of {sorted(ROTATION_TO_Z_UP)}, got {axis!r}")
+    return axis
+
+
+def holes(mesh: Mesh, cfg) -> Mesh:
+    """``holes``: cut ``cfg.hole_balls`` and ``cfg.hole_boxes`` (no-op when both are empty).
+
+    ``hole_cut: split`` (default) splits the triangles along the balls' spheres and the
+    boxes' faces (:func:`decrun.runner.mesh.cut.cut_holes`: smooth borders, new vertices on
+    the surfaces, ``hole_snap`` against slivers); ``hole_cut: whole_triangles`` removes the
+    triangles whose centroid lies inside (:func:`decrun.runner.mesh.holes.cut_holes`: the
+    sawtooth borders of the earlier experiments). Records ``meta['holes']`` (the cut's counts)
+    and carries ``meta['clean_vertices']`` onto the cut mesh.
+    """
+    balls = list(getattr(cfg, "hole_balls", None) or [])
+    boxes = list(getattr(cfg, "hole_boxes", None) or [])
+    if not balls and not boxes:
+        return mesh
+    method = getattr(cfg, "hole_cut", "split")
+    require(method in ("split", "whole_triangles"), "hole_cut", f"must be split or whole_triangles, got {method!r}")
+    meta = dict(mesh.meta)
+    if method == "whole_triangles":
+        vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes)
+        if "clean_vertices" in meta:
+            meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
+        meta["holes"] = {"removed_faces": int(len(mesh.simplices) - len(faces))}
+    else:
+        vertices, faces, info = split_along_holes(mesh.vertices, mesh.simplices, balls, boxes,
+                                              snap=float(getattr(cfg, "hole_snap", 0.25)))
+        if "clean_vertices" in meta:
+            meta["clean_vertices"] = info["interpolation"] @ np.asarray(meta["clean_vertices"])
+        meta["holes"] = {k: v for k, v in info.items() if np.isscalar(v)}
+        meta["hole_border_vertices"] = int(np.sum(info["on_border"]))
+    meta["holes_removed_faces"] = int(meta["holes"]["removed_faces"])
+    return type(mesh)(vertices, faces, meta)
+
+
+def clean(mesh: Mesh, cfg) -> Mesh:
+    """``clean``: keep the largest connected component (by triangle count, components
+    joined through shared vertices) and drop unreferenced vertices."""
+    if not cfg.clean:
+        return mesh
+    V, F = mesh.vertices, mesh.simplices
+    m = len(F)
+    incidence = sp.csr_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), F.ravel())), shape=(m, len(V)))
+    _, label = connected_components(incidence @ incidence.T, directed=False)
+    keep_faces = label == np.argmax(np.bincount(label))
+    F = F[keep_faces]
+    used = np.zeros(len(V), dtype=bool)
+    used[F.ravel()] = True
+    remap = np.cumsum(used) - 1
+    meta = dict(mesh.meta, dropped_vertices=int((~used).sum()), dropped_faces=int((~keep_faces).sum()))
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = meta["clean_vertices"][used]
+    return Mesh(V[used], remap[F], meta)
+
+
+def refine(mesh: Mesh, cfg) -> Mesh:
+    """``refine``: ``loop`` / ``midpoint`` subdivision or ``isotropic`` remeshing (pymeshlab),
+    ``refine_iterations`` times. Drops ``clean_vertices`` (the connectivity changed)."""
+    import pymeshlab
+
+    if cfg.refine == "none":
+        return mesh
+    require(cfg.refine in ("loop", "midpoint", "isotropic"), "refine", f"unknown {cfg.refine!r}; choose none|loop|midpoint|isotropic")
+    require(1 <= cfg.refine_iterations <= 10, "refine_iterations", f"must be in 1..10, got {cfg.refine_iterations}")
+    require_surface(mesh, f"mesh.refine={cfg.refine}", "mesh.refine=none")
+    dim = mesh.vertices.shape[1]
+    m, iterations = len(mesh.simplices), int(cfg.refine_iterations)
+    if cfg.refine in ("loop", "midpoint"):  # each iteration splits a triangle into 4
+        fits = max(0, int(np.floor(np.log(MAX_TRIANGLES / m) / np.log(4))))
+        require_triangles(m * 4.0 ** iterations, "mesh.refine_iterations",
+                          f"mesh.refine_iterations={fits}" if fits else "a coarser mesh")
+    else:
+        require(cfg.refine_target_edge >= 0, "refine_target_edge", "must be >= 0")
+        target = cfg.refine_target_edge or mean_edge_length(mesh.vertices, mesh.simplices)
+        area = float(triangle_areas(mesh.vertices, mesh.simplices).sum())
+        equilateral = np.sqrt(3) / 4 * target**2
+        shortest = np.sqrt(area / (MAX_TRIANGLES * np.sqrt(3) / 4))  # the target that makes MAX_TRIANGLES
+        require_triangles(area / equilateral, "mesh.refine_target_edge", f"mesh.refine_target_edge={1.1 * shortest:.2g}")
+    ms = to_meshset(mesh.vertices, mesh.simplices)
+    try:
+        if cfg.refine == "loop":
+            ms.meshing_surface_subdivision_loop(iterations=iterations, threshold=pymeshlab.PercentageValue(0.0))
+        elif cfg.refine == "midpoint":
+            ms.meshing_surface_subdivision_midpoint(iterations=iterations, threshold=pymeshlab.PercentageValue(0.0))
+        else:
+            ms.meshing_isotropic_explicit_remeshing(iterations=iterations, targetlen=pymeshlab.PureValue(float(target)))
+    except pymeshlab.PyMeshLabException as exc:
+        reason = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        raise MeshError(f"mesh.refine={cfg.refine}: pymeshlab refused the mesh ({reason}); repair the mesh "
+                        f"or use mesh.refine=none") from None
+    vertices, faces = from_meshset(ms, f"mesh.refine={cfg.refine}")
+    meta = {k: v for k, v in mesh.meta.items() if k != "clean_vertices"}
+    return Mesh(vertices[:, :dim], faces, meta)
+
+
+def normalize(mesh: Mesh, cfg) -> Mesh:
+    """``normalize``: translate the bounding-box centre to the origin, scale to unit diagonal."""
+    if not cfg.normalize:
+        return mesh
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    center, diagonal = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+    if diagonal == 0:
+        raise MeshError("mesh.normalize: all vertices coincide")
+    meta = dict(mesh.meta)
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = (meta["clean_vertices"] - center) / diagonal
+    return Mesh((mesh.vertices - center) / diagonal, mesh.simplices, meta)
+
+
+def noise(mesh: Mesh, cfg) -> Mesh:
+    """``noise``: displace every vertex by ``noise · h · ξ_i`` along its unit normal, where
+    ``h`` is the mean edge length and ``ξ_i ~ N(0, 1)`` (generator seeded by ``seed``).
+    For planar (2-D) meshes, which have no normal, the direction is a random in-plane unit
+    vector. Keeps the noise-free positions in ``meta['clean_vertices']``."""
+    require(cfg.noise >= 0, "noise", f"must be >= 0, got {cfg.noise}")
+    if cfg.noise == 0:
+        return mesh
+    require_surface(mesh, "mesh.noise", "mesh.noise=0")
+    rng = np.random.default_rng(int(cfg.seed))
+    V, F = mesh.vertices, mesh.simplices
+    h = mean_edge_length(V, F)
+    if V.shape[1] == 3:
+        direction = vertex_normals(V, F)
+    else:
+        angle = rng.uniform(0, 2 * np.pi, len(V))
+        direction = np.column_stack([np.cos(angle), np.sin(angle)])
+    amplitude = float(cfg.noise) * h
+    displaced = V + amplitude * rng.standard_normal(len(V))[:, None] * direction
+    meta = dict(mesh.meta, clean_vertices=V.copy(), noise_amplitude=amplitude)
+    return Mesh(displaced, F, meta)

@@ -1,2 +1,0 @@
-"""Mesh sources (the ``mesh`` config group): one module per source family, each a
-:class:`decrun.runner.meshes.MeshSource` dataclass named by ``_target_`` in ``conf/mesh/<name>.yaml``."""

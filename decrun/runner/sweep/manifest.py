@@ -1,0 +1,138 @@
+"""A sweep's manifest: the jobs planned at its start, so that its table always has one
+row per planned job and a resumed sweep reruns exactly what is not done.
+
+``<sweep dir>/manifest.json`` (written atomically by the ``decrun`` sweeper,
+:mod:`hydra_plugins.decrun_sweeper`, before any job starts)::
+
+    {"format": "decrun-sweep-1", "created": ISO time, "overrides": [command-line sweep overrides],
+     "jobs": [{"job": "0", "overrides": ["app.dt=0.1", ...], "config_hash": "<16 hex>"}, ...],
+     "runs": [{"started": ISO, "jobs": ["0", "3"], "finished": ISO | null}, ...]}
+
+``config_hash`` is :func:`config_hash` of the job's composed config (everything but the
+``hydra`` node): two jobs with the same hash compute the same thing. A job writes its hash
+into its ``metrics.json``, so a job directory left by another config is never taken for
+this one's. ``runs`` has one entry per start or resume; a run whose ``finished`` is null
+was killed (the sweep never looks complete).
+
+A job's state (:func:`job_state`) is read from its directory only:
+
+=========  ==========================================================================
+``ok``      ``metrics.json`` with ``status: ok`` (and the manifest's hash, when it has one)
+``failed``  ``metrics.json`` with ``status: failed`` / ``interrupted`` (its ``error``)
+``killed``  no ``metrics.json`` but the run's journal ``result.h5.partial``: the process
+            died while recording (:func:`decrun.runner.results.recorder.recover_result` turns it
+            into an incomplete ``result.h5``)
+``missing`` no ``metrics.json`` and no journal: never started, killed before its first
+            step, or still running
+``stale``   ``metrics.json`` written by a different config (hash differs from the manifest)
+=========  ==========================================================================
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from decrun.errors import ConfigError
+from decrun.runner.results.journal import journal_path, read_journal
+
+__all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "DONE"]
+
+MANIFEST = "manifest.json"
+FORMAT = "decrun-sweep-1"
+#: states a resumed sweep does not rerun
+DONE = ("ok",)
+#: run options that do not change what a job computes (left out of its hash)
+UNHASHED = ("progress",)
+
+
+def now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def config_hash(cfg: DictConfig) -> str:
+    """16 hex digits of sha256 over the resolved YAML of ``cfg`` without its ``hydra``
+    node and the keys of :data:`UNHASHED`: equal for two compositions of the same job."""
+    node = {}
+    for key in cfg:
+        if key != "hydra" and key not in UNHASHED:
+            value = cfg[key]
+            node[key] = OmegaConf.to_container(value, resolve=True) if OmegaConf.is_config(value) else value
+    text = OmegaConf.to_yaml(OmegaConf.create(node), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_manifest(sweep_dir: Path, manifest: dict[str, Any]) -> Path:
+    """Write ``manifest.json`` atomically (it is either the old or the new one)."""
+    path = Path(sweep_dir) / MANIFEST
+    _atomic_write(path, json.dumps(manifest, indent=1) + "\n")
+    return path
+
+
+def read_manifest(sweep_dir: str | os.PathLike) -> dict[str, Any] | None:
+    """The manifest of a sweep, or None when it has none (an older sweep, or one run by
+    another sweeper such as optuna). A manifest that cannot be read is a ConfigError
+    naming the file."""
+    path = Path(sweep_dir) / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"{path}: unreadable sweep manifest ({exc})") from exc
+    if manifest.get("format") != FORMAT:
+        raise ConfigError(f"{path}: not a decrun sweep manifest (format {manifest.get('format')!r})")
+    return manifest
+
+
+def read_metrics(job_dir: Path) -> dict[str, Any] | None:
+    """``metrics.json`` of a job, None when absent; unreadable → a ``missing`` record."""
+    path = job_dir / "metrics.json"
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        return {"status": "missing", "error": f"unreadable metrics.json: {exc}"}
+
+
+def job_state(job_dir: Path, expected_hash: str | None = None) -> dict[str, Any]:
+    """``{"status", "error", **metrics}`` of one job directory (table in the module
+    docstring). ``expected_hash``: the manifest's hash for this job."""
+    metrics = read_metrics(job_dir)
+    if metrics is None:
+        journal = journal_path(job_dir / "result.h5")
+        if journal.is_file():
+            try:
+                steps = read_journal(journal, verify=False).n_records
+            except (OSError, ValueError):
+                steps = 0
+            return {"status": "killed", "error": f"killed after {steps} recorded steps (result.h5.partial; "
+                                                 "no metrics.json)"}
+        if not job_dir.is_dir():
+            return {"status": "missing", "error": "never started"}
+        return {"status": "missing", "error": "no metrics.json (killed before its first step, or still running)"}
+    metrics = dict(metrics)
+    found = metrics.pop("config_hash", None)
+    if expected_hash is not None and found is not None and found != expected_hash:
+        return {"status": "stale", "error": f"metrics.json is from another config (hash {found}, "
+                                            f"the manifest plans {expected_hash})"}
+    metrics.setdefault("status", "ok")
+    metrics.setdefault("error", "")
+    return metrics

@@ -1,0 +1,208 @@
+"""Sweep → one pandas table: one row per job, one column per overridden parameter and
+per metric.
+
+A sweep directory (``outputs/sweeps/<stamp>/``) holds one sub-directory per job with
+Hydra's ``.hydra/overrides.yaml`` and (when the job got that far) ``metrics.json``. With
+a manifest (:mod:`decrun.runner.sweep.manifest`, written by the ``decrun`` sweeper) the table has
+one row per *planned* job — ``ok``, ``failed``, ``killed``, ``missing`` (never started or
+no metrics) or ``stale`` — so a killed sweep never looks complete; without one (another
+sweeper, an older sweep, ``outputs/runs``) one row per job directory.
+
+Columns: ``job``, the overridden keys, ``status``, ``error``, the metrics (in the order
+the jobs wrote them), ``result`` (the job's ``result.h5`` — or its journal
+``result.h5.partial`` when it was killed — relative to the sweep directory; empty when
+there is none). Integer metrics stay integers when a row lacks them (pandas ``Int64``).
+
+:func:`load_sweep` returns exactly the frame ``pandas.read_csv(<sweep>/metrics.csv)``
+gives; :func:`stack` puts several sweeps under each other with a ``sweep`` column.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from decrun.runner.sweep.manifest import job_state, read_manifest
+
+__all__ = ["sweep_table", "load_sweep", "stack", "select", "to_markdown", "write_sweep_table", "failed_jobs",
+           "is_sweep_dir"]
+
+LEADING = ("job", "status", "error")
+#: columns :func:`select` never drops as constant
+KEPT = ("sweep", "job", "status")
+
+
+def is_sweep_dir(path: str | os.PathLike) -> bool:
+    """A directory a sweep wrote (``multirun.yaml`` or ``manifest.json`` at its root): the
+    only kind :func:`write_sweep_table` writes into."""
+    path = Path(path)
+    return (path / "multirun.yaml").is_file() or (path / "manifest.json").is_file()
+
+
+def _job_dirs(sweep_dir: Path) -> list[Path]:
+    jobs = [p for p in sweep_dir.iterdir() if p.is_dir() and (p / ".hydra").is_dir()]
+
+    def order(p: Path):
+        head = p.name.split("_", 1)[0]
+        return (0, int(head), p.name) if head.isdigit() else (1, 0, p.name)
+
+    return sorted(jobs, key=order)
+
+
+def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
+    """``["app.dt=0.1", "+x=a", "hydra.foo=1"]`` → ``{"app.dt": 0.1, "x": "a"}``: values
+    parsed as YAML scalars (lists and dicts kept as text); Hydra's own keys left out."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, _, value = str(item).partition("=")
+        key = key.lstrip("+~")
+        if key.startswith("hydra.") or key.startswith("hydra/"):
+            continue
+        try:
+            out[key] = yaml.safe_load(value)
+        except yaml.YAMLError:
+            out[key] = value
+        if isinstance(out[key], (list, dict)):
+            out[key] = value
+    return out
+
+
+def _overrides(job: Path) -> dict[str, Any]:
+    path = job / ".hydra" / "overrides.yaml"
+    if not path.is_file():
+        return {}
+    return parse_overrides(yaml.safe_load(path.read_text()) or [])
+
+
+def _result_path(sweep_dir: Path, job: str) -> str:
+    for name in ("result.h5", "result.h5.partial"):
+        if (sweep_dir / job / name).is_file():
+            return f"{job}/{name}"
+    return ""
+
+
+def _job_name(name: str) -> int | str:
+    return int(name) if name.isdigit() else name
+
+
+def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
+    """Table of a sweep: columns ``job, <overridden keys...>, status, error, <metrics...>,
+    result`` (module docstring); nullable ``Int64`` for integer columns."""
+    sweep_dir = Path(sweep_dir)
+    if not sweep_dir.is_dir():
+        raise FileNotFoundError(f"sweep directory {str(sweep_dir)!r} does not exist")
+    manifest = read_manifest(sweep_dir)
+    planned: list[tuple[str, dict, str | None]] = []  # (job, overrides, hash)
+    if manifest is not None:
+        planned = [(j["job"], parse_overrides(j["overrides"]), j["config_hash"]) for j in manifest["jobs"]]
+    known = {name for name, _, _ in planned}
+    planned += [(p.name, _overrides(p), None) for p in _job_dirs(sweep_dir) if p.name not in known]
+    rows, override_keys, metric_keys = [], [], []
+    for name, overrides, expected in planned:
+        job_dir = sweep_dir / name
+        metrics = job_state(job_dir, expected)
+        if expected is None and job_dir.is_dir():
+            overrides = _overrides(job_dir) or overrides
+        for key in overrides:
+            if key not in override_keys:
+                override_keys.append(key)
+        for key in metrics:
+            if key not in metric_keys and key not in LEADING:
+                metric_keys.append(key)
+        rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, name)})
+    columns = ["job", *override_keys, "status", "error", *[k for k in metric_keys if k != "result"], "result"]
+    return _typed(pd.DataFrame(rows, columns=columns), rows)
+
+
+def _typed(table: pd.DataFrame, rows: list[dict]) -> pd.DataFrame:
+    """Integer columns with a missing row → ``Int64`` (not float), booleans → ``boolean``."""
+    for column in table.columns:
+        values = [row[column] for row in rows if column in row and row[column] is not None]
+        if not values or len(values) == len(rows):
+            continue
+        if all(isinstance(v, bool) for v in values):
+            table[column] = table[column].astype("boolean")
+        elif all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+            table[column] = table[column].astype("Int64")
+    return table
+
+
+def load_sweep(sweep_dir: str | os.PathLike) -> pd.DataFrame:
+    """The sweep's table as ``pandas.read_csv(<sweep_dir>/metrics.csv)`` returns it (the
+    same dtypes), built from the job directories without writing anything."""
+    return pd.read_csv(io.StringIO(sweep_table(sweep_dir).to_csv(index=False)))
+
+
+def stack(sweep_dirs: Sequence[str | os.PathLike]) -> pd.DataFrame:
+    """Several sweeps under each other: a first column ``sweep`` (the directory as given),
+    the union of their columns (empty where a sweep lacks one)."""
+    tables = [sweep_table(d).assign(sweep=str(d)) for d in sweep_dirs]
+    table = pd.concat(tables, ignore_index=True) if len(tables) > 1 else tables[0]
+    leading = ["sweep", "job"]
+    return table[leading + [c for c in table.columns if c not in leading]]
+
+
+def select(table: pd.DataFrame, metrics: Sequence[str] | None = None, sort: Sequence[str] | None = None,
+           descending: bool = False, drop_constant: bool = False) -> pd.DataFrame:
+    """A view for reading: only the metric columns ``metrics`` (the ``sweep``/``job``/
+    override/``status``/``error``/``result`` columns stay), rows sorted by ``sort``,
+    constant columns dropped (except ``sweep``, ``job``, ``status``). An unknown column is
+    a ``KeyError`` naming the columns there are."""
+    for key in [*(metrics or []), *(sort or [])]:
+        if key not in table.columns:
+            raise KeyError(f"no column {key!r}; the columns are {', '.join(map(str, table.columns))}")
+    if metrics:
+        status_at = list(table.columns).index("status")
+        fixed = list(table.columns[:status_at + 2]) + ["result"]
+        table = table[[c for c in table.columns if c in fixed or c in metrics]]
+    if sort:
+        table = table.sort_values(list(sort), ascending=not descending, kind="stable", na_position="last")
+    if drop_constant and len(table) > 1:
+        constant = [c for c in table.columns if c not in KEPT and table[c].astype(str).nunique(dropna=False) <= 1]
+        table = table.drop(columns=constant)
+    return table
+
+
+def _cell(value: Any) -> str:
+    if value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value).replace("|", "\\|").replace("\n", " ")
+
+
+def to_markdown(table: pd.DataFrame) -> str:
+    """GitHub markdown of the table (floats with 4 significant digits)."""
+    header = "| " + " | ".join(map(str, table.columns)) + " |"
+    rule = "|" + "|".join("---" for _ in table.columns) + "|"
+    body = ["| " + " | ".join(_cell(v) for v in row) + " |" for row in table.itertuples(index=False)]
+    return "\n".join([header, rule, *body]) + "\n"
+
+
+def write_sweep_table(sweep_dir: str | os.PathLike, *, sweep: bool | None = None) -> pd.DataFrame:
+    """Write ``metrics.csv`` and ``metrics.md`` (atomically) at the sweep root; return the
+    table. Refuses (``NotADirectoryError``) a directory no sweep wrote, e.g. ``outputs/runs``
+    (``sweep=True``: the caller knows it is one, e.g. the end-of-sweep callback)."""
+    sweep_dir = Path(sweep_dir)
+    table = sweep_table(sweep_dir)
+    if not (is_sweep_dir(sweep_dir) if sweep is None else sweep):
+        raise NotADirectoryError(f"{sweep_dir} is not a sweep directory (no multirun.yaml or manifest.json)")
+    for name, text in (("metrics.csv", table.to_csv(index=False)), ("metrics.md", to_markdown(table))):
+        tmp = sweep_dir / f".{name}.tmp-{os.getpid()}"
+        tmp.write_text(text)
+        os.replace(tmp, sweep_dir / name)
+    return table
+
+
+def failed_jobs(table: pd.DataFrame) -> pd.DataFrame:
+    """Rows whose status is not ``ok``."""
+    return table[table["status"] != "ok"]

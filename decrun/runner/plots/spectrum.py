@@ -35,6 +35,6 @@ def eigenforms_figure(K, values: list, titles: list, degree: int):
         limit = float(np.abs(shown).max()) or 1.0
         plot_surface(ax, K.vertices, faces, shown, cmap="RdBu_r" if symmetric else "viridis",
                      vmin=-limit if symmetric else 0.0, vmax=limit, title=title)
-    label = "eigenfunction" if degree == 0 else f"|eigenform| (degree {degree})"
-    fig.suptitle(f"Δ_{degree}: {label}s" + (" on the border surface" if K.dim == 3 else ""), fontsize=10)
+    label = "eigenfunctions" if degree == 0 else f"|eigenforms| of degree {degree}"
+    fig.suptitle(f"Δ_{degree}: {label}" + (" on the border surface" if K.dim == 3 else ""), fontsize=10)
     return fig

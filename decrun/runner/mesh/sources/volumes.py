@@ -162,7 +162,9 @@ def tetrahedralize_surface(vertices: np.ndarray, faces: np.ndarray, *, quality: 
                           "pip install 'decrun[tet]' (or pip install tetgen)") from None
     generator = tetgen.TetGen(np.ascontiguousarray(vertices, dtype=np.float64),
                               np.ascontiguousarray(faces, dtype=np.int32))
-    options: dict[str, Any] = dict(quality=bool(quality), nobisect=bool(keep_surface), quiet=True)
+    # steinerleft=-1: no cap on the Steiner points (the wheel's default, 100000, silently stops
+    # the refinement at about 600k tetrahedra, whatever max_volume asks)
+    options: dict[str, Any] = dict(quality=bool(quality), nobisect=bool(keep_surface), quiet=True, steinerleft=-1)
     if quality:
         options.update(minratio=float(min_ratio), mindihedral=float(min_dihedral_deg))
     if max_volume > 0:

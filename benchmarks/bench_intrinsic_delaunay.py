@@ -18,7 +18,6 @@ of the two stiffness matrices relative to the largest entry.
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import numpy as np

@@ -17,9 +17,7 @@ with a message.
 
 from __future__ import annotations
 
-import time
 
-import numpy as np
 
 from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E402
 

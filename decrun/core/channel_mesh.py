@@ -20,7 +20,7 @@ import triangle as triangle_library
 
 from decrun.core.geometry import corner_angles, obtuse_triangle_count
 
-__all__ = ["ChannelMesh", "circle", "channel_mesh", "obtuse_count"]
+__all__ = ["ChannelMesh", "circle", "channel_mesh"]
 
 
 def circle(center, radius: float, count: int) -> np.ndarray:

@@ -22,7 +22,6 @@ Conventions (``shared/DESIGN.md``):
 from __future__ import annotations
 
 from itertools import combinations
-from math import factorial
 
 import numpy as np
 import scipy.sparse as sp

@@ -28,6 +28,7 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
+from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
 from decrun.runner.failures import exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message
@@ -71,16 +72,8 @@ class SweepTable(Callback):
     _progress = None
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
-        """Jobs done / total with ETA in the submitting process (a terminal only)."""
-        enabled = terminal(bool(config.get("progress", True)))
-        if not enabled:
-            return
-        params = config.hydra.sweeper.get("params") or {}
-        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
-        total = sweep_size(list(config.hydra.overrides.task), params)
-        SweepTable._progress = SweepProgress(Path(str(config.hydra.sweep.dir)), total, enabled=True).start()
-
-    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        """Refuse a non-empty sweep dir for sweepers without resume; then show jobs done /
+        total with ETA in the submitting process (a terminal only)."""
         sweep_dir = Path(str(config.hydra.sweep.dir))
         target = str(config.hydra.sweeper.get("_target_", ""))
         if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):
@@ -88,6 +81,12 @@ class SweepTable(Callback):
 
             refuse(SweepError(f"error: hydra.sweep.dir={sweep_dir} is not empty; its old jobs would mix into the "
                              f"new table: choose a new hydra.sweep.dir (only hydra/sweeper=decrun resumes)"))
+        if not terminal(bool(config.get("progress", True))):
+            return
+        params = config.hydra.sweeper.get("params") or {}
+        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
+        total = sweep_size(list(config.hydra.overrides.task), params)
+        SweepTable._progress = SweepProgress(sweep_dir, total, enabled=True).start()
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         from decrun.runner.sweep.tables import failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
@@ -192,6 +191,10 @@ def _report(exc: Exception) -> int:
     if _VERBOSE:
         raise exc
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
+        choices = _choices_of(exc.__cause__)
+        if choices is not None:  # a schema field with a closed set of values (optimize.direction)
+            print(f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}", file=sys.stderr)
+            return 1
         print(str(exc), file=sys.stderr)
         if isinstance(exc.__cause__, OmegaConfBaseException):
             print(str(exc.__cause__), file=sys.stderr)
@@ -204,6 +207,23 @@ def _report(exc: Exception) -> int:
         print(f"error: {os_error_message(os_error)}", file=sys.stderr)
         return 1
     raise exc  # a bug: show it
+
+
+def _choices_of(cause: BaseException | None) -> type[Choice] | None:
+    """The :class:`~decrun.core.choices.Choice` type of the schema field an OmegaConf
+    ValidationError is about, or None (another error, or a field of another type)."""
+    import typing
+
+    from omegaconf.errors import ValidationError
+
+    owner, key = getattr(cause, "object_type", None), getattr(cause, "key", None)
+    if not (isinstance(cause, ValidationError) and isinstance(owner, type) and isinstance(key, str)):
+        return None
+    try:
+        hint = typing.get_type_hints(owner).get(key)
+    except Exception:  # an owner whose annotations cannot be resolved
+        return None
+    return hint if isinstance(hint, type) and issubclass(hint, Choice) else None
 
 
 # ----------------------------------------------------------------------------------
@@ -229,7 +249,10 @@ def table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
                         help="drop columns with one value in every row (default: on for markdown, off for --csv)")
     args = parser.parse_args(argv)
-    split = (lambda text: [k.strip() for k in text.split(",") if k.strip()] if text else None)
+
+    def split(text: str | None) -> list[str] | None:
+        return [k.strip() for k in text.split(",") if k.strip()] if text else None
+
     try:
         for sweep_dir in args.sweep_dirs:
             if not Path(sweep_dir).is_dir():

@@ -16,17 +16,21 @@ from typing import Any, Optional
 
 from omegaconf import MISSING, DictConfig, OmegaConf
 
+from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 
-__all__ = ["DecrunConfig", "OptimizeConfig", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option",
+__all__ = ["DecrunConfig", "OptimizeConfig", "Direction", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option",
            "compose_config", "unique_stamp"]
 
 #: config groups whose node is a plugin (built with ``_target_``)
 PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver", "export")
 
 
-#: directions of ``optimize.direction`` (those of Hydra's optimising sweepers)
-DIRECTIONS = ("minimize", "maximize")
+class Direction(Choice):
+    """``optimize.direction``: those of Hydra's optimising sweepers (hydra-optuna-sweeper's ``Direction``)."""
+
+    minimize = "minimize"
+    maximize = "maximize"
 
 
 @dataclass
@@ -37,20 +41,19 @@ class OptimizeConfig:
     #: name of the metric the job returns (e.g. ``dt``, ``distance_to_clean_rms``)
     metric: Optional[str] = None
     #: minimize | maximize; must agree with the sweeper's ``direction``
-    direction: str = "minimize"
+    direction: Direction = Direction.minimize
     #: name of a boolean metric that must be true (e.g. ``stable``); a job where it is false,
     #: or that failed, returns the worst value (+inf when minimizing, -inf when maximizing)
     require: Optional[str] = None
 
     def __post_init__(self):
-        if self.direction not in DIRECTIONS:
-            raise ConfigError(f"optimize.direction: must be one of {list(DIRECTIONS)}, got {self.direction!r}")
+        self.direction = Direction.of(self.direction, "optimize.direction")
 
     def objective(self, metrics: dict | None) -> float:
         """The value a job returns: ``metrics[metric]``, or the worst value when the job
         failed (``metrics`` None) or ``metrics[require]`` is false. A metric the job does
         not have is a ConfigError naming the metrics it has."""
-        worst = float("inf") if self.direction == "minimize" else float("-inf")
+        worst = float("inf") if self.direction == Direction.minimize else float("-inf")
         if metrics is None:
             return worst
         for key in (self.metric, self.require):

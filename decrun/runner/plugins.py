@@ -33,6 +33,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationError
 
+from decrun.core.choices import Choice, choice_error
 from decrun.errors import ConfigError
 from decrun.runner.config import load_option
 
@@ -134,6 +135,9 @@ def build(node: Any, key: str, base: type) -> Any:
                           f"it has {known}") from None
     except ValidationError as exc:
         where = getattr(exc, "full_key", None) or getattr(exc, "key", None) or "?"
+        hint = typing.get_type_hints(cls).get(str(where))
+        if isinstance(hint, type) and issubclass(hint, Choice):  # a closed set: name every choice
+            raise choice_error(f"{key}.{where}", values.get(str(where)), hint) from None
         message = str(exc).splitlines()[0]
         raise ConfigError(f"{key}.{where}: {message}") from None
     except OmegaConfBaseException as exc:

@@ -17,7 +17,6 @@ from decrun.core.forms import sample_density, sample_vector_field
 from decrun.core.hodge import harmonic_basis, hodge_decomposition
 from decrun.apps.base import FieldOnEdges, Result
 from decrun.runner.results import write_result
-from decrun.core.solvers import make_solver
 
 from meshes_for_tests import complex_of, kuhn_cube
 

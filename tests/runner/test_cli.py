@@ -168,7 +168,6 @@ def test_every_plugin_yaml_names_a_class_of_its_kind():
     group's kind, and its keys are options of that class (declared once, in the class)."""
     import dataclasses
 
-    from omegaconf import OmegaConf
 
     from decrun.runner.config import PLUGIN_GROUPS
     from decrun.runner.plugins import GROUP_BASES, option, target_class

@@ -5,7 +5,6 @@ run by the real ``decrun`` command (the README's "Extending decrun" recipe)."""
 from __future__ import annotations
 
 import json
-import textwrap
 
 PLUGIN = '''
 from dataclasses import dataclass

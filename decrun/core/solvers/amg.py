@@ -7,13 +7,26 @@ from typing import Optional
 
 import numpy as np
 
+from decrun.core.choices import Choice
 from decrun.core.solvers.base import Solver, check_tolerance
-from decrun.errors import ConfigError, SolverError
+from decrun.errors import SolverError
 
 __all__ = ["AMGSolver"]
 
-_METHODS = ("smoothed_aggregation", "ruge_stuben")
-_ACCELERATORS = ("cg", "gmres", "bicgstab", "none")
+class AMGMethod(Choice):
+    """``solver.method`` of amg: pyamg's hierarchy builders."""
+
+    smoothed_aggregation = "smoothed_aggregation"
+    ruge_stuben = "ruge_stuben"
+
+
+class Accelerator(Choice):
+    """``solver.accel`` of amg: the Krylov method preconditioned by a V-cycle (``none``: V-cycles alone)."""
+
+    cg = "cg"
+    gmres = "gmres"
+    bicgstab = "bicgstab"
+    none = "none"
 
 
 @dataclass
@@ -25,8 +38,8 @@ class AMGSolver(Solver):
     needs_spd = True
     tol: float = 1e-10
     maxiter: Optional[int] = None
-    method: str = "smoothed_aggregation"
-    accel: str = "cg"
+    method: AMGMethod = AMGMethod.smoothed_aggregation
+    accel: Accelerator = Accelerator.cg
 
     def __post_init__(self):
         super().__post_init__()
@@ -37,10 +50,8 @@ class AMGSolver(Solver):
                               "`pip install -e '.[amg]'` in the decrun checkout (or `pip install pyamg`), "
                               "or run with solver=direct") from None
         check_tolerance(self.tol, self.maxiter)
-        if self.method not in _METHODS:
-            raise ConfigError(f"solver.method: choose one of {list(_METHODS)}, got {self.method!r}")
-        if self.accel not in _ACCELERATORS:
-            raise ConfigError(f"solver.accel: choose one of {list(_ACCELERATORS)}, got {self.accel!r}")
+        self.method = AMGMethod.of(self.method, "solver.method")
+        self.accel = Accelerator.of(self.accel, "solver.accel")
 
     def _prepare(self, A) -> None:
         import warnings
@@ -60,7 +71,7 @@ class AMGSolver(Solver):
     def _solve_one(self, b):
         import warnings
 
-        accel = None if self.accel == "none" else self.accel
+        accel = None if self.accel == Accelerator.none else str(self.accel)  # pyamg takes the plain name
         residuals: list[float] = []
         with warnings.catch_warnings():
             warnings.simplefilter("error")

@@ -8,10 +8,18 @@ from typing import Optional
 import numpy as np
 import scipy.sparse.linalg as spla
 
+from decrun.core.choices import Choice
 from decrun.core.solvers.base import Solver, check_tolerance
-from decrun.errors import ConfigError, SolverError
+from decrun.errors import SolverError
 
 __all__ = ["CGSolver"]
+
+
+class Preconditioner(Choice):
+    """``solver.preconditioner`` of cg: ``jacobi`` (the inverse diagonal) or ``none``."""
+
+    jacobi = "jacobi"
+    none = "none"
 
 
 @dataclass
@@ -23,13 +31,12 @@ class CGSolver(Solver):
     needs_spd = True
     tol: float = 1e-10
     maxiter: Optional[int] = None
-    preconditioner: str = "jacobi"
+    preconditioner: Preconditioner = Preconditioner.jacobi
 
     def __post_init__(self):
         super().__post_init__()
         check_tolerance(self.tol, self.maxiter)
-        if self.preconditioner not in ("jacobi", "none"):
-            raise ConfigError(f"solver.preconditioner: choose jacobi or none, got {self.preconditioner!r}")
+        self.preconditioner = Preconditioner.of(self.preconditioner, "solver.preconditioner")
         self.iterations: list[int] = []
 
     def _prepare(self, A) -> None:

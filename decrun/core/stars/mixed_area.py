@@ -18,7 +18,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from decrun.core.geometry import corner_cotangents
-from decrun.core.stars import HodgeStar
 from decrun.core.stars.circumcentric import Circumcentric
 from decrun.errors import ConfigError
 

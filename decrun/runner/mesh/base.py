@@ -15,10 +15,35 @@ from typing import Any
 
 import numpy as np
 
+from decrun.core.choices import Choice
 from decrun.errors import ConfigError, IndexOutOfRangeError, MeshError, NonFiniteCoordinateError
 
-__all__ = ["Mesh", "mesh_hash", "check_mesh", "check_size", "SIZE_RANGE", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
+__all__ = ["Mesh", "HoleCut", "Refine", "Orient", "mesh_hash", "check_mesh", "check_size", "SIZE_RANGE", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
            "from_meshset", "to_meshset", "pymeshlab_primitive"]
+
+
+class HoleCut(Choice):
+    """``mesh.hole_cut``: ``split`` the triangles along the region borders (smooth holes) or
+    remove the ``whole_triangles`` whose centroid is inside (sawtooth borders)."""
+
+    split = "split"
+    whole_triangles = "whole_triangles"
+
+
+class Refine(Choice):
+    """``mesh.refine``: ``none``, ``loop`` / ``midpoint`` subdivision, ``isotropic`` remeshing."""
+
+    none = "none"
+    loop = "loop"
+    midpoint = "midpoint"
+    isotropic = "isotropic"
+
+
+class Orient(Choice):
+    """``mesh.orient``: how the simplicial complex treats orientation: ``check`` (report) or ``fix`` (re-orient)."""
+
+    check = "check"
+    fix = "fix"
 
 
 @dataclass

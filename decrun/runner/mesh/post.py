@@ -15,10 +15,10 @@ from scipy.sparse.csgraph import connected_components
 
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
+from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, Mesh, Refine, from_meshset, require, require_surface,
+                                     require_triangles, to_meshset)
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
-from decrun.runner.mesh.base import (MAX_TRIANGLES, Mesh, from_meshset, require, require_surface, require_triangles,
-                                  to_meshset)
 from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
 
 __all__ = ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
@@ -82,10 +82,9 @@ def holes(mesh: Mesh, cfg) -> Mesh:
     boxes = list(getattr(cfg, "hole_boxes", None) or [])
     if not balls and not boxes:
         return mesh
-    method = getattr(cfg, "hole_cut", "split")
-    require(method in ("split", "whole_triangles"), "hole_cut", f"must be split or whole_triangles, got {method!r}")
+    method = HoleCut.of(getattr(cfg, "hole_cut", HoleCut.split), "mesh.hole_cut")
     meta = dict(mesh.meta)
-    if method == "whole_triangles":
+    if method == HoleCut.whole_triangles:
         vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes)
         if "clean_vertices" in meta:
             meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
@@ -126,9 +125,8 @@ def refine(mesh: Mesh, cfg) -> Mesh:
     ``refine_iterations`` times. Drops ``clean_vertices`` (the connectivity changed)."""
     import pymeshlab
 
-    if cfg.refine == "none":
+    if Refine.of(cfg.refine, "mesh.refine") == Refine.none:
         return mesh
-    require(cfg.refine in ("loop", "midpoint", "isotropic"), "refine", f"unknown {cfg.refine!r}; choose none|loop|midpoint|isotropic")
     require(1 <= cfg.refine_iterations <= 10, "refine_iterations", f"must be in 1..10, got {cfg.refine_iterations}")
     require_surface(mesh, f"mesh.refine={cfg.refine}", "mesh.refine=none")
     dim = mesh.vertices.shape[1]

@@ -42,7 +42,7 @@ import numpy as np
 from decrun.core.geometry import mean_edge_length
 from decrun.errors import ConfigError
 from decrun.runner.mesh import post as post_steps
-from decrun.runner.mesh.base import Mesh, check_mesh, check_size, mesh_hash, require
+from decrun.runner.mesh.base import HoleCut, Mesh, Orient, Refine, check_mesh, check_size, mesh_hash, require
 
 __all__ = ["MeshSource"]
 
@@ -74,26 +74,25 @@ class MeshSource:
     hole_boxes: List[List[float]] = field(default_factory=list)
     #: split: triangles split along the region borders (smooth holes) | whole_triangles:
     #: remove triangles whose centroid is inside (sawtooth borders, the earlier cut)
-    hole_cut: str = "split"
+    hole_cut: HoleCut = HoleCut.split
     hole_snap: float = 0.25  # split: crossings this close (× edge length) to a vertex move it instead
-    refine: str = "none"  # none | loop | midpoint | isotropic
+    refine: Refine = Refine.none  # none | loop | midpoint | isotropic
     refine_iterations: int = 1
     refine_target_edge: float = 0.0  # isotropic only; 0 = keep the mean edge length
     normalize: bool = False  # centre at the bounding-box centre, unit bounding-box diagonal
     noise: float = 0.0  # amplitude relative to the mean edge length, along vertex normals
     seed: int = 0
     #: how the simplicial complex treats orientation: check (report) | fix (re-orient)
-    orient: str = "check"
+    orient: Orient = Orient.check
 
     def __post_init__(self):
         for step in self.post:
             if step not in post_steps.__all__:
                 raise ConfigError(f"mesh.post: unknown step {step!r}; choose from {sorted(post_steps.__all__)}")
-        require(self.hole_cut in ("split", "whole_triangles"), "hole_cut",
-                f"must be split or whole_triangles, got {self.hole_cut!r}")
+        self.hole_cut = HoleCut.of(self.hole_cut, "mesh.hole_cut")  # also for Python callers (strings)
+        self.refine = Refine.of(self.refine, "mesh.refine")
+        self.orient = Orient.of(self.orient, "mesh.orient")
         require(0 <= self.hole_snap < 0.5, "hole_snap", f"must be in [0, 0.5), got {self.hole_snap}")
-        if self.orient not in ("check", "fix"):
-            raise ConfigError(f"mesh.orient: must be check or fix, got {self.orient!r}")
         require(self.noise >= 0, "noise", f"must be >= 0, got {self.noise}")
 
     def make(self) -> Mesh:  # pragma: no cover - abstract

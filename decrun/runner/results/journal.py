@@ -45,6 +45,8 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from decrun.runner.atomic import atomic_path
+
 MAGIC = b"DECRUNJ1"
 FORMAT = "decrun-journal-1"
 RECORD_MARK = 0x52454344
@@ -127,18 +129,12 @@ class JournalWriter:
                   "blobs": blob_specs, "attrs": attrs}
         text = json.dumps(header).encode()
         base = _aligned(16 + len(text))
-        tmp = self.path.with_name(f".{self.path.name}.tmp-{os.getpid()}")
-        try:
-            with open(tmp, "wb") as f:
-                f.write(MAGIC + struct.pack("<Q", len(text)) + text)
-                for name, array in blobs.items():
-                    f.write(b"\0" * (base + blob_specs[name]["offset"] - f.tell()))
-                    f.write(array.tobytes())
-                f.write(b"\0" * (base + header["data_offset"] - f.tell()))
-            os.replace(tmp, self.path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        with atomic_path(self.path) as tmp, open(tmp, "wb") as f:
+            f.write(MAGIC + struct.pack("<Q", len(text)) + text)
+            for name, array in blobs.items():
+                f.write(b"\0" * (base + blob_specs[name]["offset"] - f.tell()))
+                f.write(array.tobytes())
+            f.write(b"\0" * (base + header["data_offset"] - f.tell()))
         header["data_offset"] += base
         self.data_offset = header["data_offset"]
         self.n_records = 0

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from decrun.runner.atomic import write_text_atomic
+
 __all__ = ["FORMAT", "package_versions", "git_commit", "plain", "metrics_to_json", "write_metrics_json", "read_provenance"]
 
 FORMAT = "decrun-result-1"
@@ -90,15 +92,7 @@ def metrics_to_json(metrics: dict[str, Any]) -> str:
 
 def write_metrics_json(path: str | os.PathLike, metrics: dict[str, Any]) -> Path:
     """Write ``metrics.json`` atomically (temporary name, then rename)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        tmp.write_text(metrics_to_json(metrics) + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    return write_text_atomic(path, metrics_to_json(metrics) + "\n")
 
 
 def read_provenance(path: str | os.PathLike) -> dict[str, Any]:

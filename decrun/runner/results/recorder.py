@@ -95,6 +95,7 @@ import numpy as np
 
 from decrun.apps.base import FieldOnEdges, Result
 from decrun.errors import DecrunError
+from decrun.runner.atomic import atomic_path
 from decrun.runner.results.journal import BLOCK_BYTES, Column, Journal, JournalWriter, journal_path, read_journal
 from decrun.runner.results.provenance import FORMAT, git_commit, metrics_to_json, package_versions, plain
 
@@ -424,9 +425,8 @@ def _write_h5(path: Path, result: Result, timings: dict, forms: dict, *, journal
     temporary file is removed on any error (a write error is raised as the OSError)."""
     import h5py
 
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        _check_free_space(path.parent, _bytes_needed(result, journal, mesh, attrs))
+    _check_free_space(path.parent, _bytes_needed(result, journal, mesh, attrs))
+    with atomic_path(path) as tmp:
         target = _QuietFile(tmp)
         try:
             _fill_h5(h5py.File(target, "w"), result, timings, forms, journal=journal, mesh=mesh, attrs=attrs,
@@ -435,10 +435,6 @@ def _write_h5(path: Path, result: Result, timings: dict, forms: dict, *, journal
             target.close()
         if target.error is not None:
             raise target.error
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def _fill_h5(f, result: Result, timings: dict, forms: dict, *, journal: Journal | None,

@@ -40,6 +40,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import ConfigError
+from decrun.runner.atomic import write_text_atomic
 from decrun.runner.results.journal import journal_path, read_journal
 
 __all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "DONE"]
@@ -68,20 +69,10 @@ def config_hash(cfg: DictConfig) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def write_manifest(sweep_dir: Path, manifest: dict[str, Any]) -> Path:
     """Write ``manifest.json`` atomically (it is either the old or the new one)."""
     path = Path(sweep_dir) / MANIFEST
-    _atomic_write(path, json.dumps(manifest, indent=1) + "\n")
+    write_text_atomic(path, json.dumps(manifest, indent=1) + "\n")
     return path
 
 

@@ -29,6 +29,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from decrun.runner.atomic import write_text_atomic
 from decrun.runner.sweep.manifest import job_state, read_manifest
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "to_markdown", "write_sweep_table", "failed_jobs",
@@ -197,9 +198,7 @@ def write_sweep_table(sweep_dir: str | os.PathLike, *, sweep: bool | None = None
     if not (is_sweep_dir(sweep_dir) if sweep is None else sweep):
         raise NotADirectoryError(f"{sweep_dir} is not a sweep directory (no multirun.yaml or manifest.json)")
     for name, text in (("metrics.csv", table.to_csv(index=False)), ("metrics.md", to_markdown(table))):
-        tmp = sweep_dir / f".{name}.tmp-{os.getpid()}"
-        tmp.write_text(text)
-        os.replace(tmp, sweep_dir / name)
+        write_text_atomic(sweep_dir / name, text)
     return table
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from decrun.errors import IndexOutOfRangeError, MeshError
-from decrun.runner.mesh.files.checks import RawMesh, polygon_offsets
+from decrun.runner.mesh.files.checks import RawMesh
 from decrun.runner.mesh.files.text import TextTokens
 
 _VERTEX, _FACE, _TEXCOORD, _NORMAL, _IGNORED, _LINE, _POINT, _FREEFORM = range(8)

@@ -1,4 +1,4 @@
-"""Mesh files that never slip through: read, validate, and guard other loaders.
+"""Mesh files that never slip through: read and validate before anything native sees them.
 
 :func:`read_mesh_file` reads OBJ, OFF, PLY (ASCII/binary), STL (ASCII/binary) with
 decrun's own vectorized readers and tetrahedral/other formats (VTK, VTU, Gmsh ``.msh``,
@@ -12,11 +12,10 @@ Vertex and face numbers are 0-based positions in the file's lists; OBJ indices a
 as written. Polygons with more than 3 corners are split into a fan and counted in
 ``counts['triangulated_faces']``; nothing is dropped or repaired silently.
 
-:func:`compare_with_loaded` is the guard against loaders that drop elements silently.
-pymeshlab (2025.7) drops OBJ faces with a repeated vertex, NaN vertices with the faces
-using them, and PLY faces whose ``flags`` property has VCG's "deleted" bit; it turns OBJ
-index 0 into an out-of-range face and aborts (heap corruption) on an index above the
-vertex count.
+decrun reads every file itself because pymeshlab (2025.7) drops OBJ faces with a repeated
+vertex, NaN vertices with the faces using them, and PLY faces whose ``flags`` property has
+VCG's "deleted" bit without a word; it turns OBJ index 0 into an out-of-range face and
+aborts (heap corruption) on an index above the vertex count.
 """
 
 from __future__ import annotations
@@ -34,7 +33,7 @@ from decrun.runner.mesh.files.ply import read_ply
 from decrun.runner.mesh.files.stl import read_stl
 from decrun.runner.mesh.files.volume import meshio_extensions, read_volume
 
-__all__ = ["MeshFile", "read_mesh_file", "compare_with_loaded", "supported_extensions"]
+__all__ = ["MeshFile", "read_mesh_file", "supported_extensions"]
 
 _TEXT_READERS = {".obj": read_obj, ".off": read_off}
 _BYTES_READERS = {".ply": read_ply, ".stl": read_stl}
@@ -134,52 +133,3 @@ def _suffix(path: Path) -> str | None:
         return own[0]
     matches = [ext for ext in meshio_extensions() if name.endswith(ext)]
     return max(matches, key=len) if matches else None
-
-
-def compare_with_loaded(meshfile: MeshFile, vertices, faces, *, loader: str = "pymeshlab") -> None:
-    """Raise :class:`MeshError` if a loader returned fewer vertices or faces than the file
-    holds, or faces that reference a vertex it did not return.
-
-    ``vertices`` (n', ≥2) and ``faces`` (m', k) are what ``loader`` produced from
-    ``meshfile.path``. The file holds ``len(meshfile.vertices)`` vertices and
-    ``len(meshfile.cells)`` cells (after fan triangulation). When the vertex counts agree
-    (so indices are comparable) the message names the first cells missing from the load,
-    with their file face and line.
-    """
-    vertices, faces = np.asarray(vertices), np.asarray(faces, dtype=np.int64)
-    if faces.size == 0:
-        faces = faces.reshape(0, meshfile.cells.shape[1])
-    if faces.ndim != 2:
-        raise ValueError(f"faces must be an (m, k) index array, got shape {faces.shape}")
-    n_file, m_file = len(meshfile.vertices), len(meshfile.cells)
-    n_load, m_load = len(vertices), len(faces)
-    outside = np.flatnonzero(((faces < 0) | (faces >= n_load)).any(axis=1))
-    if outside.size:
-        raise MeshError(
-            f"{meshfile.where}: {loader} returned face {int(outside[0])} {faces[outside[0]].tolist()} referencing a "
-            f"vertex outside 0..{n_load - 1} ({outside.size} such faces); its output cannot be used"
-        )
-    if n_load >= n_file and m_load >= m_file:
-        return
-    message = (
-        f"{meshfile.where}: {loader} loaded {n_load} of the {n_file} vertices and {m_load} of the "
-        f"{m_file} {'tetrahedra' if meshfile.is_volume else 'triangles'} the file holds"
-    )
-    if n_load == n_file and m_load < m_file and faces.shape[1] == meshfile.cells.shape[1]:
-        missing = _missing_rows(meshfile.cells, faces)
-        if missing.size:
-            shown = []
-            for c in missing[:3].tolist():  # at most three named in the message
-                face = int(meshfile.cell_face[c])
-                line = f"line {int(meshfile.face_line[face])}: " if meshfile.face_line is not None else ""
-                shown.append(f"{line}face {face} {meshfile.cells[c].tolist()}")
-            message += f"; missing: {'; '.join(shown)}" + (f" (and {missing.size - 3} more)" if missing.size > 3 else "")
-    raise MeshError(message + "; it dropped part of the mesh silently")
-
-
-def _missing_rows(cells: np.ndarray, loaded: np.ndarray) -> np.ndarray:
-    """Indices of ``cells`` whose vertex set is not among the rows of ``loaded``."""
-    a = np.ascontiguousarray(np.sort(cells, axis=1))
-    b = np.ascontiguousarray(np.sort(loaded, axis=1))
-    row = np.dtype((np.void, a.dtype.itemsize * a.shape[1]))
-    return np.flatnonzero(~np.isin(a.view(row).ravel(), b.view(row).ravel()))

@@ -1,0 +1,36 @@
+"""The linter finds nothing: ``ruff check`` (the rules of ``[tool.ruff]`` in pyproject.toml:
+unused imports, undefined names and ``__all__`` entries, redefinitions, pycodestyle errors)
+over the package, the tests, the benchmarks, the scripts and the Hydra plugin; and it does
+find a planted unused import."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PATHS = ["decrun", "tests", "benchmarks", "scripts", "hydra_plugins"]
+
+pytest.importorskip("ruff")
+
+
+def ruff(cwd: Path, *paths: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise", *paths],
+                          cwd=cwd, capture_output=True, text=True, timeout=300)
+
+
+def test_ruff_finds_nothing():
+    proc = ruff(REPO, *PATHS)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_ruff_finds_a_planted_unused_import_and_a_missing_all_name(tmp_path):
+    shutil.copy(REPO / "pyproject.toml", tmp_path / "pyproject.toml")
+    (tmp_path / "mod.py").write_text('import os\n\n__all__ = ["missing"]\n')
+    proc = ruff(tmp_path, "mod.py")
+    assert proc.returncode == 1
+    assert "F401" in proc.stdout and "F822" in proc.stdout

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import best_of, parse_or_run_case, spawn  # noqa: E402
+from harness import best_of, parse_or_run_case, spawn, warm_up_kernels  # noqa: E402
 
 CASES = {
     "quick": [("bunny10k", 0), ("icosphere", 5), ("stretched icosphere", 5)],
@@ -51,6 +51,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     vertices, faces = load_mesh(kind, size)
     if library == "decrun":
         from decrun.core.intrinsic_delaunay import intrinsic_delaunay_operators
+
+        warm_up_kernels()
 
         def work():
             return intrinsic_delaunay_operators(vertices, faces, mollify=MOLLIFY)

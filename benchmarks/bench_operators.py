@@ -13,13 +13,14 @@ with a message.
 
     python benchmarks/bench_operators.py            # full: up to 1.3M triangles, 1M tets
     python benchmarks/bench_operators.py --quick    # small meshes, seconds
+    python benchmarks/bench_operators.py --jit      # numba's first-call cost: cold vs warm cache
 """
 
 from __future__ import annotations
 
+import sys
 
-
-from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E402
+from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn, warm_up_kernels  # noqa: E402
 
 TRIANGLE_CASES = {"quick": [4, 5], "full": [5, 6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
 TET_CASES = {"quick": [8, 12], "full": [15, 25, 40, 55]}  # Kuhn cubes: 6·n³ tetrahedra
@@ -31,6 +32,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     if library == "decrun":
         from decrun.core.complex import SimplicialComplex
         from decrun.core.dec import DEC
+
+        warm_up_kernels()  # numba's import and the kernel cache: once per process, reported by --jit
 
         def work():
             K = SimplicialComplex(vertices, simplices)
@@ -47,7 +50,31 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     return {"seconds": seconds, "peak_mb": peak_mb, "simplices": len(simplices)}
 
 
+def jit_times() -> None:
+    """First-call cost of the kernels in fresh processes: an empty cache (compile) and then the
+    cache it wrote (load), besides numba's import alone."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    code = ("import time, sys; sys.path.insert(0, %r); t = time.perf_counter(); import numba; "
+            "imported = time.perf_counter() - t; from harness import warm_up_kernels; "
+            "print(imported, warm_up_kernels())" % os.path.dirname(os.path.abspath(__file__)))
+    print("| numba cache | numba import s | kernels' first call s (incl. compile or load) |")
+    print("|---|---:|---:|")
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, DECRUN_NUMBA="1")
+        for label in ("cold (empty)", "warm", "warm"):
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+            imported, first = (float(v) for v in out.stdout.split())
+            print(f"| {label} | {imported:.2f} | {first:.2f} |", flush=True)
+
+
 def main(argv=None) -> int:
+    if argv is None and "--jit" in sys.argv:
+        jit_times()
+        return 0
     args = parse_or_run_case(__doc__, run_case, argv)
     if args is None:
         return 0

@@ -1,27 +1,33 @@
-"""Benchmark: per-job overhead of ``decrun -m`` sweeps against a plain Python loop.
+"""Benchmark: what a sweep costs beyond its jobs, and what joblib buys, both against the
+basic launcher in the same run (issue 17's sweep rows).
 
-Two measurements, each a fresh process timed from the outside (imports included, as a
-user waits for them):
+Each measurement is a fresh ``decrun -m`` process timed from the outside (imports included,
+as a user waits for them), best of ``--repeat``:
 
-1. **overhead**: an 8-job ``app.dt`` sweep on the default mesh (icosphere subdiv 3, 642
-   vertices; implicit smoothing, 10 steps, ``figures=false``) on Hydra's basic launcher,
-   against one ``python`` process that composes the config once and calls
-   :func:`decrun.runner.run.run_experiment` (with the per-process mesh/operator cache a
-   sweep job uses) + :func:`~decrun.runner.run.write_run` for the same 8 time steps (the
-   same work, the same files). Target: sweep ≤ 2 × loop.
-2. **parallel**: 8 jobs of ~1 s each (``mesh.subdiv=4``, explicit steps) on the basic
-   launcher against ``hydra/launcher=joblib hydra.launcher.n_jobs=2``. Target: joblib
-   ≥ 1.6 × faster (needs 2 free cores: the ratio is meaningless on a loaded machine, so
-   the load average is printed beside it).
+1. **overhead**: an 8-job ``app.dt`` sweep of small jobs (the default mesh, icosphere subdiv
+   3, 642 vertices; implicit smoothing, 10 steps, ``figures=false``) against the 1-job sweep
+   of the same job, basic launcher. Target: 8 jobs ≤ 1.3 × 1 job.
+2. **parallel**: 4 jobs of ≥ 2 s each (2562 vertices, explicit steps, one mesh seed each) on
+   the basic launcher against ``hydra/launcher=joblib hydra.launcher.n_jobs=2``. Target:
+   joblib ≥ 1.6 × faster. The mean job time (``total_seconds`` of the jobs) and the load
+   average are printed beside it: on a machine whose two cores are busy the ratio says
+   little.
 
-    python benchmarks/bench_sweeps.py                # both, best of --repeat (default 2)
+``--profile`` prints where the time of an 8-job sweep goes, in one process (Hydra's per-job
+work, decrun's job, planning).
+
+    python benchmarks/bench_sweeps.py                 # both rows, best of --repeat (default 2)
     python benchmarks/bench_sweeps.py --only overhead --repeat 3
+    python benchmarks/bench_sweeps.py --profile
     PYTHONPATH=/path/to/old/checkout python benchmarks/bench_sweeps.py   # "before" numbers
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
+import functools
+import json
 import os
 import subprocess
 import sys
@@ -31,81 +37,114 @@ from pathlib import Path
 
 DTS = [0.001, 0.002, 0.003, 0.004, 0.005, 0.006, 0.007, 0.008]
 SMALL = ["figures=false", "progress=false"]
-#: ~1 s of work per job on the project machine (2 cores): 2562 vertices, 300 explicit steps
-HEAVY = ["mesh.subdiv=4", "app.scheme=explicit", "app.steps=300", "app.dt=1e-5", "app.critical_dt=false",
+#: ≥ 2 s of work per job on the project machine (2 cores): 2562 vertices, 1500 explicit steps
+HEAVY = ["mesh.subdiv=4", "app.scheme=explicit", "app.steps=1500", "app.dt=1e-5", "app.critical_dt=false",
          "figures=false", "progress=false"]
-HEAVY_SEEDS = list(range(8))
-
-LOOP = """
-import inspect, sys, time
-from pathlib import Path
-from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment, write_run
-out = Path(sys.argv[1]); overrides = sys.argv[2].split()
-cfg = compose_config(overrides)
-cache = {{"cache": True}} if "cache" in inspect.signature(run_experiment).parameters else {{}}  # older decrun: none
-for i, dt in enumerate({dts}):
-    cfg.app.dt = dt
-    job = out / str(i); job.mkdir(parents=True)
-    result, mesh, timings = run_experiment(cfg, out=job, **cache)
-    write_run(job, cfg, result, mesh, timings)
-"""
+HEAVY_SEEDS = [0, 1, 2, 3]
 
 
 def _env() -> dict:
     return {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
 
 
-def timed(args: list[str], cwd: Path) -> float:
-    """Wall seconds of one process; raises when it fails."""
-    t = time.perf_counter()
-    proc = subprocess.run(args, cwd=cwd, env=_env(), capture_output=True, text=True)
-    seconds = time.perf_counter() - t
-    if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(args)} failed:\n{proc.stderr[-2000:]}")
-    return seconds
-
-
-def best(make_args, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        with tempfile.TemporaryDirectory() as tmp:
-            times.append(timed(make_args(Path(tmp)), Path(tmp)))
-    return min(times)
-
-
 def decrun(*args: str) -> list[str]:
     return [sys.executable, "-m", "decrun", *args]
 
 
+def timed_sweep(args: list[str], repeat: int) -> tuple[float, float]:
+    """(best wall seconds, mean job ``total_seconds`` of that run) of ``decrun -m args``."""
+    best = (float("inf"), 0.0)
+    for _ in range(repeat):
+        with tempfile.TemporaryDirectory() as tmp:
+            t = time.perf_counter()
+            proc = subprocess.run(decrun("-m", *args, f"hydra.sweep.dir={tmp}/s"), cwd=tmp, env=_env(),
+                                  capture_output=True, text=True)
+            seconds = time.perf_counter() - t
+            if proc.returncode != 0:
+                raise RuntimeError(f"decrun -m {' '.join(args)} failed:\n{proc.stderr[-2000:]}")
+            jobs = [json.loads(p.read_text())["total_seconds"] for p in Path(tmp, "s").glob("*/metrics.json")]
+            best = min(best, (seconds, sum(jobs) / len(jobs)))
+    return best
+
+
 def overhead(repeat: int) -> dict:
-    dts = ",".join(map(str, DTS))
-    loop = best(lambda tmp: [sys.executable, "-c", LOOP.format(dts=DTS), str(tmp / "loop"), " ".join(SMALL)], repeat)
-    sweep = best(lambda tmp: decrun("-m", f"app.dt={dts}", *SMALL, f"hydra.sweep.dir={tmp / 'sweep'}"), repeat)
-    return {"loop_s": loop, "sweep_basic_s": sweep, "ratio": sweep / loop}
+    one, _ = timed_sweep([f"app.dt={DTS[0]}", *SMALL], repeat)
+    eight, _ = timed_sweep([f"app.dt={','.join(map(str, DTS))}", *SMALL], repeat)
+    return {"sweep1_s": one, "sweep8_s": eight, "ratio": eight / one}
 
 
 def parallel(repeat: int) -> dict:
-    seeds = ",".join(map(str, HEAVY_SEEDS))
-    basic = best(lambda tmp: decrun("-m", f"mesh.seed={seeds}", *HEAVY, f"hydra.sweep.dir={tmp / 's'}"), repeat)
-    joblib = best(lambda tmp: decrun("-m", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", f"mesh.seed={seeds}",
-                                     *HEAVY, f"hydra.sweep.dir={tmp / 's'}"), repeat)
-    return {"basic_s": basic, "joblib2_s": joblib, "speedup": basic / joblib, "loadavg": os.getloadavg()[0]}
+    seeds = f"mesh.seed={','.join(map(str, HEAVY_SEEDS))}"
+    basic, job = timed_sweep([seeds, *HEAVY], repeat)
+    joblib, _ = timed_sweep(["hydra/launcher=joblib", "hydra.launcher.n_jobs=2", seeds, *HEAVY], repeat)
+    return {"basic_s": basic, "joblib2_s": joblib, "speedup": basic / joblib, "job_s": job,
+            "loadavg": os.getloadavg()[0]}
+
+
+def profile() -> None:
+    """Seconds and calls of the phases of an 8-job basic-launcher sweep, in this process."""
+    import hydra.core.hydra_config as hydra_config
+    import hydra.core.utils as hydra_utils
+
+    import decrun.runner.cli as cli
+    import decrun.runner.run as run
+    import decrun.runner.sweep.sweeper as sweeper
+
+    totals, calls = collections.defaultdict(float), collections.Counter()
+
+    def timed(owner, name, label):
+        original = getattr(owner, name)
+
+        @functools.wraps(original)
+        def wrapper(*args, **kwargs):
+            t = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                totals[label] += time.perf_counter() - t
+                calls[label] += 1
+
+        setattr(owner, name, wrapper)
+
+    timed(hydra_utils, "run_job", "hydra run_job (Hydra's per-job work + the job)")
+    timed(hydra_utils, "_save_config", "  hydra: .hydra/*.yaml")
+    timed(hydra_config.HydraConfig, "set_config", "  hydra: HydraConfig.set_config")
+    timed(run, "run", "  decrun job (run)")
+    timed(run, "run_experiment", "    run_experiment")
+    timed(run, "write_run", "    write_run")
+    timed(sweeper.ManifestSweeper, "plan", "sweeper: plan (compose + check every job)")
+    timed(sweeper.Composer, "compose_all", "  compose_all")
+    with tempfile.TemporaryDirectory() as tmp:
+        sys.argv = ["decrun", "-m", f"app.dt={','.join(map(str, DTS))}", *SMALL, f"hydra.sweep.dir={tmp}/s"]
+        t = time.perf_counter()
+        try:
+            cli.main()
+        except SystemExit:
+            pass
+        wall = time.perf_counter() - t
+    print(f"profile: 8-job sweep in-process {wall:.2f} s (load average {os.getloadavg()[0]:.1f})")
+    for label, seconds in totals.items():
+        print(f"  {label:52s} {calls[label]:3d} calls {seconds:7.3f} s")
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--only", choices=["overhead", "parallel"])
+    parser.add_argument("--profile", action="store_true")
     args = parser.parse_args(argv)
+    if args.profile:
+        profile()
+        return
     if args.only in (None, "overhead"):
         r = overhead(args.repeat)
-        print(f"overhead: 8-job app.dt sweep, basic launcher {r['sweep_basic_s']:.2f} s; plain loop "
-              f"{r['loop_s']:.2f} s; ratio {r['ratio']:.2f} (target ≤ 2)", flush=True)
+        print(f"overhead: basic launcher, 8-job app.dt sweep {r['sweep8_s']:.2f} s / 1-job sweep {r['sweep1_s']:.2f} s"
+              f" = {r['ratio']:.2f}x (target <= 1.3; load average {os.getloadavg()[0]:.1f})", flush=True)
     if args.only in (None, "parallel"):
         r = parallel(args.repeat)
-        print(f"parallel: 8 jobs of ~1 s, basic {r['basic_s']:.2f} s; joblib n_jobs=2 {r['joblib2_s']:.2f} s; "
-              f"speed-up {r['speedup']:.2f} (target ≥ 1.6; load average {r['loadavg']:.1f})", flush=True)
+        print(f"parallel: 4 jobs of {r['job_s']:.1f} s, basic {r['basic_s']:.2f} s / joblib n_jobs=2 "
+              f"{r['joblib2_s']:.2f} s = {r['speedup']:.2f}x (target >= 1.6; load average {r['loadavg']:.1f})",
+              flush=True)
 
 
 if __name__ == "__main__":

@@ -8,13 +8,42 @@ Imported by the ``bench_*.py`` scripts of this folder (run as scripts, the folde
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
 import numpy as np
 
-__all__ = ["status_bytes", "reset_peak_rss", "peak_rss_bytes", "icosphere_or_kuhn_cube", "spawn", "have_libigl",
+__all__ = ["warm_up_kernels", "status_bytes", "reset_peak_rss", "peak_rss_bytes", "icosphere_or_kuhn_cube", "spawn", "have_libigl",
            "best_of", "parse_or_run_case"]
+
+
+def warm_up_kernels() -> float:
+    """Load decrun's numba kernels (compiled once per install, then read from the cache) on a
+    tiny mesh, so a case measures the work and not numba's import; returns the seconds taken
+    (the first-call cost a fresh process pays once)."""
+    import time
+
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.core.intrinsic_delaunay import intrinsic_delaunay
+    from decrun.core.primitives import grid_triangles, kuhn_cube
+
+    saved = os.environ.get("DECRUN_NUMBA")
+    os.environ["DECRUN_NUMBA"] = "1"  # the kernels even on this tiny mesh
+    try:
+        start = time.perf_counter()
+        vertices, faces = grid_triangles(4, 4, jitter=0.2)
+        dec = DEC(SimplicialComplex(vertices, faces), star="circumcentric")
+        [dec.d(0), dec.d(1)] + [dec.star(k) for k in range(3)]
+        intrinsic_delaunay(vertices * [1.0, 5.0], faces)
+        DEC(SimplicialComplex(*kuhn_cube(2)), star="circumcentric").star(0)
+        return time.perf_counter() - start
+    finally:
+        if saved is None:
+            del os.environ["DECRUN_NUMBA"]
+        else:
+            os.environ["DECRUN_NUMBA"] = saved
 
 
 def status_bytes(field: str) -> int:

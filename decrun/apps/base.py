@@ -176,7 +176,7 @@ class Context:
     ----------
     config : App
     K, dec : the simplicial complex and its operators (``ctx.complex``, ``ctx.dec``)
-    new_solver : callable returning a fresh solver (default: ``direct``)
+    new_solver : callable returning a fresh solver (default: ``auto``)
     meta : mesh metadata (default: ``complex.meta``)
     progress : tqdm-like factory (default: silent)
     """

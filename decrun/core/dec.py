@@ -28,7 +28,19 @@ from decrun.core.stars import HodgeStar, star_variant
 from decrun.core.stars.circumcentric import circumcenter_barycentric, circumcentric_dual_volumes
 from decrun.errors import ConfigError
 
-__all__ = ["DEC", "circumcenter_barycentric"]
+__all__ = ["DEC", "circumcenter_barycentric", "diagonal_matrix"]
+
+
+def diagonal_matrix(diagonal: np.ndarray) -> sp.csr_matrix:
+    """(n, n) CSR with ``diagonal`` on its diagonal — ``sp.diags(diagonal).tocsr()`` (which
+    leaves zero entries out), built directly when no entry is zero."""
+    diagonal = np.asarray(diagonal, dtype=np.float64)
+    if not diagonal.all():
+        return sp.diags(diagonal).tocsr()
+    n = diagonal.shape[0]
+    index_type = np.int32 if n < 2**31 - 1 else np.int64
+    return sp.csr_matrix((diagonal.copy(), np.arange(n, dtype=index_type), np.arange(n + 1, dtype=index_type)),
+                         shape=(n, n))
 
 
 class DEC(Cached):
@@ -139,7 +151,7 @@ class DEC(Cached):
 
         def compute():
             diagonal = self.star_diagonal_or_none(k)
-            return sp.diags(diagonal).tocsr() if diagonal is not None else self.star_variant.matrix(self, k).tocsr()
+            return diagonal_matrix(diagonal) if diagonal is not None else self.star_variant.matrix(self, k).tocsr()
 
         return self.require(("star", k), compute)
 
@@ -159,7 +171,7 @@ class DEC(Cached):
                     stacklevel=3,
                 )
             with np.errstate(divide="ignore"):
-                return sp.diags(np.where(zero, np.inf, 1.0 / np.where(zero, 1.0, diagonal))).tocsr()
+                return diagonal_matrix(np.where(zero, np.inf, 1.0 / np.where(zero, 1.0, diagonal)))
 
         return self.require(("star_inv", k), compute)
 

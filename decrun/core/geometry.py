@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.core.connectivity import edge_table
 from decrun.core.simplex_arrays import vertex_volumes
 
 __all__ = [
@@ -23,6 +24,7 @@ __all__ = [
     "corner_angles",
     "corner_cotangents",
     "face_normals",
+    "area_normals",
     "vertex_normals",
     "is_planar",
     "obtuse_triangle_count",
@@ -41,10 +43,9 @@ def embed3(points: np.ndarray) -> np.ndarray:
 
 
 def unique_edges(faces: np.ndarray) -> np.ndarray:
-    """(e, 2) int64 sorted vertex pairs of the distinct edges of triangles ``faces`` (m, 3)."""
-    faces = np.asarray(faces, dtype=np.int64)
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    return np.unique(np.sort(edges, axis=1), axis=0)
+    """(e, 2) int64 sorted vertex pairs of the distinct edges of triangles ``faces`` (m, 3),
+    in lexicographic order (:func:`decrun.core.connectivity.edge_table`)."""
+    return edge_table(faces)[0]
 
 
 def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -94,10 +95,16 @@ def face_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(m, 3) unit normals of the triangles (right-hand rule over the given vertex order):
     a planar mesh in the xy-plane oriented counter-clockwise gets +z. Pass
     ``K.oriented_simplices()`` for the consistent orientation of a complex."""
+    normal = area_normals(points, faces)
+    return normal / np.linalg.norm(normal, axis=1, keepdims=True)
+
+
+def area_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(m, 3) ``(p1 − p0) × (p2 − p0)``: normals of length 2·area (right-hand rule over the
+    given vertex order; planar points get (0, 0, 2·signed area))."""
     x = embed3(points)
     f = np.asarray(faces)
-    normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
-    return normal / np.linalg.norm(normal, axis=1, keepdims=True)
+    return np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])
 
 
 def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -105,10 +112,9 @@ def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
     Vertices whose weighted sum vanishes get the zero vector.
     """
-    x = embed3(points)
     f = np.asarray(faces)
-    face_normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])  # length = 2 * area
-    n, m = len(x), len(f)
+    face_normal = area_normals(points, f)  # length = 2 * area
+    n, m = len(points), len(f)
     incidence = sp.csr_matrix((np.ones(3 * m), (f.ravel(), np.repeat(np.arange(m), 3))), shape=(n, m))
     normals = incidence @ face_normal
     length = np.linalg.norm(normals, axis=1, keepdims=True)

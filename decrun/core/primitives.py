@@ -10,6 +10,8 @@ from itertools import permutations
 
 import numpy as np
 
+from decrun.core.connectivity import drop_unreferenced
+
 __all__ = ["grid_triangles", "kuhn_cube", "flat_torus"]
 
 
@@ -79,10 +81,8 @@ def kuhn_cube(n: int, size: float = 1.0, keep_cell=None):
     p = vertices[tets]
     det = np.linalg.det(p[:, 1:] - p[:, :1])
     tets[det < 0, 0], tets[det < 0, 1] = tets[det < 0, 1], tets[det < 0, 0].copy()
-    used = np.zeros(vertices.shape[0], dtype=bool)
-    used[tets.ravel()] = True
-    renumber = np.cumsum(used) - 1
-    return vertices[used], renumber[tets]
+    vertices, tets, _ = drop_unreferenced(vertices, tets)
+    return vertices, tets
 
 
 def flat_torus(nx: int, ny: int | None = None, radii=(1.0, 1.0)):

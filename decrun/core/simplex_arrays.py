@@ -12,7 +12,11 @@ from math import factorial
 
 import numpy as np
 
-__all__ = ["unique_rows", "group_rows", "FaceRows", "sort_rows", "inversion_parity", "simplex_volumes", "vertex_volumes"]
+from decrun.core import jit
+
+__all__ = ["unique_rows", "group_rows", "group_rows_numpy", "FaceRows", "sort_rows", "inversion_parity", "simplex_volumes", "vertex_volumes",
+           "vertex_volumes_numpy",
+           "sorted_rows_and_parity"]
 
 
 def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -38,6 +42,16 @@ def group_rows(rows: np.ndarray):
     ``order`` where each group begins (plus a final ``m``), so the members of group g are
     ``order[starts[g]:starts[g+1]]`` in input order. One stable sort, everything else O(m).
     """
+    if not isinstance(rows, FaceRows):
+        rows = FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
+    bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
+    if rows.shape[0] and bits * rows.shape[1] <= 62 and jit.enabled(rows.shape[0]):
+        return _group_packed_kernel(np.ascontiguousarray(rows.top, dtype=np.int64), rows.column_table(), bits)
+    return group_rows_numpy(rows)
+
+
+def group_rows_numpy(rows: "FaceRows"):
+    """The numpy twin (and reference) of :func:`group_rows`' compiled kernel; same outputs."""
     if not isinstance(rows, FaceRows):
         rows = FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
     m, c = rows.shape
@@ -79,6 +93,89 @@ def group_rows(rows: np.ndarray):
     return unique, inverse, order, starts
 
 
+_SMALL_BUCKET = 32  # buckets up to this size are insertion-sorted, larger ones merge-sorted
+
+
+@jit.njit
+def _group_packed_kernel(top, columns, bits):
+    """Compiled twin of :func:`group_rows_numpy` for rows ``top[t, columns[s]]`` (t major).
+
+    The rows' packed keys are ordered by a stable counting sort on the leading entry (a
+    vertex index, bounded by the vertex count) and a stable sort of each bucket by the
+    key: the same ``order`` as numpy's stable argsort, in O(rows) for meshes.
+    """
+    m = top.shape[0]
+    slots, width = columns.shape
+    total = m * slots
+    key = np.empty(total, np.int64)
+    largest = 0
+    for t in range(m):
+        for s in range(slots):
+            k = np.int64(0)
+            for q in range(width):
+                k = (k << bits) | top[t, columns[s, q]]
+            key[t * slots + s] = k
+            lead = top[t, columns[s, 0]]
+            if lead > largest:
+                largest = lead
+    shift = bits * (width - 1)
+    count = np.zeros(largest + 2, np.int64)
+    for i in range(total):
+        count[(key[i] >> shift) + 1] += 1
+    for v in range(largest + 1):
+        count[v + 1] += count[v]
+    position = count[:-1].copy()
+    order = np.empty(total, np.int64)
+    sorted_key = np.empty(total, np.int64)  # keys in ``order``: the bucket sorts read them contiguously
+    for i in range(total):
+        lead = key[i] >> shift
+        order[position[lead]] = i
+        sorted_key[position[lead]] = key[i]
+        position[lead] += 1
+    for v in range(largest + 1):
+        low, high = count[v], count[v + 1]
+        if high - low <= 1:
+            continue
+        if high - low <= _SMALL_BUCKET:
+            for a in range(low + 1, high):  # stable insertion sort by key
+                item = order[a]
+                item_key = sorted_key[a]
+                b = a - 1
+                while b >= low and sorted_key[b] > item_key:
+                    order[b + 1] = order[b]
+                    sorted_key[b + 1] = sorted_key[b]
+                    b -= 1
+                order[b + 1] = item
+                sorted_key[b + 1] = item_key
+        else:
+            rank = np.argsort(sorted_key[low:high], kind="mergesort")
+            bucket = order[low:high][rank]
+            bucket_key = sorted_key[low:high][rank]
+            order[low:high] = bucket
+            sorted_key[low:high] = bucket_key
+    groups = 0
+    for a in range(total):
+        if a == 0 or sorted_key[a] != sorted_key[a - 1]:
+            groups += 1
+    unique = np.empty((groups, width), np.int64)
+    inverse = np.empty(total, np.int64)
+    starts = np.empty(groups + 1, np.int64)
+    g = -1
+    mask = (np.int64(1) << bits) - 1
+    for a in range(total):
+        k = sorted_key[a]
+        if a == 0 or k != sorted_key[a - 1]:
+            g += 1
+            starts[g] = a
+            packed = k
+            for q in range(width - 1, -1, -1):
+                unique[g, q] = packed & mask
+                packed >>= bits
+        inverse[order[a]] = g
+    starts[groups] = total
+    return unique, inverse, order, starts
+
+
 class FaceRows:
     """The rows ``top[:, cols]`` flattened to (m·C, len(cols[0])) without building them,
     unless asked: packed integer keys are computed column by column."""
@@ -88,6 +185,12 @@ class FaceRows:
         width = top.shape[1] if cols is None else len(cols[0])
         count = top.shape[0] if cols is None else top.shape[0] * len(cols)
         self.shape = (count, width)
+
+    def column_table(self) -> np.ndarray:
+        """(C, width) int64 local columns of the rows (one row of ``0..width-1`` for plain rows)."""
+        if self.cols is None:
+            return np.arange(self.shape[1], dtype=np.int64)[None, :]
+        return np.array(self.cols, dtype=np.int64)
 
     def max(self) -> int:
         return int(self.top.max()) if self.top.size else 0
@@ -119,6 +222,48 @@ def sort_rows(rows: np.ndarray) -> np.ndarray:
         high = np.maximum(np.maximum(a, b), c)
         return np.stack([low, a + b + c - low - high, high], axis=1)
     return np.sort(rows, axis=1)
+
+
+def sorted_rows_and_parity(rows: np.ndarray):
+    """(sorted rows (m, c) int64, inversion parity (m,) int8, smallest entry, largest entry,
+    whether a sorted row repeats an entry) in one pass: the compiled
+    :func:`_sorted_rows_kernel`, or its numpy twins :func:`sort_rows` and :func:`inversion_parity`."""
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    if jit.enabled(rows.shape[0]):
+        return _sorted_rows_kernel(rows)
+    ordered = sort_rows(rows)
+    repeated = bool((ordered[:, 1:] == ordered[:, :-1]).any())
+    return ordered, inversion_parity(rows), int(ordered[:, 0].min()), int(ordered[:, -1].max()), repeated
+
+
+@jit.njit
+def _sorted_rows_kernel(rows):
+    """Insertion sort of each row; its shift count is the row's inversion count (§2.3.3)."""
+    m, c = rows.shape
+    ordered = np.empty((m, c), np.int64)
+    parity = np.empty(m, np.int8)
+    smallest = rows[0, 0]
+    largest = rows[0, 0]
+    repeated = False
+    for t in range(m):
+        shifts = 0
+        for a in range(c):
+            value = rows[t, a]
+            b = a - 1
+            while b >= 0 and ordered[t, b] > value:
+                ordered[t, b + 1] = ordered[t, b]
+                b -= 1
+                shifts += 1
+            ordered[t, b + 1] = value
+        parity[t] = 1 if shifts % 2 == 0 else -1
+        if ordered[t, 0] < smallest:
+            smallest = ordered[t, 0]
+        if ordered[t, c - 1] > largest:
+            largest = ordered[t, c - 1]
+        for a in range(1, c):
+            if ordered[t, a] == ordered[t, a - 1]:
+                repeated = True
+    return ordered, parity, smallest, largest, repeated
 
 
 def inversion_parity(tuples: np.ndarray) -> np.ndarray:
@@ -193,10 +338,58 @@ def _small_simplex_volumes(corners: list) -> np.ndarray:
 
 
 def vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
-    """Volumes of simplices given by vertex indices (fast path for edges and triangles)."""
+    """(m,) volumes of the simplices (m, j+1) of vertex indices into ``vertices`` (n0, d).
+
+    Edges and triangles in 2-D/3-D take the compiled :func:`_small_volumes_kernel`, whose
+    twin is :func:`vertex_volumes_numpy`; the rest :func:`simplex_volumes`.
+    """
     if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
-        return _small_simplex_volumes(_CornerCoordinates(vertices, simplices))
+        if jit.enabled(simplices.shape[0]):
+            return _small_volumes_kernel(np.ascontiguousarray(vertices.T, dtype=np.float64),
+                                         np.ascontiguousarray(simplices, dtype=np.int64))
+        return vertex_volumes_numpy(vertices, simplices)
     return simplex_volumes(vertices[simplices])
+
+
+def vertex_volumes_numpy(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
+    """The numpy twin of :func:`vertex_volumes` for edges and triangles in 2-D/3-D."""
+    return _small_simplex_volumes(_CornerCoordinates(vertices, simplices))
+
+
+@jit.njit
+def _small_volumes_kernel(columns, simplices):
+    """Lengths of edges / areas of triangles with the arithmetic of :func:`_small_simplex_volumes`
+    in the same order (bit-for-bit equal): ``columns`` (d, n0) coordinates, ``simplices`` (m, 2|3)."""
+    m, corners = simplices.shape
+    d = columns.shape[0]
+    out = np.empty(m)
+    for t in range(m):
+        p = simplices[t, 0]
+        q = simplices[t, 1]
+        if corners == 2:
+            total = 0.0
+            for axis in range(d):
+                diff = columns[axis, q] - columns[axis, p]
+                total = total + diff * diff
+            out[t] = np.sqrt(total)
+            continue
+        r = simplices[t, 2]
+        if d == 2:
+            u0, u1 = columns[0, q] - columns[0, p], columns[1, q] - columns[1, p]
+            v0, v1 = columns[0, r] - columns[0, p], columns[1, r] - columns[1, p]
+            out[t] = 0.5 * abs(u0 * v1 - u1 * v0)
+            continue
+        u0, u1, u2 = columns[0, q] - columns[0, p], columns[1, q] - columns[1, p], columns[2, q] - columns[2, p]
+        v0, v1, v2 = columns[0, r] - columns[0, p], columns[1, r] - columns[1, p], columns[2, r] - columns[2, p]
+        total = 0.0
+        component = u1 * v2 - u2 * v1
+        total += component * component
+        component = u2 * v0 - u0 * v2
+        total += component * component
+        component = u0 * v1 - u1 * v0
+        total += component * component
+        out[t] = np.sqrt(total) * 0.5
+    return out
 
 
 class _CornerCoordinates:

@@ -33,6 +33,7 @@ from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
 from decrun.runner.failures import exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message
 from decrun.runner.progress import SweepProgress, sweep_size, terminal
+from decrun.runner.sweep.checks import register_check
 
 register_configs()
 
@@ -51,8 +52,7 @@ def _verbose() -> bool:
     return _VERBOSE or bool(HydraConfig.get().verbose)
 
 
-@hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")
-def _hydra_main(cfg: DictConfig) -> int | float:
+def _hydra_task(cfg: DictConfig) -> int | float:
     """The Hydra task: :func:`decrun.runner.run.run` in the directory Hydra made."""
     # lazy: the numerical stack loads only once a run starts, not for --help or a bad override (start-up speed)
     from decrun.runner.run import run
@@ -60,6 +60,19 @@ def _hydra_main(cfg: DictConfig) -> int | float:
     hydra_cfg = HydraConfig.get()
     return run(cfg, Path(hydra_cfg.runtime.output_dir), multirun=_is_multirun(), verbose=_verbose(),
                log_name=hydra_cfg.job.name)
+
+
+def _check_job(cfg: DictConfig) -> None:
+    """The sweeper's check of each planned job: :func:`decrun.runner.run.validate`."""
+    from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
+
+    validate(cfg)
+
+
+_hydra_main = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_hydra_task)
+# every job of a sweep is type-checked before the first starts; joblib's workers import the
+# numerical stack while the sweep is planned
+register_check(_hydra_task, _check_job, warm=("decrun.runner.run", "decrun.runner.results.recorder"))
 
 
 class SweepTable(Callback):
@@ -190,6 +203,10 @@ def _report(exc: Exception) -> int:
 
     if _VERBOSE:
         raise exc
+    message = typo_message(exc) or missing_plugin_message(exc)
+    if message:
+        print(message, file=sys.stderr)
+        return 1
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
         choices = _choices_of(exc.__cause__)
         if choices is not None:  # a schema field with a closed set of values (optimize.direction)
@@ -207,6 +224,63 @@ def _report(exc: Exception) -> int:
         print(f"error: {os_error_message(os_error)}", file=sys.stderr)
         return 1
     raise exc  # a bug: show it
+
+
+def typo_message(exc: Exception) -> str | None:
+    """For an option of a plugin group Hydra refuses to override (``app.stpes=3``: not in
+    the group's config), the decrun message of its ``+`` form — the group's options and the
+    closest one — instead of Hydra's advice to append it. None for any other error."""
+    import re
+
+    from omegaconf.errors import ConfigAttributeError, ConfigKeyError
+
+    from decrun.runner.config import PLUGIN_GROUPS
+
+    match = re.match(r"Could not override '([^']+)'", str(exc))
+    if match is None or not isinstance(exc.__cause__, (ConfigAttributeError, ConfigKeyError)):
+        return None
+    key = match.group(1)
+    if key.split(".", 1)[0] not in PLUGIN_GROUPS:
+        return None
+    overrides = []  # the group choices and experiments of the command, the key in its + form
+    for arg in sys.argv[1:]:
+        name, sep, value = arg.partition("=")
+        bare = name.lstrip("+~")
+        if not sep or bare.startswith(("hydra.", "hydra/")):
+            continue
+        if bare == key:
+            overrides.append(f"+{key}={value.split(',')[0]}")  # a sweep: its first value
+        elif "." not in bare:
+            overrides.append(f"{name}={value.split(',')[0]}")
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
+
+    try:
+        validate(compose_config(overrides))
+    except DecrunError as error:
+        return f"error: {error}"
+    except Exception:  # the command cannot be recomposed this way: Hydra's message stands
+        return None
+    return None
+
+
+def missing_plugin_message(exc: Exception) -> str | None:
+    """For a Hydra launcher or sweeper whose plugin is not installed (``hydra/launcher=ray``
+    without the extra), the pip line that installs it (:data:`decrun.runner.hints.PLUGIN_EXTRAS`)."""
+    import re
+
+    from hydra.errors import MissingConfigException
+
+    from decrun.runner.hints import PLUGIN_EXTRAS
+
+    if not isinstance(exc, MissingConfigException):
+        return None
+    match = re.search(r"Could not (?:find|load) '(hydra/(?:launcher|sweeper))/([^']+)'", str(exc))
+    if match is None or match.group(2) not in PLUGIN_EXTRAS.get(match.group(1), {}):
+        return None
+    group, name = match.groups()
+    plugin, extra = PLUGIN_EXTRAS[group][name]
+    return f'error: {group}={name}: {plugin} is not installed; pip install "decrun[{extra}]"'
 
 
 def _choices_of(cause: BaseException | None) -> type[Choice] | None:

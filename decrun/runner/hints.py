@@ -21,7 +21,16 @@ from decrun.errors import (
     UnreferencedVertexError,
 )
 
-__all__ = ["cli_hint", "cli_message"]
+__all__ = ["cli_hint", "cli_message", "PLUGIN_EXTRAS"]
+
+#: Hydra group → option → (the plugin, the decrun extra that installs it)
+PLUGIN_EXTRAS = {
+    "hydra/launcher": {"joblib": ("hydra-joblib-launcher", "parallel"),
+                       "submitit_local": ("hydra-submitit-launcher", "slurm"),
+                       "submitit_slurm": ("hydra-submitit-launcher", "slurm"),
+                       "ray": ("hydra-ray-launcher", "ray"), "ray_aws": ("hydra-ray-launcher", "ray")},
+    "hydra/sweeper": {"optuna": ("hydra-optuna-sweeper", "optuna")},
+}
 
 #: error class → (the override that fixes it, what it does); first match wins
 MESH_FIXES = (

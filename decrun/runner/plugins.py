@@ -25,6 +25,8 @@ every sweep job) imports no numerical code.
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import functools
 import importlib
 import math
 import typing
@@ -109,6 +111,13 @@ def _widen(hint, value):
     return value
 
 
+@functools.lru_cache(maxsize=None)
+def _schema(cls: type) -> DictConfig:
+    """``OmegaConf.structured(cls)``, made once per class (``OmegaConf.merge`` copies it; a
+    sweep builds every plugin of every job twice: before the first starts, then in it)."""
+    return OmegaConf.structured(cls)
+
+
 def build(node: Any, key: str, base: type) -> Any:
     """Type-check ``node`` against the dataclass named by its ``_target_`` and build it.
 
@@ -123,7 +132,7 @@ def build(node: Any, key: str, base: type) -> Any:
     """
     cls = target_class(node, key, base)
     values = _widen(cls, plain_values(node))
-    schema = OmegaConf.structured(cls)
+    schema = _schema(cls)
     try:
         merged = OmegaConf.merge(schema, values)
         check_numbers(OmegaConf.to_container(merged), key)  # as converted ("nan" → nan)
@@ -131,8 +140,9 @@ def build(node: Any, key: str, base: type) -> Any:
     except ConfigKeyError as exc:
         name = exc.key if getattr(exc, "key", None) else str(exc).split("'")[1] if "'" in str(exc) else "?"
         known = sorted(f.name for f in dataclasses.fields(cls))
-        raise ConfigError(f"{key}.{name}: unknown option of {key}={cls.name or cls.__name__}; "
-                          f"it has {known}") from None
+        close = difflib.get_close_matches(str(name), known, n=1)
+        raise ConfigError(f"{key}.{name}: unknown option of {key}={cls.name or cls.__name__}; it has {known}"
+                          + (f"; did you mean {key}.{close[0]}?" if close else "")) from None
     except ValidationError as exc:
         where = getattr(exc, "full_key", None) or getattr(exc, "key", None) or "?"
         hint = typing.get_type_hints(cls).get(str(where))

@@ -97,7 +97,7 @@ def sweep_size(overrides: list[str], params: dict | None = None) -> int | None:
 class SweepProgress:
     """Jobs done / total with ETA for a sweep, polled from ``sweep_dir`` in a thread.
 
-    A job is done when its ``<job>/metrics.json`` exists (written at the end of every job,
+    A job is done when its ``<job dir>/metrics.json`` exists (written at the end of every job,
     ok or failed). ``start()`` / ``stop()``; a no-op unless ``enabled``.
     """
 
@@ -108,10 +108,11 @@ class SweepProgress:
         self._bar = None
 
     def done(self) -> int:
-        """Jobs that have written their metrics.json."""
+        """Jobs that have written their metrics.json (in job directories at any depth: any
+        ``hydra.sweep.subdir`` pattern)."""
         if not self.sweep_dir.is_dir():
             return 0
-        return sum(1 for job in self.sweep_dir.iterdir() if (job / "metrics.json").is_file())
+        return sum(1 for _ in self.sweep_dir.glob("**/metrics.json"))
 
     def start(self) -> "SweepProgress":
         if not self.enabled:

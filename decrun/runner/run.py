@@ -65,7 +65,7 @@ def check_root_keys(cfg: DictConfig) -> None:
     """ConfigError for a root key the schema :class:`decrun.runner.config.DecrunConfig` does
     not have: Hydra's ``+foo=1`` adds keys even to a struct config, and nothing would read it."""
     known = [f.name for f in dataclasses.fields(DecrunConfig)]
-    unknown = [key for key in cfg if key not in known]
+    unknown = [key for key in cfg if key not in known and key != "hydra"]  # hydra: a sweep job's own node
     if unknown:
         raise ConfigError(f"{unknown[0]}: unknown root key (nothing reads it); the config has {known}: "
                           f"drop +{unknown[0]}=..., or put the option under its group (e.g. +app.{unknown[0]}=...)")

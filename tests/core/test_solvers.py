@@ -102,7 +102,7 @@ def test_solve_before_factorize_and_bad_shapes():
 
 
 def test_unknown_solver_and_bad_options():
-    with pytest.raises(ConfigError, match="solver=gauss: unknown Solver; choose one of solver=amg \\| solver=cg \\| solver=direct \\| solver=pardiso"):
+    with pytest.raises(ConfigError, match="solver=gauss: unknown Solver; choose one of solver=amg \\| solver=auto \\| solver=cg \\| solver=cholmod \\| solver=direct \\| solver=pardiso"):
         make_solver("gauss")
     with pytest.raises(ConfigError, match="solver=cg"):
         make_solver("cg", colour="blue")
@@ -125,3 +125,40 @@ def test_missing_optional_package_is_a_clear_solver_error(name, module, monkeypa
     monkeypatch.setattr(builtins, "__import__", fake_import)
     with pytest.raises(SolverError, match=f"pip install -e '.\\[{name}\\]'"):
         make_solver(name)
+
+
+def test_auto_is_the_default_and_uses_cholesky_for_spd_and_lu_for_the_rest(heat_matrix):
+    """solver=auto: CHOLMOD where A is symmetric positive definite, SuperLU otherwise — the
+    answer agrees with SuperLU to round-off either way."""
+    from decrun.core.solvers import solver_factory
+
+    assert make_solver().name == "auto" and solver_factory()().name == "auto"
+    rng = np.random.default_rng(2)
+    b = rng.standard_normal(heat_matrix.shape[0])
+    unsymmetric = (heat_matrix + 1e-3 * sp.triu(heat_matrix, 1)).tocsr()
+    indefinite = (heat_matrix - 2 * heat_matrix.diagonal().mean() * sp.identity(heat_matrix.shape[0])).tocsr()
+    indefinite = (indefinite + sp.identity(heat_matrix.shape[0]) * 3 * abs(indefinite.diagonal().min())).tocsr()
+    indefinite.setdiag(np.where(np.arange(heat_matrix.shape[0]) == 0, -1.0, indefinite.diagonal()))
+    for matrix, method in ((heat_matrix, "cholmod"), (unsymmetric, "superlu"), (indefinite, "superlu")):
+        solver = make_solver("auto").factorize(matrix)
+        assert solver.method == method
+        expected = make_solver("direct").factorize(matrix).solve(b)
+        np.testing.assert_allclose(solver.solve(b), expected, rtol=1e-9, atol=1e-12)
+
+
+def test_indefinite_symmetric_matrix_falls_back_without_cholmod_noise(capfd):
+    """A symmetric matrix with a positive diagonal that is not definite: CHOLMOD's own warning
+    (printed by the C library) does not reach the terminal; auto answers with SuperLU."""
+    A = sp.csr_matrix(np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 3.0]]))
+    solver = make_solver("auto").factorize(A)
+    np.testing.assert_allclose(A @ solver.solve(np.ones(3)), np.ones(3))
+    assert solver.method == "superlu"
+    captured = capfd.readouterr()
+    assert "CHOLMOD" not in captured.out + captured.err
+
+
+def test_cholmod_refuses_what_it_cannot_factorize_and_names_direct():
+    with pytest.raises(SolverError, match="not symmetric.*use solver=direct"):
+        make_solver("cholmod").factorize(sp.csr_matrix(np.array([[4.0, 1.0], [0.0, 3.0]])))
+    with pytest.raises(SolverError, match="not positive definite.*use solver=direct"):
+        make_solver("cholmod").factorize(sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]])))

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import importlib.util
 
+import numpy as np
+
 import pytest
 
 from decrun.errors import ConfigError
@@ -12,7 +14,7 @@ from decrun.runner.config import compose_config
 from decrun.runner.run import run_experiment, validate
 
 APPS = ["smoothing", "parametrization", "hodge", "vector_field", "fluid"]
-SOLVERS = ["direct", "cg", "amg", "pardiso"]
+SOLVERS = ["auto", "cholmod", "direct", "cg", "amg", "pardiso"]
 APP_MESH = {"parametrization": ["mesh=sphere_cap", "mesh.subdiv=2"], "hodge": ["mesh.subdiv=2", "mesh.noise=0.05"],
             "smoothing": ["mesh.subdiv=2"], "vector_field": ["mesh.subdiv=2"],
             "fluid": ["mesh.subdiv=2", "mesh.noise=0.0", "app.steps=5", "app.animation=false"]}
@@ -28,7 +30,7 @@ def test_every_app_runs_with_every_solver_or_refuses_before_work(app, solver, mo
     try:
         validate(cfg)
     except ConfigError as exc:
-        assert app == "parametrization" and solver in ("cg", "amg")  # the default conformal border only
+        assert app == "parametrization" and solver in ("cholmod", "cg", "amg")  # the default conformal border only
         assert f"solver={solver}" in str(exc) and "use `solver=direct`" in str(exc)
         # the hints work: the suggested overrides run
         for hint in (["solver=direct"], [f"solver={solver}", "app.border=circle"]):
@@ -39,9 +41,9 @@ def test_every_app_runs_with_every_solver_or_refuses_before_work(app, solver, mo
     assert result.metrics["status"] == "ok"
 
 
-@pytest.mark.parametrize("solver", ["cg", "amg"])
-def test_iterative_solvers_give_the_direct_answer(solver):
-    """The systems handed to cg/amg are the SPD ones: same result as the direct solver."""
+@pytest.mark.parametrize("solver", ["auto", "cholmod", "cg", "amg"])
+def test_spd_solvers_give_the_direct_answer(solver):
+    """The systems handed to auto/cholmod/cg/amg are the SPD ones: same result as SuperLU."""
     if importlib.util.find_spec(EXTRA.get(solver, "scipy")) is None:
         pytest.skip(f"{EXTRA[solver]} is not installed")
     for app, extra, metric in (("parametrization", ["app.border=circle"], "angle_distortion_mean_deg"),
@@ -76,3 +78,28 @@ def test_unsupported_boundary_adaptation_is_refused_before_any_solve(app, monkey
     monkeypatch.setattr(DirectSolver, "_prepare", no_solve)
     with pytest.raises(ConfigError, match=f"boundary=flux: app={app} supports boundary=none"):
         run_experiment(compose_config([f"app={app}", "boundary=flux", "figures=false", *APP_MESH[app]]))
+
+
+@pytest.mark.parametrize("app", APPS)
+def test_spd_solvers_through_the_cli_on_every_app(app, decrun_cli, tmp_path):
+    """The real command: a sweep over the default (auto), cholmod and direct on each app; the
+    same metrics to round-off (parametrization with a circle border, whose systems are SPD)."""
+    import pandas as pd
+
+    extra = ["app.border=circle"] if app == "parametrization" else []
+    proc = decrun_cli("-m", f"app={app}", "solver=auto,cholmod,direct", "figures=false", *APP_MESH[app], *extra)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    (sweep,) = (tmp_path / "outputs" / "sweeps").iterdir()
+    table = pd.read_csv(sweep / "metrics.csv").set_index("solver")
+    assert list(table["status"]) == ["ok"] * 3
+    numeric = table.select_dtypes("number").drop(columns=[c for c in table.columns if "second" in c or c == "job"],  # timings
+                                                  errors="ignore")
+    for name in ("auto", "cholmod"):
+        np.testing.assert_allclose(numeric.loc[name], numeric.loc["direct"], rtol=1e-6, atol=1e-9, err_msg=name)
+
+
+def test_cholmod_on_an_unsymmetric_app_is_refused_by_the_cli_with_the_override(decrun_cli):
+    proc = decrun_cli("app=parametrization", "solver=cholmod", "figures=false", *APP_MESH["parametrization"])
+    assert proc.returncode != 0 and "use `solver=direct`" in proc.stderr and "Traceback" not in proc.stderr
+    fixed = decrun_cli("app=parametrization", "solver=direct", "figures=false", *APP_MESH["parametrization"])
+    assert fixed.returncode == 0, fixed.stderr[-2000:]

@@ -108,14 +108,18 @@ def test_verbose_shows_the_traceback(tmp_path):
 
 
 def test_sweeps_tables_failures_and_unique_dirs(tmp_path):
-    """A 2×3 joblib sweep and a failing basic sweep, started in the same second."""
+    """A 2×3 joblib sweep and a basic sweep whose job 1 fails while it runs (its mesh file
+    passes the checks before the sweep, not loading), started in the same second."""
     common = ["mesh.subdiv=2", "app.steps=5", "figures=false"]
     env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
+    (tmp_path / "tet.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    (tmp_path / "huge.obj").write_text((tmp_path / "tet.obj").read_text().replace("v 1 0 0", "v 1e300 0 0"))
     procs = [
         subprocess.Popen([sys.executable, "-m", "decrun", "-m", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2",
                           "app.scheme=explicit,implicit", "app.dt=0.001,0.01,0.1", *common],
                          cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True),
-        subprocess.Popen([sys.executable, "-m", "decrun", "-m", "app.dt=0.01,-1", *common],
+        subprocess.Popen([sys.executable, "-m", "decrun", "-m", "mesh=file", "mesh.path=tet.obj,huge.obj",
+                          "app.steps=5", "figures=false"],
                          cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True),
     ]
     (ok_out, ok_err), (bad_out, bad_err) = (p.communicate(timeout=300) for p in procs)
@@ -139,7 +143,7 @@ def test_sweeps_tables_failures_and_unique_dirs(tmp_path):
     assert table[table["app.scheme"] == "implicit"]["stable"].all()
     failed = pd.read_csv(tables[2] / "metrics.csv")
     assert sorted(failed["status"]) == ["failed", "ok"]
-    assert "app.dt" in failed.loc[failed["status"] == "failed", "error"].iloc[0]
+    assert "mesh.path='huge.obj'" in failed.loc[failed["status"] == "failed", "error"].iloc[0]
     assert "failed" in bad_err
     assert not (tables[2] / "1" / "result.h5").exists()
     # decrun-table rebuilds the same table

@@ -152,3 +152,56 @@ def test_the_readme_slurm_launcher_config_composes(tmp_path):
     launcher = launcher.get("hydra", {}).get("launcher", launcher)
     assert launcher["_target_"] == "hydra_plugins.hydra_submitit_launcher.submitit_launcher.SlurmLauncher"
     assert (launcher["partition"], launcher["timeout_min"], launcher["array_parallelism"]) == ("compute", 60, 64)
+
+
+SMALL = ["mesh.subdiv=2", "app.steps=2", "figures=false"]
+
+
+def test_every_planned_job_is_type_checked_before_the_first_starts(tmp_path):
+    proc = decrun("-m", "app.dt=0.001,fast", *SMALL, "hydra.sweep.dir=bad", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert proc.stderr.strip().splitlines() == [proc.stderr.strip()], proc.stderr  # one line
+    assert proc.stderr.startswith("error: job 1 (app.dt=fast") and "app.dt: " in proc.stderr, proc.stderr
+    assert not (tmp_path / "bad").exists()  # job 0 did not run
+
+
+@pytest.mark.parametrize("subdir, dirs", [("${hydra.job.override_dirname}", ["app.dt=0.001", "app.dt=0.002"]),
+                                          ("run_${hydra.job.num}", ["run_0", "run_1"])])
+def test_any_sweep_subdir_works_with_the_manifest_resume_and_the_table(tmp_path, subdir, dirs):
+    args = ["-m", "app.dt=0.001,0.002", *SMALL, "hydra.sweep.dir=s", f"hydra.sweep.subdir={subdir}"]
+    first = decrun(*args, "hydra.job.config.override_dirname.exclude_keys=[mesh.subdiv,app.steps,figures]",
+                   cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    sweep = tmp_path / "s"
+    manifest = json.loads((sweep / "manifest.json").read_text())
+    assert [j["dir"] for j in manifest["jobs"]] == dirs
+    assert list(load_sweep(sweep)["result"]) == [f"{d}/result.h5" for d in dirs]
+    (sweep / dirs[1] / "metrics.json").unlink()
+    kept = (sweep / dirs[0] / "metrics.json").stat().st_mtime_ns
+    resumed = decrun(*args, "hydra.job.config.override_dirname.exclude_keys=[mesh.subdiv,app.steps,figures]",
+                     "hydra.sweeper.resume=true", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert "1 of 2 jobs are ok; running 1" in resumed.stderr
+    assert (sweep / dirs[0] / "metrics.json").stat().st_mtime_ns == kept
+    assert sorted(p.name for p in sweep.iterdir() if p.is_dir()) == dirs  # the rerun landed in its directory
+    assert list(load_sweep(sweep)["status"]) == ["ok", "ok"]
+
+
+def test_jobs_sharing_a_directory_stop_the_sweep_before_it_starts(tmp_path):
+    proc = decrun("-m", "app.dt=0.001,0.002", *SMALL, "hydra.sweep.dir=s", "hydra.sweep.subdir=same", cwd=tmp_path)
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "jobs 0 and 1 both get directory 'same'" in proc.stderr
+    assert not (tmp_path / "s").exists()
+
+
+def test_an_override_named_like_a_metric_gets_its_own_column(tmp_path):
+    """fig6_9_square sweeps boundary=none,flux and vector_field reports the boundary it used."""
+    proc = decrun("-m", "+experiment=fig6_9_square", "mesh.max_area=0.01", "figures=false", "hydra.sweep.dir=s",
+                  cwd=tmp_path)
+    assert proc.returncode == 0 and "UserWarning" not in proc.stderr, proc.stderr
+    table = pd.read_csv(tmp_path / "s" / "metrics.csv")
+    assert table.columns.is_unique
+    assert list(table["boundary"]) == list(table["metric.boundary"]) == ["none", "none", "flux", "flux"]
+    header = next(line for line in proc.stdout.splitlines() if line.startswith("| job |")).split(" | ")
+    assert "boundary" in header and "metric.boundary" in header  # the printed table (the callback ran)
+    assert table_main([str(tmp_path / "s")]) == 0

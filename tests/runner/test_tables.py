@@ -135,6 +135,7 @@ def test_the_objective_a_job_returns():
 
 def test_jobs_of_one_process_share_mesh_complex_and_operators():
     from decrun.runner.sweep import job_cache
+
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment
 
@@ -212,3 +213,49 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
         assert "differs from Hydra's" in capsys.readouterr().err
         assert all(checked[job].app.steps != 99 for job in jobs[:3])
     GlobalHydra.instance().clear()
+
+
+def test_overrides_are_read_by_hydras_parser():
+    from decrun.runner.sweep.tables import parse_overrides
+
+    assert parse_overrides(["app.dt=1e-3", "+x=a", "hydra.verbose=true", "figures=False", "~app.rescale",
+                            "mesh.path='a b.obj'", "app.strokes=[{points:[[0.1,0.2]]}]", "solver.tol=1e-10"]) == {
+        "app.dt": 0.001, "x": "a", "figures": False, "app.rescale": None, "mesh.path": "a b.obj",
+        "app.strokes": "[{points:[[0.1,0.2]]}]", "solver.tol": 1e-10}
+
+
+#: an override of every root key and config group of decrun's config (each a possible column)
+ROOT_OVERRIDES = ["mesh=icosphere", "operator=mixed_area", "boundary=none", "solver=direct", "figures=false",
+                  "progress=false", "+experiment=operator_variants"]
+
+
+@pytest.mark.parametrize("app", ["smoothing", "parametrization", "hodge", "vector_field", "fluid"])
+def test_no_override_shares_a_column_with_a_metric(app, tmp_path):
+    """Each app's real metrics against an override of every root key and group: one column
+    each, the override's value under its key, each metric under :func:`metric_column`."""
+    from test_app_grid import APP_MESH
+
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+    from decrun.runner.sweep.tables import metric_column, reserved_names
+
+    result, _, _ = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app]]))
+    metrics = {k: v for k, v in result.metrics.items() if isinstance(v, (bool, int, float, str))}
+    overrides = [*ROOT_OVERRIDES, f"app={app}"]
+    sweep = make_sweep(tmp_path / "s", {"0": metrics})
+    manifest = json.loads((sweep / MANIFEST).read_text())
+    manifest["jobs"][0]["overrides"] = overrides
+    (sweep / MANIFEST).write_text(json.dumps(manifest))
+    (sweep / "multirun.yaml").write_text(OmegaConf.to_yaml(compose_config([f"app={app}"])))  # the root keys
+    table = sweep_table(sweep)
+    assert table.columns.is_unique
+    reserved = reserved_names(sweep)
+    assert {"mesh", "boundary", "figures", "optimize"} <= reserved  # in every decrun sweep, overridden or not
+    assert table.loc[0, "app"] == app and table.loc[0, "boundary"] == "none" and table.loc[0, "experiment"] == \
+        "operator_variants"
+    for name, value in metrics.items():
+        if name not in ("status", "error"):
+            assert table.loc[0, metric_column(name, reserved | {"experiment", "app"})] == value, name
+    assert table_main([str(sweep)]) == 0

@@ -23,6 +23,8 @@ from typing import ClassVar
 
 import numpy as np
 
+from decrun.core.connectivity import edge_owners
+
 __all__ = ["BoundaryAdaptation", "boundary_adaptation", "border_edge_frames", "signed_edges"]
 
 
@@ -57,11 +59,8 @@ def border_edge_frames(K):
     edges_idx, _ = K.border_faces()
     top_sorted = K.simplices(2)
     oriented = K.oriented_simplices()
-    opposite_edge = K.facet_indices(2)  # (m, 3): edge opposite sorted local vertex l
-    owner = np.full(K.num_simplices(1), -1, dtype=np.int64)
-    slot = np.full(K.num_simplices(1), -1, dtype=np.int64)
-    owner[opposite_edge.ravel()] = np.repeat(np.arange(top_sorted.shape[0]), 3)
-    slot[opposite_edge.ravel()] = np.tile(np.arange(3), top_sorted.shape[0])
+    # a triangle of each edge and the slot of the edge in K.facet_indices(2): opposite sorted vertex `slot`
+    owner, slot = edge_owners(K.facet_indices(2), K.num_simplices(1))
     face = owner[edges_idx]
     k_vertex = top_sorted[face, slot[edges_idx]]
     # position of k in the oriented tuple; i and j follow it cyclically

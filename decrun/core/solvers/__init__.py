@@ -1,6 +1,6 @@
 """Sparse linear solvers behind one interface: ``factorize(A)`` once, ``solve(b)`` many.
 
->>> solver = make_solver("direct")
+>>> solver = make_solver("auto")
 >>> solver.factorize(A)        # A: (n, n) scipy.sparse
 >>> x = solver.solve(b)        # b: (n,) or (n, m)
 
@@ -12,6 +12,9 @@ fingerprint of the matrix it prepared: calling it again with the same matrix is 
 ======== ======================================== =====================================
 module   method                                   options
 ======== ======================================== =====================================
+auto     the default: CHOLMOD Cholesky for SPD     ``permc_spec`` (of the LU)
+         matrices, SuperLU LU for the rest
+cholmod  CHOLMOD (cholespy wheel), L Lᵀ once       none
 direct   scipy SuperLU, LU once                    ``permc_spec``
 cg       conjugate gradients, Jacobi precond.      ``tol`` (relative residual), ``maxiter``,
                                                    ``preconditioner`` (jacobi | none)
@@ -20,8 +23,8 @@ amg      pyamg multigrid hierarchy (built once)    ``tol``, ``maxiter``, ``metho
 pardiso  MKL PARDISO via pypardiso, LU once        ``matrix_type``
 ======== ======================================== =====================================
 
-``cg`` and ``amg`` need a symmetric positive definite matrix (``Solver.needs_spd``); a solve
-that does not reach ``tol`` raises :class:`SolverError`. The shared kernels — a singular
+``cholmod``, ``cg`` and ``amg`` need a symmetric positive definite matrix
+(``Solver.needs_spd``); a solve that does not reach ``tol`` raises :class:`SolverError`. The shared kernels — a singular
 PSD solve by shift-and-refine, and a solve with fixed values (condensation) — are in
 :mod:`decrun.core.solvers.kernels`.
 """
@@ -34,8 +37,8 @@ from decrun.core.solvers.kernels import SingularSolve, condense, solve_with_fixe
 __all__ = ["Solver", "SingularSolve", "condense", "solve_with_fixed", "make_solver", "solver_factory"]
 
 
-def make_solver(name: str = "direct", **options) -> Solver:
-    """A solver by name (``direct`` | ``cg`` | ``amg`` | ``pardiso``, or a dotted class path)
+def make_solver(name: str = "auto", **options) -> Solver:
+    """A solver by name (``auto`` | ``cholmod`` | ``direct`` | ``cg`` | ``amg`` | ``pardiso``, or a dotted class path)
     with its options; unknown options are a :class:`decrun.errors.ConfigError`."""
     from dataclasses import fields
 
@@ -55,11 +58,11 @@ def make_solver(name: str = "direct", **options) -> Solver:
 def solver_factory(solver=None):
     """A callable returning a fresh, unfactorized solver for every linear system.
 
-    ``solver`` may be None (``direct``), a name, a :class:`Solver` (its options are reused via
+    ``solver`` may be None (``auto``), a name, a :class:`Solver` (its options are reused via
     ``solver.fresh()``, never a deep copy) or already a factory.
     """
     if solver is None or isinstance(solver, str):
-        name = solver or "direct"
+        name = solver or "auto"
         return lambda: make_solver(name)
     if isinstance(solver, Solver):
         return solver.fresh

@@ -72,6 +72,10 @@ class Solver:
         b = np.asarray(b, dtype=np.float64)
         if b.shape[0] != self.shape[0]:
             raise SolverError(f"{self.name} solver: right-hand side has {b.shape[0]} rows, matrix {self.shape}")
+        return self._solve_block(b)
+
+    def _solve_block(self, b: np.ndarray) -> np.ndarray:
+        """x for b (n,) or (n, m) after the checks of :meth:`solve` (default: column by column)."""
         if b.ndim == 1:
             return self._solve_one(b)
         return np.column_stack([self._solve_one(b[:, j]) for j in range(b.shape[1])]).reshape(b.shape)

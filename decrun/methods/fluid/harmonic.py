@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.core.connectivity import edge_owners
 from decrun.core.dec import DEC
 from decrun.core.geometry import embed3
 
@@ -64,9 +65,7 @@ def uniform_flux(dec: DEC, face_normal: np.ndarray, velocity) -> np.ndarray:
     x = embed3(K.vertices)
     v = embed3(np.atleast_2d(np.asarray(velocity, dtype=np.float64)))[0]
     edges = K.simplices(1)
-    owner = np.empty(edges.shape[0], dtype=np.int64)
-    opposite = K.facet_indices(2)
-    owner[opposite.ravel()] = np.repeat(np.arange(opposite.shape[0]), 3)
+    owner, _ = edge_owners(K.facet_indices(2), edges.shape[0])
     t = x[edges[:, 1]] - x[edges[:, 0]]
     return np.einsum("d,ed->e", v, np.cross(t, face_normal[owner]))
 

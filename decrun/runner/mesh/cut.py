@@ -51,6 +51,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from decrun.core.connectivity import drop_unreferenced, edge_table, largest_component
+from decrun.core.geometry import area_normals
 from decrun.errors import ConfigError, MeshError
 
 __all__ = ["cut_holes", "signed_distance", "parse_regions"]
@@ -171,25 +173,6 @@ def _crossings(a: np.ndarray, b: np.ndarray, balls: np.ndarray, boxes: np.ndarra
     return t, points, region
 
 
-def _unique_edges(faces: np.ndarray, n_vertices: int):
-    """Unique undirected edges (e, 2) sorted, and for every face corner l the id of edge (l, l+1)."""
-    start = faces
-    end = np.roll(faces, -1, axis=1)
-    low, high = np.minimum(start, end), np.maximum(start, end)
-    key = low.astype(np.int64) * n_vertices + high
-    unique_key, inverse = np.unique(key.ravel(), return_inverse=True)
-    edges = np.column_stack([unique_key // n_vertices, unique_key % n_vertices])
-    return edges, inverse.reshape(faces.shape)
-
-
-def _normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(m, 3) area-weighted face normals (2-D points: (0, 0, 2·signed area))."""
-    if points.shape[1] == 2:
-        points = np.column_stack([points, np.zeros(len(points))])
-    p0, p1, p2 = (points[faces[:, i]] for i in range(3))
-    return np.cross(p1 - p0, p2 - p0)
-
-
 def _rotate_to(faces: np.ndarray, position: np.ndarray) -> np.ndarray:
     """Cyclically rotate each face row so that local ``position`` comes first (orientation kept)."""
     order = (position[:, None] + np.arange(3)[None, :]) % 3
@@ -202,7 +185,7 @@ def _fans(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
     Two corners of the same vertex are in one fan when their triangles share an edge at it.
     """
     m = len(faces)
-    _, edge_of = _unique_edges(faces, n_vertices)
+    _, edge_of = edge_table(faces, n_vertices)
     slots = edge_of.ravel()  # half-edge 3f + l runs from corner l to corner l+1
     order = np.argsort(slots, kind="stable")
     same = slots[order][1:] == slots[order][:-1]
@@ -242,15 +225,6 @@ def _split_pinched(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray):
     copies = pairs[extra, 0]
     return (np.concatenate([vertices, vertices[copies]]), faces,
             np.concatenate([origin, origin[copies]]), int(extra.size))
-
-
-def _largest_piece(faces: np.ndarray, n_vertices: int) -> np.ndarray:
-    """(m,) bool: the triangles of the largest piece (triangles joined across shared edges)."""
-    m = len(faces)
-    _, edge_of = _unique_edges(faces, n_vertices)
-    incidence = sp.csr_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), edge_of.ravel())))
-    _, label = connected_components(incidence @ incidence.T, directed=False)
-    return label == np.argmax(np.bincount(label))
 
 
 def cut_holes(vertices, faces, balls: Sequence = (), boxes: Sequence = (), *, snap: float = 0.25,
@@ -304,7 +278,7 @@ def cut_holes(vertices, faces, balls: Sequence = (), boxes: Sequence = (), *, sn
         return vertices.copy(), faces.copy(), info
 
     # 1. classify
-    edges, edge_of = _unique_edges(faces, n)
+    edges, edge_of = edge_table(faces, n)
     length = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
     tau = ON_TOLERANCE * length.mean()
     phi, vertex_region = signed_distance(vertices, ball_rows, box_rows)
@@ -325,12 +299,12 @@ def cut_holes(vertices, faces, balls: Sequence = (), boxes: Sequence = (), *, sn
     pick = np.lexsort([cand_move, cand_vertex])
     first = np.r_[True, cand_vertex[pick][1:] != cand_vertex[pick][:-1]] if pick.size else np.zeros(0, bool)
     snap_vertex, snap_edge = cand_vertex[pick][first], cand_edge[pick][first]
-    normal_before = _normals(vertices, faces)
+    normal_before = area_normals(vertices, faces)
     undone = 0
     while True:  # undo the snaps of every triangle the snaps would turn over (each round undoes ≥ 1)
         moved = vertices.copy()
         moved[snap_vertex] = point[snap_edge]
-        turned = np.einsum("ij,ij->i", _normals(moved, faces), normal_before) <= 0
+        turned = np.einsum("ij,ij->i", area_normals(moved, faces), normal_before) <= 0
         undo = np.isin(snap_vertex, faces[turned])
         if not undo.any():
             break
@@ -422,13 +396,11 @@ def cut_holes(vertices, faces, balls: Sequence = (), boxes: Sequence = (), *, sn
     index = np.arange(len(all_vertices))
     all_vertices, new_faces, index, info["pinched_vertices_split"] = _split_pinched(all_vertices, new_faces, index)
     if not keep_all_pieces:
-        largest = _largest_piece(new_faces, len(all_vertices))
+        largest = largest_component(new_faces, len(all_vertices))
         info["dropped_piece_faces"] = int((~largest).sum())
         new_faces = new_faces[largest]
-    used = np.zeros(len(all_vertices), dtype=bool)
-    used[new_faces.ravel()] = True
-    renumber = np.cumsum(used) - 1
+    all_vertices, new_faces, used = drop_unreferenced(all_vertices, new_faces)
     index = index[used]
     info.update(on_border=on_border[index], region=region[index], source_vertex=source[index],
                 interpolation=interpolation[index])
-    return all_vertices[used], renumber[new_faces], info
+    return all_vertices, new_faces, info

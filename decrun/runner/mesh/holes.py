@@ -22,9 +22,8 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
+from decrun.core.connectivity import drop_unreferenced, edge_table, largest_component
 from decrun.errors import ConfigError, MeshError
 
 __all__ = ["faces_in_regions", "cut_holes"]
@@ -49,29 +48,13 @@ def faces_in_regions(vertices: np.ndarray, faces: np.ndarray, balls: Sequence = 
     return inside
 
 
-def _edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Sorted edges of every face (3m, 2) and the unique-edge index of each (3m,)."""
-    e = np.sort(faces[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
-    _, index = np.unique(e, axis=0, return_inverse=True)
-    return e, index.ravel()
-
-
 def _pinched_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """Vertices with more than two border edges (two holes meet there)."""
-    e, index = _edges(faces)
-    count = np.bincount(index)
-    border = e[count[index] == 1]
+    edges, corner_edges = edge_table(faces, n_vertices)
+    count = np.bincount(corner_edges.ravel(), minlength=len(edges))
+    border = edges[count == 1]
     degree = np.bincount(border.ravel(), minlength=n_vertices)
     return np.flatnonzero(degree > 2)
-
-
-def _largest_edge_component(faces: np.ndarray) -> np.ndarray:
-    """(m,) bool: faces of the largest piece, faces joined across shared edges."""
-    m = len(faces)
-    _, index = _edges(faces)
-    incidence = sp.csr_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), index)))
-    _, label = connected_components(incidence @ incidence.T, directed=False)
-    return label == np.argmax(np.bincount(label))
 
 
 def cut_holes(vertices: np.ndarray, faces: np.ndarray, balls: Sequence = (), boxes: Sequence = (),
@@ -95,8 +78,6 @@ def cut_holes(vertices: np.ndarray, faces: np.ndarray, balls: Sequence = (), box
         kept = kept[~np.isin(kept, pinched).any(axis=1)]
     if len(kept) == 0:
         raise MeshError("mesh.hole_balls/hole_boxes: the holes remove every face of the mesh")
-    kept = kept[_largest_edge_component(kept)]
-    used = np.zeros(len(vertices), dtype=bool)
-    used[kept.ravel()] = True
-    new_index = np.cumsum(used) - 1
-    return vertices[used], new_index[kept], np.flatnonzero(used)
+    kept = kept[largest_component(kept, len(vertices))]
+    kept_vertices, kept, used = drop_unreferenced(vertices, kept)
+    return kept_vertices, kept, np.flatnonzero(used)

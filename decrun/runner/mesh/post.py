@@ -10,9 +10,8 @@ the order they run; adding a step is adding a function here (and its option fiel
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
+from decrun.core.connectivity import drop_unreferenced, largest_component
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
 from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, Mesh, Refine, from_meshset, require, require_surface,
@@ -105,19 +104,12 @@ def clean(mesh: Mesh, cfg) -> Mesh:
     joined through shared vertices) and drop unreferenced vertices."""
     if not cfg.clean:
         return mesh
-    V, F = mesh.vertices, mesh.simplices
-    m = len(F)
-    incidence = sp.csr_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), F.ravel())), shape=(m, len(V)))
-    _, label = connected_components(incidence @ incidence.T, directed=False)
-    keep_faces = label == np.argmax(np.bincount(label))
-    F = F[keep_faces]
-    used = np.zeros(len(V), dtype=bool)
-    used[F.ravel()] = True
-    remap = np.cumsum(used) - 1
+    keep_faces = largest_component(mesh.simplices, len(mesh.vertices), through="vertices")
+    V, F, used = drop_unreferenced(mesh.vertices, mesh.simplices[keep_faces])
     meta = dict(mesh.meta, dropped_vertices=int((~used).sum()), dropped_faces=int((~keep_faces).sum()))
     if "clean_vertices" in meta:
         meta["clean_vertices"] = meta["clean_vertices"][used]
-    return Mesh(V[used], remap[F], meta)
+    return Mesh(V, F, meta)
 
 
 def refine(mesh: Mesh, cfg) -> Mesh:

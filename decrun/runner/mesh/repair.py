@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from decrun.core.geometry import triangle_areas
+
 __all__ = ["repair_mesh", "up_axis_to_z", "UP_AXIS", "ROTATION_TO_Z_UP"]
 
 #: Up axis of each pymeshlab sample (``decrun.runner.mesh.sources.files.SAMPLE_MESHES`` names), judged by
@@ -113,11 +115,6 @@ def _meshset(vertices: np.ndarray, faces: np.ndarray):
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.ascontiguousarray(vertices, dtype=np.float64),
                                face_matrix=np.ascontiguousarray(faces, dtype=np.int32)))
     return ms
-
-
-def _face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    p0, p1, p2 = (vertices[faces[:, i]] for i in range(3))
-    return 0.5 * np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
 
 
 def _flipped_faces(before: np.ndarray, after: np.ndarray) -> int:
@@ -199,7 +196,7 @@ def repair_mesh(vertices, faces, *, max_rounds: int = 5,
         import pymeshlab
 
         v, f = _arrays(ms)
-        area = _face_areas(v, f)
+        area = triangle_areas(v, f)
         bad = area <= degenerate_tol * area.mean() if len(f) else np.zeros(0, dtype=bool)
         if bad.any():
             ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=f[~bad].astype(np.int32)))

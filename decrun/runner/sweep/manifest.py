@@ -5,10 +5,11 @@ row per planned job and a resumed sweep reruns exactly what is not done.
 :mod:`hydra_plugins.decrun_sweeper`, before any job starts)::
 
     {"format": "decrun-sweep-1", "created": ISO time, "overrides": [command-line sweep overrides],
-     "jobs": [{"job": "0", "overrides": ["app.dt=0.1", ...], "config_hash": "<16 hex>"}, ...],
+     "jobs": [{"job": "0", "dir": "0", "overrides": ["app.dt=0.1", ...], "config_hash": "<16 hex>"}, ...],
      "runs": [{"started": ISO, "jobs": ["0", "3"], "finished": ISO | null}, ...]}
 
-``config_hash`` is :func:`config_hash` of the job's composed config (everything but the
+``dir`` is the job's directory relative to the sweep directory (``hydra.sweep.subdir`` as
+resolved when the sweep was planned; absent in older manifests: the job number). ``config_hash`` is :func:`config_hash` of the job's composed config (everything but the
 ``hydra`` node): two jobs with the same hash compute the same thing. A job writes its hash
 into its ``metrics.json``, so a job directory left by another config is never taken for
 this one's. ``runs`` has one entry per start or resume; a run whose ``finished`` is null
@@ -43,7 +44,7 @@ from decrun.errors import ConfigError
 from decrun.runner.atomic import write_text_atomic
 from decrun.runner.results.journal import journal_path, read_journal
 
-__all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "DONE"]
+__all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "job_dir_name", "DONE"]
 
 MANIFEST = "manifest.json"
 FORMAT = "decrun-sweep-1"
@@ -51,6 +52,11 @@ FORMAT = "decrun-sweep-1"
 DONE = ("ok",)
 #: run options that do not change what a job computes (left out of its hash)
 UNHASHED = ("progress",)
+
+
+def job_dir_name(job: dict[str, Any]) -> str:
+    """A manifest job's directory, relative to the sweep directory."""
+    return job.get("dir", job["job"])
 
 
 def now() -> str:

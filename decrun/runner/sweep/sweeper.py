@@ -1,18 +1,22 @@
 """The ``decrun`` sweeper: Hydra's grid sweep (``key=a,b`` → the product of the values, the
 same jobs in the same order as Hydra's basic sweeper) that
 
-1. composes every planned job once before any runs (a bad override stops the sweep
-   before anything is written) and writes the plan — each job's overrides and
+1. composes and checks every planned job before any runs (a bad override or value stops
+   the sweep before anything is written, naming the job: :func:`~decrun.runner.sweep.checks.register_check`) and
+   writes the plan — each job's directory, overrides and
    :func:`~decrun.runner.sweep.manifest.config_hash` — to ``<sweep dir>/manifest.json``;
 2. refuses a sweep directory that is not empty, unless ``hydra.sweeper.resume=true``;
 3. with ``resume=true`` checks that the planned jobs are the manifest's (same overrides,
    same config hash: same config files) and launches only the jobs that are not ``ok``
-   (missing, failed, killed, stale), each in its own directory ``<sweep dir>/<job>``.
+   (missing, failed, killed, stale), each in the directory the manifest recorded.
 
-Job ``i`` always runs in ``<sweep dir>/<i>`` (the sweeper passes
-``hydra.sweep.subdir=<i>``), so a resumed job lands where it was planned whatever the
-launcher. Hydra loads sweepers only from the ``hydra_plugins`` namespace:
-:mod:`hydra_plugins.decrun_sweeper` registers this one as ``hydra/sweeper=decrun``.
+A job's directory is ``hydra.sweep.subdir`` (any pattern: ``${hydra.job.num}``,
+``${hydra.job.override_dirname}``, ``run_${hydra.job.num}``...) resolved when the sweep is
+planned and passed to the launcher as a literal ``hydra.sweep.subdir='<dir>'``, so a job
+and its resumed rerun land where the manifest says whatever the launcher; two jobs with one
+directory stop the sweep before it starts. Hydra loads sweepers only from the ``hydra_plugins`` namespace:
+:mod:`hydra_plugins.decrun_sweeper` composes :class:`ManifestSweeper` with Hydra's
+``BasicSweeper`` and registers it as ``hydra/sweeper=decrun``.
 """
 
 from __future__ import annotations
@@ -22,22 +26,24 @@ import logging
 import os
 import shutil
 import sys
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence
 
-from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import OverrideType
 from hydra.errors import CompactHydraException
-from omegaconf import OmegaConf
+from omegaconf import OmegaConf, open_dict, read_write
 
-from decrun.errors import ConfigError
-from decrun.runner.sweep.manifest import DONE, FORMAT, MANIFEST, config_hash, job_state, now, read_manifest, write_manifest
+from decrun.errors import ConfigError, DecrunError
+from decrun.runner.sweep.checks import CHECKS, WARM, import_modules
+from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
+                                          read_manifest, write_manifest)
 
 log = logging.getLogger("decrun")
 
-__all__ = ["DecrunSweeper", "DecrunSweeperConf", "SweepError"]
+__all__ = ["ManifestSweeper", "DecrunSweeperConf", "SweepError"]
 
 #: what a job directory may hold that a resumed job must not inherit
 _JOB_OUTPUTS = ("metrics.json", "result.h5", "result.h5.partial")
@@ -67,32 +73,117 @@ class DecrunSweeperConf:
     resume: bool = False
 
 
-class DecrunSweeper(BasicSweeper):
-    """See the module docstring."""
+class ManifestSweeper:
+    """The manifest, the checks and resume (module docstring), as a mixin over Hydra's
+    ``BasicSweeper``: ``class DecrunSweeper(ManifestSweeper, BasicSweeper)``.
+
+    It names no Hydra class itself: Hydra's plugin scan re-executes the module of
+    ``BasicSweeper``, and a class bound to the ``BasicSweeper`` of an earlier scan fails in
+    ``BasicSweeper.__init__`` (``super(type, obj)``). :mod:`hydra_plugins.decrun_sweeper`
+    is re-executed by the same scan, after Hydra's core plugins, so its composition always
+    has the ``BasicSweeper`` of the current scan."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
                  resume: bool = False):
         super().__init__(max_batch_size=max_batch_size, params=params)
         self.resume = resume
+        self.check: Optional[Callable[[Any], Any]] = None
+
+    def setup(self, *, hydra_context, task_function, config) -> None:
+        super().setup(hydra_context=hydra_context, task_function=task_function, config=config)
+        self.check = CHECKS.get(task_function)
+        self.warm = WARM.get(task_function, ())
 
     def plan(self, arguments: List[str]) -> list[dict[str, Any]]:
-        """The jobs of the sweep, in Hydra's order: ``{"job", "overrides", "config_hash"}``.
+        """The jobs of the sweep, in Hydra's order: ``{"job", "dir", "overrides",
+        "config_hash"}`` (``dir``: the job's ``hydra.sweep.subdir``, resolved now).
 
-        Composes each job once (this is also Hydra's validation of a batch) and hands the
-        compositions to the launcher (:class:`PlannedConfigs`), which would compose each
-        job again: composition is most of a small job's overhead."""
+        Composes each job once (this is also Hydra's validation of a batch), runs the
+        ``check`` function on each (before any job starts) and keeps the compositions for
+        the launcher (:meth:`_hand_over`), which would compose each job again:
+        composition is most of a small job's overhead."""
         loader = self.hydra_context.config_loader
+        if isinstance(loader, PlannedConfigs):  # a second sweep of this sweeper
+            loader = self.hydra_context.config_loader = loader.wrapped
         parser = OverridesParser.create(config_loader=loader)
         overrides = parser.parse_overrides(self._parse_config() + list(arguments))
-        planned = [job for batch in self.split_arguments(overrides, None) for job in batch]
-        composer = Composer(loader, self.config)
-        launched = [(*job, f"hydra.sweep.subdir={i}") for i, job in enumerate(planned)]
-        configs = composer.compose_all(launched)
-        jobs = [{"job": str(i), "overrides": list(job), "config_hash": config_hash(configs[key])}
-                for i, (job, key) in enumerate(zip(planned, launched))]
-        if not isinstance(loader, PlannedConfigs):
-            self.hydra_context.config_loader = PlannedConfigs(loader, configs)  # the launcher's too (same object)
+        planned = [tuple(job) for batch in self.split_arguments(overrides, None) for job in batch]
+        configs = Composer(loader, self.config).compose_all(planned)
+        check = self.check
+        jobs, self._configs = [], {}
+        for i, job in enumerate(planned):
+            cfg = configs[job]
+            if check is not None:
+                try:
+                    check(cfg)
+                except DecrunError as exc:
+                    raise SweepError(f"error: job {i} ({' '.join(job)}): {exc}; nothing ran") from exc
+            self._configs[str(i)] = cfg
+            jobs.append({"job": str(i), "dir": self._job_dir(cfg, i), "overrides": list(job),
+                         "config_hash": config_hash(cfg)})
+        _check_dirs(jobs, OmegaConf.to_container(self.config.hydra.sweep, resolve=False)["subdir"])
         return jobs
+
+    def _job_dir(self, cfg, num: int) -> str:
+        """``hydra.sweep.subdir`` of job ``num`` as a launcher resolves it (``hydra.job.id``
+        is the job number, as the basic launcher sets it)."""
+        from hydra.core.hydra_config import HydraConfig
+
+        with read_write(cfg.hydra), open_dict(cfg.hydra):
+            cfg.hydra.job.num = num
+            cfg.hydra.job.id = num
+        if "${hydra:" not in OmegaConf.to_container(cfg.hydra.sweep, resolve=False)["subdir"]:
+            return str(OmegaConf.select(cfg, "hydra.sweep.subdir"))
+        state = HydraConfig.instance()
+        before = state.cfg
+        state.set_config(cfg)  # for ${hydra:...} in the pattern (as the launcher's job sees it)
+        try:
+            return str(OmegaConf.select(cfg, "hydra.sweep.subdir"))
+        finally:
+            OmegaConf.set_readonly(cfg.hydra, None)  # set_config froze it; the launcher sets the job's number
+            state.cfg = before
+
+    def _hand_over(self, jobs: list[dict]) -> list[list[str]]:
+        """The launcher's job lists: each job's overrides plus its recorded directory
+        (``hydra.sweep.subdir='<dir>'``, so it lands where the manifest says whatever
+        the launcher or the clock), and the planned compositions for them
+        (:class:`PlannedConfigs`, the launcher's config loader too: the same object)."""
+        launched, configs = [], {}
+        for job in jobs:
+            line = f"hydra.sweep.subdir={_quoted(job['dir'])}"
+            cfg = self._configs.pop(job["job"])
+            with read_write(cfg.hydra), open_dict(cfg.hydra):
+                cfg.hydra.sweep.subdir = job["dir"]
+                cfg.hydra.overrides.hydra.append(line)
+            launched.append([*job["overrides"], line])
+            configs[tuple(launched[-1])] = cfg
+        self.hydra_context.config_loader = PlannedConfigs(self.hydra_context.config_loader, configs)
+        return launched
+
+    def _warm_workers(self) -> Optional[threading.Thread]:
+        """With Hydra's joblib launcher, start its loky workers now, each importing the
+        task's modules (:data:`~decrun.runner.sweep.checks.WARM`), while this process
+        plans the sweep: the launcher's ``Parallel`` call with the same options reuses
+        them (loky's reusable executor). None for other launchers and other Hydra apps."""
+        options = getattr(self.launcher, "joblib", None)
+        if not self.warm or type(self.launcher).__name__ != "JoblibLauncher" or not isinstance(options, dict):
+            return None
+        from joblib import Parallel, delayed, effective_n_jobs
+
+        options = {**options, "backend": "loky"}
+        workers = effective_n_jobs(options.get("n_jobs") or 1)
+        if workers <= 1:
+            return None
+
+        def start():
+            try:
+                Parallel(**options)(delayed(import_modules)(self.warm) for _ in range(workers))
+            except Exception as exc:  # only time is lost: the jobs import what they need themselves
+                log.debug("joblib workers not warmed: %s", exc)
+
+        thread = threading.Thread(target=start, name="decrun-warm-workers", daemon=True)
+        thread.start()
+        return thread
 
     def sweep(self, arguments: List[str]) -> Any:
         try:
@@ -102,11 +193,12 @@ class DecrunSweeper(BasicSweeper):
 
     def _sweep(self, arguments: List[str]) -> Any:
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
-        subdir = OmegaConf.to_container(self.config.hydra.sweep, resolve=False)["subdir"]
-        if subdir != "${hydra.job.num}":
-            raise SweepError(f"error: hydra.sweep.subdir={subdir}: the decrun sweeper names job directories by job "
-                             "number; drop the override, or use hydra/sweeper=basic (no manifest, no resume)")
-        jobs = self.plan(arguments)
+        warming = self._warm_workers()
+        try:
+            jobs = self.plan(arguments)
+        finally:
+            if warming is not None:
+                warming.join()
         manifest, todo = self._start(sweep_dir, jobs, arguments)
         sweep_dir.mkdir(parents=True, exist_ok=True)
         OmegaConf.save(self.config, sweep_dir / "multirun.yaml")
@@ -115,10 +207,9 @@ class DecrunSweeper(BasicSweeper):
             print("decrun: resume: {} of {} jobs are ok; running {}".format(
                 len(jobs) - len(todo), len(jobs), ", ".join(j["job"] for j in todo) or "nothing"), file=sys.stderr)
         returns = []
-        size = self.max_batch_size or max(len(todo), 1)
-        for start in range(0, len(todo), size):
-            batch = [[*j["overrides"], f"hydra.sweep.subdir={j['job']}"] for j in todo[start:start + size]]
-            results = self.launcher.launch(batch, initial_job_idx=int(todo[start]["job"]))
+        launched = self._hand_over(todo)
+        for start, stop in _batches([int(j["job"]) for j in todo], self.max_batch_size):
+            results = self.launcher.launch(launched[start:stop], initial_job_idx=int(todo[start]["job"]))
             for r in results:
                 _ = r.return_value  # re-raise a job's exception, as the basic sweeper does
             returns.append(results)
@@ -153,9 +244,11 @@ class DecrunSweeper(BasicSweeper):
                         f"config hash {new['config_hash']} differs from {old['config_hash']} (a config file changed)")
                 raise SweepError(f"error: hydra.sweeper.resume=true: job {old['job']}: {what}; resume with "
                                  "the same overrides and configs, or start a new sweep")
-        todo = [j for j in jobs if job_state(sweep_dir / j["job"], j["config_hash"])["status"] not in DONE]
+        for old, new in zip(planned, jobs):
+            new["dir"] = job_dir_name(old)  # where it was planned (a pattern may resolve anew, e.g. ${now:})
+        todo = [j for j in jobs if job_state(sweep_dir / j["dir"], j["config_hash"])["status"] not in DONE]
         for job in todo:
-            _clear(sweep_dir / job["job"])
+            _clear(sweep_dir / job["dir"])
         run["jobs"] = [j["job"] for j in todo]
         manifest.setdefault("runs", []).append(run)
         return manifest, todo
@@ -213,7 +306,8 @@ class Composer:
         ConfigLoaderImpl._apply_overrides_to_config([o for o in parsed if self._plain(o)], cfg)
         hydra_lines = [o.input_line for o in parsed if o.is_hydra_override()]
         task = [o for o in parsed if not o.is_hydra_override()]
-        fixed = list(cfg.hydra.overrides.hydra)[:len(cfg.hydra.overrides.hydra) - len(hydra_lines)]
+        lines = OmegaConf.to_container(cfg.hydra.overrides.hydra, resolve=False)  # a line may hold ${...}
+        fixed = lines[:len(lines) - len(hydra_lines)]
         cfg.hydra.overrides.hydra = fixed + hydra_lines
         cfg.hydra.overrides.task = [o.input_line for o in task]
         dirname = cfg.hydra.job.config.override_dirname
@@ -231,17 +325,51 @@ class PlannedConfigs:
     launchers that compose in their workers (joblib, submitit, ray) get it too."""
 
     def __init__(self, loader, configs: dict[tuple[str, ...], Any]):
-        self._loader = loader
+        self.wrapped = loader.wrapped if isinstance(loader, PlannedConfigs) else loader
         self._configs = configs
 
     def load_sweep_config(self, master_config, sweep_overrides):
         config = self._configs.pop(tuple(sweep_overrides), None)
-        return config if config is not None else self._loader.load_sweep_config(master_config, sweep_overrides)
+        return config if config is not None else self.wrapped.load_sweep_config(master_config, sweep_overrides)
 
     def __getattr__(self, name: str):
-        if name.startswith("_"):
+        if name.startswith("_") or name == "wrapped":
             raise AttributeError(name)
-        return getattr(self._loader, name)
+        return getattr(self.wrapped, name)
+
+
+def _batches(nums: list[int], size: Optional[int]) -> list[tuple[int, int]]:
+    """``[start, stop)`` index ranges of ``nums`` for the launcher calls: at most ``size``
+    jobs each and consecutive job numbers only (a launcher numbers a call's jobs from its
+    first one, so a resumed sweep's jobs keep their ``hydra.job.num``)."""
+    ranges, start = [], 0
+    for i in range(1, len(nums) + 1):
+        if i == len(nums) or nums[i] != nums[i - 1] + 1 or (size and i - start == size):
+            ranges.append((start, i))
+            start = i
+    return ranges
+
+
+def _quoted(text: str) -> str:
+    """``text`` as one quoted value of a Hydra override."""
+    return "'" + text.replace("\\", "\\\\").replace("'", "\\'") + "'"
+
+
+def _check_dirs(jobs: list[dict], pattern: str) -> None:
+    """SweepError when a job's directory is empty, outside the sweep directory or another
+    job's: the manifest, the table and resume need one directory per job."""
+    seen: dict[str, str] = {}
+    for job in jobs:
+        where = os.path.normpath(job["dir"])
+        if not job["dir"] or where == "." or os.path.isabs(where) or where.split(os.sep)[0] == "..":
+            raise SweepError(f"error: hydra.sweep.subdir={pattern}: job {job['job']} gets directory "
+                             f"{job['dir']!r}, not one inside hydra.sweep.dir; use a relative pattern such as "
+                             "${hydra.job.num} or ${hydra.job.override_dirname}")
+        if where in seen:
+            raise SweepError(f"error: hydra.sweep.subdir={pattern}: jobs {seen[where]} and {job['job']} both get "
+                             f"directory {job['dir']!r}; use a pattern that differs per job, e.g. with "
+                             "${hydra.job.num}")
+        seen[where] = job["job"]
 
 
 def _clear(job_dir: Path) -> None:

@@ -8,8 +8,10 @@ one row per *planned* job — ``ok``, ``failed``, ``killed``, ``missing`` (never
 no metrics) or ``stale`` — so a killed sweep never looks complete; without one (another
 sweeper, an older sweep, ``outputs/runs``) one row per job directory.
 
-Columns: ``job``, the overridden keys, ``status``, ``error``, the metrics (in the order
-the jobs wrote them), ``result`` (the job's ``result.h5`` — or its journal
+Columns: ``job``, the overridden keys as written (``app.dt``, ``boundary``), ``status``,
+``error``, the metrics (in the order the jobs wrote them; ``metric.<name>`` for a metric
+named like a config root key or group, e.g. vector_field's ``metric.boundary``:
+:func:`metric_column`), ``result`` (the job's ``result.h5`` — or its journal
 ``result.h5.partial`` when it was killed — relative to the sweep directory; empty when
 there is none). Integer metrics stay integers when a row lacks them (pandas ``Int64``).
 
@@ -23,19 +25,21 @@ import io
 import math
 import os
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Collection, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
 import yaml
+from hydra.core.override_parser.overrides_parser import OverridesParser
 
 from decrun.runner.atomic import write_text_atomic
-from decrun.runner.sweep.manifest import job_state, read_manifest
+from decrun.runner.sweep.manifest import job_dir_name, job_state, read_manifest
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
 
 LEADING = ("job", "status", "error")
+_PARSER = OverridesParser.create()
 #: columns :func:`select` never drops as constant
 KEPT = ("sweep", "job", "status")
 
@@ -58,21 +62,44 @@ def _job_dirs(sweep_dir: Path) -> list[Path]:
 
 
 def parse_overrides(items: Iterable[str]) -> dict[str, Any]:
-    """``["app.dt=0.1", "+x=a", "hydra.foo=1"]`` → ``{"app.dt": 0.1, "x": "a"}``: values
-    parsed as YAML scalars (lists and dicts kept as text); Hydra's own keys left out."""
+    """``["app.dt=1e-3", "+x=a", "hydra.foo=1"]`` → ``{"app.dt": 0.001, "x": "a"}``: each
+    override read by Hydra's own parser (values typed as Hydra types them; lists and dicts
+    kept as the text written), Hydra's own keys left out, a deletion ``~key`` → None."""
     out: dict[str, Any] = {}
-    for item in items:
-        key, _, value = str(item).partition("=")
-        key = key.lstrip("+~")
-        if key.startswith("hydra.") or key.startswith("hydra/"):
+    for override in _PARSER.parse_overrides([str(item) for item in items]):
+        if override.is_hydra_override():
             continue
-        try:
-            out[key] = yaml.safe_load(value)
-        except yaml.YAMLError:
-            out[key] = value
-        if isinstance(out[key], (list, dict)):
-            out[key] = value
+        value = override.value() if override.value_type is not None else None
+        if isinstance(value, (list, dict)):
+            value = override.input_line.partition("=")[2]
+        out[override.key_or_group] = value
     return out
+
+
+def metric_column(name: str, reserved: Collection[str]) -> str:
+    """The column of a metric: its name, or ``metric.<name>`` when the name is ``reserved``
+    (:func:`reserved_names`: a possible override column, e.g. ``boundary`` — vector_field
+    reports the boundary adaptation it used — or one of the table's own columns). Override
+    columns are the config keys as written (``app.dt``, ``boundary``), so the two never
+    share a column."""
+    return f"metric.{name}" if name in reserved else name
+
+
+def reserved_names(sweep_dir: Path, override_keys: Iterable[str] = ()) -> frozenset[str]:
+    """Names a metric column must not take in this sweep's table: the table's own columns,
+    the sweep's override columns, and every root key and chosen config group of the sweep's
+    config (from its ``multirun.yaml``: the same in every decrun sweep, so a metric keeps its
+    column from one sweep to the next)."""
+    names = {"job", "sweep", "result", *override_keys}
+    path = Path(sweep_dir) / "multirun.yaml"
+    if path.is_file():
+        try:
+            config = yaml.safe_load(path.read_text()) or {}
+        except yaml.YAMLError:
+            config = {}
+        choices = ((config.get("hydra") or {}).get("runtime") or {}).get("choices") or {}
+        names.update(key for key in [*config, *choices] if key != "hydra" and not str(key).startswith("hydra/"))
+    return frozenset(names)
 
 
 def _overrides(job: Path) -> dict[str, Any]:
@@ -82,10 +109,10 @@ def _overrides(job: Path) -> dict[str, Any]:
     return parse_overrides(yaml.safe_load(path.read_text()) or [])
 
 
-def _result_path(sweep_dir: Path, job: str) -> str:
+def _result_path(sweep_dir: Path, job_dir: str) -> str:
     for name in ("result.h5", "result.h5.partial"):
-        if (sweep_dir / job / name).is_file():
-            return f"{job}/{name}"
+        if (sweep_dir / job_dir / name).is_file():
+            return f"{Path(job_dir).as_posix()}/{name}"
     return ""
 
 
@@ -100,25 +127,29 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
     if not sweep_dir.is_dir():
         raise FileNotFoundError(f"sweep directory {str(sweep_dir)!r} does not exist")
     manifest = read_manifest(sweep_dir)
-    planned: list[tuple[str, dict, str | None]] = []  # (job, overrides, hash)
+    planned: list[tuple[str, str, dict, str | None]] = []  # (job, its directory, overrides, hash)
     if manifest is not None:
-        planned = [(j["job"], parse_overrides(j["overrides"]), j["config_hash"]) for j in manifest["jobs"]]
-    known = {name for name, _, _ in planned}
-    planned += [(p.name, _overrides(p), None) for p in _job_dirs(sweep_dir) if p.name not in known]
-    rows, override_keys, metric_keys = [], [], []
-    for name, overrides, expected in planned:
-        job_dir = sweep_dir / name
+        planned = [(j["job"], job_dir_name(j), parse_overrides(j["overrides"]), j["config_hash"])
+                   for j in manifest["jobs"]]
+    known = {os.path.normpath(where) for _, where, _, _ in planned}
+    planned += [(p.name, p.name, _overrides(p), None) for p in _job_dirs(sweep_dir) if p.name not in known]
+    override_keys = list(dict.fromkeys(key for _, _, overrides, _ in planned for key in overrides))
+    reserved = reserved_names(sweep_dir, override_keys)
+    rows, metric_keys = [], []
+    for name, where, overrides, expected in planned:
+        job_dir = sweep_dir / where
         metrics = job_state(job_dir, expected)
         if expected is None and job_dir.is_dir():
             overrides = _overrides(job_dir) or overrides
         for key in overrides:
             if key not in override_keys:
                 override_keys.append(key)
+        metrics = {key if key in LEADING else metric_column(key, reserved): value for key, value in metrics.items()}
         for key in metrics:
             if key not in metric_keys and key not in LEADING:
                 metric_keys.append(key)
-        rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, name)})
-    columns = ["job", *override_keys, "status", "error", *[k for k in metric_keys if k != "result"], "result"]
+        rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, where)})
+    columns = ["job", *override_keys, "status", "error", *metric_keys, "result"]
     return _typed(pd.DataFrame(rows, columns=columns), rows)
 
 

@@ -7,6 +7,7 @@ from typing import List
 
 import numpy as np
 
+from decrun.core.connectivity import drop_unreferenced
 from decrun.errors import ConfigError, MeshError
 from decrun.runner.mesh.base import MAX_TRIANGLES, Mesh, require, require_triangles
 from decrun.runner.mesh.source import MeshSource
@@ -156,9 +157,5 @@ class Planar(MeshSource):
         if len(faces) == 0:
             raise MeshError("mesh.source=planar: triangle produced no triangles")
         # triangle lists the input points first; drop any it left unused (e.g. inside holes)
-        used = np.zeros(len(vertices), dtype=bool)
-        used[faces.ravel()] = True
-        if not used.all():
-            remap = np.cumsum(used) - 1
-            vertices, faces = vertices[used], remap[faces]
+        vertices, faces, _ = drop_unreferenced(vertices, faces)
         return Mesh(vertices, faces, {"source": "planar", "label": f"planar{len(holes)}h"})

@@ -1,0 +1,438 @@
+"""The checks a :class:`~decrun.core.complex.SimplicialComplex` runs while it is built.
+
+Plain functions of arrays, run in the order of
+:func:`decrun.core.complex.construction.build`: the input arrays (indices in range, no
+repeated vertex, finite coordinates, every vertex used), degenerate top simplices,
+(n-1)-faces in more than two top simplices and duplicates, consistent orientation
+(§2.3.4) and the vertex stars (Fig. 2.11–2.12). Each raises a :class:`decrun.errors.MeshError`
+subclass that names the offending simplices; nothing is repaired silently (``orient="fix"``
+and ``unreferenced="drop"`` are the caller's explicit choices).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from decrun.core import jit
+from decrun.core.simplex_arrays import sorted_rows_and_parity, unique_rows, vertex_volumes
+from decrun.errors import (
+    DegenerateSimplexError,
+    DuplicateSimplexError,
+    IndexOutOfRangeError,
+    MeshError,
+    NonFiniteCoordinateError,
+    NonManifoldError,
+    NonOrientableError,
+    OrientationError,
+    RepeatedVertexError,
+    UnreferencedVertexError,
+)
+
+__all__ = ["FacetPairs", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
+           "fans_per_vertex", "fans_per_vertex_surface", "facet_pairs_numpy", "inconsistent_facets", "fans_per_vertex_general", "simplex_name", "plural",
+           "name_indices"]
+
+MAX_LISTED = 8  # how many offending simplices an error message names
+_SIMPLEX_NAMES = {0: "vertex", 1: "edge", 2: "triangle", 3: "tetrahedron"}
+_PLURALS = {"vertex": "vertices", "tetrahedron": "tetrahedra"}
+
+
+def name_indices(indices, what: str) -> str:
+    """'triangles 3, 7 (and 12 more)' — the first offending indices for an error message."""
+    indices = np.asarray(indices).ravel()
+    shown = ", ".join(str(int(i)) for i in indices[:MAX_LISTED])
+    more = f" (and {indices.size - MAX_LISTED} more)" if indices.size > MAX_LISTED else ""
+    return f"{plural(what) if indices.size > 1 else what} {shown}{more}"
+
+
+def plural(name: str) -> str:
+    """'vertex' → 'vertices', 'edge' → 'edges'."""
+    return _PLURALS.get(name, name + "s")
+
+
+def simplex_name(j: int) -> str:
+    """'vertex', 'edge', 'triangle', 'tetrahedron' or 'j-simplex'."""
+    return _SIMPLEX_NAMES.get(j, f"{j}-simplex")
+
+
+# ---------------------------------------------------------------- input arrays
+def checked_input(vertices, simplices, unreferenced: str):
+    """Validated arrays: (vertices (n0, d) float64, the (m, n+1) int64 simplices with sorted
+    rows (input order), the parity (m,) int8 of each input row vs its sorted one,
+    original_vertex_index (n0,)). Unused vertices raise, or are dropped
+    (``unreferenced="drop"``) with indices renumbered."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    simplices = np.asarray(simplices)
+    if vertices.ndim != 2 or vertices.shape[0] == 0:
+        raise MeshError(f"vertices must be a non-empty (n, d) array, got shape {vertices.shape}")
+    if simplices.ndim != 2 or simplices.shape[0] == 0 or simplices.shape[1] < 2:
+        raise MeshError(f"simplices must be a non-empty (m, k+1) array with k >= 1, got shape {simplices.shape}")
+    if not np.issubdtype(simplices.dtype, np.integer):
+        if not np.all(np.equal(np.mod(simplices, 1), 0)):
+            raise MeshError("simplices must hold integer vertex indices")
+    simplices = simplices.astype(np.int64)
+    n = simplices.shape[1] - 1
+    if vertices.shape[1] < n:
+        raise MeshError(f"a {n}-dimensional complex needs vertices in at least {n} dimensions, "
+                        f"got {vertices.shape[1]}")
+    top_sorted, parity, smallest, largest, repeated = sorted_rows_and_parity(simplices)
+    if smallest < 0 or largest >= vertices.shape[0] or repeated:
+        _check_indices(vertices.shape[0], simplices, top_sorted, n)
+    bad = ~np.isfinite(vertices).all(axis=1)
+    if bad.any():
+        raise NonFiniteCoordinateError(f"{name_indices(np.flatnonzero(bad), 'vertex')} has NaN or infinite coordinates")
+    original = np.arange(vertices.shape[0])
+    used = np.zeros(vertices.shape[0], dtype=bool)
+    used[top_sorted.ravel()] = True
+    if not used.all():
+        unused = np.flatnonzero(~used)
+        if unreferenced == "error":
+            raise UnreferencedVertexError(
+                f"{name_indices(unused, 'vertex')} {'is' if unused.size == 1 else 'are'} used by no "
+                f"{simplex_name(n)}", python_hint="pass unreferenced='drop' to remove them"
+            )
+        new_index = np.cumsum(used) - 1
+        top_sorted = new_index[top_sorted]  # monotone: rows stay sorted, parities unchanged
+        vertices, original = vertices[used], np.flatnonzero(used)
+    return vertices, top_sorted, parity, original
+
+
+def _check_indices(nv: int, simplices: np.ndarray, s: np.ndarray, n: int) -> None:
+    """Indices in range and no repeated vertex; ``s`` is ``simplices`` with sorted rows."""
+    if not (s[:, 0].min() >= 0 and s[:, -1].max() < nv):
+        out = (simplices < 0) | (simplices >= nv)
+        rows = np.flatnonzero(out.any(axis=1))
+        raise IndexOutOfRangeError(
+            f"{name_indices(rows, simplex_name(n))} reference vertex indices outside 0..{nv - 1} "
+            f"(e.g. {int(simplices[out][0])})"
+        )
+    repeated = np.flatnonzero((s[:, 1:] == s[:, :-1]).any(axis=1))
+    if repeated.size:
+        raise RepeatedVertexError(
+            f"{name_indices(repeated, simplex_name(n))} list the same vertex twice "
+            f"(e.g. {simplices[repeated[0]].tolist()})"
+        )
+
+
+# ---------------------------------------------------------------- top simplices
+def check_degenerate(vertices: np.ndarray, top: np.ndarray, tol: float) -> np.ndarray:
+    """(m,) unsigned volumes of the top simplices; raises when one is below ``tol`` × the mean."""
+    n = top.shape[1] - 1
+    volumes = vertex_volumes(vertices, top)
+    bad = volumes <= tol * volumes.mean()
+    if bad.any():
+        raise DegenerateSimplexError(
+            f"{name_indices(np.flatnonzero(bad), simplex_name(n))} {'has' if bad.sum() == 1 else 'have'} zero volume "
+            f"(below {tol:g} × the mean {simplex_name(n)} volume {volumes.mean():.3g})"
+        )
+    return volumes
+
+
+class FacetPairs(NamedTuple):
+    """The interior (n-1)-faces and the two top simplices sharing each: ``facet`` indices into
+    ``simplices(n-1)``; ``first``/``second`` the top simplices (input order of the pair);
+    ``first_slot``/``second_slot`` the facet's column in their rows of ``top_face_indices(n-1)``
+    (column c omits sorted vertex n - c)."""
+
+    facet: np.ndarray
+    first: np.ndarray
+    second: np.ndarray
+    first_slot: np.ndarray
+    second_slot: np.ndarray
+
+
+def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: np.ndarray,
+                check_manifold: bool) -> FacetPairs:
+    """The facet pairs from the facet groups (``order``/``starts`` of the grouped facet slots
+    ``(n+1)·t + c``); raises on duplicate top simplices and, with ``check_manifold``, on facets
+    in more than two top simplices."""
+    n = top.shape[1] - 1
+    counts = np.diff(starts)
+    over = np.flatnonzero(counts > 2)
+    if over.size:
+        _check_duplicates(top)
+        if check_manifold:
+            facet_slots = order[np.concatenate([np.arange(starts[g], starts[g + 1]) for g in over[:3]])]
+            owners = np.unique(facet_slots // (n + 1))
+            tuples = facets[over[:3]].tolist()
+            raise NonManifoldError(
+                f"non-manifold: {name_indices(over, simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
+                f"{plural(simplex_name(n))} (e.g. {name_indices(owners, simplex_name(n))})"
+            )
+    if jit.enabled(order.shape[0]):
+        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top))
+        index_type = np.int32 if pairs[1].size and top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
+        pairs = FacetPairs(pairs[0], *(a.astype(index_type) for a in pairs[1:]))
+    else:
+        pairs, suspect = facet_pairs_numpy(order, starts, top)
+    if suspect:
+        _check_duplicates(top)
+    return pairs
+
+
+def facet_pairs_numpy(order: np.ndarray, starts: np.ndarray, top: np.ndarray) -> tuple[FacetPairs, bool]:
+    """The numpy twin of :func:`_facet_pairs_kernel`: (pairs of the facets in exactly two top
+    simplices, whether two of them have the same vertex opposite a shared facet — duplicates)."""
+    n = top.shape[1] - 1
+    counts = np.diff(starts)
+    interior = np.flatnonzero(counts == 2)
+    first, second = order[starts[interior]], order[starts[interior] + 1]
+    index_type = np.int32 if first.size and max(first.max(), second.max()) < 2**31 - 1 else np.int64
+    first, second = first.astype(index_type), second.astype(index_type)
+    width = index_type(n + 1)
+    pairs = FacetPairs(interior, first // width, second // width, first % width, second % width)
+    # Two simplices sharing a facet are duplicates iff their vertices opposite it agree
+    # (facet column c of combinations(range(n+1), n) omits sorted vertex n - c).
+    suspect = bool(np.any(top[pairs.first, n - pairs.first_slot] == top[pairs.second, n - pairs.second_slot]))
+    return pairs, suspect
+
+
+@jit.njit
+def _facet_pairs_kernel(order, starts, top):
+    """One pass over the facet groups: the pairs of :func:`facet_pairs_numpy` (int64) and the
+    duplicate suspicion."""
+    width = top.shape[1]
+    n = width - 1
+    groups = starts.shape[0] - 1
+    count = 0
+    for g in range(groups):
+        if starts[g + 1] - starts[g] == 2:
+            count += 1
+    interior = np.empty(count, np.int64)
+    first = np.empty(count, np.int64)
+    second = np.empty(count, np.int64)
+    first_slot = np.empty(count, np.int64)
+    second_slot = np.empty(count, np.int64)
+    suspect = False
+    p = 0
+    for g in range(groups):
+        if starts[g + 1] - starts[g] != 2:
+            continue
+        a, b = order[starts[g]], order[starts[g] + 1]
+        interior[p] = g
+        first[p], first_slot[p] = a // width, a % width
+        second[p], second_slot[p] = b // width, b % width
+        if top[first[p], n - first_slot[p]] == top[second[p], n - second_slot[p]]:
+            suspect = True
+        p += 1
+    return (interior, first, second, first_slot, second_slot), suspect
+
+
+def _check_duplicates(top: np.ndarray) -> None:
+    n = top.shape[1] - 1
+    _, inverse = unique_rows(top)
+    counts = np.bincount(inverse)
+    dup = np.flatnonzero(counts[inverse] > 1)
+    if dup.size:
+        raise DuplicateSimplexError(f"{name_indices(dup, simplex_name(n))} repeat the same vertices")
+
+
+def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int) -> np.ndarray:
+    """(m,) int8 consistent orientation of the n-dimensional top simplices, by the δ_n column
+    test (§2.3.4).
+
+    ``parity`` is the orientation of the input tuples; ``mode="check"`` returns it when it is
+    consistent and raises :class:`OrientationError` otherwise; ``"fix"`` re-orients each
+    connected component, keeping the orientation most of its simplices had. Non-orientable
+    input raises :class:`NonOrientableError` either way.
+    """
+    _, t0, t1, l0, l1 = pairs
+    m = parity.shape[0]
+    if jit.enabled(t0.shape[0]) and _consistent_kernel(t0, t1, l0, l1, parity):
+        return parity
+    bad = inconsistent_facets(pairs, parity)
+    if not bad.any():
+        return parity
+    # Signed graph 2-colouring on the doubled graph: node t (keep) and t+m (flip).
+    same = ~bad  # already consistent: both keep or both flip
+    rows = np.concatenate([t0[same], t0[same] + m, t0[bad], t0[bad] + m])
+    cols = np.concatenate([t1[same], t1[same] + m, t1[bad] + m, t1[bad]])
+    graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(2 * m, 2 * m))
+    _, label = connected_components(graph, directed=False)
+    contradiction = np.flatnonzero(label[:m] == label[m:])
+    if contradiction.size:
+        raise NonOrientableError(
+            f"the mesh is not orientable (like a Möbius strip): no consistent orientation exists for "
+            f"{name_indices(contradiction, simplex_name(n))}"
+        )
+    if mode == "check":
+        listed = np.stack([t0[bad], t1[bad]], axis=1)[:MAX_LISTED].tolist()
+        raise OrientationError(
+            f"inconsistent orientation: {int(bad.sum())} {simplex_name(n - 1)}(s) are traversed in the same "
+            f"direction by both neighbouring {plural(simplex_name(n))}, e.g. {simplex_name(n)} pairs {listed} "
+            f"(§2.3.4)", python_hint="pass orient='fix' to re-orient each connected component"
+        )
+    # Choose per original component the coloring where most simplices keep their orientation.
+    _, component = connected_components(sp.coo_matrix((np.ones(t0.size), (t0, t1)), shape=(m, m)), directed=False)
+    root = np.full(component.max() + 1, m, dtype=np.int64)
+    np.minimum.at(root, component, np.arange(m))
+    keep = label[:m] == label[root[component]]  # same colour as the root keeping orientation
+    keep_count = np.bincount(component, weights=keep, minlength=root.size)
+    size = np.bincount(component, minlength=root.size)
+    flip_component = keep_count < size / 2
+    keep = keep ^ flip_component[component]
+    return np.where(keep, parity, -parity).astype(np.int8)
+
+
+def inconsistent_facets(pairs: FacetPairs, parity: np.ndarray) -> np.ndarray:
+    """(p,) bool: the interior facets both of whose top simplices induce the same orientation
+    on them (the numpy twin of :func:`_consistent_kernel`)."""
+    _, t0, t1, l0, l1 = pairs
+    # Entry of δ_n for the facet in each simplex: (-1)^l * orientation. Consistent iff opposite.
+    s0 = np.where(l0 % 2 == 0, 1, -1) * parity[t0]
+    s1 = np.where(l1 % 2 == 0, 1, -1) * parity[t1]
+    return s0 == s1
+
+
+@jit.njit
+def _consistent_kernel(first, second, first_slot, second_slot, parity):
+    """True when no interior facet is inconsistent (see :func:`inconsistent_facets`)."""
+    for p in range(first.shape[0]):
+        s0 = parity[first[p]] if first_slot[p] % 2 == 0 else -parity[first[p]]
+        s1 = parity[second[p]] if second_slot[p] % 2 == 0 else -parity[second[p]]
+        if s0 == s1:
+            return False
+    return True
+
+
+# ---------------------------------------------------------------- vertex stars
+def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndarray, pairs: FacetPairs,
+                       n_vertices: int) -> None:
+    """Each vertex star must be one fan of top simplices glued along facets (Fig. 2.11–2.12).
+
+    A vertex whose incident top simplices fall into more than one group connected across
+    shared facets (a bowtie / wheel) has no ball or half-ball neighbourhood. For n = 2
+    (with manifold edges) this test is exact; for n = 3 it finds pinched vertices but
+    not every exotic link. Runs after :func:`orient` (the orientation is consistent).
+    """
+    n = top.shape[1] - 1
+    if n < 2:
+        return
+    fans = fans_per_vertex(top, facets, orientation, pairs, n_vertices)
+    bad = np.flatnonzero(fans > 1)
+    if bad.size:
+        raise NonManifoldError(
+            f"non-manifold {name_indices(bad, 'vertex')}: the {plural(simplex_name(n))} around "
+            f"{'it' if bad.size == 1 else 'each'} form {int(fans[bad[0]])} separate fans, not one disk or "
+            f"half-disk (a 'bowtie'/'wheel', Fig. 2.11)"
+        )
+
+
+def fans_per_vertex(top, facets, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
+    """(n0,) int64 number of fans (top simplices connected across shared facets) around each
+    vertex: the compiled :func:`_fans_kernel`, or its numpy twins when ``DECRUN_NUMBA=0``."""
+    if jit.enabled(top.shape[0]):
+        return _fans_kernel(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
+                            pairs.second_slot, n_vertices)
+    if top.shape[1] == 3:
+        return fans_per_vertex_surface(top, orientation, pairs, n_vertices)
+    return fans_per_vertex_general(top, facets, pairs, n_vertices)
+
+
+@jit.njit
+def _fans_kernel(top, first, second, first_slot, second_slot, n_vertices):
+    """Compiled twin of :func:`fans_per_vertex_surface` / :func:`fans_per_vertex_general`.
+
+    Union–find over the corners ``(n+1)·t + i``: across every interior facet the corners of
+    its n shared vertices are joined; the fans of a vertex are its corners' distinct roots.
+    """
+    m, width = top.shape
+    n = width - 1
+    parent = np.arange(m * width)
+    for p in range(first.shape[0]):
+        t0, t1 = first[p], second[p]
+        skip0, skip1 = n - first_slot[p], n - second_slot[p]  # the vertex opposite the facet
+        i0 = 0
+        i1 = 0
+        for _ in range(n):  # the shared vertices, in sorted order in both simplices
+            if i0 == skip0:
+                i0 += 1
+            if i1 == skip1:
+                i1 += 1
+            a = t0 * width + i0
+            while parent[a] != a:
+                parent[a] = parent[parent[a]]
+                a = parent[a]
+            b = t1 * width + i1
+            while parent[b] != b:
+                parent[b] = parent[parent[b]]
+                b = parent[b]
+            if a < b:
+                parent[b] = a
+            elif b < a:
+                parent[a] = b
+            i0 += 1
+            i1 += 1
+    fans = np.zeros(n_vertices, np.int64)
+    for corner in range(m * width):
+        if parent[corner] == corner:
+            fans[top[corner // width, corner % width]] += 1
+    return fans
+
+
+def fans_per_vertex_surface(top, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
+    """Number of triangle fans around each vertex of an oriented edge-manifold surface.
+
+    Corner (t, i) steps to the corner of the same vertex in the triangle across the edge
+    leaving it in t's orientation; fans are the orbits of this step (paths at border
+    vertices, cycles inside). Orbits are counted by pointer jumping, O(m log valence).
+    """
+    m = top.shape[0]
+    _, t0, t1, l0, l1 = pairs
+    # partner[3t + s]: the edge slot (3t' + s') across edge slot s of triangle t, or -1
+    partner = np.full(3 * m, -1, dtype=np.int32)
+    slot0 = (3 * t0 + l0).astype(np.int32)
+    slot1 = (3 * t1 + l1).astype(np.int32)
+    partner[slot0] = slot1
+    partner[slot1] = slot0
+    # Corner i of a sorted triangle leaves along the edge to its successor in the
+    # triangle's orientation. Edge slots are (0,1)->0, (0,2)->1, (1,2)->2.
+    positive = (orientation > 0)[:, None]
+    leaving_slot = np.where(positive, np.array([0, 2, 1], dtype=np.int32), np.array([1, 0, 2], dtype=np.int32))
+    smaller = np.where(positive, np.array([1, 1, 0], dtype=np.int32), np.array([1, 0, 0], dtype=np.int32))
+    corner = np.arange(3 * m, dtype=np.int32)
+    across = partner[(corner - corner % 3) + leaving_slot.ravel()]
+    del partner, leaving_slot
+    # position of our vertex in the triangle across: it is the smaller (or larger) vertex of the
+    # shared edge there too; table[smaller][slot] gives that sorted position.
+    position_table = np.array([1, 2, 2, 0, 0, 1], dtype=np.int32)  # larger: 1,2,2 ; smaller: 0,0,1
+    moving = across >= 0
+    following = np.where(
+        moving, (across - across % 3) + position_table[3 * smaller.ravel() + across % 3], corner
+    ).astype(np.int32)
+    del across, smaller
+    # a corner has a predecessor iff some other corner steps to it (path ends step to themselves)
+    has_predecessor = np.zeros(3 * m, dtype=bool)
+    has_predecessor[following[moving]] = True
+    vertex = top.ravel()
+    valence = np.bincount(vertex, minlength=n_vertices)
+    # label = smallest corner id seen along the orbit, or -1 once the orbit reaches a path end
+    label = np.where(moving, corner, np.int32(-1))
+    jump = following
+    for _ in range(int(np.ceil(np.log2(max(int(valence.max()), 2))))):
+        np.minimum(label, label[jump], out=label)
+        jump = jump[jump]
+    root = ~has_predecessor | (label == corner)
+    return np.bincount(vertex[root], minlength=n_vertices)
+
+
+def fans_per_vertex_general(top, facets, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
+    """Fans per vertex for any n via connected components of the corner graph."""
+    m, width = top.shape
+    n = width - 1
+    facet, t0, t1, _, _ = pairs
+    facet_vertices = facets[facet]
+    rows, cols = [], []
+    for a in range(n):
+        v = facet_vertices[:, a]
+        rows.append(t0 * width + np.argmax(top[t0] == v[:, None], axis=1))
+        cols.append(t1 * width + np.argmax(top[t1] == v[:, None], axis=1))
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(m * width, m * width))
+    _, label = connected_components(graph, directed=False)
+    grouped = unique_rows(np.stack([top.ravel(), label], axis=1))[0]
+    return np.bincount(grouped[:, 0], minlength=n_vertices)

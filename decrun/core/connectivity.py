@@ -1,0 +1,78 @@
+"""Connectivity of simplex arrays: edge tables, edge owners, pieces, unused vertices.
+
+Plain ``(m, 3)`` triangle (or ``(m, k+1)`` simplex) index arrays in, arrays out — the one
+home of the helpers the mesh sources, post steps, hole cutters and methods share. A built
+:class:`~decrun.core.complex.SimplicialComplex` has these tables already
+(``simplices(1)``, ``top_face_indices(1)``, ``facet_indices(2)``); these serve arrays that
+are not (yet) a complex.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+__all__ = ["edge_table", "edge_owners", "largest_component", "drop_unreferenced"]
+
+
+def edge_table(faces: np.ndarray, n_vertices: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct edges of triangles and which edge each corner starts.
+
+    Parameters
+    ----------
+    faces : (m, 3) int vertex indices
+    n_vertices : number of vertices (default: ``faces.max() + 1``)
+
+    Returns
+    -------
+    edges : (e, 2) int64 sorted vertex pairs in lexicographic order
+    corner_edges : (m, 3) int64, entry ``[t, l]`` the index in ``edges`` of the edge from
+        corner l to corner l+1 (mod 3) of triangle t
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    n = int(faces.max()) + 1 if n_vertices is None else int(n_vertices)
+    end = np.roll(faces, -1, axis=1)
+    key = np.minimum(faces, end) * n + np.maximum(faces, end)
+    unique_key, inverse = np.unique(key.ravel(), return_inverse=True)
+    return np.column_stack([unique_key // n, unique_key % n]), inverse.reshape(faces.shape)
+
+
+def edge_owners(face_edges: np.ndarray, n_edges: int) -> tuple[np.ndarray, np.ndarray]:
+    """For every edge a triangle holding it: (owner (e,), slot (e,)) with
+    ``face_edges[owner[i], slot[i]] == i`` — the last such triangle in order; -1 for an edge no
+    triangle holds. ``face_edges`` (m, c) lists edge indices per triangle (e.g.
+    ``K.facet_indices(2)`` or ``K.top_face_indices(1)``)."""
+    face_edges = np.asarray(face_edges)
+    m, c = face_edges.shape
+    owner = np.full(n_edges, -1, dtype=np.int64)
+    slot = np.full(n_edges, -1, dtype=np.int64)
+    owner[face_edges.ravel()] = np.repeat(np.arange(m), c)
+    slot[face_edges.ravel()] = np.tile(np.arange(c), m)
+    return owner, slot
+
+
+def largest_component(faces: np.ndarray, n_vertices: int | None = None, through: str = "edges") -> np.ndarray:
+    """(m,) bool: the triangles of the largest piece (by triangle count; the first on a tie),
+    triangles joined across shared ``"edges"`` or shared ``"vertices"``."""
+    faces = np.asarray(faces, dtype=np.int64)
+    m = len(faces)
+    if through == "edges":
+        _, columns = edge_table(faces, n_vertices)
+    elif through == "vertices":
+        columns = faces
+    else:
+        raise ValueError(f"through must be 'edges' or 'vertices', not {through!r}")
+    incidence = sp.csr_matrix((np.ones(columns.size), (np.repeat(np.arange(m), columns.shape[1]), columns.ravel())))
+    _, label = connected_components(incidence @ incidence.T, directed=False)
+    return label == np.argmax(np.bincount(label))
+
+
+def drop_unreferenced(vertices: np.ndarray, simplices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices used by some simplex, simplices renumbered to them, (n,) bool mask of the
+    kept input vertices). Order is kept: kept vertex i is ``vertices[np.flatnonzero(used)[i]]``."""
+    simplices = np.asarray(simplices)
+    used = np.zeros(len(vertices), dtype=bool)
+    used[simplices.ravel()] = True
+    renumber = np.cumsum(used) - 1
+    return vertices[used], renumber[simplices], used

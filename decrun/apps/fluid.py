@@ -26,9 +26,9 @@ import numpy as np
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.core.choices import Choice
-from decrun.errors import ConfigError, TopologyError
+from decrun.errors import ConfigError
 
-INITIAL = ("zero", "rotation", "vortex_pair", "random")
+INITIAL = ("zero", "rotation", "vortex_pair", "random", "mesh_field")
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
 
@@ -64,7 +64,7 @@ class Fluid(App):
     t_end: Optional[float] = None  # if set: steps = ceil(t_end / dt)
     viscosity: float = 0.03  # ν (mesh units² / s)
     inflow: List[float] = field(default_factory=list)  # uniform velocity on the outer border ([] : none)
-    initial: str = "zero"  # zero | rotation | vortex_pair | random
+    initial: str = "zero"  # zero | rotation | vortex_pair | random | mesh_field (mesh=result mesh.field=...)
     initial_strength: float = 1.0  # Ω (rotation), Γ (vortex_pair), max |w| (random)
     vortex_separation_deg: float = 60.0  # vortex_pair: angular distance on the unit sphere
     vortex_radius: float = 0.15  # vortex_pair: blob radius
@@ -118,8 +118,6 @@ class Fluid(App):
         return int(math.ceil(self.t_end / self.dt - 1e-9)) if self.t_end is not None else int(self.steps)
 
     def check(self, K, dec) -> None:
-        if K.dim != 2:
-            raise TopologyError(f"app=fluid needs a triangle mesh (dimension 2), got dimension {K.dim}")
         closed = K.border_faces()[0].size == 0
         if self.inflow and closed:
             raise ConfigError("app.inflow: a closed surface has no border to flow in through; use app.inflow=[]")
@@ -132,6 +130,9 @@ class Fluid(App):
             except ConfigError as error:
                 raise ConfigError(f"{error}; give strokes in the mesh's coordinates or drop them with app.stirs=[]") \
                     from None
+        if self.initial == "mesh_field" and "field" not in getattr(K, "meta", {}):
+            raise ConfigError("app.initial=mesh_field: the mesh carries no field; chain a previous run with "
+                              "mesh=result mesh.path=<run>/result.h5 mesh.field=<name> (e.g. omega of app=vector_field)")
         if self.initial in ("rotation", "vortex_pair") and not closed:
             raise ConfigError(f"app.initial={self.initial} is defined on the unit sphere; use app.initial=random "
                               "or zero on domains with borders")
@@ -154,7 +155,7 @@ class Fluid(App):
         from decrun.methods.fluid.simulation import VorticityFluid
 
         K, dec = ctx.complex, ctx.dec
-        w0 = self._initial_vorticity(dec, initial_vorticity)
+        w0 = self._initial_vorticity(dec, initial_vorticity, ctx.meta)
         fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
                                inflow_velocity=list(self.inflow) or None, initial_vorticity=w0,
                                velocity=self.velocity, circulation=self.circulation,
@@ -224,7 +225,9 @@ class Fluid(App):
                                                     dict(name="vorticity", title="vorticity", **view))
         return Result(fields=fields, metrics=metrics, figures=figures)
 
-    def _initial_vorticity(self, dec, initial_vorticity) -> np.ndarray:
+    def _initial_vorticity(self, dec, initial_vorticity, meta=None) -> np.ndarray:
+        if self.initial == "mesh_field":
+            return vorticity_of_field(dec, (meta or {})["field"])
         if self.initial == "zero":
             return np.zeros(dec.K.num_simplices(0))
         if self.initial == "rotation":
@@ -234,3 +237,29 @@ class Fluid(App):
                                                         self.initial_strength, self.vortex_radius)
             return w
         return initial_vorticity.random_vorticity(dec, seed=self.seed, amplitude=self.initial_strength)
+
+
+def vorticity_of_field(dec, field: dict) -> np.ndarray:
+    """(n0,) initial vorticity from a field of a previous run (``mesh=result mesh.field=...``):
+    a per-vertex field is the vorticity itself; a circulation 1-form ω per edge (app=vector_field's
+    ``omega``, the line integrals of its tangent field u) gives by Stokes the exact integral of
+    curl u over each triangle, (d1 ω)_f, and the vorticity at a vertex is their mean over its
+    triangles, w_v = Σ_{f ∋ v} (d1 ω)_f / Σ_{f ∋ v} |f| (first-order accurate)."""
+    K = dec.K
+    values, where, name = np.asarray(field["values"], dtype=np.float64), field["on"], field["name"]
+    if where == "vertices":
+        if values.shape != (K.num_simplices(0),):
+            raise ConfigError(f"mesh.field={name}: a per-vertex vorticity needs one value per vertex, got {values.shape}")
+        return values
+    if where != "edges" or values.shape != (K.num_simplices(1),):
+        raise ConfigError(f"mesh.field={name}: the fluid starts from a per-vertex vorticity or a 1-form per edge "
+                          f"(a circulation, e.g. omega of app=vector_field), not a field on {where} of shape "
+                          f"{values.shape}")
+    if not np.array_equal(np.asarray(field["edges"]), K.simplices(1)):
+        raise ConfigError(f"mesh.field={name}: the stored edge list differs from this mesh's edges")
+    # ∫_f curl·N dA per triangle, N the complex's orientation (d1 = δ2ᵀ carries it for top simplices)
+    curl = dec.d(1) @ values
+    faces = K.simplices(2)
+    n0 = K.num_simplices(0)
+    area = np.bincount(faces.ravel(), weights=np.repeat(K.top_volumes, 3), minlength=n0)
+    return np.bincount(faces.ravel(), weights=np.repeat(curl, 3), minlength=n0) / area

@@ -26,7 +26,7 @@ from typing import Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, Figure, Result
-from decrun.errors import ConfigError, TopologyError
+from decrun.errors import ConfigError
 from decrun.methods.mean_curvature_flow import SCHEMES, MeanCurvatureFlow, enclosed_volume, surface_area
 
 RESCALE = ("auto", "volume", "area", "none")
@@ -69,8 +69,6 @@ class Smoothing(App):
             raise ConfigError(f"app.blowup_factor: must be > 1, got {self.blowup_factor}")
 
     def check(self, K, dec) -> None:
-        if K.dim != 2:
-            raise TopologyError(f"app=smoothing needs a triangle mesh (dimension 2), got dimension {K.dim}")
         closed = not bool(K.border_vertices().any())
         if self.rescale == "volume" and not (closed and K.embedding_dim == 3):
             raise ConfigError("app.rescale=volume needs a closed surface in 3-D; this mesh has a border "

@@ -31,7 +31,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.core.forms import whitney_sharp
 from decrun.core.geometry import embed3
-from decrun.errors import ConfigError, TopologyError
+from decrun.errors import ConfigError
 from decrun.methods.singularities import cluster_singularities, find_singularities
 from decrun.methods.vector_design import (
     MAGNITUDE_MODES,
@@ -142,10 +142,6 @@ class VectorField(App):
 # ----------------------------------------------------------------------------------
 # configuration helpers
 # ----------------------------------------------------------------------------------
-
-    def check(self, K, dec) -> None:
-        if K.dim != 2:
-            raise TopologyError(f"app=vector_field needs a triangle mesh (dimension 2), got dimension {K.dim}")
 
     def run(self, ctx: Context) -> Result:
         """Design the field (see :func:`_design` for fields and metrics)."""

@@ -12,6 +12,9 @@ CPU time of the process is the steadier number.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_fluid.py            # all cases
     OMP_NUM_THREADS=1 python benchmarks/bench_fluid.py --quick    # the two smallest spheres
+    OMP_NUM_THREADS=1 python benchmarks/bench_fluid.py --kernels numpy   # the numpy twins
+
+The numba kernels against the numpy path in one run: benchmarks/bench_fluid_kernels.py.
 """
 
 from __future__ import annotations
@@ -78,6 +81,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="only the 1.3k and 5k spheres")
     parser.add_argument("--seconds", type=float, default=3.0, help="time per case")
+    parser.add_argument("--kernels", choices=["numba", "numpy"], default="numba", help="VorticityFluid(kernels=...)")
     args = parser.parse_args()
     rows = []
     for subdiv in ([3, 4] if args.quick else [3, 4, 5, 6]):
@@ -86,14 +90,16 @@ def main() -> None:
         w0 = random_vorticity(dec, seed=0, amplitude=4.0)
         probe = VorticityFluid(dec, DirectSolver, dt=1.0, viscosity=0.0, initial_vorticity=w0)
         dt = mean_edge(dec) / np.linalg.norm(probe.triangle_velocities(), axis=1).max()  # CFL 1
-        rows.append(run(f"icosphere s{subdiv}", dec, args.seconds, dt=dt, viscosity=1e-3, initial_vorticity=w0))
+        rows.append(run(f"icosphere s{subdiv}", dec, args.seconds, dt=dt, viscosity=1e-3, initial_vorticity=w0,
+                        kernels=args.kernels))
         print(rows[-1], flush=True)
     if not args.quick:
         mesh = channel_mesh(target_faces=12000)
         dec = DEC(SimplicialComplex(mesh.vertices, mesh.faces))
         for dt, max_cfl in ((0.005, 1.0), (0.005, None), (0.0025, 1.0), (0.0025, None)):
             rows.append(run(f"channel dt={dt} max_cfl={max_cfl}", dec, args.seconds, dt=dt, viscosity=0.02,
-                            inflow_velocity=(10.0, 0.0), obstacle_loops=mesh.obstacle_loops, max_cfl=max_cfl))
+                            inflow_velocity=(10.0, 0.0), obstacle_loops=mesh.obstacle_loops, max_cfl=max_cfl,
+                            kernels=args.kernels))
             print(rows[-1], flush=True)
     print()
     print("| case | faces | dt | CFL | setup s | steps/s (wall) | ms/step (wall) | steps/s (CPU) | ms/step (CPU) "

@@ -110,6 +110,14 @@ MUTATIONS = [
              [("face_normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])  # length = 2 * area",
                "face_normal = np.cross(x[f[:, 2]] - x[f[:, 0]], x[f[:, 1]] - x[f[:, 0]])")],
              [["tests/runner/test_meshes.py"], REG_SMOOTHING]),
+    # ---------------------------------------------------------------- the fluid (issue 18)
+    Mutation("fluid force with the wrong sign", "decrun/methods/fluid/simulation.py",
+             [("w = w + self.dt * (self.d0T @", "w = w - self.dt * (self.d0T @")],
+             [["tests/methods/test_fluid.py"], ["tests/apps/test_fluid_app.py"]]),
+    Mutation("fluid keeps the mean vorticity on closed surfaces", "decrun/methods/fluid/simulation.py",
+             [("        if not self.closed:\n            return w\n        return w - (self.star0 @ w) / self.star0.sum()",
+               "        return w")],
+             [["tests/methods/test_fluid.py"], ["tests/apps/test_fluid_app.py"]]),
 ]
 
 

@@ -53,6 +53,18 @@ def random_planar(n_points: int = 120, seed: int = 0):
     return points, scipy.spatial.Delaunay(points).simplices.astype(np.int64)
 
 
+def jittered_lattice(nx: int = 12, ny: int = 10, jitter: float = 0.04, seed: int = 0):
+    """A parallelogram of equilateral triangles, interior vertices jittered (no obtuse angle):
+    (vertices (n, 2), faces)."""
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    points = np.stack([i + 0.5 * j, j * np.sqrt(3) / 2], -1).reshape(-1, 2).astype(float)
+    border = ((i == 0) | (j == 0) | (i == nx - 1) | (j == ny - 1)).ravel()
+    points += np.random.default_rng(seed).normal(scale=jitter, size=points.shape) * ~border[:, None]
+    a = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
+    faces = np.concatenate([np.stack([a, a + 1, a + nx], 1), np.stack([a + 1, a + nx + 1, a + nx], 1)])
+    return points, faces
+
+
 def random_tets(n_points: int = 80, seed: int = 0):
     """Delaunay tetrahedralization of random points in the unit cube."""
     points = np.random.default_rng(seed).random((n_points, 3))
@@ -135,3 +147,27 @@ def flux_through_circle(K: SimplicialComplex, omega: np.ndarray, center, radius:
     assert np.all(lam[np.arange(samples), face].min(axis=1) > -1e-12), "circle leaves the mesh"
     u = whitney_sharp(K, omega, barycentric=lam[np.arange(samples), face], faces=face)[:, :2]
     return float(np.sum(np.einsum("sd,sd->s", u, normal)) * 2 * np.pi * radius / samples)
+
+
+def square_lattice(n: int, jitter: float = 0.0, seed: int = 0):
+    """The unit square meshed from rows of near-equilateral triangles (side ≈ 1/n, every
+    other row offset by half a side, half triangles at the left and right walls), Delaunay
+    triangulated; interior vertices moved by up to ``jitter`` × the side (uniform per
+    coordinate). Returns (vertices (n0, 2), faces (m, 3))."""
+    from scipy.spatial import Delaunay
+
+    h = 1.0 / n
+    rows = int(round(1.0 / (h * np.sqrt(3) / 2)))
+    points = []
+    for j in range(rows + 1):
+        x = np.arange(n + 1) * h if j % 2 == 0 else np.concatenate([[0.0], (np.arange(n) + 0.5) * h, [1.0]])
+        points.append(np.stack([x, np.full(x.size, j / rows)], 1))
+    points = np.concatenate(points)
+    border = (points[:, 0] < 1e-12) | (points[:, 0] > 1 - 1e-12) | (points[:, 1] < 1e-12) | (points[:, 1] > 1 - 1e-12)
+    rng = np.random.default_rng(seed)
+    points = points + rng.uniform(-jitter * h, jitter * h, points.shape) * ~border[:, None]
+    faces = Delaunay(points).simplices.astype(np.int64)
+    a, b, c = (points[faces[:, i]] for i in range(3))
+    flip = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
+    faces[flip] = faces[flip][:, [0, 2, 1]]
+    return points, faces

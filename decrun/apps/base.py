@@ -32,7 +32,9 @@ import another application. They declare what they accept:
                     Delaunay: 0-forms only) is rejected before any work
 ``unsymmetric_systems``  why its linear systems are not SPD (empty when they are): cg and
                     amg are then rejected before any work
-``check(K, dec)``   further checks on the mesh before any work (topology, dimension)
+``dimensions``      the mesh dimensions the app runs on (2: triangle meshes, 3: tetrahedral
+                    ones); any other is a TopologyError before any work, naming the apps that do
+``check(K, dec)``   further checks on the mesh before any work (topology)
 
 Numerical blow-up is a result (``stable: false``), never an exception; bad input is a typed
 :class:`decrun.errors.DecrunError` naming the key. A metric that does not apply is absent,
@@ -48,7 +50,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from decrun.errors import ConfigError
+from decrun.errors import ConfigError, TopologyError
 
 __all__ = ["App", "Context", "Figure", "Result", "FieldOnEdges"]
 
@@ -101,6 +103,8 @@ class App:
     """Base of the applications (a dataclass; subclasses add their options as fields)."""
 
     name: ClassVar[str] = ""
+    #: mesh dimensions the app runs on (2: triangles, 3: tetrahedra)
+    dimensions: ClassVar[tuple[int, ...]] = (2,)
     boundaries: ClassVar[tuple[str, ...]] = ("none",)
     #: why other adaptations are not supported (appended to the error message)
     boundary_note: ClassVar[str] = ""
@@ -114,6 +118,20 @@ class App:
     diagonal_stars: ClassVar[str] = ""
     #: the metrics a sweep table shows by default (``decrun-table --all`` shows every one)
     headline_metrics: ClassVar[tuple[str, ...]] = ()
+
+    def check_dimension(self, K) -> None:
+        """TopologyError when ``K``'s dimension is not in ``dimensions`` (before any work), naming
+        the apps that run on it."""
+        if K.dim in self.dimensions:
+            return
+        kinds = {1: "a curve (dimension 1)", 2: "a triangle mesh (dimension 2)", 3: "a tetrahedral mesh (dimension 3)"}
+        wanted = " or ".join(kinds.get(d, f"dimension {d}") for d in self.dimensions)
+        if K.dim == 3:
+            fix = "use `app=spectrum` (app=hodge runs on tetrahedra too), or a surface mesh such as `mesh=icosphere`"
+        else:
+            fix = "use a mesh of that dimension"
+        raise TopologyError(f"app={self.name} runs on {wanted}, but this mesh is "
+                            f"{kinds.get(K.dim, f'of dimension {K.dim}')}; {fix}")
 
     def check(self, K, dec) -> None:
         """Raise a DecrunError when the mesh does not suit the app (before any work)."""

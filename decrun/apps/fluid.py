@@ -24,11 +24,21 @@ from typing import List, Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
-from decrun.errors import ConfigError, TopologyError
+from decrun.apps.surface_points import check_points_on_surface
+from decrun.core.choices import Choice
+from decrun.errors import ConfigError
 
-INITIAL = ("zero", "rotation", "vortex_pair", "random")
+INITIAL = ("zero", "rotation", "vortex_pair", "random", "mesh_field")
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
+
+
+class Kernels(Choice):
+    """``app.kernels``: ``numba`` (compiled loops, decrun/methods/fluid/compiled.py) or ``numpy``
+    (their reference twins); both give the same run, bit for bit."""
+
+    numba = "numba"
+    numpy = "numpy"
 
 
 @dataclass
@@ -55,15 +65,21 @@ class Fluid(App):
     t_end: Optional[float] = None  # if set: steps = ceil(t_end / dt)
     viscosity: float = 0.03  # ν (mesh units² / s)
     inflow: List[float] = field(default_factory=list)  # uniform velocity on the outer border ([] : none)
-    initial: str = "zero"  # zero | rotation | vortex_pair | random
+    initial: str = "zero"  # zero | rotation | vortex_pair | random | mesh_field (mesh=result mesh.field=...)
     initial_strength: float = 1.0  # Ω (rotation), Γ (vortex_pair), max |w| (random)
     vortex_separation_deg: float = 60.0  # vortex_pair: angular distance on the unit sphere
     vortex_radius: float = 0.15  # vortex_pair: blob radius
     seed: int = 0
     stirs: List[Stir] = field(default_factory=list)
+    velocity: str = "least_squares"  # least_squares | wshd07 (the thesis' interpolation, §7.2.3)
+    circulation: str = "swept"  # swept | corrected_trapezoid | trapezoid (the thesis' rule)
+    shadow: bool = False  # also run a shadow with a 1e-10 perturbation: perturbation_growth_per_s (shadow.py)
+    shadow_perturbation: float = 1e-10  # relative size of the shadow's perturbation
+    shadow_max_growth_per_step: float = 0.1  # stable: false when the mean growth per step exceeds this
     record_every: int = 5
     snapshots: int = 6
     animation: bool = True
+    kernels: Kernels = Kernels.numba  # numba (compiled loops) | numpy (their reference twins)
 
     def __post_init__(self):
         if not (self.dt > 0 and math.isfinite(self.dt)):
@@ -76,6 +92,20 @@ class Fluid(App):
             raise ConfigError(f"app.viscosity: must be >= 0, got {self.viscosity}")
         if self.initial not in INITIAL:
             raise ConfigError(f"app.initial: must be one of {list(INITIAL)}, got {self.initial!r}")
+        from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS
+        from decrun.methods.fluid.simulation import CIRCULATIONS
+
+        if self.velocity not in VELOCITY_RECONSTRUCTIONS:
+            raise ConfigError(f"app.velocity: must be one of {list(VELOCITY_RECONSTRUCTIONS)}, got {self.velocity!r}")
+        if self.circulation not in CIRCULATIONS:
+            raise ConfigError(f"app.circulation: must be one of {list(CIRCULATIONS)}, got {self.circulation!r}")
+        if self.velocity == "least_squares" and self.circulation != "swept":
+            raise ConfigError(f"app.circulation={self.circulation} with app.velocity=least_squares is unstable; "
+                              "use app.velocity=wshd07 (the thesis' pair: app.velocity=wshd07 "
+                              "app.circulation=trapezoid)")
+        if not self.shadow_perturbation > 0:
+            raise ConfigError(f"app.shadow_perturbation: must be > 0, got {self.shadow_perturbation}")
+        self.kernels = Kernels.of(self.kernels, "app.kernels")
         if self.record_every < 1:
             raise ConfigError(f"app.record_every: must be >= 1, got {self.record_every}")
         for i, stir in enumerate(self.stirs):
@@ -89,14 +119,21 @@ class Fluid(App):
         return int(math.ceil(self.t_end / self.dt - 1e-9)) if self.t_end is not None else int(self.steps)
 
     def check(self, K, dec) -> None:
-        if K.dim != 2:
-            raise TopologyError(f"app=fluid needs a triangle mesh (dimension 2), got dimension {K.dim}")
         closed = K.border_faces()[0].size == 0
         if self.inflow and closed:
             raise ConfigError("app.inflow: a closed surface has no border to flow in through; use app.inflow=[]")
         if self.inflow and len(self.inflow) != K.embedding_dim:
             raise ConfigError(f"app.inflow: needs {K.embedding_dim} components (the mesh's dimension), "
                               f"got {list(self.inflow)}")
+        for i, stir in enumerate(self.stirs):  # projected onto the surface, so no distance bound
+            try:
+                check_points_on_surface(K, stir.points, f"app.stirs[{i}].points", tolerance=float("inf"))
+            except ConfigError as error:
+                raise ConfigError(f"{error}; give strokes in the mesh's coordinates or drop them with app.stirs=[]") \
+                    from None
+        if self.initial == "mesh_field" and "field" not in getattr(K, "meta", {}):
+            raise ConfigError("app.initial=mesh_field: the mesh carries no field; chain a previous run with "
+                              "mesh=result mesh.path=<run>/result.h5 mesh.field=<name> (e.g. omega of app=vector_field)")
         if self.initial in ("rotation", "vortex_pair") and not closed:
             raise ConfigError(f"app.initial={self.initial} is defined on the unit sphere; use app.initial=random "
                               "or zero on domains with borders")
@@ -104,7 +141,10 @@ class Fluid(App):
     def run(self, ctx: Context) -> Result:
         """Run the fluid; see the module docstring.
 
-        Metrics: ``stable``, ``diverged_at_step`` (when it diverged), ``steps_done``,
+        Metrics: ``stable`` (the energy stayed bounded and, with ``shadow``, the perturbation
+        grew by at most ``shadow_max_growth_per_step`` per step on average), ``diverged_at_step``
+        (when the energy bound broke), ``perturbation_growth_per_s``, ``perturbation_growth_per_step``,
+        ``perturbation_stable`` (with ``shadow``), ``steps_done``,
         ``energy_ratio`` (final / initial kinetic energy, when the initial one is > 0),
         ``enstrophy_ratio``, ``max_abs_divergence`` (over the run), ``circulation_drift``
         (|Σ⋆0 w| at the end, closed surfaces), ``steps_per_second``, ``obtuse_triangles``.
@@ -116,15 +156,23 @@ class Fluid(App):
         from decrun.methods.fluid.simulation import VorticityFluid
 
         K, dec = ctx.complex, ctx.dec
-        w0 = self._initial_vorticity(dec, initial_vorticity)
+        w0 = self._initial_vorticity(dec, initial_vorticity, ctx.meta)
         fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
-                               inflow_velocity=list(self.inflow) or None, initial_vorticity=w0)
+                               inflow_velocity=list(self.inflow) or None, initial_vorticity=w0,
+                               velocity=self.velocity, circulation=self.circulation,
+                               kernels=str(self.kernels))
         obtuse = int(getattr(fluid, "obtuse_triangles", 0))
         if obtuse:
             ctx.log(f"fluid: {obtuse} obtuse triangles — their circumcentric dual cells turn inside out (§7.3); "
                     "use a mesh without obtuse triangles (e.g. mesh=channel, or mesh.noise=0 on the icosphere)")
         forces = [(stir, initial_vorticity.stroke_force(dec, np.asarray(stir.points, dtype=np.float64), stir.strength))
                   for stir in self.stirs]
+        shadow = None
+        if self.shadow:
+            from decrun.methods.fluid.shadow import Shadow
+
+            shadow = Shadow(fluid, self.shadow_perturbation, seed=self.seed + 1,
+                            max_growth_per_step=self.shadow_max_growth_per_step)
         first = fluid.diagnostics()
         ctx.record(0, vorticity=fluid.vorticity, flux=fluid.flux, **{k: first[k] for k in SCALARS})
         max_divergence = first["max_abs_divergence"]
@@ -133,7 +181,10 @@ class Fluid(App):
         total = self.total_steps
         for step in ctx.progress(range(1, total + 1), total=total, desc="fluid"):
             active = [force for stir, force in forces if stir.start <= fluid.time < stir.stop]
-            last = fluid.step(np.sum(active, axis=0) if active else None)
+            force = np.sum(active, axis=0) if active else None
+            last = fluid.step(force)
+            if shadow is not None:
+                shadow.step(force)
             max_divergence = max(max_divergence, last["max_abs_divergence"])
             if "diverged_at_step" in last or not last["stable"]:
                 break
@@ -141,7 +192,9 @@ class Fluid(App):
                 ctx.record(step, vorticity=fluid.vorticity, flux=fluid.flux, **{k: last[k] for k in SCALARS})
         seconds = time.perf_counter() - start
         steps_done = int(last["step"])
-        stable = bool(last["stable"]) and "diverged_at_step" not in last
+        bounded = bool(last["stable"]) and "diverged_at_step" not in last
+        chaos = shadow.metrics() if shadow is not None else {}
+        stable = bounded and chaos.get("perturbation_stable", True)
         metrics = {
             "stable": stable,
             "steps_done": steps_done,
@@ -152,8 +205,9 @@ class Fluid(App):
             "obtuse_triangles": obtuse,
             "solve_seconds": seconds,
         }
-        if not stable:
+        if not bounded:
             metrics["diverged_at_step"] = int(last.get("diverged_at_step", steps_done))
+        metrics.update(chaos)
         if first["kinetic_energy"] > 0:
             metrics["energy_ratio"] = float(last["kinetic_energy"] / first["kinetic_energy"])
         if first["enstrophy"] > 0:
@@ -172,7 +226,9 @@ class Fluid(App):
                                                     dict(name="vorticity", title="vorticity", **view))
         return Result(fields=fields, metrics=metrics, figures=figures)
 
-    def _initial_vorticity(self, dec, initial_vorticity) -> np.ndarray:
+    def _initial_vorticity(self, dec, initial_vorticity, meta=None) -> np.ndarray:
+        if self.initial == "mesh_field":
+            return vorticity_of_field(dec, (meta or {})["field"])
         if self.initial == "zero":
             return np.zeros(dec.K.num_simplices(0))
         if self.initial == "rotation":
@@ -182,3 +238,29 @@ class Fluid(App):
                                                         self.initial_strength, self.vortex_radius)
             return w
         return initial_vorticity.random_vorticity(dec, seed=self.seed, amplitude=self.initial_strength)
+
+
+def vorticity_of_field(dec, field: dict) -> np.ndarray:
+    """(n0,) initial vorticity from a field of a previous run (``mesh=result mesh.field=...``):
+    a per-vertex field is the vorticity itself; a circulation 1-form ω per edge (app=vector_field's
+    ``omega``, the line integrals of its tangent field u) gives by Stokes the exact integral of
+    curl u over each triangle, (d1 ω)_f, and the vorticity at a vertex is their mean over its
+    triangles, w_v = Σ_{f ∋ v} (d1 ω)_f / Σ_{f ∋ v} |f| (first-order accurate)."""
+    K = dec.K
+    values, where, name = np.asarray(field["values"], dtype=np.float64), field["on"], field["name"]
+    if where == "vertices":
+        if values.shape != (K.num_simplices(0),):
+            raise ConfigError(f"mesh.field={name}: a per-vertex vorticity needs one value per vertex, got {values.shape}")
+        return values
+    if where != "edges" or values.shape != (K.num_simplices(1),):
+        raise ConfigError(f"mesh.field={name}: the fluid starts from a per-vertex vorticity or a 1-form per edge "
+                          f"(a circulation, e.g. omega of app=vector_field), not a field on {where} of shape "
+                          f"{values.shape}")
+    if not np.array_equal(np.asarray(field["edges"]), K.simplices(1)):
+        raise ConfigError(f"mesh.field={name}: the stored edge list differs from this mesh's edges")
+    # ∫_f curl·N dA per triangle, N the complex's orientation (d1 = δ2ᵀ carries it for top simplices)
+    curl = dec.d(1) @ values
+    faces = K.simplices(2)
+    n0 = K.num_simplices(0)
+    area = np.bincount(faces.ravel(), weights=np.repeat(K.top_volumes, 3), minlength=n0)
+    return np.bincount(faces.ravel(), weights=np.repeat(curl, 3), minlength=n0) / area

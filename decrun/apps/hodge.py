@@ -1,14 +1,16 @@
-"""``app=hodge``: the discrete Hodge decomposition of a 1-form (§6.3.4–6.3.6, Theorem 5).
+"""``app=hodge``: the discrete Hodge decomposition of a k-form (§6.3.4–6.3.6, Theorem 5).
 
-A 1-form ω — sampled from an analytic vector field (§3.2.1), a seeded random form, or the
-1-form stored in a previous run's ``result.h5`` — is split ⋆1-orthogonally as
+A k-form ω (``app.degree``: 1 on triangle meshes, 1 or 2 on tetrahedral ones) — sampled from
+an analytic vector field (§3.2.1: line integrals along edges for k = 1, fluxes through faces
+for k = 2), a seeded random form, or the form stored in a previous run's ``result.h5`` — is
+split ⋆_k-orthogonally as
 
     ω = dα + δβ + γ ,    γ harmonic (dγ = 0, δγ = 0),
 
 by :func:`decrun.core.hodge.hodge_decomposition` (two Poisson problems, the configured solver).
-The metrics check Theorem 5 (pairwise ⋆1-orthogonality, γ harmonic) and §6.3.6
-(dim ker Δ1 = Betti_1: 0 on a sphere, 2 on a torus, the number of holes of a planar
-domain). Theorem 5 needs d and δ adjoint, which holds for the unadapted operators only:
+The metrics check Theorem 5 (pairwise ⋆_k-orthogonality, γ harmonic) and §6.3.6
+(dim ker Δ_k = Betti_k: Betti_1 is 0 on a sphere, 2 on a torus, the number of holes of a
+planar domain or of tunnels through a solid; Betti_2 of a solid is its number of cavities). Theorem 5 needs d and δ adjoint, which holds for the unadapted operators only:
 ``boundary=flux`` (the §6.4.4 adaptation of the vector_field app) is rejected.
 
 Analytic fields (``app.analytic``; ``a`` = ``app.vector``, points x in model units):
@@ -32,7 +34,8 @@ from typing import List
 import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
-from decrun.core.forms import sample_vector_field, whitney_sharp
+from decrun.core.complex import simplex_volumes
+from decrun.core.forms import sample_flux, sample_vector_field, whitney_sharp, whitney_sharp2
 from decrun.core.geometry import embed3
 from decrun.core.hodge import HodgeDecomposer, harmonic_basis
 from decrun.errors import ConfigError, TopologyError
@@ -50,20 +53,25 @@ class Hodge(App):
     name = "hodge"
     headline_metrics = ("orthogonality_max", "energy_fraction_exact", "energy_fraction_coexact",
                         "energy_fraction_harmonic", "harmonic_dimension_matches_betti")
+    dimensions = (2, 3)
     form_degrees = (0, 1, 2)
     boundary_note = ("the Hodge decomposition (Theorem 5) needs d and δ adjoint, which the §6.4.4 flux "
                      "adaptation breaks; app=vector_field reports that as adjointness_defect")
+    degree: int = 1  # k: 1 (triangle or tetrahedral meshes) or 2 (tetrahedral meshes)
     input: str = "analytic"  # analytic | random | result
     analytic: str = "mixed"  # see the module docstring
     vector: List[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])  # a of the analytic fields
     quadrature_order: int = 3  # Gauss points per edge when sampling (§3.2.1)
     seed: int = 0  # random: ω_e = ξ_e |e|, ξ ~ N(0, 1)
     input_path: str = ""  # result: path of a previous run's result.h5
-    input_field: str = "omega"  # result: name of its 1-form field
-    harmonic_dimension: bool = True  # compute dim ker Δ1 (a few extra solves)
+    input_field: str = "omega"  # result: name of its k-form field
+    harmonic_dimension: bool = True  # compute dim ker Δ_k (a few extra solves)
     figure_arrows: int = 500
 
     def __post_init__(self):
+        if self.degree not in (1, 2):
+            raise ConfigError(f"app.degree: must be 1 or 2 (the forms between functions and densities), got {self.degree}")
+        self.form_degrees = (self.degree - 1, self.degree, self.degree + 1)
         if self.input not in FIELDS:
             raise ConfigError(f"app.input: must be one of {list(FIELDS)}, got {self.input!r}")
         if self.analytic not in ANALYTIC:
@@ -77,84 +85,87 @@ class Hodge(App):
                               "e.g. app.input_path=outputs/runs/<stamp>/result.h5")
 
     def check(self, K, dec) -> None:
-        if K.dim != 2:
-            raise TopologyError(f"app=hodge needs a triangle mesh (dimension 2), got dimension {K.dim}")
+        if self.degree >= K.dim:
+            raise TopologyError(f"app.degree={self.degree}: a mesh of dimension {K.dim} has nothing to decompose "
+                                f"in degree {self.degree} (only exact and harmonic parts); use `app.degree=1`")
 
     def check_solver(self, solver, dec=None) -> None:
         super().check_solver(solver, dec)
-        if dec is not None and getattr(solver, "needs_spd", False) and dec.star_is_diagonal(1):
-            star1 = dec.star_diagonal(1)
-            tiny = 1e-12 * np.abs(star1).max()
-            bad, zero = int(np.sum(star1 <= tiny)), int(np.sum(np.abs(star1) <= tiny))
+        k = self.degree
+        if dec is not None and k <= dec.n and getattr(solver, "needs_spd", False) and dec.star_is_diagonal(k):
+            star = dec.star_diagonal(k)
+            tiny = 1e-12 * np.abs(star).max()
+            bad, zero = int(np.sum(star <= tiny)), int(np.sum(np.abs(star) <= tiny))
             if bad:
-                # a zero ⋆1 cannot be inverted by any solver (HodgeDecomposer reports it); a
+                # a zero ⋆k cannot be inverted by any solver (HodgeDecomposer reports it); a
                 # negative one only makes the systems indefinite, which MINRES solves
                 other = "" if zero else "; or `solver=iterative` (MINRES for symmetric indefinite systems)"
-                raise ConfigError(f"solver={solver.name}: ⋆1 of operator={dec.star_variant.name} is not positive on "
-                                  f"{bad} edges (non-Delaunay or right-angled triangles), so the Poisson systems of "
+                raise ConfigError(f"solver={solver.name}: ⋆{k} of operator={dec.star_variant.name} is not positive on "
+                                  f"{bad} {k}-simplices (non-Delaunay or right-angled cells), so the Poisson systems of "
                                   "app=hodge are indefinite; use `operator=whitney` with `operator.lumped=true` "
-                                  f"(an SPD ⋆1 on every mesh){other}")
-        if dec is not None and getattr(solver, "needs_spd", False) and not dec.star_is_diagonal(1):
-            raise ConfigError(f"solver={solver.name}: with a Galerkin ⋆1 (operator={dec.star_variant.name}) the "
+                                  f"(an SPD ⋆{k} on every mesh){other}")
+        if dec is not None and k <= dec.n and getattr(solver, "needs_spd", False) and not dec.star_is_diagonal(k):
+            raise ConfigError(f"solver={solver.name}: with a Galerkin ⋆{k} (operator={dec.star_variant.name}) the "
                               "coexact part of app=hodge is a symmetric indefinite saddle-point system; use "
                               "`solver=iterative` (GMRES with an incomplete LU), `solver=direct` (or "
                               "`operator.lumped=true`)")
 
     def run(self, ctx: Context) -> Result:
-        """Decompose the configured 1-form; see the module docstring.
+        """Decompose the configured k-form; see the module docstring.
 
-        Fields: ``omega``, ``exact``, ``coexact``, ``harmonic`` (n1,) 1-forms and their Whitney
-        vectors at barycenters ``*_vectors`` (n2, 3); ``alpha`` (n0,), ``beta`` (n2,) the
-        potentials.
+        Fields: ``omega``, ``exact``, ``coexact``, ``harmonic`` (n_k,) k-forms (1-forms carry
+        their edge list) and their Whitney vectors at the barycenters of the top simplices
+        ``*_vectors`` (n_n, 3); ``alpha`` (n_{k-1},), ``beta`` (n_{k+1},) the potentials.
 
         Metrics: ``orthogonality_exact_coexact`` / ``_exact_harmonic`` / ``_coexact_harmonic``
-        (|⟨a,b⟩_⋆1|/‖ω‖²) and ``orthogonality_max``; ``reconstruction_error_relative``;
-        ``energy_fraction_{exact,coexact,harmonic}``; ``harmonic_curl_relative`` ‖dγ‖_⋆2/‖dω‖_⋆2
-        and ``harmonic_codifferential_relative`` ‖δγ‖_⋆0/‖δω‖_⋆0 (γ is harmonic: both ≈ 0; absent
-        when γ or dω / δω is zero to round-off (energy share ≤ ``ROUNDOFF``²): a ratio of
-        round-off means nothing);
-        ``harmonic_dimension`` (dim ker Δ1, numerically), ``betti_1``,
-        ``harmonic_dimension_matches_betti``; ``solve_seconds``.
+        (|⟨a,b⟩_⋆k|/‖ω‖²) and ``orthogonality_max``; ``reconstruction_error_relative``;
+        ``energy_fraction_{exact,coexact,harmonic}``; ``harmonic_curl_relative``
+        ‖dγ‖_⋆/‖dω‖_⋆ and ``harmonic_codifferential_relative`` ‖δγ‖_⋆/‖δω‖_⋆ (γ is harmonic:
+        both ≈ 0; absent when γ or dω / δω is zero to round-off (energy share ≤ ``ROUNDOFF``²):
+        a ratio of round-off means nothing); ``harmonic_dimension`` (dim ker Δ_k, numerically),
+        ``betti_<k>``, ``harmonic_dimension_matches_betti``; ``degree``; ``solve_seconds``.
         """
-        K, dec = ctx.complex, ctx.dec
+        K, dec, k = ctx.complex, ctx.dec, int(self.degree)
         omega = input_form(K, self, ctx)
         start = time.perf_counter()
         with ctx.task("Hodge decomposition (two Poisson solves)"):
-            parts = HodgeDecomposer(dec, 1, ctx.new_solver).decompose(omega)
+            parts = HodgeDecomposer(dec, k, ctx.new_solver).decompose(omega)
         seconds = time.perf_counter() - start
         named = {"exact": parts.exact, "coexact": parts.coexact, "harmonic": parts.harmonic}
-        metrics = orthogonality_metrics(dec, omega, named)
-        d1, delta = dec.d(1), dec.codifferential(1)
+        metrics = orthogonality_metrics(dec, omega, named, k)
+        metrics["degree"] = k
 
         energy = {name: metrics[f"energy_fraction_{name}"] for name in named}
 
-        def relative(op, k, part, sources):
+        def relative(op, j, part, sources):
             """‖op part‖ / ‖op ω‖, or None when that is a ratio of round-off: the part is zero
             to round-off, or so is op ω — op kills the exact part (d) or the coexact part (δ),
             so op ω comes from ``sources`` only (energy share ≤ ROUNDOFF² each)."""
             if energy["harmonic"] <= ROUNDOFF ** 2 or sum(energy[s] for s in sources) <= ROUNDOFF ** 2:
                 return None
-            ref = np.sqrt(abs(dec.inner(k, op @ omega, op @ omega)))
-            return float(np.sqrt(abs(dec.inner(k, op @ part, op @ part))) / ref) if ref > 0 else None
+            ref = np.sqrt(abs(dec.inner(j, op @ omega, op @ omega)))
+            return float(np.sqrt(abs(dec.inner(j, op @ part, op @ part))) / ref) if ref > 0 else None
 
-        for name, value in (("harmonic_curl_relative", relative(d1, 2, parts.harmonic, ("coexact", "harmonic"))),
-                            ("harmonic_codifferential_relative", relative(delta, 0, parts.harmonic,
+        for name, value in (("harmonic_curl_relative", relative(dec.d(k), k + 1, parts.harmonic, ("coexact", "harmonic"))),
+                            ("harmonic_codifferential_relative", relative(dec.codifferential(k), k - 1, parts.harmonic,
                                                                           ("exact", "harmonic")))):
             if value is not None:  # a ratio of round-off is absent, not a number
                 metrics[name] = value
-        betti_1 = int(K.betti_numbers()[1])
-        metrics["betti_1"] = betti_1
+        betti = int(K.betti_numbers()[k])
+        metrics[f"betti_{k}"] = betti
         if self.harmonic_dimension:
             start = time.perf_counter()
-            with ctx.task("harmonic basis (dim ker Δ1)"):
-                h = harmonic_basis(dec, 1, ctx.new_solver).shape[1]
+            with ctx.task(f"harmonic basis (dim ker Δ{k})"):
+                h = harmonic_basis(dec, k, ctx.new_solver).shape[1]
             seconds += time.perf_counter() - start
             metrics["harmonic_dimension"] = int(h)
-            metrics["harmonic_dimension_matches_betti"] = bool(h == betti_1)
+            metrics["harmonic_dimension_matches_betti"] = bool(h == betti)
         metrics["solve_seconds"] = seconds
         metrics["input"] = str(self.input if self.input != "analytic" else self.analytic)
-        fields = {"omega": FieldOnEdges(omega), **{name: FieldOnEdges(form) for name, form in named.items()}}
-        vectors = {f"{name}_vectors": embed3(whitney_sharp(K, form)) for name, form in (("omega", omega), *named.items())}
+        wrap = FieldOnEdges if k == 1 else (lambda form: form)
+        fields = {"omega": wrap(omega), **{name: wrap(form) for name, form in named.items()}}
+        sharp = whitney_sharp if k == 1 else (lambda K_, form: whitney_sharp2(K_, form))
+        vectors = {f"{name}_vectors": embed3(sharp(K, form)) for name, form in (("omega", omega), *named.items())}
         fields.update(vectors)
         if parts.alpha is not None:
             fields["alpha"] = parts.alpha
@@ -191,16 +202,28 @@ def analytic_field(name: str, a) -> callable:
 
 
 def input_form(K, cfg, ctx: Context | None = None) -> np.ndarray:
-    """The 1-form to decompose, (n1,), as configured (``app.input``); ``input=result``
-    reads the previous run through ``ctx.read_result``."""
+    """The k-form to decompose, (n_k,), as configured (``app.input``, ``app.degree``): line
+    integrals (k = 1) or fluxes (k = 2) of the analytic field, or ξ_σ |σ| with ξ ~ N(0, 1);
+    ``input=result`` reads the previous run through ``ctx.read_result``."""
+    k = int(getattr(cfg, "degree", 1))
     if cfg.input == "analytic":
         X = analytic_field(cfg.analytic, cfg.vector)
-        if K.embedding_dim == 2:  # planar meshes: evaluate in the z = 0 plane
-            return sample_vector_field(K, lambda p: X(embed3(p))[:, :2], order=int(cfg.quadrature_order))
-        return sample_vector_field(K, X, order=int(cfg.quadrature_order))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if k == 2:
+                omega = sample_flux(K, X, order=min(int(cfg.quadrature_order), 2))
+            elif K.embedding_dim == 2:  # planar meshes: evaluate in the z = 0 plane
+                omega = sample_vector_field(K, lambda p: X(embed3(p))[:, :2], order=int(cfg.quadrature_order))
+            else:
+                omega = sample_vector_field(K, X, order=int(cfg.quadrature_order))
+        bad = np.flatnonzero(~np.isfinite(omega))
+        if bad.size:
+            raise ConfigError(f"app.analytic={cfg.analytic}: the field is not finite on {bad.size} {k}-simplices "
+                              f"(e.g. {bad[:5].tolist()}: the toroidal part is singular on the z axis, the rotated "
+                              "gradient at the origin); use `app.input=random` (or `app.analytic=gradient`)")
+        return omega
     if cfg.input == "random":
-        length = K.edge_lengths()
-        return np.random.default_rng(int(cfg.seed)).standard_normal(length.size) * length
+        size = simplex_volumes(K.vertices[K.simplices(k)])
+        return np.random.default_rng(int(cfg.seed)).standard_normal(size.size) * size
     if ctx is None:
         raise ConfigError("app.input=result needs a context that can read result files (the decrun runner)")
     return _form_from_result(K, cfg, ctx)
@@ -208,34 +231,35 @@ def input_form(K, cfg, ctx: Context | None = None) -> np.ndarray:
 
 def _form_from_result(K, cfg, ctx: Context) -> np.ndarray:
     path = cfg.input_path
+    k = int(getattr(cfg, "degree", 1))
     result, vertices = ctx.read_result(path)
     if cfg.input_field not in result.fields:
         raise ConfigError(f"app.input_field: {path} has no field {cfg.input_field!r}; it has {sorted(result.fields)}")
     omega = np.asarray(result.fields[cfg.input_field], dtype=np.float64)
-    if omega.shape != (K.num_simplices(1),):
+    if omega.shape != (K.num_simplices(k),):
         raise ConfigError(f"app.input_field: {cfg.input_field!r} in {path} has shape {omega.shape}, "
-                          f"but this mesh has {K.num_simplices(1)} edges (use the same mesh config as that run)")
+                          f"but this mesh has {K.num_simplices(k)} {k}-simplices (use the same mesh config as that run)")
     if vertices.shape != K.vertices.shape or not np.allclose(vertices, K.vertices):
         raise ConfigError(f"app.input_path: the mesh stored in {path} differs from this run's mesh "
                           "(use the same mesh config as that run)")
     return omega
 
 
-def orthogonality_metrics(dec, omega: np.ndarray, parts: dict[str, np.ndarray]) -> dict:
-    """Theorem 5 checks. For each pair of parts |⟨a, b⟩_⋆1| / ‖ω‖²_⋆1, the energy fraction
-    ‖part‖² / ‖ω‖² of each part and the relative reconstruction error."""
-    total = dec.inner(1, omega, omega)
+def orthogonality_metrics(dec, omega: np.ndarray, parts: dict[str, np.ndarray], k: int = 1) -> dict:
+    """Theorem 5 checks for k-forms. For each pair of parts |⟨a, b⟩_⋆k| / ‖ω‖²_⋆k, the energy
+    fraction ‖part‖² / ‖ω‖² of each part and the relative reconstruction error."""
+    total = dec.inner(k, omega, omega)
     out = {}
     names = list(parts)
     worst = 0.0
     for i, p in enumerate(names):
         for q in names[i + 1:]:
-            value = abs(dec.inner(1, parts[p], parts[q])) / total if total > 0 else 0.0
+            value = abs(dec.inner(k, parts[p], parts[q])) / total if total > 0 else 0.0
             out[f"orthogonality_{p}_{q}"] = float(value)
             worst = max(worst, float(value))
     out["orthogonality_max"] = worst
     for p in names:
-        out[f"energy_fraction_{p}"] = float(dec.inner(1, parts[p], parts[p]) / total) if total > 0 else 0.0
+        out[f"energy_fraction_{p}"] = float(dec.inner(k, parts[p], parts[p]) / total) if total > 0 else 0.0
     rest = omega - sum(parts.values())
-    out["reconstruction_error_relative"] = float(np.sqrt(abs(dec.inner(1, rest, rest)) / total)) if total > 0 else 0.0
+    out["reconstruction_error_relative"] = float(np.sqrt(abs(dec.inner(k, rest, rest)) / total)) if total > 0 else 0.0
     return out

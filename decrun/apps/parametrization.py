@@ -102,8 +102,6 @@ class Parametrization(App):
     def check(self, K, dec) -> None:
         if self.holes not in HOLES:
             raise ConfigError(f"app.holes: choose one of {list(HOLES)}, got {self.holes!r}")
-        if K.dim != 2:
-            raise TopologyError(f"app=parametrization needs a triangle mesh (dimension 2), got dimension {K.dim}")
         if not K.border_vertices().any() and K.embedding_dim == 3:
             raise TopologyError(f"app=parametrization needs a disk-like surface with a border; this mesh is closed "
                                 f"(χ = {K.euler_characteristic}): cut a hole into it, e.g. "

@@ -26,7 +26,7 @@ from typing import Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, Figure, Result
-from decrun.errors import ConfigError, TopologyError
+from decrun.errors import ConfigError
 from decrun.methods.mean_curvature_flow import (
     SCHEMES,
     MeanCurvatureFlow,
@@ -75,8 +75,6 @@ class Smoothing(App):
             raise ConfigError(f"app.blowup_factor: must be > 1, got {self.blowup_factor}")
 
     def check(self, K, dec) -> None:
-        if K.dim != 2:
-            raise TopologyError(f"app=smoothing needs a triangle mesh (dimension 2), got dimension {K.dim}")
         if self.dt is None and not self.critical_dt:
             # a step computed from this mesh: Gershgorin's bound, ≤ the critical step, no eigen-solve
             safe = gershgorin_safe_dt(dec.laplacian_symmetric(0), dec.star_diagonal_or_none(0))

@@ -11,7 +11,8 @@ import numpy as np
 
 from decrun.core.complex import SimplicialComplex
 
-__all__ = ["sample_function", "sample_vector_field", "sample_density", "whitney_sharp", "barycentric_gradients"]
+__all__ = ["sample_function", "sample_vector_field", "sample_flux", "sample_density", "whitney_sharp", "whitney_sharp2",
+           "barycentric_gradients"]
 
 
 def _evaluate(values, points: np.ndarray, what: str, expected_tail: tuple) -> np.ndarray:
@@ -80,6 +81,32 @@ _TET_RULES = {
     1: (np.array([[0.25] * 4]), np.array([1.0])),
     2: (np.array([[_A, _B, _B, _B], [_B, _A, _B, _B], [_B, _B, _A, _B], [_B, _B, _B, _A]]), np.full(4, 0.25)),
 }
+
+
+def sample_flux(K: SimplicialComplex, X, order: int = 2) -> np.ndarray:
+    """Sample a 2-form from a vector field in R³: w²(f) = ∫_f X · n dA over each triangle (§3.2.1),
+    n the unit normal of the sorted tuple (a < b < c) by the right-hand rule, n dA =
+    ½ (p_b − p_a) × (p_c − p_a) dA/|f| — the orientation whose boundary is the incidence
+    ``K.boundary(2)`` (Stokes: w²(f) of curl X = Σ ± w¹ of X over the edges of f).
+
+    Parameters
+    ----------
+    X : callable (N, 3) → (N, 3), or a constant (3,)
+    order : triangle quadrature (1: centroid, 2: three points, exact for quadratics)
+
+    Returns
+    -------
+    (n2,) float64
+    """
+    if K.embedding_dim != 3:
+        raise ValueError(f"sample_flux: needs vertices in R³, got dimension {K.embedding_dim}")
+    faces = K.simplices(2)
+    bary, weights = _TRIANGLE_RULES.get(order, _TRIANGLE_RULES[2])
+    corners = K.vertices[faces]
+    half_normal = 0.5 * np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    points = np.einsum("qc,mcd->mqd", bary, corners).reshape(-1, 3)
+    values = _evaluate(X, points, "sample_flux", (3,)).reshape(len(faces), -1, 3)
+    return np.einsum("mqd,md,q->m", values, half_normal, weights)
 
 
 def sample_density(K: SimplicialComplex, rho, order: int = 2) -> np.ndarray:
@@ -160,4 +187,34 @@ def whitney_sharp(K: SimplicialComplex, omega: np.ndarray, barycentric=None, fac
     for e, (a, b) in enumerate(local_edges):
         w = omega[edge_ids[e]][:, None]
         result += w * (lam[:, a, None] * gradients[:, b] - lam[:, b, None] * gradients[:, a])
+    return result
+
+
+def whitney_sharp2(K: SimplicialComplex, omega: np.ndarray) -> np.ndarray:
+    """Whitney interpolation of a 2-form on a tetrahedral mesh, evaluated at the barycenters.
+
+    W_abc = 2 (λ_a ∇λ_b × ∇λ_c + λ_b ∇λ_c × ∇λ_a + λ_c ∇λ_a × ∇λ_b) is the vector field whose
+    flux through the face abc is 1 and through the other faces of the tetrahedron 0; the
+    field of ω is Σ ω_f W_f (at the barycenter every λ = 1/4).
+
+    Parameters
+    ----------
+    omega : (n2,) 2-form (faces oriented as their sorted tuple, :func:`sample_flux`)
+
+    Returns
+    -------
+    (n3, 3) vectors
+    """
+    if K.dim != 3 or K.embedding_dim != 3:
+        raise ValueError(f"whitney_sharp2: needs a tetrahedral mesh in R³, got dimension {K.dim}")
+    omega = np.asarray(omega, dtype=np.float64)
+    if omega.shape != (K.num_simplices(2),):
+        raise ValueError(f"whitney_sharp2: expected a 2-form with {K.num_simplices(2)} values, got {omega.shape}")
+    gradients = barycentric_gradients(K)
+    top = K.simplices(3)
+    result = np.zeros((top.shape[0], 3))
+    for a, b, c in ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)):
+        w = omega[K.find_simplices(top[:, [a, b, c]])][:, None]
+        ga, gb, gc = gradients[:, a], gradients[:, b], gradients[:, c]
+        result += w * 0.5 * (np.cross(gb, gc) + np.cross(gc, ga) + np.cross(ga, gb))
     return result

@@ -69,6 +69,12 @@ class HodgeDecomposer:
         elif k < n:
             star = dec.star_diagonal(k)
             zero = np.abs(star) <= 1e-12 * np.abs(star).max()
+            if zero.any() and n == 3:  # the surface remedies (noise, remeshing) do not apply to tetrahedra
+                raise MeshError(
+                    f"Hodge decomposition of {k}-forms needs an invertible ⋆_{k}, but it is zero on "
+                    f"{int(zero.sum())} simplices (e.g. {np.flatnonzero(zero)[:5].tolist()}): their circumcentric "
+                    "dual cells are degenerate (right angles, as in Kuhn cubes, or cocircular tetrahedra): use the "
+                    "Galerkin stars, `operator=whitney` (SPD on every mesh)")
             if zero.any():
                 raise MeshError(
                     f"Hodge decomposition of {k}-forms needs an invertible ⋆_{k}, but it is zero on "

@@ -12,7 +12,7 @@ import numpy as np
 
 from decrun.core.connectivity import drop_unreferenced
 
-__all__ = ["grid_triangles", "kuhn_cube"]
+__all__ = ["grid_triangles", "kuhn_cube", "flat_torus"]
 
 
 def grid_triangles(nx: int, ny: int | None = None, size=(1.0, 1.0), jitter: float = 0.0, seed: int = 0):
@@ -83,3 +83,25 @@ def kuhn_cube(n: int, size: float = 1.0, keep_cell=None):
     tets[det < 0, 0], tets[det < 0, 1] = tets[det < 0, 1], tets[det < 0, 0].copy()
     vertices, tets, _ = drop_unreferenced(vertices, tets)
     return vertices, tets
+
+
+def flat_torus(nx: int, ny: int | None = None, radii=(1.0, 1.0)):
+    """The flat torus with periods 2π r1 × 2π r2 as a triangle mesh in R⁴ (Clifford embedding
+    (r1 cos u, r1 sin u, r2 cos v, r2 sin v), flat and isometric to the quotient of the
+    plane): an nx × ny periodic grid in (u, v), each cell split in two.
+
+    Returns
+    -------
+    vertices (nx·ny, 4) float64, triangles (2·nx·ny, 3) int64 (consistently oriented)
+    """
+    ny = nx if ny is None else ny
+    u, v = np.meshgrid(2 * np.pi * np.arange(nx) / nx, 2 * np.pi * np.arange(ny) / ny, indexing="ij")
+    u, v = u.ravel(), v.ravel()
+    vertices = np.stack([radii[0] * np.cos(u), radii[0] * np.sin(u), radii[1] * np.cos(v), radii[1] * np.sin(v)], 1)
+    index = np.arange(nx * ny).reshape(nx, ny)
+    a = index.ravel()
+    b = np.roll(index, -1, axis=0).ravel()
+    c = np.roll(np.roll(index, -1, axis=0), -1, axis=1).ravel()
+    d = np.roll(index, -1, axis=1).ravel()
+    triangles = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return vertices, triangles.astype(np.int64)

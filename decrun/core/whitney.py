@@ -89,7 +89,7 @@ def _parity(perm) -> float:
 class _TopGeometry:
     """Per-top-simplex arrays for eq. (2): volumes, G_ij = ∇λ_i·∇λ_j and Gram determinants.
 
-    Triangles (in R² or R³): with e_1 = p_1 − p_0, e_2 = p_2 − p_0 and g = [e_i·e_j], the
+    Triangles (in R² or R³, or R^d through Lagrange's identity): with e_1 = p_1 − p_0, e_2 = p_2 − p_0 and g = [e_i·e_j], the
     gradients of λ_1, λ_2 have Gram matrix g⁻¹ = adj(g) / |e_1×e_2|² (determinant from the
     cross product, not from g, so thin triangles keep their accuracy). Tetrahedra (in R³):
     ∇λ_1 = e_2×e_3 / D, ∇λ_2 = e_3×e_1 / D, ∇λ_3 = e_1×e_2 / D with D = e_1·(e_2×e_3).
@@ -120,8 +120,10 @@ class _TopGeometry:
             if d == 2:
                 det = edges[0][0] * edges[1][1] - edges[0][1] * edges[1][0]
                 det *= det
-            else:
+            elif d == 3:
                 det = _dot(*[_cross(edges[0], edges[1])] * 2)
+            else:  # R^d, d > 3 (e.g. the flat torus in R⁴): Lagrange's identity |e1|²|e2|² − (e1·e2)²
+                det = g[1, 1] * g[2, 2] - g[1, 2] * g[1, 2]
             gram[1, 1], gram[2, 2], gram[1, 2] = g[2, 2] / det, g[1, 1] / det, -g[1, 2] / det
             self.volume = 0.5 * np.sqrt(det)
         else:

@@ -23,7 +23,7 @@ __all__ = ["DecrunConfig", "OptimizeConfig", "Direction", "PLUGIN_GROUPS", "regi
            "compose_config", "unique_stamp"]
 
 #: config groups whose node is a plugin (built with ``_target_``)
-PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver")
+PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver", "export")
 
 
 class Direction(Choice):
@@ -75,6 +75,8 @@ class DecrunConfig:
     boundary: Any = MISSING
     app: Any = MISSING
     solver: Any = MISSING
+    #: files for other programs (VTU, XDMF time series, PLY, OBJ): decrun.runner.results.export
+    export: Any = MISSING
     #: show progress bars (only when stderr is a terminal)
     progress: bool = True
     #: render the application's figures to PNG

@@ -41,14 +41,21 @@ MESH_FIXES = (
 )
 
 
-def cli_hint(exc: DecrunError, mesh_source=None) -> str:
+#: overrides that fix triangle meshes only (pymeshlab's repair refuses tetrahedra)
+SURFACE_ONLY = ("mesh.repair=true",)
+
+
+def cli_hint(exc: DecrunError, mesh_source=None, dimension: int | None = None) -> str:
     """``"use `<override>` (<what it does>)"`` for a mesh error the config can fix, else ``""``.
-    No hint when ``mesh_source`` already has that option on."""
+    No hint when ``mesh_source`` already has that option on, nor a surface-only fix for a
+    mesh of ``dimension`` 3."""
     for kinds, fix in MESH_FIXES:
         if isinstance(exc, kinds):
             if fix is None:
                 return ""
             override, what = fix
+            if dimension == 3 and override in SURFACE_ONLY:
+                return ""
             key, _, value = override.partition("=")
             current = getattr(mesh_source, key.split(".", 1)[1], None) if mesh_source is not None else None
             if current is not None and str(current).lower() == value:
@@ -57,8 +64,9 @@ def cli_hint(exc: DecrunError, mesh_source=None) -> str:
     return ""
 
 
-def cli_message(exc: DecrunError, mesh_source=None) -> str:
-    """The error's message for the command line: its Python hint replaced by the CLI one."""
+def cli_message(exc: DecrunError, mesh_source=None, dimension: int | None = None) -> str:
+    """The error's message for the command line: its Python hint replaced by the CLI one
+    (``dimension``: of the mesh, see :func:`cli_hint`)."""
     message = getattr(exc, "message", None) or str(exc)
-    hint = cli_hint(exc, mesh_source)
+    hint = cli_hint(exc, mesh_source, dimension)
     return f"{message}; {hint}" if hint else message

@@ -161,6 +161,7 @@ GROUP_BASES = {
     "boundary": "decrun.core.boundary.BoundaryAdaptation",
     "solver": "decrun.core.solvers.Solver",
     "app": "decrun.apps.base.App",
+    "export": "decrun.runner.results.export.Export",
 }
 
 

@@ -33,6 +33,7 @@ from decrun.runner.mesh import MeshSource
 from decrun.runner.plugins import build
 from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
+from decrun.runner.results.export import Export
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
 from decrun.runner.sweep.manifest import config_hash
@@ -56,6 +57,7 @@ class Experiment:
         self.boundary = build(cfg.boundary, "boundary", BoundaryAdaptation)
         self.solver = build(cfg.solver, "solver", Solver)  # a missing optional package → SolverError now
         self.mesh_source = build(cfg.mesh, "mesh", MeshSource)
+        self.export = build(cfg.export, "export", Export) if "export" in cfg else None
         self.app.check_solver(self.solver)
 
 
@@ -70,7 +72,7 @@ def check_root_keys(cfg: DictConfig) -> None:
 
 
 #: a message starting with one of these names its config key already
-_KEYS = ("mesh", "operator", "boundary", "app", "solver", "progress", "figures")
+_KEYS = ("mesh", "operator", "boundary", "app", "solver", "export", "progress", "figures")
 
 
 def name_the_key(exc: DecrunError, experiment: Experiment, where: str) -> DecrunError:
@@ -140,8 +142,13 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
             with task(progress, "building and checking the simplicial complex"):
                 complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
         except MeshError as exc:  # name the mesh the complex refused, with the override that fixes it
-            raise type(exc)(f"{mesh_where(mesh)}: {cli_message(exc, experiment.mesh_source)}") from exc
+            dimension = mesh.simplices.shape[1] - 1
+            raise type(exc)(f"{mesh_where(mesh)}: {cli_message(exc, experiment.mesh_source, dimension)}") from exc
         complex_.meta = mesh.meta
+        try:  # before the operators: a Hodge-star variant may not exist in this dimension either
+            experiment.app.check_dimension(complex_)
+        except DecrunError as exc:
+            raise name_the_key(exc, experiment, mesh_where(mesh)) from exc
         return complex_, DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
 
     if cache:
@@ -154,6 +161,7 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     where = mesh_where(mesh)
     app = experiment.app
     try:
+        app.check_dimension(complex_)  # again: a cached complex was checked for another app
         app.check_operators(dec)
         app.check_solver(experiment.solver, dec)
         app.check(complex_, dec)
@@ -216,7 +224,8 @@ def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -
                           config_yaml=OmegaConf.to_yaml(cfg, resolve=True), mesh_hash=mesh.meta.get("hash", ""),
                           timings=timings)
     metrics = write_metrics_json(out / "metrics.json", result.metrics)
-    return [h5, metrics, *written]
+    exported = build(cfg.export, "export", Export).write(out, result, mesh) if cfg.get("export") is not None else []
+    return [h5, metrics, *written, *exported]
 
 
 def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = False, log_name: str = "") -> int | float:

@@ -18,7 +18,7 @@ def sphere():
 
 
 def test_stirred_sphere_records_every_step_it_says_and_stays_divergence_free(sphere, run_app):
-    stir = Stir(points=[[1.0, 0.0, 0.3], [0.0, 1.0, 0.3]], strength=20.0, start=0.0, stop=0.1)
+    stir = Stir(points=[[1.0, 0.0, 0.3], [0.0, 1.0, 0.3]], strength=20.0, start=0.0, stop=0.095)  # steps 1-10
     app = Fluid(dt=0.01, steps=30, viscosity=0.01, stirs=[stir], record_every=10)
     result, ctx = run_app(app, sphere)
     series = ctx.series
@@ -66,8 +66,8 @@ def test_options_and_meshes_that_do_not_fit_are_refused(sphere, run_app):
 
 
 def test_channel_flow_through_the_cli_sheds_and_reports(decrun_cli, tmp_path):
-    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=600", "app.inflow=[1.0,0.0]", "app.stirs=[]",
-                      "app.steps=40", "app.viscosity=0.002", "app.record_every=20")
+    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=600", "app.inflow=[1.0,0.0]",
+                      "app.steps=40", "app.viscosity=0.002", "app.record_every=20")  # no stroke by default
     assert proc.returncode == 0, proc.stderr
     run = next((tmp_path / "outputs" / "runs").iterdir())
     assert (run / "vorticity.png").is_file() and (run / "vorticity_animation.gif").is_file()
@@ -93,3 +93,80 @@ def test_obtuse_triangles_are_counted(run_app):
     assert expected > 0
     result, _ = run_app(Fluid(dt=0.01, steps=2, stirs=[], initial="random", animation=False), K)
     assert result.metrics["obtuse_triangles"] == expected
+
+
+def test_a_3d_stroke_on_the_planar_channel_is_refused_naming_the_key(decrun_cli):
+    stroke = "app.stirs=[{points: [[1.0, 0.0, 0.3], [0.0, 1.0, 0.3]], strength: 20.0}]"
+    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.steps=2", stroke)
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    message = proc.stderr.strip().splitlines()[-1]
+    assert "app.stirs[0].points" in message and "needs 2 coordinates" in message and "app.stirs=[]" in message
+    proc = decrun_cli("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.steps=2", stroke, "app.stirs=[]")
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_the_unstable_pair_of_reconstruction_and_circulation_is_refused_with_the_fix(decrun_cli):
+    common = ("app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=2", "app.initial=random", "app.animation=false")
+    proc = decrun_cli(*common, "app.circulation=trapezoid")
+    assert proc.returncode != 0 and "app.velocity=wshd07" in proc.stderr
+    proc = decrun_cli(*common, "app.circulation=trapezoid", "app.velocity=wshd07")
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_the_shadow_reports_the_perturbation_growth(sphere, run_app):
+    """ν > 0 on a sphere: a 1e-10 perturbation decays (negative growth), the run is stable."""
+    app = Fluid(dt=0.02, steps=10, viscosity=0.05, initial="random", shadow=True, animation=False)
+    m = run_app(app, sphere)[0].metrics
+    assert m["perturbation_growth_per_s"] < 0 and m["perturbation_stable"] and m["stable"]
+    assert m["perturbation_growth_per_step"] == pytest.approx(m["perturbation_growth_per_s"] * 0.02)
+    assert "perturbation_growth_per_s" not in run_app(Fluid(dt=0.02, steps=2, animation=False), sphere)[0].metrics
+
+
+#: the 1455-face row of `decrun -m +experiment=fig7_15_density_and_time_step` (README table):
+#: dt → (enstrophy at t = 0.6, energy ratio, perturbation growth per s)
+FIG7_15_ROW = {0.0025: (3746.495630716065, 1.1370662765825605, 4.35636314490098),
+               0.005: (2945.077357438974, 1.1304749722434706, 3.071835260657844),
+               0.0075: (2659.677788889525, 1.1092118469470627, 1.392330950608248)}
+
+
+@pytest.mark.slow
+def test_the_fig7_15_sweep_reproduces_its_readme_row(decrun_cli, tmp_path):
+    """The Fig. 7.15 experiment's sweep, coarsest mesh: every job stable (energy bound and shadow),
+    d1u = 0 to round-off, and the README's numbers to 1e-6 (the default scheme is not chaotic
+    here, so round-off does not change them: perturbation growth ≤ 5 /s over 0.6 s)."""
+    import pandas as pd
+
+    proc = decrun_cli("-m", "+experiment=fig7_15_density_and_time_step", "mesh.target_faces=1400", timeout=1800)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    sweep = next((tmp_path / "outputs" / "sweeps").iterdir())
+    table = pd.read_csv(sweep / "metrics.csv")
+    assert len(table) == 3 and table["stable"].all() and (table["n_faces"] == 1455).all()
+    assert (table["max_abs_divergence"] <= 1e-15).all()
+    for _, row in table.iterrows():
+        enstrophy, energy_ratio, growth = FIG7_15_ROW[round(float(row["app.dt"]), 6)]
+        assert row["enstrophy_final"] == pytest.approx(enstrophy, rel=1e-6)
+        assert row["energy_ratio"] == pytest.approx(energy_ratio, rel=1e-6)
+        assert row["perturbation_growth_per_s"] == pytest.approx(growth, rel=1e-3)
+
+
+def test_kernels_option_through_the_cli_numba_and_numpy_runs_are_identical(decrun_cli, tmp_path):
+    """``app.kernels`` picks the compiled loops or their numpy twins; a bad value names the
+    override that fixes it, and both kernels give the same run, bit for bit. The compiled walk
+    interpolates with WSHD07, so the run uses the former default scheme (wshd07 +
+    corrected_trapezoid); the least-squares default shares only the compiled circulation sum."""
+    from decrun.runner.results import read_result
+
+    base = ["app=fluid", "mesh=channel", "mesh.target_faces=600", "app.inflow=[10.0,0.0]", "app.stirs=[]",
+            "app.steps=10", "app.viscosity=0.02", "app.record_every=5", "figures=false",
+            "app.velocity=wshd07", "app.circulation=corrected_trapezoid"]
+    bad = decrun_cli(*base, "app.kernels=fortran", "hydra.run.dir=bad")
+    assert bad.returncode != 0 and "app.kernels: must be one of numba | numpy" in bad.stderr
+    assert "app.kernels=numba" in bad.stderr  # the override that fixes it, run next
+    runs = {}
+    for kernels in ("numba", "numpy"):
+        proc = decrun_cli(*base, f"app.kernels={kernels}", f"hydra.run.dir={kernels}")
+        assert proc.returncode == 0, proc.stderr
+        runs[kernels] = read_result(tmp_path / kernels / "result.h5")
+    assert runs["numba"].metrics["stable"] and runs["numba"].metrics["steps_done"] == 10
+    np.testing.assert_array_equal(runs["numba"].series["vorticity"], runs["numpy"].series["vorticity"])
+    np.testing.assert_array_equal(runs["numba"].series["flux"], runs["numpy"].series["flux"])

@@ -18,7 +18,7 @@ from decrun.core.hodge import harmonic_basis, hodge_decomposition
 from decrun.apps.base import FieldOnEdges, Result
 from decrun.runner.results import write_result
 
-from meshes_for_tests import complex_of
+from meshes_for_tests import complex_of, kuhn_cube
 
 
 @pytest.fixture(scope="module")
@@ -200,3 +200,54 @@ def test_a_torus_keeps_its_harmonic_ratios(decrun_cli, tmp_path):
     assert m["harmonic_dimension"] == m["betti_1"] == 2
     assert 0.01 < m["energy_fraction_harmonic"] < 0.05
     assert m["harmonic_curl_relative"] < 1e-12 and m["harmonic_codifferential_relative"] < 1e-12
+
+
+# ---------------------------------------------------------------------------- volumes
+def _tunnel(n=5):
+    return kuhn_cube(n, keep_cell=lambda c: ~((abs(c[:, 0] - .5) < .2) & (abs(c[:, 1] - .5) < .2)))
+
+
+def _cavity(n=5):
+    return kuhn_cube(n, keep_cell=lambda c: np.abs(c - 0.5).max(axis=1) > 0.15)
+
+
+@pytest.mark.parametrize("mesh, degree, betti", [(_tunnel, 1, 1), (_cavity, 1, 0), (_tunnel, 2, 0), (_cavity, 2, 1)])
+def test_hodge_on_tetrahedra_harmonic_dimension_is_betti(mesh, degree, betti):
+    """Tunnel: Betti_1 = 1, cavity: Betti_2 = 1 (Galerkin stars: Kuhn cubes have zero
+    circumcentric ⋆1); the three parts are ⋆-orthogonal to round-off and γ is harmonic."""
+    from decrun.apps.base import Context
+
+    K = SimplicialComplex(*mesh())
+    cfg = app.Hodge(degree=degree, input="random")
+    dec = DEC(K, star="whitney")
+    cfg.check_dimension(K)
+    cfg.check_operators(dec)
+    cfg.check(K, dec)
+    result = cfg.run(Context(cfg, K, dec))
+    m = result.metrics
+    assert m[f"betti_{degree}"] == betti == m["harmonic_dimension"] and m["harmonic_dimension_matches_betti"]
+    assert m["orthogonality_max"] < 1e-10 and m["reconstruction_error_relative"] < 1e-12
+    assert m["harmonic_curl_relative"] < 1e-8 and m["harmonic_codifferential_relative"] < 1e-8
+    assert result.fields["omega_vectors"].shape == (K.num_simplices(3), 3)
+
+
+def test_flux_of_a_constant_field_is_exact_and_whitney_reproduces_it():
+    """A constant field a is curl(½ a × x): its flux 2-form is d of a 1-form (exact only), and
+    the Whitney 2-form interpolation gives a back in every tetrahedron."""
+    from decrun.core.forms import sample_flux, whitney_sharp2
+
+    K = SimplicialComplex(*kuhn_cube(3))
+    a = np.array([0.3, -1.0, 0.5])
+    omega = sample_flux(K, a)
+    np.testing.assert_allclose(whitney_sharp2(K, omega), np.broadcast_to(a, (K.num_simplices(3), 3)), atol=1e-12)
+    np.testing.assert_allclose(DEC(K).d(2) @ omega, 0, atol=1e-13)  # div a = 0: closed
+    parts = hodge_decomposition(DEC(K, star="whitney"), omega, k=2)
+    assert np.linalg.norm(parts.coexact) + np.linalg.norm(parts.harmonic) < 1e-10 * np.linalg.norm(omega)
+
+
+def test_hodge_degree_two_on_a_surface_is_refused_with_the_fix():
+    from decrun.errors import TopologyError
+
+    K = complex_of(source="icosphere", subdiv=1)
+    with pytest.raises(TopologyError, match="app.degree=1"):
+        app.Hodge(degree=2).check(K, DEC(K))

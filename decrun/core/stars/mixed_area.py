@@ -3,7 +3,12 @@
 ⋆0 is the mixed Voronoi area: the Voronoi contribution in non-obtuse triangles; in an
 obtuse triangle, half its area to the obtuse corner and a quarter to each other one —
 always positive. Every other ⋆_k is circumcentric (so ⋆1 is still the cot formula and can be
-negative). Triangle meshes only.
+negative).
+
+Meyer et al.'s construction is planar; on tetrahedral meshes ``tetrahedra: barycentric`` (the
+default, so that the default config runs on volumes) takes ⋆0 from the lumped barycentric
+volume |σ|/4 of every incident tetrahedron (as ``operator=barycentric``; ``describe()`` says
+so in tables), and ``tetrahedra: error`` refuses volumes.
 """
 
 from __future__ import annotations
@@ -43,13 +48,29 @@ class MixedArea(Circumcentric):
     """``operator=mixed_area``: ⋆0 = mixed area (> 0), other stars circumcentric."""
 
     name = "mixed_area"
+    tetrahedra: str = "barycentric"  # barycentric | error: ⋆0 on tetrahedral meshes
+
+    def __post_init__(self):
+        if self.tetrahedra not in ("barycentric", "error"):
+            raise ConfigError(f"operator.tetrahedra: must be barycentric or error, got {self.tetrahedra!r}")
 
     def check(self, K) -> None:
+        if K.dim == 3 and self.tetrahedra == "barycentric":
+            self._volume = True
+            return
+        self._volume = False
         if K.dim != 2:
             raise ConfigError(f"operator=mixed_area is defined for triangle meshes, not dimension {K.dim}; "
                               "use `operator=barycentric` (or `operator=circumcentric`)")
 
     def diagonal(self, dec, k: int) -> np.ndarray:
+        if k == 0 and dec.n == 3:
+            from decrun.core.stars.barycentric import barycentric_star0
+
+            return barycentric_star0(dec.K)
         if k == 0:
             return mixed_area_star0(dec.K.vertices, dec.K.simplices(2), dec.K.top_volumes)
         return super().diagonal(dec, k)
+
+    def describe(self) -> str:
+        return "mixed_area (barycentric ⋆0 on tetrahedra)" if getattr(self, "_volume", False) else self.name

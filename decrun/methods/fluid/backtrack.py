@@ -35,8 +35,16 @@ from scipy.spatial import cKDTree
 
 from decrun.core.dec import DEC
 from decrun.core.geometry import embed3
+from decrun.methods.fluid.interpolation import dot3
 
 __all__ = ["TriangleWalker", "BacktrackResult"]
+
+
+def _check_integrator(integrator: str, substeps: int) -> None:
+    if integrator not in ("euler", "midpoint", "per_triangle"):
+        raise ValueError(f"integrator must be 'midpoint', 'euler' or 'per_triangle', not {integrator!r}")
+    if substeps < 1:
+        raise ValueError(f"substeps must be >= 1, got {substeps}")
 
 
 def _box_buckets(low: np.ndarray, high: np.ndarray, origin: np.ndarray, size: float, shape: np.ndarray):
@@ -62,6 +70,8 @@ class BacktrackResult:
     wall_edge : (P,) border edge id where a point was clamped, -1 otherwise
     rounds : walking rounds used; unfinished : points still walking after ``max_rounds``
     substeps : the largest number of substeps any point took
+    velocity : (P, 3, F) the interpolated velocities of all fields at the end points
+        (:meth:`TriangleWalker.backtrack_compiled` only; None otherwise)
     """
 
     position: np.ndarray
@@ -70,6 +80,7 @@ class BacktrackResult:
     rounds: int
     unfinished: int
     substeps: int = 1
+    velocity: np.ndarray | None = None
 
 
 class TriangleWalker:
@@ -218,9 +229,9 @@ class TriangleWalker:
         # distance to the border ≥ clearance(v) − |x − v| for each corner v (1-Lipschitz)
         corner = np.take(self.corner_x, t, axis=0)  # (P, 3, 3)
         gap = corner - start[:, None, :]
-        bound = np.take(self.vertex_clearance, np.take(self.top, t, axis=0)) - np.sqrt(np.einsum("pcd,pcd->pc", gap, gap))
+        bound = np.take(self.vertex_clearance, np.take(self.top, t, axis=0)) - np.sqrt(dot3(gap, gap))
         bound = np.maximum(np.maximum(bound[:, 0], bound[:, 1]), bound[:, 2])
-        safe = time * time * np.einsum("pd,pd->p", d, d) < bound * np.abs(bound)
+        safe = time * time * dot3(d, d) < bound * np.abs(bound)
         time = time[:, None]
         done = np.zeros(active.size, dtype=bool)
         if self._border is not None and not safe.all():
@@ -274,8 +285,8 @@ class TriangleWalker:
 
     def barycentric(self, triangle: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(P, 3) barycentric coordinates of x (P, 3) in the plane of ``triangle`` (P,)."""
-        return 1.0 / 3.0 + np.einsum("pcd,pd->pc", np.take(self.gradient, triangle, axis=0),
-                                     x - np.take(self.centroid, triangle, axis=0))
+        return 1.0 / 3.0 + dot3(np.take(self.gradient, triangle, axis=0),
+                                (x - np.take(self.centroid, triangle, axis=0))[:, None, :])
 
     def unfold(self, direction: np.ndarray, triangle: np.ndarray, slot: np.ndarray, neighbor: np.ndarray) -> np.ndarray:
         """Rotate ``direction`` (P, 3) about the edge (opposite ``slot`` of ``triangle``) into the
@@ -288,8 +299,7 @@ class TriangleWalker:
         e /= np.linalg.norm(e, axis=1, keepdims=True)
         old = np.cross(self.face_normal[triangle], e)
         new = np.cross(self.face_normal[neighbor], e)
-        return (np.einsum("pd,pd->p", direction, e)[:, None] * e
-                + np.einsum("pd,pd->p", direction, old)[:, None] * new)
+        return dot3(direction, e)[:, None] * e + dot3(direction, old)[:, None] * new
 
     @staticmethod
     def _exit(lam, rate, entry):
@@ -306,9 +316,9 @@ class TriangleWalker:
         t, r = tri[active], remaining[active]
         x, d = np.take(position, active, axis=0), np.take(direction, active, axis=0)
         gradient = np.take(self.gradient, t, axis=0)
-        lam = 1.0 / 3.0 + np.einsum("pcd,pd->pc", gradient, x - np.take(self.centroid, t, axis=0))
+        lam = 1.0 / 3.0 + dot3(gradient, (x - np.take(self.centroid, t, axis=0))[:, None, :])
         np.maximum(lam, 0.0, out=lam)
-        rate = np.einsum("pcd,pd->pc", gradient, d)
+        rate = dot3(gradient, d[:, None, :])
         s, slot = self._exit(lam, rate, entry[active])
         inside = s >= r
         position[active[inside]] = x[inside] + r[inside, None] * d[inside]
@@ -373,6 +383,88 @@ class TriangleWalker:
         new_length = np.linalg.norm(projected, axis=1)
         return projected * np.where(new_length > 0, length / np.where(new_length > 0, new_length, 1.0), 0.0)[:, None]
 
+    def substep_counts(self, triangle: np.ndarray, dt: float, speed_at_start, substeps: int,
+                       max_cfl: float | None, max_substeps: int) -> np.ndarray:
+        """(P,) substeps per point: ``substeps``, or with ``max_cfl`` enough that one substep moves
+        the point at most ``max_cfl`` mean edge lengths of its start triangle (|u| dt / h / k ≤
+        max_cfl, ``speed_at_start`` (P, 3) the velocity there), capped at ``max_substeps``."""
+        count = np.full(np.shape(triangle)[0], substeps, dtype=np.int64)
+        if max_cfl is not None:
+            cfl = np.linalg.norm(speed_at_start, axis=1) * dt / self.size[triangle]
+            count = np.clip(np.ceil(cfl / max_cfl).astype(np.int64), substeps, max(max_substeps, substeps))
+        return count
+
+    def kernel_tables(self) -> tuple:
+        """The tables the numba kernels (compiled.py) read, as two tuples (column layouts in
+        compiled.py: one row per triangle holds what a point there reads).
+
+        walk: vertices (n0, 3), tri_real (m, 27) ∇λ, centroid, corners, face normal, corner
+        clearances; tri_int (m, 12) vertices, neighbours, their slots, edges; face normals, planar.
+        jump (planar meshes; empty otherwise): the barycentric affine rows of the bucket members
+        in bucket order (slots, 9), buckets (cell starts, then member triangles), the border edges
+        (b, 8: a, e, outward normal, edge id, triangle), their buckets, the two grids (origin x, y,
+        cell size; twice), their shapes (nx, ny; twice), the affine rows per triangle (m, 9).
+        """
+        jumps = self._locator is not None
+        cache = self.__dict__.setdefault("_kernel_tables", {})
+        if jumps not in cache:
+            m = self.top.shape[0]
+            clearance = self.vertex_clearance[self.top] if self.planar else np.zeros((m, 3))
+            tri_real = np.concatenate([self.gradient.reshape(m, 9), self.centroid, self.corner_x.reshape(m, 9),
+                                       self.face_normal, clearance], axis=1)
+            tri_int = np.concatenate([self.top, self.neighbor, self.neighbor_slot, self.edge], axis=1)
+            walk = (np.ascontiguousarray(self.x, dtype=np.float64), np.ascontiguousarray(tri_real, dtype=np.float64),
+                    np.ascontiguousarray(tri_int, dtype=np.int64),
+                    np.ascontiguousarray(self.face_normal, dtype=np.float64), bool(self.planar))
+            grid, shape = np.ones(6), np.ones(4, dtype=np.int64)
+            affine, buckets = np.zeros((0, 9)), np.zeros(1, dtype=np.int64)
+            border, border_buckets = np.zeros((0, 8)), np.zeros(2, dtype=np.int64)
+            if jumps:
+                origin, size, cells = self._grid
+                grid[:3], shape[:2] = (origin[0], origin[1], size), cells
+                affine = self._affine_rows[self._bucket_triangles]
+                buckets = np.concatenate([self._bucket_start, self._bucket_triangles])
+                B = self._border
+                if B is not None:
+                    grid[3:], shape[2:] = (B["origin"][0], B["origin"][1], B["size"]), B["shape"]
+                    border = np.concatenate([B["a"], B["e"], B["normal"], B["edge"][:, None], B["triangle"][:, None]],
+                                            axis=1)
+                    border_buckets = np.concatenate([B["start"], B["members"]])
+            near = self._affine_rows if jumps else np.zeros((0, 9))
+            real, integer = (lambda a: np.ascontiguousarray(a, dtype=np.float64)), \
+                (lambda a: np.ascontiguousarray(a, dtype=np.int64))
+            jump = (real(affine), integer(buckets), real(border), integer(border_buckets), grid, shape, real(near))
+            cache[jumps] = (walk, jump)
+        return cache[jumps]
+
+    def backtrack_compiled(self, start: np.ndarray, triangle: np.ndarray, dt: float, interpolator,
+                           point_velocity: np.ndarray, integrator: str = "midpoint", substeps: int = 1,
+                           max_rounds: int = 1000, start_velocity: np.ndarray | None = None,
+                           max_cfl: float | None = None, max_substeps: int = 64) -> BacktrackResult:
+        """:meth:`backtrack` by the numba kernel (compiled.py), point by point.
+
+        The velocity is the interpolation by ``interpolator`` (a CellInterpolator) of field 1 of
+        ``point_velocity`` (n_points, 3, F ≥ 2: [d0 ψ part, full u] at the dual points) instead of
+        a callable; the other parameters and the result are those of :meth:`backtrack`, plus
+        ``result.velocity``: all fields of ``point_velocity`` interpolated at the end points.
+        """
+        from decrun.methods.fluid import compiled
+
+        _check_integrator(integrator, substeps)
+        position = np.ascontiguousarray(start, dtype=np.float64)
+        tri = np.ascontiguousarray(triangle, dtype=np.int64)
+        point_velocity = np.ascontiguousarray(point_velocity, dtype=np.float64)
+        normal = np.ascontiguousarray(self.face_normal, dtype=np.float64)
+        if start_velocity is None:
+            start_velocity = interpolator.velocity_compiled(tri, position, point_velocity, normal)[:, :, 1]
+        start_velocity = np.ascontiguousarray(start_velocity, dtype=np.float64)
+        count = self.substep_counts(tri, dt, start_velocity, substeps, max_cfl, max_substeps)
+        position, tri, wall, rounds, unfinished, velocity = compiled.backtrack_points(
+            *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, position, tri, start_velocity, count,
+            float(dt), compiled.INTEGRATOR_CODE[integrator], int(max_rounds))
+        return BacktrackResult(position, tri, wall, int(rounds.sum()), int(unfinished.max(initial=0)),
+                               int(count.max(initial=1)), velocity)
+
     def backtrack(self, start: np.ndarray, triangle: np.ndarray, dt: float, velocity,
                   integrator: str = "midpoint", substeps: int = 1, max_rounds: int = 1000,
                   start_velocity: np.ndarray | None = None, max_cfl: float | None = None,
@@ -395,19 +487,15 @@ class TriangleWalker:
             ``max_cfl`` times the mean edge length of its start triangle (|u| dt / h / k ≤ max_cfl,
             the stepSize of Fig. 7.9 made per point), capped at ``max_substeps``
         """
-        if integrator not in ("euler", "midpoint", "per_triangle"):
-            raise ValueError(f"integrator must be 'midpoint', 'euler' or 'per_triangle', not {integrator!r}")
-        if substeps < 1:
-            raise ValueError(f"substeps must be >= 1, got {substeps}")
+        _check_integrator(integrator, substeps)
         position = np.array(start, dtype=np.float64)
         tri = np.array(triangle, dtype=np.int64)
         P = position.shape[0]
         wall = np.full(P, -1, dtype=np.int64)
-        count = np.full(P, substeps, dtype=np.int64)
+        speed_at_start = None
         if max_cfl is not None:
             speed_at_start = start_velocity if start_velocity is not None else velocity(tri, position)
-            cfl = np.linalg.norm(speed_at_start, axis=1) * dt / self.size[tri]
-            count = np.clip(np.ceil(cfl / max_cfl).astype(np.int64), substeps, max(max_substeps, substeps))
+        count = self.substep_counts(tri, dt, speed_at_start, substeps, max_cfl, max_substeps)
         tau_of = float(dt) / count
         rounds = unfinished = 0
         for substep in range(int(count.max())):  # a bounded number of substeps
@@ -452,7 +540,7 @@ class TriangleWalker:
             previous = direction[active]
             # a fresh velocity leaving at once through the entry edge: keep the unfolded one
             lam = np.clip(self.barycentric(tri[active], position[active]), 0.0, None)
-            rate = np.einsum("pcd,pd->pc", self.gradient[tri[active]], fresh)
+            rate = dot3(self.gradient[tri[active]], fresh[:, None, :])
             came = entry[active]
             rows = np.arange(active.size)
             back = (came >= 0) & (rate[rows, np.maximum(came, 0)] < 0) & (lam[rows, np.maximum(came, 0)] <= 1e-12)

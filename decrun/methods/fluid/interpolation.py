@@ -25,7 +25,14 @@ from decrun.core.dec import DEC
 from decrun.core.geometry import embed3
 from decrun.methods.fluid.dual_cells import DualCells
 
-__all__ = ["triangle_velocity_matrix", "wachspress_weights", "CellInterpolator"]
+__all__ = ["triangle_velocity_matrix", "wachspress_weights", "CellInterpolator", "dot3"]
+
+
+def dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """<a, b> over the last axis (length 3) as (a0 b0 + a1 b1) + a2 b2: the order of the numba
+    kernels (compiled.py), so both paths round alike (einsum's order depends on its SIMD
+    width). Broadcasts like ``a * b``."""
+    return (a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]) + a[..., 2] * b[..., 2]
 
 
 def triangle_velocity_matrix(dec: DEC, face_normal: np.ndarray) -> sp.csr_matrix:
@@ -184,18 +191,17 @@ class CellInterpolator:
     def weights(self, vertex: np.ndarray, x: np.ndarray) -> np.ndarray:
         """(P, Ki) WSHD07 weights of the corners ``interpolation_corners[vertex]`` at x (P, 3)."""
         relative = x - np.take(self.vertices, vertex, axis=0)
-        if self.planar:  # one frame for all cells
-            f1, f2 = relative @ self.e1[0], relative @ self.e2[0]
-        else:
-            frame = np.take(self.frames, vertex, axis=0)  # (P, 2, 3)
-            f1 = np.einsum("pd,pd->p", relative, frame[:, 0])
-            f2 = np.einsum("pd,pd->p", relative, frame[:, 1])
+        frame = np.take(self.frames, vertex, axis=0)  # (P, 2, 3)
+        f1, f2 = dot3(relative, frame[:, 0]), dot3(relative, frame[:, 1])
         table = np.take(self.table, vertex, axis=0)  # (P, 4, K+1): offset, n1, n2 of edges (last, 0..K-1), det of corners
         h = table[:, 0] - table[:, 1] * f1[:, None] - table[:, 2] * f2[:, None]
         np.maximum(h, np.take(self.scale, vertex)[:, None], out=h)
         c = h[:, :-1] * h[:, 1:]  # h of the edge before and after each corner
         np.divide(table[:, 3, 1:], c, out=c)
-        c /= c.sum(axis=1, keepdims=True)
+        total = c[:, 0].copy()
+        for k in range(1, c.shape[1]):  # in order, as the kernel sums (numpy's sum is pairwise)
+            total += c[:, k]
+        c /= total[:, None]
         return c
 
     def velocity(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,
@@ -215,6 +221,30 @@ class CellInterpolator:
             return U
         n_v = np.take(self.cells.vertex_normal, vertex, axis=0)
         n_t = np.take(face_normal, triangle, axis=0)
-        ratio = np.einsum("pdf,pd->pf", U, n_t) / np.einsum("pd,pd->p", n_v, n_t)[:, None]
+        ratio = dot3(np.moveaxis(U, 1, 2), n_t[:, None, :]) / dot3(n_v, n_t)[:, None]
         U -= n_v[:, :, None] * ratio[:, None, :]
         return U
+
+    def kernel_tables(self) -> tuple:
+        """The interpolation tables as the tuple the numba kernels (compiled.py) read: triangles
+        (m, 3); one row per vertex (n0, 13 + 4 (K+1)): position, frame (e1, e2), normal, clamp
+        scale, then the edge/corner table (offset, n1, n2, det; K+1 columns each); corner ids
+        (n0, K); planar."""
+        if getattr(self, "_kernel_tables", None) is None:
+            n0 = self.vertices.shape[0]
+            cell_real = np.concatenate([self.vertices, self.frames.reshape(n0, 6), self.cells.vertex_normal,
+                                        self.scale[:, None], self.table.reshape(n0, -1)], axis=1)
+            self._kernel_tables = (np.ascontiguousarray(self.triangles, dtype=np.int64),
+                                   np.ascontiguousarray(cell_real, dtype=np.float64),
+                                   np.ascontiguousarray(self.ids, dtype=np.int64), bool(self.planar))
+        return self._kernel_tables
+
+    def velocity_compiled(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,
+                          face_normal: np.ndarray) -> np.ndarray:
+        """:meth:`velocity` by the numba kernel (compiled.py): (P, 3, F), equal to round-off."""
+        from decrun.methods.fluid import compiled
+
+        return compiled.velocity_points(self.kernel_tables(), np.ascontiguousarray(triangle, dtype=np.int64),
+                                        np.ascontiguousarray(x, dtype=np.float64),
+                                        np.ascontiguousarray(point_velocity, dtype=np.float64),
+                                        np.ascontiguousarray(face_normal, dtype=np.float64))

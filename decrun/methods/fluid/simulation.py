@@ -5,21 +5,24 @@ State (§7.2.1, primal and dual roles swapped): the stream function ψ (n0), the
 on the oriented surface) and the vorticity w = ⋆0⁻¹ d0ᵀ ⋆1 u per vertex (n0). One step
 (Fig. 7.4 / 7.6, with the corrections of FLUIDS.md):
 
-a. constant velocity per triangle from u (and from d0 ψ alone) — the circumcenter velocity;
-b. WSHD07 interpolation over the flattened dual cells (interpolation.py);
-c. backtrack every circumcenter along −u for dt (backtrack.py);
-d. circulation Γ around each backtracked cell, trapezoid rule
-   Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2; interior cells use the d0 ψ part,
-   *border cells* the full u. A border cell is the cell of a border vertex or any cell one of
-   whose backtracked corners was clamped at a wall. w = Γ / ⋆0; on closed surfaces the
-   ⋆0-weighted mean is removed (Σ ⋆0 w = 0);
-   curvature correction (``circulation_correction=True``, a deviation from the thesis):
-   on a curved surface the trapezoid circulation Γ⁰ of the *unmoved* cell differs from
-   ⋆0 w by O(h²) (the polygon of circumcenters cuts across the bent dual edges), and
-   applied every step that error acts like a diffusion that depends on the number of
-   steps, not on time. Interior cells therefore take w + (Γ − Γ⁰) / ⋆0, the change of
-   circulation caused by the motion. On planar meshes Γ⁰ = ⋆0 w exactly at interior
-   vertices, so the correction changes nothing there;
+a.–b. a continuous velocity from u (and from d0 ψ alone), by ``velocity`` (reconstruction.py):
+   ``"least_squares"`` (default) per-vertex least-squares fit to the edge fluxes, linear in each
+   triangle; ``"wshd07"`` (the thesis) the constant per triangle at its circumcenter,
+   interpolated over the flattened dual cells with the WSHD07 weights (interpolation.py);
+c. backtrack every circumcenter along −u for dt (backtrack.py); with ``circulation="swept"``
+   in equal intervals of at most ``swept_cfl`` edge lengths;
+d. circulation Γ around each backtracked cell. *Border cells* (the cell of a border vertex or
+   any cell one of whose backtracked corners was clamped at a wall) take the trapezoid rule
+   Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2 of the full u (the wall velocities enter
+   there: no-slip) and w = Γ / ⋆0. Interior cells, by ``circulation``:
+   ``"swept"`` (default): w + (Γ(X(C)) − Γ(C)) / ⋆0 with the change computed by Stokes as the
+     integral of the current vorticity (linear least-squares fits) over the quadrilaterals the
+     cell's sides sweep (swept.py) — consistent: the steady-flow drift shrinks with h;
+   ``"corrected_trapezoid"``: w + (Γ − Γ⁰) / ⋆0 with Γ the trapezoid of the d0 ψ part and Γ⁰
+     the same of the unmoved cell (on a curved surface Γ⁰ differs from ⋆0 w by O(h²), which
+     applied every step acts like a diffusion depending on the number of steps);
+   ``"trapezoid"`` (the thesis): w = Γ / ⋆0 of the d0 ψ part.
+   On closed surfaces the ⋆0-weighted mean is removed (Σ ⋆0 w = 0);
 e. viscosity, implicit: (⋆0 + ν dt d0ᵀ ⋆1 d0) w_new = ⋆0 w;
 f. forces: w += dt ⋆0⁻¹ d0ᵀ ⋆1 f for a force flux f;
 g. recovery (eq. 7.14 × ⋆0): (d0ᵀ ⋆1 d0 + μ d0ᵀ I_B d0) ψ = ⋆0 w with one pinned vertex
@@ -39,13 +42,20 @@ import scipy.sparse as sp
 
 from decrun.core.dec import DEC
 from decrun.errors import ConfigError, SolverError
-from decrun.methods.fluid.backtrack import TriangleWalker
+from decrun.methods.fluid.backtrack import BacktrackResult, TriangleWalker
 from decrun.core.geometry import embed3, obtuse_triangle_count
 from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
-from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
+from decrun.methods.fluid.interpolation import CellInterpolator, dot3, triangle_velocity_matrix
+from decrun.methods.fluid.swept import SweptVorticity, rest_point_interpolation
+from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS, make_reconstruction
 
-__all__ = ["VorticityFluid"]
+__all__ = ["VorticityFluid", "CIRCULATIONS", "KERNELS"]
+
+#: the circulation rules of step d for interior cells
+CIRCULATIONS = ("swept", "corrected_trapezoid", "trapezoid")
+
+KERNELS = ("numba", "numpy")  # compiled loops (compiled.py) or their numpy twins
 
 
 class VorticityFluid:
@@ -69,33 +79,60 @@ class VorticityFluid:
         each point takes at least ``substeps`` substeps and enough that one substep moves it
         at most ``max_cfl`` mean edge lengths of its start triangle (None: no such bound).
         ``integrator="per_triangle", max_cfl=None`` is Fig. 7.9 with stepSize = dt / substeps
-    circulation_correction : see step d above
+    circulation : ``"swept"`` | ``"corrected_trapezoid"`` | ``"trapezoid"``, see step d above
+    swept_cfl : ``circulation="swept"`` backtracks in intervals moving each point at most this
+        many mean edge lengths (see :meth:`_backtrack_sweeping`)
+    velocity : the velocity reconstruction of steps b–d, a key of
+        ``reconstruction.VELOCITY_RECONSTRUCTIONS``: ``"wshd07"`` (the thesis) or
+        ``"least_squares"`` (per-vertex least-squares velocity, linear in each triangle)
+    kernels : "numba" (default) runs the circulation sum and, with ``velocity="wshd07"``, the
+        backtracking walk with its WSHD07 interpolation as compiled loops (compiled.py; the
+        least-squares reconstruction has no compiled walk yet and walks in numpy); "numpy" runs
+        their vectorized numpy twins, the tested reference. Both do the same arithmetic in the
+        same order: the same step, bit for bit.
     """
 
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
                  max_cfl: float | None = 1.0, integrator: str = "midpoint",
-                 circulation_correction: bool = True):
+                 circulation: str = "swept", velocity: str = "least_squares", swept_cfl: float = 1.0,
+                 kernels: str = "numba"):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
             raise ConfigError(f"fluid: the viscosity must be >= 0, got {viscosity}")
+        if circulation not in CIRCULATIONS:
+            raise ConfigError(f"fluid: circulation must be one of {list(CIRCULATIONS)}, got {circulation!r}")
+        if velocity not in VELOCITY_RECONSTRUCTIONS:
+            raise ConfigError(f"fluid: velocity must be one of {sorted(VELOCITY_RECONSTRUCTIONS)}, got {velocity!r}")
+        if velocity == "least_squares" and circulation != "swept":
+            raise ConfigError("fluid: velocity=least_squares is stable only with circulation=swept (its trapezoid "
+                              "circulation grew enstrophy x14 in 5 s on a sphere); use circulation=swept")
+        if kernels not in KERNELS:
+            raise ConfigError(f"fluid: kernels must be one of {list(KERNELS)}, got {kernels!r}")
+        self.kernels = kernels
+        #: the compiled walk interpolates with the WSHD07 tables (compiled.py)
+        self.compiled_walk = kernels == "numba" and velocity == "wshd07"
         K = dec.K
         self.dec, self.K = dec, K
         self.dt, self.viscosity = float(dt), float(viscosity)
         self.max_rounds, self.substeps, self.integrator = max_rounds, substeps, integrator
         self.max_cfl = max_cfl
-        self.circulation_correction = circulation_correction
+        self.circulation_rule = circulation
+        self.swept_cfl = float(swept_cfl)
         self.blowup_factor = blowup_factor
         self.cells = build_dual_cells(dec)
         self.face_normal = self.cells.face_normal
-        self.interpolator = CellInterpolator(self.cells, K.simplices(2), K.vertices)
+        self.walker = TriangleWalker(dec, self.face_normal)
+        self.velocity_matrix = triangle_velocity_matrix(dec, self.face_normal)
+        self.reconstruction = make_reconstruction(velocity, dec, self.cells, self.face_normal, self.walker)
+        self.interpolator = getattr(self.reconstruction, "interpolator", None)
+        if self.interpolator is None:
+            self.interpolator = CellInterpolator(self.cells, K.simplices(2), K.vertices)
         #: mesh quality the method relies on (§7.3): obtuse triangles and non-convex flattened cells
         self.obtuse_triangles = obtuse_triangle_count(K.vertices, K.simplices(2))
         self.nonconvex_cells = int((~self.interpolator.convex).sum())
-        self.walker = TriangleWalker(dec, self.face_normal)
-        self.velocity_matrix = triangle_velocity_matrix(dec, self.face_normal)
         self.closed = not self.cells.border_vertex.any()
         self.obstacles, self.label = border_layout(dec, obstacle_loops)
         self.inflow = np.zeros(3) if inflow_velocity is None else embed3(
@@ -143,8 +180,21 @@ class VorticityFluid:
         self.time, self.steps = 0.0, 0
         self.diverged_at_step: int | None = None
         self._energy_reference = max(self.kinetic_energy(), 0.5 * self.harmonic @ (self.star1 * self.harmonic), 1e-300)
+        if self.kernels == "numba":
+            self._load_kernels()
 
     # ------------------------------------------------------------------ pieces
+    def _load_kernels(self) -> None:
+        """Load (or, once per install, compile) the numba kernels now, on empty inputs, so the
+        first step — and ``steps_per_second`` — does not include it."""
+        none = np.zeros((0, 3))
+        if self.compiled_walk:
+            self.walker.backtrack_compiled(none, np.zeros(0, dtype=np.int64), self.dt, self.interpolator,
+                                           self._point_velocities(), integrator=self.integrator,
+                                           start_velocity=none)
+        self.circulation(self.cells.points[: self.cells.n_circumcenters],
+                         np.zeros((self.cells.n_circumcenters, 3, 2)), np.zeros(self.cells.n_circumcenters, bool))
+
     def _remove_mean(self, w: np.ndarray) -> np.ndarray:
         if not self.closed:
             return w
@@ -167,35 +217,82 @@ class VorticityFluid:
 
     def velocity_at(self, triangle: np.ndarray, points: np.ndarray) -> np.ndarray:
         """(P, 3) interpolated full velocity at ``points`` (P, 3) inside ``triangle`` (P,) (step b)."""
-        full = self._point_velocities()[..., 1:2]
-        return self.interpolator.velocity(np.asarray(triangle), embed3(points), full, self.face_normal)[:, :, 0]
+        full = np.ascontiguousarray(self._point_velocities()[..., 1:2])
+        return self.reconstruction.velocity(np.asarray(triangle), embed3(points), full)[:, :, 0]
 
     def _point_velocities(self) -> np.ndarray:
-        """(P, 3, 2) velocities of all dual points: [d0 ψ part, full u]."""
-        stream = self.triangle_velocities(self.d0 @ self.psi)
-        full = self.triangle_velocities(self.flux)
-        return np.concatenate([np.stack([stream, full], axis=2), self._fixed_velocity])
+        """The reconstruction's data for [d0 ψ part, full u] (…, 3, 2)."""
+        fluxes = np.stack([self.d0 @ self.psi, self.flux], axis=1)
+        return self.reconstruction.fields(fluxes, self._fixed_velocity)
 
     def backtrack(self):
         """Step c: the circumcenters dt ago (a BacktrackResult) and the two velocity fields there
         ((m, 3, 2): [d0 ψ part, full u], wall velocities at clamped points)."""
         both = self._point_velocities()
         full = np.ascontiguousarray(both[..., 1:2])
-        normal = self.face_normal
+        reconstruction = self.reconstruction
 
         def velocity(triangle, x):
-            return self.interpolator.velocity(triangle, x, full, normal)[:, :, 0]
+            return reconstruction.velocity(triangle, x, full)[:, :, 0]
 
         m = self.cells.n_circumcenters
-        result = self.walker.backtrack(self.cells.points[:m], np.arange(m), self.dt, velocity,
-                                       integrator=self.integrator, substeps=self.substeps,
-                                       max_rounds=self.max_rounds, start_velocity=both[:m, :, 1],
-                                       max_cfl=self.max_cfl)
-        v = self.interpolator.velocity(result.triangle, result.position, both, normal)
+        start = (reconstruction.circumcenter_matrix @ self.flux).reshape(m, 3)
+        options = dict(integrator=self.integrator, substeps=self.substeps, max_rounds=self.max_rounds,
+                       max_cfl=self.max_cfl)
+        if self.circulation_rule != "swept":
+            result = self._walk(self.cells.points[:m], np.arange(m), self.dt, velocity, both, start, options)
+        else:
+            result = self._backtrack_sweeping(velocity, both, start, options)
+        if self.compiled_walk and self.circulation_rule != "swept":
+            v = result.velocity  # the kernel interpolated every field at the end points
+        else:
+            v = reconstruction.velocity(result.triangle, result.position, both)
         clamped = result.wall_edge >= 0
         v[clamped, :, 0] = 0.0
         v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
         return result, v
+
+    def _walk(self, points, triangles, dt, velocity, both, start_velocity, options):
+        """One backtracking walk of ``points`` (P, 3) in ``triangles`` (P,) over ``dt``: the
+        compiled kernel (WSHD07 interpolation of field 1 of ``both``) or its numpy twin with
+        the reconstruction's ``velocity`` callable."""
+        if self.compiled_walk:
+            return self.walker.backtrack_compiled(points, triangles, dt, self.interpolator, both,
+                                                  start_velocity=start_velocity, **options)
+        return self.walker.backtrack(points, triangles, dt, velocity, start_velocity=start_velocity, **options)
+
+    def _backtrack_sweeping(self, velocity, both, start, options):
+        """Step c for ``circulation="swept"``: backtrack in k equal intervals of dt / k, k the
+        smallest number that moves every point at most ``swept_cfl`` of its triangle's mean edge
+        length per interval (at the start velocity), and add up the swept-vorticity change of
+        every cell over the intervals (each swept quad then stays within about one cell, where
+        the linear vorticity is a good model). Keeps it in ``self._swept_change``."""
+        m = self.cells.n_circumcenters
+        cfl = np.linalg.norm(start, axis=1) * self.dt / self.walker.size
+        k = max(1, int(np.ceil(cfl.max() / self.swept_cfl))) if cfl.size else 1
+        top = self.K.simplices(2)
+        points = self.cells.points.copy()
+        value = self._rest_vorticity @ self.vorticity
+        position, triangle = points[:m].copy(), np.arange(m)
+        wall = np.full(m, -1, dtype=np.int64)
+        change = np.zeros(self.K.num_simplices(0))
+        rounds = unfinished = substeps = 0
+        for interval in range(k):  # k small: a few intervals per step
+            free = np.flatnonzero(wall < 0)
+            part = self._walk(position[free], triangle[free], self.dt / k, velocity, both,
+                              start[free] if interval == 0 else None, options)
+            rounds, unfinished = rounds + part.rounds, max(unfinished, part.unfinished)
+            substeps = max(substeps, part.substeps)
+            position[free], triangle[free], wall[free] = part.position, part.triangle, part.wall_edge
+            moved = points.copy()
+            moved[:m] = position
+            lam = self.walker.barycentric(triangle, position)
+            new_value = value.copy()
+            new_value[:m] = np.einsum("pc,pc->p", lam, self.vorticity[top[triangle]])
+            change += self._swept.change(points, moved, value, new_value)
+            points, value = moved, new_value
+        self._swept_change = change
+        return BacktrackResult(position, triangle, wall, rounds, unfinished, k * substeps)
 
     def _build_dual_edges(self) -> None:
         """The dual cells' sides as unique dual edges (a, b), a < b, and the signed
@@ -207,6 +304,7 @@ class VorticityFluid:
         first, second = np.minimum(a, b)[keep], np.maximum(a, b)[keep]
         key, inverse = np.unique(first * n_points + second, return_inverse=True)
         self._edge_a, self._edge_b = key // n_points, key % n_points
+        self._fixed_points = np.ascontiguousarray(self.cells.points[self.cells.n_circumcenters:], dtype=np.float64)
         rows = np.broadcast_to(np.arange(corners.shape[0])[:, None], corners.shape)[keep]
         sign = np.where(a[keep] < b[keep], 1.0, -1.0)
         self._dual_incidence = sp.csr_matrix((sign, (rows, inverse)), shape=(corners.shape[0], key.size))
@@ -222,7 +320,13 @@ class VorticityFluid:
                 vals.append(half[moving, d])
         trapezoid = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                                   shape=(key.size, 3 * m))
-        self._rest_circulation = (self._dual_incidence @ trapezoid @ self.velocity_matrix @ self.d0).tocsr()
+        at_circumcenters = self.reconstruction.circumcenter_matrix
+        self._rest_circulation = (self._dual_incidence @ trapezoid @ at_circumcenters @ self.d0).tocsr()
+        self._swept = SweptVorticity(self.cells.vertex_normal, self._dual_incidence, self._edge_a, self._edge_b)
+        top = self.K.simplices(2)
+        at_circumcenters = self.walker.barycentric(np.arange(m), self.cells.points[:m])
+        self._rest_vorticity = rest_point_interpolation(top, at_circumcenters, self.cells.point_vertex,
+                                                        self.K.simplices(1)[self.cells.border_edges], self.K.num_simplices(0))
 
     def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray):
         """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule
@@ -233,12 +337,20 @@ class VorticityFluid:
         """
         cells = self.cells
         m = cells.n_circumcenters
-        points = np.concatenate([position, cells.points[m:]])
-        velocities = np.concatenate([velocity, self._fixed_velocity])
         a, b = self._edge_a, self._edge_b
-        side = points[b] - points[a]  # (E, 3)
-        g = 0.5 * np.einsum("edf,ed->ef", velocities[a] + velocities[b], side)  # (E, 2)
-        gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
+        if self.kernels == "numba":
+            from decrun.methods.fluid.compiled import circulation_sums
+
+            D = self._dual_incidence
+            gamma = circulation_sums(np.ascontiguousarray(position, dtype=np.float64), self._fixed_points,
+                                     np.ascontiguousarray(velocity, dtype=np.float64), self._fixed_velocity,
+                                     a, b, D.indptr, D.indices, D.data)
+        else:
+            points = np.concatenate([position, cells.points[m:]])
+            velocities = np.concatenate([velocity, self._fixed_velocity])
+            side = points[b] - points[a]  # (E, 3)
+            g = 0.5 * dot3(np.moveaxis(velocities[a] + velocities[b], 1, 2), side[:, None, :])  # (E, 2)
+            gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
         touched = np.zeros(m + 1, dtype=bool)
         touched[:m] = clamped
         corners = np.where(cells.corners < m, cells.corners, m)
@@ -249,7 +361,9 @@ class VorticityFluid:
         """Steps c–d: the vorticity (n0,) carried to the vertices, before viscosity and forces."""
         gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0)
         w = gamma / self.star0
-        if self.circulation_correction:
+        if self.circulation_rule == "swept":
+            w = np.where(border_cell, w, self.vorticity + self._swept_change / self.star0)
+        elif self.circulation_rule == "corrected_trapezoid":
             gamma0 = self._rest_circulation @ self.psi
             w = np.where(border_cell, w, self.vorticity + (gamma - gamma0) / self.star0)
         return self._remove_mean(w)

@@ -8,7 +8,7 @@ import numpy as np
 from decrun.core.geometry import embed3, face_normals, is_planar
 from decrun.runner.plots.common import new_figure, plot_surface
 
-__all__ = ["draw_field", "field_figure", "hodge_parts_figure"]
+__all__ = ["draw_field", "draw_volume_field", "field_figure", "hodge_parts_figure"]
 
 _VIEW = (25.0, -60.0)  # matplotlib elevation, azimuth (degrees)
 
@@ -136,13 +136,21 @@ ARROW_FLOOR = 1e-6
 def hodge_parts_figure(K, vectors: dict, energy: dict, *, max_arrows: int = 500):
     """The input and its three Hodge parts side by side (arrows = direction, grey = |u|).
 
-    ``vectors`` maps ``omega``/``exact``/``coexact``/``harmonic`` + ``_vectors`` to (n2, 3),
-    ``energy`` the parts to their energy share ‖part‖²/‖ω‖². All panels share ω's grey scale
-    (one colour bar) and draw arrows only where |u| > :data:`ARROW_FLOOR` × that scale, so a
-    part that is zero to round-off is an empty panel; each title gives the energy share.
+    ``vectors`` maps ``omega``/``exact``/``coexact``/``harmonic`` + ``_vectors`` to (n_top, 3)
+    (per triangle, or per tetrahedron: :func:`draw_volume_field`), ``energy`` the parts to their
+    energy share ‖part‖²/‖ω‖². On surfaces all panels share ω's grey scale (one colour bar)
+    and draw arrows only where |u| > :data:`ARROW_FLOOR` × that scale, so a part that is zero
+    to round-off is an empty panel; each title gives the energy share.
     """
     planar = is_planar(K.vertices)
     names = ("omega", "exact", "coexact", "harmonic")
+    if K.dim == 3:
+        fig = new_figure(4.0 * len(names), 4.4)
+        for i, name in enumerate(names):
+            ax = fig.add_subplot(1, len(names), i + 1, projection="3d", computed_zorder=False)
+            share = "" if name == "omega" else f", {100 * energy.get(name, 0.0):.1f}% energy"
+            draw_volume_field(ax, K, vectors[f"{name}_vectors"], max_arrows=max_arrows, title=f"{name}{share}")
+        return fig
     fig = new_figure(4.0 * len(names) + 0.8, 4.4)
     scale = 2.0 * float(np.percentile(np.linalg.norm(vectors["omega_vectors"], axis=1), 95)) or 1.0
     axes, mappable = [], None
@@ -159,3 +167,28 @@ def hodge_parts_figure(K, vectors: dict, energy: dict, *, max_arrows: int = 500)
     if mappable is not None:
         fig.colorbar(mappable, ax=axes, shrink=0.6, label="|u| (one scale for all panels)")
     return fig
+
+
+def draw_volume_field(ax, K, tet_vectors: np.ndarray, *, max_arrows: int = 500, title: str | None = None,
+                      seed: int = 0, view=_VIEW):
+    """A field inside a tetrahedral mesh: the border surface, translucent, coloured by |u| of
+    the tetrahedron under each border triangle, and arrows of length ∝ |u| at a seeded subset
+    of at most ``max_arrows`` tetrahedron barycenters."""
+    from decrun.runner.plots.spectrum import border_triangles
+
+    faces, owner = border_triangles(K)
+    magnitude = np.linalg.norm(tet_vectors, axis=1)
+    top = float(np.percentile(magnitude, 95)) or 1.0
+    plot_surface(ax, K.vertices, faces, magnitude[owner], cmap="Greys", vmin=0.0, vmax=2.0 * top, linewidth=0.05,
+                 title=title)
+    for collection in ax.collections:
+        collection.set_alpha(0.25)
+    tets = K.simplices(3)
+    chosen = np.arange(len(tets))
+    if chosen.size > max_arrows:
+        chosen = np.sort(np.random.default_rng(seed).choice(chosen, max_arrows, replace=False))
+    centers = K.vertices[tets[chosen]].mean(axis=1)
+    direction = tet_vectors[chosen] / top * 1.5 * K.mean_edge_length
+    ax.quiver(*(centers - 0.5 * direction).T, *direction.T, color="tab:orange", linewidth=0.6,
+              arrow_length_ratio=0.3, zorder=4)
+    ax.view_init(*view)

@@ -1,0 +1,458 @@
+"""Numba kernels of the fluid step: the backtracking walk, the WSHD07 interpolation and the
+circulation sum, one loop per point instead of thousands of numpy calls per step.
+
+Each kernel has a numpy twin that stays the tested reference (``VorticityFluid(kernels="numpy")``,
+``app.kernels=numpy``); the arithmetic is the same per point, so results agree to round-off:
+
+* :func:`velocity_points` — :meth:`CellInterpolator.velocity` (interpolation.py): nearest
+  corner of the triangle, WSHD07 weights over the flattened dual cell, weighted sum of the
+  dual-point velocities, projection into the triangle's plane along the vertex normal;
+* :func:`backtrack_points` — :meth:`TriangleWalker.backtrack` (backtrack.py): per point, its
+  substeps (midpoint, euler or per_triangle), each a walk across triangles with the direction
+  unfolded about every crossed edge and the point clamped at the first border edge it meets.
+  The velocity field is fixed during a backtrack, so walking every point through all its
+  substeps at once is the same computation as numpy's substep-by-substep rounds over all
+  points. On planar meshes it jumps as numpy does (the straight path's end located in the
+  triangle grid, or its first border crossing), walking only where that fails;
+* :func:`circulation_sums` — the trapezoid circulation of :meth:`VorticityFluid.circulation`.
+
+Compiled with ``cache=True``: the machine code is written next to this file (``__pycache__``,
+or numba's user cache dir when that is read-only) on the first call, so later processes — every
+job of a sweep — load it instead of compiling. Importing this module imports numba; the rest of
+decrun imports it only when a fluid runs with ``kernels="numba"``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["velocity_points", "backtrack_points", "circulation_sums", "INTEGRATOR_CODE"]
+
+INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
+
+INLINE = "never"  # numba-level inlining ("always") measured 1.7× slower loops and a 3× longer cold compile
+
+# Table layouts (built by TriangleWalker.kernel_tables and CellInterpolator.kernel_tables): one
+# row per triangle / vertex holds everything a point there reads, so a point touches a few cache
+# lines and the helpers take a few arrays.
+TRI_GRADIENT, TRI_CENTROID, TRI_CORNER, TRI_NORMAL, TRI_CLEARANCE = 0, 9, 12, 21, 24  # tri_real columns
+TRI_TOP, TRI_NEIGHBOR, TRI_SLOT, TRI_EDGE = 0, 3, 6, 9  # tri_int columns
+CELL_VERTEX, CELL_FRAME, CELL_NORMAL, CELL_SCALE, CELL_TABLE = 0, 3, 9, 12, 13  # cell_real columns
+
+_kernel = numba.njit(cache=True, error_model="numpy")  # x / 0 gives inf or nan, as in numpy
+# The helpers allocate nothing and keep no array: without the runtime's reference counts (_nrt=False)
+# they do not incref/decref every array argument on each call, which made the walk 2.4× slower.
+_helper = numba.njit(cache=True, error_model="numpy", inline=INLINE, _nrt=False)
+
+
+# ---------------------------------------------------------------- interpolation (interpolation.py)
+@_helper
+def _nearest_vertex(triangles, cell_real, t, x0, x1, x2):
+    """The corner of triangle t nearest to x (first of equals, as numpy's argmin)."""
+    best, best_distance = triangles[t, 0], np.inf
+    for c in range(3):
+        v = triangles[t, c]
+        d0, d1, d2 = cell_real[v, 0] - x0, cell_real[v, 1] - x1, cell_real[v, 2] - x2
+        distance = d0 * d0 + d1 * d1 + d2 * d2
+        if distance < best_distance or c == 0:
+            best, best_distance = v, distance
+    return best
+
+
+@_helper
+def _weights(cell_real, v, x0, x1, x2, w, h):
+    """WSHD07 weights (into w, K) of the corners of cell v at x; h is scratch (K + 1)."""
+    r0, r1, r2 = x0 - cell_real[v, 0], x1 - cell_real[v, 1], x2 - cell_real[v, 2]
+    f1 = r0 * cell_real[v, CELL_FRAME] + r1 * cell_real[v, CELL_FRAME + 1] + r2 * cell_real[v, CELL_FRAME + 2]
+    f2 = r0 * cell_real[v, CELL_FRAME + 3] + r1 * cell_real[v, CELL_FRAME + 4] + r2 * cell_real[v, CELL_FRAME + 5]
+    lowest = cell_real[v, CELL_SCALE]
+    n = h.shape[0]  # K + 1 columns: offset, n1, n2 of the edges (closing edge first), det of the corners
+    for j in range(n):
+        value = (cell_real[v, CELL_TABLE + j] - cell_real[v, CELL_TABLE + n + j] * f1
+                 - cell_real[v, CELL_TABLE + 2 * n + j] * f2)
+        h[j] = lowest if value < lowest else value
+    total = 0.0
+    for k in range(w.shape[0]):
+        c = cell_real[v, CELL_TABLE + 3 * n + k + 1] / (h[k] * h[k + 1])
+        w[k] = c
+        total += c
+    for k in range(w.shape[0]):
+        w[k] /= total
+
+
+@_helper
+def _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, out):
+    """Σ_k w_k u_k of field f over the corners of cell v (into out, 3), projected into the
+    plane of triangle t along the vertex normal (curved meshes)."""
+    for d in range(3):
+        total = 0.0
+        for k in range(w.shape[0]):
+            total += w[k] * point_velocity[ids[v, k], d, f]
+        out[d] = total
+    if not planar:
+        n0, n1, n2 = cell_real[v, CELL_NORMAL], cell_real[v, CELL_NORMAL + 1], cell_real[v, CELL_NORMAL + 2]
+        m0, m1, m2 = face_normal[t, 0], face_normal[t, 1], face_normal[t, 2]
+        ratio = (out[0] * m0 + out[1] * m1 + out[2] * m2) / (n0 * m0 + n1 * m1 + n2 * m2)
+        out[0] -= n0 * ratio
+        out[1] -= n1 * ratio
+        out[2] -= n2 * ratio
+
+
+@_helper
+def _velocity(triangles, cell_real, ids, planar, point_velocity, f, t, x, face_normal, w, h, out):
+    """Interpolated velocity (into out, 3) of field f of point_velocity (n_points, 3, F) at x in t."""
+    v = _nearest_vertex(triangles, cell_real, t, x[0], x[1], x[2])
+    _weights(cell_real, v, x[0], x[1], x[2], w, h)
+    _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, out)
+
+
+@_kernel
+def velocity_points(field, triangle, x, point_velocity, face_normal):
+    """(P, 3, F) interpolated velocities at x (P, 3) in ``triangle`` (P,) of the F fields
+    ``point_velocity`` (n_points, 3, F); ``field`` is :meth:`CellInterpolator.kernel_tables`."""
+    triangles, cell_real, ids, planar = field
+    P, F, K = x.shape[0], point_velocity.shape[2], ids.shape[1]
+    result = np.empty((P, 3, F))
+    w, h, out = np.empty(K), np.empty(K + 1), np.empty(3)
+    for p in range(P):
+        t = triangle[p]
+        x0, x1, x2 = x[p, 0], x[p, 1], x[p, 2]
+        v = _nearest_vertex(triangles, cell_real, t, x0, x1, x2)
+        _weights(cell_real, v, x0, x1, x2, w, h)
+        for f in range(F):
+            _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, out)
+            result[p, 0, f], result[p, 1, f], result[p, 2, f] = out[0], out[1], out[2]
+    return result
+
+
+# ---------------------------------------------------------------- the walk (backtrack.py)
+@_helper
+def _unfold(vertices, tri_real, tri_int, d, t, slot, nb):
+    """Rotate d (3, in place) about the edge opposite ``slot`` of t into the plane of nb."""
+    a, b = tri_int[t, TRI_TOP + (slot + 1) % 3], tri_int[t, TRI_TOP + (slot + 2) % 3]
+    e0, e1, e2 = vertices[b, 0] - vertices[a, 0], vertices[b, 1] - vertices[a, 1], vertices[b, 2] - vertices[a, 2]
+    length = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+    e0, e1, e2 = e0 / length, e1 / length, e2 / length
+    N0, N1, N2 = tri_real[t, TRI_NORMAL], tri_real[t, TRI_NORMAL + 1], tri_real[t, TRI_NORMAL + 2]
+    o0, o1, o2 = N1 * e2 - N2 * e1, N2 * e0 - N0 * e2, N0 * e1 - N1 * e0
+    N0, N1, N2 = tri_real[nb, TRI_NORMAL], tri_real[nb, TRI_NORMAL + 1], tri_real[nb, TRI_NORMAL + 2]
+    n0, n1, n2 = N1 * e2 - N2 * e1, N2 * e0 - N0 * e2, N0 * e1 - N1 * e0
+    along = d[0] * e0 + d[1] * e1 + d[2] * e2
+    across = d[0] * o0 + d[1] * o1 + d[2] * o2
+    d[0], d[1], d[2] = along * e0 + across * n0, along * e1 + across * n1, along * e2 + across * n2
+
+
+@_helper
+def _barycentric(tri_real, t, x, lam):
+    r0 = x[0] - tri_real[t, TRI_CENTROID]
+    r1 = x[1] - tri_real[t, TRI_CENTROID + 1]
+    r2 = x[2] - tri_real[t, TRI_CENTROID + 2]
+    for c in range(3):
+        lam[c] = 1.0 / 3.0 + (tri_real[t, 3 * c] * r0 + tri_real[t, 3 * c + 1] * r1 + tri_real[t, 3 * c + 2] * r2)
+
+
+@_helper
+def _round(vertices, tri_real, tri_int, planar, state, x, d, lam, rate):
+    """One walking round of one point (TriangleWalker._advance): move inside the triangle
+    state[0] until the remaining time state[3] is used or an edge is reached; cross it (entry
+    slot state[1]) or stop at the wall (state[2] = border edge). Returns True when done."""
+    t, entry = int(state[0]), int(state[1])
+    remaining = state[3]
+    _barycentric(tri_real, t, x, lam)
+    for c in range(3):
+        if lam[c] < 0.0:
+            lam[c] = 0.0
+        rate[c] = tri_real[t, 3 * c] * d[0] + tri_real[t, 3 * c + 1] * d[1] + tri_real[t, 3 * c + 2] * d[2]
+    s, slot = np.inf, 0
+    for c in range(3):
+        exit_time = lam[c] / -rate[c] if rate[c] < 0 else np.inf
+        if c == entry:
+            exit_time = np.inf
+        if exit_time < s:
+            s, slot = exit_time, c
+    if s >= remaining:
+        for k in range(3):
+            x[k] = x[k] + remaining * d[k]
+        state[3] = 0.0
+        return True
+    for c in range(3):
+        value = 0.0 if c == slot else lam[c] + s * rate[c]
+        lam[c] = value if value > 0.0 else 0.0
+    total = lam[0] + lam[1] + lam[2]
+    for c in range(3):
+        lam[c] /= total
+    for k in range(3):
+        x[k] = (lam[0] * tri_real[t, TRI_CORNER + k] + lam[1] * tri_real[t, TRI_CORNER + 3 + k]
+                + lam[2] * tri_real[t, TRI_CORNER + 6 + k])
+    state[3] = remaining - s
+    nb = tri_int[t, TRI_NEIGHBOR + slot]
+    if nb < 0:
+        state[2] = tri_int[t, TRI_EDGE + slot]
+        state[3] = 0.0
+        return True
+    if not planar:
+        _unfold(vertices, tri_real, tri_int, d, t, slot, nb)
+    state[1] = tri_int[t, TRI_SLOT + slot]
+    state[0] = nb
+    return False
+
+
+@_helper
+def _inside(near, c, y0, y1, margin):
+    return (near[c, 0] * y0 + near[c, 1] * y1 + near[c, 2] >= margin
+            and near[c, 3] * y0 + near[c, 4] * y1 + near[c, 5] >= margin
+            and near[c, 6] * y0 + near[c, 7] * y1 + near[c, 8] >= margin)
+
+
+@_helper
+def _locate_near(near, tri_int, t, y0, y1):
+    """Triangle t, its neighbours or theirs when one holds (y0, y1) with every barycentric
+    coordinate ≥ 1e-7, else -1. Such a point lies in no other triangle nor within 1e-12 of one
+    (for edge-length ratios below 1e5), so the grid search would give the same triangle."""
+    margin = 1e-7
+    if _inside(near, t, y0, y1, margin):
+        return t
+    for i in range(3):
+        n = tri_int[t, TRI_NEIGHBOR + i]
+        if n >= 0 and _inside(near, n, y0, y1, margin):
+            return n
+    for i in range(3):
+        n = tri_int[t, TRI_NEIGHBOR + i]
+        if n < 0:
+            continue
+        for j in range(3):
+            n2 = tri_int[n, TRI_NEIGHBOR + j]
+            if n2 >= 0 and n2 != t and _inside(near, n2, y0, y1, margin):
+                return n2
+    return -1
+
+
+@_helper
+def _locate(affine, buckets, grid, grid_shape, y0, y1):
+    """The first triangle of the grid bucket holding (y0, y1) that contains it (barycentric
+    coordinates ≥ −1e-12, as numpy's _jump tests them), or -1. ``affine`` holds the bucket
+    members' rows in bucket order (slot j: triangle buckets[j + 1 + n_cells])."""
+    cx = min(max(int(np.floor((y0 - grid[0]) / grid[2])), 0), grid_shape[0] - 1)
+    cy = min(max(int(np.floor((y1 - grid[1]) / grid[2])), 0), grid_shape[1] - 1)
+    cell = cy * grid_shape[0] + cx
+    members = grid_shape[0] * grid_shape[1] + 1  # buckets: start (cells + 1), then the members
+    for j in range(buckets[cell], buckets[cell + 1]):
+        if (affine[j, 0] * y0 + affine[j, 1] * y1 + affine[j, 2] >= -1e-12
+                and affine[j, 3] * y0 + affine[j, 4] * y1 + affine[j, 5] >= -1e-12
+                and affine[j, 6] * y0 + affine[j, 7] * y1 + affine[j, 8] >= -1e-12):
+            return buckets[members + j]
+    return -1
+
+
+@_helper
+def _first_crossing(border_real, border_buckets, grid, grid_shape, p0, p1, q0, q1):
+    """First border edge crossed outwards by the segment p → q (TriangleWalker._first_crossing):
+    (segment parameter in [0, 1] or inf, border edge index or -1)."""
+    size, nx, ny = grid[5], grid_shape[2], grid_shape[3]
+    x_low = min(max(int(np.floor((min(p0, q0) - grid[3]) / size)), 0), nx - 1)
+    y_low = min(max(int(np.floor((min(p1, q1) - grid[4]) / size)), 0), ny - 1)
+    x_high = min(max(int(np.floor((max(p0, q0) - grid[3]) / size)), 0), nx - 1)
+    y_high = min(max(int(np.floor((max(p1, q1) - grid[4]) / size)), 0), ny - 1)
+    members = nx * ny + 1
+    d0, d1 = q0 - p0, q1 - p1
+    best_s, best = np.inf, -1
+    for cy in range(y_low, y_high + 1):
+        for cx in range(x_low, x_high + 1):
+            cell = cy * nx + cx
+            for j in range(border_buckets[cell], border_buckets[cell + 1]):
+                k = border_buckets[members + j]
+                a0, a1, e0, e1 = border_real[k, 0], border_real[k, 1], border_real[k, 2], border_real[k, 3]
+                den = d0 * e1 - d1 * e0
+                ap0, ap1 = a0 - p0, a1 - p1
+                s = (ap0 * e1 - ap1 * e0) / den
+                r = (ap0 * d1 - ap1 * d0) / den
+                outward = d0 * border_real[k, 4] + d1 * border_real[k, 5] > 0
+                if outward and s >= -1e-12 and s <= 1 + 1e-12 and r >= -1e-12 and r <= 1 + 1e-12:
+                    s = min(max(s, 0.0), 1.0)
+                    if s < best_s:
+                        best_s, best = s, k
+    return best_s, best
+
+
+@_helper
+def _jump(tri_real, tri_int, affine, buckets, border_real, border_buckets, grid, grid_shape, near, x, t, d, time,
+          state):
+    """Planar meshes (TriangleWalker._jump): a straight path that cannot reach the border, or
+    reaches no border edge, ends at x + time·d (located in the triangle grid); one that leaves
+    through a border edge stops on it. Returns True when done (state[0] triangle, state[2] wall)."""
+    bound = -np.inf
+    for c in range(3):
+        g0 = tri_real[t, TRI_CORNER + 3 * c] - x[0]
+        g1 = tri_real[t, TRI_CORNER + 3 * c + 1] - x[1]
+        g2 = tri_real[t, TRI_CORNER + 3 * c + 2] - x[2]
+        bound = max(bound, tri_real[t, TRI_CLEARANCE + c] - np.sqrt(g0 * g0 + g1 * g1 + g2 * g2))
+    safe = time * time * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) < bound * abs(bound)
+    if not safe and border_real.shape[0] > 0:
+        q0, q1 = x[0] + time * d[0], x[1] + time * d[1]
+        s, k = _first_crossing(border_real, border_buckets, grid, grid_shape, x[0], x[1], q0, q1)
+        if k >= 0:
+            for i in range(3):
+                x[i] = x[i] + (s * time) * d[i]
+            state[0], state[2] = border_real[k, 7], border_real[k, 6]
+            return True
+    y0, y1, y2 = x[0] + time * d[0], x[1] + time * d[1], x[2] + time * d[2]
+    c = _locate_near(near, tri_int, t, y0, y1)  # most paths end within two triangles
+    if c < 0:
+        c = _locate(affine, buckets, grid, grid_shape, y0, y1)
+    if c < 0:
+        return False
+    x[0], x[1], x[2] = y0, y1, y2
+    state[0] = c
+    return True
+
+
+@_helper
+def _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real, border_buckets, grid, grid_shape, near,
+          x, t, d, time, max_rounds, state, lam, rate):
+    """Move one point (x, d in place) from triangle t for ``time``: TriangleWalker.walk (the
+    jump on planar meshes, else rounds across triangles). Returns (triangle, wall edge or -1,
+    rounds, unfinished)."""
+    state[0], state[1], state[2], state[3] = t, -1, -1, time
+    if not time > 0:
+        return t, -1, 0, False
+    if affine.shape[0] > 0 and _jump(tri_real, tri_int, affine, buckets, border_real, border_buckets, grid,
+                                     grid_shape, near, x, t, d, time, state):
+        return int(state[0]), int(state[2]), 0, False
+    rounds, done = 0, False
+    while not done and rounds < max_rounds:
+        rounds += 1
+        done = _round(vertices, tri_real, tri_int, planar, state, x, d, lam, rate)
+    return int(state[0]), int(state[2]), rounds, not done
+
+
+@_kernel
+def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_velocity, count, dt, integrator,
+                     max_rounds):
+    """Backtrack every point along −u for ``dt`` (TriangleWalker.backtrack), point by point.
+
+    walk, jump : :meth:`TriangleWalker.kernel_tables`; field : :meth:`CellInterpolator.kernel_tables`
+    point_velocity : (n_points, 3, F) dual-point velocities, field 1 is the full u (mesh units / s)
+    start (P, 3), triangle (P,), start_velocity (P, 3) the velocity at the start points
+    count : (P,) substeps per point (each of length dt / count); integrator : INTEGRATOR_CODE
+    Returns position (P, 3), triangle (P,), wall edge (P,) (-1: none), rounds (S, 2) the most
+    rounds any point walked in substep s (column 0: the midpoint half step, 1: the full step),
+    unfinished (S,) points still walking after ``max_rounds`` in substep s, and the velocities
+    (P, 3, F) of all F fields interpolated at the end points (velocity_points there).
+
+    per_triangle (Fig. 7.9, TriangleWalker._walk_per_triangle): every round takes a fresh
+    velocity in the triangle entered, unless it leaves at once through the entry edge.
+    """
+    vertices, tri_real, tri_int, face_normal, planar = walk
+    affine, buckets, border_real, border_buckets, grid, grid_shape, near = jump
+    triangles, cell_real, ids, field_planar = field
+    P = start.shape[0]
+    steps = 1
+    for p in range(P):
+        steps = max(steps, count[p])
+    position = start.copy()
+    tri = triangle.copy()
+    wall = np.full(P, -1, dtype=np.int64)
+    rounds = np.zeros((steps, 2), dtype=np.int64)
+    unfinished = np.zeros(steps, dtype=np.int64)
+    K = ids.shape[1]
+    w, h = np.empty(K), np.empty(K + 1)
+    state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
+    d, d1, x = np.empty(3), np.empty(3), np.empty(3)
+    F = point_velocity.shape[2]
+    velocity = np.empty((P, 3, F))
+    for p in range(P):
+        t = tri[p]
+        x[0], x[1], x[2] = position[p, 0], position[p, 1], position[p, 2]
+        tau = dt / count[p]
+        hit = -1
+        for substep in range(count[p]):
+            r, left = 0, False
+            if integrator == 2:
+                state[0], state[1], state[2], state[3] = t, -1, -1, tau
+                d[0], d[1], d[2] = 0.0, 0.0, 0.0
+                done = not tau > 0
+                while not done and r < max_rounds:
+                    r += 1
+                    came = int(state[1])
+                    t = int(state[0])
+                    _velocity(triangles, cell_real, ids, field_planar, point_velocity, 1, t, x, face_normal, w, h, d1)
+                    for k in range(3):
+                        d1[k] = -d1[k]
+                    back = False
+                    if came >= 0:  # a fresh velocity leaving at once through the entry edge: keep the unfolded one
+                        _barycentric(tri_real, t, x, lam)
+                        lam_came = lam[came] if lam[came] > 0.0 else 0.0
+                        rate_came = (tri_real[t, 3 * came] * d1[0] + tri_real[t, 3 * came + 1] * d1[1]
+                                     + tri_real[t, 3 * came + 2] * d1[2])
+                        back = rate_came < 0 and lam_came <= 1e-12
+                    if not back:
+                        d[0], d[1], d[2] = d1[0], d1[1], d1[2]
+                    done = _round(vertices, tri_real, tri_int, planar, state, x, d, lam, rate)
+                t, hit, left = int(state[0]), int(state[2]), not done
+            else:
+                if substep == 0:
+                    for k in range(3):
+                        d[k] = -start_velocity[p, k]
+                else:
+                    _velocity(triangles, cell_real, ids, field_planar, point_velocity, 1, t, x, face_normal, w, h, d)
+                    for k in range(3):
+                        d[k] = -d[k]
+                if integrator == 1:
+                    # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint (d1 unfolded there)
+                    t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                            border_buckets, grid, grid_shape, near, x, t, d, 0.5 * tau, max_rounds,
+                                            state, lam, rate)
+                    rounds[substep, 0] = max(rounds[substep, 0], r)
+                    d1[0], d1[1], d1[2] = d[0], d[1], d[2]
+                    _velocity(triangles, cell_real, ids, field_planar, point_velocity, 1, t, x, face_normal, w, h, d)
+                    for k in range(3):
+                        d[k] = 0.0 if hit >= 0 else -d[k] - 0.5 * d1[k]
+                t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                         border_buckets, grid, grid_shape, near, x, t, d, tau, max_rounds, state,
+                                         lam, rate)
+                if hit < 0:
+                    hit = hit2
+            rounds[substep, 1] = max(rounds[substep, 1], r)
+            if left:
+                unfinished[substep] += 1
+            if hit >= 0:
+                break
+        position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
+        tri[p], wall[p] = t, hit
+        v = _nearest_vertex(triangles, cell_real, t, x[0], x[1], x[2])  # the end point's velocities
+        _weights(cell_real, v, x[0], x[1], x[2], w, h)
+        for f in range(F):
+            _combine(cell_real, ids, field_planar, point_velocity, f, v, t, face_normal, w, d)
+            velocity[p, 0, f], velocity[p, 1, f], velocity[p, 2, f] = d[0], d[1], d[2]
+    return position, tri, wall, rounds, unfinished, velocity
+
+
+# ---------------------------------------------------------------- circulation (simulation.py)
+@_kernel
+def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, indptr, indices, data):
+    """(n0, F) Γ = D g around every cell: g_e = <u(p_a) + u(p_b), p_b − p_a> / 2 along each
+    dual edge a → b (trapezoid rule), D the signed cell–edge incidence (CSR indptr, indices,
+    data). Points below m = len(position) are the backtracked ones (position, velocity
+    (m, 3, F)), the others fixed (fixed_points, fixed_velocity)."""
+    m, F = position.shape[0], velocity.shape[2]
+    E = edge_a.shape[0]
+    g = np.empty((E, F))
+    for e in range(E):
+        a, b = edge_a[e], edge_b[e]
+        for f in range(F):
+            total = 0.0
+            for k in range(3):
+                pa = position[a, k] if a < m else fixed_points[a - m, k]
+                pb = position[b, k] if b < m else fixed_points[b - m, k]
+                ua = velocity[a, k, f] if a < m else fixed_velocity[a - m, k, f]
+                ub = velocity[b, k, f] if b < m else fixed_velocity[b - m, k, f]
+                total += (ua + ub) * (pb - pa)
+            g[e, f] = 0.5 * total
+    n = indptr.shape[0] - 1
+    gamma = np.zeros((n, F))
+    for i in range(n):
+        for j in range(indptr[i], indptr[i + 1]):
+            for f in range(F):
+                gamma[i, f] += data[j] * g[indices[j], f]
+    return gamma

@@ -1,0 +1,380 @@
+"""The low spectrum of the Laplace–de Rham operators Δ_k = dδ + δd (§4.5.6, eq. 4.14).
+
+Δ_k is self-adjoint under the ⋆ inner product (eq. 4.15), so its eigenpairs are those of the
+generalized symmetric problem
+
+    (⋆_k Δ_k) u = λ ⋆_k u ,      ⋆_k Δ_k = ⋆_k d_{k-1} ⋆_{k-1}⁻¹ d_{k-1}ᵀ ⋆_k + d_kᵀ ⋆_{k+1} d_k
+
+(:meth:`decrun.core.dec.DEC.laplacian_symmetric`). The lowest eigenvalues come from ARPACK in
+shift-invert mode about a small negative shift σ (every λ ≥ 0 > σ, so the eigenvalues nearest
+σ are the lowest), with (⋆_kΔ_k − σ⋆_k) factorized once by the configured solver:
+
+- diagonal ⋆_{k-1} (DEC stars, lumped Whitney): ⋆_kΔ_k is a sparse matrix;
+- Galerkin ⋆_{k-1} = M_{k-1} (``operator=whitney``): ⋆_{k-1}⁻¹ is never formed; with
+  σ_ = M_{k-1}⁻¹ d_{k-1}ᵀ M_k u the shifted system is the symmetric saddle-point system
+
+      [ −M_{k-1}      d_{k-1}ᵀ M_k          ] [ σ_ ]   [ 0 ]
+      [ M_k d_{k-1}   d_kᵀ M_{k+1} d_k − σ M_k ] [ u  ] = [ f ]
+
+  (the mixed formulation of finite-element exterior calculus), factorized once.
+
+A ⋆_k that is not positive definite (circumcentric stars on non-Delaunay or non-well-centred
+meshes) makes ⟨·,·⟩_⋆ indefinite: the eigenvalues may then be complex, and they are computed
+from the non-symmetric operator (⋆_kΔ_k − σ⋆_k)⁻¹ ⋆_k (``imaginary_max`` reports how far
+from real they are). A ⋆_{k-1} with zero entries makes ⋆_kΔ_k infinite: refused.
+
+:func:`analytic_spectrum` gives the exact spectra the discrete ones converge to:
+the round sphere, flat tori and axis-aligned boxes (rectangles, cuboids); :func:`detect_domain`
+recognizes those shapes from the vertices.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from math import comb
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from decrun.core.solvers import solver_factory
+from decrun.errors import ConfigError, MeshError, SolverError
+
+__all__ = ["Eigenpairs", "Domain", "laplacian_eigenpairs", "check_stars", "needs_indefinite_solve", "analytic_spectrum",
+           "detect_domain", "spectrum_errors"]
+
+#: up to this many k-simplices the eigenpairs come from a dense LAPACK solve
+DENSE_MAX = 400
+
+
+@dataclass
+class Eigenpairs:
+    """The ``count`` lowest eigenpairs of Δ_k.
+
+    values : (count,) ascending (real parts when ⋆_k is indefinite)
+    vectors : (n_k, count), ⋆_k-normalized (|uᵀ ⋆_k u| = 1)
+    imaginary_max : max |Im λ| / max(|λ|, 1) — 0 for a positive definite ⋆_k
+    shift : the shift σ used (0 for the dense solve)
+    """
+
+    values: np.ndarray
+    vectors: np.ndarray
+    imaginary_max: float
+    shift: float
+
+
+def _star_positive(dec, k: int) -> bool:
+    """⋆_k positive definite: Galerkin (SPD by construction) or a positive diagonal."""
+    diagonal = dec.star_diagonal_or_none(k)
+    return diagonal is None or bool(np.all(diagonal > 0))
+
+
+def _galerkin_lower(dec, k: int) -> bool:
+    return k > 0 and not dec.star_is_diagonal(k - 1)
+
+
+def needs_indefinite_solve(dec, k: int) -> bool:
+    """True when the shifted system of degree k is symmetric indefinite (a Galerkin ⋆_{k-1}
+    gives a saddle-point system; a ⋆_k that is not positive an indefinite one): solvers that
+    need SPD matrices (cg, amg) cannot solve it."""
+    return _galerkin_lower(dec, k) or not _star_positive(dec, k)
+
+
+def _zero_entries(dec, j: int) -> np.ndarray:
+    star = dec.star_diagonal(j)
+    return np.flatnonzero(np.abs(star) <= 1e-12 * np.abs(star).max())
+
+
+def check_stars(dec, k: int) -> None:
+    """MeshError when a diagonal ⋆_{k-1} has zero entries (degenerate dual cells, as in Kuhn
+    cubes): ⋆_{k-1}⁻¹ in Δ_k is then infinite. (Zeros in ⋆_k only make the mass singular:
+    infinite eigenvalues, which the shift-invert solve never reaches.)"""
+    if k == 0 or _galerkin_lower(dec, k):
+        return
+    zero = _zero_entries(dec, k - 1)
+    if zero.size:
+        raise MeshError(f"Δ_{k} contains ⋆_{k - 1}⁻¹, but ⋆_{k - 1} of operator={dec.star_variant.name} is zero on "
+                        f"{zero.size} simplices (e.g. {zero[:5].tolist()}: degenerate dual cells, as in Kuhn cubes); "
+                        "use `operator=whitney` (Galerkin stars, SPD on every mesh)")
+
+
+def _default_shift(dec) -> float:
+    """σ = −0.01 / h̄² (h̄ the mean edge length): a small negative number in the units of λ."""
+    length = np.linalg.norm(np.diff(dec.K.vertices[dec.K.simplices(1)], axis=1)[:, 0], axis=1).mean()
+    return -0.01 / float(length) ** 2
+
+
+def _shifted_inverse(dec, k: int, shift: float, solver) -> spla.LinearOperator:
+    """(⋆_kΔ_k − σ ⋆_k)⁻¹ as a LinearOperator on (n_k,) vectors; factorized once."""
+    size = dec.K.num_simplices(k)
+    M = sp.csr_matrix(dec.star(k))
+    if not _galerkin_lower(dec, k):
+        T = sp.csr_matrix(dec.laplacian_symmetric(k)) - shift * M
+        try:
+            solver.factorize(T)
+        except SolverError as exc:
+            zero = _zero_entries(dec, k) if dec.star_is_diagonal(k) else np.zeros(0)
+            if not zero.size:
+                raise
+            raise MeshError(f"the shifted eigen-system of Δ_{k} is singular: ⋆_{k} of operator="
+                            f"{dec.star_variant.name} is zero on {zero.size} simplices (e.g. {zero[:5].tolist()}: "
+                            "degenerate dual cells, as in Kuhn cubes) and Δ_k does not reach them; use "
+                            "`operator=whitney` (Galerkin stars, SPD on every mesh)") from exc
+        return spla.LinearOperator((size, size), matvec=lambda f: solver.solve(np.ravel(f)), dtype=np.float64)
+    lower = sp.csr_matrix(dec.star(k - 1))
+    star_d = (M @ dec.d(k - 1)).tocsr()
+    up = dec.d(k).T @ dec.star(k + 1) @ dec.d(k) if k < dec.n else sp.csr_matrix((size, size))
+    block = sp.bmat([[-lower, star_d.T], [star_d, up - shift * M]], format="csr")
+    solver.factorize(block)
+    offset = lower.shape[0]
+
+    def apply(f):
+        rhs = np.concatenate([np.zeros(offset), np.ravel(f)])
+        return solver.solve(rhs)[offset:]
+
+    return spla.LinearOperator((size, size), matvec=apply, dtype=np.float64)
+
+
+def laplacian_eigenpairs(dec, k: int, count: int, solver=None, shift: float | None = None, tol: float = 1e-10,
+                         seed: int = 0) -> Eigenpairs:
+    """The ``count`` lowest eigenpairs of Δ_k on ``dec``'s mesh (module docstring).
+
+    Parameters
+    ----------
+    dec : DEC (any Hodge-star variant providing ⋆_{k-1}, ⋆_k, ⋆_{k+1})
+    k : form degree, 0 ≤ k ≤ n
+    count : number of eigenpairs (≥ 1, < n_k)
+    solver : solver name, instance or factory for the shifted system (default ``direct``)
+    shift : σ < 0 (default :func:`_default_shift`, −0.01/h̄²)
+    tol : ARPACK's relative tolerance
+
+    Returns
+    -------
+    :class:`Eigenpairs`
+    """
+    size = dec.K.num_simplices(k)
+    if not 1 <= count < size:
+        raise ConfigError(f"app.count: needs 1 ≤ count < {size} (the number of {k}-simplices), got {count}")
+    check_stars(dec, k)
+    positive = _star_positive(dec, k)
+    M = sp.csr_matrix(dec.star(k))
+    if size <= DENSE_MAX:
+        return _dense(dec, k, count, M, positive)
+    shift = _default_shift(dec) if shift is None else float(shift)
+    if shift >= 0:
+        raise ConfigError(f"app.shift: must be negative (below the spectrum), got {shift}")
+    inverse = _shifted_inverse(dec, k, shift, solver_factory(solver)())
+    v0 = np.random.default_rng(seed).standard_normal(size)
+    # a few more than asked, and a wide Krylov space: symmetric meshes have exactly repeated
+    # eigenvalues (5-fold l = 2 on an icosphere), which Lanczos from one start vector finds
+    # only through rounding; too small a space missed two of five (measured, icosphere(3))
+    wanted = min(count + max(5, count // 2), size - 2)
+    ncv = min(size - 1, max(2 * wanted + 1, wanted + 20))
+    if positive:
+        A = dec.laplacian_symmetric(k)
+        values, vectors = spla.eigsh(A, k=wanted, M=M, sigma=shift, which="LM", OPinv=inverse, v0=v0, tol=tol,
+                                     ncv=ncv)
+        imaginary = 0.0
+    else:
+        operator = spla.LinearOperator((size, size), matvec=lambda x: inverse @ (M @ np.ravel(x)), dtype=np.float64)
+        nu, vectors = spla.eigs(operator, k=wanted, which="LM", v0=v0, tol=tol, ncv=ncv)
+        complex_values = shift + 1.0 / nu
+        imaginary = float(np.max(np.abs(complex_values.imag) / np.maximum(np.abs(complex_values), 1.0)))
+        values, vectors = complex_values.real, vectors.real
+    return _sorted_normalized(values, vectors, M, imaginary, shift, count)
+
+
+def _dense(dec, k, count, M, positive) -> Eigenpairs:
+    size = M.shape[0]
+    A = dec.laplacian_symmetric(k)
+    A = A.toarray() if sp.issparse(A) else A @ np.eye(size)
+    A = 0.5 * (A + A.T)
+    if positive:
+        values, vectors = la.eigh(A, M.toarray(), subset_by_index=[0, count - 1])
+        return _sorted_normalized(values, vectors, M, 0.0, 0.0)
+    values, vectors = la.eig(A, M.toarray())
+    finite = np.isfinite(values)
+    values, vectors = values[finite], vectors[:, finite]
+    order = np.argsort(values.real)[:count]
+    values, vectors = values[order], vectors[:, order]
+    imaginary = float(np.max(np.abs(values.imag) / np.maximum(np.abs(values), 1.0))) if values.size else 0.0
+    return _sorted_normalized(values.real, vectors.real, M, imaginary, 0.0)
+
+
+def _sorted_normalized(values, vectors, M, imaginary, shift, count=None) -> Eigenpairs:
+    order = np.argsort(values)[:count]
+    values, vectors = np.asarray(values)[order], np.asarray(vectors)[:, order]
+    norms = np.sqrt(np.abs(np.einsum("ij,ij->j", vectors, M @ vectors)))
+    vectors = vectors / np.where(norms > 0, norms, 1.0)
+    return Eigenpairs(values=values, vectors=vectors, imaginary_max=imaginary, shift=shift)
+
+
+# ---------------------------------------------------------------------------- analytic spectra
+@dataclass
+class Domain:
+    """A shape with a known spectrum.
+
+    kind : ``sphere`` or ``ball`` (sizes = (radius,)), ``box`` (sizes = side lengths, one per dimension:
+        a rectangle or a cuboid; the unadapted operators give absolute (Neumann-type)
+        boundary conditions) or ``flat_torus`` (sizes = the periods 2π r_i)
+    """
+
+    kind: str
+    sizes: tuple
+
+    def describe(self) -> str:
+        return f"{self.kind}({', '.join(f'{s:.6g}' for s in self.sizes)})"
+
+
+def _lattice_values(steps, low, count: int) -> np.ndarray:
+    """The ``count`` smallest Σ_i (m_i · steps_i)² over integers m_i ≥ low_i (low_i = 0 or 1;
+    ``low_i = -inf`` for m_i ∈ ℤ), with multiplicity."""
+    steps = np.asarray(steps, dtype=np.float64)
+    bound = 4
+    while True:
+        axes = []
+        for step, lowest in zip(steps, low):
+            start = -bound if lowest == -np.inf else lowest
+            axes.append((np.arange(start, bound + 1) * step) ** 2)
+        grid = np.zeros(1)
+        for axis in axes:
+            grid = (grid[:, None] + axis[None, :]).ravel()
+        grid.sort()
+        # every value left out has some |m_i| > bound, so it is at least ((bound + 1) · min step)²
+        if grid.size >= count and grid[count - 1] < ((bound + 1) * steps.min()) ** 2:
+            return grid[:count]
+        bound *= 2
+
+
+def _ball_neumann(radius: float, count: int) -> np.ndarray:
+    """Neumann eigenvalues of the ball: (a/r)² for the zeros a > 0 of j_l' (spherical Bessel),
+    multiplicity 2l + 1, and 0 (the constants)."""
+    from scipy.optimize import brentq
+    from scipy.special import spherical_jn
+
+    limit = 8.0
+    while True:
+        values = [0.0]
+        grid = np.linspace(1e-6, limit, int(400 * limit))
+        for degree in range(int(limit) + 2):
+            f = spherical_jn(degree, grid, derivative=True)
+            for i in np.flatnonzero(np.sign(f[:-1]) * np.sign(f[1:]) < 0):
+                root = brentq(lambda x: spherical_jn(degree, x, derivative=True), grid[i], grid[i + 1])
+                values += [(root / radius) ** 2] * (2 * degree + 1)
+        values.sort()
+        # every zero of j_l' exceeds l (McMahon), so zeros beyond `limit` come from l < limit + 2
+        if len(values) >= count and values[count - 1] < (limit / radius) ** 2:
+            return np.array(values[:count])
+        limit *= 2
+
+
+def analytic_spectrum(domain: Domain, k: int, count: int) -> np.ndarray:
+    """The ``count`` lowest eigenvalues of the smooth Hodge Laplacian Δ_k on ``domain``, with
+    multiplicity, ascending.
+
+    - sphere of radius r (k = 0, 2): l(l+1)/r², multiplicity 2l+1, l ≥ 0; (k = 1): the
+      same for l ≥ 1 twice (dY and ⋆dY), multiplicity 2(2l+1).
+    - box with sides L_i, absolute boundary conditions (the natural ones of primal forms:
+      harmonic k-forms = H^k): for each k-subset I of the axes the coefficient of dx_I is
+      Π_{i∈I} sin(m_i π x_i/L_i) Π_{i∉I} cos(m_i π x_i/L_i), m_i ≥ 1 on I and ≥ 0 off it;
+      λ = Σ_i (m_i π / L_i)² (k = 0: Neumann, k = n: Dirichlet).
+    - flat torus with periods P_i: C(n, k) copies of the functions' spectrum
+      Σ_i (2π m_i / P_i)², m_i ∈ ℤ.
+    - ball of radius r (k = 0, Neumann): (a/r)², a the positive zeros of j_l', multiplicity
+      2l + 1, and 0.
+    """
+    if domain.kind == "ball":
+        if k != 0:
+            raise ValueError("the ball's spectrum is known here for functions (k = 0) only")
+        return _ball_neumann(domain.sizes[0], count)
+    if domain.kind == "sphere":
+        (radius,) = domain.sizes
+        if k not in (0, 1, 2):
+            raise ValueError(f"the sphere has forms of degree 0..2, not {k}")
+        values = []
+        degree = 0 if k != 1 else 1
+        while len(values) < count:
+            values += [degree * (degree + 1) / radius**2] * ((2 if k == 1 else 1) * (2 * degree + 1))
+            degree += 1
+        return np.array(values[:count])
+    n = len(domain.sizes)
+    if not 0 <= k <= n:
+        raise ValueError(f"a {n}-dimensional {domain.kind} has forms of degree 0..{n}, not {k}")
+    if domain.kind == "box":
+        steps = np.pi / np.asarray(domain.sizes, dtype=np.float64)
+        parts = [_lattice_values(steps, [1 if i in subset else 0 for i in range(n)], count)
+                 for subset in itertools.combinations(range(n), k)]
+        return np.sort(np.concatenate(parts))[:count]
+    if domain.kind == "flat_torus":
+        steps = 2 * np.pi / np.asarray(domain.sizes, dtype=np.float64)
+        one = _lattice_values(steps, [-np.inf] * n, count)
+        return np.sort(np.repeat(one, comb(n, k)))[:count]
+    raise ValueError(f"no analytic spectrum for {domain.kind!r}")
+
+
+def detect_domain(K, rtol: float = 1e-6) -> Domain | None:
+    """The :class:`Domain` ``K`` approximates, or None.
+
+    - sphere: a closed triangle mesh in R³ whose vertices all lie at one distance r from
+      their mean (to ``rtol``); ball: a tetrahedral mesh whose border vertices do;
+    - box: a triangle mesh in a plane z = const or a tetrahedral mesh in R³ whose area/volume
+      equals that of its axis-aligned bounding box (to ``rtol``): a rectangle or cuboid with
+      no holes;
+    - flat torus: a triangle mesh in R⁴ whose vertices satisfy x1² + x2² = r1², x3² + x4² = r2²
+      (the Clifford embedding of the flat torus with periods 2π r1, 2π r2).
+    """
+    V = K.vertices
+    n = K.dim
+    if n == 2 and V.shape[1] == 4:
+        r1, r2 = np.hypot(V[:, 0], V[:, 1]), np.hypot(V[:, 2], V[:, 3])
+        if np.ptp(r1) <= rtol * r1.mean() and np.ptp(r2) <= rtol * r2.mean():
+            return Domain("flat_torus", (2 * np.pi * r1.mean(), 2 * np.pi * r2.mean()))
+        return None
+    border, _ = K.border_faces()
+    if n == 3 and V.shape[1] == 3 and len(border):
+        on_border = np.unique(K.simplices(2)[border])
+        center = V[on_border].mean(axis=0)
+        radius = np.linalg.norm(V[on_border] - center, axis=1)
+        if np.ptp(radius) <= rtol * radius.mean() and np.linalg.norm(V - center, axis=1).max() <= radius.max():
+            return Domain("ball", (float(radius.mean()),))
+    if n == 2 and V.shape[1] == 3 and len(border) == 0:
+        radius = np.linalg.norm(V - V.mean(axis=0), axis=1)
+        if np.ptp(radius) <= rtol * radius.mean():
+            return Domain("sphere", (float(radius.mean()),))
+        return None
+    extent = np.ptp(V, axis=0)
+    if n == 2:
+        if V.shape[1] == 3 and extent[2] > rtol * extent.max():
+            return None
+        sides = extent[:2]
+    elif n == 3 and V.shape[1] == 3:
+        sides = extent
+    else:
+        return None
+    if np.any(sides <= 0) or len(border) == 0:
+        return None
+    if abs(K.top_volumes.sum() - np.prod(sides)) <= rtol * np.prod(sides):
+        return Domain("box", tuple(float(s) for s in sides))
+    return None
+
+
+def spectrum_errors(computed: np.ndarray, exact: np.ndarray, zero_tol: float = 1e-8) -> dict:
+    """Compare sorted eigenvalues with the analytic ones (same length).
+
+    Returns ``eigenvalue_relative_error_max`` and ``_mean`` over the nonzero analytic values
+    (|λ_h − λ|/λ) and ``eigenvalue_zero_abs_max`` (max |λ_h| where λ = 0, relative to the
+    largest analytic value) when there are zero ones.
+    """
+    computed, exact = np.asarray(computed, dtype=np.float64), np.asarray(exact, dtype=np.float64)
+    scale = max(float(exact.max()), 1e-300)
+    zero = exact <= zero_tol * scale
+    out = {}
+    if (~zero).any():
+        relative = np.abs(computed[~zero] - exact[~zero]) / exact[~zero]
+        out["eigenvalue_relative_error_max"] = float(relative.max())
+        out["eigenvalue_relative_error_mean"] = float(relative.mean())
+    if zero.any():
+        out["eigenvalue_zero_abs_max"] = float(np.abs(computed[zero]).max() / scale)
+    return out

@@ -1,0 +1,77 @@
+"""``app=spectrum`` through its Context (core meshes): metrics against the analytic spectra,
+kernel dimension = Betti_k, refusals before any work."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from decrun.apps.base import Context
+from decrun.apps.spectrum import Spectrum
+from decrun.core.complex import SimplicialComplex
+from decrun.core.dec import DEC
+from decrun.core.primitives import kuhn_cube
+from decrun.core.solvers import make_solver
+from decrun.errors import ConfigError, TopologyError
+
+from meshes_for_tests import icosphere
+
+
+def run(K, star="circumcentric", **options):
+    app = Spectrum(**options)
+    dec = DEC(K, star=star)
+    app.check_dimension(K)
+    app.check_operators(dec)
+    app.check(K, dec)
+    return app.run(Context(app, K, dec))
+
+
+def test_sphere_functions_match_l_l_plus_one():
+    result = run(SimplicialComplex(*icosphere(3)), count=9)
+    m = result.metrics
+    assert m["analytic_domain"] == "sphere(1)"
+    assert m["eigenvalue_relative_error_max"] < 0.02 and m["eigenvalue_zero_abs_max"] < 1e-12
+    assert m["kernel_dimension"] == m["betti_0"] == 1 and m["kernel_dimension_matches_betti"]
+    assert m["orthonormality_error_max"] < 1e-9 and m["residual_relative_max"] < 1e-8
+    np.testing.assert_allclose(result.fields["eigenvalues_analytic"], [0, 2, 2, 2, 6, 6, 6, 6, 6])
+    assert result.fields["eigenforms"].shape == (642, 9)
+    assert len(result.figures["eigenforms"].data["values"]) == 4
+
+
+def test_cube_two_forms_with_galerkin_stars():
+    result = run(SimplicialComplex(*kuhn_cube(4)), star="whitney", degree=2, count=6)
+    m = result.metrics
+    assert m["analytic_domain"] == "box(1, 1, 1)" and m["eigenvalue_relative_error_max"] < 0.1
+    assert m["kernel_dimension"] == m["betti_2"] == 0
+    assert "eigenvalue_imaginary_max" not in m  # SPD stars: the metric does not apply
+
+
+def test_cavity_gives_one_harmonic_two_form():
+    cavity = kuhn_cube(5, keep_cell=lambda c: np.abs(c - 0.5).max(axis=1) > 0.15)
+    m = run(SimplicialComplex(*cavity), star="whitney", degree=2, count=4).metrics
+    assert m["betti_2"] == 1 and m["kernel_dimension"] == 1 and m["kernel_dimension_matches_betti"]
+    assert "analytic_domain" not in m  # no known spectrum for a cube with a cavity
+
+
+def test_refusals_name_the_fix():
+    K = SimplicialComplex(*icosphere(1))
+    with pytest.raises(ConfigError, match="app.degree=2"):
+        run(K, degree=3)
+    with pytest.raises(ConfigError, match="app.count="):
+        run(K, count=100)
+    with pytest.raises(TopologyError, match="app.analytic=auto"):
+        run(K, analytic="box")
+    with pytest.raises(ConfigError, match="app.shift"):
+        Spectrum(shift=1.0)
+    app, dec = Spectrum(degree=1), DEC(SimplicialComplex(*kuhn_cube(2)), star="whitney")
+    with pytest.raises(ConfigError, match="`solver=direct`"):
+        app.check_solver(make_solver("cg"), dec)
+
+
+def test_only_zero_form_operators_of_intrinsic_delaunay():
+    from decrun.core.stars.intrinsic_delaunay import IntrinsicDelaunay
+
+    K = SimplicialComplex(*icosphere(2))
+    run(K, star=IntrinsicDelaunay(), count=4)
+    with pytest.raises(ConfigError, match="operator=mixed_area"):
+        Spectrum(degree=1).check_operators(DEC(K, star=IntrinsicDelaunay()))

@@ -1,0 +1,184 @@
+"""The numba kernels of the fluid (decrun/methods/fluid/compiled.py) against their numpy twins.
+
+Both paths do the same arithmetic in the same order (the numpy twins sum 3-vectors with
+``dot3`` and cell weights in order, not with einsum's SIMD order or numpy's pairwise sums), so
+the results are bitwise equal: the backtracking (all integrators, CFL substeps, planar jumps and
+forced walks, wall clamping, walks through vertices — where the tie between two exit edges is
+decided alike), the WSHD07 interpolation and the circulation, on a sphere, a channel with an
+obstacle, a jittered lattice with borders and a random Delaunay mesh with obtuse triangles, at
+points exactly on vertices, edges and cell corners, and whole multi-step runs.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from functools import lru_cache
+
+import numpy as np
+import pytest
+
+from decrun.complex import SimplicialComplex
+from decrun.core.channel_mesh import channel_mesh
+from decrun.core.solvers.direct import DirectSolver
+from decrun.dec import DEC
+from decrun.methods.fluid.initial import random_vorticity
+from decrun.methods.fluid.simulation import VorticityFluid
+from meshes_for_tests import icosphere, jittered_lattice, random_planar
+
+@lru_cache(maxsize=None)
+def case(name: str):
+    """(DEC, VorticityFluid options) of the test meshes, each with a lively flow."""
+    if name == "sphere":
+        dec = DEC(SimplicialComplex(*icosphere(3)))
+        return dec, dict(dt=0.5, viscosity=1e-3, initial_vorticity=random_vorticity(dec, 2, amplitude=5))
+    if name == "channel":
+        mesh = channel_mesh(target_faces=1400)
+        dec = DEC(SimplicialComplex(mesh.vertices, mesh.faces))
+        return dec, dict(dt=0.01, viscosity=0.02, inflow_velocity=(10.0, 0.0), obstacle_loops=mesh.obstacle_loops,
+                         initial_vorticity=random_vorticity(dec, 1, amplitude=50))
+    if name == "lattice":
+        dec = DEC(SimplicialComplex(*jittered_lattice()))
+        return dec, dict(dt=1.5, viscosity=0.0, inflow_velocity=(1.0, 0.5),
+                         initial_vorticity=random_vorticity(dec, 3, amplitude=3))
+    if name == "obtuse":  # random Delaunay: obtuse triangles, non-convex flattened cells
+        dec = DEC(SimplicialComplex(*random_planar(150, seed=3)))
+        return dec, dict(dt=0.02, viscosity=0.0, inflow_velocity=(1.0, 0.0),
+                         initial_vorticity=random_vorticity(dec, 4, amplitude=3))
+    raise KeyError(name)
+
+
+#: the compiled walk interpolates with WSHD07 (the least-squares default walks in numpy)
+COMPILED_SCHEME = dict(velocity="wshd07", circulation="corrected_trapezoid")
+
+
+def pair(name: str, **options):
+    dec, base = case(name)
+    return [VorticityFluid(dec, DirectSolver, kernels=k, **{**base, **COMPILED_SCHEME, **options})
+            for k in ("numpy", "numba")]
+
+
+def assert_same_points(reference, result):
+    """Bitwise the same end points, triangles, walls and counts."""
+    np.testing.assert_array_equal(result.position, reference.position)
+    np.testing.assert_array_equal(result.triangle, reference.triangle)
+    np.testing.assert_array_equal(result.wall_edge, reference.wall_edge)
+    assert (result.rounds, result.unfinished, result.substeps) == \
+        (reference.rounds, reference.unfinished, reference.substeps)
+
+
+def special_points(sim, rng):
+    """(triangles, points): random interior points, the triangles' corners (vertices), edge
+    midpoints and points on edges, the circumcenters (cell corners)."""
+    x, top = sim.walker.x, sim.walker.top
+    m = top.shape[0]
+    t = rng.integers(0, m, 400)
+    lam = rng.dirichlet(np.ones(3), size=t.size)
+    inside = np.einsum("pc,pcd->pd", lam, x[top[t]])
+    corner = x[top[t, rng.integers(0, 3, t.size)]]
+    s = rng.random(t.size)[:, None]
+    on_edge = s * x[top[t, 0]] + (1 - s) * x[top[t, 1]]
+    middle = 0.5 * (x[top[t, 1]] + x[top[t, 2]])
+    circumcenter = sim.cells.points[t]
+    return np.tile(t, 5), np.concatenate([inside, corner, on_edge, middle, circumcenter])
+
+
+@pytest.mark.parametrize("name", ["sphere", "channel", "lattice", "obtuse"])
+def test_interpolation_kernel_equals_numpy(name):
+    reference, sim = pair(name)
+    t, x = special_points(sim, np.random.default_rng(0))
+    both = sim._point_velocities()
+    expected = reference.interpolator.velocity(t, x, both, reference.face_normal)
+    got = sim.interpolator.velocity_compiled(t, x, both, sim.face_normal)
+    assert got.shape == expected.shape == (t.size, 3, 2)
+    np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("name", ["sphere", "channel", "lattice", "obtuse"])
+@pytest.mark.parametrize("integrator, max_cfl", [("midpoint", 1.0), ("midpoint", None), ("euler", 0.5),
+                                                  ("per_triangle", None)])
+def test_backtracking_kernel_equals_numpy(name, integrator, max_cfl):
+    reference, sim = pair(name, integrator=integrator, max_cfl=max_cfl)
+    expected, v_expected = reference.backtrack()
+    result, v = sim.backtrack()
+    assert_same_points(expected, result)
+    np.testing.assert_array_equal(v, v_expected)
+    if name != "sphere":
+        assert (result.wall_edge >= 0).sum() > 0  # walls were met and clamped
+    if max_cfl is not None and name != "obtuse":
+        assert result.substeps > 1
+
+
+@pytest.mark.parametrize("name", ["channel", "lattice"])
+def test_walking_kernel_equals_numpy_without_the_planar_jump(name):
+    """Planar meshes jump; with the jump switched off both walk triangle by triangle."""
+    reference, sim = pair(name, max_cfl=None, integrator="euler")
+    reference.walker._locator = sim.walker._locator = None
+    expected, _ = reference.backtrack()
+    result, _ = sim.backtrack()
+    assert expected.rounds > 3
+    assert_same_points(expected, result)
+
+
+def test_walks_through_vertices_and_from_edges_equal_numpy():
+    """Degenerate-near starts: points exactly on vertices and edges, directions aimed exactly
+    at a vertex (the walk leaves through a corner), long enough to cross many triangles."""
+    reference, sim = pair("sphere")
+    rng = np.random.default_rng(5)
+    t, x = special_points(sim, rng)
+    walker = sim.walker
+    top = walker.top[t]
+    target = walker.x[top[np.arange(t.size), rng.integers(0, 3, t.size)]]
+    direction = walker.to_plane(target - x, t)
+    direction[np.linalg.norm(direction, axis=1) < 1e-12] = walker.to_plane(rng.normal(size=(1, 3)), t[:1])
+    both = sim._point_velocities()
+    for integrator in ("euler", "midpoint"):
+        args = dict(integrator=integrator, start_velocity=-direction, max_cfl=None)
+        expected = reference.walker.backtrack(x, t, 3.0, lambda tri, p: reference.interpolator.velocity(
+            tri, p, np.ascontiguousarray(both[..., 1:2]), reference.face_normal)[:, :, 0], **args)
+        result = walker.backtrack_compiled(x, t, 3.0, sim.interpolator, both, **args)
+        assert expected.rounds > 5
+        assert_same_points(expected, result)
+
+
+@pytest.mark.parametrize("name", ["sphere", "channel", "obtuse"])
+def test_circulation_kernel_equals_numpy(name):
+    reference, sim = pair(name)
+    result, velocity = reference.backtrack()
+    clamped = result.wall_edge >= 0
+    expected, border = reference.circulation(result.position, velocity, clamped)
+    got, got_border = sim.circulation(result.position, velocity, clamped)
+    np.testing.assert_array_equal(got_border, border)
+    np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("name, steps, scheme", [
+    ("sphere", 20, {}), ("channel", 20, {}), ("lattice", 10, {}),
+    ("channel", 10, dict(circulation="swept")),  # the compiled walk in the swept intervals
+    ("channel", 10, dict(velocity="least_squares", circulation="swept")),  # the default: compiled circulation
+])
+def test_a_whole_run_with_numba_kernels_equals_the_numpy_run(name, steps, scheme):
+    reference, sim = pair(name, dt=case(name)[1]["dt"] / 2, **scheme)
+    assert sim.compiled_walk == (scheme.get("velocity", "wshd07") == "wshd07")
+    for _ in range(steps):
+        expected, got = reference.step(), sim.step()
+        assert got == expected  # every diagnostic, bitwise
+    assert got["stable"] and got["clamped_points"] > 0 or name == "sphere"
+    np.testing.assert_array_equal(sim.vorticity, reference.vorticity)
+    np.testing.assert_array_equal(sim.psi, reference.psi)
+
+
+def test_unknown_kernels_are_refused():
+    from decrun.errors import ConfigError
+
+    dec, options = case("lattice")
+    with pytest.raises(ConfigError, match="kernels must be one of"):
+        VorticityFluid(dec, DirectSolver, kernels="fortran", **options)
+
+
+def test_numba_is_imported_only_when_a_fluid_runs():
+    """Composing configs and importing the fluid's modules stays numba-free (decrun --help fast)."""
+    code = ("import sys, decrun.apps.fluid, decrun.methods.fluid.simulation, decrun.runner.cli; "
+            "print('numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

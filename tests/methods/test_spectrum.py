@@ -1,0 +1,121 @@
+"""Spectra of Δ_k (decrun.methods.spectrum): the analytic spectra themselves, convergence of
+the discrete ones to them for every form degree, and the solver paths (dense, sparse
+shift-invert, Galerkin saddle point, indefinite ⋆)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from decrun.core.complex import SimplicialComplex
+from decrun.core.dec import DEC
+from decrun.core.primitives import flat_torus, grid_triangles, kuhn_cube
+from decrun.errors import MeshError
+from decrun.methods import spectrum
+from decrun.methods.spectrum import Domain, analytic_spectrum, detect_domain, laplacian_eigenpairs, spectrum_errors
+
+from meshes_for_tests import icosphere
+
+PI2 = np.pi**2
+
+
+def test_analytic_sphere_spectrum_has_the_multiplicities_of_spherical_harmonics():
+    np.testing.assert_allclose(analytic_spectrum(Domain("sphere", (1.0,)), 0, 10), [0, 2, 2, 2, 6, 6, 6, 6, 6, 12])
+    np.testing.assert_allclose(analytic_spectrum(Domain("sphere", (2.0,)), 1, 8), [0.5] * 6 + [1.5] * 2)
+    np.testing.assert_allclose(analytic_spectrum(Domain("sphere", (1.0,)), 2, 4), [0, 2, 2, 2])
+
+
+def test_analytic_box_spectrum_neumann_absolute_and_dirichlet():
+    cube = Domain("box", (1.0, 1.0, 1.0))
+    np.testing.assert_allclose(analytic_spectrum(cube, 0, 8), PI2 * np.array([0, 1, 1, 1, 2, 2, 2, 3]))
+    # 1-forms f dx_i: sin in x_i (m_i ≥ 1), cos elsewhere: 3 × π², then 6 × 2π²
+    np.testing.assert_allclose(analytic_spectrum(cube, 1, 9), PI2 * np.array([1, 1, 1, 2, 2, 2, 2, 2, 2]))
+    np.testing.assert_allclose(analytic_spectrum(cube, 2, 4), PI2 * np.array([2, 2, 2, 3]))
+    np.testing.assert_allclose(analytic_spectrum(cube, 3, 4), PI2 * np.array([3, 6, 6, 6]))  # Dirichlet
+    np.testing.assert_allclose(analytic_spectrum(Domain("box", (2.0, 1.0)), 0, 4), PI2 * np.array([0, .25, 1, 1]))
+
+
+def test_analytic_flat_torus_spectrum_repeats_per_form_component():
+    torus = Domain("flat_torus", (2 * np.pi, 2 * np.pi))
+    np.testing.assert_allclose(analytic_spectrum(torus, 0, 6), [0, 1, 1, 1, 1, 2])
+    np.testing.assert_allclose(analytic_spectrum(torus, 1, 6), [0, 0, 1, 1, 1, 1])
+
+
+def test_detect_domain_recognizes_sphere_box_and_flat_torus_only():
+    assert detect_domain(SimplicialComplex(*icosphere(2))).describe() == "sphere(1)"
+    assert detect_domain(SimplicialComplex(*kuhn_cube(2, size=2.0))).describe() == "box(2, 2, 2)"
+    assert detect_domain(SimplicialComplex(*grid_triangles(3))).kind == "box"
+    assert detect_domain(SimplicialComplex(*flat_torus(6), orient="fix")).kind == "flat_torus"
+    tunnel = kuhn_cube(4, keep_cell=lambda c: ~((abs(c[:, 0] - .5) < .2) & (abs(c[:, 1] - .5) < .2)))
+    assert detect_domain(SimplicialComplex(*tunnel)) is None
+    vertices, faces = icosphere(2)
+    assert detect_domain(SimplicialComplex(vertices * [1, 1, 1.1], faces)) is None
+
+
+def errors(V, T, star, k, count=10):
+    K = SimplicialComplex(V, T, orient="fix")
+    pairs = laplacian_eigenpairs(DEC(K, star=star), k, count)
+    return spectrum_errors(pairs.values, analytic_spectrum(detect_domain(K), k, count))
+
+
+@pytest.mark.parametrize("star", ["circumcentric", "whitney"])
+@pytest.mark.parametrize("k", [0, 1])
+def test_sphere_spectrum_converges_for_functions_and_one_forms(star, k):
+    coarse, fine = (errors(*icosphere(s), star, k)["eigenvalue_relative_error_max"] for s in (2, 3))
+    assert fine < 0.025 and coarse > 3 * fine, (coarse, fine)
+
+
+@pytest.mark.parametrize("k", [0, 1, 2, 3])
+def test_cube_spectrum_with_whitney_stars_every_degree(k):
+    """Kuhn cubes: the Galerkin stars (FEEC) converge in every degree, with absolute boundary
+    conditions (Neumann for functions, Dirichlet for densities)."""
+    coarse, fine = (errors(*kuhn_cube(n), "whitney", k, 8)["eigenvalue_relative_error_max"] for n in (3, 5))
+    assert fine < 0.16 and coarse > 1.5 * fine, (coarse, fine)
+
+
+@pytest.mark.parametrize("k", [1, 2])
+def test_unit_square_absolute_spectrum_for_one_and_two_forms(k):
+    got = errors(*grid_triangles(16, jitter=0.2), "circumcentric", k)
+    assert got["eigenvalue_relative_error_max"] < 0.06
+
+
+@pytest.mark.parametrize("star", ["circumcentric", "whitney"])
+def test_flat_torus_has_two_harmonic_one_forms(star):
+    K = SimplicialComplex(*flat_torus(16), orient="fix")
+    values = laplacian_eigenpairs(DEC(K, star=star), 1, 6).values
+    assert np.abs(values[:2]).max() < 1e-9 and values[2] > 0.9
+    assert errors(*flat_torus(16), star, 1)["eigenvalue_relative_error_max"] < 0.05
+
+
+def test_eigenvectors_are_star_orthonormal_and_solve_the_pencil():
+    dec = DEC(SimplicialComplex(*kuhn_cube(4)), star="whitney")
+    pairs = laplacian_eigenpairs(dec, 1, 6)
+    M, A = dec.star(1), dec.laplacian_symmetric(1)
+    np.testing.assert_allclose(pairs.vectors.T @ (M @ pairs.vectors), np.eye(6), atol=1e-9)
+    for value, u in zip(pairs.values, pairs.vectors.T):
+        assert np.linalg.norm(A @ u - value * (M @ u)) < 1e-7 * value * np.linalg.norm(M @ u)
+
+
+def test_sparse_and_dense_paths_agree(monkeypatch):
+    dec = DEC(SimplicialComplex(*icosphere(2)), star="whitney")
+    sparse = laplacian_eigenpairs(dec, 1, 8).values
+    monkeypatch.setattr(spectrum, "DENSE_MAX", 10**6)
+    np.testing.assert_allclose(laplacian_eigenpairs(dec, 1, 8).values, sparse, rtol=1e-8)
+
+
+def test_indefinite_star_goes_through_the_nonsymmetric_solve():
+    vertices, tets = kuhn_cube(4)
+    inner = np.all((vertices > 1e-9) & (vertices < 1 - 1e-9), axis=1)
+    vertices[inner] += np.random.default_rng(0).uniform(-0.025, 0.025, (inner.sum(), 3))
+    dec = DEC(SimplicialComplex(vertices, tets), star="barycentric")
+    assert dec.star_diagonal(0).min() > 0 and dec.star_diagonal(1).min() < 0
+    assert spectrum.needs_indefinite_solve(dec, 1) and not spectrum.needs_indefinite_solve(dec, 0)
+
+
+def test_degenerate_star_is_refused_with_the_galerkin_hint():
+    dec = DEC(SimplicialComplex(*kuhn_cube(6)))
+    laplacian_eigenpairs(dec, 0, 4)  # ⋆0 > 0 and Δ0 never divides by ⋆1
+    with pytest.raises(MeshError, match=r"⋆_1 of operator=circumcentric is zero.*`operator=whitney`"):
+        laplacian_eigenpairs(dec, 2, 4)  # Δ2 contains ⋆1⁻¹
+    with pytest.raises(MeshError, match=r"singular: ⋆_1 .*`operator=whitney`"):
+        laplacian_eigenpairs(dec, 1, 4)  # zero ⋆1 rows that Δ1 does not reach

@@ -1,0 +1,99 @@
+"""Tetrahedral meshes end to end: the volume sources (box, tetrahedralize, TetGen/meshio files)
+through the apps, checked against Betti numbers and analytic spectra."""
+
+from __future__ import annotations
+
+import json
+
+import meshio
+import numpy as np
+import pytest
+
+from decrun.core.primitives import kuhn_cube
+from decrun.errors import ConfigError, DegenerateSimplexError
+from decrun.runner.config import compose_config
+from decrun.runner.run import run_experiment
+
+TUNNEL = "mesh.tunnels=[[0.4,0.4,-1,0.6,0.6,2]]"
+CAVITY = "mesh.cavities=[[0.4,0.4,0.4,0.6,0.6,0.6]]"
+
+
+def run(*overrides):
+    result, mesh, _ = run_experiment(compose_config(list(overrides)))
+    return result.metrics, mesh
+
+
+def test_spectrum_of_the_default_box_through_the_cli(decrun_cli, tmp_path):
+    done = decrun_cli("app=spectrum", "mesh=box", "figures=false")
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads(next(tmp_path.glob("outputs/runs/*/metrics.json")).read_text())
+    assert metrics["analytic_domain"] == "box(1, 1, 1)"
+    assert metrics["eigenvalue_relative_error_max"] < 0.1 and metrics["kernel_dimension_matches_betti"]
+
+
+@pytest.mark.parametrize("degree, holes, betti", [(1, [TUNNEL], 1), (2, [CAVITY], 1), (1, [CAVITY], 0),
+                                                   (2, [TUNNEL], 0)])
+def test_hodge_on_box_with_tunnel_or_cavity(degree, holes, betti):
+    metrics, mesh = run("app=hodge", "mesh=box", "mesh.cells=5", *holes, "operator=whitney", "app.input=random",
+                        f"app.degree={degree}", "figures=false")
+    assert mesh.simplices.shape[1] == 4
+    assert metrics[f"betti_{degree}"] == betti == metrics["harmonic_dimension"]
+    assert metrics["orthogonality_max"] < 1e-10 and metrics["harmonic_curl_relative"] < 1e-8
+
+
+def test_tetrahedralized_solid_torus_has_one_harmonic_one_form():
+    metrics, mesh = run("app=hodge", "mesh=tetrahedralize", "mesh.surface=torus",
+                        "mesh.surface_options={major_segments:16,minor_segments:8}", "operator=whitney",
+                        "app.input=random")
+    assert mesh.meta["tetrahedralize"]["input_triangles"] == 256
+    assert metrics["betti_1"] == 1 == metrics["harmonic_dimension"] and metrics["orthogonality_max"] < 1e-10
+
+
+def test_tetrahedralized_ball_converges_to_the_neumann_spectrum():
+    errors = []
+    for volume in (0.01, 0.002):
+        metrics, _ = run("app=spectrum", "mesh=tetrahedralize", "mesh.keep_surface=true",
+                         "mesh.surface_options={subdiv:2}", f"mesh.max_volume={volume}", "app.count=9")
+        assert metrics["analytic_domain"] == "ball(1)"
+        errors.append(metrics["eigenvalue_relative_error_max"])
+    assert errors[1] < 0.6 * errors[0] and errors[1] < 0.08, errors
+
+
+def test_tetgen_node_ele_files_read_like_the_other_volume_formats(tmp_path):
+    V, T = kuhn_cube(3)
+    meshio.write(str(tmp_path / "cube.node"), meshio.Mesh(V, [("tetra", T)]), file_format="tetgen")
+    for name in ("cube.node", "cube.ele"):
+        metrics, mesh = run("mesh=file", f"mesh.path={tmp_path / name}", "app=spectrum", "figures=false")
+        assert mesh.meta["file_format"] == "meshio-" + name.split(".")[1]
+        np.testing.assert_array_equal(np.sort(np.sort(mesh.simplices, axis=1), axis=0),
+                                      np.sort(np.sort(T, axis=1), axis=0))
+        assert metrics["analytic_domain"] == "box(1, 1, 1)"
+
+
+def test_zero_volume_tetrahedron_is_named_without_the_surface_repair_hint(tmp_path, decrun_cli):
+    V, T = kuhn_cube(3)
+    T[7] = [0, 1, 2, 3]  # vertices 0, 1, 2 lie on one line
+    path = tmp_path / "flat.vtu"
+    meshio.write(str(path), meshio.Mesh(V, [("tetra", T)]))
+    with pytest.raises(DegenerateSimplexError, match="tetrahedron 7 has zero volume") as info:
+        run("mesh=file", f"mesh.path={path}", "app=spectrum")
+    assert "mesh.repair" not in str(info.value)
+    done = decrun_cli("mesh=file", f"mesh.path={path}", "app=spectrum")
+    assert done.returncode != 0 and "tetrahedron 7 has zero volume" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("override, message", [
+    ("mesh.tunnels=[[0.4,0.4,0.2,0.6,0.6,0.8]]", "must run through the box"),
+    ("mesh.cavities=[[0.0,0.1,0.1,0.3,0.3,0.3]]", "must lie inside the box"),
+    ("mesh.surface=nowhere", "neither a file nor a sample"),
+])
+def test_volume_source_options_are_checked_before_any_work(override, message):
+    source = "mesh=tetrahedralize" if "surface" in override else "mesh=box"
+    with pytest.raises(ConfigError, match=message):
+        run(source, override, "app=spectrum")
+
+
+def test_a_hole_that_removes_no_cell_is_an_error():
+    with pytest.raises(ConfigError, match=r"mesh.cavities\[0\]: .* contains no cell centre"):
+        run("mesh=box", "mesh.cells=5", "mesh.cavities=[[0.1,0.1,0.1,0.3,0.3,0.3]]", "app=spectrum")

@@ -227,7 +227,10 @@ def test_hodge_on_tetrahedra_harmonic_dimension_is_betti(mesh, degree, betti):
     m = result.metrics
     assert m[f"betti_{degree}"] == betti == m["harmonic_dimension"] and m["harmonic_dimension_matches_betti"]
     assert m["orthogonality_max"] < 1e-10 and m["reconstruction_error_relative"] < 1e-12
-    assert m["harmonic_curl_relative"] < 1e-8 and m["harmonic_codifferential_relative"] < 1e-8
+    if betti:
+        assert m["harmonic_curl_relative"] < 1e-8 and m["harmonic_codifferential_relative"] < 1e-8
+    else:  # γ is round-off: ratios of round-off are absent
+        assert "harmonic_curl_relative" not in m and "harmonic_codifferential_relative" not in m
     assert result.fields["omega_vectors"].shape == (K.num_simplices(3), 3)
 
 

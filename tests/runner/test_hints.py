@@ -113,7 +113,7 @@ CASES = {
                                    "operator=whitney", "solver=cg"], ["solver=direct"]),
     "tetrahedralize_unknown_surface": (["mesh=tetrahedralize", "mesh.surface=nowhere", "app=spectrum"],
                                        ["mesh.surface=icosphere"]),
-    "hodge_zero_star1_on_tetrahedra": (["app=hodge", "mesh=box", "mesh.cells=3", "app.input=random"],
+    "hodge_zero_star1_on_tetrahedra": (["app=hodge", "mesh=box", "mesh.cells=3", "app.input=random", "operator=circumcentric"],
                                        ["operator=whitney"]),
     "hodge_singular_analytic_field": (["app=hodge", "mesh=box", "mesh.cells=3", "operator=whitney"],
                                       ["app.input=random", "app.analytic=gradient"]),

@@ -107,8 +107,8 @@ MUTATIONS = [
              [("return v - self.dt * (self.L @ v)  # v_{n+1} = v_n + dt Δ_M v_n", "return v + self.dt * (self.L @ v)")],
              [["tests/apps/test_smoothing.py"], REG_SMOOTHING]),
     Mutation("vertex normals point inwards", "decrun/core/geometry.py",
-             [("face_normal = np.cross(x[f[:, 1]] - x[f[:, 0]], x[f[:, 2]] - x[f[:, 0]])  # length = 2 * area",
-               "face_normal = np.cross(x[f[:, 2]] - x[f[:, 0]], x[f[:, 1]] - x[f[:, 0]])")],
+             [("face_normal = area_normals(points, f)  # length = 2 * area",
+               "face_normal = -area_normals(points, f)")],
              [["tests/runner/test_meshes.py"], REG_SMOOTHING]),
     # ---------------------------------------------------------------- the fluid (issue 18)
     Mutation("fluid force with the wrong sign", "decrun/methods/fluid/simulation.py",

@@ -93,6 +93,7 @@ GALLERY = {
 #: figures the README shows outside the gallery: docs/figures/<file> ← (overrides, figure stem)
 README_FIGURES = {
     "smoothing_default.png": ([], "smoothing"),
+    "smoothing_bunny_default.png": (["mesh=bunny"], "smoothing"),
     "smoothing_bone_degenerate.png": (["mesh=sample", "mesh.sample=bone", "app.dt=0.05"], "smoothing"),
     "hodge_torus.png": (["app=hodge", "mesh=torus", "mesh.noise=0.05"], "hodge_parts"),
     "hodge_sphere.png": (["app=hodge"], "hodge_parts"),

@@ -118,6 +118,9 @@ class App:
     diagonal_stars: ClassVar[str] = ""
     #: the metrics a sweep table shows by default (``decrun-table --all`` shows every one)
     headline_metrics: ClassVar[tuple[str, ...]] = ()
+    #: the override a refused operator variant's message names: one that runs this app on
+    #: every mesh it accepts (hodge: whitney, whose ⋆1 is SPD where the diagonal ⋆1 is zero)
+    operator_hint: ClassVar[str] = "`operator=mixed_area` (or `operator=circumcentric`)"
 
     def check_dimension(self, K) -> None:
         """TopologyError when ``K``'s dimension is not in ``dimensions`` (before any work), naming
@@ -166,7 +169,7 @@ class App:
             if missing:
                 raise ConfigError(f"operator={dec.star_variant.name} provides operators on {list(degrees)}-forms "
                                   f"only, but app={self.name} needs {missing}-forms on the mesh's own simplices: "
-                                  f"use `operator=mixed_area` (or `operator=circumcentric`)")
+                                  f"use {self.operator_hint}")
 
 
 def _passthrough(iterable, total=None, desc=None, **_):

@@ -55,6 +55,7 @@ class Hodge(App):
                         "energy_fraction_harmonic", "harmonic_dimension_matches_betti")
     dimensions = (2, 3)
     form_degrees = (0, 1, 2)
+    operator_hint = "`operator=whitney` (the app's default: SPD ⋆1 on every mesh)"
     boundary_note = ("the Hodge decomposition (Theorem 5) needs d and δ adjoint, which the §6.4.4 flux "
                      "adaptation breaks; app=vector_field reports that as adjointness_defect")
     degree: int = 1  # k: 1 (triangle or tetrahedral meshes) or 2 (tetrahedral meshes)

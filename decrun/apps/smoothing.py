@@ -32,11 +32,16 @@ from decrun.methods.mean_curvature_flow import (
     MeanCurvatureFlow,
     enclosed_volume,
     gershgorin_safe_dt,
+    resolution_dt,
     surface_area,
 )
 from decrun.methods.smoothing_metrics import degeneration, normal_deviation_deg
 
 RESCALE = ("auto", "volume", "area", "none")
+#: what app.dt_factor multiplies when app.dt is null: ``critical`` 2/λ_max (explicit Euler's
+#: stability limit), ``resolution`` 2h̄²/π² (:func:`resolution_dt`), ``auto`` critical for
+#: explicit and resolution for implicit Euler
+DT_UNITS = ("auto", "critical", "resolution")
 
 
 @dataclass
@@ -45,14 +50,18 @@ class Smoothing(App):
 
     name = "smoothing"
     headline_metrics = ("stable", "unstable_reason", "distance_to_clean_rms", "normal_deviation_to_clean_deg",
-                        "area_ratio", "dt_over_critical")
+                        "normal_change_deg", "area_ratio", "dt_over_critical")
     form_degrees = (0,)
     scheme: str = "implicit"  # explicit | implicit (Euler, §1.3)
-    #: time step (model units squared: L has units 1/length²); null: dt_factor × dt_crit
+    #: time step (model units squared: L has units 1/length²); null: dt_factor × the dt_unit
     dt: Optional[float] = None
-    #: with dt null, the time step as a multiple of the explicit critical step 2/λ_max of the
-    #: mesh — scale-free, so every mesh gets the same relative step (0.75: the default run)
+    #: with dt null, the time step as a multiple of ``dt_unit`` — scale-free, so every mesh
+    #: gets the same relative step (0.75: the default run)
     dt_factor: float = 0.75
+    #: auto | critical | resolution (:data:`DT_UNITS`): explicit Euler must stay below its
+    #: critical step; implicit Euler is stable at any step, and its step should follow the
+    #: scale of the noise (the mean edge), not the worst triangle, which sets 2/λ_max
+    dt_unit: str = "auto"
     steps: int = 10
     #: auto (volume on closed surfaces in 3-D, area on open or planar ones) | volume | area |
     #: none, applied after every step
@@ -63,6 +72,8 @@ class Smoothing(App):
     def __post_init__(self):
         if self.scheme not in SCHEMES:
             raise ConfigError(f"app.scheme: must be one of {list(SCHEMES)}, got {self.scheme!r}")
+        if self.dt_unit not in DT_UNITS:
+            raise ConfigError(f"app.dt_unit: must be one of {list(DT_UNITS)}, got {self.dt_unit!r}")
         if self.rescale not in RESCALE:
             raise ConfigError(f"app.rescale: must be one of {list(RESCALE)}, got {self.rescale!r}")
         if self.dt is not None and not (self.dt > 0 and math.isfinite(self.dt)):
@@ -74,8 +85,15 @@ class Smoothing(App):
         if not self.blowup_factor > 1:
             raise ConfigError(f"app.blowup_factor: must be > 1, got {self.blowup_factor}")
 
+    @property
+    def resolved_dt_unit(self) -> str:
+        """``critical`` or ``resolution``: app.dt_unit with ``auto`` resolved by the scheme."""
+        if self.dt_unit != "auto":
+            return self.dt_unit
+        return "critical" if self.scheme == "explicit" else "resolution"
+
     def check(self, K, dec) -> None:
-        if self.dt is None and not self.critical_dt:
+        if self.dt is None and self.resolved_dt_unit == "critical" and not self.critical_dt:
             # a step computed from this mesh: Gershgorin's bound, ≤ the critical step, no eigen-solve
             safe = gershgorin_safe_dt(dec.laplacian_symmetric(0), dec.star_diagonal_or_none(0))
             value = f"`app.dt={safe:.3g}` (Gershgorin's bound, ≤ the explicit critical step of this mesh) or " \
@@ -87,6 +105,16 @@ class Smoothing(App):
             raise ConfigError("app.rescale=volume needs a closed surface in 3-D; this mesh has a border "
                               "or is planar: use `app.rescale=auto` (area on open surfaces)")
 
+    def _divergence_reason(self, step: int, flow: MeanCurvatureFlow) -> str:
+        """``diverged at step N``, with the cause and the override that avoids it when ⋆0 ≤ 0
+        makes the implicit matrix M + dt S indefinite (the circumcentric ⋆0 on scans)."""
+        reason = f"diverged at step {step}"
+        nonpositive = int(np.sum(flow.M <= 0)) if flow.M is not None else 0
+        if nonpositive and self.scheme == "implicit":
+            reason += (f" (⋆0 ≤ 0 on {nonpositive} vertices: M + dt S is indefinite; "
+                       "`operator=mixed_area` has a positive ⋆0)")
+        return reason
+
     def run(self, ctx: Context) -> Result:
         """Smooth the mesh; see the module docstring.
 
@@ -97,7 +125,11 @@ class Smoothing(App):
         (steps computed and recorded, the diverging one included, so it equals
         ``diverged_at_step`` when unstable), ``rescale`` (the resolved choice),
         ``roughness_ratio`` (R_end / R_0), ``distortion_final`` (ρ, 1 for the input),
-        ``dt_critical_explicit`` and ``dt_over_critical``, ``distance_to_clean_rms`` and
+        ``dt_critical_explicit`` and ``dt_over_critical``, ``dt_resolution`` (2h̄²/π²,
+        :func:`resolution_dt`) and ``dt_unit`` (the resolved unit, only when app.dt is null),
+        ``normal_change_deg`` (area-weighted face-normal angle between input and result, 3-D
+        only, when stable: how much the shading changed, no clean mesh needed),
+        ``distance_to_clean_rms`` and
         ``distance_to_clean_rms_initial`` (RMS vertex distance to the noise-free mesh / its
         bounding-box diagonal, only with noise; the final one only when stable; it adds the
         flow's shrinkage and drift to the noise), ``normal_deviation_to_clean_deg`` (+
@@ -123,7 +155,10 @@ class Smoothing(App):
                 dt_crit = dec.require(("mcf_critical_dt",),
                                       lambda: MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt())
         dt = self.dt
-        if dt is None:
+        dt_resolution = resolution_dt(K.mean_edge_length)
+        if dt is None and self.resolved_dt_unit == "resolution":
+            dt = self.dt_factor * dt_resolution
+        elif dt is None:
             if not (np.isfinite(dt_crit) and dt_crit > 0):
                 raise ConfigError(
                     f"app.dt_factor: the explicit critical step 2/λ_max does not exist for operator="
@@ -188,19 +223,23 @@ class Smoothing(App):
             "rescale": rescale,
             "stable": stable,
             "diverged_at_step": diverged_at,
-            **({"unstable_reason": f"diverged at step {diverged_at}" if diverged_at >= 0 else
+            **({"unstable_reason": self._divergence_reason(diverged_at, flow) if diverged_at >= 0 else
                 f"degenerate: {degenerate}"} if not stable else {}),
             "steps_done": len(series["area"]) - 1,
             "area_ratio": last["area"] / first["area"],
             "roughness_ratio": last["roughness"] / first["roughness"],
             "distortion_final": last["distortion"],
             "dt_critical_explicit": dt_crit,
+            "dt_resolution": dt_resolution,
+            **({"dt_unit": self.resolved_dt_unit} if self.dt is None else {}),
             "negative_star1_fraction": float(np.mean(weights < 0)),
         }
         if np.isfinite(dt_crit) and dt_crit > 0:
             metrics["dt_over_critical"] = dt / dt_crit
         if flow.M is not None:
             metrics["nonpositive_star0_vertices"] = int(np.sum(flow.M <= 0))
+        if stable and vertices.shape[1] == 3:
+            metrics["normal_change_deg"] = normal_deviation_deg(v, vertices, faces)
         if has_volume:
             metrics["volume_drift_rel"] = abs(last["volume"] - first["volume"]) / abs(first["volume"])
         clean = ctx.meta.get("clean_vertices")

@@ -41,7 +41,7 @@ import scipy.sparse.linalg as spla
 from decrun.core.geometry import triangle_areas
 
 __all__ = ["SCHEMES", "MeanCurvatureFlow", "surface_area", "enclosed_volume", "explicit_critical_dt",
-           "largest_eigenvalue"]
+           "largest_eigenvalue", "resolution_dt"]
 
 SCHEMES = ("explicit", "implicit")
 
@@ -112,6 +112,20 @@ def explicit_critical_dt(S: sp.spmatrix, M: np.ndarray) -> float:
     if not np.isfinite(lam):
         return float("nan")
     return float(2.0 / lam) if lam > 0 else float("inf")
+
+
+def resolution_dt(mean_edge_length: float) -> float:
+    """dt_h = 2 h̄² / π² (length² units): the explicit critical step 2/λ_h of a mesh whose every
+    edge had the mean length h̄ — λ_h = (π/h̄)² is the Laplacian's eigenvalue at the shortest
+    wavelength such a mesh resolves (2 h̄, noise one edge long).
+
+    A scale for the step of *implicit* Euler, which is stable at any step: one step damps the
+    edge-scale mode by 1/(1 + dt λ_h). Unlike 2/λ_max, which the worst triangle sets (λ_max ∝
+    cot of the smallest angle / its area), it follows the mesh's typical resolution: on the
+    near-uniform icosphere dt_h ≈ 0.8 × 2/λ_max, on pymeshlab's bunny10k scan 370 × and on the cow
+    55 × — where a step of 0.75 × 2/λ_max moves no vertex visibly.
+    """
+    return 2.0 * float(mean_edge_length) ** 2 / np.pi ** 2
 
 
 class MeanCurvatureFlow:

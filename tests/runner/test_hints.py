@@ -65,7 +65,7 @@ CASES = {
     "rescale_volume_on_open_mesh": (["mesh=grid", "app.rescale=volume", "app.steps=1"], ["app.rescale=auto"]),
     "critical_dt_off_without_dt": (["mesh.subdiv=1", "app.critical_dt=false", "app.scheme=explicit",
                                     "app.steps=20"], ["app.dt=", "app.critical_dt=true"]),
-    "no_critical_step_on_a_scan": (["mesh=sample", "operator=circumcentric", "app.steps=1"],
+    "no_critical_step_on_a_scan": (["mesh=sample", "operator=circumcentric", "app.scheme=explicit", "app.steps=1"],
                                    ["operator=mixed_area"]),
     "spd_solver_for_unsymmetric_system": (["app=parametrization", "mesh=sphere_cap", "solver=cg"],
                                           ["solver=iterative", "solver=direct", "solver=pardiso", "app.border=circle"]),
@@ -73,6 +73,8 @@ CASES = {
                          ["operator.lumped=true", "operator=circumcentric"]),
     "zero_form_only_star": (["app=vector_field", "mesh.subdiv=2", "operator=intrinsic_delaunay"],
                             ["operator=mixed_area", "operator=circumcentric"]),
+    "zero_form_only_star_for_hodge": (["app=hodge", "mesh=torus", "operator=intrinsic_delaunay"],
+                                      ["operator=whitney"]),
     "precomputed_strokes_without_constraints": (
         ["app=vector_field", "mesh.subdiv=2", "app.sources=[]", "app.strokes=[{points:[[1,0,0],[0,1,0]]}]"],
         ["app.stroke_magnitude=fixed"]),

@@ -7,8 +7,9 @@ matrix                                         method (preconditioner)
 =============================================  ===========================================
 symmetric, positive diagonal                   CG (Jacobi); MINRES (Jacobi) if CG stalls —
                                                an indefinite matrix (negative cot weights)
-symmetric, a zero or negative diagonal entry   MINRES (Jacobi on |diag|) when the diagonal
-                                               has no zero, else GMRES (ILU)
+symmetric, a zero or negative diagonal entry   MINRES (Jacobi on |diag|) when no |diagonal|
+                                               entry is below 1e-8 × the largest, else GMRES
+                                               (ILU): a quasi-definite saddle point matrix
 unsymmetric                                    GMRES (incomplete LU); BiCGSTAB (ILU) if
                                                GMRES stalls
 =============================================  ===========================================
@@ -51,7 +52,8 @@ def choose_method(A: sp.csr_matrix) -> list[tuple[str, str]]:
     if is_symmetric(A):
         if np.all(diagonal > 0):
             return [("cg", "jacobi"), ("minres", "jacobi")]
-        if np.all(diagonal != 0):
+        magnitude = np.abs(diagonal)
+        if magnitude.min() > 1e-8 * magnitude.max():  # Jacobi on |diag| means something
             return [("minres", "jacobi"), ("gmres", "ilu")]
         return [("gmres", "ilu"), ("bicgstab", "ilu")]
     return [("gmres", "ilu"), ("bicgstab", "ilu")]
@@ -123,8 +125,13 @@ class KrylovSolver(Solver):
         return spla.LinearOperator(A.shape, matvec=ilu.solve, dtype=np.float64)
 
     # ------------------------------------------------------------------ solves
-    def _krylov(self, method: str, M, b: np.ndarray, atol: float, count: list) -> np.ndarray:
-        """One Krylov run on A x = b from x = 0, to ‖b − A x‖ ≤ atol (the method's estimate)."""
+    def _krylov(self, method: str, M, b: np.ndarray, atol: float, count: list, good_enough=None) -> np.ndarray:
+        """One Krylov run on A x = b from x = 0, to ‖b − A x‖ ≤ atol (the method's estimate).
+
+        GMRES runs one restart cycle at a time and stops early once ``good_enough(x)``: on a
+        shifted singular system the attainable residual is ~ u ‖A‖ ‖x‖, far above an atol set
+        from ‖b‖ alone, and without the check every cycle up to maxiter would run (measured:
+        4,755 iterations where 6 had reached the backward error)."""
         callback = lambda _: count.__setitem__(0, count[0] + 1)  # noqa: E731
         maxiter = self.maxiter or max(1000, 2 * b.size)
         if method == "cg":
@@ -133,12 +140,19 @@ class KrylovSolver(Solver):
             x, _ = spla.minres(self._A, b, rtol=atol / float(np.linalg.norm(b)), maxiter=maxiter, M=M,
                                callback=callback)
         elif method == "gmres":
-            x, _ = spla.gmres(self._A, b, rtol=0.0, atol=atol, restart=self.restart,
-                              maxiter=max(1, maxiter // self.restart), M=M, callback=callback,
-                              callback_type="pr_norm")
+            x = np.zeros_like(b)
+            for _ in range(max(1, maxiter // self.restart)):
+                x, info = spla.gmres(self._A, b, x0=x, rtol=0.0, atol=atol, restart=self.restart, maxiter=1, M=M,
+                                     callback=callback, callback_type="pr_norm")
+                if info == 0 or (good_enough is not None and good_enough(x)):
+                    break
         else:
             x, _ = spla.bicgstab(self._A, b, rtol=0.0, atol=atol, maxiter=maxiter, M=M, callback=callback)
         return x
+
+    def _backward_error(self, b: np.ndarray, x: np.ndarray, norm_b: float) -> float:
+        """‖b − A x‖ / (‖A‖ ‖x‖ + ‖b‖), the normwise backward error of x."""
+        return float(np.linalg.norm(b - self._A @ x)) / (self._norm_A * float(np.linalg.norm(x)) + norm_b)
 
     def _solve_one(self, b):
         """Krylov runs with iterative refinement until the normwise backward error
@@ -160,7 +174,9 @@ class KrylovSolver(Solver):
                 # each round reduces the residual at least 100-fold (else a refinement round
                 # whose residual already meets tol · scale would return x = 0 and stall)
                 target = min(self.tol * scale, 0.01 * float(np.linalg.norm(residual)))
-                x = x + self._krylov(method, M, residual, target, count)
+                start = x
+                x = x + self._krylov(method, M, residual, target, count,
+                                     good_enough=lambda dx: self._backward_error(b, start + dx, norm_b) <= self.tol)
                 residual = b - self._A @ x
                 previous, error = error, float(np.linalg.norm(residual)) / (self._norm_A * float(np.linalg.norm(x)) + norm_b)
                 if not np.isfinite(error) or error <= self.tol or error > 0.9 * previous:

@@ -260,12 +260,16 @@ def test_cot_formula_matches_circumcentric_star1():
 
 
 def sphere_eigenvalue_error(subdiv):
+    """max |λ_i − l(l+1)| over l = 0, 1, 2 (1 + 3 + 5 eigenvalues). Sixteen are computed — the
+    l = 3 cluster completes the set — from a seeded start vector: with k = 9 ARPACK ended on the
+    5-fold l = 2 cluster and, from some random starts, returned one l = 3 value in it (error 5.8)."""
     dec = DEC(SimplicialComplex(*icosphere(subdiv)))
-    values = spla.eigsh(dec.laplacian_symmetric(0).tocsc(), k=9, M=dec.star(0).tocsc(), sigma=-1e-2,
-                        return_eigenvectors=False)
-    values = np.sort(values)
-    exact = np.array([0, 2, 2, 2, 6, 6, 6, 6, 6.0])
-    return np.abs(values - exact).max()
+    A, M = dec.laplacian_symmetric(0).tocsc(), dec.star(0).tocsc()
+    v0 = np.random.default_rng(0).standard_normal(A.shape[0])
+    values = np.sort(spla.eigsh(A, k=16, M=M, sigma=-1e-2, v0=v0, ncv=48, return_eigenvectors=False))
+    exact = np.repeat([0.0, 2.0, 6.0, 12.0], [1, 3, 5, 7])
+    assert np.all(np.abs(values - exact)[9:] < 0.25 * 12)  # the l = 3 cluster is where it belongs
+    return np.abs(values - exact)[:9].max()
 
 
 def test_sphere_spectrum_converges_quadratically():

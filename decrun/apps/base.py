@@ -232,3 +232,15 @@ class Context:
     def log(self, message: str) -> None:
         """A progress message for the user (stderr here; the run log in the runner)."""
         print(message, file=sys.stderr)
+
+    def betti(self, k: int) -> int | None:
+        """Betti_k of the complex, or None (said in the log) when it cannot be computed here:
+        a pinched border on a complex too large for the rank computation
+        (:func:`decrun.core.complex.topology.betti_numbers`)."""
+        if k == 0:  # the components, whatever the border
+            return int(self.complex.connected_components()[0])
+        try:
+            return int(self.complex.betti_numbers()[k])
+        except NotImplementedError as why:
+            self.log(f"betti_{k} not computed: {why}")
+            return None

@@ -98,9 +98,9 @@ class Spectrum(App):
         metrics: dict = {"degree": k, "eigenvalue_min": float(values[0]), "eigenvalue_max": float(values[-1])}
         length = float(np.linalg.norm(np.diff(K.vertices[K.simplices(1)], axis=1)[:, 0], axis=1).mean())
         kernel = int(np.sum(np.abs(values) < 1e-8 / length**2))
-        betti = int(K.betti_numbers()[k])
-        metrics.update(kernel_dimension=kernel, **{f"betti_{k}": betti})
-        if kernel < len(values):  # the kernel fits in the computed eigenpairs: compare it
+        betti = ctx.betti(k)
+        metrics.update(kernel_dimension=kernel, **({f"betti_{k}": betti} if betti is not None else {}))
+        if kernel < len(values) and betti is not None:  # the kernel fits in the computed eigenpairs: compare it
             metrics["kernel_dimension_matches_betti"] = bool(kernel == betti)
         metrics.update(_accuracy(dec, k, values, vectors))
         if pairs.imaginary_max or not _positive(dec, k):

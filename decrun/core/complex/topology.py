@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as graph_components
 
-from decrun.errors import MeshError
+from decrun.errors import MeshError, NonManifoldError
 
 __all__ = ["euler_characteristic", "connected_components", "border_faces", "border_vertices", "border_simplices",
            "border_loops", "betti_numbers", "betti_by_rank"]
@@ -118,8 +118,12 @@ def betti_numbers(K) -> list[int]:
     """Betti numbers b_0..b_n over the reals.
 
     Exact for surfaces (b0 = components, b2 = closed components, b1 from χ), for
-    tetrahedral meshes embedded in R³ (b2 = border surfaces − components, Alexander
-    duality) and, for anything else, by dense rank computation (small complexes only).
+    tetrahedral meshes embedded in R³ whose border is a closed 2-manifold (b2 = border
+    surfaces − components, Alexander duality: each closed surface bounds one region of the
+    complement) and, for anything else, by dense rank computation (:func:`betti_by_rank`,
+    small complexes only). A border pinched along an edge or at a vertex (removed cells
+    that touch there) breaks the surface count — two cavities meeting along an edge form
+    one connected border but two regions — so it goes to the rank computation too.
     """
     n = K.dim
     count, label = K.connected_components()
@@ -145,9 +149,13 @@ def betti_numbers(K) -> list[int]:
         b2 = int((~has_border).sum())
         return [count, count + b2 - chi, b2]
     if n == 3 and K.embedding_dim == 3:
-        border = K.border_complex()
-        if border is None:
-            return betti_by_rank(K)
+        faces = border_simplices(K)
+        if faces is None:
+            return betti_by_rank(K, "it has no border")
+        try:  # the surface count needs a closed 2-manifold border: one fan per vertex, two triangles per edge
+            border = type(K)(K.vertices, faces, unreferenced="drop", check_manifold=True, orient="check")
+        except NonManifoldError as pinch:
+            return betti_by_rank(K, f"its border surface is pinched ({pinch})")
         border_components = border.connected_components()[0]
         b2 = border_components - count
         b1 = count + b2 - chi
@@ -155,13 +163,14 @@ def betti_numbers(K) -> list[int]:
     return betti_by_rank(K)
 
 
-def betti_by_rank(K) -> list[int]:
-    """Betti numbers b_j = n_j − rank δ_j − rank δ_{j+1} by dense ranks (≤ 4000 simplices per dimension)."""
+def betti_by_rank(K, why: str = "") -> list[int]:
+    """Betti numbers b_j = n_j − rank δ_j − rank δ_{j+1} by dense ranks (≤ 4000 simplices per
+    dimension); ``why`` says, in the error above that size, why the fast counts did not apply."""
     sizes = [K.num_simplices(j) for j in range(K.dim + 1)]
     if max(sizes) > 4000:
         raise NotImplementedError(
             "betti_numbers(): dense rank computation is limited to complexes with at most 4000 simplices "
-            "per dimension for this kind of complex"
+            f"per dimension for this kind of complex{f' ({why})' if why else ''}; this one has {max(sizes)}"
         )
     ranks = [0] + [int(np.linalg.matrix_rank(K.boundary(j).toarray())) for j in range(1, K.dim + 1)] + [0]
     return [sizes[j] - ranks[j] - ranks[j + 1] for j in range(K.dim + 1)]

@@ -28,9 +28,37 @@ from decrun.apps.surface_points import check_points_on_surface
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 
-INITIAL = ("zero", "rotation", "vortex_pair", "random", "mesh_field")
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
+
+
+class Initial(Choice):
+    """``app.initial``: the vorticity at t = 0 (``rotation`` and ``vortex_pair`` on the unit
+    sphere; ``mesh_field`` from ``mesh=result mesh.field=...``)."""
+
+    zero = "zero"
+    rotation = "rotation"
+    vortex_pair = "vortex_pair"
+    random = "random"
+    mesh_field = "mesh_field"
+
+
+class Velocity(Choice):
+    """``app.velocity``: the velocity reconstruction (decrun/methods/fluid/reconstruction.py):
+    ``least_squares`` or ``wshd07``, the thesis' interpolation (§7.2.3)."""
+
+    least_squares = "least_squares"
+    wshd07 = "wshd07"
+
+
+class Circulation(Choice):
+    """``app.circulation``: the circulation of the back-traced dual cells
+    (decrun/methods/fluid/simulation.py): ``swept``, ``corrected_trapezoid`` or ``trapezoid``,
+    the thesis' rule."""
+
+    swept = "swept"
+    corrected_trapezoid = "corrected_trapezoid"
+    trapezoid = "trapezoid"
 
 
 class Kernels(Choice):
@@ -65,14 +93,14 @@ class Fluid(App):
     t_end: Optional[float] = None  # if set: steps = ceil(t_end / dt)
     viscosity: float = 0.03  # ν (mesh units² / s)
     inflow: List[float] = field(default_factory=list)  # uniform velocity on the outer border ([] : none)
-    initial: str = "zero"  # zero | rotation | vortex_pair | random | mesh_field (mesh=result mesh.field=...)
+    initial: Initial = Initial.zero  # zero | rotation | vortex_pair | random | mesh_field (mesh=result mesh.field=...)
     initial_strength: float = 1.0  # Ω (rotation), Γ (vortex_pair), max |w| (random)
     vortex_separation_deg: float = 60.0  # vortex_pair: angular distance on the unit sphere
     vortex_radius: float = 0.15  # vortex_pair: blob radius
     seed: int = 0
     stirs: List[Stir] = field(default_factory=list)
-    velocity: str = "least_squares"  # least_squares | wshd07 (the thesis' interpolation, §7.2.3)
-    circulation: str = "swept"  # swept | corrected_trapezoid | trapezoid (the thesis' rule)
+    velocity: Velocity = Velocity.least_squares  # least_squares | wshd07 (the thesis' interpolation, §7.2.3)
+    circulation: Circulation = Circulation.swept  # swept | corrected_trapezoid | trapezoid (the thesis' rule)
     shadow: bool = False  # also run a shadow with a 1e-10 perturbation: perturbation_growth_per_s (shadow.py)
     shadow_perturbation: float = 1e-10  # relative size of the shadow's perturbation
     shadow_max_growth_per_step: float = 0.1  # stable: false when the mean growth per step exceeds this
@@ -90,15 +118,9 @@ class Fluid(App):
             raise ConfigError(f"app.t_end: must be > 0 or null, got {self.t_end}")
         if not self.viscosity >= 0:
             raise ConfigError(f"app.viscosity: must be >= 0, got {self.viscosity}")
-        if self.initial not in INITIAL:
-            raise ConfigError(f"app.initial: must be one of {list(INITIAL)}, got {self.initial!r}")
-        from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS
-        from decrun.methods.fluid.simulation import CIRCULATIONS
-
-        if self.velocity not in VELOCITY_RECONSTRUCTIONS:
-            raise ConfigError(f"app.velocity: must be one of {list(VELOCITY_RECONSTRUCTIONS)}, got {self.velocity!r}")
-        if self.circulation not in CIRCULATIONS:
-            raise ConfigError(f"app.circulation: must be one of {list(CIRCULATIONS)}, got {self.circulation!r}")
+        self.initial = Initial.of(self.initial, "app.initial")  # also for Python callers (strings)
+        self.velocity = Velocity.of(self.velocity, "app.velocity")
+        self.circulation = Circulation.of(self.circulation, "app.circulation")
         if self.velocity == "least_squares" and self.circulation != "swept":
             raise ConfigError(f"app.circulation={self.circulation} with app.velocity=least_squares is unstable; "
                               "use app.velocity=wshd07 (the thesis' pair: app.velocity=wshd07 "
@@ -159,7 +181,7 @@ class Fluid(App):
         w0 = self._initial_vorticity(dec, initial_vorticity, ctx.meta)
         fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
                                inflow_velocity=list(self.inflow) or None, initial_vorticity=w0,
-                               velocity=self.velocity, circulation=self.circulation,
+                               velocity=str(self.velocity), circulation=str(self.circulation),
                                kernels=str(self.kernels))
         obtuse = int(getattr(fluid, "obtuse_triangles", 0))
         if obtuse:

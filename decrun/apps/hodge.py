@@ -34,16 +34,35 @@ from typing import List
 import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.core.choices import Choice
 from decrun.core.complex import simplex_volumes
 from decrun.core.forms import sample_flux, sample_vector_field, whitney_sharp, whitney_sharp2
 from decrun.core.geometry import embed3
 from decrun.core.hodge import HodgeDecomposer, harmonic_basis
 from decrun.errors import ConfigError, TopologyError
 
-FIELDS = ("analytic", "random", "result")
+
+class Input(Choice):
+    """``app.input``: the k-form decomposed — an ``analytic`` field sampled on the mesh, a
+    ``random`` one, or a field of a previous run's ``result``."""
+
+    analytic = "analytic"
+    random = "random"
+    result = "result"
+
+
 #: a part whose norm is ≤ ROUNDOFF × ‖ω‖ (energy share ≤ ROUNDOFF²) is zero to round-off
 ROUNDOFF = 1e-8
-ANALYTIC = ("gradient", "rotated_gradient", "rotation", "toroidal", "mixed")
+
+
+class AnalyticField(Choice):
+    """``app.analytic``: the analytic field of ``app.input=analytic`` (module docstring)."""
+
+    gradient = "gradient"
+    rotated_gradient = "rotated_gradient"
+    rotation = "rotation"
+    toroidal = "toroidal"
+    mixed = "mixed"
 
 
 @dataclass
@@ -59,8 +78,8 @@ class Hodge(App):
     boundary_note = ("the Hodge decomposition (Theorem 5) needs d and δ adjoint, which the §6.4.4 flux "
                      "adaptation breaks; app=vector_field reports that as adjointness_defect")
     degree: int = 1  # k: 1 (triangle or tetrahedral meshes) or 2 (tetrahedral meshes)
-    input: str = "analytic"  # analytic | random | result
-    analytic: str = "mixed"  # see the module docstring
+    input: Input = Input.analytic  # analytic | random | result
+    analytic: AnalyticField = AnalyticField.mixed  # see the module docstring
     vector: List[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])  # a of the analytic fields
     quadrature_order: int = 3  # Gauss points per edge when sampling (§3.2.1)
     seed: int = 0  # random: ω_e = ξ_e |e|, ξ ~ N(0, 1)
@@ -73,10 +92,8 @@ class Hodge(App):
         if self.degree not in (1, 2):
             raise ConfigError(f"app.degree: must be 1 or 2 (the forms between functions and densities), got {self.degree}")
         self.form_degrees = (self.degree - 1, self.degree, self.degree + 1)
-        if self.input not in FIELDS:
-            raise ConfigError(f"app.input: must be one of {list(FIELDS)}, got {self.input!r}")
-        if self.analytic not in ANALYTIC:
-            raise ConfigError(f"app.analytic: must be one of {list(ANALYTIC)}, got {self.analytic!r}")
+        self.input = Input.of(self.input, "app.input")  # also for Python callers (strings)
+        self.analytic = AnalyticField.of(self.analytic, "app.analytic")
         if len(self.vector) != 3:
             raise ConfigError(f"app.vector: must be three numbers, got {list(self.vector)}")
         if self.quadrature_order < 1:

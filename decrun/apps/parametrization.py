@@ -22,8 +22,11 @@ from decrun.errors import ConfigError, TopologyError
 from decrun.methods.parametrization import (
     CAUCHY_RIEMANN,
     CONFORMAL,
-    HOLES,
     PINNED,
+    Border,
+    Holes,
+    ReflexRows,
+    Weights,
     SYMMETRIC_WEIGHTS,
     check_disk_topology,
     harmonic_matrix,
@@ -68,12 +71,18 @@ class Parametrization(App):
     name = "parametrization"
     headline_metrics = ("is_embedding", "flipped_triangles", "angle_distortion_mean_deg", "qc_distortion_max")
     form_degrees = (0,)
-    border: str = "conformal"
-    weights: str = "dec"
-    reflex_rows: str = "cauchy_riemann"
+    border: Border = Border.conformal
+    weights: Weights = Weights.dec
+    reflex_rows: ReflexRows = ReflexRows.cauchy_riemann
     exterior_border: Optional[int] = None
     checker_squares: int = 10
-    holes: str = "auto"
+    holes: Holes = Holes.auto
+
+    def __post_init__(self):  # the closed sets, also for Python callers (strings)
+        self.border = Border.of(self.border, "app.border")
+        self.weights = Weights.of(self.weights, "app.weights")
+        self.reflex_rows = ReflexRows.of(self.reflex_rows, "app.reflex_rows")
+        self.holes = Holes.of(self.holes, "app.holes")
 
     def check_solver(self, solver, dec=None) -> None:
         """Pinned borders with symmetric weights give SPD systems (cg, amg apply); the
@@ -100,8 +109,6 @@ class Parametrization(App):
         return self.holes == "fill" or (self.holes == "auto" and self.border in ("circle", "circle_arclength"))
 
     def check(self, K, dec) -> None:
-        if self.holes not in HOLES:
-            raise ConfigError(f"app.holes: choose one of {list(HOLES)}, got {self.holes!r}")
         if not K.border_vertices().any() and K.embedding_dim == 3:
             raise TopologyError(f"app=parametrization needs a disk-like surface with a border; this mesh is closed "
                                 f"(χ = {K.euler_characteristic}): cut a hole into it, e.g. "
@@ -121,9 +128,9 @@ class Parametrization(App):
         """
         K, dec = ctx.complex, ctx.dec
         with ctx.task(f"parametrization ({self.border} border, {self.weights} weights)"):
-            result = parametrize(dec, ctx.new_solver, border=self.border, weights=self.weights,
-                                 exterior=self.exterior_border, reflex_rows=self.reflex_rows,
-                                 holes=self.holes)
+            result = parametrize(dec, ctx.new_solver, border=str(self.border), weights=str(self.weights),
+                                 exterior=self.exterior_border, reflex_rows=str(self.reflex_rows),
+                                 holes=str(self.holes))
         faces = K.oriented_simplices()
         uv = result.uv
         metrics = parametrization_metrics(K.vertices, uv, faces, result.loops)

@@ -26,10 +26,11 @@ from typing import Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, Figure, Result
+from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.mean_curvature_flow import (
-    SCHEMES,
     MeanCurvatureFlow,
+    Scheme,
     enclosed_volume,
     gershgorin_safe_dt,
     resolution_dt,
@@ -37,11 +38,26 @@ from decrun.methods.mean_curvature_flow import (
 )
 from decrun.methods.smoothing_metrics import degeneration, normal_deviation_deg
 
-RESCALE = ("auto", "volume", "area", "none")
-#: what app.dt_factor multiplies when app.dt is null: ``critical`` 2/λ_max (explicit Euler's
-#: stability limit), ``resolution`` 2h̄²/π² (:func:`resolution_dt`), ``auto`` critical for
-#: explicit and resolution for implicit Euler
-DT_UNITS = ("auto", "critical", "resolution")
+
+
+class DtUnit(Choice):
+    """``app.dt_unit``: what app.dt_factor multiplies when app.dt is null — ``critical`` 2/λ_max
+    (explicit Euler's stability limit), ``resolution`` 2h̄²/π² (:func:`resolution_dt`), ``auto``
+    critical for explicit and resolution for implicit Euler."""
+
+    auto = "auto"
+    critical = "critical"
+    resolution = "resolution"
+
+
+class Rescale(Choice):
+    """``app.rescale``: what is kept after every step (``auto``: volume on closed surfaces in 3-D,
+    area on open or planar ones)."""
+
+    auto = "auto"
+    volume = "volume"
+    area = "area"
+    none = "none"
 
 
 @dataclass
@@ -52,30 +68,27 @@ class Smoothing(App):
     headline_metrics = ("stable", "unstable_reason", "distance_to_clean_rms", "normal_deviation_to_clean_deg",
                         "normal_change_deg", "area_ratio", "dt_over_critical")
     form_degrees = (0,)
-    scheme: str = "implicit"  # explicit | implicit (Euler, §1.3)
+    scheme: Scheme = Scheme.implicit  # implicit | explicit (Euler, §1.3)
     #: time step (model units squared: L has units 1/length²); null: dt_factor × the dt_unit
     dt: Optional[float] = None
     #: with dt null, the time step as a multiple of ``dt_unit`` — scale-free, so every mesh
     #: gets the same relative step (0.75: the default run)
     dt_factor: float = 0.75
-    #: auto | critical | resolution (:data:`DT_UNITS`): explicit Euler must stay below its
+    #: auto | critical | resolution (:class:`DtUnit`): explicit Euler must stay below its
     #: critical step; implicit Euler is stable at any step, and its step should follow the
     #: scale of the noise (the mean edge), not the worst triangle, which sets 2/λ_max
-    dt_unit: str = "auto"
+    dt_unit: DtUnit = DtUnit.auto
     steps: int = 10
     #: auto (volume on closed surfaces in 3-D, area on open or planar ones) | volume | area |
     #: none, applied after every step
-    rescale: str = "auto"
+    rescale: Rescale = Rescale.auto
     blowup_factor: float = 10.0  # a step diverges when the roughness R exceeds this × R_0
     critical_dt: bool = True  # compute the explicit stability limit 2/λ_max (one eigsh)
 
     def __post_init__(self):
-        if self.scheme not in SCHEMES:
-            raise ConfigError(f"app.scheme: must be one of {list(SCHEMES)}, got {self.scheme!r}")
-        if self.dt_unit not in DT_UNITS:
-            raise ConfigError(f"app.dt_unit: must be one of {list(DT_UNITS)}, got {self.dt_unit!r}")
-        if self.rescale not in RESCALE:
-            raise ConfigError(f"app.rescale: must be one of {list(RESCALE)}, got {self.rescale!r}")
+        self.scheme = Scheme.of(self.scheme, "app.scheme")  # also for Python callers (strings)
+        self.dt_unit = DtUnit.of(self.dt_unit, "app.dt_unit")
+        self.rescale = Rescale.of(self.rescale, "app.rescale")
         if self.dt is not None and not (self.dt > 0 and math.isfinite(self.dt)):
             raise ConfigError(f"app.dt: the time step must be > 0 (or null for app.dt_factor), got {self.dt}")
         if not (self.dt_factor > 0 and math.isfinite(self.dt_factor)):
@@ -88,8 +101,8 @@ class Smoothing(App):
     @property
     def resolved_dt_unit(self) -> str:
         """``critical`` or ``resolution``: app.dt_unit with ``auto`` resolved by the scheme."""
-        if self.dt_unit != "auto":
-            return self.dt_unit
+        if self.dt_unit != DtUnit.auto:
+            return str(self.dt_unit)
         return "critical" if self.scheme == "explicit" else "resolution"
 
     def check(self, K, dec) -> None:
@@ -146,7 +159,7 @@ class Smoothing(App):
         faces = K.oriented_simplices()
         vertices = np.array(K.vertices, dtype=np.float64)
         has_volume = not bool(K.border_vertices().any()) and vertices.shape[1] == 3
-        rescale = self.rescale if self.rescale != "auto" else ("volume" if has_volume else "area")
+        rescale = str(self.rescale) if self.rescale != Rescale.auto else ("volume" if has_volume else "area")
 
         t0 = time.perf_counter()
         dt_crit = float("nan")
@@ -168,7 +181,7 @@ class Smoothing(App):
                     "a negative ⋆0 a given app.dt may diverge (the implicit matrix is indefinite)")
             dt = self.dt_factor * dt_crit
         with ctx.task(f"factorizing ({self.scheme} Euler)"):
-            flow = MeanCurvatureFlow(dec, self.scheme, dt, ctx.new_solver() if self.scheme == "implicit" else None)
+            flow = MeanCurvatureFlow(dec, str(self.scheme), dt, ctx.new_solver() if self.scheme == "implicit" else None)
         setup_seconds = time.perf_counter() - t0
         centroid = flow.centroid(vertices)
 

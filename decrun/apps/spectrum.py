@@ -19,12 +19,23 @@ from typing import Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, Figure, Result
+from decrun.core.choices import Choice
 from decrun.core.forms import whitney_sharp, whitney_sharp2
 from decrun.errors import ConfigError, TopologyError
 from decrun.methods.spectrum import (analytic_spectrum, check_stars, detect_domain, laplacian_eigenpairs,
                                      needs_indefinite_solve, spectrum_errors)
 
-ANALYTIC = ("auto", "none", "sphere", "ball", "box", "flat_torus")
+
+class AnalyticDomain(Choice):
+    """``app.analytic``: the domain whose exact spectrum the eigenvalues are compared with
+    (``auto``: detected from the mesh, ``none``: no comparison)."""
+
+    auto = "auto"
+    none = "none"
+    sphere = "sphere"
+    ball = "ball"
+    box = "box"
+    flat_torus = "flat_torus"
 
 
 @dataclass
@@ -35,7 +46,7 @@ class Spectrum(App):
     dimensions = (2, 3)
     degree: int = 0  # k of Δ_k, 0 ≤ k ≤ n
     count: int = 10  # eigenpairs
-    analytic: str = "auto"  # auto | none | sphere | ball | box | flat_torus
+    analytic: AnalyticDomain = AnalyticDomain.auto  # auto | none | sphere | ball | box | flat_torus
     shift: Optional[float] = None  # σ < 0 of the shift-invert solve; null: −0.01 / (mean edge)²
     tol: float = 1e-10  # ARPACK's relative tolerance
     figure_count: int = 4  # eigenforms drawn
@@ -45,8 +56,7 @@ class Spectrum(App):
             raise ConfigError(f"app.degree: must be ≥ 0, got {self.degree}")
         if self.count < 1:
             raise ConfigError(f"app.count: must be ≥ 1, got {self.count}")
-        if self.analytic not in ANALYTIC:
-            raise ConfigError(f"app.analytic: must be one of {list(ANALYTIC)}, got {self.analytic!r}")
+        self.analytic = AnalyticDomain.of(self.analytic, "app.analytic")  # also for Python callers (strings)
         if self.shift is not None and self.shift >= 0:
             raise ConfigError(f"app.shift: must be negative (below the spectrum) or null, got {self.shift}")
         # Δ_k uses ⋆_{k-1}, ⋆_k, ⋆_{k+1}; for k = 0 only the variant's own 0-form operators

@@ -34,8 +34,8 @@ from decrun.core.geometry import embed3
 from decrun.errors import ConfigError
 from decrun.methods.singularities import cluster_singularities, find_singularities
 from decrun.methods.vector_design import (
-    MAGNITUDE_MODES,
     DesignConstraints,
+    StrokeMagnitude,
     adjointness_defect,
     border_normal_flux,
     design_residuals,
@@ -94,7 +94,7 @@ class VectorField(App):
     vortices: List[Vortex] = field(default_factory=list)
     strokes: List[Stroke] = field(default_factory=list)
     #: fixed: |v| = stroke_length (eq. 6.8) | precomputed: |v| = |ν_pre| of a solve without strokes (eq. 6.9)
-    stroke_magnitude: str = "precomputed"
+    stroke_magnitude: StrokeMagnitude = StrokeMagnitude.precomputed
     stroke_length: float = 1.0  # λ of eq. 6.8 (field units)
     #: κ of the stroke penalty κ ∫_stroke |u − v|² ds (units 1/length); the diagonal of W is
     #: κ / h̄ (h̄ the mean edge length), so the strokes pull equally hard on coarse and fine meshes
@@ -112,8 +112,7 @@ class VectorField(App):
     cluster_radius: float = 3.0
 
     def __post_init__(self):
-        if self.stroke_magnitude not in MAGNITUDE_MODES:
-            raise ConfigError(f"app.stroke_magnitude: must be one of {list(MAGNITUDE_MODES)}, got {self.stroke_magnitude!r}")
+        self.stroke_magnitude = StrokeMagnitude.of(self.stroke_magnitude, "app.stroke_magnitude")
         if not self.stroke_weight > 0:
             raise ConfigError(f"app.stroke_weight: the weight W must be > 0, got {self.stroke_weight}")
         if not self.stroke_length > 0:

@@ -38,12 +38,20 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from decrun.core.choices import Choice
 from decrun.core.geometry import triangle_areas
 
-__all__ = ["SCHEMES", "MeanCurvatureFlow", "surface_area", "enclosed_volume", "explicit_critical_dt",
+__all__ = ["Scheme", "SCHEMES", "MeanCurvatureFlow", "surface_area", "enclosed_volume", "explicit_critical_dt",
            "largest_eigenvalue", "resolution_dt"]
 
-SCHEMES = ("explicit", "implicit")
+class Scheme(Choice):
+    """``app.scheme``: the two Euler schemes of §1.3."""
+
+    implicit = "implicit"
+    explicit = "explicit"
+
+
+SCHEMES = tuple(Scheme.names())
 
 
 def surface_area(vertices: np.ndarray, faces: np.ndarray) -> float:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.core.choices import Choice
 from decrun.core.complex import SimplicialComplex
 from decrun.errors import ConfigError, SolverError, TopologyError
 from decrun.core.geometry import corner_angles
@@ -48,12 +49,36 @@ __all__ = [
     "parametrize",
 ]
 
-WEIGHTS = ("dec", "uniform", "mean_value")
-BORDERS = ("circle", "circle_arclength", "conformal", "free")
-#: how inner borders are treated: ``fill`` closes each with a virtual vertex (a disk for
-#: Tutte/Floater), ``conformal`` gives them eq. 5.9 rows (§5.2.3); ``auto`` = fill under a
-#: circle border, conformal under ``border=conformal``
-HOLES = ("auto", "fill", "conformal")
+class Weights(Choice):
+    """``app.weights``: the interior rows (eq. 5.3 / 5.5–5.7)."""
+
+    dec = "dec"
+    uniform = "uniform"
+    mean_value = "mean_value"
+
+
+class Border(Choice):
+    """``app.border``: pinned to a circle (Tutte), by arc length, conformal (eq. 5.8–5.9) or free."""
+
+    circle = "circle"
+    circle_arclength = "circle_arclength"
+    conformal = "conformal"
+    free = "free"
+
+
+class Holes(Choice):
+    """``app.holes``: how inner borders are treated — ``fill`` closes each with a virtual
+    vertex (a disk for Tutte/Floater), ``conformal`` gives them eq. 5.9 rows (§5.2.3);
+    ``auto`` = fill under a circle border, conformal under ``border=conformal``."""
+
+    auto = "auto"
+    fill = "fill"
+    conformal = "conformal"
+
+
+WEIGHTS = tuple(Weights.names())
+BORDERS = tuple(Border.names())
+HOLES = tuple(Holes.names())
 
 
 # ---------------------------------------------------------------------------- topology
@@ -403,7 +428,15 @@ class Parametrization:
 
 
 HARMONIC, PINNED, CONFORMAL, CAUCHY_RIEMANN = 0, 1, 2, 3
-REFLEX_ROWS = ("harmonic", "cauchy_riemann")
+class ReflexRows(Choice):
+    """``app.reflex_rows``: the row of border vertices reflex under eq. 5.8 — the thesis'
+    harmonic row, or the DEC row closed by ⋆dx = dy (:func:`conformal_energy_matrix`)."""
+
+    harmonic = "harmonic"
+    cauchy_riemann = "cauchy_riemann"
+
+
+REFLEX_ROWS = tuple(ReflexRows.names())
 
 
 def parametrize(

@@ -43,6 +43,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from decrun.core.choices import Choice
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.errors import ConfigError, TopologyError
@@ -53,7 +54,7 @@ from decrun.core.geometry import embed3
 from decrun.core.solvers import SingularSolve, Solver
 
 __all__ = [
-    "MAGNITUDE_MODES",
+    "StrokeMagnitude",
     "DesignConstraints",
     "DesignSolution",
     "nearest_vertices",
@@ -70,7 +71,13 @@ __all__ = [
     "border_normal_flux",
 ]
 
-MAGNITUDE_MODES = ("fixed", "precomputed")
+
+class StrokeMagnitude(Choice):
+    """``app.stroke_magnitude``: |v| along a stroke — ``fixed`` λ (eq. 6.8) or ``precomputed``
+    |ν_pre| of a solve without strokes (eq. 6.9)."""
+
+    fixed = "fixed"
+    precomputed = "precomputed"
 
 
 # ----------------------------------------------------------------------------------

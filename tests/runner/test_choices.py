@@ -44,6 +44,48 @@ def test_a_value_outside_the_choices_is_one_line_naming_them_and_the_fix_runs(de
     assert good.returncode == 0, good.stderr[-2000:]
 
 
+#: the apps' closed sets: (the app's overrides, the wrong one, its choices, the fix it names)
+APP_CASES = [
+    (["app.steps=1"], "app.scheme=backward", "implicit | explicit", "app.scheme=implicit"),
+    (["app.steps=1"], "app.dt_unit=edge", "auto | critical | resolution", "app.dt_unit=auto"),
+    (["app.steps=1"], "app.rescale=length", "auto | volume | area | none", "app.rescale=auto"),
+    (["app=parametrization", "mesh=sphere_cap"], "app.border=square", "circle | circle_arclength | conformal | free",
+     "app.border=circle"),
+    (["app=parametrization", "mesh=sphere_cap"], "app.weights=cot", "dec | uniform | mean_value", "app.weights=dec"),
+    (["app=parametrization", "mesh=sphere_cap"], "app.reflex_rows=none", "harmonic | cauchy_riemann",
+     "app.reflex_rows=harmonic"),
+    (["app=parametrization", "mesh=sphere_cap"], "app.holes=patch", "auto | fill | conformal", "app.holes=auto"),
+    (["app=fluid", "app.steps=1"], "app.initial=spin", "zero | rotation | vortex_pair | random | mesh_field",
+     "app.initial=zero"),
+    (["app=fluid", "app.steps=1"], "app.velocity=pic", "least_squares | wshd07", "app.velocity=least_squares"),
+    (["app=fluid", "app.steps=1"], "app.circulation=simpson", "swept | corrected_trapezoid | trapezoid",
+     "app.circulation=swept"),
+    (["app=hodge", "app.harmonic_dimension=false"], "app.input=file", "analytic | random | result",
+     "app.input=analytic"),
+    (["app=hodge", "app.harmonic_dimension=false"], "app.analytic=curl",
+     "gradient | rotated_gradient | rotation | toroidal | mixed", "app.analytic=gradient"),
+    (["app=spectrum", "app.count=3"], "app.analytic=cube", "auto | none | sphere | ball | box | flat_torus",
+     "app.analytic=auto"),
+    (["app=vector_field", "mesh.subdiv=2"], "app.stroke_magnitude=auto", "fixed | precomputed",
+     "app.stroke_magnitude=fixed"),
+]
+
+
+@pytest.mark.parametrize("base, wrong, choices, fix", APP_CASES, ids=[case[1] for case in APP_CASES])
+def test_an_apps_closed_option_names_its_choices_and_the_fix_runs(base, wrong, choices, fix):
+    """The same line as the CLI cases above (the CLI prints it after ``error:``), composed and
+    run in this process: the wrong value stops before any work, the named fix runs."""
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    key, value = wrong.split("=")
+    with pytest.raises(ConfigError) as info:
+        run_experiment(compose_config([*base, wrong, "figures=false"]))
+    assert str(info.value) == f"{key}: must be one of {choices}, got '{value}' (e.g. {fix})"
+    result, _, _ = run_experiment(compose_config([*base, fix, "figures=false"]))
+    assert result.metrics["status"] == "ok"
+
+
 def test_python_callers_get_the_same_check_and_members_are_their_strings():
     with pytest.raises(ConfigError, match=r"^solver.preconditioner: must be one of jacobi \| none, got 'ilu'"):
         make_solver("cg", preconditioner="ilu")
@@ -55,3 +97,10 @@ def test_python_callers_get_the_same_check_and_members_are_their_strings():
     assert f"mesh.refine={Refine.loop}" == "mesh.refine=loop" and str(Refine.isotropic) == "isotropic"
     assert Refine.names() == ["none", "loop", "midpoint", "isotropic"]
     assert all(issubclass(kind, Choice) for kind in (Refine, Direction))
+    from decrun.apps.parametrization import Parametrization
+    from decrun.apps.smoothing import Smoothing
+    from decrun.methods.parametrization import Border
+
+    with pytest.raises(ConfigError, match=r"^app.scheme: must be one of implicit \| explicit, got 'backward'"):
+        Smoothing(scheme="backward")
+    assert Parametrization(border="circle").border is Border.circle and Border.circle == "circle"

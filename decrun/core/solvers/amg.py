@@ -6,10 +6,9 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
-import scipy.sparse.linalg as spla
 
 from decrun.core.choices import Choice
-from decrun.core.solvers.base import Solver, check_tolerance
+from decrun.core.solvers.base import Solver, backward_error, check_tolerance, norm_bound
 from decrun.errors import SolverError
 
 __all__ = ["AMGSolver"]
@@ -35,10 +34,11 @@ class AMGSolver(Solver):
     """The multigrid hierarchy is built once in ``factorize``; each solve runs ``accel``
     (cg by default) preconditioned by one V-cycle to relative tolerance ``tol``; a solve that
     does not get there is accepted when its normwise backward error ‖b − A x‖ / (‖A‖ ‖x‖ + ‖b‖)
-    is below ``tol`` (else SolverError): a shifted singular system (:class:`decrun.core.solvers.SingularSolve`'s refinement
-    rounds) whose right-hand side has a component along the kernel has a solution ~ 1/shift
-    larger than b, and a residual relative to ‖b‖ alone that no iteration reaches (such a
-    solve failed after 500 iterations; the refinement around it checks the true residual)."""
+    is below ``tol`` (else SolverError): a shifted singular system
+    (:class:`decrun.core.solvers.SingularSolve`'s refinement rounds) whose right-hand side has
+    a component along the kernel has a solution ~ 1/shift larger than b, and a residual
+    relative to ‖b‖ alone that no iteration reaches (such a solve failed after 500 iterations;
+    the refinement around it checks the true residual)."""
 
     name = "amg"
     needs_spd = True
@@ -67,7 +67,7 @@ class AMGSolver(Solver):
         build = {"smoothed_aggregation": pyamg.smoothed_aggregation_solver,
                  "ruge_stuben": pyamg.ruge_stuben_solver}[self.method]
         self._A = A
-        self._norm_A = float(np.sqrt(spla.norm(A, 1) * spla.norm(A, np.inf)))  # ≥ ‖A‖₂
+        self._norm_A = norm_bound(A)
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # pyamg warns "Indefinite preconditioner": make it our error
             try:
@@ -80,11 +80,6 @@ class AMGSolver(Solver):
 
         accel = None if self.accel == Accelerator.none else str(self.accel)  # pyamg takes the plain name
         residuals: list[float] = []
-        norm_b = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
-
-        def backward_error(x) -> float:
-            return float(np.linalg.norm(b - self._A @ x)) / (self._norm_A * float(np.linalg.norm(x)) + norm_b)
-
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             try:
@@ -92,9 +87,10 @@ class AMGSolver(Solver):
             except Warning as exc:
                 raise SolverError(f"amg solver: {exc} (the matrix is not positive definite)") from None
         x = np.asarray(x, dtype=np.float64).reshape(b.shape)
-        residual = float(np.linalg.norm(b - self._A @ x)) / norm_b
-        if not np.all(np.isfinite(x)) or (residual > 10 * self.tol and backward_error(x) > self.tol):
+        r = b - self._A @ x
+        relative = float(np.linalg.norm(r)) / max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+        error = backward_error(r, x, b, self._norm_A)
+        if not np.all(np.isfinite(x)) or (relative > 10 * self.tol and error > self.tol):
             raise SolverError(f"amg solver: no convergence to tol={self.tol:g} after {len(residuals)} "
-                              f"iterations (relative residual {residual:.3g}, backward error {backward_error(x):.3g})")
+                              f"iterations (relative residual {relative:.3g}, backward error {error:.3g})")
         return x
-

@@ -9,10 +9,11 @@ from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from decrun.errors import SolverError
 
-__all__ = ["Solver", "fingerprint"]
+__all__ = ["Solver", "fingerprint", "norm_bound", "backward_error"]
 
 
 def fingerprint(A: sp.csr_matrix) -> str:
@@ -22,6 +23,18 @@ def fingerprint(A: sp.csr_matrix) -> str:
     for array in (A.indptr, A.indices, A.data):
         h.update(np.ascontiguousarray(array).tobytes())
     return h.hexdigest()
+
+
+def norm_bound(A: sp.spmatrix) -> float:
+    """√(‖A‖₁ ‖A‖∞) ≥ ‖A‖₂: the matrix norm of the backward error, without an SVD."""
+    return float(np.sqrt(spla.norm(A, 1) * spla.norm(A, np.inf)))
+
+
+def backward_error(residual: np.ndarray, x: np.ndarray, b: np.ndarray, norm_A: float) -> float:
+    """‖r‖ / (‖A‖ ‖x‖ + ‖b‖) for r = b − A x: the normwise backward error of x (Rigal–Gaches),
+    the smallest relative change of A and b that makes x exact; ``norm_A`` from :func:`norm_bound`."""
+    scale = norm_A * float(np.linalg.norm(x)) + float(np.linalg.norm(b))
+    return float(np.linalg.norm(residual)) / scale if scale > 0 else 0.0
 
 
 @dataclass

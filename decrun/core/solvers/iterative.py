@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from decrun.core.solvers.base import Solver, check_tolerance
+from decrun.core.solvers.base import Solver, backward_error, check_tolerance, norm_bound
 from decrun.errors import ConfigError, SolverError
 
 __all__ = ["KrylovSolver", "choose_method"]
@@ -97,7 +97,7 @@ class KrylovSolver(Solver):
     # ------------------------------------------------------------------ preparation
     def _prepare(self, A) -> None:
         self._A = A
-        self._norm_A = float(np.sqrt(spla.norm(A, 1) * spla.norm(A, np.inf)))
+        self._norm_A = norm_bound(A)
         if self.method == "auto":
             plan = choose_method(A)
         else:
@@ -150,10 +150,6 @@ class KrylovSolver(Solver):
             x, _ = spla.bicgstab(self._A, b, rtol=0.0, atol=atol, maxiter=maxiter, M=M, callback=callback)
         return x
 
-    def _backward_error(self, b: np.ndarray, x: np.ndarray, norm_b: float) -> float:
-        """‖b − A x‖ / (‖A‖ ‖x‖ + ‖b‖), the normwise backward error of x."""
-        return float(np.linalg.norm(b - self._A @ x)) / (self._norm_A * float(np.linalg.norm(x)) + norm_b)
-
     def _solve_one(self, b):
         """Krylov runs with iterative refinement until the normwise backward error
         ‖b − A x‖ / (‖A‖ ‖x‖ + ‖b‖) ≤ tol (Rigal–Gaches; ‖A‖ ≤ √(‖A‖₁ ‖A‖∞) bounds the 2-norm):
@@ -174,11 +170,13 @@ class KrylovSolver(Solver):
                 # each round reduces the residual at least 100-fold (else a refinement round
                 # whose residual already meets tol · scale would return x = 0 and stall)
                 target = min(self.tol * scale, 0.01 * float(np.linalg.norm(residual)))
-                start = x
-                x = x + self._krylov(method, M, residual, target, count,
-                                     good_enough=lambda dx: self._backward_error(b, start + dx, norm_b) <= self.tol)
+                def good_enough(dx, start=x):  # the whole solve's backward error, not this round's
+                    candidate = start + dx
+                    return backward_error(b - self._A @ candidate, candidate, b, self._norm_A) <= self.tol
+
+                x = x + self._krylov(method, M, residual, target, count, good_enough=good_enough)
                 residual = b - self._A @ x
-                previous, error = error, float(np.linalg.norm(residual)) / (self._norm_A * float(np.linalg.norm(x)) + norm_b)
+                previous, error = error, backward_error(residual, x, b, self._norm_A)
                 if not np.isfinite(error) or error <= self.tol or error > 0.9 * previous:
                     break  # converged, diverged or no longer improving
             if np.isfinite(error) and error <= self.tol and np.all(np.isfinite(x)):

@@ -49,6 +49,7 @@ __all__ = [
     "parametrize",
 ]
 
+
 class Weights(Choice):
     """``app.weights``: the interior rows (eq. 5.3 / 5.5–5.7)."""
 
@@ -187,6 +188,7 @@ def harmonic_matrix(dec, weights: str = "dec") -> sp.csr_matrix:
 
     All three satisfy eq. 5.5 (neighbours only) and 5.6 (zero row sums).
     """
+    weights = str(Weights.of(weights, "app.weights"))
     d0 = dec.d(0)
     if weights == "dec":  # d1^dual ⋆1 d0 = −d0ᵀ ⋆1 d0 = −(the variant's stiffness)
         # a Galerkin ⋆0 is lumped (row sums) here: the rows' scale does not change the map
@@ -196,10 +198,8 @@ def harmonic_matrix(dec, weights: str = "dec") -> sp.csr_matrix:
         return (-(sp.diags(1.0 / lumped) @ dec.laplacian_symmetric(0))).tocsr()
     if weights == "uniform":
         return (-(d0.T @ d0)).tocsr()
-    if weights == "mean_value":
-        W = _mean_value_weights(dec.K)
-        return (W - sp.diags(np.asarray(W.sum(axis=1)).ravel())).tocsr()
-    raise ConfigError(f"app.weights: unknown weights {weights!r}; choose one of {list(WEIGHTS)}")
+    W = _mean_value_weights(dec.K)  # mean_value
+    return (W - sp.diags(np.asarray(W.sum(axis=1)).ravel())).tocsr()
 
 
 #: interior weights whose harmonic matrix is symmetric (−stiffness): their systems are SPD
@@ -428,6 +428,8 @@ class Parametrization:
 
 
 HARMONIC, PINNED, CONFORMAL, CAUCHY_RIEMANN = 0, 1, 2, 3
+
+
 class ReflexRows(Choice):
     """``app.reflex_rows``: the row of border vertices reflex under eq. 5.8 — the thesis'
     harmonic row, or the DEC row closed by ⋆dx = dy (:func:`conformal_energy_matrix`)."""
@@ -478,14 +480,8 @@ def parametrize(
     mesh that is not a connected genus-0 surface with border, before any solve.
     """
     K = dec.K
-    if border not in BORDERS:
-        raise ConfigError(f"app.border: unknown border {border!r}; choose one of {list(BORDERS)}")
-    if weights not in WEIGHTS:
-        raise ConfigError(f"app.weights: unknown weights {weights!r}; choose one of {list(WEIGHTS)}")
-    if reflex_rows not in REFLEX_ROWS:
-        raise ConfigError(f"app.reflex_rows: unknown choice {reflex_rows!r}; choose one of {list(REFLEX_ROWS)}")
-    if holes not in HOLES:
-        raise ConfigError(f"app.holes: unknown choice {holes!r}; choose one of {list(HOLES)}")
+    border, weights = str(Border.of(border, "app.border")), str(Weights.of(weights, "app.weights"))
+    reflex_rows, holes = str(ReflexRows.of(reflex_rows, "app.reflex_rows")), str(Holes.of(holes, "app.holes"))
     if holes == "fill" and border == "free":
         raise ConfigError("app.holes=fill: with app.border=free every border is pinned where the least-squares "
                           "conformal map puts it; use `app.holes=auto`")

@@ -287,15 +287,17 @@ class SimplicialComplex(Cached):
         """(n0,) bool: vertices on the border."""
         return topology.border_vertices(self)
 
-    def border_complex(self) -> "SimplicialComplex | None":
+    def border_complex(self, check_manifold: bool = False) -> "SimplicialComplex | None":
         """The border as an oriented (n-1)-complex (vertices renumbered; see ``original_vertex_index``).
 
-        Returns None for a closed complex.
+        Returns None for a closed complex. With ``check_manifold`` a border that is not an
+        (n-1)-manifold (pinched along a face or at a vertex) raises NonManifoldError.
         """
         faces = topology.border_simplices(self)
         if faces is None:
             return None
-        return SimplicialComplex(self.vertices, faces, unreferenced="drop", check_manifold=False, orient="check")
+        return SimplicialComplex(self.vertices, faces, unreferenced="drop", check_manifold=check_manifold,
+                                 orient="check")
 
     def border_loops(self) -> list[np.ndarray]:
         """Border components of a 2-manifold as ordered vertex cycles, longest first, each

@@ -149,13 +149,12 @@ def betti_numbers(K) -> list[int]:
         b2 = int((~has_border).sum())
         return [count, count + b2 - chi, b2]
     if n == 3 and K.embedding_dim == 3:
-        faces = border_simplices(K)
-        if faces is None:
-            return betti_by_rank(K, "it has no border")
         try:  # the surface count needs a closed 2-manifold border: one fan per vertex, two triangles per edge
-            border = type(K)(K.vertices, faces, unreferenced="drop", check_manifold=True, orient="check")
+            border = K.border_complex(check_manifold=True)
         except NonManifoldError as pinch:
             return betti_by_rank(K, f"its border surface is pinched ({pinch})")
+        if border is None:
+            return betti_by_rank(K, "it has no border")
         border_components = border.connected_components()[0]
         b2 = border_components - count
         b1 = count + b2 - chi

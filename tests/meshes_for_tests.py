@@ -171,3 +171,18 @@ def square_lattice(n: int, jitter: float = 0.0, seed: int = 0):
     flip = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
     faces[flip] = faces[flip][:, [0, 2, 1]]
     return points, faces
+
+
+def kuhn_cells(n: int, kept=None, removed=()):
+    """kuhn_cube(n) keeping the cells whose integer corner (i, j, k) is in ``kept`` (every cell
+    when None) and not in ``removed``: cells meeting only along an edge or at a vertex make
+    pinched solids and borders."""
+    def member(corners, cells):
+        cells = np.asarray(list(cells), dtype=np.int64).reshape(-1, 3)
+        return (corners[:, None, :] == cells[None]).all(axis=2).any(axis=1)
+
+    def keep(centers):
+        corners = np.floor(centers * n).astype(np.int64)
+        inside = np.ones(len(corners), dtype=bool) if kept is None else member(corners, kept)
+        return inside & ~member(corners, removed)
+    return kuhn_cube(n, keep_cell=keep)

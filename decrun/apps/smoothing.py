@@ -39,7 +39,6 @@ from decrun.methods.mean_curvature_flow import (
 from decrun.methods.smoothing_metrics import degeneration, normal_deviation_deg
 
 
-
 class DtUnit(Choice):
     """``app.dt_unit``: what app.dt_factor multiplies when app.dt is null — ``critical`` 2/λ_max
     (explicit Euler's stability limit), ``resolution`` 2h̄²/π² (:func:`resolution_dt`), ``auto``

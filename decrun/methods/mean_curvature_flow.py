@@ -44,6 +44,7 @@ from decrun.core.geometry import triangle_areas
 __all__ = ["Scheme", "SCHEMES", "MeanCurvatureFlow", "surface_area", "enclosed_volume", "explicit_critical_dt",
            "largest_eigenvalue", "resolution_dt"]
 
+
 class Scheme(Choice):
     """``app.scheme``: the two Euler schemes of §1.3."""
 

@@ -6,7 +6,7 @@ import pytest
 from decrun import errors
 from decrun.core.complex import SimplicialComplex, inversion_parity, unique_rows
 from decrun.core.complex.topology import betti_by_rank
-from meshes_for_tests import (annulus, icosphere, kuhn_cube, planar_domain, random_planar, random_tets,
+from meshes_for_tests import (annulus, icosphere, kuhn_cells, kuhn_cube, planar_domain, random_planar, random_tets,
                               remeshed_torus)
 
 
@@ -124,27 +124,16 @@ def test_betti_by_dense_rank_agrees_on_small_complexes():
         assert betti_by_rank(K) == K.betti_numbers()
 
 
-def _cells(n, kept=None, removed=()):
-    """kuhn_cube(n) keeping the cells whose integer corner (i, j, k) is in ``kept`` (all when
-    None) and not in ``removed``."""
-    def keep(centers):
-        corner = np.floor(centers * n).astype(int)
-        inside = np.ones(len(corner), dtype=bool) if kept is None else \
-            np.array([tuple(c) in kept for c in corner.tolist()])
-        return inside & np.array([tuple(c) not in removed for c in corner.tolist()])
-    return kuhn_cube(n, keep_cell=keep)
-
-
 @pytest.mark.parametrize("mesh, betti", [
     # two cavity cells meeting along an edge: one connected border inside, two regions (b2 = 2);
     # the surface count gave [1, -1, 1, 0]
-    (lambda: _cells(5, removed={(1, 1, 2), (2, 2, 2)}), [1, 0, 2, 0]),
+    (lambda: kuhn_cells(5, removed={(1, 1, 2), (2, 2, 2)}), [1, 0, 2, 0]),
     # two cavity cells meeting at a vertex only
-    (lambda: _cells(5, removed={(1, 1, 1), (2, 2, 2)}), [1, 0, 2, 0]),
+    (lambda: kuhn_cells(5, removed={(1, 1, 1), (2, 2, 2)}), [1, 0, 2, 0]),
     # two cells meeting along an edge: contractible
-    (lambda: _cells(2, kept={(0, 0, 0), (1, 1, 0)}), [1, 0, 0, 0]),
+    (lambda: kuhn_cells(2, kept={(0, 0, 0), (1, 1, 0)}), [1, 0, 0, 0]),
     # four cells in a ring, each meeting the next along an edge: one loop
-    (lambda: _cells(3, kept={(0, 1, 0), (1, 0, 0), (2, 1, 0), (1, 2, 0)}), [1, 1, 0, 0]),
+    (lambda: kuhn_cells(3, kept={(0, 1, 0), (1, 0, 0), (2, 1, 0), (1, 2, 0)}), [1, 1, 0, 0]),
 ], ids=["cavities_along_an_edge", "cavities_at_a_vertex", "cells_along_an_edge", "ring_of_cells"])
 def test_betti_numbers_of_solids_with_a_pinched_border(mesh, betti):
     """A border that is not a 2-manifold (cells touching along an edge or at a vertex) is not
@@ -156,7 +145,7 @@ def test_betti_numbers_of_solids_with_a_pinched_border(mesh, betti):
 
 
 def test_betti_numbers_of_a_large_pinched_solid_say_why_they_cannot_be_counted():
-    K = SimplicialComplex(*_cells(12, removed={(3, 3, 6), (4, 4, 6)}))
+    K = SimplicialComplex(*kuhn_cells(12, removed={(3, 3, 6), (4, 4, 6)}))
     with pytest.raises(NotImplementedError, match="its border surface is pinched"):
         K.betti_numbers()
 

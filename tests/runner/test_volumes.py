@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from decrun.core.primitives import kuhn_cube
+from meshes_for_tests import kuhn_cells
 from decrun.errors import ConfigError, DegenerateSimplexError
 from decrun.runner.config import compose_config
 from decrun.runner.run import run_experiment
@@ -106,12 +107,7 @@ def test_a_hole_that_removes_no_cell_is_an_error():
 def _two_cavities_meeting_along_an_edge(n):
     """kuhn_cube(n) without two cells that share only an edge: b2 = 2 (two regions inside),
     though the inner border is one connected, pinched surface."""
-    a, b = np.array([n // 2 - 1, n // 2 - 1, n // 2]), np.array([n // 2, n // 2, n // 2])
-
-    def keep(centers):
-        corner = np.floor(centers * n).astype(int)
-        return ~((corner == a).all(axis=1) | (corner == b).all(axis=1))
-    return kuhn_cube(n, keep_cell=keep)
+    return kuhn_cells(n, removed={(n // 2 - 1, n // 2 - 1, n // 2), (n // 2, n // 2, n // 2)})
 
 
 def test_hodge_on_a_file_whose_cavities_meet_along_an_edge(tmp_path, decrun_cli):

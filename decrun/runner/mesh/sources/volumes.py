@@ -27,12 +27,17 @@ __all__ = ["Box", "Tetrahedralize", "border_vertex_mask", "tetrahedralize_surfac
 MAX_TETRAHEDRA = 4_000_000
 
 
-def border_vertex_mask(tets: np.ndarray, n_vertices: int) -> np.ndarray:
-    """(n_vertices,) bool: vertices of the triangles that lie in exactly one tetrahedron."""
+def _border_triangles(tets: np.ndarray) -> np.ndarray:
+    """(b, 3) sorted vertex triples of the triangles that lie in exactly one tetrahedron."""
     faces = np.sort(tets[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]].reshape(-1, 3), axis=1)
     unique, counts = np.unique(faces, axis=0, return_counts=True)
+    return unique[counts == 1]
+
+
+def border_vertex_mask(tets: np.ndarray, n_vertices: int) -> np.ndarray:
+    """(n_vertices,) bool: vertices of the triangles that lie in exactly one tetrahedron."""
     mask = np.zeros(n_vertices, dtype=bool)
-    mask[unique[counts == 1].ravel()] = True
+    mask[_border_triangles(tets).ravel()] = True
     return mask
 
 
@@ -40,9 +45,7 @@ def _check_manifold_border(tets: np.ndarray) -> None:
     """MeshError when removed cells touch only along an edge (a border edge in four border
     triangles): the solid is then pinched there and its Betti numbers are not those of the
     holes."""
-    faces = np.sort(tets[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]].reshape(-1, 3), axis=1)
-    unique, counts = np.unique(faces, axis=0, return_counts=True)
-    border = unique[counts == 1]
+    border = _border_triangles(tets)
     edges = np.sort(border[:, [[0, 1], [1, 2], [0, 2]]].reshape(-1, 2), axis=1)
     edge, edge_counts = np.unique(edges, axis=0, return_counts=True)
     pinched = edge[edge_counts != 2]

@@ -73,3 +73,9 @@ class ConfigError(DecrunError, ValueError):
 
 class SolverError(DecrunError, RuntimeError):
     """A linear solve failed (singular matrix, no convergence)."""
+
+
+class CorruptFileError(DecrunError, ValueError):
+    """A file decrun reads back (``result.h5``, its journal, ``metrics.json``,
+    ``manifest.json``, ``overrides.yaml``) is truncated, altered or not what decrun writes;
+    the message names the file and what is wrong with it."""

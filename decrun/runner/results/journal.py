@@ -45,7 +45,9 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from decrun.errors import CorruptFileError
 from decrun.runner.atomic import atomic_path
+from decrun.runner.results.checked import parse_json
 
 MAGIC = b"DECRUNJ1"
 FORMAT = "decrun-journal-1"
@@ -231,27 +233,68 @@ def read_journal(path: str | os.PathLike, *, verify: bool = True) -> Journal:
 
     ``verify`` checks every record's checksum (reads the whole file once); without it
     the count is the number of whole records (enough after a kill: appends only ever
-    leave a short last record). Raises ``ValueError`` when ``path`` is not a journal.
+    leave a short last record). Raises :class:`~decrun.errors.CorruptFileError` (a
+    ``ValueError``) naming the file when ``path`` is not a journal or its header is not
+    one decrun writes; every length, offset and shape in the header is checked against
+    the file's size before anything is read or allocated.
     """
     path = Path(path)
     with open(path, "rb") as f:
+        size = os.fstat(f.fileno()).st_size
         head = f.read(16)
         if len(head) < 16 or head[:8] != MAGIC:
-            raise ValueError(f"{path}: not a decrun journal (bad magic)")
+            raise CorruptFileError(f"{path}: not a decrun journal (bad magic)")
         (length,) = struct.unpack("<Q", head[8:])
-        header = json.loads(f.read(length))
-        if header.get("format") != FORMAT:
-            raise ValueError(f"{path}: unknown journal format {header.get('format')!r}")
+        if length > size - 16:
+            raise CorruptFileError(f"{path}: the journal header claims {length} bytes, the file has {size}")
+        header = parse_json(f.read(length), f"{path}: journal header")
         base = _aligned(16 + length)
-        columns = [Column(c["name"], np.dtype(c["dtype"]), tuple(c["shape"])) for c in header["columns"]]
+        columns, blob_specs, record_size, data_offset, attrs = _checked_header(header, path, base, size)
         blobs = {}
-        for name, spec in header["blobs"].items():
-            dtype, shape = np.dtype(spec["dtype"]), tuple(spec["shape"])
-            f.seek(base + spec["offset"])
+        for name, (dtype, shape, offset) in blob_specs.items():
+            f.seek(base + offset)
             count = int(np.prod(shape, dtype=np.int64))
             blobs[name] = np.frombuffer(f.read(count * dtype.itemsize), dtype=dtype).reshape(shape).copy()
-        record_size, data_offset = header["record_size"], base + header["data_offset"]
-        size = os.fstat(f.fileno()).st_size
         n_whole = max(0, size - data_offset) // record_size
         n = _valid_prefix(f, data_offset, record_size, n_whole) if verify else n_whole
-    return Journal(path, columns, record_size, data_offset, header["attrs"], blobs, n)
+    return Journal(path, columns, record_size, data_offset, attrs, blobs, n)
+
+
+def _numeric(spec: dict) -> tuple[np.dtype, tuple[int, ...]]:
+    dtype, shape = np.dtype(spec["dtype"]), tuple(spec["shape"])
+    if dtype.kind not in "biufc" or dtype.names is not None or dtype.subdtype is not None:
+        raise ValueError(f"dtype {spec['dtype']!r} is not numeric")
+    if not all(isinstance(n, int) and not isinstance(n, bool) and 0 <= n for n in shape):
+        raise ValueError(f"shape {spec['shape']!r} is not a shape")
+    return dtype, shape
+
+
+def _checked_header(header: Any, path: Path, base: int, size: int):
+    """(columns, blobs {name: (dtype, shape, offset)}, record_size, data_offset, attrs) of a
+    parsed header, each checked: the format, numeric dtypes, the record size equal to the
+    columns' layout, blobs and records inside the file. CorruptFileError otherwise."""
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        found = header.get("format") if isinstance(header, dict) else type(header).__name__
+        raise CorruptFileError(f"{path}: unknown journal format {found!r}")
+    try:
+        columns = [Column(str(c["name"]), *_numeric(c)) for c in header["columns"]]
+        blobs = {}
+        for name, spec in header["blobs"].items():
+            dtype, shape = _numeric(spec)
+            offset = spec["offset"]
+            nbytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+            if not isinstance(offset, int) or offset < 0 or base + offset + nbytes > size:
+                raise ValueError(f"blob {name!r} ({nbytes} bytes at {offset}) lies outside the file of {size} bytes")
+            blobs[str(name)] = (dtype, shape, offset)
+        record_size, data_offset = header["record_size"], header["data_offset"]
+        if record_size != _layout(columns)[1]:
+            raise ValueError(f"record size {record_size!r} does not match its columns ({_layout(columns)[1]})")
+        if not isinstance(data_offset, int) or data_offset < 0 or base + data_offset > size:
+            raise ValueError(f"data offset {data_offset!r} lies outside the file of {size} bytes")
+        attrs = header["attrs"]
+        if not isinstance(attrs, dict):
+            raise ValueError("attrs is not an object")
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        what = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise CorruptFileError(f"{path}: malformed journal header ({what})") from None
+    return columns, blobs, record_size, base + data_offset, attrs

@@ -19,9 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
+from decrun.runner.results.checked import open_h5, parse_json
 
-__all__ = ["FORMAT", "package_versions", "git_commit", "plain", "metrics_to_json", "write_metrics_json", "read_provenance"]
+__all__ = ["FORMAT", "package_versions", "git_commit", "plain", "metrics_to_json", "write_metrics_json", "read_provenance",
+           "decrun_attrs"]
 
 FORMAT = "decrun-result-1"
 
@@ -105,11 +108,27 @@ def write_metrics_json(path: str | os.PathLike, metrics: dict[str, Any]) -> Path
     return write_text_atomic(path, metrics_to_json(metrics) + "\n")
 
 
-def read_provenance(path: str | os.PathLike) -> dict[str, Any]:
-    """The root attributes of a ``result.h5`` (config_yaml, versions, mesh_hash, timings...)."""
-    import h5py
+def decrun_attrs(f, path: Path) -> dict[str, Any]:
+    """The root attributes of an open ``result.h5`` as plain values, or
+    :class:`~decrun.errors.CorruptFileError` naming ``path`` when it is not a file decrun
+    wrote (no ``format`` attribute ``decrun-result-1``, no ``metrics_json``)."""
+    attrs = {key: plain(f.attrs[key]) for key in f.attrs}
+    missing = "format" if attrs.get("format") != FORMAT else None if isinstance(attrs.get("metrics_json"), str) \
+        else "metrics_json"
+    if missing:
+        raise CorruptFileError(f"{path}: not a decrun result (no {missing} attribute of {FORMAT})")
+    return attrs
 
-    with h5py.File(path, "r") as f:
-        out = {key: plain(f.attrs[key]) for key in f.attrs}
-    out["timings"] = json.loads(out.pop("timings_json", "{}"))
+
+def read_provenance(path: str | os.PathLike) -> dict[str, Any]:
+    """The root attributes of a ``result.h5`` (config_yaml, versions, mesh_hash, timings...).
+    :class:`~decrun.errors.CorruptFileError` naming the file when it is not a result
+    decrun wrote or its ``timings_json`` is not a JSON object."""
+    path = Path(path)
+    with open_h5(path) as f:
+        out = decrun_attrs(f, path)
+    timings = parse_json(out.pop("timings_json", "{}"), f"{path}: attribute timings_json")
+    if not isinstance(timings, dict):
+        raise CorruptFileError(f"{path}: attribute timings_json is not a JSON object")
+    out["timings"] = timings
     return out

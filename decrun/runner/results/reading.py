@@ -8,7 +8,6 @@ stored with it.
 from __future__ import annotations
 
 import errno as _errno
-import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,10 +16,12 @@ from typing import Any
 import numpy as np
 
 from decrun.apps.base import Result
+from decrun.errors import CorruptFileError
+from decrun.runner.results.checked import check_group, check_record, open_h5, parse_json, read_dataset
 from decrun.runner.results.journal import BLOCK_BYTES, Journal, journal_path, read_journal
-from decrun.runner.results.provenance import plain
+from decrun.runner.results.provenance import decrun_attrs, plain
 
-__all__ = ["RecordedResult", "read_result", "read_mesh"]
+__all__ = ["RecordedResult", "read_result", "read_mesh", "check_result", "verify_result"]
 
 
 @dataclass
@@ -49,7 +50,10 @@ def read_result(path: str | os.PathLike) -> RecordedResult:
     marked incomplete by ``abort``/``recover_result``; also files of ``write_result``,
     which are complete) or, when absent, its journal ``result.h5.partial`` (incomplete,
     the whole valid records). ``figures`` is empty (they are PNG files). Raises
-    ``FileNotFoundError`` when neither exists."""
+    ``FileNotFoundError`` when neither exists, and :class:`~decrun.errors.CorruptFileError`
+    naming the file when it is not one decrun wrote, is damaged, or holds a dataset
+    :func:`~decrun.runner.results.checked.check_dataset` refuses (external storage, a
+    virtual dataset, a shape its stored bytes cannot hold) -- before reading any data."""
     path = Path(path)
     if path.exists():
         return _read_h5(path)
@@ -60,20 +64,68 @@ def read_result(path: str | os.PathLike) -> RecordedResult:
 
 
 def _read_h5(path: Path) -> RecordedResult:
-    import h5py
-
-    with h5py.File(path, "r") as f:
-        fields = {name: f["fields"][name][()] for name in f["fields"]}
-        field_on = {name: plain(f["fields"][name].attrs["on"]) for name in f["fields"] if "on" in f["fields"][name].attrs}
-        series = {name: f["series"][name][()] for name in f["series"]}
-        mesh = {name: f["mesh"][name][()] for name in f["mesh"]} if "mesh" in f else {}
-        provenance = {key: plain(f.attrs[key]) for key in f.attrs}
-    metrics = json.loads(provenance["metrics_json"])
-    steps = provenance.get("steps_recorded", len(series.get("step", ())))
-    return RecordedResult(fields=fields, series=series, metrics=metrics, figures={},
-                          complete=bool(provenance.get("complete", True)), status=str(provenance.get("status", "ok")),
-                          error=str(provenance.get("error", "")), steps_recorded=int(steps), provenance=provenance,
+    with open_h5(path) as f:
+        provenance = decrun_attrs(f, path)
+        check_group(f, path)  # links, external storage, declared sizes: before any data is read
+        groups = {}
+        for name in ("fields", "series", "mesh"):
+            group = f.get(name)
+            if group is not None and not hasattr(group, "keys"):
+                raise CorruptFileError(f"{path}: /{name} is not a group")
+            groups[name] = group if group is not None else {}
+        fields, series, mesh = (_arrays(groups[name], path) for name in ("fields", "series", "mesh"))
+        field_on = {name: plain(groups["fields"][name].attrs["on"]) for name in fields
+                    if "on" in groups["fields"][name].attrs}
+    metrics = parse_json(provenance["metrics_json"], f"{path}: attribute metrics_json")
+    if not isinstance(metrics, dict):
+        raise CorruptFileError(f"{path}: attribute metrics_json is not a JSON object")
+    try:
+        steps = int(provenance.get("steps_recorded", len(series.get("step", ()))))
+        complete, status = bool(provenance.get("complete", True)), str(provenance.get("status", "ok"))
+    except (TypeError, ValueError) as exc:
+        raise CorruptFileError(f"{path}: malformed status attributes ({exc})") from None
+    return RecordedResult(fields=fields, series=series, metrics=metrics, figures={}, complete=complete, status=status,
+                          error=str(provenance.get("error", "")), steps_recorded=steps, provenance=provenance,
                           mesh=mesh, field_on=field_on, source=path)
+
+
+def _arrays(group, path: Path) -> dict[str, np.ndarray]:
+    """Every member of ``group`` (already checked) read whole; a member that is not a
+    dataset is a CorruptFileError."""
+    out = {}
+    for name in group:
+        if not hasattr(group[name], "shape"):
+            raise CorruptFileError(f"{path}: {group[name].name} is a group, not a dataset")
+        out[name] = group[name][()]
+    return out
+
+
+def check_result(path: str | os.PathLike) -> None:
+    """Check that ``path`` is a whole, complete result.h5 decrun wrote, reading metadata
+    only: an HDF5 file with decrun's attributes, ``status`` ok, and no member
+    :func:`~decrun.runner.results.checked.check_group` refuses. Raises ``FileNotFoundError``
+    or :class:`CorruptFileError` naming the file."""
+    path = Path(path)
+    with open_h5(path) as f:
+        attrs = decrun_attrs(f, path)
+        check_group(f, path)
+    if attrs.get("status", "ok") != "ok" or not attrs.get("complete", True):
+        raise CorruptFileError(f"{path}: marked {attrs.get('status')!r}, not complete")
+
+
+def verify_result(path: str | os.PathLike, record: Any = None) -> None:
+    """Check a job's result.h5 before calling the job ok: against ``record`` (the
+    ``result_h5`` entry of its metrics.json: size and sha256, :func:`~decrun.runner.
+    results.checked.file_record`) when there is one, else with :func:`check_result`.
+    Raises :class:`CorruptFileError` naming the file (also when it is missing)."""
+    path = Path(path)
+    if record is not None:
+        check_record(path, record)
+        return
+    try:
+        check_result(path)
+    except FileNotFoundError:
+        raise CorruptFileError(f"{path}: missing beside an ok metrics.json") from None
 
 
 def _read_journal(journal: Journal) -> RecordedResult:
@@ -84,16 +136,26 @@ def _read_journal(journal: Journal) -> RecordedResult:
         for name, array in series.items():
             array[start:start + len(records)] = records[name]
     attrs = journal.attrs
-    provenance = {"config_yaml": attrs["config_yaml"], "mesh_hash": attrs["mesh_hash"], "created": attrs["created"],
-                  **{k: v for k, v in attrs["provenance"].items() if v is not None}, **attrs["extra"]}
+    try:
+        provenance = {"config_yaml": attrs["config_yaml"], "mesh_hash": attrs["mesh_hash"], "created": attrs["created"],
+                      **{k: v for k, v in attrs["provenance"].items() if v is not None}, **attrs["extra"]}
+    except (KeyError, TypeError, AttributeError) as exc:
+        raise CorruptFileError(f"{journal.path}: malformed journal attributes ({exc!r})") from None
     mesh = {name.split("/", 1)[1]: array for name, array in journal.blobs.items()}
     return RecordedResult(series=series, complete=False, status="unfinished", steps_recorded=n, provenance=provenance,
                           mesh=mesh, source=journal.path)
 
 
 def read_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """``(vertices, simplices)`` stored in a ``result.h5``."""
-    import h5py
-
-    with h5py.File(path, "r") as f:
-        return f["mesh"]["vertices"][()], f["mesh"]["simplices"][()]
+    """``(vertices, simplices)`` stored in a ``result.h5``: (n0, d) float64 and
+    (n_top, k+1) int64. :class:`CorruptFileError` naming the file when it has none or
+    they are not plain datasets inside the file."""
+    path = Path(path)
+    with open_h5(path) as f:
+        arrays = []
+        for name in ("mesh/vertices", "mesh/simplices"):
+            if "mesh" not in f or name.split("/")[1] not in f["mesh"] or not hasattr(f[name], "shape"):
+                raise CorruptFileError(f"{path}: no dataset /{name}")
+            check_group(f["mesh"], path)
+            arrays.append(read_dataset(f[name], path))
+    return arrays[0], arrays[1]

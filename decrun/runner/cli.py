@@ -312,7 +312,8 @@ def _choices_of(cause: BaseException | None) -> type[Choice] | None:
 def table_main(argv: list[str] | None = None) -> int:
     """Console script ``decrun-table SWEEP [SWEEP ...]``: rebuild each sweep's ``metrics.csv``
     / ``metrics.md`` (only in directories a sweep wrote) and print the table — several
-    sweeps stacked with a ``sweep`` column. Exit 1 when a job is not ok, 2 on an error."""
+    sweeps stacked with a ``sweep`` column; one line on stderr for each ``corrupt`` job,
+    naming the file. Exit 1 when a job is not ok, 2 on an error."""
     import argparse
 
     # lazy: pandas, only for decrun-table (start-up speed)
@@ -353,4 +354,6 @@ def table_main(argv: list[str] | None = None) -> int:
               f"{', '.join(args.sweep_dirs)}", file=sys.stderr)
         return 2
     print(shown.to_csv(index=False) if args.csv else to_markdown(shown), end="")
+    for row in table[table["status"] == "corrupt"].itertuples(index=False):  # one line each, naming the file
+        print(f"decrun-table: job {row.job} corrupt: {row.error}", file=sys.stderr)
     return 1 if len(failed_jobs(table)) else 0

@@ -14,6 +14,10 @@ Ctrl-C (SIGINT)                             ``decrun: interrupted (Ctrl-C) …``
 SIGTERM (a scheduler, ``kill``)             ``decrun: interrupted (SIGTERM) …``     143
 ==========================================  ======================================  ====
 
+A run that fails in a directory where an earlier run left a ``result.h5`` renames that
+file ``result.h5.stale`` (:func:`set_aside_stale`, said in the message), so no earlier
+result sits beside this run's ``status: failed``.
+
 SIGTERM is turned into :class:`Terminated`, a ``KeyboardInterrupt``, so it takes the path
 of Ctrl-C everywhere: the recorder keeps the steps recorded so far in ``result.h5``
 marked ``status: interrupted``, and the run directory's ``metrics.json`` says
@@ -29,7 +33,8 @@ from pathlib import Path
 
 from decrun.errors import DecrunError
 
-__all__ = ["Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message", "record_status"]
+__all__ = ["Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message", "record_status",
+           "file_identity", "set_aside_stale"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -100,3 +105,30 @@ def record_status(out: Path, status: str, error: str, extra: dict | None = None)
     except OSError as exc:
         return f" (metrics.json could not be written either: {os.strerror(exc.errno) if exc.errno else exc})"
     return ""
+
+
+def file_identity(path: str | os.PathLike) -> tuple[int, int, int, int] | None:
+    """``(device, inode, mtime_ns, size)`` of ``path``, None when absent: an atomic
+    rewrite (a new inode) changes it."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino, st.st_mtime_ns, st.st_size
+
+
+def set_aside_stale(out: Path, before: tuple[int, int, int, int] | None) -> str:
+    """After a failed or interrupted run in ``out``: rename ``out/result.h5`` to
+    ``result.h5.stale`` when it is still the file that was there before the run started
+    (``before``: its :func:`file_identity` then), i.e. an earlier run's result. Returns the
+    note for the message ("" when there was none; a result this run wrote, marked failed,
+    stays)."""
+    path = Path(out) / "result.h5"
+    if before is None or file_identity(path) != before:
+        return ""
+    stale = path.with_name("result.h5.stale")
+    try:
+        os.replace(path, stale)
+    except OSError as exc:
+        return f" (the earlier run's {path} could not be renamed {stale.name}: {os.strerror(exc.errno or 0)})"
+    return f" (the earlier run's result.h5 is now {stale})"

@@ -27,12 +27,14 @@ from decrun.core.stars import HodgeStar
 from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, TopologyError
 from decrun.runner.config import DecrunConfig, OptimizeConfig
 from decrun.runner.context import RunContext
-from decrun.runner.failures import exit_code, find_os_error, interrupt_cause, os_error_message, record_status
+from decrun.runner.failures import (exit_code, file_identity, find_os_error, interrupt_cause, os_error_message,
+                                    record_status, set_aside_stale)
 from decrun.runner.hints import cli_message
 from decrun.runner.mesh import MeshSource
 from decrun.runner.plugins import build
 from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
+from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.export import Export
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
@@ -206,7 +208,8 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 
 def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -> list[Path]:
     """Write ``result.h5`` (atomic; finishing the run's recorder when it has one),
-    ``metrics.json`` and the figures into ``out``."""
+    ``metrics.json`` (the metrics and ``result_h5``: the size and sha256 of result.h5,
+    :func:`~decrun.runner.results.checked.file_record`) and the figures into ``out``."""
     written = []
     t = time.perf_counter()
     if cfg.get("figures", True) and result.figures:
@@ -223,7 +226,8 @@ def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -
                           edges=mesh.complex.simplices(1) if mesh.complex is not None else None,
                           config_yaml=OmegaConf.to_yaml(cfg, resolve=True), mesh_hash=mesh.meta.get("hash", ""),
                           timings=timings)
-    metrics = write_metrics_json(out / "metrics.json", result.metrics)
+    # the size and sha256 of result.h5 as written: readers never take a truncated or altered one for it
+    metrics = write_metrics_json(out / "metrics.json", {**result.metrics, RESULT_RECORD: file_record(h5)})
     exported = build(cfg.export, "export", Export).write(out, result, mesh) if cfg.get("export") is not None else []
     return [h5, metrics, *written, *exported]
 
@@ -237,6 +241,7 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     ``verbose`` logs the traceback of a DecrunError; ``log_name`` is the job's log file
     (``<log_name>.log``, named in the closing line)."""
     identity = {"config_hash": config_hash(cfg)} if multirun else {}  # ties metrics.json to the manifest
+    earlier = file_identity(Path(out) / "result.h5")  # an earlier run's result, set aside if this one fails
     optimize = None
     try:
         optimize = OptimizeConfig(**OmegaConf.to_container(cfg.optimize)) if "optimize" in cfg else OptimizeConfig()
@@ -247,14 +252,14 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
         objective = optimize.objective(result.metrics) if optimize.metric else 0
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (failures.Terminated)
         cause = interrupt_cause(exc)
-        note = record_status(out, "interrupted", f"interrupted ({cause})", identity)
+        note = set_aside_stale(out, earlier) + record_status(out, "interrupted", f"interrupted ({cause})", identity)
         print(f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}", file=sys.stderr)
         sys.exit(exit_code(exc))
     except Exception as exc:
         os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)
         message = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None
                    else f"{type(exc).__name__}: {exc}")
-        note = record_status(out, "failed", message, identity)
+        note = set_aside_stale(out, earlier) + record_status(out, "failed", message, identity)
         if verbose or not (isinstance(exc, DecrunError) or os_error is not None):
             log.exception("error: %s%s", message, note)
         else:

@@ -14,7 +14,9 @@ import pytest
 from decrun.errors import ConfigError
 from decrun.runner.cli import table_main
 from decrun.runner.config import OptimizeConfig
-from decrun.runner.results.recorder import ResultRecorder
+from decrun.apps.base import Result
+from decrun.runner.results.checked import RESULT_RECORD, file_record
+from decrun.runner.results.recorder import ResultRecorder, write_result
 from decrun.runner.sweep.manifest import FORMAT, MANIFEST
 from decrun.runner.sweep.tables import load_sweep, select, stack, sweep_table, write_sweep_table
 
@@ -39,10 +41,17 @@ def make_sweep(root, jobs: dict[str, dict | str | None], hashes: dict[str, str] 
             for step in range(5):
                 recorder.record(step, energy=float(step))
             continue
-        (job / "metrics.json").write_text(json.dumps({"config_hash": f"h{name}", **content}))
-        if content.get("status") == "ok":
-            (job / "result.h5").write_bytes(b"")
+        write_job(job, {"config_hash": f"h{name}", **content})
     return root
+
+
+def write_job(job, metrics: dict) -> None:
+    """What a finished job writes: ``result.h5`` (when ok) and ``metrics.json``, which
+    records the result's size and sha256 as the runner does."""
+    if metrics.get("status") == "ok":
+        write_result(job / "result.h5", Result(metrics=metrics), vertices=np.eye(3), simplices=np.array([[0, 1, 2]]))
+        metrics = {**metrics, RESULT_RECORD: file_record(job / "result.h5")}
+    (job / "metrics.json").write_text(json.dumps(metrics))
 
 
 def test_every_planned_job_has_a_row_with_its_state(tmp_path):
@@ -115,7 +124,7 @@ def test_decrun_table_does_not_write_into_a_directory_of_single_runs(tmp_path, c
     for name, metrics in (("2026-01-01_00-00-00_aaaaaa", {"status": "ok", "e": 1.0}),
                           ("2026-01-01_00-00-01_bbbbbb", {"status": "ok", "e": 2.0})):
         (runs / name / ".hydra").mkdir(parents=True)
-        (runs / name / "metrics.json").write_text(json.dumps(metrics))
+        write_job(runs / name, metrics)
     before = sorted(p.name for p in runs.iterdir())
     assert table_main([str(runs)]) == 0
     assert "| 2026-01-01_00-00-01_bbbbbb |" in capsys.readouterr().out

@@ -19,6 +19,11 @@ A job's state (:func:`job_state`) is read from its directory only:
 
 =========  ==========================================================================
 ``ok``      ``metrics.json`` with ``status: ok`` (and the manifest's hash, when it has one)
+            beside the ``result.h5`` it records (size and sha256: ``result_h5``;
+            :func:`~decrun.runner.results.reading.verify_result`)
+``corrupt`` ``metrics.json`` ok but ``result.h5`` missing, truncated or altered; or a
+            ``metrics.json`` / journal that is not what decrun writes (the error names
+            the file)
 ``failed``  ``metrics.json`` with ``status: failed`` / ``interrupted`` (its ``error``)
 ``killed``  no ``metrics.json`` but the run's journal ``result.h5.partial``: the process
             died while recording (:func:`decrun.runner.results.recorder.recover_result` turns it
@@ -40,9 +45,11 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from decrun.errors import ConfigError
+from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
+from decrun.runner.results.checked import RESULT_RECORD, load_json
 from decrun.runner.results.journal import journal_path, read_journal
+from decrun.runner.results.reading import verify_result
 
 __all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "job_dir_name", "DONE"]
 
@@ -84,29 +91,52 @@ def write_manifest(sweep_dir: Path, manifest: dict[str, Any]) -> Path:
 
 def read_manifest(sweep_dir: str | os.PathLike) -> dict[str, Any] | None:
     """The manifest of a sweep, or None when it has none (an older sweep, or one run by
-    another sweeper such as optuna). A manifest that cannot be read is a ConfigError
-    naming the file."""
+    another sweeper such as optuna). A manifest that cannot be read or is not what the
+    sweeper writes (not JSON, nested too deeply, not an object, a job without its
+    ``job`` / ``overrides`` / ``config_hash``) is a :class:`CorruptFileError` naming the
+    file and what is wrong."""
     path = Path(sweep_dir) / MANIFEST
     if not path.is_file():
         return None
     try:
-        manifest = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"{path}: unreadable sweep manifest ({exc})") from exc
-    if manifest.get("format") != FORMAT:
-        raise ConfigError(f"{path}: not a decrun sweep manifest (format {manifest.get('format')!r})")
+        manifest = load_json(path)
+    except FileNotFoundError:
+        return None
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+        found = manifest.get("format") if isinstance(manifest, dict) else f"a JSON {type(manifest).__name__}"
+        raise CorruptFileError(f"{path}: not a decrun sweep manifest (format {found!r})")
+    jobs, overrides = manifest.get("jobs"), manifest.get("overrides", [])
+    if not isinstance(jobs, list) or not _strings(overrides) or not isinstance(manifest.get("runs", []), list):
+        raise CorruptFileError(f"{path}: malformed sweep manifest (jobs, overrides or runs is not a list)")
+    for i, job in enumerate(jobs):
+        if not (isinstance(job, dict) and isinstance(job.get("job"), str) and _strings(job.get("overrides"))
+                and isinstance(job.get("config_hash"), str) and isinstance(job.get("dir", ""), str)):
+            raise CorruptFileError(f"{path}: job {i} of the manifest lacks its job, overrides or config_hash "
+                                   f"(got {str(job)[:80]})")
     return manifest
 
 
+def _strings(value: Any) -> bool:
+    return isinstance(value, list) and all(isinstance(item, str) for item in value)
+
+
 def read_metrics(job_dir: Path) -> dict[str, Any] | None:
-    """``metrics.json`` of a job, None when absent; unreadable → a ``missing`` record."""
+    """``metrics.json`` of a job, None when absent; one that cannot be read or is not a
+    JSON object → a ``corrupt`` record naming the file."""
     path = job_dir / "metrics.json"
     if not path.is_file():
         return None
     try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        return {"status": "missing", "error": f"unreadable metrics.json: {exc}"}
+        metrics = load_json(path)
+    except FileNotFoundError:
+        return None
+    except CorruptFileError as exc:
+        return {"status": "corrupt", "error": str(exc)}
+    if not isinstance(metrics, dict):
+        return {"status": "corrupt", "error": f"{path}: a JSON {type(metrics).__name__}, not an object of metrics"}
+    if not isinstance(metrics.get("status", "ok"), str) or not isinstance(metrics.get("error", ""), str):
+        return {"status": "corrupt", "error": f"{path}: status and error must be strings"}
+    return metrics
 
 
 def job_state(job_dir: Path, expected_hash: str | None = None) -> dict[str, Any]:
@@ -118,8 +148,10 @@ def job_state(job_dir: Path, expected_hash: str | None = None) -> dict[str, Any]
         if journal.is_file():
             try:
                 steps = read_journal(journal, verify=False).n_records
-            except (OSError, ValueError):
-                steps = 0
+            except OSError as exc:
+                return {"status": "killed", "error": f"{journal}: unreadable ({exc}); no metrics.json"}
+            except CorruptFileError as exc:
+                return {"status": "corrupt", "error": f"{exc}; no metrics.json"}
             return {"status": "killed", "error": f"killed after {steps} recorded steps (result.h5.partial; "
                                                  "no metrics.json)"}
         if not job_dir.is_dir():
@@ -127,9 +159,15 @@ def job_state(job_dir: Path, expected_hash: str | None = None) -> dict[str, Any]
         return {"status": "missing", "error": "no metrics.json (killed before its first step, or still running)"}
     metrics = dict(metrics)
     found = metrics.pop("config_hash", None)
+    record = metrics.pop(RESULT_RECORD, None)
     if expected_hash is not None and found is not None and found != expected_hash:
         return {"status": "stale", "error": f"metrics.json is from another config (hash {found}, "
                                             f"the manifest plans {expected_hash})"}
     metrics.setdefault("status", "ok")
     metrics.setdefault("error", "")
+    if metrics["status"] == "ok":
+        try:
+            verify_result(job_dir / "result.h5", record)
+        except CorruptFileError as exc:
+            metrics.update(status="corrupt", error=str(exc))
     return metrics

@@ -36,7 +36,7 @@ from hydra.core.override_parser.types import OverrideType
 from hydra.errors import CompactHydraException
 from omegaconf import OmegaConf, open_dict, read_write
 
-from decrun.errors import ConfigError, DecrunError
+from decrun.errors import ConfigError, CorruptFileError, DecrunError
 from decrun.runner.sweep.checks import CHECKS, WARM, import_modules
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
@@ -46,7 +46,7 @@ log = logging.getLogger("decrun")
 __all__ = ["ManifestSweeper", "DecrunSweeperConf", "SweepError"]
 
 #: what a job directory may hold that a resumed job must not inherit
-_JOB_OUTPUTS = ("metrics.json", "result.h5", "result.h5.partial")
+_JOB_OUTPUTS = ("metrics.json", "result.h5", "result.h5.partial", "result.h5.stale")
 
 
 class SweepError(ConfigError, CompactHydraException):
@@ -228,7 +228,11 @@ class ManifestSweeper:
                              f"{', '.join(entries[:4])}{', ...' if len(entries) > 4 else ''}); add "
                              "hydra.sweeper.resume=true to rerun its missing and failed jobs, or choose a new "
                              "hydra.sweep.dir")
-        manifest = read_manifest(sweep_dir)
+        try:
+            manifest = read_manifest(sweep_dir)
+        except CorruptFileError as exc:
+            raise SweepError(f"error: hydra.sweeper.resume=true: {exc}; its plan is lost: choose a new "
+                             "hydra.sweep.dir") from exc
         if manifest is None:
             raise SweepError(f"error: hydra.sweeper.resume=true: {sweep_dir} has no {MANIFEST} (not started by "
                              "the decrun sweeper); choose a new hydra.sweep.dir")

@@ -5,8 +5,11 @@ A sweep directory (``outputs/sweeps/<stamp>/``) holds one sub-directory per job 
 Hydra's ``.hydra/overrides.yaml`` and (when the job got that far) ``metrics.json``. With
 a manifest (:mod:`decrun.runner.sweep.manifest`, written by the ``decrun`` sweeper) the table has
 one row per *planned* job — ``ok``, ``failed``, ``killed``, ``missing`` (never started or
-no metrics) or ``stale`` — so a killed sweep never looks complete; without one (another
-sweeper, an older sweep, ``outputs/runs``) one row per job directory.
+no metrics), ``stale`` or ``corrupt`` (a result that is not the one its metrics.json
+records, or a job file that is not what decrun writes: the error names the file) — so a
+killed sweep never looks complete; without one (another sweeper, an older sweep,
+``outputs/runs``) one row per job directory. A corrupt manifest.json is a ``corrupt`` row
+of its own above one row per job directory.
 
 Columns: ``job``, the overridden keys as written (``app.dt``, ``boundary``), ``status``,
 ``error``, the metrics (in the order the jobs wrote them; ``metric.<name>`` for a metric
@@ -29,11 +32,12 @@ from typing import Any, Collection, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
-import yaml
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
+from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
-from decrun.runner.sweep.manifest import job_dir_name, job_state, read_manifest
+from decrun.runner.results.checked import load_yaml
+from decrun.runner.sweep.manifest import MANIFEST, job_dir_name, job_state, read_manifest
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
@@ -94,19 +98,35 @@ def reserved_names(sweep_dir: Path, override_keys: Iterable[str] = ()) -> frozen
     path = Path(sweep_dir) / "multirun.yaml"
     if path.is_file():
         try:
-            config = yaml.safe_load(path.read_text()) or {}
-        except yaml.YAMLError:
+            config = load_yaml(path) or {}
+        except (OSError, CorruptFileError):  # only the naming of metric columns depends on it
             config = {}
-        choices = ((config.get("hydra") or {}).get("runtime") or {}).get("choices") or {}
-        names.update(key for key in [*config, *choices] if key != "hydra" and not str(key).startswith("hydra/"))
+        config = config if isinstance(config, dict) else {}
+        hydra = config.get("hydra") if isinstance(config.get("hydra"), dict) else {}
+        runtime = hydra.get("runtime") if isinstance(hydra.get("runtime"), dict) else {}
+        choices = runtime.get("choices") if isinstance(runtime.get("choices"), dict) else {}
+        names.update(str(key) for key in [*config, *choices] if key != "hydra" and not str(key).startswith("hydra/"))
     return frozenset(names)
 
 
-def _overrides(job: Path) -> dict[str, Any]:
+def _overrides(job: Path) -> tuple[dict[str, Any], str]:
+    """The overrides of a job directory from its ``.hydra/overrides.yaml``, and "" or the
+    one-line error naming the file when it is not a list of overrides Hydra parses (read
+    with ``yaml.safe_load``: a ``!!python/object`` tag is refused, never built)."""
     path = job / ".hydra" / "overrides.yaml"
     if not path.is_file():
-        return {}
-    return parse_overrides(yaml.safe_load(path.read_text()) or [])
+        return {}, ""
+    try:
+        items = load_yaml(path) or []
+        if not isinstance(items, list) or not all(isinstance(item, str) for item in items):
+            raise CorruptFileError(f"{path}: not a list of overrides (got a {type(items).__name__})")
+        return parse_overrides(items), ""
+    except CorruptFileError as exc:
+        return {}, str(exc)
+    except OSError as exc:
+        return {}, f"{path}: unreadable ({exc})"
+    except Exception as exc:  # Hydra's parser refuses an override (OverrideParseException)
+        return {}, f"{path}: an override Hydra cannot parse ({str(exc).strip().splitlines()[0]})"
 
 
 def _result_path(sweep_dir: Path, job_dir: str) -> str:
@@ -126,21 +146,20 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
     sweep_dir = Path(sweep_dir)
     if not sweep_dir.is_dir():
         raise FileNotFoundError(f"sweep directory {str(sweep_dir)!r} does not exist")
-    manifest = read_manifest(sweep_dir)
-    planned: list[tuple[str, str, dict, str | None]] = []  # (job, its directory, overrides, hash)
-    if manifest is not None:
-        planned = [(j["job"], job_dir_name(j), parse_overrides(j["overrides"]), j["config_hash"])
-                   for j in manifest["jobs"]]
+    planned, broken = _planned(sweep_dir)
     known = {os.path.normpath(where) for _, where, _, _ in planned}
-    planned += [(p.name, p.name, _overrides(p), None) for p in _job_dirs(sweep_dir) if p.name not in known]
+    unplanned = {p.name: _overrides(p) for p in _job_dirs(sweep_dir) if p.name not in known}
+    planned += [(name, name, overrides, None) for name, (overrides, _) in unplanned.items()]
     override_keys = list(dict.fromkeys(key for _, _, overrides, _ in planned for key in overrides))
     reserved = reserved_names(sweep_dir, override_keys)
     rows, metric_keys = [], []
+    if broken:  # the plan is unknown: one row says so, the job directories follow
+        rows.append({"job": MANIFEST, "status": "corrupt", "error": broken, "result": ""})
     for name, where, overrides, expected in planned:
         job_dir = sweep_dir / where
         metrics = job_state(job_dir, expected)
-        if expected is None and job_dir.is_dir():
-            overrides = _overrides(job_dir) or overrides
+        if expected is None and name in unplanned and unplanned[name][1]:
+            metrics = {**metrics, "status": "corrupt", "error": unplanned[name][1]}
         for key in overrides:
             if key not in override_keys:
                 override_keys.append(key)
@@ -151,6 +170,24 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
         rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, where)})
     columns = ["job", *override_keys, "status", "error", *metric_keys, "result"]
     return _typed(pd.DataFrame(rows, columns=columns), rows)
+
+
+def _planned(sweep_dir: Path) -> tuple[list[tuple[str, str, dict, str | None]], str]:
+    """The manifest's jobs ``(job, its directory, overrides, config hash)`` and "" — or no
+    jobs and the one-line error naming manifest.json when it is corrupt (the table then
+    lists the job directories, under a ``corrupt`` row for the manifest)."""
+    try:
+        manifest = read_manifest(sweep_dir)
+        if manifest is None:
+            return [], ""
+        return [(j["job"], job_dir_name(j), parse_overrides(j["overrides"]), j["config_hash"])
+                for j in manifest["jobs"]], ""
+    except CorruptFileError as exc:
+        return [], str(exc)
+    except OSError as exc:
+        return [], f"{sweep_dir / MANIFEST}: unreadable ({exc})"
+    except Exception as exc:  # Hydra's parser refuses an override of the manifest
+        return [], f"{sweep_dir / MANIFEST}: an override Hydra cannot parse ({str(exc).strip().splitlines()[0]})"
 
 
 def _typed(table: pd.DataFrame, rows: list[dict]) -> pd.DataFrame:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from decrun.errors import ConfigError
+from decrun.errors import ConfigError, CorruptFileError
 from decrun.runner.mesh import Mesh, MeshSource, require
 from decrun.runner.results import read_result
 
@@ -57,7 +57,7 @@ class ResultMesh(MeshSource):
         except FileNotFoundError:
             raise ConfigError(f"mesh.path={str(self.path)!r}: no result file there (a run directory or its "
                               "result.h5)") from None
-        except OSError as exc:
+        except (OSError, CorruptFileError) as exc:
             raise ConfigError(f"mesh.path={str(self.path)!r}: cannot read it as a decrun result ({exc})") from None
         if "vertices" not in stored.mesh or "simplices" not in stored.mesh:
             raise ConfigError(f"mesh.path={str(self.path)!r}: the result holds no mesh")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from decrun.apps.base import Context
-from decrun.errors import ConfigError
+from decrun.errors import ConfigError, CorruptFileError
 from decrun.runner.results import read_mesh, read_result
 
 __all__ = ["RunContext"]
@@ -33,6 +33,8 @@ class RunContext(Context):
         try:
             result = read_result(path)
             vertices, _ = read_mesh(path)
+        except CorruptFileError as exc:  # names the file and what is wrong with it
+            raise ConfigError(f"app.input_path={str(path)!r}: {exc}") from None
         except KeyError as exc:  # h5py: a group or attribute of the layout is missing
             raise ConfigError(f"app.input_path={str(path)!r}: an HDF5 file but not a decrun result.h5 "
                               f"({_first_line(exc)})") from None

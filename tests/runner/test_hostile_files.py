@@ -296,3 +296,12 @@ def test_a_failed_rerun_sets_the_earlier_result_aside(tmp_path):
     assert f"the earlier run's result.h5 is now {run / 'result.h5.stale'}" in failed.stderr, failed.stderr
     assert not (run / "result.h5").exists() and (run / "result.h5.stale").read_bytes() == earlier
     assert json.loads((run / "metrics.json").read_text())["status"] == "failed"
+
+
+def test_a_run_chained_on_a_hostile_result_is_one_line_naming_the_key(sweep):
+    external_storage(sweep / "1")
+    proc = decrun("mesh=result", f"mesh.path={sweep / '1'}", "app.steps=2", "figures=false", "hydra.run.dir=r",
+                  cwd=sweep.parent)
+    assert proc.returncode == 1 and proc.stderr.strip().splitlines() == [proc.stderr.strip()], proc.stderr
+    assert proc.stderr.startswith(f"error: mesh.path={str(sweep / '1')!r}: cannot read it as a decrun result")
+    assert "dataset /fields/u keeps its data in another file" in proc.stderr

@@ -116,7 +116,7 @@ def decrun_attrs(f, path: Path) -> dict[str, Any]:
     missing = "format" if attrs.get("format") != FORMAT else None if isinstance(attrs.get("metrics_json"), str) \
         else "metrics_json"
     if missing:
-        raise CorruptFileError(f"{path}: not a decrun result (no {missing} attribute of {FORMAT})")
+        raise CorruptFileError(f"{path}: not a decrun result.h5 (no {missing} attribute of {FORMAT})")
     return attrs
 
 

@@ -305,3 +305,18 @@ def test_a_run_chained_on_a_hostile_result_is_one_line_naming_the_key(sweep):
     assert proc.returncode == 1 and proc.stderr.strip().splitlines() == [proc.stderr.strip()], proc.stderr
     assert proc.stderr.startswith(f"error: mesh.path={str(sweep / '1')!r}: cannot read it as a decrun result")
     assert "dataset /fields/u keeps its data in another file" in proc.stderr
+
+
+def test_an_override_hydra_cannot_parse_is_a_corrupt_row_naming_the_file(sweep, capsys):
+    path = sweep / "manifest.json"
+    manifest = json.loads(path.read_text())
+    manifest["jobs"][1]["overrides"] = ["app.dt=[1,"]
+    path.write_text(json.dumps(manifest))
+    assert table_main([str(sweep)]) == 1
+    [line] = one_line_per_corrupt_job(capsys.readouterr().err)
+    assert line.startswith(f"decrun-table: job manifest.json corrupt: {path}: an override Hydra cannot parse"), line
+    (sweep / "manifest.json").unlink()
+    (sweep / "2" / ".hydra" / "overrides.yaml").write_text("- app.dt=[1,\n")
+    assert table_main([str(sweep)]) == 1
+    [line] = one_line_per_corrupt_job(capsys.readouterr().err)
+    assert line.startswith(f"decrun-table: job 2 corrupt: {sweep / '2' / '.hydra' / 'overrides.yaml'}: an override")

@@ -33,6 +33,7 @@ from typing import Any, Collection, Iterable, Sequence
 import numpy as np
 import pandas as pd
 from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.errors import HydraException
 
 from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
@@ -125,7 +126,7 @@ def _overrides(job: Path) -> tuple[dict[str, Any], str]:
         return {}, str(exc)
     except OSError as exc:
         return {}, f"{path}: unreadable ({exc})"
-    except Exception as exc:  # Hydra's parser refuses an override (OverrideParseException)
+    except HydraException as exc:  # Hydra's parser refuses an override (OverrideParseException)
         return {}, f"{path}: an override Hydra cannot parse ({str(exc).strip().splitlines()[0]})"
 
 
@@ -186,7 +187,7 @@ def _planned(sweep_dir: Path) -> tuple[list[tuple[str, str, dict, str | None]], 
         return [], str(exc)
     except OSError as exc:
         return [], f"{sweep_dir / MANIFEST}: unreadable ({exc})"
-    except Exception as exc:  # Hydra's parser refuses an override of the manifest
+    except HydraException as exc:  # Hydra's parser refuses an override of the manifest
         return [], f"{sweep_dir / MANIFEST}: an override Hydra cannot parse ({str(exc).strip().splitlines()[0]})"
 
 

@@ -76,3 +76,16 @@ def test_filled_holes_keep_the_original_vertices_and_orientation():
     assert filled.num_simplices(0) == K.num_simplices(0) + len(loops) - 1
     assert len(filled.border_loops()) == 1 and filled.euler_characteristic == 1
     np.testing.assert_array_equal(filled.oriented_simplices()[: K.num_simplices(2)], K.oriented_simplices())
+
+
+@pytest.mark.parametrize("faces", [[(0, 1, 2)], [(0, 1, 2), (0, 2, 3)]], ids=["one_triangle", "one_polygon"])
+def test_solver_auto_parametrizes_a_mesh_without_interior_vertices(decrun_cli, tmp_path, faces):
+    """Every vertex on the border: the interior system is 0×0, which CHOLMOD (solver=auto's
+    Cholesky) used to refuse with ``RuntimeError: Failed to resize matrix arrays!``."""
+    corners = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])[:max(map(max, faces)) + 1]
+    path = tmp_path / "patch.obj"
+    path.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in corners)
+                    + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+    metrics = _cli_metrics(decrun_cli, tmp_path, "app=parametrization", "mesh=file", f"mesh.path={path}", "solver=auto")
+    assert metrics["status"] == "ok" and metrics["is_embedding"] is True
+    assert metrics["n_vertices"] == len(corners) and metrics["flipped_triangles"] == 0

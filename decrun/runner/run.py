@@ -77,14 +77,21 @@ _KEYS = ("mesh", "operator", "boundary", "app", "solver", "export", "progress", 
 
 def name_the_key(exc: DecrunError, experiment: Experiment, where: str) -> DecrunError:
     """``exc`` with the config key it comes from in front, when its message (raised by the
-    core, which knows no config) does not start with one: the mesh (``where``) for mesh
-    and topology errors, ``solver=<name>`` for solver errors, ``app=<name>`` otherwise.
+    core, which knows no config) does not start with one: ``solver=<name>`` for solver
+    errors, ``app=<name>`` otherwise. Mesh and topology errors always name the mesh
+    (``where``: its file or sample, :func:`mesh_where`), also when they name an app key
+    (``app=parametrization needs a border``); a bare ``mesh:`` becomes ``where``.
     Errors about files (an OSError such as ResultWriteError) name their file already."""
     message = str(exc)
-    if message.startswith(_KEYS) or isinstance(exc, OSError):
+    if isinstance(exc, OSError):
         return exc
     if isinstance(exc, (MeshError, TopologyError)):
+        if message.startswith(("mesh.", "mesh=", "mesh ")):  # names the mesh already
+            return exc
+        message = message.removeprefix("mesh: ")
         prefix = where
+    elif message.startswith(_KEYS):
+        return exc
     elif isinstance(exc, SolverError):
         prefix = f"solver={experiment.solver.name} (app={experiment.app.name})"
     else:

@@ -89,3 +89,24 @@ def test_solver_auto_parametrizes_a_mesh_without_interior_vertices(decrun_cli, t
     metrics = _cli_metrics(decrun_cli, tmp_path, "app=parametrization", "mesh=file", f"mesh.path={path}", "solver=auto")
     assert metrics["status"] == "ok" and metrics["is_embedding"] is True
     assert metrics["n_vertices"] == len(corners) and metrics["flipped_triangles"] == 0
+
+
+@pytest.mark.parametrize("source", ["file", "sample"])
+def test_a_closed_mesh_is_refused_naming_the_file_or_sample(decrun_cli, tmp_path, source):
+    """The refusal names the mesh (the file, or the sample) and its hole override runs."""
+    import re
+
+    if source == "file":
+        path = tmp_path / "tetrahedron.obj"
+        path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n")
+        mesh, where = ["mesh=file", f"mesh.path={path}"], f"mesh.path='{path}'"
+    else:
+        mesh, where = ["mesh=sample", "mesh.sample=cube"], "mesh.sample=cube"
+    proc = decrun_cli("app=parametrization", *mesh, "figures=false", f"hydra.run.dir={tmp_path / 'closed'}")
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    line = proc.stderr.strip().splitlines()[-1]
+    assert line.startswith(f"error: {where}: app=parametrization needs a disk-like surface with a border; "
+                           "this mesh is closed"), line
+    if source == "file":
+        fix = re.search(r"`(mesh\.hole_balls=[^`]+)`", line).group(1)
+        assert _cli_metrics(decrun_cli, tmp_path, "app=parametrization", *mesh, fix)["status"] == "ok"

@@ -34,9 +34,11 @@ from decrun.runner.config import config_dir, load_option, register_configs
 from decrun.runner.failures import (
     config_error_message,
     exit_code,
+    find_memory_error,
     find_os_error,
     install_sigterm,
     interrupt_cause,
+    memory_error_text,
     os_error_message,
     override_nesting_error,
 )
@@ -238,6 +240,10 @@ def _report(exc: Exception) -> int:
     os_error = find_os_error(exc)
     if os_error is not None:
         print(f"error: {os_error_message(os_error)}", file=sys.stderr)
+        return 1
+    memory = find_memory_error(exc)  # outside a run (composing a sweep): no run config to name
+    if memory is not None:
+        print(f"error: {memory_error_text(memory)}", file=sys.stderr)
         return 1
     raise exc  # a bug: show it
 

@@ -12,6 +12,9 @@ read-only or forbidden directory, a file    ``choose another with hydra.run.dir=
 where the run directory should be)
 Ctrl-C (SIGINT)                             ``decrun: interrupted (Ctrl-C) …``      130
 SIGTERM (a scheduler, ``kill``)             ``decrun: interrupted (SIGTERM) …``     143
+out of memory (MemoryError; a native        ``error: <where>: could not allocate``  1
+library's bad_alloc)                        ``<size> for an array of shape (…) …;``
+                                            ``use `<smaller setting>```
 a config Hydra cannot read: a YAML error     ``error: <file>, line <n>: <cause>``    1
 (a python tag ``!!python/...``, never run)
 an override nested deeper than              ``error: <key>=<value…>: nested <n>``   1
@@ -36,7 +39,8 @@ from pathlib import Path
 from decrun.errors import DecrunError
 
 __all__ = ["Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message", "record_status",
-           "MAX_NESTING", "nesting_depth", "override_nesting_error", "config_error_message"]
+           "MAX_NESTING", "nesting_depth", "override_nesting_error", "config_error_message", "find_memory_error",
+           "memory_error_text"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -113,6 +117,45 @@ def record_status(out: Path, status: str, error: str, extra: dict | None = None)
     except OSError as exc:
         return f" (metrics.json could not be written either: {os.strerror(exc.errno) if exc.errno else exc})"
     return ""
+
+
+_NATIVE_OUT_OF_MEMORY = ("out of memory", "bad_alloc", "cannot allocate", "unable to allocate", "failed to allocate")
+
+
+def find_memory_error(exc: BaseException) -> BaseException | None:
+    """``exc`` or the first exception in its chain that says the process ran out of memory:
+    a MemoryError (numpy's has the array's ``shape`` and ``dtype``; pybind11 turns a native
+    ``std::bad_alloc`` into one) or a RuntimeError of a native library saying so."""
+    found = find_in_chain(exc, MemoryError)
+    if found is not None:
+        return found
+    native = find_in_chain(exc, RuntimeError)
+    if native is not None and any(words in str(native).lower() for words in _NATIVE_OUT_OF_MEMORY):
+        return native
+    return None
+
+
+def _bytes(count: float) -> str:
+    """``71.1 PiB``: a byte count in binary units, as numpy's message writes it."""
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if count < 1024 or unit == "PiB":
+            return f"{count:.0f} {unit}" if unit == "bytes" else f"{count:.3g} {unit}"
+        count /= 1024
+    return ""  # pragma: no cover
+
+
+def memory_error_text(exc: BaseException) -> str:
+    """``could not allocate 49.3 MiB for an array of shape (717602, 3, 3) float64`` for
+    numpy's MemoryError (its ``shape`` and ``dtype``), ``ran out of memory (<cause>)`` for
+    the others."""
+    import math
+
+    shape, dtype = getattr(exc, "shape", None), getattr(exc, "dtype", None)
+    if shape is not None and dtype is not None:
+        size = math.prod(int(d) for d in shape) * dtype.itemsize
+        return f"could not allocate {_bytes(size)} for an array of shape {tuple(int(d) for d in shape)} {dtype}"
+    cause = " ".join(str(exc).split())
+    return f"ran out of memory ({cause})" if cause else "ran out of memory"
 
 
 #: the deepest nesting of ``[…]`` / ``{…}`` an override may have. OmegaConf recurses once

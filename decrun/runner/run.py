@@ -27,8 +27,16 @@ from decrun.core.stars import HodgeStar
 from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, TopologyError
 from decrun.runner.config import DecrunConfig, OptimizeConfig
 from decrun.runner.context import RunContext
-from decrun.runner.failures import exit_code, find_os_error, interrupt_cause, os_error_message, record_status
-from decrun.runner.hints import cli_message
+from decrun.runner.failures import (
+    exit_code,
+    find_memory_error,
+    find_os_error,
+    interrupt_cause,
+    memory_error_text,
+    os_error_message,
+    record_status,
+)
+from decrun.runner.hints import cli_message, memory_hint, plugin_name
 from decrun.runner.mesh import MeshSource
 from decrun.runner.plugins import build
 from decrun.runner.progress import make_progress, task
@@ -259,10 +267,11 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
         sys.exit(exit_code(exc))
     except Exception as exc:
         os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)
+        memory = None if isinstance(exc, DecrunError) or os_error is not None else find_memory_error(exc)
         message = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None
-                   else f"{type(exc).__name__}: {exc}")
+                   else memory_message(memory, cfg) if memory is not None else f"{type(exc).__name__}: {exc}")
         note = record_status(out, "failed", message, identity)
-        if verbose or not (isinstance(exc, DecrunError) or os_error is not None):
+        if verbose or not (isinstance(exc, DecrunError) or os_error is not None or memory is not None):
             log.exception("error: %s%s", message, note)
         else:
             log.error("error: %s%s", message, note)
@@ -282,6 +291,15 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
             where = out
         print(f"decrun: wrote {where}/ ({', '.join(p.name for p in written)}, {log_name}.log)")
     return 0
+
+
+def memory_message(exc: BaseException, cfg: DictConfig) -> str:
+    """``<where>: could not allocate <size> for an array of shape (…) <dtype>; <the setting
+    to lower>`` for a run that ran out of memory (:func:`decrun.runner.failures.memory_error_text`,
+    :func:`decrun.runner.hints.memory_hint`); ``where`` names the app and the mesh source."""
+    where = f"app={plugin_name(cfg, 'app') or '?'} on mesh={plugin_name(cfg, 'mesh') or '?'}"
+    hint = memory_hint(cfg, getattr(exc, "shape", None))
+    return f"{where}: {memory_error_text(exc)}" + (f"; {hint}" if hint else "")
 
 
 def _short(value: Any) -> str:

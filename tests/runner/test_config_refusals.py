@@ -21,7 +21,7 @@ def test_only_overrides_deeper_than_the_limit_are_refused():
     ok = "+app.x=" + "[" * MAX_NESTING + "]" * MAX_NESTING
     assert override_nesting_error(["-m", ok, "app.dt=1,2", "hydra.searchpath=[file:///x]"]) is None
     deep = "+app.x=" + "[" * (MAX_NESTING + 1) + "]" * (MAX_NESTING + 1)
-    assert override_nesting_error([ok, deep]).startswith(f"error: +app.x=[[[[")
+    assert override_nesting_error([ok, deep]).startswith("error: +app.x=[[[[")
 
 
 DEEP = {"unclosed-list": "app.x=" + "[" * 5000, "dict": "+foo=" + "{a:" * 10000 + "1" + "}" * 10000}

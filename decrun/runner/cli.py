@@ -31,7 +31,17 @@ from omegaconf import DictConfig, OmegaConf
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
-from decrun.runner.failures import exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message
+from decrun.runner.failures import (
+    config_error_message,
+    exit_code,
+    find_memory_error,
+    find_os_error,
+    install_sigterm,
+    interrupt_cause,
+    memory_error_text,
+    os_error_message,
+    override_nesting_error,
+)
 from decrun.runner.progress import SweepProgress, sweep_size, terminal
 from decrun.runner.sweep.checks import register_check
 
@@ -163,6 +173,10 @@ def main() -> None:
     if any(a.startswith("query=") for a in args) and any(a in ("-sc", "--shell-completion") for a in args):
         _completion()
         return
+    nested = override_nesting_error(args)  # before Hydra's parser, which would overflow the stack
+    if nested:
+        print(nested, file=sys.stderr)
+        sys.exit(1)
     SweepTable.failed = 0
     install_sigterm()
     # a log file that cannot be written (full disk) must not print logging's tracebacks;
@@ -207,7 +221,7 @@ def _report(exc: Exception) -> int:
 
     if _VERBOSE:
         raise exc
-    message = typo_message(exc) or missing_plugin_message(exc)
+    message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc)
     if message:
         print(message, file=sys.stderr)
         return 1
@@ -226,6 +240,10 @@ def _report(exc: Exception) -> int:
     os_error = find_os_error(exc)
     if os_error is not None:
         print(f"error: {os_error_message(os_error)}", file=sys.stderr)
+        return 1
+    memory = find_memory_error(exc)  # outside a run (composing a sweep): no run config to name
+    if memory is not None:
+        print(f"error: {memory_error_text(memory)}", file=sys.stderr)
         return 1
     raise exc  # a bug: show it
 

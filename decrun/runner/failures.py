@@ -12,6 +12,15 @@ read-only or forbidden directory, a file    ``choose another with hydra.run.dir=
 where the run directory should be)
 Ctrl-C (SIGINT)                             ``decrun: interrupted (Ctrl-C) …``      130
 SIGTERM (a scheduler, ``kill``)             ``decrun: interrupted (SIGTERM) …``     143
+out of memory (MemoryError; a native        ``error: <where>: could not allocate``  1
+library's bad_alloc)                        ``<size> for an array of shape (…) …;``
+                                            ``use `<smaller setting>```
+a config Hydra cannot read: a YAML error     ``error: <file>, line <n>: <cause>``    1
+(a python tag ``!!python/...``, never run)
+an override nested deeper than              ``error: <key>=<value…>: nested <n>``   1
+:data:`MAX_NESTING` (refused before Hydra   ``levels deep …``
+parses it), a config file Python's stack
+cannot load                                 ``error: <file>: nested too deeply …``  1
 ==========================================  ======================================  ====
 
 A run that fails in a directory where an earlier run left a ``result.h5`` renames that
@@ -34,7 +43,8 @@ from pathlib import Path
 from decrun.errors import DecrunError
 
 __all__ = ["Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message", "record_status",
-           "file_identity", "set_aside_stale"]
+           "file_identity", "set_aside_stale", "MAX_NESTING", "nesting_depth", "override_nesting_error",
+           "config_error_message", "find_memory_error", "memory_error_text"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -63,16 +73,22 @@ def exit_code(exc: KeyboardInterrupt) -> int:
     return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)
 
 
-def find_os_error(exc: BaseException) -> OSError | None:
-    """``exc`` or the first OSError in its chain of causes (logging wraps the one of its
-    file handler in a ValueError), skipping decrun's own errors, which say it already."""
+def find_in_chain(exc: BaseException | None, kinds) -> BaseException | None:
+    """``exc`` or the first exception of type ``kinds`` in its chain of causes (Hydra and
+    logging wrap the original error), skipping decrun's own errors, which say it already."""
     seen = set()
     while exc is not None and id(exc) not in seen:
         seen.add(id(exc))
-        if isinstance(exc, OSError) and not isinstance(exc, DecrunError):
+        if isinstance(exc, kinds) and not isinstance(exc, DecrunError):
             return exc
         exc = exc.__cause__ or exc.__context__
     return None
+
+
+def find_os_error(exc: BaseException) -> OSError | None:
+    """``exc`` or the first OSError in its chain of causes (logging wraps the one of its
+    file handler in a ValueError), skipping decrun's own errors, which say it already."""
+    return find_in_chain(exc, OSError)
 
 
 def os_error_message(exc: OSError) -> str:
@@ -132,3 +148,140 @@ def set_aside_stale(out: Path, before: tuple[int, int, int, int] | None) -> str:
     except OSError as exc:
         return f" (the earlier run's {path} could not be renamed {stale.name}: {os.strerror(exc.errno or 0)})"
     return f" (the earlier run's result.h5 is now {stale})"
+
+
+_NATIVE_OUT_OF_MEMORY = ("out of memory", "bad_alloc", "cannot allocate", "unable to allocate", "failed to allocate")
+
+
+def find_memory_error(exc: BaseException) -> BaseException | None:
+    """``exc`` or the first exception in its chain that says the process ran out of memory:
+    a MemoryError (numpy's has the array's ``shape`` and ``dtype``; pybind11 turns a native
+    ``std::bad_alloc`` into one) or a RuntimeError of a native library saying so."""
+    found = find_in_chain(exc, MemoryError)
+    if found is not None:
+        return found
+    native = find_in_chain(exc, RuntimeError)
+    if native is not None and any(words in str(native).lower() for words in _NATIVE_OUT_OF_MEMORY):
+        return native
+    return None
+
+
+def _bytes(count: float) -> str:
+    """``71.1 PiB``: a byte count in binary units, as numpy's message writes it."""
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if count < 1024 or unit == "PiB":
+            return f"{count:.0f} {unit}" if unit == "bytes" else f"{count:.3g} {unit}"
+        count /= 1024
+    return ""  # pragma: no cover
+
+
+def memory_error_text(exc: BaseException) -> str:
+    """``could not allocate 49.3 MiB for an array of shape (717602, 3, 3) float64`` for
+    numpy's MemoryError (its ``shape`` and ``dtype``), ``ran out of memory (<cause>)`` for
+    the others."""
+    import math
+
+    shape, dtype = getattr(exc, "shape", None), getattr(exc, "dtype", None)
+    if shape is not None and dtype is not None:
+        size = math.prod(int(d) for d in shape) * dtype.itemsize
+        return f"could not allocate {_bytes(size)} for an array of shape {tuple(int(d) for d in shape)} {dtype}"
+    cause = " ".join(str(exc).split())
+    return f"ran out of memory ({cause})" if cause else "ran out of memory"
+
+
+#: the deepest nesting of ``[…]`` / ``{…}`` an override may have. OmegaConf recurses once
+#: per level and exhausts Python's stack near 150 levels (measured: 100 compose, 150 do
+#: not); a real config nests a few levels (``mesh.hole_balls=[[x,y,z,r]]``: 2)
+MAX_NESTING = 64
+
+
+def nesting_depth(text: str) -> int:
+    """The deepest nesting of ``[`` / ``{`` in an override value, outside quoted strings
+    (``'[['`` is a string); unclosed brackets count, so ``[[[`` is 3 deep."""
+    depth = deepest = 0
+    quote = None
+    escaped = False
+    for char in text:
+        if quote is not None:
+            if escaped:
+                escaped = False
+            elif char == "\\":
+                escaped = True
+            elif char == quote:
+                quote = None
+        elif char in "'\"":
+            quote = char
+        elif char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth = max(depth - 1, 0)
+    return deepest
+
+
+def _shorten(text: str, keep: int = 24) -> str:
+    return text if len(text) <= keep else f"{text[:keep]}… ({len(text)} characters)"
+
+
+def override_nesting_error(args: list[str]) -> str | None:
+    """``error: <override>: nested <n> levels deep …`` for the first command-line override
+    whose value nests deeper than :data:`MAX_NESTING` (checked before Hydra parses it, which
+    would overflow Python's stack); None when every override is within it."""
+    for arg in args:
+        key, sep, value = arg.partition("=")
+        if arg.startswith("-") or not sep:
+            continue
+        depth = nesting_depth(value)
+        if depth > MAX_NESTING:
+            return (f"error: {_shorten(arg, len(key) + 1 + 24)}: the value is nested {depth} levels deep; an "
+                    f"override may nest lists and dicts ([…], {{…}}) at most {MAX_NESTING} levels")
+    return None
+
+
+def _yaml_message(exc) -> str:
+    """``<file>, line <n>: <cause>`` for a PyYAML error (a tag that would build a Python
+    object is named as such: OmegaConf's loader refuses it, nothing is run)."""
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    where = f"{mark.name}, line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "a config file"
+    problem = " ".join(str(getattr(exc, "problem", None) or exc).split())
+    tag = problem.partition("for the tag ")[2].strip("'")
+    if tag:
+        short = tag.replace("tag:yaml.org,2002:", "!!")
+        return (f"{where}: the YAML tag {short} is refused: decrun configs are plain YAML, tags that build "
+                f"Python objects are never run; remove the tag")
+    context = " ".join(str(getattr(exc, "context", None) or "").split())
+    return f"{where}: invalid YAML: {context + ': ' if context else ''}{problem}"
+
+
+def _file_being_loaded(exc: BaseException) -> str | None:
+    """The config file Hydra was loading when ``exc`` was raised (the ``full_path`` of its
+    file config source's ``load_config`` frame), or None."""
+    tb, path = exc.__traceback__, None
+    while tb is not None:
+        frame = tb.tb_frame
+        if frame.f_code.co_name == "load_config" and isinstance(frame.f_locals.get("full_path"), str):
+            path = frame.f_locals["full_path"]
+        tb = tb.tb_next
+    return path
+
+
+def config_error_message(exc: BaseException, args: list[str] | None = None) -> str | None:
+    """``error: …`` (one line) for a config Hydra could not read: a YAML error in a config
+    file (naming the file and line), or one nested too deeply for Python's stack (naming
+    the file, or else the deepest override of ``args``). None for any other error."""
+    import yaml  # lazy: only when something failed
+
+    yaml_error = find_in_chain(exc, yaml.YAMLError)
+    if yaml_error is not None:
+        return f"error: {_yaml_message(yaml_error)}"
+    recursion = find_in_chain(exc, RecursionError)
+    if recursion is None:
+        return None
+    path = _file_being_loaded(recursion)
+    if path is not None:
+        return (f"error: {path}: nested too deeply to load (Python's recursion limit); a config may nest lists "
+                f"and dicts at most {MAX_NESTING} levels")
+    deepest = max(args or [""], key=lambda a: nesting_depth(a.partition("=")[2]))
+    culprit = f"{_shorten(deepest)}: " if "=" in deepest else ""
+    return (f"error: {culprit}the config is nested too deeply to compose (Python's recursion limit); lists and "
+            f"dicts may nest at most {MAX_NESTING} levels")

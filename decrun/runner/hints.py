@@ -21,7 +21,7 @@ from decrun.errors import (
     UnreferencedVertexError,
 )
 
-__all__ = ["cli_hint", "cli_message", "PLUGIN_EXTRAS"]
+__all__ = ["cli_hint", "cli_message", "memory_hint", "plugin_name", "PLUGIN_EXTRAS"]
 
 #: Hydra group → option → (the plugin, the decrun extra that installs it)
 PLUGIN_EXTRAS = {
@@ -70,3 +70,81 @@ def cli_message(exc: DecrunError, mesh_source=None, dimension: int | None = None
     message = getattr(exc, "message", None) or str(exc)
     hint = cli_hint(exc, mesh_source, dimension)
     return f"{message}; {hint}" if hint else message
+
+
+# ----------------------------------------------------------------------------------
+# out of memory
+# ----------------------------------------------------------------------------------
+
+#: mesh options that make more simplices when larger; and when smaller
+MESH_SIZE_KEYS = ("subdiv", "nx", "ny", "cells", "major_segments", "minor_segments", "sides", "target_faces",
+                  "refinement", "refine_iterations")
+MESH_BOUND_KEYS = ("max_area",)
+
+
+def plugin_name(cfg, group: str) -> str | None:
+    """The ``name`` of the plugin class ``cfg[group]._target_`` names (``grid``, ``hodge``),
+    or None when it names none that imports (a run that failed before it was built)."""
+    import importlib
+
+    module, _, cls = str(cfg[group].get("_target_", "")).rpartition(".") if group in cfg else ("", "", "")
+    try:
+        return getattr(importlib.import_module(module), cls).name or None
+    except Exception:  # not importable: no name to give
+        return None
+
+
+def _option_defaults(cfg, group: str) -> dict:
+    """The values of ``conf/<group>/<name>.yaml`` for the plugin ``cfg[group]`` names
+    (:func:`plugin_name`), or {} when there is no such file."""
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import load_option
+
+    name = plugin_name(cfg, group)
+    try:
+        return OmegaConf.to_container(load_option(group, name), resolve=True) if name else {}
+    except Exception:  # a plugin outside conf/: no default to offer
+        return {}
+
+
+def _defaults(overrides: list[str]) -> str:
+    return "the defaults" if len(overrides) > 1 else "the default"
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def memory_hint(cfg, shape: tuple | None = None) -> str:
+    """The settings to lower after a run ran out of memory, as overrides that fix it
+    (``""`` when none can be named): the integer options whose value is a dimension of the
+    array that could not be allocated (``app.quadrature_order=100000000`` for a 10⁸ × 10⁸
+    array), set back to their default; else the mesh's resolution options above their
+    defaults (``mesh.nx``, ``mesh.subdiv``, …; ``mesh.max_area`` below it), set back to them."""
+    from omegaconf import OmegaConf
+
+    groups = [g for g in ("app", "mesh", "solver", "operator", "boundary") if g in cfg]
+    dims = {int(d) for d in (shape or ()) if int(d) > 1}
+    if dims:
+        found = []
+        for group in groups:
+            values = OmegaConf.to_container(cfg[group], resolve=True)
+            defaults = _option_defaults(cfg, group)
+            for key, value in values.items():
+                default = defaults.get(key)
+                if _is_int(value) and value in dims and _is_int(default) and default < value:
+                    found.append(f"{group}.{key}={default}")
+        if found:
+            keys = ", ".join(f.split("=")[0] for f in found)
+            return f"lower {keys} (a dimension of that array): use `{' '.join(found)}` ({_defaults(found)})"
+    if "mesh" not in cfg:
+        return ""
+    values = OmegaConf.to_container(cfg.mesh, resolve=True)
+    defaults = _option_defaults(cfg, "mesh")
+    coarser = [f"mesh.{key}={defaults[key]}" for key, value in values.items() if key in defaults and (
+        (key in MESH_SIZE_KEYS and _is_int(value) and _is_int(defaults[key]) and value > defaults[key])
+        or (key in MESH_BOUND_KEYS and isinstance(value, (int, float)) and 0 < value < defaults[key]))]
+    if coarser:
+        return f"use a coarser mesh: `{' '.join(coarser)}` ({_defaults(coarser)})"
+    return "use a coarser mesh or smaller app options"

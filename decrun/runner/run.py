@@ -27,9 +27,9 @@ from decrun.core.stars import HodgeStar
 from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, TopologyError
 from decrun.runner.config import DecrunConfig, OptimizeConfig
 from decrun.runner.context import RunContext
-from decrun.runner.failures import (exit_code, file_identity, find_os_error, interrupt_cause, os_error_message,
-                                    record_status, set_aside_stale)
-from decrun.runner.hints import cli_message
+from decrun.runner.failures import (exit_code, file_identity, find_memory_error, find_os_error, interrupt_cause,
+                                    memory_error_text, os_error_message, record_status, set_aside_stale)
+from decrun.runner.hints import cli_message, memory_hint, plugin_name
 from decrun.runner.mesh import MeshSource
 from decrun.runner.plugins import build
 from decrun.runner.progress import make_progress, task
@@ -79,14 +79,21 @@ _KEYS = ("mesh", "operator", "boundary", "app", "solver", "export", "progress", 
 
 def name_the_key(exc: DecrunError, experiment: Experiment, where: str) -> DecrunError:
     """``exc`` with the config key it comes from in front, when its message (raised by the
-    core, which knows no config) does not start with one: the mesh (``where``) for mesh
-    and topology errors, ``solver=<name>`` for solver errors, ``app=<name>`` otherwise.
+    core, which knows no config) does not start with one: ``solver=<name>`` for solver
+    errors, ``app=<name>`` otherwise. Mesh and topology errors always name the mesh
+    (``where``: its file or sample, :func:`mesh_where`), also when they name an app key
+    (``app=parametrization needs a border``); a bare ``mesh:`` becomes ``where``.
     Errors about files (an OSError such as ResultWriteError) name their file already."""
     message = str(exc)
-    if message.startswith(_KEYS) or isinstance(exc, OSError):
+    if isinstance(exc, OSError):
         return exc
     if isinstance(exc, (MeshError, TopologyError)):
+        if message.startswith(("mesh.", "mesh=", "mesh ")):  # names the mesh already
+            return exc
+        message = message.removeprefix("mesh: ")
         prefix = where
+    elif message.startswith(_KEYS):
+        return exc
     elif isinstance(exc, SolverError):
         prefix = f"solver={experiment.solver.name} (app={experiment.app.name})"
     else:
@@ -257,10 +264,11 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
         sys.exit(exit_code(exc))
     except Exception as exc:
         os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)
+        memory = None if isinstance(exc, DecrunError) or os_error is not None else find_memory_error(exc)
         message = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None
-                   else f"{type(exc).__name__}: {exc}")
+                   else memory_message(memory, cfg) if memory is not None else f"{type(exc).__name__}: {exc}")
         note = set_aside_stale(out, earlier) + record_status(out, "failed", message, identity)
-        if verbose or not (isinstance(exc, DecrunError) or os_error is not None):
+        if verbose or not (isinstance(exc, DecrunError) or os_error is not None or memory is not None):
             log.exception("error: %s%s", message, note)
         else:
             log.error("error: %s%s", message, note)
@@ -280,6 +288,15 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
             where = out
         print(f"decrun: wrote {where}/ ({', '.join(p.name for p in written)}, {log_name}.log)")
     return 0
+
+
+def memory_message(exc: BaseException, cfg: DictConfig) -> str:
+    """``<where>: could not allocate <size> for an array of shape (…) <dtype>; <the setting
+    to lower>`` for a run that ran out of memory (:func:`decrun.runner.failures.memory_error_text`,
+    :func:`decrun.runner.hints.memory_hint`); ``where`` names the app and the mesh source."""
+    where = f"app={plugin_name(cfg, 'app') or '?'} on mesh={plugin_name(cfg, 'mesh') or '?'}"
+    hint = memory_hint(cfg, getattr(exc, "shape", None))
+    return f"{where}: {memory_error_text(exc)}" + (f"; {hint}" if hint else "")
 
 
 def _short(value: Any) -> str:

@@ -76,3 +76,37 @@ def test_filled_holes_keep_the_original_vertices_and_orientation():
     assert filled.num_simplices(0) == K.num_simplices(0) + len(loops) - 1
     assert len(filled.border_loops()) == 1 and filled.euler_characteristic == 1
     np.testing.assert_array_equal(filled.oriented_simplices()[: K.num_simplices(2)], K.oriented_simplices())
+
+
+@pytest.mark.parametrize("faces", [[(0, 1, 2)], [(0, 1, 2), (0, 2, 3)]], ids=["one_triangle", "one_polygon"])
+def test_solver_auto_parametrizes_a_mesh_without_interior_vertices(decrun_cli, tmp_path, faces):
+    """Every vertex on the border: the interior system is 0×0, which CHOLMOD (solver=auto's
+    Cholesky) used to refuse with ``RuntimeError: Failed to resize matrix arrays!``."""
+    corners = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])[:max(map(max, faces)) + 1]
+    path = tmp_path / "patch.obj"
+    path.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in corners)
+                    + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+    metrics = _cli_metrics(decrun_cli, tmp_path, "app=parametrization", "mesh=file", f"mesh.path={path}", "solver=auto")
+    assert metrics["status"] == "ok" and metrics["is_embedding"] is True
+    assert metrics["n_vertices"] == len(corners) and metrics["flipped_triangles"] == 0
+
+
+@pytest.mark.parametrize("source", ["file", "sample"])
+def test_a_closed_mesh_is_refused_naming_the_file_or_sample(decrun_cli, tmp_path, source):
+    """The refusal names the mesh (the file, or the sample) and its hole override runs."""
+    import re
+
+    if source == "file":
+        path = tmp_path / "tetrahedron.obj"
+        path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n")
+        mesh, where = ["mesh=file", f"mesh.path={path}"], f"mesh.path='{path}'"
+    else:
+        mesh, where = ["mesh=sample", "mesh.sample=cube"], "mesh.sample=cube"
+    proc = decrun_cli("app=parametrization", *mesh, "figures=false", f"hydra.run.dir={tmp_path / 'closed'}")
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    line = proc.stderr.strip().splitlines()[-1]
+    assert line.startswith(f"error: {where}: app=parametrization needs a disk-like surface with a border; "
+                           "this mesh is closed"), line
+    if source == "file":
+        fix = re.search(r"`(mesh\.hole_balls=[^`]+)`", line).group(1)
+        assert _cli_metrics(decrun_cli, tmp_path, "app=parametrization", *mesh, fix)["status"] == "ok"

@@ -208,3 +208,17 @@ def test_amg_accepts_a_backward_stable_solve_of_a_shifted_singular_system():
     strict.factorize(shifted)
     with pytest.raises(SolverError, match="no convergence"):
         strict.solve(b)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_every_solver_solves_an_empty_system(name):
+    """A 0×0 system (every unknown fixed by the border, e.g. the parametrization of one
+    triangle) has the empty solution; CHOLMOD and pyamg refuse a 0×0 matrix themselves."""
+    solver = make_solver(name).factorize(sp.csr_matrix((0, 0)))
+    for b in (np.zeros(0), np.zeros((0, 2))):
+        x = solver.solve(b)
+        assert x.shape == b.shape and x.dtype == np.float64
+    with pytest.raises(SolverError, match="right-hand side has 1 rows"):
+        solver.solve(np.ones(1))
+    solver.factorize(sp.identity(2, format="csr"))  # the same solver takes a real system afterwards
+    np.testing.assert_allclose(solver.solve(np.array([1.0, 2.0])), [1.0, 2.0], atol=1e-8)

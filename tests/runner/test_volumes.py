@@ -134,3 +134,49 @@ def test_hodge_on_a_file_whose_cavities_meet_along_an_edge(tmp_path, decrun_cli)
     assert metrics["harmonic_dimension"] == 2
     assert "betti_2" not in metrics and "harmonic_dimension_matches_betti" not in metrics
     assert "betti_2 not computed" in done.stderr and "border surface is pinched" in done.stderr
+
+
+def _backquoted(message: str) -> str:
+    import re
+
+    return re.search(r"`([^`]+)`", message).group(1)
+
+
+def test_a_max_volume_making_billions_of_tetrahedra_is_refused_before_tetgen(decrun_cli, monkeypatch):
+    """volume / max_volume bounds the count from below: 1e-12 in the unit ball is ~7e12
+    tetrahedra, refused with a max_volume that fits before TetGen allocates anything."""
+    import tetgen
+
+    def not_started(*args, **kwargs):
+        raise AssertionError("TetGen started")
+
+    monkeypatch.setattr(tetgen, "TetGen", not_started)
+    with pytest.raises(ConfigError) as info:
+        run("mesh=tetrahedralize", "mesh.max_volume=1e-12", "app=spectrum")
+    message = str(info.value)
+    assert message.startswith("mesh.max_volume=1e-12: the surface encloses a volume of 4.15")
+    assert "about 7.5e+12 tetrahedra" in message and "more than mesh.max_tetrahedra=4000000" in message
+    assert _backquoted(message) == "mesh.max_volume=3.2e-06"
+    monkeypatch.undo()
+    # the same refusal under a smaller limit, through the command line; its override runs
+    done = decrun_cli("mesh=tetrahedralize", "mesh.max_volume=1e-9", "mesh.max_tetrahedra=20000", "app=spectrum",
+                      "figures=false", "hydra.run.dir=refused")
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    (line,) = done.stderr.strip().splitlines()
+    assert line.startswith("error: mesh.max_volume=1e-09:") and "or raise mesh.max_tetrahedra" in line
+    metrics, mesh = run("mesh=tetrahedralize", _backquoted(line), "mesh.max_tetrahedra=20000", "app=spectrum",
+                        "app.count=3", "figures=false")
+    assert metrics["status"] == "ok" and 5_000 < len(mesh.simplices) <= 20_000
+
+
+def test_more_tetrahedra_than_estimated_is_refused_naming_the_limit_that_accepts_them():
+    """On a coarse ball TetGen makes 2.9 × volume / max_volume (the estimate says 1.8, and
+    the surface's triangles, not max_volume, set the size): the count after TetGen is
+    checked too, and the limit it names accepts the mesh."""
+    with pytest.raises(ConfigError, match="mesh.max_volume=0.004153: TetGen made 2.[0-9]+e\\+03 tetrahedra, more than "
+                                          "mesh.max_tetrahedra=2000") as info:
+        run("mesh=tetrahedralize", "mesh.max_volume=0.004153", "mesh.max_tetrahedra=2000", "app=spectrum")
+    fix = _backquoted(str(info.value))
+    metrics, mesh = run("mesh=tetrahedralize", "mesh.max_volume=0.004153", fix, "app=spectrum", "app.count=3",
+                        "figures=false")
+    assert metrics["status"] == "ok" and fix == f"mesh.max_tetrahedra={len(mesh.simplices)}"

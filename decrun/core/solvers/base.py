@@ -60,7 +60,10 @@ class Solver:
     def factorize(self, A) -> "Solver":
         """Prepare repeated solves with the square sparse matrix ``A`` (n, n).
 
-        A no-op when ``A`` equals (values and pattern) the matrix prepared last.
+        A no-op when ``A`` equals (values and pattern) the matrix prepared last. An empty
+        system (n = 0: e.g. a problem whose every value is fixed by the border) is not
+        handed to the method (CHOLMOD and pyamg refuse a 0×0 matrix): its solution is the
+        empty array, for every solver.
         """
         A = sp.csr_matrix(A, dtype=np.float64)
         if A.shape[0] != A.shape[1]:
@@ -73,7 +76,8 @@ class Solver:
         key = fingerprint(A)
         if key == self._key:
             return self
-        self._prepare(A)
+        if A.shape[0]:
+            self._prepare(A)
         self._key, self.shape = key, A.shape
         self.factorizations += 1
         return self
@@ -85,6 +89,8 @@ class Solver:
         b = np.asarray(b, dtype=np.float64)
         if b.shape[0] != self.shape[0]:
             raise SolverError(f"{self.name} solver: right-hand side has {b.shape[0]} rows, matrix {self.shape}")
+        if self.shape[0] == 0:  # an empty system: nothing was prepared, nothing to solve
+            return np.zeros(b.shape)
         return self._solve_block(b)
 
     def _solve_block(self, b: np.ndarray) -> np.ndarray:

@@ -27,10 +27,8 @@ class DirectSolver(Solver):
         except RuntimeError as exc:  # "Factor is exactly singular"
             raise SolverError(f"direct solver: cannot factorize the {A.shape} matrix: {exc}") from exc
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        if self._key is None:
-            raise SolverError("direct solver: solve() called before factorize()")
-        x = self._lu.solve(np.asarray(b, dtype=np.float64))
+    def _solve_block(self, b: np.ndarray) -> np.ndarray:
+        x = self._lu.solve(b)
         if not np.all(np.isfinite(x)):
             raise SolverError("direct solver: the solution is not finite (matrix numerically singular?)")
         return x

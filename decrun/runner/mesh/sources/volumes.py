@@ -20,11 +20,40 @@ from decrun.errors import ConfigError, MeshError
 from decrun.runner.mesh.base import Mesh, require
 from decrun.runner.mesh.source import MeshSource
 
-__all__ = ["Box", "Tetrahedralize", "border_vertex_mask", "tetrahedralize_surface"]
+__all__ = ["Box", "Tetrahedralize", "border_vertex_mask", "tetrahedralize_surface", "enclosed_volume",
+           "estimated_tetrahedra"]
 
 #: the most tetrahedra a source may produce (memory: ~1 kB per tetrahedron for complex and
-#: operators; measured in benchmarks/bench_volumes.py)
+#: operators; measured in benchmarks/bench_volumes.py); ``mesh.max_tetrahedra`` of
+#: ``mesh=tetrahedralize`` moves it
 MAX_TETRAHEDRA = 4_000_000
+
+#: TetGen's tetrahedra per ``volume / max_volume`` with quality refinement: 1.79–1.84 once
+#: max_volume binds (unit icosphere, torus, cube; 36k–180k tetrahedra), up to 2.9 on coarse
+#: meshes, where the surface's triangles set the size. Each tetrahedron is at most
+#: max_volume, so the count is never below volume / max_volume.
+TETS_PER_MAX_VOLUME = 1.8
+#: the ratio a suggested max_volume allows for (the coarse end of the range above)
+TETS_PER_MAX_VOLUME_HIGH = 3.0
+
+
+def enclosed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """|Σ_f v0 · (v1 × v2)| / 6 (divergence theorem): the volume (model units³) a closed,
+    consistently oriented triangle surface ``(vertices (n, 3), faces (m, 3))`` encloses."""
+    v0, v1, v2 = (vertices[faces[:, i]] for i in range(3))
+    return abs(float(np.einsum("ij,ij->", v0, np.cross(v1, v2)))) / 6.0
+
+
+def estimated_tetrahedra(volume: float, max_volume: float) -> float:
+    """About how many tetrahedra TetGen's quality refinement makes in ``volume`` with the
+    bound ``max_volume`` (:data:`TETS_PER_MAX_VOLUME` × volume / max_volume)."""
+    return TETS_PER_MAX_VOLUME * volume / max_volume
+
+
+def _round_up(value: float) -> float:
+    """``value`` rounded up to two significant digits (a suggested bound that stays on the safe side)."""
+    scale = 10.0 ** (np.floor(np.log10(value)) - 1)
+    return float(np.ceil(value / scale) * scale)
 
 
 def _border_triangles(tets: np.ndarray) -> np.ndarray:
@@ -208,6 +237,7 @@ class Tetrahedralize(MeshSource):
     min_dihedral_deg: float = 0.0
     max_volume: float = 0.0
     keep_surface: bool = False
+    max_tetrahedra: int = MAX_TETRAHEDRA  # the most tetrahedra TetGen may make (memory)
 
     def __post_init__(self):
         super().__post_init__()
@@ -217,6 +247,7 @@ class Tetrahedralize(MeshSource):
         require(0 <= self.min_dihedral_deg < 70, "min_dihedral_deg",
                 f"must be in [0, 70) degrees, got {self.min_dihedral_deg}")
         require(self.max_volume >= 0, "max_volume", f"must be >= 0 (0: no bound), got {self.max_volume}")
+        require(self.max_tetrahedra >= 1, "max_tetrahedra", f"must be >= 1, got {self.max_tetrahedra}")
 
     def surface_source(self) -> MeshSource:
         """The :class:`MeshSource` that makes the surface (class docstring)."""
@@ -243,19 +274,40 @@ class Tetrahedralize(MeshSource):
                               f"{sorted(known)}")
         return cls(**options)
 
+    def check_count(self, vertices: np.ndarray, faces: np.ndarray) -> None:
+        """ConfigError before TetGen starts when ``max_volume`` would make more than
+        ``max_tetrahedra`` tetrahedra (:func:`estimated_tetrahedra` of the volume the surface
+        encloses), naming the ``mesh.max_volume`` that makes about half as many or fewer.
+        Without quality refinement TetGen does not refine to max_volume: nothing to estimate."""
+        if not (self.max_volume > 0 and self.quality):
+            return
+        volume = enclosed_volume(vertices, faces)
+        estimate = estimated_tetrahedra(volume, self.max_volume)
+        if estimate <= self.max_tetrahedra:
+            return
+        fits = _round_up(TETS_PER_MAX_VOLUME_HIGH * volume / self.max_tetrahedra)
+        raise ConfigError(f"mesh.max_volume={self.max_volume:g}: the surface encloses a volume of {volume:.4g}, so "
+                          f"TetGen would make about {estimate:.2g} tetrahedra ({TETS_PER_MAX_VOLUME:g} × volume / "
+                          f"max_volume), more than mesh.max_tetrahedra={self.max_tetrahedra} (memory: about 1 kB "
+                          f"each); use `mesh.max_volume={fits:.2g}` (about {estimated_tetrahedra(volume, fits):.2g} "
+                          f"tetrahedra), or raise mesh.max_tetrahedra")
+
     def make(self) -> Mesh:
         surface = self.surface_source().load()
         if surface.simplices.shape[1] != 3:
             raise ConfigError(f"mesh.surface={self.surface}: is already tetrahedral; use mesh=file")
         vertices = surface.vertices if surface.vertices.shape[1] == 3 else np.column_stack(
             [surface.vertices, np.zeros(len(surface.vertices))])
+        self.check_count(vertices, surface.simplices)
         nodes, tets, counts = tetrahedralize_surface(vertices, surface.simplices, quality=self.quality,
                                                      min_ratio=self.min_ratio, min_dihedral_deg=self.min_dihedral_deg,
                                                      max_volume=self.max_volume, keep_surface=self.keep_surface,
                                                      what=f"mesh=tetrahedralize mesh.surface={self.surface}")
-        if len(tets) > MAX_TETRAHEDRA:
-            raise ConfigError(f"mesh.max_volume: TetGen made {len(tets):.3g} tetrahedra, more than decrun's limit "
-                              f"{MAX_TETRAHEDRA:.0e}; use a larger mesh.max_volume")
+        if len(tets) > self.max_tetrahedra:  # more than estimated: coarse meshes, where the surface sets the size
+            coarser = "a larger mesh.max_volume or a coarser mesh.surface" if self.max_volume > 0 else "a coarser mesh.surface"
+            raise ConfigError(f"mesh.max_volume={self.max_volume:g}: TetGen made {len(tets):.3g} tetrahedra, more than "
+                              f"mesh.max_tetrahedra={self.max_tetrahedra} (memory: about 1 kB each); use {coarser}, or "
+                              f"accept this mesh with `mesh.max_tetrahedra={len(tets)}`")
         meta = {"source": "tetrahedralize", "label": f"{surface.meta.get('label', self.surface)}_tets",
                 "tetrahedralize": counts}
         if "path" in surface.meta:

@@ -9,7 +9,8 @@ coexact part the projection onto im δ_{k+1}; both come from one sparse solve ea
 
 Both matrices are singular (their kernels are ker d_{k-1} and ker d_kᵀ) but the right
 sides are compatible, and the kernels do not change dα or δβ. We factorize each matrix
-once with a tiny diagonal shift and remove the shift's error by iterative refinement.
+once with a tiny diagonal shift and remove the shift's error by iterative refinement
+(α and μ only up to their kernels, which dα and δβ do not see: no kernel projection).
 The decomposition is exactly orthogonal when ⋆_k is positive (e.g. Delaunay meshes for
 the circumcentric ⋆1); with negative cot weights ⟨·,·⟩_⋆ is indefinite. With a Galerkin
 (non-diagonal, SPD) ⋆_k = M (``operator=whitney``) it is M-orthogonal on every mesh; the
@@ -63,7 +64,7 @@ class HodgeDecomposer:
         self._exact = self._coexact = None
         if k > 0:
             d = dec.d(k - 1)
-            self._exact = SingularSolve(d.T @ dec.star(k) @ d, new_solver())
+            self._exact = SingularSolve(d.T @ dec.star(k) @ d, new_solver(), project=False)
         if k < n and not dec.star_is_diagonal(k):
             self._coexact = _GalerkinCoexact(dec, k, new_solver())
         elif k < n:
@@ -84,7 +85,7 @@ class HodgeDecomposer:
                     "`mesh.noise=0.05`, or remesh it, `mesh.refine=isotropic`"
                 )
             d = dec.d(k)
-            self._coexact = SingularSolve(d @ dec.star_inv(k) @ d.T, new_solver())
+            self._coexact = SingularSolve(d @ dec.star_inv(k) @ d.T, new_solver(), project=False)
 
     def decompose(self, omega: np.ndarray) -> HodgeParts:
         """Split ``omega`` ((n_k,) or (n_k, s) for s forms at once) into its Hodge parts."""

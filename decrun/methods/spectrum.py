@@ -18,10 +18,16 @@ shift-invert mode about a small negative shift σ (every λ ≥ 0 > σ, so the e
 
   (the mixed formulation of finite-element exterior calculus), factorized once.
 
-A ⋆_k that is not positive definite (circumcentric stars on non-Delaunay or non-well-centred
-meshes) makes ⟨·,·⟩_⋆ indefinite: the eigenvalues may then be complex, and they are computed
-from the non-symmetric operator (⋆_kΔ_k − σ⋆_k)⁻¹ ⋆_k (``imaginary_max`` reports how far
-from real they are). A ⋆_{k-1} with zero entries makes ⋆_kΔ_k infinite: refused.
+A ⋆_k with negative entries (circumcentric stars on non-Delaunay or non-well-centred meshes)
+makes ⟨·,·⟩_⋆ indefinite: the pencil then has negative and complex eigenvalues that are no
+spectrum of Δ_k (measured: −17.0 and −4.6 on ``mesh=box mesh.jitter=0.2 mesh.cells=10``,
+degree 1), so it is refused before any work (:func:`check_stars`), naming the Galerkin stars.
+Zero entries only make the mass semi-definite (infinite eigenvalues, which the shift-invert
+solve never reaches; Arnoldi on (⋆_kΔ_k − σ⋆_k)⁻¹ ⋆_k, since ⋆_k is then no inner product). A ⋆_{k-1} with zero entries makes ⋆_kΔ_k infinite: refused.
+
+Every returned eigenpair is checked (:func:`eigen_accuracy`): the backward residual
+‖A u − λ M u‖ / (‖A‖ ‖u‖) and the M-orthonormality max |UᵀMU − I|; ``converged`` is False
+when either exceeds :data:`RESIDUAL_MAX` / :data:`ORTHONORMALITY_MAX`.
 
 :func:`analytic_spectrum` gives the exact spectra the discrete ones converge to:
 the round sphere, flat tori and axis-aligned boxes (rectangles, cuboids); :func:`detect_domain`
@@ -43,26 +49,35 @@ from decrun.core.solvers import solver_factory
 from decrun.errors import ConfigError, MeshError, SolverError
 
 __all__ = ["Eigenpairs", "Domain", "laplacian_eigenpairs", "check_stars", "needs_indefinite_solve", "analytic_spectrum",
-           "detect_domain", "spectrum_errors"]
+           "detect_domain", "spectrum_errors", "eigen_accuracy"]
 
 #: up to this many k-simplices the eigenpairs come from a dense LAPACK solve
 DENSE_MAX = 400
+#: an eigen-solve has converged when every pair's ‖A u − λ M u‖ / (‖A‖ ‖u‖) is below
+#: max(RESIDUAL_MAX, 100 · tol) and max |UᵀMU − I| below ORTHONORMALITY_MAX (measured on
+#: converged solves: ≤ 1e-12 and ≤ 1e-11; the indefinite-mass solve this replaced: 0.046 and 1)
+RESIDUAL_MAX = 1e-8
+ORTHONORMALITY_MAX = 1e-6
 
 
 @dataclass
 class Eigenpairs:
     """The ``count`` lowest eigenpairs of Δ_k.
 
-    values : (count,) ascending (real parts when ⋆_k is indefinite)
-    vectors : (n_k, count), ⋆_k-normalized (|uᵀ ⋆_k u| = 1)
-    imaginary_max : max |Im λ| / max(|λ|, 1) — 0 for a positive definite ⋆_k
+    values : (count,) ascending
+    vectors : (n_k, count), ⋆_k-normalized (uᵀ ⋆_k u = 1)
     shift : the shift σ used (0 for the dense solve)
+    residual_max : max over the pairs of ‖A u − λ M u‖ / (‖A‖ ‖u‖), A = ⋆_kΔ_k, M = ⋆_k
+    orthonormality_error : max |UᵀMU − I|
+    converged : both below their bounds (:data:`RESIDUAL_MAX`, :data:`ORTHONORMALITY_MAX`)
     """
 
     values: np.ndarray
     vectors: np.ndarray
-    imaginary_max: float
     shift: float
+    residual_max: float = np.nan
+    orthonormality_error: float = np.nan
+    converged: bool = False
 
 
 def _star_positive(dec, k: int) -> bool:
@@ -87,10 +102,30 @@ def _zero_entries(dec, j: int) -> np.ndarray:
     return np.flatnonzero(np.abs(star) <= 1e-12 * np.abs(star).max())
 
 
+def _negative_entries(dec, j: int) -> np.ndarray:
+    """Indices where a diagonal ⋆_j is negative beyond round-off (none for a Galerkin ⋆_j)."""
+    star = dec.star_diagonal_or_none(j)
+    if star is None:
+        return np.zeros(0, dtype=np.int64)
+    return np.flatnonzero(star < -1e-12 * np.abs(star).max())
+
+
 def check_stars(dec, k: int) -> None:
-    """MeshError when a diagonal ⋆_{k-1} has zero entries (degenerate dual cells, as in Kuhn
-    cubes): ⋆_{k-1}⁻¹ in Δ_k is then infinite. (Zeros in ⋆_k only make the mass singular:
-    infinite eigenvalues, which the shift-invert solve never reaches.)"""
+    """MeshError when the mass ⋆_k has negative entries (an indefinite pencil: negative and
+    complex eigenvalues, no spectrum of Δ_k), naming the operator whose mass is positive there
+    (``mixed_area`` for functions on a surface, else the Galerkin ``whitney``), or when a
+    diagonal ⋆_{k-1} has zero entries (degenerate dual cells, as in Kuhn cubes): ⋆_{k-1}⁻¹ in
+    Δ_k is then infinite. (Zeros in ⋆_k only make the mass singular: infinite eigenvalues,
+    which the shift-invert solve never reaches.)"""
+    negative = _negative_entries(dec, k)
+    if negative.size:
+        fix = "operator=mixed_area" if k == 0 and dec.n == 2 else "operator=whitney"
+        what = "mixed Voronoi areas, positive on every mesh" if k == 0 and dec.n == 2 else \
+            "Galerkin stars, SPD on every mesh"
+        raise MeshError(f"the eigenproblem of Δ_{k} needs a positive mass ⋆_{k}, but ⋆_{k} of operator="
+                        f"{dec.star_variant.name} is negative on {negative.size} of {dec.K.num_simplices(k)} simplices "
+                        f"(e.g. {negative[:5].tolist()}: non-Delaunay or not well-centred dual cells), which gives "
+                        f"negative and complex eigenvalues; use `{fix}` ({what})")
     if k == 0 or _galerkin_lower(dec, k):
         return
     zero = _zero_entries(dec, k - 1)
@@ -152,63 +187,110 @@ def laplacian_eigenpairs(dec, k: int, count: int, solver=None, shift: float | No
 
     Returns
     -------
-    :class:`Eigenpairs`
+    :class:`Eigenpairs`, checked (``residual_max``, ``orthonormality_error``, ``converged``).
+    Raises MeshError for a mass ⋆_k with negative entries, SolverError when ARPACK stops
+    short of ``count`` pairs.
     """
     size = dec.K.num_simplices(k)
     if not 1 <= count < size:
         raise ConfigError(f"app.count: needs 1 ≤ count < {size} (the number of {k}-simplices), got {count}")
     check_stars(dec, k)
-    positive = _star_positive(dec, k)
     M = sp.csr_matrix(dec.star(k))
     if size <= DENSE_MAX:
-        return _dense(dec, k, count, M, positive)
-    shift = _default_shift(dec) if shift is None else float(shift)
-    if shift >= 0:
-        raise ConfigError(f"app.shift: must be negative (below the spectrum), got {shift}")
-    inverse = _shifted_inverse(dec, k, shift, solver_factory(solver)())
-    v0 = np.random.default_rng(seed).standard_normal(size)
-    # a few more than asked, and a wide Krylov space: symmetric meshes have exactly repeated
-    # eigenvalues (5-fold l = 2 on an icosphere), which Lanczos from one start vector finds
-    # only through rounding; too small a space missed two of five (measured, icosphere(3))
-    wanted = min(count + max(5, count // 2), size - 2)
-    ncv = min(size - 1, max(2 * wanted + 1, wanted + 20))
-    if positive:
-        A = dec.laplacian_symmetric(k)
-        values, vectors = spla.eigsh(A, k=wanted, M=M, sigma=shift, which="LM", OPinv=inverse, v0=v0, tol=tol,
-                                     ncv=ncv)
-        imaginary = 0.0
+        values, vectors, shift = *_dense(dec, k, count, M, _star_positive(dec, k)), 0.0
     else:
-        operator = spla.LinearOperator((size, size), matvec=lambda x: inverse @ (M @ np.ravel(x)), dtype=np.float64)
-        nu, vectors = spla.eigs(operator, k=wanted, which="LM", v0=v0, tol=tol, ncv=ncv)
-        complex_values = shift + 1.0 / nu
-        imaginary = float(np.max(np.abs(complex_values.imag) / np.maximum(np.abs(complex_values), 1.0)))
-        values, vectors = complex_values.real, vectors.real
-    return _sorted_normalized(values, vectors, M, imaginary, shift, count)
+        shift = _default_shift(dec) if shift is None else float(shift)
+        if shift >= 0:
+            raise ConfigError(f"app.shift: must be negative (below the spectrum), got {shift}")
+        inverse = _shifted_inverse(dec, k, shift, solver_factory(solver)())
+        v0 = np.random.default_rng(seed).standard_normal(size)
+        # a few more than asked, and a wide Krylov space: symmetric meshes have exactly repeated
+        # eigenvalues (5-fold l = 2 on an icosphere), which Lanczos from one start vector finds
+        # only through rounding; too small a space missed two of five (measured, icosphere(3))
+        wanted = min(count + max(5, count // 2), size - 2)
+        ncv = min(size - 1, max(2 * wanted + 1, wanted + 20))
+        try:
+            if _star_positive(dec, k):  # the symmetric Lanczos solve in the M inner product
+                values, vectors = spla.eigsh(dec.laplacian_symmetric(k), k=wanted, M=M, sigma=shift, which="LM",
+                                             OPinv=inverse, v0=v0, tol=tol, ncv=ncv)
+            else:  # a mass with zero entries (check_stars refused negative ones) is no inner product:
+                # Arnoldi on (A − σM)⁻¹ M; its finite eigenvalues are real (A symmetric, M ≥ 0)
+                operator = spla.LinearOperator((size, size), matvec=lambda x: inverse @ (M @ np.ravel(x)),
+                                               dtype=np.float64)
+                nu, vectors = spla.eigs(operator, k=wanted, which="LM", v0=v0, tol=tol, ncv=ncv)
+                values, vectors = _real_orthonormal(shift + 1.0 / nu, vectors, M)
+        except spla.ArpackNoConvergence as exc:
+            raise SolverError(f"eigen-solve of Δ_{k}: ARPACK converged {len(exc.eigenvalues)} of {wanted} "
+                              f"eigenpairs (app.tol={tol:g}, {ncv} Lanczos vectors)") from None
+    order = np.argsort(values)[:count]
+    values, vectors = np.asarray(values)[order], np.asarray(vectors)[:, order]
+    norms = np.sqrt(np.abs(np.einsum("ij,ij->j", vectors, M @ vectors)))
+    vectors = vectors / np.where(norms > 0, norms, 1.0)
+    residual, orthonormality = eigen_accuracy(dec, k, values, vectors)
+    converged = bool(residual <= max(RESIDUAL_MAX, 100 * tol) and orthonormality <= ORTHONORMALITY_MAX)
+    return Eigenpairs(values=values, vectors=vectors, shift=shift, residual_max=residual,
+                      orthonormality_error=orthonormality, converged=converged)
 
 
-def _dense(dec, k, count, M, positive) -> Eigenpairs:
+def _real_orthonormal(values: np.ndarray, vectors: np.ndarray, M, rtol: float = 1e-8):
+    """Real, M-orthonormal eigenvectors from Arnoldi's complex ones: per cluster of equal
+    (real) eigenvalues — |Δλ| ≤ ``rtol`` max(|λ|, 1) — the m vectors' real and imaginary
+    parts span the eigenspace; its m-dimensional M-orthonormal basis is taken from the
+    eigenvectors of their M-Gram matrix (Arnoldi's vectors of a repeated eigenvalue are
+    neither real nor M-orthogonal: orthonormality error 1 on a flat torus). (values (c,),
+    vectors (n, c)) in ascending order."""
+    order = np.argsort(values.real)
+    values, vectors = values.real[order], vectors[:, order]
+    cuts = np.flatnonzero(np.diff(values) > rtol * np.maximum(np.abs(values[1:]), 1.0)) + 1
+    out = []
+    for cluster in np.split(np.arange(len(values)), cuts):  # a loop over the few eigenvalues, not the mesh
+        basis = np.hstack([vectors[:, cluster].real, vectors[:, cluster].imag])
+        weights, coefficients = la.eigh(basis.T @ (M @ basis))
+        top = coefficients[:, -len(cluster):] / np.sqrt(np.maximum(weights[-len(cluster):], np.finfo(float).tiny))
+        out.append(basis @ top)
+    return values, np.hstack(out)
+
+
+def _dense(dec, k, count, M, positive) -> tuple[np.ndarray, np.ndarray]:
     size = M.shape[0]
     A = dec.laplacian_symmetric(k)
     A = A.toarray() if sp.issparse(A) else A @ np.eye(size)
     A = 0.5 * (A + A.T)
     if positive:
-        values, vectors = la.eigh(A, M.toarray(), subset_by_index=[0, count - 1])
-        return _sorted_normalized(values, vectors, M, 0.0, 0.0)
+        return la.eigh(A, M.toarray(), subset_by_index=[0, count - 1])
+    # a mass with zero entries (semi-definite): LAPACK's QZ, the infinite eigenvalues dropped
     values, vectors = la.eig(A, M.toarray())
     finite = np.isfinite(values)
-    values, vectors = values[finite], vectors[:, finite]
-    order = np.argsort(values.real)[:count]
-    values, vectors = values[order], vectors[:, order]
-    imaginary = float(np.max(np.abs(values.imag) / np.maximum(np.abs(values), 1.0))) if values.size else 0.0
-    return _sorted_normalized(values.real, vectors.real, M, imaginary, 0.0)
+    return values[finite].real, vectors[:, finite].real
 
 
-def _sorted_normalized(values, vectors, M, imaginary, shift, count=None) -> Eigenpairs:
-    order = np.argsort(values)[:count]
-    values, vectors = np.asarray(values)[order], np.asarray(vectors)[:, order]
-    norms = np.sqrt(np.abs(np.einsum("ij,ij->j", vectors, M @ vectors)))
-    vectors = vectors / np.where(norms > 0, norms, 1.0)
-    return Eigenpairs(values=values, vectors=vectors, imaginary_max=imaginary, shift=shift)
+def _norm_estimate(A, size: int, steps: int = 30) -> float:
+    """‖A‖₂ of the symmetric PSD A: √(‖A‖₁‖A‖∞) for a sparse matrix, else ``steps`` power
+    iterations (a LinearOperator with a Galerkin ⋆_{k-1}⁻¹ inside; seeded)."""
+    from decrun.core.solvers.base import norm_bound
+
+    if sp.issparse(A):
+        return norm_bound(A)
+    x = np.random.default_rng(0).standard_normal(size)
+    value = 0.0
+    for _ in range(steps):
+        y = A @ (x / np.linalg.norm(x))
+        value, x = float(np.linalg.norm(y)), y
+        if value == 0.0:
+            break
+    return value
+
+
+def eigen_accuracy(dec, k: int, values: np.ndarray, vectors: np.ndarray) -> tuple[float, float]:
+    """(max_j ‖A u_j − λ_j M u_j‖ / (‖A‖ ‖u_j‖), max |UᵀMU − I|) for A = ⋆_kΔ_k, M = ⋆_k:
+    the backward residual of each eigenpair and the M-orthonormality of the (n_k, c) vectors."""
+    M, A = dec.star(k), dec.laplacian_symmetric(k)
+    MU = M @ vectors
+    AU = A @ vectors if sp.issparse(A) else np.column_stack([A @ vectors[:, j] for j in range(vectors.shape[1])])
+    scale = _norm_estimate(A, vectors.shape[0]) * np.linalg.norm(vectors, axis=0)
+    residual = np.linalg.norm(AU - MU * values, axis=0) / np.where(scale > 0, scale, 1.0)
+    orthonormality = np.abs(vectors.T @ MU - np.eye(len(values))).max() if len(values) else 0.0
+    return float(residual.max(initial=0.0)), float(orthonormality)
 
 
 # ---------------------------------------------------------------------------- analytic spectra

@@ -20,6 +20,10 @@ CASES = {
     "hodge_negative_cot_weights": ["app=hodge", "mesh=grid", "mesh.nx=8", "mesh.ny=8", "mesh.noise=0.1",
                                    "operator=circumcentric"],
     "vector_field": ["app=vector_field", "mesh.subdiv=2"],
+    # a singular normal matrix (kernel: the two harmonic 1-forms): ω was 1.2e-7 off direct
+    # before SingularSolve projected the kernel out (issue 25 item 3)
+    "vector_field_harmonic_kernel": ["app=vector_field", "mesh=torus",
+                                     "app.sources=[{vertex:0,divergence:1.0},{vertex:300,divergence:-1.0}]"],
     "fluid": ["app=fluid", "mesh=channel", "mesh.target_faces=600", "app.steps=10", "app.record_every=10"],
 }
 #: potentials defined up to ker of their Poisson matrix (constants): only their d-images, the

@@ -204,3 +204,38 @@ def test_precomputed_magnitude_without_other_constraints_is_rejected():
     with pytest.raises(ConfigError, match="app.stroke_magnitude=precomputed"):
         Config(strokes=[stroke], stroke_magnitude="precomputed")
     Config(strokes=[stroke], stroke_magnitude="fixed")  # eq. 6.8 needs nothing else
+
+
+def _kernel_free_design(K, solver, boundary):
+    """ω of a source/sink pair without strokes: A = Dᵀ L D is singular (harmonic forms on the
+    torus, and the constant fields with boundary=flux on the square)."""
+    dec = DEC(K)
+    constraints = vd.DesignConstraints.empty(K)
+    ids = vd.nearest_vertices(K, [K.vertices[0], K.vertices[K.num_simplices(0) // 2]])
+    constraints.codifferential = vd.divergence_target(dec, ids, [1.0, -1.0])
+    delta = DEC(K, boundary=boundary).codifferential(1)
+    return dec, delta, vd.solve_design(dec, solver, constraints, delta).omega
+
+
+@pytest.mark.parametrize("name", ["cg", "amg", "iterative", "direct"])
+@pytest.mark.parametrize("case", ["torus", "square"])
+def test_every_solver_returns_the_kernel_free_design(name, case, request):
+    """Issue 25 item 3: an iterative solve of the shifted normal matrix A + εM stops at a
+    residual whose kernel part comes back ~ 1/ε larger, and the refinement (which sees only
+    A ω) kept it: cg was 1.3-4 % off direct, amg 4.5e-4, iterative and direct themselves ~1e-7
+    off the kernel-free solution. Now every solver's ω is M-orthogonal to ker A (to 1e-9 of
+    ‖ω‖) and they agree to 1e-9, the bound the README states."""
+    if name == "amg":
+        pytest.importorskip("pyamg")
+    K = request.getfixturevalue(case)
+    boundary = "flux" if case == "square" else "none"
+    dec, delta, omega = _kernel_free_design(K, make_solver(name), boundary)
+    _, _, reference = _kernel_free_design(K, make_solver("direct"), boundary)
+    A, _ = vd.normal_matrix(dec, delta, vd.DesignConstraints.empty(K))
+    values, vectors = np.linalg.eigh(A.toarray())
+    kernel = vectors[:, values < 1e-9 * values.max()]
+    assert kernel.shape[1] == 2  # torus: the harmonic 1-forms; square with flux: the constant fields
+    weight = np.maximum(np.abs(dec.star_diagonal(1)), 1e-3 * np.abs(dec.star_diagonal(1)).mean())
+    along = kernel.T @ (weight * omega) / np.sqrt(np.einsum("ik,i,ik->k", kernel, weight, kernel))
+    assert np.abs(along).max() <= 1e-9 * np.sqrt(omega @ (weight * omega))
+    assert np.linalg.norm(omega - reference) <= 1e-9 * np.linalg.norm(reference)

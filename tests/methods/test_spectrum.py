@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse.linalg as spla
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
@@ -73,9 +74,11 @@ def test_cube_spectrum_with_whitney_stars_every_degree(k):
     assert fine < 0.16 and coarse > 1.5 * fine, (coarse, fine)
 
 
-@pytest.mark.parametrize("k", [1, 2])
-def test_unit_square_absolute_spectrum_for_one_and_two_forms(k):
-    got = errors(*grid_triangles(16, jitter=0.2), "circumcentric", k)
+@pytest.mark.parametrize("k, star", [(1, "whitney"), (2, "circumcentric")])
+def test_unit_square_absolute_spectrum_for_one_and_two_forms(k, star):
+    """(The jittered square's circumcentric ⋆1 is negative on 137 edges: refused for k = 1,
+    see test_indefinite_mass_is_refused_naming_the_operator_that_works.)"""
+    got = errors(*grid_triangles(16, jitter=0.2), star, k)
     assert got["eigenvalue_relative_error_max"] < 0.06
 
 
@@ -103,13 +106,50 @@ def test_sparse_and_dense_paths_agree(monkeypatch):
     np.testing.assert_allclose(laplacian_eigenpairs(dec, 1, 8).values, sparse, rtol=1e-8)
 
 
-def test_indefinite_star_goes_through_the_nonsymmetric_solve():
+def test_indefinite_mass_is_refused_naming_the_operator_that_works():
+    """Issue 25 item 4: a mass ⋆_k with negative entries made the pencil indefinite, and the
+    eigenvalues came back negative (−17.0, −4.6 on a jittered box, degree 1) with no error.
+    Refused now, naming the operator whose mass is positive on that mesh and degree; that
+    operator converges (checked residual and orthonormality)."""
     vertices, tets = kuhn_cube(4)
     inner = np.all((vertices > 1e-9) & (vertices < 1 - 1e-9), axis=1)
     vertices[inner] += np.random.default_rng(0).uniform(-0.025, 0.025, (inner.sum(), 3))
     dec = DEC(SimplicialComplex(vertices, tets), star="barycentric")
     assert dec.star_diagonal(0).min() > 0 and dec.star_diagonal(1).min() < 0
     assert spectrum.needs_indefinite_solve(dec, 1) and not spectrum.needs_indefinite_solve(dec, 0)
+    assert laplacian_eigenpairs(dec, 0, 4).converged  # ⋆0 > 0: functions are fine
+    with pytest.raises(MeshError, match=r"positive mass ⋆_1.*negative on \d+ of .*`operator=whitney`"):
+        laplacian_eigenpairs(dec, 1, 4)
+    pairs = laplacian_eigenpairs(DEC(SimplicialComplex(vertices, tets), star="whitney"), 1, 4)
+    assert pairs.converged and pairs.values.min() > 0 and pairs.residual_max < 1e-10
+    square = SimplicialComplex(*grid_triangles(16, jitter=0.2), orient="fix")
+    with pytest.raises(MeshError, match=r"positive mass ⋆_1.*`operator=whitney`"):
+        laplacian_eigenpairs(DEC(square, star="circumcentric"), 1, 4)
+    surface = SimplicialComplex(*flat_torus(6), orient="fix")
+    dec = DEC(surface, star="circumcentric")
+    monkeypatched = dec.star_diagonal(0).copy()
+    monkeypatched[3] = -monkeypatched[3]
+    dec.star_diagonal = lambda j, _real=dec.star_diagonal: monkeypatched if j == 0 else _real(j)
+    dec.star_diagonal_or_none = dec.star_diagonal
+    with pytest.raises(MeshError, match=r"positive mass ⋆_0.*`operator=mixed_area`"):
+        spectrum.check_stars(dec, 0)
+
+
+def test_every_eigenpair_is_checked_and_a_bad_one_is_not_converged(monkeypatch):
+    """The residual ‖A u − λ M u‖ / (‖A‖ ‖u‖) and the M-orthonormality of every returned pair
+    are measured; eigenvectors that do not solve the pencil are not ``converged``."""
+    dec = DEC(SimplicialComplex(*icosphere(3)), star="whitney")  # 642 vertices: the sparse (ARPACK) path
+    good = laplacian_eigenpairs(dec, 0, 6)
+    assert good.converged and good.residual_max < 1e-12 and good.orthonormality_error < 1e-10
+    real = spla.eigsh
+
+    def perturbed(*args, **kwargs):  # an eigen-solve that stops short: 1e-3 of noise in every vector
+        values, vectors = real(*args, **kwargs)
+        return values, vectors + 1e-3 * np.random.default_rng(0).standard_normal(vectors.shape)
+
+    monkeypatch.setattr(spla, "eigsh", perturbed)
+    bad = laplacian_eigenpairs(dec, 0, 6)
+    assert not bad.converged and bad.residual_max > 1e-6
 
 
 def test_degenerate_star_is_refused_with_the_galerkin_hint():

@@ -111,6 +111,11 @@ CASES = {
                                           ["app.analytic=auto"]),
     "spectrum_degenerate_star": (["mesh=file", "mesh.path={tets}", "app=spectrum", "app.degree=2"],
                                  ["operator=whitney"]),
+    # issue 25 item 4: a negative mass ⋆_k gave negative eigenvalues (−17.0 at mesh.cells=10) silently
+    "spectrum_indefinite_mass": (["app=spectrum", "mesh=box", "mesh.jitter=0.2", "operator=circumcentric",
+                                  "app.degree=1"], ["operator=whitney"]),
+    "spectrum_indefinite_mass_of_functions": (["mesh=bunny", "app=spectrum", "operator=circumcentric"],
+                                              ["operator=mixed_area"]),
     "spectrum_galerkin_with_cg": (["mesh.subdiv=2", "mesh.noise=0", "app=spectrum", "app.degree=1",
                                    "operator=whitney", "solver=cg"], ["solver=direct"]),
     "tetrahedralize_unknown_surface": (["mesh=tetrahedralize", "mesh.surface=nowhere", "app=spectrum"],

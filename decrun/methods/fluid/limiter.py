@@ -11,8 +11,10 @@ channels diverge. Two parts, applied to the advected vorticity w* of step d:
     room (``conservative_clamp``), so Σ ⋆0 w is unchanged. Measured: it clips extrema (18 %
     less enstrophy than (b) alone after 4 s at 5120 faces) and did not stop the inviscid
     channel's divergence, so the default does not use it.
-(b) ``circulation="swept_bounded"`` (default) and ``"swept_clamped"``, on flows without a
-    source (no inflow; forces are added after it): the enstrophy Z(w) = ½ Σ ⋆0 w² and the
+(b) ``circulation="swept_bounded"`` (default) and ``"swept_clamped"``, on closed surfaces
+    (forces are added after it; on domains with borders the no-slip border cells make vorticity,
+    so neither quantity is an invariant there, and a global bound wrecked the cellular flow's
+    steady state in the square: drift 298 /s instead of 1.8e-3 /s): the enstrophy Z(w) = ½ Σ ⋆0 w² and the
     energy E(w) = ½ ψᵀ S ψ (ψ = the stream function of w, S = d0ᵀ ⋆1 d0) may not exceed those
     of the previous state. If w* raises one, the result is the blend
     w_θ = (1 − θ) w* + θ w_s with w_s = (⋆0 + α S)⁻¹ ⋆0 w* (one implicit diffusion step with
@@ -21,8 +23,7 @@ channels diverge. Two parts, applied to the advected vorticity w* of step d:
     (Z(w_θ) and E(w_θ) are quadratics in θ); if even w_s raises one, w_s is rescaled by
     s = min(√(Z₀ / Z(w_s)), √(E₀ / E(w_s))) < 1 (``EnergyEnstrophyBound``).
 
-Both conserve Σ ⋆0 w (⋆0 + α S maps constants' integral to itself; the scale acts on a zero
-mean on closed surfaces). On an exact steady state w* differs from w by the scheme's O(h)
+Both conserve Σ ⋆0 w (1ᵀ(⋆0 + α S) = 1ᵀ⋆0; the scale acts on a zero mean). On an exact steady state w* differs from w by the scheme's O(h)
 consistency error, so the bound changes the step by at most about that much (the drift stays
 O(h): tests/methods/test_fluid.py). Nothing here loops over cells in Python.
 """

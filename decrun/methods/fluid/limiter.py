@@ -35,6 +35,8 @@ import scipy.sparse as sp
 
 __all__ = ["footprint_range", "conservative_clamp", "EnergyEnstrophyBound"]
 
+_EPS = np.finfo(np.float64).eps
+
 
 def footprint_range(w: np.ndarray, top: np.ndarray, triangle: np.ndarray, corners: np.ndarray,
                     n_circumcenters: int) -> tuple[np.ndarray, np.ndarray]:
@@ -113,24 +115,29 @@ class EnergyEnstrophyBound:
         return float(0.5 * psi @ (self.stiffness @ psi))
 
     def apply(self, w_old: np.ndarray, psi_old: np.ndarray, w: np.ndarray):
-        """(w_new, ψ_new, action): the bounded vorticity, its stream function, and which branch
-        ran: 0 none (w already within both bounds), 1 blend with the smoothed field, 2 rescale."""
+        """(w_new, ψ_new, action) for the advected vorticity ``w`` (n0,), the previous state
+        ``w_old``, ``psi_old`` (n0,): the bounded vorticity, its stream function, and the branches
+        that ran as bit flags: 0 none (``w`` is within both bounds and returned as is),
+        1 blend towards the smoothed field (enstrophy), 2 energy fix along ψ̄, 4 final rescale."""
         z0, e0 = self.enstrophy(w_old), self.energy(psi_old)
+        z_target, e_target = z0 * (1 - 8 * _EPS), e0 * (1 - 8 * _EPS)  # leave room for round-off
         psi = self.recover(w)
-        if self.enstrophy(w) <= z0 and self.energy(psi) <= e0:
-            return w, psi, 0
-        ws = self._smooth.solve(self.star0 * w)
-        ws -= (self.star0 @ (ws - w)) / self.star0.sum()  # Σ ⋆0 ws = Σ ⋆0 w exactly
-        psis = self.recover(ws)
-        dw, dpsi = ws - w, psis - psi
-        S = self.stiffness
-        theta_z = _smallest_blend(self.enstrophy(w), float(self.star0 @ (w * dw)), self.enstrophy(dw), z0)
-        theta_e = _smallest_blend(self.energy(psi), float(psi @ (S @ dpsi)), self.energy(dpsi), e0)
-        theta = max(theta_z, theta_e)
-        w_new, psi_new = w + theta * dw, psi + theta * dpsi
-        z, e = self.enstrophy(w_new), self.energy(psi_new)
-        if z <= z0 and e <= e0:
-            return w_new, psi_new, 1
-        scale = min(np.sqrt(z0 / z) if z > 0 else 1.0, np.sqrt(e0 / e) if e > 0 else 1.0)
-        scale = min(scale, 1.0) * (1.0 - 4 * np.finfo(float).eps)  # strictly below both bounds
-        return scale * w_new, scale * psi_new, 2
+        action = 0
+        if self.enstrophy(w) > z0:
+            ws = self._smooth.solve(self.star0 * w)
+            ws -= (self.star0 @ (ws - w)) / self.star0.sum()  # Σ ⋆0 ws = Σ ⋆0 w to the last bit
+            dw = ws - w
+            theta = _smallest_blend(self.enstrophy(w), float(self.star0 @ (w * dw)), self.enstrophy(dw), z_target)
+            w, psi, action = w + theta * dw, psi + theta * (self.recover(ws) - psi), 1
+        if self.energy(psi) > e0:
+            bar = psi - (self.star0 @ psi) / self.star0.sum()  # ψ̄: zero mean, so Σ ⋆0 w is kept
+            phi = self.recover(bar)  # the stream function of ψ̄ viewed as a vorticity
+            S = self.stiffness
+            beta = _smallest_blend(self.energy(psi), -float(psi @ (S @ phi)), self.energy(phi), e_target)
+            # for β ≤ 2⟨w, ψ̄⟩⋆0 / ⟨ψ̄, ψ̄⟩⋆0 (= 4E / ‖ψ̄‖², > 0) the enstrophy does not rise either
+            w, psi, action = w - beta * bar, psi - beta * phi, action | 2
+        z, e = self.enstrophy(w), self.energy(psi)
+        if z > z0 or e > e0:
+            scale = min(np.sqrt(z0 / z) if z > z0 else 1.0, np.sqrt(e0 / e) if e > e0 else 1.0) * (1 - 4 * _EPS)
+            w, psi, action = scale * w, scale * psi, action | 4
+        return w, psi, action

@@ -18,7 +18,8 @@ d. circulation Γ around each backtracked cell. *Border cells* (the cell of a bo
    ``"swept_bounded"`` (default): ``"swept"``, then, on closed surfaces, blended towards one
      implicit smoothing step (or rescaled) so that neither enstrophy nor energy exceeds the
      previous step's (limiter.py) — energy and enstrophy non-increasing at ν = 0, as consistent
-     as ``"swept"`` (issue 25); on domains with borders it is ``"swept"``;
+     as ``"swept"`` (issue 25); on domains with walls the energy alone is bounded, with inflow
+     it is ``"swept"``;
    ``"swept_clamped"``: ``"swept"``, each interior cell clamped to the vorticity range of its
      backtracked footprint (the mass given back to the cells with room), then the bound of
      ``"swept_bounded"`` (more diffusive; it did not stop the inviscid channel's divergence);
@@ -157,14 +158,15 @@ class VorticityFluid:
         self.stiffness = dec.laplacian_symmetric(0)  # d0ᵀ ⋆1 d0 (PSD)
         self.harmonic = harmonic_flux(dec, self.face_normal, self.label, inflow_velocity, new_solver)
         self._build_dual_edges()
-        #: the energy/enstrophy bound of limiter.py, on closed surfaces (on domains with borders the
-        #: no-slip border cells make vorticity, and a global bound there wrecked the cellular flow's
-        #: steady state: drift 298 /s instead of 1.8e-3 /s on 594 faces)
+        #: the bound of limiter.py: energy and enstrophy on closed surfaces, the energy alone with
+        #: walls (the no-slip border cells make vorticity: an enstrophy bound there wrecked the
+        #: cellular flow's steady state, drift 298 /s instead of 1.8e-3 /s on 594 faces), none
+        #: with inflow (energy flows in)
         self._bound = None
-        if circulation in ("swept_bounded", "swept_clamped") and self.closed:
+        if circulation in ("swept_bounded", "swept_clamped") and not np.any(self.inflow):
             self._bound = EnergyEnstrophyBound(self.star0, self.stiffness, self._recover, new_solver,
-                                               alpha=float(np.mean(self.walker.size)) ** 2)
-        #: per step: cells the clamp changed, and the bound's branch (0 none, 1 blend, 2 rescale)
+                                               alpha=float(np.mean(self.walker.size)) ** 2, enstrophy=self.closed)
+        #: per step: cells the clamp changed, and the bound's branches (limiter.EnergyEnstrophyBound.apply)
         self.limited_cells, self.bound_action = 0, 0
 
         n0 = K.num_simplices(0)

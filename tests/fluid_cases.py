@@ -18,10 +18,11 @@ from decrun.methods.fluid.simulation import VorticityFluid
 from meshes_for_tests import icosphere, square_lattice
 
 CASES = ("rigid_rotation", "degree_2", "cellular_regular", "cellular_jittered")
-#: (velocity, circulation) pairs: the thesis, decrun's former default, WSHD07 with the swept
-#: circulation, and the default
+#: (velocity, circulation) pairs: the thesis, decrun's first default, WSHD07 with the swept
+#: circulation, the unlimited swept default of issue 18, and the default (swept + limiter, issue 25)
 SCHEMES = {"thesis": ("wshd07", "trapezoid"), "corrected": ("wshd07", "corrected_trapezoid"),
-           "wshd07_swept": ("wshd07", "swept"), "default": ("least_squares", "swept")}
+           "wshd07_swept": ("wshd07", "swept"), "swept": ("least_squares", "swept"),
+           "default": ("least_squares", "swept_bounded")}
 
 
 def steady_case(case: str, level: int):

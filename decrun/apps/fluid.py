@@ -53,9 +53,12 @@ class Velocity(Choice):
 
 class Circulation(Choice):
     """``app.circulation``: the circulation of the back-traced dual cells
-    (decrun/methods/fluid/simulation.py): ``swept``, ``corrected_trapezoid`` or ``trapezoid``,
-    the thesis' rule."""
+    (decrun/methods/fluid/simulation.py): ``swept_bounded`` (swept, energy and enstrophy bounded
+    by the previous step's without inflow; decrun/methods/fluid/limiter.py), ``swept_clamped``
+    (also a local clamp), ``swept``, ``corrected_trapezoid`` or ``trapezoid``, the thesis' rule."""
 
+    swept_bounded = "swept_bounded"
+    swept_clamped = "swept_clamped"
     swept = "swept"
     corrected_trapezoid = "corrected_trapezoid"
     trapezoid = "trapezoid"
@@ -100,7 +103,7 @@ class Fluid(App):
     seed: int = 0
     stirs: List[Stir] = field(default_factory=list)
     velocity: Velocity = Velocity.least_squares  # least_squares | wshd07 (the thesis' interpolation, §7.2.3)
-    circulation: Circulation = Circulation.swept  # swept | corrected_trapezoid | trapezoid (the thesis' rule)
+    circulation: Circulation = Circulation.swept_bounded  # swept_bounded | swept_clamped | swept | corrected_trapezoid | trapezoid
     shadow: bool = False  # also run a shadow with a 1e-10 perturbation: perturbation_growth_per_s (shadow.py)
     shadow_perturbation: float = 1e-10  # relative size of the shadow's perturbation
     shadow_max_growth_per_step: float = 0.1  # stable: false when the mean growth per step exceeds this
@@ -121,7 +124,7 @@ class Fluid(App):
         self.initial = Initial.of(self.initial, "app.initial")  # also for Python callers (strings)
         self.velocity = Velocity.of(self.velocity, "app.velocity")
         self.circulation = Circulation.of(self.circulation, "app.circulation")
-        if self.velocity == "least_squares" and self.circulation != "swept":
+        if self.velocity == "least_squares" and self.circulation not in ("swept_bounded", "swept_clamped", "swept"):
             raise ConfigError(f"app.circulation={self.circulation} with app.velocity=least_squares is unstable; "
                               "use app.velocity=wshd07 (the thesis' pair: app.velocity=wshd07 "
                               "app.circulation=trapezoid)")

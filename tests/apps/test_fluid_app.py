@@ -105,6 +105,24 @@ def test_a_3d_stroke_on_the_planar_channel_is_refused_naming_the_key(decrun_cli)
     assert proc.returncode == 0, proc.stderr
 
 
+def test_inviscid_default_keeps_energy_and_enstrophy_and_the_unbounded_rule_stays_selectable(run_app):
+    """Issue 25: at ν = 0 the default app.circulation=swept_bounded never raises energy or
+    enstrophy on a closed surface; app.circulation=swept (issue 18's rule) is still there, and its
+    energy rises in some steps."""
+    runs, mesh = {}, complex_of(source="icosphere", subdiv=3)
+    for circulation in ("swept_bounded", "swept"):
+        app = Fluid(dt=0.05, steps=30, viscosity=0.0, initial="random", initial_strength=5.0, seed=4,
+                    circulation=circulation, record_every=1, animation=False)
+        result, ctx = run_app(app, mesh)
+        runs[circulation] = (result.metrics, ctx.series)
+    metrics, series = runs["swept_bounded"]
+    assert Fluid().circulation == "swept_bounded" and metrics["stable"]
+    energy, enstrophy = np.asarray(series["kinetic_energy"]), np.asarray(series["enstrophy"])
+    assert np.all(np.diff(energy) <= 1e-12 * energy[0]) and np.all(np.diff(enstrophy) <= 1e-12 * enstrophy[0])
+    swept_energy = np.asarray(runs["swept"][1]["kinetic_energy"])
+    assert (np.diff(swept_energy) > 1e-9 * swept_energy[0]).sum() >= 20
+
+
 def test_the_unstable_pair_of_reconstruction_and_circulation_is_refused_with_the_fix(decrun_cli):
     common = ("app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=2", "app.initial=random", "app.animation=false")
     proc = decrun_cli(*common, "app.circulation=trapezoid")

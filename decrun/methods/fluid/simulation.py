@@ -15,9 +15,18 @@ d. circulation Γ around each backtracked cell. *Border cells* (the cell of a bo
    any cell one of whose backtracked corners was clamped at a wall) take the trapezoid rule
    Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2 of the full u (the wall velocities enter
    there: no-slip) and w = Γ / ⋆0. Interior cells, by ``circulation``:
-   ``"swept"`` (default): w + (Γ(X(C)) − Γ(C)) / ⋆0 with the change computed by Stokes as the
+   ``"swept_bounded"`` (default): ``"swept"``, then, on closed surfaces, blended towards one
+     implicit smoothing step (or rescaled) so that neither enstrophy nor energy exceeds the
+     previous step's (limiter.py) — energy and enstrophy non-increasing at ν = 0, as consistent
+     as ``"swept"`` (issue 25); on domains with walls the energy alone is bounded, with inflow
+     it is ``"swept"``;
+   ``"swept_clamped"``: ``"swept"``, each interior cell clamped to the vorticity range of its
+     backtracked footprint (the mass given back to the cells with room), then the bound of
+     ``"swept_bounded"`` (more diffusive; it did not stop the inviscid channel's divergence);
+   ``"swept"``: w + (Γ(X(C)) − Γ(C)) / ⋆0 with the change computed by Stokes as the
      integral of the current vorticity (linear least-squares fits) over the quadrilaterals the
-     cell's sides sweep (swept.py) — consistent: the steady-flow drift shrinks with h;
+     cell's sides sweep (swept.py) — consistent: the steady-flow drift shrinks with h, but at
+     ν = 0 not a contraction (energy and enstrophy can grow; fine channels diverged);
    ``"corrected_trapezoid"``: w + (Γ − Γ⁰) / ⋆0 with Γ the trapezoid of the d0 ψ part and Γ⁰
      the same of the unmoved cell (on a curved surface Γ⁰ differs from ⋆0 w by O(h²), which
      applied every step acts like a diffusion depending on the number of steps);
@@ -47,13 +56,16 @@ from decrun.core.geometry import embed3, obtuse_triangle_count
 from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
 from decrun.methods.fluid.interpolation import CellInterpolator, dot3, triangle_velocity_matrix
+from decrun.methods.fluid.limiter import EnergyEnstrophyBound, conservative_clamp, footprint_range
 from decrun.methods.fluid.swept import SweptVorticity, rest_point_interpolation
 from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS, make_reconstruction
 
 __all__ = ["VorticityFluid", "CIRCULATIONS", "KERNELS"]
 
 #: the circulation rules of step d for interior cells
-CIRCULATIONS = ("swept", "corrected_trapezoid", "trapezoid")
+CIRCULATIONS = ("swept_bounded", "swept_clamped", "swept", "corrected_trapezoid", "trapezoid")
+#: the rules that backtrack in intervals and sum the swept vorticity (swept.py)
+SWEPT = ("swept_bounded", "swept_clamped", "swept")
 
 KERNELS = ("numba", "numpy")  # compiled loops (compiled.py) or their numpy twins
 
@@ -79,8 +91,9 @@ class VorticityFluid:
         each point takes at least ``substeps`` substeps and enough that one substep moves it
         at most ``max_cfl`` mean edge lengths of its start triangle (None: no such bound).
         ``integrator="per_triangle", max_cfl=None`` is Fig. 7.9 with stepSize = dt / substeps
-    circulation : ``"swept"`` | ``"corrected_trapezoid"`` | ``"trapezoid"``, see step d above
-    swept_cfl : ``circulation="swept"`` backtracks in intervals moving each point at most this
+    circulation : ``"swept_bounded"`` | ``"swept_clamped"`` | ``"swept"`` | ``"corrected_trapezoid"`` |
+        ``"trapezoid"``, see step d above
+    swept_cfl : ``circulation="swept"`` (and the bounded / clamped variants) backtracks in intervals moving each point at most this
         many mean edge lengths (see :meth:`_backtrack_sweeping`)
     velocity : the velocity reconstruction of steps b–d, a key of
         ``reconstruction.VELOCITY_RECONSTRUCTIONS``: ``"wshd07"`` (the thesis) or
@@ -96,7 +109,7 @@ class VorticityFluid:
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
                  max_cfl: float | None = 1.0, integrator: str = "midpoint",
-                 circulation: str = "swept", velocity: str = "least_squares", swept_cfl: float = 1.0,
+                 circulation: str = "swept_bounded", velocity: str = "least_squares", swept_cfl: float = 1.0,
                  kernels: str = "numba"):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
@@ -106,9 +119,10 @@ class VorticityFluid:
             raise ConfigError(f"fluid: circulation must be one of {list(CIRCULATIONS)}, got {circulation!r}")
         if velocity not in VELOCITY_RECONSTRUCTIONS:
             raise ConfigError(f"fluid: velocity must be one of {sorted(VELOCITY_RECONSTRUCTIONS)}, got {velocity!r}")
-        if velocity == "least_squares" and circulation != "swept":
-            raise ConfigError("fluid: velocity=least_squares is stable only with circulation=swept (its trapezoid "
-                              "circulation grew enstrophy x14 in 5 s on a sphere); use circulation=swept")
+        if velocity == "least_squares" and circulation not in SWEPT:
+            raise ConfigError("fluid: velocity=least_squares is stable only with circulation=swept_bounded, swept_clamped or swept "
+                              "(its trapezoid circulation grew enstrophy x14 in 5 s on a sphere); use "
+                              "circulation=swept_bounded")
         if kernels not in KERNELS:
             raise ConfigError(f"fluid: kernels must be one of {list(KERNELS)}, got {kernels!r}")
         self.kernels = kernels
@@ -144,6 +158,16 @@ class VorticityFluid:
         self.stiffness = dec.laplacian_symmetric(0)  # d0ᵀ ⋆1 d0 (PSD)
         self.harmonic = harmonic_flux(dec, self.face_normal, self.label, inflow_velocity, new_solver)
         self._build_dual_edges()
+        #: the bound of limiter.py: energy and enstrophy on closed surfaces, the energy alone with
+        #: walls (the no-slip border cells make vorticity: an enstrophy bound there wrecked the
+        #: cellular flow's steady state, drift 298 /s instead of 1.8e-3 /s on 594 faces), none
+        #: with inflow (energy flows in)
+        self._bound = None
+        if circulation in ("swept_bounded", "swept_clamped") and not np.any(self.inflow):
+            self._bound = EnergyEnstrophyBound(self.star0, self.stiffness, self._recover, new_solver,
+                                               alpha=float(np.mean(self.walker.size)) ** 2, enstrophy=self.closed)
+        #: per step: cells the clamp changed, and the bound's branches (limiter.EnergyEnstrophyBound.apply)
+        self.limited_cells, self.bound_action = 0, 0
 
         n0 = K.num_simplices(0)
         if self.viscosity > 0:
@@ -239,11 +263,11 @@ class VorticityFluid:
         start = (reconstruction.circumcenter_matrix @ self.flux).reshape(m, 3)
         options = dict(integrator=self.integrator, substeps=self.substeps, max_rounds=self.max_rounds,
                        max_cfl=self.max_cfl)
-        if self.circulation_rule != "swept":
+        if self.circulation_rule not in SWEPT:
             result = self._walk(self.cells.points[:m], np.arange(m), self.dt, velocity, both, start, options)
         else:
             result = self._backtrack_sweeping(velocity, both, start, options)
-        if self.compiled_walk and self.circulation_rule != "swept":
+        if self.compiled_walk and self.circulation_rule not in SWEPT:
             v = result.velocity  # the kernel interpolated every field at the end points
         else:
             v = reconstruction.velocity(result.triangle, result.position, both)
@@ -361,8 +385,14 @@ class VorticityFluid:
         """Steps c–d: the vorticity (n0,) carried to the vertices, before viscosity and forces."""
         gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0)
         w = gamma / self.star0
-        if self.circulation_rule == "swept":
+        if self.circulation_rule in SWEPT:
             w = np.where(border_cell, w, self.vorticity + self._swept_change / self.star0)
+        if self.circulation_rule == "swept_clamped":
+            lo, hi = footprint_range(self.vorticity, self.K.simplices(2), result.triangle, self.cells.corners,
+                                     self.cells.n_circumcenters)
+            interior = ~border_cell
+            self.limited_cells = int(((w < lo) | (w > hi))[interior].sum())
+            w = conservative_clamp(w, lo, hi, self.star0, interior)
         elif self.circulation_rule == "corrected_trapezoid":
             gamma0 = self._rest_circulation @ self.psi
             w = np.where(border_cell, w, self.vorticity + (gamma - gamma0) / self.star0)
@@ -380,7 +410,9 @@ class VorticityFluid:
         -------
         dict with step, time, kinetic_energy, vortical_energy, enstrophy, total_circulation,
         max_abs_divergence, relative_divergence, vorticity_min, vorticity_max,
-        backtrack_rounds, backtrack_unfinished, clamped_points, finite, stable
+        backtrack_rounds, backtrack_unfinished, clamped_points, finite, stable, and with
+        ``circulation="swept_bounded"`` / ``"swept_clamped"`` limited_cells (interior cells the
+        clamp changed; 0 without it) and bound_action (0: within both bounds, 1: blended with the smoothed field, 2: rescaled)
         (and diverged_at_step once a step produced non-finite values; later steps do nothing).
         """
         extra = {}
@@ -390,14 +422,20 @@ class VorticityFluid:
                 with np.errstate(all="ignore"):
                     result, velocity = self.backtrack()
                     w = self.backtracked_vorticity(result, velocity)
+                    psi = None
+                    if self._bound is not None and np.all(np.isfinite(w)):
+                        w, psi, self.bound_action = self._bound.apply(self.vorticity, self.psi, w)
                     if self._diffusion is not None:
                         w = self._diffusion.solve(self.star0 * w) if np.all(np.isfinite(w)) else w
+                        psi = None
                     if force_flux is not None:
                         w = w + self.dt * (self.d0T @ (self.star1 * np.asarray(force_flux, dtype=np.float64))) / self.star0
                         w = self._remove_mean(w)
+                        psi = None
                     if not np.all(np.isfinite(w)):
                         raise FloatingPointError
-                    psi = self._recover(w)
+                    if psi is None:  # the bound's ψ is this solve's, unless viscosity or a force changed w
+                        psi = self._recover(w)
                     if not np.all(np.isfinite(psi)):
                         raise FloatingPointError
             except (FloatingPointError, SolverError):
@@ -408,6 +446,8 @@ class VorticityFluid:
                 extra = {"backtrack_rounds": result.rounds, "backtrack_unfinished": result.unfinished,
                          "backtrack_substeps": result.substeps,
                          "clamped_points": int((result.wall_edge >= 0).sum())}
+                if self.circulation_rule in ("swept_bounded", "swept_clamped"):
+                    extra.update(limited_cells=self.limited_cells, bound_action=self.bound_action)
                 if force_flux is not None:
                     self._energy_reference = max(self._energy_reference, self.kinetic_energy(), before)
         self.steps += 1

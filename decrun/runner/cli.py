@@ -41,7 +41,10 @@ from decrun.runner.failures import (
     memory_error_text,
     os_error_message,
     override_nesting_error,
+    stop,
 )
+from decrun.runner.locks import LockedError, acquire, release
+from decrun.runner.paths import OutsideError, hydra_files, inside
 from decrun.runner.progress import SweepProgress, sweep_size, terminal
 from decrun.runner.sweep.checks import register_check
 
@@ -83,6 +86,35 @@ _hydra_main = hydra.main(version_base="1.3", config_path=str(config_dir()), conf
 # every job of a sweep is type-checked before the first starts; joblib's workers import the
 # numerical stack while the sweep is planned
 register_check(_hydra_task, _check_job, warm=("decrun.runner.run", "decrun.runner.results.recorder"))
+
+
+class OutputGuard(Callback):
+    """Hydra callback (``hydra.callbacks.output_guard`` in conf/config.yaml, listed first):
+    before a single run — before Hydra creates its directory, saves ``.hydra/`` and opens
+    the log — refuses a ``.hydra/`` file or log that resolves out of the run directory
+    (:func:`decrun.runner.paths.inside`) and takes the run directory's lock
+    (:mod:`decrun.runner.locks`) until the run ends. After a sweep, once
+    :class:`SweepTable` has written the table, drops the sweep directory's lock (the
+    ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written."""
+
+    def on_run_start(self, config: DictConfig, **kwargs) -> None:
+        out = Path(str(config.hydra.run.dir))
+        try:
+            for name in hydra_files(config.hydra):
+                inside(out, out / name, fix="remove the link, or choose another run directory with hydra.run.dir=DIR")
+            try:
+                out.mkdir(parents=True, exist_ok=True)  # as Hydra does next; its error (if any) is reported then
+            except OSError:
+                return
+            acquire(out, "run", fix="choose another run directory with hydra.run.dir=DIR")
+        except (OutsideError, LockedError) as exc:
+            stop(f"error: {exc}")  # Hydra turns a callback's exception into a warning: exit here
+
+    def on_run_end(self, config: DictConfig, **kwargs) -> None:
+        release(Path(str(config.hydra.run.dir)))
+
+    def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
+        release(Path(str(config.hydra.sweep.dir)))
 
 
 class SweepTable(Callback):

@@ -38,13 +38,16 @@ from __future__ import annotations
 import errno
 import os
 import signal
+import sys
 from pathlib import Path
+from typing import NoReturn
 
 from decrun.errors import DecrunError
+from decrun.runner.paths import NEW_OUTPUT
 
-__all__ = ["Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message", "record_status",
-           "file_identity", "set_aside_stale", "MAX_NESTING", "nesting_depth", "override_nesting_error",
-           "config_error_message", "find_memory_error", "memory_error_text"]
+__all__ = ["stop", "Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message",
+           "record_status", "file_identity", "set_aside_stale", "MAX_NESTING", "nesting_depth",
+           "override_nesting_error", "config_error_message", "find_memory_error", "memory_error_text"]
 
 
 class Terminated(KeyboardInterrupt):
@@ -104,8 +107,15 @@ def os_error_message(exc: OSError) -> str:
     where = f"{path}" if path is not None else "the run's output"
     hint = ""
     if code in (errno.EROFS, errno.EACCES, errno.EPERM, errno.EEXIST, errno.ENOTDIR, errno.ENOSPC, errno.EDQUOT):
-        hint = "; choose another output directory with hydra.run.dir=DIR (hydra.sweep.dir=DIR with -m)"
+        hint = f"; {NEW_OUTPUT}"
     return f"cannot write {where}: {cause}{hint}"
+
+
+def stop(message: str) -> NoReturn:
+    """Print the one-line ``message`` on stderr and exit 1 — also from a Hydra callback,
+    where Hydra would turn an exception into a warning and go on."""
+    print(message, file=sys.stderr)
+    sys.exit(1)
 
 
 def record_status(out: Path, status: str, error: str, extra: dict | None = None) -> str:
@@ -119,7 +129,8 @@ def record_status(out: Path, status: str, error: str, extra: dict | None = None)
     try:
         write_metrics_json(Path(out) / "metrics.json", {"status": status, "error": error, **(extra or {})})
     except OSError as exc:
-        return f" (metrics.json could not be written either: {os.strerror(exc.errno) if exc.errno else exc})"
+        cause = os.strerror(exc.errno) if exc.errno else str(exc)
+        return "" if cause in error else f" (metrics.json could not be written either: {cause})"
     return ""
 
 

@@ -30,6 +30,7 @@ from decrun.runner.context import RunContext
 from decrun.runner.failures import (exit_code, file_identity, find_memory_error, find_os_error, interrupt_cause,
                                     memory_error_text, os_error_message, record_status, set_aside_stale)
 from decrun.runner.hints import cli_message, memory_hint, plugin_name
+from decrun.runner.locks import LockedError, acquire, release
 from decrun.runner.mesh import MeshSource
 from decrun.runner.plugins import build
 from decrun.runner.progress import make_progress, task
@@ -246,7 +247,27 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     :meth:`decrun.runner.config.OptimizeConfig.objective` for a sweeper; a failed single
     run exits 1 (an interrupted one 130/143) after recording its status in ``out``.
     ``verbose`` logs the traceback of a DecrunError; ``log_name`` is the job's log file
-    (``<log_name>.log``, named in the closing line)."""
+    (``<log_name>.log``, named in the closing line).
+
+    The run holds ``out``'s lock (:mod:`decrun.runner.locks`; a single run took it before
+    Hydra made the directory) while it runs: when another process holds it, one line on
+    stderr naming that process and nothing written (exit 1; a sweep job returns as failed)."""
+    try:
+        taken = out.is_dir() and acquire(out, "run", fix="choose another run directory with hydra.run.dir=DIR")
+    except LockedError as exc:
+        print(f"error: {exc}", file=sys.stderr)  # not the log: it is the other process's
+        if multirun:
+            return 1
+        sys.exit(1)
+    try:
+        return _run(cfg, out, multirun=multirun, verbose=verbose, log_name=log_name)
+    finally:
+        if taken:
+            release(out)
+
+
+def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name: str) -> int | float:
+    """:func:`run` once ``out`` is locked."""
     identity = {"config_hash": config_hash(cfg)} if multirun else {}  # ties metrics.json to the manifest
     earlier = file_identity(Path(out) / "result.h5")  # an earlier run's result, set aside if this one fails
     optimize = None

@@ -18,6 +18,7 @@ from matplotlib import colormaps
 from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 
+from decrun.runner.paths import check_file
 from decrun.runner.results import read_result
 
 
@@ -211,11 +212,12 @@ def plot_series(series: dict[str, np.ndarray], names: Iterable[str] | None = Non
 
 
 def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
-    """Save ``fig`` as PNG through the Agg canvas (works without any display)."""
+    """Save ``fig`` as PNG through the Agg canvas (works without any display); refused
+    (:class:`~decrun.runner.paths.OutsideError`) when ``path`` is a symlink leaving its directory."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=dpi or fig.dpi)
+    fig.savefig(check_file(path), dpi=dpi or fig.dpi)
 
 
 class RecordedSeries:

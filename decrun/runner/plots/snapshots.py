@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from decrun.core.geometry import is_planar
+from decrun.runner.paths import check_file
 from decrun.runner.plots.common import new_figure, plot_surface
 
 __all__ = ["snapshot_grid", "animation"]
@@ -90,6 +91,6 @@ def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str
         _look_at(ax, towards)
         return []
 
-    path = Path(out_path).with_suffix(".gif")
+    path = check_file(Path(out_path).with_suffix(".gif"))
     FuncAnimation(fig, draw, frames=len(picks), blit=False).save(path, writer=PillowWriter(fps=fps))
     return path

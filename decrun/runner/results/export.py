@@ -35,6 +35,7 @@ from typing import ClassVar
 import numpy as np
 
 from decrun.errors import ConfigError
+from decrun.runner.paths import check_file
 
 __all__ = ["Export", "NoExport", "Vtu", "Xdmf", "Ply", "Obj", "classify_fields"]
 
@@ -140,7 +141,7 @@ class Vtu(Export):
 
         groups, edges = _layout(result, mesh)
         cells, cell_data = _blocks(mesh.simplices, edges, groups["cell"], groups["edge"])
-        path = Path(out) / "result.vtu"
+        path = check_file(Path(out) / "result.vtu")
         meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), cells, point_data=groups["point"],
                                             cell_data=cell_data, field_data=groups["other"]), binary=True)
         return [path]
@@ -188,6 +189,7 @@ class Xdmf(Export):
                                     (path.with_name("series_edges.xdmf"), [("line", edges)], (2,))):
             if pick == (2,) and not any(frame[2] for frame in frames):
                 continue
+            check_file(target), check_file(target.with_suffix(".h5"))
             # the writer puts its HDF5 file in the working directory (by stem): write from out/
             with _working_directory(target.parent), meshio.xdmf.TimeSeriesWriter(target.name) as writer:
                 writer.write_points_cells(points, cells)
@@ -274,7 +276,7 @@ class Ply(Export):
         rgba = colormaps[self.colormap](Normalize(lo, hi if hi > lo else lo + 1.0)(value))
         rgb = np.round(255 * rgba[:, :3]).astype(np.uint8)
         point_data = {"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2], name.replace(":", "_"): value}
-        path = Path(out) / "result.ply"
+        path = check_file(Path(out) / "result.ply")
         meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), [("triangle", _triangles(mesh))],
                                             point_data=point_data), binary=True)
         return [path]
@@ -296,7 +298,7 @@ class Obj(Export):
             raise ConfigError(f"export.uv: field {self.uv!r} has shape {uv.shape}, not (n_vertices, 2) = "
                               f"({len(mesh.vertices)}, 2)")
         faces = _triangles(mesh) + 1
-        path = Path(out) / "result.obj"
+        path = check_file(Path(out) / "result.obj")
         with open(path, "w") as f:
             f.write(f"# decrun: {len(mesh.vertices)} vertices with texture coordinates {self.uv!r}\n")
             np.savetxt(f, _points(mesh.vertices), fmt="v %.17g %.17g %.17g")

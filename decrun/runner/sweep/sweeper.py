@@ -37,6 +37,10 @@ from hydra.errors import CompactHydraException
 from omegaconf import OmegaConf, open_dict, read_write
 
 from decrun.errors import ConfigError, CorruptFileError, DecrunError
+from decrun.runner.atomic import write_text_atomic
+from decrun.runner.locks import LOCK_NAME
+from decrun.runner.paths import hydra_files
+from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM, import_modules
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
@@ -199,9 +203,9 @@ class ManifestSweeper:
         finally:
             if warming is not None:
                 warming.join()
+        lock_sweep(sweep_dir, SweepError)  # before the manifest is read: one sweeping process per directory
         manifest, todo = self._start(sweep_dir, jobs, arguments)
-        sweep_dir.mkdir(parents=True, exist_ok=True)
-        OmegaConf.save(self.config, sweep_dir / "multirun.yaml")
+        write_text_atomic(sweep_dir / "multirun.yaml", OmegaConf.to_yaml(self.config))
         write_manifest(sweep_dir, manifest)
         if self.resume and len(todo) < len(jobs):
             print("decrun: resume: {} of {} jobs are ok; running {}".format(
@@ -220,7 +224,7 @@ class ManifestSweeper:
     def _start(self, sweep_dir: Path, jobs: list[dict], arguments: Sequence[str]) -> tuple[dict, list[dict]]:
         """(manifest, jobs to launch): a new sweep, or the resumed one after its checks."""
         run = {"started": now(), "jobs": [j["job"] for j in jobs], "finished": None}
-        entries = sorted(p.name for p in sweep_dir.iterdir()) if sweep_dir.is_dir() else []
+        entries = sorted(p.name for p in sweep_dir.iterdir() if p.name != LOCK_NAME) if sweep_dir.is_dir() else []
         if not entries:
             return {"format": FORMAT, "created": now(), "overrides": list(arguments), "jobs": jobs, "runs": [run]}, jobs
         if not self.resume:
@@ -250,6 +254,7 @@ class ManifestSweeper:
                                  "the same overrides and configs, or start a new sweep")
         for old, new in zip(planned, jobs):
             new["dir"] = job_dir_name(old)  # where it was planned (a pattern may resolve anew, e.g. ${now:})
+        check_job_dirs(sweep_dir, jobs, hydra_files(self.config.hydra), sweep_dir / MANIFEST, SweepError)
         todo = [j for j in jobs if job_state(sweep_dir / j["dir"], j["config_hash"])["status"] not in DONE]
         for job in todo:
             _clear(sweep_dir / job["dir"])

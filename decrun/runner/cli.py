@@ -31,7 +31,8 @@ from omegaconf import DictConfig, OmegaConf
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
-from decrun.runner.failures import exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message
+from decrun.runner.failures import (exit_code, find_os_error, install_sigterm, interrupt_cause, os_error_message,
+                                    record_status)
 from decrun.runner.progress import SweepProgress, sweep_size, terminal
 from decrun.runner.sweep.checks import register_check
 
@@ -176,10 +177,27 @@ def main() -> None:
     except Exception as exc:
         sys.exit(_report(exc))
     except KeyboardInterrupt as exc:
-        print(f"decrun: interrupted ({interrupt_cause(exc)}) before the run started", file=sys.stderr)
+        print(f"decrun: interrupted ({interrupt_cause(exc)}) {_interrupted_where(exc)}", file=sys.stderr)
         sys.exit(exit_code(exc))
     if SweepTable.failed:
         sys.exit(1)
+
+
+def _interrupted_where(exc: KeyboardInterrupt) -> str:
+    """Where an interrupt that reached :func:`main` stopped: ``before the run started``, or
+    for a sweep interrupted while its jobs ran (the sweeper's
+    :class:`~decrun.runner.sweep.stops.Stock` on ``exc.sweep_stock``) which jobs finished
+    and which were interrupted — the latter marked ``interrupted`` in their metrics.json
+    (:func:`~decrun.runner.failures.record_status`) — and the command that resumes the rest."""
+    stock = getattr(exc, "sweep_stock", None)
+    if stock is None:
+        return "before the run started"
+    from decrun.runner.sweep.stops import resume_command  # lazy: only for an interrupted sweep
+
+    cause = f"interrupted ({interrupt_cause(exc)})"
+    for job in stock.running:
+        record_status(stock.sweep_dir / job["dir"], "interrupted", cause, {"config_hash": job["config_hash"]})
+    return f"during the sweep: {stock.describe('interrupted')}; resume with: {resume_command(stock.sweep_dir)}"
 
 
 def _completion() -> None:

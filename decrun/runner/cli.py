@@ -41,6 +41,7 @@ from decrun.runner.failures import (
     memory_error_text,
     os_error_message,
     override_nesting_error,
+    record_status,
     stop,
 )
 from decrun.runner.locks import LockedError, acquire, release
@@ -222,10 +223,27 @@ def main() -> None:
     except Exception as exc:
         sys.exit(_report(exc))
     except KeyboardInterrupt as exc:
-        print(f"decrun: interrupted ({interrupt_cause(exc)}) before the run started", file=sys.stderr)
+        print(f"decrun: interrupted ({interrupt_cause(exc)}) {_interrupted_where(exc)}", file=sys.stderr)
         sys.exit(exit_code(exc))
     if SweepTable.failed:
         sys.exit(1)
+
+
+def _interrupted_where(exc: KeyboardInterrupt) -> str:
+    """Where an interrupt that reached :func:`main` stopped: ``before the run started``, or
+    for a sweep interrupted while its jobs ran (the sweeper's
+    :class:`~decrun.runner.sweep.stops.Stock` on ``exc.sweep_stock``) which jobs finished
+    and which were interrupted — the latter marked ``interrupted`` in their metrics.json
+    (:func:`~decrun.runner.failures.record_status`) — and the command that resumes the rest."""
+    stock = getattr(exc, "sweep_stock", None)
+    if stock is None:
+        return "before the run started"
+    from decrun.runner.sweep.stops import resume_command  # lazy: only for an interrupted sweep
+
+    cause = f"interrupted ({interrupt_cause(exc)})"
+    for job in stock.running:
+        record_status(stock.sweep_dir / job["dir"], "interrupted", cause, {"config_hash": job["config_hash"]})
+    return f"during the sweep: {stock.describe('interrupted')}; resume with: {resume_command(stock.sweep_dir)}"
 
 
 def _completion() -> None:

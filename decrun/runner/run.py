@@ -245,7 +245,8 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     experiment, its files (:func:`write_run`) and what it prints. Returns 0 (1 for a failed
     sweep job), or with ``optimize.metric`` set the objective
     :meth:`decrun.runner.config.OptimizeConfig.objective` for a sweeper; a failed single
-    run exits 1 (an interrupted one 130/143) after recording its status in ``out``.
+    run exits 1 (an interrupted one 130/143) after recording its status in ``out``; an
+    interrupted sweep job re-raises the interrupt, for the sweeper to say which jobs finished.
     ``verbose`` logs the traceback of a DecrunError; ``log_name`` is the job's log file
     (``<log_name>.log``, named in the closing line).
 
@@ -282,6 +283,8 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
         cause = interrupt_cause(exc)
         note = set_aside_stale(out, earlier) + record_status(out, "interrupted", f"interrupted ({cause})", identity)
         print(f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}", file=sys.stderr)
+        if multirun:  # the sweeper says which jobs finished (decrun.runner.sweep.stops)
+            raise
         sys.exit(exit_code(exc))
     except Exception as exc:
         os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)

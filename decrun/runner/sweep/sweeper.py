@@ -44,6 +44,7 @@ from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM, import_modules
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
+from decrun.runner.sweep.stops import mark_killed, resume_command, take_stock, worker_died
 
 log = logging.getLogger("decrun")
 
@@ -213,13 +214,36 @@ class ManifestSweeper:
         returns = []
         launched = self._hand_over(todo)
         for start, stop in _batches([int(j["job"]) for j in todo], self.max_batch_size):
-            results = self.launcher.launch(launched[start:stop], initial_job_idx=int(todo[start]["job"]))
+            try:
+                results = self.launcher.launch(launched[start:stop], initial_job_idx=int(todo[start]["job"]))
+            except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (cli.main)
+                exc.sweep_stock = take_stock(sweep_dir, todo)
+                raise
+            except Exception as exc:
+                if not worker_died(exc):
+                    raise
+                self._end_killed(sweep_dir, manifest, todo, exc)
             for r in results:
                 _ = r.return_value  # re-raise a job's exception, as the basic sweeper does
             returns.append(results)
         manifest["runs"][-1]["finished"] = now()
         write_manifest(sweep_dir, manifest)
         return returns
+
+    def _end_killed(self, sweep_dir: Path, manifest: dict, todo: list[dict], exc: Exception) -> None:
+        """A worker process died (:func:`~decrun.runner.sweep.stops.worker_died`): mark the
+        jobs that had started and not finished ``killed``, record them in the manifest's run,
+        write the table (the sweep's callbacks), then end with one line naming them and the
+        command that resumes the rest (exit 1). No later batch is launched."""
+        stock = take_stock(sweep_dir, todo)
+        mark_killed(stock, type(exc).__name__)
+        manifest["runs"][-1]["killed"] = [j["job"] for j in stock.running]
+        write_manifest(sweep_dir, manifest)
+        callbacks = getattr(self.hydra_context, "callbacks", None)
+        if callbacks is not None:
+            callbacks.on_multirun_end(config=self.config)
+        raise SweepError(f"error: a worker process died ({type(exc).__name__}): {stock.describe('killed')}; "
+                         f"resume the rest with: {resume_command(sweep_dir)}") from exc
 
     def _start(self, sweep_dir: Path, jobs: list[dict], arguments: Sequence[str]) -> tuple[dict, list[dict]]:
         """(manifest, jobs to launch): a new sweep, or the resumed one after its checks."""

@@ -43,10 +43,9 @@ class PardisoSolver(Solver):
         except Exception as exc:  # PyPardisoError
             raise SolverError(f"pardiso solver: cannot factorize the {A.shape} matrix: {exc}") from exc
 
-    def solve(self, b):
-        if self._key is None:
-            raise SolverError("pardiso solver: solve() called before factorize()")
-        b = np.asarray(b, dtype=np.float64)
+    def _solve_block(self, b):
+        """x for b (n,) or (n, m) by PARDISO's substitution (the base class checked b's rows
+        and the empty system)."""
         try:
             x = self._pardiso.solve(self._A, b)
         except Exception as exc:

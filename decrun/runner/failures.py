@@ -282,6 +282,8 @@ def config_error_message(exc: BaseException, args: list[str] | None = None) -> s
     the file, or else the deepest override of ``args``). None for any other error."""
     import yaml  # lazy: only when something failed
 
+    if isinstance(exc, DecrunError):  # decrun's own one-line message (a hostile file it read) says it already
+        return None
     yaml_error = find_in_chain(exc, yaml.YAMLError)
     if yaml_error is not None:
         return f"error: {_yaml_message(yaml_error)}"

@@ -15,6 +15,7 @@ import time
 import h5py
 import numpy as np
 import pytest
+from cli_processes import decrun
 
 from decrun.apps.base import Result
 from decrun.errors import CorruptFileError
@@ -26,12 +27,6 @@ from decrun.runner.sweep.tables import sweep_table
 
 SWEEP = ["-m", "app.dt=0.001,0.002,0.003", "mesh.subdiv=2", "app.steps=2", "figures=false"]
 DEEP = "[" * 100_000 + "]" * 100_000
-
-
-def decrun(*args, cwd, timeout=300):
-    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
-    return subprocess.run([sys.executable, "-m", "decrun", *args], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout)
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
+from cli_processes import decrun, start
 
 from decrun.runner.atomic import temporary_name, write_text_atomic
 from decrun.runner.locks import LOCK_NAME, LockedError, acquire, holds, release
@@ -23,20 +24,6 @@ QUICK = ["mesh.subdiv=1", "app.steps=2", "app.critical_dt=false", "figures=false
 SWEEP = ["-m", "app.dt=0.001,0.002", *QUICK]
 #: a run of a few seconds (explicit Euler on 162 vertices, well below dt_crit)
 SLOW = ["mesh.subdiv=2", "app.scheme=explicit", "app.dt=0.001", "app.critical_dt=false", "figures=false"]
-
-
-def env() -> dict:
-    return {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
-
-
-def decrun(*args, cwd, timeout=300):
-    return subprocess.run([sys.executable, "-m", "decrun", *args], cwd=cwd, env=env(), capture_output=True,
-                          text=True, timeout=timeout)
-
-
-def start(*args, cwd) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "decrun", *args], cwd=cwd, env=env(), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
 
 
 def one_line(result) -> str:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from cli_processes import comparable, decrun, env
 
 from decrun.runner.sweep.tables import load_sweep
 
@@ -25,23 +26,6 @@ pytest.importorskip("hydra_plugins.hydra_joblib_launcher", reason="hydra-joblib-
 JOBS = ["-m", "app.dt=0.001,0.002,0.003,0.004", "mesh.subdiv=2", "app.scheme=explicit", "app.steps=6000",
         "app.critical_dt=false", "figures=false", "progress=false"]
 JOBLIB = ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"]
-#: columns that differ between two runs of the same jobs (wall times)
-TIMES = ("setup_seconds", "solve_seconds", "total_seconds")
-
-
-def env() -> dict:
-    return {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
-
-
-def decrun(*args, cwd, timeout=300):
-    return subprocess.run([sys.executable, "-m", "decrun", *args], cwd=cwd, env=env(), capture_output=True,
-                          text=True, timeout=timeout)
-
-
-def comparable(table: pd.DataFrame) -> pd.DataFrame:
-    return table.drop(columns=[c for c in TIMES if c in table.columns]).reset_index(drop=True)
-
-
 def descendants(pid: int) -> list[int]:
     """Every process below ``pid`` (from /proc)."""
     children: dict[int, list[int]] = {}

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -16,6 +15,7 @@ import time
 
 import pandas as pd
 import pytest
+from cli_processes import comparable, decrun, env
 import yaml
 
 from decrun.runner.cli import table_main
@@ -24,23 +24,6 @@ from decrun.runner.sweep.tables import load_sweep
 # 4 jobs of ~0.5 s: explicit Euler on 162 vertices, no eigen-solve, well below dt_crit 0.0278
 SWEEP = ["-m", "app.dt=0.001,0.002,0.003,0.004", "mesh.subdiv=2", "app.scheme=explicit", "app.steps=1500",
          "app.critical_dt=false", "figures=false"]
-#: columns that differ between two runs of the same jobs (wall times)
-TIMES = ("setup_seconds", "solve_seconds", "total_seconds")
-
-
-def env() -> dict:
-    return {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
-
-
-def decrun(*args, cwd, timeout=300):
-    return subprocess.run([sys.executable, "-m", "decrun", *args], cwd=cwd, env=env(), capture_output=True,
-                          text=True, timeout=timeout)
-
-
-def comparable(table: pd.DataFrame) -> pd.DataFrame:
-    return table.drop(columns=[c for c in TIMES if c in table.columns]).reset_index(drop=True)
-
-
 def test_a_sweep_killed_mid_job_resumes_to_the_table_of_an_uninterrupted_sweep(tmp_path):
     reference = decrun(*SWEEP, "hydra.sweep.dir=reference", cwd=tmp_path)
     assert reference.returncode == 0, reference.stderr

@@ -39,19 +39,23 @@ MAX_DEFLATE_RATIO = 1100
 _SMALL_BYTES = 1 << 20
 
 
+def _read_text(path: str | os.PathLike) -> str:
+    """The text of ``path``: ``FileNotFoundError`` when absent (the caller's "missing"),
+    :class:`CorruptFileError` naming it when it cannot be read or is not text."""
+    try:
+        return Path(path).read_text()
+    except FileNotFoundError:
+        raise
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CorruptFileError(f"{path}: unreadable ({exc})") from None
+
+
 def load_json(path: str | os.PathLike) -> Any:
     """The JSON value in ``path`` (NaN/Infinity allowed, as decrun writes them).
 
     Raises ``FileNotFoundError`` when absent and :class:`CorruptFileError` naming the file
     when it cannot be read, is not JSON, or nests deeper than the recursion limit."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CorruptFileError(f"{path}: unreadable ({exc})") from None
-    return parse_json(text, str(path))
+    return parse_json(_read_text(path), str(path))
 
 
 def parse_json(text: str | bytes, where: str) -> Any:
@@ -74,12 +78,7 @@ def load_yaml(path: str | os.PathLike) -> Any:
     import yaml
 
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CorruptFileError(f"{path}: unreadable ({exc})") from None
+    text = _read_text(path)
     try:
         return yaml.safe_load(text)
     except RecursionError:

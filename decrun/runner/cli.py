@@ -76,11 +76,16 @@ def _hydra_task(cfg: DictConfig) -> int | float:
                log_name=hydra_cfg.job.name)
 
 
-def _check_job(cfg: DictConfig) -> None:
-    """The sweeper's check of each planned job: :func:`decrun.runner.run.validate`."""
+#: the plugins the sweeper's checks built, by node (a sweep's jobs share most of them)
+_CHECKED: dict = {}
+
+
+def _check_job(cfg: DictConfig, delta=None) -> None:
+    """The sweeper's check of each planned job: :func:`decrun.runner.run.validate`, each
+    distinct plugin node built once per process, a derived job's changed leaves only."""
     from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
 
-    validate(cfg)
+    validate(cfg, memo=_CHECKED, delta=delta)
 
 
 _hydra_main = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_hydra_task)
@@ -130,6 +135,7 @@ class SweepTable(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
         """Refuse a non-empty sweep dir for sweepers without resume; then show jobs done /
         total with ETA in the submitting process (a terminal only)."""
+        _CHECKED.clear()  # a sweep's checks see its own files (a mesh file changed since)
         sweep_dir = Path(str(config.hydra.sweep.dir))
         target = str(config.hydra.sweeper.get("_target_", ""))
         if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):

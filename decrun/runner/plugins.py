@@ -39,7 +39,7 @@ from decrun.core.choices import Choice, choice_error
 from decrun.errors import ConfigError
 from decrun.runner.config import load_option
 
-__all__ = ["target_class", "build", "plain_values"]
+__all__ = ["target_class", "build", "plain_values", "Rebuilt"]
 
 
 def target_class(node: Any, key: str, base: type) -> type:
@@ -106,9 +106,16 @@ def _widen(hint, value):
     if origin in (list, typing.List) and isinstance(value, list) and args:
         return [_widen(args[0], item) for item in value]
     if dataclasses.is_dataclass(hint) and isinstance(value, dict):
-        hints = typing.get_type_hints(hint)
+        hints = _type_hints(hint)
         return {k: _widen(hints[k], v) if k in hints else v for k, v in value.items()}
     return value
+
+
+@functools.lru_cache(maxsize=None)
+def _type_hints(cls: type) -> dict:
+    """``typing.get_type_hints(cls)``, once per class (it evaluates every annotation: a
+    third of a plugin's build)."""
+    return typing.get_type_hints(cls)
 
 
 @functools.lru_cache(maxsize=None)
@@ -118,7 +125,7 @@ def _schema(cls: type) -> DictConfig:
     return OmegaConf.structured(cls)
 
 
-def build(node: Any, key: str, base: type) -> Any:
+def build(node: Any, key: str, base: type, typed: bool = False) -> Any:
     """Type-check ``node`` against the dataclass named by its ``_target_`` and build it.
 
     Parameters
@@ -126,6 +133,8 @@ def build(node: Any, key: str, base: type) -> Any:
     node : DictConfig or dict with ``_target_`` and option values
     key : the config key in error messages (``mesh``, ``solver``, ``app`` ...)
     base : the plugin kind's base class (``MeshSource``, ``Solver``, ``App`` ...)
+    typed : also return the schema-merged config the plugin was made from (``(plugin,
+        typed)``, for :class:`Rebuilt`)
 
     Raises :class:`ConfigError` naming ``<key>.<option>`` for an unknown option, a value of the
     wrong type or a value the plugin's checks reject.
@@ -136,7 +145,8 @@ def build(node: Any, key: str, base: type) -> Any:
     try:
         merged = OmegaConf.merge(schema, values)
         check_numbers(OmegaConf.to_container(merged), key)  # as converted ("nan" → nan)
-        return OmegaConf.to_object(merged)
+        plugin = OmegaConf.to_object(merged)
+        return (plugin, merged) if typed else plugin
     except ConfigKeyError as exc:
         name = exc.key if getattr(exc, "key", None) else str(exc).split("'")[1] if "'" in str(exc) else "?"
         known = sorted(f.name for f in dataclasses.fields(cls))
@@ -152,6 +162,32 @@ def build(node: Any, key: str, base: type) -> Any:
         raise ConfigError(f"{key}.{where}: {message}") from None
     except OmegaConfBaseException as exc:
         raise ConfigError(f"{key}: {str(exc).splitlines()[0]}") from None
+
+
+class Rebuilt:
+    """A plugin built by :func:`build`, kept with its typed (schema-merged) config so that a
+    node differing from it only in some plain leaves is rebuilt by assigning those leaves
+    (:meth:`with_leaves`): OmegaConf converts and checks an assigned value exactly as it
+    does a merged one, and the dataclass's own checks run again in ``to_object``. A sweep
+    of 10 000 ``app.dt`` values rebuilds ``app`` 10 000 times this way at a fraction of a
+    full build's cost (no schema merge, no conversion of the untouched options)."""
+
+    def __init__(self, node: Any, key: str, base: type):
+        self.key, self.base = key, base
+        self.plugin, self.typed = build(node, key, base, typed=True)
+
+    def with_leaves(self, node: Any, leaves: dict[str, Any]) -> Any:
+        """The plugin of ``node``, which equals the last node built here except at the
+        option paths ``leaves`` (``{"dt": 0.1}``; plain values: numbers, str, bool, None).
+        Any refusal is :func:`build`'s own, with its message (the node is built in full)."""
+        try:
+            for path, value in leaves.items():
+                OmegaConf.update(self.typed, path, value, merge=True)
+                check_numbers(OmegaConf.select(self.typed, path), f"{self.key}.{path}")
+            self.plugin = OmegaConf.to_object(self.typed)
+        except Exception:  # noqa: BLE001 — build names the key and says why, as a first build does
+            self.plugin, self.typed = build(node, self.key, self.base, typed=True)
+        return self.plugin
 
 
 #: the base class of each plugin group (imported lazily by :func:`option`)

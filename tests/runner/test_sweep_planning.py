@@ -1,0 +1,180 @@
+"""The sweep plan's compositions (decrun.runner.sweep.planning) are Hydra's: for a mix of
+plain values, config groups, ``+key=``, ``~key`` and interpolations, every planned job's
+config hash and every launched job's whole config (``hydra`` node included) equal those of
+Hydra's own ``load_sweep_config`` of the same overrides. Timings are the benchmark's
+(benchmarks/bench_sweeps.py --planning), never asserted here."""
+
+from __future__ import annotations
+
+import hashlib
+
+import pytest
+from hydra import initialize_config_dir
+from hydra.core.config_store import ConfigStore
+from hydra.core.global_hydra import GlobalHydra
+from hydra.types import RunMode
+from omegaconf import OmegaConf
+
+from decrun.runner.config import DecrunConfig, config_dir, register_configs
+from decrun.runner.sweep.manifest import UNHASHED, config_hash
+from decrun.runner.sweep.planning import Composer, PlannedConfigs, simple_subdir, subdir_of
+
+#: groups of jobs: plain values only; a config group; + and ~; an interpolation into a
+#: swept key; an interpolated override value; quoted strings, null and a root value
+JOBS = [
+    ("app.dt=0.001", "mesh.subdiv=2", "figures=false"),
+    ("app.dt=0.002", "mesh.subdiv=3", "figures=true"),
+    ("app.dt=0.003", "mesh.subdiv=3", "figures=false"),
+    ("operator=circumcentric", "app.dt=0.001"),
+    ("operator=circumcentric", "app.dt=0.004"),
+    ("+app.note=first", "~app.rescale", "app.steps=4"),
+    ("+app.note=second", "~app.rescale", "app.steps=5"),
+    ("+app.note=${app.dt}", "app.dt=0.01"),
+    ("+app.note=${app.dt}", "app.dt=0.02"),
+    ("app.steps=${mesh.subdiv}", "mesh.subdiv=1"),
+    ("app.scheme='explicit'", "app.dt=null", "mesh.radius=2"),
+    ("app.scheme=implicit", "app.dt=0.5", "mesh.radius=1"),
+]
+
+
+@pytest.fixture
+def hydra_loader(hydra_restore_singletons):
+    register_configs()
+    ConfigStore.instance().store(name="base_config", node=DecrunConfig)  # restored away after an earlier test
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):
+        loader = GlobalHydra.instance().config_loader()
+        master = loader.load_configuration("config", overrides=["hydra.sweep.dir=planned"], run_mode=RunMode.MULTIRUN)
+        yield loader, master
+    GlobalHydra.instance().clear()
+
+
+def test_every_planned_job_hashes_as_hydras_composition_and_launches_as_it(hydra_loader):
+    loader, master = hydra_loader
+    composer = Composer(loader, master)
+    planned = []
+    for job, cfg, template in composer.each(JOBS):  # cfg: the group's working copy, valid until the next job
+        planned.append(config_hash(cfg, template.blocks, template.fresh) if template is not None else config_hash(cfg))
+    hydra = [loader.load_sweep_config(master, list(job)) for job in JOBS]
+    assert planned == [config_hash(cfg) for cfg in hydra]
+    assert len(set(planned)) == len(JOBS)
+    # jobs 7 and 8 interpolate the swept app.dt: each job's note is its own dt
+    assert [OmegaConf.select(cfg, "app.note") for cfg in hydra[7:9]] == [0.01, 0.02]
+    # one template per group (jobs 0-2, 3-4, 5, 6, 7-8, 9, 10-11; a + line is not a plain value):
+    # the other jobs were derived from them, none composed by Hydra for lack of one
+    assert len(composer.templates) == 7
+
+    line = "hydra.sweep.subdir='job_x'"
+    launcher = PlannedConfigs(loader, composer.templates, extra=(("hydra.sweep.subdir", None),))
+    for job in JOBS:
+        derived = launcher.load_sweep_config(master, [*job, line])
+        assert OmegaConf.to_yaml(derived) == OmegaConf.to_yaml(loader.load_sweep_config(master, [*job, line])), job
+
+
+def test_the_hash_of_a_config_is_the_hash_of_its_whole_yaml(hydra_loader):
+    """config_hash hashes root key by root key (a plan reuses the blocks of the keys its
+    jobs do not change): the same digest as the YAML of the whole resolved config."""
+    loader, master = hydra_loader
+    for overrides in ([], ["app=hodge", "+app.note=${mesh.subdiv}"], ["operator=circumcentric", "optimize.metric=stable"]):
+        cfg = loader.load_sweep_config(master, overrides)
+        node = {key: OmegaConf.to_container(cfg[key], resolve=True) if OmegaConf.is_config(cfg[key]) else cfg[key]
+                for key in cfg if key not in UNHASHED and key != "hydra"}
+        whole = OmegaConf.to_yaml(OmegaConf.create(node), sort_keys=True)
+        assert config_hash(cfg) == hashlib.sha256(whole.encode()).hexdigest()[:16], overrides
+
+
+@pytest.mark.parametrize("pattern, simple, job3", [
+    ("${hydra.job.num}", True, "3"), ("run_${hydra.job.id}/x", True, "run_3/x"), ("fixed", True, "fixed"),
+    ("${hydra.job.override_dirname}", False, None), ("${hydra:job.num}", False, None), ("a\\${b}", False, None)])
+def test_a_directory_pattern_of_the_job_number_only_is_resolved_without_its_config(pattern, simple, job3):
+    assert simple_subdir(pattern) is simple
+    if simple:
+        assert subdir_of(pattern, 3) == job3
+        cfg = OmegaConf.create({"hydra": {"job": {"num": 3, "id": 3}, "sweep": {"subdir": pattern}}})
+        assert str(OmegaConf.select(cfg, "hydra.sweep.subdir")) == job3  # as the sweeper reads it
+
+
+def _plugins(experiment) -> dict:
+    return {key: getattr(experiment, key) for key in ("app", "operator", "boundary", "solver", "mesh_source", "export")}
+
+
+def test_a_derived_job_is_checked_as_a_full_build_is_with_one_build_per_plugin(hydra_loader, monkeypatch):
+    """The plan's check of a derived job (validate with a JobDelta: only the swept leaves
+    assigned to the last typed config) builds the same plugins as a full check of the same
+    config, and refuses a bad value with the full check's message; a group's plugins are
+    each built in full once (issue 24: a 2000-job sweep built all six plugins of every job)."""
+    import copy
+
+    import decrun.runner.plugins as plugins
+    import decrun.runner.run as run_module
+    from decrun.errors import ConfigError
+    from decrun.runner.run import validate
+    from decrun.runner.sweep.checks import JobDelta
+
+    loader, master = hydra_loader
+    jobs = [(f"app.steps={n}", f"app.dt={dt}") for n in (3, 4, 5) for dt in (0.001, 0.25)]
+    jobs += [("app.steps=6", "app.dt=oops"), ("app.steps=7", "app.dt=0.5")]
+    composer = Composer(loader, master)
+    planned = []
+    for job, cfg, template in composer.each(jobs):  # the full checks, on copies of each job's config
+        assert template is not None and template.varying_keys == ("app.steps", "app.dt")
+        try:
+            planned.append((job, copy.deepcopy(cfg), _plugins(validate(cfg))))
+        except ConfigError as exc:
+            planned.append((job, copy.deepcopy(cfg), exc))
+    builds = []
+    full_build = plugins.build
+
+    def counted(*args, **kwargs):
+        builds.append(args[1])
+        return full_build(*args, **kwargs)
+
+    monkeypatch.setattr(plugins, "build", counted)
+    monkeypatch.setattr(run_module, "build", counted)
+    memo: dict = {}
+    delta = JobDelta("group", template.varying_keys, template.interpolated)
+    work = copy.deepcopy(planned[0][1])
+    for job, cfg, expected in planned:
+        for key in delta.keys:  # the plan's working copy: only the swept leaves change
+            OmegaConf.update(work, key, OmegaConf.select(cfg, key), merge=True)
+        if isinstance(expected, ConfigError):
+            with pytest.raises(ConfigError) as caught:
+                validate(work, memo=memo, delta=delta)
+            assert str(caught.value) == str(expected) and "app.dt" in str(expected), job
+            continue
+        assert _plugins(validate(work, memo=memo, delta=delta)) == expected, job
+    # six plugins built in full for the first job; after it only the app, once, when job 6's
+    # bad value was refused (the full build names the key); job 7 is rebuilt from its leaves
+    assert sorted(builds) == sorted(["app", "operator", "boundary", "solver", "mesh", "export", "app"])
+
+
+def test_repeated_values_run_as_jobs_of_their_own(tmp_path):
+    """``app.steps=2,2`` plans two equal jobs: each runs in its own directory (Hydra's basic
+    launcher failed with a traceback on the second, joblib left it missing)."""
+    from cli_processes import decrun
+
+    proc = decrun("-m", "app.steps=2,2", "figures=false", "progress=false", f"hydra.sweep.dir={tmp_path}/s",
+                  cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    import pandas as pd
+
+    table = pd.read_csv(tmp_path / "s" / "metrics.csv")
+    assert list(table["status"]) == ["ok", "ok"] and list(table["steps_done"]) == [2, 2]
+
+
+def test_a_plan_composed_by_hydra_for_every_job_is_the_derived_plan(tmp_path):
+    """``hydra.sweeper.derive=false`` (Hydra composes every job, its public API only) plans
+    the same jobs, directories and config hashes as decrun's derived plan."""
+    import json
+
+    from cli_processes import decrun
+
+    manifests = {}
+    for derive in ("true", "false"):
+        proc = decrun("-m", "app.steps=1,2", "app.dt=0.001,0.002", "operator=circumcentric,barycentric",
+                      "figures=false", "progress=false", f"hydra.sweeper.derive={derive}",
+                      f"hydra.sweep.dir={tmp_path}/{derive}", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        jobs = json.loads((tmp_path / derive / "manifest.json").read_text())["jobs"]
+        manifests[derive] = [(job["dir"], job["overrides"], job["config_hash"]) for job in jobs]
+    assert len(manifests["true"]) == 8 and manifests["true"] == manifests["false"]

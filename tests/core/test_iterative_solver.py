@@ -114,7 +114,7 @@ def test_symmetric_indefinite_shifted_singular_system_fails_over_to_gmres_early(
     solver = make_solver("iterative", ilu_drop_tol=1e-4)
     x = SingularSolve(A, solver, project=False).solve(B)
     exact = SingularSolve(A, make_solver("direct"), project=False).solve(B)
-    assert set(solver.methods_used) == {"gmres"} and np.mean(solver.iterations) <= 10
-    assert solver.ilu_drop_tols_used == [1e-4 / 1e3]  # tightened once, after a slow solve
+    assert set(solver.methods_used) == {"gmres"} and np.mean(solver.iterations) <= 5
+    assert solver.ilu_drop_tols_used[:1] == [1e-4 / 1e3]  # tightened after a slow solve
     # α, β agree up to the kernel: compare δβ-like d1ᵀ x (the kernel of A is ker d1ᵀ)
     assert np.abs(d.T @ (x - exact)).max() <= 1e-8 * np.abs(d.T @ exact).max()

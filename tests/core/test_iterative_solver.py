@@ -1,4 +1,4 @@
-"""solver=iterative: the Krylov method fits the matrix (CG for SPD, MINRES for symmetric
+"""solver=iterative: the Krylov method fits the matrix (CG for SPD, GMRES + ILU for symmetric
 indefinite, GMRES with an incomplete LU for unsymmetric) and every solve meets the backward
 error tol, so the answers match a direct LU."""
 

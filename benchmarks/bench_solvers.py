@@ -15,6 +15,16 @@ CHOLMOD may use several cores), and the relative residual checks the answer.
 
     python benchmarks/bench_solvers.py            # 164k and 655k vertices
     python benchmarks/bench_solvers.py --quick    # 10k and 41k vertices
+
+``--iterative`` instead runs the cases of issue 25 item 5 through the real CLI, each with
+``solver=direct`` and ``solver=iterative`` in its own process, and prints the apps' solve
+seconds, their iterative/direct ratio (the goal: ≤ 10) and the largest difference of the
+result fields (relative to the largest field of the same shape) except those defined only
+up to a gauge: the potentials α, β (up to constants, as in
+``tests/apps/test_iterative_solver_apps.py``) and the eigenforms (up to sign and a rotation
+within an eigenspace; the eigenvalues are compared):
+
+    python benchmarks/bench_solvers.py --iterative
 """
 
 from __future__ import annotations
@@ -67,7 +77,57 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     return {"factor": factor, "factor_cpu": factor_cpu, "solve": solve, "residual": residual, "n": A.shape[0]}
 
 
+#: issue 25 item 5: the cases where solver=iterative was 100–200× slower than direct
+ITERATIVE_CASES = {
+    "hodge torus circumcentric noisy": ["app=hodge", "mesh=torus", "mesh.noise=0.05", "operator=circumcentric"],
+    "hodge bunny circumcentric": ["app=hodge", "mesh=bunny", "operator=circumcentric"],
+    "spectrum bunny degree 1": ["app=spectrum", "mesh=bunny", "app.degree=1", "operator=whitney"],
+}
+
+
+UP_TO_A_GAUGE = {"alpha", "beta", "eigenforms"}
+
+
+def cli_fields(overrides: list[str], solver: str, run_dir: str) -> tuple[dict, dict]:
+    """Runs ``decrun <overrides> solver=<solver>`` in its own process; (fields, metrics)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from decrun.runner.results import read_result
+
+    decrun = Path(sys.executable).with_name("decrun")
+    subprocess.run([str(decrun), *overrides, f"solver={solver}", "figures=false", f"hydra.run.dir={run_dir}"],
+                   check=True, capture_output=True, text=True)
+    result = read_result(Path(run_dir) / "result.h5")
+    fields = {k: np.asarray(v, dtype=float) for k, v in result.fields.items()
+              if np.asarray(v).dtype.kind in "fc" and np.asarray(v).size and k not in UP_TO_A_GAUGE}
+    return fields, result.metrics
+
+
+def iterative_against_direct() -> int:
+    """The table of ``--iterative``."""
+    import tempfile
+
+    print("| case | direct solve s | iterative solve s | iterative / direct | max field difference |")
+    print("|---|---:|---:|---:|---:|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, overrides in ITERATIVE_CASES.items():
+            runs = {solver: cli_fields(overrides, solver, f"{tmp}/{solver}-{len(name)}") for solver in ("direct", "iterative")}
+            (direct, direct_metrics), (iterative, metrics) = runs["direct"], runs["iterative"]
+            difference = max(np.abs(iterative[k] - v).max()
+                             / (max(np.abs(w).max() for w in direct.values() if w.shape == v.shape) or 1.0)
+                             for k, v in direct.items())
+            print(f"| {name} | {direct_metrics['solve_seconds']:.2f} | {metrics['solve_seconds']:.2f} |"
+                  f" {metrics['solve_seconds'] / direct_metrics['solve_seconds']:.1f} | {difference:.1e} |", flush=True)
+    return 0
+
+
 def main(argv=None) -> int:
+    import sys
+
+    if "--iterative" in (sys.argv[1:] if argv is None else argv):
+        return iterative_against_direct()
     args = parse_or_run_case(__doc__, run_case, argv)
     if args is None:
         return 0

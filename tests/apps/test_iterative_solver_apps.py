@@ -1,6 +1,6 @@
 """Every app runs with ``solver=iterative`` through the real CLI and matches ``solver=direct``
 to 1e-8: the Krylov method is chosen per matrix (CG for the SPD heat and Poisson systems,
-MINRES where negative cot weights make them indefinite, GMRES with an incomplete LU for the
+GMRES with an incomplete LU where negative cot weights make them indefinite and for the
 conformal border's unsymmetric rows and the Galerkin saddle point)."""
 
 from __future__ import annotations

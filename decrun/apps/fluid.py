@@ -25,51 +25,11 @@ import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.apps.surface_points import check_points_on_surface
-from decrun.core.choices import Choice
 from decrun.errors import ConfigError
+from decrun.methods.fluid.options import Circulation, Initial, Kernels, Velocity
 
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
-
-
-class Initial(Choice):
-    """``app.initial``: the vorticity at t = 0 (``rotation`` and ``vortex_pair`` on the unit
-    sphere; ``mesh_field`` from ``mesh=result mesh.field=...``)."""
-
-    zero = "zero"
-    rotation = "rotation"
-    vortex_pair = "vortex_pair"
-    random = "random"
-    mesh_field = "mesh_field"
-
-
-class Velocity(Choice):
-    """``app.velocity``: the velocity reconstruction (decrun/methods/fluid/reconstruction.py):
-    ``least_squares`` or ``wshd07``, the thesis' interpolation (§7.2.3)."""
-
-    least_squares = "least_squares"
-    wshd07 = "wshd07"
-
-
-class Circulation(Choice):
-    """``app.circulation``: the circulation of the back-traced dual cells
-    (decrun/methods/fluid/simulation.py): ``swept_bounded`` (swept, energy and enstrophy bounded
-    by the previous step's without inflow; decrun/methods/fluid/limiter.py), ``swept_clamped``
-    (also a local clamp), ``swept``, ``corrected_trapezoid`` or ``trapezoid``, the thesis' rule."""
-
-    swept_bounded = "swept_bounded"
-    swept_clamped = "swept_clamped"
-    swept = "swept"
-    corrected_trapezoid = "corrected_trapezoid"
-    trapezoid = "trapezoid"
-
-
-class Kernels(Choice):
-    """``app.kernels``: ``numba`` (compiled loops, decrun/methods/fluid/compiled.py) or ``numpy``
-    (their reference twins); both give the same run, bit for bit."""
-
-    numba = "numba"
-    numpy = "numpy"
 
 
 @dataclass

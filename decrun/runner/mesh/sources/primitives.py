@@ -100,8 +100,8 @@ class Grid(MeshSource):
     """Triangulated ``nx`` × ``ny`` vertex grid of ``width`` × ``height`` in z = 0, centred."""
 
     name = "grid"
-    nx: int = 10
-    ny: int = 10
+    nx: int = 16  # as conf/mesh/grid.yaml (was 10 here: `Grid()` and `decrun mesh=grid` differed)
+    ny: int = 16
     width: float = 1.0
     height: float = 1.0
 

@@ -1,0 +1,50 @@
+"""The fluid's closed option sets (``app.initial``, ``app.velocity``, ``app.circulation``,
+``app.kernels``): they name the method's own variants, so they live with the method
+(DESIGN.md layers: core <- methods <- apps) and :mod:`decrun.apps.fluid` imports them.
+Light on purpose (no numerical import): composing a config reads them for hints."""
+
+from __future__ import annotations
+
+from decrun.core.choices import Choice
+
+__all__ = ["Initial", "Velocity", "Circulation", "Kernels"]
+
+
+class Initial(Choice):
+    """``app.initial``: the vorticity at t = 0 (``rotation`` and ``vortex_pair`` on the unit
+    sphere; ``mesh_field`` from ``mesh=result mesh.field=...``)."""
+
+    zero = "zero"
+    rotation = "rotation"
+    vortex_pair = "vortex_pair"
+    random = "random"
+    mesh_field = "mesh_field"
+
+
+class Velocity(Choice):
+    """``app.velocity``: the velocity reconstruction (decrun/methods/fluid/reconstruction.py):
+    ``least_squares`` or ``wshd07``, the thesis' interpolation (§7.2.3)."""
+
+    least_squares = "least_squares"
+    wshd07 = "wshd07"
+
+
+class Circulation(Choice):
+    """``app.circulation``: the circulation of the back-traced dual cells
+    (decrun/methods/fluid/simulation.py): ``swept_bounded`` (swept, energy and enstrophy bounded
+    by the previous step's without inflow; decrun/methods/fluid/limiter.py), ``swept_clamped``
+    (also a local clamp), ``swept``, ``corrected_trapezoid`` or ``trapezoid``, the thesis' rule."""
+
+    swept_bounded = "swept_bounded"
+    swept_clamped = "swept_clamped"
+    swept = "swept"
+    corrected_trapezoid = "corrected_trapezoid"
+    trapezoid = "trapezoid"
+
+
+class Kernels(Choice):
+    """``app.kernels``: ``numba`` (compiled loops, decrun/methods/fluid/compiled.py) or ``numpy``
+    (their reference twins); both give the same run, bit for bit."""
+
+    numba = "numba"
+    numpy = "numpy"

@@ -99,7 +99,7 @@ def check_disk_topology(K: SimplicialComplex) -> int:
     if count != 1:
         raise TopologyError(
             f"mesh: parametrization needs one connected surface, this mesh has {count} connected "
-            "components (parametrize them separately or remove the small ones)"
+            "components; keep the largest with `mesh.largest_component=true`"
         )
     loops = K.border_loops()
     if not loops:

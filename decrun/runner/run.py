@@ -258,6 +258,10 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     result.metrics.setdefault("status", "ok")
     result.metrics.setdefault("n_vertices", int(complex_.num_simplices(0)))
     result.metrics.setdefault("n_faces", int(complex_.num_simplices(complex_.dim)))
+    for key in ("largest_component_components", "largest_component_dropped_vertices",
+                "largest_component_dropped_faces"):  # mesh.largest_component: nothing dropped unreported
+        if key in mesh.meta:
+            result.metrics.setdefault(key, int(mesh.meta[key]))
     mesh.complex = complex_
     return result, mesh, timings
 

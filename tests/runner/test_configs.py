@@ -99,8 +99,9 @@ APP_EXPECT = {  # the one claim of each app's default run
     "smoothing": lambda m: m["stable"] and m["distance_to_clean_rms"] < 0.5 * m["distance_to_clean_rms_initial"],
     "parametrization": lambda m: m["is_embedding"] and m["angle_distortion_mean_deg"] < 5,
     "hodge": lambda m: m["orthogonality_max"] < 1e-10 and m["harmonic_dimension"] == m["betti_1"] == 0,
-    # no stroke unless configured (issue 18): the default fluid is at rest and stays at rest
-    "fluid": lambda m: m["stable"] and m["max_abs_divergence"] == 0 and m["kinetic_energy_final"] == 0,
+    # issue 27: the default fluid flows (a seeded random vorticity) on a mesh without obtuse triangles
+    "fluid": lambda m: m["stable"] and m["max_abs_divergence"] < 1e-12 and m["kinetic_energy_final"] > 0
+    and m["enstrophy_final"] > 0 and m["obtuse_triangles"] == 0,
     "spectrum": lambda m: m["kernel_dimension_matches_betti"] and m["orthonormality_error_max"] < 1e-9,
     "vector_field": lambda m: m["poincare_hopf_holds"] and m["singularities"] == 2 and m["divergence_residual_relative"] < 1e-10,
 }

@@ -47,7 +47,18 @@ def files(tmp: Path) -> dict[str, str]:
         "degenerate": write_obj(tmp / "degenerate.obj", SQUARE + [[2, 0, 0]], FAN + [[0, 1, 5]]),
         "tets": str(tets),
         "result": _result_file(tmp),
+        "two_pieces": _two_pieces(tmp),
     }
+
+
+def _two_pieces(tmp: Path) -> str:
+    """A grid patch (grid_triangles(5): a disk) and, apart from it, the 4-triangle pyramid fan."""
+    from decrun.core.primitives import grid_triangles
+
+    V, F = grid_triangles(5)
+    V3 = np.column_stack([V, np.zeros(len(V))])
+    fan = np.asarray(SQUARE, dtype=float) + [3.0, 0.0, 0.0]
+    return write_obj(tmp / "two_pieces.obj", np.vstack([V3, fan]), np.vstack([F, np.asarray(FAN) + len(V)]))
 
 
 def _result_file(tmp: Path) -> str:
@@ -62,6 +73,11 @@ def _result_file(tmp: Path) -> str:
 
 #: name → (overrides that fail, the overrides the hint must name)
 CASES = {
+    # issue 27.4: a mesh of several pieces names the post step that keeps the largest
+    "parametrization_of_two_pieces": (["mesh=file", "mesh.path={two_pieces}", "app=parametrization"],
+                                      ["mesh.largest_component=true"]),
+    "fluid_on_two_pieces": (["mesh=file", "mesh.path={two_pieces}", "app=fluid", "app.steps=2", "figures=false"],
+                            ["mesh.largest_component=true"]),
     "rescale_volume_on_open_mesh": (["mesh=grid", "app.rescale=volume", "app.steps=1"], ["app.rescale=auto"]),
     "critical_dt_off_without_dt": (["mesh.subdiv=1", "app.critical_dt=false", "app.scheme=explicit",
                                     "app.steps=20"], ["app.dt=", "app.critical_dt=true"]),
@@ -200,3 +216,15 @@ def test_python_hints_stay_for_python_callers_and_become_cli_overrides_in_the_ru
     with pytest.raises(DecrunError) as info:
         run(["mesh=file", f"mesh.path={files(tmp_path)['unreferenced']}"])
     assert "unreferenced='drop'" not in str(info.value) and "`mesh.repair=true`" in str(info.value)
+
+
+def test_largest_component_keeps_the_largest_piece_and_reports_what_it_dropped(tmp_path):
+    """issue 27.4: the 4-triangle fan (5 vertices) is dropped, and the metrics say so."""
+    path = files(tmp_path)["two_pieces"]
+    metrics = run(["mesh=file", f"mesh.path={path}", "app=parametrization", "mesh.largest_component=true"]).metrics
+    from decrun.core.primitives import grid_triangles
+
+    V, F = grid_triangles(5)
+    assert metrics["status"] == "ok" and metrics["n_vertices"] == len(V) and metrics["n_faces"] == len(F)
+    assert metrics["largest_component_components"] == 2
+    assert metrics["largest_component_dropped_vertices"] == 5 and metrics["largest_component_dropped_faces"] == 4

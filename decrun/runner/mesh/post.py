@@ -10,8 +10,10 @@ the order they run; adding a step is adding a function here (and its option fiel
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import coo_matrix as sp_coo
 
-from decrun.core.connectivity import drop_unreferenced, largest_component
+from decrun.core.connectivity import drop_unreferenced
+from decrun.core.connectivity import largest_component as largest_piece
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
 from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, Mesh, Refine, from_meshset, require, require_surface,
@@ -20,7 +22,7 @@ from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
 from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
 
-__all__ = ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
+__all__ = ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise"]
 
 
 def repair(mesh: Mesh, cfg) -> Mesh:
@@ -104,12 +106,45 @@ def clean(mesh: Mesh, cfg) -> Mesh:
     joined through shared vertices) and drop unreferenced vertices."""
     if not cfg.clean:
         return mesh
-    keep_faces = largest_component(mesh.simplices, len(mesh.vertices), through="vertices")
+    keep_faces = largest_piece(mesh.simplices, len(mesh.vertices), through="vertices")
     V, F, used = drop_unreferenced(mesh.vertices, mesh.simplices[keep_faces])
     meta = dict(mesh.meta, dropped_vertices=int((~used).sum()), dropped_faces=int((~keep_faces).sum()))
     if "clean_vertices" in meta:
         meta["clean_vertices"] = meta["clean_vertices"][used]
     return Mesh(V, F, meta)
+
+
+def largest_component(mesh: Mesh, cfg) -> Mesh:
+    """``largest_component``: keep the connected component with the most top simplices
+    (triangles or tetrahedra joined through shared vertices, as
+    :meth:`decrun.core.complex.SimplicialComplex.connected_components` counts them; the first
+    on a tie) and the vertices it uses. The numbers of components, dropped vertices and dropped
+    top simplices go to the run log and to ``meta`` (``largest_component_components``,
+    ``largest_component_dropped_vertices``, ``largest_component_dropped_faces``)."""
+    if not getattr(cfg, "largest_component", False):
+        return mesh
+    import logging
+
+    from scipy.sparse.csgraph import connected_components
+
+    S = np.asarray(mesh.simplices, dtype=np.int64)
+    m = len(S)
+    rows = np.repeat(np.arange(m), S.shape[1])
+    graph = sp_coo((np.ones(rows.size), (rows, S.ravel() + m)), shape=(m + len(mesh.vertices),) * 2)
+    _, label = connected_components(graph, directed=False)
+    top = label[:m]
+    pieces, counts = np.unique(top, return_counts=True)
+    keep_faces = top == pieces[np.argmax(counts)]
+    V, F, used = drop_unreferenced(mesh.vertices, S[keep_faces])
+    dropped_v, dropped_f = int((~used).sum()), int((~keep_faces).sum())
+    logging.getLogger("decrun").info("mesh.largest_component: %d components; kept %d of %d vertices and %d of %d "
+                                     "simplices (dropped %d vertices, %d simplices)", len(pieces), len(V),
+                                     len(mesh.vertices), len(F), m, dropped_v, dropped_f)
+    meta = dict(mesh.meta, largest_component_components=int(len(pieces)),
+                largest_component_dropped_vertices=dropped_v, largest_component_dropped_faces=dropped_f)
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[used]
+    return type(mesh)(V, F, meta)
 
 
 def refine(mesh: Mesh, cfg) -> Mesh:

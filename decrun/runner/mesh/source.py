@@ -27,6 +27,8 @@ and models with known defects), and what they change is counted in ``meta``.
 - ``clean_vertices``: ``(n0, d)`` positions before ``noise`` was added (only when noise > 0)
 - ``noise_amplitude``: the absolute noise standard deviation (``noise * mean edge length``)
 - ``dropped_vertices`` / ``dropped_faces``: what ``clean`` removed (only when clean ran)
+- ``largest_component_components`` / ``_dropped_vertices`` / ``_dropped_faces``: what
+  ``largest_component`` found and removed (only when it ran; also metrics of the run)
 - ``repair``: the counts of :func:`decrun.runner.mesh.repair.repair_mesh` (only when repair ran)
 - ``up_axis``: the axis rotated to +z (only when not z)
 - ``holes``: the cut's counts, ``holes_removed_faces`` (only when holes were cut)
@@ -48,7 +50,7 @@ __all__ = ["MeshSource"]
 
 
 def _default_post() -> List[str]:
-    return ["repair", "up_axis", "clean", "holes", "refine", "normalize", "noise"]
+    return ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise"]
 
 
 @dataclass
@@ -68,6 +70,9 @@ class MeshSource:
     #: the model's up axis, rotated to +z: x | y | z | -x | -y | -z | auto (a sample's own)
     up_axis: str = "z"
     clean: bool = False  # drop unreferenced vertices, keep the largest component
+    #: keep only the connected component (top simplices joined through shared vertices) with
+    #: the most top simplices; the dropped counts go to the log and the metrics
+    largest_component: bool = False
     #: holes: cut out balls [cx, cy, cz, r] and boxes [xmin, ymin, zmin, xmax, ymax, zmax]
     #: (2-D: [cx, cy, r], [xmin, ymin, xmax, ymax])
     hole_balls: List[List[float]] = field(default_factory=list)

@@ -118,6 +118,20 @@ MUTATIONS = [
              [("        if not self.closed:\n            return w\n        return w - (self.star0 @ w) / self.star0.sum()",
                "        return w")],
              [["tests/methods/test_fluid.py"], ["tests/apps/test_fluid_app.py"]]),
+    # ---------------------------------------------------------------- what the fluid computes (issue 25.7)
+    Mutation("swept: 2nd triangle's mean of ω at p_b instead of p_b'", "decrun/methods/fluid/swept.py",
+             [("second * (wa0 + wb1 + wa1) / 3.0", "second * (wa0 + wb0 + wa1) / 3.0")],
+             [["tests/methods/test_fluid.py", "-k", "swept"]]),
+    Mutation("swept: 2nd triangle (p_a, p_b', p_a') made (p_b, p_b', p_a')", "decrun/methods/fluid/swept.py",
+             [("np.cross(b1 - a0, a1 - a0)", "np.cross(b1 - b0, a1 - b0)"),
+              ("second * (wa0 + wb1 + wa1) / 3.0", "second * (wb0 + wb1 + wa1) / 3.0")],
+             [["tests/methods/test_fluid.py", "-k", "swept"]]),
+    Mutation("shadow flag always stable", "decrun/methods/fluid/shadow.py",
+             [('"perturbation_stable": bool(per_step <= self.max_growth_per_step)', '"perturbation_stable": True')],
+             [["tests/apps/test_fluid_app.py", "-k", "shadow or chaotic or jump"]]),
+    Mutation("fluid app ignores the shadow's verdict", "decrun/apps/fluid.py",
+             [('stable = bounded and chaos.get("perturbation_stable", True)', "stable = bounded")],
+             [["tests/apps/test_fluid_app.py", "-k", "shadow or chaotic or jump"]]),
 ]
 
 

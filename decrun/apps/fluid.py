@@ -66,7 +66,8 @@ class Fluid(App):
     circulation: Circulation = Circulation.swept_bounded  # swept_bounded | swept_clamped | swept | corrected_trapezoid | trapezoid
     shadow: bool = False  # also run a shadow with a 1e-10 perturbation: perturbation_growth_per_s (shadow.py)
     shadow_perturbation: float = 1e-10  # relative size of the shadow's perturbation
-    shadow_max_growth_per_step: float = 0.1  # stable: false when the mean growth per step exceeds this
+    shadow_max_growth_per_step: float = 0.1  # stable: false when the fitted growth per step exceeds this
+    shadow_window_steps: int = 100  # the growth is the least-squares slope of ln(separation) over the last this many steps
     record_every: int = 5
     snapshots: int = 6
     animation: bool = True
@@ -90,6 +91,9 @@ class Fluid(App):
                               "app.circulation=trapezoid)")
         if not self.shadow_perturbation > 0:
             raise ConfigError(f"app.shadow_perturbation: must be > 0, got {self.shadow_perturbation}")
+        if self.shadow_window_steps < 2:
+            raise ConfigError(f"app.shadow_window_steps: a growth rate is fitted over at least 2 steps, got "
+                              f"{self.shadow_window_steps}; use e.g. app.shadow_window_steps=100 (the default)")
         self.kernels = Kernels.of(self.kernels, "app.kernels")
         if self.record_every < 1:
             raise ConfigError(f"app.record_every: must be >= 1, got {self.record_every}")
@@ -130,10 +134,17 @@ class Fluid(App):
     def run(self, ctx: Context) -> Result:
         """Run the fluid; see the module docstring.
 
-        Metrics: ``stable`` (the energy stayed bounded and, with ``shadow``, the perturbation
-        grew by at most ``shadow_max_growth_per_step`` per step on average), ``diverged_at_step``
-        (when the energy bound broke), ``perturbation_growth_per_s``, ``perturbation_growth_per_step``,
-        ``perturbation_stable`` (with ``shadow``), ``steps_done``,
+        Metrics: ``stable`` (the energy stayed bounded and, with ``shadow``, the perturbation's
+        fitted growth was at most ``shadow_max_growth_per_step`` per step), ``diverged_at_step``
+        (when the energy bound broke), ``steps_done``; with ``shadow`` (decrun/methods/fluid/shadow.py):
+        ``perturbation_growth_per_step`` — the least-squares slope of L_n = ln(separation / ε)
+        (the renormalised log-growths summed up to step n) against n over the last
+        ``shadow_window_steps`` steps, never the first 5 (the perturbation's alignment; a run of
+        at most 5 steps fits all of them), so a single jump of L does not flag a laminar run
+        and the verdict does not depend on the run length —, ``perturbation_growth_per_s``
+        (the same / dt), ``perturbation_window_steps`` (the steps fitted),
+        ``perturbation_mean_growth_per_step`` (L_n / n over the run, the former rate),
+        ``perturbation_largest_step_growth``, ``perturbation_stable``;
         ``energy_ratio`` (final / initial kinetic energy, when the initial one is > 0),
         ``enstrophy_ratio``, ``max_abs_divergence`` (over the run), ``circulation_drift``
         (|Σ⋆0 w| at the end, closed surfaces), ``steps_per_second``, ``obtuse_triangles``.
@@ -161,7 +172,8 @@ class Fluid(App):
             from decrun.methods.fluid.shadow import Shadow
 
             shadow = Shadow(fluid, self.shadow_perturbation, seed=self.seed + 1,
-                            max_growth_per_step=self.shadow_max_growth_per_step)
+                            max_growth_per_step=self.shadow_max_growth_per_step,
+                            window_steps=self.shadow_window_steps)
         first = fluid.diagnostics()
         ctx.record(0, vorticity=fluid.vorticity, flux=fluid.flux, **{k: first[k] for k in SCALARS})
         max_divergence = first["max_abs_divergence"]

@@ -4,6 +4,8 @@ Kelvin, energy decay, vortex-pair drift, shedding) is tested in tests/methods/te
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 import pytest
 
@@ -138,6 +140,54 @@ def test_the_shadow_reports_the_perturbation_growth(sphere, run_app):
     assert m["perturbation_growth_per_s"] < 0 and m["perturbation_stable"] and m["stable"]
     assert m["perturbation_growth_per_step"] == pytest.approx(m["perturbation_growth_per_s"] * 0.02)
     assert "perturbation_growth_per_s" not in run_app(Fluid(dt=0.02, steps=2, animation=False), sphere)[0].metrics
+
+
+@pytest.mark.parametrize("steps, window", [(30, 100), (100, 100), (100, 20)])
+def test_a_single_jump_of_the_shadow_does_not_flag_a_laminar_run_of_any_length(sphere, run_app, steps, window):
+    """Issue 25: a rigid rotation with the thesis' scheme (320 faces, dt = 0.01, ν = 0) is
+    laminar — after step 1 a perturbation decays (−0.07 … −0.02 per step) — but in step 1 it
+    jumps by +16 (the symmetric start: a backtracked point on a dual-cell border). The run mean
+    16 / n flagged 30 steps (0.49 per step) and not 100 (0.13); the slope fitted after the
+    transient is −0.05 and −0.03 (−0.02 over the last 20 steps): stable at both lengths."""
+    app = Fluid(dt=0.01, steps=steps, viscosity=0.0, initial="rotation", velocity="wshd07", circulation="trapezoid",
+                shadow=True, shadow_window_steps=window, animation=False)
+    m = run_app(app, sphere)[0].metrics
+    assert m["perturbation_largest_step_growth"] > 10  # the jump is there ...
+    assert m["perturbation_mean_growth_per_step"] > 0.1  # ... and the run mean would flag the run
+    assert m["perturbation_window_steps"] == min(steps - 5, window)
+    assert -0.1 < m["perturbation_growth_per_step"] < 0 and m["perturbation_stable"] and m["stable"]
+
+
+@lru_cache(maxsize=None)
+def channel_2790():
+    return complex_of(source="channel", target_faces=2800)
+
+
+@pytest.mark.parametrize("steps", [30, 60])
+def test_a_chaotic_channel_is_flagged_at_any_run_length(run_app, steps):
+    """Issue 25: the 2790-face channel at dt = 0.0075 (inflow 10, ν = 0.02) with WSHD07 and the
+    corrected trapezoid (named, not the default) amplifies a perturbation ×3 per step while its
+    energy stays bounded (fitted growth 1.1 and 1.0 per step over 30 and 60 steps): `stable`
+    is false at both lengths, and only because of the shadow."""
+    K = channel_2790()
+    app = Fluid(dt=0.0075, steps=steps, viscosity=0.02, inflow=[10.0, 0.0], velocity="wshd07",
+                circulation="corrected_trapezoid", shadow=True, animation=False)
+    m = run_app(app, K)[0].metrics
+    assert m["steps_done"] == steps and "diverged_at_step" not in m  # the energy bound does not see it
+    assert m["perturbation_growth_per_step"] > 0.5 and m["perturbation_window_steps"] == steps - 5
+    assert m["perturbation_growth_per_s"] == pytest.approx(m["perturbation_growth_per_step"] / 0.0075)
+    assert not m["perturbation_stable"] and not m["stable"]
+
+
+def test_the_shadow_window_is_checked_and_the_override_that_fixes_it_runs(decrun_cli):
+    common = ("app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=8", "app.initial=random", "app.animation=false",
+              "app.shadow=true", "figures=false")
+    proc = decrun_cli(*common, "app.shadow_window_steps=1", "hydra.run.dir=bad")
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    message = proc.stderr.strip().splitlines()[-1]
+    assert "app.shadow_window_steps" in message and "app.shadow_window_steps=100" in message
+    proc = decrun_cli(*common, "app.shadow_window_steps=100", "hydra.run.dir=good")
+    assert proc.returncode == 0, proc.stderr
 
 
 #: the 1455-face row of `decrun -m +experiment=fig7_15_density_and_time_step` (README table):

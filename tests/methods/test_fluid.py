@@ -592,3 +592,35 @@ def test_swept_vorticity_of_a_constant_is_the_area_change_and_sums_to_zero():
 
     np.testing.assert_allclose(change, areas(after) - areas(before), atol=1e-14)
     assert abs(change.sum()) < 1e-13
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.04])
+def test_swept_vorticity_of_a_linear_field_is_its_exact_integral_over_the_moved_cells(jitter):
+    """swept.py: the two triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') of every swept quad
+    integrate a linear ω exactly, so for ω = α + β·x and any moves of the circumcenters the
+    change of every cell is ∫_{X(C)} ω − ∫_C ω, each integral by Green over the polygon,
+    ∫_P ω = α A + β · Σ_i (p_i + p_{i+1}) (p_i × p_{i+1}) / 6 (A the shoelace area). The moves
+    are random, so no triangle's error can cancel by symmetry (issue 25.7: swapping a corner of
+    the second triangle, in its area or in its mean of ω, fails this)."""
+    dec = lattice(jitter=jitter)
+    sim = VorticityFluid(dec, new_solver, dt=0.01, viscosity=0.0)
+    m = sim.cells.n_circumcenters
+    before = sim.cells.points
+    after = before.copy()
+    after[:m, :2] += np.random.default_rng(7).uniform(-0.06, 0.06, (m, 2))
+    alpha, beta = 0.3, np.array([1.7, -2.3, 0.0])
+
+    def omega(p):
+        return alpha + p @ beta
+
+    def integral(p):
+        q = p[sim.cells.corners][..., :2]  # (n0, corners, 2); padding repeats the first corner
+        r = np.roll(q, -1, axis=1)
+        cross = q[..., 0] * r[..., 1] - q[..., 1] * r[..., 0]
+        first_moment = ((q + r) * cross[..., None]).sum(axis=1) / 6.0
+        return alpha * 0.5 * cross.sum(axis=1) + first_moment @ beta[:2]
+
+    change = sim._swept.change(before, after, omega(before), omega(after))
+    expected = integral(after) - integral(before)
+    assert np.abs(expected).min() > 1e-4  # every cell's integral changes
+    np.testing.assert_allclose(change, expected, rtol=0, atol=1e-13)

@@ -215,7 +215,7 @@ class ManifestSweeper:
         launched = self._hand_over(todo)
         for start, stop in _batches([int(j["job"]) for j in todo], self.max_batch_size):
             try:
-                results = self.launcher.launch(launched[start:stop], initial_job_idx=int(todo[start]["job"]))
+                results = self._launch(launched[start:stop], int(todo[start]["job"]))
             except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (cli.main)
                 exc.sweep_stock = take_stock(sweep_dir, todo)
                 raise
@@ -244,6 +244,28 @@ class ManifestSweeper:
             callbacks.on_multirun_end(config=self.config)
         raise SweepError(f"error: a worker process died ({type(exc).__name__}): {stock.describe('killed')}; "
                          f"resume the rest with: {resume_command(sweep_dir)}") from exc
+
+    def _launch(self, overrides: list[list[str]], first: int) -> Sequence[Any]:
+        """The launcher's results for one batch. With submitit's SLURM launcher, job states
+        come from squeue when accounting is off, and a job that ended without a result
+        (``scancel``, time limit: :mod:`decrun.runner.sweep.slurm`) does not end the sweep:
+        its other jobs are waited for, the table's row of that job says ``killed`` or
+        ``missing``, and ``hydra.sweeper.resume=true`` reruns it."""
+        if type(self.launcher).__name__ != "SlurmLauncher":
+            return self.launcher.launch(overrides, initial_job_idx=first)
+        from decrun.runner.sweep import slurm  # lazy: submitit
+
+        slurm.use_queue_states()
+        try:
+            return self.launcher.launch(overrides, initial_job_idx=first)
+        except Exception as exc:
+            if not slurm.ended_without_result(exc):
+                raise
+            cause = str(exc).splitlines()[0]
+            print(f"decrun: a SLURM job ended without a result ({cause}); waiting for the sweep's other jobs; "
+                  "rerun it with hydra.sweeper.resume=true", file=sys.stderr)
+            slurm.wait_for_jobs()
+            return []
 
     def _start(self, sweep_dir: Path, jobs: list[dict], arguments: Sequence[str]) -> tuple[dict, list[dict]]:
         """(manifest, jobs to launch): a new sweep, or the resumed one after its checks."""

@@ -21,6 +21,7 @@ directory stop the sweep before it starts. Hydra loads sweepers only from the ``
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import logging
 import os
@@ -251,6 +252,8 @@ class ManifestSweeper:
         (``scancel``, time limit: :mod:`decrun.runner.sweep.slurm`) does not end the sweep:
         its other jobs are waited for, the table's row of that job says ``killed`` or
         ``missing``, and ``hydra.sweeper.resume=true`` reruns it."""
+        if type(self.launcher).__name__ == "RayLauncher":
+            _connect_ray_as_is(self.launcher)
         if type(self.launcher).__name__ != "SlurmLauncher":
             return self.launcher.launch(overrides, initial_job_idx=first)
         from decrun.runner.sweep import slurm  # lazy: submitit
@@ -403,6 +406,19 @@ def _batches(nums: list[int], size: Optional[int]) -> list[tuple[int, int]]:
             ranges.append((start, i))
             start = i
     return ranges
+
+
+def _connect_ray_as_is(launcher) -> None:
+    """With ``hydra.launcher.ray.init.address`` set (an existing Ray cluster), leave the
+    cluster's object store as it is: hydra-ray-launcher otherwise passes its default
+    ``object_store_memory`` (75 MiB) to ``ray.init``, which refuses it for an existing
+    cluster (``ValueError: When connecting to an existing cluster, object_store_memory must
+    not be provided``). An ``object_store_memory`` given on the command line is kept."""
+    init = getattr(getattr(launcher, "ray_cfg", None), "init", None)
+    if init is None or not init.get("address") or "object_store_memory" in init:
+        return
+    with open_dict(init) if OmegaConf.is_config(init) else contextlib.nullcontext():
+        init["object_store_memory"] = None
 
 
 def _quoted(text: str) -> str:

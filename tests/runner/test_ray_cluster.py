@@ -71,7 +71,7 @@ def test_a_sweep_spreads_over_the_nodes_and_a_lost_nodes_job_reruns_on_another(c
 
     command = [sys.executable, "-m", "decrun", *SWEEP, "hydra/launcher=ray",
                f"hydra.launcher.ray.init.address={cluster.address}",
-               "+hydra.callbacks.node._target_=ray_node_callback.RecordRayNode", f"hydra.sweep.dir={tmp_path / 'ray'}"]
+               "+hydra.callbacks.node._target_=ray_node_callback.RecordRayNode", "hydra.sweep.dir=ray"]  # relative: the jobs must write where the submitter resolved it
     proc = subprocess.Popen(command, cwd=tmp_path, env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         sweep = tmp_path / "ray"

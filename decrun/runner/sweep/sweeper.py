@@ -153,12 +153,18 @@ class ManifestSweeper:
         """The launcher's job lists: each job's overrides plus its recorded directory
         (``hydra.sweep.subdir='<dir>'``, so it lands where the manifest says whatever
         the launcher or the clock), and the planned compositions for them
-        (:class:`PlannedConfigs`, the launcher's config loader too: the same object)."""
+        (:class:`PlannedConfigs`, the launcher's config loader too: the same object).
+
+        Each job's ``hydra.sweep.dir`` is the sweep directory as this process resolved it
+        (absolute): a job run in another working directory — a Ray worker, a node of a
+        cluster — writes into it, not into a directory of the same name where it runs."""
         launched, configs = [], {}
+        sweep_dir = str(Path(str(self.config.hydra.sweep.dir)).absolute())
         for job in jobs:
             line = f"hydra.sweep.subdir={_quoted(job['dir'])}"
             cfg = self._configs.pop(job["job"])
             with read_write(cfg.hydra), open_dict(cfg.hydra):
+                cfg.hydra.sweep.dir = sweep_dir
                 cfg.hydra.sweep.subdir = job["dir"]
                 cfg.hydra.overrides.hydra.append(line)
             launched.append([*job["overrides"], line])

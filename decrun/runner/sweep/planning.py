@@ -28,7 +28,7 @@ from typing import Any, Iterator
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override, OverrideType
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 __all__ = ["Composer", "PlannedConfigs", "apply", "shape"]
 
@@ -222,8 +222,10 @@ class PlannedConfigs:
     goes to the wrapped loader. Picklable, so launchers that compose in their workers
     (joblib, submitit, ray) get it too: it holds one config per group, not per job."""
 
-    def __init__(self, loader, templates: dict[tuple, Template], extra: tuple = ()):
+    def __init__(self, loader, templates: dict[tuple, Template], extra: tuple = (), sweep_dir: str | None = None):
         self.wrapped = loader.wrapped if isinstance(loader, PlannedConfigs) else loader
+        #: every job's hydra.sweep.dir (the submitter's absolute path; None: as composed)
+        self._sweep_dir = sweep_dir
         self._templates = templates
         #: the shape of the lines the sweeper appends to each job (its directory)
         self._extra = tuple(extra)
@@ -235,8 +237,13 @@ class PlannedConfigs:
         template = self._templates.get(key[:len(key) - len(self._extra)]) if key[len(key) - len(self._extra):] == \
             self._extra else None
         if template is None:
-            return self.wrapped.load_sweep_config(master_config, sweep_overrides)
-        return template.derive(parsed, self._parse.plain, master_config)
+            cfg = self.wrapped.load_sweep_config(master_config, sweep_overrides)
+        else:
+            cfg = template.derive(parsed, self._parse.plain, master_config)
+        if self._sweep_dir is not None:
+            with read_write(cfg.hydra), open_dict(cfg.hydra):
+                cfg.hydra.sweep.dir = self._sweep_dir
+        return cfg
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_") or name == "wrapped":

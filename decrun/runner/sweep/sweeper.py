@@ -21,6 +21,7 @@ directory stop the sweep before it starts. Hydra loads sweepers only from the ``
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import shutil
@@ -161,10 +162,15 @@ class ManifestSweeper:
         (``hydra.sweep.subdir='<dir>'``, so it lands where the manifest says whatever
         the launcher or the clock), and the planned groups' compositions to derive them
         from (:class:`~decrun.runner.sweep.planning.PlannedConfigs`, the launcher's config
-        loader too: the same object)."""
+        loader too: the same object).
+
+        Each job's ``hydra.sweep.dir`` is the sweep directory as this process resolved it
+        (absolute): a job run in another working directory — a Ray worker, a node of a
+        cluster — writes into it, not into a directory of the same name where it runs."""
         launched = [[*job["overrides"], f"hydra.sweep.subdir={_quoted(job['dir'])}"] for job in jobs]
+        sweep_dir = str(Path(str(self.config.hydra.sweep.dir)).absolute())
         self.hydra_context.config_loader = PlannedConfigs(self.hydra_context.config_loader, self._composer.templates,
-                                                          extra=(("hydra.sweep.subdir", None),))
+                                                          extra=(("hydra.sweep.subdir", None),), sweep_dir=sweep_dir)
         return launched
 
     def _warm_workers(self) -> Optional[threading.Thread]:
@@ -217,7 +223,7 @@ class ManifestSweeper:
         launched = self._hand_over(todo)
         for start, stop in _batches([int(j["job"]) for j in todo], self.max_batch_size):
             try:
-                results = self.launcher.launch(launched[start:stop], initial_job_idx=int(todo[start]["job"]))
+                results = self._launch(launched[start:stop], int(todo[start]["job"]))
             except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (cli.main)
                 exc.sweep_stock = take_stock(sweep_dir, todo)
                 raise
@@ -246,6 +252,30 @@ class ManifestSweeper:
             callbacks.on_multirun_end(config=self.config)
         raise SweepError(f"error: a worker process died ({type(exc).__name__}): {stock.describe('killed')}; "
                          f"resume the rest with: {resume_command(sweep_dir)}") from exc
+
+    def _launch(self, overrides: list[list[str]], first: int) -> Sequence[Any]:
+        """The launcher's results for one batch. With submitit's SLURM launcher, job states
+        come from squeue when accounting is off, and a job that ended without a result
+        (``scancel``, time limit: :mod:`decrun.runner.sweep.slurm`) does not end the sweep:
+        its other jobs are waited for, the table's row of that job says ``killed`` or
+        ``missing``, and ``hydra.sweeper.resume=true`` reruns it."""
+        if type(self.launcher).__name__ == "RayLauncher":
+            _connect_ray_as_is(self.launcher)
+        if type(self.launcher).__name__ != "SlurmLauncher":
+            return self.launcher.launch(overrides, initial_job_idx=first)
+        from decrun.runner.sweep import slurm  # lazy: submitit
+
+        slurm.use_queue_states()
+        try:
+            return self.launcher.launch(overrides, initial_job_idx=first)
+        except Exception as exc:
+            if not slurm.ended_without_result(exc):
+                raise
+            cause = str(exc).splitlines()[0]
+            print(f"decrun: a SLURM job ended without a result ({cause}); waiting for the sweep's other jobs; "
+                  "rerun it with hydra.sweeper.resume=true", file=sys.stderr)
+            slurm.wait_for_jobs()
+            return []
 
     def _start(self, sweep_dir: Path, jobs: list[dict], arguments: Sequence[str]) -> tuple[dict, list[dict]]:
         """(manifest, jobs to launch): a new sweep, or the resumed one after its checks."""
@@ -299,6 +329,19 @@ def _batches(nums: list[int], size: Optional[int]) -> list[tuple[int, int]]:
             ranges.append((start, i))
             start = i
     return ranges
+
+
+def _connect_ray_as_is(launcher) -> None:
+    """With ``hydra.launcher.ray.init.address`` set (an existing Ray cluster), leave the
+    cluster's object store as it is: hydra-ray-launcher otherwise passes its default
+    ``object_store_memory`` (75 MiB) to ``ray.init``, which refuses it for an existing
+    cluster (``ValueError: When connecting to an existing cluster, object_store_memory must
+    not be provided``). An ``object_store_memory`` given on the command line is kept."""
+    init = getattr(getattr(launcher, "ray_cfg", None), "init", None)
+    if init is None or not init.get("address") or "object_store_memory" in init:
+        return
+    with open_dict(init) if OmegaConf.is_config(init) else contextlib.nullcontext():
+        init["object_store_memory"] = None
 
 
 def _quoted(text: str) -> str:

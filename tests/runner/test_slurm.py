@@ -1,0 +1,145 @@
+"""``hydra/launcher=submitit_slurm`` sweeps against a real SLURM (``scripts/slurm_local.sh
+start``: one node, accounting off): the table equals the basic launcher's, ``scancel`` of a
+job mid-run gives its row ``killed`` and resume finishes it, ``array_parallelism`` is
+honoured (one sweep checks both), and the output has one line about accounting instead of submitit's sacct
+warnings.
+
+Without SLURM (no ``sinfo``, or no controller answers) the tests skip, saying how to start
+one; under ``CI=true`` they fail instead (CI starts SLURM in ``.ci/run``)."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from decrun.runner.sweep.tables import load_sweep
+
+#: wall-time columns (differ between two runs of the same jobs)
+TIMES = ("setup_seconds", "solve_seconds", "total_seconds")
+SLURM = ["hydra/launcher=submitit_slurm", "hydra.launcher.timeout_min=5"]
+#: cheap jobs: explicit smoothing on 162 vertices, no eigen-solve
+CHEAP = ["mesh.subdiv=2", "app.scheme=explicit", "app.critical_dt=false", "figures=false"]
+
+
+def slurm_problem() -> str | None:
+    """Why no SLURM sweep can run here (None: a controller answers and a node is usable)."""
+    if importlib.util.find_spec("hydra_plugins.hydra_submitit_launcher") is None:
+        return "hydra-submitit-launcher is not installed (pip install 'decrun[slurm]')"
+    if shutil.which("sinfo") is None:
+        return "no SLURM here (sinfo not found); start a local one with: sudo scripts/slurm_local.sh start"
+    try:
+        proc = subprocess.run(["sinfo", "--noheader", "--format=%T"], capture_output=True, text=True, timeout=20)
+    except subprocess.TimeoutExpired:
+        return "sinfo did not answer within 20 s; start a local SLURM with: sudo scripts/slurm_local.sh start"
+    if proc.returncode != 0:
+        cause = (proc.stderr.strip().splitlines() or ["no output"])[0]
+        return f"no SLURM controller answers (sinfo: {cause}); start a local one with: sudo scripts/slurm_local.sh start"
+    if not {"idle", "mixed", "allocated"} & set(proc.stdout.split()):
+        return f"no usable SLURM node (sinfo: {' '.join(proc.stdout.split()) or 'no nodes'})"
+    return None
+
+
+@pytest.fixture(scope="module")
+def slurm():
+    """Skip without a SLURM (fail under CI=true, where .ci/run starts one)."""
+    problem = slurm_problem()
+    if problem is not None:
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"CI=true but {problem}")
+        pytest.skip(problem)
+
+
+def env() -> dict:
+    return {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTEST_CURRENT_TEST")}
+
+
+def decrun(*args, cwd, timeout=300):
+    return subprocess.run([sys.executable, "-m", "decrun", *args], cwd=cwd, env=env(), capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def comparable(table: pd.DataFrame) -> pd.DataFrame:
+    return table.drop(columns=[c for c in TIMES if c in table.columns]).reset_index(drop=True)
+
+
+def job_spans(sweep_dir: Path) -> list[tuple[float, float]]:
+    """(start, end) of each SLURM job of a sweep, in seconds: the first and last timestamp
+    of submitit's log of the job (``.submitit/<id>/<id>_0_log.out``, written in the job)."""
+    spans = []
+    for log in sorted((sweep_dir / ".submitit").glob("*/*_log.out")):
+        stamps = [datetime.strptime(m, "%Y-%m-%d %H:%M:%S,%f").timestamp()
+                  for m in re.findall(r"\((\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3})\)", log.read_text())]
+        spans.append((stamps[0], stamps[-1]))
+    return spans
+
+
+def most_at_once(spans: list[tuple[float, float]]) -> int:
+    """The largest number of spans that overlap at one instant."""
+    events = sorted([(s, 1) for s, _ in spans] + [(e, -1) for _, e in spans], key=lambda x: (x[0], x[1]))
+    running = best = 0
+    for _, step in events:
+        running += step
+        best = max(best, running)
+    return best
+
+
+def test_a_slurm_sweep_gives_the_basic_launchers_table_honours_array_parallelism_and_says_accounting_once(
+        slurm, tmp_path):
+    """One sweep of three tiny jobs: its table is the basic launcher's; with
+    ``array_parallelism=1`` no two of its jobs ran at once (the node has room for two, so
+    without the cap they overlap); no sacct warning, at most one line saying accounting is off."""
+    cpus = subprocess.run(["sinfo", "--noheader", "--format=%c"], capture_output=True, text=True).stdout.split()
+    assert int(cpus[0]) >= 2, f"the SLURM node has {cpus[0]} CPU: array_parallelism=1 would not be a cap"
+    sweep = ["-m", "app.dt=0.001,0.002,0.003", "app.steps=20", *CHEAP]
+    basic = decrun(*sweep, "hydra.sweep.dir=basic", cwd=tmp_path)
+    assert basic.returncode == 0, basic.stderr
+    proc = decrun(*sweep, *SLURM, "hydra.launcher.array_parallelism=1", "hydra.sweep.dir=slurm", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    pd.testing.assert_frame_equal(comparable(load_sweep(tmp_path / "slurm")), comparable(load_sweep(tmp_path / "basic")))
+    spans = job_spans(tmp_path / "slurm")
+    assert len(spans) == 3 and most_at_once(spans) == 1, spans
+    output = proc.stdout + proc.stderr
+    assert "sacct" not in output.replace("decrun: SLURM accounting is off (sacct:", ""), output
+    assert output.count("SLURM accounting is off") <= 1, output
+    accounting = subprocess.run(["sacct", "--noheader", "-j", "1"], capture_output=True).returncode == 0
+    assert ("SLURM accounting is off" in output) == (not accounting)
+
+
+def test_a_job_cancelled_mid_run_is_killed_in_the_table_and_resume_finishes_it(slurm, tmp_path):
+    # job 1 runs long enough to be cancelled while it records; jobs 0 and 2 are short
+    sweep = ["-m", "app.steps=100,40000,150", "app.dt=0.001", *CHEAP, *SLURM, "hydra.sweep.dir=cut"]
+    proc = subprocess.Popen([sys.executable, "-m", "decrun", *sweep], cwd=tmp_path, env=env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    journal = tmp_path / "cut" / "1" / "result.h5.partial"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (journal.is_file() and journal.stat().st_size > 20_000):
+        time.sleep(0.05)
+    assert journal.is_file(), "job 1 recorded nothing within 120 s"
+    job_id = next(p.name for p in (tmp_path / "cut" / ".submitit").iterdir() if p.name.endswith("_1"))
+    subprocess.run(["scancel", job_id], check=True)  # SIGTERM, then SIGKILL after KillWait
+    try:
+        stdout, stderr = proc.communicate(timeout=180)
+    finally:
+        proc.kill()
+    assert proc.returncode == 1, stderr  # a job is not ok
+    assert f"a SLURM job ended without a result (Job {job_id} " in stderr and "hydra.sweeper.resume=true" in stderr
+    table = load_sweep(tmp_path / "cut")
+    assert list(table["status"]) == ["ok", "killed", "ok"], table[["job", "status", "error"]]
+    assert table.loc[1, "result"] == "1/result.h5.partial"
+
+    resumed = decrun(*sweep, "hydra.sweeper.resume=true", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    assert "2 of 3 jobs are ok; running 1" in resumed.stderr
+    table = load_sweep(tmp_path / "cut")
+    assert list(table["status"]) == ["ok", "ok", "ok"]
+    assert table.loc[1, "result"] == "1/result.h5" and not journal.exists()

@@ -13,6 +13,8 @@ from decrun.runner.config import config_dir, load_option
 
 #: (conf file, key): why its YAML default differs from the dataclass default
 INTENDED = {
+    ("app/fluid.yaml", "initial"): "the CLI's default fluid shows a flow (seeded random vorticity, issue 27.3); "
+                                   "Fluid() in Python starts at rest, as the thesis' experiments do",
     ("mesh/file.yaml", "path"): "`???` is OmegaConf's required value: `decrun mesh=file` must be given mesh.path; "
                                 "the dataclass' '' is refused by File's check with the same hint",
     ("mesh/annulus.yaml", "refine"): "the CLI refines the one band of triangles twice (midpoint); Annulus() in "

@@ -13,7 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-__all__ = ["edge_table", "edge_owners", "largest_component", "drop_unreferenced"]
+__all__ = ["edge_table", "edge_owners", "component_labels", "largest_component", "drop_unreferenced"]
 
 
 def edge_table(faces: np.ndarray, n_vertices: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -52,9 +52,9 @@ def edge_owners(face_edges: np.ndarray, n_edges: int) -> tuple[np.ndarray, np.nd
     return owner, slot
 
 
-def largest_component(faces: np.ndarray, n_vertices: int | None = None, through: str = "edges") -> np.ndarray:
-    """(m,) bool: the triangles of the largest piece (by triangle count; the first on a tie),
-    triangles joined across shared ``"edges"`` or shared ``"vertices"``."""
+def component_labels(faces: np.ndarray, n_vertices: int | None = None, through: str = "edges") -> np.ndarray:
+    """(m,) int: the piece of each top simplex (0 … pieces − 1), simplices joined across shared
+    ``"edges"`` (triangles) or shared ``"vertices"`` (any dimension)."""
     faces = np.asarray(faces, dtype=np.int64)
     m = len(faces)
     if through == "edges":
@@ -64,7 +64,13 @@ def largest_component(faces: np.ndarray, n_vertices: int | None = None, through:
     else:
         raise ValueError(f"through must be 'edges' or 'vertices', not {through!r}")
     incidence = sp.csr_matrix((np.ones(columns.size), (np.repeat(np.arange(m), columns.shape[1]), columns.ravel())))
-    _, label = connected_components(incidence @ incidence.T, directed=False)
+    return connected_components(incidence @ incidence.T, directed=False)[1]
+
+
+def largest_component(faces: np.ndarray, n_vertices: int | None = None, through: str = "edges") -> np.ndarray:
+    """(m,) bool: the simplices of the largest piece (by simplex count; the first on a tie),
+    :func:`component_labels`."""
+    label = component_labels(faces, n_vertices, through)
     return label == np.argmax(np.bincount(label))
 
 

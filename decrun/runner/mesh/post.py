@@ -10,9 +10,8 @@ the order they run; adding a step is adding a function here (and its option fiel
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix as sp_coo
 
-from decrun.core.connectivity import drop_unreferenced
+from decrun.core.connectivity import component_labels, drop_unreferenced
 from decrun.core.connectivity import largest_component as largest_piece
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
@@ -125,22 +124,17 @@ def largest_component(mesh: Mesh, cfg) -> Mesh:
         return mesh
     import logging
 
-    from scipy.sparse.csgraph import connected_components
-
     S = np.asarray(mesh.simplices, dtype=np.int64)
     m = len(S)
-    rows = np.repeat(np.arange(m), S.shape[1])
-    graph = sp_coo((np.ones(rows.size), (rows, S.ravel() + m)), shape=(m + len(mesh.vertices),) * 2)
-    _, label = connected_components(graph, directed=False)
-    top = label[:m]
-    pieces, counts = np.unique(top, return_counts=True)
-    keep_faces = top == pieces[np.argmax(counts)]
+    label = component_labels(S, len(mesh.vertices), through="vertices")
+    counts = np.bincount(label)
+    keep_faces = label == np.argmax(counts)
     V, F, used = drop_unreferenced(mesh.vertices, S[keep_faces])
     dropped_v, dropped_f = int((~used).sum()), int((~keep_faces).sum())
     logging.getLogger("decrun").info("mesh.largest_component: %d components; kept %d of %d vertices and %d of %d "
-                                     "simplices (dropped %d vertices, %d simplices)", len(pieces), len(V),
+                                     "simplices (dropped %d vertices, %d simplices)", len(counts), len(V),
                                      len(mesh.vertices), len(F), m, dropped_v, dropped_f)
-    meta = dict(mesh.meta, largest_component_components=int(len(pieces)),
+    meta = dict(mesh.meta, largest_component_components=len(counts),
                 largest_component_dropped_vertices=dropped_v, largest_component_dropped_faces=dropped_f)
     if "clean_vertices" in meta:
         meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[used]

@@ -78,7 +78,8 @@ class DecrunSweeperConf:
     resume: bool = False
     #: derive the jobs that differ from their group's first job in plain values only from its
     #: composition, checked against Hydra's (decrun.runner.sweep.planning); false: Hydra
-    #: composes every job itself (its public load_sweep_config; ~25x slower to plan)
+    #: composes every job itself (its public load_sweep_config; 179x slower to plan:
+    #: benchmarks/bench_sweeps.py --only planning)
     derive: bool = True
 
 

@@ -95,8 +95,8 @@ README_FIGURES = {
     "smoothing_default.png": ([], "smoothing"),
     "smoothing_bunny_default.png": (["mesh=bunny"], "smoothing"),
     "smoothing_bone_degenerate.png": (["mesh=sample", "mesh.sample=bone", "app.dt=0.05"], "smoothing"),
-    "hodge_torus.png": (["app=hodge", "mesh=torus", "mesh.noise=0.05"], "hodge_parts"),
-    "hodge_sphere.png": (["app=hodge"], "hodge_parts"),
+    "hodge_torus.png": (["app=hodge", "mesh=torus", "mesh.noise=0.05", "app.analytic=mixed"], "hodge_parts"),
+    "hodge_sphere.png": (["app=hodge", "app.analytic=mixed"], "hodge_parts"),
     "parametrization_bunny_floater.png": (["app=parametrization", "mesh=sample", "mesh.sample=bunny10k_textured",
                                            "app.border=circle", "app.weights=mean_value"], "uv_layout"),
 }

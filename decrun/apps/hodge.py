@@ -23,6 +23,19 @@ Analytic fields (``app.analytic``; ``a`` = ``app.vector``, points x in model uni
 ``toroidal``          ∇φ = (−y, x, 0)/(x² + y²), φ the angle about the z axis: closed but not
                       exact on a torus around the z axis (mostly harmonic there).
 ``mixed``             gradient + rotated_gradient + toroidal (on a torus: all three parts).
+``frame`` (default)   built from the mesh's own frame (:func:`mesh_frame`): c the vertex centroid,
+                      e1, e2, e3 the principal axes of the vertex covariance (variance
+                      decreasing, e3 = e1 × e2), s the RMS distance of the vertices from c,
+                      u_i = e_i·(x − c)/s. X = (e1 + u2 e2) + e3 × (x − c)/s + sin(π u1) e2:
+                      the gradient of s(u1 + u2²/2) (exact), a rotation about the axis of
+                      least variance (the normal of a planar mesh, the axis of a flat torus)
+                      and a bounded non-closed part (curl π cos(π u1) e3). Smooth everywhere
+                      (no singular point or axis), so it samples on any mesh with nonzero
+                      exact and coexact parts (and a harmonic one where Betti_k > 0). It moves
+                      with the mesh: translating or rotating the vertices gives the same
+                      k-form (when the frame is unique: distinct variances, and the signs of
+                      e1, e2 are fixed by their third moments, which are nonzero). ``app.vector``
+                      is not used (a non-default value is refused).
 """
 
 from __future__ import annotations
@@ -51,6 +64,9 @@ class Input(Choice):
     result = "result"
 
 
+#: ``app.vector``'s default (a of the analytic fields; ``frame`` has none)
+DEFAULT_VECTOR = [0.0, 0.0, 1.0]
+
 #: a part whose norm is ≤ ROUNDOFF × ‖ω‖ (energy share ≤ ROUNDOFF²) is zero to round-off
 ROUNDOFF = 1e-8
 
@@ -63,6 +79,7 @@ class AnalyticField(Choice):
     rotation = "rotation"
     toroidal = "toroidal"
     mixed = "mixed"
+    frame = "frame"
 
 
 @dataclass
@@ -79,8 +96,8 @@ class Hodge(App):
                      "adaptation breaks; app=vector_field reports that as adjointness_defect")
     degree: int = 1  # k: 1 (triangle or tetrahedral meshes) or 2 (tetrahedral meshes)
     input: Input = Input.analytic  # analytic | random | result
-    analytic: AnalyticField = AnalyticField.mixed  # see the module docstring
-    vector: List[float] = field(default_factory=lambda: [0.0, 0.0, 1.0])  # a of the analytic fields
+    analytic: AnalyticField = AnalyticField.frame  # see the module docstring
+    vector: List[float] = field(default_factory=lambda: list(DEFAULT_VECTOR))  # a of the analytic fields
     quadrature_order: int = 3  # Gauss points per edge when sampling (§3.2.1)
     seed: int = 0  # random: ω_e = ξ_e |e|, ξ ~ N(0, 1)
     input_path: str = ""  # result: path of a previous run's result.h5
@@ -96,6 +113,10 @@ class Hodge(App):
         self.analytic = AnalyticField.of(self.analytic, "app.analytic")
         if len(self.vector) != 3:
             raise ConfigError(f"app.vector: must be three numbers, got {list(self.vector)}")
+        if self.analytic == "frame" and list(map(float, self.vector)) != DEFAULT_VECTOR:
+            raise ConfigError(f"app.vector={list(self.vector)}: app.analytic=frame takes its directions from the "
+                              "mesh's principal axes and has no vector a; use `app.analytic=gradient` (or rotation, "
+                              "rotated_gradient, mixed: the fields with a)")
         if self.quadrature_order < 1:
             raise ConfigError(f"app.quadrature_order: must be >= 1, got {self.quadrature_order}")
         if self.input == "result" and not self.input_path:
@@ -197,8 +218,36 @@ class Hodge(App):
         return Result(fields=fields, metrics=metrics, figures=figures)
 
 
-def analytic_field(name: str, a) -> callable:
-    """The vector field X: (N, 3) → (N, 3) called ``name`` (module docstring)."""
+def mesh_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The frame of a point set: (c, E, s) with c (3,) the centroid, E (3, 3) whose rows
+    e1, e2, e3 are the principal axes of the covariance Σ (x − c)(x − c)ᵀ / n by decreasing
+    variance, and s the RMS distance from c (model units).
+
+    The sign of e1 and e2 is the one with a positive third moment Σ (e·(x − c))³ (an
+    orientation the points themselves carry, so the frame moves with them); where that
+    moment is zero to round-off (a symmetric point set) the sign makes the largest
+    component of e positive. e3 = e1 × e2 (right-handed). Planar vertices (n, 2) are taken
+    in the z = 0 plane (e3 = ±z).
+    """
+    x = embed3(np.asarray(vertices, dtype=np.float64))
+    c = x.mean(axis=0)
+    r = x - c
+    s = float(np.sqrt((r ** 2).sum(axis=1).mean()))
+    if not s > 0:
+        raise ConfigError("app.analytic=frame: all vertices coincide (no frame); use `app.input=random`")
+    _, vectors = np.linalg.eigh(r.T @ r / len(x))
+    E = vectors[:, ::-1].T.copy()  # rows by decreasing variance
+    third = ((r @ E[:2].T / s) ** 3).mean(axis=0)
+    largest = E[np.arange(2), np.argmax(np.abs(E[:2]), axis=1)]
+    sign = np.where(np.abs(third) > 1e-9, np.sign(third), np.sign(largest))
+    E[:2] *= sign[:, None]
+    E[2] = np.cross(E[0], E[1])
+    return c, E, s
+
+
+def analytic_field(name: str, a, vertices: np.ndarray | None = None) -> callable:
+    """The vector field X: (N, 3) → (N, 3) called ``name`` (module docstring); ``frame``
+    needs the mesh's ``vertices`` (its frame, :func:`mesh_frame`)."""
     a = np.asarray(a, dtype=np.float64)
 
     def gradient(x):
@@ -217,6 +266,20 @@ def analytic_field(name: str, a) -> callable:
     def mixed(x):
         return gradient(x) + rotated_gradient(x) + toroidal(x)
 
+    if name == "frame":
+        if vertices is None:
+            raise ValueError("analytic_field('frame', ...) needs the mesh's vertices")
+        c, E, s = mesh_frame(vertices)
+
+        def frame(x):
+            r = x - c
+            u = r @ E.T / s  # (N, 3) frame coordinates
+            exact = E[0] + u[:, 1:2] * E[1]  # s ∇(u1 + u2²/2)
+            rotation = np.cross(E[2], r) / s  # about the axis of least variance
+            bounded = np.sin(np.pi * u[:, 0:1]) * E[1]
+            return exact + rotation + bounded
+
+        return frame
     return {"gradient": gradient, "rotated_gradient": rotated_gradient, "rotation": rotation,
             "toroidal": toroidal, "mixed": mixed}[name]
 
@@ -227,7 +290,7 @@ def input_form(K, cfg, ctx: Context | None = None) -> np.ndarray:
     ``input=result`` reads the previous run through ``ctx.read_result``."""
     k = int(getattr(cfg, "degree", 1))
     if cfg.input == "analytic":
-        X = analytic_field(cfg.analytic, cfg.vector)
+        X = analytic_field(cfg.analytic, cfg.vector, K.vertices)
         with np.errstate(divide="ignore", invalid="ignore"):
             if k == 2:
                 omega = sample_flux(K, X, order=min(int(cfg.quadrature_order), 2))
@@ -239,7 +302,8 @@ def input_form(K, cfg, ctx: Context | None = None) -> np.ndarray:
         if bad.size:
             raise ConfigError(f"app.analytic={cfg.analytic}: the field is not finite on {bad.size} {k}-simplices "
                               f"(e.g. {bad[:5].tolist()}: the toroidal part is singular on the z axis, the rotated "
-                              "gradient at the origin); use `app.input=random` (or `app.analytic=gradient`)")
+                              "gradient at the origin); use `app.analytic=frame` (smooth everywhere, the default), "
+                              "`app.input=random` (or `app.analytic=gradient`)")
         return omega
     if cfg.input == "random":
         size = simplex_volumes(K.vertices[K.simplices(k)])

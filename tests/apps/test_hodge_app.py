@@ -18,7 +18,7 @@ from decrun.core.hodge import harmonic_basis, hodge_decomposition
 from decrun.apps.base import FieldOnEdges, Result
 from decrun.runner.results import write_result
 
-from meshes_for_tests import complex_of, kuhn_cube
+from meshes_for_tests import complex_of, kuhn_cube, mesh
 
 
 @pytest.fixture(scope="module")
@@ -194,9 +194,9 @@ def test_a_zero_harmonic_part_is_drawn_empty_on_the_shared_scale_and_has_no_rati
 
 
 def test_a_torus_keeps_its_harmonic_ratios(decrun_cli, tmp_path):
-    """Betti_1 = 2: the harmonic part is real (2.9 % of the energy) and its ratios are reported
+    """Betti_1 = 2: the harmonic part of the mixed field is real (2.9 % of the energy) and its ratios are reported
     at round-off size — with the default operator=whitney, where mixed_area's ⋆1 is 0."""
-    m = _hodge_run(decrun_cli, tmp_path / "run", "mesh=torus", "figures=false")
+    m = _hodge_run(decrun_cli, tmp_path / "run", "mesh=torus", "figures=false", "app.analytic=mixed")
     assert m["harmonic_dimension"] == m["betti_1"] == 2
     assert 0.01 < m["energy_fraction_harmonic"] < 0.05
     assert m["harmonic_curl_relative"] < 1e-12 and m["harmonic_codifferential_relative"] < 1e-12
@@ -254,3 +254,95 @@ def test_hodge_degree_two_on_a_surface_is_refused_with_the_fix():
     K = complex_of(source="icosphere", subdiv=1)
     with pytest.raises(TopologyError, match="app.degree=1"):
         app.Hodge(degree=2).check(K, DEC(K))
+
+
+# ---------------------------------------------------------------------------- the default field
+def _on_z_axis_edges(run):
+    """Edges of the stored mesh with both ends on the z axis (x = y = 0)."""
+    from decrun.runner.results.reading import read_mesh
+
+    vertices, simplices = read_mesh(run / "result.h5")
+    K = SimplicialComplex(vertices, simplices)
+    on_axis = np.linalg.norm(K.vertices[:, :2], axis=1) < 1e-12
+    return int(on_axis[K.simplices(1)].all(axis=1).sum())
+
+
+@pytest.mark.parametrize("overrides", [
+    ["mesh=cube"],
+    ["mesh=box", "mesh.cells=3"],
+    ["mesh=box", "mesh.cells=3", "app.degree=2"],
+    ["mesh=bunny"],
+    ["mesh=torus"],
+    ["mesh=planar"],
+], ids=lambda o: " ".join(o))
+def test_the_default_field_runs_on_the_users_mesh_with_exact_and_coexact_parts(overrides, decrun_cli, tmp_path):
+    """issue 27.1: `decrun app=hodge` on a cube, a tetrahedral box with an edge on the z axis (where
+    the old default `mixed`'s toroidal part is infinite), the scanned bunny, a torus and a holed
+    planar domain: the default `frame` field has a nonzero exact and a nonzero coexact part, a
+    harmonic part exactly where Betti_k > 0, and the decomposition passes Theorem 5's checks."""
+    m = _hodge_run(decrun_cli, tmp_path / "run", *overrides, "figures=false")
+    assert m["input"] == "frame"
+    assert m["energy_fraction_exact"] > 0.01 and m["energy_fraction_coexact"] > 0.01  # degree 2 box: 2.1 % coexact
+    assert m["orthogonality_max"] < 1e-10 and m["reconstruction_error_relative"] < 1e-12
+    k = m["degree"]
+    assert m["harmonic_dimension_matches_betti"] and m["harmonic_dimension"] == m[f"betti_{k}"]
+    if m[f"betti_{k}"]:
+        assert m["energy_fraction_harmonic"] > 1e-4
+        assert m["harmonic_curl_relative"] < 1e-10 and m["harmonic_codifferential_relative"] < 1e-10
+    else:
+        assert m["energy_fraction_harmonic"] < 1e-20
+    if "mesh=box" in overrides:
+        assert _on_z_axis_edges(tmp_path / "run") > 0  # the case the issue names
+    if "mesh=box" in overrides and k == 1:  # (fluxes, k = 2, sample no point on the axis)
+        proc = decrun_cli("app=hodge", *overrides, "app.analytic=mixed", "figures=false", "hydra.run.dir=old")
+        assert proc.returncode != 0 and "the toroidal part is singular on the z axis" in proc.stderr
+
+
+def _rotation(seed=3):
+    q, r = np.linalg.qr(np.random.default_rng(seed).standard_normal((3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def test_the_frame_field_moves_with_the_mesh():
+    """Translating and rotating the bunny's vertices leaves the sampled 1-form unchanged: the
+    field is built from the vertices' centroid, principal axes and RMS radius only. (The bunny's
+    frame is unique: distinct variances, nonzero third moments along e1 and e2.)"""
+    bunny = mesh(source="bunny", sample="bunny10k_textured")
+    K = SimplicialComplex(bunny.vertices, bunny.simplices, orient="fix")
+    c, E, s = app.mesh_frame(K.vertices)
+    r = K.vertices - c
+    variances = np.sort(np.linalg.eigvalsh(r.T @ r / len(r)))[::-1]
+    assert np.all(np.diff(variances) < -1e-3 * variances[0])
+    assert np.all(np.abs(((r @ E[:2].T / s) ** 3).mean(axis=0)) > 1e-3)
+    np.testing.assert_allclose(E @ E.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(E) == pytest.approx(1.0)
+    R, t = _rotation(), np.array([3.0, -7.0, 0.5])
+    moved = SimplicialComplex(bunny.vertices @ R.T + t, bunny.simplices, orient="fix")
+    cfg = app.Hodge()
+    omega = app.input_form(K, cfg)
+    np.testing.assert_allclose(app.input_form(moved, cfg), omega, rtol=0, atol=1e-10 * np.abs(omega).max())
+    c2, E2, s2 = app.mesh_frame(moved.vertices)
+    np.testing.assert_allclose(E2, E @ R.T, atol=1e-10)
+    assert s2 == pytest.approx(s) and np.allclose(c2, R @ c + t)
+
+
+def test_the_frame_field_is_finite_everywhere_and_its_gradient_term_is_exact():
+    """No singular point or axis: finite at the centroid, on every coordinate axis and far away.
+    The field minus its rotation and bounded parts is d0 of s(u1 + u2²/2) exactly (Gauss
+    quadrature of order 3 integrates the linear integrand along each edge exactly)."""
+    K = complex_of(source="cube", refine="loop", refine_iterations=2)
+    X = app.analytic_field("frame", app.DEFAULT_VECTOR, K.vertices)
+    c, E, s = app.mesh_frame(K.vertices)
+    probes = np.concatenate([c[None], np.zeros((1, 3)), np.eye(3) * 1e3, [[0, 0, 0.5], [0, 0, -2.0]]])
+    assert np.all(np.isfinite(X(probes)))
+    u = lambda x: (x - c) @ E.T / s  # noqa: E731
+    gradient = lambda x: X(x) - np.cross(E[2], x - c) / s - np.sin(np.pi * u(x)[:, :1]) * E[1]  # noqa: E731
+    phi = s * (u(K.vertices)[:, 0] + u(K.vertices)[:, 1] ** 2 / 2)
+    np.testing.assert_allclose(sample_vector_field(K, gradient, order=3), DEC(K).d(0) @ phi, atol=1e-13)
+
+
+def test_frame_refuses_a_vector_it_would_not_use():
+    with pytest.raises(ConfigError, match="app.vector=.*`app.analytic=gradient`"):
+        app.Hodge(vector=[1.0, 0.0, 0.0])
+    assert app.Hodge(analytic="gradient", vector=[1.0, 0.0, 0.0]).vector == [1.0, 0.0, 0.0]

@@ -63,7 +63,7 @@ APP_CASES = [
     (["app=hodge", "app.harmonic_dimension=false"], "app.input=file", "analytic | random | result",
      "app.input=analytic"),
     (["app=hodge", "app.harmonic_dimension=false"], "app.analytic=curl",
-     "gradient | rotated_gradient | rotation | toroidal | mixed", "app.analytic=gradient"),
+     "gradient | rotated_gradient | rotation | toroidal | mixed | frame", "app.analytic=gradient"),
     (["app=spectrum", "app.count=3"], "app.analytic=cube", "auto | none | sphere | ball | box | flat_torus",
      "app.analytic=auto"),
     (["app=vector_field", "mesh.subdiv=2"], "app.stroke_magnitude=auto", "fixed | precomputed",

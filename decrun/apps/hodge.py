@@ -23,19 +23,20 @@ Analytic fields (``app.analytic``; ``a`` = ``app.vector``, points x in model uni
 ``toroidal``          ∇φ = (−y, x, 0)/(x² + y²), φ the angle about the z axis: closed but not
                       exact on a torus around the z axis (mostly harmonic there).
 ``mixed``             gradient + rotated_gradient + toroidal (on a torus: all three parts).
-``frame`` (default)   built from the mesh's own frame (:func:`mesh_frame`): c the vertex centroid,
-                      e1, e2, e3 the principal axes of the vertex covariance (variance
-                      decreasing, e3 = e1 × e2), s the RMS distance of the vertices from c,
-                      u_i = e_i·(x − c)/s. X = (e1 + u2 e2) + e3 × (x − c)/s + sin(π u1) e2:
-                      the gradient of s(u1 + u2²/2) (exact), a rotation about the axis of
-                      least variance (the normal of a planar mesh, the axis of a flat torus)
-                      and a bounded non-closed part (curl π cos(π u1) e3). Smooth everywhere
-                      (no singular point or axis), so it samples on any mesh with nonzero
-                      exact and coexact parts (and a harmonic one where Betti_k > 0). It moves
-                      with the mesh: translating or rotating the vertices gives the same
-                      k-form (when the frame is unique: distinct variances, and the signs of
-                      e1, e2 are fixed by their third moments, which are nonzero). ``app.vector``
-                      is not used (a non-default value is refused).
+``frame`` (default)   built from the mesh's own frame (:func:`decrun.core.geometry.principal_frame`):
+                      c the vertex centroid, e1, e2, e3 the principal axes of the vertex
+                      covariance (variance decreasing, e3 = e1 × e2), s the RMS distance of
+                      the vertices from c, u_i = e_i·(x − c)/s.
+                      X = (e1 + u2 e2) + e3 × (x − c)/s + sin(π u1) e2: the gradient of
+                      s(u1 + u2²/2) (exact), a rotation about the axis of least variance (the
+                      normal of a planar mesh, the axis of a flat torus) and a bounded part
+                      that is not closed (curl (π/s) cos(π u1) e3). Smooth everywhere (no
+                      singular point or axis), so it samples on any mesh with nonzero exact
+                      and coexact parts (and a harmonic one where Betti_k > 0). It moves with
+                      the mesh: translating or rotating the vertices gives the same k-form
+                      (when the frame is unique: distinct variances, and nonzero third
+                      moments along e1, e2, which fix their signs). ``app.vector`` is not
+                      used (a non-default value is refused).
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.choices import Choice
 from decrun.core.complex import simplex_volumes
 from decrun.core.forms import sample_flux, sample_vector_field, whitney_sharp, whitney_sharp2
-from decrun.core.geometry import embed3
+from decrun.core.geometry import embed3, principal_frame
 from decrun.core.hodge import HodgeDecomposer, harmonic_basis
 from decrun.errors import ConfigError, TopologyError
 
@@ -219,29 +220,11 @@ class Hodge(App):
 
 
 def mesh_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """The frame of a point set: (c, E, s) with c (3,) the centroid, E (3, 3) whose rows
-    e1, e2, e3 are the principal axes of the covariance Σ (x − c)(x − c)ᵀ / n by decreasing
-    variance, and s the RMS distance from c (model units).
-
-    The sign of e1 and e2 is the one with a positive third moment Σ (e·(x − c))³ (an
-    orientation the points themselves carry, so the frame moves with them); where that
-    moment is zero to round-off (a symmetric point set) the sign makes the largest
-    component of e positive. e3 = e1 × e2 (right-handed). Planar vertices (n, 2) are taken
-    in the z = 0 plane (e3 = ±z).
-    """
-    x = embed3(np.asarray(vertices, dtype=np.float64))
-    c = x.mean(axis=0)
-    r = x - c
-    s = float(np.sqrt((r ** 2).sum(axis=1).mean()))
+    """(c, E, s) of the ``frame`` field: :func:`decrun.core.geometry.principal_frame` of the
+    vertices (centroid, principal axes as rows by decreasing variance, RMS radius)."""
+    c, E, s, _ = principal_frame(vertices)
     if not s > 0:
         raise ConfigError("app.analytic=frame: all vertices coincide (no frame); use `app.input=random`")
-    _, vectors = np.linalg.eigh(r.T @ r / len(x))
-    E = vectors[:, ::-1].T.copy()  # rows by decreasing variance
-    third = ((r @ E[:2].T / s) ** 3).mean(axis=0)
-    largest = E[np.arange(2), np.argmax(np.abs(E[:2]), axis=1)]
-    sign = np.where(np.abs(third) > 1e-9, np.sign(third), np.sign(largest))
-    E[:2] *= sign[:, None]
-    E[2] = np.cross(E[0], E[1])
     return c, E, s
 
 

@@ -17,6 +17,18 @@ mathematics and the sign conventions, :mod:`decrun.methods.singularities` for th
   fails with these matrices — as the thesis warns.
 
 On closed meshes both modes are identical.
+
+``app.sources: null`` (the CLI's default) takes the sources from the mesh: a source (+1) and a
+sink (−1) at the two vertices farthest apart along the principal axis of the vertices (largest
+variance; :func:`decrun.methods.vector_design.principal_extremes`), off the border when the
+mesh has one. The vertex ids and points are logged and recorded (metrics ``source_vertex``,
+``sink_vertex``, ``source_point``, ``sink_point``, ``sources_from_mesh``). Net outflow: with the
+unadapted δ, Σ_v ⋆0 δw = 0 for every 1-form w (no flow through any border: the divergence
+theorem of the discrete complex), so the prescribed outflows must sum to 0 to be met exactly —
+the pair does (residual ~1e-16). With ``flux`` the net is free (it leaves through the border),
+but a border vertex's divergence then counts its estimated border flow, so a source on the
+border may be absorbed by it: hence the interior vertices. Given sources (a list, ``[]`` for
+none) are used as they are.
 """
 
 from __future__ import annotations
@@ -43,6 +55,7 @@ from decrun.methods.vector_design import (
     face_normals,
     nearest_faces,
     nearest_vertices,
+    principal_extremes,
     smoothness_energy,
     solve_design,
     stroke_edge_targets,
@@ -90,7 +103,8 @@ class VectorField(App):
     boundaries = ("none", "flux")
     form_degrees = (0, 1, 2)
     diagonal_stars = "the least squares of eq. 6.5 weighs with ⋆0, ⋆2 and divides the divergence targets by ⋆0"
-    sources: List[Source] = field(default_factory=list)
+    #: None: a source and a sink from the mesh (module docstring); the CLI's default
+    sources: Optional[List[Source]] = field(default_factory=list)
     vortices: List[Vortex] = field(default_factory=list)
     strokes: List[Stroke] = field(default_factory=list)
     #: fixed: |v| = stroke_length (eq. 6.8) | precomputed: |v| = |ν_pre| of a solve without strokes (eq. 6.9)
@@ -117,7 +131,7 @@ class VectorField(App):
             raise ConfigError(f"app.stroke_weight: the weight W must be > 0, got {self.stroke_weight}")
         if not self.stroke_length > 0:
             raise ConfigError(f"app.stroke_length: λ must be > 0, got {self.stroke_length}")
-        for i, s in enumerate(self.sources):
+        for i, s in enumerate(_as_list(self.sources)):
             if (s.point is None) == (s.vertex is None):
                 raise ConfigError(f"app.sources[{i}]: give exactly one of `point` or `vertex`")
         for i, v in enumerate(self.vortices):
@@ -126,7 +140,8 @@ class VectorField(App):
         for i, s in enumerate(self.strokes):
             if len(s.points) < 2:
                 raise ConfigError(f"app.strokes[{i}].points: a stroke needs at least two points, got {len(s.points)}")
-        if self.strokes and self.stroke_magnitude == "precomputed" and not self.sources and not self.vortices:
+        no_sources = self.sources is not None and not self.sources  # (None: a pair from the mesh)
+        if self.strokes and self.stroke_magnitude == "precomputed" and no_sources and not self.vortices:
             raise ConfigError(
                 "app.stroke_magnitude=precomputed takes |v| from a solve without the strokes (eq. 6.9), but "
                 "there are no sources, sinks or vortices, so that field is zero and so would be the result: "
@@ -183,12 +198,36 @@ def _face_ids(K, items, key: str, tolerance: float = float("inf")) -> tuple[np.n
     return np.asarray(ids, dtype=np.int64), np.asarray(values)
 
 
-def build_constraints(K, dec, cfg) -> tuple[DesignConstraints, dict]:
-    """Curl and divergence targets of eq. 6.5 from ``cfg.sources`` / ``cfg.vortices`` and the
-    stroke geometry (faces, unit directions) from ``cfg.strokes``."""
+def sources_from_mesh(K, log=None) -> tuple[list[Source], dict]:
+    """The default source/sink pair (module docstring) as ``Source`` items by vertex id, and
+    the metrics that record it; ``log`` (a callable) is told which vertices were chosen."""
+    pair = principal_extremes(K)
+    points = embed3(K.vertices)[[pair.source, pair.sink]]
+    fmt = lambda p: "[" + ", ".join(f"{v:.6g}" for v in p) + "]"  # noqa: E731
+    metrics = {"sources_from_mesh": True, "source_vertex": pair.source, "sink_vertex": pair.sink,
+               "source_point": fmt(points[0]), "sink_point": fmt(points[1]), "source_axis": fmt(pair.axis),
+               "source_axis_unique": pair.axis_unique}
+    if log is not None:
+        where = " off the border" if pair.interior_only else ""
+        note = "" if pair.axis_unique else (" (the two largest variances are equal: the axis is one of a plane of "
+                                            "equally good ones)")
+        log(f"vector_field: app.sources=null: source +1 at vertex {pair.source} {metrics['source_point']}, sink -1 "
+            f"at vertex {pair.sink} {metrics['sink_point']}: the extreme vertices{where} along the principal axis "
+            f"{metrics['source_axis']}{note}; give app.sources to choose others")
+    return [Source(vertex=pair.source, divergence=1.0), Source(vertex=pair.sink, divergence=-1.0)], metrics
+
+
+def build_constraints(K, dec, cfg, log=None) -> tuple[DesignConstraints, dict]:
+    """Curl and divergence targets of eq. 6.5 from ``cfg.sources`` (None: a pair from the mesh,
+    :func:`sources_from_mesh`) / ``cfg.vortices`` and the stroke geometry (faces, unit
+    directions) from ``cfg.strokes``. ``geometry["source_metrics"]`` records the sources' origin."""
     constraints = DesignConstraints.empty(K)
     tolerance = float(getattr(cfg, "point_tolerance", float("inf")))
-    src_ids, src_values = _vertex_ids(K, _as_list(cfg.sources), "sources", tolerance)
+    if cfg.sources is None:
+        sources, source_metrics = sources_from_mesh(K, log)
+    else:
+        sources, source_metrics = list(cfg.sources), {"sources_from_mesh": False}
+    src_ids, src_values = _vertex_ids(K, sources, "sources", tolerance)
     if src_ids.size:
         constraints.codifferential = divergence_target(dec, src_ids, src_values)
     vort_ids, vort_values = _face_ids(K, _as_list(cfg.vortices), "vortices", tolerance)
@@ -202,6 +241,8 @@ def build_constraints(K, dec, cfg) -> tuple[DesignConstraints, dict]:
         stroke_dirs.append(dirs)
     geometry = {
         "source_vertices": src_ids,
+        "source_divergences": src_values,
+        "source_metrics": source_metrics,
         "vortex_faces": vort_ids,
         "stroke_faces": np.concatenate(stroke_faces) if stroke_faces else np.zeros(0, dtype=np.int64),
         "stroke_directions": np.concatenate(stroke_dirs) if stroke_dirs else np.zeros((0, 3)),
@@ -219,7 +260,8 @@ def _design(self, ctx: Context) -> Result:
 
     Fields: ``omega`` (n1,) the 1-form; ``face_vectors`` (n2, 3) Whitney ♯ (eq. 6.7) at the
     barycenters; ``vertex_index`` (n0,) and ``face_index`` (n2,) singularity indices;
-    ``singular_vertices`` / ``singular_faces`` (ids); ``stroke_faces`` (ids) and
+    ``singular_vertices`` / ``singular_faces`` (ids); ``source_vertices`` (ids) and
+    ``source_divergences`` (their outflows); ``stroke_faces`` (ids) and
     ``stroke_vectors`` (their target vectors v_t); ``omega_without_strokes`` (when strokes
     are given).
 
@@ -232,12 +274,14 @@ def _design(self, ctx: Context) -> Result:
     ``singularity_cluster_indices`` (their indices, e.g. ``"+1,+1"``), ``border_normal_flux_mean`` and ``border_normal_fraction``,
     ``adjointness_defect``, ``field_change_relative`` / ``field_change_region_relative``
     (strokes: change of the face vectors caused by the strokes, area-weighted L2, whole
-    mesh / region), ``normal_equation_residual``, ``solve_seconds``.
+    mesh / region), ``normal_equation_residual``, ``solve_seconds``; ``sources_from_mesh`` and,
+    when true, ``source_vertex`` / ``sink_vertex`` / ``source_point`` / ``sink_point`` /
+    ``source_axis`` / ``source_axis_unique`` (:func:`sources_from_mesh`).
     """
     K, dec, cfg = ctx.complex, ctx.dec, self
     mode = dec.boundary.name
     delta = dec.codifferential(1)
-    constraints, geometry = build_constraints(K, dec, cfg)
+    constraints, geometry = build_constraints(K, dec, cfg, ctx.log)
 
     seconds = 0.0
     start = time.perf_counter()
@@ -282,6 +326,7 @@ def _design(self, ctx: Context) -> Result:
         adjointness_defect=adjointness_defect(dec, delta),
         boundary=mode,
         sources=int(geometry["source_vertices"].size),
+        **geometry["source_metrics"],
         vortices=int(geometry["vortex_faces"].size),
         stroke_faces=int(geometry["stroke_faces"].size),
         stroke_edges=int(constraints.stroke_edges.size),
@@ -302,6 +347,7 @@ def _design(self, ctx: Context) -> Result:
         "cluster_positions": clusters.positions,
         "cluster_indices": clusters.indices,
         "source_vertices": geometry["source_vertices"],
+        "source_divergences": geometry["source_divergences"],
         "vortex_faces": geometry["vortex_faces"],
         "stroke_faces": geometry["stroke_faces"],
         "stroke_vectors": stroke_vectors,

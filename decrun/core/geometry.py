@@ -28,6 +28,7 @@ __all__ = [
     "vertex_normals",
     "is_planar",
     "obtuse_triangle_count",
+    "principal_frame",
 ]
 
 #: relative tolerance of :func:`is_planar` (spread of z over the bounding-box diagonal)
@@ -135,3 +136,30 @@ def obtuse_triangle_count(points: np.ndarray, faces: np.ndarray, tol_deg: float 
     """Number of triangles with an angle above 90° + ``tol_deg`` (points (n, 2|3), faces (m, 3)):
     the triangles whose circumcentric dual pieces are negative (§4.5.2, Fig. 4.17)."""
     return int((np.degrees(corner_angles(points, faces)).max(axis=1) > 90.0 + tol_deg).sum())
+
+
+def principal_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """The frame a point set carries: ``(c, E, s, variances)``.
+
+    c (3,) is the centroid; the rows e1, e2, e3 of E (3, 3) are the principal axes of the
+    covariance Σ (x − c)(x − c)ᵀ / n, by decreasing variance (``variances`` (3,)); s is the
+    RMS distance from c (model units; 0 when all points coincide). The sign of e1 and e2 is
+    the one with a positive third moment Σ (e·(x − c))³ — an orientation the points
+    themselves carry, so the frame moves with them; where that moment is zero to round-off
+    (|mean u³| ≤ 1e-9, u = e·(x − c)/s: a symmetric point set) the largest component of e is
+    made positive. e3 = e1 × e2 (right-handed). Planar points (n, 2) are taken in the z = 0
+    plane. Where two variances are equal (a sphere, a cube) their axes are any orthonormal
+    pair of that plane (whatever the eigensolver returns): the caller says so.
+    """
+    x = embed3(np.asarray(points, dtype=np.float64))
+    c = x.mean(axis=0)
+    r = x - c
+    s = float(np.sqrt((r ** 2).sum(axis=1).mean()))
+    values, vectors = np.linalg.eigh(r.T @ r / len(x))
+    E = vectors[:, ::-1].T.copy()  # rows by decreasing variance
+    third = ((r @ E[:2].T / (s if s > 0 else 1.0)) ** 3).mean(axis=0)
+    largest = E[np.arange(2), np.argmax(np.abs(E[:2]), axis=1)]
+    sign = np.where(np.abs(third) > 1e-9, np.sign(third), np.sign(largest))
+    E[:2] *= sign[:, None]
+    E[2] = np.cross(E[0], E[1])
+    return c, E, s, values[::-1].copy()

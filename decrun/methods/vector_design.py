@@ -58,6 +58,8 @@ __all__ = [
     "DesignConstraints",
     "DesignSolution",
     "nearest_vertices",
+    "PrincipalExtremes",
+    "principal_extremes",
     "nearest_faces",
     "face_normals",
     "adjointness_defect",
@@ -465,3 +467,41 @@ def border_normal_flux(K: SimplicialComplex, omega: np.ndarray) -> dict:
         "border_normal_fraction": float(normal_part.mean() / mean_mag) if mean_mag > 0 else 0.0,
         "border_edges": int(edges_idx.size),
     }
+
+
+@dataclass
+class PrincipalExtremes:
+    """The default source/sink pair of ``app=vector_field`` (:func:`principal_extremes`)."""
+
+    source: int  # vertex id: largest (x − c)·e1
+    sink: int  # vertex id: smallest (x − c)·e1
+    axis: np.ndarray  # (3,) e1, the principal axis of largest variance
+    variances: np.ndarray  # (3,) the vertex covariance's eigenvalues, decreasing
+    interior_only: bool  # chosen among the vertices off the border
+
+    @property
+    def axis_unique(self) -> bool:
+        """False when the two largest variances agree to 1e-6 (relative): e1 is then any axis of
+        their plane (a sphere, a cube) and the pair is one of many equally extreme ones."""
+        return bool(self.variances[0] - self.variances[1] > 1e-6 * self.variances[0])
+
+
+def principal_extremes(K: SimplicialComplex) -> PrincipalExtremes:
+    """The vertices farthest apart along the principal axis e1 of the vertices (largest
+    variance of the vertex covariance, :func:`decrun.core.geometry.principal_frame`).
+
+    On a mesh with a border only the vertices off the border are candidates (when there are
+    any): the flux-adapted δ (§6.4.4) counts a border vertex's estimated flow through the
+    border in its divergence, so a source there may leave through the border instead of
+    into the mesh (on the unit square, whose extremes are corners, the prescribed outflow of
+    the corner comes out 0); with the unadapted δ a border vertex's dual cell is open. Ties
+    go to the lowest vertex id.
+    """
+    c, E, _, variances = geometry.principal_frame(K.vertices)
+    height = (embed3(K.vertices) - c) @ E[0]
+    border = K.border_vertices()
+    interior_only = bool(border.any() and not border.all())
+    candidates = np.flatnonzero(~border) if interior_only else np.arange(height.size)
+    h = height[candidates]
+    return PrincipalExtremes(source=int(candidates[np.argmax(h)]), sink=int(candidates[np.argmin(h)]),
+                             axis=E[0].copy(), variances=variances, interior_only=interior_only)

@@ -23,9 +23,10 @@ INTENDED = {
     ("mesh/cube.yaml", "refine"): "the CLI Loop-subdivides the 12 triangles twice; Cube() in Python is the raw "
                                   "12-triangle cube (tests/runner/test_meshes.py builds on it)",
     ("mesh/cube.yaml", "refine_iterations"): "see cube refine",
-    ("app/vector_field.yaml", "sources"): "the CLI's demo source/sink pair at the sphere's poles; in Python a design "
-                                          "of strokes or vortices only gets no source it did not ask for "
-                                          "(tests/apps/test_vector_field.py relies on it)",
+    ("app/vector_field.yaml", "sources"): "the CLI's null: a source/sink pair from the mesh (issue 27.2), so the "
+                                          "default runs on every mesh; in Python a design of strokes or vortices "
+                                          "only gets no source it did not ask for (sources=None asks for the pair; "
+                                          "tests/apps/test_vector_field.py relies on the empty default)",
     ("mesh/grid_holes.yaml", "nx"): "a preset of Grid (the operator-variant comparison's 25 x 25 grid)",
     ("mesh/grid_holes.yaml", "ny"): "a preset of Grid (the operator-variant comparison's 25 x 25 grid)",
     ("mesh/grid_holes.yaml", "hole_boxes"): "a preset of Grid: its three holes are what makes it grid_holes",

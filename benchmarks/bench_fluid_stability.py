@@ -41,19 +41,21 @@ from decrun.methods.fluid.simulation import VorticityFluid  # noqa: E402
 from fluid_cases import drift_per_s, steady_case  # noqa: E402
 from meshes_for_tests import icosphere, square_lattice  # noqa: E402
 
-#: scheme name → (velocity, circulation)
-SCHEMES = {"default": ("least_squares", "swept_bounded"), "clamped": ("least_squares", "swept_clamped"),
-           "swept": ("least_squares", "swept"),
-           "former": ("wshd07", "corrected_trapezoid"), "thesis": ("wshd07", "trapezoid")}
+#: scheme name → (velocity, circulation, walls); walls "auto" is slip at ν = 0 for the swept rules
+SCHEMES = {"default": ("least_squares", "swept_bounded", "auto"),
+           "no_slip": ("least_squares", "swept_bounded", "no_slip"),
+           "clamped": ("least_squares", "swept_clamped", "auto"),
+           "swept": ("least_squares", "swept", "auto"),
+           "former": ("wshd07", "corrected_trapezoid", "auto"), "thesis": ("wshd07", "trapezoid", "auto")}
 TOLERANCE = 1e-12  # a rise above this relative size is counted
 
 
 def unforced_run(dec, scheme: str, steps: int, dt: float = 0.02, seed: int = 4, amplitude: float = 5.0) -> dict:
     """Run ν = 0 from a random vorticity; per-step rises of energy and enstrophy (relative)."""
-    velocity, circulation = SCHEMES[scheme]
+    velocity, circulation, walls = SCHEMES[scheme]
     w0 = random_vorticity(dec, seed=seed, amplitude=amplitude)
     sim = VorticityFluid(dec, DirectSolver, dt=dt, viscosity=0.0, initial_vorticity=w0, velocity=velocity,
-                         circulation=circulation)
+                         circulation=circulation, walls=walls)
     e = [sim.kinetic_energy()]
     z = [sim.diagnostics()["enstrophy"]]
     actions = []
@@ -79,11 +81,12 @@ def unforced_run(dec, scheme: str, steps: int, dt: float = 0.02, seed: int = 4, 
 
 def channel_run(target: int, scheme: str, steps: int, dt: float = 0.005) -> dict:
     """The Fig. 7.15 channel at ν = 0 (inflow 10): blow-up step, energy and enstrophy ratios."""
-    velocity, circulation = SCHEMES[scheme]
+    velocity, circulation, walls = SCHEMES[scheme]
     mesh = channel_mesh(target_faces=target)
     dec = DEC(SimplicialComplex(mesh.vertices, mesh.faces))
     sim = VorticityFluid(dec, DirectSolver, dt=dt, viscosity=0.0, inflow_velocity=(10.0, 0.0),
-                         obstacle_loops=mesh.obstacle_loops, velocity=velocity, circulation=circulation)
+                         obstacle_loops=mesh.obstacle_loops, velocity=velocity, circulation=circulation,
+                         walls=walls)
     e0 = sim.kinetic_energy()
     d = sim.diagnostics()
     for _ in range(steps):
@@ -103,6 +106,8 @@ def lattice_dec(cells: int):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--channel-steps", type=int, default=80)
+    parser.add_argument("--channels", nargs="*", type=int, default=[1400, 2800, 5300, 12000])
     parser.add_argument("--full", action="store_true", help="add the 81920-face sphere")
     parser.add_argument("--schemes", nargs="*", default=["default", "swept"], choices=list(SCHEMES))
     parser.add_argument("--parts", nargs="*", default=["sphere", "square", "channel", "drift"],
@@ -130,9 +135,9 @@ def main() -> None:
     if "channel" in args.parts:
         print("\n| channel faces | scheme | steps | diverged | energy ratio | enstrophy | max abs w |")
         print("|---:|---|---:|---|---:|---:|---:|")
-        for target in (1400, 2800, 5300, 12000):
+        for target in args.channels:
             for scheme in args.schemes:
-                r = channel_run(target, scheme, min(args.steps, 80))
+                r = channel_run(target, scheme, args.channel_steps)
                 print(f"| {r['faces']} | {scheme} | {r['steps']} | {r['diverged'] or '-'} | {r['energy_ratio']:.4g} | "
                       f"{r['enstrophy']:.4g} | {r['vorticity_max']:.4g} |", flush=True)
     if "drift" in args.parts:

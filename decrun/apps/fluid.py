@@ -26,7 +26,7 @@ import numpy as np
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.errors import ConfigError, TopologyError
-from decrun.methods.fluid.options import Circulation, Initial, Kernels, Velocity
+from decrun.methods.fluid.options import Circulation, Initial, Kernels, Velocity, Walls
 
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
@@ -64,6 +64,7 @@ class Fluid(App):
     stirs: List[Stir] = field(default_factory=list)
     velocity: Velocity = Velocity.least_squares  # least_squares | wshd07 (the thesis' interpolation, §7.2.3)
     circulation: Circulation = Circulation.swept_bounded  # swept_bounded | swept_clamped | swept | corrected_trapezoid | trapezoid
+    walls: Walls = Walls.auto  # auto (slip at ν = 0, else no_slip) | slip | no_slip
     shadow: bool = False  # also run a shadow with a 1e-10 perturbation: perturbation_growth_per_s (shadow.py)
     shadow_perturbation: float = 1e-10  # relative size of the shadow's perturbation
     shadow_max_growth_per_step: float = 0.1  # stable: false when the fitted growth per step exceeds this
@@ -85,6 +86,10 @@ class Fluid(App):
         self.initial = Initial.of(self.initial, "app.initial")  # also for Python callers (strings)
         self.velocity = Velocity.of(self.velocity, "app.velocity")
         self.circulation = Circulation.of(self.circulation, "app.circulation")
+        self.walls = Walls.of(self.walls, "app.walls")
+        if self.walls == "slip" and self.circulation not in ("swept_bounded", "swept_clamped", "swept"):
+            raise ConfigError(f"app.walls=slip needs a swept circulation (app.circulation={self.circulation} takes "
+                              "the wall velocity at the border points); use app.walls=no_slip")
         if self.velocity == "least_squares" and self.circulation not in ("swept_bounded", "swept_clamped", "swept"):
             raise ConfigError(f"app.circulation={self.circulation} with app.velocity=least_squares is unstable; "
                               "use app.velocity=wshd07 (the thesis' pair: app.velocity=wshd07 "
@@ -160,7 +165,7 @@ class Fluid(App):
         fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
                                inflow_velocity=list(self.inflow) or None, initial_vorticity=w0,
                                velocity=str(self.velocity), circulation=str(self.circulation),
-                               kernels=str(self.kernels))
+                               kernels=str(self.kernels), walls=str(self.walls))
         obtuse = int(getattr(fluid, "obtuse_triangles", 0))
         if obtuse:
             ctx.log(f"fluid: {obtuse} obtuse triangles — their circumcentric dual cells turn inside out (§7.3); "
@@ -206,6 +211,8 @@ class Fluid(App):
             "obtuse_triangles": obtuse,
             "solve_seconds": seconds,
         }
+        if not fluid.closed:  # the wall condition app.walls resolved to (a closed surface has no wall)
+            metrics["walls"] = fluid.walls
         if not bounded:
             metrics["diverged_at_step"] = int(last.get("diverged_at_step", steps_done))
         metrics.update(chaos)

@@ -125,6 +125,32 @@ def test_inviscid_default_keeps_energy_and_enstrophy_and_the_unbounded_rule_stay
     assert (np.diff(swept_energy) > 1e-9 * swept_energy[0]).sum() >= 20
 
 
+def test_slip_walls_need_a_swept_rule_and_the_hint_runs_and_the_condition_is_recorded(decrun_cli, tmp_path):
+    """Issue 25.1: app.walls=slip with the thesis' trapezoid rule is refused naming the override;
+    the override runs; the resolved wall condition is the metric ``walls`` (auto: slip at ν = 0,
+    no_slip for ν > 0), absent on a closed surface."""
+    from decrun.runner.results import read_result
+
+    common = ("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.steps=2", "app.inflow=[1.0,0.0]",
+              "app.initial=zero", "app.animation=false", "figures=false", "app.velocity=wshd07",
+              "app.circulation=trapezoid", "app.viscosity=0")
+    proc = decrun_cli(*common, "app.walls=slip", "hydra.run.dir=bad")
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    message = proc.stderr.strip().splitlines()[-1]
+    assert "app.walls=slip" in message and "app.walls=no_slip" in message
+    proc = decrun_cli(*common, "app.walls=no_slip", "hydra.run.dir=fixed")
+    assert proc.returncode == 0, proc.stderr
+    assert read_result(tmp_path / "fixed" / "result.h5").metrics["walls"] == "no_slip"
+    for viscosity, walls in (("0", "slip"), ("0.02", "no_slip")):
+        proc = decrun_cli(*common[:-3], f"app.viscosity={viscosity}", f"hydra.run.dir=auto{viscosity}")
+        assert proc.returncode == 0, proc.stderr
+        assert read_result(tmp_path / f"auto{viscosity}" / "result.h5").metrics["walls"] == walls
+    proc = decrun_cli("app=fluid", "mesh.subdiv=1", "app.steps=1", "app.animation=false", "figures=false",
+                      "hydra.run.dir=sphere")
+    assert proc.returncode == 0, proc.stderr
+    assert "walls" not in read_result(tmp_path / "sphere" / "result.h5").metrics
+
+
 def test_the_unstable_pair_of_reconstruction_and_circulation_is_refused_with_the_fix(decrun_cli):
     common = ("app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=2", "app.initial=random", "app.animation=false")
     proc = decrun_cli(*common, "app.circulation=trapezoid")

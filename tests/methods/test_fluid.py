@@ -630,3 +630,79 @@ def test_swept_vorticity_of_a_linear_field_is_its_exact_integral_over_the_moved_
     # 1.9e-3 (its mean of ω) to 7.3e-2 (its area) in some cell
     scale = np.abs(integral(before)).max()
     np.testing.assert_allclose(change, expected, rtol=0, atol=1e-12 * scale)
+
+
+def _square(cells: int) -> DEC:
+    from meshes_for_tests import square_lattice
+
+    return DEC(SimplicialComplex(*square_lattice(cells)))
+
+
+def test_slip_walls_make_the_cellular_steady_state_converge_up_to_the_walls():
+    """Issue 25.1: ψ = sin πx sin πy is an exact steady Euler flow in the unit square with slip
+    walls (w = 2π²ψ vanishes on them). With walls=slip (the default at ν = 0) the drift of one
+    step over the *whole* square shrinks with h (measured 0.147, 0.050, 0.017 /s at 8, 16, 32
+    cells per side); with the thesis' no-slip border cells the walls make a vortex sheet, ~|v|/h
+    per border cell, and the whole-square drift grows instead (1.8e3, 2.9e3, 4.2e3 /s); inside
+    (0.2, 0.8)² both are the same."""
+    from fluid_cases import steady_case
+
+    slip, no_slip = [], []
+    for cells in (8, 16, 32):
+        dec, w0, inner = steady_case("cellular_regular", cells)
+        everywhere = np.ones_like(inner)
+        runs = {}
+        for walls in ("auto", "no_slip"):
+            sim = VorticityFluid(dec, new_solver, dt=1e-3, viscosity=0.0, initial_vorticity=w0, walls=walls)
+            sim.step()
+            runs[walls] = sim.vorticity
+        assert sim.walls == "no_slip" and VorticityFluid(dec, new_solver, dt=1e-3, viscosity=0.0).walls == "slip"
+        star = sim.star0
+        slip.append(relative(runs["auto"], w0, star) / 1e-3)
+        no_slip.append(relative(runs["no_slip"], w0, star) / 1e-3)
+        inside = np.flatnonzero(inner)
+        assert relative(runs["auto"][inside], w0[inside], star[inside]) == pytest.approx(
+            relative(runs["no_slip"][inside], w0[inside], star[inside]), rel=1e-6)
+    assert all(fine < 0.5 * coarse for coarse, fine in zip(slip, slip[1:])), slip
+    assert no_slip[0] > 1e3 and all(fine > coarse for coarse, fine in zip(no_slip, no_slip[1:])), no_slip
+
+
+def test_the_default_keeps_energy_and_enstrophy_at_zero_viscosity_between_walls():
+    """Issue 25.1: unforced at ν = 0 in the walled unit square (2048 faces, smooth random vorticity)
+    the default (swept_bounded, slip walls) keeps energy and enstrophy non-increasing to round-off
+    in every step and Σ ⋆0 w constant (benchmarks/bench_fluid_stability.py --parts square: over
+    1000 steps on 2048 and 8192 faces); the thesis' no-slip walls raise the enstrophy."""
+    dec = _square(32)
+    w0 = random_vorticity(dec, seed=4, amplitude=5.0)
+    sim = VorticityFluid(dec, new_solver, dt=0.02, viscosity=0.0, initial_vorticity=w0)
+    assert sim.walls == "slip"
+    energy, enstrophy = _energy_enstrophy_series(sim, 30)
+    assert np.all(np.diff(energy) <= 1e-12 * energy[:-1]) and np.all(np.diff(enstrophy) <= 1e-12 * enstrophy[:-1])
+    assert abs(sim.star0 @ sim.vorticity - sim.star0 @ w0) <= 1e-12 * (sim.star0 @ np.abs(w0))
+    assert energy[-1] > 0.9 * energy[0] and enstrophy[-1] > 0.5 * enstrophy[0]  # bounded, not damped away
+    shedding = VorticityFluid(dec, new_solver, dt=0.02, viscosity=0.0, initial_vorticity=w0, walls="no_slip")
+    _, shedding_enstrophy = _energy_enstrophy_series(shedding, 30)
+    assert (np.diff(shedding_enstrophy) > 1e-12 * shedding_enstrophy[:-1]).any()
+
+
+def test_the_inviscid_channel_from_rest_stays_a_potential_flow_with_slip_walls():
+    """Issue 25.1: the Fig. 7.15 channel at ν = 0 from rest (inflow 10). With the thesis' no-slip
+    walls every obstacle cell starts at |w| ~ |v|/h (1.9e4 at 12059 faces) and the run diverged
+    (12059 faces at step 9, 5399 at step 33). With slip walls (the default at ν = 0, d'Alembert:
+    an inviscid flow from rest stays irrotational) the interior keeps |w| small, the locally
+    clamped swept change cannot grow it, and the energy is the potential flow's."""
+    _, dec = channel(1400)
+    runs = {}
+    for walls in ("auto", "no_slip"):
+        sim = VorticityFluid(dec, new_solver, dt=0.005, viscosity=0.0, inflow_velocity=[10.0, 0.0], walls=walls)
+        e0 = sim.kinetic_energy()
+        for _ in range(30):
+            d = sim.step()
+        runs[walls] = (d, e0, sim)
+    d, e0, sim = runs["auto"]
+    assert sim.walls == "slip" and d["finite"] and d["stable"]
+    assert abs(d["kinetic_energy"] / e0 - 1) < 1e-3
+    interior = ~sim.cells.border_vertex
+    shed, _, shedding = runs["no_slip"]
+    assert np.abs(sim.vorticity[interior]).max() < 0.05 * np.abs(shedding.vorticity[interior]).max()
+    assert d["enstrophy"] < 0.05 * shed["enstrophy"]

@@ -9,14 +9,16 @@ channels diverge. Two parts, applied to the advected vorticity w* of step d:
     triangles its backtracked corners lie in (the cell's footprint; the exact update averages
     ω over X(C)), and the removed mass goes back to the cells with room in proportion to their
     room (``conservative_clamp``), so Σ ⋆0 w is unchanged. Measured: it clips extrema (18 %
-    less enstrophy than (b) alone after 4 s at 5120 faces) and did not stop the inviscid
-    channel's divergence, so the default does not use it.
+    less enstrophy than (b) alone after 4 s at 5120 faces), so the default uses it only where
+    (b) cannot act (slip walls with inflow).
 (b) ``circulation="swept_bounded"`` (default) and ``"swept_clamped"``, on flows without inflow
     (forces are added after it): the energy E(w) = ½ ψᵀ S ψ (ψ = the stream function of w,
-    S = d0ᵀ ⋆1 d0) and, on closed surfaces, the enstrophy Z(w) = ½ Σ ⋆0 w² may not exceed those
-    of the previous state. (With walls the no-slip border cells make vorticity, so enstrophy is
-    no invariant there, and bounding it wrecked the cellular flow's steady state in the square:
-    drift 298 /s instead of 1.8e-3 /s.) If w* raises the enstrophy, the result is the blend
+    S = d0ᵀ ⋆1 d0) and, on closed surfaces and between slip walls, the enstrophy Z(w) = ½ Σ ⋆0 w²
+    may not exceed those of the previous state. (No-slip border cells make vorticity, so
+    enstrophy is no invariant there, and bounding it wrecked the cellular flow's steady state in
+    the square: drift 298 /s instead of 1.8e-3 /s. With slip walls and inflow, where vorticity
+    enters and leaves, ``swept_bounded`` uses the clamp (a) instead: it kept the inviscid
+    12059-face channel bounded, which diverged with no-slip walls with or without it.) If w* raises the enstrophy, the result is the blend
     w_θ = (1 − θ) w* + θ w_s with w_s = (⋆0 + α S)⁻¹ ⋆0 w* (one implicit diffusion step with
     α = h̄², h̄ the mean edge length: it damps grid-scale modes by about half, a degree-l
     harmonic by 1 / (1 + l(l+1) h̄²)) and θ ∈ [0, 1] the smallest blend meeting the bound

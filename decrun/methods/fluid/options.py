@@ -1,5 +1,5 @@
 """The fluid's closed option sets (``app.initial``, ``app.velocity``, ``app.circulation``,
-``app.kernels``): they name the method's own variants, so they live with the method
+``app.walls``, ``app.kernels``): they name the method's own variants, so they live with the method
 (DESIGN.md layers: core <- methods <- apps) and :mod:`decrun.apps.fluid` imports them.
 Light on purpose (no numerical import): composing a config reads them for hints."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from decrun.core.choices import Choice
 
-__all__ = ["Initial", "Velocity", "Circulation", "Kernels"]
+__all__ = ["Initial", "Velocity", "Circulation", "Kernels", "Walls"]
 
 
 class Initial(Choice):
@@ -48,3 +48,16 @@ class Kernels(Choice):
 
     numba = "numba"
     numpy = "numpy"
+
+
+class Walls(Choice):
+    """``app.walls``: the condition at walls (obstacles; the outer border without inflow).
+    ``slip`` is the Euler condition (u·n = 0; walls make no vorticity; the swept change runs in
+    every cell), ``no_slip`` the thesis' border cells (trapezoid circulation with the wall at rest,
+    §7.2.4: walls shed vorticity); ``auto`` is ``slip`` at ν = 0 with a swept circulation (at
+    ν = 0 the no-slip wall is a vortex sheet of strength |v| at every wall, ~|v|/h per border
+    cell: the inviscid channels diverged) and ``no_slip`` otherwise."""
+
+    auto = "auto"
+    slip = "slip"
+    no_slip = "no_slip"

@@ -11,18 +11,29 @@ a.–b. a continuous velocity from u (and from d0 ψ alone), by ``velocity`` (re
    interpolated over the flattened dual cells with the WSHD07 weights (interpolation.py);
 c. backtrack every circumcenter along −u for dt (backtrack.py); with ``circulation="swept"``
    in equal intervals of at most ``swept_cfl`` edge lengths;
-d. circulation Γ around each backtracked cell. *Border cells* (the cell of a border vertex or
-   any cell one of whose backtracked corners was clamped at a wall) take the trapezoid rule
+d. circulation Γ around each backtracked cell. *Border cells* take the trapezoid rule
    Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2 of the full u (the wall velocities enter
-   there: no-slip) and w = Γ / ⋆0. Interior cells, by ``circulation``:
-   ``"swept_bounded"`` (default): ``"swept"``, then, on closed surfaces, blended towards one
-     implicit smoothing step (or rescaled) so that neither enstrophy nor energy exceeds the
-     previous step's (limiter.py) — energy and enstrophy non-increasing at ν = 0, as consistent
-     as ``"swept"`` (issue 25); on domains with walls the energy alone is bounded, with inflow
-     it is ``"swept"``;
+   there) and w = Γ / ⋆0. Which cells are border cells is the wall condition ``walls``:
+   ``"no_slip"`` (the thesis) the cell of every border vertex and every cell one of whose
+   backtracked corners was clamped at a wall: walls shed vorticity, a vortex sheet of strength
+   |v| resolved as ~|v|/h per border cell (a viscous effect: at ν = 0 it made the fine inviscid
+   channels diverge and the whole-square steady-state drift grow with refinement);
+   ``"slip"`` (the Euler condition u·n = 0) only the cells the inflow reaches (outer-border
+   vertices and corners clamped at the outer border, when there is an inflow): every other cell,
+   at walls too, takes the swept change below, so walls make no vorticity; ``"auto"`` (default)
+   is ``"slip"`` at ν = 0 with a swept rule and ``"no_slip"`` otherwise.
+   The other cells, by ``circulation``:
+   ``"swept_bounded"`` (default): ``"swept"``, then bounded (limiter.py): where no vorticity is
+     made or enters (closed surfaces; slip walls without inflow) blended towards one implicit
+     smoothing step (or rescaled) so that neither enstrophy nor energy exceeds the previous
+     step's — energy and enstrophy non-increasing at ν = 0, as consistent as ``"swept"``
+     (issue 25); at no-slip walls without inflow the energy alone (the walls make enstrophy);
+     with slip walls and inflow each cell clamped to its footprint's range (the
+     ``"swept_clamped"`` clamp: a local maximum principle, where no global bound holds); at
+     no-slip walls with inflow it is ``"swept"``;
    ``"swept_clamped"``: ``"swept"``, each interior cell clamped to the vorticity range of its
      backtracked footprint (the mass given back to the cells with room), then the bound of
-     ``"swept_bounded"`` (more diffusive; it did not stop the inviscid channel's divergence);
+     ``"swept_bounded"`` (more diffusive; at no-slip walls it did not stop the inviscid channel's divergence);
    ``"swept"``: w + (Γ(X(C)) − Γ(C)) / ⋆0 with the change computed by Stokes as the
      integral of the current vorticity (linear least-squares fits) over the quadrilaterals the
      cell's sides sweep (swept.py) — consistent: the steady-flow drift shrinks with h, but at
@@ -60,14 +71,16 @@ from decrun.methods.fluid.limiter import EnergyEnstrophyBound, conservative_clam
 from decrun.methods.fluid.swept import SweptVorticity, rest_point_interpolation
 from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS, make_reconstruction
 
-__all__ = ["VorticityFluid", "CIRCULATIONS", "KERNELS"]
+__all__ = ["VorticityFluid", "CIRCULATIONS", "KERNELS", "WALLS"]
 
 #: the circulation rules of step d for interior cells
 CIRCULATIONS = ("swept_bounded", "swept_clamped", "swept", "corrected_trapezoid", "trapezoid")
 #: the rules that backtrack in intervals and sum the swept vorticity (swept.py)
 SWEPT = ("swept_bounded", "swept_clamped", "swept")
 
-KERNELS = ("numba", "numpy")  # compiled loops (compiled.py) or their numpy twins
+KERNELS = ("numba", "numpy")
+#: the wall conditions (``walls=``; "auto" resolves by the viscosity, see VorticityFluid)
+WALLS = ("auto", "slip", "no_slip")  # compiled loops (compiled.py) or their numpy twins
 
 
 class VorticityFluid:
@@ -98,6 +111,8 @@ class VorticityFluid:
     velocity : the velocity reconstruction of steps b–d, a key of
         ``reconstruction.VELOCITY_RECONSTRUCTIONS``: ``"wshd07"`` (the thesis) or
         ``"least_squares"`` (per-vertex least-squares velocity, linear in each triangle)
+    walls : ``"auto"`` | ``"slip"`` | ``"no_slip"``, the wall condition of step d (``"auto"``:
+        slip at ν = 0 with a swept circulation, else no_slip); the resolved one is ``self.walls``
     kernels : "numba" (default) runs the circulation sum and, with ``velocity="wshd07"``, the
         backtracking walk with its WSHD07 interpolation as compiled loops (compiled.py; the
         least-squares reconstruction has no compiled walk yet and walks in numpy); "numpy" runs
@@ -110,7 +125,7 @@ class VorticityFluid:
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
                  max_cfl: float | None = 1.0, integrator: str = "midpoint",
                  circulation: str = "swept_bounded", velocity: str = "least_squares", swept_cfl: float = 1.0,
-                 kernels: str = "numba"):
+                 kernels: str = "numba", walls: str = "auto"):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
@@ -125,6 +140,16 @@ class VorticityFluid:
                               "circulation=swept_bounded")
         if kernels not in KERNELS:
             raise ConfigError(f"fluid: kernels must be one of {list(KERNELS)}, got {kernels!r}")
+        if walls not in WALLS:
+            raise ConfigError(f"fluid: walls must be one of {list(WALLS)}, got {walls!r}")
+        if walls == "slip" and circulation not in SWEPT:
+            raise ConfigError("fluid: walls=slip needs a swept circulation (the trapezoid rules take their wall "
+                              "velocity at the fixed border points); use circulation=swept_bounded or walls=no_slip")
+        #: the wall condition: "slip" (the Euler condition, u·n = 0: walls make no vorticity) or
+        #: "no_slip" (the border cells' trapezoid with the wall velocity, thesis §7.2.4); "auto" is
+        #: slip at ν = 0 with a swept circulation, else no_slip
+        self.walls = walls if walls != "auto" else (
+            "slip" if float(viscosity) == 0.0 and circulation in SWEPT else "no_slip")
         self.kernels = kernels
         #: the compiled walk interpolates with the WSHD07 tables (compiled.py)
         self.compiled_walk = kernels == "numba" and velocity == "wshd07"
@@ -158,16 +183,22 @@ class VorticityFluid:
         self.stiffness = dec.laplacian_symmetric(0)  # d0ᵀ ⋆1 d0 (PSD)
         self.harmonic = harmonic_flux(dec, self.face_normal, self.label, inflow_velocity, new_solver)
         self._build_dual_edges()
-        #: the bound of limiter.py: energy and enstrophy on closed surfaces, the energy alone with
-        #: walls (the no-slip border cells make vorticity: an enstrophy bound there wrecked the
-        #: cellular flow's steady state, drift 298 /s instead of 1.8e-3 /s on 594 faces), none
-        #: with inflow (energy flows in)
+        #: the bound of limiter.py: energy and enstrophy on closed surfaces and between slip walls,
+        #: the energy alone at no-slip walls (their border cells make vorticity: an enstrophy bound
+        #: there wrecked the cellular flow's steady state, drift 298 /s instead of 1.8e-3 /s on 594
+        #: faces), none with inflow (energy flows in)
         self._bound = None
         if circulation in ("swept_bounded", "swept_clamped") and not np.any(self.inflow):
             self._bound = EnergyEnstrophyBound(self.star0, self.stiffness, self._recover, new_solver,
-                                               alpha=float(np.mean(self.walker.size)) ** 2, enstrophy=self.closed)
+                                               alpha=float(np.mean(self.walker.size)) ** 2,
+                                               enstrophy=self.closed or self.walls == "slip")
         #: per step: cells the clamp changed, and the bound's branches (limiter.EnergyEnstrophyBound.apply)
         self.limited_cells, self.bound_action = 0, 0
+        #: the local clamp runs for swept_clamped, and for swept_bounded where the global bound cannot
+        #: (slip walls with inflow: without it the inviscid 12059-face channel diverged at step 19, with
+        #: it max |w| stayed ≤ 106 over 100 steps)
+        self._clamps = circulation == "swept_clamped" or (
+            circulation == "swept_bounded" and self.walls == "slip" and self._bound is None and not self.closed)
 
         n0 = K.num_simplices(0)
         if self.viscosity > 0:
@@ -381,13 +412,32 @@ class VorticityFluid:
         border_cell = cells.border_vertex | touched[corners].any(axis=1)
         return np.where(border_cell, gamma[:, 1], gamma[:, 0]), border_cell
 
+    def _inflow_cells(self, wall_edge: np.ndarray) -> np.ndarray:
+        """(n0,) bool: with ``walls="slip"`` and an inflow, the cells of the outer border's vertices
+        and the cells with a corner clamped at an outer-border edge (``wall_edge`` (m,), -1 where
+        not clamped): fluid enters there carrying v and no vorticity, which the trapezoid rule
+        with the wall velocity v gives; every other cell takes the swept change. None without inflow."""
+        n0 = self.K.num_simplices(0)
+        if not np.any(self.inflow):
+            return np.zeros(n0, dtype=bool)
+        m = self.cells.n_circumcenters
+        outer_edge = np.zeros(self.K.num_simplices(1) + 1, dtype=bool)  # the last slot: not clamped
+        ends = self.K.simplices(1)
+        outer_edge[:-1] = (self.label[ends[:, 0]] == 0) & (self.label[ends[:, 1]] == 0)
+        touched = np.zeros(m + 1, dtype=bool)
+        touched[:m] = outer_edge[np.where(wall_edge >= 0, wall_edge, -1)]
+        corners = np.where(self.cells.corners < m, self.cells.corners, m)
+        return (self.cells.border_vertex & (self.label == 0)) | touched[corners].any(axis=1)
+
     def backtracked_vorticity(self, result, velocity) -> np.ndarray:
         """Steps c–d: the vorticity (n0,) carried to the vertices, before viscosity and forces."""
         gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0)
         w = gamma / self.star0
         if self.circulation_rule in SWEPT:
+            if self.walls == "slip":  # only the cells the inflow reaches keep the trapezoid (their wall moves at v)
+                border_cell = self._inflow_cells(result.wall_edge)
             w = np.where(border_cell, w, self.vorticity + self._swept_change / self.star0)
-        if self.circulation_rule == "swept_clamped":
+        if self._clamps:
             lo, hi = footprint_range(self.vorticity, self.K.simplices(2), result.triangle, self.cells.corners,
                                      self.cells.n_circumcenters)
             interior = ~border_cell

@@ -63,6 +63,7 @@ import scipy.sparse as sp
 from decrun.core.dec import DEC
 from decrun.errors import ConfigError, SolverError
 from decrun.methods.fluid.backtrack import BacktrackResult, TriangleWalker
+from decrun.core.connectivity import edge_owners
 from decrun.core.geometry import embed3, obtuse_triangle_count
 from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
@@ -183,6 +184,7 @@ class VorticityFluid:
         self.stiffness = dec.laplacian_symmetric(0)  # d0ᵀ ⋆1 d0 (PSD)
         self.harmonic = harmonic_flux(dec, self.face_normal, self.label, inflow_velocity, new_solver)
         self._build_dual_edges()
+        self._open_border()
         #: the bound of limiter.py: energy and enstrophy on closed surfaces and between slip walls,
         #: the energy alone at no-slip walls (their border cells make vorticity: an enstrophy bound
         #: there wrecked the cellular flow's steady state, drift 298 /s instead of 1.8e-3 /s on 594
@@ -302,9 +304,10 @@ class VorticityFluid:
             v = result.velocity  # the kernel interpolated every field at the end points
         else:
             v = reconstruction.velocity(result.triangle, result.position, both)
-        clamped = result.wall_edge >= 0
-        v[clamped, :, 0] = 0.0
-        v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
+        if self.walls == "no_slip":  # a point clamped at a wall moves with it; at a slip wall with the fluid
+            clamped = result.wall_edge >= 0
+            v[clamped, :, 0] = 0.0
+            v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
         return result, v
 
     def _walk(self, points, triangles, dt, velocity, both, start_velocity, options):
@@ -383,13 +386,37 @@ class VorticityFluid:
         self._rest_vorticity = rest_point_interpolation(top, at_circumcenters, self.cells.point_vertex,
                                                         self.K.simplices(1)[self.cells.border_edges], self.K.num_simplices(0))
 
-    def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray):
+    def _open_fixed_velocity(self) -> np.ndarray | None:
+        """(n_fixed, 3, 2) velocities of the fixed border points for ``walls="slip"`` with an
+        inflow and the least-squares reconstruction: on the open border (:meth:`_open_border`) the
+        full u is the fluid's own (P1 of the vertex velocities), so the trapezoid of an inflow cell
+        measures the vorticity there and imposes only the normal flux of v (through the harmonic
+        part) — imposing the whole v made a vortex sheet of the tangential velocity the obstacle
+        gives the inflow (±2 shed into the 2790-face channel); elsewhere as before. None: unchanged."""
+        if self._open_edge is None or self.reconstruction.name != "least_squares":
+            return None
+        m = self.cells.n_circumcenters
+        vertex_velocity = self.reconstruction.fields(self.flux[:, None])[:, :, 0]  # (n0, 3)
+        fixed = self._fixed_velocity.copy()
+        border = self.cells.border_edges
+        ends = self.K.simplices(1)[border]
+        open_mid = self._open_edge[border]
+        fixed[: border.size, :, 1][open_mid] = 0.5 * (vertex_velocity[ends[open_mid, 0]] + vertex_velocity[ends[open_mid, 1]])
+        vertices = self.cells.point_vertex[m + border.size:]
+        open_vertex = self._open_vertex[vertices]
+        fixed[border.size:, :, 1][open_vertex] = vertex_velocity[vertices[open_vertex]]
+        return fixed
+
+    def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray,
+                    fixed_velocity: np.ndarray | None = None):
         """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule
         Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2, and the (n0,) bool mask of border
         cells (which use the full u; the others the d0 ψ part).
 
-        position (m, 3), velocity (m, 3, 2) of the backtracked circumcenters; clamped (m,) bool.
+        position (m, 3), velocity (m, 3, 2) of the backtracked circumcenters; clamped (m,) bool;
+        fixed_velocity (n_fixed, 3, 2) of the fixed border points (default: the wall velocities).
         """
+        fixed_velocity = self._fixed_velocity if fixed_velocity is None else fixed_velocity
         cells = self.cells
         m = cells.n_circumcenters
         a, b = self._edge_a, self._edge_b
@@ -398,11 +425,11 @@ class VorticityFluid:
 
             D = self._dual_incidence
             gamma = circulation_sums(np.ascontiguousarray(position, dtype=np.float64), self._fixed_points,
-                                     np.ascontiguousarray(velocity, dtype=np.float64), self._fixed_velocity,
+                                     np.ascontiguousarray(velocity, dtype=np.float64), fixed_velocity,
                                      a, b, D.indptr, D.indices, D.data)
         else:
             points = np.concatenate([position, cells.points[m:]])
-            velocities = np.concatenate([velocity, self._fixed_velocity])
+            velocities = np.concatenate([velocity, fixed_velocity])
             side = points[b] - points[a]  # (E, 3)
             g = 0.5 * dot3(np.moveaxis(velocities[a] + velocities[b], 1, 2), side[:, None, :])  # (E, 2)
             gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
@@ -413,25 +440,49 @@ class VorticityFluid:
         return np.where(border_cell, gamma[:, 1], gamma[:, 0]), border_cell
 
     def _inflow_cells(self, wall_edge: np.ndarray) -> np.ndarray:
-        """(n0,) bool: with ``walls="slip"`` and an inflow, the cells of the outer border's vertices
-        and the cells with a corner clamped at an outer-border edge (``wall_edge`` (m,), -1 where
-        not clamped): fluid enters there carrying v and no vorticity, which the trapezoid rule
-        with the wall velocity v gives; every other cell takes the swept change. None without inflow."""
+        """(n0,) bool: with ``walls="slip"`` and an inflow, the cells of the vertices of the open
+        outer-border edges (those v crosses, :meth:`_open_border`) and the cells with a corner
+        clamped at one (``wall_edge`` (m,), -1 where not clamped): fluid enters and leaves there,
+        carrying v and no vorticity in, which the trapezoid rule with the border velocity v gives;
+        every other cell, at walls too, takes the swept change. None without inflow."""
         n0 = self.K.num_simplices(0)
-        if not np.any(self.inflow):
+        if self._open_edge is None:
             return np.zeros(n0, dtype=bool)
         m = self.cells.n_circumcenters
-        outer_edge = np.zeros(self.K.num_simplices(1) + 1, dtype=bool)  # the last slot: not clamped
-        ends = self.K.simplices(1)
-        outer_edge[:-1] = (self.label[ends[:, 0]] == 0) & (self.label[ends[:, 1]] == 0)
         touched = np.zeros(m + 1, dtype=bool)
-        touched[:m] = outer_edge[np.where(wall_edge >= 0, wall_edge, -1)]
+        touched[:m] = self._open_edge[np.where(wall_edge >= 0, wall_edge, -1)]
         corners = np.where(self.cells.corners < m, self.cells.corners, m)
-        return (self.cells.border_vertex & (self.label == 0)) | touched[corners].any(axis=1)
+        return self._open_vertex | touched[corners].any(axis=1)
+
+    def _open_border(self) -> None:
+        """With an inflow v: the *open* outer-border edges, those v crosses (|v·n| > 1e-9 |v|, n the
+        edge's outward normal in its triangle's plane: the inflow and outflow sides), as an
+        (n1 + 1,) mask (the last slot for "not clamped") and their vertices (n0,); the outer
+        border's other edges are walls along v (the channel's top and bottom). None without inflow."""
+        self._open_edge = self._open_vertex = None
+        if not np.any(self.inflow):
+            return
+        K = self.K
+        x = embed3(K.vertices)
+        edges = K.simplices(1)
+        border = self.cells.border_edges
+        outer = border[(self.label[edges[border, 0]] == 0) & (self.label[edges[border, 1]] == 0)]
+        owner, _ = edge_owners(K.facet_indices(2), edges.shape[0])
+        a, b = x[edges[outer, 0]], x[edges[outer, 1]]
+        tangent = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
+        away = 0.5 * (a + b) - x[K.simplices(2)[owner[outer]]].mean(axis=1)
+        normal = away - np.einsum("ed,ed->e", away, tangent)[:, None] * tangent
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        crossing = np.abs(normal @ self.inflow) > 1e-9 * np.linalg.norm(self.inflow)
+        self._open_edge = np.zeros(edges.shape[0] + 1, dtype=bool)
+        self._open_edge[outer[crossing]] = True
+        self._open_vertex = np.zeros(K.num_simplices(0), dtype=bool)
+        self._open_vertex[edges[outer[crossing]].ravel()] = True
 
     def backtracked_vorticity(self, result, velocity) -> np.ndarray:
         """Steps c–d: the vorticity (n0,) carried to the vertices, before viscosity and forces."""
-        gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0)
+        fixed = self._open_fixed_velocity() if self.walls == "slip" else None
+        gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0, fixed)
         w = gamma / self.star0
         if self.circulation_rule in SWEPT:
             if self.walls == "slip":  # only the cells the inflow reaches keep the trapezoid (their wall moves at v)

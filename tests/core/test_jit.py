@@ -72,6 +72,13 @@ RUN = ("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.inflow=[1.0,0.
 OFF_PATH = {"decrun.core.intrinsic_delaunay"}
 
 
+def helper(name: str) -> bool:
+    """The fluid's ``_helper`` kernels run inside the entry kernels' machine code (loaded from the
+    cache with them), so they hold no signature of their own."""
+    module, function = name.rsplit(".", 1)
+    return module == "decrun.methods.fluid.compiled" and function.startswith("_")
+
+
 def probe(tmp_path, *args, env=None):
     run = tmp_path / args[-1].replace("=", "_")
     run.mkdir()
@@ -86,8 +93,8 @@ def test_numpy_runs_no_kernel_numba_runs_all_and_they_agree(tmp_path):
     numpy = probe(tmp_path, "app.kernels=numpy")
     assert not numpy["numba"] and numpy["used"] == []  # numba never imported: no kernel ran
     numba = probe(tmp_path, "app.kernels=numba")
-    on_path = [name for name in numba["all"] if name.rsplit(".", 1)[0] not in OFF_PATH]
-    assert numba["numba"] and numba["used"] == on_path  # every kernel on the path ran compiled
+    on_path = [name for name in numba["all"] if name.rsplit(".", 1)[0] not in OFF_PATH and not helper(name)]
+    assert numba["numba"] and [n for n in numba["used"] if not helper(n)] == on_path  # every kernel on the path ran
     assert any(name.startswith("decrun.methods.fluid.compiled.") for name in on_path)
     assert any(name.startswith("decrun.core.") for name in on_path)  # the core's too (complex, stars)
     env = probe(tmp_path, "app.kernels=auto", env={"DECRUN_NUMBA": "0"})  # the environment reaches the fluid too

@@ -274,10 +274,8 @@ class VorticityFluid:
             result = self._walk(self.cells.points[:m], np.arange(m), self.dt, velocity, both, start, options)
         else:
             result = self._backtrack_sweeping(velocity, both, start, options)
-        if self.compiled_walk and self.circulation_rule not in SWEPT:
+        if self.compiled_walk:
             v = result.velocity  # the kernel interpolated every field at the end points
-        elif self.compiled_walk:
-            v = self._kernel_field.velocity_compiled(result.triangle, result.position, both, self.face_normal)
         else:
             v = reconstruction.velocity(result.triangle, result.position, both)
         clamped = result.wall_edge >= 0
@@ -310,6 +308,9 @@ class VorticityFluid:
         wall = np.full(m, -1, dtype=np.int64)
         change = np.zeros(self.K.num_simplices(0))
         rounds = unfinished = substeps = 0
+        # the compiled walk's end velocities of the points free in the last interval (the others
+        # are clamped: backtrack gives them the wall's velocity)
+        end_velocity = np.zeros((m, 3, both.shape[2])) if self.compiled_walk else None
         for interval in range(k):  # k small: a few intervals per step
             free = np.flatnonzero(wall < 0)
             part = self._walk(position[free], triangle[free], self.dt / k, velocity, both,
@@ -317,6 +318,8 @@ class VorticityFluid:
             rounds, unfinished = rounds + part.rounds, max(unfinished, part.unfinished)
             substeps = max(substeps, part.substeps)
             position[free], triangle[free], wall[free] = part.position, part.triangle, part.wall_edge
+            if end_velocity is not None:
+                end_velocity[free] = part.velocity
             moved = points.copy()
             moved[:m] = position
             lam = self.walker.barycentric(triangle, position)
@@ -325,7 +328,7 @@ class VorticityFluid:
             change += self._swept.change(points, moved, value, new_value, compiled=self.compiled_walk)
             points, value = moved, new_value
         self._swept_change = change
-        return BacktrackResult(position, triangle, wall, rounds, unfinished, k * substeps)
+        return BacktrackResult(position, triangle, wall, rounds, unfinished, k * substeps, end_velocity)
 
     def _build_dual_edges(self) -> None:
         """The dual cells' sides as unique dual edges (a, b), a < b, and the signed

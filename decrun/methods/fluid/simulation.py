@@ -222,6 +222,9 @@ class VorticityFluid:
                                            start_velocity=none)
         self.circulation(self.cells.points[: self.cells.n_circumcenters],
                          np.zeros((self.cells.n_circumcenters, 3, 2)), np.zeros(self.cells.n_circumcenters, bool))
+        if self.compiled_walk:  # the swept intervals after the first interpolate their start velocities
+            self._kernel_field.velocity_compiled(np.zeros(0, dtype=np.int64), none, self._point_velocities(),
+                                                 self.face_normal)
         if self.circulation_rule in SWEPT:
             rest = np.zeros(self.cells.points.shape[0])
             self._swept.change(self.cells.points, self.cells.points, rest, rest, compiled=True)

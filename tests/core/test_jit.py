@@ -101,3 +101,13 @@ def test_numpy_runs_no_kernel_numba_runs_all_and_they_agree(tmp_path):
     assert not env["numba"] and env["used"] == []
     for key in ("kinetic_energy_final", "enstrophy_final", "max_abs_divergence", "stable"):
         assert numba["metrics"][key] == numpy["metrics"][key] == env["metrics"][key], key
+
+
+def test_a_bad_decrun_numba_stops_the_cli_with_the_fix(decrun_cli, monkeypatch):
+    base = ("app=smoothing", "mesh.subdiv=1", "app.steps=1", "figures=false", "progress=false")
+    monkeypatch.setenv("DECRUN_NUMBA", "yes")
+    bad = decrun_cli(*base, "hydra.run.dir=bad")
+    assert bad.returncode != 0 and "DECRUN_NUMBA='yes'" in bad.stderr and "use DECRUN_NUMBA=auto" in bad.stderr
+    monkeypatch.setenv("DECRUN_NUMBA", "auto")  # the fix the message names
+    good = decrun_cli(*base, "hydra.run.dir=good")
+    assert good.returncode == 0, good.stderr

@@ -75,10 +75,10 @@ class SweptVorticity:
             from decrun.methods.fluid import compiled as kernels
 
             D = self.incidence
-            f64 = (lambda x: np.ascontiguousarray(x, dtype=np.float64))
-            return kernels.swept_change(f64(before), f64(after), f64(value_before), f64(value_after),
-                                        np.ascontiguousarray(a, dtype=np.int64), np.ascontiguousarray(b, dtype=np.int64),
-                                        f64(self.normal), D.indptr, D.indices, D.data)
+            f64 = [np.ascontiguousarray(x, dtype=np.float64) for x in (before, after, value_before, value_after,
+                                                                       self.normal)]
+            return kernels.swept_change(*f64[:4], np.ascontiguousarray(a, dtype=np.int64),
+                                        np.ascontiguousarray(b, dtype=np.int64), f64[4], D.indptr, D.indices, D.data)
         a0, b0, a1, b1 = before[a], before[b], after[a], after[b]
         first = 0.5 * dot3(np.cross(b0 - a0, b1 - a0), self.normal)
         second = 0.5 * dot3(np.cross(b1 - a0, a1 - a0), self.normal)

@@ -316,8 +316,11 @@ class VorticityFluid:
         end_velocity = np.zeros((m, 3, both.shape[2])) if self.compiled_walk else None
         for interval in range(k):  # k small: a few intervals per step
             free = np.flatnonzero(wall < 0)
-            part = self._walk(position[free], triangle[free], self.dt / k, velocity, both,
-                              start[free] if interval == 0 else None, options)
+            if interval == 0:
+                begin = start[free]
+            else:  # the compiled walk's end velocities are the next interval's start velocities (the same bits)
+                begin = None if end_velocity is None else end_velocity[free, :, 1]
+            part = self._walk(position[free], triangle[free], self.dt / k, velocity, both, begin, options)
             rounds, unfinished = rounds + part.rounds, max(unfinished, part.unfinished)
             substeps = max(substeps, part.substeps)
             position[free], triangle[free], wall[free] = part.position, part.triangle, part.wall_edge

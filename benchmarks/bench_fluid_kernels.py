@@ -1,6 +1,7 @@
 """Benchmark: the fluid's numba kernels against their numpy twins, steps per second in one run.
 
-Cases (issue 17): the unit icosphere of 20,480 faces (a smooth random vorticity, ν = 1e-3, CFL ≈ 1)
+Cases (issues 17, 26): the default scheme (least-squares walk, swept_bounded; ``--scheme wshd07``:
+the thesis' interpolation) on the unit icosphere of 20,480 faces (a smooth random vorticity, ν = 1e-3, CFL ≈ 1)
 and the ~12k-face channel of Fig. 7.15–7.17 (inflow 10 units/s, one obstacle, ν = 0.02, dt =
 0.005) with the default per-point substeps (max_cfl = 1) and with one substep. Both simulations
 of a case are built on the same mesh and stepped alternately, so machine load hits both alike;
@@ -99,13 +100,13 @@ class Split:
 SOLVERS = {"auto": AutoSolver, "direct": DirectSolver}  # solver=auto (CHOLMOD for SPD, the default) | SuperLU
 
 
-#: the compiled walk interpolates with WSHD07: the scheme it speeds up (the least-squares default
-#: shares only the compiled circulation sum)
-SCHEME = dict(velocity="wshd07", circulation="corrected_trapezoid")
+#: ``--scheme``: the default (least-squares walk, swept_bounded) or the thesis' (WSHD07 walk)
+SCHEMES = {"default": {}, "wshd07": dict(velocity="wshd07", circulation="corrected_trapezoid")}
 
 
-def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto") -> dict:
-    sims = {k: VorticityFluid(dec, SOLVERS[solver], kernels=k, **SCHEME, **options) for k in ("numpy", "numba")}
+def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto", scheme: str = "default") -> dict:
+    sims = {k: VorticityFluid(dec, SOLVERS[solver], kernels=k, **SCHEMES[scheme], **options)
+            for k in ("numpy", "numba")}
     for sim in sims.values():
         sim.step()  # warm-up (loads or compiles the kernels)
     split = Split(sims["numba"])
@@ -167,6 +168,8 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=4.0, help="time per kernel and case")
     parser.add_argument("--jit", action="store_true", help="first-call JIT times, cold and warm cache")
     parser.add_argument("--solver", choices=sorted(SOLVERS), default="auto", help="the two SPD systems' solver")
+    parser.add_argument("--scheme", choices=sorted(SCHEMES), default="default",
+                        help="default: least squares + swept_bounded; wshd07: + corrected_trapezoid")
     parser.add_argument("--case", choices=["sphere", "channel", "channel1"], action="append",
                         help="only these cases (default: all three)")
     args = parser.parse_args()
@@ -180,14 +183,14 @@ def main() -> None:
     rows = []
     for case in cases:
         if case == "sphere":
-            rows.append(compare("sphere", *sphere_case(), args.seconds, args.solver))
+            rows.append(compare("sphere", *sphere_case(), args.seconds, args.solver, args.scheme))
         else:
             max_cfl = 1.0 if case == "channel" else None
             rows.append(compare("channel " + ("CFL <= 1 substeps" if max_cfl else "one substep"),
-                                *channel_case(max_cfl), args.seconds, args.solver))
+                                *channel_case(max_cfl), args.seconds, args.solver, args.scheme))
         print(json.dumps(rows[-1]), flush=True)
     print()
-    print(f"solver={args.solver}")
+    print(f"solver={args.solver} scheme={args.scheme} load average {os.getloadavg()[0]:.1f}")
     print("| case | faces | numpy steps/s | numba steps/s | ratio | target | numba ms/step: kernel + solves + rest "
           "| bitwise equal |")
     print("|---|---:|---:|---:|---:|---:|---|---|")

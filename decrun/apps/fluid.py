@@ -72,7 +72,7 @@ class Fluid(App):
     record_every: int = 5
     snapshots: int = 6
     animation: bool = True
-    kernels: Kernels = Kernels.numba  # numba (compiled loops) | numpy (their reference twins)
+    kernels: Kernels = Kernels.auto  # auto | numba (compiled loops) | numpy (their twins): decrun/core/jit.py
 
     def __post_init__(self):
         if not (self.dt > 0 and math.isfinite(self.dt)):

@@ -1,47 +1,104 @@
-"""Compiled kernels without paying for numba at import time.
+"""Compiled kernels without paying for numba at import time, and the one switch that picks them.
 
-``@njit`` marks a kernel written in numba's subset of Python; it is compiled by
-``numba.njit(cache=True)`` on its **first call** (a kernel may call the other kernels of its
-module) (so ``import decrun`` and ``decrun --help``
-never import numba) and the machine code is cached next to the module (``__pycache__``): a
-sweep compiles once per install, not once per job.
+``@njit`` (or ``@njit(**numba_options)``) marks a kernel written in numba's subset of Python;
+it is compiled by ``numba.njit(cache=True, **numba_options)`` on its **first call** (a kernel
+may call the other kernels of its module), so ``import decrun`` and ``decrun --help`` never
+import numba, and the machine code is cached next to the module (``__pycache__``): a sweep
+compiles once per install, not once per job. Every kernel is listed in :data:`KERNELS`.
 
 Every kernel lives next to its numpy twin, which stays the reference the tests compare it
-with, and both give the same bits. A caller takes the kernel when :func:`enabled` says so for
-the size of its input: by default from :data:`MIN_SIZE` items on, where the time saved
-outweighs what a fresh process pays once to import numba and load the cached kernels
-(~0.7 s on an idle 2-core machine; ``benchmarks/bench_operators.py --jit``). The environment
-variable ``DECRUN_NUMBA`` overrides it: ``1`` always the kernels, ``0`` always numpy (to rule
-out a kernel when chasing a bug).
+with. A caller takes the kernel when :func:`enabled` says so. **The switch** (:func:`mode`) is
+``auto`` | ``numba`` | ``numpy``, the same three words everywhere:
+
+* the config key ``app.kernels`` (the runner applies it with :func:`use` around the whole job:
+  mesh, complex, operators and app), when it is not ``auto``;
+* else the environment variable ``DECRUN_NUMBA``: ``numba`` (or ``1``) always the kernels,
+  ``numpy`` (or ``0``) never (to rule out a kernel when chasing a bug), ``auto`` or unset;
+* ``auto``: a kernel runs from its caller's ``min_size`` items on — by default
+  :data:`MIN_SIZE`, where the time saved outweighs what a fresh process pays once to import
+  numba and load the cached kernels (~0.7 s on an idle 2-core machine;
+  ``benchmarks/bench_operators.py --jit``); the fluid's kernels run at any size (a run steps
+  hundreds of times).
+
+``numpy`` never imports numba; ``numba`` runs every kernel on the path (``tests/core/test_jit.py``).
 """
 
 from __future__ import annotations
 
 import os
+from contextlib import contextmanager
 from functools import update_wrapper
 
-__all__ = ["njit", "enabled", "MIN_SIZE"]
+from decrun.errors import ConfigError
 
-#: inputs from this many items (simplices, faces, rows) on take the compiled kernels
+__all__ = ["njit", "enabled", "mode", "use", "check_mode", "MIN_SIZE", "MODES", "KERNELS"]
+
+#: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
 MIN_SIZE = 500_000
 
+#: the switch's values
+MODES = ("auto", "numba", "numpy")
 
-def enabled(size: int | None = None) -> bool:
-    """Whether to run the kernel for an input of ``size`` items (None: any size):
-    ``DECRUN_NUMBA=1`` always, ``0`` never, unset from :data:`MIN_SIZE` items on."""
-    setting = os.environ.get("DECRUN_NUMBA", "")
-    if setting in ("0", "1"):
-        return setting == "1"
-    return size is None or size >= MIN_SIZE
+_ENV = {"": "auto", "auto": "auto", "numba": "numba", "1": "numba", "numpy": "numpy", "0": "numpy"}
+
+#: every kernel made by :func:`njit`, in definition order (modules that were imported)
+KERNELS: list = []
+
+_override: list[str] = []  # the modes :func:`use` set, innermost last
+
+
+def check_mode(value: str, where: str = "app.kernels") -> str:
+    """``value`` if it is one of :data:`MODES`, else a ConfigError naming ``where``."""
+    if value not in MODES:
+        raise ConfigError(f"{where}: must be one of {list(MODES)}, got {value!r}; use {where}=auto")
+    return value
+
+
+def mode() -> str:
+    """The switch in force: the innermost :func:`use` that is not ``auto``, else ``DECRUN_NUMBA``."""
+    for value in reversed(_override):
+        if value != "auto":
+            return value
+    setting = os.environ.get("DECRUN_NUMBA", "").strip().lower()
+    if setting not in _ENV:
+        raise ConfigError(f"DECRUN_NUMBA={setting!r}: must be one of auto, numba, numpy (or 1, 0); "
+                          "use DECRUN_NUMBA=auto")
+    return _ENV[setting]
+
+
+@contextmanager
+def use(value: str):
+    """Within the block the switch is ``value`` (``auto`` defers to ``DECRUN_NUMBA``)."""
+    _override.append(check_mode(str(value)))
+    try:
+        yield
+    finally:
+        _override.pop()
+
+
+def enabled(size: int | None = None, min_size: int = MIN_SIZE, kernels: str = "auto") -> bool:
+    """Whether to run the kernel for an input of ``size`` items (None: any size): ``kernels``
+    (a caller's own setting) unless ``auto``, else :func:`mode`; under ``auto`` from ``min_size``
+    items on."""
+    setting = check_mode(kernels, "kernels") if kernels != "auto" else mode()
+    if setting != "auto":
+        return setting == "numba"
+    return size is None or size >= min_size
 
 
 class _LazyKernel:
-    """A Python function compiled with ``numba.njit(cache=True)`` on its first call."""
+    """A Python function compiled with ``numba.njit(cache=True, **options)`` on its first call."""
 
-    def __init__(self, function):
+    def __init__(self, function, options: dict):
         self.function = function
+        self.options = options
         self.compiled = None
         update_wrapper(self, function)
+        KERNELS.append(self)
+
+    @property
+    def name(self) -> str:
+        return f"{self.function.__module__}.{self.function.__name__}"
 
     def dispatcher(self):
         """The numba dispatcher (created once; it compiles per argument types when called).
@@ -52,16 +109,24 @@ class _LazyKernel:
             import numba
 
             namespace = self.function.__globals__
-            self.compiled = numba.njit(cache=True)(self.function)
+            self.compiled = numba.njit(cache=True, **self.options)(self.function)
             for name, value in list(namespace.items()):
                 if isinstance(value, _LazyKernel):
                     namespace[name] = value.dispatcher()
         return self.compiled
 
+    def used(self) -> bool:
+        """Whether this kernel ran as machine code in this process (called, or compiled into a
+        caller): its dispatcher holds a compiled or cache-loaded signature."""
+        return self.compiled is not None and bool(self.compiled.signatures)
+
     def __call__(self, *args):
         return self.dispatcher()(*args)
 
 
-def njit(function):
-    """Decorator: ``function`` becomes a kernel compiled (and disk-cached) at first call."""
-    return _LazyKernel(function)
+def njit(function=None, **options):
+    """Decorator: ``function`` becomes a kernel compiled (and disk-cached) at first call;
+    ``@njit(error_model="numpy", ...)`` passes numba options."""
+    if function is None:
+        return lambda f: _LazyKernel(f, options)
+    return _LazyKernel(function, options)

@@ -20,6 +20,7 @@ from typing import Any, Callable
 from omegaconf import DictConfig, OmegaConf
 
 from decrun.apps.base import App, Result
+from decrun.core import jit
 from decrun.core.boundary import BoundaryAdaptation
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
@@ -183,9 +184,17 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     :mod:`decrun.runner.sweep.job_cache` when an earlier job had the same mesh / operator /
     boundary config (``mesh_seconds`` is then 0).
     """
-    timings: dict[str, float] = {}
     t = time.perf_counter()
     experiment = validate(cfg)
+    # the one kernel switch (decrun/core/jit.py) for the whole job: mesh, complex, operators, app
+    with jit.use(str(getattr(experiment.app, "kernels", "auto"))):
+        return _run_experiment(cfg, experiment, t, progress, out, cache)
+
+
+def _run_experiment(cfg: DictConfig, experiment, t: float, progress: Callable | None, out: Path | None, cache: bool
+                    ) -> tuple[Result, Any, dict]:
+    """:func:`run_experiment` after validation (``t`` its start), under the job's kernel switch."""
+    timings: dict[str, float] = {}
     progress = progress or make_progress(False)
     timings["mesh_seconds"] = 0.0
 

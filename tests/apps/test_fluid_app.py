@@ -248,22 +248,23 @@ def test_the_fig7_15_sweep_reproduces_its_readme_row(decrun_cli, tmp_path):
 
 def test_kernels_option_through_the_cli_numba_and_numpy_runs_are_identical(decrun_cli, tmp_path):
     """``app.kernels`` picks the compiled loops or their numpy twins; a bad value names the
-    override that fixes it, and both kernels give the same run, bit for bit. The compiled walk
-    interpolates with WSHD07, so the run uses the former default scheme (wshd07 +
-    corrected_trapezoid); the least-squares default shares only the compiled circulation sum."""
+    override that fixes it, and both kernels give the same run, bit for bit: the default scheme
+    (least-squares walk, swept_bounded) and the thesis' (wshd07 + corrected_trapezoid)."""
     from decrun.runner.results import read_result
 
     base = ["app=fluid", "mesh=channel", "mesh.target_faces=600", "app.inflow=[10.0,0.0]", "app.stirs=[]",
-            "app.steps=10", "app.viscosity=0.02", "app.record_every=5", "figures=false",
-            "app.velocity=wshd07", "app.circulation=corrected_trapezoid"]
+            "app.steps=10", "app.viscosity=0.02", "app.record_every=5", "figures=false"]
     bad = decrun_cli(*base, "app.kernels=fortran", "hydra.run.dir=bad")
-    assert bad.returncode != 0 and "app.kernels: must be one of numba | numpy" in bad.stderr
-    assert "app.kernels=numba" in bad.stderr  # the override that fixes it, run next
-    runs = {}
-    for kernels in ("numba", "numpy"):
-        proc = decrun_cli(*base, f"app.kernels={kernels}", f"hydra.run.dir={kernels}")
-        assert proc.returncode == 0, proc.stderr
-        runs[kernels] = read_result(tmp_path / kernels / "result.h5")
-    assert runs["numba"].metrics["stable"] and runs["numba"].metrics["steps_done"] == 10
-    np.testing.assert_array_equal(runs["numba"].series["vorticity"], runs["numpy"].series["vorticity"])
-    np.testing.assert_array_equal(runs["numba"].series["flux"], runs["numpy"].series["flux"])
+    assert bad.returncode != 0 and "app.kernels: must be one of auto | numba | numpy" in bad.stderr
+    assert "app.kernels=auto" in bad.stderr  # the override that fixes it, run next
+    for scheme in ([], ["app.velocity=wshd07", "app.circulation=corrected_trapezoid"]):
+        runs = {}
+        for kernels in ("auto", "numba", "numpy"):
+            where = f"{kernels}{len(scheme)}"
+            proc = decrun_cli(*base, *scheme, f"app.kernels={kernels}", f"hydra.run.dir={where}")
+            assert proc.returncode == 0, proc.stderr
+            runs[kernels] = read_result(tmp_path / where / "result.h5")
+        assert runs["numba"].metrics["stable"] and runs["numba"].metrics["steps_done"] == 10
+        for kernels in ("auto", "numpy"):
+            np.testing.assert_array_equal(runs["numba"].series["vorticity"], runs[kernels].series["vorticity"])
+            np.testing.assert_array_equal(runs["numba"].series["flux"], runs[kernels].series["flux"])

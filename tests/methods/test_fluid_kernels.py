@@ -48,7 +48,7 @@ def case(name: str):
     raise KeyError(name)
 
 
-#: the compiled walk interpolates with WSHD07 (the least-squares default walks in numpy)
+#: the thesis' scheme (WSHD07 interpolation); the default (least squares, swept_bounded) is tested too
 COMPILED_SCHEME = dict(velocity="wshd07", circulation="corrected_trapezoid")
 
 
@@ -91,6 +91,33 @@ def test_interpolation_kernel_equals_numpy(name):
     expected = reference.interpolator.velocity(t, x, both, reference.face_normal)
     got = sim.interpolator.velocity_compiled(t, x, both, sim.face_normal)
     assert got.shape == expected.shape == (t.size, 3, 2)
+    np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("name", ["sphere", "channel", "lattice", "obtuse"])
+def test_least_squares_interpolation_kernel_equals_numpy(name):
+    reference, sim = pair(name, velocity="least_squares", circulation="swept_bounded")
+    t, x = special_points(sim, np.random.default_rng(0))
+    both = sim._point_velocities()
+    expected = reference.reconstruction.velocity(t, x, both)
+    got = sim.reconstruction.velocity_compiled(t, x, both)
+    assert got.shape == expected.shape == (t.size, 3, 2)
+    np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("name", ["sphere", "channel", "obtuse"])
+def test_swept_change_kernel_equals_numpy(name):
+    reference, sim = pair(name, velocity="least_squares", circulation="swept")
+    result, _ = reference.backtrack()
+    m = reference.cells.n_circumcenters
+    before = reference.cells.points
+    after = before.copy()
+    after[:m] = result.position
+    rng = np.random.default_rng(1)
+    value, new_value = rng.normal(size=before.shape[0]), rng.normal(size=before.shape[0])
+    expected = reference._swept.change(before, after, value, new_value)
+    got = sim._swept.change(before, after, value, new_value, compiled=True)
+    assert np.abs(expected).max() > 0
     np.testing.assert_array_equal(got, expected)
 
 
@@ -155,11 +182,13 @@ def test_circulation_kernel_equals_numpy(name):
 @pytest.mark.parametrize("name, steps, scheme", [
     ("sphere", 20, {}), ("channel", 20, {}), ("lattice", 10, {}),
     ("channel", 10, dict(circulation="swept")),  # the compiled walk in the swept intervals
-    ("channel", 10, dict(velocity="least_squares", circulation="swept")),  # the default: compiled circulation
+    ("channel", 10, dict(velocity="least_squares", circulation="swept")),  # the least-squares walk
+    ("sphere", 10, dict(velocity="least_squares", circulation="swept_bounded")),  # the default scheme
+    ("channel", 10, dict(velocity="least_squares", circulation="swept_bounded")),
 ])
 def test_a_whole_run_with_numba_kernels_equals_the_numpy_run(name, steps, scheme):
     reference, sim = pair(name, dt=case(name)[1]["dt"] / 2, **scheme)
-    assert sim.compiled_walk == (scheme.get("velocity", "wshd07") == "wshd07")
+    assert sim.compiled_walk and not reference.compiled_walk
     for _ in range(steps):
         expected, got = reference.step(), sim.step()
         assert got == expected  # every diagnostic, bitwise

@@ -16,16 +16,18 @@ Each kernel has a numpy twin that stays the tested reference (``VorticityFluid(k
   triangle grid, or its first border crossing), walking only where that fails;
 * :func:`circulation_sums` — the trapezoid circulation of :meth:`VorticityFluid.circulation`.
 
-Compiled with ``cache=True``: the machine code is written next to this file (``__pycache__``,
-or numba's user cache dir when that is read-only) on the first call, so later processes — every
-job of a sweep — load it instead of compiling. Importing this module imports numba; the rest of
-decrun imports it only when a fluid runs with ``kernels="numba"``.
+Lazy kernels of :mod:`decrun.core.jit` (the one ``auto | numba | numpy`` switch, listed in
+``jit.KERNELS``), compiled with ``cache=True`` on their first call: the machine code is written
+next to this file (``__pycache__``, or numba's user cache dir when that is read-only), so later
+processes — every job of a sweep — load it instead of compiling. Importing this module does not
+import numba; the first kernel call does.
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from decrun.core import jit
 
 __all__ = ["velocity_points", "backtrack_points", "circulation_sums", "INTEGRATOR_CODE"]
 
@@ -40,10 +42,10 @@ TRI_GRADIENT, TRI_CENTROID, TRI_CORNER, TRI_NORMAL, TRI_CLEARANCE = 0, 9, 12, 21
 TRI_TOP, TRI_NEIGHBOR, TRI_SLOT, TRI_EDGE = 0, 3, 6, 9  # tri_int columns
 CELL_VERTEX, CELL_FRAME, CELL_NORMAL, CELL_SCALE, CELL_TABLE = 0, 3, 9, 12, 13  # cell_real columns
 
-_kernel = numba.njit(cache=True, error_model="numpy")  # x / 0 gives inf or nan, as in numpy
+_kernel = jit.njit(error_model="numpy")  # x / 0 gives inf or nan, as in numpy
 # The helpers allocate nothing and keep no array: without the runtime's reference counts (_nrt=False)
 # they do not incref/decref every array argument on each call, which made the walk 2.4× slower.
-_helper = numba.njit(cache=True, error_model="numpy", inline=INLINE, _nrt=False)
+_helper = jit.njit(error_model="numpy", inline=INLINE, _nrt=False)
 
 
 # ---------------------------------------------------------------- interpolation (interpolation.py)
@@ -100,29 +102,66 @@ def _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, ou
 
 
 @_helper
-def _velocity(triangles, cell_real, ids, planar, point_velocity, f, t, x, face_normal, w, h, out):
-    """Interpolated velocity (into out, 3) of field f of point_velocity (n_points, 3, F) at x in t."""
+def _p1(triangles, bary, planar, point_velocity, f, t, x0, x1, x2, face_normal, out):
+    """Least-squares reconstruction (reconstruction.LeastSquaresVelocity.velocity): the P1
+    (barycentric) interpolation of the vertex velocities of field f at x in t (into out, 3),
+    projected into the plane of t. ``bary`` (m, 12): ∇λ (9), centroid (3) per triangle."""
+    r0, r1, r2 = x0 - bary[t, 9], x1 - bary[t, 10], x2 - bary[t, 11]
+    l0 = 1.0 / 3.0 + (bary[t, 0] * r0 + bary[t, 1] * r1 + bary[t, 2] * r2)
+    l1 = 1.0 / 3.0 + (bary[t, 3] * r0 + bary[t, 4] * r1 + bary[t, 5] * r2)
+    l2 = 1.0 / 3.0 + (bary[t, 6] * r0 + bary[t, 7] * r1 + bary[t, 8] * r2)
+    c0, c1, c2 = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+    for d in range(3):
+        out[d] = (l0 * point_velocity[c0, d, f] + l1 * point_velocity[c1, d, f]) + l2 * point_velocity[c2, d, f]
+    if not planar:
+        n0, n1, n2 = face_normal[t, 0], face_normal[t, 1], face_normal[t, 2]
+        along = (out[0] * n0 + out[1] * n1) + out[2] * n2
+        out[0] -= n0 * along
+        out[1] -= n1 * along
+        out[2] -= n2 * along
+
+
+@_helper
+def _velocity(triangles, cell_real, ids, planar, scheme, point_velocity, f, t, x, face_normal, w, h, out):
+    """Interpolated velocity (into out, 3) of field f of point_velocity (n_points, 3, F) at x in t:
+    scheme 0 WSHD07 over the dual cell, 1 the least-squares vertex velocities (P1)."""
+    if scheme == 1:
+        _p1(triangles, cell_real, planar, point_velocity, f, t, x[0], x[1], x[2], face_normal, out)
+        return
     v = _nearest_vertex(triangles, cell_real, t, x[0], x[1], x[2])
     _weights(cell_real, v, x[0], x[1], x[2], w, h)
     _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, out)
 
 
+@_helper
+def _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, t, x0, x1, x2, face_normal, w, h, out,
+                result, p):
+    """result[p] (3, F) = the velocities of every field at x in t (the weights computed once)."""
+    F = point_velocity.shape[2]
+    if scheme == 1:
+        for f in range(F):
+            _p1(triangles, cell_real, planar, point_velocity, f, t, x0, x1, x2, face_normal, out)
+            result[p, 0, f], result[p, 1, f], result[p, 2, f] = out[0], out[1], out[2]
+        return
+    v = _nearest_vertex(triangles, cell_real, t, x0, x1, x2)
+    _weights(cell_real, v, x0, x1, x2, w, h)
+    for f in range(F):
+        _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, out)
+        result[p, 0, f], result[p, 1, f], result[p, 2, f] = out[0], out[1], out[2]
+
+
 @_kernel
 def velocity_points(field, triangle, x, point_velocity, face_normal):
     """(P, 3, F) interpolated velocities at x (P, 3) in ``triangle`` (P,) of the F fields
-    ``point_velocity`` (n_points, 3, F); ``field`` is :meth:`CellInterpolator.kernel_tables`."""
-    triangles, cell_real, ids, planar = field
+    ``point_velocity`` (n_points, 3, F); ``field`` is the reconstruction's ``kernel_tables()``
+    (:meth:`CellInterpolator.kernel_tables`, :meth:`LeastSquaresVelocity.kernel_tables`)."""
+    triangles, cell_real, ids, planar, scheme = field
     P, F, K = x.shape[0], point_velocity.shape[2], ids.shape[1]
     result = np.empty((P, 3, F))
     w, h, out = np.empty(K), np.empty(K + 1), np.empty(3)
     for p in range(P):
-        t = triangle[p]
-        x0, x1, x2 = x[p, 0], x[p, 1], x[p, 2]
-        v = _nearest_vertex(triangles, cell_real, t, x0, x1, x2)
-        _weights(cell_real, v, x0, x1, x2, w, h)
-        for f in range(F):
-            _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, out)
-            result[p, 0, f], result[p, 1, f], result[p, 2, f] = out[0], out[1], out[2]
+        _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, triangle[p], x[p, 0], x[p, 1], x[p, 2],
+                    face_normal, w, h, out, result, p)
     return result
 
 
@@ -331,7 +370,7 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
                      max_rounds):
     """Backtrack every point along −u for ``dt`` (TriangleWalker.backtrack), point by point.
 
-    walk, jump : :meth:`TriangleWalker.kernel_tables`; field : :meth:`CellInterpolator.kernel_tables`
+    walk, jump : :meth:`TriangleWalker.kernel_tables`; field : the reconstruction's ``kernel_tables()``
     point_velocity : (n_points, 3, F) dual-point velocities, field 1 is the full u (mesh units / s)
     start (P, 3), triangle (P,), start_velocity (P, 3) the velocity at the start points
     count : (P,) substeps per point (each of length dt / count); integrator : INTEGRATOR_CODE
@@ -345,7 +384,7 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
     """
     vertices, tri_real, tri_int, face_normal, planar = walk
     affine, buckets, border_real, border_buckets, grid, grid_shape, near = jump
-    triangles, cell_real, ids, field_planar = field
+    triangles, cell_real, ids, field_planar, scheme = field
     P = start.shape[0]
     steps = 1
     for p in range(P):
@@ -376,7 +415,7 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
                     r += 1
                     came = int(state[1])
                     t = int(state[0])
-                    _velocity(triangles, cell_real, ids, field_planar, point_velocity, 1, t, x, face_normal, w, h, d1)
+                    _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d1)
                     for k in range(3):
                         d1[k] = -d1[k]
                     back = False
@@ -395,7 +434,7 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
                     for k in range(3):
                         d[k] = -start_velocity[p, k]
                 else:
-                    _velocity(triangles, cell_real, ids, field_planar, point_velocity, 1, t, x, face_normal, w, h, d)
+                    _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d)
                     for k in range(3):
                         d[k] = -d[k]
                 if integrator == 1:
@@ -405,7 +444,7 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
                                             state, lam, rate)
                     rounds[substep, 0] = max(rounds[substep, 0], r)
                     d1[0], d1[1], d1[2] = d[0], d[1], d[2]
-                    _velocity(triangles, cell_real, ids, field_planar, point_velocity, 1, t, x, face_normal, w, h, d)
+                    _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d)
                     for k in range(3):
                         d[k] = 0.0 if hit >= 0 else -d[k] - 0.5 * d1[k]
                 t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
@@ -420,11 +459,8 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
                 break
         position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
         tri[p], wall[p] = t, hit
-        v = _nearest_vertex(triangles, cell_real, t, x[0], x[1], x[2])  # the end point's velocities
-        _weights(cell_real, v, x[0], x[1], x[2], w, h)
-        for f in range(F):
-            _combine(cell_real, ids, field_planar, point_velocity, f, v, t, face_normal, w, d)
-            velocity[p, 0, f], velocity[p, 1, f], velocity[p, 2, f] = d[0], d[1], d[2]
+        _all_fields(triangles, cell_real, ids, field_planar, scheme, point_velocity, t, x[0], x[1], x[2],
+                    face_normal, w, h, d, velocity, p)  # the end point's velocities
     return position, tri, wall, rounds, unfinished, velocity
 
 
@@ -456,3 +492,34 @@ def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, e
             for f in range(F):
                 gamma[i, f] += data[j] * g[indices[j], f]
     return gamma
+
+
+# ---------------------------------------------------------------- swept vorticity (swept.py)
+@_kernel
+def swept_change(before, after, value_before, value_after, side_a, side_b, normal, indptr, indices, data):
+    """(n0,) Γ(X(C)) − Γ(C) per cell (SweptVorticity.change): per side a → b the signed areas of
+    the triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') along the side's ``normal`` (S, 3) times
+    the mean vorticity at their corners, summed into the cells by the signed incidence (CSR
+    indptr, indices, data), negated. Same arithmetic order as the numpy twin."""
+    S = side_a.shape[0]
+    total = np.empty(S)
+    for s in range(S):
+        a, b = side_a[s], side_b[s]
+        u0, u1, u2 = before[b, 0] - before[a, 0], before[b, 1] - before[a, 1], before[b, 2] - before[a, 2]
+        v0, v1, v2 = after[b, 0] - before[a, 0], after[b, 1] - before[a, 1], after[b, 2] - before[a, 2]
+        q0, q1, q2 = after[a, 0] - before[a, 0], after[a, 1] - before[a, 1], after[a, 2] - before[a, 2]
+        n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
+        c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        first = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+        c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
+        second = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+        wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
+        total[s] = first * (wa0 + wb0 + wb1) / 3.0 + second * (wa0 + wb1 + wa1) / 3.0
+    n = indptr.shape[0] - 1
+    change = np.empty(n)
+    for i in range(n):
+        acc = 0.0
+        for j in range(indptr[i], indptr[i + 1]):
+            acc += data[j] * total[indices[j]]
+        change[i] = -acc
+    return change

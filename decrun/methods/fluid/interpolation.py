@@ -229,14 +229,14 @@ class CellInterpolator:
         """The interpolation tables as the tuple the numba kernels (compiled.py) read: triangles
         (m, 3); one row per vertex (n0, 13 + 4 (K+1)): position, frame (e1, e2), normal, clamp
         scale, then the edge/corner table (offset, n1, n2, det; K+1 columns each); corner ids
-        (n0, K); planar."""
+        (n0, K); planar; the scheme code 0 (WSHD07; 1 is the least-squares reconstruction's)."""
         if getattr(self, "_kernel_tables", None) is None:
             n0 = self.vertices.shape[0]
             cell_real = np.concatenate([self.vertices, self.frames.reshape(n0, 6), self.cells.vertex_normal,
                                         self.scale[:, None], self.table.reshape(n0, -1)], axis=1)
             self._kernel_tables = (np.ascontiguousarray(self.triangles, dtype=np.int64),
                                    np.ascontiguousarray(cell_real, dtype=np.float64),
-                                   np.ascontiguousarray(self.ids, dtype=np.int64), bool(self.planar))
+                                   np.ascontiguousarray(self.ids, dtype=np.int64), bool(self.planar), 0)
         return self._kernel_tables
 
     def velocity_compiled(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,

@@ -37,7 +37,7 @@ from decrun.core.dec import DEC
 from decrun.core.geometry import embed3
 from decrun.methods.fluid.backtrack import TriangleWalker
 from decrun.methods.fluid.dual_cells import DualCells
-from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix
+from decrun.methods.fluid.interpolation import CellInterpolator, dot3, triangle_velocity_matrix
 
 __all__ = ["VELOCITY_RECONSTRUCTIONS", "WSHD07Velocity", "LeastSquaresVelocity", "make_reconstruction",
            "vertex_velocity_matrix"]
@@ -173,14 +173,40 @@ class LeastSquaresVelocity:
         return (self.vertex_matrix @ fluxes).reshape(self.K.num_simplices(0), 3, -1)
 
     def velocity(self, triangle: np.ndarray, x: np.ndarray, data: np.ndarray) -> np.ndarray:
-        """(P, 3, F) P1 interpolation of the vertex velocities at x (P, 3) in ``triangle`` (P,)."""
+        """(P, 3, F) P1 interpolation of the vertex velocities at x (P, 3) in ``triangle`` (P,).
+
+        Summed as (λ0 U0 + λ1 U1) + λ2 U2 and projected with ``dot3``: the order of the numba
+        twin (compiled._p1), so both give the same bits."""
         lam = self.walker.barycentric(triangle, x)
         corners = np.take(self.top, triangle, axis=0)
-        U = np.einsum("pc,pcdf->pdf", lam, data[corners])
+        U = (lam[:, 0, None, None] * data[corners[:, 0]] + lam[:, 1, None, None] * data[corners[:, 1]]) \
+            + lam[:, 2, None, None] * data[corners[:, 2]]
         if self.planar:
             return U
         n = np.take(self.face_normal, triangle, axis=0)
-        return U - n[:, :, None] * np.einsum("pdf,pd->pf", U, n)[:, None, :]
+        return U - n[:, :, None] * dot3(np.moveaxis(U, 1, 2), n[:, None, :])[:, None, :]
+
+    def kernel_tables(self) -> tuple:
+        """The tables the numba kernels (compiled.py) read for this reconstruction: triangles
+        (m, 3), per triangle ∇λ (9) and centroid (3) (m, 12), an empty corner table, planar and
+        the scheme code 1 (compiled._p1)."""
+        if getattr(self, "_kernel_tables", None) is None:
+            m = self.top.shape[0]
+            bary = np.concatenate([self.walker.gradient.reshape(m, 9), self.walker.centroid], axis=1)
+            self._kernel_tables = (np.ascontiguousarray(self.top, dtype=np.int64),
+                                   np.ascontiguousarray(bary, dtype=np.float64), np.zeros((0, 1), dtype=np.int64),
+                                   bool(self.planar), 1)
+        return self._kernel_tables
+
+    def velocity_compiled(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,
+                          face_normal: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`velocity` by the numba kernel (compiled.velocity_points): (P, 3, F), the same bits."""
+        from decrun.methods.fluid import compiled
+
+        return compiled.velocity_points(self.kernel_tables(), np.ascontiguousarray(triangle, dtype=np.int64),
+                                        np.ascontiguousarray(x, dtype=np.float64),
+                                        np.ascontiguousarray(point_velocity, dtype=np.float64),
+                                        np.ascontiguousarray(self.face_normal, dtype=np.float64))
 
 
 def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:

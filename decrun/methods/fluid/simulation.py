@@ -60,6 +60,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.core import jit
 from decrun.core.dec import DEC
 from decrun.errors import ConfigError, SolverError
 from decrun.methods.fluid.backtrack import BacktrackResult, TriangleWalker
@@ -79,9 +80,9 @@ CIRCULATIONS = ("swept_bounded", "swept_clamped", "swept", "corrected_trapezoid"
 #: the rules that backtrack in intervals and sum the swept vorticity (swept.py)
 SWEPT = ("swept_bounded", "swept_clamped", "swept")
 
-KERNELS = ("numba", "numpy")
+KERNELS = ("auto", "numba", "numpy")  # the switch of decrun.core.jit: compiled loops (compiled.py) or numpy twins
 #: the wall conditions (``walls=``; "auto" resolves by the viscosity, see VorticityFluid)
-WALLS = ("auto", "slip", "no_slip")  # compiled loops (compiled.py) or their numpy twins
+WALLS = ("auto", "slip", "no_slip")
 
 
 class VorticityFluid:
@@ -114,11 +115,12 @@ class VorticityFluid:
         ``"least_squares"`` (per-vertex least-squares velocity, linear in each triangle)
     walls : ``"auto"`` | ``"slip"`` | ``"no_slip"``, the wall condition of step d (``"auto"``:
         slip at ν = 0 with a swept circulation, else no_slip); the resolved one is ``self.walls``
-    kernels : "numba" (default) runs the circulation sum and, with ``velocity="wshd07"``, the
-        backtracking walk with its WSHD07 interpolation as compiled loops (compiled.py; the
-        least-squares reconstruction has no compiled walk yet and walks in numpy); "numpy" runs
-        their vectorized numpy twins, the tested reference. Both do the same arithmetic in the
-        same order: the same step, bit for bit.
+    kernels : the switch of :mod:`decrun.core.jit`: "numba" runs the backtracking walk with the
+        reconstruction's interpolation (WSHD07 or least squares) and the circulation sum as
+        compiled loops (compiled.py); "numpy" runs their vectorized numpy twins, the tested
+        reference; "auto" (default) is ``DECRUN_NUMBA`` / ``jit.use`` if set, else numba (at any
+        size: a run steps many times). Both do the same arithmetic in the same order: the same
+        step, bit for bit. ``self.kernels`` is the resolved "numba" or "numpy".
     """
 
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
@@ -126,7 +128,7 @@ class VorticityFluid:
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
                  max_cfl: float | None = 1.0, integrator: str = "midpoint",
                  circulation: str = "swept_bounded", velocity: str = "least_squares", swept_cfl: float = 1.0,
-                 kernels: str = "numba", walls: str = "auto"):
+                 kernels: str = "auto", walls: str = "auto"):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
@@ -151,9 +153,9 @@ class VorticityFluid:
         #: slip at ν = 0 with a swept circulation, else no_slip
         self.walls = walls if walls != "auto" else (
             "slip" if float(viscosity) == 0.0 and circulation in SWEPT else "no_slip")
-        self.kernels = kernels
-        #: the compiled walk interpolates with the WSHD07 tables (compiled.py)
-        self.compiled_walk = kernels == "numba" and velocity == "wshd07"
+        self.kernels = "numba" if jit.enabled(None, min_size=0, kernels=kernels) else "numpy"
+        #: the compiled walk interpolates with the reconstruction's tables (compiled.py)
+        self.compiled_walk = self.kernels == "numba"
         K = dec.K
         self.dec, self.K = dec, K
         self.dt, self.viscosity = float(dt), float(viscosity)
@@ -170,6 +172,8 @@ class VorticityFluid:
         self.interpolator = getattr(self.reconstruction, "interpolator", None)
         if self.interpolator is None:
             self.interpolator = CellInterpolator(self.cells, K.simplices(2), K.vertices)
+        #: what the compiled walk interpolates with (kernel_tables, velocity_compiled)
+        self._kernel_field = self.interpolator if velocity == "wshd07" else self.reconstruction
         #: mesh quality the method relies on (§7.3): obtuse triangles and non-convex flattened cells
         self.obtuse_triangles = obtuse_triangle_count(K.vertices, K.simplices(2))
         self.nonconvex_cells = int((~self.interpolator.convex).sum())
@@ -246,11 +250,17 @@ class VorticityFluid:
         first step — and ``steps_per_second`` — does not include it."""
         none = np.zeros((0, 3))
         if self.compiled_walk:
-            self.walker.backtrack_compiled(none, np.zeros(0, dtype=np.int64), self.dt, self.interpolator,
+            self.walker.backtrack_compiled(none, np.zeros(0, dtype=np.int64), self.dt, self._kernel_field,
                                            self._point_velocities(), integrator=self.integrator,
                                            start_velocity=none)
         self.circulation(self.cells.points[: self.cells.n_circumcenters],
                          np.zeros((self.cells.n_circumcenters, 3, 2)), np.zeros(self.cells.n_circumcenters, bool))
+        if self.compiled_walk:  # the swept intervals after the first interpolate their start velocities
+            self._kernel_field.velocity_compiled(np.zeros(0, dtype=np.int64), none, self._point_velocities(),
+                                                 self.face_normal)
+        if self.circulation_rule in SWEPT:
+            rest = np.zeros(self.cells.points.shape[0])
+            self._swept.change(self.cells.points, self.cells.points, rest, rest, compiled=True)
 
     def _remove_mean(self, w: np.ndarray) -> np.ndarray:
         if not self.closed:
@@ -300,7 +310,7 @@ class VorticityFluid:
             result = self._walk(self.cells.points[:m], np.arange(m), self.dt, velocity, both, start, options)
         else:
             result = self._backtrack_sweeping(velocity, both, start, options)
-        if self.compiled_walk and self.circulation_rule not in SWEPT:
+        if self.compiled_walk:
             v = result.velocity  # the kernel interpolated every field at the end points
         else:
             v = reconstruction.velocity(result.triangle, result.position, both)
@@ -312,10 +322,10 @@ class VorticityFluid:
 
     def _walk(self, points, triangles, dt, velocity, both, start_velocity, options):
         """One backtracking walk of ``points`` (P, 3) in ``triangles`` (P,) over ``dt``: the
-        compiled kernel (WSHD07 interpolation of field 1 of ``both``) or its numpy twin with
-        the reconstruction's ``velocity`` callable."""
+        compiled kernel (the reconstruction's interpolation of field 1 of ``both``) or its numpy
+        twin with the reconstruction's ``velocity`` callable."""
         if self.compiled_walk:
-            return self.walker.backtrack_compiled(points, triangles, dt, self.interpolator, both,
+            return self.walker.backtrack_compiled(points, triangles, dt, self._kernel_field, both,
                                                   start_velocity=start_velocity, **options)
         return self.walker.backtrack(points, triangles, dt, velocity, start_velocity=start_velocity, **options)
 
@@ -335,22 +345,30 @@ class VorticityFluid:
         wall = np.full(m, -1, dtype=np.int64)
         change = np.zeros(self.K.num_simplices(0))
         rounds = unfinished = substeps = 0
+        # the compiled walk's end velocities of the points free in the last interval (the others
+        # are clamped: backtrack gives them the wall's velocity)
+        end_velocity = np.zeros((m, 3, both.shape[2])) if self.compiled_walk else None
         for interval in range(k):  # k small: a few intervals per step
             free = np.flatnonzero(wall < 0)
-            part = self._walk(position[free], triangle[free], self.dt / k, velocity, both,
-                              start[free] if interval == 0 else None, options)
+            if interval == 0:
+                begin = start[free]
+            else:  # the compiled walk's end velocities are the next interval's start velocities (the same bits)
+                begin = None if end_velocity is None else end_velocity[free, :, 1]
+            part = self._walk(position[free], triangle[free], self.dt / k, velocity, both, begin, options)
             rounds, unfinished = rounds + part.rounds, max(unfinished, part.unfinished)
             substeps = max(substeps, part.substeps)
             position[free], triangle[free], wall[free] = part.position, part.triangle, part.wall_edge
+            if end_velocity is not None:
+                end_velocity[free] = part.velocity
             moved = points.copy()
             moved[:m] = position
             lam = self.walker.barycentric(triangle, position)
             new_value = value.copy()
             new_value[:m] = np.einsum("pc,pc->p", lam, self.vorticity[top[triangle]])
-            change += self._swept.change(points, moved, value, new_value)
+            change += self._swept.change(points, moved, value, new_value, compiled=self.compiled_walk)
             points, value = moved, new_value
         self._swept_change = change
-        return BacktrackResult(position, triangle, wall, rounds, unfinished, k * substeps)
+        return BacktrackResult(position, triangle, wall, rounds, unfinished, k * substeps, end_velocity)
 
     def _build_dual_edges(self) -> None:
         """The dual cells' sides as unique dual edges (a, b), a < b, and the signed

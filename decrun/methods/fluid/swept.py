@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.methods.fluid.interpolation import dot3
+
 __all__ = ["SweptVorticity", "rest_point_interpolation"]
 
 
@@ -62,13 +64,24 @@ class SweptVorticity:
         self.side_a, self.side_b = side_a, side_b
 
     def change(self, before: np.ndarray, after: np.ndarray, value_before: np.ndarray,
-               value_after: np.ndarray) -> np.ndarray:
+               value_after: np.ndarray, compiled: bool = False) -> np.ndarray:
         """(n0,) Γ(X(C)) − Γ(C) per cell, for the dual points ``before`` (P, 3), their
-        backtracked positions ``after`` (P, 3) and the vorticity interpolated at both (P,)."""
+        backtracked positions ``after`` (P, 3) and the vorticity interpolated at both (P,).
+
+        ``compiled``: by the numba twin (compiled.swept_change), the same arithmetic in the same
+        order (3-vector dots as ``dot3``), the same bits."""
         a, b = self.side_a, self.side_b
+        if compiled:
+            from decrun.methods.fluid import compiled as kernels
+
+            D = self.incidence
+            f64 = [np.ascontiguousarray(x, dtype=np.float64) for x in (before, after, value_before, value_after,
+                                                                       self.normal)]
+            return kernels.swept_change(*f64[:4], np.ascontiguousarray(a, dtype=np.int64),
+                                        np.ascontiguousarray(b, dtype=np.int64), f64[4], D.indptr, D.indices, D.data)
         a0, b0, a1, b1 = before[a], before[b], after[a], after[b]
-        first = 0.5 * np.einsum("sd,sd->s", np.cross(b0 - a0, b1 - a0), self.normal)
-        second = 0.5 * np.einsum("sd,sd->s", np.cross(b1 - a0, a1 - a0), self.normal)
+        first = 0.5 * dot3(np.cross(b0 - a0, b1 - a0), self.normal)
+        second = 0.5 * dot3(np.cross(b1 - a0, a1 - a0), self.normal)
         wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
         total = first * (wa0 + wb0 + wb1) / 3.0 + second * (wa0 + wb1 + wa1) / 3.0
         return -(self.incidence @ total)

@@ -1,0 +1,113 @@
+"""The one kernel switch (decrun/core/jit.py): ``app.kernels`` and ``DECRUN_NUMBA`` reach every
+compiled kernel, the fluid's and the core's.
+
+``numpy`` never imports numba (so no kernel can run); ``numba`` runs every kernel on the path of
+a fluid run through the CLI (each kernel's numba dispatcher holds a compiled or cache-loaded
+signature); both runs give the same numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from decrun.core import jit
+from decrun.errors import ConfigError
+
+
+def test_the_switch_app_kernels_over_decrun_numba_over_sizes(monkeypatch):
+    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    assert jit.mode() == "auto"
+    assert not jit.enabled(10) and jit.enabled(jit.MIN_SIZE) and jit.enabled(10, min_size=0)
+    for value, expected in [("1", "numba"), ("numba", "numba"), ("0", "numpy"), ("numpy", "numpy"),
+                            ("auto", "auto"), ("", "auto")]:
+        monkeypatch.setenv("DECRUN_NUMBA", value)
+        assert jit.mode() == expected
+    monkeypatch.setenv("DECRUN_NUMBA", "numba")
+    assert jit.enabled(1) and not jit.enabled(1, kernels="numpy")  # a caller's own setting wins
+    with jit.use("numpy"):
+        assert jit.mode() == "numpy" and not jit.enabled(10**9, min_size=0)
+        with jit.use("auto"):  # auto defers to the enclosing setting
+            assert jit.mode() == "numpy"
+    with jit.use("auto"):  # ... and to DECRUN_NUMBA
+        assert jit.mode() == "numba"
+    assert jit.mode() == "numba"
+
+
+def test_bad_switch_values_are_refused_with_the_fix(monkeypatch):
+    monkeypatch.setenv("DECRUN_NUMBA", "yes")
+    with pytest.raises(ConfigError, match="DECRUN_NUMBA=auto"):
+        jit.mode()
+    with pytest.raises(ConfigError, match="app.kernels=auto"):
+        with jit.use("fortran"):
+            pass
+
+
+#: a small fluid run through the CLI in one process, then: numba imported?, the kernels that ran,
+#: the kernels loaded, the final metrics
+PROBE = """
+import contextlib, io, json, sys
+from decrun.__main__ import console_main
+sys.argv = ["decrun", *sys.argv[1:]]
+with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+    try:
+        console_main()
+    except SystemExit:
+        pass
+from decrun.core import jit
+import glob
+metrics = json.load(open(glob.glob("outputs/runs/*/metrics.json")[0]))
+print(json.dumps({"numba": "numba" in sys.modules, "used": sorted(k.name for k in jit.KERNELS if k.used()),
+                  "all": sorted(k.name for k in jit.KERNELS), "metrics": metrics}))
+"""
+
+RUN = ("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.inflow=[1.0,0.0]", "app.steps=3",
+       "app.animation=false", "figures=false", "progress=false")
+
+#: kernels a fluid run on a planar channel does not reach (another star, other dimensions)
+OFF_PATH = {"decrun.core.intrinsic_delaunay"}
+
+
+def helper(name: str) -> bool:
+    """The fluid's ``_helper`` kernels run inside the entry kernels' machine code (loaded from the
+    cache with them), so they hold no signature of their own."""
+    module, function = name.rsplit(".", 1)
+    return module == "decrun.methods.fluid.compiled" and function.startswith("_")
+
+
+def probe(tmp_path, *args, env=None):
+    run = tmp_path / args[-1].replace("=", "_")
+    run.mkdir()
+    environment = {k: v for k, v in os.environ.items() if k != "DECRUN_NUMBA"} | (env or {})
+    out = subprocess.run([sys.executable, "-c", PROBE, *RUN, *args], cwd=run, env=environment, capture_output=True,
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_numpy_runs_no_kernel_numba_runs_all_and_they_agree(tmp_path):
+    numpy = probe(tmp_path, "app.kernels=numpy")
+    assert not numpy["numba"] and numpy["used"] == []  # numba never imported: no kernel ran
+    numba = probe(tmp_path, "app.kernels=numba")
+    on_path = [name for name in numba["all"] if name.rsplit(".", 1)[0] not in OFF_PATH and not helper(name)]
+    assert numba["numba"] and [n for n in numba["used"] if not helper(n)] == on_path  # every kernel on the path ran
+    assert any(name.startswith("decrun.methods.fluid.compiled.") for name in on_path)
+    assert any(name.startswith("decrun.core.") for name in on_path)  # the core's too (complex, stars)
+    env = probe(tmp_path, "app.kernels=auto", env={"DECRUN_NUMBA": "0"})  # the environment reaches the fluid too
+    assert not env["numba"] and env["used"] == []
+    for key in ("kinetic_energy_final", "enstrophy_final", "max_abs_divergence", "stable"):
+        assert numba["metrics"][key] == numpy["metrics"][key] == env["metrics"][key], key
+
+
+def test_a_bad_decrun_numba_stops_the_cli_with_the_fix(decrun_cli, monkeypatch):
+    base = ("app=smoothing", "mesh.subdiv=1", "app.steps=1", "figures=false", "progress=false")
+    monkeypatch.setenv("DECRUN_NUMBA", "yes")
+    bad = decrun_cli(*base, "hydra.run.dir=bad")
+    assert bad.returncode != 0 and "DECRUN_NUMBA='yes'" in bad.stderr and "use DECRUN_NUMBA=auto" in bad.stderr
+    monkeypatch.setenv("DECRUN_NUMBA", "auto")  # the fix the message names
+    good = decrun_cli(*base, "hydra.run.dir=good")
+    assert good.returncode == 0, good.stderr

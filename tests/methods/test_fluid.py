@@ -650,7 +650,6 @@ def test_slip_walls_make_the_cellular_steady_state_converge_up_to_the_walls():
     slip, no_slip = [], []
     for cells in (8, 16, 32):
         dec, w0, inner = steady_case("cellular_regular", cells)
-        everywhere = np.ones_like(inner)
         runs = {}
         for walls in ("auto", "no_slip"):
             sim = VorticityFluid(dec, new_solver, dt=1e-3, viscosity=0.0, initial_vorticity=w0, walls=walls)

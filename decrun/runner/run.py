@@ -26,7 +26,7 @@ from decrun.core.dec import DEC
 from decrun.core.solvers import Solver
 from decrun.core.stars import HodgeStar
 from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, TopologyError
-from decrun.runner.config import DecrunConfig, OptimizeConfig
+from decrun.runner.config import CheckpointConfig, DecrunConfig, OptimizeConfig
 from decrun.runner.context import RunContext
 from decrun.runner.failures import (exit_code, file_identity, find_memory_error, find_os_error, interrupt_cause,
                                     memory_error_text, os_error_message, record_status, set_aside_stale)
@@ -37,6 +37,7 @@ from decrun.runner.plugins import Rebuilt, build
 from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
 from decrun.runner.results.checked import RESULT_RECORD, file_record
+from decrun.runner.results.checkpoint import CHECKPOINT, RunCheckpoint
 from decrun.runner.results.export import Export
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
@@ -235,6 +236,10 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     mesh.recorder = recorder
     ctx = RunContext(app, complex_, dec, new_solver=experiment.solver.fresh, meta=mesh.meta,
                      progress=progress, recorder=recorder, logger=log)
+    if out is not None:  # a time-stepping app continues from out/checkpoint.h5 (decrun.methods.stepping)
+        every = CheckpointConfig(**OmegaConf.to_container(cfg.checkpoint)) if "checkpoint" in cfg else CheckpointConfig()
+        ctx.checkpoint = RunCheckpoint(Path(out) / CHECKPOINT, config_hash(cfg), recorder=recorder,
+                                       steps=every.steps, seconds=every.seconds, log=log.info)
     try:
         result = app.run(ctx)
     except BaseException as exc:
@@ -288,6 +293,7 @@ def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -
                           timings=timings)
     # the size and sha256 of result.h5 as written: readers never take a truncated or altered one for it
     metrics = write_metrics_json(out / "metrics.json", {**result.metrics, RESULT_RECORD: file_record(h5)})
+    (Path(out) / CHECKPOINT).unlink(missing_ok=True)  # the run is complete: nothing to continue
     exported = build(cfg.export, "export", Export).write(out, result, mesh) if cfg.get("export") is not None else []
     return [h5, metrics, *written, *exported]
 

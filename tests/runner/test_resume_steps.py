@@ -51,14 +51,14 @@ def assert_same_run(a: Path, b: Path) -> None:
     assert ma == mb
 
 
-def kill_after_checkpoint(args, checkpoint: Path, cwd) -> None:
+def kill_after_checkpoint(args, checkpoint: Path, cwd, sig=signal.SIGKILL) -> None:
     proc = start(*args, cwd=cwd)
     deadline = time.monotonic() + 120
     while not checkpoint.exists():
         assert proc.poll() is None, f"ended before its first checkpoint: {proc.communicate()}"
         assert time.monotonic() < deadline
         time.sleep(0.01)
-    proc.send_signal(signal.SIGKILL)
+    proc.send_signal(sig)
     proc.wait(timeout=30)
     proc.stdout.close()
     proc.stderr.close()
@@ -88,12 +88,20 @@ def uninterrupted(tmp_path_factory):
 SLOW_FLUID = pytest.param("fluid", marks=pytest.mark.slow)
 
 
-@pytest.mark.parametrize("app", ["smoothing", SLOW_FLUID])
-def test_a_killed_run_rerun_in_its_directory_ends_as_the_uninterrupted_run(tmp_path, uninterrupted, app):
+@pytest.mark.parametrize("app, sig", [("smoothing", signal.SIGKILL), pytest.param("fluid", signal.SIGKILL, marks=pytest.mark.slow),
+                                      pytest.param("smoothing", signal.SIGTERM, marks=pytest.mark.slow)])
+def test_a_killed_run_rerun_in_its_directory_ends_as_the_uninterrupted_run(tmp_path, uninterrupted, app, sig):
+    """SIGKILL leaves the journal; SIGTERM (SLURM's time limit, scancel) an incomplete
+    result.h5 and metrics.json status interrupted, and the journal beside them."""
     run_dir = tmp_path / "run"
     args = [*CASES[app], *FAST, f"hydra.run.dir={run_dir}"]
-    kill_after_checkpoint(args, run_dir / CHECKPOINT, tmp_path)
-    assert (run_dir / "result.h5.partial").exists() and not (run_dir / "result.h5").exists()
+    kill_after_checkpoint(args, run_dir / CHECKPOINT, tmp_path, sig)
+    assert (run_dir / "result.h5.partial").exists()
+    if sig == signal.SIGKILL:
+        assert not (run_dir / "result.h5").exists()
+    else:
+        assert json.loads((run_dir / "metrics.json").read_text())["status"] == "interrupted"
+        assert not contents(run_dir / "result.h5")["complete"]
     proc = decrun(*args, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     log = (run_dir / "decrun.log").read_text()

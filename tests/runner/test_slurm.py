@@ -25,7 +25,7 @@ import pytest
 from decrun.runner.sweep.tables import load_sweep
 
 #: wall-time columns (differ between two runs of the same jobs)
-TIMES = ("setup_seconds", "solve_seconds", "total_seconds")
+TIMES = ("setup_seconds", "solve_seconds", "total_seconds", "step_seconds_max")
 SLURM = ["hydra/launcher=submitit_slurm", "hydra.launcher.timeout_min=5"]
 #: cheap jobs: explicit smoothing on 162 vertices, no eigen-solve
 CHEAP = ["mesh.subdiv=2", "app.scheme=explicit", "app.critical_dt=false", "figures=false"]

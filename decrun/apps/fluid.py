@@ -25,6 +25,7 @@ import numpy as np
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.errors import ConfigError, TopologyError
+from decrun.methods.fluid.metrics import fluid_metrics
 from decrun.methods.fluid.options import Circulation, Initial, Kernels, Velocity
 from decrun.methods.stepping import run_steps
 
@@ -178,34 +179,12 @@ class Fluid(App):
         first = stepper.last
         report = run_steps(stepper, self.total_steps, progress=ctx.progress, record=ctx.record,
                            record_every=self.record_every, checkpoint=ctx.checkpoint, desc="fluid")
-        last, max_divergence, seconds = stepper.last, stepper.max_divergence, report.seconds
-        steps_done = int(last["step"])
-        bounded = bool(last["stable"]) and "diverged_at_step" not in last
-        chaos = shadow.metrics() if shadow is not None else {}
-        stable = bounded and chaos.get("perturbation_stable", True)
-        metrics = {
-            "stable": stable,
-            "steps_done": steps_done,
-            "max_abs_divergence": float(max_divergence),
-            "enstrophy_final": float(last["enstrophy"]),
-            "kinetic_energy_final": float(last["kinetic_energy"]),
-            "steps_per_second": steps_done / seconds if seconds > 0 else float("inf"),
-            "obtuse_triangles": obtuse,
-            "solve_seconds": seconds,
-            "step_seconds_max": report.step_seconds_max,
-        }
+        metrics = fluid_metrics(first, stepper.last, max_divergence=stepper.max_divergence, seconds=report.seconds,
+                                step_seconds_max=report.step_seconds_max, obtuse_triangles=obtuse,
+                                closed=K.border_faces()[0].size == 0, reason=report.reason,
+                                chaos=shadow.metrics() if shadow is not None else None)
         if report.resumed_from_step is not None:
             metrics["resumed_from_step"] = report.resumed_from_step
-        if not bounded:
-            metrics["diverged_at_step"] = int(last.get("diverged_at_step", steps_done))
-            metrics["unstable_reason"] = report.reason
-        metrics.update(chaos)
-        if first["kinetic_energy"] > 0:
-            metrics["energy_ratio"] = float(last["kinetic_energy"] / first["kinetic_energy"])
-        if first["enstrophy"] > 0:
-            metrics["enstrophy_ratio"] = float(last["enstrophy"] / first["enstrophy"])
-        if K.border_faces()[0].size == 0:
-            metrics["circulation_drift"] = abs(float(last["total_circulation"]))
         fields = {"vorticity": fluid.vorticity, "psi": fluid.psi, "flux": FieldOnEdges(fluid.flux)}
         title = f"vorticity, dt={self.dt:g}, ν={self.viscosity:g}"
         strokes = [np.asarray(stir.points, dtype=np.float64) for stir in self.stirs]

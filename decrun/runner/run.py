@@ -52,7 +52,8 @@ class Experiment:
     """The plugins of one run, built and checked from ``cfg`` before any work.
 
     Attributes: ``mesh_source``, ``operator`` (Hodge-star variant), ``boundary``, ``app``,
-    ``solver`` — instances of the classes named by the config's ``_target_`` keys.
+    ``solver`` — instances of the classes named by the config's ``_target_`` keys;
+    ``checkpoint`` the :class:`~decrun.runner.config.CheckpointConfig`.
     """
 
     def __init__(self, cfg: DictConfig, make: Callable[[Any, str, type], Any] = build):
@@ -64,6 +65,8 @@ class Experiment:
         self.mesh_source = make(cfg.mesh, "mesh", MeshSource)
         self.export = make(cfg.export, "export", Export) if "export" in cfg else None
         self.app.check_solver(self.solver)
+        self.checkpoint = (CheckpointConfig(**OmegaConf.to_container(cfg.checkpoint, resolve=True))
+                           if "checkpoint" in cfg else CheckpointConfig())
 
 
 def check_root_keys(cfg: DictConfig) -> None:
@@ -237,9 +240,9 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
     ctx = RunContext(app, complex_, dec, new_solver=experiment.solver.fresh, meta=mesh.meta,
                      progress=progress, recorder=recorder, logger=log)
     if out is not None:  # a time-stepping app continues from out/checkpoint.h5 (decrun.methods.stepping)
-        every = CheckpointConfig(**OmegaConf.to_container(cfg.checkpoint)) if "checkpoint" in cfg else CheckpointConfig()
         ctx.checkpoint = RunCheckpoint(Path(out) / CHECKPOINT, config_hash(cfg), recorder=recorder,
-                                       steps=every.steps, seconds=every.seconds, log=log.info)
+                                       steps=experiment.checkpoint.steps, seconds=experiment.checkpoint.seconds,
+                                       log=log.info)
     try:
         result = app.run(ctx)
     except BaseException as exc:

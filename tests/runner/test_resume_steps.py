@@ -152,3 +152,17 @@ def test_a_killed_sweep_resumed_ends_as_the_uninterrupted_run(tmp_path, uninterr
     assert proc.returncode == 0, proc.stderr
     assert json.loads((sweep / "0" / "metrics.json").read_text())["resumed_from_step"] > 0
     assert_same_run(uninterrupted / app, sweep / "0")
+
+
+@pytest.mark.parametrize("bad, message, fix", [
+    ("checkpoint.steps=0", "checkpoint.steps: must be >= 1 or null, got 0; e.g. checkpoint.steps=null",
+     "checkpoint.steps=null"),
+    ("checkpoint.seconds=-1", "checkpoint.seconds: must be >= 0 or null, got -1.0; e.g. checkpoint.seconds=60",
+     "checkpoint.seconds=60"),
+])
+def test_a_bad_checkpoint_setting_is_refused_before_any_work_and_its_hint_runs(tmp_path, bad, message, fix):
+    proc = decrun("app.steps=1", *FAST, bad, f"hydra.run.dir={tmp_path / 'bad'}", cwd=tmp_path)
+    assert proc.returncode == 1 and message in proc.stderr, proc.stderr
+    assert not (tmp_path / "bad" / "result.h5").exists()
+    proc = decrun("app.steps=1", *FAST, fix, f"hydra.run.dir={tmp_path / 'fixed'}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr

@@ -13,7 +13,7 @@ import sys
 import pandas as pd
 
 #: metric columns that differ between two runs of the same jobs (wall times)
-TIMES = ("setup_seconds", "solve_seconds", "total_seconds")
+TIMES = ("setup_seconds", "solve_seconds", "total_seconds", "step_seconds_max")
 
 
 def env() -> dict:

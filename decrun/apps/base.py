@@ -21,6 +21,9 @@ memory) carries:
                     cannot report steps (an eigen-solve, a factorization); silent likewise
 ``ctx.record(step, **values)``  appends per-step scalars or fixed-shape arrays to the
                     run's series (``series/<name>`` in result.h5, written as the run goes)
+``ctx.checkpoint``  a :class:`decrun.methods.stepping.Checkpoint` or None, for
+                    :func:`~decrun.methods.stepping.run_steps` (a time-stepping app passes it
+                    on: a killed run continues from its last checkpoint)
 
 Applications never open files, never import the runner, hydra or matplotlib, and never
 import another application. They declare what they accept:
@@ -200,6 +203,9 @@ class Context:
         self.progress = progress or _passthrough
         self._series: dict[str, list] = {}
         self._steps: list[int] = []
+        #: where :func:`decrun.methods.stepping.run_steps` keeps its state (None here: no
+        #: checkpoints; the runner's context gives the run directory's checkpoint.h5)
+        self.checkpoint = None
 
     def record(self, step: int, **values) -> None:
         """Append one record: ``step`` (int) and named scalars or fixed-shape arrays."""

@@ -17,7 +17,6 @@ the app reports their count (``obtuse_triangles``) and warns.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from typing import List, Optional
 
@@ -26,7 +25,9 @@ import numpy as np
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.errors import ConfigError, TopologyError
+from decrun.methods.fluid.metrics import fluid_metrics
 from decrun.methods.fluid.options import Circulation, Initial, Kernels, Velocity, Walls
+from decrun.methods.stepping import run_steps
 
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
@@ -179,49 +180,18 @@ class Fluid(App):
             shadow = Shadow(fluid, self.shadow_perturbation, seed=self.seed + 1,
                             max_growth_per_step=self.shadow_max_growth_per_step,
                             window_steps=self.shadow_window_steps)
-        first = fluid.diagnostics()
-        ctx.record(0, vorticity=fluid.vorticity, flux=fluid.flux, **{k: first[k] for k in SCALARS})
-        max_divergence = first["max_abs_divergence"]
-        last = first
-        start = time.perf_counter()
-        total = self.total_steps
-        for step in ctx.progress(range(1, total + 1), total=total, desc="fluid"):
-            active = [force for stir, force in forces if stir.start <= fluid.time < stir.stop]
-            force = np.sum(active, axis=0) if active else None
-            last = fluid.step(force)
-            if shadow is not None:
-                shadow.step(force)
-            max_divergence = max(max_divergence, last["max_abs_divergence"])
-            if "diverged_at_step" in last or not last["stable"]:
-                break
-            if step % self.record_every == 0 or step == total:
-                ctx.record(step, vorticity=fluid.vorticity, flux=fluid.flux, **{k: last[k] for k in SCALARS})
-        seconds = time.perf_counter() - start
-        steps_done = int(last["step"])
-        bounded = bool(last["stable"]) and "diverged_at_step" not in last
-        chaos = shadow.metrics() if shadow is not None else {}
-        stable = bounded and chaos.get("perturbation_stable", True)
-        metrics = {
-            "stable": stable,
-            "steps_done": steps_done,
-            "max_abs_divergence": float(max_divergence),
-            "enstrophy_final": float(last["enstrophy"]),
-            "kinetic_energy_final": float(last["kinetic_energy"]),
-            "steps_per_second": steps_done / seconds if seconds > 0 else float("inf"),
-            "obtuse_triangles": obtuse,
-            "solve_seconds": seconds,
-        }
+        stepper = FluidStepper(fluid, forces, shadow)
+        first = stepper.last
+        report = run_steps(stepper, self.total_steps, progress=ctx.progress, record=ctx.record,
+                           record_every=self.record_every, checkpoint=ctx.checkpoint, desc="fluid")
+        metrics = fluid_metrics(first, stepper.last, max_divergence=stepper.max_divergence, seconds=report.seconds,
+                                step_seconds_max=report.step_seconds_max, obtuse_triangles=obtuse,
+                                closed=K.border_faces()[0].size == 0, reason=report.reason,
+                                chaos=shadow.metrics() if shadow is not None else None)
+        if report.resumed_from_step is not None:
+            metrics["resumed_from_step"] = report.resumed_from_step
         if not fluid.closed:  # the wall condition app.walls resolved to (a closed surface has no wall)
             metrics["walls"] = fluid.walls
-        if not bounded:
-            metrics["diverged_at_step"] = int(last.get("diverged_at_step", steps_done))
-        metrics.update(chaos)
-        if first["kinetic_energy"] > 0:
-            metrics["energy_ratio"] = float(last["kinetic_energy"] / first["kinetic_energy"])
-        if first["enstrophy"] > 0:
-            metrics["enstrophy_ratio"] = float(last["enstrophy"] / first["enstrophy"])
-        if K.border_faces()[0].size == 0:
-            metrics["circulation_drift"] = abs(float(last["total_circulation"]))
         fields = {"vorticity": fluid.vorticity, "psi": fluid.psi, "flux": FieldOnEdges(fluid.flux)}
         title = f"vorticity, dt={self.dt:g}, ν={self.viscosity:g}"
         strokes = [np.asarray(stir.points, dtype=np.float64) for stir in self.stirs]
@@ -246,6 +216,53 @@ class Fluid(App):
                                                         self.initial_strength, self.vortex_radius)
             return w
         return initial_vorticity.random_vorticity(dec, seed=self.seed, amplitude=self.initial_strength)
+
+
+class FluidStepper:
+    """:class:`decrun.methods.fluid.simulation.VorticityFluid` (and its shadow) as a
+    :class:`decrun.methods.stepping.Stepper`: a step applies the stirs active at the fluid's
+    time, steps the fluid and the shadow with the same force and keeps the largest
+    divergence so far; it blows up when the step produced non-finite values (the fluid then
+    keeps its last finite state, which is not recorded again) or the energy bound broke.
+    Recorded: ``vorticity`` (n0), ``flux`` (n1) and the scalars of :data:`SCALARS`."""
+
+    record_divergent_step = False
+
+    def __init__(self, fluid, forces, shadow=None):
+        self.fluid, self.forces, self.shadow = fluid, forces, shadow
+        self.last = fluid.diagnostics()
+        self.max_divergence = float(self.last["max_abs_divergence"])
+
+    def values(self) -> dict:
+        return dict(vorticity=self.fluid.vorticity, flux=self.fluid.flux, **{k: self.last[k] for k in SCALARS})
+
+    def step(self, n: int) -> str:
+        fluid = self.fluid
+        active = [force for stir, force in self.forces if stir.start <= fluid.time < stir.stop]
+        force = np.sum(active, axis=0) if active else None
+        self.last = fluid.step(force)
+        if self.shadow is not None:
+            self.shadow.step(force)
+        self.max_divergence = max(self.max_divergence, self.last["max_abs_divergence"])
+        if "diverged_at_step" in self.last:
+            return f"step {n} produced non-finite values (or its solve failed); the state is that of step {n - 1}"
+        if not self.last["stable"]:
+            return f"the kinetic energy {self.last['kinetic_energy']:.3g} broke the blow-up bound at step {n}"
+        return ""
+
+    def state_dict(self) -> dict:
+        state = {"fluid": self.fluid.state_dict(), "max_divergence": self.max_divergence,
+                 "last": {key: value for key, value in self.last.items()}}
+        if self.shadow is not None:
+            state["shadow"] = self.shadow.state_dict()
+        return state
+
+    def load_state(self, state: dict) -> None:
+        self.fluid.load_state(state["fluid"])
+        if self.shadow is not None:
+            self.shadow.load_state(state["shadow"])
+        self.max_divergence = float(state["max_divergence"])
+        self.last = dict(state["last"])
 
 
 def vorticity_of_field(dec, field: dict) -> np.ndarray:

@@ -37,6 +37,7 @@ from decrun.methods.mean_curvature_flow import (
     surface_area,
 )
 from decrun.methods.smoothing_metrics import degeneration, normal_deviation_deg
+from decrun.methods.stepping import run_steps
 
 
 class DtUnit(Choice):
@@ -184,44 +185,13 @@ class Smoothing(App):
         setup_seconds = time.perf_counter() - t0
         centroid = flow.centroid(vertices)
 
-        def measure(v):
-            return {"area": surface_area(v, faces), "volume": enclosed_volume(v, faces) if has_volume else float("nan"),
-                    "roughness": flow.roughness(v, centroid), "distortion": flow.distortion(v, faces)}
-
-        first = measure(vertices)
-        series = {name: [value] for name, value in first.items()}
-        ctx.record(0, **first)
-        v = vertices.copy()
-        last_finite = v
-        diverged_at = -1
-        t1 = time.perf_counter()
-        bar = ctx.progress(range(1, self.steps + 1), total=self.steps, desc=f"smoothing ({self.scheme})")
-        for step in bar:
-            # a blow-up is a result (stable: false), not a floating-point warning
-            with np.errstate(over="ignore", invalid="ignore"):
-                v = flow.step(v)
-                failed = not np.all(np.isfinite(v))
-                if not failed and rescale == "volume":
-                    volume = enclosed_volume(v, faces)
-                    failed = not volume > 0  # flattened or turned inside out: cannot be rescaled
-                    if not failed:
-                        v = centroid + np.cbrt(first["volume"] / volume) * (v - centroid)
-                elif not failed and rescale == "area":
-                    area = surface_area(v, faces)
-                    if area > 0:
-                        v = centroid + np.sqrt(first["area"] / area) * (v - centroid)
-                # every attempted step is recorded (NaN when non-finite): steps_done == diverged_at_step
-                now = measure(v) if np.all(np.isfinite(v)) else {name: float("nan") for name in first}
-                for name, value in now.items():
-                    series[name].append(value)
-                ctx.record(step, **now)
-                if np.all(np.isfinite(v)):
-                    last_finite = v
-                rough = now["roughness"] <= self.blowup_factor * first["roughness"]
-                if failed or not (np.isfinite(now["area"]) and rough):
-                    diverged_at = step
-                    break
-        solve_seconds = time.perf_counter() - t1
+        stepper = SmoothingStepper(flow, vertices, faces, centroid, rescale, has_volume, self.blowup_factor)
+        first = stepper.first
+        report = run_steps(stepper, int(self.steps), progress=ctx.progress, record=ctx.record,
+                           checkpoint=ctx.checkpoint, desc=f"smoothing ({self.scheme})", check_finite=False)
+        v, last_finite, series = stepper.v, stepper.last_finite, stepper.series
+        diverged_at = -1 if report.diverged_at_step is None else report.diverged_at_step
+        solve_seconds = report.seconds
         stable = diverged_at < 0
         # a flow that did not blow up may still have collapsed the surface (a needle, a sheet)
         degenerate = degeneration(vertices, v, faces, has_volume) if stable else ""
@@ -271,6 +241,9 @@ class Smoothing(App):
                 metrics["normal_deviation_to_clean_deg_initial"] = normal_deviation_deg(vertices, clean, faces)
         metrics["setup_seconds"] = setup_seconds
         metrics["solve_seconds"] = solve_seconds
+        metrics["step_seconds_max"] = report.step_seconds_max
+        if report.resumed_from_step is not None:
+            metrics["resumed_from_step"] = report.resumed_from_step
 
         series = {name: np.array(values) for name, values in series.items()}
         fields = {"vertices_initial": vertices, "vertices_final": v, "faces": faces,
@@ -287,3 +260,72 @@ class Smoothing(App):
                 series={name: series[name] for name in shown}, title=label)),
         }
         return Result(fields=fields, metrics=metrics, figures=figures)
+
+
+class SmoothingStepper:
+    """The mean curvature flow as a :class:`decrun.methods.stepping.Stepper`: one step is
+    ``flow.step`` then the rescale about ``centroid`` (``volume``: by ∛(V_0/V), ``area``: by
+    √(A_0/A), ``none``), then the measures ``area``, ``volume``, ``roughness``, ``distortion``
+    (NaN when the coordinates are not finite). It blows up when the coordinates are not
+    finite, the volume cannot be rescaled (V ≤ 0), the area is not finite or the roughness
+    exceeds ``blowup_factor`` × R_0; the diverging step is recorded (its measures NaN when
+    the coordinates are). State: ``v`` (n0, d), ``last_finite`` (n0, d) and the measures so
+    far (``series``, for the figures and the final ratios: four floats per step)."""
+
+    record_divergent_step = True
+
+    def __init__(self, flow, vertices, faces, centroid, rescale: str, has_volume: bool, blowup_factor: float):
+        self.flow, self.faces, self.centroid = flow, faces, centroid
+        self.rescale, self.has_volume, self.blowup_factor = rescale, has_volume, float(blowup_factor)
+        self.first = self.measure(vertices)
+        self.now = dict(self.first)
+        self.series = {name: [value] for name, value in self.first.items()}
+        self.v = vertices.copy()
+        self.last_finite = self.v
+
+    def measure(self, v) -> dict:
+        faces = self.faces
+        return {"area": surface_area(v, faces),
+                "volume": enclosed_volume(v, faces) if self.has_volume else float("nan"),
+                "roughness": self.flow.roughness(v, self.centroid), "distortion": self.flow.distortion(v, faces)}
+
+    def values(self) -> dict:
+        return self.now
+
+    def step(self, n: int) -> str:
+        v = self.flow.step(self.v)
+        first, centroid = self.first, self.centroid
+        reason = "" if np.all(np.isfinite(v)) else "non-finite coordinates"
+        if not reason and self.rescale == "volume":
+            volume = enclosed_volume(v, self.faces)
+            if not volume > 0:  # flattened or turned inside out: cannot be rescaled
+                reason = f"enclosed volume {volume:.3g} ≤ 0 cannot be rescaled"
+            else:
+                v = centroid + np.cbrt(first["volume"] / volume) * (v - centroid)
+        elif not reason and self.rescale == "area":
+            area = surface_area(v, self.faces)
+            if area > 0:
+                v = centroid + np.sqrt(first["area"] / area) * (v - centroid)
+        finite = bool(np.all(np.isfinite(v)))
+        self.now = self.measure(v) if finite else {name: float("nan") for name in first}
+        for name, value in self.now.items():
+            self.series[name].append(value)
+        self.v = v
+        if finite:
+            self.last_finite = v
+        if not reason and not np.isfinite(self.now["area"]):
+            reason = "non-finite area"
+        if not reason and not self.now["roughness"] <= self.blowup_factor * first["roughness"]:
+            reason = f"roughness {self.now['roughness']:.3g} > app.blowup_factor × R_0"
+        return reason
+
+    def state_dict(self) -> dict:
+        return {"v": self.v, "last_finite": self.last_finite,
+                "now": {name: float(value) for name, value in self.now.items()},
+                "series": {name: np.asarray(values, dtype=np.float64) for name, values in self.series.items()}}
+
+    def load_state(self, state: dict) -> None:
+        self.v = np.array(state["v"], dtype=np.float64)
+        self.last_finite = np.array(state["last_finite"], dtype=np.float64)
+        self.now = {name: float(state["now"][name]) for name in self.first}
+        self.series = {name: [float(x) for x in state["series"][name]] for name in self.first}

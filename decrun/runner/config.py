@@ -66,6 +66,26 @@ class OptimizeConfig:
 
 
 @dataclass
+class CheckpointConfig:
+    """``checkpoint``: how often a time-stepping app (smoothing, fluid) writes the run
+    directory's ``checkpoint.h5`` (:mod:`decrun.runner.results.checkpoint`), from which a
+    killed, timed-out or preempted run continues when rerun into the same directory. Not
+    part of the config hash: changing it never changes a result."""
+
+    #: write one every this many steps (null: not by steps)
+    steps: Optional[int] = None
+    #: write one when this many seconds passed since the last (null: not by time)
+    seconds: Optional[float] = 60.0
+
+    def __post_init__(self):
+        if self.steps is not None and self.steps < 1:
+            raise ConfigError(f"checkpoint.steps: must be >= 1 or null, got {self.steps}; e.g. checkpoint.steps=null")
+        if self.seconds is not None and not self.seconds >= 0:
+            raise ConfigError(f"checkpoint.seconds: must be >= 0 or null, got {self.seconds}; e.g. "
+                              "checkpoint.seconds=60")
+
+
+@dataclass
 class DecrunConfig:
     """Schema of the whole composed config (``conf/config.yaml`` extends it): unknown root
     keys (``+foo=1``) are rejected when the config is composed."""
@@ -83,6 +103,8 @@ class DecrunConfig:
     figures: bool = True
     #: the metric a sweep job returns to an optimising sweeper (hydra/sweeper=optuna)
     optimize: OptimizeConfig = field(default_factory=OptimizeConfig)
+    #: checkpoints of time-stepping runs (CheckpointConfig)
+    checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
 
 
 _ISSUED_STAMPS: set[str] = set()

@@ -27,7 +27,7 @@ from decrun.core.dec import DEC
 from decrun.core.solvers import Solver
 from decrun.core.stars import HodgeStar
 from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, TopologyError
-from decrun.runner.config import DecrunConfig, OptimizeConfig
+from decrun.runner.config import CheckpointConfig, DecrunConfig, OptimizeConfig
 from decrun.runner.context import RunContext
 from decrun.runner.failures import (exit_code, file_identity, find_memory_error, find_os_error, interrupt_cause,
                                     memory_error_text, os_error_message, record_status, set_aside_stale)
@@ -38,6 +38,7 @@ from decrun.runner.plugins import Rebuilt, build
 from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
 from decrun.runner.results.checked import RESULT_RECORD, file_record
+from decrun.runner.results.checkpoint import CHECKPOINT, RunCheckpoint
 from decrun.runner.results.export import Export
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
@@ -52,7 +53,8 @@ class Experiment:
     """The plugins of one run, built and checked from ``cfg`` before any work.
 
     Attributes: ``mesh_source``, ``operator`` (Hodge-star variant), ``boundary``, ``app``,
-    ``solver`` — instances of the classes named by the config's ``_target_`` keys.
+    ``solver`` — instances of the classes named by the config's ``_target_`` keys;
+    ``checkpoint`` the :class:`~decrun.runner.config.CheckpointConfig`.
     """
 
     def __init__(self, cfg: DictConfig, make: Callable[[Any, str, type], Any] = build):
@@ -64,6 +66,8 @@ class Experiment:
         self.mesh_source = make(cfg.mesh, "mesh", MeshSource)
         self.export = make(cfg.export, "export", Export) if "export" in cfg else None
         self.app.check_solver(self.solver)
+        self.checkpoint = (CheckpointConfig(**OmegaConf.to_container(cfg.checkpoint, resolve=True))
+                           if "checkpoint" in cfg else CheckpointConfig())
 
 
 def check_root_keys(cfg: DictConfig) -> None:
@@ -244,6 +248,10 @@ def _run_experiment(cfg: DictConfig, experiment, t: float, progress: Callable | 
     mesh.recorder = recorder
     ctx = RunContext(app, complex_, dec, new_solver=experiment.solver.fresh, meta=mesh.meta,
                      progress=progress, recorder=recorder, logger=log)
+    if out is not None:  # a time-stepping app continues from out/checkpoint.h5 (decrun.methods.stepping)
+        ctx.checkpoint = RunCheckpoint(Path(out) / CHECKPOINT, config_hash(cfg), recorder=recorder,
+                                       steps=experiment.checkpoint.steps, seconds=experiment.checkpoint.seconds,
+                                       log=log.info)
     try:
         result = app.run(ctx)
     except BaseException as exc:
@@ -297,6 +305,7 @@ def write_run(out: Path, cfg: DictConfig, result: Result, mesh, timings: dict) -
                           timings=timings)
     # the size and sha256 of result.h5 as written: readers never take a truncated or altered one for it
     metrics = write_metrics_json(out / "metrics.json", {**result.metrics, RESULT_RECORD: file_record(h5)})
+    (Path(out) / CHECKPOINT).unlink(missing_ok=True)  # the run is complete: nothing to continue
     exported = build(cfg.export, "export", Export).write(out, result, mesh) if cfg.get("export") is not None else []
     return [h5, metrics, *written, *exported]
 

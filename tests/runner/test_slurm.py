@@ -25,7 +25,7 @@ import pytest
 from decrun.runner.sweep.tables import load_sweep
 
 #: wall-time columns (differ between two runs of the same jobs)
-TIMES = ("setup_seconds", "solve_seconds", "total_seconds")
+TIMES = ("setup_seconds", "solve_seconds", "total_seconds", "step_seconds_max")
 SLURM = ["hydra/launcher=submitit_slurm", "hydra.launcher.timeout_min=5"]
 #: cheap jobs: explicit smoothing on 162 vertices, no eigen-solve
 CHEAP = ["mesh.subdiv=2", "app.scheme=explicit", "app.critical_dt=false", "figures=false"]
@@ -143,3 +143,49 @@ def test_a_job_cancelled_mid_run_is_killed_in_the_table_and_resume_finishes_it(s
     table = load_sweep(tmp_path / "cut")
     assert list(table["status"]) == ["ok", "ok", "ok"]
     assert table.loc[1, "result"] == "1/result.h5" and not journal.exists()
+
+
+def test_a_preempted_fluid_job_is_requeued_and_continues_from_its_checkpoint(slurm, tmp_path):
+    """``scancel --signal=USR2`` is what submitit asks SLURM to send before the time limit
+    (and what preemption sends): the launcher's checkpoint requeues the job and the rerun
+    continues from checkpoint.h5, ending bitwise equal to an uninterrupted run. SLURM holds a
+    requeued job for ~2 minutes; the test lets it start at once (scontrol)."""
+    import json
+
+    import h5py
+    import numpy as np
+
+    run = ["app=fluid", "app.steps=400", "checkpoint.steps=4", "figures=false", "progress=false"]
+    reference = decrun("-m", *run, "hydra.sweep.dir=reference", cwd=tmp_path)
+    assert reference.returncode == 0, reference.stderr
+    sweep = ["-m", *run, *SLURM, "hydra.launcher.max_num_timeout=2", "hydra.sweep.dir=preempted"]
+    proc = subprocess.Popen([sys.executable, "-m", "decrun", *sweep], cwd=tmp_path, env=env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    job_dir = tmp_path / "preempted" / "0"
+    deadline = time.time() + 180
+    while time.time() < deadline and not (job_dir / "checkpoint.h5").is_file():
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    job_id = next((tmp_path / "preempted" / ".submitit").iterdir()).name
+    subprocess.run(["scancel", "--signal=USR2", job_id], check=True)
+    deadline = time.time() + 60
+    while time.time() < deadline:  # requeued: pending until its begin time; start it now
+        state = subprocess.run(["squeue", "--noheader", "-j", job_id, "--format=%T %r"], capture_output=True,
+                               text=True).stdout
+        if "PENDING" in state:
+            subprocess.run(["scontrol", "update", f"jobid={job_id}", "StartTime=now"], check=True)
+            break
+        time.sleep(0.2)
+    try:
+        stdout, stderr = proc.communicate(timeout=300)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, stderr[-3000:]
+    metrics = json.loads((job_dir / "metrics.json").read_text())
+    assert metrics["status"] == "ok" and metrics["resumed_from_step"] > 0
+    assert "checkpoint: continuing from step" in (job_dir / "decrun.log").read_text()
+    with h5py.File(job_dir / "result.h5") as a, h5py.File(tmp_path / "reference" / "0" / "result.h5") as b:
+        for group in ("fields", "series"):
+            assert sorted(a[group]) == sorted(b[group])
+            for name in a[group]:
+                assert np.array_equal(a[group][name][()], b[group][name][()]), f"{group}/{name}"

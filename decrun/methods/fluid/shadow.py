@@ -122,6 +122,23 @@ class Shadow:
             self._start.append(point)
         return growth
 
+    def state_dict(self) -> dict:
+        """The shadow's state (its twin's :meth:`~VorticityFluid.state_dict`, the separation,
+        L_n, the fit's points) for a checkpoint."""
+        return {"twin": self.twin.state_dict(), "separation": float(self.separation),
+                "log_growth": float(self.log_growth), "largest_step_growth": float(self.largest_step_growth),
+                "steps": int(self.steps), "window": np.array(self._window, dtype=np.float64).reshape(-1, 2),
+                "start": np.array(self._start, dtype=np.float64).reshape(-1, 2)}
+
+    def load_state(self, state: dict) -> None:
+        """Restore a :meth:`state_dict`."""
+        self.twin.load_state(state["twin"])
+        self.separation, self.log_growth = float(state["separation"]), float(state["log_growth"])
+        self.largest_step_growth, self.steps = float(state["largest_step_growth"]), int(state["steps"])
+        points = [(int(n), float(value)) for n, value in np.asarray(state["window"]).reshape(-1, 2)]
+        self._window = deque(points, maxlen=self.window_steps + 1)
+        self._start = [(int(n), float(value)) for n, value in np.asarray(state["start"]).reshape(-1, 2)]
+
     def fit_points(self) -> np.ndarray:
         """(k, 2) the (n, L_n) the growth rate is fitted to: n from max(transient_steps,
         steps − window_steps) to steps; a run too short for two such points uses all of its

@@ -517,6 +517,28 @@ class VorticityFluid:
             w = np.where(border_cell, w, self.vorticity + (gamma - gamma0) / self.star0)
         return self._remove_mean(w)
 
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        """Everything a later :meth:`step` reads that a step changes (the operators and
+        factorizations are fixed by the mesh and options): ``vorticity`` (n0,), ``psi`` (n0,),
+        ``flux`` (n1,), ``time`` (s), ``steps``, ``diverged_at_step`` (None or int), the energy
+        reference of the blow-up bound and the limiter's last counters."""
+        return {"vorticity": self.vorticity, "psi": self.psi, "flux": self.flux, "time": float(self.time),
+                "steps": int(self.steps), "diverged_at_step": self.diverged_at_step,
+                "energy_reference": float(self._energy_reference), "limited_cells": int(self.limited_cells),
+                "bound_action": int(self.bound_action)}
+
+    def load_state(self, state: dict) -> None:
+        """Restore a :meth:`state_dict` (the next steps are those of the run it came from)."""
+        self.vorticity = np.array(state["vorticity"], dtype=np.float64)
+        self.psi = np.array(state["psi"], dtype=np.float64)
+        self.flux = np.array(state["flux"], dtype=np.float64)
+        self.time, self.steps = float(state["time"]), int(state["steps"])
+        diverged = state.get("diverged_at_step")
+        self.diverged_at_step = None if diverged is None else int(diverged)
+        self._energy_reference = float(state["energy_reference"])
+        self.limited_cells, self.bound_action = int(state["limited_cells"]), int(state["bound_action"])
+
     # ------------------------------------------------------------------ stepping
     def step(self, force_flux: np.ndarray | None = None) -> dict:
         """Advance one time step (a–g above) and return diagnostics.

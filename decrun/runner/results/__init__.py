@@ -9,7 +9,7 @@ docstring gives the layout of ``result.h5`` (mesh, fields — 1-forms with
 and the crash semantics: ``result.h5`` is either absent or whole; a killed run leaves its
 recorded steps readable (:func:`read_result`, ``.complete`` False).
 
-Layers (tests/test_layers.py): ``recorder | reading > journal | provenance > checked``
+Layers (tests/test_layers.py): ``recorder | reading | checkpoint > journal | provenance > checked``
 (:mod:`.checked`: the checked readers every file read back goes through).
 """
 

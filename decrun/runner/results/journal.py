@@ -142,6 +142,27 @@ class JournalWriter:
         self.n_records = 0
         self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
 
+    @classmethod
+    def reopen(cls, journal: "Journal", n_records: int) -> "JournalWriter":
+        """Continue an existing journal (read and verified by :func:`read_journal`) after its
+        first ``n_records`` records: the file is truncated there (the records after them are
+        dropped, to be appended anew) and opened for appending. ValueError when the journal
+        has fewer valid records."""
+        if not 0 <= n_records <= journal.n_records:
+            raise ValueError(f"{journal.path}: has {journal.n_records} valid records, cannot continue after {n_records}")
+        self = cls.__new__(cls)
+        self.path, self.columns = Path(journal.path), list(journal.columns)
+        self._offsets, self.record_size = _layout(self.columns)
+        self._pads = [self._offsets[i + 1] - self._offsets[i] - c.nbytes for i, c in enumerate(self.columns[:-1])]
+        if self.columns:
+            self._pads.append(self.record_size - self._offsets[-1] - self.columns[-1].nbytes)
+        if self.record_size != journal.record_size:
+            raise ValueError(f"{journal.path}: record size {journal.record_size} differs from its columns' {self.record_size}")
+        self.data_offset, self.n_records = journal.data_offset, n_records
+        self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        os.ftruncate(self._fd, self.data_offset + n_records * self.record_size)
+        return self
+
     def append(self, step: int, values: list[np.ndarray]) -> None:
         """Append one record: ``values[i]`` is C-contiguous with ``columns[i]``'s dtype and
         shape (the caller checks). One ``writev``; on any error the file is truncated back

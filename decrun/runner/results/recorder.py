@@ -160,6 +160,43 @@ class ResultRecorder:
         self._columns: list[Column] = []
         self._last_step: int | None = None
         self._closed = False
+        #: keep the journal when the run ends unfinished (abort): a checkpoint refers to it
+        #: (:mod:`decrun.runner.results.checkpoint`), so a rerun continues it
+        self.keep_journal = False
+
+    @property
+    def journal_created(self) -> str:
+        """The ``created`` time in the journal's header ("" before the first record): with
+        the record count it names the journal a checkpoint continues."""
+        return self._attrs["created"] if self._journal is not None else ""
+
+    def resume(self, n_records: int, created: str) -> None:
+        """Continue the journal a killed run left at :attr:`journal_path` after its first
+        ``n_records`` records (those a checkpoint was written after; later ones are dropped
+        and recorded anew), instead of starting one at the first :meth:`record`. The journal
+        must be verified whole up to there, be the one ``created`` names and hold this mesh;
+        else a :class:`~decrun.errors.CorruptFileError` / ValueError / OSError naming the file,
+        and nothing is changed. A stale (incomplete) ``result.h5`` at :attr:`path` is removed."""
+        self._check_open()
+        if self._journal is not None:
+            raise RuntimeError(f"{self.path}: resume() after the first record()")
+        journal = read_journal(self.journal_path, verify=True)
+        if journal.attrs.get("created") != created:
+            raise ValueError(f"{self.journal_path}: not the journal the checkpoint continues (created "
+                             f"{journal.attrs.get('created')!r}, the checkpoint's {created!r})")
+        for name, array in self._mesh.items():
+            if not np.array_equal(journal.blobs.get(f"mesh/{name}"), array):
+                raise ValueError(f"{self.journal_path}: recorded on another mesh (mesh/{name} differs)")
+        if n_records > journal.n_records:
+            raise ValueError(f"{self.journal_path}: {journal.n_records} whole records, the checkpoint needs {n_records}")
+        last = None
+        for _, block in journal.blocks(stop=n_records):
+            last = int(block["step"][-1])
+        self._columns = list(journal.columns)
+        self._attrs = {key: journal.attrs[key] for key in ("config_yaml", "mesh_hash", "created", "extra")}
+        self._journal = JournalWriter.reopen(journal, n_records)
+        self._last_step = last
+        self.path.unlink(missing_ok=True)
 
     # -- recording ------------------------------------------------------------------
 
@@ -297,7 +334,8 @@ class ResultRecorder:
                     else "nothing was written")
             raise _write_error(self.path, exc, left) from exc
         self._closed = True
-        self.journal_path.unlink(missing_ok=True)
+        if status == "ok" or not self.keep_journal:
+            self.journal_path.unlink(missing_ok=True)
 
     def __enter__(self) -> "ResultRecorder":
         return self

@@ -39,6 +39,7 @@ from decrun.errors import ConfigError, CorruptFileError, DecrunError
 from decrun.runner.atomic import write_text_atomic
 from decrun.runner.locks import LOCK_NAME
 from decrun.runner.paths import hydra_files
+from decrun.runner.results.checkpoint import CHECKPOINT
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
@@ -371,8 +372,12 @@ def _clear(job_dir: Path) -> None:
     """Remove a job's outputs before it is rerun (its log and .hydra/ are rewritten)."""
     if not job_dir.is_dir():
         return
+    # a checkpoint of a time-stepping job and the journal it continues are kept: the rerun
+    # continues from them when they are its config's (decrun.runner.results.checkpoint)
+    kept = ("result.h5.partial",) if (job_dir / CHECKPOINT).is_file() else ()
     for name in _JOB_OUTPUTS:
-        (job_dir / name).unlink(missing_ok=True)
+        if name not in kept:
+            (job_dir / name).unlink(missing_ok=True)
     for leftover in job_dir.glob(".result.h5*"):
         leftover.unlink(missing_ok=True)
     for figure in job_dir.glob("*.png"):

@@ -1,0 +1,171 @@
+"""One time-stepping driver for every app that steps a state (smoothing, fluid).
+
+An app wraps its method in a :class:`Stepper` (its state and one step) and hands it to
+:func:`run_steps`, which owns everything around the steps: the loop and its progress bar,
+recording every ``record_every`` steps (``record(step, **values)``), blow-up detection (the
+stepper's own reason, or non-finite floats in its state: the run stops with a clear
+:attr:`StepReport.reason`, never an exception), per-step timing, and periodic checkpoints
+through a :class:`Checkpoint` (the runner's writes an atomic, checksummed HDF5 file in the
+run directory; this layer knows no files). On start a valid checkpoint of the same run is
+loaded and the loop continues from its step: the state, the records and the driver's
+counters are those of the uninterrupted run at that step, so the result is bitwise equal.
+
+Determinism contract of a stepper: :meth:`Stepper.state_dict` holds *everything* a later
+step reads (arrays, step index, counters, RNG state if any) as numpy arrays or Python
+scalars, and :meth:`Stepper.load_state` of it makes the next steps exactly those of the
+run it came from.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Optional, Protocol
+
+import numpy as np
+
+__all__ = ["Stepper", "Checkpoint", "StepReport", "run_steps", "nonfinite_in"]
+
+
+class Stepper(Protocol):
+    """A state and one step of a time-stepping method."""
+
+    #: record the step at which the state blew up (smoothing: its NaN measures) or not (fluid:
+    #: its state stays the last finite one)
+    record_divergent_step: bool
+
+    def values(self) -> dict[str, Any]:
+        """What is recorded for the current state: scalars and fixed-shape arrays."""
+
+    def step(self, n: int) -> str:
+        """Advance the state from step ``n - 1`` to ``n``; returns ``""`` or why the state blew up."""
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything a later step reads: nested dicts of numpy arrays and Python scalars (or None)."""
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`state_dict`."""
+
+
+class Checkpoint(Protocol):
+    """Where :func:`run_steps` keeps its state while it runs (the runner's is an HDF5 file)."""
+
+    def load(self) -> Optional[tuple[int, dict[str, Any]]]:
+        """``(step, state)`` of a valid checkpoint of this same run (also setting the records
+        back to that step), or None: none, another config's, or corrupt (said in the log)."""
+
+    def due(self, step: int) -> bool:
+        """Whether to write a checkpoint after ``step`` (every k steps, every s seconds)."""
+
+    def save(self, step: int, state: dict[str, Any]) -> None:
+        """Write ``state`` after ``step`` (atomically: the old checkpoint or the new one)."""
+
+
+@dataclass
+class StepReport:
+    """What :func:`run_steps` did.
+
+    ``steps_done``: steps computed (the diverging one included); ``diverged_at_step``: the
+    step that blew up, or None; ``reason``: why (empty when none did); ``seconds``: wall time
+    of the steps (s, over all the run's parts when it was resumed); ``step_seconds_max``:
+    the slowest step (s); ``resumed_from_step``: the checkpoint's step, or None;
+    ``checkpoints``: checkpoints written by this process."""
+
+    steps_done: int = 0
+    diverged_at_step: Optional[int] = None
+    reason: str = ""
+    seconds: float = 0.0
+    step_seconds_max: float = 0.0
+    resumed_from_step: Optional[int] = None
+    checkpoints: int = 0
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def stable(self) -> bool:
+        return self.diverged_at_step is None
+
+    def metrics(self) -> dict[str, Any]:
+        """The driver's metrics: ``steps_done``, ``solve_seconds``, ``steps_per_second``,
+        ``step_seconds_max``, ``diverged_at_step`` and ``unstable_reason`` (only when a step
+        blew up), ``resumed_from_step`` (only when resumed)."""
+        out = {"steps_done": self.steps_done, "solve_seconds": self.seconds,
+               "steps_per_second": self.steps_done / self.seconds if self.seconds > 0 else float("inf"),
+               "step_seconds_max": self.step_seconds_max}
+        if self.diverged_at_step is not None:
+            out["diverged_at_step"] = self.diverged_at_step
+            out["unstable_reason"] = self.reason
+        if self.resumed_from_step is not None:
+            out["resumed_from_step"] = self.resumed_from_step
+        return out
+
+
+def nonfinite_in(state: dict[str, Any], prefix: str = "") -> str:
+    """The name of the first float array of ``state`` (nested dicts) holding a NaN or ±inf,
+    or ``""`` (scalars are counters and diagnostics, which may be ±inf by design)."""
+    for name, value in state.items():
+        if isinstance(value, dict):
+            found = nonfinite_in(value, f"{prefix}{name}.")
+            if found:
+                return found
+        elif isinstance(value, np.ndarray) and value.dtype.kind in "fc" and not np.all(np.isfinite(value)):
+            return prefix + name
+    return ""
+
+
+def _passthrough(iterable: Iterable, **_) -> Iterable:
+    return iterable
+
+
+def run_steps(stepper: Stepper, steps: int, *, progress: Callable | None = None,
+              record: Callable[..., None] | None = None, record_every: int = 1,
+              checkpoint: Checkpoint | None = None, desc: str = "", check_finite: bool = True) -> StepReport:
+    """Run ``stepper`` from step 0 (or a checkpoint's step) to ``steps``.
+
+    Step 0 (the initial state) is recorded unless resumed; then step n is recorded when
+    ``n % record_every == 0`` or ``n == steps`` (and the diverging step when the stepper
+    says ``record_divergent_step``). After a step the state blows up when the stepper
+    returns a reason, or (``check_finite``) a float of its :meth:`~Stepper.state_dict` is
+    not finite: the loop stops there (``diverged_at_step``, ``reason``). A checkpoint is
+    written after step n when ``checkpoint.due(n)`` (not after the last step: the run is
+    ending). ``progress(iterable, total=, desc=, initial=)`` is a tqdm-like factory.
+    """
+    progress = progress or _passthrough
+    report = StepReport()
+    start = 0
+    loaded = checkpoint.load() if checkpoint is not None else None
+    if loaded is not None:
+        start, state = loaded
+        stepper.load_state(state["stepper"])
+        driver = state["driver"]
+        report.seconds, report.step_seconds_max = float(driver["seconds"]), float(driver["step_seconds_max"])
+        report.resumed_from_step = start
+    elif record is not None:
+        record(0, **stepper.values())
+    report.steps_done = start
+    bar = progress(range(start + 1, steps + 1), total=steps, desc=desc, initial=start)
+    for n in bar:
+        t = time.perf_counter()
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            reason = stepper.step(n)
+            if not reason and check_finite:
+                bad = nonfinite_in(stepper.state_dict())
+                reason = f"non-finite values in {bad} at step {n}" if bad else ""
+        seconds = time.perf_counter() - t
+        report.seconds += seconds
+        report.step_seconds_max = max(report.step_seconds_max, seconds)
+        report.steps_done = n
+        if reason:
+            report.diverged_at_step, report.reason = n, reason
+            if record is not None and stepper.record_divergent_step:
+                record(n, **stepper.values())
+            break
+        if record is not None and (n % record_every == 0 or n == steps):
+            record(n, **stepper.values())
+        if checkpoint is not None and n < steps and checkpoint.due(n):
+            checkpoint.save(n, {"stepper": stepper.state_dict(),
+                                "driver": {"seconds": report.seconds, "step_seconds_max": report.step_seconds_max}})
+            report.checkpoints += 1
+    close = getattr(bar, "close", None)
+    if close is not None:
+        close()
+    return report

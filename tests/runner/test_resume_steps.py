@@ -1,0 +1,168 @@
+"""Preemption-safe time stepping (issue 26 item 2): a smoothing or fluid run killed with
+SIGKILL after its checkpoint.h5 appeared, rerun with the same command (a single run into the
+same ``hydra.run.dir``, or a sweep with ``hydra.sweeper.resume=true``), ends with result.h5
+fields and series bitwise equal to an uninterrupted run's; a corrupt checkpoint is reported
+and not trusted. Everything runs through the real ``decrun`` command."""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from cli_processes import decrun, start
+from decrun.runner.results.checkpoint import CHECKPOINT
+
+#: a fluid run of ~2-3 s of steps and a smoothing run of ~1.5 s, checkpointed early
+CASES = {
+    "fluid": ["app=fluid", "app.steps=240", "checkpoint.steps=4"],
+    "smoothing": ["app=smoothing", "app.steps=600", "app.dt_factor=0.01", "checkpoint.steps=20"],
+}
+FAST = ["figures=false", "progress=false"]
+#: metrics that differ between two runs of the same config (wall times) or say it was resumed
+UNEQUAL = ("setup_seconds", "solve_seconds", "total_seconds", "steps_per_second", "step_seconds_max",
+           "resumed_from_step", "config_hash")
+
+
+def contents(h5: Path) -> dict:
+    """Every dataset under fields/ and series/ of a result.h5, and its status attributes."""
+    out = {}
+    with h5py.File(h5, "r") as f:
+        for group in ("fields", "series"):
+            for name, dataset in f[group].items():
+                out[f"{group}/{name}"] = dataset[()]
+        out["complete"], out["status"] = bool(f.attrs["complete"]), str(f.attrs["status"])
+    return out
+
+
+def assert_same_run(a: Path, b: Path) -> None:
+    first, second = contents(a / "result.h5"), contents(b / "result.h5")
+    assert first.keys() == second.keys()
+    for key in first:
+        assert np.array_equal(first[key], second[key]), key
+    assert first["complete"] and first["status"] == "ok"
+    ma, mb = (json.loads((d / "metrics.json").read_text()) for d in (a, b))
+    ma, mb = ({k: v for k, v in m.items() if k not in UNEQUAL and k != "result_h5"} for m in (ma, mb))
+    assert ma == mb
+
+
+def kill_after_checkpoint(args, checkpoint: Path, cwd, sig=signal.SIGKILL) -> None:
+    proc = start(*args, cwd=cwd)
+    deadline = time.monotonic() + 120
+    while not checkpoint.exists():
+        assert proc.poll() is None, f"ended before its first checkpoint: {proc.communicate()}"
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    proc.send_signal(sig)
+    proc.wait(timeout=30)
+    proc.stdout.close()
+    proc.stderr.close()
+
+
+class References:
+    """Each case run once without interruption, when a test first needs it."""
+
+    def __init__(self, root: Path):
+        self.root = root
+
+    def __truediv__(self, app: str) -> Path:
+        out = self.root / app
+        if not (out / "metrics.json").exists():
+            proc = decrun(*CASES[app], *FAST, f"hydra.run.dir={out}", cwd=self.root)
+            assert proc.returncode == 0, proc.stderr
+            assert not (out / CHECKPOINT).exists()  # a finished run leaves none
+        return out
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    return References(tmp_path_factory.mktemp("reference"))
+
+
+#: the fluid cases take ~20 s each (numba start-up in every process)
+SLOW_FLUID = pytest.param("fluid", marks=pytest.mark.slow)
+
+
+@pytest.mark.parametrize("app, sig", [("smoothing", signal.SIGKILL), pytest.param("fluid", signal.SIGKILL, marks=pytest.mark.slow),
+                                      pytest.param("smoothing", signal.SIGTERM, marks=pytest.mark.slow)])
+def test_a_killed_run_rerun_in_its_directory_ends_as_the_uninterrupted_run(tmp_path, uninterrupted, app, sig):
+    """SIGKILL leaves the journal; SIGTERM (SLURM's time limit, scancel) an incomplete
+    result.h5 and metrics.json status interrupted, and the journal beside them."""
+    run_dir = tmp_path / "run"
+    args = [*CASES[app], *FAST, f"hydra.run.dir={run_dir}"]
+    kill_after_checkpoint(args, run_dir / CHECKPOINT, tmp_path, sig)
+    assert (run_dir / "result.h5.partial").exists()
+    if sig == signal.SIGKILL:
+        assert not (run_dir / "result.h5").exists()
+    else:
+        assert json.loads((run_dir / "metrics.json").read_text())["status"] == "interrupted"
+        assert not contents(run_dir / "result.h5")["complete"]
+    proc = decrun(*args, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    log = (run_dir / "decrun.log").read_text()
+    assert "checkpoint: continuing from step" in log
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert metrics["resumed_from_step"] > 0
+    assert_same_run(uninterrupted / app, run_dir)
+    assert not (run_dir / CHECKPOINT).exists() and not (run_dir / "result.h5.partial").exists()
+
+
+@pytest.mark.parametrize("damage, app", [("flip", "smoothing"), pytest.param("truncate", "fluid", marks=pytest.mark.slow)])
+def test_a_corrupt_checkpoint_is_reported_and_not_trusted(tmp_path, uninterrupted, damage, app):
+    run_dir = tmp_path / "run"
+    args = [*CASES[app], *FAST, f"hydra.run.dir={run_dir}"]
+    kill_after_checkpoint(args, run_dir / CHECKPOINT, tmp_path)
+    path = run_dir / CHECKPOINT
+    data = bytearray(path.read_bytes())
+    if damage == "truncate":
+        path.write_bytes(bytes(data[: len(data) // 2]))
+    else:  # one byte of the last dataset's data (the checksum catches it; HDF5 does not)
+        data[-20] ^= 0xFF
+        path.write_bytes(bytes(data))
+    proc = decrun(*args, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    log = (run_dir / "decrun.log").read_text()
+    assert "not trusted: the run starts from step 0" in log, log
+    assert "resumed_from_step" not in json.loads((run_dir / "metrics.json").read_text())
+    assert_same_run(uninterrupted / app, run_dir)
+
+
+@pytest.mark.slow
+def test_a_checkpoint_of_another_config_is_not_used(tmp_path, uninterrupted):
+    run_dir = tmp_path / "run"
+    kill_after_checkpoint([*CASES["fluid"], *FAST, "app.viscosity=0.02", f"hydra.run.dir={run_dir}"],
+                          run_dir / CHECKPOINT, tmp_path)
+    proc = decrun(*CASES["fluid"], *FAST, f"hydra.run.dir={run_dir}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "was written by another config" in (run_dir / "decrun.log").read_text()
+    assert_same_run(uninterrupted / "fluid", run_dir)
+
+
+@pytest.mark.parametrize("app", ["smoothing", SLOW_FLUID])
+def test_a_killed_sweep_resumed_ends_as_the_uninterrupted_run(tmp_path, uninterrupted, app):
+    sweep = tmp_path / "sweep"
+    args = ["-m", *CASES[app], *FAST, f"hydra.sweep.dir={sweep}"]
+    kill_after_checkpoint(args, sweep / "0" / CHECKPOINT, tmp_path)
+    proc = decrun(*args, "hydra.sweeper.resume=true", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((sweep / "0" / "metrics.json").read_text())["resumed_from_step"] > 0
+    assert_same_run(uninterrupted / app, sweep / "0")
+
+
+@pytest.mark.parametrize("bad, message, fix", [
+    ("checkpoint.steps=0", "checkpoint.steps: must be >= 1 or null, got 0; e.g. checkpoint.steps=null",
+     "checkpoint.steps=null"),
+    ("checkpoint.seconds=-1", "checkpoint.seconds: must be >= 0 or null, got -1.0; e.g. checkpoint.seconds=60",
+     "checkpoint.seconds=60"),
+])
+def test_a_bad_checkpoint_setting_is_refused_before_any_work_and_its_hint_runs(tmp_path, bad, message, fix):
+    proc = decrun("app.steps=1", *FAST, bad, f"hydra.run.dir={tmp_path / 'bad'}", cwd=tmp_path)
+    assert proc.returncode == 1 and message in proc.stderr, proc.stderr
+    assert not (tmp_path / "bad" / "result.h5").exists()
+    proc = decrun("app.steps=1", *FAST, fix, f"hydra.run.dir={tmp_path / 'fixed'}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr

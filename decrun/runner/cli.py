@@ -31,6 +31,7 @@ from omegaconf import DictConfig, OmegaConf
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
+from decrun.runner.files import SweepFiles
 from decrun.runner.failures import (
     config_error_message,
     exit_code,
@@ -164,8 +165,9 @@ class SweepTable(Callback):
         print(to_markdown(shown), end="")
         hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
         if hidden:
-            print(f"decrun: {hidden} more columns in metrics.md (`decrun-table --all {sweep_dir}`)")
-        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok) → {sweep_dir}/metrics.csv, metrics.md")
+            print(f"decrun: {hidden} more columns in {SweepFiles.TABLE_MD} (`decrun-table --all {sweep_dir}`)")
+        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok) → {SweepFiles(sweep_dir).table_csv}, "
+              f"{SweepFiles.TABLE_MD}")
         for row in bad.itertuples(index=False):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
 

@@ -45,13 +45,12 @@ from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, j
                                           read_manifest, write_manifest)
 from decrun.runner.sweep.planning import Composer, PlannedConfigs, subdir_of
 from decrun.runner.sweep.stops import mark_killed, resume_command, take_stock, worker_died
+from decrun.runner.files import RunFiles, SweepFiles
 
 log = logging.getLogger("decrun")
 
 __all__ = ["ManifestSweeper", "DecrunSweeperConf", "SweepError"]
 
-#: what a job directory may hold that a resumed job must not inherit
-_JOB_OUTPUTS = ("metrics.json", "result.h5", "result.h5.partial", "result.h5.stale")
 
 
 class SweepError(ConfigError, CompactHydraException):
@@ -215,7 +214,7 @@ class ManifestSweeper:
                 warming.join()
         lock_sweep(sweep_dir, SweepError)  # before the manifest is read: one sweeping process per directory
         manifest, todo = self._start(sweep_dir, jobs, arguments)
-        write_text_atomic(sweep_dir / "multirun.yaml", OmegaConf.to_yaml(self.config))
+        write_text_atomic(SweepFiles(sweep_dir).multirun, OmegaConf.to_yaml(self.config))
         write_manifest(sweep_dir, manifest)
         if self.resume and len(todo) < len(jobs):
             print("decrun: resume: {} of {} jobs are ok; running {}".format(
@@ -371,10 +370,10 @@ def _clear(job_dir: Path) -> None:
     """Remove a job's outputs before it is rerun (its log and .hydra/ are rewritten)."""
     if not job_dir.is_dir():
         return
-    for name in _JOB_OUTPUTS:
+    for name in RunFiles.JOB_OUTPUTS:
         (job_dir / name).unlink(missing_ok=True)
-    for leftover in job_dir.glob(".result.h5*"):
+    for leftover in job_dir.glob(RunFiles.RESULT_TEMPORARIES):
         leftover.unlink(missing_ok=True)
-    for figure in job_dir.glob("*.png"):
+    for figure in job_dir.glob(RunFiles.FIGURES):
         figure.unlink()
-    shutil.rmtree(job_dir / ".hydra", ignore_errors=True)
+    shutil.rmtree(job_dir / RunFiles.HYDRA, ignore_errors=True)

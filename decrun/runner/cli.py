@@ -82,9 +82,9 @@ _CHECKED: dict = {}
 
 
 def _check_job(cfg: DictConfig, delta=None) -> None:
-    """The sweeper's check of each planned job: :func:`decrun.runner.run.validate`, each
+    """The sweeper's check of each planned job: :func:`decrun.runner.experiment.validate`, each
     distinct plugin node built once per process, a derived job's changed leaves only."""
-    from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
+    from decrun.runner.experiment import validate  # lazy: the numerical stack (start-up speed)
 
     validate(cfg, memo=_CHECKED, delta=delta)
 
@@ -333,7 +333,7 @@ def typo_message(exc: Exception) -> str | None:
         elif "." not in bare:
             overrides.append(f"{name}={value.split(',')[0]}")
     from decrun.runner.config import compose_config
-    from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
+    from decrun.runner.experiment import validate  # lazy: the numerical stack (start-up speed)
 
     try:
         validate(compose_config(overrides))

@@ -31,7 +31,7 @@ class PluginGroup:
     ``conf/<key>/<option>.yaml`` (:meth:`conf_dir`), each option's node ``cfg.<key>``; ``base``: the dotted name of the class
     whose dataclass subclass every option names with ``_target_: <module>.<Class>``
     (:func:`decrun.runner.plugins.build` checks it); ``attribute``: where
-    :class:`decrun.runner.run.Experiment` keeps the built plugin; ``builtins``: the module
+    :class:`decrun.runner.experiment.Experiment` keeps the built plugin; ``builtins``: the module
     prefixes of decrun's own options (a plugin outside decrun names its own module)."""
 
     key: str
@@ -53,7 +53,7 @@ class PluginGroup:
         return getattr(importlib.import_module(module_name), class_name)
 
 
-#: the plugin groups, in the order :class:`decrun.runner.run.Experiment` builds them (the
+#: the plugin groups, in the order :class:`decrun.runner.experiment.Experiment` builds them (the
 #: first refused node is the one reported)
 GROUPS = (
     PluginGroup("app", "decrun.apps.base.App", "app", ("decrun.apps.",)),

@@ -183,8 +183,8 @@ def test_the_proposed_overrides_fix_it(tmp_path):
     result, _, _ = run_in_process([*VF, "app.vortices=[{point:[0,0,1.5]}]", f"app.point_tolerance={tolerance}"], tmp_path)
     assert result.metrics["vortices"] == 1
     (tmp_path / "big.obj").write_text(tetrahedron_obj(1e100))
-    result, mesh, _ = run_in_process(["mesh=file", "mesh.path=big.obj", "mesh.normalize=true", "app.rescale=none"],
-                                     tmp_path)
+    done = run_in_process(["mesh=file", "mesh.path=big.obj", "mesh.normalize=true", "app.rescale=none"], tmp_path)
+    result, mesh = done.result, done.mesh
     # no overflow (no step blew up); unrescaled, the 4-vertex tetrahedron flows flat, which the
     # degeneration check reports (stable: false, unstable_reason: degenerate: ...)
     assert result.metrics["diverged_at_step"] == -1 and np.isclose(np.linalg.norm(np.ptp(mesh.vertices, axis=0)), 1.0)

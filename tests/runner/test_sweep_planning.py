@@ -108,7 +108,7 @@ def test_a_derived_job_is_checked_as_a_full_build_is_with_one_build_per_plugin(h
     import copy
 
     import decrun.runner.plugins as plugins
-    import decrun.runner.run as run_module
+    import decrun.runner.experiment as run_module
     from decrun.errors import ConfigError
     from decrun.runner.run import validate
     from decrun.runner.sweep.checks import JobDelta

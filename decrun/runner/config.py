@@ -8,6 +8,7 @@ composes YAML only; the runner type-checks each node against its class before an
 
 from __future__ import annotations
 
+import functools
 import secrets
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -46,11 +47,17 @@ class PluginGroup:
         return config_dir() / self.key
 
     def base_class(self) -> type:
-        """The class :attr:`base` names (imported on call: composing a config imports no numerical code)."""
-        import importlib
+        """The class :attr:`base` names (imported on the first call: composing a config imports
+        no numerical code; then kept, as every job of a sweep asks for it)."""
+        return _import(self.base)
 
-        module_name, _, class_name = self.base.rpartition(".")
-        return getattr(importlib.import_module(module_name), class_name)
+
+@functools.lru_cache(maxsize=None)
+def _import(dotted: str) -> type:
+    import importlib
+
+    module_name, _, class_name = dotted.rpartition(".")
+    return getattr(importlib.import_module(module_name), class_name)
 
 
 #: the plugin groups, in the order :class:`decrun.runner.experiment.Experiment` builds them (the

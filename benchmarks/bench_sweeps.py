@@ -153,8 +153,9 @@ def profile() -> None:
     timed(hydra_utils, "_save_config", "  hydra: .hydra/*.yaml")
     timed(hydra_config.HydraConfig, "set_config", "  hydra: HydraConfig.set_config")
     timed(run, "run", "  decrun job (run)")
-    timed(run, "run_experiment", "    run_experiment")
-    timed(run, "write_run", "    write_run")
+    timed(run, "prepare", "    prepare (plugins, mesh, complex, checks)")
+    timed(run, "execute", "    execute (the app)")
+    timed(run, "write", "    write (result.h5, metrics.json, figures)")
     timed(sweeper.ManifestSweeper, "plan", "sweeper: plan (compose + check every job)")
     timed(planning_module.Composer, "_start", "  compose each group's template (Hydra)")
     with tempfile.TemporaryDirectory() as tmp:

@@ -112,12 +112,13 @@ def run_entry(experiment: str | None, overrides: list[str], figure: str, scratch
     """One single run (of ``+experiment=<experiment>`` unless None); copies ``<figure>.png``
     to ``target``; returns the metrics."""
     from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment, write_run
+    from decrun.runner.run import run_experiment, write
 
     cfg = compose_config(([f"+experiment={experiment}"] if experiment else []) + list(overrides))
     out = Path(tempfile.mkdtemp(dir=scratch))
-    result, mesh, timings = run_experiment(cfg, out=out)
-    write_run(out, cfg, result, mesh, timings)
+    done = run_experiment(cfg, out=out)
+    write(done)
+    result = done.result
     shutil.copyfile(out / f"{figure}.png", target)
     return result.metrics
 

@@ -39,6 +39,9 @@ import another application. They declare what they accept:
                     ones); any other is a TopologyError before any work, naming the apps that do
 ``check(K, dec)``   further checks on the mesh before any work (topology)
 
+The runner runs these checks through :meth:`App.validate` (dimension, operators, solver,
+``check``; once each, in that order).
+
 Numerical blow-up is a result (``stable: false``), never an exception; bad input is a typed
 :class:`decrun.errors.DecrunError` naming the key. A metric that does not apply is absent,
 never ``false``. Figures are :class:`Figure` descriptions — which drawing function of the
@@ -124,6 +127,25 @@ class App:
     #: the override a refused operator variant's message names: one that runs this app on
     #: every mesh it accepts (hodge: whitney, whose ⋆1 is SPD where the diagonal ⋆1 is zero)
     operator_hint: ClassVar[str] = "`operator=mixed_area` (or `operator=circumcentric`)"
+
+    def validate(self, K, solver, operators: Callable[[], Any]) -> Any:
+        """Every check of this app against the run's mesh, operators and solver, before any
+        work, each once and in this order; returns the operators. The runner calls it once
+        per run (:func:`decrun.runner.run.prepare`); apps override the checks below, not this.
+
+        1. :meth:`check_dimension` on ``K``, before the operators are built (``operators()``,
+           the ``DEC``): a Hodge-star variant may not exist in another dimension either, and
+           this message names the apps that run on the mesh;
+        2. :meth:`check_operators`, the boundary adaptation and the Hodge-star variant;
+        3. :meth:`check_solver` with the operators (what the config alone says of the solver
+           was checked when the config was: ``check_solver(solver)`` before any mesh);
+        4. :meth:`check`, the app's own checks of the mesh."""
+        self.check_dimension(K)
+        dec = operators()
+        self.check_operators(dec)
+        self.check_solver(solver, dec)
+        self.check(K, dec)
+        return dec
 
     def check_dimension(self, K) -> None:
         """TopologyError when ``K``'s dimension is not in ``dimensions`` (before any work), naming

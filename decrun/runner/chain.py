@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from decrun.errors import ConfigError, CorruptFileError
+from decrun.runner.files import RunFiles
 from decrun.runner.mesh import Mesh, MeshSource, require
 from decrun.runner.results import read_result
 
@@ -51,7 +52,7 @@ class ResultMesh(MeshSource):
     def make(self) -> Mesh:
         path = Path(str(self.path)).expanduser()
         if path.is_dir():
-            path = path / "result.h5"
+            path = RunFiles(path).result
         try:
             stored = read_result(path)
         except FileNotFoundError:

@@ -31,6 +31,7 @@ from omegaconf import DictConfig, OmegaConf
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
+from decrun.runner.files import SweepFiles
 from decrun.runner.failures import (
     config_error_message,
     exit_code,
@@ -81,9 +82,9 @@ _CHECKED: dict = {}
 
 
 def _check_job(cfg: DictConfig, delta=None) -> None:
-    """The sweeper's check of each planned job: :func:`decrun.runner.run.validate`, each
+    """The sweeper's check of each planned job: :func:`decrun.runner.experiment.validate`, each
     distinct plugin node built once per process, a derived job's changed leaves only."""
-    from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
+    from decrun.runner.experiment import validate  # lazy: the numerical stack (start-up speed)
 
     validate(cfg, memo=_CHECKED, delta=delta)
 
@@ -164,8 +165,9 @@ class SweepTable(Callback):
         print(to_markdown(shown), end="")
         hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
         if hidden:
-            print(f"decrun: {hidden} more columns in metrics.md (`decrun-table --all {sweep_dir}`)")
-        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok) → {sweep_dir}/metrics.csv, metrics.md")
+            print(f"decrun: {hidden} more columns in {SweepFiles.TABLE_MD} (`decrun-table --all {sweep_dir}`)")
+        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok) → {SweepFiles(sweep_dir).table_csv}, "
+              f"{SweepFiles.TABLE_MD}")
         for row in bad.itertuples(index=False):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
 
@@ -331,7 +333,7 @@ def typo_message(exc: Exception) -> str | None:
         elif "." not in bare:
             overrides.append(f"{name}={value.split(',')[0]}")
     from decrun.runner.config import compose_config
-    from decrun.runner.run import validate  # lazy: the numerical stack (start-up speed)
+    from decrun.runner.experiment import validate  # lazy: the numerical stack (start-up speed)
 
     try:
         validate(compose_config(overrides))

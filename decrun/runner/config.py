@@ -8,6 +8,7 @@ composes YAML only; the runner type-checks each node against its class before an
 
 from __future__ import annotations
 
+import functools
 import secrets
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -19,11 +20,62 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 
-__all__ = ["DecrunConfig", "OptimizeConfig", "Direction", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option",
+__all__ = ["DecrunConfig", "OptimizeConfig", "Direction", "PluginGroup", "GROUPS", "GROUP", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option",
            "compose_config", "unique_stamp"]
 
-#: config groups whose node is a plugin (built with ``_target_``)
-PLUGIN_GROUPS = ("mesh", "operator", "boundary", "app", "solver", "export")
+@dataclass(frozen=True)
+class PluginGroup:
+    """One config group whose node is a plugin (issue 27.7: the groups are listed once, in
+    :data:`GROUPS`).
+
+    ``key``: the config key (``cfg.<key>``, ``decrun <key>=<option>``), its options are
+    ``conf/<key>/<option>.yaml`` (:meth:`conf_dir`), each option's node ``cfg.<key>``; ``base``: the dotted name of the class
+    whose dataclass subclass every option names with ``_target_: <module>.<Class>``
+    (:func:`decrun.runner.plugins.build` checks it); ``attribute``: where
+    :class:`decrun.runner.experiment.Experiment` keeps the built plugin; ``builtins``: the module
+    prefixes of decrun's own options (a plugin outside decrun names its own module)."""
+
+    key: str
+    base: str
+    attribute: str
+    builtins: tuple[str, ...]
+    #: a config without this node is accepted (the plugin is then None)
+    optional: bool = False
+
+    def conf_dir(self) -> Path:
+        """``conf/<key>/``: the group's option files."""
+        return config_dir() / self.key
+
+    def base_class(self) -> type:
+        """The class :attr:`base` names (imported on the first call: composing a config imports
+        no numerical code; then kept, as every job of a sweep asks for it)."""
+        return _import(self.base)
+
+
+@functools.lru_cache(maxsize=None)
+def _import(dotted: str) -> type:
+    import importlib
+
+    module_name, _, class_name = dotted.rpartition(".")
+    return getattr(importlib.import_module(module_name), class_name)
+
+
+#: the plugin groups, in the order :class:`decrun.runner.experiment.Experiment` builds them (the
+#: first refused node is the one reported)
+GROUPS = (
+    PluginGroup("app", "decrun.apps.base.App", "app", ("decrun.apps.",)),
+    PluginGroup("operator", "decrun.core.stars.HodgeStar", "operator", ("decrun.core.stars.",)),
+    PluginGroup("boundary", "decrun.core.boundary.BoundaryAdaptation", "boundary", ("decrun.core.boundary.",)),
+    PluginGroup("solver", "decrun.core.solvers.Solver", "solver", ("decrun.core.solvers.",)),
+    PluginGroup("mesh", "decrun.runner.mesh.MeshSource", "mesh_source", ("decrun.runner.mesh.sources.",
+                                                                          "decrun.runner.chain.")),
+    PluginGroup("export", "decrun.runner.results.export.Export", "export", ("decrun.runner.results.export.",),
+                optional=True),
+)
+#: the same by key
+GROUP = {group.key: group for group in GROUPS}
+#: the keys of :data:`GROUPS`
+PLUGIN_GROUPS = tuple(GROUP)
 
 
 class Direction(Choice):

@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from decrun.errors import DecrunError
+from decrun.runner.files import RunFiles
 from decrun.runner.paths import NEW_OUTPUT
 
 __all__ = ["stop", "Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message",
@@ -127,10 +128,10 @@ def record_status(out: Path, status: str, error: str, extra: dict | None = None)
     if not Path(out).is_dir():
         return ""
     try:
-        write_metrics_json(Path(out) / "metrics.json", {"status": status, "error": error, **(extra or {})})
+        write_metrics_json(RunFiles(out).metrics, {"status": status, "error": error, **(extra or {})})
     except OSError as exc:
         cause = os.strerror(exc.errno) if exc.errno else str(exc)
-        return "" if cause in error else f" (metrics.json could not be written either: {cause})"
+        return "" if cause in error else f" ({RunFiles.METRICS} could not be written either: {cause})"
     return ""
 
 
@@ -150,15 +151,14 @@ def set_aside_stale(out: Path, before: tuple[int, int, int, int] | None) -> str:
     (``before``: its :func:`file_identity` then), i.e. an earlier run's result. Returns the
     note for the message ("" when there was none; a result this run wrote, marked failed,
     stays)."""
-    path = Path(out) / "result.h5"
+    path, stale = RunFiles(out).result, RunFiles(out).stale
     if before is None or file_identity(path) != before:
         return ""
-    stale = path.with_name("result.h5.stale")
     try:
         os.replace(path, stale)
     except OSError as exc:
         return f" (the earlier run's {path} could not be renamed {stale.name}: {os.strerror(exc.errno or 0)})"
-    return f" (the earlier run's result.h5 is now {stale})"
+    return f" (the earlier run's {path.name} is now {stale})"
 
 
 _NATIVE_OUT_OF_MEMORY = ("out of memory", "bad_alloc", "cannot allocate", "unable to allocate", "failed to allocate")

@@ -31,11 +31,12 @@ from pathlib import Path
 from typing import Iterator
 
 from decrun.errors import DecrunError
+from decrun.runner.files import RunFiles
 from decrun.runner.paths import OutsideError
 
 __all__ = ["LOCK_NAME", "LockedError", "acquire", "release", "locked", "holds"]
 
-LOCK_NAME = ".decrun.lock"
+LOCK_NAME = RunFiles.LOCK
 #: what a holder does, as the refusal names it
 DOING = {"run": "a run recording there", "sweep": "a sweep running there"}
 

@@ -37,7 +37,7 @@ from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationE
 
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import ConfigError
-from decrun.runner.config import load_option
+from decrun.runner.config import GROUP, load_option
 
 __all__ = ["target_class", "build", "plain_values", "Rebuilt"]
 
@@ -190,24 +190,11 @@ class Rebuilt:
         return self.plugin
 
 
-#: the base class of each plugin group (imported lazily by :func:`option`)
-GROUP_BASES = {
-    "mesh": "decrun.runner.mesh.MeshSource",
-    "operator": "decrun.core.stars.HodgeStar",
-    "boundary": "decrun.core.boundary.BoundaryAdaptation",
-    "solver": "decrun.core.solvers.Solver",
-    "app": "decrun.apps.base.App",
-    "export": "decrun.runner.results.export.Export",
-}
-
-
 def option(group: str, name: str, **overrides) -> Any:
     """The plugin ``conf/<group>/<name>.yaml`` with ``overrides`` applied, built — e.g.
     ``option("mesh", "torus", noise=0.1).load()`` or ``option("solver", "cg", tol=1e-8)``.
     For notebooks and tests: the same defaults and checks as ``decrun <group>=<name>``."""
-    if group not in GROUP_BASES:
-        raise ConfigError(f"{group}: not a plugin group; choose one of {sorted(GROUP_BASES)}")
-    module_name, _, class_name = GROUP_BASES[group].rpartition(".")
-    base = getattr(importlib.import_module(module_name), class_name)
+    if group not in GROUP:
+        raise ConfigError(f"{group}: not a plugin group; choose one of {sorted(GROUP)}")
     node = OmegaConf.merge(load_option(group, name), overrides)
-    return build(node, group, base)
+    return build(node, group, GROUP[group].base_class())

@@ -22,6 +22,8 @@ from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Iterator
 
+from decrun.runner.files import RunFiles
+
 __all__ = ["terminal", "make_progress", "Progress", "SweepProgress", "sweep_size"]
 
 
@@ -112,7 +114,7 @@ class SweepProgress:
         ``hydra.sweep.subdir`` pattern)."""
         if not self.sweep_dir.is_dir():
             return 0
-        return sum(1 for _ in self.sweep_dir.glob("**/metrics.json"))
+        return sum(1 for _ in self.sweep_dir.glob("**/" + RunFiles.METRICS))
 
     def start(self) -> "SweepProgress":
         if not self.enabled:

@@ -80,7 +80,7 @@ def test_regression_case(overrides, expect):
         with pytest.raises(DecrunError, match=expect["__error__"]):
             run_experiment(cfg)
         return
-    result, _, _ = run_experiment(cfg)
+    result = run_experiment(cfg).result
     problems = check(result.metrics, expect)
     assert not problems, f"decrun {' '.join(overrides)}:\n  " + "\n  ".join(problems)
 

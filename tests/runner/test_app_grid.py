@@ -38,10 +38,10 @@ def test_every_app_runs_with_every_solver_or_refuses_before_work(app, solver, mo
         # the hints work: the suggested overrides run
         fix = "app.border=circle" if app == "parametrization" else "operator.lumped=true"
         for hint in (["solver=iterative"], ["solver=direct"], [f"solver={solver}", fix]):
-            result, _, _ = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app], *hint]))
+            result = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app], *hint])).result
             assert result.metrics["status"] == "ok"
         return
-    result, _, _ = run_experiment(cfg)
+    result = run_experiment(cfg).result
     assert result.metrics["status"] == "ok"
 
 
@@ -56,8 +56,8 @@ def test_spd_solvers_give_the_direct_answer(solver):
                                ("vector_field", [], "smoothness_energy")):
         values = []
         for name in ("direct", solver):
-            result, _, _ = run_experiment(compose_config([f"app={app}", f"solver={name}", "figures=false",
-                                                          *APP_MESH[app], *extra]))
+            result = run_experiment(compose_config([f"app={app}", f"solver={name}", "figures=false",
+                                                    *APP_MESH[app], *extra])).result
             values.append(result.metrics[metric])
         assert values[1] == pytest.approx(values[0], rel=1e-6, abs=1e-9), app
 
@@ -68,7 +68,7 @@ def test_hodge_with_indefinite_star1_refuses_cg_and_names_whitney():
     overrides = ["app=hodge", "mesh=grid", "mesh.nx=8", "mesh.ny=8", "figures=false"]
     with pytest.raises(ConfigError, match="use `operator=whitney` with `operator.lumped=true`"):
         run_experiment(compose_config([*overrides, "operator=circumcentric", "solver=cg"]))
-    result, _, _ = run_experiment(compose_config([*overrides, "operator=whitney", "operator.lumped=true", "solver=cg"]))
+    result = run_experiment(compose_config([*overrides, "operator=whitney", "operator.lumped=true", "solver=cg"])).result
     assert result.metrics["harmonic_dimension"] == result.metrics["betti_1"] == 0
 
 

@@ -180,11 +180,11 @@ def test_the_proposed_overrides_fix_it(tmp_path):
     with pytest.raises(DecrunError) as info:
         run_in_process([*VF, "app.vortices=[{point:[0,0,1.5]}]"], tmp_path)
     tolerance = hint(str(info.value), "app.point_tolerance")
-    result, _, _ = run_in_process([*VF, "app.vortices=[{point:[0,0,1.5]}]", f"app.point_tolerance={tolerance}"], tmp_path)
+    result = run_in_process([*VF, "app.vortices=[{point:[0,0,1.5]}]", f"app.point_tolerance={tolerance}"], tmp_path).result
     assert result.metrics["vortices"] == 1
     (tmp_path / "big.obj").write_text(tetrahedron_obj(1e100))
-    result, mesh, _ = run_in_process(["mesh=file", "mesh.path=big.obj", "mesh.normalize=true", "app.rescale=none"],
-                                     tmp_path)
+    done = run_in_process(["mesh=file", "mesh.path=big.obj", "mesh.normalize=true", "app.rescale=none"], tmp_path)
+    result, mesh = done.result, done.mesh
     # no overflow (no step blew up); unrescaled, the 4-vertex tetrahedron flows flat, which the
     # degeneration check reports (stable: false, unstable_reason: degenerate: ...)
     assert result.metrics["diverged_at_step"] == -1 and np.isclose(np.linalg.norm(np.ptp(mesh.vertices, axis=0)), 1.0)
@@ -215,7 +215,7 @@ def test_smoothing_a_regular_octahedron_has_the_exact_critical_step(tmp_path):
     λ_max(⋆0⁻¹S) = 3 and dt_crit = 2/3."""
     (tmp_path / "octa.obj").write_text(OCTAHEDRON)
     for operator in ("mixed_area", "whitney"):
-        result, _, _ = run_in_process(["mesh=file", "mesh.path=octa.obj", f"operator={operator}"], tmp_path)
+        result = run_in_process(["mesh=file", "mesh.path=octa.obj", f"operator={operator}"], tmp_path).result
         assert result.metrics["stable"]
         if operator == "mixed_area":
             assert abs(result.metrics["dt_critical_explicit"] - 2 / 3) < 1e-12

@@ -82,7 +82,7 @@ def test_an_apps_closed_option_names_its_choices_and_the_fix_runs(base, wrong, c
     with pytest.raises(ConfigError) as info:
         run_experiment(compose_config([*base, wrong, "figures=false"]))
     assert str(info.value) == f"{key}: must be one of {choices}, got '{value}' (e.g. {fix})"
-    result, _, _ = run_experiment(compose_config([*base, fix, "figures=false"]))
+    result = run_experiment(compose_config([*base, fix, "figures=false"])).result
     assert result.metrics["status"] == "ok"
 
 

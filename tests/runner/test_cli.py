@@ -175,16 +175,19 @@ def test_every_plugin_yaml_names_a_class_of_its_kind():
     import dataclasses
 
 
-    from decrun.runner.config import PLUGIN_GROUPS
-    from decrun.runner.plugins import GROUP_BASES, option, target_class
+    from decrun.runner.config import GROUPS
+    from decrun.runner.plugins import option, target_class
 
-    for group in PLUGIN_GROUPS:
-        files = sorted(p for p in (config_dir() / group).glob("*.yaml") if not p.stem.startswith("_"))
+    assert {path.name for path in config_dir().iterdir() if path.is_dir()} - {"hydra", "experiment"} \
+        == {group.key for group in GROUPS}  # the table lists every group directory of conf/
+    for group_row in GROUPS:
+        group = group_row.key
+        files = sorted(p for p in group_row.conf_dir().glob("*.yaml") if not p.stem.startswith("_"))
         assert files, group
         for path in files:
             node = compose_config([f"{group}={path.stem}"])[group]
-            module, _, name = GROUP_BASES[group].rpartition(".")
-            cls = target_class(node, group, getattr(__import__(module, fromlist=[name]), name))
+            assert str(node._target_).startswith(group_row.builtins), (path, node._target_)
+            cls = target_class(node, group, group_row.base_class())
             fields = {f.name for f in dataclasses.fields(cls)}
             # every option is in the composed node (overridable as group.key=value), nothing else is
             assert set(node) - {"_target_"} == fields, (path, set(node) ^ fields)

@@ -22,7 +22,7 @@ def options(group: str) -> list[str]:
 
 
 def run(overrides: list[str]):
-    result, _, _ = run_experiment(compose_config(overrides))
+    result = run_experiment(compose_config(overrides)).result
     assert result.metrics, f"{overrides}: no metrics"
     return result
 
@@ -47,10 +47,9 @@ def test_every_mesh_option_runs_with_the_default_app(mesh, tmp_path):
     """The default smoothing on every mesh source (open ones too): stable is guaranteed by
     construction with ⋆0 > 0, so what is checked is that the flow smoothed something."""
     if mesh == "result":  # a previous run's mesh: make one first
-        from decrun.runner.run import write_run
+        from decrun.runner.run import write
 
-        cfg = compose_config(["app.steps=1", "figures=false"])
-        write_run(tmp_path, cfg, *run_experiment(cfg))
+        write(run_experiment(compose_config(["app.steps=1", "figures=false"])), tmp_path)
         MESH_OVERRIDES["result"] = [f"mesh.path={tmp_path / 'result.h5'}", "mesh.vertices=mesh"]
     result = run([f"mesh={mesh}", *MESH_OVERRIDES.get(mesh, [])])
     assert result.metrics["stable"] is True and 0 < result.metrics["roughness_ratio"] < 1

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment, write_run
+from decrun.runner.run import run_experiment, write
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -111,16 +111,15 @@ def test_single_run_example_runs(where, command, tmp_path, decrun_cli):
             run_experiment(compose_config(args))
         return
     if any("outputs/runs/<stamp>/result.h5" in a for a in args):  # a previous run's result
-        previous = compose_config(["app=hodge"])
-        result, mesh, timings = run_experiment(previous)
-        write_run(tmp_path, previous, result, mesh, timings)
+        write(run_experiment(compose_config(["app=hodge"])), tmp_path)
         args = [a.replace("outputs/runs/<stamp>/result.h5", str(tmp_path / "result.h5")) for a in args]
     assert "<" not in " ".join(args), f"{where}: unresolved placeholder in {command!r}"
     cfg = compose_config(args)
     out = tmp_path / "run"
     out.mkdir()
-    result, mesh, timings = run_experiment(cfg, out=out)
-    written = write_run(out, cfg, result, mesh, timings)  # the figures too
+    done = run_experiment(cfg, out=out)
+    written = write(done)  # the figures too
+    result = done.result
     assert result.metrics.get("status") == "ok", (where, command, result.metrics)
     assert (out / "result.h5").is_file() and any(p.suffix == ".png" for p in written)
 

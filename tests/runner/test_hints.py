@@ -63,11 +63,9 @@ def _two_pieces(tmp: Path) -> str:
 
 def _result_file(tmp: Path) -> str:
     """A finished run's result.h5 (a small spectrum run) for mesh=result."""
-    from decrun.runner.run import write_run
+    from decrun.runner.run import write
 
-    cfg = compose_config(["mesh.subdiv=1", "app=spectrum", "figures=false"])
-    result, mesh, timings = run_experiment(cfg)
-    write_run(tmp, cfg, result, mesh, timings)
+    write(run_experiment(compose_config(["mesh.subdiv=1", "app=spectrum", "figures=false"])), tmp)
     return str(tmp / "result.h5")
 
 
@@ -165,7 +163,7 @@ UNREACHABLE = {
 
 
 def run(overrides):
-    result, _, _ = run_experiment(compose_config(overrides))
+    result = run_experiment(compose_config(overrides)).result
     return result
 
 

@@ -205,10 +205,10 @@ def test_int_lists_are_accepted_where_floats_are_expected():
     ints = mesh(source="icosphere", subdiv=2, hole_balls=[[1, 0, 0, 1]])
     floats = mesh(source="icosphere", subdiv=2, hole_balls=[[1.0, 0.0, 0.0, 1.0]])
     np.testing.assert_array_equal(ints.vertices, floats.vertices)
-    result, _, _ = run_experiment(compose_config([
+    result = run_experiment(compose_config([
         "app=vector_field", "mesh.subdiv=2", "mesh.hole_balls=[[1,0,0,1]]", "mesh.hole_boxes=[[-2,-2,-2,2,2,-1]]",
         "app.sources=[{point: [0, 0, 1], divergence: 1}]", "app.region_normal=[0,0,1]",
-        "app.strokes=[{points: [[0,1,0],[0,0,1]]}]"]))
+        "app.strokes=[{points: [[0,1,0],[0,0,1]]}]"])).result
     assert result.metrics["status"] == "ok" and result.metrics["sources"] == 1
 
 

@@ -95,7 +95,9 @@ def test_a_directory_pattern_of_the_job_number_only_is_resolved_without_its_conf
 
 
 def _plugins(experiment) -> dict:
-    return {key: getattr(experiment, key) for key in ("app", "operator", "boundary", "solver", "mesh_source", "export")}
+    from decrun.runner.config import GROUPS
+
+    return {group.attribute: getattr(experiment, group.attribute) for group in GROUPS}
 
 
 def test_a_derived_job_is_checked_as_a_full_build_is_with_one_build_per_plugin(hydra_loader, monkeypatch):
@@ -106,7 +108,7 @@ def test_a_derived_job_is_checked_as_a_full_build_is_with_one_build_per_plugin(h
     import copy
 
     import decrun.runner.plugins as plugins
-    import decrun.runner.run as run_module
+    import decrun.runner.experiment as run_module
     from decrun.errors import ConfigError
     from decrun.runner.run import validate
     from decrun.runner.sweep.checks import JobDelta

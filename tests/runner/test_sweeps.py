@@ -90,7 +90,7 @@ def test_optuna_finds_the_critical_time_step_within_5_percent(tmp_path):
     best = yaml.safe_load((tmp_path / "search" / "optimization_results.yaml").read_text())
     found = best["best_params"]["app.dt"]
     assert best["best_value"] == found
-    exact, _, _ = run_experiment(compose_config(["+experiment=dt_crit_search", "app.critical_dt=true", "app.steps=1"]))
+    exact = run_experiment(compose_config(["+experiment=dt_crit_search", "app.critical_dt=true", "app.steps=1"])).result
     dt_crit = exact.metrics["dt_critical_explicit"]
     assert abs(found - dt_crit) <= 0.05 * dt_crit, (found, dt_crit)
     table = load_sweep(tmp_path / "search")

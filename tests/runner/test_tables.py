@@ -154,18 +154,19 @@ def test_jobs_of_one_process_share_mesh_complex_and_operators():
 
     job_cache.clear()
     common = ["mesh.subdiv=2", "app.steps=2", "figures=false"]
-    plain, _, _ = run_experiment(compose_config([*common, "app.dt=0.002"]))
+    plain = run_experiment(compose_config([*common, "app.dt=0.002"])).result
     hits = job_cache.stats["hits"]
-    first, mesh1, _ = run_experiment(compose_config([*common, "app.dt=0.002"]), cache=True)
-    second, mesh2, timings = run_experiment(compose_config([*common, "app.dt=0.004"]), cache=True)
+    run1 = run_experiment(compose_config([*common, "app.dt=0.002"]), cache=True)
+    run2 = run_experiment(compose_config([*common, "app.dt=0.004"]), cache=True)
+    first, second = run1.result, run2.result
     assert job_cache.stats["hits"] == hits + 2  # mesh and DEC of the second job
-    assert mesh1.complex is mesh2.complex and mesh1 is not mesh2 and timings["mesh_seconds"] == 0
-    assert mesh2.complex is not None
+    assert run1.complex is run2.complex and run1.dec is run2.dec and run1.mesh is not run2.mesh
+    assert run2.timings["mesh_seconds"] == 0 and run2.complex is not None
     # the critical step was solved once and kept by the shared DEC; results are unchanged
     assert second.metrics["dt_critical_explicit"] == first.metrics["dt_critical_explicit"]
     for key in ("area_ratio", "roughness_ratio", "dt_critical_explicit", "distance_to_clean_rms"):
         assert first.metrics[key] == plain.metrics[key]
-    other, _, _ = run_experiment(compose_config([*common, "app.dt=0.002", "mesh.seed=1"]), cache=True)
+    other = run_experiment(compose_config([*common, "app.dt=0.002", "mesh.seed=1"]), cache=True).result
     assert other.metrics["distance_to_clean_rms_initial"] != first.metrics["distance_to_clean_rms_initial"]
     job_cache.clear()
 
@@ -282,7 +283,7 @@ def test_no_override_shares_a_column_with_a_metric(app, tmp_path):
     from decrun.runner.run import run_experiment
     from decrun.runner.sweep.tables import metric_column, reserved_names
 
-    result, _, _ = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app]]))
+    result = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app]])).result
     metrics = {k: v for k, v in result.metrics.items() if isinstance(v, (bool, int, float, str))}
     overrides = [*ROOT_OVERRIDES, f"app={app}"]
     sweep = make_sweep(tmp_path / "s", {"0": metrics})

@@ -20,8 +20,8 @@ CAVITY = "mesh.cavities=[[0.4,0.4,0.4,0.6,0.6,0.6]]"
 
 
 def run(*overrides):
-    result, mesh, _ = run_experiment(compose_config(list(overrides)))
-    return result.metrics, mesh
+    done = run_experiment(compose_config(list(overrides)))
+    return done.result.metrics, done.mesh
 
 
 def test_spectrum_of_the_default_box_through_the_cli(decrun_cli, tmp_path):

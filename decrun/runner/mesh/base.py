@@ -53,9 +53,6 @@ class Mesh:
     vertices: np.ndarray
     simplices: np.ndarray
     meta: dict[str, Any] = field(default_factory=dict)
-    #: the SimplicialComplex built from it and the run's result recorder (set by the runner)
-    complex: Any = None
-    recorder: Any = None
 
     @property
     def faces(self) -> np.ndarray:

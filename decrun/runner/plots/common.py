@@ -244,7 +244,10 @@ def draw_figures(figures: dict, out_dir, K=None, series: dict | None = None) -> 
     import inspect
     from pathlib import Path
 
-    recorded = RecordedSeries(Path(out_dir) / "result.h5", series)
+    from decrun.runner.files import RunFiles
+
+    files = RunFiles(out_dir)
+    recorded = RecordedSeries(files.result, series)
     written = []
     for name, figure in figures.items():
         module_name, _, function_name = figure.draw.rpartition(".")
@@ -261,7 +264,7 @@ def draw_figures(figures: dict, out_dir, K=None, series: dict | None = None) -> 
         if isinstance(made, (str, Path)):
             written.append(Path(made))
         else:
-            path = Path(out_dir) / f"{name}.png"
+            path = files.figure(name)
             save_figure(made, path)
             written.append(path)
     return written

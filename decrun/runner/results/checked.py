@@ -27,6 +27,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from decrun.errors import CorruptFileError
+from decrun.runner.files import RunFiles
 
 __all__ = ["parse_json", "load_json", "load_yaml", "open_h5", "check_group", "check_dataset", "read_dataset", "file_record",
            "check_record", "MAX_DEFLATE_RATIO", "RESULT_RECORD"]
@@ -188,7 +189,7 @@ def check_record(path: str | os.PathLike, record: Any) -> None:
     path = Path(path)
     if not (isinstance(record, dict) and isinstance(record.get("bytes"), int)
             and isinstance(record.get("sha256"), str)):
-        raise CorruptFileError(f"{path.parent / 'metrics.json'}: result_h5 is not a record of the result "
+        raise CorruptFileError(f"{path.parent / RunFiles.METRICS}: result_h5 is not a record of the result "
                                f"(bytes and sha256), got {str(record)[:80]!r}")
     try:
         size = os.path.getsize(path)

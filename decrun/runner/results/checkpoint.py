@@ -32,11 +32,12 @@ import numpy as np
 
 from decrun.errors import CorruptFileError
 from decrun.runner.atomic import atomic_path
+from decrun.runner.files import RunFiles
 
 __all__ = ["CHECKPOINT", "RunCheckpoint", "write_checkpoint", "read_checkpoint"]
 
 #: the checkpoint's file name in the run directory
-CHECKPOINT = "checkpoint.h5"
+CHECKPOINT = RunFiles.CHECKPOINT
 FORMAT = "decrun-checkpoint-1"
 
 

@@ -35,6 +35,7 @@ from typing import ClassVar
 import numpy as np
 
 from decrun.errors import ConfigError
+from decrun.runner.files import RunFiles
 from decrun.runner.paths import check_file
 
 __all__ = ["Export", "NoExport", "Vtu", "Xdmf", "Ply", "Obj", "classify_fields"]
@@ -107,8 +108,9 @@ class Export:
 
     name: ClassVar[str] = ""
 
-    def write(self, out: Path, result, mesh) -> list[Path]:  # pragma: no cover - abstract
-        """Write the export files of ``result`` on ``mesh`` (its ``complex`` set) into ``out``."""
+    def write(self, files: RunFiles, result, mesh, K) -> list[Path]:  # pragma: no cover - abstract
+        """Write the export files of ``result`` on ``mesh`` (``K``: its simplicial complex)
+        into the run directory ``files.dir``, under the names of :class:`RunFiles`."""
         raise NotImplementedError
 
 
@@ -118,12 +120,11 @@ class NoExport(Export):
 
     name = "none"
 
-    def write(self, out: Path, result, mesh) -> list[Path]:
+    def write(self, files: RunFiles, result, mesh, K) -> list[Path]:
         return []
 
 
-def _layout(result, mesh):
-    K = mesh.complex
+def _layout(result, mesh, K):
     edges = K.simplices(1) if K is not None else None
     groups = classify_fields(result.fields, len(mesh.vertices), len(mesh.simplices),
                              len(edges) if edges is not None else None)
@@ -136,12 +137,12 @@ class Vtu(Export):
 
     name = "vtu"
 
-    def write(self, out: Path, result, mesh) -> list[Path]:
+    def write(self, files: RunFiles, result, mesh, K) -> list[Path]:
         import meshio
 
-        groups, edges = _layout(result, mesh)
+        groups, edges = _layout(result, mesh, K)
         cells, cell_data = _blocks(mesh.simplices, edges, groups["cell"], groups["edge"])
-        path = check_file(Path(out) / "result.vtu")
+        path = check_file(files.vtu)
         meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), cells, point_data=groups["point"],
                                             cell_data=cell_data, field_data=groups["other"]), binary=True)
         return [path]
@@ -153,15 +154,15 @@ class Xdmf(Export):
 
     name = "xdmf"
 
-    def write(self, out: Path, result, mesh) -> list[Path]:
+    def write(self, files: RunFiles, result, mesh, K) -> list[Path]:
         import meshio
 
         from decrun.runner.results.reading import read_result
 
-        h5 = Path(out) / "result.h5"
+        h5 = files.result
         series = read_result(h5).series if h5.exists() else dict(result.series)
         n0, n_top = len(mesh.vertices), len(mesh.simplices)
-        edges = mesh.complex.simplices(1) if mesh.complex is not None else None
+        edges = K.simplices(1) if K is not None else None
         n1 = len(edges) if edges is not None else -1
         steps = len(series.get("step", ()))
         point = {k: v for k, v in series.items() if v.ndim >= 2 and len(v) == steps and v.shape[1] == n0}
@@ -169,13 +170,13 @@ class Xdmf(Export):
                 and k not in point}
         edge = {k: v for k, v in series.items() if v.ndim == 2 and len(v) == steps and v.shape[1] == n1
                 and k not in point and k not in cell}
-        path = Path(out) / "series.xdmf"  # TimeSeriesWriter puts its data in series.h5 beside it
+        path = files.xdmf  # TimeSeriesWriter puts its data in series.h5 beside it
         if steps and (point or cell or edge):
             times = np.asarray(series["time"] if "time" in series else series["step"], dtype=np.float64)
             frames = [({k: _plain(v[i]) for k, v in point.items()}, {k: _plain(v[i]) for k, v in cell.items()},
                        {k: _plain(v[i]) for k, v in edge.items()}) for i in range(steps)]
         else:
-            groups, edges = _layout(result, mesh)
+            groups, edges = _layout(result, mesh, K)
             log.info("export=xdmf: the run recorded no series over the mesh; series.xdmf holds its fields as one "
                      "step at t = 0")
             times = np.zeros(1)
@@ -186,7 +187,7 @@ class Xdmf(Export):
         # meshio's TimeSeriesWriter cannot mix line cells with others (it writes them in place):
         # per-edge series (1-forms) go to a second time series on the edges
         for target, cells, pick in ((path, [(top, np.asarray(mesh.simplices, dtype=np.int64))], (0, 1)),
-                                    (path.with_name("series_edges.xdmf"), [("line", edges)], (2,))):
+                                    (files.xdmf_edges, [("line", edges)], (2,))):
             if pick == (2,) and not any(frame[2] for frame in frames):
                 continue
             check_file(target), check_file(target.with_suffix(".h5"))
@@ -212,11 +213,10 @@ def _working_directory(path: Path):
         os.chdir(previous)
 
 
-def _triangles(mesh) -> np.ndarray:
-    """The triangles to draw: the mesh's own, or the border surface of a tetrahedral mesh."""
+def _triangles(mesh, K) -> np.ndarray:
+    """The triangles to draw: the mesh's own, or the border surface of the tetrahedral mesh ``K``."""
     if mesh.simplices.shape[1] == 3:
         return np.asarray(mesh.simplices, dtype=np.int64)
-    K = mesh.complex
     index, sign = K.border_faces()
     faces = K.simplices(2)[index].copy()
     flip = sign < 0
@@ -243,9 +243,9 @@ class Ply(Export):
         if self.colormap not in colormaps:
             raise ConfigError(f"export.colormap: unknown colormap {self.colormap!r}; use `export.colormap=viridis`")
 
-    def values(self, result, mesh) -> tuple[str, np.ndarray]:
+    def values(self, result, mesh, K) -> tuple[str, np.ndarray]:
         """(name, (n0,) values) of the field that colours the vertices."""
-        groups, _ = _layout(result, mesh)
+        groups, _ = _layout(result, mesh, K)
         point = groups["point"]
         if self.field == "auto":
             scalar = [name for name, value in point.items() if value.ndim == 1]
@@ -265,19 +265,19 @@ class Ply(Export):
             value = value[:, int(column)]
         return self.field, value
 
-    def write(self, out: Path, result, mesh) -> list[Path]:
+    def write(self, files: RunFiles, result, mesh, K) -> list[Path]:
         import meshio
         from matplotlib import colormaps
         from matplotlib.colors import Normalize
 
-        name, value = self.values(result, mesh)
+        name, value = self.values(result, mesh, K)
         finite = value[np.isfinite(value)]
         lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
         rgba = colormaps[self.colormap](Normalize(lo, hi if hi > lo else lo + 1.0)(value))
         rgb = np.round(255 * rgba[:, :3]).astype(np.uint8)
         point_data = {"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2], name.replace(":", "_"): value}
-        path = check_file(Path(out) / "result.ply")
-        meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), [("triangle", _triangles(mesh))],
+        path = check_file(files.ply)
+        meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), [("triangle", _triangles(mesh, K))],
                                             point_data=point_data), binary=True)
         return [path]
 
@@ -289,7 +289,7 @@ class Obj(Export):
     name = "obj"
     uv: str = "uv"
 
-    def write(self, out: Path, result, mesh) -> list[Path]:
+    def write(self, files: RunFiles, result, mesh, K) -> list[Path]:
         if self.uv not in result.fields:
             raise ConfigError(f"export.uv: the run has no field {self.uv!r} (its fields: {sorted(result.fields)}): "
                               "texture coordinates come from app=parametrization; use `export=vtu`")
@@ -297,8 +297,8 @@ class Obj(Export):
         if uv.shape != (len(mesh.vertices), 2):
             raise ConfigError(f"export.uv: field {self.uv!r} has shape {uv.shape}, not (n_vertices, 2) = "
                               f"({len(mesh.vertices)}, 2)")
-        faces = _triangles(mesh) + 1
-        path = check_file(Path(out) / "result.obj")
+        faces = _triangles(mesh, K) + 1
+        path = check_file(files.obj)
         with open(path, "w") as f:
             f.write(f"# decrun: {len(mesh.vertices)} vertices with texture coordinates {self.uv!r}\n")
             np.savetxt(f, _points(mesh.vertices), fmt="v %.17g %.17g %.17g")

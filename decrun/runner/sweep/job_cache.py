@@ -12,8 +12,8 @@ by the sha256 of the resolved config nodes that determine them:
 The DEC computes its operators lazily and keeps them (:class:`decrun.core.cache.Cached`),
 so a later job on the same key also reuses every operator — and anything an app stores
 with ``dec.require`` (smoothing's critical time step, one eigen-solve). Cached objects are
-shared read-only: every job gets its own :class:`~decrun.runner.mesh.Mesh` record (the
-runner sets its recorder), the arrays are the same. At most :data:`SIZE` entries are kept
+shared read-only: every job gets its own :class:`~decrun.runner.mesh.Mesh` record (its
+``meta`` a copy), the arrays are the same. At most :data:`SIZE` entries are kept
 (least recently used dropped), so memory stays that of a couple of meshes.
 """
 
@@ -61,15 +61,30 @@ def _get(key: str, build: Callable[[], Any]) -> Any:
     return value
 
 
-def mesh_and_dec(cfg: DictConfig, load_mesh: Callable[[], Any], build_dec: Callable[[Any], tuple[Any, Any]]):
-    """``(mesh, complex, dec)`` for ``cfg``: ``load_mesh()`` and ``build_dec(mesh)`` →
-    ``(complex, dec)`` run only when no earlier job of this process had the same mesh /
-    operator / boundary config. The mesh record returned is the job's own copy."""
+class _Shared:
+    """A cached complex and its DEC, built on the first call of :meth:`dec` (after the app
+    checked the complex's dimension, :meth:`decrun.apps.base.App.validate`)."""
+
+    def __init__(self, complex_: Any, build_dec: Callable[[Any], Any]):
+        self.complex, self._build_dec, self._dec = complex_, build_dec, None
+
+    def dec(self) -> Any:
+        if self._dec is None:
+            self._dec = self._build_dec(self.complex)
+        return self._dec
+
+
+def mesh_and_dec(cfg: DictConfig, load_mesh: Callable[[], Any], build_complex: Callable[[Any], Any],
+                 build_dec: Callable[[Any], Any]) -> tuple[Any, Any, Callable[[], Any]]:
+    """``(mesh, complex, dec)`` for ``cfg``, ``dec`` a function returning the DEC:
+    ``load_mesh()``, ``build_complex(mesh)`` and ``build_dec(complex)`` run only when no
+    earlier job of this process had the same mesh / operator / boundary config (the DEC on
+    the first call of ``dec``). The mesh record returned is the job's own copy."""
     mesh_key = "mesh:" + node_key(cfg.mesh)
     mesh = _get(mesh_key, load_mesh)
-    complex_, dec = _get("dec:" + node_key(mesh_key, cfg.mesh.get("orient", "check"), cfg.operator, cfg.boundary),
-                         lambda: build_dec(mesh))
-    return replace(mesh, meta=dict(mesh.meta), complex=None, recorder=None), complex_, dec
+    shared = _get("dec:" + node_key(mesh_key, cfg.mesh.get("orient", "check"), cfg.operator, cfg.boundary),
+                  lambda: _Shared(build_complex(mesh), build_dec))
+    return replace(mesh, meta=dict(mesh.meta)), shared.complex, shared.dec
 
 
 def clear() -> None:

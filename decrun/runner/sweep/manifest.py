@@ -51,10 +51,11 @@ from decrun.runner.atomic import write_text_atomic
 from decrun.runner.results.checked import RESULT_RECORD, load_json
 from decrun.runner.results.journal import journal_path, read_journal
 from decrun.runner.results.reading import verify_result
+from decrun.runner.files import RunFiles, SweepFiles
 
 __all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "job_dir_name", "DONE"]
 
-MANIFEST = "manifest.json"
+MANIFEST = SweepFiles.MANIFEST
 FORMAT = "decrun-sweep-1"
 #: states a resumed sweep does not rerun
 DONE = ("ok",)
@@ -152,7 +153,7 @@ def _strings(value: Any) -> bool:
 def read_metrics(job_dir: Path) -> dict[str, Any] | None:
     """``metrics.json`` of a job, None when absent; one that cannot be read or is not a
     JSON object → a ``corrupt`` record naming the file."""
-    path = job_dir / "metrics.json"
+    path = RunFiles(job_dir).metrics
     if not path.is_file():
         return None
     try:
@@ -173,30 +174,30 @@ def job_state(job_dir: Path, expected_hash: str | None = None) -> dict[str, Any]
     docstring). ``expected_hash``: the manifest's hash for this job."""
     metrics = read_metrics(job_dir)
     if metrics is None:
-        journal = journal_path(job_dir / "result.h5")
+        journal = journal_path(RunFiles(job_dir).result)
         if journal.is_file():
             try:
                 steps = read_journal(journal, verify=False).n_records
             except OSError as exc:
-                return {"status": "killed", "error": f"{journal}: unreadable ({exc}); no metrics.json"}
+                return {"status": "killed", "error": f"{journal}: unreadable ({exc}); no {RunFiles.METRICS}"}
             except CorruptFileError as exc:
-                return {"status": "corrupt", "error": f"{exc}; no metrics.json"}
-            return {"status": "killed", "error": f"killed after {steps} recorded steps (result.h5.partial; "
-                                                 "no metrics.json)"}
+                return {"status": "corrupt", "error": f"{exc}; no {RunFiles.METRICS}"}
+            return {"status": "killed", "error": f"killed after {steps} recorded steps ({RunFiles.JOURNAL}; "
+                                                 f"no {RunFiles.METRICS})"}
         if not job_dir.is_dir():
             return {"status": "missing", "error": "never started"}
-        return {"status": "missing", "error": "no metrics.json (killed before its first step, or still running)"}
+        return {"status": "missing", "error": f"no {RunFiles.METRICS} (killed before its first step, or still running)"}
     metrics = dict(metrics)
     found = metrics.pop("config_hash", None)
     record = metrics.pop(RESULT_RECORD, None)
     if expected_hash is not None and found is not None and found != expected_hash:
-        return {"status": "stale", "error": f"metrics.json is from another config (hash {found}, "
+        return {"status": "stale", "error": f"{RunFiles.METRICS} is from another config (hash {found}, "
                                             f"the manifest plans {expected_hash})"}
     metrics.setdefault("status", "ok")
     metrics.setdefault("error", "")
     if metrics["status"] == "ok":
         try:
-            verify_result(job_dir / "result.h5", record)
+            verify_result(RunFiles(job_dir).result, record)
         except CorruptFileError as exc:
             metrics.update(status="corrupt", error=str(exc))
     return metrics

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from decrun.runner.sweep.manifest import job_dir_name, job_state
+from decrun.runner.files import RunFiles
 
 __all__ = ["Stock", "take_stock", "worker_died", "mark_killed", "resume_command", "job_list"]
 
@@ -94,7 +95,7 @@ def mark_killed(stock: Stock, cause: str) -> None:
         if state["status"] in ENDED:
             continue
         detail = (state["error"].split(" (")[0] if state["status"] == "killed" else "killed before its first step")
-        write_metrics_json(where / "metrics.json", {"status": "killed",
+        write_metrics_json(RunFiles(where).metrics, {"status": "killed",
                                                     "error": f"{detail}: its worker process died ({cause})",
                                                     "config_hash": job["config_hash"]})
 

@@ -39,20 +39,18 @@ from decrun.errors import ConfigError, CorruptFileError, DecrunError
 from decrun.runner.atomic import write_text_atomic
 from decrun.runner.locks import LOCK_NAME
 from decrun.runner.paths import hydra_files
-from decrun.runner.results.checkpoint import CHECKPOINT
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
 from decrun.runner.sweep.planning import Composer, PlannedConfigs, subdir_of
 from decrun.runner.sweep.stops import mark_killed, resume_command, take_stock, worker_died
+from decrun.runner.files import RunFiles, SweepFiles
 
 log = logging.getLogger("decrun")
 
 __all__ = ["ManifestSweeper", "DecrunSweeperConf", "SweepError"]
 
-#: what a job directory may hold that a resumed job must not inherit
-_JOB_OUTPUTS = ("metrics.json", "result.h5", "result.h5.partial", "result.h5.stale")
 
 
 class SweepError(ConfigError, CompactHydraException):
@@ -216,7 +214,7 @@ class ManifestSweeper:
                 warming.join()
         lock_sweep(sweep_dir, SweepError)  # before the manifest is read: one sweeping process per directory
         manifest, todo = self._start(sweep_dir, jobs, arguments)
-        write_text_atomic(sweep_dir / "multirun.yaml", OmegaConf.to_yaml(self.config))
+        write_text_atomic(SweepFiles(sweep_dir).multirun, OmegaConf.to_yaml(self.config))
         write_manifest(sweep_dir, manifest)
         if self.resume and len(todo) < len(jobs):
             print("decrun: resume: {} of {} jobs are ok; running {}".format(
@@ -374,12 +372,12 @@ def _clear(job_dir: Path) -> None:
         return
     # a checkpoint of a time-stepping job and the journal it continues are kept: the rerun
     # continues from them when they are its config's (decrun.runner.results.checkpoint)
-    kept = ("result.h5.partial",) if (job_dir / CHECKPOINT).is_file() else ()
-    for name in _JOB_OUTPUTS:
+    kept = (RunFiles.JOURNAL,) if (job_dir / RunFiles.CHECKPOINT).is_file() else ()
+    for name in RunFiles.JOB_OUTPUTS:
         if name not in kept:
             (job_dir / name).unlink(missing_ok=True)
-    for leftover in job_dir.glob(".result.h5*"):
+    for leftover in job_dir.glob(RunFiles.RESULT_TEMPORARIES):
         leftover.unlink(missing_ok=True)
-    for figure in job_dir.glob("*.png"):
+    for figure in job_dir.glob(RunFiles.FIGURES):
         figure.unlink()
-    shutil.rmtree(job_dir / ".hydra", ignore_errors=True)
+    shutil.rmtree(job_dir / RunFiles.HYDRA, ignore_errors=True)

@@ -39,6 +39,7 @@ from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
 from decrun.runner.results.checked import load_yaml
 from decrun.runner.sweep.manifest import MANIFEST, job_dir_name, job_state, read_manifest
+from decrun.runner.files import RunFiles, SweepFiles
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
@@ -53,11 +54,11 @@ def is_sweep_dir(path: str | os.PathLike) -> bool:
     """A directory a sweep wrote (``multirun.yaml`` or ``manifest.json`` at its root): the
     only kind :func:`write_sweep_table` writes into."""
     path = Path(path)
-    return (path / "multirun.yaml").is_file() or (path / "manifest.json").is_file()
+    return SweepFiles(path).multirun.is_file() or SweepFiles(path).manifest.is_file()
 
 
 def _job_dirs(sweep_dir: Path) -> list[Path]:
-    jobs = [p for p in sweep_dir.iterdir() if p.is_dir() and (p / ".hydra").is_dir()]
+    jobs = [p for p in sweep_dir.iterdir() if p.is_dir() and (p / RunFiles.HYDRA).is_dir()]
 
     def order(p: Path):
         head = p.name.split("_", 1)[0]
@@ -96,7 +97,7 @@ def reserved_names(sweep_dir: Path, override_keys: Iterable[str] = ()) -> frozen
     config (from its ``multirun.yaml``: the same in every decrun sweep, so a metric keeps its
     column from one sweep to the next)."""
     names = {"job", "sweep", "result", *override_keys}
-    path = Path(sweep_dir) / "multirun.yaml"
+    path = SweepFiles(sweep_dir).multirun
     if path.is_file():
         try:
             config = load_yaml(path) or {}
@@ -114,7 +115,7 @@ def _overrides(job: Path) -> tuple[dict[str, Any], str]:
     """The overrides of a job directory from its ``.hydra/overrides.yaml``, and "" or the
     one-line error naming the file when it is not a list of overrides Hydra parses (read
     with ``yaml.safe_load``: a ``!!python/object`` tag is refused, never built)."""
-    path = job / ".hydra" / "overrides.yaml"
+    path = job / RunFiles.HYDRA / "overrides.yaml"
     if not path.is_file():
         return {}, ""
     try:
@@ -131,7 +132,7 @@ def _overrides(job: Path) -> tuple[dict[str, Any], str]:
 
 
 def _result_path(sweep_dir: Path, job_dir: str) -> str:
-    for name in ("result.h5", "result.h5.partial"):
+    for name in (RunFiles.RESULT, RunFiles.JOURNAL):
         if (sweep_dir / job_dir / name).is_file():
             return f"{Path(job_dir).as_posix()}/{name}"
     return ""
@@ -282,8 +283,9 @@ def write_sweep_table(sweep_dir: str | os.PathLike, *, sweep: bool | None = None
     sweep_dir = Path(sweep_dir)
     table = sweep_table(sweep_dir)
     if not (is_sweep_dir(sweep_dir) if sweep is None else sweep):
-        raise NotADirectoryError(f"{sweep_dir} is not a sweep directory (no multirun.yaml or manifest.json)")
-    for name, text in (("metrics.csv", table.to_csv(index=False)), ("metrics.md", to_markdown(table))):
+        raise NotADirectoryError(f"{sweep_dir} is not a sweep directory (no {SweepFiles.MULTIRUN} or "
+                                 f"{SweepFiles.MANIFEST})")
+    for name, text in ((SweepFiles.TABLE_CSV, table.to_csv(index=False)), (SweepFiles.TABLE_MD, to_markdown(table))):
         write_text_atomic(sweep_dir / name, text)
     return table
 

@@ -71,7 +71,8 @@ MUTATIONS = [
                "np.add.at(s, np.asarray(vertices, dtype=np.int64), np.asarray(outflow")],
              [["tests/apps/test_vector_field.py"], ["tests/runner/test_cli_signs.py", "-k", "reversed"], REG_VECTOR]),
     Mutation("smoothing blow-up check removed", "decrun/apps/smoothing.py",
-             [('rough = now["roughness"] <= self.blowup_factor * first["roughness"]', 'rough = True')],
+             [('if not reason and not self.now["roughness"] <= self.blowup_factor * first["roughness"]:',
+               'if False:')],
              [["tests/apps/test_smoothing.py"], REG_SMOOTHING]),
     # ---------------------------------------------------------------- sign flips in the core
     Mutation("sign of d", "decrun/core/dec.py",
@@ -138,8 +139,8 @@ MUTATIONS = [
     Mutation("shadow verdict from the run mean (the estimator before issue 25.2)", "decrun/methods/fluid/shadow.py",
              [("per_step = fitted_growth(points[:, 1], points[:, 0])", "per_step = self.log_growth / self.steps")],
              [["tests/apps/test_fluid_app.py", "-k", "shadow or chaotic or jump"]]),
-    Mutation("fluid app ignores the shadow's verdict", "decrun/apps/fluid.py",
-             [('stable = bounded and chaos.get("perturbation_stable", True)', "stable = bounded")],
+    Mutation("fluid app ignores the shadow's verdict", "decrun/methods/fluid/metrics.py",
+             [('"stable": bounded and chaos.get("perturbation_stable", True),', '"stable": bounded,')],
              [["tests/apps/test_fluid_app.py", "-k", "shadow or chaotic or jump"]]),
 ]
 

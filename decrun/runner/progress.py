@@ -85,13 +85,12 @@ def sweep_size(overrides: list[str], params: dict | None = None) -> int | None:
     """Number of jobs ``decrun -m <overrides>`` runs, ``hydra.sweeper.params`` (``params``)
     included, expanded as Hydra's basic sweeper does; None when it cannot be told."""
     try:
-        from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
         from hydra.core.override_parser.overrides_parser import OverridesParser
 
+        from decrun.runner.sweep.grid import grid
+
         arguments = [f"{k}={v}" for k, v in (params or {}).items()] + list(overrides)
-        parsed = OverridesParser.create().parse_overrides(arguments)
-        batches = BasicSweeper.split_arguments(parsed, None)
-        return sum(len(batch) for batch in batches)
+        return len(grid(OverridesParser.create().parse_overrides(arguments)))
     except Exception:  # an unusual sweeper or syntax: show a bar without a total
         return None
 

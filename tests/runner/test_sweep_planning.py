@@ -180,3 +180,54 @@ def test_a_plan_composed_by_hydra_for_every_job_is_the_derived_plan(tmp_path):
         jobs = json.loads((tmp_path / derive / "manifest.json").read_text())["jobs"]
         manifests[derive] = [(job["dir"], job["overrides"], job["config_hash"]) for job in jobs]
     assert len(manifests["true"]) == 8 and manifests["true"] == manifests["false"]
+
+
+#: strings whose YAML needs care: booleans and numbers to YAML or Python (quoted), empty,
+#: null-like, flow and block markers, a comment sign, non-ASCII, a newline, quotes, an
+#: escaped interpolation (a literal ``${x}`` once resolved), a long line
+TRICKY = ["yes", "No", "on", "OFF", "y", "n", "1", "-2", "1.5", " 3 ", "1_000", "1e3", "nan", "-inf", "0x10", "",
+          "null", "~", "true!", "a: b", "#x", "é ü", "line\nbreak", "'q'", '"d"', "\\${x}", "- item", "[1]", "{a: 1}",
+          "12:30", "0o7", "x" * 90]
+PINNED = {"a": {"s": TRICKY, "n": [0, -1, 1.5, 1e-12, 1e300, float("inf"), None, True, False]},
+          "b": {"nested": {"z": 1, "y": {"x": [{"k": "v"}, []], "e": {}}}}, "c": "plain", "d": 3, "ref": "${a.n}",
+          "progress": True}
+
+
+def test_config_hashes_are_those_of_existing_manifests_and_their_yaml_is_omegaconfs():
+    """A config's hash is what earlier decrun versions wrote into their manifests (pinned:
+    computed with OmegaConf's own dumper, before decrun had its own), so an existing sweep
+    resumes; and each root key's YAML is ``OmegaConf.to_yaml``'s text, tricky strings and
+    keys (``n``, ``y``: YAML booleans) included."""
+    from decrun.runner.sweep.manifest import yaml_block
+
+    cfg = OmegaConf.create(PINNED)
+    assert config_hash(cfg) == "236fc614c45ef279"
+    for key in cfg:
+        value = OmegaConf.to_container(cfg[key], resolve=True) if OmegaConf.is_config(cfg[key]) else cfg[key]
+        assert yaml_block(key, cfg[key]) == OmegaConf.to_yaml(OmegaConf.create({key: value}), sort_keys=True), key
+    for text in TRICKY + [str(i) for i in range(-3, 4)] + ["1.", ".5", "+1", "1e-3", "Infinity", "NaN", "True1"]:
+        assert yaml_block("k", text) == OmegaConf.to_yaml(OmegaConf.create({"k": text})), text
+        assert yaml_block(text or "e", 1) == OmegaConf.to_yaml(OmegaConf.create({text or "e": 1})), text
+
+
+def test_override_dirname_is_hydras():
+    """decrun's ``hydra.job.override_dirname`` (planning.override_dirname) is the text of
+    Hydra's own function (in ``hydra._internal``, which the package does not import), for
+    group, plain, ``+``, ``~``, ``++``, quoted and swept-value lines and any separators."""
+    from hydra._internal.config_loader_impl import get_overrides_dirname
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from decrun.runner.sweep.planning import override_dirname
+
+    lines = ["app.dt=0.1", "mesh.subdiv=3", "operator=circumcentric", "+app.note=first", "~app.rescale",
+             "++figures=false", "app.label='a=b, c'", "seed=1", "a.b.c=[1,2]", "x={k:v}", "name=${mesh.subdiv}",
+             "z=null", "b=2", "a=1"]
+    parsed = OverridesParser.create().parse_overrides(lines)
+    separators = [(",", "="), ("/", "_"), ("__", ":"), ("", ""), (",", "\\\\")]
+    excluded = [[], ["seed"], ["seed", "app.dt", "mesh"], ["app"]]
+    for n in range(len(parsed) + 1):
+        for task in (parsed[:n], parsed[n:], parsed[::-1][:n]):
+            for item_sep, kv_sep in separators:
+                for exclude in excluded:
+                    assert override_dirname(task, exclude, item_sep, kv_sep) == get_overrides_dirname(
+                        overrides=task, exclude_keys=exclude, item_sep=item_sep, kv_sep=kv_sep), (task, exclude)

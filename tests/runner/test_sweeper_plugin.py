@@ -1,11 +1,12 @@
 """The ``decrun`` sweeper as a Hydra plugin: it survives any number of Hydra plugin scans.
 
-Hydra's scan re-executes every plugin module, ``hydra._internal.core_plugins.basic_sweeper``
-included, so a sweeper class bound once to ``BasicSweeper`` fails after a re-scan with
-``TypeError: super(type, obj)``. A re-scan happens after any reset of Hydra's singletons,
-when the plugin module is imported before Hydra's first scan, and inside a sweep whose
-joblib launcher runs its jobs in-process (``n_jobs=1``: each job restores Hydra's state and
-scans again), so the next sweep of that process failed."""
+Hydra's scan re-executes every plugin module. When the sweeper subclassed Hydra's
+``BasicSweeper`` (re-executed too), a class bound once to it failed after a re-scan with
+``TypeError: super(type, obj)``; it is now on Hydra's public ``Sweeper`` (never re-executed),
+and these tests keep it so. A re-scan happens after any reset of Hydra's singletons, when
+the plugin module is imported before Hydra's first scan, and inside a sweep whose joblib
+launcher runs its jobs in-process (``n_jobs=1``: each job restores Hydra's state and scans
+again), before the next sweep of that process."""
 
 from __future__ import annotations
 

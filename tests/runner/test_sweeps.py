@@ -177,6 +177,14 @@ def test_jobs_sharing_a_directory_stop_the_sweep_before_it_starts(tmp_path):
     assert not (tmp_path / "s").exists()
 
 
+def test_a_sweep_that_is_not_a_grid_stops_with_one_line_naming_it(tmp_path):
+    proc = decrun("-m", "app.dt=interval(0.001,0.002)", *SMALL, "hydra.sweep.dir=s", cwd=tmp_path)
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith("error: app.dt=interval(0.001,0.002): the decrun sweeper runs a grid of values: "
+                                  "give them as a list (app.dt=a,b,c)"), proc.stderr
+    assert not (tmp_path / "s").exists()
+
+
 def test_an_override_named_like_a_metric_gets_its_own_column(tmp_path):
     """fig6_9_square sweeps boundary=none,flux and vector_field reports the boundary it used."""
     proc = decrun("-m", "+experiment=fig6_9_square", "mesh.max_area=0.01", "figures=false", "hydra.sweep.dir=s",

@@ -95,21 +95,43 @@ def config_hash(cfg: DictConfig, blocks: dict[str, str] | None = None, fresh: Co
 
 
 def yaml_block(key: str, value: Any) -> str:
-    """``key: <value>`` as the resolved YAML of one root key of a config (sorted keys):
-    ``OmegaConf.to_yaml`` of it, whose own dumper is called directly on the resolved
-    container (3× faster than making a config of it first; the same text)."""
+    """``key: <value>`` as the resolved YAML of one root key of a config (sorted keys): the
+    text of ``OmegaConf.to_yaml`` of it, made by :class:`_Dumper` directly on the resolved
+    container (3× faster than making a config of it first)."""
     value = OmegaConf.to_container(value, resolve=True, enum_to_str=True) if OmegaConf.is_config(value) else value
-    if _dumper is None:
-        return OmegaConf.to_yaml(OmegaConf.create({key: value}), sort_keys=True)
-    return yaml.dump({key: value}, default_flow_style=False, allow_unicode=True, sort_keys=True, Dumper=_dumper)
+    return yaml.dump({key: value}, default_flow_style=False, allow_unicode=True, sort_keys=True, Dumper=_Dumper)
 
 
-try:  # the dumper OmegaConf.to_yaml uses
-    from omegaconf._utils import get_omega_conf_dumper
+#: strings YAML 1.1 reads as booleans (OmegaConf's list): quoted, so they stay strings
+_YAML_BOOLS = frozenset("y Y yes Yes YES n N no No NO true True TRUE false False FALSE on On ON off Off OFF".split())
 
-    _dumper = get_omega_conf_dumper()
-except ImportError:  # another OmegaConf: its public, slower path
-    _dumper = None
+
+def _number(text: str) -> bool:
+    """Whether ``int(text)`` or ``float(text)`` reads ``text`` (``"1"``, ``" 2.5 "``, ``"1_0"``, ``"nan"``)."""
+    for kind in (int, float):
+        try:
+            kind(text)
+            return True
+        except ValueError:
+            pass
+    return False
+
+
+class _Dumper(yaml.Dumper):
+    """The YAML dumper of ``OmegaConf.to_yaml`` (OmegaConf 2.1-2.3's ``OmegaConfDumper``,
+    which is in its private ``omegaconf._utils``): PyYAML's ``Dumper`` that single-quotes a
+    string YAML would read as a boolean or Python as a number. decrun's own, so that the
+    hashes in existing manifests stay what they are whatever OmegaConf's dumper becomes
+    (tests/runner/test_sweep_planning.py pins them and compares the text to
+    ``OmegaConf.to_yaml``)."""
+
+
+def _str(dumper: yaml.Dumper, data: str) -> yaml.ScalarNode:
+    quoted = data in _YAML_BOOLS or _number(data)
+    return dumper.represent_scalar(yaml.resolver.BaseResolver.DEFAULT_SCALAR_TAG, data, style="'" if quoted else None)
+
+
+_Dumper.add_representer(str, _str)
 
 
 def write_manifest(sweep_dir: Path, manifest: dict[str, Any]) -> Path:

@@ -30,7 +30,7 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override, OverrideType
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
-__all__ = ["Composer", "PlannedConfigs", "apply", "shape"]
+__all__ = ["Composer", "PlannedConfigs", "apply", "override_dirname", "shape"]
 
 #: the value types of a plain override
 PLAIN = (str, int, float, bool, type(None))
@@ -82,8 +82,6 @@ def apply(cfg: DictConfig, parsed: list[Override], plain, template_hydra_lines: 
     must exist, the node's type converts or refuses the value), ``hydra.overrides.task`` /
     ``.hydra`` (the master's hydra lines first: the template's minus its own
     ``template_hydra_lines``) and ``hydra.job.override_dirname``."""
-    from hydra._internal.config_loader_impl import get_overrides_dirname  # Hydra's own, a pure function
-
     for override in parsed:
         if plain(override):
             OmegaConf.update(cfg, override.key_or_group, override.value(), merge=True)
@@ -93,9 +91,19 @@ def apply(cfg: DictConfig, parsed: list[Override], plain, template_hydra_lines: 
     cfg.hydra.overrides.hydra = lines[:len(lines) - template_hydra_lines] + hydra_lines
     cfg.hydra.overrides.task = [o.input_line for o in task]
     dirname = cfg.hydra.job.config.override_dirname
-    cfg.hydra.job.override_dirname = get_overrides_dirname(overrides=task, kv_sep=dirname.kv_sep,
-                                                           item_sep=dirname.item_sep,
-                                                           exclude_keys=list(dirname.exclude_keys))
+    cfg.hydra.job.override_dirname = override_dirname(task, exclude_keys=list(dirname.exclude_keys),
+                                                      item_sep=dirname.item_sep, kv_sep=dirname.kv_sep)
+
+
+def override_dirname(task: list[Override], exclude_keys: list[str], item_sep: str, kv_sep: str) -> str:
+    """``hydra.job.override_dirname`` of a job whose task overrides are ``task``: the lines
+    of those whose key is not in ``exclude_keys``, sorted, joined with ``item_sep``, every
+    ``=`` then replaced by ``kv_sep`` (``b=2,a=1`` → ``a=1,b=2``; ``kv_sep`` is a
+    ``re.sub`` replacement, as Hydra's: ``\\`` escapes in it are processed). The same text
+    as Hydra's own (``get_overrides_dirname``, in ``hydra._internal``:
+    tests/runner/test_sweep_planning.py compares them)."""
+    lines = sorted(o.input_line for o in task if o.key_or_group not in exclude_keys)
+    return re.sub("=", kv_sep, item_sep.join(lines))
 
 
 class Template:

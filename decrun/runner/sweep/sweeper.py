@@ -14,9 +14,11 @@ A job's directory is ``hydra.sweep.subdir`` (any pattern: ``${hydra.job.num}``,
 ``${hydra.job.override_dirname}``, ``run_${hydra.job.num}``...) resolved when the sweep is
 planned and passed to the launcher as a literal ``hydra.sweep.subdir='<dir>'``, so a job
 and its resumed rerun land where the manifest says whatever the launcher; two jobs with one
-directory stop the sweep before it starts. Hydra loads sweepers only from the ``hydra_plugins`` namespace:
-:mod:`hydra_plugins.decrun_sweeper` composes :class:`ManifestSweeper` with Hydra's
-``BasicSweeper`` and registers it as ``hydra/sweeper=decrun``.
+directory stop the sweep before it starts. The sweeper is built on Hydra's public plugin
+API only (``hydra.plugins.sweeper.Sweeper``, ``Plugins.instantiate_launcher``, the
+``OverridesParser``; the grid: :func:`~decrun.runner.sweep.grid.grid`). Hydra loads sweepers
+only from the ``hydra_plugins`` namespace: :mod:`hydra_plugins.decrun_sweeper` registers
+:class:`ManifestSweeper` there as ``hydra/sweeper=decrun``.
 """
 
 from __future__ import annotations
@@ -32,7 +34,9 @@ from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.plugins import Plugins
 from hydra.errors import CompactHydraException
+from hydra.plugins.sweeper import Sweeper
 from omegaconf import OmegaConf, open_dict, read_write
 
 from decrun.errors import ConfigError, CorruptFileError, DecrunError
@@ -41,6 +45,7 @@ from decrun.runner.locks import LOCK_NAME
 from decrun.runner.paths import hydra_files
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
+from decrun.runner.sweep.grid import grid
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
 from decrun.runner.sweep.planning import Composer, PlannedConfigs, subdir_of
@@ -82,26 +87,31 @@ class DecrunSweeperConf:
     derive: bool = True
 
 
-class ManifestSweeper:
-    """The manifest, the checks and resume (module docstring), as a mixin over Hydra's
-    ``BasicSweeper``: ``class DecrunSweeper(ManifestSweeper, BasicSweeper)``.
-
-    It names no Hydra class itself: Hydra's plugin scan re-executes the module of
-    ``BasicSweeper``, and a class bound to the ``BasicSweeper`` of an earlier scan fails in
-    ``BasicSweeper.__init__`` (``super(type, obj)``). :mod:`hydra_plugins.decrun_sweeper`
-    is re-executed by the same scan, after Hydra's core plugins, so its composition always
-    has the ``BasicSweeper`` of the current scan."""
+class ManifestSweeper(Sweeper):
+    """The manifest, the checks and resume (module docstring) on Hydra's grid: the jobs
+    and their order are those of Hydra's basic sweeper (``hydra.sweeper.params`` first,
+    then the command line's overrides; :func:`~decrun.runner.sweep.grid.grid`), launched
+    ``max_batch_size`` at a time. :mod:`hydra_plugins.decrun_sweeper` registers it with
+    Hydra (``class DecrunSweeper(ManifestSweeper)``)."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
                  resume: bool = False, derive: bool = True):
-        super().__init__(max_batch_size=max_batch_size, params=params)
+        super().__init__()
+        self.max_batch_size, self.params = max_batch_size, dict(params or {})
         self.resume, self.derive = resume, derive
+        self.hydra_context = self.config = self.launcher = None
         self.check: Optional[Callable[[Any], Any]] = None
 
     def setup(self, *, hydra_context, task_function, config) -> None:
-        super().setup(hydra_context=hydra_context, task_function=task_function, config=config)
+        self.hydra_context, self.config = hydra_context, config
+        self.launcher = Plugins.instance().instantiate_launcher(hydra_context=hydra_context,
+                                                                task_function=task_function, config=config)
         self.check = CHECKS.get(task_function)
         self.warm = WARM.get(task_function, ())
+
+    def _parse_config(self) -> List[str]:
+        """``hydra.sweeper.params`` as override lines (``key=values``), before the command line's."""
+        return [f"{k}={v}" for k, v in self.params.items()]
 
     def plan(self, arguments: List[str]) -> list[dict[str, Any]]:
         """The jobs of the sweep, in Hydra's order: ``{"job", "dir", "overrides",
@@ -117,7 +127,10 @@ class ManifestSweeper:
             loader = self.hydra_context.config_loader = loader.wrapped
         parser = OverridesParser.create(config_loader=loader)
         overrides = parser.parse_overrides(self._parse_config() + list(arguments))
-        planned = [tuple(job) for batch in self.split_arguments(overrides, None) for job in batch]
+        try:
+            planned = [tuple(job) for job in grid(overrides)]
+        except ValueError as exc:
+            raise SweepError(f"error: {exc}") from exc
         self._composer = Composer(loader, self.config, derive=self.derive)
         check = self.check
         jobs: list[dict[str, Any]] = []

@@ -85,6 +85,12 @@ KERNELS = ("auto", "numba", "numpy")  # the switch of decrun.core.jit: compiled 
 WALLS = ("auto", "slip", "no_slip")
 
 
+def _one_of(name: str, value: str, allowed) -> None:
+    """ConfigError naming the option ``name`` when ``value`` is not one of ``allowed``."""
+    if value not in allowed:
+        raise ConfigError(f"fluid: {name} must be one of {list(allowed)}, got {value!r}")
+
+
 class VorticityFluid:
     """Vorticity fluid on a triangle mesh (planar with borders, or a closed surface).
 
@@ -133,18 +139,14 @@ class VorticityFluid:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
             raise ConfigError(f"fluid: the viscosity must be >= 0, got {viscosity}")
-        if circulation not in CIRCULATIONS:
-            raise ConfigError(f"fluid: circulation must be one of {list(CIRCULATIONS)}, got {circulation!r}")
-        if velocity not in VELOCITY_RECONSTRUCTIONS:
-            raise ConfigError(f"fluid: velocity must be one of {sorted(VELOCITY_RECONSTRUCTIONS)}, got {velocity!r}")
+        _one_of("circulation", circulation, CIRCULATIONS)
+        _one_of("velocity", velocity, sorted(VELOCITY_RECONSTRUCTIONS))
         if velocity == "least_squares" and circulation not in SWEPT:
             raise ConfigError("fluid: velocity=least_squares is stable only with circulation=swept_bounded, swept_clamped or swept "
                               "(its trapezoid circulation grew enstrophy x14 in 5 s on a sphere); use "
                               "circulation=swept_bounded")
-        if kernels not in KERNELS:
-            raise ConfigError(f"fluid: kernels must be one of {list(KERNELS)}, got {kernels!r}")
-        if walls not in WALLS:
-            raise ConfigError(f"fluid: walls must be one of {list(WALLS)}, got {walls!r}")
+        _one_of("kernels", kernels, KERNELS)
+        _one_of("walls", walls, WALLS)
         if walls == "slip" and circulation not in SWEPT:
             raise ConfigError("fluid: walls=slip needs a swept circulation (the trapezoid rules take their wall "
                               "velocity at the fixed border points); use circulation=swept_bounded or walls=no_slip")

@@ -166,7 +166,9 @@ def test_a_preempted_fluid_job_is_requeued_and_continues_from_its_checkpoint(slu
     while time.time() < deadline and not (job_dir / "checkpoint.h5").is_file():
         assert proc.poll() is None, proc.communicate()
         time.sleep(0.05)
-    job_id = next((tmp_path / "preempted" / ".submitit").iterdir()).name
+    # the job's folder (its SLURM id, "<id>" or "<id>_<task>"), not submitit's hidden .submission_file_*.sh
+    job_id = next(p.name for p in sorted((tmp_path / "preempted" / ".submitit").iterdir())
+                  if p.is_dir() and p.name.split("_")[0].isdigit())
     subprocess.run(["scancel", "--signal=USR2", job_id], check=True)
     deadline = time.time() + 60
     while time.time() < deadline:  # requeued: pending until its begin time; start it now

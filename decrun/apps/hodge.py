@@ -54,6 +54,7 @@ from decrun.core.forms import sample_flux, sample_vector_field, whitney_sharp, w
 from decrun.core.geometry import embed3, principal_frame
 from decrun.core.hodge import HodgeDecomposer, harmonic_basis
 from decrun.errors import ConfigError, TopologyError
+from decrun.methods.hodge_metrics import harmonic_residuals, orthogonality_metrics
 
 
 class Input(Choice):
@@ -68,8 +69,6 @@ class Input(Choice):
 #: ``app.vector``'s default (a of the analytic fields; ``frame`` has none)
 DEFAULT_VECTOR = [0.0, 0.0, 1.0]
 
-#: a part whose norm is ≤ ROUNDOFF × ‖ω‖ (energy share ≤ ROUNDOFF²) is zero to round-off
-ROUNDOFF = 1e-8
 
 
 class AnalyticField(Choice):
@@ -161,7 +160,7 @@ class Hodge(App):
         (|⟨a,b⟩_⋆k|/‖ω‖²) and ``orthogonality_max``; ``reconstruction_error_relative``;
         ``energy_fraction_{exact,coexact,harmonic}``; ``harmonic_curl_relative``
         ‖dγ‖_⋆/‖dω‖_⋆ and ``harmonic_codifferential_relative`` ‖δγ‖_⋆/‖δω‖_⋆ (γ is harmonic:
-        both ≈ 0; absent when γ or dω / δω is zero to round-off (energy share ≤ ``ROUNDOFF``²):
+        both ≈ 0; absent when γ or dω / δω is zero to round-off (:mod:`decrun.methods.hodge_metrics`):
         a ratio of round-off means nothing); ``harmonic_dimension`` (dim ker Δ_k, numerically),
         ``betti_<k>``, ``harmonic_dimension_matches_betti``; ``degree``; ``solve_seconds``.
         """
@@ -174,23 +173,7 @@ class Hodge(App):
         named = {"exact": parts.exact, "coexact": parts.coexact, "harmonic": parts.harmonic}
         metrics = orthogonality_metrics(dec, omega, named, k)
         metrics["degree"] = k
-
-        energy = {name: metrics[f"energy_fraction_{name}"] for name in named}
-
-        def relative(op, j, part, sources):
-            """‖op part‖ / ‖op ω‖, or None when that is a ratio of round-off: the part is zero
-            to round-off, or so is op ω — op kills the exact part (d) or the coexact part (δ),
-            so op ω comes from ``sources`` only (energy share ≤ ROUNDOFF² each)."""
-            if energy["harmonic"] <= ROUNDOFF ** 2 or sum(energy[s] for s in sources) <= ROUNDOFF ** 2:
-                return None
-            ref = np.sqrt(abs(dec.inner(j, op @ omega, op @ omega)))
-            return float(np.sqrt(abs(dec.inner(j, op @ part, op @ part))) / ref) if ref > 0 else None
-
-        for name, value in (("harmonic_curl_relative", relative(dec.d(k), k + 1, parts.harmonic, ("coexact", "harmonic"))),
-                            ("harmonic_codifferential_relative", relative(dec.codifferential(k), k - 1, parts.harmonic,
-                                                                          ("exact", "harmonic")))):
-            if value is not None:  # a ratio of round-off is absent, not a number
-                metrics[name] = value
+        metrics.update(harmonic_residuals(dec, omega, parts.harmonic, metrics, k))
         betti = ctx.betti(k)
         if betti is not None:
             metrics[f"betti_{k}"] = betti
@@ -310,23 +293,3 @@ def _form_from_result(K, cfg, ctx: Context) -> np.ndarray:
         raise ConfigError(f"app.input_path: the mesh stored in {path} differs from this run's mesh "
                           "(use the same mesh config as that run)")
     return omega
-
-
-def orthogonality_metrics(dec, omega: np.ndarray, parts: dict[str, np.ndarray], k: int = 1) -> dict:
-    """Theorem 5 checks for k-forms. For each pair of parts |⟨a, b⟩_⋆k| / ‖ω‖²_⋆k, the energy
-    fraction ‖part‖² / ‖ω‖² of each part and the relative reconstruction error."""
-    total = dec.inner(k, omega, omega)
-    out = {}
-    names = list(parts)
-    worst = 0.0
-    for i, p in enumerate(names):
-        for q in names[i + 1:]:
-            value = abs(dec.inner(k, parts[p], parts[q])) / total if total > 0 else 0.0
-            out[f"orthogonality_{p}_{q}"] = float(value)
-            worst = max(worst, float(value))
-    out["orthogonality_max"] = worst
-    for p in names:
-        out[f"energy_fraction_{p}"] = float(dec.inner(k, parts[p], parts[p]) / total) if total > 0 else 0.0
-    rest = omega - sum(parts.values())
-    out["reconstruction_error_relative"] = float(np.sqrt(abs(dec.inner(k, rest, rest)) / total)) if total > 0 else 0.0
-    return out

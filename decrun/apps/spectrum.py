@@ -24,6 +24,7 @@ from decrun.core.forms import whitney_sharp, whitney_sharp2
 from decrun.errors import ConfigError, TopologyError
 from decrun.methods.spectrum import (analytic_spectrum, check_stars, detect_domain, laplacian_eigenpairs,
                                      needs_indefinite_solve, spectrum_errors)
+from decrun.methods.spectrum_metrics import eigen_metrics
 
 
 class AnalyticDomain(Choice):
@@ -108,17 +109,8 @@ class Spectrum(App):
             pairs = laplacian_eigenpairs(dec, k, int(self.count), ctx.new_solver, shift=self.shift, tol=self.tol)
         seconds = time.perf_counter() - start
         values, vectors = pairs.values, pairs.vectors
-        metrics: dict = {"degree": k, "eigenvalue_min": float(values[0]), "eigenvalue_max": float(values[-1])}
-        length = float(np.linalg.norm(np.diff(K.vertices[K.simplices(1)], axis=1)[:, 0], axis=1).mean())
-        kernel = int(np.sum(np.abs(values) < 1e-8 / length**2))
-        betti = ctx.betti(k)
-        metrics.update(kernel_dimension=kernel, **({f"betti_{k}": betti} if betti is not None else {}))
-        # the kernel fits in the computed eigenpairs, and they are eigenpairs: compare it
-        if pairs.converged and kernel < len(values) and betti is not None:
-            metrics["kernel_dimension_matches_betti"] = bool(kernel == betti)
-        metrics.update(eigen_converged=pairs.converged, eigen_residual_max=pairs.residual_max,
-                       orthonormality_error_max=pairs.orthonormality_error,
-                       residual_relative_max=_relative_residual(dec, k, values, vectors))
+        metrics = eigen_metrics(K, dec, k, pairs, ctx.betti(k))
+        length = K.mean_edge_length
         fields = {"eigenvalues": values, "eigenforms": vectors}
         titles = [f"λ = {v:.4g}" for v in values]
         if self.analytic != "none":
@@ -137,18 +129,6 @@ class Spectrum(App):
                 values=[display_values(K, k, vectors[:, i]) for i in shown], titles=[titles[i] for i in shown],
                 degree=k))
         return Result(fields=fields, metrics=metrics, figures=figures)
-
-
-def _relative_residual(dec, k: int, values: np.ndarray, vectors: np.ndarray) -> float:
-    """max ‖A u − λ M u‖ / (‖M u‖ λ_max): the eigen-equation's residual in the units of the
-    largest computed eigenvalue (kernel vectors have A u ≈ 0 and λ ≈ 0)."""
-    M = dec.star(k)
-    A = dec.laplacian_symmetric(k)
-    MU = M @ vectors
-    AU = np.column_stack([A @ vectors[:, j] for j in range(vectors.shape[1])])
-    residual = np.linalg.norm(AU - MU * values, axis=0)
-    scale = np.linalg.norm(MU, axis=0) * max(float(np.abs(values).max()), 1e-300)
-    return float(np.max(residual / scale))
 
 
 def display_values(K, k: int, form: np.ndarray) -> np.ndarray:

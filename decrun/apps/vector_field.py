@@ -50,6 +50,7 @@ from decrun.methods.vector_design import (
     StrokeMagnitude,
     adjointness_defect,
     border_normal_flux,
+    field_change_relative,
     design_residuals,
     divergence_target,
     face_normals,
@@ -355,13 +356,14 @@ def _design(self, ctx: Context) -> Result:
     if geometry["stroke_faces"].size:
         before = embed3(whitney_sharp(K, pre.omega))
         area = dec.primal_volumes(2)
-        metrics["field_change_relative"] = _relative_change(before, face_vectors, area, np.ones(area.size, bool))
+        metrics["field_change_relative"] = field_change_relative(before, face_vectors, area, np.ones(area.size, bool))
         fields["omega_without_strokes"] = FieldOnEdges(pre.omega)
         if cfg.region_normal:
             n = np.asarray(cfg.region_normal, dtype=np.float64)
             region = face_normals(K) @ (n / np.linalg.norm(n)) >= float(cfg.region_min_cos)
-            metrics["field_change_region_relative"] = _relative_change(before, face_vectors, area, region)
             metrics["region_faces"] = int(region.sum())
+            if region.any():  # over no face there is no change to measure: absent
+                metrics["field_change_region_relative"] = field_change_relative(before, face_vectors, area, region)
             fields["region_faces"] = np.flatnonzero(region)
     title = f"{mode} border" if not closed else "closed surface"
     figures = {"field": Figure("decrun.runner.plots.fields.field_figure", dict(
@@ -369,13 +371,3 @@ def _design(self, ctx: Context) -> Result:
         stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows),
         cluster_positions=clusters.positions[clusters.nonzero], cluster_indices=clusters.indices[clusters.nonzero]))}
     return Result(fields=fields, metrics=metrics, figures=figures)
-
-
-def _relative_change(before: np.ndarray, after: np.ndarray, area: np.ndarray, region: np.ndarray) -> float:
-    """Area-weighted ‖after − before‖ / ‖before‖ over the faces in ``region`` (NaN if empty)."""
-    if not region.any():
-        return float("nan")
-    a = area[region, None]
-    diff = np.sqrt((a * (after[region] - before[region]) ** 2).sum())
-    ref = np.sqrt((a * before[region] ** 2).sum())
-    return float(diff / ref) if ref > 0 else float("inf") if diff > 0 else 0.0

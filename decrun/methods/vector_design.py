@@ -63,6 +63,7 @@ __all__ = [
     "nearest_faces",
     "face_normals",
     "adjointness_defect",
+    "field_change_relative",
     "divergence_target",
     "stroke_face_directions",
     "stroke_edge_targets",
@@ -505,3 +506,13 @@ def principal_extremes(K: SimplicialComplex) -> PrincipalExtremes:
     h = height[candidates]
     return PrincipalExtremes(source=int(candidates[np.argmax(h)]), sink=int(candidates[np.argmin(h)]),
                              axis=E[0].copy(), variances=variances, interior_only=interior_only)
+
+
+def field_change_relative(before: np.ndarray, after: np.ndarray, area: np.ndarray, region: np.ndarray) -> float:
+    """Area-weighted ‖after − before‖ / ‖before‖ of face vectors (m, 3) over the faces in
+    ``region`` (m,) bool (non-empty), ``area`` (m,) the face areas: how much the strokes of
+    §6.4.2 changed the designed field (0: not at all; inf: a field made from nothing)."""
+    a = area[region, None]
+    diff = np.sqrt((a * (after[region] - before[region]) ** 2).sum())
+    ref = np.sqrt((a * before[region] ** 2).sum())
+    return float(diff / ref) if ref > 0 else float("inf") if diff > 0 else 0.0

@@ -134,7 +134,7 @@ class Smoothing(App):
         Metrics: ``area_ratio`` (final/initial area), ``volume_drift_rel`` (|V_end − V_0|/|V_0|,
         closed surfaces only), ``stable`` (false when a step blew up or the result is degenerate,
         :func:`decrun.methods.smoothing_metrics.degeneration`), ``unstable_reason`` (only when
-        not stable), ``diverged_at_step`` (−1 when no step blew up), ``steps_done``
+        not stable), ``diverged_at_step`` (only when a step blew up), ``steps_done``
         (steps computed and recorded, the diverging one included, so it equals
         ``diverged_at_step`` when unstable), ``rescale`` (the resolved choice),
         ``roughness_ratio`` (R_end / R_0), ``distortion_final`` (ρ, 1 for the input),
@@ -190,9 +190,9 @@ class Smoothing(App):
         report = run_steps(stepper, int(self.steps), progress=ctx.progress, record=ctx.record,
                            checkpoint=ctx.checkpoint, desc=f"smoothing ({self.scheme})", check_finite=False)
         v, last_finite, series = stepper.v, stepper.last_finite, stepper.series
-        diverged_at = -1 if report.diverged_at_step is None else report.diverged_at_step
+        diverged_at = report.diverged_at_step  # None: no step blew up
         solve_seconds = report.seconds
-        stable = diverged_at < 0
+        stable = diverged_at is None
         # a flow that did not blow up may still have collapsed the surface (a needle, a sheet)
         degenerate = degeneration(vertices, v, faces, has_volume) if stable else ""
         stable = stable and not degenerate
@@ -204,8 +204,8 @@ class Smoothing(App):
             "dt": dt,
             "rescale": rescale,
             "stable": stable,
-            "diverged_at_step": diverged_at,
-            **({"unstable_reason": self._divergence_reason(diverged_at, flow) if diverged_at >= 0 else
+            **({"diverged_at_step": diverged_at} if diverged_at is not None else {}),
+            **({"unstable_reason": self._divergence_reason(diverged_at, flow) if diverged_at is not None else
                 f"degenerate: {degenerate}"} if not stable else {}),
             "steps_done": len(series["area"]) - 1,
             "area_ratio": last["area"] / first["area"],
@@ -250,7 +250,7 @@ class Smoothing(App):
                   "displacement": np.linalg.norm(v - vertices, axis=1)}
         label = f"{self.scheme} Euler, dt={dt:.3g}, rescale={rescale}"
         state = f"{metrics['steps_done']} steps" + (
-            "" if stable else f" (diverged at step {diverged_at})" if diverged_at >= 0 else " (degenerate)")
+            "" if stable else f" (diverged at step {diverged_at})" if diverged_at is not None else " (degenerate)")
         shown = ["area", "volume", "roughness"] if has_volume else ["area", "roughness"]
         figures = {
             "smoothing": Figure("decrun.runner.plots.common.before_after", dict(

@@ -125,6 +125,17 @@ def test_inviscid_default_keeps_energy_and_enstrophy_and_the_unbounded_rule_stay
     assert (np.diff(swept_energy) > 1e-9 * swept_energy[0]).sum() >= 20
 
 
+def _refused_then_fixed(decrun_cli, common, bad: str, fix: str, run_dir: str) -> None:
+    """``decrun *common bad`` stops with one line naming ``bad``'s key and the override ``fix``;
+    ``decrun *common fix`` (into ``hydra.run.dir=run_dir``) then runs."""
+    proc = decrun_cli(*common, bad, "hydra.run.dir=bad")
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    message = proc.stderr.strip().splitlines()[-1]
+    assert bad.split("=")[0] in message and fix in message, message
+    proc = decrun_cli(*common, fix, f"hydra.run.dir={run_dir}")
+    assert proc.returncode == 0, proc.stderr
+
+
 def test_slip_walls_need_a_swept_rule_and_the_hint_runs_and_the_condition_is_recorded(decrun_cli, tmp_path):
     """Issue 25.1: app.walls=slip with the thesis' trapezoid rule is refused naming the override;
     the override runs; the resolved wall condition is the metric ``walls`` (auto: slip at ν = 0,
@@ -134,12 +145,7 @@ def test_slip_walls_need_a_swept_rule_and_the_hint_runs_and_the_condition_is_rec
     common = ("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.steps=2", "app.inflow=[1.0,0.0]",
               "app.initial=zero", "app.animation=false", "figures=false", "app.velocity=wshd07",
               "app.circulation=trapezoid", "app.viscosity=0")
-    proc = decrun_cli(*common, "app.walls=slip", "hydra.run.dir=bad")
-    assert proc.returncode != 0 and "Traceback" not in proc.stderr
-    message = proc.stderr.strip().splitlines()[-1]
-    assert "app.walls=slip" in message and "app.walls=no_slip" in message
-    proc = decrun_cli(*common, "app.walls=no_slip", "hydra.run.dir=fixed")
-    assert proc.returncode == 0, proc.stderr
+    _refused_then_fixed(decrun_cli, common, "app.walls=slip", "app.walls=no_slip", "fixed")
     assert read_result(tmp_path / "fixed" / "result.h5").metrics["walls"] == "no_slip"
     for viscosity, walls in (("0", "slip"), ("0.02", "no_slip")):
         proc = decrun_cli(*common[:-3], f"app.viscosity={viscosity}", f"hydra.run.dir=auto{viscosity}")
@@ -208,12 +214,7 @@ def test_a_chaotic_channel_is_flagged_at_any_run_length(run_app, steps):
 def test_the_shadow_window_is_checked_and_the_override_that_fixes_it_runs(decrun_cli):
     common = ("app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=8", "app.initial=random", "app.animation=false",
               "app.shadow=true", "figures=false")
-    proc = decrun_cli(*common, "app.shadow_window_steps=1", "hydra.run.dir=bad")
-    assert proc.returncode != 0 and "Traceback" not in proc.stderr
-    message = proc.stderr.strip().splitlines()[-1]
-    assert "app.shadow_window_steps" in message and "app.shadow_window_steps=100" in message
-    proc = decrun_cli(*common, "app.shadow_window_steps=100", "hydra.run.dir=good")
-    assert proc.returncode == 0, proc.stderr
+    _refused_then_fixed(decrun_cli, common, "app.shadow_window_steps=1", "app.shadow_window_steps=100", "good")
 
 
 #: the 1455-face row of `decrun -m +experiment=fig7_15_density_and_time_step` (README table):

@@ -206,7 +206,7 @@ class VorticityFluid:
         #: (slip walls with inflow: without it the inviscid 12059-face channel diverged at step 19, with
         #: it max |w| stayed ≤ 106 over 100 steps)
         self._clamps = circulation == "swept_clamped" or (
-            circulation == "swept_bounded" and self.walls == "slip" and self._bound is None and not self.closed)
+            circulation == "swept_bounded" and self.walls == "slip" and np.any(self.inflow))
 
         n0 = K.num_simplices(0)
         if self.viscosity > 0:

@@ -31,7 +31,11 @@ from functools import update_wrapper
 
 from decrun.errors import ConfigError
 
-__all__ = ["njit", "enabled", "mode", "use", "check_mode", "MIN_SIZE", "MODES", "KERNELS"]
+__all__ = ["njit", "enabled", "mode", "use", "check_mode", "threads", "prange", "MIN_SIZE", "MODES", "KERNELS"]
+
+#: ``for i in prange(n)`` in a kernel: numba's parallel loop once the kernel is compiled with
+#: ``parallel=True`` (the dispatcher swaps it in), the plain ``range`` everywhere else
+prange = range
 
 #: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
 MIN_SIZE = 500_000
@@ -109,6 +113,10 @@ class _LazyKernel:
             import numba
 
             namespace = self.function.__globals__
+            if namespace.get("prange") is range:
+                namespace["prange"] = numba.prange
+            if self.options.get("parallel"):
+                _threading_layer(numba)
             self.compiled = numba.njit(cache=True, **self.options)(self.function)
             for name, value in list(namespace.items()):
                 if isinstance(value, _LazyKernel):
@@ -122,6 +130,26 @@ class _LazyKernel:
 
     def __call__(self, *args):
         return self.dispatcher()(*args)
+
+
+def threads() -> int:
+    """How many threads the parallel kernels (``parallel=True``, ``prange``) split their work into:
+    numba's thread count (``NUMBA_NUM_THREADS``, default the machine's cores; joblib's workers set it
+    to their share). Their results do not depend on it: each thread takes a contiguous block of
+    independent items. Imports numba: call it only where a kernel runs."""
+    import numba
+
+    _threading_layer(numba)
+    return int(numba.get_num_threads())
+
+
+def _threading_layer(numba) -> None:
+    """Before numba starts its threads: its own pool ("workqueue") unless ``NUMBA_THREADING_LAYER``
+    says otherwise. It is fork-safe (GNU OpenMP is not), its idle threads sleep (GNU OpenMP's spin
+    and slowed the BLAS and CHOLMOD threads of the solves), and it needs no TBB (an old TBB only
+    warns). It must not run kernels from two threads at once; decrun calls them from one thread."""
+    if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
+        numba.config.THREADING_LAYER = "workqueue"
 
 
 def njit(function=None, **options):

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from decrun.core import jit
 from decrun.core.dec import DEC
 from decrun.core.geometry import embed3
 from decrun.methods.fluid.interpolation import dot3
@@ -461,7 +462,7 @@ class TriangleWalker:
         count = self.substep_counts(tri, dt, start_velocity, substeps, max_cfl, max_substeps)
         position, tri, wall, rounds, unfinished, velocity = compiled.backtrack_points(
             *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, position, tri, start_velocity, count,
-            float(dt), compiled.INTEGRATOR_CODE[integrator], int(max_rounds))
+            float(dt), compiled.INTEGRATOR_CODE[integrator], int(max_rounds), jit.threads())
         return BacktrackResult(position, tri, wall, int(rounds.sum()), int(unfinished.max(initial=0)),
                                int(count.max(initial=1)), velocity)
 

@@ -29,7 +29,8 @@ import numpy as np
 
 from decrun.core import jit
 
-__all__ = ["velocity_points", "backtrack_points", "circulation_sums", "INTEGRATOR_CODE"]
+__all__ = ["velocity_points", "backtrack_points", "sweep_interval", "circulation_sums", "swept_change_add",
+           "INTEGRATOR_CODE"]
 
 INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
 
@@ -46,6 +47,10 @@ _kernel = jit.njit(error_model="numpy")  # x / 0 gives inf or nan, as in numpy
 # The helpers allocate nothing and keep no array: without the runtime's reference counts (_nrt=False)
 # they do not incref/decref every array argument on each call, which made the walk 2.4× slower.
 _helper = jit.njit(error_model="numpy", inline=INLINE, _nrt=False)
+# The loops over points, dual edges and cells: ``prange`` over blocks of independent items, each
+# computed as in the serial loop, so the bits do not depend on the number of threads.
+_parallel_kernel = jit.njit(error_model="numpy", parallel=True)
+prange = jit.prange
 
 
 # ---------------------------------------------------------------- interpolation (interpolation.py)
@@ -150,18 +155,21 @@ def _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, t, x0
         result[p, 0, f], result[p, 1, f], result[p, 2, f] = out[0], out[1], out[2]
 
 
-@_kernel
+@_parallel_kernel
 def velocity_points(field, triangle, x, point_velocity, face_normal):
     """(P, 3, F) interpolated velocities at x (P, 3) in ``triangle`` (P,) of the F fields
     ``point_velocity`` (n_points, 3, F); ``field`` is the reconstruction's ``kernel_tables()``
-    (:meth:`CellInterpolator.kernel_tables`, :meth:`LeastSquaresVelocity.kernel_tables`)."""
+    (:meth:`CellInterpolator.kernel_tables`, :meth:`LeastSquaresVelocity.kernel_tables`).
+    Blocks of points in parallel."""
     triangles, cell_real, ids, planar, scheme = field
     P, F, K = x.shape[0], point_velocity.shape[2], ids.shape[1]
     result = np.empty((P, 3, F))
-    w, h, out = np.empty(K), np.empty(K + 1), np.empty(3)
-    for p in range(P):
-        _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, triangle[p], x[p, 0], x[p, 1], x[p, 2],
-                    face_normal, w, h, out, result, p)
+    chunks = max(1, min(P, 64))
+    for c in prange(chunks):
+        w, h, out = np.empty(K), np.empty(K + 1), np.empty(3)
+        for p in range(c * P // chunks, (c + 1) * P // chunks):
+            _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, triangle[p], x[p, 0], x[p, 1],
+                        x[p, 2], face_normal, w, h, out, result, p)
     return result
 
 
@@ -365,10 +373,91 @@ def _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real, bor
     return int(state[0]), int(state[2]), rounds, not done
 
 
-@_kernel
+@_helper
+def _backtrack_point(vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real, border_buckets,
+                     grid, grid_shape, near, triangles, cell_real, ids, field_planar, scheme, point_velocity, x, t,
+                     begin, count, tau, integrator, max_rounds, rounds, unfinished, w, h, state, lam, rate, d, d1):
+    """One point's backtracking (TriangleWalker.backtrack): ``count`` substeps of length ``tau``
+    from x (3, in place) in triangle t, the first starting with the velocity ``begin`` (3).
+    Adds its walking rounds into ``rounds`` (S, 2: the most any point walked in substep s, column
+    0 the midpoint half step, 1 the full step) and its unfinished walks into ``unfinished`` (S,).
+    Returns (triangle, wall edge or -1)."""
+    hit = -1
+    for substep in range(count):
+        r, left = 0, False
+        if integrator == 2:
+            state[0], state[1], state[2], state[3] = t, -1, -1, tau
+            d[0], d[1], d[2] = 0.0, 0.0, 0.0
+            done = not tau > 0
+            while not done and r < max_rounds:
+                r += 1
+                came = int(state[1])
+                t = int(state[0])
+                _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d1)
+                for k in range(3):
+                    d1[k] = -d1[k]
+                back = False
+                if came >= 0:  # a fresh velocity leaving at once through the entry edge: keep the unfolded one
+                    _barycentric(tri_real, t, x, lam)
+                    lam_came = lam[came] if lam[came] > 0.0 else 0.0
+                    rate_came = (tri_real[t, 3 * came] * d1[0] + tri_real[t, 3 * came + 1] * d1[1]
+                                 + tri_real[t, 3 * came + 2] * d1[2])
+                    back = rate_came < 0 and lam_came <= 1e-12
+                if not back:
+                    d[0], d[1], d[2] = d1[0], d1[1], d1[2]
+                done = _round(vertices, tri_real, tri_int, planar, state, x, d, lam, rate)
+            t, hit, left = int(state[0]), int(state[2]), not done
+        else:
+            if substep == 0:
+                for k in range(3):
+                    d[k] = -begin[k]
+            else:
+                _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d)
+                for k in range(3):
+                    d[k] = -d[k]
+            if integrator == 1:
+                # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint (d1 unfolded there)
+                t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                        border_buckets, grid, grid_shape, near, x, t, d, 0.5 * tau, max_rounds,
+                                        state, lam, rate)
+                rounds[substep, 0] = max(rounds[substep, 0], r)
+                d1[0], d1[1], d1[2] = d[0], d[1], d[2]
+                _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d)
+                for k in range(3):
+                    d[k] = 0.0 if hit >= 0 else -d[k] - 0.5 * d1[k]
+            t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                     border_buckets, grid, grid_shape, near, x, t, d, tau, max_rounds, state,
+                                     lam, rate)
+            if hit < 0:
+                hit = hit2
+        rounds[substep, 1] = max(rounds[substep, 1], r)
+        if left:
+            unfinished[substep] += 1
+        if hit >= 0:
+            break
+    return t, hit
+
+
+@_helper
+def _substep_count(begin, dt, size, substeps, max_cfl, cap):
+    """TriangleWalker.substep_counts for one point: ``substeps``, or with ``max_cfl`` > 0 enough
+    that one substep moves it at most max_cfl × ``size`` at the velocity ``begin`` (3), at most
+    ``cap``; the same rounding as numpy's (a non-finite CFL number gives ``substeps``)."""
+    if not max_cfl > 0:
+        return substeps
+    cfl = np.sqrt((begin[0] * begin[0] + begin[1] * begin[1]) + begin[2] * begin[2]) * dt / size
+    ratio = np.ceil(cfl / max_cfl)
+    if not (ratio > -9.2e18 and ratio < 9.2e18):  # numpy's astype(int64) of inf / nan, then the clip
+        return substeps
+    count = int(ratio)
+    return min(max(count, substeps), cap)
+
+
+@_parallel_kernel
 def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_velocity, count, dt, integrator,
-                     max_rounds):
-    """Backtrack every point along −u for ``dt`` (TriangleWalker.backtrack), point by point.
+                     max_rounds, chunks):
+    """Backtrack every point along −u for ``dt`` (TriangleWalker.backtrack), point by point, in
+    ``chunks`` blocks of points run in parallel (the result does not depend on ``chunks``).
 
     walk, jump : :meth:`TriangleWalker.kernel_tables`; field : the reconstruction's ``kernel_tables()``
     point_velocity : (n_points, 3, F) dual-point velocities, field 1 is the full u (mesh units / s)
@@ -392,89 +481,119 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
     position = start.copy()
     tri = triangle.copy()
     wall = np.full(P, -1, dtype=np.int64)
+    chunk_rounds = np.zeros((chunks, steps, 2), dtype=np.int64)
+    chunk_unfinished = np.zeros((chunks, steps), dtype=np.int64)
+    K, F = ids.shape[1], point_velocity.shape[2]
+    velocity = np.empty((P, 3, F))
+    for c in prange(chunks):
+        w, h = np.empty(K), np.empty(K + 1)
+        state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
+        d, d1, x = np.empty(3), np.empty(3), np.empty(3)
+        rounds, unfinished = chunk_rounds[c], chunk_unfinished[c]
+        for p in range(c * P // chunks, (c + 1) * P // chunks):
+            x[0], x[1], x[2] = position[p, 0], position[p, 1], position[p, 2]
+            t, hit = _backtrack_point(vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real,
+                                      border_buckets, grid, grid_shape, near, triangles, cell_real, ids,
+                                      field_planar, scheme, point_velocity, x, tri[p], start_velocity[p], count[p],
+                                      dt / count[p], integrator, max_rounds, rounds, unfinished, w, h, state, lam,
+                                      rate, d, d1)
+            position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
+            tri[p], wall[p] = t, hit
+            _all_fields(triangles, cell_real, ids, field_planar, scheme, point_velocity, t, x[0], x[1], x[2],
+                        face_normal, w, h, d, velocity, p)  # the end point's velocities
     rounds = np.zeros((steps, 2), dtype=np.int64)
     unfinished = np.zeros(steps, dtype=np.int64)
-    K = ids.shape[1]
-    w, h = np.empty(K), np.empty(K + 1)
-    state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
-    d, d1, x = np.empty(3), np.empty(3), np.empty(3)
-    F = point_velocity.shape[2]
-    velocity = np.empty((P, 3, F))
-    for p in range(P):
-        t = tri[p]
-        x[0], x[1], x[2] = position[p, 0], position[p, 1], position[p, 2]
-        tau = dt / count[p]
-        hit = -1
-        for substep in range(count[p]):
-            r, left = 0, False
-            if integrator == 2:
-                state[0], state[1], state[2], state[3] = t, -1, -1, tau
-                d[0], d[1], d[2] = 0.0, 0.0, 0.0
-                done = not tau > 0
-                while not done and r < max_rounds:
-                    r += 1
-                    came = int(state[1])
-                    t = int(state[0])
-                    _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d1)
-                    for k in range(3):
-                        d1[k] = -d1[k]
-                    back = False
-                    if came >= 0:  # a fresh velocity leaving at once through the entry edge: keep the unfolded one
-                        _barycentric(tri_real, t, x, lam)
-                        lam_came = lam[came] if lam[came] > 0.0 else 0.0
-                        rate_came = (tri_real[t, 3 * came] * d1[0] + tri_real[t, 3 * came + 1] * d1[1]
-                                     + tri_real[t, 3 * came + 2] * d1[2])
-                        back = rate_came < 0 and lam_came <= 1e-12
-                    if not back:
-                        d[0], d[1], d[2] = d1[0], d1[1], d1[2]
-                    done = _round(vertices, tri_real, tri_int, planar, state, x, d, lam, rate)
-                t, hit, left = int(state[0]), int(state[2]), not done
-            else:
-                if substep == 0:
-                    for k in range(3):
-                        d[k] = -start_velocity[p, k]
-                else:
-                    _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d)
-                    for k in range(3):
-                        d[k] = -d[k]
-                if integrator == 1:
-                    # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint (d1 unfolded there)
-                    t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
-                                            border_buckets, grid, grid_shape, near, x, t, d, 0.5 * tau, max_rounds,
-                                            state, lam, rate)
-                    rounds[substep, 0] = max(rounds[substep, 0], r)
-                    d1[0], d1[1], d1[2] = d[0], d[1], d[2]
-                    _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d)
-                    for k in range(3):
-                        d[k] = 0.0 if hit >= 0 else -d[k] - 0.5 * d1[k]
-                t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
-                                         border_buckets, grid, grid_shape, near, x, t, d, tau, max_rounds, state,
-                                         lam, rate)
-                if hit < 0:
-                    hit = hit2
-            rounds[substep, 1] = max(rounds[substep, 1], r)
-            if left:
-                unfinished[substep] += 1
-            if hit >= 0:
-                break
-        position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
-        tri[p], wall[p] = t, hit
-        _all_fields(triangles, cell_real, ids, field_planar, scheme, point_velocity, t, x[0], x[1], x[2],
-                    face_normal, w, h, d, velocity, p)  # the end point's velocities
+    for c in range(chunks):
+        for s in range(steps):
+            rounds[s, 0] = max(rounds[s, 0], chunk_rounds[c, s, 0])
+            rounds[s, 1] = max(rounds[s, 1], chunk_rounds[c, s, 1])
+            unfinished[s] += chunk_unfinished[c, s]
     return position, tri, wall, rounds, unfinished, velocity
 
 
+@_parallel_kernel
+def sweep_interval(walk, jump, field, point_velocity, position, triangle, wall, start_velocity, end_velocity, first,
+                   size, dt, substeps, max_cfl, cap, integrator, max_rounds, vorticity, value, chunks):
+    """One interval of the swept backtracking (VorticityFluid._backtrack_sweeping), in place: every
+    point not yet at a wall (``wall`` (m,) < 0) walks on for ``dt`` from ``position`` (m, 3) in
+    ``triangle`` (m,) (:func:`backtrack_points`' walk), starting with the velocity ``start_velocity``
+    (m, 3) when ``first``, else its end velocity of the previous interval, field 1 of
+    ``end_velocity`` (m, 3, F), which is then overwritten with the velocities at the new end point;
+    its substeps are TriangleWalker.substep_counts (``size`` (n2,) the mean edge length per
+    triangle, ``max_cfl`` ≤ 0: none, at most ``cap``). ``value`` (m,) becomes the P1 interpolation
+    of ``vorticity`` (n0,) at every point, (λ0 w0 + λ1 w1) + λ2 w2. ``chunks`` blocks of points run
+    in parallel (the result does not depend on it).
+
+    Returns rounds (cap, 2), unfinished (cap,) as :func:`backtrack_points` over the free points, and
+    their largest substep count (1 when none is free)."""
+    vertices, tri_real, tri_int, face_normal, planar = walk
+    affine, buckets, border_real, border_buckets, grid, grid_shape, near = jump
+    triangles, cell_real, ids, field_planar, scheme = field
+    P = position.shape[0]
+    chunk_rounds = np.zeros((chunks, cap, 2), dtype=np.int64)
+    chunk_unfinished = np.zeros((chunks, cap), dtype=np.int64)
+    chunk_steps = np.ones(chunks, dtype=np.int64)
+    K = ids.shape[1]
+    for c in prange(chunks):
+        w, h = np.empty(K), np.empty(K + 1)
+        state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
+        d, d1, x, begin = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+        rounds, unfinished = chunk_rounds[c], chunk_unfinished[c]
+        for p in range(c * P // chunks, (c + 1) * P // chunks):
+            t = triangle[p]
+            x[0], x[1], x[2] = position[p, 0], position[p, 1], position[p, 2]
+            if wall[p] < 0:
+                for k in range(3):
+                    begin[k] = start_velocity[p, k] if first else end_velocity[p, k, 1]
+                count = _substep_count(begin, dt, size[t], substeps, max_cfl, cap)
+                chunk_steps[c] = max(chunk_steps[c], count)
+                t, hit = _backtrack_point(vertices, tri_real, tri_int, face_normal, planar, affine, buckets,
+                                          border_real, border_buckets, grid, grid_shape, near, triangles, cell_real,
+                                          ids, field_planar, scheme, point_velocity, x, t, begin, count, dt / count,
+                                          integrator, max_rounds, rounds, unfinished, w, h, state, lam, rate, d, d1)
+                position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
+                triangle[p], wall[p] = t, hit
+                _all_fields(triangles, cell_real, ids, field_planar, scheme, point_velocity, t, x[0], x[1], x[2],
+                            face_normal, w, h, d, end_velocity, p)
+            _barycentric(tri_real, t, x, lam)
+            value[p] = (lam[0] * vorticity[tri_int[t, TRI_TOP]] + lam[1] * vorticity[tri_int[t, TRI_TOP + 1]]) \
+                + lam[2] * vorticity[tri_int[t, TRI_TOP + 2]]
+    rounds = np.zeros((cap, 2), dtype=np.int64)
+    unfinished = np.zeros(cap, dtype=np.int64)
+    steps = 1
+    for c in range(chunks):
+        steps = max(steps, chunk_steps[c])
+        for s in range(cap):
+            rounds[s, 0] = max(rounds[s, 0], chunk_rounds[c, s, 0])
+            rounds[s, 1] = max(rounds[s, 1], chunk_rounds[c, s, 1])
+            unfinished[s] += chunk_unfinished[c, s]
+    return rounds, unfinished, steps
+
+
 # ---------------------------------------------------------------- circulation (simulation.py)
-@_kernel
+@_helper
+def _incidence_rows(values, indptr, indices, data, out, first, last, negate, add):
+    """out[i] (+)= ±Σ_j data[j] values[indices[j]] over rows first..last of a CSR matrix, summed in
+    CSR order from 0.0 as scipy's csr_matvec does (``negate``: −the sum; ``add``: into out)."""
+    for i in range(first, last):
+        acc = 0.0
+        for j in range(indptr[i], indptr[i + 1]):
+            acc += data[j] * values[indices[j]]
+        if negate:
+            acc = -acc
+        out[i] = out[i] + acc if add else acc
+
+
+@_parallel_kernel
 def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, indptr, indices, data):
     """(n0, F) Γ = D g around every cell: g_e = <u(p_a) + u(p_b), p_b − p_a> / 2 along each
     dual edge a → b (trapezoid rule), D the signed cell–edge incidence (CSR indptr, indices,
     data). Points below m = len(position) are the backtracked ones (position, velocity
-    (m, 3, F)), the others fixed (fixed_points, fixed_velocity)."""
+    (m, 3, F)), the others fixed (fixed_points, fixed_velocity). Edges and cells in parallel."""
     m, F = position.shape[0], velocity.shape[2]
     E = edge_a.shape[0]
     g = np.empty((E, F))
-    for e in range(E):
+    for e in prange(E):
         a, b = edge_a[e], edge_b[e]
         for f in range(F):
             total = 0.0
@@ -487,7 +606,7 @@ def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, e
             g[e, f] = 0.5 * total
     n = indptr.shape[0] - 1
     gamma = np.zeros((n, F))
-    for i in range(n):
+    for i in prange(n):
         for j in range(indptr[i], indptr[i + 1]):
             for f in range(F):
                 gamma[i, f] += data[j] * g[indices[j], f]
@@ -495,31 +614,36 @@ def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, e
 
 
 # ---------------------------------------------------------------- swept vorticity (swept.py)
-@_kernel
-def swept_change(before, after, value_before, value_after, side_a, side_b, normal, indptr, indices, data):
-    """(n0,) Γ(X(C)) − Γ(C) per cell (SweptVorticity.change): per side a → b the signed areas of
-    the triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') along the side's ``normal`` (S, 3) times
-    the mean vorticity at their corners, summed into the cells by the signed incidence (CSR
-    indptr, indices, data), negated. Same arithmetic order as the numpy twin."""
+@_helper
+def _swept_side(before, after, value_before, value_after, a, b, normal, s):
+    """Σ signed area × mean vorticity of the triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') of
+    side s = a → b (SweptVorticity.change, before its incidence sum)."""
+    u0, u1, u2 = before[b, 0] - before[a, 0], before[b, 1] - before[a, 1], before[b, 2] - before[a, 2]
+    v0, v1, v2 = after[b, 0] - before[a, 0], after[b, 1] - before[a, 1], after[b, 2] - before[a, 2]
+    q0, q1, q2 = after[a, 0] - before[a, 0], after[a, 1] - before[a, 1], after[a, 2] - before[a, 2]
+    n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
+    c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    first = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+    c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
+    second = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+    wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
+    return first * (wa0 + wb0 + wb1) / 3.0 + second * (wa0 + wb1 + wa1) / 3.0
+
+
+@_parallel_kernel
+def swept_change_add(change, before, after, value_before, value_after, side_a, side_b, normal, indptr, indices,
+                     data):
+    """``change`` (n0,) += Γ(X(C)) − Γ(C) per cell, in place (SweptVorticity.change; summed over
+    the intervals of VorticityFluid._backtrack_sweeping): per side a → b the signed areas of the
+    triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') along the side's ``normal`` (S, 3) times the
+    mean vorticity at their corners, summed into the cells by the signed incidence (CSR indptr,
+    indices, data), negated. Same arithmetic order as the numpy twin (``change += −(D @ total)``);
+    sides and cells in parallel."""
     S = side_a.shape[0]
     total = np.empty(S)
-    for s in range(S):
-        a, b = side_a[s], side_b[s]
-        u0, u1, u2 = before[b, 0] - before[a, 0], before[b, 1] - before[a, 1], before[b, 2] - before[a, 2]
-        v0, v1, v2 = after[b, 0] - before[a, 0], after[b, 1] - before[a, 1], after[b, 2] - before[a, 2]
-        q0, q1, q2 = after[a, 0] - before[a, 0], after[a, 1] - before[a, 1], after[a, 2] - before[a, 2]
-        n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
-        c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-        first = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
-        c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
-        second = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
-        wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
-        total[s] = first * (wa0 + wb0 + wb1) / 3.0 + second * (wa0 + wb1 + wa1) / 3.0
+    for s in prange(S):
+        total[s] = _swept_side(before, after, value_before, value_after, side_a[s], side_b[s], normal, s)
     n = indptr.shape[0] - 1
-    change = np.empty(n)
-    for i in range(n):
-        acc = 0.0
-        for j in range(indptr[i], indptr[i + 1]):
-            acc += data[j] * total[indices[j]]
-        change[i] = -acc
-    return change
+    chunks = max(1, min(n, 64))
+    for c in prange(chunks):
+        _incidence_rows(total, indptr, indices, data, change, c * n // chunks, (c + 1) * n // chunks, True, True)

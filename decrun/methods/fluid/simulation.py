@@ -62,6 +62,7 @@ import scipy.sparse as sp
 
 from decrun.core import jit
 from decrun.core.dec import DEC
+from decrun.core.threads import one_blas_thread
 from decrun.errors import ConfigError, SolverError
 from decrun.methods.fluid.backtrack import BacktrackResult, TriangleWalker
 from decrun.core.connectivity import edge_owners
@@ -260,9 +261,22 @@ class VorticityFluid:
         if self.compiled_walk:  # the swept intervals after the first interpolate their start velocities
             self._kernel_field.velocity_compiled(np.zeros(0, dtype=np.int64), none, self._point_velocities(),
                                                  self.face_normal)
-        if self.circulation_rule in SWEPT:
+        if self.circulation_rule in SWEPT and self.compiled_walk:  # one interval of nothing
+            from decrun.methods.fluid import compiled
+
+            walk, jump = self.walker.kernel_tables()
+            both = self._point_velocities()
+            empty = np.zeros(0, dtype=np.int64)
+            compiled.sweep_interval(walk, jump, self._kernel_field.kernel_tables(), both, np.zeros((0, 3)), empty,
+                                    empty.copy(), np.zeros((0, 3)), np.zeros((0, 3, both.shape[2])), True,
+                                    np.ascontiguousarray(self.walker.size), self.dt, 1, 1.0, 64, 1, 1,
+                                    np.ascontiguousarray(self.vorticity), np.zeros(0), 1)
             rest = np.zeros(self.cells.points.shape[0])
-            self._swept.change(self.cells.points, self.cells.points, rest, rest, compiled=True)
+            points = np.ascontiguousarray(self.cells.points, dtype=np.float64)
+            D = self._swept.incidence
+            compiled.swept_change_add(np.zeros(self.K.num_simplices(0)), points, points, rest, rest,
+                                      self._swept.side_a, self._swept.side_b, self._swept.normal, D.indptr,
+                                      D.indices, D.data)
 
     def _remove_mean(self, w: np.ndarray) -> np.ndarray:
         if not self.closed:
@@ -305,7 +319,7 @@ class VorticityFluid:
             return reconstruction.velocity(triangle, x, full)[:, :, 0]
 
         m = self.cells.n_circumcenters
-        start = (reconstruction.circumcenter_matrix @ self.flux).reshape(m, 3)
+        start = self._circumcenter_velocity(full)
         options = dict(integrator=self.integrator, substeps=self.substeps, max_rounds=self.max_rounds,
                        max_cfl=self.max_cfl)
         if self.circulation_rule not in SWEPT:
@@ -321,6 +335,21 @@ class VorticityFluid:
             v[clamped, :, 0] = 0.0
             v[clamped, :, 1] = self._edge_wall_velocity[result.wall_edge[clamped]]
         return result, v
+
+    def _circumcenter_velocity(self, full: np.ndarray) -> np.ndarray:
+        """(m, 3) the full velocity u at the circumcenters, where step c starts: the least-squares
+        reconstruction interpolates its vertex velocities ``full`` (n0, 3, 1) there (P1, projected
+        into the triangle's plane: the product ``circumcenter_matrix @ flux`` computed in two
+        steps, by the numba kernel when compiled, ~0.1 ms instead of ~1 ms on 20k faces); WSHD07
+        takes the triangle's constant velocity (``circumcenter_matrix @ flux``)."""
+        m = self.cells.n_circumcenters
+        reconstruction = self.reconstruction
+        if reconstruction.name != "least_squares":
+            return (reconstruction.circumcenter_matrix @ self.flux).reshape(m, 3)
+        triangles, circumcenters = np.arange(m), self.cells.points[:m]
+        if self.compiled_walk:
+            return reconstruction.velocity_compiled(triangles, circumcenters, full)[:, :, 0]
+        return reconstruction.velocity(triangles, circumcenters, full)[:, :, 0]
 
     def _walk(self, points, triangles, dt, velocity, both, start_velocity, options):
         """One backtracking walk of ``points`` (P, 3) in ``triangles`` (P,) over ``dt``: the
@@ -340,6 +369,8 @@ class VorticityFluid:
         m = self.cells.n_circumcenters
         cfl = np.linalg.norm(start, axis=1) * self.dt / self.walker.size
         k = max(1, int(np.ceil(cfl.max() / self.swept_cfl))) if cfl.size else 1
+        if self.compiled_walk:
+            return self._backtrack_sweeping_compiled(both, start, k, options)
         top = self.K.simplices(2)
         points = self.cells.points.copy()
         value = self._rest_vorticity @ self.vorticity
@@ -347,30 +378,65 @@ class VorticityFluid:
         wall = np.full(m, -1, dtype=np.int64)
         change = np.zeros(self.K.num_simplices(0))
         rounds = unfinished = substeps = 0
-        # the compiled walk's end velocities of the points free in the last interval (the others
-        # are clamped: backtrack gives them the wall's velocity)
-        end_velocity = np.zeros((m, 3, both.shape[2])) if self.compiled_walk else None
         for interval in range(k):  # k small: a few intervals per step
             free = np.flatnonzero(wall < 0)
-            if interval == 0:
-                begin = start[free]
-            else:  # the compiled walk's end velocities are the next interval's start velocities (the same bits)
-                begin = None if end_velocity is None else end_velocity[free, :, 1]
+            begin = start[free] if interval == 0 else None
             part = self._walk(position[free], triangle[free], self.dt / k, velocity, both, begin, options)
             rounds, unfinished = rounds + part.rounds, max(unfinished, part.unfinished)
             substeps = max(substeps, part.substeps)
             position[free], triangle[free], wall[free] = part.position, part.triangle, part.wall_edge
-            if end_velocity is not None:
-                end_velocity[free] = part.velocity
             moved = points.copy()
             moved[:m] = position
             lam = self.walker.barycentric(triangle, position)
             new_value = value.copy()
-            new_value[:m] = np.einsum("pc,pc->p", lam, self.vorticity[top[triangle]])
-            change += self._swept.change(points, moved, value, new_value, compiled=self.compiled_walk)
+            new_value[:m] = dot3(lam, self.vorticity[top[triangle]])
+            change += self._swept.change(points, moved, value, new_value)
             points, value = moved, new_value
         self._swept_change = change
-        return BacktrackResult(position, triangle, wall, rounds, unfinished, k * substeps, end_velocity)
+        return BacktrackResult(position, triangle, wall, rounds, unfinished, k * substeps)
+
+    def _backtrack_sweeping_compiled(self, both, start, k, options):
+        """:meth:`_backtrack_sweeping` by the numba kernels, the same bits: per interval one
+        ``compiled.sweep_interval`` (walk, end velocities — the next interval's start velocities —
+        and the vorticity at the new end points, blocks of points in parallel) and one
+        ``compiled.swept_change_add``, on two point buffers used in turn."""
+        from decrun.methods.fluid import compiled
+
+        m = self.cells.n_circumcenters
+        walk, jump = self.walker.kernel_tables()
+        field = self._kernel_field.kernel_tables()
+        both = np.ascontiguousarray(both, dtype=np.float64)
+        start = np.ascontiguousarray(start, dtype=np.float64)
+        before = np.ascontiguousarray(self.cells.points, dtype=np.float64)
+        after = before.copy()
+        before = before.copy()
+        value_before = self._rest_vorticity @ self.vorticity
+        value_after = value_before.copy()
+        triangle = np.arange(m, dtype=np.int64)
+        wall = np.full(m, -1, dtype=np.int64)
+        end_velocity = np.zeros((m, 3, both.shape[2]))
+        change = np.zeros(self.K.num_simplices(0))
+        vorticity = np.ascontiguousarray(self.vorticity, dtype=np.float64)
+        size = np.ascontiguousarray(self.walker.size, dtype=np.float64)
+        max_cfl = -1.0 if options["max_cfl"] is None else float(options["max_cfl"])
+        substeps = int(options["substeps"])
+        cap = max(64, substeps)  # TriangleWalker.backtrack's max_substeps
+        swept, D = self._swept, self._swept.incidence
+        chunks = jit.threads()
+        rounds = unfinished = most = 0
+        for interval in range(k):
+            after[:m] = before[:m]
+            r, left, steps = compiled.sweep_interval(
+                walk, jump, field, both, after[:m], triangle, wall, start, end_velocity, interval == 0, size,
+                self.dt / k, substeps, max_cfl, cap, compiled.INTEGRATOR_CODE[options["integrator"]],
+                int(options["max_rounds"]), vorticity, value_after[:m], chunks)
+            rounds, unfinished, most = rounds + int(r.sum()), max(unfinished, int(left.max(initial=0))), max(most, steps)
+            compiled.swept_change_add(change, before, after, value_before, value_after, swept.side_a, swept.side_b,
+                                      swept.normal, D.indptr, D.indices, D.data)
+            before, after = after, before
+            value_before, value_after = value_after, value_before
+        self._swept_change = change
+        return BacktrackResult(before[:m].copy(), triangle, wall, rounds, unfinished, k * most, end_velocity)
 
     def _build_dual_edges(self) -> None:
         """The dual cells' sides as unique dual edges (a, b), a < b, and the signed
@@ -558,6 +624,10 @@ class VorticityFluid:
         clamp changed; 0 without it) and bound_action (0: within both bounds, 1: blended with the smoothed field, 2: rescaled)
         (and diverged_at_step once a step produced non-finite values; later steps do nothing).
         """
+        with one_blas_thread():  # the inner products beside the parallel kernels (decrun.core.threads)
+            return self._step(force_flux)
+
+    def _step(self, force_flux: np.ndarray | None) -> dict:
         extra = {}
         if self.diverged_at_step is None:
             before = self.kinetic_energy()

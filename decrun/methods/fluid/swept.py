@@ -68,7 +68,7 @@ class SweptVorticity:
         """(n0,) Γ(X(C)) − Γ(C) per cell, for the dual points ``before`` (P, 3), their
         backtracked positions ``after`` (P, 3) and the vorticity interpolated at both (P,).
 
-        ``compiled``: by the numba twin (compiled.swept_change), the same arithmetic in the same
+        ``compiled``: by the numba twin (compiled.swept_change_add into zeros), the same arithmetic in the same
         order (3-vector dots as ``dot3``), the same bits."""
         a, b = self.side_a, self.side_b
         if compiled:
@@ -77,8 +77,10 @@ class SweptVorticity:
             D = self.incidence
             f64 = [np.ascontiguousarray(x, dtype=np.float64) for x in (before, after, value_before, value_after,
                                                                        self.normal)]
-            return kernels.swept_change(*f64[:4], np.ascontiguousarray(a, dtype=np.int64),
-                                        np.ascontiguousarray(b, dtype=np.int64), f64[4], D.indptr, D.indices, D.data)
+            change = np.zeros(D.shape[0])
+            kernels.swept_change_add(change, *f64[:4], np.ascontiguousarray(a, dtype=np.int64),
+                                     np.ascontiguousarray(b, dtype=np.int64), f64[4], D.indptr, D.indices, D.data)
+            return change
         a0, b0, a1, b1 = before[a], before[b], after[a], after[b]
         first = 0.5 * dot3(np.cross(b0 - a0, b1 - a0), self.normal)
         second = 0.5 * dot3(np.cross(b1 - a0, a1 - a0), self.normal)

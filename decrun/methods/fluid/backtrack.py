@@ -452,19 +452,22 @@ class TriangleWalker:
         from decrun.methods.fluid import compiled
 
         _check_integrator(integrator, substeps)
-        position = np.ascontiguousarray(start, dtype=np.float64)
-        tri = np.ascontiguousarray(triangle, dtype=np.int64)
+        position = np.array(start, dtype=np.float64, order="C")
+        tri = np.array(triangle, dtype=np.int64)
         point_velocity = np.ascontiguousarray(point_velocity, dtype=np.float64)
         normal = np.ascontiguousarray(self.face_normal, dtype=np.float64)
         if start_velocity is None:
             start_velocity = interpolator.velocity_compiled(tri, position, point_velocity, normal)[:, :, 1]
         start_velocity = np.ascontiguousarray(start_velocity, dtype=np.float64)
-        count = self.substep_counts(tri, dt, start_velocity, substeps, max_cfl, max_substeps)
-        position, tri, wall, rounds, unfinished, velocity = compiled.backtrack_points(
-            *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, position, tri, start_velocity, count,
-            float(dt), compiled.INTEGRATOR_CODE[integrator], int(max_rounds), jit.threads())
-        return BacktrackResult(position, tri, wall, int(rounds.sum()), int(unfinished.max(initial=0)),
-                               int(count.max(initial=1)), velocity)
+        wall = np.full(tri.size, -1, dtype=np.int64)
+        velocity = np.empty((tri.size, 3, point_velocity.shape[2]))
+        rounds, unfinished, most = compiled.backtrack_points(
+            *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, position, tri, wall, start_velocity,
+            velocity, True, np.ascontiguousarray(self.size, dtype=np.float64), float(dt), int(substeps),
+            -1.0 if max_cfl is None else float(max_cfl), max(max_substeps, substeps),
+            compiled.INTEGRATOR_CODE[integrator], int(max_rounds), np.zeros(0), np.zeros(0), jit.threads())
+        return BacktrackResult(position, tri, wall, int(rounds.sum()), int(unfinished.max(initial=0)), int(most),
+                               velocity)
 
     def backtrack(self, start: np.ndarray, triangle: np.ndarray, dt: float, velocity,
                   integrator: str = "midpoint", substeps: int = 1, max_rounds: int = 1000,

@@ -29,7 +29,7 @@ import numpy as np
 
 from decrun.core import jit
 
-__all__ = ["velocity_points", "backtrack_points", "sweep_interval", "circulation_sums", "swept_change_add",
+__all__ = ["velocity_points", "backtrack_points", "circulation_sums", "swept_change_add",
            "INTEGRATOR_CODE"]
 
 INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
@@ -374,71 +374,6 @@ def _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real, bor
 
 
 @_helper
-def _backtrack_point(vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real, border_buckets,
-                     grid, grid_shape, near, triangles, cell_real, ids, field_planar, scheme, point_velocity, x, t,
-                     begin, count, tau, integrator, max_rounds, rounds, unfinished, w, h, state, lam, rate, d, d1):
-    """One point's backtracking (TriangleWalker.backtrack): ``count`` substeps of length ``tau``
-    from x (3, in place) in triangle t, the first starting with the velocity ``begin`` (3).
-    Adds its walking rounds into ``rounds`` (S, 2: the most any point walked in substep s, column
-    0 the midpoint half step, 1 the full step) and its unfinished walks into ``unfinished`` (S,).
-    Returns (triangle, wall edge or -1)."""
-    hit = -1
-    for substep in range(count):
-        r, left = 0, False
-        if integrator == 2:
-            state[0], state[1], state[2], state[3] = t, -1, -1, tau
-            d[0], d[1], d[2] = 0.0, 0.0, 0.0
-            done = not tau > 0
-            while not done and r < max_rounds:
-                r += 1
-                came = int(state[1])
-                t = int(state[0])
-                _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d1)
-                for k in range(3):
-                    d1[k] = -d1[k]
-                back = False
-                if came >= 0:  # a fresh velocity leaving at once through the entry edge: keep the unfolded one
-                    _barycentric(tri_real, t, x, lam)
-                    lam_came = lam[came] if lam[came] > 0.0 else 0.0
-                    rate_came = (tri_real[t, 3 * came] * d1[0] + tri_real[t, 3 * came + 1] * d1[1]
-                                 + tri_real[t, 3 * came + 2] * d1[2])
-                    back = rate_came < 0 and lam_came <= 1e-12
-                if not back:
-                    d[0], d[1], d[2] = d1[0], d1[1], d1[2]
-                done = _round(vertices, tri_real, tri_int, planar, state, x, d, lam, rate)
-            t, hit, left = int(state[0]), int(state[2]), not done
-        else:
-            if substep == 0:
-                for k in range(3):
-                    d[k] = -begin[k]
-            else:
-                _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d)
-                for k in range(3):
-                    d[k] = -d[k]
-            if integrator == 1:
-                # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint (d1 unfolded there)
-                t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
-                                        border_buckets, grid, grid_shape, near, x, t, d, 0.5 * tau, max_rounds,
-                                        state, lam, rate)
-                rounds[substep, 0] = max(rounds[substep, 0], r)
-                d1[0], d1[1], d1[2] = d[0], d[1], d[2]
-                _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x, face_normal, w, h, d)
-                for k in range(3):
-                    d[k] = 0.0 if hit >= 0 else -d[k] - 0.5 * d1[k]
-            t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
-                                     border_buckets, grid, grid_shape, near, x, t, d, tau, max_rounds, state,
-                                     lam, rate)
-            if hit < 0:
-                hit = hit2
-        rounds[substep, 1] = max(rounds[substep, 1], r)
-        if left:
-            unfinished[substep] += 1
-        if hit >= 0:
-            break
-    return t, hit
-
-
-@_helper
 def _substep_count(begin, dt, size, substeps, max_cfl, cap):
     """TriangleWalker.substep_counts for one point: ``substeps``, or with ``max_cfl`` > 0 enough
     that one substep moves it at most max_cfl × ``size`` at the velocity ``begin`` (3), at most
@@ -449,24 +384,122 @@ def _substep_count(begin, dt, size, substeps, max_cfl, cap):
     ratio = np.ceil(cfl / max_cfl)
     if not (ratio > -9.2e18 and ratio < 9.2e18):  # numpy's astype(int64) of inf / nan, then the clip
         return substeps
-    count = int(ratio)
-    return min(max(count, substeps), cap)
+    return min(max(int(ratio), substeps), cap)
+
+
+@_kernel
+def _backtrack_block(vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real, border_buckets, grid,
+                     grid_shape, near, triangles, cell_real, ids, field_planar, scheme, point_velocity, position,
+                     triangle, wall, start_velocity, end_velocity, first, size, dt, substeps, max_cfl, cap, integrator,
+                     max_rounds, vorticity, value, first_point, last_point, rounds, unfinished):
+    """:func:`backtrack_points` for the points first_point..last_point − 1 (one thread's block,
+    compiled as a plain loop: numba's parfor body ran the same loop 1.6× slower); adds into
+    ``rounds`` (cap, 2) and ``unfinished`` (cap,) and returns the largest substep count (≥ 1)."""
+    K = ids.shape[1]
+    interpolate = value.shape[0] > 0
+    w, h = np.empty(K), np.empty(K + 1)
+    state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
+    d, d1, x = np.empty(3), np.empty(3), np.empty(3)
+    steps = 1
+    for p in range(first_point, last_point):
+        t = triangle[p]
+        x[0], x[1], x[2] = position[p, 0], position[p, 1], position[p, 2]
+        if wall[p] < 0:
+            for k in range(3):  # d1: the start velocity
+                d1[k] = start_velocity[p, k] if first else end_velocity[p, k, 1]
+            count = _substep_count(d1, dt, size[t], substeps, max_cfl, cap)
+            steps = max(steps, count)
+            tau = dt / count
+            hit = -1
+            for substep in range(count):
+                r, left = 0, False
+                if integrator == 2:
+                    state[0], state[1], state[2], state[3] = t, -1, -1, tau
+                    d[0], d[1], d[2] = 0.0, 0.0, 0.0
+                    done = not tau > 0
+                    while not done and r < max_rounds:
+                        r += 1
+                        came = int(state[1])
+                        t = int(state[0])
+                        _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x,
+                                  face_normal, w, h, d1)
+                        for k in range(3):
+                            d1[k] = -d1[k]
+                        back = False
+                        if came >= 0:  # a fresh velocity leaving at once through the entry edge: keep the unfolded one
+                            _barycentric(tri_real, t, x, lam)
+                            lam_came = lam[came] if lam[came] > 0.0 else 0.0
+                            rate_came = (tri_real[t, 3 * came] * d1[0] + tri_real[t, 3 * came + 1] * d1[1]
+                                         + tri_real[t, 3 * came + 2] * d1[2])
+                            back = rate_came < 0 and lam_came <= 1e-12
+                        if not back:
+                            d[0], d[1], d[2] = d1[0], d1[1], d1[2]
+                        done = _round(vertices, tri_real, tri_int, planar, state, x, d, lam, rate)
+                    t, hit, left = int(state[0]), int(state[2]), not done
+                else:
+                    if substep == 0:
+                        for k in range(3):
+                            d[k] = -d1[k]
+                    else:
+                        _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x,
+                                  face_normal, w, h, d)
+                        for k in range(3):
+                            d[k] = -d[k]
+                    if integrator == 1:
+                        # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint (d1 unfolded there)
+                        t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                                border_buckets, grid, grid_shape, near, x, t, d, 0.5 * tau,
+                                                max_rounds, state, lam, rate)
+                        rounds[substep, 0] = max(rounds[substep, 0], r)
+                        d1[0], d1[1], d1[2] = d[0], d[1], d[2]
+                        _velocity(triangles, cell_real, ids, field_planar, scheme, point_velocity, 1, t, x,
+                                  face_normal, w, h, d)
+                        for k in range(3):
+                            d[k] = 0.0 if hit >= 0 else -d[k] - 0.5 * d1[k]
+                    t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                             border_buckets, grid, grid_shape, near, x, t, d, tau, max_rounds,
+                                             state, lam, rate)
+                    if hit < 0:
+                        hit = hit2
+                rounds[substep, 1] = max(rounds[substep, 1], r)
+                if left:
+                    unfinished[substep] += 1
+                if hit >= 0:
+                    break
+            position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
+            triangle[p], wall[p] = t, hit
+            _all_fields(triangles, cell_real, ids, field_planar, scheme, point_velocity, t, x[0], x[1], x[2],
+                        face_normal, w, h, d, end_velocity, p)  # the end point's velocities
+        if interpolate:
+            _barycentric(tri_real, t, x, lam)
+            value[p] = (lam[0] * vorticity[tri_int[t, TRI_TOP]] + lam[1] * vorticity[tri_int[t, TRI_TOP + 1]]) \
+                + lam[2] * vorticity[tri_int[t, TRI_TOP + 2]]
+    return steps
 
 
 @_parallel_kernel
-def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_velocity, count, dt, integrator,
-                     max_rounds, chunks):
-    """Backtrack every point along −u for ``dt`` (TriangleWalker.backtrack), point by point, in
+def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall, start_velocity, end_velocity, first,
+                     size, dt, substeps, max_cfl, cap, integrator, max_rounds, vorticity, value, chunks):
+    """Backtrack along −u for ``dt`` (TriangleWalker.backtrack), point by point and in place, in
     ``chunks`` blocks of points run in parallel (the result does not depend on ``chunks``).
 
     walk, jump : :meth:`TriangleWalker.kernel_tables`; field : the reconstruction's ``kernel_tables()``
     point_velocity : (n_points, 3, F) dual-point velocities, field 1 is the full u (mesh units / s)
-    start (P, 3), triangle (P,), start_velocity (P, 3) the velocity at the start points
-    count : (P,) substeps per point (each of length dt / count); integrator : INTEGRATOR_CODE
-    Returns position (P, 3), triangle (P,), wall edge (P,) (-1: none), rounds (S, 2) the most
-    rounds any point walked in substep s (column 0: the midpoint half step, 1: the full step),
-    unfinished (S,) points still walking after ``max_rounds`` in substep s, and the velocities
-    (P, 3, F) of all F fields interpolated at the end points (velocity_points there).
+    position (P, 3), triangle (P,), wall (P,) : where each point is, updated; a point with
+    ``wall`` ≥ 0 (clamped at that border edge) does not move
+    start_velocity (P, 3) : the velocity the first substep starts with when ``first``; otherwise
+        field 1 of ``end_velocity`` (P, 3, F), the previous call's end velocities (the swept
+        intervals), which are then overwritten with the velocities of all F fields at the new end
+        points (velocity_points there)
+    size (n2,) : mean edge length per triangle; substeps, max_cfl, cap : the points' substep
+        counts (TriangleWalker.substep_counts; ``max_cfl`` ≤ 0: none, at most ``cap``), each
+        substep of length dt / count; integrator : INTEGRATOR_CODE
+    vorticity (n0,), value (P,) : when ``value`` is not empty, value[p] = the P1 interpolation
+        (λ0 w0 + λ1 w1) + λ2 w2 of the vertex vorticity at every point (moved or not)
+
+    Returns rounds (cap, 2) the most rounds any moving point walked in substep s (column 0: the
+    midpoint half step, 1: the full step), unfinished (cap,) points still walking after
+    ``max_rounds`` in substep s, and the largest substep count (1 when no point moved).
 
     per_triangle (Fig. 7.9, TriangleWalker._walk_per_triangle): every round takes a fresh
     velocity in the triangle entered, unless it leaves at once through the entry edge.
@@ -474,90 +507,17 @@ def backtrack_points(walk, jump, field, point_velocity, start, triangle, start_v
     vertices, tri_real, tri_int, face_normal, planar = walk
     affine, buckets, border_real, border_buckets, grid, grid_shape, near = jump
     triangles, cell_real, ids, field_planar, scheme = field
-    P = start.shape[0]
-    steps = 1
-    for p in range(P):
-        steps = max(steps, count[p])
-    position = start.copy()
-    tri = triangle.copy()
-    wall = np.full(P, -1, dtype=np.int64)
-    chunk_rounds = np.zeros((chunks, steps, 2), dtype=np.int64)
-    chunk_unfinished = np.zeros((chunks, steps), dtype=np.int64)
-    K, F = ids.shape[1], point_velocity.shape[2]
-    velocity = np.empty((P, 3, F))
-    for c in prange(chunks):
-        w, h = np.empty(K), np.empty(K + 1)
-        state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
-        d, d1, x = np.empty(3), np.empty(3), np.empty(3)
-        rounds, unfinished = chunk_rounds[c], chunk_unfinished[c]
-        for p in range(c * P // chunks, (c + 1) * P // chunks):
-            x[0], x[1], x[2] = position[p, 0], position[p, 1], position[p, 2]
-            t, hit = _backtrack_point(vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real,
-                                      border_buckets, grid, grid_shape, near, triangles, cell_real, ids,
-                                      field_planar, scheme, point_velocity, x, tri[p], start_velocity[p], count[p],
-                                      dt / count[p], integrator, max_rounds, rounds, unfinished, w, h, state, lam,
-                                      rate, d, d1)
-            position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
-            tri[p], wall[p] = t, hit
-            _all_fields(triangles, cell_real, ids, field_planar, scheme, point_velocity, t, x[0], x[1], x[2],
-                        face_normal, w, h, d, velocity, p)  # the end point's velocities
-    rounds = np.zeros((steps, 2), dtype=np.int64)
-    unfinished = np.zeros(steps, dtype=np.int64)
-    for c in range(chunks):
-        for s in range(steps):
-            rounds[s, 0] = max(rounds[s, 0], chunk_rounds[c, s, 0])
-            rounds[s, 1] = max(rounds[s, 1], chunk_rounds[c, s, 1])
-            unfinished[s] += chunk_unfinished[c, s]
-    return position, tri, wall, rounds, unfinished, velocity
-
-
-@_parallel_kernel
-def sweep_interval(walk, jump, field, point_velocity, position, triangle, wall, start_velocity, end_velocity, first,
-                   size, dt, substeps, max_cfl, cap, integrator, max_rounds, vorticity, value, chunks):
-    """One interval of the swept backtracking (VorticityFluid._backtrack_sweeping), in place: every
-    point not yet at a wall (``wall`` (m,) < 0) walks on for ``dt`` from ``position`` (m, 3) in
-    ``triangle`` (m,) (:func:`backtrack_points`' walk), starting with the velocity ``start_velocity``
-    (m, 3) when ``first``, else its end velocity of the previous interval, field 1 of
-    ``end_velocity`` (m, 3, F), which is then overwritten with the velocities at the new end point;
-    its substeps are TriangleWalker.substep_counts (``size`` (n2,) the mean edge length per
-    triangle, ``max_cfl`` ≤ 0: none, at most ``cap``). ``value`` (m,) becomes the P1 interpolation
-    of ``vorticity`` (n0,) at every point, (λ0 w0 + λ1 w1) + λ2 w2. ``chunks`` blocks of points run
-    in parallel (the result does not depend on it).
-
-    Returns rounds (cap, 2), unfinished (cap,) as :func:`backtrack_points` over the free points, and
-    their largest substep count (1 when none is free)."""
-    vertices, tri_real, tri_int, face_normal, planar = walk
-    affine, buckets, border_real, border_buckets, grid, grid_shape, near = jump
-    triangles, cell_real, ids, field_planar, scheme = field
     P = position.shape[0]
     chunk_rounds = np.zeros((chunks, cap, 2), dtype=np.int64)
     chunk_unfinished = np.zeros((chunks, cap), dtype=np.int64)
     chunk_steps = np.ones(chunks, dtype=np.int64)
-    K = ids.shape[1]
     for c in prange(chunks):
-        w, h = np.empty(K), np.empty(K + 1)
-        state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
-        d, d1, x, begin = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-        rounds, unfinished = chunk_rounds[c], chunk_unfinished[c]
-        for p in range(c * P // chunks, (c + 1) * P // chunks):
-            t = triangle[p]
-            x[0], x[1], x[2] = position[p, 0], position[p, 1], position[p, 2]
-            if wall[p] < 0:
-                for k in range(3):
-                    begin[k] = start_velocity[p, k] if first else end_velocity[p, k, 1]
-                count = _substep_count(begin, dt, size[t], substeps, max_cfl, cap)
-                chunk_steps[c] = max(chunk_steps[c], count)
-                t, hit = _backtrack_point(vertices, tri_real, tri_int, face_normal, planar, affine, buckets,
+        chunk_steps[c] = _backtrack_block(vertices, tri_real, tri_int, face_normal, planar, affine, buckets,
                                           border_real, border_buckets, grid, grid_shape, near, triangles, cell_real,
-                                          ids, field_planar, scheme, point_velocity, x, t, begin, count, dt / count,
-                                          integrator, max_rounds, rounds, unfinished, w, h, state, lam, rate, d, d1)
-                position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
-                triangle[p], wall[p] = t, hit
-                _all_fields(triangles, cell_real, ids, field_planar, scheme, point_velocity, t, x[0], x[1], x[2],
-                            face_normal, w, h, d, end_velocity, p)
-            _barycentric(tri_real, t, x, lam)
-            value[p] = (lam[0] * vorticity[tri_int[t, TRI_TOP]] + lam[1] * vorticity[tri_int[t, TRI_TOP + 1]]) \
-                + lam[2] * vorticity[tri_int[t, TRI_TOP + 2]]
+                                          ids, field_planar, scheme, point_velocity, position, triangle, wall,
+                                          start_velocity, end_velocity, first, size, dt, substeps, max_cfl, cap,
+                                          integrator, max_rounds, vorticity, value, c * P // chunks,
+                                          (c + 1) * P // chunks, chunk_rounds[c], chunk_unfinished[c])
     rounds = np.zeros((cap, 2), dtype=np.int64)
     unfinished = np.zeros(cap, dtype=np.int64)
     steps = 1

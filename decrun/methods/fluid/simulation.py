@@ -267,10 +267,10 @@ class VorticityFluid:
             walk, jump = self.walker.kernel_tables()
             both = self._point_velocities()
             empty = np.zeros(0, dtype=np.int64)
-            compiled.sweep_interval(walk, jump, self._kernel_field.kernel_tables(), both, np.zeros((0, 3)), empty,
-                                    empty.copy(), np.zeros((0, 3)), np.zeros((0, 3, both.shape[2])), True,
-                                    np.ascontiguousarray(self.walker.size), self.dt, 1, 1.0, 64, 1, 1,
-                                    np.ascontiguousarray(self.vorticity), np.zeros(0), 1)
+            compiled.backtrack_points(walk, jump, self._kernel_field.kernel_tables(), both, np.zeros((0, 3)), empty,
+                                      empty.copy(), np.zeros((0, 3)), np.zeros((0, 3, both.shape[2])), True,
+                                      np.ascontiguousarray(self.walker.size), self.dt, 1, 1.0, 64, 1, 1,
+                                      np.ascontiguousarray(self.vorticity), np.zeros(1), 1)
             rest = np.zeros(self.cells.points.shape[0])
             points = np.ascontiguousarray(self.cells.points, dtype=np.float64)
             D = self._swept.incidence
@@ -397,7 +397,7 @@ class VorticityFluid:
 
     def _backtrack_sweeping_compiled(self, both, start, k, options):
         """:meth:`_backtrack_sweeping` by the numba kernels, the same bits: per interval one
-        ``compiled.sweep_interval`` (walk, end velocities — the next interval's start velocities —
+        ``compiled.backtrack_points`` (walk, end velocities — the next interval's start velocities —
         and the vorticity at the new end points, blocks of points in parallel) and one
         ``compiled.swept_change_add``, on two point buffers used in turn."""
         from decrun.methods.fluid import compiled
@@ -426,7 +426,7 @@ class VorticityFluid:
         rounds = unfinished = most = 0
         for interval in range(k):
             after[:m] = before[:m]
-            r, left, steps = compiled.sweep_interval(
+            r, left, steps = compiled.backtrack_points(
                 walk, jump, field, both, after[:m], triangle, wall, start, end_velocity, interval == 0, size,
                 self.dt / k, substeps, max_cfl, cap, compiled.INTEGRATOR_CODE[options["integrator"]],
                 int(options["max_rounds"]), vorticity, value_after[:m], chunks)

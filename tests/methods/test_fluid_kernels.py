@@ -211,3 +211,55 @@ def test_numba_is_imported_only_when_a_fluid_runs():
             "print('numba' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("name, scheme", [
+    ("sphere", dict(velocity="least_squares", circulation="swept_bounded")),  # the default scheme
+    ("channel", dict(velocity="least_squares", circulation="swept_bounded")),  # swept intervals, walls, inflow
+    ("channel", {}),  # the thesis' scheme: one plain walk
+])
+def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(name, scheme):
+    """The kernels split their points, sides and cells into one block per thread (``prange``);
+    every item is computed as in the serial loop, so the run does not depend on the thread count
+    (one thread against numba's all, the machine's cores: 2 on CI)."""
+    import numba
+
+    dec, base = case(name)
+    sims = [VorticityFluid(dec, DirectSolver, kernels="numba", **{**base, **COMPILED_SCHEME, **scheme})
+            for _ in range(2)]
+    before = numba.get_num_threads()
+    try:
+        for _ in range(6):
+            got = []
+            for sim, threads in zip(sims, (1, numba.config.NUMBA_NUM_THREADS)):
+                numba.set_num_threads(threads)
+                got.append(sim.step())
+            assert got[0] == got[1]  # every diagnostic, bitwise
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(sims[0].vorticity, sims[1].vorticity)
+    assert got[0]["stable"]
+    assert got[0]["backtrack_rounds"] > 0 if name == "sphere" else got[0]["clamped_points"] > 0  # walked; walls met
+
+
+def test_a_step_runs_one_blas_thread_and_restores_the_setting():
+    """numpy's BLAS threads its inner products of mesh vectors, and its spinning threads took the
+    cores from the parallel kernels (decrun.core.threads): inside a step every BLAS runs one
+    thread; after it the process's own setting is back."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    dec, base = case("sphere")
+    sim = VorticityFluid(dec, DirectSolver, kernels="numba", **base)
+    inside = []
+    kinetic_energy = sim.kinetic_energy
+
+    def spy():
+        inside.append([lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"])
+        return kinetic_energy()
+
+    sim.kinetic_energy = spy
+    with threadpool_limits(limits=2, user_api="blas"):
+        sim.step()
+        after = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+    assert inside and all(threads == [1] * len(threads) for threads in inside) and inside[0]
+    assert after == [2] * len(after)

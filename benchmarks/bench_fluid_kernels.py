@@ -3,14 +3,17 @@
 Cases (issues 17, 26): the default scheme (least-squares walk, swept_bounded; ``--scheme wshd07``:
 the thesis' interpolation) on the unit icosphere of 20,480 faces (a smooth random vorticity, ν = 1e-3, CFL ≈ 1)
 and the ~12k-face channel of Fig. 7.15–7.17 (inflow 10 units/s, one obstacle, ν = 0.02, dt =
-0.005) with the default per-point substeps (max_cfl = 1) and with one substep. Both simulations
-of a case are built on the same mesh and stepped alternately, so machine load hits both alike;
-the ratio numba / numpy is the number to read on a shared machine (CPU time of this process).
-Every row also splits the numba step into the compiled backtracking (walk, interpolation, end
-velocities), the two sparse solves and the rest.
+0.005) with the default per-point substeps (max_cfl = 1) and with one substep. Three simulations
+of a case are built on the same mesh and stepped in turn — the numpy twins, the numba kernels on
+one thread and on all of numba's threads (``NUMBA_NUM_THREADS``, default the machine's cores) —
+so machine load hits them alike; the numbers are wall steps/s, to be read on a quiet machine (the
+load average is printed: on a loaded one the threads wait for cores). Every row also splits the
+numba step (all threads) into the compiled backtracking (walk, interpolation, end velocities, and
+on the swept scheme its interval sums), the sparse solves and the rest.
 
-    OMP_NUM_THREADS=1 python benchmarks/bench_fluid_kernels.py          # the three cases
-    OMP_NUM_THREADS=1 python benchmarks/bench_fluid_kernels.py --jit    # first-call JIT times
+    python benchmarks/bench_fluid_kernels.py                  # the three cases
+    python benchmarks/bench_fluid_kernels.py --case sphere    # one case
+    python benchmarks/bench_fluid_kernels.py --jit            # first-call JIT times
 
 ``--jit`` builds a small fluid in fresh processes with an empty numba cache directory (cold: every
 kernel compiles and is written to the cache) and again with that directory (warm: loaded), and
@@ -69,30 +72,23 @@ def channel_case(max_cfl):
 
 
 class Split:
-    """CPU seconds spent in the compiled backtracking and in the solves of one simulation."""
+    """Wall seconds spent in the compiled backtracking (the plain walk, or the swept intervals with
+    their sums) and in the solves of one simulation."""
 
     def __init__(self, sim):
         self.kernel = self.solve = 0.0
-        walker, fluid = sim.walker, self
-        compiled_backtrack = walker.backtrack_compiled
-
-        def timed_backtrack(*args, **kwargs):
-            start = time.process_time()
-            result = compiled_backtrack(*args, **kwargs)
-            fluid.kernel += time.process_time() - start
-            return result
-
-        walker.backtrack_compiled = timed_backtrack
+        for owner, name in ((sim.walker, "backtrack_compiled"), (sim, "_backtrack_sweeping_compiled")):
+            setattr(owner, name, self._timed(getattr(owner, name), "kernel"))
         for solver in (sim._diffusion, sim._poisson):
             if solver is not None:
-                solver.solve = self._timed(solver.solve)
+                solver.solve = self._timed(solver.solve, "solve")
 
-    def _timed(self, solve):
-        def timed(rhs):
-            start = time.process_time()
-            x = solve(rhs)
-            self.solve += time.process_time() - start
-            return x
+    def _timed(self, function, account):
+        def timed(*args, **kwargs):
+            start = time.perf_counter()
+            result = function(*args, **kwargs)
+            setattr(self, account, getattr(self, account) + time.perf_counter() - start)
+            return result
 
         return timed
 
@@ -105,8 +101,14 @@ SCHEMES = {"default": {}, "wshd07": dict(velocity="wshd07", circulation="correct
 
 
 def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto", scheme: str = "default") -> dict:
-    sims = {k: VorticityFluid(dec, SOLVERS[solver], kernels=k, **SCHEMES[scheme], **options)
-            for k in ("numpy", "numba")}
+    """Steps/s (wall) of the numpy twins, the numba kernels on one thread and on all of numba's
+    threads (the machine's cores), each a VorticityFluid of its own, stepped in turn."""
+    import numba
+
+    every = numba.get_num_threads()
+    runs = {"numpy": ("numpy", None), "numba1": ("numba", 1), "numba": ("numba", every)}
+    sims = {k: VorticityFluid(dec, SOLVERS[solver], kernels=kernels, **SCHEMES[scheme], **options)
+            for k, (kernels, _) in runs.items()}
     for sim in sims.values():
         sim.step()  # warm-up (loads or compiles the kernels)
     split = Split(sims["numba"])
@@ -114,21 +116,27 @@ def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto",
     wall = {k: 0.0 for k in sims}
     steps = 0
     start = time.perf_counter()
-    while time.perf_counter() - start < 2 * seconds or steps < 3:
-        for k, sim in sims.items():
-            c, w = time.process_time(), time.perf_counter()
-            d = sim.step()
-            cpu[k] += time.process_time() - c
-            wall[k] += time.perf_counter() - w
-        steps += 1
-    same = bool(np.array_equal(sims["numba"].vorticity, sims["numpy"].vorticity))
+    try:
+        while time.perf_counter() - start < 3 * seconds or steps < 3:
+            for k, sim in sims.items():
+                if runs[k][1] is not None:
+                    numba.set_num_threads(runs[k][1])
+                c, w = time.process_time(), time.perf_counter()
+                d = sim.step()
+                cpu[k] += time.process_time() - c
+                wall[k] += time.perf_counter() - w
+            steps += 1
+    finally:
+        numba.set_num_threads(every)
+    same = all(np.array_equal(sims[k].vorticity, sims["numpy"].vorticity) for k in sims)
     kind = name.split()[0]
-    return {"case": name, "solver": solver, "faces": dec.K.num_simplices(2), "steps": steps, "substeps": d.get("backtrack_substeps", 1),
-            "numpy_steps_per_s": steps / cpu["numpy"], "numba_steps_per_s": steps / cpu["numba"],
-            "ratio": cpu["numpy"] / cpu["numba"], "wall_ratio": wall["numpy"] / wall["numba"],
-            "numba_wall_steps_per_s": steps / wall["numba"], "target": TARGET[kind],
+    return {"case": name, "solver": solver, "faces": dec.K.num_simplices(2), "steps": steps, "threads": every,
+            "substeps": d.get("backtrack_substeps", 1),
+            **{f"{k}_steps_per_s": steps / wall[k] for k in sims},
+            "numba_cpu_steps_per_s": steps / cpu["numba"], "ratio": wall["numpy"] / wall["numba"],
+            "ratio1": wall["numpy"] / wall["numba1"], "target": TARGET[kind],
             "kernel_ms": 1e3 * split.kernel / steps, "solve_ms": 1e3 * split.solve / steps,
-            "numba_ms": 1e3 * cpu["numba"] / steps, "bitwise_equal": same, "stable": d["stable"]}
+            "numba_ms": 1e3 * wall["numba"] / steps, "bitwise_equal": same, "stable": d["stable"]}
 
 
 JIT_PROBE = """
@@ -190,15 +198,16 @@ def main() -> None:
                                 *channel_case(max_cfl), args.seconds, args.solver, args.scheme))
         print(json.dumps(rows[-1]), flush=True)
     print()
-    print(f"solver={args.solver} scheme={args.scheme} load average {os.getloadavg()[0]:.1f}")
-    print("| case | faces | numpy steps/s | numba steps/s | ratio | target | numba ms/step: kernel + solves + rest "
-          "| bitwise equal |")
-    print("|---|---:|---:|---:|---:|---:|---|---|")
+    print(f"solver={args.solver} scheme={args.scheme} numba threads {rows[-1]['threads']} "
+          f"load average {os.getloadavg()[0]:.1f}")
+    print("| case | faces | numpy steps/s | numba 1 thread | numba all threads | ratio (all / numpy) | target "
+          "| numba ms/step: backtracking + solves + rest | bitwise equal |")
+    print("|---|---:|---:|---:|---:|---:|---:|---|---|")
     for r in rows:
         rest = r["numba_ms"] - r["kernel_ms"] - r["solve_ms"]
-        print(f"| {r['case']} | {r['faces']} | {r['numpy_steps_per_s']:.1f} | {r['numba_steps_per_s']:.1f} | "
-              f"{r['ratio']:.2f}× | ≥ {r['target']:.0f} | {r['kernel_ms']:.1f} + {r['solve_ms']:.1f} + {rest:.1f} | "
-              f"{r['bitwise_equal']} |")
+        print(f"| {r['case']} | {r['faces']} | {r['numpy_steps_per_s']:.1f} | {r['numba1_steps_per_s']:.1f} | "
+              f"{r['numba_steps_per_s']:.1f} | {r['ratio']:.2f}× | ≥ {r['target']:.0f} | "
+              f"{r['kernel_ms']:.1f} + {r['solve_ms']:.1f} + {rest:.1f} | {r['bitwise_equal']} |")
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ import numpy as np
 
 from decrun.core import jit
 
-__all__ = ["velocity_points", "backtrack_points", "circulation_sums", "swept_change_add",
+__all__ = ["velocity_points", "backtrack_points", "sparse_product", "circulation_sums", "swept_change_add",
            "INTEGRATOR_CODE"]
 
 INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
@@ -528,6 +528,22 @@ def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall
             rounds[s, 1] = max(rounds[s, 1], chunk_rounds[c, s, 1])
             unfinished[s] += chunk_unfinished[c, s]
     return rounds, unfinished, steps
+
+
+# ---------------------------------------------------------------- sparse products (reconstruction.py)
+@_parallel_kernel
+def sparse_product(indptr, indices, data, x):
+    """(rows, F) A @ x for the CSR matrix A (indptr, indices, data) and x (n, F) C-contiguous:
+    per row its nonzeros in order, accumulated from 0.0 (scipy's csr_matvecs, the same bits);
+    rows in parallel."""
+    rows, F = indptr.shape[0] - 1, x.shape[1]
+    y = np.zeros((rows, F))
+    for i in prange(rows):
+        for jj in range(indptr[i], indptr[i + 1]):
+            a, j = data[jj], indices[jj]
+            for k in range(F):
+                y[i, k] += a * x[j, k]
+    return y
 
 
 # ---------------------------------------------------------------- circulation (simulation.py)

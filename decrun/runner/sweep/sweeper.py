@@ -108,7 +108,10 @@ class ManifestSweeper(Sweeper):
         self.launcher = Plugins.instance().instantiate_launcher(hydra_context=hydra_context,
                                                                 task_function=task_function, config=config)
         self.check = CHECKS.get(task_function)
-        self.warm = WARM.get(task_function, ())
+        # what a worker imports to unpickle its first job comes too: the task's module (decrun's
+        # CLI: Hydra, its callbacks) and the planned configs' (~0.1 s before the job could start)
+        registered = WARM.get(task_function, ())
+        self.warm = (*registered, task_function.__module__, PlannedConfigs.__module__) if registered else ()
 
     def _parse_config(self) -> List[str]:
         """``hydra.sweeper.params`` as override lines (``key=values``), before the command line's."""

@@ -17,7 +17,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, TopologyError
 from decrun.runner.config import GROUPS, CheckpointConfig, DecrunConfig
-from decrun.runner.plugins import Rebuilt, build
+from decrun.runner.plugins import Rebuilt, Recent, build
 
 __all__ = ["Experiment", "validate", "name_the_key", "mesh_where", "check_root_keys"]
 
@@ -94,8 +94,12 @@ def mesh_where(mesh) -> str:
     return f"mesh.path={mesh.meta['path']!r}" if "path" in mesh.meta else f"mesh {mesh.meta.get('label', '')}"
 
 
-def validate(cfg: DictConfig, memo: dict | None = None, delta: Any = None) -> Experiment:
+def validate(cfg: DictConfig, memo: dict | None = None, delta: Any = None, recent: Recent | None = None) -> Experiment:
     """Build and type-check every plugin node of ``cfg`` (ConfigError naming the key).
+
+    ``recent`` (:class:`~decrun.runner.plugins.Recent`; a sweep's jobs run one after the
+    other in a process): a plugin node equal to the last one built with it is made anew
+    from that one's typed config, with the dataclass's checks (each job its own instances).
 
     ``memo`` (a sweep's plan, many jobs checked in a row): a plugin node whose resolved
     values equal those of a node already built with the same memo is not built again —
@@ -108,7 +112,7 @@ def validate(cfg: DictConfig, memo: dict | None = None, delta: Any = None) -> Ex
     from its last typed config with those leaves assigned (:class:`~decrun.runner.plugins.Rebuilt`),
     so a 10 000-value sweep of ``app.dt`` checks each job in well under a millisecond."""
     if memo is None:
-        return Experiment(cfg)
+        return Experiment(cfg) if recent is None else Experiment(cfg, recent.build)
 
     def memoized(node, key: str, base: type):
         values = OmegaConf.to_container(node, resolve=True, enum_to_str=True) if OmegaConf.is_config(node) else node

@@ -231,3 +231,26 @@ def test_override_dirname_is_hydras():
                 for exclude in excluded:
                     assert override_dirname(task, exclude, item_sep, kv_sep) == get_overrides_dirname(
                         overrides=task, exclude_keys=exclude, item_sep=item_sep, kv_sep=kv_sep), (task, exclude)
+
+
+def test_recent_plugins_are_new_instances_of_the_same_values_and_refuse_as_build_does():
+    """plugins.Recent (a sweep's jobs in one process): a node equal to the last one built gets
+    its own instance with the same values; a changed node is built anew; a refused value is
+    build's ConfigError, and the next good node is built again."""
+    from decrun.apps.base import App
+    from decrun.errors import ConfigError
+    from decrun.runner.config import load_option
+    from decrun.runner.plugins import Recent, build
+
+    recent, node = Recent(), load_option("app", "smoothing")
+    first, second = recent.build(node, "app", App), recent.build(node, "app", App)
+    assert first is not second and first == second == build(node, "app", App)
+    changed = OmegaConf.merge(node, {"dt": 0.5})
+    assert recent.build(changed, "app", App).dt == 0.5
+    bad = OmegaConf.merge(node, {"steps": "many"})
+    with pytest.raises(ConfigError) as refused:
+        recent.build(bad, "app", App)
+    with pytest.raises(ConfigError) as built:
+        build(bad, "app", App)
+    assert str(refused.value) == str(built.value)
+    assert recent.build(node, "app", App) == first

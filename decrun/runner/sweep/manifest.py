@@ -81,9 +81,11 @@ def config_hash(cfg: DictConfig, blocks: dict[str, str] | None = None, fresh: Co
     block, filled as they are made) and makes anew only the blocks of the root keys in
     ``fresh`` (None: all), those whose value may differ from the previous job's."""
     h = hashlib.sha256()
-    for key in sorted(str(k) for k in cfg):
-        if key == "hydra" or key in UNHASHED:
-            continue
+    keys = [key for key in sorted(str(k) for k in cfg) if key != "hydra" and key not in UNHASHED]
+    if blocks is None and keys:  # the blocks in one dump: the same text, a tenth of the calls (~1.5 ms less)
+        h.update(yaml_block(None, {key: _resolved(cfg[key]) for key in keys}).encode())
+        return h.hexdigest()[:16]
+    for key in keys:
         if blocks is None or fresh is None or key in fresh or key not in blocks:
             block = yaml_block(key, cfg[key])
             if blocks is None:
@@ -94,12 +96,22 @@ def config_hash(cfg: DictConfig, blocks: dict[str, str] | None = None, fresh: Co
     return h.hexdigest()[:16]
 
 
-def yaml_block(key: str, value: Any) -> str:
+def yaml_block(key: str | None, value: Any) -> str:
     """``key: <value>`` as the resolved YAML of one root key of a config (sorted keys): the
     text of ``OmegaConf.to_yaml`` of it, made by :class:`_Dumper` directly on the resolved
-    container (3× faster than making a config of it first)."""
-    value = OmegaConf.to_container(value, resolve=True, enum_to_str=True) if OmegaConf.is_config(value) else value
-    return yaml.dump({key: value}, default_flow_style=False, allow_unicode=True, sort_keys=True, Dumper=_Dumper)
+    container (3× faster than making a config of it first). ``key`` None: ``value`` is a
+    dict of resolved root keys, dumped as one mapping — the concatenation of their blocks
+    (a block starts at column 0; :func:`_resolved` makes every container anew, so the
+    dumper writes no anchor that spans two keys)."""
+    if key is None:
+        return yaml.dump(value, default_flow_style=False, allow_unicode=True, sort_keys=True, Dumper=_Dumper)
+    return yaml.dump({key: _resolved(value)}, default_flow_style=False, allow_unicode=True, sort_keys=True,
+                     Dumper=_Dumper)
+
+
+def _resolved(value: Any) -> Any:
+    """A config node as resolved plain containers (enums as their names); any other value as it is."""
+    return OmegaConf.to_container(value, resolve=True, enum_to_str=True) if OmegaConf.is_config(value) else value
 
 
 #: strings YAML 1.1 reads as booleans (OmegaConf's list): quoted, so they stay strings

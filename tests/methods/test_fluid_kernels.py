@@ -264,21 +264,3 @@ def test_a_step_runs_one_blas_thread_and_restores_the_setting():
     assert inside and all(threads == [1] * len(threads) for threads in inside) and inside[0]
     assert after == [2] * len(after)
 
-
-def test_sparse_product_kernel_equals_scipy():
-    """The reconstructions' products (flux forms → vertex or circumcenter velocities) by the numba
-    kernel give scipy's bits: the least-squares vertex matrix, WSHD07's circumcenter matrix, and a
-    random matrix with unsorted column indices and empty rows."""
-    import scipy.sparse as sp
-    from decrun.methods.fluid import compiled
-
-    _, sim = pair("channel", velocity="least_squares", circulation="swept")
-    rng = np.random.default_rng(2)
-    indptr = np.concatenate([[0], np.cumsum(rng.integers(0, 6, 300))])  # rows of 0 to 5 nonzeros
-    indices = np.concatenate([rng.permutation(200)[:n] for n in np.diff(indptr)])  # unsorted in a row
-    random = sp.csr_matrix((rng.normal(size=indptr[-1]), indices, indptr), shape=(300, 200))
-    assert not random.has_sorted_indices and (np.diff(indptr) == 0).any()
-    for matrix in (sim.reconstruction.vertex_matrix, pair("channel")[1].reconstruction.circumcenter_matrix, random):
-        x = rng.normal(size=(matrix.shape[1], 2))
-        got = compiled.sparse_product(matrix.indptr, matrix.indices, matrix.data, x)
-        np.testing.assert_array_equal(got, matrix @ x)

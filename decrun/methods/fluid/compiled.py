@@ -13,7 +13,12 @@ Each kernel has a numpy twin that stays the tested reference (``VorticityFluid(k
   The velocity field is fixed during a backtrack, so walking every point through all its
   substeps at once is the same computation as numpy's substep-by-substep rounds over all
   points. On planar meshes it jumps as numpy does (the straight path's end located in the
-  triangle grid, or its first border crossing), walking only where that fails;
+  triangle grid, or its first border crossing), walking only where that fails. It works in
+  place, so the swept scheme's intervals (VorticityFluid._backtrack_sweeping) call it once each,
+  starting from the previous interval's end velocities and interpolating the vorticity at the
+  new end points; blocks of points run on numba's threads (``jit.threads()``), the same bits on
+  any number of threads;
+* :func:`swept_change_add` — the swept-vorticity change of :meth:`SweptVorticity.change`;
 * :func:`circulation_sums` — the trapezoid circulation of :meth:`VorticityFluid.circulation`.
 
 Lazy kernels of :mod:`decrun.core.jit` (the one ``auto | numba | numpy`` switch, listed in
@@ -29,7 +34,7 @@ import numpy as np
 
 from decrun.core import jit
 
-__all__ = ["velocity_points", "backtrack_points", "sparse_product", "circulation_sums", "swept_change_add",
+__all__ = ["velocity_points", "backtrack_points", "circulation_sums", "swept_change_add",
            "INTEGRATOR_CODE"]
 
 INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
@@ -47,8 +52,10 @@ _kernel = jit.njit(error_model="numpy")  # x / 0 gives inf or nan, as in numpy
 # The helpers allocate nothing and keep no array: without the runtime's reference counts (_nrt=False)
 # they do not incref/decref every array argument on each call, which made the walk 2.4× slower.
 _helper = jit.njit(error_model="numpy", inline=INLINE, _nrt=False)
-# The loops over points, dual edges and cells: ``prange`` over blocks of independent items, each
-# computed as in the serial loop, so the bits do not depend on the number of threads.
+# The backtracking, most of a step: ``prange`` over one block of points per thread, each block a
+# plain compiled loop (_backtrack_block), each point computed as in the serial loop, so the bits do
+# not depend on the number of threads. The circulation and swept sums stay serial: as numba
+# parfors (prange over edges and cells) they ran slower on 2 threads than the plain loops on one.
 _parallel_kernel = jit.njit(error_model="numpy", parallel=True)
 prange = jit.prange
 
@@ -155,21 +162,18 @@ def _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, t, x0
         result[p, 0, f], result[p, 1, f], result[p, 2, f] = out[0], out[1], out[2]
 
 
-@_parallel_kernel
+@_kernel
 def velocity_points(field, triangle, x, point_velocity, face_normal):
     """(P, 3, F) interpolated velocities at x (P, 3) in ``triangle`` (P,) of the F fields
     ``point_velocity`` (n_points, 3, F); ``field`` is the reconstruction's ``kernel_tables()``
-    (:meth:`CellInterpolator.kernel_tables`, :meth:`LeastSquaresVelocity.kernel_tables`).
-    Blocks of points in parallel."""
+    (:meth:`CellInterpolator.kernel_tables`, :meth:`LeastSquaresVelocity.kernel_tables`)."""
     triangles, cell_real, ids, planar, scheme = field
     P, F, K = x.shape[0], point_velocity.shape[2], ids.shape[1]
     result = np.empty((P, 3, F))
-    chunks = max(1, min(P, 64))
-    for c in prange(chunks):
-        w, h, out = np.empty(K), np.empty(K + 1), np.empty(3)
-        for p in range(c * P // chunks, (c + 1) * P // chunks):
-            _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, triangle[p], x[p, 0], x[p, 1],
-                        x[p, 2], face_normal, w, h, out, result, p)
+    w, h, out = np.empty(K), np.empty(K + 1), np.empty(3)
+    for p in range(P):
+        _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, triangle[p], x[p, 0], x[p, 1], x[p, 2],
+                    face_normal, w, h, out, result, p)
     return result
 
 
@@ -530,46 +534,17 @@ def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall
     return rounds, unfinished, steps
 
 
-# ---------------------------------------------------------------- sparse products (reconstruction.py)
-@_parallel_kernel
-def sparse_product(indptr, indices, data, x):
-    """(rows, F) A @ x for the CSR matrix A (indptr, indices, data) and x (n, F) C-contiguous:
-    per row its nonzeros in order, accumulated from 0.0 (scipy's csr_matvecs, the same bits);
-    rows in parallel."""
-    rows, F = indptr.shape[0] - 1, x.shape[1]
-    y = np.zeros((rows, F))
-    for i in prange(rows):
-        for jj in range(indptr[i], indptr[i + 1]):
-            a, j = data[jj], indices[jj]
-            for k in range(F):
-                y[i, k] += a * x[j, k]
-    return y
-
-
 # ---------------------------------------------------------------- circulation (simulation.py)
-@_helper
-def _incidence_rows(values, indptr, indices, data, out, first, last, negate, add):
-    """out[i] (+)= ±Σ_j data[j] values[indices[j]] over rows first..last of a CSR matrix, summed in
-    CSR order from 0.0 as scipy's csr_matvec does (``negate``: −the sum; ``add``: into out)."""
-    for i in range(first, last):
-        acc = 0.0
-        for j in range(indptr[i], indptr[i + 1]):
-            acc += data[j] * values[indices[j]]
-        if negate:
-            acc = -acc
-        out[i] = out[i] + acc if add else acc
-
-
-@_parallel_kernel
+@_kernel
 def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, indptr, indices, data):
     """(n0, F) Γ = D g around every cell: g_e = <u(p_a) + u(p_b), p_b − p_a> / 2 along each
     dual edge a → b (trapezoid rule), D the signed cell–edge incidence (CSR indptr, indices,
     data). Points below m = len(position) are the backtracked ones (position, velocity
-    (m, 3, F)), the others fixed (fixed_points, fixed_velocity). Edges and cells in parallel."""
+    (m, 3, F)), the others fixed (fixed_points, fixed_velocity)."""
     m, F = position.shape[0], velocity.shape[2]
     E = edge_a.shape[0]
     g = np.empty((E, F))
-    for e in prange(E):
+    for e in range(E):
         a, b = edge_a[e], edge_b[e]
         for f in range(F):
             total = 0.0
@@ -582,7 +557,7 @@ def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, e
             g[e, f] = 0.5 * total
     n = indptr.shape[0] - 1
     gamma = np.zeros((n, F))
-    for i in prange(n):
+    for i in range(n):
         for j in range(indptr[i], indptr[i + 1]):
             for f in range(F):
                 gamma[i, f] += data[j] * g[indices[j], f]
@@ -606,20 +581,20 @@ def _swept_side(before, after, value_before, value_after, a, b, normal, s):
     return first * (wa0 + wb0 + wb1) / 3.0 + second * (wa0 + wb1 + wa1) / 3.0
 
 
-@_parallel_kernel
+@_kernel
 def swept_change_add(change, before, after, value_before, value_after, side_a, side_b, normal, indptr, indices,
                      data):
     """``change`` (n0,) += Γ(X(C)) − Γ(C) per cell, in place (SweptVorticity.change; summed over
     the intervals of VorticityFluid._backtrack_sweeping): per side a → b the signed areas of the
     triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') along the side's ``normal`` (S, 3) times the
     mean vorticity at their corners, summed into the cells by the signed incidence (CSR indptr,
-    indices, data), negated. Same arithmetic order as the numpy twin (``change += −(D @ total)``);
-    sides and cells in parallel."""
+    indices, data), negated. Same arithmetic order as the numpy twin (``change += −(D @ total)``)."""
     S = side_a.shape[0]
     total = np.empty(S)
-    for s in prange(S):
+    for s in range(S):
         total[s] = _swept_side(before, after, value_before, value_after, side_a[s], side_b[s], normal, s)
-    n = indptr.shape[0] - 1
-    chunks = max(1, min(n, 64))
-    for c in prange(chunks):
-        _incidence_rows(total, indptr, indices, data, change, c * n // chunks, (c + 1) * n // chunks, True, True)
+    for i in range(indptr.shape[0] - 1):
+        acc = 0.0
+        for j in range(indptr[i], indptr[i + 1]):
+            acc += data[j] * total[indices[j]]
+        change[i] += -acc

@@ -57,11 +57,10 @@ class WSHD07Velocity:
         self.interpolator = CellInterpolator(cells, dec.K.simplices(2), dec.K.vertices)
         self.circumcenter_matrix = triangle_velocity_matrix(dec, face_normal)
 
-    def fields(self, fluxes: np.ndarray, fixed_velocity: np.ndarray, compiled: bool = False) -> np.ndarray:
-        """(P, 3, F) velocities of all dual points for the F flux forms ``fluxes`` (n1, F)
-        (``compiled``: the product by the numba kernel, the same bits)."""
+    def fields(self, fluxes: np.ndarray, fixed_velocity: np.ndarray) -> np.ndarray:
+        """(P, 3, F) velocities of all dual points for the F flux forms ``fluxes`` (n1, F)."""
         m = self.cells.n_circumcenters
-        at_circumcenters = _product(self.circumcenter_matrix, fluxes, compiled).reshape(m, 3, -1)
+        at_circumcenters = (self.circumcenter_matrix @ fluxes).reshape(m, 3, -1)
         return np.concatenate([at_circumcenters, fixed_velocity])
 
     def velocity(self, triangle: np.ndarray, x: np.ndarray, data: np.ndarray) -> np.ndarray:
@@ -169,11 +168,9 @@ class LeastSquaresVelocity:
             project = _block_diagonal(block) @ project
         self.circumcenter_matrix = (project @ self.vertex_matrix).tocsr()
 
-    def fields(self, fluxes: np.ndarray, fixed_velocity: np.ndarray | None = None,
-               compiled: bool = False) -> np.ndarray:
-        """(n0, 3, F) vertex velocities of the F flux forms ``fluxes`` (n1, F) (``compiled``: the
-        product by the numba kernel, rows in parallel, the same bits)."""
-        return _product(self.vertex_matrix, fluxes, compiled).reshape(self.K.num_simplices(0), 3, -1)
+    def fields(self, fluxes: np.ndarray, fixed_velocity: np.ndarray | None = None) -> np.ndarray:
+        """(n0, 3, F) vertex velocities of the F flux forms ``fluxes`` (n1, F)."""
+        return (self.vertex_matrix @ fluxes).reshape(self.K.num_simplices(0), 3, -1)
 
     def velocity(self, triangle: np.ndarray, x: np.ndarray, data: np.ndarray) -> np.ndarray:
         """(P, 3, F) P1 interpolation of the vertex velocities at x (P, 3) in ``triangle`` (P,).
@@ -210,17 +207,6 @@ class LeastSquaresVelocity:
                                         np.ascontiguousarray(x, dtype=np.float64),
                                         np.ascontiguousarray(point_velocity, dtype=np.float64),
                                         np.ascontiguousarray(self.face_normal, dtype=np.float64))
-
-
-def _product(matrix: sp.csr_matrix, x: np.ndarray, compiled: bool) -> np.ndarray:
-    """matrix @ x (x (n, F)): scipy's, or ``compiled.sparse_product`` (the same bits, rows in parallel)."""
-    if not compiled:
-        return matrix @ x
-    from decrun.methods.fluid import compiled as kernels
-
-    x = np.ascontiguousarray(x, dtype=np.float64)
-    return kernels.sparse_product(matrix.indptr, matrix.indices, np.ascontiguousarray(matrix.data, dtype=np.float64),
-                                  x.reshape(x.shape[0], -1)).reshape((matrix.shape[0],) + x.shape[1:])
 
 
 def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:

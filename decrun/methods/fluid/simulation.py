@@ -306,7 +306,7 @@ class VorticityFluid:
     def _point_velocities(self) -> np.ndarray:
         """The reconstruction's data for [d0 ψ part, full u] (…, 3, 2)."""
         fluxes = np.stack([self.d0 @ self.psi, self.flux], axis=1)
-        return self.reconstruction.fields(fluxes, self._fixed_velocity, compiled=self.compiled_walk)
+        return self.reconstruction.fields(fluxes, self._fixed_velocity)
 
     def backtrack(self):
         """Step c: the circumcenters dt ago (a BacktrackResult) and the two velocity fields there

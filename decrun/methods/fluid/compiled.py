@@ -52,10 +52,12 @@ _kernel = jit.njit(error_model="numpy")  # x / 0 gives inf or nan, as in numpy
 # The helpers allocate nothing and keep no array: without the runtime's reference counts (_nrt=False)
 # they do not incref/decref every array argument on each call, which made the walk 2.4× slower.
 _helper = jit.njit(error_model="numpy", inline=INLINE, _nrt=False)
-# The backtracking, most of a step: ``prange`` over one block of points per thread, each block a
-# plain compiled loop (_backtrack_block), each point computed as in the serial loop, so the bits do
-# not depend on the number of threads. The circulation and swept sums stay serial: as numba
-# parfors (prange over edges and cells) they ran slower on 2 threads than the plain loops on one.
+# The loops over points (the backtracking, most of a step, and the interpolation): ``prange`` over
+# one block of points per thread (``chunks``, from ``jit.threads()``), each block a plain compiled
+# loop (the _..._block kernels: as the body of a numba parfor the same loops ran up to 2× slower),
+# each point computed as in the serial loop, so the bits do not depend on the number of threads.
+# The circulation and swept sums stay serial: a parallel region costs ~0.17 ms to launch (numba's
+# workqueue), more than splitting their 0.2–0.5 ms of work saved.
 _parallel_kernel = jit.njit(error_model="numpy", parallel=True)
 prange = jit.prange
 
@@ -163,17 +165,28 @@ def _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, t, x0
 
 
 @_kernel
-def velocity_points(field, triangle, x, point_velocity, face_normal):
-    """(P, 3, F) interpolated velocities at x (P, 3) in ``triangle`` (P,) of the F fields
-    ``point_velocity`` (n_points, 3, F); ``field`` is the reconstruction's ``kernel_tables()``
-    (:meth:`CellInterpolator.kernel_tables`, :meth:`LeastSquaresVelocity.kernel_tables`)."""
-    triangles, cell_real, ids, planar, scheme = field
-    P, F, K = x.shape[0], point_velocity.shape[2], ids.shape[1]
-    result = np.empty((P, 3, F))
+def _velocity_block(triangles, cell_real, ids, planar, scheme, triangle, x, point_velocity, face_normal, result,
+                    first, last):
+    """:func:`velocity_points` of the points first..last − 1 into ``result`` (one thread's block)."""
+    K = ids.shape[1]
     w, h, out = np.empty(K), np.empty(K + 1), np.empty(3)
-    for p in range(P):
+    for p in range(first, last):
         _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, triangle[p], x[p, 0], x[p, 1], x[p, 2],
                     face_normal, w, h, out, result, p)
+
+
+@_parallel_kernel
+def velocity_points(field, triangle, x, point_velocity, face_normal, chunks):
+    """(P, 3, F) interpolated velocities at x (P, 3) in ``triangle`` (P,) of the F fields
+    ``point_velocity`` (n_points, 3, F); ``field`` is the reconstruction's ``kernel_tables()``
+    (:meth:`CellInterpolator.kernel_tables`, :meth:`LeastSquaresVelocity.kernel_tables`);
+    ``chunks`` blocks of points in parallel."""
+    triangles, cell_real, ids, planar, scheme = field
+    P, F = x.shape[0], point_velocity.shape[2]
+    result = np.empty((P, 3, F))
+    for c in prange(chunks):
+        _velocity_block(triangles, cell_real, ids, planar, scheme, triangle, x, point_velocity, face_normal, result,
+                        c * P // chunks, (c + 1) * P // chunks)
     return result
 
 

@@ -242,9 +242,10 @@ class CellInterpolator:
     def velocity_compiled(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,
                           face_normal: np.ndarray) -> np.ndarray:
         """:meth:`velocity` by the numba kernel (compiled.py): (P, 3, F), equal to round-off."""
+        from decrun.core import jit
         from decrun.methods.fluid import compiled
 
         return compiled.velocity_points(self.kernel_tables(), np.ascontiguousarray(triangle, dtype=np.int64),
                                         np.ascontiguousarray(x, dtype=np.float64),
                                         np.ascontiguousarray(point_velocity, dtype=np.float64),
-                                        np.ascontiguousarray(face_normal, dtype=np.float64))
+                                        np.ascontiguousarray(face_normal, dtype=np.float64), jit.threads())

@@ -201,12 +201,13 @@ class LeastSquaresVelocity:
     def velocity_compiled(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,
                           face_normal: np.ndarray | None = None) -> np.ndarray:
         """:meth:`velocity` by the numba kernel (compiled.velocity_points): (P, 3, F), the same bits."""
+        from decrun.core import jit
         from decrun.methods.fluid import compiled
 
         return compiled.velocity_points(self.kernel_tables(), np.ascontiguousarray(triangle, dtype=np.int64),
                                         np.ascontiguousarray(x, dtype=np.float64),
                                         np.ascontiguousarray(point_velocity, dtype=np.float64),
-                                        np.ascontiguousarray(self.face_normal, dtype=np.float64))
+                                        np.ascontiguousarray(self.face_normal, dtype=np.float64), jit.threads())
 
 
 def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:

@@ -134,13 +134,23 @@ class _LazyKernel:
 
 def threads() -> int:
     """How many threads the parallel kernels (``parallel=True``, ``prange``) split their work into:
-    numba's thread count (``NUMBA_NUM_THREADS``, default the machine's cores; joblib's workers set it
-    to their share). Their results do not depend on it: each thread takes a contiguous block of
-    independent items. Imports numba: call it only where a kernel runs."""
+    numba's thread count — ``NUMBA_NUM_THREADS`` if set (joblib's workers set it to their share of
+    the cores), else the cores this process may run on (its CPU affinity: a SLURM job's
+    ``cpus_per_task``, ``taskset``), which numba's own default (every core of the machine) ignores.
+    Their results do not depend on it: each thread takes a contiguous block of independent items.
+    Imports numba: call it only where a kernel runs."""
     import numba
 
     _threading_layer(numba)
+    if not _affinity_applied and "NUMBA_NUM_THREADS" not in os.environ and hasattr(os, "sched_getaffinity"):
+        _affinity_applied.append(True)
+        usable = len(os.sched_getaffinity(0))
+        if 0 < usable < numba.get_num_threads():
+            numba.set_num_threads(usable)
     return int(numba.get_num_threads())
+
+
+_affinity_applied: list = []  # the affinity cap is applied once per process (later set_num_threads wins)
 
 
 def _threading_layer(numba) -> None:

@@ -111,3 +111,34 @@ def test_a_bad_decrun_numba_stops_the_cli_with_the_fix(decrun_cli, monkeypatch):
     monkeypatch.setenv("DECRUN_NUMBA", "auto")  # the fix the message names
     good = decrun_cli(*base, "hydra.run.dir=good")
     assert good.returncode == 0, good.stderr
+
+
+THREADS_PROBE = """
+import json, os, sys
+if sys.argv[1] != "all":
+    os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+from decrun.core import jit
+import numba
+print(json.dumps({"threads": jit.threads(), "layer": numba.threading_layer(), "cores": os.cpu_count(),
+                  "numba_default": numba.config.NUMBA_NUM_THREADS}))
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this platform")
+@pytest.mark.parametrize("cores, environment", [("all", {}), ("one", {}), ("one", {"NUMBA_NUM_THREADS": "2"})])
+def test_the_parallel_kernels_take_the_cores_the_process_may_use(cores, environment):
+    """numba's default is every core of the machine; a SLURM job with cpus_per_task=1 (CPU affinity
+    one core) must not start a thread per core of the node: jit.threads() is the affinity's count,
+    unless NUMBA_NUM_THREADS says otherwise (joblib sets it for its workers). numba's own thread
+    pool runs them (workqueue: fork-safe)."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"} | environment
+    out = subprocess.run([sys.executable, "-c", THREADS_PROBE, cores], env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["layer"] == "workqueue"
+    usable = len(os.sched_getaffinity(0))
+    if environment:
+        assert got["threads"] == min(2, got["numba_default"])
+    else:
+        assert got["threads"] == (min(usable, got["numba_default"]) if cores == "all" else 1)

@@ -78,7 +78,8 @@ class Split:
     def __init__(self, sim):
         self.kernel = self.solve = 0.0
         for owner, name in ((sim.walker, "backtrack_compiled"), (sim, "_backtrack_sweeping_compiled")):
-            setattr(owner, name, self._timed(getattr(owner, name), "kernel"))
+            if hasattr(owner, name):  # (an older checkout, PYTHONPATH=...: its swept loop is not timed)
+                setattr(owner, name, self._timed(getattr(owner, name), "kernel"))
         for solver in (sim._diffusion, sim._poisson):
             if solver is not None:
                 solver.solve = self._timed(solver.solve, "solve")

@@ -26,6 +26,7 @@ with. A caller takes the kernel when :func:`enabled` says so. **The switch** (:f
 from __future__ import annotations
 
 import os
+import threading
 from contextlib import contextmanager
 from functools import update_wrapper
 
@@ -108,7 +109,9 @@ class _LazyKernel:
         """The numba dispatcher (created once; it compiles per argument types when called).
 
         Kernels called from this one must be numba functions when it is compiled: every
-        lazy kernel among the module's globals is replaced by its dispatcher first."""
+        lazy kernel among the module's globals is replaced by its dispatcher first — but a
+        ``parallel=True`` kernel, which only Python calls (through :meth:`__call__` and its lock;
+        numba cannot nest its parallel regions anyway)."""
         if self.compiled is None:
             import numba
 
@@ -119,7 +122,8 @@ class _LazyKernel:
                 _threading_layer(numba)
             self.compiled = numba.njit(cache=True, **self.options)(self.function)
             for name, value in list(namespace.items()):
-                if isinstance(value, _LazyKernel):
+                # a parallel kernel stays this object (its callers are Python's, through __call__'s lock)
+                if isinstance(value, _LazyKernel) and not value.options.get("parallel"):
                     namespace[name] = value.dispatcher()
         return self.compiled
 
@@ -129,7 +133,16 @@ class _LazyKernel:
         return self.compiled is not None and bool(self.compiled.signatures)
 
     def __call__(self, *args):
+        if self.options.get("parallel"):
+            with _PARALLEL:  # one parallel region at a time in the process (see _PARALLEL)
+                return self.dispatcher()(*args)
         return self.dispatcher()(*args)
+
+
+#: numba's workqueue thread pool must not be entered by two threads at once (it aborts the process:
+#: "not threadsafe ... concurrent access"); a sweep run by a thread pool (joblib's threading backend)
+#: would. Python callers of the parallel kernels take this lock, so such calls wait for each other.
+_PARALLEL = threading.Lock()
 
 
 def threads() -> int:

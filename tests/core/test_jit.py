@@ -142,3 +142,39 @@ def test_the_parallel_kernels_take_the_cores_the_process_may_use(cores, environm
         assert got["threads"] == min(2, got["numba_default"])
     else:
         assert got["threads"] == (min(usable, got["numba_default"]) if cores == "all" else 1)
+
+
+CONCURRENT_PROBE = """
+import threading
+import numpy as np
+from decrun.complex import SimplicialComplex
+from decrun.core.solvers.direct import DirectSolver
+from decrun.dec import DEC
+from decrun.methods.fluid.initial import random_vorticity
+from decrun.methods.fluid.simulation import VorticityFluid
+import sys
+sys.path.insert(0, "tests")
+from meshes_for_tests import icosphere
+dec = DEC(SimplicialComplex(*icosphere(3)))
+w0 = random_vorticity(dec, 2, amplitude=5)
+sims = [VorticityFluid(dec, DirectSolver, dt=0.5, viscosity=1e-3, initial_vorticity=w0, kernels="numba") for _ in range(3)]
+def run(sim):
+    for _ in range(4):
+        sim.step()
+threads = [threading.Thread(target=run, args=(sim,)) for sim in sims[1:]]
+for t in threads: t.start()
+for t in threads: t.join()
+run(sims[0])
+print(all(np.array_equal(sims[0].vorticity, sim.vorticity) for sim in sims[1:]))
+"""
+
+
+def test_parallel_kernels_called_from_two_threads_at_once_wait_for_each_other():
+    """numba's workqueue pool aborts the process when two threads enter it at once (a sweep on a
+    thread pool, e.g. joblib's threading backend, would): the parallel kernels take one lock, so
+    two fluids stepped on two threads finish, each with the bits of a run on its own."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = subprocess.run([sys.executable, "-c", CONCURRENT_PROBE], cwd=root, capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == "True"

@@ -155,22 +155,22 @@ def threads() -> int:
     import numba
 
     _threading_layer(numba)
+    global _affinity_applied
     if not _affinity_applied and "NUMBA_NUM_THREADS" not in os.environ and hasattr(os, "sched_getaffinity"):
-        _affinity_applied.append(True)
+        _affinity_applied = True
         usable = len(os.sched_getaffinity(0))
         if 0 < usable < numba.get_num_threads():
             numba.set_num_threads(usable)
     return int(numba.get_num_threads())
 
 
-_affinity_applied: list = []  # the affinity cap is applied once per process (later set_num_threads wins)
+_affinity_applied = False  # the affinity cap is applied once per process (a later set_num_threads wins)
 
 
 def _threading_layer(numba) -> None:
     """Before numba starts its threads: its own pool ("workqueue") unless ``NUMBA_THREADING_LAYER``
-    says otherwise. It is fork-safe (GNU OpenMP is not), its idle threads sleep (GNU OpenMP's spin
-    and slowed the BLAS and CHOLMOD threads of the solves), and it needs no TBB (an old TBB only
-    warns). It must not run kernels from two threads at once; decrun calls them from one thread."""
+    says otherwise. It is fork-safe (GNU OpenMP is not) and needs no TBB (an old TBB only warns).
+    It must not be entered by two threads at once: the parallel kernels' calls take ``_PARALLEL``."""
     if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
         numba.config.THREADING_LAYER = "workqueue"
 

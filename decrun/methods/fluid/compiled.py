@@ -578,22 +578,6 @@ def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, e
 
 
 # ---------------------------------------------------------------- swept vorticity (swept.py)
-@_helper
-def _swept_side(before, after, value_before, value_after, a, b, normal, s):
-    """Σ signed area × mean vorticity of the triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') of
-    side s = a → b (SweptVorticity.change, before its incidence sum)."""
-    u0, u1, u2 = before[b, 0] - before[a, 0], before[b, 1] - before[a, 1], before[b, 2] - before[a, 2]
-    v0, v1, v2 = after[b, 0] - before[a, 0], after[b, 1] - before[a, 1], after[b, 2] - before[a, 2]
-    q0, q1, q2 = after[a, 0] - before[a, 0], after[a, 1] - before[a, 1], after[a, 2] - before[a, 2]
-    n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
-    c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-    first = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
-    c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
-    second = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
-    wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
-    return first * (wa0 + wb0 + wb1) / 3.0 + second * (wa0 + wb1 + wa1) / 3.0
-
-
 @_kernel
 def swept_change_add(change, before, after, value_before, value_after, side_a, side_b, normal, indptr, indices,
                      data):
@@ -605,7 +589,17 @@ def swept_change_add(change, before, after, value_before, value_after, side_a, s
     S = side_a.shape[0]
     total = np.empty(S)
     for s in range(S):
-        total[s] = _swept_side(before, after, value_before, value_after, side_a[s], side_b[s], normal, s)
+        a, b = side_a[s], side_b[s]
+        u0, u1, u2 = before[b, 0] - before[a, 0], before[b, 1] - before[a, 1], before[b, 2] - before[a, 2]
+        v0, v1, v2 = after[b, 0] - before[a, 0], after[b, 1] - before[a, 1], after[b, 2] - before[a, 2]
+        q0, q1, q2 = after[a, 0] - before[a, 0], after[a, 1] - before[a, 1], after[a, 2] - before[a, 2]
+        n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
+        c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        first = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+        c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
+        second = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+        wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
+        total[s] = first * (wa0 + wb0 + wb1) / 3.0 + second * (wa0 + wb1 + wa1) / 3.0
     for i in range(indptr.shape[0] - 1):
         acc = 0.0
         for j in range(indptr[i], indptr[i + 1]):

@@ -261,16 +261,9 @@ class VorticityFluid:
         if self.compiled_walk:  # the swept intervals after the first interpolate their start velocities
             self._kernel_field.velocity_compiled(np.zeros(0, dtype=np.int64), none, self._point_velocities(),
                                                  self.face_normal)
-        if self.circulation_rule in SWEPT and self.compiled_walk:  # one interval of nothing
+        if self.circulation_rule in SWEPT and self.compiled_walk:  # (its walk is the backtrack_points above)
             from decrun.methods.fluid import compiled
 
-            walk, jump = self.walker.kernel_tables()
-            both = self._point_velocities()
-            empty = np.zeros(0, dtype=np.int64)
-            compiled.backtrack_points(walk, jump, self._kernel_field.kernel_tables(), both, np.zeros((0, 3)), empty,
-                                      empty.copy(), np.zeros((0, 3)), np.zeros((0, 3, both.shape[2])), True,
-                                      np.ascontiguousarray(self.walker.size), self.dt, 1, 1.0, 64, 1, 1,
-                                      np.ascontiguousarray(self.vorticity), np.zeros(1), 1)
             rest = np.zeros(self.cells.points.shape[0])
             points = np.ascontiguousarray(self.cells.points, dtype=np.float64)
             D = self._swept.incidence

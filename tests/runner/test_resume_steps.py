@@ -18,9 +18,10 @@ import pytest
 from cli_processes import decrun, start
 from decrun.runner.results.checkpoint import CHECKPOINT
 
-#: a fluid run of ~2-3 s of steps and a smoothing run of ~1.5 s, checkpointed early
+#: a fluid run of ~3 s of steps (~500 steps/s on 1,280 faces) and a smoothing run of ~1.5 s,
+#: checkpointed early
 CASES = {
-    "fluid": ["app=fluid", "app.steps=240", "checkpoint.steps=4"],
+    "fluid": ["app=fluid", "app.steps=1500", "checkpoint.steps=4"],
     "smoothing": ["app=smoothing", "app.steps=600", "app.dt_factor=0.01", "checkpoint.steps=20"],
 }
 FAST = ["figures=false", "progress=false"]

@@ -155,7 +155,7 @@ def test_a_preempted_fluid_job_is_requeued_and_continues_from_its_checkpoint(slu
     import h5py
     import numpy as np
 
-    run = ["app=fluid", "app.steps=400", "checkpoint.steps=4", "figures=false", "progress=false"]
+    run = ["app=fluid", "app.steps=3000", "checkpoint.steps=4", "figures=false", "progress=false"]
     reference = decrun("-m", *run, "hydra.sweep.dir=reference", cwd=tmp_path)
     assert reference.returncode == 0, reference.stderr
     sweep = ["-m", *run, *SLURM, "hydra.launcher.max_num_timeout=2", "hydra.sweep.dir=preempted"]
@@ -169,6 +169,10 @@ def test_a_preempted_fluid_job_is_requeued_and_continues_from_its_checkpoint(slu
     # the job's folder (its SLURM id, "<id>" or "<id>_<task>"), not submitit's hidden .submission_file_*.sh
     job_id = next(p.name for p in sorted((tmp_path / "preempted" / ".submitit").iterdir())
                   if p.is_dir() and p.name.split("_")[0].isdigit())
+    # A step takes ~2 ms (1,280 faces): 3,000 steps keep the job running for seconds after
+    # its first checkpoint, long past USR2's delivery (SLURM refuses to signal a suspended job,
+    # so the job cannot be held still instead).
+    assert not (job_dir / "metrics.json").exists(), "the job ended before USR2 was sent: raise app.steps"
     subprocess.run(["scancel", "--signal=USR2", job_id], check=True)
     deadline = time.time() + 60
     while time.time() < deadline:  # requeued: pending until its begin time; start it now

@@ -97,7 +97,7 @@ class _LazyKernel:
     def __init__(self, function, options: dict):
         self.function = function
         self.options = options
-        self.compiled = None
+        self.compiled = self.serial = None
         update_wrapper(self, function)
         KERNELS.append(self)
 
@@ -132,16 +132,42 @@ class _LazyKernel:
         caller): its dispatcher holds a compiled or cache-loaded signature."""
         return self.compiled is not None and bool(self.compiled.signatures)
 
+    def serial_dispatcher(self):
+        """A ``parallel=True`` kernel compiled without ``parallel`` (``prange`` runs as ``range``:
+        the same blocks, one after the other, the same bits): what a process forked from one whose
+        parallel kernels ran on GNU OpenMP calls instead (see :func:`_forked`). Compiled from a
+        copy of the function named ``<name>_serial``, so that numba's disk cache, whose index
+        does not tell the options apart, keeps the two versions in files of their own."""
+        if self.serial is None:
+            import types
+
+            import numba
+
+            self.dispatcher()  # the module's helpers swapped for their dispatchers
+            f = self.function
+            copy = types.FunctionType(f.__code__, f.__globals__, f"{f.__name__}_serial", f.__defaults__,
+                                      f.__closure__)
+            copy.__qualname__, copy.__module__, copy.__doc__ = f"{f.__qualname__}_serial", f.__module__, f.__doc__
+            options = {k: v for k, v in self.options.items() if k != "parallel"}
+            self.serial = numba.njit(cache=True, **options)(copy)
+        return self.serial
+
     def __call__(self, *args):
         if self.options.get("parallel"):
+            if _fork_child_of_openmp:
+                return self.serial_dispatcher()(*args)
             with _PARALLEL:  # one parallel region at a time in the process (see _PARALLEL)
-                return self.dispatcher()(*args)
+                result = self.dispatcher()(*args)
+            global _parallel_ran
+            _parallel_ran = True
+            return result
         return self.dispatcher()(*args)
 
 
 #: numba's workqueue thread pool must not be entered by two threads at once (it aborts the process:
 #: "not threadsafe ... concurrent access"); a sweep run by a thread pool (joblib's threading backend)
-#: would. Python callers of the parallel kernels take this lock, so such calls wait for each other.
+#: would, where OpenMP is not found. Python callers of the parallel kernels take this lock, so such
+#: calls wait for each other (on OpenMP too: two regions at once would only share the cores).
 _PARALLEL = threading.Lock()
 
 
@@ -168,11 +194,44 @@ _affinity_applied = False  # the affinity cap is applied once per process (a lat
 
 
 def _threading_layer(numba) -> None:
-    """Before numba starts its threads: its own pool ("workqueue") unless ``NUMBA_THREADING_LAYER``
-    says otherwise. It is fork-safe (GNU OpenMP is not) and needs no TBB (an old TBB only warns).
-    It must not be entered by two threads at once: the parallel kernels' calls take ``_PARALLEL``."""
+    """Before numba starts its threads: OpenMP where numba finds it (libgomp on Linux), else
+    numba's own pool ``workqueue``, unless ``NUMBA_THREADING_LAYER`` says otherwise; no TBB (an
+    old TBB only warns).
+
+    OpenMP, because the calling thread works one block itself and the other threads spin a
+    moment after a region before they sleep, so the next region starts on cores that are awake.
+    workqueue's threads sleep, and a region that follows a millisecond of serial Python (every
+    step of the fluid) ran its two blocks one after the other on a 2-core machine: 3.5 ms instead
+    of 1.7 ms for two 1.65 ms blocks; the fluid's 20,480-face sphere stepped 1.44× faster on
+    OpenMP (``benchmarks/bench_fluid_kernels.py``). GNU OpenMP is not fork-safe: a forked child
+    whose parent ran a parallel region runs the kernels' serial versions (:func:`_forked`)."""
     if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
-        numba.config.THREADING_LAYER = "workqueue"
+        numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
+
+
+_parallel_ran = False  # a parallel kernel ran in this process (numba's threads started)
+_fork_child_of_openmp = False  # this process was forked after a parallel region on OpenMP
+
+
+def _forked() -> None:
+    """In a forked child: when the parent ran a parallel kernel on GNU OpenMP, numba terminates a
+    child that enters OpenMP ("fork() called from a process already using GNU OpenMP, this is
+    unsafe"); the child then calls the kernels' serial versions (:meth:`_LazyKernel.serial_dispatcher`),
+    which give the same bits. (Forking before any parallel kernel ran, or after workqueue ran, is safe.)"""
+    global _fork_child_of_openmp
+    if _parallel_ran and not _fork_child_of_openmp:
+        import sys
+
+        numba = sys.modules.get("numba")
+        try:
+            layer = numba.threading_layer() if numba is not None else None
+        except ValueError:  # no layer started
+            layer = None
+        _fork_child_of_openmp = layer == "omp"
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forked)
 
 
 def njit(function=None, **options):

@@ -8,6 +8,7 @@ signature); both runs give the same numbers.
 
 from __future__ import annotations
 
+import ctypes.util
 import json
 import os
 import subprocess
@@ -129,14 +130,14 @@ print(json.dumps({"threads": jit.threads(), "layer": numba.threading_layer(), "c
 def test_the_parallel_kernels_take_the_cores_the_process_may_use(cores, environment):
     """numba's default is every core of the machine; a SLURM job with cpus_per_task=1 (CPU affinity
     one core) must not start a thread per core of the node: jit.threads() is the affinity's count,
-    unless NUMBA_NUM_THREADS says otherwise (joblib sets it for its workers). numba's own thread
-    pool runs them (workqueue: fork-safe)."""
+    unless NUMBA_NUM_THREADS says otherwise (joblib sets it for its workers). OpenMP runs them
+    where numba finds libgomp, else numba's own pool (workqueue)."""
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"} | environment
     out = subprocess.run([sys.executable, "-c", THREADS_PROBE, cores], env=env, capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     got = json.loads(out.stdout.strip().splitlines()[-1])
-    assert got["layer"] == "workqueue"
+    assert got["layer"] == ("omp" if ctypes.util.find_library("gomp") else "workqueue")
     usable = len(os.sched_getaffinity(0))
     if environment:
         assert got["threads"] == min(2, got["numba_default"])
@@ -178,3 +179,54 @@ def test_parallel_kernels_called_from_two_threads_at_once_wait_for_each_other():
                          timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == "True"
+
+
+FORK_PROBE = """
+import multiprocessing, sys
+import numpy as np
+from decrun.complex import SimplicialComplex
+from decrun.core.solvers.direct import DirectSolver
+from decrun.dec import DEC
+from decrun.methods.fluid.initial import random_vorticity
+from decrun.methods.fluid.simulation import VorticityFluid
+sys.path.insert(0, "tests")
+from meshes_for_tests import icosphere
+import numba
+dec = DEC(SimplicialComplex(*icosphere(3)))
+sim = VorticityFluid(dec, DirectSolver, dt=0.5, viscosity=1e-3, initial_vorticity=random_vorticity(dec, 2, amplitude=5),
+                     kernels="numba")
+sim.step()  # a parallel region ran in this process
+state = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in sim.state_dict().items()}
+def child(queue):
+    sim.load_state(state)
+    sim.step()
+    queue.put(sim.vorticity)
+fork = multiprocessing.get_context("fork")
+queue = fork.Queue()
+process = fork.Process(target=child, args=(queue,))
+process.start()
+forked = None
+while forked is None and (process.is_alive() or not queue.empty()):
+    try:
+        forked = queue.get(timeout=0.5)
+    except Exception:  # queue.Empty: still stepping, or killed (then is_alive ends the loop)
+        pass
+process.join()
+if forked is None:
+    sys.exit(f"the forked child died (exit code {process.exitcode})")
+sim.load_state(state)
+sim.step()
+print(numba.threading_layer(), process.exitcode, np.array_equal(forked, sim.vorticity))
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_child_forked_after_a_parallel_step_steps_on_with_the_same_bits():
+    """GNU OpenMP is not fork-safe (numba terminates a forked child that enters it after the
+    parent did): a child forked after a fluid step runs the kernels' serial versions, which give
+    the parent's bits."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = subprocess.run([sys.executable, "-c", FORK_PROBE], cwd=root, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    layer, exitcode, same = out.stdout.strip().splitlines()[-1].split()
+    assert exitcode == "0" and same == "True", out.stdout

@@ -4,7 +4,7 @@ Cases (issues 17, 26): the default scheme (least-squares walk, swept_bounded; ``
 the thesis' interpolation) on the unit icosphere of 20,480 faces (a smooth random vorticity, ν = 1e-3, CFL ≈ 1)
 and the ~12k-face channel of Fig. 7.15–7.17 (inflow 10 units/s, one obstacle, ν = 0.02, dt =
 0.005) with the default per-point substeps (max_cfl = 1) and with one substep. Three simulations
-of a case are built on the same mesh and stepped in turn — the numpy twins, the numba kernels on
+of a case are built on the same mesh and stepped in turn, 20 steps at a time — the numpy twins, the numba kernels on
 one thread and on all of numba's threads (``NUMBA_NUM_THREADS``, default the machine's cores) —
 so machine load hits them alike; the numbers are wall steps/s, to be read on a quiet machine (the
 load average is printed: on a loaded one the threads wait for cores). Every row also splits the
@@ -101,12 +101,17 @@ SOLVERS = {"auto": AutoSolver, "direct": DirectSolver}  # solver=auto (CHOLMOD f
 SCHEMES = {"default": {}, "wshd07": dict(velocity="wshd07", circulation="corrected_trapezoid")}
 
 
-def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto", scheme: str = "default") -> dict:
+def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto", scheme: str = "default",
+            block: int = 20) -> dict:
     """Steps/s (wall) of the numpy twins, the numba kernels on one thread and on all of numba's
-    threads (the machine's cores), each a VorticityFluid of its own, stepped in turn."""
+    threads (the machine's cores), each a VorticityFluid of its own, stepped in turn, ``block``
+    steps at a time (one step each in turn measured the kernels with cold caches and, on
+    OpenMP, with threads that slept through the other simulations' steps: 20 % slower than a run)."""
     import numba
 
-    every = numba.get_num_threads()
+    from decrun.core import jit
+
+    every = jit.threads()  # (numba's threading layer as decrun picks it, before numba starts its threads)
     runs = {"numpy": ("numpy", None), "numba1": ("numba", 1), "numba": ("numba", every)}
     sims = {k: VorticityFluid(dec, SOLVERS[solver], kernels=kernels, **SCHEMES[scheme], **options)
             for k, (kernels, _) in runs.items()}
@@ -119,14 +124,15 @@ def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto",
     start = time.perf_counter()
     try:
         while time.perf_counter() - start < 3 * seconds or steps < 3:
-            for k, sim in sims.items():
+            for k, sim in sims.items():  # a block of steps each, as a run steps (caches, threads awake)
                 if runs[k][1] is not None:
                     numba.set_num_threads(runs[k][1])
                 c, w = time.process_time(), time.perf_counter()
-                d = sim.step()
+                for _ in range(block):
+                    d = sim.step()
                 cpu[k] += time.process_time() - c
                 wall[k] += time.perf_counter() - w
-            steps += 1
+            steps += block
     finally:
         numba.set_num_threads(every)
     same = all(np.array_equal(sims[k].vorticity, sims["numpy"].vorticity) for k in sims)

@@ -136,6 +136,18 @@ def test_backtracking_kernel_equals_numpy(name, integrator, max_cfl):
         assert result.substeps > 1
 
 
+@pytest.mark.parametrize("walls", ["no_slip", "slip"])
+def test_swept_intervals_kernel_equals_numpy(walls):
+    """The default scheme's step c in several intervals (compiled: between intervals the end
+    velocity of field 1 only, all fields at the last and at points clamped on the way)."""
+    reference, sim = pair("channel", velocity="least_squares", circulation="swept_bounded", walls=walls, dt=0.05)
+    expected, v_expected = reference.backtrack()
+    result, v = sim.backtrack()
+    assert_same_points(expected, result)
+    np.testing.assert_array_equal(v, v_expected)
+    assert result.substeps >= 3 and (result.wall_edge >= 0).sum() > 0  # several intervals; walls met
+
+
 @pytest.mark.parametrize("name", ["channel", "lattice"])
 def test_walking_kernel_equals_numpy_without_the_planar_jump(name):
     """Planar meshes jump; with the jump switched off both walk triangle by triangle."""
@@ -177,6 +189,12 @@ def test_circulation_kernel_equals_numpy(name):
     got, got_border = sim.circulation(result.position, velocity, clamped)
     np.testing.assert_array_equal(got_border, border)
     np.testing.assert_array_equal(got, expected)
+    # some cells only (the swept rules' border cells): their Γ with the same bits, 0 elsewhere
+    cells = border | (np.arange(border.size) % 3 == 0)
+    for fluid in (reference, sim):
+        some, _ = fluid.circulation(result.position, velocity, clamped, cells=cells)
+        np.testing.assert_array_equal(some[cells], expected[cells])
+        assert not some[~cells].any()
 
 
 @pytest.mark.parametrize("name, steps, scheme", [
@@ -185,6 +203,8 @@ def test_circulation_kernel_equals_numpy(name):
     ("channel", 10, dict(velocity="least_squares", circulation="swept")),  # the least-squares walk
     ("sphere", 10, dict(velocity="least_squares", circulation="swept_bounded")),  # the default scheme
     ("channel", 10, dict(velocity="least_squares", circulation="swept_bounded")),
+    # slip walls: points clamped in an early swept interval keep that interval's end velocities
+    ("channel", 10, dict(velocity="least_squares", circulation="swept_bounded", walls="slip")),
 ])
 def test_a_whole_run_with_numba_kernels_equals_the_numpy_run(name, steps, scheme):
     reference, sim = pair(name, dt=case(name)[1]["dt"] / 2, **scheme)

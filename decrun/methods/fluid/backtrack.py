@@ -465,7 +465,7 @@ class TriangleWalker:
             *self.kernel_tables(), interpolator.kernel_tables(), point_velocity, position, tri, wall, start_velocity,
             velocity, True, np.ascontiguousarray(self.size, dtype=np.float64), float(dt), int(substeps),
             -1.0 if max_cfl is None else float(max_cfl), max(max_substeps, substeps),
-            compiled.INTEGRATOR_CODE[integrator], int(max_rounds), np.zeros(0), np.zeros(0), jit.threads())
+            compiled.INTEGRATOR_CODE[integrator], int(max_rounds), np.zeros(0), np.zeros(0), 0, jit.threads())
         return BacktrackResult(position, tri, wall, int(rounds.sum()), int(unfinished.max(initial=0)), int(most),
                                velocity)
 

@@ -56,8 +56,9 @@ _helper = jit.njit(error_model="numpy", inline=INLINE, _nrt=False)
 # one block of points per thread (``chunks``, from ``jit.threads()``), each block a plain compiled
 # loop (the _..._block kernels: as the body of a numba parfor the same loops ran up to 2× slower),
 # each point computed as in the serial loop, so the bits do not depend on the number of threads.
-# The circulation and swept sums stay serial: a parallel region costs ~0.17 ms to launch (numba's
-# workqueue), more than splitting their 0.2–0.5 ms of work saved.
+# The swept sums run in blocks too (a region costs a few µs on OpenMP, whose threads spin a moment
+# between regions; ~0.17 ms on numba's workqueue); the circulation sums only the cells that use it
+# (the swept rules: the border cells), serially.
 _parallel_kernel = jit.njit(error_model="numpy", parallel=True)
 prange = jit.prange
 
@@ -149,17 +150,18 @@ def _velocity(triangles, cell_real, ids, planar, scheme, point_velocity, f, t, x
 
 @_helper
 def _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, t, x0, x1, x2, face_normal, w, h, out,
-                result, p):
-    """result[p] (3, F) = the velocities of every field at x in t (the weights computed once)."""
+                result, p, first_field):
+    """result[p, :, f] (3,) = the velocity of field f at x in t for the fields f = first_field..F − 1
+    (the weights computed once)."""
     F = point_velocity.shape[2]
     if scheme == 1:
-        for f in range(F):
+        for f in range(first_field, F):
             _p1(triangles, cell_real, planar, point_velocity, f, t, x0, x1, x2, face_normal, out)
             result[p, 0, f], result[p, 1, f], result[p, 2, f] = out[0], out[1], out[2]
         return
     v = _nearest_vertex(triangles, cell_real, t, x0, x1, x2)
     _weights(cell_real, v, x0, x1, x2, w, h)
-    for f in range(F):
+    for f in range(first_field, F):
         _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, out)
         result[p, 0, f], result[p, 1, f], result[p, 2, f] = out[0], out[1], out[2]
 
@@ -172,7 +174,7 @@ def _velocity_block(triangles, cell_real, ids, planar, scheme, triangle, x, poin
     w, h, out = np.empty(K), np.empty(K + 1), np.empty(3)
     for p in range(first, last):
         _all_fields(triangles, cell_real, ids, planar, scheme, point_velocity, triangle[p], x[p, 0], x[p, 1], x[p, 2],
-                    face_normal, w, h, out, result, p)
+                    face_normal, w, h, out, result, p, 0)
 
 
 @_parallel_kernel
@@ -408,7 +410,7 @@ def _substep_count(begin, dt, size, substeps, max_cfl, cap):
 def _backtrack_block(vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real, border_buckets, grid,
                      grid_shape, near, triangles, cell_real, ids, field_planar, scheme, point_velocity, position,
                      triangle, wall, start_velocity, end_velocity, first, size, dt, substeps, max_cfl, cap, integrator,
-                     max_rounds, vorticity, value, first_point, last_point, rounds, unfinished):
+                     max_rounds, vorticity, value, first_field, first_point, last_point, rounds, unfinished):
     """:func:`backtrack_points` for the points first_point..last_point − 1 (one thread's block,
     compiled as a plain loop: numba's parfor body ran the same loop 1.6× slower); adds into
     ``rounds`` (cap, 2) and ``unfinished`` (cap,) and returns the largest substep count (≥ 1)."""
@@ -486,7 +488,8 @@ def _backtrack_block(vertices, tri_real, tri_int, face_normal, planar, affine, b
             position[p, 0], position[p, 1], position[p, 2] = x[0], x[1], x[2]
             triangle[p], wall[p] = t, hit
             _all_fields(triangles, cell_real, ids, field_planar, scheme, point_velocity, t, x[0], x[1], x[2],
-                        face_normal, w, h, d, end_velocity, p)  # the end point's velocities
+                        face_normal, w, h, d, end_velocity, p,
+                        0 if hit >= 0 else first_field)  # the end point's velocities (all at a wall: it stays)
         if interpolate:
             _barycentric(tri_real, t, x, lam)
             value[p] = (lam[0] * vorticity[tri_int[t, TRI_TOP]] + lam[1] * vorticity[tri_int[t, TRI_TOP + 1]]) \
@@ -496,7 +499,7 @@ def _backtrack_block(vertices, tri_real, tri_int, face_normal, planar, affine, b
 
 @_parallel_kernel
 def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall, start_velocity, end_velocity, first,
-                     size, dt, substeps, max_cfl, cap, integrator, max_rounds, vorticity, value, chunks):
+                     size, dt, substeps, max_cfl, cap, integrator, max_rounds, vorticity, value, first_field, chunks):
     """Backtrack along −u for ``dt`` (TriangleWalker.backtrack), point by point and in place, in
     ``chunks`` blocks of points run in parallel (the result does not depend on ``chunks``).
 
@@ -513,6 +516,9 @@ def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall
         substep of length dt / count; integrator : INTEGRATOR_CODE
     vorticity (n0,), value (P,) : when ``value`` is not empty, value[p] = the P1 interpolation
         (λ0 w0 + λ1 w1) + λ2 w2 of the vertex vorticity at every point (moved or not)
+    first_field : the end velocities of the fields first_field..F − 1 only, except at points
+        clamped in this call (0: all; the swept intervals before the last need field 1 only, their
+        next start velocities; a clamped point moves no more, so its end velocities are final)
 
     Returns rounds (cap, 2) the most rounds any moving point walked in substep s (column 0: the
     midpoint half step, 1: the full step), unfinished (cap,) points still walking after
@@ -533,7 +539,7 @@ def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall
                                           border_real, border_buckets, grid, grid_shape, near, triangles, cell_real,
                                           ids, field_planar, scheme, point_velocity, position, triangle, wall,
                                           start_velocity, end_velocity, first, size, dt, substeps, max_cfl, cap,
-                                          integrator, max_rounds, vorticity, value, c * P // chunks,
+                                          integrator, max_rounds, vorticity, value, first_field, c * P // chunks,
                                           (c + 1) * P // chunks, chunk_rounds[c], chunk_unfinished[c])
     rounds = np.zeros((cap, 2), dtype=np.int64)
     unfinished = np.zeros(cap, dtype=np.int64)
@@ -548,60 +554,81 @@ def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall
 
 
 # ---------------------------------------------------------------- circulation (simulation.py)
+@_helper
+def _dual_edge_integral(position, fixed_points, velocity, fixed_velocity, a, b, f):
+    """<u(p_a) + u(p_b), p_b − p_a> / 2 of field f along the dual edge a → b (trapezoid rule)."""
+    m = position.shape[0]
+    total = 0.0
+    for k in range(3):
+        pa = position[a, k] if a < m else fixed_points[a - m, k]
+        pb = position[b, k] if b < m else fixed_points[b - m, k]
+        ua = velocity[a, k, f] if a < m else fixed_velocity[a - m, k, f]
+        ub = velocity[b, k, f] if b < m else fixed_velocity[b - m, k, f]
+        total += (ua + ub) * (pb - pa)
+    return 0.5 * total
+
+
 @_kernel
-def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, indptr, indices, data):
-    """(n0, F) Γ = D g around every cell: g_e = <u(p_a) + u(p_b), p_b − p_a> / 2 along each
-    dual edge a → b (trapezoid rule), D the signed cell–edge incidence (CSR indptr, indices,
-    data). Points below m = len(position) are the backtracked ones (position, velocity
-    (m, 3, F)), the others fixed (fixed_points, fixed_velocity)."""
-    m, F = position.shape[0], velocity.shape[2]
-    E = edge_a.shape[0]
-    g = np.empty((E, F))
-    for e in range(E):
-        a, b = edge_a[e], edge_b[e]
-        for f in range(F):
-            total = 0.0
-            for k in range(3):
-                pa = position[a, k] if a < m else fixed_points[a - m, k]
-                pb = position[b, k] if b < m else fixed_points[b - m, k]
-                ua = velocity[a, k, f] if a < m else fixed_velocity[a - m, k, f]
-                ub = velocity[b, k, f] if b < m else fixed_velocity[b - m, k, f]
-                total += (ua + ub) * (pb - pa)
-            g[e, f] = 0.5 * total
-    n = indptr.shape[0] - 1
-    gamma = np.zeros((n, F))
-    for i in range(n):
+def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, indptr, indices, data, rows):
+    """(n0, F) Γ = D g around the cells ``rows`` (R,) (zero in the other rows): g_e =
+    <u(p_a) + u(p_b), p_b − p_a> / 2 along each dual edge a → b (trapezoid rule), D the signed
+    cell–edge incidence (CSR indptr, indices, data). Points below m = len(position) are the
+    backtracked ones (position, velocity (m, 3, F)), the others fixed (fixed_points,
+    fixed_velocity). Each row sums its edges in CSR order, each edge integral computed as in the
+    numpy twin (``D @ g``): the same bits."""
+    F = velocity.shape[2]
+    gamma = np.zeros((indptr.shape[0] - 1, F))
+    for r in range(rows.shape[0]):
+        i = rows[r]
         for j in range(indptr[i], indptr[i + 1]):
+            e = indices[j]
             for f in range(F):
-                gamma[i, f] += data[j] * g[indices[j], f]
+                gamma[i, f] += data[j] * _dual_edge_integral(position, fixed_points, velocity, fixed_velocity,
+                                                             edge_a[e], edge_b[e], f)
     return gamma
 
 
 # ---------------------------------------------------------------- swept vorticity (swept.py)
 @_kernel
-def swept_change_add(change, before, after, value_before, value_after, side_a, side_b, normal, indptr, indices,
-                     data):
-    """``change`` (n0,) += Γ(X(C)) − Γ(C) per cell, in place (SweptVorticity.change; summed over
-    the intervals of VorticityFluid._backtrack_sweeping): per side a → b the signed areas of the
-    triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') along the side's ``normal`` (S, 3) times the
-    mean vorticity at their corners, summed into the cells by the signed incidence (CSR indptr,
-    indices, data), negated. Same arithmetic order as the numpy twin (``change += −(D @ total)``)."""
-    S = side_a.shape[0]
-    total = np.empty(S)
-    for s in range(S):
+def _swept_side_totals(before, after, value_before, value_after, side_a, side_b, normal, total, first, last):
+    """total[s] for the sides first..last − 1 (:func:`swept_change_add`, one thread's block)."""
+    for s in range(first, last):
         a, b = side_a[s], side_b[s]
         u0, u1, u2 = before[b, 0] - before[a, 0], before[b, 1] - before[a, 1], before[b, 2] - before[a, 2]
         v0, v1, v2 = after[b, 0] - before[a, 0], after[b, 1] - before[a, 1], after[b, 2] - before[a, 2]
         q0, q1, q2 = after[a, 0] - before[a, 0], after[a, 1] - before[a, 1], after[a, 2] - before[a, 2]
         n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
         c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-        first = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+        first_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
         c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
-        second = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+        second_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
         wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
-        total[s] = first * (wa0 + wb0 + wb1) / 3.0 + second * (wa0 + wb1 + wa1) / 3.0
-    for i in range(indptr.shape[0] - 1):
+        total[s] = first_area * (wa0 + wb0 + wb1) / 3.0 + second_area * (wa0 + wb1 + wa1) / 3.0
+
+
+@_kernel
+def _add_rows(change, total, indptr, indices, data, first, last):
+    """change[i] += −Σ_j data[j] total[indices[j]] for the rows first..last − 1 (CSR order)."""
+    for i in range(first, last):
         acc = 0.0
         for j in range(indptr[i], indptr[i + 1]):
             acc += data[j] * total[indices[j]]
         change[i] += -acc
+
+
+@_parallel_kernel
+def swept_change_add(change, before, after, value_before, value_after, side_a, side_b, normal, indptr, indices,
+                     data, chunks):
+    """``change`` (n0,) += Γ(X(C)) − Γ(C) per cell, in place (SweptVorticity.change; summed over
+    the intervals of VorticityFluid._backtrack_sweeping): per side a → b the signed areas of the
+    triangles (p_a, p_b, p_b') and (p_a, p_b', p_a') along the side's ``normal`` (S, 3) times the
+    mean vorticity at their corners, summed into the cells by the signed incidence (CSR indptr,
+    indices, data), negated. Same arithmetic order as the numpy twin (``change += −(D @ total)``);
+    sides and then cells in ``chunks`` blocks in parallel (the same bits on any number)."""
+    S, n = side_a.shape[0], indptr.shape[0] - 1
+    total = np.empty(S)
+    for c in prange(chunks):
+        _swept_side_totals(before, after, value_before, value_after, side_a, side_b, normal, total,
+                           c * S // chunks, (c + 1) * S // chunks)
+    for c in prange(chunks):
+        _add_rows(change, total, indptr, indices, data, c * n // chunks, (c + 1) * n // chunks)

@@ -269,7 +269,7 @@ class VorticityFluid:
             D = self._swept.incidence
             compiled.swept_change_add(np.zeros(self.K.num_simplices(0)), points, points, rest, rest,
                                       self._swept.side_a, self._swept.side_b, self._swept.normal, D.indptr,
-                                      D.indices, D.data)
+                                      D.indices, D.data, jit.threads())
 
     def _remove_mean(self, w: np.ndarray) -> np.ndarray:
         if not self.closed:
@@ -421,10 +421,11 @@ class VorticityFluid:
             r, left, steps = compiled.backtrack_points(
                 walk, jump, field, both, after[:m], triangle, wall, start, end_velocity, interval == 0, size,
                 self.dt / k, substeps, max_cfl, cap, compiled.INTEGRATOR_CODE[options["integrator"]],
-                int(options["max_rounds"]), vorticity, value_after[:m], chunks)
+                int(options["max_rounds"]), vorticity, value_after[:m], 0 if interval == k - 1 else both.shape[2] - 1,
+                chunks)
             rounds, unfinished, most = rounds + int(r.sum()), max(unfinished, int(left.max(initial=0))), max(most, steps)
             compiled.swept_change_add(change, before, after, value_before, value_after, swept.side_a, swept.side_b,
-                                      swept.normal, D.indptr, D.indices, D.data)
+                                      swept.normal, D.indptr, D.indices, D.data, chunks)
             before, after = after, before
             value_before, value_after = value_after, value_before
         self._swept_change = change
@@ -486,36 +487,46 @@ class VorticityFluid:
         return fixed
 
     def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray,
-                    fixed_velocity: np.ndarray | None = None):
+                    fixed_velocity: np.ndarray | None = None, cells: np.ndarray | None = None):
         """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule
         Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2, and the (n0,) bool mask of border
         cells (which use the full u; the others the d0 ψ part).
 
         position (m, 3), velocity (m, 3, 2) of the backtracked circumcenters; clamped (m,) bool;
-        fixed_velocity (n_fixed, 3, 2) of the fixed border points (default: the wall velocities).
+        fixed_velocity (n_fixed, 3, 2) of the fixed border points (default: the wall velocities);
+        cells (n0,) bool: only these cells' Γ is computed, the others' is 0 (default: every cell;
+        the swept rules need it on the border cells only).
         """
         fixed_velocity = self._fixed_velocity if fixed_velocity is None else fixed_velocity
-        cells = self.cells
-        m = cells.n_circumcenters
+        m = self.cells.n_circumcenters
         a, b = self._edge_a, self._edge_b
+        D = self._dual_incidence
+        rows = np.arange(D.shape[0]) if cells is None else np.flatnonzero(cells)
         if self.kernels == "numba":
             from decrun.methods.fluid.compiled import circulation_sums
 
-            D = self._dual_incidence
             gamma = circulation_sums(np.ascontiguousarray(position, dtype=np.float64), self._fixed_points,
                                      np.ascontiguousarray(velocity, dtype=np.float64), fixed_velocity,
-                                     a, b, D.indptr, D.indices, D.data)
+                                     a, b, D.indptr, D.indices, D.data, rows)
         else:
-            points = np.concatenate([position, cells.points[m:]])
+            points = np.concatenate([position, self.cells.points[m:]])
             velocities = np.concatenate([velocity, fixed_velocity])
             side = points[b] - points[a]  # (E, 3)
             g = 0.5 * dot3(np.moveaxis(velocities[a] + velocities[b], 1, 2), side[:, None, :])  # (E, 2)
-            gamma = self._dual_incidence @ g  # (n0, 2): [d0 ψ part, full u]
+            gamma = np.zeros((D.shape[0], g.shape[1]))
+            gamma[rows] = D[rows] @ g  # (n0, 2): [d0 ψ part, full u]
+        border_cell = self._border_cells(clamped)
+        return np.where(border_cell, gamma[:, 1], gamma[:, 0]), border_cell
+
+    def _border_cells(self, clamped: np.ndarray) -> np.ndarray:
+        """(n0,) bool: the cells of border vertices and those with a corner clamped at a wall
+        (``clamped`` (m,) bool): their circulation takes the full u."""
+        cells = self.cells
+        m = cells.n_circumcenters
         touched = np.zeros(m + 1, dtype=bool)
         touched[:m] = clamped
         corners = np.where(cells.corners < m, cells.corners, m)
-        border_cell = cells.border_vertex | touched[corners].any(axis=1)
-        return np.where(border_cell, gamma[:, 1], gamma[:, 0]), border_cell
+        return cells.border_vertex | touched[corners].any(axis=1)
 
     def _inflow_cells(self, wall_edge: np.ndarray) -> np.ndarray:
         """(n0,) bool: with ``walls="slip"`` and an inflow, the cells of the vertices of the open
@@ -560,12 +571,19 @@ class VorticityFluid:
     def backtracked_vorticity(self, result, velocity) -> np.ndarray:
         """Steps c–d: the vorticity (n0,) carried to the vertices, before viscosity and forces."""
         fixed = self._open_fixed_velocity() if self.walls == "slip" else None
-        gamma, border_cell = self.circulation(result.position, velocity, result.wall_edge >= 0, fixed)
-        w = gamma / self.star0
-        if self.circulation_rule in SWEPT:
+        clamped = result.wall_edge >= 0
+        if self.circulation_rule in SWEPT:  # the trapezoid Γ on the border cells only, the swept change elsewhere
             if self.walls == "slip":  # only the cells the inflow reaches keep the trapezoid (their wall moves at v)
                 border_cell = self._inflow_cells(result.wall_edge)
-            w = np.where(border_cell, w, self.vorticity + self._swept_change / self.star0)
+            else:
+                border_cell = self._border_cells(clamped)
+            w = self.vorticity + self._swept_change / self.star0
+            if border_cell.any():  # (none on closed surfaces: no Γ to compute)
+                gamma, _ = self.circulation(result.position, velocity, clamped, fixed, cells=border_cell)
+                w = np.where(border_cell, gamma / self.star0, w)
+        else:
+            gamma, border_cell = self.circulation(result.position, velocity, clamped, fixed)
+            w = gamma / self.star0
         if self._clamps:
             lo, hi = footprint_range(self.vorticity, self.K.simplices(2), result.triangle, self.cells.corners,
                                      self.cells.n_circumcenters)

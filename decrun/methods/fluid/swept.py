@@ -72,6 +72,7 @@ class SweptVorticity:
         order (3-vector dots as ``dot3``), the same bits."""
         a, b = self.side_a, self.side_b
         if compiled:
+            from decrun.core import jit
             from decrun.methods.fluid import compiled as kernels
 
             D = self.incidence
@@ -79,7 +80,8 @@ class SweptVorticity:
                                                                        self.normal)]
             change = np.zeros(D.shape[0])
             kernels.swept_change_add(change, *f64[:4], np.ascontiguousarray(a, dtype=np.int64),
-                                     np.ascontiguousarray(b, dtype=np.int64), f64[4], D.indptr, D.indices, D.data)
+                                     np.ascontiguousarray(b, dtype=np.int64), f64[4], D.indptr, D.indices, D.data,
+                                     jit.threads())
             return change
         a0, b0, a1, b1 = before[a], before[b], after[a], after[b]
         first = 0.5 * dot3(np.cross(b0 - a0, b1 - a0), self.normal)

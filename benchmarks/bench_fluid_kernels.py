@@ -111,7 +111,9 @@ def compare(name: str, dec, options: dict, seconds: float, solver: str = "auto",
 
     from decrun.core import jit
 
-    every = jit.threads()  # (numba's threading layer as decrun picks it, before numba starts its threads)
+    # numba's threading layer as decrun picks it, before numba starts its threads (an older checkout
+    # run through PYTHONPATH=... may have no parallel kernels and no jit.threads)
+    every = jit.threads() if hasattr(jit, "threads") else numba.get_num_threads()
     runs = {"numpy": ("numpy", None), "numba1": ("numba", 1), "numba": ("numba", every)}
     sims = {k: VorticityFluid(dec, SOLVERS[solver], kernels=kernels, **SCHEMES[scheme], **options)
             for k, (kernels, _) in runs.items()}

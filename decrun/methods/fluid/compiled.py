@@ -19,7 +19,8 @@ Each kernel has a numpy twin that stays the tested reference (``VorticityFluid(k
   new end points; blocks of points run on numba's threads (``jit.threads()``), the same bits on
   any number of threads;
 * :func:`swept_change_add` — the swept-vorticity change of :meth:`SweptVorticity.change`;
-* :func:`circulation_sums` — the trapezoid circulation of :meth:`VorticityFluid.circulation`.
+* :func:`circulation_sums` — the trapezoid circulation of :meth:`VorticityFluid.circulation`
+  (:func:`circulation_rows`: of some cells).
 
 Lazy kernels of :mod:`decrun.core.jit` (the one ``auto | numba | numpy`` switch, listed in
 ``jit.KERNELS``), compiled with ``cache=True`` on their first call: the machine code is written
@@ -34,7 +35,7 @@ import numpy as np
 
 from decrun.core import jit
 
-__all__ = ["velocity_points", "backtrack_points", "circulation_sums", "swept_change_add",
+__all__ = ["velocity_points", "backtrack_points", "circulation_sums", "circulation_rows", "swept_change_add",
            "INTEGRATOR_CODE"]
 
 INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
@@ -56,9 +57,9 @@ _helper = jit.njit(error_model="numpy", inline=INLINE, _nrt=False)
 # one block of points per thread (``chunks``, from ``jit.threads()``), each block a plain compiled
 # loop (the _..._block kernels: as the body of a numba parfor the same loops ran up to 2× slower),
 # each point computed as in the serial loop, so the bits do not depend on the number of threads.
-# The swept sums run in blocks too (a region costs a few µs on OpenMP, whose threads spin a moment
-# between regions; ~0.17 ms on numba's workqueue); the circulation sums only the cells that use it
-# (the swept rules: the border cells), serially.
+# The circulation and swept sums run in blocks too (a region costs a few µs on OpenMP, whose threads
+# spin a moment between regions; ~0.17 ms on numba's workqueue); the swept rules' circulation of their
+# few border cells (circulation_rows) runs serially.
 _parallel_kernel = jit.njit(error_model="numpy", parallel=True)
 prange = jit.prange
 
@@ -569,13 +570,45 @@ def _dual_edge_integral(position, fixed_points, velocity, fixed_velocity, a, b, 
 
 
 @_kernel
-def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, indptr, indices, data, rows):
-    """(n0, F) Γ = D g around the cells ``rows`` (R,) (zero in the other rows): g_e =
-    <u(p_a) + u(p_b), p_b − p_a> / 2 along each dual edge a → b (trapezoid rule), D the signed
-    cell–edge incidence (CSR indptr, indices, data). Points below m = len(position) are the
-    backtracked ones (position, velocity (m, 3, F)), the others fixed (fixed_points,
-    fixed_velocity). Each row sums its edges in CSR order, each edge integral computed as in the
-    numpy twin (``D @ g``): the same bits."""
+def _dual_edge_block(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, g, first, last):
+    """g[e, f] for the dual edges first..last − 1 (:func:`circulation_sums`, one thread's block)."""
+    for e in range(first, last):
+        for f in range(velocity.shape[2]):
+            g[e, f] = _dual_edge_integral(position, fixed_points, velocity, fixed_velocity, edge_a[e], edge_b[e], f)
+
+
+@_kernel
+def _row_block(gamma, g, indptr, indices, data, first, last):
+    """gamma[i] = Σ_j data[j] g[indices[j]] for the rows first..last − 1 (CSR order)."""
+    for i in range(first, last):
+        for j in range(indptr[i], indptr[i + 1]):
+            for f in range(g.shape[1]):
+                gamma[i, f] += data[j] * g[indices[j], f]
+
+
+@_parallel_kernel
+def circulation_sums(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, indptr, indices, data, chunks):
+    """(n0, F) Γ = D g around every cell: g_e = <u(p_a) + u(p_b), p_b − p_a> / 2 along each
+    dual edge a → b (trapezoid rule), D the signed cell–edge incidence (CSR indptr, indices,
+    data). Points below m = len(position) are the backtracked ones (position, velocity
+    (m, 3, F)), the others fixed (fixed_points, fixed_velocity). The edges and then the cells in
+    ``chunks`` blocks in parallel; each row sums in CSR order, as the numpy twin's ``D @ g``."""
+    E, n, F = edge_a.shape[0], indptr.shape[0] - 1, velocity.shape[2]
+    g = np.empty((E, F))
+    for c in prange(chunks):
+        _dual_edge_block(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, g,
+                         c * E // chunks, (c + 1) * E // chunks)
+    gamma = np.zeros((n, F))
+    for c in prange(chunks):
+        _row_block(gamma, g, indptr, indices, data, c * n // chunks, (c + 1) * n // chunks)
+    return gamma
+
+
+@_kernel
+def circulation_rows(position, fixed_points, velocity, fixed_velocity, edge_a, edge_b, indptr, indices, data, rows):
+    """:func:`circulation_sums` of the cells ``rows`` (R,) only, zero in the others (the swept
+    rules' border cells, a few of them): each row's edge integrals computed where it sums them,
+    in CSR order, the same bits."""
     F = velocity.shape[2]
     gamma = np.zeros((indptr.shape[0] - 1, F))
     for r in range(rows.shape[0]):

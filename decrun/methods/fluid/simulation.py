@@ -256,8 +256,9 @@ class VorticityFluid:
             self.walker.backtrack_compiled(none, np.zeros(0, dtype=np.int64), self.dt, self._kernel_field,
                                            self._point_velocities(), integrator=self.integrator,
                                            start_velocity=none)
-        self.circulation(self.cells.points[: self.cells.n_circumcenters],
-                         np.zeros((self.cells.n_circumcenters, 3, 2)), np.zeros(self.cells.n_circumcenters, bool))
+        m = self.cells.n_circumcenters
+        for cells in (None, np.zeros(self.K.num_simplices(0), dtype=bool)):  # every cell / some cells
+            self.circulation(self.cells.points[:m], np.zeros((m, 3, 2)), np.zeros(m, bool), cells=cells)
         if self.compiled_walk:  # the swept intervals after the first interpolate their start velocities
             self._kernel_field.velocity_compiled(np.zeros(0, dtype=np.int64), none, self._point_velocities(),
                                                  self.face_normal)
@@ -503,11 +504,12 @@ class VorticityFluid:
         D = self._dual_incidence
         rows = np.arange(D.shape[0]) if cells is None else np.flatnonzero(cells)
         if self.kernels == "numba":
-            from decrun.methods.fluid.compiled import circulation_sums
+            from decrun.methods.fluid import compiled
 
-            gamma = circulation_sums(np.ascontiguousarray(position, dtype=np.float64), self._fixed_points,
-                                     np.ascontiguousarray(velocity, dtype=np.float64), fixed_velocity,
-                                     a, b, D.indptr, D.indices, D.data, rows)
+            args = (np.ascontiguousarray(position, dtype=np.float64), self._fixed_points,
+                    np.ascontiguousarray(velocity, dtype=np.float64), fixed_velocity, a, b, D.indptr, D.indices, D.data)
+            gamma = (compiled.circulation_sums(*args, jit.threads()) if cells is None
+                     else compiled.circulation_rows(*args, rows))
         else:
             points = np.concatenate([position, self.cells.points[m:]])
             velocities = np.concatenate([velocity, fixed_velocity])

@@ -153,15 +153,35 @@ class _LazyKernel:
         return self.serial
 
     def __call__(self, *args):
-        if self.options.get("parallel"):
-            if _fork_child_of_openmp:
-                return self.serial_dispatcher()(*args)
-            with _PARALLEL:  # one parallel region at a time in the process (see _PARALLEL)
-                result = self.dispatcher()(*args)
-            global _parallel_ran
-            _parallel_ran = True
-            return result
-        return self.dispatcher()(*args)
+        try:
+            if self.options.get("parallel"):
+                if _fork_child_of_openmp:
+                    return self.serial_dispatcher()(*args)
+                with _PARALLEL:  # one parallel region at a time in the process (see _PARALLEL)
+                    result = self.dispatcher()(*args)
+                global _parallel_ran
+                _parallel_ran = True
+                return result
+            return self.dispatcher()(*args)
+        except SystemError as exc:
+            raise _handler_exception(exc) or exc
+
+
+def _handler_exception(exc: SystemError) -> BaseException | None:
+    """The exception a signal handler raised during a kernel call, or None.
+
+    A kernel that returns a new array runs one Python function at its end (numba unpickles the
+    ndarray class to box the array), where Python runs pending signal handlers; an exception they
+    raise — Ctrl-C's KeyboardInterrupt, SIGTERM's (:mod:`decrun.runner.failures`), submitit's
+    SystemExit after a USR2 checkpoint — reached the caller as "SystemError: CPUDispatcher(...)
+    returned a result with an exception set", with the handler's exception as its cause. The
+    handler's exception is what the call should raise: the kernel's result is dropped with it."""
+    cause = exc.__cause__
+    while isinstance(cause, SystemError) and "returned a result with an exception set" in str(cause):
+        cause = cause.__cause__
+    if cause is None or "returned a result with an exception set" not in str(exc):
+        return None
+    return cause
 
 
 #: numba's workqueue thread pool must not be entered by two threads at once (it aborts the process:

@@ -230,3 +230,46 @@ def test_a_child_forked_after_a_parallel_step_steps_on_with_the_same_bits():
     assert out.returncode == 0, out.stderr[-2000:]
     layer, exitcode, same = out.stdout.strip().splitlines()[-1].split()
     assert exitcode == "0" and same == "True", out.stdout
+
+
+SIGNAL_PROBE = """
+import sys
+import numpy as np
+from decrun.complex import SimplicialComplex
+from decrun.core.solvers.direct import DirectSolver
+from decrun.dec import DEC
+from decrun.methods.fluid.initial import random_vorticity
+from decrun.methods.fluid.simulation import VorticityFluid
+sys.path.insert(0, "tests")
+from meshes_for_tests import icosphere
+dec = DEC(SimplicialComplex(*icosphere(3)))
+sim = VorticityFluid(dec, DirectSolver, dt=0.5, viscosity=1e-3, initial_vorticity=random_vorticity(dec, 2, amplitude=5),
+                     kernels="numba")
+sim.step()
+calls = 0
+def interrupt_in_the_kernel(frame, event, arg):  # a signal handler raising there, deterministically
+    global calls
+    kernel = getattr(frame.f_back.f_locals.get("self"), "name", "") if frame.f_back is not None else ""
+    # backtrack_points returns a tuple: numba boxed its arrays ignoring the error (velocity_points did not)
+    if event == "call" and frame.f_code.co_name == "_numba_unpickle" and kernel.endswith(".backtrack_points"):
+        calls += 1
+        sys.setprofile(None)
+        raise KeyboardInterrupt("Ctrl-C inside a kernel")
+sys.setprofile(interrupt_in_the_kernel)
+try:
+    sim.step()
+except KeyboardInterrupt as exc:
+    print("KeyboardInterrupt", calls, exc)
+"""
+
+
+def test_ctrl_c_during_a_kernel_call_raises_keyboardinterrupt_not_systemerror():
+    """A kernel returning an array runs one Python function at its end (numba boxing the array),
+    where Python runs pending signal handlers: their exception (Ctrl-C, SIGTERM, submitit's exit
+    after a USR2 checkpoint) is raised as itself, not as numba's SystemError ("returned a result
+    with an exception set"), which failed a preempted SLURM job instead of requeueing it. The
+    handler is played by a profile hook raising in that function."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = subprocess.run([sys.executable, "-c", SIGNAL_PROBE], cwd=root, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == "KeyboardInterrupt 1 Ctrl-C inside a kernel"

@@ -170,13 +170,18 @@ print(all(np.array_equal(sims[0].vorticity, sim.vorticity) for sim in sims[1:]))
 """
 
 
-def test_parallel_kernels_called_from_two_threads_at_once_wait_for_each_other():
-    """numba's workqueue pool aborts the process when two threads enter it at once (a sweep on a
-    thread pool, e.g. joblib's threading backend, would): the parallel kernels take one lock, so
-    two fluids stepped on two threads finish, each with the bits of a run on its own."""
+@pytest.mark.parametrize("layer", [None, "workqueue"])
+def test_parallel_kernels_called_from_two_threads_at_once_wait_for_each_other(layer):
+    """numba's workqueue pool (where OpenMP is not found) aborts the process when two threads
+    enter it at once (a sweep on a thread pool, e.g. joblib's threading backend, would): the
+    parallel kernels take one lock, so two fluids stepped on two threads finish, each with the
+    bits of a run on its own — on decrun's layer and on workqueue."""
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_THREADING_LAYER"}
+    if layer is not None:
+        env["NUMBA_THREADING_LAYER"] = layer
     out = subprocess.run([sys.executable, "-c", CONCURRENT_PROBE], cwd=root, capture_output=True, text=True,
-                         timeout=600)
+                         timeout=600, env=env)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == "True"
 

@@ -20,6 +20,10 @@ from decrun.errors import (  # noqa: F401
     TopologyError,
 )
 
+from decrun.core.threads import bound_openmp_spin
+
+bound_openmp_spin()  # before pymeshlab loads libgomp (decrun.core.threads)
+
 __version__ = "0.1.0"
 
 __all__ = ["DEC", "SimplicialComplex", "ConfigError", "DecrunError", "MeshError", "SolverError", "TopologyError"]

@@ -278,3 +278,23 @@ def test_ctrl_c_during_a_kernel_call_raises_keyboardinterrupt_not_systemerror():
     out = subprocess.run([sys.executable, "-c", SIGNAL_PROBE], cwd=root, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == "KeyboardInterrupt 1 Ctrl-C inside a kernel"
+
+
+SPIN_PROBE = """
+import os, sys
+import decrun
+import pymeshlab  # loads its bundled libgomp, which reads the variable now
+print(os.environ.get("GOMP_SPINCOUNT"))
+"""
+
+
+@pytest.mark.parametrize("environment, expected", [({}, "10000"), ({"GOMP_SPINCOUNT": "500"}, "500"),
+                                                   ({"OMP_WAIT_POLICY": "passive"}, "None")])
+def test_import_decrun_bounds_openmp_spinning_unless_the_environment_says(environment, expected):
+    """GNU OpenMP's idle threads spin 300,000 rounds by default, which cost 33 % on the fluid tests
+    with more processes than cores: ``import decrun`` sets GOMP_SPINCOUNT=10000, before pymeshlab
+    loads libgomp, unless GOMP_SPINCOUNT or OMP_WAIT_POLICY is set."""
+    env = {k: v for k, v in os.environ.items() if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")} | environment
+    out = subprocess.run([sys.executable, "-c", SPIN_PROBE], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == expected

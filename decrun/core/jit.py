@@ -215,8 +215,8 @@ _affinity_applied = False  # the affinity cap is applied once per process (a lat
 
 def _threading_layer(numba) -> None:
     """Before numba starts its threads: OpenMP where numba finds it (libgomp on Linux), else
-    numba's own pool ``workqueue``, unless ``NUMBA_THREADING_LAYER`` says otherwise; no TBB (an
-    old TBB only warns).
+    numba's own pool ``workqueue``, unless ``NUMBA_THREADING_LAYER`` or
+    ``NUMBA_THREADING_LAYER_PRIORITY`` says otherwise; no TBB (an old TBB only warns).
 
     OpenMP, because the calling thread works one block itself and the other threads spin a
     moment after a region before they sleep, so the next region starts on cores that are awake.
@@ -225,7 +225,8 @@ def _threading_layer(numba) -> None:
     of 1.7 ms for two 1.65 ms blocks; the fluid's 20,480-face sphere stepped 1.44× faster on
     OpenMP (``benchmarks/bench_fluid_kernels.py``). GNU OpenMP is not fork-safe: a forked child
     whose parent ran a parallel region runs the kernels' serial versions (:func:`_forked`)."""
-    if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
+    chosen = {"NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY"} & set(os.environ)
+    if not chosen and numba.config.THREADING_LAYER == "default":
         numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
 
 

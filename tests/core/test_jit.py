@@ -126,20 +126,25 @@ print(json.dumps({"threads": jit.threads(), "layer": numba.threading_layer(), "c
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this platform")
-@pytest.mark.parametrize("cores, environment", [("all", {}), ("one", {}), ("one", {"NUMBA_NUM_THREADS": "2"})])
+@pytest.mark.parametrize("cores, environment", [("all", {}), ("one", {}), ("one", {"NUMBA_NUM_THREADS": "2"}),
+                                                ("all", {"NUMBA_THREADING_LAYER_PRIORITY": "workqueue omp tbb"})])
 def test_the_parallel_kernels_take_the_cores_the_process_may_use(cores, environment):
     """numba's default is every core of the machine; a SLURM job with cpus_per_task=1 (CPU affinity
     one core) must not start a thread per core of the node: jit.threads() is the affinity's count,
     unless NUMBA_NUM_THREADS says otherwise (joblib sets it for its workers). OpenMP runs them
     where numba finds libgomp, else numba's own pool (workqueue)."""
-    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"} | environment
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("NUMBA_NUM_THREADS", "NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY")} | environment
     out = subprocess.run([sys.executable, "-c", THREADS_PROBE, cores], env=env, capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     got = json.loads(out.stdout.strip().splitlines()[-1])
-    assert got["layer"] == ("omp" if ctypes.util.find_library("gomp") else "workqueue")
+    if "NUMBA_THREADING_LAYER_PRIORITY" in environment:  # the user's order wins
+        assert got["layer"] == "workqueue"
+    else:
+        assert got["layer"] == ("omp" if ctypes.util.find_library("gomp") else "workqueue")
     usable = len(os.sched_getaffinity(0))
-    if environment:
+    if "NUMBA_NUM_THREADS" in environment:
         assert got["threads"] == min(2, got["numba_default"])
     else:
         assert got["threads"] == (min(usable, got["numba_default"]) if cores == "all" else 1)

@@ -164,7 +164,10 @@ class _LazyKernel:
                 return result
             return self.dispatcher()(*args)
         except SystemError as exc:
-            raise _handler_exception(exc) or exc
+            cause = _handler_exception(exc)
+            if cause is None:
+                raise
+            raise cause from None
 
 
 def _handler_exception(exc: SystemError) -> BaseException | None:
@@ -176,11 +179,12 @@ def _handler_exception(exc: SystemError) -> BaseException | None:
     SystemExit after a USR2 checkpoint — reached the caller as "SystemError: CPUDispatcher(...)
     returned a result with an exception set", with the handler's exception as its cause. The
     handler's exception is what the call should raise: the kernel's result is dropped with it."""
-    cause = exc.__cause__
-    while isinstance(cause, SystemError) and "returned a result with an exception set" in str(cause):
-        cause = cause.__cause__
-    if cause is None or "returned a result with an exception set" not in str(exc):
+    mark = "returned a result with an exception set"
+    if mark not in str(exc):
         return None
+    cause = exc.__cause__  # (numba's own boxing call may wrap it once more)
+    while isinstance(cause, SystemError) and mark in str(cause):
+        cause = cause.__cause__
     return cause
 
 

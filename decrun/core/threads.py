@@ -14,7 +14,6 @@ And a short spin for GNU OpenMP's idle threads (:func:`bound_openmp_spin`, at ``
 from __future__ import annotations
 
 import os
-
 from contextlib import contextmanager
 
 __all__ = ["one_blas_thread", "bound_openmp_spin", "OPENMP_SPIN"]

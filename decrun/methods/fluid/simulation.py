@@ -257,8 +257,8 @@ class VorticityFluid:
                                            self._point_velocities(), integrator=self.integrator,
                                            start_velocity=none)
         m = self.cells.n_circumcenters
-        for cells in (None, np.zeros(self.K.num_simplices(0), dtype=bool)):  # every cell / some cells
-            self.circulation(self.cells.points[:m], np.zeros((m, 3, 2)), np.zeros(m, bool), cells=cells)
+        some = np.zeros(self.K.num_simplices(0), dtype=bool) if self.circulation_rule in SWEPT else None
+        self.trapezoid_circulation(self.cells.points[:m], np.zeros((m, 3, 2)), cells=some)  # its kernel
         if self.compiled_walk:  # the swept intervals after the first interpolate their start velocities
             self._kernel_field.velocity_compiled(np.zeros(0, dtype=np.int64), none, self._point_velocities(),
                                                  self.face_normal)
@@ -488,37 +488,45 @@ class VorticityFluid:
         return fixed
 
     def circulation(self, position: np.ndarray, velocity: np.ndarray, clamped: np.ndarray,
-                    fixed_velocity: np.ndarray | None = None, cells: np.ndarray | None = None):
+                    fixed_velocity: np.ndarray | None = None):
         """Step d: Γ (n0,) around every (backtracked) dual cell, trapezoid rule
         Γ = Σ_i <u(p_i) + u(p_{i+1}), p_{i+1} − p_i> / 2, and the (n0,) bool mask of border
         cells (which use the full u; the others the d0 ψ part).
 
         position (m, 3), velocity (m, 3, 2) of the backtracked circumcenters; clamped (m,) bool;
-        fixed_velocity (n_fixed, 3, 2) of the fixed border points (default: the wall velocities);
-        cells (n0,) bool: only these cells' Γ is computed, the others' is 0 (default: every cell;
-        the swept rules need it on the border cells only).
+        fixed_velocity (n_fixed, 3, 2) of the fixed border points (default: the wall velocities).
         """
+        gamma = self.trapezoid_circulation(position, velocity, fixed_velocity)
+        border_cell = self._border_cells(clamped)
+        return np.where(border_cell, gamma[:, 1], gamma[:, 0]), border_cell
+
+    def trapezoid_circulation(self, position: np.ndarray, velocity: np.ndarray,
+                              fixed_velocity: np.ndarray | None = None, cells: np.ndarray | None = None) -> np.ndarray:
+        """(n0, 2) the trapezoid Γ of both fields [d0 ψ part, full u] around the dual cells
+        (:meth:`circulation`), of the ``cells`` (n0,) bool only when given (0 in the others: the
+        swept rules take Γ of their border cells only)."""
         fixed_velocity = self._fixed_velocity if fixed_velocity is None else fixed_velocity
         m = self.cells.n_circumcenters
         a, b = self._edge_a, self._edge_b
         D = self._dual_incidence
-        rows = np.arange(D.shape[0]) if cells is None else np.flatnonzero(cells)
         if self.kernels == "numba":
             from decrun.methods.fluid import compiled
 
             args = (np.ascontiguousarray(position, dtype=np.float64), self._fixed_points,
                     np.ascontiguousarray(velocity, dtype=np.float64), fixed_velocity, a, b, D.indptr, D.indices, D.data)
-            gamma = (compiled.circulation_sums(*args, jit.threads()) if cells is None
-                     else compiled.circulation_rows(*args, rows))
-        else:
-            points = np.concatenate([position, self.cells.points[m:]])
-            velocities = np.concatenate([velocity, fixed_velocity])
-            side = points[b] - points[a]  # (E, 3)
-            g = 0.5 * dot3(np.moveaxis(velocities[a] + velocities[b], 1, 2), side[:, None, :])  # (E, 2)
-            gamma = np.zeros((D.shape[0], g.shape[1]))
-            gamma[rows] = D[rows] @ g  # (n0, 2): [d0 ψ part, full u]
-        border_cell = self._border_cells(clamped)
-        return np.where(border_cell, gamma[:, 1], gamma[:, 0]), border_cell
+            if cells is None:
+                return compiled.circulation_sums(*args, jit.threads())
+            return compiled.circulation_rows(*args, np.flatnonzero(cells))
+        points = np.concatenate([position, self.cells.points[m:]])
+        velocities = np.concatenate([velocity, fixed_velocity])
+        side = points[b] - points[a]  # (E, 3)
+        g = 0.5 * dot3(np.moveaxis(velocities[a] + velocities[b], 1, 2), side[:, None, :])  # (E, 2)
+        if cells is None:
+            return D @ g
+        rows = np.flatnonzero(cells)
+        gamma = np.zeros((D.shape[0], g.shape[1]))
+        gamma[rows] = D[rows] @ g
+        return gamma
 
     def _border_cells(self, clamped: np.ndarray) -> np.ndarray:
         """(n0,) bool: the cells of border vertices and those with a corner clamped at a wall
@@ -582,8 +590,8 @@ class VorticityFluid:
             else:
                 border_cell = self._border_cells(clamped)
             w = self.vorticity + self._swept_change / self.star0
-            if border_cell.any():  # (none on closed surfaces: no Γ to compute)
-                gamma, _ = self.circulation(result.position, velocity, clamped, fixed, cells=border_cell)
+            if border_cell.any():  # (none on closed surfaces: no Γ to compute) the full u: they are border cells
+                gamma = self.trapezoid_circulation(result.position, velocity, fixed, cells=border_cell)[:, 1]
                 w = np.where(border_cell, gamma / self.star0, w)
         else:
             gamma, border_cell = self.circulation(result.position, velocity, clamped, fixed)

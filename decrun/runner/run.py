@@ -45,6 +45,7 @@ from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.checkpoint import RunCheckpoint
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
+from decrun.runner.yaml_text import to_yaml
 from decrun.runner.sweep.manifest import config_hash
 
 __all__ = ["Experiment", "Run", "validate", "prepare", "execute", "write", "run_experiment", "run"]
@@ -197,7 +198,7 @@ def _execute(run: Run) -> Run:
     mesh, complex_, app = run.mesh, run.complex, run.experiment.app
     if run.files is not None:
         run.recorder = ResultRecorder(run.files.result, vertices=mesh.vertices, simplices=mesh.simplices,
-                                      edges=complex_.simplices(1), config_yaml=OmegaConf.to_yaml(run.cfg, resolve=True),
+                                      edges=complex_.simplices(1), config_yaml=to_yaml(run.cfg, resolve=True),
                                       mesh_hash=mesh.meta.get("hash", ""))
     ctx = RunContext(app, complex_, run.dec, new_solver=run.experiment.solver.fresh, meta=mesh.meta,
                      progress=run.progress, recorder=run.recorder, logger=log)
@@ -268,7 +269,7 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         h5 = run.recorder.finish(result, timings)
     else:
         h5 = write_result(files.result, result, vertices=mesh.vertices, simplices=mesh.simplices,
-                          edges=run.complex.simplices(1), config_yaml=OmegaConf.to_yaml(cfg, resolve=True),
+                          edges=run.complex.simplices(1), config_yaml=to_yaml(cfg, resolve=True),
                           mesh_hash=mesh.meta.get("hash", ""), timings=timings)
     # the size and sha256 of result.h5 as written: readers never take a truncated or altered one for it
     metrics = write_metrics_json(files.metrics, {**result.metrics, RESULT_RECORD: file_record(h5)})

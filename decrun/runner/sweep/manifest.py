@@ -51,6 +51,7 @@ from decrun.runner.atomic import write_text_atomic
 from decrun.runner.results.checked import RESULT_RECORD, load_json
 from decrun.runner.results.journal import journal_path, read_journal
 from decrun.runner.results.reading import verify_result
+from decrun.runner.yaml_text import PythonDumper as _Dumper
 from decrun.runner.files import RunFiles, SweepFiles
 
 __all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "job_dir_name", "DONE"]
@@ -114,36 +115,6 @@ def _resolved(value: Any) -> Any:
     return OmegaConf.to_container(value, resolve=True, enum_to_str=True) if OmegaConf.is_config(value) else value
 
 
-#: strings YAML 1.1 reads as booleans (OmegaConf's list): quoted, so they stay strings
-_YAML_BOOLS = frozenset("y Y yes Yes YES n N no No NO true True TRUE false False FALSE on On ON off Off OFF".split())
-
-
-def _number(text: str) -> bool:
-    """Whether ``int(text)`` or ``float(text)`` reads ``text`` (``"1"``, ``" 2.5 "``, ``"1_0"``, ``"nan"``)."""
-    for kind in (int, float):
-        try:
-            kind(text)
-            return True
-        except ValueError:
-            pass
-    return False
-
-
-class _Dumper(yaml.Dumper):
-    """The YAML dumper of ``OmegaConf.to_yaml`` (OmegaConf 2.1-2.3's ``OmegaConfDumper``,
-    which is in its private ``omegaconf._utils``): PyYAML's ``Dumper`` that single-quotes a
-    string YAML would read as a boolean or Python as a number. decrun's own, so that the
-    hashes in existing manifests stay what they are whatever OmegaConf's dumper becomes
-    (tests/runner/test_sweep_planning.py pins them and compares the text to
-    ``OmegaConf.to_yaml``)."""
-
-
-def _str(dumper: yaml.Dumper, data: str) -> yaml.ScalarNode:
-    quoted = data in _YAML_BOOLS or _number(data)
-    return dumper.represent_scalar(yaml.resolver.BaseResolver.DEFAULT_SCALAR_TAG, data, style="'" if quoted else None)
-
-
-_Dumper.add_representer(str, _str)
 
 
 def write_manifest(sweep_dir: Path, manifest: dict[str, Any]) -> Path:

@@ -254,3 +254,36 @@ def test_recent_plugins_are_new_instances_of_the_same_values_and_refuse_as_build
         build(bad, "app", App)
     assert str(refused.value) == str(built.value)
     assert recent.build(node, "app", App) == first
+
+
+@pytest.mark.parametrize("master_overrides, jobs, composed", [
+    # plain values only: the template is the master with the first job's values, Hydra composes the last job
+    ([], [("app.dt=0.001", "mesh.subdiv=2"), ("app.dt=0.002", "mesh.subdiv=2"), ("app.dt=0.003", "mesh.subdiv=3")], 1),
+    # a group choice the master was composed with (a non-swept command-line override): the same
+    (["operator=circumcentric", "app.dt=0.001,0.002"], [("operator=circumcentric", "app.dt=0.001"),
+                                                         ("operator=circumcentric", "app.dt=0.002")], 1),
+    # a group choice the master lacks: Hydra composes the first job as the template too
+    ([], [("operator=circumcentric", "app.dt=0.001"), ("operator=circumcentric", "app.dt=0.002")], 2),
+    # the master has a value the jobs do not (its derivation is not Hydra's): the first job's template
+    (["app.steps=7"], [("app.dt=0.001",), ("app.dt=0.002",)], 2),
+], ids=["plain", "master-choice", "other-choice", "master-differs"])
+def test_a_group_of_plain_jobs_is_derived_from_the_master_with_one_hydra_composition(
+        hydra_loader, capsys, master_overrides, jobs, composed):
+    """Composer: every derived job hashes and launches as Hydra's composition; Hydra composed
+    ``composed`` configs for the group; a master whose derivation fails the check falls back
+    to the first job's template without a word (nothing is composed for every job)."""
+    loader, _ = hydra_loader
+    master = loader.load_configuration("config", overrides=["hydra.sweep.dir=planned", *master_overrides],
+                                       run_mode=RunMode.MULTIRUN)
+    composer = Composer(loader, master)
+    calls = []
+    hydra = composer._hydra
+    composer._hydra = lambda job: calls.append(job) or hydra(job)
+    hashes = [config_hash(cfg, template.blocks, template.fresh) for _, cfg, template in composer.each(jobs)]
+    assert len(calls) == composed and len(composer.templates) == 1
+    hydra_composed = [loader.load_sweep_config(master, list(job)) for job in jobs]
+    assert hashes == [config_hash(cfg) for cfg in hydra_composed]
+    launcher = PlannedConfigs(loader, composer.templates)  # what each job launches with: its whole config
+    for job, cfg in zip(jobs, hydra_composed):
+        assert OmegaConf.to_yaml(launcher.load_sweep_config(master, list(job))) == OmegaConf.to_yaml(cfg), job
+    assert "differs from Hydra's" not in capsys.readouterr().err

@@ -11,7 +11,10 @@ merge=True)`` (Hydra's ``_apply_overrides_to_config`` for a changed key), then t
 
 Checked, not trusted: before a group's jobs are derived, its last job is also composed by
 Hydra and compared (the whole YAML, ``hydra`` node included) with its derivation; if they
-differ, every job of the group is composed by Hydra (with a message).
+differ, every job of the group is composed by Hydra (with a message). A group whose
+overrides are all plain (or lines the master composition applied as well) takes the
+master composition with its first job's overrides applied as its template, so Hydra
+composes only the last job (:meth:`Composer._from_master`; the same check decides).
 
 Planning (:meth:`Composer.each`) derives the jobs of a group one after the other into one
 working copy of the template, for the sweep's checks and hashes; the launcher gets each
@@ -207,12 +210,23 @@ class Composer:
 
     def _start(self, key: tuple, members: list) -> tuple[DictConfig, Template] | None:
         """The working copy and template of a group, after checking the derivation of its
-        last job against Hydra's composition; None when they differ."""
-        (first, _), (last, last_parsed) = members[0], members[-1]
-        template = Template(self._hydra(first), [m for _, m in members], self.parse.plain)
+        last job against Hydra's composition; None when they differ.
+
+        A group of several jobs whose overrides are all plain values, or lines the master
+        composition applied too (the command line's non-swept overrides), is derived from
+        the master composition (:meth:`_from_master`): Hydra composes only its last job, for
+        the check (~70 ms less per sweep than composing its first job too). Otherwise, or
+        when that derivation does not give Hydra's last job, Hydra composes the first job
+        as the template."""
+        (first, first_parsed), (last, last_parsed) = members[0], members[-1]
+        parsed = [m for _, m in members]
+        template = composed_last = None
         if len(members) > 1:
-            derived = template.derive(last_parsed, self.parse.plain, self.master)
-            if OmegaConf.to_yaml(derived) != OmegaConf.to_yaml(self._hydra(last)):
+            composed_last = self._hydra(last)
+            template = self._from_master(first_parsed, parsed, last_parsed, composed_last)
+        if template is None:
+            template = Template(self._hydra(first), parsed, self.parse.plain)
+            if composed_last is not None and not self._derives(template, last_parsed, composed_last):
                 print(f"decrun: derived composition of {' '.join(last)} differs from Hydra's; composing "
                       f"each of its {len(members)} jobs with Hydra", file=sys.stderr)
                 return None
@@ -220,6 +234,29 @@ class Composer:
         cfg = copy.deepcopy(template.cfg)
         OmegaConf.copy_cache(from_config=self.master, to_config=cfg)
         return cfg, template
+
+    def _from_master(self, first: list[Override], members: list[list[Override]], last: list[Override],
+                     composed_last: DictConfig) -> Template | None:
+        """The group's template made from the master composition (``first``'s overrides
+        applied: :func:`apply`), if every override of ``first`` is plain or a line the master
+        applied (one of its ``hydra.overrides.task``), and if it derives the group's last job
+        as Hydra composed it (``composed_last``); else None."""
+        applied = set(OmegaConf.to_container(self.master.hydra.overrides.task, resolve=False))
+        if not all(self.parse.plain(o) or o.input_line in applied for o in first):
+            return None
+        try:
+            cfg = copy.deepcopy(self.master)
+            apply(cfg, first, self.parse.plain, 0)
+            template = Template(cfg, members, self.parse.plain)
+        except Exception:  # noqa: BLE001 — e.g. a key the master lacks: Hydra composes the template and says why
+            return None
+        return template if self._derives(template, last, composed_last) else None
+
+    def _derives(self, template: Template, last: list[Override], composed_last: DictConfig) -> bool:
+        """Whether ``template`` derives the job ``last`` as Hydra composed it (the whole YAML,
+        ``hydra`` node included)."""
+        derived = template.derive(last, self.parse.plain, self.master)
+        return OmegaConf.to_yaml(derived) == OmegaConf.to_yaml(composed_last)
 
 
 #: a directory pattern of literal text and the job number only

@@ -45,8 +45,8 @@ from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.checkpoint import RunCheckpoint
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
-from decrun.runner.yaml_text import to_yaml
 from decrun.runner.sweep.manifest import config_hash
+from decrun.runner.yaml_text import to_yaml
 
 __all__ = ["Experiment", "Run", "validate", "prepare", "execute", "write", "run_experiment", "run"]
 

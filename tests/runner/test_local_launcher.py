@@ -28,20 +28,25 @@ import decrun.runner.sweep.local as local
 import decrun.runner.sweep.sweeper as sweeper
 
 mode, args = sys.argv[1], sys.argv[2:]
-calls = {"hydra": 0, "local": 0}
 if mode == "hydra":
     local.is_basic_launcher = lambda launcher: False  # the sweeper then calls BasicLauncher.launch itself
-launch = sweeper.ManifestSweeper._launch
+launch, local_run_job, local_jobs = sweeper.ManifestSweeper._launch, local.run_job, []
+
+def counted(**kwargs):  # the jobs decrun's loop ran through its own run_job
+    local_jobs.append(kwargs["config"].hydra.job.num)
+    return local_run_job(**kwargs)
+
+local.run_job = counted
 
 def summarized(self, overrides, first):
     returns = launch(self, overrides, first)
     out = [{"status": r.status.name, "return_value": repr(r.return_value), "task_name": r.task_name,
             "working_dir": r.working_dir, "overrides": r.overrides, "cfg": OmegaConf.to_yaml(r.cfg),
-            "hydra_cfg": OmegaConf.to_yaml(r.hydra_cfg), "output_dir": r.hydra_cfg.hydra.runtime.output_dir,
-            "launcher": type(self.launcher).__name__} for r in returns]
+            "hydra_cfg": OmegaConf.to_yaml(r.hydra_cfg), "output_dir": r.hydra_cfg.hydra.runtime.output_dir}
+           for r in returns]
     sweep_dir = str(self.config.hydra.sweep.dir)
     with open(os.path.join(sweep_dir, "returns.json"), "w") as f:
-        json.dump({"returns": out, "cwd": os.getcwd()}, f)
+        json.dump({"returns": out, "cwd": os.getcwd(), "local_jobs": local_jobs}, f)
     return returns
 
 sweeper.ManifestSweeper._launch = summarized
@@ -92,7 +97,7 @@ def test_decruns_launcher_loop_returns_and_writes_what_hydras_does(tmp_path, ext
     tables = [comparable(pd.read_csv(tmp_path / mode / "metrics.csv")) for mode in ("hydra", "local")]
     pd.testing.assert_frame_equal(*tables)
     assert list(tables[1]["status"]) == ["ok", "ok"]
-    assert [r["launcher"] for r in local_returns["returns"]] == ["BasicLauncher"] * 2
+    assert hydra_returns.pop("local_jobs") == [] and local_returns.pop("local_jobs") == [0, 1]
     assert hydra_returns == local_returns  # both ran in tmp_path/s (renamed after each run)
     assert hydra_files == local_files
     assert set(local_files) >= {"0/.hydra/config.yaml", "0/.hydra/hydra.yaml", "0/.hydra/overrides.yaml",

@@ -115,8 +115,6 @@ def _resolved(value: Any) -> Any:
     return OmegaConf.to_container(value, resolve=True, enum_to_str=True) if OmegaConf.is_config(value) else value
 
 
-
-
 def write_manifest(sweep_dir: Path, manifest: dict[str, Any]) -> Path:
     """Write ``manifest.json`` atomically (it is either the old or the new one)."""
     path = Path(sweep_dir) / MANIFEST

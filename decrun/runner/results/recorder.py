@@ -297,6 +297,7 @@ class ResultRecorder:
                 forms.setdefault(name, 1)
                 value = value.values
             fields[name] = value
+        self._attrs["extra"].update({key: plain(value) for key, value in result.provenance.items()})
         result = Result(fields=fields, series=result.series, metrics=result.metrics, figures=result.figures)
         self._convert(result, dict(timings or {}), forms, status="ok", error="")
         return self.path

@@ -109,7 +109,7 @@ class Model(App):
         fields = {name: FieldSpec(options.form, options.initial, options.dirichlet)
                   for name, options in self.fields.items()}
         return ModelSpec(fields=fields, equations=list(self.equations), constants=dict(self.constants),
-                         metrics=dict(self.metrics), seed=int(self.seed), key="app")
+                         metrics=dict(self.metrics), seed=int(self.seed), key="app", dt=float(self.dt))
 
     def total_steps(self) -> int:
         """Steps to run: t_end / dt (refused unless a whole number), else ``steps`` (default 1)."""

@@ -352,8 +352,9 @@ def _unary(function):
 
 
 #: value-by-value functions of one argument (numbers and forms)
-POINTWISE = {"exp": np.exp, "log": np.log, "sin": np.sin, "cos": np.cos, "tanh": np.tanh, "sqrt": np.sqrt,
-             "abs": np.abs}
+POINTWISE = {"exp": np.exp, "log": np.log, "sin": np.sin, "cos": np.cos, "tan": np.tan, "tanh": np.tanh,
+             "sinh": np.sinh, "cosh": np.cosh, "arcsin": np.arcsin, "arccos": np.arccos, "arctan": np.arctan,
+             "sqrt": np.sqrt, "abs": np.abs}
 
 
 def _pointwise_rule(name):
@@ -425,6 +426,8 @@ _register(Operator("max", (1, 2), "form → number (largest value); two forms/nu
 _register(Operator("min", (1, 2), "form → number (smallest value); two forms/numbers → value by value",
                    "min over the values, or the smaller of two values at each simplex",
                    _reduction_or_pointwise("min"), _reduction_or_pointwise_evaluate(np.minimum, np.min)))
+_register(Operator("mean", (1,), "form → number", "the arithmetic mean of the values (unweighted)",
+                   _reduction_or_pointwise("mean"), _reduction_or_pointwise_evaluate(None, np.mean)))
 _register(Operator("vertex", (1,), "number i → primal 0-form",
                    "the indicator of vertex i (1 there, 0 elsewhere): a point source", _vertex_kind,
                    _vertex_evaluate))
@@ -434,7 +437,7 @@ for _name, _function in POINTWISE.items():
 
 #: other spellings of the operators
 ALIASES = {"codiff": "codifferential", "delta": "codifferential", "hodge": "star", "star_inv": "inv_star",
-           "laplace": "laplacian", "avg": "average", "mean": "average", "interior_product": "interior"}
+           "laplace": "laplacian", "avg": "average", "interior_product": "interior"}
 
 
 def reference_table() -> str:

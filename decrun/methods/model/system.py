@@ -59,6 +59,8 @@ class ModelSpec:
     metrics: dict[str, str] = field(default_factory=dict)
     seed: int = 0
     key: str = "app"
+    #: the time step (the name ``dt`` in expressions); NaN for models without one
+    dt: float = float("nan")
 
 
 def vertex_pieces(K) -> np.ndarray:
@@ -281,7 +283,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     base = {"x": K.vertices[:, 0].copy(), "y": K.vertices[:, 1].copy() if K.embedding_dim > 1 else
             np.zeros(K.num_simplices(0)), "z": K.vertices[:, 2].copy() if K.embedding_dim > 2 else
             np.zeros(K.num_simplices(0)), "h": float(K.mean_edge_length), "pi": float(np.pi), "t": 0.0,
-            "dt": float("nan")}
+            "dt": float(spec.dt)}
     base.update({name: float(value) for name, value in spec.constants.items()})
     initial_values = {}
     for name in evolved + inputs:

@@ -141,11 +141,14 @@ class Model(App):
             return
         limit, source = explicit_stability_limit(model, str(self.integrator))
         if self.dt > limit:
-            safe = float(f"{0.9 * limit:.2g}")
+            if self.t_end is not None:  # a whole number of steps to t_end, each below 0.9 × the limit
+                safe = repr(self.t_end / math.ceil(self.t_end / (0.9 * limit)))
+            else:
+                safe = f"{float(f'{0.9 * limit:.2g}'):g}"
             raise ConfigError(f"app.dt={self.dt:g} exceeds the stability limit {limit:.3g} of "
-                              f"integrator={self.integrator} for dt({source}) on this mesh (s/λ_max of its linear "
-                              f"part); use `app.dt={safe:g}`{' app.t_end=null app.steps=' + str(math.ceil(self.t_end / safe)) if self.t_end else ''} "
-                              "or `app.integrator=implicit_euler`")
+                              f"integrator={self.integrator} for dt({source}) on this mesh (2.785/λ_max for rk4, "
+                              f"2/λ_max for Euler, λ_max of its linear part); use `app.dt={safe}` or "
+                              "`app.integrator=implicit_euler`")
         self._stability_limit = limit
 
     def run(self, ctx: Context) -> Result:

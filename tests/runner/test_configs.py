@@ -103,6 +103,14 @@ APP_EXPECT = {  # the one claim of each app's default run
     and m["enstrophy_final"] > 0 and m["obtuse_triangles"] == 0,
     "spectrum": lambda m: m["kernel_dimension_matches_betti"] and m["orthonormality_error_max"] < 1e-9,
     "vector_field": lambda m: m["poincare_hopf_holds"] and m["singularities"] == 2 and m["divergence_residual_relative"] < 1e-10,
+    # the declarative models (decrun/apps/model.py): heat conserves ∫u, Poisson meets its
+    # manufactured solution, the wave's l = 2 mode is back near its start after 10 periods, the
+    # heat method's distance runs from 0 at the source to about π on the unit sphere
+    "heat": lambda m: m["stable"] and abs(m["mass"]) < 1e-12 and m["steps_done"] == 100,
+    "poisson": lambda m: m["stable"] and m["l2_error_rel"] < 5e-3,
+    "wave": lambda m: m["stable"] and m["projection"] > 0.9 and m["steps_done"] == 5130,
+    "mcf": lambda m: m["stable"] and m["steps_done"] == 10,
+    "heat_geodesics": lambda m: abs(m["min_distance"]) < 1e-12 and abs(m["max_distance"] - math.pi) < 0.1,
 }
 
 
@@ -145,6 +153,9 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     # Fig. 6.9: one source in a square, unadapted border: one singularity, flow tangential to the border
     "fig6_9_square": lambda m: (m["singularities"] == m["index_sum"] == 1 and m["boundary"] == "none"
                                 and m["border_normal_fraction"] < 0.2),
+    # the models against their exact answers on the unit sphere
+    "heat_sphere": lambda m: m["stable"] and m["l2_error_rel"] < 5e-3,
+    "heat_geodesics_sphere": lambda m: m["mean_relative_error"] < 0.01,
 }
 
 

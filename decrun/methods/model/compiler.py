@@ -138,6 +138,49 @@ class Compiler:
                              "one kind (apply d, star, average … to bring them together)")
         return left
 
+    # ------------------------------------------------------------------ stars a term needs
+    def star_degrees(self, node: Node, where: str) -> dict[int, Node]:
+        """The degrees k whose ⋆_k evaluating ``node`` reads, each with the first term that
+        needs it (so a variant that lacks ⋆_k — intrinsic Delaunay has ⋆0 only — is refused
+        when the model loads, naming the term)."""
+        out: dict[int, Node] = {}
+
+        def need(k: int, term: Node):
+            if 0 <= k <= self.n:
+                out.setdefault(k, term)
+
+        def walk(node: Node):
+            if isinstance(node, Binary):
+                if node.op == "^":
+                    walk(Call("wedge", (node.left, node.right)))
+                    return
+                walk(node.left)
+                walk(node.right)
+            elif isinstance(node, Negate):
+                walk(node.operand)
+            elif isinstance(node, Call):
+                for arg in node.args:
+                    walk(arg)
+                name = ALIASES.get(node.function, node.function)
+                kinds = [self.kind(arg, where) for arg in node.args]
+                first = kinds[0] if kinds else NUMBER
+                if name in ("star", "inv_star") and first.is_form:
+                    need(first.simplex_dimension(self.n), node)
+                elif name == "codifferential":
+                    need(first.degree, node)
+                    need(first.degree - 1, node)
+                elif name in ("laplacian", "laplace_de_rham"):
+                    need(first.degree, node)
+                    if first.degree > 0:
+                        need(first.degree - 1, node)
+                        need(first.degree + 1, node)
+                elif name in ("inner", "norm", "integral") and first.is_form:
+                    if not (name == "integral" and (first.degree == self.n or first.dual)):
+                        need(first.simplex_dimension(self.n), node)
+
+        walk(node)
+        return out
+
     # ------------------------------------------------------------------ dependencies
     def depends_on(self, node: Node, names: set[str]) -> bool:
         """Whether ``node`` reads any of ``names``, following inlinable definitions."""

@@ -309,6 +309,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
             raise ModelError(f"{equation.where}: {to_text(equation.rhs)} is a {kind} but dt({equation.target}) is a "
                              f"{target_kind}")
         model.rhs[equation.target] = compiler.compile(equation.rhs, equation.where)
+    trees = [(eq.where, eq.rhs) for eq in equations] + [(eq.where, eq.lhs) for eq in equations if eq.kind == "solve"]
     for name, text in spec.metrics.items():
         where = f"{key}.metrics.{name}"
         tree = parse_expression(text, where)
@@ -317,7 +318,21 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
             raise ModelError(f"{where}: {to_text(tree)} is a {kind}; a metric is a number: e.g. integral(...), "
                              "norm(...), max(...) or inner(..., ...)")
         model.metrics[name] = compiler.compile(tree, where)
+        trees.append((where, tree))
+    _check_stars(compiler, dec, trees)
     return model
+
+
+def _check_stars(compiler: Compiler, dec, trees) -> None:
+    """Every ⋆_k the model reads exists for the configured variant (before any work)."""
+    degrees = dec.star_variant.form_degrees
+    if degrees is None:
+        return
+    for where, tree in trees:
+        for k, term in compiler.star_degrees(tree, where).items():
+            if k not in degrees:
+                raise ModelError(f"{where}: {to_text(term)} needs ⋆_{k}, but operator={dec.star_variant.name} provides "
+                                 f"⋆ on {list(degrees)}-forms only; use `operator=mixed_area` (or leave that term out)")
 
 
 def _check_names(spec: ModelSpec) -> None:

@@ -274,11 +274,34 @@ class Compiler:
 
     # ------------------------------------------------------------------ linear terms
     def terms(self, node: Node, sign: float = 1.0) -> list[tuple[float, Node]]:
-        """The summands of ``node`` with their signs (through + − and negation)."""
+        """The summands of ``node`` with their signs: through + − and negation, and distributed
+        over what is linear — a linear operator of a sum (``laplacian(c**3 - c)`` is
+        ``laplacian(c**3) - laplacian(c)``), a static factor times a sum, and a definition that
+        is a sum — so that the linear part of a term is found wherever it stands."""
         if isinstance(node, Binary) and node.op in "+-":
             return self.terms(node.left, sign) + self.terms(node.right, sign if node.op == "+" else -sign)
         if isinstance(node, Negate):
             return self.terms(node.operand, -sign)
+        if isinstance(node, Name) and node.name in self.definitions:
+            inner = self.terms(self.definitions[node.name])
+            if len(inner) > 1:
+                return [(sign * s, term) for s, term in inner]
+            return [(sign, node)]
+        if isinstance(node, Call) and len(node.args) == 1:
+            operator = OPERATORS.get(ALIASES.get(node.function, node.function))
+            if operator is not None and operator.linear is not None:
+                inner = self.terms(node.args[0])
+                if len(inner) > 1:
+                    return [(sign * s, Call(node.function, (term,))) for s, term in inner]
+        if isinstance(node, Binary) and node.op in "*/":
+            for side, other in ((node.left, node.right), (node.right, node.left)):
+                if node.op == "/" and side is node.right:
+                    continue
+                if self.is_static(other) and self.kind(other, "?") == NUMBER:
+                    inner = self.terms(side)
+                    if len(inner) > 1:
+                        return [(sign * s, Binary(node.op, term, other) if side is node.left else
+                                 Binary(node.op, other, term)) for s, term in inner]
         return [(sign, node)]
 
     def static_value(self, node: Node):

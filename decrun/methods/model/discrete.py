@@ -19,7 +19,8 @@ import scipy.sparse as sp
 from decrun.core.forms import barycentric_gradients
 
 __all__ = ["average_matrix", "wedge_0k", "wedge_11", "sharp", "flat_weights", "flat", "interior_1",
-           "vertex_average_matrix", "lie_0", "top_sign", "gradients"]
+           "vertex_average_matrix", "lie_0", "lie_1", "face_normals", "top_sign",
+           "gradients"]
 
 
 def top_sign(K, k: int) -> np.ndarray | float:
@@ -159,3 +160,30 @@ def lie_0(K, vectors: np.ndarray, f: np.ndarray) -> np.ndarray:
     top = K.simplices(K.dim)
     grad_f = np.einsum("fv,fvd->fd", f[top], gradients(K))
     return vertex_average_matrix(K) @ np.einsum("fd,fd->f", grad_f, vectors)
+
+
+def face_normals(K) -> np.ndarray:
+    """(n2, 3) unit normals of the oriented top triangles (planar meshes: +z, times the
+    orientation)."""
+    top = K.oriented_simplices()
+    p = K.vertices[top]
+    if p.shape[2] == 2:
+        p = np.concatenate([p, np.zeros(p.shape[:2] + (1,))], axis=2)
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return normal / np.linalg.norm(normal, axis=1, keepdims=True)
+
+
+def lie_1(K, vectors: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """L_X ω (n1,) for a 1-form ω on a triangle mesh, by Cartan's formula
+    L_X ω = i_X dω + d i_X ω: the 2-form dω = ρ dA gives i_X dω = (ρ N × X)♭ (ρ = dω/|f| per
+    oriented triangle, N its normal; :func:`flat`), and i_X ω (per triangle,
+    :func:`interior_1`) is brought to the vertices (:func:`vertex_average_matrix`) before d. So
+    L_X d f = d L_X f exactly (d commutes with the Lie derivative)."""
+    if K.dim != 2:
+        raise ValueError("lie of a 1-form: defined here on triangle meshes (K.dim = 2)")
+    density = (K.incidence(2) @ omega) / K.top_volumes  # dω per unit area of each oriented triangle
+    normal = face_normals(K)
+    d = vectors.shape[1]
+    field = np.cross(normal, np.pad(vectors, ((0, 0), (0, 3 - d)))) * density[:, None]
+    return flat(K, field[:, :d]) + K.incidence(1) @ (vertex_average_matrix(K) @ interior_1(K, vectors, omega))
+

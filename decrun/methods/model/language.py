@@ -84,15 +84,64 @@ _PREFIX = {"⋆": "star", "★": "star", "δ": "codifferential", "Δ": "laplacia
 _IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
 
 
+_TOKEN = re.compile(r"\s*(∂ₜ|∂_t|[⋆★δΔ♯♭]|(?:(?![δΔ])[^\W\d])\w*|\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?|\*\*|\S)")
+
+
 def _normalize(text: str) -> str:
-    """Rewrite the unicode spellings into the ASCII grammar (see the module docstring)."""
+    """Rewrite the unicode spellings into the ASCII grammar (see the module docstring): a chain
+    of prefix operators — the symbols ``⋆ δ Δ ♯ ♭ ∂ₜ`` and ``d`` without parentheses — applies
+    to the name, call or parenthesized group after it: ``Δu`` is ``laplacian(u)``, ``⋆d⋆(d u)``
+    is ``star(d(star(d(u))))``."""
     text = text.replace("∧", "^").replace("·", "*").replace("−", "-")
-    for symbol in sorted(_PREFIX, key=len, reverse=True):
-        name = _PREFIX[symbol]
-        # Δu → laplacian(u); Δ(u) → laplacian(u); ⋆d u is handled by repetition: ⋆(d(u))
-        text = re.sub(re.escape(symbol) + r"\s*(" + _IDENT + r")(?!\s*\()", name + r"(\1)", text)
-        text = text.replace(symbol, name)
-    return text
+    if not any(symbol in text for symbol in _PREFIX) and not re.search(r"\bd\s+[A-Za-z_(]", text):
+        return text
+    tokens = _TOKEN.findall(text)
+    out, i = [], 0
+
+    def operand(i: int) -> tuple[str, int]:
+        """The text of the operand starting at token i (after a prefix chain), and the next index."""
+        chain = []
+        while i < len(tokens) and (tokens[i] in _PREFIX or (tokens[i] == "d" and i + 1 < len(tokens)
+                                                                 and tokens[i + 1] != "(")):
+            chain.append(_PREFIX.get(tokens[i], tokens[i]))
+            i += 1
+        if i >= len(tokens):
+            return " ".join(chain), i
+        if tokens[i] == "(":
+            end = _matching(tokens, i)
+            inner = _normalize(" ".join(tokens[i + 1:end]))
+            body, i = f"({inner})", end + 1
+        elif tokens[i][:1].isidentifier():
+            body, i = tokens[i], i + 1
+            if i < len(tokens) and tokens[i] == "(":
+                end = _matching(tokens, i)
+                body += "(" + _normalize(" ".join(tokens[i + 1:end])) + ")"
+                i = end + 1
+        else:
+            body, i = tokens[i], i + 1
+        for name in reversed(chain):
+            body = f"{name}({body})"
+        return body, i
+
+    while i < len(tokens):
+        if tokens[i] in _PREFIX or (tokens[i] == "d" and i + 1 < len(tokens) and tokens[i + 1] != "("):
+            body, i = operand(i)
+            out.append(body)
+        else:
+            out.append(tokens[i])
+            i += 1
+    return " ".join(out)
+
+
+def _matching(tokens: list[str], start: int) -> int:
+    """Index of the ")" closing the "(" at ``start`` (the last token when unbalanced)."""
+    depth = 0
+    for j in range(start, len(tokens)):
+        depth += tokens[j] == "("
+        depth -= tokens[j] == ")"
+        if depth == 0:
+            return j
+    return len(tokens) - 1
 
 
 def _short(text: str, limit: int = 80) -> str:

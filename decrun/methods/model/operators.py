@@ -230,18 +230,38 @@ def _average_kind(args, n):
     return primal(1)
 
 
+def _velocity(kind: Kind) -> bool:
+    """A velocity: a vector field, or a primal 1-form (a flux/circulation field, its ♯ taken)."""
+    return kind == VECTOR or (kind.is_form and not kind.dual and kind.degree == 1)
+
+
+def _as_vectors(ops: "Discrete", kind: Kind, value):
+    return value if kind == VECTOR else discrete.sharp(ops.K, value)
+
+
 def _interior_kind(args, n):
     field, form = args
-    if field != VECTOR or not (form.is_form and not form.dual and form.degree == 1):
-        raise Mismatch(f"interior takes a vector field and a primal 1-form, got a {field} and a {form}")
+    if not _velocity(field) or not (form.is_form and not form.dual and form.degree == 1):
+        raise Mismatch(f"interior takes a vector field (or a 1-form, its ♯) and a primal 1-form, got a {field} and a "
+                       f"{form}")
     return dual(0)
 
 
 def _lie_kind(args, n):
     field, form = args
-    if field != VECTOR or not (form.is_form and not form.dual and form.degree == 0):
-        raise Mismatch(f"lie takes a vector field and a primal 0-form, got a {field} and a {form}")
-    return primal(0)
+    if not _velocity(field) or not (form.is_form and not form.dual and form.degree in (0, 1)):
+        raise Mismatch(f"lie takes a vector field (or a 1-form, its ♯) and a primal 0- or 1-form, got a {field} and a "
+                       f"{form}")
+    if form.degree == 1 and n != 2:
+        raise Mismatch("lie of a 1-form is defined on triangle meshes here (dimension 2)")
+    return form
+
+
+def _lie_evaluate(ops: "Discrete", kinds, field, form):
+    vectors = _as_vectors(ops, kinds[0], field)
+    if kinds[1].degree == 0:
+        return discrete.lie_0(ops.K, vectors, form)
+    return discrete.lie_1(ops.K, vectors, form)
 
 
 # ------------------------------------------------------------------ measures
@@ -406,12 +426,13 @@ _register(Operator("average", (1,), "primal 0-form → primal 1-form",
                    _average_kind, lambda ops, kinds, x: discrete.average_matrix(ops.K, 1) @ x,
                    lambda ops, kind: Linear(None, ops.cached(("average", 1), lambda: discrete.average_matrix(
                        ops.K, 1)))))
-_register(Operator("interior", (2,), "vector, primal 1-form → dual 0-form",
-                   "i_X ω = X · ω♯ in each top simplex",
-                   _interior_kind, lambda ops, kinds, X, w: discrete.interior_1(ops.K, X, w)))
-_register(Operator("lie", (2,), "vector, primal 0-form → primal 0-form",
-                   "L_X u = i_X du = X·∇u per top simplex, volume-averaged to the vertices (centred advection)",
-                   _lie_kind, lambda ops, kinds, X, u: discrete.lie_0(ops.K, X, u)))
+_register(Operator("interior", (2,), "vector (or 1-form), primal 1-form → dual 0-form",
+                   "i_X ω = X · ω♯ in each top simplex (a 1-form velocity is taken through ♯)",
+                   _interior_kind, lambda ops, kinds, X, w: discrete.interior_1(ops.K, _as_vectors(ops, kinds[0], X), w)))
+_register(Operator("lie", (2,), "vector (or 1-form), primal 0- or 1-form → the same form",
+                   "L_X u = X·∇u per top simplex, volume-averaged to the vertices (centred advection); on 1-forms "
+                   "Cartan's L_X ω = i_X dω + d i_X ω",
+                   _lie_kind, _lie_evaluate))
 _register(Operator("norm", (1,), "vector → dual 0-form; form → number",
                    "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate))
 _register(Operator("integral", (1,), "0-form or n-form (primal or dual) → number",

@@ -135,6 +135,10 @@ def _kind(value: Any) -> str:
     return "array" if isinstance(value, np.ndarray) else "other"
 
 
+def _a(kind: str) -> str:
+    return f"an {kind}" if kind[0] in "aeiou" else f"a {kind}"
+
+
 def _under(path: str, variable: tuple[str, ...]) -> bool:
     return any(path == v or path.startswith(v + ".") for v in variable)
 
@@ -153,7 +157,7 @@ def state_mismatch(state: Any, template: Any, variable: tuple[str, ...] = (), pr
     free = _under(prefix, variable)
     if expected == "dict":
         if kind != "dict":
-            return f"{where} is a {kind}, not a group"
+            return f"{where} is {_a(kind)}, not a group"
         missing = [name for name in template if name not in state]
         if missing:
             return f"{prefix + '.' if prefix else ''}{missing[0]} is missing"
@@ -166,13 +170,13 @@ def state_mismatch(state: Any, template: Any, variable: tuple[str, ...] = (), pr
                 return found
         return ""
     if expected == "none":
-        return "" if kind in ("none", "bool", "int", "float") else f"{where} is a {kind}, not a number or None"
+        return "" if kind in ("none", "bool", "int", "float") else f"{where} is {_a(kind)}, not a number or None"
     if expected == "float":
-        return "" if kind in ("int", "float") else f"{where} is a {kind}, not a number"
+        return "" if kind in ("int", "float") else f"{where} is {_a(kind)}, not a number"
     if expected in ("int", "bool"):
-        return "" if kind == expected else f"{where} is a {kind}, not a {expected}"
+        return "" if kind == expected else f"{where} is {_a(kind)}, not {_a(expected)}"
     if kind != "array":
-        return f"{where} is a {kind}, not an array"
+        return f"{where} is {_a(kind)}, not an array"
     if state.dtype != template.dtype:
         return f"{where} has dtype {state.dtype}, this run's has {template.dtype}"
     shape_ok = state.shape[1:] == template.shape[1:] if free and state.ndim == template.ndim and state.ndim \

@@ -43,6 +43,7 @@ from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
 from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.checkpoint import RunCheckpoint, remove_checkpoint
+from decrun.runner.results.reading import CHAINED_STATUS
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
 from decrun.runner.sweep.manifest import config_hash
@@ -224,6 +225,9 @@ def _execute(run: Run) -> Run:
                 "largest_component_dropped_faces"):  # mesh.largest_component: nothing dropped unreported
         if key in mesh.meta:
             result.metrics.setdefault(key, int(mesh.meta[key]))
+    chained = mesh.meta.get(CHAINED_STATUS) or ctx.chained_status  # chained from an incomplete result
+    if chained:
+        result.metrics.setdefault(CHAINED_STATUS, chained)
     run.result = result
     return run
 

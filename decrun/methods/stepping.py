@@ -204,6 +204,11 @@ def run_steps(stepper: Stepper, steps: int, *, progress: Callable | None = None,
     not finite: the loop stops there (``diverged_at_step``, ``reason``). A checkpoint is
     written after step n when ``checkpoint.due(n)`` (not after the last step: the run is
     ending). ``progress(iterable, total=, desc=, initial=)`` is a tqdm-like factory.
+
+    A checkpoint's state is used only when its step is within [0, ``steps``] and it has the
+    structure of the fresh stepper's :meth:`~Stepper.state_dict` (:func:`state_mismatch`,
+    with :attr:`Stepper.state_variable`) and finite, non-negative driver times; the
+    checkpoint is asked (``checkpoint.load(check)``) before it changes anything.
     """
     progress = progress or _passthrough
     report = StepReport()

@@ -17,8 +17,14 @@ A rerun of the same config into the same directory (the same command with the sa
 the journal after ``records`` records (:meth:`~decrun.runner.results.recorder.ResultRecorder.resume`)
 and the stepper its state, so the run ends as the uninterrupted run would, bitwise. A
 checkpoint of another config is not used; a corrupt one (not HDF5, truncated, checksum
-wrong, not complete) or one whose journal is gone or damaged is reported in the log and not
-trusted: the run starts from step 0. A finished run removes its checkpoint.
+wrong, not complete, or a member the checked readers refuse: links and external storage
+out of the file, virtual datasets, shapes the stored bytes cannot hold), one whose state is
+not this run's (``check`` of :meth:`RunCheckpoint.load`: the stepper's
+:func:`decrun.methods.stepping.state_mismatch` and the step range -- the sha256 proves only
+that the file is whole, anyone can recompute it) or one whose journal is gone or damaged is
+reported in one log line naming the file and not trusted: the run starts from step 0. A
+finished run removes its checkpoint and the temporary files of a write a killed process
+left (:func:`remove_checkpoint`); a disk too full to write it is an ``OSError`` naming it.
 """
 
 from __future__ import annotations

@@ -314,3 +314,23 @@ def test_a_full_disk_while_writing_a_checkpoint_is_one_error_naming_it(tiny_disk
     lines = run.stdout.splitlines()
     assert lines[0].startswith(f"28 {tiny_disk / 'checkpoint.h5'} No space left on device"), lines
     assert lines[1:] == ["['checkpoint.h5'] 1"]
+
+
+def test_a_checkpoint_step_before_the_records_it_keeps_is_not_used_and_the_journal_is_untouched(tmp_path):
+    """Steps 0..3 recorded, the checkpoint says step 1 with those 4 records: continuing
+    would record step 2 after step 3 (record() refused it with a traceback)."""
+    vertices = np.eye(3)
+    first = recorder(tmp_path / "result.h5", vertices)
+    checkpoint = RunCheckpoint(tmp_path / "checkpoint.h5", "hash", recorder=first)
+    for step in range(4):
+        first.record(step, x=float(step))
+    checkpoint.save(3, {"k": 3})
+    first.abort("interrupted", "SIGTERM")
+    _, state, attrs = read_checkpoint(tmp_path / "checkpoint.h5")
+    write_checkpoint(tmp_path / "checkpoint.h5", 1, state, attrs)
+    journal, logged = first.journal_path.read_bytes(), []
+    second = recorder(tmp_path / "result.h5", vertices)
+    assert RunCheckpoint(tmp_path / "checkpoint.h5", "hash", recorder=second, log=logged.append).load() is None
+    assert len(logged) == 1 and "record 4 is of step 3, after the checkpoint's step 1" in logged[0], logged
+    assert logged[0].endswith("not used: the run starts from step 0")
+    assert first.journal_path.read_bytes() == journal and (tmp_path / "result.h5").exists()

@@ -89,7 +89,8 @@ def _bytes_needed(leaves, attrs: dict[str, Any]) -> int:
 
 def write_checkpoint(path: str | Path, step: int, state: dict, attrs: dict[str, Any]) -> Path:
     """Write ``state`` after ``step`` to ``path`` atomically (module docstring); ``attrs``
-    are extra root attributes (str / numbers).
+    are extra root attributes (str / numbers; its format, step, sha256 and complete are
+    this function's).
 
     A disk too full for it (checked before HDF5 starts, or met while HDF5 writes: kept from
     HDF5 by :class:`~decrun.runner.atomic.QuietFile`) is an ``OSError`` naming ``path``
@@ -107,7 +108,7 @@ def write_checkpoint(path: str | Path, step: int, state: dict, attrs: dict[str, 
                 with h5py.File(target, "w") as f:
                     for leaf, kind, array in leaves:
                         f.create_dataset(leaf, data=array).attrs["kind"] = kind
-                    f.attrs.update({"format": FORMAT, "step": int(step), "sha256": _digest(leaves), **attrs})
+                    f.attrs.update({**attrs, "format": FORMAT, "step": int(step), "sha256": _digest(leaves)})
                     f.attrs["complete"] = True
             finally:
                 target.close()
@@ -145,6 +146,15 @@ def read_checkpoint(path: str | Path) -> tuple[int, dict, dict]:
     more than that the file is whole (anyone can recompute it): :class:`RunCheckpoint`
     checks the state against the run before using it."""
     path = Path(path)
+    try:
+        return _read_checkpoint(path)
+    except CorruptFileError:
+        raise
+    except (ValueError, TypeError) as exc:  # h5py on an attribute or dtype it cannot convert
+        raise CorruptFileError(f"{path}: cannot read it as a decrun checkpoint ({str(exc).strip()[:200]})") from None
+
+
+def _read_checkpoint(path: Path) -> tuple[int, dict, dict]:
     leaves, state = [], {}
     with open_h5(path) as f:
         attrs = {key: (value.item() if hasattr(value, "item") and np.ndim(value) == 0 else value)
@@ -230,7 +240,7 @@ class RunCheckpoint:
                          "records; not trusted: the run starts from step 0")
                 return None
             try:
-                self.recorder.resume(int(attrs["records"]), str(attrs["journal_created"]))
+                self.recorder.resume(records, str(attrs["journal_created"]), step)
             except (CorruptFileError, OSError, ValueError, KeyError, TypeError) as exc:
                 self.log(f"checkpoint: {self.path} at step {step} has no whole journal to continue ({exc}); "
                          "not used: the run starts from step 0")

@@ -171,11 +171,12 @@ class ResultRecorder:
         the record count it names the journal a checkpoint continues."""
         return self._attrs["created"] if self._journal is not None else ""
 
-    def resume(self, n_records: int, created: str) -> None:
+    def resume(self, n_records: int, created: str, step: int | None = None) -> None:
         """Continue the journal a killed run left at :attr:`journal_path` after its first
         ``n_records`` records (those a checkpoint was written after; later ones are dropped
         and recorded anew), instead of starting one at the first :meth:`record`. The journal
-        must be verified whole up to there, be the one ``created`` names and hold this mesh;
+        must be verified whole up to there, be the one ``created`` names, hold this mesh and
+        (given the checkpoint's ``step``) no record kept may be of a later step;
         else a :class:`~decrun.errors.CorruptFileError` / ValueError / OSError naming the file,
         and nothing is changed. A stale (incomplete) ``result.h5`` at :attr:`path` is removed."""
         self._check_open()
@@ -193,6 +194,9 @@ class ResultRecorder:
         last = None
         for _, block in journal.blocks(stop=n_records):
             last = int(block["step"][-1])
+        if step is not None and last is not None and last > step:
+            raise ValueError(f"{self.journal_path}: record {n_records} is of step {last}, after the checkpoint's "
+                             f"step {step}")
         self._columns = list(journal.columns)
         self._attrs = {key: journal.attrs[key] for key in ("config_yaml", "mesh_hash", "created", "extra")}
         self._journal = JournalWriter.reopen(journal, n_records)

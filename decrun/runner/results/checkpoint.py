@@ -151,7 +151,8 @@ def read_checkpoint(path: str | Path) -> tuple[int, dict, dict]:
     except CorruptFileError:
         raise
     except (ValueError, TypeError) as exc:  # h5py on an attribute or dtype it cannot convert
-        raise CorruptFileError(f"{path}: cannot read it as a decrun checkpoint ({str(exc).strip()[:200]})") from None
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+        raise CorruptFileError(f"{path}: cannot read it as a decrun checkpoint ({first})") from None
 
 
 def _read_checkpoint(path: Path) -> tuple[int, dict, dict]:

@@ -462,10 +462,11 @@ def _compile_solve(equation: Equation, model: CompiledModel, new_solver: Callabl
         try:
             return original(b, fixed_values)
         except IncompatibleRightHandSide as error:
-            raise ModelError(f"{where}: on this mesh {to_text(equation.lhs)} is singular (constants are its kernel) and "
-                             f"the right side is not compatible: its integral is {error.relative:.2g} of its size; "
-                             f"subtract its mean, e.g. ({to_text(equation.rhs)}) - integral({to_text(equation.rhs)})"
-                             f"/integral(1 + 0*x)") from None
+            raise ModelError(f"{where}: on this mesh {to_text(equation.lhs)} is singular (constants are its kernel, "
+                             f"no border value fixes them) and the right side's integral is {error.relative:.2g} of "
+                             "its size, not zero: no solution exists; subtract its mean (a right side f becomes "
+                             "f - integral(f)/integral(1 + 0*x)) or fix border values (fields.<name>.dirichlet)") \
+                from None
 
     system.solve = checked
     return solve

@@ -136,6 +136,7 @@ class Model(App):
         sampled on this mesh, the step count, and for explicit integrators dt against the
         stability limit of the diffusion blocks."""
         model = self.compiled(dec)
+        model.check_compatibility()
         steps = self.total_steps()
         if model.is_static or not self.stability_check or steps == 0:
             return

@@ -162,6 +162,20 @@ class CompiledModel:
             if what == "solve":
                 item.system.bind(new_solver)
 
+    def check_compatibility(self) -> None:
+        """Before any work: a singular solve (kernel of constants) whose right side reads only
+        inputs, constants and coordinates is checked for a solution now (its right side's mean
+        must be round-off), so the refusal comes before the run, not at its first step."""
+        computed = {item.unknown if what == "solve" else item[0] for what, item in self.order}
+        for what, item in self.order:
+            if what != "solve" or item.system.pieces is None:
+                continue
+            equation = item.equation
+            reads = self.compiler.reads(equation.rhs) | self.compiler.reads(equation.lhs)
+            if reads & (computed | set(self.evolved) | {"t"}) - {item.unknown}:
+                continue
+            item.system.solve_check(item.rhs(self.base))
+
     def kernel_lines(self) -> list[str]:
         """One log line per solve whose singular system had its kernel handled."""
         lines = []
@@ -462,14 +476,27 @@ def _compile_solve(equation: Equation, model: CompiledModel, new_solver: Callabl
         try:
             return original(b, fixed_values)
         except IncompatibleRightHandSide as error:
-            raise ModelError(f"{where}: on this mesh {to_text(equation.lhs)} is singular (constants are its kernel, "
-                             f"no border value fixes them) and the right side's integral is {error.relative:.2g} of "
-                             "its size, not zero: no solution exists; subtract its mean (a right side f becomes "
-                             "f - integral(f)/integral(1 + 0*x)) or fix border values (fields.<name>.dirichlet)") \
-                from None
+            raise ModelError(_incompatible_message(where, equation, error.relative)) from None
+
+    def check_only(b):
+        try:
+            system._compatible(system.sign * np.asarray(b, dtype=np.float64))
+        except IncompatibleRightHandSide as error:
+            checked_error = error
+        else:
+            return
+        raise ModelError(_incompatible_message(where, equation, checked_error.relative)) from None
 
     system.solve = checked
+    system.solve_check = check_only
     return solve
+
+
+def _incompatible_message(where: str, equation: Equation, relative: float) -> str:
+    return (f"{where}: on this mesh {to_text(equation.lhs)} is singular (constants are its kernel, no border value "
+            f"fixes them) and the right side's integral is {relative:.2g} of its size, not zero: no solution exists; "
+            "subtract its mean (a right side f becomes f - integral(f)/integral(1 + 0*x)) or fix border values "
+            "(fields.<name>.dirichlet)")
 
 
 def _pure_laplacian(node: Node) -> bool:

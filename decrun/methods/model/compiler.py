@@ -305,8 +305,21 @@ class Compiler:
         return [(sign, node)]
 
     def static_value(self, node: Node):
-        """The value of a static ``node`` (numbers, constants, coordinates, static fields)."""
-        return self._compile(node, "?")(self.static_env)
+        """The value of a static ``node`` (numbers, constants, coordinates, static fields and
+        the definitions made of them, inlined)."""
+        return self._compile(self.inline(node), "?")(self.static_env)
+
+    def inline(self, node: Node) -> Node:
+        """``node`` with every definition replaced by its tree (recursively)."""
+        if isinstance(node, Name) and node.name in self.definitions:
+            return self.inline(self.definitions[node.name])
+        if isinstance(node, Call):
+            return Call(node.function, tuple(self.inline(arg) for arg in node.args))
+        if isinstance(node, Binary):
+            return Binary(node.op, self.inline(node.left), self.inline(node.right))
+        if isinstance(node, Negate):
+            return Negate(self.inline(node.operand))
+        return node
 
     @property
     def static_env(self) -> dict:

@@ -224,6 +224,19 @@ def test_parser_whitelist_in_isolation():
             parse_expression(bad, "k")
 
 
+@pytest.mark.parametrize("text", ["1e400", "-1e400", "1e400 - 1e400", "exp(1e400)", "1" + "0" * 400])
+def test_non_finite_number_literals_are_refused(text):
+    """1e400 is inf to Python's parser; a model with an infinite literal is an error at load,
+    not a run that is `stable: false` (as a non-finite app.constants entry already is)."""
+    message = refused([f"dt(u) = {text}*laplacian(u)"])
+    assert message.startswith("app.equations[0]:") and "finite" in message, message
+    message = refused(["dt(u) = laplacian(u)"], metrics={"m": text})
+    assert message.startswith("app.metrics.m:") and "finite" in message, message
+    for value in (float("inf"), float("nan"), 10 ** 400):
+        with pytest.raises(ModelError, match=r"^app.metrics.m: .*finite"):
+            parse_expression(value, "app.metrics.m")
+
+
 # ---------------------------------------------------------------------------------------- types
 def test_type_mismatch_names_the_equation_and_both_terms():
     message = refused(["dt(w) = laplacian(u)"], fields={"u": {"form": 0, "initial": 0}, "w": {"form": 1, "initial": 0}})

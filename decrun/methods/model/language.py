@@ -27,6 +27,7 @@ Equations (one string each)::
 from __future__ import annotations
 
 import ast
+import math
 import re
 from dataclasses import dataclass
 from typing import Union
@@ -108,7 +109,7 @@ def parse_expression(text, where: str) -> Node:
     if isinstance(text, bool):
         raise ModelError(f"{where}: expected an expression or a number, got {text!r}")
     if isinstance(text, (int, float)):
-        return Number(float(text))
+        return _number(text, where, repr(text))
     if not isinstance(text, str):
         raise ModelError(f"{where}: expected an expression (a string), got {type(text).__name__}")
     if len(text) > MAX_EXPRESSION_LENGTH:
@@ -124,6 +125,19 @@ def parse_expression(text, where: str) -> Node:
     except (RecursionError, MemoryError, ValueError):
         raise ModelError(f"{where}: cannot parse {_short(text)!r} (nested too deeply)") from None
     return _convert(tree.body, where, text, 0)
+
+
+def _number(value, where: str, shown: str) -> Number:
+    """A finite number (a literal such as 1e400 is inf to Python's parser, and 10**400 has no
+    float): anything else is refused."""
+    try:
+        number = float(value)
+    except OverflowError:
+        number = float("inf")
+    if not math.isfinite(number):
+        raise ModelError(f"{where}: a number in {shown!r} is not finite ({_short(str(value), 30)}); write a finite "
+                         "number")
+    return Number(number)
 
 
 def _refuse(node: ast.AST, where: str, text: str, what: str | None = None) -> ModelError:
@@ -146,7 +160,7 @@ def _convert(node: ast.AST, where: str, text: str, depth: int) -> Node:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise _refuse(node, where, text, "strings and other constants" if isinstance(value, str) else
                           f"the constant {value!r}")
-        return Number(float(value))
+        return _number(value, where, _short(text))
     if isinstance(node, ast.Name):
         if node.id.startswith("_"):
             raise ModelError(f"{where}: names starting with '_' are not part of the model language "

@@ -288,6 +288,8 @@ def test_unknown_metric_operator_suggests():
 def test_a_definition_cycle_names_the_cycle():
     message = refused(["a = b + u", "b = c", "c = 2*a", "dt(u) = a"])
     assert message.startswith("app.equations: the equations for a → b → c → a form a cycle"), message
+    message = refused(["a = a + u", "dt(u) = a"])  # was "unknown name 'a'"
+    assert message.startswith("app.equations: the equations for a → a form a cycle"), message
 
 
 def test_a_solve_with_no_unknown():

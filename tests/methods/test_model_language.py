@@ -471,3 +471,21 @@ def test_products_of_unknowns_and_varying_coefficients_are_not_linear():
     u = np.random.default_rng(0).standard_normal(162)
     np.testing.assert_allclose(Discrete(dec).matrix(blocks["u"])(u), -c * (dec.laplacian(0) @ u), rtol=1e-12,
                                atol=1e-12)
+
+
+def test_the_wedge_binds_like_a_product():
+    """`a ^ b + c` is (a ∧ b) + c, as written in the thesis — Python's own ^ binds looser than +
+    and read it as a ∧ (b + c) (silently, for 0-forms: f*(g + h))."""
+    assert parse_expression("f ^ g + h", "k") == parse_expression("(f ^ g) + h", "k")
+    assert parse_expression("d(f) ^ b + f ^ d(b)", "k") == parse_expression("(d(f) ^ b) + (f ^ d(b))", "k")
+    assert parse_expression("a - b ∧ c", "k") == parse_expression("a - (b ^ c)", "k")
+    assert parse_expression("2 * a ^ b", "k") == parse_expression("(2 * a) ^ b", "k")
+    for text in ("f ^ g + h", "a - b ^ c", "a ^ (b + c)", "(2 * a) ^ b", "a * (b ^ c)", "-a ^ b", "a ^ (b ^ c)"):
+        tree = parse_expression(text, "k")
+        assert parse_expression(to_text(tree), "k") == tree, to_text(tree)  # messages show the same term
+    model = compile_(["dt(u) = laplacian(u)", "w = u ^ v + u"], fields={"u": {"form": 0, "initial": "x"},
+                                                                         "v": {"form": 0, "initial": "y"}})
+    env = model.environment(dict(model.initial_values), 0.0)
+    x, y = sphere().K.vertices[:, 0], sphere().K.vertices[:, 1]
+    np.testing.assert_allclose(env["w"], x * y + x, rtol=1e-15, atol=1e-15)
+    assert refused(["dt(u) = laplacian(u)", "w = u @ u"]).startswith("app.equations[1]: the operator @ is not part")

@@ -10,7 +10,7 @@ passed to ``eval``/``exec``/``compile``.
 Grammar (what the whitelist admits)::
 
     expr   := number | name | call | expr OP expr | -expr | +expr | (expr)
-    OP     := + - * / **   and  ^ (the wedge product ∧)
+    OP     := + - * / **   and  ^ (the wedge product ∧, binding like *: a ^ b + c is (a ∧ b) + c)
     call   := name "(" expr {"," expr} ")"
 
 Unicode spellings are accepted and rewritten before parsing: ``⋆ → star``, ``δ →
@@ -77,7 +77,9 @@ class Negate:
 
 Node = Union[Number, Name, Call, Binary, Negate]
 
-_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**", ast.BitXor: "^"}
+#: ^ (the wedge) is read as Python's @, which binds like * — Python's own ^ binds looser than + and
+#: would read a ^ b + c as a ∧ (b + c); an @ the user writes is refused before the rewrite
+_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**", ast.MatMult: "^"}
 
 #: unicode symbol → ASCII name (prefix operators)
 _PREFIX = {"⋆": "star", "★": "star", "δ": "codifferential", "Δ": "laplacian", "♯": "sharp", "♭": "flat",
@@ -115,7 +117,10 @@ def parse_expression(text, where: str) -> Node:
     if len(text) > MAX_EXPRESSION_LENGTH:
         raise ModelError(f"{where}: the expression is {len(text)} characters long (at most "
                          f"{MAX_EXPRESSION_LENGTH}); split it into definitions")
-    source = _normalize(text).strip()
+    if "@" in text:
+        raise ModelError(f"{where}: the operator @ is not part of the model language (in {_short(text)!r}); write "
+                         "numbers, names, operator calls such as laplacian(u), and + - * / ** ^")
+    source = _normalize(text).strip().replace("^", "@")
     if not source:
         raise ModelError(f"{where}: the expression is empty")
     try:
@@ -267,7 +272,7 @@ def names_in(node: Node) -> set[str]:
     return set()
 
 
-_PRECEDENCE = {"+": 1, "-": 1, "*": 2, "/": 2, "^": 3, "**": 4}
+_PRECEDENCE = {"+": 1, "-": 1, "*": 2, "/": 2, "^": 2, "**": 4}
 
 
 def to_text(node: Node) -> str:
@@ -288,7 +293,7 @@ def to_text(node: Node) -> str:
             text = to_text(child)
             if isinstance(child, Binary) and (_PRECEDENCE[child.op] < _PRECEDENCE[node.op] or
                                               (right and _PRECEDENCE[child.op] == _PRECEDENCE[node.op]
-                                               and node.op in "-/")):
+                                               and (node.op in "-/" or "^" in (node.op, child.op)))):
                 return f"({text})"
             if isinstance(child, Negate) and node.op != "+":
                 return f"({text})"

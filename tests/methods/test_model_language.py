@@ -489,3 +489,17 @@ def test_the_wedge_binds_like_a_product():
     x, y = sphere().K.vertices[:, 0], sphere().K.vertices[:, 1]
     np.testing.assert_allclose(env["w"], x * y + x, rtol=1e-15, atol=1e-15)
     assert refused(["dt(u) = laplacian(u)", "w = u @ u"]).startswith("app.equations[1]: the operator @ is not part")
+
+
+@pytest.mark.parametrize("equations, metrics, constants, key", [
+    (["s = vertex(1000)", "dt(u) = laplacian(u) + s"], {}, {}, "app.equations[0]: vertex(1000): the mesh has vertices"),
+    (["s = vertex(src)", "dt(u) = laplacian(u) + s"], {}, {"src": 1.5}, "app.equations[0]: vertex(1.5): the mesh"),
+    (["dt(u) = laplacian(u)"], {"m": "integral(vertex(-1))"}, {}, "app.metrics.m: vertex(-1): the mesh has vertices"),
+    (["dt(u) = laplacian(u) + vertex(t)"], {}, {}, "app.equations[0]: vertex(t): vertex takes a fixed vertex index"),
+])
+def test_vertex_in_equations_and_metrics_is_checked_when_the_model_loads(equations, metrics, constants, key):
+    """Was a ValueError (with a traceback) at the first evaluation — for a metric, after the run."""
+    message = refused(equations, metrics=metrics, constants=constants)
+    assert message.startswith(key), message
+    model = compile_(["s = vertex(src)", "dt(u) = laplacian(u) + s"], constants={"src": 161})
+    assert model.environment(dict(model.initial_values), 0.0)["s"][161] == 1.0

@@ -360,6 +360,19 @@ def test_a_gradient_field_samples_to_d_of_the_potential(source):
     np.testing.assert_allclose(g, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
 
 
+@pytest.mark.parametrize("source", ["icosphere", "torus"])
+def test_a_2_form_sampled_from_a_curl_is_d_of_the_1_form_stokes(source):
+    """A 2-form on a surface in R³ sampled from a vector field B is its flux through each oriented
+    triangle; for B = curl A (A quadratic, so B linear: exact quadrature) it equals d of A's 1-form
+    to round-off — the orientation of the flux and of d's rows agree."""
+    dec = sphere() if source == "icosphere" else dec_of("torus")
+    fields = {"u": {"form": 0, "initial": 0}, "A": {"form": 1, "initial": ["-y + x*z", "x + y**2", "x*y"]},
+              "B": {"form": 2, "initial": ["x", "x - y", "2"]}}  # curl A
+    model = compile_(["dt(u) = laplacian(u)"], fields=fields, dec=dec)
+    expected = dec.d(1) @ model.initial_values["A"]
+    np.testing.assert_allclose(model.initial_values["B"], expected, rtol=0, atol=1e-13 * np.abs(expected).max())
+
+
 def test_a_dual_0_form_is_evaluated_at_circumcentres():
     dec = planar()
     K = dec.K

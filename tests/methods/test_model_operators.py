@@ -236,6 +236,18 @@ def test_dx_wedge_dy_is_the_signed_area():
     close(evaluate(dec, "d(x) ^ d(y)"), K.top_volumes, rtol=1e-13)
 
 
+@pytest.mark.parametrize("mesh", ["sphere", "torus"])
+def test_dx_wedge_dy_on_a_surface_is_the_flux_of_ez(mesh):
+    """On a surface in R³, dx∧dy on each oriented triangle = the flux of (0, 0, 1) through it, as
+    the initial value of a 2-form samples it (the same orientation)."""
+    dec = dec_of(mesh)
+    spec = ModelSpec(fields={"u": FieldSpec(0, 0), "ez": FieldSpec(2, ["0", "0", "1"])},
+                     equations=["dt(u) = laplacian(u)", "w = d(x) ^ d(y)"])
+    model = compile_model(spec, dec, solver_factory("direct"))
+    env = model.environment({"u": model.initial_values["u"]}, 0.0)
+    close(env["w"], model.initial_values["ez"], rtol=1e-13)
+
+
 def test_dx_wedge_dy_on_tetrahedra_is_the_projected_area():
     """In 3-D, 1∧1 is a 2-form on the (sorted) triangles: ∫ dx∧dy = the signed area of the
     triangle's projection on the xy-plane."""

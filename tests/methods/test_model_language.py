@@ -202,6 +202,12 @@ def test_hostile_names_of_fields_constants_and_metrics_are_refused(guard):
     assert refused(["dt(u) = laplacian(u)"], constants={"__import__": 1.0}).startswith("app.constants.__import__:")
     assert refused(["dt(u) = laplacian(u)"], metrics={"a b": "integral(u)"}).startswith("app.metrics.a b:")
     assert refused(["dt(u) = laplacian(u)"], constants={"k": "__import__('os')"}).startswith("app.constants.k:")
+    assert refused(["dt(u) = laplacian(u)"], fields={"u": {"form": "__import__('os')", "initial": 0}}) \
+        .startswith("app.fields.u.form:")
+    assert refused(["dt(u) = laplacian(u)"], fields={"u": {"form": 0, "initial": f"result:__import__('os').system("
+                                                                                 f"'touch {guard}')"}}) \
+        .startswith("app.fields.u.initial:")
+    assert not guard.exists()
 
 
 def test_a_valid_model_still_compiles_under_the_guard(guard):

@@ -324,6 +324,10 @@ def test_sharp_of_d_is_the_gradient():
     a = np.array([0.5, -1.0, 2.0])
     tangential = a - np.einsum("fd,d->f", normal, a)[:, None] * normal
     close(evaluate(dec, "sharp(d(0.5*x - y + 2*z))"), tangential, rtol=1e-12)
+    dec = dec_of("tets")  # in a volume ♯ d f is the full gradient
+    close(evaluate(dec, "sharp(d(0.5*x - y + 2*z))"), np.tile(a, (dec.K.num_simplices(3), 1)), rtol=1e-12)
+    X = np.random.default_rng(16).standard_normal((dec.K.num_simplices(3), 3))
+    close(evaluate(dec, "interior(X, d(0.5*x - y + 2*z))", X=(VECTOR, X)), X @ a, rtol=1e-12)
 
 
 @pytest.mark.parametrize("mesh", ["planar", "lattice", "sphere", "torus"])

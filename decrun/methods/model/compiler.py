@@ -238,6 +238,8 @@ class Compiler:
             kinds = [self.kind(arg, where) for arg in node.args]
             args = [self._compile(arg, where) for arg in node.args]
             ops = self.ops
+            if operator.name == "vertex":
+                self._check_vertex(node, where)
             if operator.evaluate is None:  # a linear operator evaluated through its matrix
                 apply = ops.matrix(operator.linear(ops, kinds[0]))
                 (arg,) = args
@@ -248,6 +250,21 @@ class Compiler:
                 return lambda env: evaluate(ops, kinds, arg(env))
             return lambda env: evaluate(ops, kinds, *(a(env) for a in args))
         raise TypeError(node)
+
+    def _check_vertex(self, node: Call, where: str) -> None:
+        """``vertex(i)`` in an equation or a metric: ``i`` fixed for the run and a vertex of the
+        mesh, checked when the model loads — not when the term is first evaluated (for a metric,
+        after the whole run)."""
+        (arg,) = node.args
+        if not self.is_static(arg):
+            raise ModelError(f"{where}: {to_text(node)}: vertex takes a fixed vertex index (a number or a constant), "
+                             "not a value that changes during the run")
+        if self._static_env is None:
+            return
+        try:
+            OPERATORS["vertex"].evaluate(self.ops, [NUMBER], self.static_value(arg))
+        except ValueError as why:
+            raise ModelError(f"{where}: {why}") from None
 
     def _linear_chain(self, node: Node):
         """``(name, apply)`` when ``node`` is one or more linear operators applied to one name

@@ -10,7 +10,7 @@ passed to ``eval``/``exec``/``compile``.
 Grammar (what the whitelist admits)::
 
     expr   := number | name | call | expr OP expr | -expr | +expr | (expr)
-    OP     := + - * / **   and  ^ (the wedge product ∧)
+    OP     := + - * / **   and  ^ (the wedge product ∧, binding like *: a ^ b + c is (a ∧ b) + c)
     call   := name "(" expr {"," expr} ")"
 
 Unicode spellings are accepted and rewritten before parsing: ``⋆ → star``, ``δ →
@@ -27,6 +27,7 @@ Equations (one string each)::
 from __future__ import annotations
 
 import ast
+import math
 import re
 from dataclasses import dataclass
 from typing import Union
@@ -76,7 +77,9 @@ class Negate:
 
 Node = Union[Number, Name, Call, Binary, Negate]
 
-_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**", ast.BitXor: "^"}
+#: ^ (the wedge) is read as Python's @, which binds like * — Python's own ^ binds looser than + and
+#: would read a ^ b + c as a ∧ (b + c); an @ the user writes is refused before the rewrite
+_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**", ast.MatMult: "^"}
 
 #: unicode symbol → ASCII name (prefix operators)
 _PREFIX = {"⋆": "star", "★": "star", "δ": "codifferential", "Δ": "laplacian", "♯": "sharp", "♭": "flat",
@@ -157,13 +160,16 @@ def parse_expression(text, where: str) -> Node:
     if isinstance(text, bool):
         raise ModelError(f"{where}: expected an expression or a number, got {text!r}")
     if isinstance(text, (int, float)):
-        return Number(float(text))
+        return _number(text, where, repr(text))
     if not isinstance(text, str):
         raise ModelError(f"{where}: expected an expression (a string), got {type(text).__name__}")
     if len(text) > MAX_EXPRESSION_LENGTH:
         raise ModelError(f"{where}: the expression is {len(text)} characters long (at most "
                          f"{MAX_EXPRESSION_LENGTH}); split it into definitions")
-    source = _normalize(text).strip()
+    if "@" in text:
+        raise ModelError(f"{where}: the operator @ is not part of the model language (in {_short(text)!r}); write "
+                         "numbers, names, operator calls such as laplacian(u), and + - * / ** ^")
+    source = _normalize(text).strip().replace("^", "@")
     if not source:
         raise ModelError(f"{where}: the expression is empty")
     try:
@@ -173,6 +179,19 @@ def parse_expression(text, where: str) -> Node:
     except (RecursionError, MemoryError, ValueError):
         raise ModelError(f"{where}: cannot parse {_short(text)!r} (nested too deeply)") from None
     return _convert(tree.body, where, text, 0)
+
+
+def _number(value, where: str, shown: str) -> Number:
+    """A finite number (a literal such as 1e400 is inf to Python's parser, and 10**400 has no
+    float): anything else is refused."""
+    try:
+        number = float(value)
+    except OverflowError:
+        number = float("inf")
+    if not math.isfinite(number):
+        raise ModelError(f"{where}: a number in {shown!r} is not finite ({_short(str(value), 30)}); write a finite "
+                         "number")
+    return Number(number)
 
 
 def _refuse(node: ast.AST, where: str, text: str, what: str | None = None) -> ModelError:
@@ -195,7 +214,7 @@ def _convert(node: ast.AST, where: str, text: str, depth: int) -> Node:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise _refuse(node, where, text, "strings and other constants" if isinstance(value, str) else
                           f"the constant {value!r}")
-        return Number(float(value))
+        return _number(value, where, _short(text))
     if isinstance(node, ast.Name):
         if node.id.startswith("_"):
             raise ModelError(f"{where}: names starting with '_' are not part of the model language "
@@ -302,7 +321,7 @@ def names_in(node: Node) -> set[str]:
     return set()
 
 
-_PRECEDENCE = {"+": 1, "-": 1, "*": 2, "/": 2, "^": 3, "**": 4}
+_PRECEDENCE = {"+": 1, "-": 1, "*": 2, "/": 2, "^": 2, "**": 4}
 
 
 def to_text(node: Node) -> str:
@@ -323,7 +342,7 @@ def to_text(node: Node) -> str:
             text = to_text(child)
             if isinstance(child, Binary) and (_PRECEDENCE[child.op] < _PRECEDENCE[node.op] or
                                               (right and _PRECEDENCE[child.op] == _PRECEDENCE[node.op]
-                                               and node.op in "-/")):
+                                               and (node.op in "-/" or "^" in (node.op, child.op)))):
                 return f"({text})"
             if isinstance(child, Negate) and node.op != "+":
                 return f"({text})"

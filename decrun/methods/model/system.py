@@ -371,7 +371,8 @@ def _order(definitions: dict[str, Equation], solves: list[Equation], known: set[
 
     def needs(equation: Equation) -> set[str]:
         reads = names_in(equation.rhs) | (names_in(equation.lhs) if equation.kind == "solve" else set())
-        return {name for name in reads if name in computed and name != equation.target}
+        # a solve reads its own unknown; a definition that reads itself is a cycle of one
+        return {name for name in reads if name in computed and (name != equation.target or equation.kind != "solve")}
 
     order, state = [], {}
 

@@ -40,7 +40,7 @@ __all__ = ["ModelError", "Number", "Name", "Call", "Binary", "Negate", "Node", "
 #: longest expression accepted (characters): a model line, not a program
 MAX_EXPRESSION_LENGTH = 4000
 #: deepest tree accepted
-MAX_DEPTH = 64
+MAX_DEPTH = 200
 
 
 class ModelError(ConfigError):

@@ -1,0 +1,64 @@
+"""The Halfar dome (conf/app/halfar.yaml) against the CISM v2.1 benchmark, and the language
+pieces it added: ``cell_average``, ``average`` of a dual 0-form, ``sign`` and the
+``semi_implicit`` (lagged-coefficient) integrator."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from decrun import DEC, SimplicialComplex
+from decrun.methods.model import FieldSpec, ModelSpec, compile_model
+from decrun.runner.mesh.sources.primitives import Grid
+
+
+def grid_dec(nx=7, ny=5, width=3.0, height=2.0) -> DEC:
+    mesh = Grid(nx=nx, ny=ny, width=width, height=height).make()
+    return DEC(SimplicialComplex(mesh.vertices, mesh.faces))
+
+
+def values(dec, equations, fields=None, constants=None):
+    """Every definition of ``equations`` evaluated once (static models)."""
+    spec = ModelSpec(fields={name: FieldSpec(*spec) for name, spec in (fields or {}).items()},
+                     equations=equations, constants=constants or {})
+    model = compile_model(spec, dec, None)
+    return model, model.environment({}, 0.0)
+
+
+# ---------------------------------------------------------------- operators the model added
+def test_cell_average_is_the_barycentre_value_and_average_of_cells_the_mean_at_each_edge():
+    dec = grid_dec()
+    K = dec.K
+    model, env = values(dec, ["c = cell_average(u)", "e = average(c)", "one = average(cell_average(1 + 0*u))"],
+                        {"u": (0, "2*x - 3*y + 1")})
+    assert str(model.kinds["c"]) == "dual 0-form" and str(model.kinds["e"]) == "primal 1-form"
+    top = K.simplices(2)
+    barycentres = K.vertices[top].mean(axis=1)
+    np.testing.assert_allclose(env["c"], 2 * barycentres[:, 0] - 3 * barycentres[:, 1] + 1, atol=1e-12)
+    np.testing.assert_allclose(env["one"], 1.0, atol=1e-15)
+    # each edge: the mean over the triangles that contain it (border edges: their one triangle)
+    edges = [tuple(e) for e in K.simplices(1)]
+    index = {e: i for i, e in enumerate(edges)}
+    expected = np.zeros(len(edges))
+    count = np.zeros(len(edges))
+    for f, tri in enumerate(top):
+        for a, b in ((0, 1), (0, 2), (1, 2)):
+            i = index[tuple(sorted((tri[a], tri[b])))]
+            expected[i] += env["c"][f]
+            count[i] += 1
+    np.testing.assert_allclose(env["e"], expected / count, atol=1e-12)
+    assert set(np.unique(count)) == {1.0, 2.0}
+
+
+def test_the_primal_average_is_unchanged_and_sign_is_value_by_value():
+    dec = grid_dec()
+    model, env = values(dec, ["e = average(u)", "s = sign(u - 0.5)"], {"u": (0, "x")})
+    edges = dec.K.simplices(1)
+    x = dec.K.vertices[:, 0]
+    np.testing.assert_allclose(env["e"], 0.5 * (x[edges[:, 0]] + x[edges[:, 1]]), atol=1e-15)
+    np.testing.assert_array_equal(env["s"], np.sign(x - 0.5))
+
+
+def test_the_squared_gradient_per_triangle_of_a_linear_function():
+    dec = grid_dec()
+    model, env = values(dec, ["g2 = norm(sharp(d(u)))**2"], {"u": (0, "3*x + 4*y")})
+    np.testing.assert_allclose(env["g2"], 25.0, rtol=1e-12)

@@ -45,6 +45,7 @@ class Integrator(Choice):
     bdf = "bdf"
     radau = "radau"
     rk45 = "rk45"
+    semi_implicit = "semi_implicit"
 
 
 @dataclass

@@ -62,3 +62,57 @@ def test_the_squared_gradient_per_triangle_of_a_linear_function():
     dec = grid_dec()
     model, env = values(dec, ["g2 = norm(sharp(d(u)))**2"], {"u": (0, "3*x + 4*y")})
     np.testing.assert_allclose(env["g2"], 25.0, rtol=1e-12)
+
+
+# ---------------------------------------------------------------- the semi_implicit integrator
+def evolve(dec, equation, scheme, dt, steps, initial="exp(-4*(x**2 + y**2))", constants=None):
+    from decrun.methods.model.integrators import make_integrator
+
+    spec = ModelSpec(fields={"u": FieldSpec(0, initial)}, equations=[equation], constants=constants or {}, dt=dt)
+    model = compile_model(spec, dec, None)
+    integrator = make_integrator(model, scheme, dt, None)
+    state = {"u": model.initial_values["u"].copy()}
+    for n in range(steps):
+        state = integrator.step(state, n * dt)
+    return model, integrator, state["u"]
+
+
+def test_semi_implicit_is_implicit_euler_on_a_linear_equation():
+    dec = grid_dec()
+    _, _, lagged = evolve(dec, "dt(u) = 0.5*laplacian(u) - u", "semi_implicit", 0.01, 5)
+    _, _, implicit = evolve(dec, "dt(u) = 0.5*laplacian(u) - u", "implicit_euler", 0.01, 5)
+    np.testing.assert_allclose(lagged, implicit, rtol=1e-12, atol=1e-14)
+
+
+def test_semi_implicit_lags_the_diffusivity_and_keeps_mass_and_sign():
+    """One step of dt(u) = −δ(ū² du) is (⋆0 + dt d0ᵀ ⋆1 diag(ū²) d0) u⁺ = ⋆0 u (ū the edge
+    mean of the old u) to round-off; over large steps ∫u stays and u ≥ 0 (an M-matrix)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    dec = grid_dec(9, 9, 2.0, 2.0)
+    initial = "max(0, 0.5 - x**2 - y**2)"
+    model, integrator, u1 = evolve(dec, "dt(u) = -codifferential(average(u)**2*d(u))", "semi_implicit", 0.05, 1,
+                                   initial)
+    u0 = model.initial_values["u"]
+    d0, s0, s1 = dec.d(0), dec.star(0), dec.star_diagonal(1)
+    edges = dec.K.simplices(1)
+    mean = 0.5 * (u0[edges[:, 0]] + u0[edges[:, 1]])
+    expected = spsolve((s0 + 0.05 * d0.T @ sp.diags(s1 * mean**2) @ d0).tocsc(), s0 @ u0)
+    np.testing.assert_allclose(u1, expected, rtol=1e-12, atol=1e-14)
+    assert integrator.state_dict()["factorizations"] == 1
+    _, integrator, u = evolve(dec, "dt(u) = -codifferential(average(u)**2*d(u))", "semi_implicit", 5.0, 20, initial)
+    assert abs(np.sum(s0 @ u) - np.sum(s0 @ u0)) < 1e-12 * np.sum(s0 @ u0)
+    assert u.min() >= 0 and integrator.state_dict()["factorizations"] == 20
+
+
+def test_lagged_blocks_equal_the_linear_ones_when_the_coefficients_are_static():
+    dec = grid_dec()
+    spec = ModelSpec(fields={"u": FieldSpec(0, "x*y")}, equations=["dt(u) = -codifferential(k*average(1 + x**2)*d(u))"],
+                     constants={"k": 2.0})
+    model = compile_model(spec, dec, None)
+    term = model.compiler.terms(model.equations[0].rhs)[0][1]
+    linear = model.compiler.linear(term, {"u"})["u"]
+    lagged = model.compiler.lagged(term, {"u"})(model.environment({"u": model.initial_values["u"]}, 0.0))["u"]
+    assert linear.inv == lagged.inv
+    assert abs(linear.A - lagged.A).max() < 1e-12 * abs(linear.A).max()

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from decrun import DEC, SimplicialComplex
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
@@ -185,3 +186,36 @@ def test_the_error_shrinks_from_4_to_2_to_1_km_and_the_time_step_does_not_matter
     adaptive, _ = run_halfar("mesh=cism_halfar/2km", "app.integrator=rk45", "app.dt=10")
     lagged, _ = run_halfar("mesh=cism_halfar/2km")
     assert abs(adaptive["rms_error_m"] - lagged["rms_error_m"]) < 0.1
+
+
+# ---------------------------------------------------------------- explicit: the frozen limit
+def test_the_explicit_limit_of_a_nonlinear_diffusion_is_that_of_its_frozen_coefficients():
+    """No constant block: without the initial state the limit is inf as before; with it,
+    2/λ_max of −d0ᵀ⋆1 diag(ū0²) d0 under ⋆0 (the coefficients frozen at t = 0). A constant
+    diffusion's limit does not depend on the state."""
+    from decrun.methods.mean_curvature_flow import largest_eigenvalue
+    from decrun.methods.model.integrators import FROZEN, explicit_stability_limit
+
+    dec = grid_dec(9, 9, 2.0, 2.0)
+    spec = ModelSpec(fields={"u": FieldSpec(0, "max(0, 0.5 - x**2 - y**2)")},
+                     equations=["dt(u) = -codifferential(average(u)**2*d(u))"])
+    model = compile_model(spec, dec, None)
+    assert explicit_stability_limit(model, "explicit_euler") == (float("inf"), "")
+    limit, source = explicit_stability_limit(model, "explicit_euler", model.initial_values)
+    u0 = model.initial_values["u"]
+    edges = dec.K.simplices(1)
+    mean = 0.5 * (u0[edges[:, 0]] + u0[edges[:, 1]])
+    S = dec.d(0).T @ sp.diags(dec.star_diagonal(1) * mean**2) @ dec.d(0)
+    assert source == "u" + FROZEN
+    assert limit == pytest.approx(2.0 / largest_eigenvalue(S, dec.star_diagonal(0)), rel=1e-9)
+    heat = compile_model(ModelSpec(fields={"u": FieldSpec(0, "x")}, equations=["dt(u) = laplacian(u)"]), dec, None)
+    assert explicit_stability_limit(heat, "rk4") == explicit_stability_limit(heat, "rk4", heat.initial_values)
+
+
+def test_an_explicit_halfar_step_beyond_the_frozen_limit_is_refused_naming_semi_implicit():
+    from decrun.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"app.dt=10 exceeds the stability limit .*semi_implicit"):
+        run_halfar("app.integrator=explicit_euler", "app.dt=10")  # the limit at 4 km: 6.1 a
+    metrics, measured = run_halfar("app.integrator=explicit_euler", "app.dt=0.5")
+    assert 0 < metrics["dt_over_stability_limit"] < 0.5 and metrics["min_thickness_m"] >= 0

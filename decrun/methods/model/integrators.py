@@ -33,10 +33,12 @@ from decrun.methods.model.compiler import NOT_LINEAR
 from decrun.methods.model.language import ModelError, to_text
 from decrun.methods.model.solve import LinearSystem
 
-__all__ = ["INTEGRATORS", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
+__all__ = ["INTEGRATORS", "FROZEN", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
 
 INTEGRATORS = ("explicit_euler", "rk4", "implicit_euler", "crank_nicolson", "imex", "symplectic", "bdf", "radau",
                "rk45", "semi_implicit")
+#: the suffix of :func:`explicit_stability_limit`'s source when the limit is of frozen coefficients
+FROZEN = " (coefficients frozen at t = 0)"
 #: the stability interval on the negative real axis: |1 + z| ≤ 1 (Euler), RK4's ≈ −2.785
 STABILITY_INTERVAL = {"explicit_euler": 2.0, "rk4": 2.785293563405282}
 
@@ -421,11 +423,21 @@ def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-
     raise ModelError(f"app.integrator: unknown integrator {scheme!r}; choose one of {' | '.join(INTEGRATORS)}")
 
 
-def explicit_stability_limit(model, scheme: str) -> tuple[float, str]:
+def explicit_stability_limit(model, scheme: str, state: dict | None = None) -> tuple[float, str]:
     """(dt_max, the equation it comes from) for explicit Euler and RK4: s/λ_max with s the scheme's
     stability interval and λ_max the largest eigenvalue of −A_uu φ = λ M_u φ over the evolved
     fields whose linear block is symmetric and negative semi-definite (diffusion); (inf, "")
-    when no such block exists."""
+    when no such block exists.
+
+    With ``state`` (the initial values), a model whose linear part gives no limit — a nonlinear
+    diffusion such as dt(h) = −δ(D(h) dh) has no constant block — is linearized with its
+    coefficients frozen at ``state`` (:meth:`~decrun.methods.model.compiler.Compiler.lagged`,
+    A = −d0ᵀ ⋆1 diag(D(h0)) d0 there) and the same bound is taken of that matrix: the limit of
+    the frozen-coefficient problem at the start (the source is then ``u`` + :data:`FROZEN`).
+    That is a necessary bound, not a sufficient one: the linearization of a flux
+    |∇h|^{p−1}∇h has p times the frozen coefficient along ∇h, and the coefficients change
+    during the run (the Halfar dome, p = 3: explicit Euler at 0.54 of this limit diverges at
+    1 km, at 0.27 it runs). A model with a constant diffusion block is checked as before."""
     from decrun.methods.mean_curvature_flow import largest_eigenvalue
 
     if scheme not in STABILITY_INTERVAL:
@@ -436,23 +448,42 @@ def explicit_stability_limit(model, scheme: str) -> tuple[float, str]:
         A = evolution.blocks.get((u, u))
         if A is None or A.nnz == 0:
             continue
-        A = A.tocsr()
-        scale = abs(A).max()
-        if abs(A - A.T).max() > 1e-12 * scale or np.any(A.diagonal() > 1e-12 * scale):
+        limit = _diffusion_limit(A, evolution.mass[u], scheme, largest_eigenvalue)
+        if limit < best:
+            best, source = limit, u
+    if np.isfinite(best) or state is None:
+        return best, source
+    frozen = SemiImplicit(model, 1.0, None)
+    env = model.environment({name: np.asarray(state[name], dtype=np.float64) for name in frozen.names}, 0.0)
+    for u in frozen.names:
+        if not frozen.builders[u]:
             continue
-        M = evolution.mass[u]
-        diagonal = M.diagonal()
-        if (M - sp.diags(diagonal)).nnz == 0 and np.all(diagonal > 0):
-            lam = largest_eigenvalue(-A, diagonal)
-        elif (M - sp.diags(diagonal)).nnz == 0:
-            continue  # a non-positive ⋆: no generalized eigenproblem
-        else:
-            lam = largest_eigenvalue(-A, M)
-        if np.isfinite(lam) and lam > 0:
-            limit = STABILITY_INTERVAL[scheme] / lam
-            if limit < best:
-                best, source = limit, u
+        M, weak = frozen._row(u, env)
+        A = weak.get(u)
+        if A is None or A.nnz == 0:
+            continue
+        limit = _diffusion_limit(A, M, scheme, largest_eigenvalue)
+        if limit < best:
+            best, source = limit, u + FROZEN
     return best, source
+
+
+def _diffusion_limit(A, M, scheme: str, largest_eigenvalue) -> float:
+    """s/λ_max(−A, M) for a symmetric negative semi-definite A (inf otherwise)."""
+    A = sp.csr_matrix(A)
+    scale = abs(A).max()
+    if scale == 0 or abs(A - A.T).max() > 1e-12 * scale or np.any(A.diagonal() > 1e-12 * scale):
+        return float("inf")
+    diagonal = M.diagonal()
+    if (M - sp.diags(diagonal)).nnz == 0 and np.all(diagonal > 0):
+        lam = largest_eigenvalue(-A, diagonal)
+    elif (M - sp.diags(diagonal)).nnz == 0:
+        return float("inf")  # a non-positive ⋆: no generalized eigenproblem
+    else:
+        lam = largest_eigenvalue(-A, M)
+    if np.isfinite(lam) and lam > 0:
+        return STABILITY_INTERVAL[scheme] / lam
+    return float("inf")
 
 
 def jacobian_pattern(model) -> sp.csr_matrix:

@@ -408,6 +408,91 @@ class Compiler:
             return out
         return NOT_LINEAR
 
+    def lagged(self, node: Node, unknowns: set[str]):
+        """The Picard (lagged-coefficient) linearization of ``node`` in ``unknowns``: a builder
+        ``env ↦ {name: Linear}`` such that ``node = Σ_name Linear(env)·value(name)`` when every
+        factor that reads an unknown but is not itself linear in them is frozen at ``env`` (the
+        current state) — ``codifferential(D * d(h))`` with ``D`` a function of ``h`` gives
+        ``⋆0⁻¹ d0ᵀ ⋆1 diag(D(hⁿ)) d0``, the lagged-diffusivity matrix. A product of two factors
+        that are both linear in the unknowns freezes the left one. None when ``node`` reads no
+        unknown, :data:`NOT_LINEAR` when no unknown is left linear (the term stays explicit).
+        Terms :meth:`linear` accepts give the same blocks (their factors are static)."""
+        if not self.depends_on(node, unknowns):
+            return None
+        if isinstance(node, Name):
+            if node.name in unknowns:
+                block = self.ops.identity(self.kinds[node.name])
+                return lambda env: {node.name: block}
+            if node.name in self.definitions:
+                return self.lagged(self.definitions[node.name], unknowns)
+            return NOT_LINEAR
+        if isinstance(node, Negate):
+            inner = self.lagged(node.operand, unknowns)
+            if inner is NOT_LINEAR:
+                return NOT_LINEAR
+            return lambda env: {k: v.scaled(-1.0) for k, v in inner(env).items()}
+        if isinstance(node, Binary):
+            if node.op in "+-":
+                left, right = self.lagged(node.left, unknowns), self.lagged(node.right, unknowns)
+                if left is NOT_LINEAR or right is NOT_LINEAR or left is None or right is None:
+                    return NOT_LINEAR
+                sign = -1.0 if node.op == "-" else 1.0
+
+                def summed(env):
+                    merged = self._merge(left(env), {k: v.scaled(sign) for k, v in right(env).items()})
+                    if merged is NOT_LINEAR:
+                        raise ModelError(f"{to_text(node)}: its two sides have different inverse stars; write it "
+                                         "over one ⋆ or use an explicit integrator")
+                    return merged
+                return summed
+            if node.op in "*/":
+                # the right factor linear and the left frozen first; a quotient freezes its denominator
+                options = [(node.left, node.right)] if node.op == "/" else \
+                    [(node.right, node.left), (node.left, node.right)]
+                for linear_side, factor in options:
+                    inner = self.lagged(linear_side, unknowns)
+                    if inner is None or inner is NOT_LINEAR:
+                        continue
+                    if self.kind(factor, "?") == VECTOR:
+                        return NOT_LINEAR
+                    value = self._compile(factor, "?")
+                    divide = node.op == "/"
+
+                    def scaled(env, inner=inner, value=value, divide=divide):
+                        factor_value = value(env)
+                        if divide:
+                            factor_value = 1.0 / np.asarray(factor_value, dtype=np.float64)
+                        out = self._scale(inner(env), factor_value)
+                        if out is NOT_LINEAR:
+                            raise ModelError(f"{to_text(node)}: a coefficient form times a Galerkin ⋆⁻¹ has no sparse "
+                                             "matrix; use an explicit integrator")
+                        return out
+                    return scaled
+                return NOT_LINEAR
+            return NOT_LINEAR
+        if isinstance(node, Call):
+            operator = OPERATORS.get(ALIASES.get(node.function, node.function))
+            if operator is None or operator.linear is None or len(node.args) != 1:
+                return NOT_LINEAR
+            inner = self.lagged(node.args[0], unknowns)
+            if inner is NOT_LINEAR:
+                return NOT_LINEAR
+            step = operator.linear(self.ops, self.kind(node.args[0], "?"))
+            if step is None:
+                return NOT_LINEAR
+
+            def applied(env):
+                out = {}
+                for name, block in inner(env).items():
+                    composed = self.ops.compose(step, block)
+                    if composed is None:
+                        raise ModelError(f"{to_text(node)}: a Galerkin ⋆⁻¹ inside the term has no sparse matrix; use "
+                                         "an explicit integrator")
+                    out[name] = composed
+                return out
+            return applied
+        return NOT_LINEAR
+
     def _merge(self, left: dict, right: dict):
         out = dict(left)
         for name, block in right.items():

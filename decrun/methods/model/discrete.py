@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from decrun.core.forms import barycentric_gradients
 
-__all__ = ["average_matrix", "wedge_0k", "wedge_11", "sharp", "flat_weights", "flat", "interior_1",
+__all__ = ["average_matrix", "cell_to_edge_matrix", "wedge_0k", "wedge_11", "sharp", "flat_weights", "flat", "interior_1",
            "vertex_average_matrix", "lie_0", "lie_1", "face_normals", "top_sign",
            "gradients"]
 
@@ -36,6 +36,22 @@ def average_matrix(K, k: int) -> sp.csr_matrix:
     rows = np.repeat(np.arange(simplices.shape[0]), k + 1)
     data = np.full(rows.size, 1.0 / (k + 1))
     return sp.csr_matrix((data, (rows, simplices.ravel())), shape=(simplices.shape[0], K.num_simplices(0)))
+
+
+def cell_to_edge_matrix(K) -> sp.csr_matrix:
+    """(n1, n_n) mean over the top simplices that contain each edge:
+    ``(A g)_e = Σ_{σ∋e} g_σ / #{σ ∋ e}`` — a dual 0-form (one value per top simplex, e.g. a
+    diffusivity Γ h̄_σ^{n+2} |∇h|_σ^{n−1} computed per triangle) brought onto the edges as a
+    coefficient per edge; a border edge takes its one top simplex. (On a triangulated square
+    grid an axis edge gets the mean of the two triangles on either side of it: the triangle
+    analogue of Mahaffy's staggered-grid diffusivity.)"""
+    def compute():
+        table = K.top_face_indices(1)  # (n_n, C(n+1, 2)) edge slots of every top simplex
+        rows = table.ravel()
+        cols = np.repeat(np.arange(table.shape[0]), table.shape[1])
+        count = np.bincount(rows, minlength=K.num_simplices(1)).astype(np.float64)
+        return sp.csr_matrix((1.0 / count[rows], (rows, cols)), shape=(K.num_simplices(1), table.shape[0]))
+    return K.require(("model", "cell_to_edge_matrix"), compute)
 
 
 def wedge_0k(K, f: np.ndarray, omega: np.ndarray, k: int) -> np.ndarray:

@@ -27,7 +27,7 @@ the same step written by hand, the cost of compiling a model, and convergence to
    projection over 10 periods, subdiv 3–5) against √6, with the relative drift of Störmer–Verlet's
    modified energy. Orders are log(e_i/e_{i+1}) / log(h_i/h_{i+1}), h the mean edge length.
 
-    python benchmarks/bench_models.py               # all three parts (~3 min on 2 cores)
+    python benchmarks/bench_models.py               # all three parts (~8 min on 2 shared cores)
     python benchmarks/bench_models.py --quick       # subdiv 5 (10,242 vertices) for parts 1 and 2
     python benchmarks/bench_models.py --part speed  # speed | compile | convergence
 

@@ -377,6 +377,7 @@ def main(argv=None) -> int:
         compile_cost(subdiv, 3)
     if "convergence" in parts:
         convergence([3, 4, 5] if args.quick else [3, 4, 5, 6])
+    print(f"\nrerun: OMP_NUM_THREADS=1 python benchmarks/bench_models.py {' '.join(argv if argv is not None else sys.argv[1:])}")
     return 0
 
 

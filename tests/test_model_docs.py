@@ -68,12 +68,13 @@ def commands(body: str) -> list[list[str]]:
     return out
 
 
-def run(argv: list[str], cwd: Path) -> str:
+def run(argv: list[str], cwd: Path, fails: bool = False) -> str:
+    """The output (stdout then stderr) of ``argv``, which must succeed (or fail, ``fails``)."""
     paths = [str(ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=os.pathsep.join(paths))
     done = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, timeout=600, env=env)
     output = done.stdout + done.stderr
-    assert done.returncode == 0, f"{' '.join(argv[2:])} exited {done.returncode}:\n{output[-3000:]}"
+    assert (done.returncode != 0) == fails, f"{' '.join(argv[2:])} exited {done.returncode}:\n{output[-3000:]}"
     return output
 
 
@@ -174,6 +175,19 @@ def test_the_readme_section_links_the_docs_and_its_commands_run(tmp_path):
         assert "stable=True" in output, output[-2000:]
         if "-m" in argv[3:]:
             assert "(0 not ok)" in output, output[-2000:]
+
+
+def test_the_bad_input_commands_end_with_the_documented_lines(tmp_path):
+    steps = blocks(section(PAGE.read_text(encoding="utf-8"), "Bad input"))
+    assert [language for language, _ in steps] == ["bash", "text"]
+    argvs, expected = commands(steps[0][1]), steps[1][1].strip().splitlines()
+    assert len(argvs) == len(expected) >= 5
+    for argv, line in zip(argvs, expected):
+        output = run(argv, tmp_path, fails=True)
+        last = output.strip().splitlines()[-1]
+        assert last == line, f"{' '.join(argv[3:])}:\n  documented {line}\n  got        {last}"
+        assert not (tmp_path / "outputs" / "runs").exists() or not any((tmp_path / "outputs" / "runs").glob(
+            "*/result.h5")), "a refused model wrote a result"
 
 
 @pytest.mark.parametrize("name", ["heat", "poisson", "wave", "heat_geodesics", "mcf"])

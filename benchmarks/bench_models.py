@@ -179,7 +179,7 @@ def speed(subdiv: int, steps: int, count: int) -> None:
     bump = np.exp(-10 * ((x - 1) ** 2 + y ** 2 + z ** 2))
     print(f"\n### Step speed: the compiled model against the same step by hand ({n:,} vertices, "
           f"{len(faces):,} triangles, operator=mixed_area; {steps} steps × {count} rounds, best round)\n")
-    print("| case | solver | hand steps/s | model steps/s | model / hand (time per step) | max |model − hand| |")
+    print("| case | solver | hand steps/s | model steps/s | model / hand (time per step) | max \\|model − hand\\| |")
     print("|---|---|---:|---:|---:|---:|")
     for library, label in (("direct", "SuperLU (solver=direct)"), ("auto", "CHOLMOD (solver=auto)")):
         for scheme in ("implicit_euler", "crank_nicolson"):

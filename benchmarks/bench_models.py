@@ -26,10 +26,11 @@ the same step written by hand, the cost of compiling a model, and convergence to
    the great-circle distance), and the wave's l = 2 frequency (a cosine fitted to the recorded
    projection over 10 periods, subdiv 3–5) against √6, with the relative drift of Störmer–Verlet's
    modified energy. Orders are log(e_i/e_{i+1}) / log(h_i/h_{i+1}), h the mean edge length.
+4. **Halfar** (``--part halfar``): the CISM v2.1 Halfar dome at 4, 2 and 1 km (``+experiment=cism_halfar``).
 
     python benchmarks/bench_models.py               # all three parts (~8 min on 2 shared cores)
     python benchmarks/bench_models.py --quick       # subdiv 5 (10,242 vertices) for parts 1 and 2
-    python benchmarks/bench_models.py --part speed  # speed | compile | convergence
+    python benchmarks/bench_models.py --part speed  # speed | compile | convergence | halfar
 
 One core for BLAS (the steps are sparse solves and vector arithmetic); the load average is printed
 with each table, since other processes share the machine.
@@ -360,15 +361,33 @@ def convergence(subdivs: list[int]) -> None:
     print(f"\n{load()}")
 
 
+def halfar() -> None:
+    """The CISM v2.1 Halfar dome (``+experiment=cism_halfar``, ``app=halfar``: semi_implicit, dt = 1 a,
+    0 → 200 a) on the benchmark's grid at 4, 2 and 1 km: RMS and max error against Halfar's solution
+    over the ice (CISM reports 6.43 m and 9.06 m RMS at 2 km)."""
+    rows = []
+    for spacing in ("4km", "2km", "1km"):
+        done, h = run(["+experiment=cism_halfar", f"mesh=cism_halfar/{spacing}"])
+        m = done.result.metrics
+        volume = np.asarray(done.result.series["volume_m3"])
+        rows.append(f"| {spacing} | {m['n_vertices']:,} | {m['rms_error_m']:.2f} | {m['max_error_ice_m']:.1f} |"
+                    f" {m['min_thickness_m']:.1e} | {abs(volume[-1] - volume[0]) / volume[0]:.1e} |"
+                    f" {m['factorizations']} | {m['steps_per_second']:.0f} |")
+    table("The Halfar dome, CISM v2.1 (+experiment=cism_halfar: semi_implicit, dt = 1 a, 200 a; CISM: 6.43 / 9.06 m "
+          "RMS at 2 km)", "| grid | vertices | RMS error over the ice (m) | max error over the ice (m) | min H (m) |"
+          " volume drift (relative) | factorizations | steps/s |", rows)
+    print(f"\n{load()}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="subdiv 5 (10,242 vertices) for the speed and compile parts")
-    parser.add_argument("--part", choices=["speed", "compile", "convergence"], action="append",
+    parser.add_argument("--part", choices=["speed", "compile", "convergence", "halfar"], action="append",
                         help="only these parts (default: all)")
     parser.add_argument("--steps", type=int, default=40, help="steps per round (speed)")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (speed; the best is reported)")
     args = parser.parse_args(argv)
-    parts = args.part or ["speed", "compile", "convergence"]
+    parts = args.part or ["speed", "compile", "convergence", "halfar"]
     subdiv = 5 if args.quick else 7
     print(f"bench_models: {' '.join(sys.argv)}  ({load()}, {os.cpu_count()} cores)")
     if "speed" in parts:
@@ -377,6 +396,8 @@ def main(argv=None) -> int:
         compile_cost(subdiv, 3)
     if "convergence" in parts:
         convergence([3, 4, 5] if args.quick else [3, 4, 5, 6])
+    if "halfar" in parts:
+        halfar()
     print(f"\nrerun: OMP_NUM_THREADS=1 python benchmarks/bench_models.py {' '.join(argv if argv is not None else sys.argv[1:])}")
     return 0
 

@@ -484,7 +484,10 @@ ALIASES = {"codiff": "codifferential", "delta": "codifferential", "hodge": "star
 def reference_table() -> str:
     """The language reference as a markdown table (operator, degree rule, discrete definition),
     generated from :data:`OPERATORS`."""
+    def cell(text: str) -> str:  # a | inside a cell (|⋆σ|/|σ|) would end the column
+        return text.replace("|", "\\|")
+
     rows = ["| operator | takes → gives | discrete definition |", "|---|---|---|"]
     for operator in OPERATORS.values():
-        rows.append(f"| `{operator.name}` | {operator.takes} | {operator.definition} |")
+        rows.append(f"| `{operator.name}` | {cell(operator.takes)} | {cell(operator.definition)} |")
     return "\n".join(rows)

@@ -36,6 +36,11 @@ from decrun.methods.model.solve import IncompatibleRightHandSide, LinearSystem, 
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
 
 RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random"} | set(OPERATORS) | {"solve"}
+#: metric names the run itself reports (decrun.methods.model.metrics and the runner's status columns)
+RESERVED_METRICS = {"status", "error", "stable", "unstable_reason", "diverged_at_step", "steps_done", "solve_seconds",
+                    "steps_per_second", "step_seconds_max", "resumed_from_step", "t_final", "dt", "integrator",
+                    "dt_stability_limit", "dt_over_stability_limit", "accepted_steps", "rhs_evaluations",
+                    "headline_metrics", "factorizations", "total_seconds", "n_vertices", "n_faces", "warnings"}
 
 
 @dataclass
@@ -355,6 +360,9 @@ def _check_names(spec: ModelSpec) -> None:
         for name in names:
             if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
                 raise ModelError(f"{key}.{group}.{name}: a name is a letter followed by letters, digits or '_'")
+            if group == "metrics" and name in RESERVED_METRICS:
+                raise ModelError(f"{key}.metrics.{name}: {name!r} is a metric every model run reports (or a column of "
+                                 f"the sweep table); name yours otherwise, e.g. {name}_value")
             if group != "metrics" and name in RESERVED:
                 raise ModelError(f"{key}.{group}.{name}: {name!r} is a built-in name of the model language "
                                  "(x y z t dt h pi random and the operators); choose another")

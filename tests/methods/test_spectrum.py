@@ -15,7 +15,7 @@ from decrun.errors import MeshError
 from decrun.methods import spectrum
 from decrun.methods.spectrum import Domain, analytic_spectrum, detect_domain, laplacian_eigenpairs, spectrum_errors
 
-from meshes_for_tests import icosphere
+from meshes_for_tests import icosphere, pieces_mesh
 
 PI2 = np.pi**2
 
@@ -206,17 +206,6 @@ def test_negative_eigenvalues_the_checks_miss_are_refused_after_the_solve(monkey
     with pytest.raises(MeshError, match=r"Δ_2 with operator=circumcentric is indefinite.*negative \(down to "
                                         r"-864.5\).*`operator=whitney`"):
         laplacian_eigenpairs(dec, 2, 10)
-
-
-def pieces_mesh():
-    """22 pieces in z = 0: a unit square (30 × 30 grid) and 21 squares of side 0.05 (2 triangles each)."""
-    vertices, triangles, offset = [], [], 0
-    for i, (n, side) in enumerate([(30, 1.0)] + [(1, 0.05)] * 21):
-        V, T = grid_triangles(n)
-        vertices.append(np.column_stack([V * side, np.zeros(len(V))]) + [2.0 * i, 0, 0])
-        triangles.append(T + offset)
-        offset += len(V)
-    return np.vstack(vertices), np.vstack(triangles)
 
 
 def test_several_pieces_have_one_kernel_dimension_each():

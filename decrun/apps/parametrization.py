@@ -69,6 +69,7 @@ class Parametrization(App):
     """
 
     name = "parametrization"
+    one_piece = "one disk-like surface is mapped into [0, 1]²"
     headline_metrics = ("is_embedding", "flipped_triangles", "angle_distortion_mean_deg", "qc_distortion_max")
     form_degrees = (0,)
     border: Border = Border.conformal

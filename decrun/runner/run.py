@@ -179,8 +179,8 @@ def _prepare(run: Run, cache: bool, t: float) -> Run:
 
 def execute(run: Run) -> Run:
     """``app.run`` on the prepared ``run``; sets ``run.result`` (with ``status``,
-    ``n_vertices``, ``n_faces`` and what ``mesh.largest_component`` dropped among its
-    metrics) and ``run.timings["app_seconds"]``.
+    ``n_vertices``, ``n_faces`` and what ``mesh.clean``, ``mesh.largest_component`` and the
+    holes' cut dropped among its metrics) and ``run.timings["app_seconds"]``.
 
     With ``run.files`` the app's ``ctx.record`` calls stream to its result.h5 through a
     :class:`~decrun.runner.results.recorder.ResultRecorder` (``run.recorder``; :func:`write`
@@ -221,10 +221,10 @@ def _execute(run: Run) -> Run:
     result.metrics.setdefault("status", "ok")
     result.metrics.setdefault("n_vertices", int(complex_.num_simplices(0)))
     result.metrics.setdefault("n_faces", int(complex_.num_simplices(complex_.dim)))
-    for key in ("largest_component_components", "largest_component_dropped_vertices",
-                "largest_component_dropped_faces"):  # mesh.largest_component: nothing dropped unreported
-        if key in mesh.meta:
-            result.metrics.setdefault(key, int(mesh.meta[key]))
+    for step in ("clean", "largest_component", "holes"):  # the steps that keep the largest piece: nothing
+        for what in ("components", "dropped_vertices", "dropped_faces"):  # dropped unreported
+            if f"{step}_{what}" in mesh.meta:
+                result.metrics.setdefault(f"{step}_{what}", int(mesh.meta[f"{step}_{what}"]))
     chained = mesh.meta.get(CHAINED_STATUS) or ctx.chained_status  # chained from an incomplete result
     if chained:
         result.metrics.setdefault(CHAINED_STATUS, chained)

@@ -108,6 +108,11 @@ class Result:
         Keyed by file stem.
     provenance : dict[str, str]
         Root attributes of result.h5 saying how the result was made.
+    warnings : list[str]
+        One line each: what makes a finished run's answer not the one asked for (e.g. a
+        parametrization that is not an embedding), with the override that gives one. The
+        runner logs each, puts them in the metric ``warnings`` and in the run's closing line;
+        the run's ``status`` stays ``ok`` (it finished).
     """
 
     fields: dict[str, Any] = field(default_factory=dict)
@@ -117,6 +122,7 @@ class Result:
     #: short strings recorded as root attributes of result.h5 (how the result was made, e.g. a
     #: model's equations as resolved), not metrics
     provenance: dict[str, str] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass

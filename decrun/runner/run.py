@@ -178,7 +178,8 @@ def _prepare(run: Run, cache: bool, t: float) -> Run:
 
 
 def execute(run: Run) -> Run:
-    """``app.run`` on the prepared ``run``; sets ``run.result`` (with ``status``,
+    """``app.run`` on the prepared ``run``; sets ``run.result`` (with ``status``, the app's
+    ``warnings`` logged and joined into the metric ``warnings``,
     ``n_vertices``, ``n_faces`` and what ``mesh.clean``, ``mesh.largest_component`` and the
     holes' cut dropped among its metrics) and ``run.timings["app_seconds"]``.
 
@@ -219,6 +220,10 @@ def _execute(run: Run) -> Run:
             result.series.setdefault(name, values)
     run.timings["app_seconds"] = time.perf_counter() - t
     result.metrics.setdefault("status", "ok")
+    for warning in result.warnings:
+        log.warning("warning: %s", warning)
+    if result.warnings:
+        result.metrics["warnings"] = "; ".join(result.warnings)
     result.metrics.setdefault("n_vertices", int(complex_.num_simplices(0)))
     result.metrics.setdefault("n_faces", int(complex_.num_simplices(complex_.dim)))
     for step in ("clean", "largest_component", "holes"):  # the steps that keep the largest piece: nothing
@@ -356,7 +361,8 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
             where = out.relative_to(Path.cwd())
         except ValueError:
             where = out
-        print(f"decrun: wrote {where}/ ({', '.join(p.name for p in written)}, {log_name}.log)")
+        warned = f"; warning: {metrics['warnings']}" if metrics.get("warnings") else ""
+        print(f"decrun: wrote {where}/ ({', '.join(p.name for p in written)}, {log_name}.log){warned}")
     return 0
 
 

@@ -125,6 +125,14 @@ def test_every_adaptive_integrator_meets_its_tolerance_and_conserves_mass(semi_d
     assert drift < 1e-12
 
 
+def test_an_adaptive_integrator_runs_past_a_step_whose_span_rounds_below_dt():
+    """(t + dt) − t < dt in floating point at some steps: the first step handed to solve_ivp
+    (the last accepted one, ≤ dt) must not exceed that span (it raised SciPy's "first_step
+    exceeds bounds" after ~15 steps of 0.001)."""
+    metrics = run("app=heat", "mesh.subdiv=1", "app.integrator=rk45", "app.dt=0.001", "app.t_end=0.05").result.metrics
+    assert metrics["stable"] is True and metrics["steps_done"] == 50
+
+
 # ---------------------------------------------------------------------- explicit stability limit
 def test_an_explicit_dt_beyond_2_over_lambda_max_is_refused_before_stepping_and_its_hint_runs(tmp_path):
     done = run("app=heat")  # λ_max of ⋆0⁻¹ S on the default mesh (subdiv 3 sphere)

@@ -291,8 +291,8 @@ class Adaptive:
             return evolution.stack(model.derivative(model.environment(evolution.unstack(y), time)))
 
         options = {"rtol": self.rtol, "atol": self.atol}
-        if np.isfinite(self.h) and self.h > 0:
-            options["first_step"] = min(self.h, self.dt)
+        if np.isfinite(self.h) and self.h > 0:  # within the span as SciPy computes it: (t + dt) - t can be < dt
+            options["first_step"] = min(self.h, (t + self.dt) - t)
         if self.pattern is not None:
             options["jac_sparsity"] = self.pattern
         method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]

@@ -58,5 +58,5 @@ class ModelStepper:
     def load_state(self, state: dict) -> None:
         self.state = {name: np.array(state["fields"][name], dtype=np.float64) for name in self.model.evolved}
         self.n = int(state["n"])
-        self.integrator.load_state(state["integrator"])
+        self.integrator.load_state(state.get("integrator", {}))  # an empty state leaves no group in the file
         self._env = None

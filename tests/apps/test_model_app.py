@@ -441,3 +441,13 @@ def test_bad_input_through_the_command_and_the_t_end_hint_runs(tmp_path):
     assert proc.returncode == 0, proc.stderr
     metrics = json.loads((tmp_path / "fixed" / "metrics.json").read_text())
     assert metrics["steps_done"] == 34 and metrics["t_final"] == pytest.approx(0.1, rel=1e-12)
+
+
+def test_the_t_end_refusals_other_hint_runs_on_a_model_whose_yaml_has_no_steps():
+    """heat.yaml lists no `steps`: `app.steps=N` is refused by Hydra there; the hint says `++`."""
+    with pytest.raises(DecrunError) as refused:
+        prepare(compose_config(["app=heat", "app.dt=0.003"]))
+    hint = re.search(r"\(or `([^`]+)`\)", str(refused.value)).group(1)
+    assert hint == "++app.steps=33 app.t_end=null"
+    metrics = run("app=heat", "app.dt=0.003", *hint.split()).result.metrics
+    assert metrics["steps_done"] == 33 and metrics["t_final"] == pytest.approx(0.099)

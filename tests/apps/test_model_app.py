@@ -375,6 +375,18 @@ def h5_contents(h5: Path) -> dict:
     return out
 
 
+def kill_after_checkpoint(args, checkpoint: Path, cwd) -> None:
+    """Start ``decrun *args`` and SIGKILL it once ``checkpoint`` exists."""
+    proc = start(*args, cwd=cwd)
+    deadline = time.monotonic() + 120
+    while not checkpoint.exists():
+        assert proc.poll() is None, f"ended before its first checkpoint: {proc.communicate()}"
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=30)
+
+
 def test_a_killed_model_run_continues_from_its_checkpoint_bit_for_bit(tmp_path):
     """The wave (subdiv 4, 20 periods: 10260 steps) killed with SIGKILL after checkpoint.h5
     appeared and rerun with the same command: fields and series equal to an uninterrupted
@@ -384,14 +396,7 @@ def test_a_killed_model_run_continues_from_its_checkpoint_bit_for_bit(tmp_path):
     reference = decrun(*args, "hydra.run.dir=reference", cwd=tmp_path)
     assert reference.returncode == 0, reference.stderr
     run_dir = tmp_path / "killed"
-    proc = start(*args, f"hydra.run.dir={run_dir}", cwd=tmp_path)
-    deadline = time.monotonic() + 120
-    while not (run_dir / CHECKPOINT).exists():
-        assert proc.poll() is None, f"ended before its first checkpoint: {proc.communicate()}"
-        assert time.monotonic() < deadline
-        time.sleep(0.01)
-    proc.send_signal(signal.SIGKILL)
-    proc.communicate(timeout=30)
+    kill_after_checkpoint([*args, f"hydra.run.dir={run_dir}"], run_dir / CHECKPOINT, tmp_path)
     assert not (run_dir / "result.h5").exists()
     again = decrun(*args, f"hydra.run.dir={run_dir}", cwd=tmp_path)
     assert again.returncode == 0, again.stderr
@@ -451,3 +456,24 @@ def test_the_t_end_refusals_other_hint_runs_on_a_model_whose_yaml_has_no_steps()
     assert hint == "++app.steps=33 app.t_end=null"
     metrics = run("app=heat", "app.dt=0.003", *hint.split()).result.metrics
     assert metrics["steps_done"] == 33 and metrics["t_final"] == pytest.approx(0.099)
+
+
+@pytest.mark.slow
+def test_a_killed_sweep_of_an_adaptive_model_resumes_bit_for_bit(tmp_path):
+    """rk45 keeps its last accepted step size in the checkpoint: a sweep job killed after its
+    checkpoint, resumed with hydra.sweeper.resume=true, repeats the uninterrupted job's steps."""
+    args = ["app=heat", "app.integrator=rk45", "mesh.subdiv=4", "app.dt=0.002", "app.t_end=1", "checkpoint.steps=20",
+            *FAST]
+    reference = decrun(*args, "hydra.run.dir=reference", cwd=tmp_path)
+    assert reference.returncode == 0, reference.stderr
+    sweep = tmp_path / "sweep"
+    multirun = ["-m", *args, f"hydra.sweep.dir={sweep}"]
+    kill_after_checkpoint(multirun, sweep / "0" / CHECKPOINT, tmp_path)
+    proc = decrun(*multirun, "hydra.sweeper.resume=true", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    resumed = json.loads((sweep / "0" / "metrics.json").read_text())
+    assert 0 < resumed["resumed_from_step"] < 500 and resumed["steps_done"] == 500
+    first, second = h5_contents(tmp_path / "reference" / "result.h5"), h5_contents(sweep / "0" / "result.h5")
+    assert first.keys() == second.keys() and second["complete"]
+    for key in first:
+        assert np.array_equal(first[key], second[key]), key

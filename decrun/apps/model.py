@@ -24,7 +24,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
-from decrun.methods.model.integrators import explicit_stability_limit, make_integrator
+from decrun.methods.model.integrators import check_integrator, explicit_stability_limit, make_integrator
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.stepper import ModelStepper
@@ -139,6 +139,8 @@ class Model(App):
         stability limit of the diffusion blocks."""
         model = self.compiled(dec)
         steps = self.total_steps()
+        if not model.is_static:
+            check_integrator(model, str(self.integrator), self.dt)
         if model.is_static or not self.stability_check or steps == 0:
             return
         limit, source = explicit_stability_limit(model, str(self.integrator))

@@ -465,6 +465,10 @@ BAD = [
     (["app.constants.k=nan"], "app.constants.k: must be a finite number, got nan", ""),
     (["app.integrator=foo"], "app.integrator: must be one of explicit_euler", "got 'foo'"),
     (["app.fields.u.form=7"], "app.fields.u.form: form must be 0 | 1 | 2 | 3", ""),
+    # the integrator's own checks, when the model loads (they were raised at the app's set-up)
+    (["app.integrator=symplectic"], "app.equations[0]: integrator=symplectic needs pairs", "app.integrator=rk4"),
+    (['app.equations=["dt(u) = k*laplacian(u) - u**3"]'], "app.equations[0]: integrator=crank_nicolson needs "
+     "equations linear", "app.integrator=imex"),
 ]
 
 

@@ -225,7 +225,9 @@ def disk(n: int, max_area: float) -> list[str]:
 
 
 def test_poisson_on_a_disk_with_manufactured_dirichlet_values_converges_at_second_order():
-    """64-, 128-, 256-gons, max_area /4 each: measured 1.05e-3, 2.67e-4, 6.75e-5 (≈ 1.97, 1.98)."""
+    """64-, 128-, 256-gons, max_area /4 each (282, 1060, 4020 vertices): measured 1.62e-3,
+    4.55e-4, 1.12e-4 (orders 1.83, 2.02; max |error| 7.6e-3, 2.4e-3, 5.8e-4). Triangle's meshes
+    are deterministic: the coarse order is what this mesh gives, not noise."""
     model = ["app=poisson", f"app.fields.u.dirichlet='{DISK_U}'",
              f"app.equations=['solve(laplacian(u) = -3*{DISK_U})']",
              f"app.metrics={{l2_error_rel: 'norm(u - {DISK_U})/norm({DISK_U})', max_abs_error: 'max(abs(u - {DISK_U}))'}}"]

@@ -24,7 +24,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
-from decrun.methods.model.integrators import check_integrator, explicit_stability_limit, make_integrator
+from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_stability_limit, make_integrator
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.stepper import ModelStepper
@@ -45,6 +45,7 @@ class Integrator(Choice):
     bdf = "bdf"
     radau = "radau"
     rk45 = "rk45"
+    semi_implicit = "semi_implicit"
 
 
 @dataclass
@@ -136,23 +137,29 @@ class Model(App):
     def check(self, K, dec) -> None:
         """Before any work: the whole model type-checked and its initial and border values
         sampled on this mesh, the step count, and for explicit integrators dt against the
-        stability limit of the diffusion blocks."""
+        stability limit of the diffusion blocks (of a nonlinear diffusion, with its
+        coefficients frozen at the initial values)."""
         model = self.compiled(dec)
+        model.check_compatibility()
         steps = self.total_steps()
         if not model.is_static:
             check_integrator(model, str(self.integrator), self.dt)
         if model.is_static or not self.stability_check or steps == 0:
             return
-        limit, source = explicit_stability_limit(model, str(self.integrator))
+        limit, source = explicit_stability_limit(model, str(self.integrator), model.initial_values)
         if self.dt > limit:
             if self.t_end is not None:  # a whole number of steps to t_end, each below 0.9 × the limit
                 safe = repr(self.t_end / math.ceil(self.t_end / (0.9 * limit)))
             else:
                 safe = f"{float(f'{0.9 * limit:.2g}'):g}"
+            frozen = source.endswith(FROZEN)
+            name = source[: -len(FROZEN)] if frozen else source
+            part = "its linear part with the coefficients frozen at t = 0" if frozen else "its linear part"
+            implicit = "semi_implicit" if frozen else "implicit_euler"
             raise ConfigError(f"app.dt={self.dt:g} exceeds the stability limit {limit:.3g} of "
-                              f"integrator={self.integrator} for dt({source}) on this mesh (2.785/λ_max for rk4, "
-                              f"2/λ_max for Euler, λ_max of its linear part); use `app.dt={safe}` or "
-                              "`app.integrator=implicit_euler`")
+                              f"integrator={self.integrator} for dt({name}) on this mesh (2.785/λ_max for rk4, "
+                              f"2/λ_max for Euler, λ_max of {part}); use `app.dt={safe}` or "
+                              f"`app.integrator={implicit}`")
         self._stability_limit = limit
 
     def run(self, ctx: Context) -> Result:

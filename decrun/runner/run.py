@@ -42,7 +42,8 @@ from decrun.runner.plugins import Recent
 from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
 from decrun.runner.results.checked import RESULT_RECORD, file_record
-from decrun.runner.results.checkpoint import RunCheckpoint
+from decrun.runner.results.checkpoint import RunCheckpoint, remove_checkpoint
+from decrun.runner.results.reading import CHAINED_STATUS
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
 from decrun.runner.sweep.manifest import config_hash
@@ -224,6 +225,9 @@ def _execute(run: Run) -> Run:
                 "largest_component_dropped_faces"):  # mesh.largest_component: nothing dropped unreported
         if key in mesh.meta:
             result.metrics.setdefault(key, int(mesh.meta[key]))
+    chained = mesh.meta.get(CHAINED_STATUS) or ctx.chained_status  # chained from an incomplete result
+    if chained:
+        result.metrics.setdefault(CHAINED_STATUS, chained)
     run.result = result
     return run
 
@@ -273,7 +277,7 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
                           mesh_hash=mesh.meta.get("hash", ""), timings=timings)
     # the size and sha256 of result.h5 as written: readers never take a truncated or altered one for it
     metrics = write_metrics_json(files.metrics, {**result.metrics, RESULT_RECORD: file_record(h5)})
-    files.checkpoint.unlink(missing_ok=True)  # the run is complete: nothing to continue
+    remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
     export = run.experiment.export
     exported = export.write(files, result, mesh, run.complex) if export is not None else []
     return [h5, metrics, *written, *exported]

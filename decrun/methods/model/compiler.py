@@ -238,6 +238,8 @@ class Compiler:
             kinds = [self.kind(arg, where) for arg in node.args]
             args = [self._compile(arg, where) for arg in node.args]
             ops = self.ops
+            if operator.name == "vertex":
+                self._check_vertex(node, where)
             if operator.evaluate is None:  # a linear operator evaluated through its matrix
                 apply = ops.matrix(operator.linear(ops, kinds[0]))
                 (arg,) = args
@@ -248,6 +250,21 @@ class Compiler:
                 return lambda env: evaluate(ops, kinds, arg(env))
             return lambda env: evaluate(ops, kinds, *(a(env) for a in args))
         raise TypeError(node)
+
+    def _check_vertex(self, node: Call, where: str) -> None:
+        """``vertex(i)`` in an equation or a metric: ``i`` fixed for the run and a vertex of the
+        mesh, checked when the model loads — not when the term is first evaluated (for a metric,
+        after the whole run)."""
+        (arg,) = node.args
+        if not self.is_static(arg):
+            raise ModelError(f"{where}: {to_text(node)}: vertex takes a fixed vertex index (a number or a constant), "
+                             "not a value that changes during the run")
+        if self._static_env is None:
+            return
+        try:
+            OPERATORS["vertex"].evaluate(self.ops, [NUMBER], self.static_value(arg))
+        except ValueError as why:
+            raise ModelError(f"{where}: {why}") from None
 
     def _linear_chain(self, node: Node):
         """``(name, apply)`` when ``node`` is one or more linear operators applied to one name
@@ -274,16 +291,52 @@ class Compiler:
 
     # ------------------------------------------------------------------ linear terms
     def terms(self, node: Node, sign: float = 1.0) -> list[tuple[float, Node]]:
-        """The summands of ``node`` with their signs (through + − and negation)."""
+        """The summands of ``node`` with their signs: through + − and negation, and distributed
+        over what is linear — a linear operator of a sum (``laplacian(c**3 - c)`` is
+        ``laplacian(c**3) - laplacian(c)``), a static factor times a sum, and a definition that
+        is a sum — so that the linear part of a term is found wherever it stands."""
         if isinstance(node, Binary) and node.op in "+-":
             return self.terms(node.left, sign) + self.terms(node.right, sign if node.op == "+" else -sign)
         if isinstance(node, Negate):
             return self.terms(node.operand, -sign)
+        if isinstance(node, Name) and node.name in self.definitions:
+            inner = self.terms(self.definitions[node.name])
+            if len(inner) > 1:
+                return [(sign * s, term) for s, term in inner]
+            return [(sign, node)]
+        if isinstance(node, Call) and len(node.args) == 1:
+            operator = OPERATORS.get(ALIASES.get(node.function, node.function))
+            if operator is not None and operator.linear is not None:
+                inner = self.terms(node.args[0])
+                if len(inner) > 1:
+                    return [(sign * s, Call(node.function, (term,))) for s, term in inner]
+        if isinstance(node, Binary) and node.op in "*/":
+            for side, other in ((node.left, node.right), (node.right, node.left)):
+                if node.op == "/" and side is node.right:
+                    continue
+                if self.is_static(other) and self.kind(other, "?") == NUMBER:
+                    inner = self.terms(side)
+                    if len(inner) > 1:
+                        return [(sign * s, Binary(node.op, term, other) if side is node.left else
+                                 Binary(node.op, other, term)) for s, term in inner]
         return [(sign, node)]
 
     def static_value(self, node: Node):
-        """The value of a static ``node`` (numbers, constants, coordinates, static fields)."""
-        return self._compile(node, "?")(self.static_env)
+        """The value of a static ``node`` (numbers, constants, coordinates, static fields and
+        the definitions made of them, inlined)."""
+        return self._compile(self.inline(node), "?")(self.static_env)
+
+    def inline(self, node: Node) -> Node:
+        """``node`` with every definition replaced by its tree (recursively)."""
+        if isinstance(node, Name) and node.name in self.definitions:
+            return self.inline(self.definitions[node.name])
+        if isinstance(node, Call):
+            return Call(node.function, tuple(self.inline(arg) for arg in node.args))
+        if isinstance(node, Binary):
+            return Binary(node.op, self.inline(node.left), self.inline(node.right))
+        if isinstance(node, Negate):
+            return Negate(self.inline(node.operand))
+        return node
 
     @property
     def static_env(self) -> dict:
@@ -353,6 +406,91 @@ class Compiler:
                     return NOT_LINEAR
                 out[name] = composed
             return out
+        return NOT_LINEAR
+
+    def lagged(self, node: Node, unknowns: set[str]):
+        """The Picard (lagged-coefficient) linearization of ``node`` in ``unknowns``: a builder
+        ``env ↦ {name: Linear}`` such that ``node = Σ_name Linear(env)·value(name)`` when every
+        factor that reads an unknown but is not itself linear in them is frozen at ``env`` (the
+        current state) — ``codifferential(D * d(h))`` with ``D`` a function of ``h`` gives
+        ``⋆0⁻¹ d0ᵀ ⋆1 diag(D(hⁿ)) d0``, the lagged-diffusivity matrix. A product of two factors
+        that are both linear in the unknowns freezes the left one. None when ``node`` reads no
+        unknown, :data:`NOT_LINEAR` when no unknown is left linear (the term stays explicit).
+        Terms :meth:`linear` accepts give the same blocks (their factors are static)."""
+        if not self.depends_on(node, unknowns):
+            return None
+        if isinstance(node, Name):
+            if node.name in unknowns:
+                block = self.ops.identity(self.kinds[node.name])
+                return lambda env: {node.name: block}
+            if node.name in self.definitions:
+                return self.lagged(self.definitions[node.name], unknowns)
+            return NOT_LINEAR
+        if isinstance(node, Negate):
+            inner = self.lagged(node.operand, unknowns)
+            if inner is NOT_LINEAR:
+                return NOT_LINEAR
+            return lambda env: {k: v.scaled(-1.0) for k, v in inner(env).items()}
+        if isinstance(node, Binary):
+            if node.op in "+-":
+                left, right = self.lagged(node.left, unknowns), self.lagged(node.right, unknowns)
+                if left is NOT_LINEAR or right is NOT_LINEAR or left is None or right is None:
+                    return NOT_LINEAR
+                sign = -1.0 if node.op == "-" else 1.0
+
+                def summed(env):
+                    merged = self._merge(left(env), {k: v.scaled(sign) for k, v in right(env).items()})
+                    if merged is NOT_LINEAR:
+                        raise ModelError(f"{to_text(node)}: its two sides have different inverse stars; write it "
+                                         "over one ⋆ or use an explicit integrator")
+                    return merged
+                return summed
+            if node.op in "*/":
+                # the right factor linear and the left frozen first; a quotient freezes its denominator
+                options = [(node.left, node.right)] if node.op == "/" else \
+                    [(node.right, node.left), (node.left, node.right)]
+                for linear_side, factor in options:
+                    inner = self.lagged(linear_side, unknowns)
+                    if inner is None or inner is NOT_LINEAR:
+                        continue
+                    if self.kind(factor, "?") == VECTOR:
+                        return NOT_LINEAR
+                    value = self._compile(factor, "?")
+                    divide = node.op == "/"
+
+                    def scaled(env, inner=inner, value=value, divide=divide):
+                        factor_value = value(env)
+                        if divide:
+                            factor_value = 1.0 / np.asarray(factor_value, dtype=np.float64)
+                        out = self._scale(inner(env), factor_value)
+                        if out is NOT_LINEAR:
+                            raise ModelError(f"{to_text(node)}: a coefficient form times a Galerkin ⋆⁻¹ has no sparse "
+                                             "matrix; use an explicit integrator")
+                        return out
+                    return scaled
+                return NOT_LINEAR
+            return NOT_LINEAR
+        if isinstance(node, Call):
+            operator = OPERATORS.get(ALIASES.get(node.function, node.function))
+            if operator is None or operator.linear is None or len(node.args) != 1:
+                return NOT_LINEAR
+            inner = self.lagged(node.args[0], unknowns)
+            if inner is NOT_LINEAR:
+                return NOT_LINEAR
+            step = operator.linear(self.ops, self.kind(node.args[0], "?"))
+            if step is None:
+                return NOT_LINEAR
+
+            def applied(env):
+                out = {}
+                for name, block in inner(env).items():
+                    composed = self.ops.compose(step, block)
+                    if composed is None:
+                        raise ModelError(f"{to_text(node)}: a Galerkin ⋆⁻¹ inside the term has no sparse matrix; use "
+                                         "an explicit integrator")
+                    out[name] = composed
+                return out
+            return applied
         return NOT_LINEAR
 
     def _merge(self, left: dict, right: dict):

@@ -18,8 +18,9 @@ import scipy.sparse as sp
 
 from decrun.core.forms import barycentric_gradients
 
-__all__ = ["average_matrix", "wedge_0k", "wedge_11", "sharp", "flat_weights", "flat", "interior_1",
-           "vertex_average_matrix", "lie_0", "top_sign", "gradients"]
+__all__ = ["average_matrix", "cell_to_edge_matrix", "wedge_0k", "wedge_11", "sharp", "flat_weights", "flat", "interior_1",
+           "vertex_average_matrix", "lie_0", "lie_1", "face_normals", "top_sign",
+           "gradients"]
 
 
 def top_sign(K, k: int) -> np.ndarray | float:
@@ -35,6 +36,22 @@ def average_matrix(K, k: int) -> sp.csr_matrix:
     rows = np.repeat(np.arange(simplices.shape[0]), k + 1)
     data = np.full(rows.size, 1.0 / (k + 1))
     return sp.csr_matrix((data, (rows, simplices.ravel())), shape=(simplices.shape[0], K.num_simplices(0)))
+
+
+def cell_to_edge_matrix(K) -> sp.csr_matrix:
+    """(n1, n_n) mean over the top simplices that contain each edge:
+    ``(A g)_e = Σ_{σ∋e} g_σ / #{σ ∋ e}`` — a dual 0-form (one value per top simplex, e.g. a
+    diffusivity Γ h̄_σ^{n+2} |∇h|_σ^{n−1} computed per triangle) brought onto the edges as a
+    coefficient per edge; a border edge takes its one top simplex. (On a triangulated square
+    grid an axis edge gets the mean of the two triangles on either side of it: the triangle
+    analogue of Mahaffy's staggered-grid diffusivity.)"""
+    def compute():
+        table = K.top_face_indices(1)  # (n_n, C(n+1, 2)) edge slots of every top simplex
+        rows = table.ravel()
+        cols = np.repeat(np.arange(table.shape[0]), table.shape[1])
+        count = np.bincount(rows, minlength=K.num_simplices(1)).astype(np.float64)
+        return sp.csr_matrix((1.0 / count[rows], (rows, cols)), shape=(K.num_simplices(1), table.shape[0]))
+    return K.require(("model", "cell_to_edge_matrix"), compute)
 
 
 def wedge_0k(K, f: np.ndarray, omega: np.ndarray, k: int) -> np.ndarray:
@@ -159,3 +176,30 @@ def lie_0(K, vectors: np.ndarray, f: np.ndarray) -> np.ndarray:
     top = K.simplices(K.dim)
     grad_f = np.einsum("fv,fvd->fd", f[top], gradients(K))
     return vertex_average_matrix(K) @ np.einsum("fd,fd->f", grad_f, vectors)
+
+
+def face_normals(K) -> np.ndarray:
+    """(n2, 3) unit normals of the oriented top triangles (planar meshes: +z, times the
+    orientation)."""
+    top = K.oriented_simplices()
+    p = K.vertices[top]
+    if p.shape[2] == 2:
+        p = np.concatenate([p, np.zeros(p.shape[:2] + (1,))], axis=2)
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return normal / np.linalg.norm(normal, axis=1, keepdims=True)
+
+
+def lie_1(K, vectors: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """L_X ω (n1,) for a 1-form ω on a triangle mesh, by Cartan's formula
+    L_X ω = i_X dω + d i_X ω: the 2-form dω = ρ dA gives i_X dω = (ρ N × X)♭ (ρ = dω/|f| per
+    oriented triangle, N its normal; :func:`flat`), and i_X ω (per triangle,
+    :func:`interior_1`) is brought to the vertices (:func:`vertex_average_matrix`) before d. So
+    L_X d f = d L_X f exactly (d commutes with the Lie derivative)."""
+    if K.dim != 2:
+        raise ValueError("lie of a 1-form: defined here on triangle meshes (K.dim = 2)")
+    density = (K.incidence(2) @ omega) / K.top_volumes  # dω per unit area of each oriented triangle
+    normal = face_normals(K)
+    d = vectors.shape[1]
+    field = np.cross(normal, np.pad(vectors, ((0, 0), (0, 3 - d)))) * density[:, None]
+    return flat(K, field[:, :d]) + K.incidence(1) @ (vertex_average_matrix(K) @ interior_1(K, vectors, omega))
+

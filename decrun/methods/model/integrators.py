@@ -14,6 +14,8 @@ system is the symmetric ``M + dt S`` of the thesis' implicit smoothing, §1.3).
 ``implicit_euler``  (M − dt A) u⁺ = M u + dt M R(t⁺); R must not read the evolved fields
 ``crank_nicolson``  (M − dt/2 A) u⁺ = (M + dt/2 A) u + dt/2 M (R(t) + R(t⁺)); likewise
 ``imex``            (M − dt A) u⁺ = M u + dt M R(u, t): linear part implicit, the rest explicit
+``semi_implicit``   (M − dt A(uⁿ)) u⁺ = M uⁿ + dt M R(uⁿ, t): lagged coefficients (Picard), A refactorized
+                    every step — nonlinear diffusion ∇·(D(u)∇u) with D frozen at uⁿ
 ``symplectic``      Störmer–Verlet (kick–drift–kick) for pairs dt(q) = f(p), dt(p) = g(q)
 ``bdf``, ``radau``  SciPy's ``solve_ivp`` with the sparse Jacobian pattern of the equations
 ``rk45``            SciPy's adaptive Runge–Kutta (no Jacobian)
@@ -31,10 +33,12 @@ from decrun.methods.model.compiler import NOT_LINEAR
 from decrun.methods.model.language import ModelError, to_text
 from decrun.methods.model.solve import LinearSystem
 
-__all__ = ["INTEGRATORS", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
+__all__ = ["INTEGRATORS", "FROZEN", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
 
 INTEGRATORS = ("explicit_euler", "rk4", "implicit_euler", "crank_nicolson", "imex", "symplectic", "bdf", "radau",
-               "rk45")
+               "rk45", "semi_implicit")
+#: the suffix of :func:`explicit_stability_limit`'s source when the limit is of frozen coefficients
+FROZEN = " (coefficients frozen at t = 0)"
 #: the stability interval on the negative real axis: |1 + z| ≤ 1 (Euler), RK4's ≈ −2.785
 STABILITY_INTERVAL = {"explicit_euler": 2.0, "rk4": 2.785293563405282}
 
@@ -232,6 +236,98 @@ class Implicit:
         pass
 
 
+class SemiImplicit:
+    """Linearly implicit Euler with lagged coefficients (a Picard step): every term of dt(u) is
+    linearized by :meth:`~decrun.methods.model.compiler.Compiler.lagged` — the factors that read
+    the evolved fields but are not linear in them frozen at uⁿ — into weak blocks A(uⁿ) over one
+    mass M = ⋆_k; the terms with no linear unknown left stay explicit (R). Each step solves
+
+        (M − dt A(uⁿ)) u⁺ = M uⁿ + dt M R(uⁿ, tⁿ)
+
+    with a fresh factorization (the matrix changes every step). For nonlinear diffusion
+    dt(h) = −δ(D(h) dh) this is (⋆0 + dt d0ᵀ ⋆1 diag(D(hⁿ)) d0) h⁺ = ⋆0 hⁿ: with ⋆1 ≥ 0 and D ≥ 0
+    an M-matrix, so h⁺ ≥ 0 whenever hⁿ ≥ 0, at any dt (no stability limit; first order in
+    time). ``factorizations`` counts the systems solved."""
+
+    def __init__(self, model, dt: float, new_solver):
+        self.model, self.dt, self.new_solver = model, float(dt), new_solver
+        compiler = model.compiler
+        self.names = list(model.evolved)
+        unknowns = set(self.names)
+        ops = model.ops
+        self.sizes = {name: model.kinds[name].size(ops.K) for name in self.names}
+        offsets = np.cumsum([0] + [self.sizes[name] for name in self.names])
+        self.slices = {name: slice(offsets[i], offsets[i + 1]) for i, name in enumerate(self.names)}
+        self.builders, self.rest, self.where = {}, {}, {}
+        for equation in model.equations:
+            if equation.kind != "evolution":
+                continue
+            u = equation.target
+            self.where[u] = equation.where
+            self.builders[u], self.rest[u] = [], []
+            for sign, term in compiler.terms(equation.rhs):
+                builder = compiler.lagged(term, unknowns)
+                if builder is None or builder is NOT_LINEAR:
+                    self.rest[u].append((sign, compiler.compile(term, equation.where)))
+                else:
+                    self.builders[u].append((sign, builder))
+        self.fixed_indices, self.fixed_values = Evolution.fixed(self)
+        self.factorizations = 0
+
+    def _row(self, u: str, env: dict):
+        """(M_u, {v: weak A_uv}) at ``env``."""
+        ops = self.model.ops
+        blocks = {}
+        for sign, builder in self.builders[u]:
+            for v, block in builder(env).items():
+                block = block.scaled(sign)
+                merged = block if v not in blocks else ops.add(blocks[v], block)
+                if merged is None:
+                    raise ModelError(f"{self.where[u]}: the terms of dt({u}) mix inverse stars; write them over one ⋆ "
+                                     "or use an explicit integrator")
+                blocks[v] = merged
+        invs = {block.inv for block in blocks.values()} - {None}
+        if len(invs) > 1:
+            raise ModelError(f"{self.where[u]}: the linear terms of dt({u}) mix inverse stars {sorted(invs)}; write "
+                             "them over one ⋆ or use an explicit integrator")
+        if invs:
+            M = ops.dec.star(invs.pop()).tocsr()
+            weak = {v: block.A if block.inv is not None else M @ block.A for v, block in blocks.items()}
+        else:
+            M = sp.identity(self.sizes[u], format="csr")
+            weak = {v: block.A for v, block in blocks.items()}
+        return M, weak
+
+    def step(self, state: dict, t: float) -> dict:
+        model, dt = self.model, self.dt
+        env = model.environment(state, t)
+        rows, rhs = [], []
+        for u in self.names:
+            M, weak = self._row(u, env)
+            rest = np.zeros(self.sizes[u])
+            for sign, closure in self.rest[u]:
+                rest = rest + sign * closure(env)
+            rhs.append(M @ (state[u] + dt * rest))
+            row = []
+            for v in self.names:
+                part = -dt * weak[v] if v in weak else None
+                if u == v:
+                    part = M if part is None else M + part
+                row.append(part)
+            rows.append(row)
+        matrix = sp.bmat(rows, format="csr") if len(self.names) > 1 else sp.csr_matrix(rows[0][0])
+        system = LinearSystem(matrix, self.new_solver, self.fixed_indices)
+        vector = system.solve(np.concatenate(rhs), self.fixed_values)
+        self.factorizations += 1
+        return _enforce(model, {name: vector[self.slices[name]] for name in self.names})
+
+    def state_dict(self) -> dict:
+        return {"factorizations": self.factorizations}
+
+    def load_state(self, state: dict) -> None:
+        self.factorizations = int(state.get("factorizations", 0))
+
+
 class Symplectic:
     """Störmer–Verlet for a pair of groups: dt(q) = f(p) and dt(p) = g(q) (kick p by dt/2,
     drift q by dt, kick p by dt/2). q is the group of the first evolution equation."""
@@ -294,6 +390,7 @@ class Adaptive:
         self.rtol, self.atol = float(rtol), float(atol)
         self.evolution = Evolution(model)
         self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") else None
+        self.jacobian = _exact_jacobian(self.evolution) if scheme in ("bdf", "radau") else None
         self.h = float("nan")
         self.accepted = 0
         self.evaluations = 0
@@ -310,7 +407,9 @@ class Adaptive:
         options = {"rtol": self.rtol, "atol": self.atol}
         if np.isfinite(self.h) and self.h > 0:  # within the span as SciPy computes it: (t + dt) - t can be < dt
             options["first_step"] = min(self.h, (t + self.dt) - t)
-        if self.pattern is not None:
+        if self.jacobian is not None:  # a linear model: ∂F/∂u is the constant M⁻¹A, exactly
+            options["jac"] = self.jacobian
+        elif self.pattern is not None:
             options["jac_sparsity"] = self.pattern
         method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]
         solution = solve_ivp(fun, (t, t + self.dt), evolution.stack(state), method=method, **options)
@@ -329,6 +428,27 @@ class Adaptive:
         self.evaluations = int(state["evaluations"])
 
 
+def _exact_jacobian(evolution: Evolution) -> sp.csr_matrix | None:
+    """M⁻¹A over the stacked fields when every evolution is linear (no explicit term reads an
+    evolved field) and every row mass is diagonal; None otherwise (finite differences on the
+    sparsity pattern then)."""
+    if any(evolution.reads_evolved(u) for u in evolution.names):
+        return None
+    inverse = {}
+    for u in evolution.names:
+        M = evolution.mass[u]
+        diagonal = M.diagonal()
+        if (M - sp.diags(diagonal)).nnz or np.any(diagonal == 0):
+            return None
+        inverse[u] = sp.diags(1.0 / diagonal)
+    rows = [[(inverse[u] @ evolution.blocks[(u, v)]).tocsr() if (u, v) in evolution.blocks else None
+             for v in evolution.names] for u in evolution.names]
+    for i, u in enumerate(evolution.names):
+        if all(block is None for block in rows[i]):
+            rows[i][i] = sp.csr_matrix((evolution.sizes[u], evolution.sizes[u]))
+    return sp.bmat(rows, format="csc")
+
+
 def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-6, atol: float = 1e-9):
     """The integrator ``scheme`` (one of :data:`INTEGRATORS`) for ``model`` at step ``dt``."""
     if scheme in ("explicit_euler", "rk4"):
@@ -339,14 +459,26 @@ def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-
         return Symplectic(model, dt)
     if scheme in ("bdf", "radau", "rk45"):
         return Adaptive(model, dt, scheme, rtol, atol)
+    if scheme == "semi_implicit":
+        return SemiImplicit(model, dt, new_solver)
     raise ModelError(f"app.integrator: unknown integrator {scheme!r}; choose one of {' | '.join(INTEGRATORS)}")
 
 
-def explicit_stability_limit(model, scheme: str) -> tuple[float, str]:
+def explicit_stability_limit(model, scheme: str, state: dict | None = None) -> tuple[float, str]:
     """(dt_max, the equation it comes from) for explicit Euler and RK4: s/λ_max with s the scheme's
     stability interval and λ_max the largest eigenvalue of −A_uu φ = λ M_u φ over the evolved
     fields whose linear block is symmetric and negative semi-definite (diffusion); (inf, "")
-    when no such block exists."""
+    when no such block exists.
+
+    With ``state`` (the initial values), a model whose linear part gives no limit — a nonlinear
+    diffusion such as dt(h) = −δ(D(h) dh) has no constant block — is linearized with its
+    coefficients frozen at ``state`` (:meth:`~decrun.methods.model.compiler.Compiler.lagged`,
+    A = −d0ᵀ ⋆1 diag(D(h0)) d0 there) and the same bound is taken of that matrix: the limit of
+    the frozen-coefficient problem at the start (the source is then ``u`` + :data:`FROZEN`).
+    That is a necessary bound, not a sufficient one: the linearization of a flux
+    |∇h|^{p−1}∇h has p times the frozen coefficient along ∇h, and the coefficients change
+    during the run (the Halfar dome, p = 3: explicit Euler at 0.54 of this limit diverges at
+    1 km, at 0.27 it runs). A model with a constant diffusion block is checked as before."""
     from decrun.methods.mean_curvature_flow import largest_eigenvalue
 
     if scheme not in STABILITY_INTERVAL:
@@ -357,23 +489,42 @@ def explicit_stability_limit(model, scheme: str) -> tuple[float, str]:
         A = evolution.blocks.get((u, u))
         if A is None or A.nnz == 0:
             continue
-        A = A.tocsr()
-        scale = abs(A).max()
-        if abs(A - A.T).max() > 1e-12 * scale or np.any(A.diagonal() > 1e-12 * scale):
+        limit = _diffusion_limit(A, evolution.mass[u], scheme, largest_eigenvalue)
+        if limit < best:
+            best, source = limit, u
+    if np.isfinite(best) or state is None:
+        return best, source
+    frozen = SemiImplicit(model, 1.0, None)
+    env = model.environment({name: np.asarray(state[name], dtype=np.float64) for name in frozen.names}, 0.0)
+    for u in frozen.names:
+        if not frozen.builders[u]:
             continue
-        M = evolution.mass[u]
-        diagonal = M.diagonal()
-        if (M - sp.diags(diagonal)).nnz == 0 and np.all(diagonal > 0):
-            lam = largest_eigenvalue(-A, diagonal)
-        elif (M - sp.diags(diagonal)).nnz == 0:
-            continue  # a non-positive ⋆: no generalized eigenproblem
-        else:
-            lam = largest_eigenvalue(-A, M)
-        if np.isfinite(lam) and lam > 0:
-            limit = STABILITY_INTERVAL[scheme] / lam
-            if limit < best:
-                best, source = limit, u
+        M, weak = frozen._row(u, env)
+        A = weak.get(u)
+        if A is None or A.nnz == 0:
+            continue
+        limit = _diffusion_limit(A, M, scheme, largest_eigenvalue)
+        if limit < best:
+            best, source = limit, u + FROZEN
     return best, source
+
+
+def _diffusion_limit(A, M, scheme: str, largest_eigenvalue) -> float:
+    """s/λ_max(−A, M) for a symmetric negative semi-definite A (inf otherwise)."""
+    A = sp.csr_matrix(A)
+    scale = abs(A).max()
+    if scale == 0 or abs(A - A.T).max() > 1e-12 * scale or np.any(A.diagonal() > 1e-12 * scale):
+        return float("inf")
+    diagonal = M.diagonal()
+    if (M - sp.diags(diagonal)).nnz == 0 and np.all(diagonal > 0):
+        lam = largest_eigenvalue(-A, diagonal)
+    elif (M - sp.diags(diagonal)).nnz == 0:
+        return float("inf")  # a non-positive ⋆: no generalized eigenproblem
+    else:
+        lam = largest_eigenvalue(-A, M)
+    if np.isfinite(lam) and lam > 0:
+        return STABILITY_INTERVAL[scheme] / lam
+    return float("inf")
 
 
 def jacobian_pattern(model) -> sp.csr_matrix:

@@ -10,7 +10,7 @@ passed to ``eval``/``exec``/``compile``.
 Grammar (what the whitelist admits)::
 
     expr   := number | name | call | expr OP expr | -expr | +expr | (expr)
-    OP     := + - * / **   and  ^ (the wedge product ∧)
+    OP     := + - * / **   and  ^ (the wedge product ∧, binding like *: a ^ b + c is (a ∧ b) + c)
     call   := name "(" expr {"," expr} ")"
 
 Unicode spellings are accepted and rewritten before parsing: ``⋆ → star``, ``δ →
@@ -27,6 +27,7 @@ Equations (one string each)::
 from __future__ import annotations
 
 import ast
+import math
 import re
 from dataclasses import dataclass
 from typing import Union
@@ -39,7 +40,7 @@ __all__ = ["ModelError", "Number", "Name", "Call", "Binary", "Negate", "Node", "
 #: longest expression accepted (characters): a model line, not a program
 MAX_EXPRESSION_LENGTH = 4000
 #: deepest tree accepted
-MAX_DEPTH = 64
+MAX_DEPTH = 200
 
 
 class ModelError(ConfigError):
@@ -76,7 +77,9 @@ class Negate:
 
 Node = Union[Number, Name, Call, Binary, Negate]
 
-_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**", ast.BitXor: "^"}
+#: ^ (the wedge) is read as Python's @, which binds like * — Python's own ^ binds looser than + and
+#: would read a ^ b + c as a ∧ (b + c); an @ the user writes is refused before the rewrite
+_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**", ast.MatMult: "^"}
 
 #: unicode symbol → ASCII name (prefix operators)
 _PREFIX = {"⋆": "star", "★": "star", "δ": "codifferential", "Δ": "laplacian", "♯": "sharp", "♭": "flat",
@@ -84,15 +87,64 @@ _PREFIX = {"⋆": "star", "★": "star", "δ": "codifferential", "Δ": "laplacia
 _IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
 
 
+_TOKEN = re.compile(r"\s*(∂ₜ|∂_t|[⋆★δΔ♯♭]|(?:(?![δΔ])[^\W\d])\w*|\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?|\*\*|\S)")
+
+
 def _normalize(text: str) -> str:
-    """Rewrite the unicode spellings into the ASCII grammar (see the module docstring)."""
+    """Rewrite the unicode spellings into the ASCII grammar (see the module docstring): a chain
+    of prefix operators — the symbols ``⋆ δ Δ ♯ ♭ ∂ₜ`` and ``d`` without parentheses — applies
+    to the name, call or parenthesized group after it: ``Δu`` is ``laplacian(u)``, ``⋆d⋆(d u)``
+    is ``star(d(star(d(u))))``."""
     text = text.replace("∧", "^").replace("·", "*").replace("−", "-")
-    for symbol in sorted(_PREFIX, key=len, reverse=True):
-        name = _PREFIX[symbol]
-        # Δu → laplacian(u); Δ(u) → laplacian(u); ⋆d u is handled by repetition: ⋆(d(u))
-        text = re.sub(re.escape(symbol) + r"\s*(" + _IDENT + r")(?!\s*\()", name + r"(\1)", text)
-        text = text.replace(symbol, name)
-    return text
+    if not any(symbol in text for symbol in _PREFIX) and not re.search(r"\bd\s+[A-Za-z_(]", text):
+        return text
+    tokens = _TOKEN.findall(text)
+    out, i = [], 0
+
+    def operand(i: int) -> tuple[str, int]:
+        """The text of the operand starting at token i (after a prefix chain), and the next index."""
+        chain = []
+        while i < len(tokens) and (tokens[i] in _PREFIX or (tokens[i] == "d" and i + 1 < len(tokens)
+                                                                 and tokens[i + 1] != "(")):
+            chain.append(_PREFIX.get(tokens[i], tokens[i]))
+            i += 1
+        if i >= len(tokens):
+            return " ".join(chain), i
+        if tokens[i] == "(":
+            end = _matching(tokens, i)
+            inner = _normalize(" ".join(tokens[i + 1:end]))
+            body, i = f"({inner})", end + 1
+        elif tokens[i][:1].isidentifier():
+            body, i = tokens[i], i + 1
+            if i < len(tokens) and tokens[i] == "(":
+                end = _matching(tokens, i)
+                body += "(" + _normalize(" ".join(tokens[i + 1:end])) + ")"
+                i = end + 1
+        else:
+            body, i = tokens[i], i + 1
+        for name in reversed(chain):
+            body = f"{name}({body})"
+        return body, i
+
+    while i < len(tokens):
+        if tokens[i] in _PREFIX or (tokens[i] == "d" and i + 1 < len(tokens) and tokens[i + 1] != "("):
+            body, i = operand(i)
+            out.append(body)
+        else:
+            out.append(tokens[i])
+            i += 1
+    return " ".join(out)
+
+
+def _matching(tokens: list[str], start: int) -> int:
+    """Index of the ")" closing the "(" at ``start`` (the last token when unbalanced)."""
+    depth = 0
+    for j in range(start, len(tokens)):
+        depth += tokens[j] == "("
+        depth -= tokens[j] == ")"
+        if depth == 0:
+            return j
+    return len(tokens) - 1
 
 
 def _short(text: str, limit: int = 80) -> str:
@@ -108,13 +160,16 @@ def parse_expression(text, where: str) -> Node:
     if isinstance(text, bool):
         raise ModelError(f"{where}: expected an expression or a number, got {text!r}")
     if isinstance(text, (int, float)):
-        return Number(float(text))
+        return _number(text, where, repr(text))
     if not isinstance(text, str):
         raise ModelError(f"{where}: expected an expression (a string), got {type(text).__name__}")
     if len(text) > MAX_EXPRESSION_LENGTH:
         raise ModelError(f"{where}: the expression is {len(text)} characters long (at most "
                          f"{MAX_EXPRESSION_LENGTH}); split it into definitions")
-    source = _normalize(text).strip()
+    if "@" in text:
+        raise ModelError(f"{where}: the operator @ is not part of the model language (in {_short(text)!r}); write "
+                         "numbers, names, operator calls such as laplacian(u), and + - * / ** ^")
+    source = _normalize(text).strip().replace("^", "@")
     if not source:
         raise ModelError(f"{where}: the expression is empty")
     try:
@@ -124,6 +179,19 @@ def parse_expression(text, where: str) -> Node:
     except (RecursionError, MemoryError, ValueError):
         raise ModelError(f"{where}: cannot parse {_short(text)!r} (nested too deeply)") from None
     return _convert(tree.body, where, text, 0)
+
+
+def _number(value, where: str, shown: str) -> Number:
+    """A finite number (a literal such as 1e400 is inf to Python's parser, and 10**400 has no
+    float): anything else is refused."""
+    try:
+        number = float(value)
+    except OverflowError:
+        number = float("inf")
+    if not math.isfinite(number):
+        raise ModelError(f"{where}: a number in {shown!r} is not finite ({_short(str(value), 30)}); write a finite "
+                         "number")
+    return Number(number)
 
 
 def _refuse(node: ast.AST, where: str, text: str, what: str | None = None) -> ModelError:
@@ -146,7 +214,7 @@ def _convert(node: ast.AST, where: str, text: str, depth: int) -> Node:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise _refuse(node, where, text, "strings and other constants" if isinstance(value, str) else
                           f"the constant {value!r}")
-        return Number(float(value))
+        return _number(value, where, _short(text))
     if isinstance(node, ast.Name):
         if node.id.startswith("_"):
             raise ModelError(f"{where}: names starting with '_' are not part of the model language "
@@ -253,7 +321,7 @@ def names_in(node: Node) -> set[str]:
     return set()
 
 
-_PRECEDENCE = {"+": 1, "-": 1, "*": 2, "/": 2, "^": 3, "**": 4}
+_PRECEDENCE = {"+": 1, "-": 1, "*": 2, "/": 2, "^": 2, "**": 4}
 
 
 def to_text(node: Node) -> str:
@@ -274,7 +342,7 @@ def to_text(node: Node) -> str:
             text = to_text(child)
             if isinstance(child, Binary) and (_PRECEDENCE[child.op] < _PRECEDENCE[node.op] or
                                               (right and _PRECEDENCE[child.op] == _PRECEDENCE[node.op]
-                                               and node.op in "-/")):
+                                               and (node.op in "-/" or "^" in (node.op, child.op)))):
                 return f"({text})"
             if isinstance(child, Negate) and node.op != "+":
                 return f"({text})"

@@ -11,17 +11,21 @@ __all__ = ["model_metrics"]
 
 def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, integrator_name: str,
                   stability_limit: float | None = None) -> dict[str, Any]:
-    """The declared metrics at the end (``env``), then: ``stable`` (no step blew up and every
+    """The declared metrics at the end (``env``) and their names (``headline_metrics``, which a
+    sweep table shows by default), then: ``stable`` (no step blew up and every
     declared metric is finite), ``unstable_reason``/``diverged_at_step`` (only when not),
     the driver's ``steps_done``, ``solve_seconds``, ``steps_per_second``, ``step_seconds_max``,
     ``resumed_from_step`` (time-dependent models), ``t_final``, ``dt``, ``integrator``,
     ``dt_stability_limit`` and ``dt_over_stability_limit`` (explicit integrators with a
-    diffusion block), ``accepted_steps`` and ``rhs_evaluations`` (adaptive integrators), and per
+    diffusion block), ``accepted_steps`` and ``rhs_evaluations`` (adaptive integrators), ``factorizations``
+    (semi_implicit: one per step), and per
     singular solve ``<unknown>_kernel_pieces`` and ``<unknown>_rhs_mean_removed`` (the part of
     the right side along the kernel that was removed, relative)."""
     with np.errstate(all="ignore"):
         declared = model.metric_values(env)
     metrics: dict[str, Any] = dict(declared)
+    if declared:  # the sweep table shows these by default (decrun.runner.sweep.tables.HEADLINE_COLUMN)
+        metrics["headline_metrics"] = ",".join(declared)
     nonfinite = [name for name, value in declared.items() if not np.isfinite(value)]
     stable = True
     if report is not None:
@@ -41,6 +45,8 @@ def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, 
     if "accepted" in state:
         metrics["accepted_steps"] = int(state["accepted"])
         metrics["rhs_evaluations"] = int(state["evaluations"])
+    if "factorizations" in state:
+        metrics["factorizations"] = int(state["factorizations"])
     for name, kernel in model.solve_reports().items():
         metrics[f"{name}_kernel_pieces"] = int(kernel.pieces)
         metrics[f"{name}_rhs_mean_removed"] = float(kernel.removed)

@@ -226,22 +226,58 @@ def _flat_kind(args, n):
 
 
 def _average_kind(args, n):
-    _one_form(args, n, "average", lambda k: not k.dual and k.degree == 0, "a primal 0-form")
+    _one_form(args, n, "average", lambda k: k.degree == 0,
+              "a primal 0-form (values at vertices) or a dual 0-form (values per top simplex)")
     return primal(1)
+
+
+def _average_linear(ops: "Discrete", kind: Kind) -> Linear:
+    if kind.dual:  # one value per top simplex → the mean over the top simplices at each edge
+        return Linear(None, discrete.cell_to_edge_matrix(ops.K))
+    return Linear(None, ops.cached(("average", 1), lambda: discrete.average_matrix(ops.K, 1)))
+
+
+def _cell_average_kind(args, n):
+    _one_form(args, n, "cell_average", lambda k: not k.dual and k.degree == 0, "a primal 0-form")
+    return dual(0)
+
+
+def _cell_average_linear(ops: "Discrete", kind: Kind) -> Linear:
+    return Linear(None, ops.cached(("average", ops.n), lambda: discrete.average_matrix(ops.K, ops.n)))
+
+
+def _velocity(kind: Kind) -> bool:
+    """A velocity: a vector field, or a primal 1-form (a flux/circulation field, its ♯ taken)."""
+    return kind == VECTOR or (kind.is_form and not kind.dual and kind.degree == 1)
+
+
+def _as_vectors(ops: "Discrete", kind: Kind, value):
+    return value if kind == VECTOR else discrete.sharp(ops.K, value)
 
 
 def _interior_kind(args, n):
     field, form = args
-    if field != VECTOR or not (form.is_form and not form.dual and form.degree == 1):
-        raise Mismatch(f"interior takes a vector field and a primal 1-form, got a {field} and a {form}")
+    if not _velocity(field) or not (form.is_form and not form.dual and form.degree == 1):
+        raise Mismatch(f"interior takes a vector field (or a 1-form, its ♯) and a primal 1-form, got a {field} and a "
+                       f"{form}")
     return dual(0)
 
 
 def _lie_kind(args, n):
     field, form = args
-    if field != VECTOR or not (form.is_form and not form.dual and form.degree == 0):
-        raise Mismatch(f"lie takes a vector field and a primal 0-form, got a {field} and a {form}")
-    return primal(0)
+    if not _velocity(field) or not (form.is_form and not form.dual and form.degree in (0, 1)):
+        raise Mismatch(f"lie takes a vector field (or a 1-form, its ♯) and a primal 0- or 1-form, got a {field} and a "
+                       f"{form}")
+    if form.degree == 1 and n != 2:
+        raise Mismatch("lie of a 1-form is defined on triangle meshes here (dimension 2)")
+    return form
+
+
+def _lie_evaluate(ops: "Discrete", kinds, field, form):
+    vectors = _as_vectors(ops, kinds[0], field)
+    if kinds[1].degree == 0:
+        return discrete.lie_0(ops.K, vectors, form)
+    return discrete.lie_1(ops.K, vectors, form)
 
 
 # ------------------------------------------------------------------ measures
@@ -354,7 +390,7 @@ def _unary(function):
 #: value-by-value functions of one argument (numbers and forms)
 POINTWISE = {"exp": np.exp, "log": np.log, "sin": np.sin, "cos": np.cos, "tan": np.tan, "tanh": np.tanh,
              "sinh": np.sinh, "cosh": np.cosh, "arcsin": np.arcsin, "arccos": np.arccos, "arctan": np.arctan,
-             "sqrt": np.sqrt, "abs": np.abs}
+             "sqrt": np.sqrt, "abs": np.abs, "sign": np.sign}
 
 
 def _pointwise_rule(name):
@@ -401,17 +437,22 @@ _register(Operator("flat", (1,), "vector → primal 1-form (triangles)",
                    "ω_e = Σ_{f∋e} (|⋆e∩f|/|⋆e|) X_f·e (Hirani's primal-primal ♭), so −δ X♭ is the cotan "
                    "divergence",
                    _flat_kind, lambda ops, kinds, x: discrete.flat(ops.K, x)))
-_register(Operator("average", (1,), "primal 0-form → primal 1-form",
-                   "(u_a + u_b)/2 on each edge ab (a coefficient per edge)",
-                   _average_kind, lambda ops, kinds, x: discrete.average_matrix(ops.K, 1) @ x,
-                   lambda ops, kind: Linear(None, ops.cached(("average", 1), lambda: discrete.average_matrix(
-                       ops.K, 1)))))
-_register(Operator("interior", (2,), "vector, primal 1-form → dual 0-form",
-                   "i_X ω = X · ω♯ in each top simplex",
-                   _interior_kind, lambda ops, kinds, X, w: discrete.interior_1(ops.K, X, w)))
-_register(Operator("lie", (2,), "vector, primal 0-form → primal 0-form",
-                   "L_X u = i_X du = X·∇u per top simplex, volume-averaged to the vertices (centred advection)",
-                   _lie_kind, lambda ops, kinds, X, u: discrete.lie_0(ops.K, X, u)))
+_register(Operator("average", (1,), "primal 0-form → primal 1-form; dual 0-form → primal 1-form",
+                   "(u_a + u_b)/2 on each edge ab (a coefficient per edge); of a dual 0-form g (one value per "
+                   "top simplex): Σ_{σ∋e} g_σ / #{σ∋e}, the mean over the top simplices at the edge",
+                   _average_kind, lambda ops, kinds, x: _average_linear(ops, kinds[0]).A @ x, _average_linear))
+_register(Operator("cell_average", (1,), "primal 0-form → dual 0-form",
+                   "ū_σ = Σ_{v∈σ} u_v / (n+1), the mean over the vertices of each top simplex (its value at the "
+                   "barycentre)",
+                   _cell_average_kind, lambda ops, kinds, x: _cell_average_linear(ops, kinds[0]).A @ x,
+                   _cell_average_linear))
+_register(Operator("interior", (2,), "vector (or 1-form), primal 1-form → dual 0-form",
+                   "i_X ω = X · ω♯ in each top simplex (a 1-form velocity is taken through ♯)",
+                   _interior_kind, lambda ops, kinds, X, w: discrete.interior_1(ops.K, _as_vectors(ops, kinds[0], X), w)))
+_register(Operator("lie", (2,), "vector (or 1-form), primal 0- or 1-form → the same form",
+                   "L_X u = X·∇u per top simplex, volume-averaged to the vertices (centred advection); on 1-forms "
+                   "Cartan's L_X ω = i_X dω + d i_X ω",
+                   _lie_kind, _lie_evaluate))
 _register(Operator("norm", (1,), "vector → dual 0-form; form → number",
                    "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate))
 _register(Operator("integral", (1,), "0-form or n-form (primal or dual) → number",

@@ -24,6 +24,8 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.methods.model.language import ModelError
+
 __all__ = ["LinearSystem", "KernelReport", "COMPATIBILITY_LIMIT"]
 
 #: largest |Σ b| / Σ |b| accepted on a singular system (the part removed from b); beyond it the
@@ -88,7 +90,10 @@ class LinearSystem:
 
                 self.new_solver = solver_factory(None)
             solver = self.new_solver()
-            solver.factorize(self.A_full[self.free][:, self.free])
+            matrix = self.A_full[self.free][:, self.free]
+            if getattr(solver, "needs_spd", False) and not _symmetric(matrix.tocsr()):
+                raise UnsymmetricSystem(solver.name)
+            solver.factorize(matrix)
             self.solver = solver
 
     def solve(self, b: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
@@ -118,6 +123,14 @@ class LinearSystem:
             raise IncompatibleRightHandSide(float(relative.max()))
         totals = np.bincount(self.pieces, weights=self.mass)
         return b - (sums / totals)[self.pieces] * self.mass
+
+
+class UnsymmetricSystem(ModelError):
+    """A solver that needs SPD matrices was handed an unsymmetric one."""
+
+    def __init__(self, solver: str):
+        super().__init__(f"solver={solver}: needs a symmetric positive definite matrix, but this system is not "
+                         "symmetric; use `solver=direct` (or `solver=iterative`)")
 
 
 class IncompatibleRightHandSide(ValueError):

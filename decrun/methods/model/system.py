@@ -188,6 +188,20 @@ class CompiledModel:
             if what == "solve":
                 item.system.bind(new_solver)
 
+    def check_compatibility(self) -> None:
+        """Before any work: a singular solve (kernel of constants) whose right side reads only
+        inputs, constants and coordinates is checked for a solution now (its right side's mean
+        must be round-off), so the refusal comes before the run, not at its first step."""
+        computed = {item.unknown if what == "solve" else item[0] for what, item in self.order}
+        for what, item in self.order:
+            if what != "solve" or item.system.pieces is None:
+                continue
+            equation = item.equation
+            reads = self.compiler.reads(equation.rhs) | self.compiler.reads(equation.lhs)
+            if reads & (computed | set(self.evolved) | {"t"}) - {item.unknown}:
+                continue
+            item.system.solve_check(item.rhs(self.base))
+
     def kernel_lines(self) -> list[str]:
         """One log line per solve whose singular system had its kernel handled."""
         lines = []
@@ -383,7 +397,8 @@ def _order(definitions: dict[str, Equation], solves: list[Equation], known: set[
 
     def needs(equation: Equation) -> set[str]:
         reads = names_in(equation.rhs) | (names_in(equation.lhs) if equation.kind == "solve" else set())
-        return {name for name in reads if name in computed and name != equation.target}
+        # a solve reads its own unknown; a definition that reads itself is a cycle of one
+        return {name for name in reads if name in computed and (name != equation.target or equation.kind != "solve")}
 
     order, state = [], {}
 
@@ -488,13 +503,27 @@ def _compile_solve(equation: Equation, model: CompiledModel, new_solver: Callabl
         try:
             return original(b, fixed_values)
         except IncompatibleRightHandSide as error:
-            raise ModelError(f"{where}: on this mesh {to_text(equation.lhs)} is singular (constants are its kernel) and "
-                             f"the right side is not compatible: its integral is {error.relative:.2g} of its size; "
-                             f"subtract its mean, e.g. ({to_text(equation.rhs)}) - integral({to_text(equation.rhs)})"
-                             f"/integral(1 + 0*x)") from None
+            raise ModelError(_incompatible_message(where, equation, error.relative)) from None
+
+    def check_only(b):
+        try:
+            system._compatible(system.sign * np.asarray(b, dtype=np.float64))
+        except IncompatibleRightHandSide as error:
+            checked_error = error
+        else:
+            return
+        raise ModelError(_incompatible_message(where, equation, checked_error.relative)) from None
 
     system.solve = checked
+    system.solve_check = check_only
     return solve
+
+
+def _incompatible_message(where: str, equation: Equation, relative: float) -> str:
+    return (f"{where}: on this mesh {to_text(equation.lhs)} is singular (constants are its kernel, no border value "
+            f"fixes them) and the right side's integral is {relative:.2g} of its size, not zero: no solution exists; "
+            "subtract its mean (a right side f becomes f - integral(f)/integral(1 + 0*x)) or fix border values "
+            "(fields.<name>.dirichlet)")
 
 
 def _pure_laplacian(node: Node) -> bool:

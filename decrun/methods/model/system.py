@@ -157,9 +157,35 @@ class CompiledModel:
                 value = np.full(self.kinds[name].size(self.ops.K), float(value))
             if name in self.fixed:
                 value = np.array(value, dtype=np.float64)
+                constrained = self._constrained_masses().get(name)
+                if constrained is not None:  # a Galerkin ⋆: the interior rows of M u' = M F, as the implicit schemes
+                    M, inner, solve = constrained
+                    value[inner] = solve((M @ value)[inner])
                 value[self.fixed[name][0]] = 0.0  # fixed values do not move
             out[name] = value
         return out
+
+    def _constrained_masses(self) -> dict:
+        """field → (M, interior indices, solve with M_II) for each evolved field with fixed values
+        whose evolution is weighted by a non-diagonal mass M (Whitney's ⋆): there dt(u) at the
+        free values is M_II⁻¹ (M F)_I, not F_I — M⁻¹ spreads the border rows into the interior.
+        Made once; empty for diagonal stars."""
+        cached = getattr(self, "_constrained", None)
+        if cached is None:
+            from scipy.sparse.linalg import factorized
+
+            from decrun.methods.model.integrators import Evolution  # lazy: integrators imports this module
+
+            cached = {}
+            evolution = Evolution(self)
+            for name in self.fixed:
+                M = evolution.mass.get(name)
+                if M is None or (M - sp.diags(M.diagonal())).count_nonzero() == 0:
+                    continue
+                inner = np.setdiff1d(np.arange(M.shape[0]), self.fixed[name][0])
+                cached[name] = (M.tocsr(), inner, factorized(M.tocsr()[inner][:, inner].tocsc()))
+            self._constrained = cached
+        return cached
 
     def bind(self, new_solver: Callable) -> None:
         """Factorize every solve's system with ``new_solver()`` (the run's configured solver)."""

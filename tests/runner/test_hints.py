@@ -47,6 +47,7 @@ def files(tmp: Path) -> dict[str, str]:
         "degenerate": write_obj(tmp / "degenerate.obj", SQUARE + [[2, 0, 0]], FAN + [[0, 1, 5]]),
         "tets": str(tets),
         "result": _result_file(tmp),
+        "model_result": _model_result_file(tmp),
         "two_pieces": _two_pieces(tmp),
     }
 
@@ -69,8 +70,25 @@ def _result_file(tmp: Path) -> str:
     return str(tmp / "result.h5")
 
 
+def _model_result_file(tmp: Path) -> str:
+    """A finished heat-method run's result.h5 (fields delta, u, phi, X, distance) for chaining."""
+    from decrun.runner.run import write
+
+    (tmp / "model").mkdir(exist_ok=True)
+    write(run_experiment(compose_config(["app=heat_geodesics", "mesh.subdiv=1", "figures=false"])), tmp / "model")
+    return str(tmp / "model" / "result.h5")
+
+
 #: name → (overrides that fail, the overrides the hint must name)
 CASES = {
+    # the declarative models: an integrator that cannot take the model names one that can
+    "model_implicit_on_a_nonlinear_term": (["app=heat", "mesh.subdiv=2", "app.integrator=implicit_euler",
+                                            "app.equations=['dt(u) = k*laplacian(u) - u**3']"],
+                                           ["app.integrator=imex", "app.integrator=rk4"]),
+    "model_symplectic_without_pairs": (["app=heat", "mesh.subdiv=2", "app.integrator=symplectic"],
+                                       ["app.integrator=rk4", "app.integrator=crank_nicolson"]),
+    "model_result_field_not_chained": (["mesh=result", "mesh.path={model_result}", "mesh.field=phi", "app=heat",
+                                        "app.fields.u.initial=result:distance"], ["mesh.field=distance"]),
     # issue 27.4: a mesh of several pieces names the post step that keeps the largest
     "parametrization_of_two_pieces": (["mesh=file", "mesh.path={two_pieces}", "app=parametrization"],
                                       ["mesh.largest_component=true"]),
@@ -169,6 +187,8 @@ UNREACHABLE = {
                             "tests/runner/test_mesh_cut.py runs it and counts the pieces kept",
     "mesh.clean=false": "a log line's hint (mesh.clean dropped pieces): tests/runner/test_mesh_cut.py runs it",
     "mesh.largest_component=false": "a log line's hint of the step the user asked for; it is the default",
+    "mesh.field=''": "a chained field with NaN: tests/runner/test_export_and_chaining.py runs this fix",
+    "app.initial=random": "see mesh.field=''",
 }
 
 

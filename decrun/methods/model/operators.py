@@ -415,7 +415,7 @@ _register(Operator("inv_star", (1,), "dual k → primal n−k",
                    "⋆_{n−k}⁻¹ (a factorized solve for a Galerkin ⋆, never an inverse matrix)",
                    _inv_star_kind, None, _inv_star_linear))
 _register(Operator("codifferential", (1,), "primal k → primal k−1 (k ≥ 1)",
-                   "δ_k = ⋆_{k−1}⁻¹ d_{k−1}ᵀ ⋆_k (eq. 4.14); `boundary=flux` replaces δ_1 (§6.4.4)",
+                   "δ_k = ⋆_{k−1}⁻¹ d_{k−1}ᵀ ⋆_k (eq. 4.14); boundary=flux replaces δ_1 (§6.4.4)",
                    _codifferential_kind, lambda ops, kinds, x: ops.dec.codifferential(kinds[0].degree) @ x,
                    _codifferential_linear))
 _register(Operator("laplacian", (1,), "primal k → primal k",

@@ -111,6 +111,8 @@ APP_EXPECT = {  # the one claim of each app's default run
     "wave": lambda m: m["stable"] and m["projection"] > 0.9 and m["steps_done"] == 5130,
     "mcf": lambda m: m["stable"] and m["steps_done"] == 10,
     "heat_geodesics": lambda m: abs(m["min_distance"]) < 1e-12 and abs(m["max_distance"] - math.pi) < 0.1,
+    # reaction–diffusion (issue 40): Gray–Scott's default seed grows a spot (v_std > 0.02)
+    "gray_scott": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
 }
 
 
@@ -157,6 +159,9 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     "heat_sphere": lambda m: m["stable"] and m["l2_error_rel"] < 5e-3,
     "heat_geodesics_sphere": lambda m: m["mean_relative_error"] < 0.01,
     "poisson_sphere": lambda m: m["l2_error_rel"] < 0.01 and m["u_kernel_pieces"] == 1,
+    # Gray–Scott at Pearson's (F, k) = (0.035, 0.065): spots on the square and on the sphere
+    "gray_scott_pearson": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
+    "gray_scott_sphere": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
 }
 
 

@@ -82,3 +82,47 @@ def test_gray_scott_default_grows_a_pattern_and_a_stable_pair_stays_uniform():
 def test_gray_scott_pearson_regimes_on_the_square_and_the_sphere(experiment, F, k, formed):
     result = metrics([f"+experiment={experiment}", f"app.constants.F={F}", f"app.constants.k={k}"])
     assert result["stable"] and (result["v_std"] > 0.02) == formed and result["pattern"] == float(formed)
+
+
+# ---------------------------------------------------------------------------- Brusselator
+def extrema_growth_rate(times, values):
+    """σ of values ≈ e^{σt}(a cos ωt + b sin ωt): the local extrema of such a function are
+    equally spaced (tan(ωt + φ) = σ/ω) and grow by e^{σπ/ω} from one to the next, so the slope
+    of a least-squares line through (t_i, log|values(t_i)|) at the sampled extrema is σ.
+    Each extremum is located by a parabola through the three samples around it."""
+    t, f = np.asarray(times), np.asarray(values)
+    points = []
+    for i in range(1, len(f) - 1):
+        if (f[i] - f[i - 1]) * (f[i + 1] - f[i]) < 0:
+            a = 0.5 * (f[i + 1] - 2 * f[i] + f[i - 1])
+            b = 0.5 * (f[i + 1] - f[i - 1])
+            s = -b / (2 * a)
+            points.append((t[i] + s * (t[1] - t[0]), abs(f[i] + b * s + a * s * s)))
+    ts, amplitudes = np.array(points).T
+    return np.polyfit(ts, np.log(amplitudes), 1)[0], len(ts)
+
+
+@pytest.mark.parametrize("B", [1.8, 2.2])
+def test_brusselator_growth_rate_matches_the_linearized_eigenvalue(B):
+    """Below (B = 1.8) and above (B = 2.2) the Hopf point B = 1 + A² = 2: a homogeneous
+    perturbation eps = 1e-6 of (A, B/A) decays/grows at Re λ of J = [[B−1, A²], [−B, −A²]]
+    (numpy's eigenvalues), to 5 % — measured from the extrema of u − A over 30 time units
+    (about 5 periods), and by the model's own metric growth_rate_measured."""
+    A = 1.0
+    overrides = ["app=brusselator", f"app.constants.B={B}", "app.constants.eps=1e-6"]
+    app, dec, model, integrator = prepared(overrides)
+    sigma = np.linalg.eigvals(np.array([[B - 1, A * A], [-B, -A * A]])).real.max()
+    state = {u: np.array(model.initial_values[u]) for u in model.evolved}
+    times, deviation = [0.0], [float(np.mean(state["u"])) - A]
+    for n in range(app.total_steps()):
+        state = integrator.step(state, n * app.dt)
+        times.append((n + 1) * app.dt)
+        deviation.append(float(np.mean(state["u"])) - A)
+    assert np.ptp(state["u"]) < 1e-12  # homogeneous it stays (diffusion sees no gradient)
+    measured, extrema = extrema_growth_rate(times, deviation)
+    assert extrema >= 8
+    assert measured == pytest.approx(sigma, rel=0.05)
+    assert (measured > 0) == (B > 1 + A * A)
+    result = metrics(overrides)
+    assert result["growth_rate_linear"] == pytest.approx(sigma, rel=1e-12)
+    assert result["growth_rate_measured"] == pytest.approx(sigma, rel=0.05)

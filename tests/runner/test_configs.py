@@ -113,6 +113,8 @@ APP_EXPECT = {  # the one claim of each app's default run
     "heat_geodesics": lambda m: abs(m["min_distance"]) < 1e-12 and abs(m["max_distance"] - math.pi) < 0.1,
     # reaction–diffusion (issue 40): Gray–Scott's default seed grows a spot (v_std > 0.02)
     "gray_scott": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
+    # the Brusselator beyond its Hopf point (B = 2.5 > 1 + A²): the homogeneous state is left
+    "brusselator": lambda m: m["stable"] and m["growth_rate_linear"] > 0 and m["deviation_rms"] > 0.1,
 }
 
 
@@ -162,6 +164,8 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     # Gray–Scott at Pearson's (F, k) = (0.035, 0.065): spots on the square and on the sphere
     "gray_scott_pearson": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
     "gray_scott_sphere": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
+    # the Brusselator at B = 2.2: a small perturbation grows at Re λ = 0.1 of its linearization
+    "brusselator_hopf": lambda m: m["stable"] and abs(m["growth_rate_measured"] / m["growth_rate_linear"] - 1) < 0.05,
 }
 
 

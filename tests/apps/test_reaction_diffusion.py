@@ -126,3 +126,21 @@ def test_brusselator_growth_rate_matches_the_linearized_eigenvalue(B):
     result = metrics(overrides)
     assert result["growth_rate_linear"] == pytest.approx(sigma, rel=1e-12)
     assert result["growth_rate_measured"] == pytest.approx(sigma, rel=0.05)
+
+
+# ---------------------------------------------------------------------------- explicit(·)
+def test_explicit_keeps_a_linear_term_out_of_the_implicit_matrix():
+    """imex on dt(u) = k Δ explicit(u) is explicit Euler on dt(u) = k Δu (to round-off), while
+    imex on dt(u) = k Δu is implicit Euler; every other integrator reads explicit(u) as u."""
+    base = ["app=heat", "mesh.subdiv=2", "app.dt=1e-4"]
+    lagged = 'app.equations=["dt(u) = k*laplacian(explicit(u))"]'
+    *_, model, imex = prepared([*base, lagged, "app.integrator=imex"])
+    assert not imex.evolution.blocks  # nothing implicit
+    *_, model_e, euler = prepared([*base, "app.integrator=explicit_euler"])
+    *_, model_i, implicit = prepared([*base, "app.integrator=implicit_euler"])
+    *_, model_r, rk4_lagged = prepared([*base, lagged, "app.integrator=rk4"])
+    *_, model_r2, rk4 = prepared([*base, "app.integrator=rk4"])
+    a, b = steps(model, imex, 20), steps(model_e, euler, 20)
+    assert np.abs(a["u"] - b["u"]).max() <= 1e-13 * np.abs(b["u"]).max()
+    assert np.abs(a["u"] - steps(model_i, implicit, 20)["u"]).max() > 1e-9  # and it is a different scheme
+    assert np.abs(steps(model_r, rk4_lagged, 20)["u"] - steps(model_r2, rk4, 20)["u"]).max() == 0

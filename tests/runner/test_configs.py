@@ -115,6 +115,9 @@ APP_EXPECT = {  # the one claim of each app's default run
     "gray_scott": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
     # the Brusselator beyond its Hopf point (B = 2.5 > 1 + A²): the homogeneous state is left
     "brusselator": lambda m: m["stable"] and m["growth_rate_linear"] > 0 and m["deviation_rms"] > 0.1,
+    # Cahn–Hilliard separates (c reaches ±1) with its mass 0.0991 of the start kept
+    "cahn_hilliard": lambda m: m["stable"] and abs(m["mass"] / 0.0991164229027186 - 1) < 1e-12
+    and m["c_min"] < -0.9 and m["c_max"] > 0.9,
 }
 
 
@@ -166,6 +169,8 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     "gray_scott_sphere": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
     # the Brusselator at B = 2.2: a small perturbation grows at Re λ = 0.1 of its linearization
     "brusselator_hopf": lambda m: m["stable"] and abs(m["growth_rate_measured"] / m["growth_rate_linear"] - 1) < 0.05,
+    # Cahn–Hilliard coarsening: separated, the free energy down from 0.2517 at the start
+    "cahn_hilliard_coarsening": lambda m: m["stable"] and m["free_energy"] < 0.5 * 0.2517 and m["c_min"] < -0.9,
 }
 
 

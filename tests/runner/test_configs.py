@@ -118,6 +118,8 @@ APP_EXPECT = {  # the one claim of each app's default run
     # Cahn–Hilliard separates (c reaches ±1) with its mass 0.0991 of the start kept
     "cahn_hilliard": lambda m: m["stable"] and abs(m["mass"] / 0.0991164229027186 - 1) < 1e-12
     and m["c_min"] < -0.9 and m["c_max"] > 0.9,
+    # Klausmeier on the (too small for bands) default grid: it runs, the vegetation stays near n*
+    "klausmeier": lambda m: m["stable"] and abs(m["n_mean"] - 1.3459) < 0.05,
 }
 
 
@@ -171,6 +173,8 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     "brusselator_hopf": lambda m: m["stable"] and abs(m["growth_rate_measured"] / m["growth_rate_linear"] - 1) < 0.05,
     # Cahn–Hilliard coarsening: separated, the free energy down from 0.2517 at the start
     "cahn_hilliard_coarsening": lambda m: m["stable"] and m["free_energy"] < 0.5 * 0.2517 and m["c_min"] < -0.9,
+    # Klausmeier's bands on a slope: biomass peaks (n > 3) over bare soil, from 1 % noise
+    "klausmeier_bands": lambda m: m["stable"] and m["n_max"] > 3 and m["n_std"] > 0.5,
 }
 
 

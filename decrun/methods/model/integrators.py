@@ -602,7 +602,7 @@ def _term_pattern(compiler, node, v: str, rows: int, cols: int, where: str) -> s
                     raise ModelError(f"{where}: integrator=bdf/radau: {to_text(node)} has no sparse matrix here; use "
                                      "`app.integrator=imex`")
                 return _structure(step.A) @ _structure(parts[0])
-            if operator.name in ("exp", "log", "sin", "cos", "tanh", "sqrt", "abs", "max", "min") and \
+            if operator.name in ("exp", "log", "sin", "cos", "tanh", "sqrt", "abs", "max", "min", "explicit") and \
                     all(p.shape[0] == p.shape[1] or True for p in parts):
                 total = parts[0]
                 for p in parts[1:]:

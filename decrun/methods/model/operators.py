@@ -472,6 +472,16 @@ _register(Operator("mean", (1,), "form → number", "the arithmetic mean of the 
 _register(Operator("vertex", (1,), "number i → primal 0-form",
                    "the indicator of vertex i (1 there, 0 elsewhere): a point source", _vertex_kind,
                    _vertex_evaluate))
+def _explicit_kind(args, n):
+    return args[0]
+
+
+_register(Operator("explicit", (1,), "anything → the same",
+                   "the argument's value at the start of the step: a term under explicit(·) is never put into an "
+                   "implicit integrator's matrix (imex splittings: s*laplacian(c) - D*laplacian(explicit(s*c)) "
+                   "stabilizes; convex splitting); the identity for every other use",
+                   _explicit_kind, lambda ops, kinds, x: x))
+
 for _name, _function in POINTWISE.items():
     _register(Operator(_name, (1,), "number or form → the same", f"{_name} of each value",
                        _pointwise_rule(_name), _unary(_function)))

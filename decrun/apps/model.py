@@ -122,7 +122,7 @@ class Model(App):
             fitted = self.t_end / max(1, math.ceil(ratio))
             # `++`: a model's YAML need not list `steps`, and Hydra refuses `app.steps=` for a key it lacks
             raise ConfigError(f"app.t_end={self.t_end:g} is not a whole number of steps of app.dt={self.dt:g} "
-                              f"({ratio:.6g}); use `app.dt={fitted:.12g}` (or `++app.steps={max(1, round(ratio))} "
+                              f"({ratio:.6g}); use `app.dt={fitted:.12g}` (or `app.steps={max(1, round(ratio))} "
                               "app.t_end=null`)")
         return count
 

@@ -400,10 +400,9 @@ def root_value_message(exc: Exception) -> str | None:
     if cause is None or match is None:
         return None
     key, value = match.groups()
-    text = str(cause).splitlines()[0]
-    if "bool" in text:
-        return f"error: {key}={value}: not a boolean; use `{key}=true` or `{key}=false`"
-    return f"error: {key}={value}: {text}"
+    if "not a valid bool" not in str(cause):  # other types keep their own handling (closed choices)
+        return None
+    return f"error: {key}={value}: not a boolean; use `{key}=true` or `{key}=false`"
 
 
 def _choices_of(cause: BaseException | None) -> type[Choice] | None:

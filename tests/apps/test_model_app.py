@@ -125,7 +125,7 @@ def test_every_adaptive_integrator_meets_its_tolerance_and_conserves_mass(semi_d
     1.7e-8; rk45 1.7e-11: the reference's own round-off)."""
     measure = semi_discrete[0]
     error, drift = measure(f"app.integrator={scheme}", "app.dt=0.01")
-    tight, _ = measure(f"app.integrator={scheme}", "app.dt=0.01", "+app.rtol=1e-9", "+app.atol=1e-12")
+    tight, _ = measure(f"app.integrator={scheme}", "app.dt=0.01", "app.rtol=1e-9", "app.atol=1e-12")
     assert error < 1e-4 and tight < 1e-7 and (tight < error / 100 or tight < 1e-10), (error, tight)
     assert drift < 1e-12
 
@@ -497,12 +497,13 @@ def test_bad_input_through_the_command_and_the_t_end_hint_runs(tmp_path):
     assert metrics["steps_done"] == 34 and metrics["t_final"] == pytest.approx(0.1, rel=1e-12)
 
 
-def test_the_t_end_refusals_other_hint_runs_on_a_model_whose_yaml_has_no_steps():
-    """heat.yaml lists no `steps`: `app.steps=N` is refused by Hydra there; the hint says `++`."""
+def test_the_t_end_refusals_other_hint_runs():
+    """The second hint, `app.steps=N app.t_end=null`, runs as printed (every model's YAML lists
+    `steps` through conf/app/_model.yaml, so no `+` is needed)."""
     with pytest.raises(DecrunError) as refused:
         prepare(compose_config(["app=heat", "app.dt=0.003"]))
     hint = re.search(r"\(or `([^`]+)`\)", str(refused.value)).group(1)
-    assert hint == "++app.steps=33 app.t_end=null"
+    assert hint == "app.steps=33 app.t_end=null"
     metrics = run("app=heat", "app.dt=0.003", *hint.split()).result.metrics
     assert metrics["steps_done"] == 33 and metrics["t_final"] == pytest.approx(0.099)
 

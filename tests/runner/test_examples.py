@@ -63,8 +63,8 @@ def examples() -> list[tuple[str, str]]:
         for line in path.read_text().splitlines():
             comment = line.split("#", 1)[1] if "#" in line else ""
             match = re.match(r"\s+(decrun\s.*)$", comment)
-            if match:
-                found.append((where, match.group(1).strip()))
+            if match:  # a description may follow the command after two or more spaces
+                found.append((where, re.split(r"\s{2,}", match.group(1).strip())[0]))
             found += [(where, c) for c in _commands_in(comment)]
             example = re.search(r"Example: ((?:[\w.+/]+=\S+ ?)+)", comment)
             if example:

@@ -82,11 +82,12 @@ def worker_died(exc: BaseException) -> bool:
     return any(cls.__name__ in DIED for cls in type(exc).__mro__)
 
 
-def mark_killed(stock: Stock, cause: str) -> None:
+def mark_killed(stock: Stock, cause: str, why: str | None = None) -> None:
     """Write ``{"status": "killed", "error": ..., "config_hash": ...}`` to the ``metrics.json``
     of each running job of ``stock`` (its process died: nothing else will), keeping what
     its journal says (how many steps were recorded). A job that wrote its own metrics.json
-    meanwhile is left as it is."""
+    meanwhile is left as it is. ``why``: what stopped it, instead of "its worker process
+    died (<cause>)"."""
     from decrun.runner.results.provenance import write_metrics_json  # lazy: h5py (start-up speed)
 
     for job in stock.running:
@@ -96,7 +97,7 @@ def mark_killed(stock: Stock, cause: str) -> None:
             continue
         detail = (state["error"].split(" (")[0] if state["status"] == "killed" else "killed before its first step")
         write_metrics_json(RunFiles(where).metrics, {"status": "killed",
-                                                    "error": f"{detail}: its worker process died ({cause})",
+                                                    "error": f"{detail}: {why or f'its worker process died ({cause})'}",
                                                     "config_hash": job["config_hash"]})
 
 

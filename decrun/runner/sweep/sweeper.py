@@ -47,6 +47,8 @@ from decrun.runner.paths import hydra_files
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
 from decrun.runner.sweep import local
+from decrun.runner.sweep.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, joblib_timeout, launch_failure, \
+    launcher_choice, preflight, timed_out
 from decrun.runner.sweep.grid import grid
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
@@ -87,6 +89,8 @@ class DecrunSweeperConf:
     #: composes every job itself (its public load_sweep_config; 179x slower to plan:
     #: benchmarks/bench_sweeps.py --only planning)
     derive: bool = True
+    #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.sweep.launchers)
+    connect_timeout: float = CONNECT_TIMEOUT
 
 
 class ManifestSweeper(Sweeper):
@@ -97,10 +101,14 @@ class ManifestSweeper(Sweeper):
     Hydra (``class DecrunSweeper(ManifestSweeper)``)."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
-                 resume: bool = False, derive: bool = True):
+                 resume: bool = False, derive: bool = True, connect_timeout: float = CONNECT_TIMEOUT):
         super().__init__()
         self.max_batch_size, self.params = max_batch_size, dict(params or {})
         self.resume, self.derive = resume, derive
+        if not connect_timeout or connect_timeout <= 0:
+            refuse(SweepError(f"error: hydra.sweeper.connect_timeout={connect_timeout}: must be a number of seconds "
+                              f"above 0; use hydra.sweeper.connect_timeout={CONNECT_TIMEOUT:g}"))
+        self.connect_timeout = float(connect_timeout)
         self.hydra_context = self.config = self.launcher = None
         self.check: Optional[Callable[[Any], Any]] = None
 
@@ -225,6 +233,9 @@ class ManifestSweeper(Sweeper):
 
     def _sweep(self, arguments: List[str]) -> Any:
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
+        cannot = preflight(self.launcher, self.config, self.connect_timeout)  # before planning: nothing written
+        if cannot:
+            raise SweepError(cannot)
         warming = self._warm_workers()
         try:
             jobs = self.plan(arguments)
@@ -247,9 +258,22 @@ class ManifestSweeper(Sweeper):
                 exc.sweep_stock = take_stock(sweep_dir, todo)
                 raise
             except Exception as exc:
-                if not worker_died(exc):
+                if worker_died(exc):
+                    self._end_killed(sweep_dir, manifest, todo, exc)
+                if timed_out(self.launcher, exc):
+                    limit = float(joblib_timeout(self.launcher))
+                    self._end_early(sweep_dir, manifest, todo, exc, "killed",
+                                    f"{launcher_choice(self.config)}: a job ran longer than hydra.launcher.timeout="
+                                    f"{limit:g} s and joblib stopped the batch's workers",
+                                    f"resume with no time limit: {NO_TIME_LIMIT.command(_resuming(sweep_dir))}",
+                                    why=f"joblib stopped its worker (a job of its batch ran longer than "
+                                        f"hydra.launcher.timeout={limit:g} s)")
+                failure = launch_failure(self.launcher, self.config, exc)
+                if failure is None:
                     raise
-                self._end_killed(sweep_dir, manifest, todo, exc)
+                what, fix = failure
+                self._end_early(sweep_dir, manifest, todo, exc, "not finished", what,
+                                f"resume with: {fix.command(_resuming(sweep_dir))}")
             for r in results:
                 _ = r.return_value  # re-raise a job's exception, as the basic sweeper does
             returns.append(results)
@@ -262,15 +286,26 @@ class ManifestSweeper(Sweeper):
         jobs that had started and not finished ``killed``, record them in the manifest's run,
         write the table (the sweep's callbacks), then end with one line naming them and the
         command that resumes the rest (exit 1). No later batch is launched."""
+        self._end_early(sweep_dir, manifest, todo, exc, "killed", f"a worker process died ({type(exc).__name__})",
+                        f"resume the rest with: {resume_command(sweep_dir)}", table=True)
+
+    def _end_early(self, sweep_dir: Path, manifest: dict, todo: list[dict], exc: Exception, verb: str, what: str,
+                   fix: str, why: Optional[str] = None, table: bool = False) -> None:
+        """End the sweep after its launcher stopped (a worker died, a job over its time
+        limit, jobs that could not be submitted): the jobs that had started and not
+        finished marked ``killed`` (``why``: by what) and recorded in the manifest's run,
+        the table written when a job of this run started (or ``table``), then one line
+        ``error: <what>: <which jobs finished, which are <verb>>; <fix>`` (exit 1). The
+        manifest stays: ``hydra.sweeper.resume=true`` reruns what is not ok."""
         stock = take_stock(sweep_dir, todo)
-        mark_killed(stock, type(exc).__name__)
-        manifest["runs"][-1]["killed"] = [j["job"] for j in stock.running]
+        if stock.running:
+            mark_killed(stock, type(exc).__name__, why=why)
+            manifest["runs"][-1]["killed"] = [j["job"] for j in stock.running]
         write_manifest(sweep_dir, manifest)
         callbacks = getattr(self.hydra_context, "callbacks", None)
-        if callbacks is not None:
+        if callbacks is not None and (table or stock.running or stock.finished):
             callbacks.on_multirun_end(config=self.config)
-        raise SweepError(f"error: a worker process died ({type(exc).__name__}): {stock.describe('killed')}; "
-                         f"resume the rest with: {resume_command(sweep_dir)}") from exc
+        raise SweepError(f"error: {what}: {stock.describe(verb)}; {fix}") from exc
 
     def _launch(self, overrides: list[list[str]], first: int) -> Sequence[Any]:
         """The launcher's results for one batch. With submitit's SLURM launcher, job states
@@ -378,6 +413,11 @@ def _connect_ray_as_is(launcher) -> None:
         return
     with open_dict(init) if OmegaConf.is_config(init) else contextlib.nullcontext():
         init["object_store_memory"] = None
+
+
+def _resuming(sweep_dir: Path) -> list[str]:
+    """The overrides that resume the sweep in ``sweep_dir``."""
+    return [f"hydra.sweep.dir={sweep_dir}", "hydra.sweeper.resume=true"]
 
 
 def _quoted(text: str) -> str:

@@ -23,10 +23,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
+from decrun.runner.interrupts import ignore_interrupts
 from decrun.runner.sweep.manifest import job_dir_name, job_state
 from decrun.runner.files import RunFiles
 
-__all__ = ["Stock", "take_stock", "worker_died", "mark_killed", "resume_command", "job_list"]
+__all__ = ["Stock", "take_stock", "worker_died", "mark_killed", "resume_command", "job_list", "ignore_interrupts"]
 
 #: exceptions a launcher raises when a worker process died under a job (by class name:
 #: the launchers' packages are optional)
@@ -108,3 +109,4 @@ def resume_command(sweep_dir: Path, argv: Sequence[str] | None = None) -> str:
     argv = list(sys.argv[1:] if argv is None else argv)
     kept = [a for a in argv if not a.lstrip("+~").startswith(("hydra.sweep.dir=", "hydra.sweeper.resume="))]
     return shlex.join(["decrun", *kept, f"hydra.sweep.dir={sweep_dir}", "hydra.sweeper.resume=true"])
+

@@ -30,6 +30,7 @@ import os
 import shutil
 import sys
 import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence
@@ -49,11 +50,11 @@ from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
 from decrun.runner.sweep import local
 from decrun.runner.sweep.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, joblib_timeout, launch_failure, \
     launcher_choice, preflight, timed_out
-from decrun.runner.sweep.grid import grid
+from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
 from decrun.runner.sweep.planning import Composer, PlannedConfigs, subdir_of
-from decrun.runner.sweep.stops import mark_killed, resume_command, take_stock, worker_died
+from decrun.runner.sweep.stops import ignore_interrupts, mark_killed, resume_command, take_stock, worker_died
 from decrun.runner.files import RunFiles, SweepFiles
 
 log = logging.getLogger("decrun")
@@ -91,6 +92,9 @@ class DecrunSweeperConf:
     derive: bool = True
     #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.sweep.launchers)
     connect_timeout: float = CONNECT_TIMEOUT
+    #: the most jobs a sweep may plan (each is composed, checked and hashed before the first starts);
+    #: a larger grid is refused at once, naming this key
+    max_jobs: int = MAX_JOBS
 
 
 class ManifestSweeper(Sweeper):
@@ -101,7 +105,8 @@ class ManifestSweeper(Sweeper):
     Hydra (``class DecrunSweeper(ManifestSweeper)``)."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
-                 resume: bool = False, derive: bool = True, connect_timeout: float = CONNECT_TIMEOUT):
+                 resume: bool = False, derive: bool = True, connect_timeout: float = CONNECT_TIMEOUT,
+                 max_jobs: int = MAX_JOBS):
         super().__init__()
         self.max_batch_size, self.params = max_batch_size, dict(params or {})
         self.resume, self.derive = resume, derive
@@ -109,6 +114,9 @@ class ManifestSweeper(Sweeper):
             refuse(SweepError(f"error: hydra.sweeper.connect_timeout={connect_timeout}: must be a number of seconds "
                               f"above 0; use hydra.sweeper.connect_timeout={CONNECT_TIMEOUT:g}"))
         self.connect_timeout = float(connect_timeout)
+        self.max_jobs = max_jobs
+        #: (jobs planned, jobs to plan) while the sweep is planned
+        self.planned = (0, 0)
         self.hydra_context = self.config = self.launcher = None
         self.check: Optional[Callable[[Any], Any]] = None
 
@@ -141,26 +149,36 @@ class ManifestSweeper(Sweeper):
         parser = OverridesParser.create(config_loader=loader)
         overrides = parser.parse_overrides(self._parse_config() + list(arguments))
         try:
-            planned = [tuple(job) for job in grid(overrides)]
+            size, swept = grid_size(overrides)
         except ValueError as exc:
             raise SweepError(f"error: {exc}") from exc
+        if size > self.max_jobs:  # before a job is made: a grid may be too large to hold
+            raise SweepError(_too_many(size, swept, self.max_jobs))
+        planned = [tuple(job) for job in grid(overrides)]
         self._composer = Composer(loader, self.config, derive=self.derive)
         check = self.check
         jobs: list[dict[str, Any]] = []
-        for i, (job, cfg, template) in enumerate(self._composer.each(planned)):
-            if check is not None:
-                try:
-                    if template is None:
-                        check(cfg)
-                    else:
-                        check(cfg, delta=JobDelta(id(template), template.varying_keys, template.interpolated))
-                except DecrunError as exc:
-                    raise SweepError(f"error: job {i} ({' '.join(job)}): {exc}; nothing ran") from exc
-            fast = template is not None and not self._composer.hydra_needed(template)
-            jobs.append({"job": str(i), "dir": subdir_of(template.subdir, i) if fast else self._job_dir(cfg, i),
-                         "overrides": list(job),
-                         "config_hash": config_hash(cfg, template.blocks, template.fresh) if template is not None
-                         else config_hash(cfg)})
+        shown = PlanningProgress(len(planned), enabled=_terminal(self.config))
+        self.planned = (0, len(planned))
+        try:
+            for i, (job, cfg, template) in enumerate(self._composer.each(planned)):
+                self.planned = (i, len(planned))
+                shown.update(i)
+                if check is not None:
+                    try:
+                        if template is None:
+                            check(cfg)
+                        else:
+                            check(cfg, delta=JobDelta(id(template), template.varying_keys, template.interpolated))
+                    except DecrunError as exc:
+                        raise SweepError(f"error: job {i} ({' '.join(job)}): {exc}; nothing ran") from exc
+                fast = template is not None and not self._composer.hydra_needed(template)
+                jobs.append({"job": str(i), "dir": subdir_of(template.subdir, i) if fast else self._job_dir(cfg, i),
+                             "overrides": list(job),
+                             "config_hash": config_hash(cfg, template.blocks, template.fresh) if template is not None
+                             else config_hash(cfg)})
+        finally:
+            shown.close()
         _check_dirs(jobs, OmegaConf.to_container(self.config.hydra.sweep, resolve=False)["subdir"])
         return jobs
 
@@ -239,6 +257,11 @@ class ManifestSweeper(Sweeper):
         warming = self._warm_workers()
         try:
             jobs = self.plan(arguments)
+        except KeyboardInterrupt as exc:  # the decrun command says where (cli.main)
+            done, total = self.planned
+            exc.sweep_where = (f"while the sweep was planned ({done} of {total} jobs checked); nothing was written"
+                               if total else "while the sweep was planned; nothing was written")
+            raise
         finally:
             if warming is not None:
                 warming.join()
@@ -255,6 +278,7 @@ class ManifestSweeper(Sweeper):
             try:
                 results = self._launch(launched[start:stop], int(todo[start]["job"]))
             except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (cli.main)
+                ignore_interrupts()  # a second Ctrl-C while the jobs are counted is ignored (the sweep is ending)
                 exc.sweep_stock = take_stock(sweep_dir, todo)
                 raise
             except Exception as exc:
@@ -413,6 +437,56 @@ def _connect_ray_as_is(launcher) -> None:
         return
     with open_dict(init) if OmegaConf.is_config(init) else contextlib.nullcontext():
         init["object_store_memory"] = None
+
+
+def _too_many(size: int, swept: list[tuple[str, int]], limit: int) -> str:
+    """The refusal of a grid of ``size`` jobs over ``hydra.sweeper.max_jobs=limit``."""
+    product = " × ".join(f"{key}: {n} values" for key, n in swept)
+    return (f"error: hydra.sweeper.max_jobs={limit}: this sweep has {size:,} jobs ({product}), more than the "
+            f"limit (every job is composed, checked and hashed before the first starts: ~1-3 ms a job); nothing "
+            f"ran; plan them all with hydra.sweeper.max_jobs={size}, or sweep fewer values")
+
+
+def _terminal(config) -> bool:
+    """Whether to show progress: ``progress`` is on and stderr is a terminal (not under pytest)."""
+    return bool(config.get("progress", True)) and sys.stderr.isatty() and "PYTEST_CURRENT_TEST" not in os.environ
+
+
+class PlanningProgress:
+    """``decrun: planning the sweep: <i> of <n> jobs checked (<p> %), ~<s> s left`` on one
+    terminal line, redrawn at most every ``every`` seconds once planning has taken
+    ``after`` seconds, and erased when planning ends (:meth:`close`). A no-op unless ``enabled``."""
+
+    def __init__(self, total: int, enabled: bool, after: float = 0.5, every: float = 0.25, stream=None):
+        self.total, self.enabled, self.after, self.every = total, enabled, after, every
+        self.stream = stream if stream is not None else sys.stderr
+        self.start = time.monotonic()
+        self._next = self.start + after
+        self._drawn = False
+        self._first: Optional[tuple[float, int]] = None
+
+    def update(self, done: int) -> None:
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if now < self._next:
+            return
+        self._next = now + self.every
+        if self._first is None:  # the rate from the first job checked (the groups' compositions come before it)
+            self._first = (now, done)
+        then, before = self._first
+        left = (now - then) / (done - before) * (self.total - done) if done - before >= 5 else None
+        eta = f", ~{left:.0f} s left" if left is not None else ""
+        self.stream.write(f"\rdecrun: planning the sweep: {done:,} of {self.total:,} jobs checked "
+                          f"({100 * done // max(self.total, 1)} %){eta}\033[K")
+        self.stream.flush()
+        self._drawn = True
+
+    def close(self) -> None:
+        if self._drawn:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+            self._drawn = False
 
 
 def _resuming(sweep_dir: Path) -> list[str]:

@@ -245,20 +245,44 @@ class Fix:
         return command_with(argv, [*self.set_, *extra], drop=self.drop)
 
 
+def _chain(exc: BaseException) -> Iterator[BaseException]:
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        yield exc
+        exc = exc.__cause__ or exc.__context__
+
+
+def _submission_failed(exc: BaseException) -> bool:
+    """Whether submitit could not submit (no ``srun``/``sbatch``, ``sbatch`` refused: its
+    ``FailedJobError`` comes from the ``CalledProcessError`` of the submission command)."""
+    import subprocess
+
+    for link in _chain(exc):
+        if type(link).__name__ == "FailedSubmissionError" or '"srun"' in str(link):
+            return True
+        if isinstance(link, FileNotFoundError) and os.path.basename(str(link.filename or "")) in SLURM_COMMANDS:
+            return True
+        if isinstance(link, subprocess.CalledProcessError):
+            command = link.cmd if isinstance(link.cmd, (list, tuple)) else str(link.cmd).split()
+            return bool(command) and os.path.basename(str(command[0])) in SLURM_COMMANDS
+    return False
+
+
+def _last_line(exc: BaseException) -> str:
+    """The last line of what failed (sbatch's error), or of the exception's message."""
+    text = str(exc).strip()
+    return text.splitlines()[-1] if text else ""
+
+
 def launch_failure(launcher, config, exc: BaseException) -> Optional[tuple[str, Fix]]:
     """``("<launcher>: cannot … (<cause>)", fix)`` for an exception of a cluster launcher's
     ``launch`` that says its jobs could not be submitted (no SLURM commands, a refused
     submission, a Ray cluster not reached); None for any other exception (a job's own
     error, a bug)."""
     kind, text = _kind(launcher), (str(exc).splitlines() or [type(exc).__name__])[0]
-    if kind == "SlurmLauncher":
-        import subprocess
-
-        if isinstance(exc, (FileNotFoundError, subprocess.CalledProcessError)) or '"srun"' in text:
-            output = getattr(exc, "stderr", None) or getattr(exc, "output", None) or b""
-            detail = (output.decode(errors="replace") if isinstance(output, bytes) else str(output)).strip()
-            cause = detail.splitlines()[-1] if detail else text
-            return f"{launcher_choice(config)}: cannot submit its jobs ({cause})", TO_SUBMITIT_LOCAL
+    if kind == "SlurmLauncher" and _submission_failed(exc):
+        return f"{launcher_choice(config)}: cannot submit its jobs ({_last_line(exc) or text})", TO_SUBMITIT_LOCAL
     if kind == "RayLauncher" and isinstance(exc, ConnectionError):
         return (f"{launcher_choice(config)}: cannot reach the Ray cluster at hydra.launcher.ray.init.address="
                 f"{ray_address(launcher)} ({text})", TO_LOCAL_RAY)

@@ -291,13 +291,13 @@ class ManifestSweeper(Sweeper):
                                     f"{limit:g} s and joblib stopped the batch's workers",
                                     f"resume with no time limit: {NO_TIME_LIMIT.command(_resuming(sweep_dir))}",
                                     why=f"joblib stopped its worker (a job of its batch ran longer than "
-                                        f"hydra.launcher.timeout={limit:g} s)")
+                                        f"hydra.launcher.timeout={limit:g} s)", table=True)
                 failure = launch_failure(self.launcher, self.config, exc)
                 if failure is None:
                     raise
                 what, fix = failure
                 self._end_early(sweep_dir, manifest, todo, exc, "not finished", what,
-                                f"resume with: {fix.command(_resuming(sweep_dir))}")
+                                f"resume here with: {fix.command(_resuming(sweep_dir))}")
             for r in results:
                 _ = r.return_value  # re-raise a job's exception, as the basic sweeper does
             returns.append(results)
@@ -349,8 +349,8 @@ class ManifestSweeper(Sweeper):
         try:
             return self.launcher.launch(overrides, initial_job_idx=first)
         except Exception as exc:
-            if not slurm.ended_without_result(exc):
-                raise
+            if launch_failure(self.launcher, self.config, exc) is not None or not slurm.ended_without_result(exc):
+                raise  # nothing was submitted (sbatch refused): the sweep ends (_sweep)
             cause = str(exc).splitlines()[0]
             print(f"decrun: a SLURM job ended without a result ({cause}); waiting for the sweep's other jobs; "
                   "rerun it with hydra.sweeper.resume=true", file=sys.stderr)

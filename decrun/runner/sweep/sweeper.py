@@ -251,6 +251,8 @@ class ManifestSweeper(Sweeper):
 
     def _sweep(self, arguments: List[str]) -> Any:
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
+        if type(self.launcher).__name__ == "RayLauncher":
+            _connect_ray_as_is(self.launcher)  # the options preflight connects with are the launcher's
         cannot = preflight(self.launcher, self.config, self.connect_timeout)  # before planning: nothing written
         if cannot:
             raise SweepError(cannot)
@@ -259,7 +261,7 @@ class ManifestSweeper(Sweeper):
             jobs = self.plan(arguments)
         except KeyboardInterrupt as exc:  # the decrun command says where (cli.main)
             done, total = self.planned
-            exc.sweep_where = (f"while the sweep was planned ({done} of {total} jobs checked); nothing was written"
+            exc.sweep_where = (f"while the sweep was planned ({done:,} of {total:,} jobs checked); nothing was written"
                                if total else "while the sweep was planned; nothing was written")
             raise
         finally:

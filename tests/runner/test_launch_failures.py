@@ -189,3 +189,13 @@ def test_launch_failures_are_recognised_by_their_launcher_only():
 
     assert timed_out(JoblibLauncher(), multiprocessing.TimeoutError())
     assert not timed_out(SlurmLauncher(), multiprocessing.TimeoutError())
+
+
+def test_a_connect_timeout_that_is_no_time_is_refused_and_its_fix_runs(tmp_path):
+    proc, _ = run([*TINY, "hydra.sweeper.connect_timeout=0", "hydra.sweep.dir=c"], tmp_path)
+    line = the_error(proc)
+    assert line.startswith("error: hydra.sweeper.connect_timeout=0.0: must be a number of seconds above 0"), line
+    fix = line.rsplit("use ", 1)[1]
+    assert fix == "hydra.sweeper.connect_timeout=30", line
+    fixed, _ = run([*TINY, fix, "hydra.sweep.dir=c"], tmp_path)
+    assert fixed.returncode == 0, fixed.stderr[-3000:]

@@ -110,10 +110,7 @@ class ManifestSweeper(Sweeper):
         super().__init__()
         self.max_batch_size, self.params = max_batch_size, dict(params or {})
         self.resume, self.derive = resume, derive
-        if not connect_timeout or connect_timeout <= 0:
-            refuse(SweepError(f"error: hydra.sweeper.connect_timeout={connect_timeout}: must be a number of seconds "
-                              f"above 0; use hydra.sweeper.connect_timeout={CONNECT_TIMEOUT:g}"))
-        self.connect_timeout = float(connect_timeout)
+        self.connect_timeout = connect_timeout
         self.max_jobs = max_jobs
         #: (jobs planned, jobs to plan) while the sweep is planned
         self.planned = (0, 0)
@@ -251,6 +248,9 @@ class ManifestSweeper(Sweeper):
 
     def _sweep(self, arguments: List[str]) -> Any:
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
+        if not self.connect_timeout or self.connect_timeout <= 0:
+            raise SweepError(f"error: hydra.sweeper.connect_timeout={self.connect_timeout}: must be a number of "
+                             f"seconds above 0; use hydra.sweeper.connect_timeout={CONNECT_TIMEOUT:g}")
         if type(self.launcher).__name__ == "RayLauncher":
             _connect_ray_as_is(self.launcher)  # the options preflight connects with are the launcher's
         cannot = preflight(self.launcher, self.config, self.connect_timeout)  # before planning: nothing written

@@ -196,6 +196,6 @@ def test_a_connect_timeout_that_is_no_time_is_refused_and_its_fix_runs(tmp_path)
     line = the_error(proc)
     assert line.startswith("error: hydra.sweeper.connect_timeout=0.0: must be a number of seconds above 0"), line
     fix = line.rsplit("use ", 1)[1]
-    assert fix == "hydra.sweeper.connect_timeout=30", line
+    assert fix == "hydra.sweeper.connect_timeout=20", line
     fixed, _ = run([*TINY, fix, "hydra.sweep.dir=c"], tmp_path)
     assert fixed.returncode == 0, fixed.stderr[-3000:]

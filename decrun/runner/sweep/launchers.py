@@ -5,7 +5,7 @@ launcher, the cause and the command that fixes it, within a bounded time (issue 
   ``hydra/launcher=submitit_slurm`` (or a config built on it) on a machine without ``srun``
   / ``sbatch`` — submitit would raise ``Could not detect "srun"`` — and a Ray launcher with
   ``hydra.launcher.ray.init.address`` set, whose cluster must answer within
-  ``hydra.sweeper.connect_timeout`` seconds (30 by default): a TCP connection to the
+  ``hydra.sweeper.connect_timeout`` seconds (20 by default): a TCP connection to the
   address first (a refused or unroutable address fails at once), then ``ray.init`` itself
   in a thread (Ray retries an address that answers but is no cluster for minutes). Its
   retry warnings are kept off the terminal while it tries; the last one is the cause.
@@ -36,7 +36,7 @@ __all__ = ["CONNECT_TIMEOUT", "Fix", "preflight", "launch_failure", "timed_out",
            "ray_address", "NO_TIME_LIMIT"]
 
 #: seconds to give up on a cluster that does not answer (``hydra.sweeper.connect_timeout``)
-CONNECT_TIMEOUT = 30.0
+CONNECT_TIMEOUT = 20.0
 #: the SLURM commands submitit needs on the submitting machine
 SLURM_COMMANDS = ("srun", "sbatch")
 

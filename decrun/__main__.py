@@ -3,6 +3,7 @@
 import sys
 
 from decrun.runner.failures import exit_code, install_sigterm, interrupt_cause
+from decrun.runner.interrupts import ignore_interrupts
 
 
 def console_main() -> None:
@@ -13,6 +14,7 @@ def console_main() -> None:
     try:
         from decrun.runner.cli import main  # lazy: after the signal handler (reports a Ctrl-C during the imports)
     except KeyboardInterrupt as exc:
+        ignore_interrupts()  # a second Ctrl-C while this is printed is ignored
         print(f"decrun: interrupted ({interrupt_cause(exc)}) before the run started", file=sys.stderr)
         sys.exit(exit_code(exc))
     main()

@@ -48,6 +48,7 @@ from decrun.runner.failures import (
 from decrun.runner.locks import LockedError, acquire, release
 from decrun.runner.paths import OutsideError, hydra_files, inside
 from decrun.runner.progress import SweepProgress, sweep_size, terminal
+from decrun.runner.interrupts import ignore_interrupts
 from decrun.runner.sweep.checks import register_check
 
 register_configs()
@@ -149,7 +150,8 @@ class SweepTable(Callback):
         params = config.hydra.sweeper.get("params") or {}
         params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
         total = sweep_size(list(config.hydra.overrides.task), params)
-        SweepTable._progress = SweepProgress(sweep_dir, total, enabled=True).start()
+        SweepTable._progress = SweepProgress(sweep_dir, total, enabled=True).start(
+            planned=target.startswith("hydra_plugins.decrun_sweeper."))
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         from decrun.runner.sweep.tables import failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
@@ -231,6 +233,9 @@ def main() -> None:
     except Exception as exc:
         sys.exit(_report(exc))
     except KeyboardInterrupt as exc:
+        # the command ends here: a second Ctrl-C (or SIGTERM) while the interrupted jobs are
+        # marked and the message is printed, or while the process exits, is ignored
+        ignore_interrupts()
         print(f"decrun: interrupted ({interrupt_cause(exc)}) {_interrupted_where(exc)}", file=sys.stderr)
         sys.exit(exit_code(exc))
     if SweepTable.failed:
@@ -245,7 +250,7 @@ def _interrupted_where(exc: KeyboardInterrupt) -> str:
     (:func:`~decrun.runner.failures.record_status`) — and the command that resumes the rest."""
     stock = getattr(exc, "sweep_stock", None)
     if stock is None:
-        return "before the run started"
+        return getattr(exc, "sweep_where", None) or "before the run started"
     from decrun.runner.sweep.stops import resume_command  # lazy: only for an interrupted sweep
 
     cause = f"interrupted ({interrupt_cause(exc)})"

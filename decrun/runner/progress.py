@@ -18,11 +18,12 @@ from __future__ import annotations
 import os
 import sys
 import threading
+import time
 from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Iterator
 
-from decrun.runner.files import RunFiles
+from decrun.runner.files import RunFiles, SweepFiles
 
 __all__ = ["terminal", "make_progress", "Progress", "SweepProgress", "sweep_size"]
 
@@ -87,10 +88,10 @@ def sweep_size(overrides: list[str], params: dict | None = None) -> int | None:
     try:
         from hydra.core.override_parser.overrides_parser import OverridesParser
 
-        from decrun.runner.sweep.grid import grid
+        from decrun.runner.sweep.grid import grid_size  # counted, not made: a grid may be huge
 
         arguments = [f"{k}={v}" for k, v in (params or {}).items()] + list(overrides)
-        return len(grid(OverridesParser.create().parse_overrides(arguments)))
+        return grid_size(OverridesParser.create().parse_overrides(arguments))[0]
     except Exception:  # an unusual sweeper or syntax: show a bar without a total
         return None
 
@@ -99,7 +100,10 @@ class SweepProgress:
     """Jobs done / total with ETA for a sweep, polled from ``sweep_dir`` in a thread.
 
     A job is done when its ``<job dir>/metrics.json`` exists (written at the end of every job,
-    ok or failed). ``start()`` / ``stop()``; a no-op unless ``enabled``.
+    ok or failed). ``start()`` / ``stop()``; a no-op unless ``enabled``. The bar appears once
+    the sweep's ``manifest.json`` is written (while the sweep is planned, the decrun sweeper
+    shows its own line: :class:`~decrun.runner.sweep.sweeper.PlanningProgress`); a sweeper
+    that writes none gets it at once.
     """
 
     def __init__(self, sweep_dir: Path, total: int | None, enabled: bool = True, poll: float = 0.5):
@@ -115,30 +119,51 @@ class SweepProgress:
             return 0
         return sum(1 for _ in self.sweep_dir.glob("**/" + RunFiles.METRICS))
 
-    def start(self) -> "SweepProgress":
+    def start(self, planned: bool = False) -> "SweepProgress":
+        """Start polling; ``planned``: the sweeper plans the sweep and writes its manifest
+        first (the bar waits for it)."""
         if not self.enabled:
             return self
-        from tqdm import tqdm
-
-        self._bar = tqdm(total=self.total, desc="sweep jobs", unit="job", dynamic_ncols=True, file=sys.stderr)
+        self._since = time.time() - 1  # a resumed sweep's old manifest is not this plan (mtime: 1 s granularity)
+        if not planned:
+            self._open()
         self._thread = threading.Thread(target=self._loop, daemon=True)
         self._thread.start()
         return self
 
+    def _open(self) -> None:
+        from tqdm import tqdm
+
+        self._bar = tqdm(total=self.total, desc="sweep jobs", unit="job", dynamic_ncols=True, file=sys.stderr)
+
+    def _written(self) -> bool:
+        """Whether this sweep's plan is written (its manifest.json, new since :meth:`start`)."""
+        try:
+            return SweepFiles(self.sweep_dir).manifest.stat().st_mtime >= self._since
+        except OSError:
+            return False
+
     def _loop(self) -> None:
         while not self._stop.wait(self.poll):
+            if self._bar is None and self._written():
+                self._open()
             self._update()
 
     def _update(self) -> None:
+        if self._bar is None:
+            return
         count = self.done()
         if count > self._bar.n:
             self._bar.update(count - self._bar.n)
 
     def stop(self) -> None:
-        if self._bar is None:
+        if self._thread is None:
             return
         self._stop.set()
         self._thread.join()
+        self._thread = None
+        if self._bar is None:
+            return
         self._update()
         self._bar.close()
         self._bar = None

@@ -23,10 +23,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
+from decrun.runner.interrupts import ignore_interrupts
 from decrun.runner.sweep.manifest import job_dir_name, job_state
 from decrun.runner.files import RunFiles
 
-__all__ = ["Stock", "take_stock", "worker_died", "mark_killed", "resume_command", "job_list"]
+__all__ = ["Stock", "take_stock", "worker_died", "mark_killed", "resume_command", "job_list", "ignore_interrupts"]
 
 #: exceptions a launcher raises when a worker process died under a job (by class name:
 #: the launchers' packages are optional)
@@ -82,11 +83,12 @@ def worker_died(exc: BaseException) -> bool:
     return any(cls.__name__ in DIED for cls in type(exc).__mro__)
 
 
-def mark_killed(stock: Stock, cause: str) -> None:
+def mark_killed(stock: Stock, cause: str, why: str | None = None) -> None:
     """Write ``{"status": "killed", "error": ..., "config_hash": ...}`` to the ``metrics.json``
     of each running job of ``stock`` (its process died: nothing else will), keeping what
     its journal says (how many steps were recorded). A job that wrote its own metrics.json
-    meanwhile is left as it is."""
+    meanwhile is left as it is. ``why``: what stopped it, instead of "its worker process
+    died (<cause>)"."""
     from decrun.runner.results.provenance import write_metrics_json  # lazy: h5py (start-up speed)
 
     for job in stock.running:
@@ -96,7 +98,7 @@ def mark_killed(stock: Stock, cause: str) -> None:
             continue
         detail = (state["error"].split(" (")[0] if state["status"] == "killed" else "killed before its first step")
         write_metrics_json(RunFiles(where).metrics, {"status": "killed",
-                                                    "error": f"{detail}: its worker process died ({cause})",
+                                                    "error": f"{detail}: {why or f'its worker process died ({cause})'}",
                                                     "config_hash": job["config_hash"]})
 
 
@@ -107,3 +109,4 @@ def resume_command(sweep_dir: Path, argv: Sequence[str] | None = None) -> str:
     argv = list(sys.argv[1:] if argv is None else argv)
     kept = [a for a in argv if not a.lstrip("+~").startswith(("hydra.sweep.dir=", "hydra.sweeper.resume="))]
     return shlex.join(["decrun", *kept, f"hydra.sweep.dir={sweep_dir}", "hydra.sweeper.resume=true"])
+

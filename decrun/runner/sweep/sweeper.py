@@ -30,6 +30,7 @@ import os
 import shutil
 import sys
 import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence
@@ -47,11 +48,13 @@ from decrun.runner.paths import hydra_files
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
 from decrun.runner.sweep import local
-from decrun.runner.sweep.grid import grid
+from decrun.runner.sweep.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, joblib_timeout, launch_failure, \
+    launcher_choice, preflight, timed_out
+from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
 from decrun.runner.sweep.planning import Composer, PlannedConfigs, subdir_of
-from decrun.runner.sweep.stops import mark_killed, resume_command, take_stock, worker_died
+from decrun.runner.sweep.stops import ignore_interrupts, mark_killed, resume_command, take_stock, worker_died
 from decrun.runner.files import RunFiles, SweepFiles
 
 log = logging.getLogger("decrun")
@@ -87,6 +90,11 @@ class DecrunSweeperConf:
     #: composes every job itself (its public load_sweep_config; 179x slower to plan:
     #: benchmarks/bench_sweeps.py --only planning)
     derive: bool = True
+    #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.sweep.launchers)
+    connect_timeout: float = CONNECT_TIMEOUT
+    #: the most jobs a sweep may plan (each is composed, checked and hashed before the first starts);
+    #: a larger grid is refused at once, naming this key
+    max_jobs: int = MAX_JOBS
 
 
 class ManifestSweeper(Sweeper):
@@ -97,10 +105,15 @@ class ManifestSweeper(Sweeper):
     Hydra (``class DecrunSweeper(ManifestSweeper)``)."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
-                 resume: bool = False, derive: bool = True):
+                 resume: bool = False, derive: bool = True, connect_timeout: float = CONNECT_TIMEOUT,
+                 max_jobs: int = MAX_JOBS):
         super().__init__()
         self.max_batch_size, self.params = max_batch_size, dict(params or {})
         self.resume, self.derive = resume, derive
+        self.connect_timeout = connect_timeout
+        self.max_jobs = max_jobs
+        #: (jobs planned, jobs to plan) while the sweep is planned
+        self.planned = (0, 0)
         self.hydra_context = self.config = self.launcher = None
         self.check: Optional[Callable[[Any], Any]] = None
 
@@ -133,26 +146,36 @@ class ManifestSweeper(Sweeper):
         parser = OverridesParser.create(config_loader=loader)
         overrides = parser.parse_overrides(self._parse_config() + list(arguments))
         try:
-            planned = [tuple(job) for job in grid(overrides)]
+            size, swept = grid_size(overrides)
         except ValueError as exc:
             raise SweepError(f"error: {exc}") from exc
+        if size > self.max_jobs:  # before a job is made: a grid may be too large to hold
+            raise SweepError(_too_many(size, swept, self.max_jobs))
+        planned = [tuple(job) for job in grid(overrides)]
         self._composer = Composer(loader, self.config, derive=self.derive)
         check = self.check
         jobs: list[dict[str, Any]] = []
-        for i, (job, cfg, template) in enumerate(self._composer.each(planned)):
-            if check is not None:
-                try:
-                    if template is None:
-                        check(cfg)
-                    else:
-                        check(cfg, delta=JobDelta(id(template), template.varying_keys, template.interpolated))
-                except DecrunError as exc:
-                    raise SweepError(f"error: job {i} ({' '.join(job)}): {exc}; nothing ran") from exc
-            fast = template is not None and not self._composer.hydra_needed(template)
-            jobs.append({"job": str(i), "dir": subdir_of(template.subdir, i) if fast else self._job_dir(cfg, i),
-                         "overrides": list(job),
-                         "config_hash": config_hash(cfg, template.blocks, template.fresh) if template is not None
-                         else config_hash(cfg)})
+        shown = PlanningProgress(len(planned), enabled=_terminal(self.config))
+        self.planned = (0, len(planned))
+        try:
+            for i, (job, cfg, template) in enumerate(self._composer.each(planned)):
+                self.planned = (i, len(planned))
+                shown.update(i)
+                if check is not None:
+                    try:
+                        if template is None:
+                            check(cfg)
+                        else:
+                            check(cfg, delta=JobDelta(id(template), template.varying_keys, template.interpolated))
+                    except DecrunError as exc:
+                        raise SweepError(f"error: job {i} ({' '.join(job)}): {exc}; nothing ran") from exc
+                fast = template is not None and not self._composer.hydra_needed(template)
+                jobs.append({"job": str(i), "dir": subdir_of(template.subdir, i) if fast else self._job_dir(cfg, i),
+                             "overrides": list(job),
+                             "config_hash": config_hash(cfg, template.blocks, template.fresh) if template is not None
+                             else config_hash(cfg)})
+        finally:
+            shown.close()
         _check_dirs(jobs, OmegaConf.to_container(self.config.hydra.sweep, resolve=False)["subdir"])
         return jobs
 
@@ -225,9 +248,22 @@ class ManifestSweeper(Sweeper):
 
     def _sweep(self, arguments: List[str]) -> Any:
         sweep_dir = Path(str(self.config.hydra.sweep.dir))
+        if not self.connect_timeout or self.connect_timeout <= 0:
+            raise SweepError(f"error: hydra.sweeper.connect_timeout={self.connect_timeout}: must be a number of "
+                             f"seconds above 0; use hydra.sweeper.connect_timeout={CONNECT_TIMEOUT:g}")
+        if type(self.launcher).__name__ == "RayLauncher":
+            _connect_ray_as_is(self.launcher)  # the options preflight connects with are the launcher's
+        cannot = preflight(self.launcher, self.config, self.connect_timeout)  # before planning: nothing written
+        if cannot:
+            raise SweepError(cannot)
         warming = self._warm_workers()
         try:
             jobs = self.plan(arguments)
+        except KeyboardInterrupt as exc:  # the decrun command says where (cli.main)
+            done, total = self.planned
+            exc.sweep_where = (f"while the sweep was planned ({done:,} of {total:,} jobs checked); nothing was written"
+                               if total else "while the sweep was planned; nothing was written")
+            raise
         finally:
             if warming is not None:
                 warming.join()
@@ -244,12 +280,26 @@ class ManifestSweeper(Sweeper):
             try:
                 results = self._launch(launched[start:stop], int(todo[start]["job"]))
             except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (cli.main)
+                ignore_interrupts()  # a second Ctrl-C while the jobs are counted is ignored (the sweep is ending)
                 exc.sweep_stock = take_stock(sweep_dir, todo)
                 raise
             except Exception as exc:
-                if not worker_died(exc):
+                if worker_died(exc):
+                    self._end_killed(sweep_dir, manifest, todo, exc)
+                if timed_out(self.launcher, exc):
+                    limit = float(joblib_timeout(self.launcher))
+                    self._end_early(sweep_dir, manifest, todo, exc, "killed",
+                                    f"{launcher_choice(self.config)}: a job ran longer than hydra.launcher.timeout="
+                                    f"{limit:g} s and joblib stopped the batch's workers",
+                                    f"resume with no time limit: {NO_TIME_LIMIT.command(_resuming(sweep_dir))}",
+                                    why=f"joblib stopped its worker (a job of its batch ran longer than "
+                                        f"hydra.launcher.timeout={limit:g} s)", table=True)
+                failure = launch_failure(self.launcher, self.config, exc)
+                if failure is None:
                     raise
-                self._end_killed(sweep_dir, manifest, todo, exc)
+                what, fix = failure
+                self._end_early(sweep_dir, manifest, todo, exc, "not finished", what,
+                                f"resume here with: {fix.command(_resuming(sweep_dir))}")
             for r in results:
                 _ = r.return_value  # re-raise a job's exception, as the basic sweeper does
             returns.append(results)
@@ -262,15 +312,26 @@ class ManifestSweeper(Sweeper):
         jobs that had started and not finished ``killed``, record them in the manifest's run,
         write the table (the sweep's callbacks), then end with one line naming them and the
         command that resumes the rest (exit 1). No later batch is launched."""
+        self._end_early(sweep_dir, manifest, todo, exc, "killed", f"a worker process died ({type(exc).__name__})",
+                        f"resume the rest with: {resume_command(sweep_dir)}", table=True)
+
+    def _end_early(self, sweep_dir: Path, manifest: dict, todo: list[dict], exc: Exception, verb: str, what: str,
+                   fix: str, why: Optional[str] = None, table: bool = False) -> None:
+        """End the sweep after its launcher stopped (a worker died, a job over its time
+        limit, jobs that could not be submitted): the jobs that had started and not
+        finished marked ``killed`` (``why``: by what) and recorded in the manifest's run,
+        the table written when a job of this run started (or ``table``), then one line
+        ``error: <what>: <which jobs finished, which are <verb>>; <fix>`` (exit 1). The
+        manifest stays: ``hydra.sweeper.resume=true`` reruns what is not ok."""
         stock = take_stock(sweep_dir, todo)
-        mark_killed(stock, type(exc).__name__)
-        manifest["runs"][-1]["killed"] = [j["job"] for j in stock.running]
+        if stock.running:
+            mark_killed(stock, type(exc).__name__, why=why)
+            manifest["runs"][-1]["killed"] = [j["job"] for j in stock.running]
         write_manifest(sweep_dir, manifest)
         callbacks = getattr(self.hydra_context, "callbacks", None)
-        if callbacks is not None:
+        if callbacks is not None and (table or stock.running or stock.finished):
             callbacks.on_multirun_end(config=self.config)
-        raise SweepError(f"error: a worker process died ({type(exc).__name__}): {stock.describe('killed')}; "
-                         f"resume the rest with: {resume_command(sweep_dir)}") from exc
+        raise SweepError(f"error: {what}: {stock.describe(verb)}; {fix}") from exc
 
     def _launch(self, overrides: list[list[str]], first: int) -> Sequence[Any]:
         """The launcher's results for one batch. With submitit's SLURM launcher, job states
@@ -290,8 +351,8 @@ class ManifestSweeper(Sweeper):
         try:
             return self.launcher.launch(overrides, initial_job_idx=first)
         except Exception as exc:
-            if not slurm.ended_without_result(exc):
-                raise
+            if launch_failure(self.launcher, self.config, exc) is not None or not slurm.ended_without_result(exc):
+                raise  # nothing was submitted (sbatch refused): the sweep ends (_sweep)
             cause = str(exc).splitlines()[0]
             print(f"decrun: a SLURM job ended without a result ({cause}); waiting for the sweep's other jobs; "
                   "rerun it with hydra.sweeper.resume=true", file=sys.stderr)
@@ -378,6 +439,61 @@ def _connect_ray_as_is(launcher) -> None:
         return
     with open_dict(init) if OmegaConf.is_config(init) else contextlib.nullcontext():
         init["object_store_memory"] = None
+
+
+def _too_many(size: int, swept: list[tuple[str, int]], limit: int) -> str:
+    """The refusal of a grid of ``size`` jobs over ``hydra.sweeper.max_jobs=limit``."""
+    product = " × ".join(f"{key}: {n} values" for key, n in swept)
+    return (f"error: hydra.sweeper.max_jobs={limit}: this sweep has {size:,} jobs ({product}), more than the "
+            f"limit (every job is composed, checked and hashed before the first starts: ~1-3 ms a job); nothing "
+            f"ran; plan them all with hydra.sweeper.max_jobs={size}, or sweep fewer values")
+
+
+def _terminal(config) -> bool:
+    """Whether to show progress: ``progress`` is on and stderr is a terminal (not under pytest)."""
+    return bool(config.get("progress", True)) and sys.stderr.isatty() and "PYTEST_CURRENT_TEST" not in os.environ
+
+
+class PlanningProgress:
+    """``decrun: planning the sweep: <i> of <n> jobs checked (<p> %), ~<s> s left`` on one
+    terminal line, redrawn at most every ``every`` seconds once planning has taken
+    ``after`` seconds, and erased when planning ends (:meth:`close`). A no-op unless ``enabled``."""
+
+    def __init__(self, total: int, enabled: bool, after: float = 0.5, every: float = 0.25, stream=None):
+        self.total, self.enabled, self.after, self.every = total, enabled, after, every
+        self.stream = stream if stream is not None else sys.stderr
+        self.start = time.monotonic()
+        self._next = self.start + after
+        self._drawn = False
+        self._first: Optional[tuple[float, int]] = None
+
+    def update(self, done: int) -> None:
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if now < self._next:
+            return
+        self._next = now + self.every
+        if self._first is None:  # the rate from the first job checked (the groups' compositions come before it)
+            self._first = (now, done)
+        then, before = self._first
+        left = (now - then) / (done - before) * (self.total - done) if done - before >= 5 else None
+        eta = f", ~{left:.0f} s left" if left is not None else ""
+        self.stream.write(f"\rdecrun: planning the sweep: {done:,} of {self.total:,} jobs checked "
+                          f"({100 * done // max(self.total, 1)} %){eta}\033[K")
+        self.stream.flush()
+        self._drawn = True
+
+    def close(self) -> None:
+        if self._drawn:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+            self._drawn = False
+
+
+def _resuming(sweep_dir: Path) -> list[str]:
+    """The overrides that resume the sweep in ``sweep_dir``."""
+    return [f"hydra.sweep.dir={sweep_dir}", "hydra.sweeper.resume=true"]
 
 
 def _quoted(text: str) -> str:

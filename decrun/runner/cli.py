@@ -105,6 +105,17 @@ class OutputGuard(Callback):
     ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written."""
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
+        try:
+            self._guard(config)
+        except Exception as exc:  # hydra.run.dir=${oc.env:UNSET}: one line naming the key, not Hydra's warning
+            from decrun.runner.hints import resolution_message
+
+            unresolved = None if isinstance(exc, DecrunError) else resolution_message(exc)
+            if unresolved is None:
+                raise
+            stop(f"error: {unresolved}")
+
+    def _guard(self, config: DictConfig) -> None:
         out = Path(str(config.hydra.run.dir))
         try:
             for name in hydra_files(config.hydra):
@@ -144,7 +155,11 @@ class SweepTable(Callback):
 
             refuse(SweepError(f"error: hydra.sweep.dir={sweep_dir} is not empty; its old jobs would mix into the "
                              f"new table: choose a new hydra.sweep.dir (only hydra/sweeper=decrun resumes)"))
-        if not terminal(bool(config.get("progress", True))):
+        try:
+            shown = bool(config.progress) if "progress" in config else True
+        except Exception:  # noqa: BLE001 — an interpolation that does not resolve: the job checks name its key
+            shown = False
+        if not terminal(shown):
             return
         params = config.hydra.sweeper.get("params") or {}
         params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
@@ -280,6 +295,11 @@ def _report(exc: Exception) -> int:
     if _VERBOSE:
         raise exc
     message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc)
+    if not message and not isinstance(exc, DecrunError):  # hydra.run.dir=${oc.env:UNSET}: Hydra's own keys
+        from decrun.runner.hints import resolution_message
+
+        unresolved = resolution_message(exc)
+        message = f"error: {unresolved}" if unresolved else None
     if message:
         print(message, file=sys.stderr)
         return 1

@@ -22,20 +22,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from decrun.apps.base import Result
 from decrun.core import jit
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.errors import DecrunError, MeshError
+from decrun.errors import ConfigError, DecrunError, MeshError
 from decrun.runner.config import OptimizeConfig
 from decrun.runner.context import RunContext
-from decrun.runner.experiment import Experiment, mesh_where, name_the_key, validate
+from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
 from decrun.runner.failures import (exit_code, file_identity, find_memory_error, find_os_error, interrupt_cause,
                                     memory_error_text, os_error_message, record_status, set_aside_stale)
 from decrun.runner.files import RunFiles
-from decrun.runner.hints import cli_message, memory_hint, plugin_name
+from decrun.runner.hints import cli_message, memory_hint, plugin_name, resolution_message
 from decrun.runner.locks import LockedError, acquire, release
 from decrun.runner.mesh import Mesh
 from decrun.runner.plugins import Recent
@@ -312,8 +312,8 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
     earlier = file_identity(RunFiles(out).result)  # an earlier run's result, set aside if this one fails
     optimize = None
     try:
-        optimize = OptimizeConfig(**OmegaConf.to_container(cfg.optimize)) if "optimize" in cfg else OptimizeConfig()
-        progress = make_progress(bool(cfg.get("progress", True)) and not multirun)
+        optimize = root_options(cfg, "optimize", OptimizeConfig)
+        progress = make_progress(bool(cfg["progress"] if "progress" in cfg else True) and not multirun)
         prepared = prepare(cfg, progress, out=out, cache=multirun)
         prepared.hashed = identity.get("config_hash")  # made above for a sweep job: not twice
         done = execute(prepared)
@@ -329,6 +329,9 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
             raise
         sys.exit(exit_code(exc))
     except Exception as exc:
+        unresolved = None if isinstance(exc, DecrunError) else resolution_message(exc, cfg)
+        if unresolved is not None:  # an interpolation read outside the checks (progress=${oc.env:X}): no bug
+            exc = ConfigError(unresolved)
         os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)
         memory = None if isinstance(exc, DecrunError) or os_error is not None else find_memory_error(exc)
         message = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None

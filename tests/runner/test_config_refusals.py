@@ -79,3 +79,72 @@ def test_an_unreadable_experiment_file_is_one_line_naming_it(tmp_path, body, wor
     sweep = ["-m", "app.steps=1,2"] if multirun else []
     proc = decrun(f"--config-dir={tmp_path / 'configs'}", *sweep, "+experiment=broken", cwd=tmp_path)
     assert_one_clear_line(proc, f"error: {experiment}", *words)
+
+
+# ----------------------------------------------------------------------------------
+# issue 34 item 4: interpolations that do not resolve, and _target_ on plain root nodes
+# ----------------------------------------------------------------------------------
+
+UNSET = "DECRUN_TEST_SURELY_UNSET"
+#: override → words of the one line; the line's backticked override is the fix (run below)
+UNRESOLVED = {
+    "unset-env": (f"app.dt=${{oc.env:{UNSET}}}", [f"app.dt='${{oc.env:{UNSET}}}'", f"{UNSET} is not set"]),
+    "unknown-resolver": ("app.dt=${nowhere:1}", ["app.dt='${nowhere:1}'", "there is no resolver 'nowhere'"]),
+    "self-reference": ("app.dt=${app.dt}", ["app.dt='${app.dt}'", "refers to itself"]),
+    "missing-key": ("app.steps=${app.nowhere}", ["app.steps='${app.nowhere}'", "refers to app.nowhere"]),
+    "root-value": (f"progress=${{oc.env:{UNSET}}}", [f"progress='${{oc.env:{UNSET}}}'", f"{UNSET} is not set"]),
+    "mesh-option": (f"mesh.subdiv=${{oc.env:{UNSET}}}", ["mesh.subdiv=", f"{UNSET} is not set"]),
+}
+
+
+def _fix(line: str) -> list[str]:
+    from test_hints import OVERRIDE
+
+    return OVERRIDE.findall(line)
+
+
+@pytest.mark.parametrize("multirun", [False, True], ids=["run", "sweep"])
+@pytest.mark.parametrize("override, words", UNRESOLVED.values(), ids=UNRESOLVED.keys())
+def test_an_interpolation_that_does_not_resolve_is_one_line_naming_the_key(tmp_path, override, words, multirun):
+    sweep = ["-m", "app.scheme=implicit,explicit"] if multirun else []
+    proc = decrun(*sweep, override, cwd=tmp_path)
+    line = assert_one_clear_line(proc, "error: ", *words)
+    assert not list(tmp_path.rglob("result.h5"))  # nothing ran
+    if multirun:
+        assert "nothing ran" in line
+        return
+    fix = _fix(line)
+    assert len(fix) == 1, line  # the override that fixes it, e.g. `app.dt=null` (the default)
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    done = run_experiment(compose_config(["mesh.subdiv=1", "figures=false", override, *fix]))
+    assert done.result.metrics["status"] == "ok"
+
+
+def test_an_unresolved_hydra_key_is_one_line_naming_it(tmp_path):
+    proc = decrun(f"hydra.run.dir=${{oc.env:{UNSET}}}", cwd=tmp_path)
+    assert_one_clear_line(proc, f"error: hydra.run.dir: the environment variable {UNSET} is not set")
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("multirun", [False, True], ids=["run", "sweep"])
+@pytest.mark.parametrize("root", ["checkpoint", "optimize"])
+def test_target_on_a_plain_root_node_is_refused_naming_it(tmp_path, root, multirun):
+    marker = tmp_path / "executed"
+    sweep = ["-m", "app.steps=1,2"] if multirun else []
+    proc = decrun(*sweep, f"+{root}._target_=pathlib.Path.touch", f"+{root}.self={marker}", cwd=tmp_path)
+    assert_one_clear_line(proc, "error: ", f"{root}._target_: {root} holds plain options, it builds no class",
+                          f"drop +{root}._target_=...")
+    assert not marker.exists() and not list(tmp_path.rglob("result.h5"))
+
+
+def test_an_unknown_option_of_a_plain_root_node_names_the_closest():
+    from decrun.errors import ConfigError
+    from decrun.runner.config import compose_config
+    from decrun.runner.experiment import validate
+
+    with pytest.raises(ConfigError, match=r"^checkpoint\.stesp: unknown option of checkpoint.*"
+                                          r"did you mean checkpoint\.steps\?"):
+        validate(compose_config(["+checkpoint.stesp=3"]))
+    assert validate(compose_config(["checkpoint.steps=3"])).checkpoint.steps == 3

@@ -33,7 +33,8 @@ from decrun.runner.config import OptimizeConfig
 from decrun.runner.context import RunContext
 from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
 from decrun.runner.failures import (exit_code, file_identity, find_memory_error, find_os_error, interrupt_cause,
-                                    memory_error_text, os_error_message, record_status, set_aside_stale)
+                                    memory_error_text, os_error_message, record_status, set_aside_stale,
+                                    shorten_words)
 from decrun.runner.files import RunFiles
 from decrun.runner.hints import cli_message, memory_hint, plugin_name, resolution_message
 from decrun.runner.locks import LockedError, acquire, release
@@ -336,6 +337,7 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
         memory = None if isinstance(exc, DecrunError) or os_error is not None else find_memory_error(exc)
         message = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None
                    else memory_message(memory, cfg) if memory is not None else f"{type(exc).__name__}: {exc}")
+        message = shorten_words(message)  # a 120 kB value stays out of the line, the log and metrics.json
         note = set_aside_stale(out, earlier) + record_status(out, "failed", message, identity)
         if verbose or not (isinstance(exc, DecrunError) or os_error is not None or memory is not None):
             log.exception("error: %s%s", message, note)

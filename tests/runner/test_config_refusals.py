@@ -148,3 +148,34 @@ def test_an_unknown_option_of_a_plain_root_node_names_the_closest():
                                           r"did you mean checkpoint\.steps\?"):
         validate(compose_config(["+checkpoint.stesp=3"]))
     assert validate(compose_config(["checkpoint.steps=3"])).checkpoint.steps == 3
+
+
+# ----------------------------------------------------------------------------------
+# issue 34.6: a 120 kB override value made a 120 kB error line
+# ----------------------------------------------------------------------------------
+
+LONG = "x" * 120_000
+
+
+def test_shorten_words_cuts_only_long_words():
+    from decrun.runner.failures import LONG_WORD, shorten_words
+
+    assert shorten_words("app.dt: must be > 0, got -1") == "app.dt: must be > 0, got -1"
+    assert shorten_words("a " + "y" * LONG_WORD) == "a " + "y" * LONG_WORD
+    cut = shorten_words(f"error: app.dt: Value '{LONG}' of type 'str'")
+    assert cut.startswith("error: app.dt: Value 'xxx") and cut.endswith("xxx' of type 'str'")
+    assert "(120002 characters)" in cut and len(cut) < 200
+
+
+@pytest.mark.parametrize("args, words", [
+    ([f"app.dt={LONG}"], ["error: app.dt: Value 'xxx", "characters)", "could not be converted to Float"]),
+    (["-m", f"app.scheme={LONG},explicit"], ["error: job 0 (app.scheme=xxx", "app.scheme: must be one of"]),
+    (["mesh=file", f"mesh.path={LONG}"], ["error: mesh.path='xxx", "cannot be read (File name too long)"]),
+    ([f"+app.{LONG}=1"], ["error: +app.xxx", "a name too long for the file system", "shorten it"]),
+], ids=["value", "sweep-choice", "mesh-path", "key"])
+def test_a_huge_override_value_is_cut_in_the_one_line(tmp_path, args, words):
+    proc = decrun(*args, cwd=tmp_path)
+    line = assert_one_clear_line(proc, *words)
+    assert len(line) < 400, len(line)
+    for metrics in tmp_path.rglob("metrics.json"):  # a failed run records the same short error
+        assert metrics.stat().st_size < 1000

@@ -42,7 +42,8 @@ from decrun.runner.mesh import Mesh
 from decrun.runner.plugins import Recent
 from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
-from decrun.runner.results.checked import RESULT_RECORD, file_record
+from decrun.runner.results.provenance import result_record
+from decrun.runner.results.checked import RESULT_RECORD
 from decrun.runner.results.checkpoint import RunCheckpoint
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
@@ -251,8 +252,9 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 def write(run: Run, out: Path | None = None) -> list[Path]:
     """Write the finished ``run`` into its directory (``out`` when the run has none): the
     figures, ``result.h5`` (atomic; finishing the run's recorder when it has one),
-    ``metrics.json`` (the metrics and ``result_h5``: the size and sha256 of result.h5,
-    :func:`~decrun.runner.results.checked.file_record`) and the export's files."""
+    ``metrics.json`` (the metrics and ``result_h5``: the size and sha256 of result.h5 and the
+    hash of its content, :func:`~decrun.runner.results.provenance.result_record`) and the
+    export's files."""
     files = run.files if out is None else RunFiles(out)
     if files is None:
         raise ValueError("write(run): the run has no directory; give one (out=...)")
@@ -272,8 +274,9 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         h5 = write_result(files.result, result, vertices=mesh.vertices, simplices=mesh.simplices,
                           edges=run.complex.simplices(1), config_yaml=to_yaml(cfg, resolve=True),
                           mesh_hash=mesh.meta.get("hash", ""), timings=timings)
-    # the size and sha256 of result.h5 as written: readers never take a truncated or altered one for it
-    metrics = write_metrics_json(files.metrics, {**result.metrics, RESULT_RECORD: file_record(h5)})
+    # the size and sha256 of result.h5 as written (readers never take a truncated or altered one for it)
+    # and the hash of its content, equal for two runs of one config (README: "Reproducible records")
+    metrics = write_metrics_json(files.metrics, {**result.metrics, RESULT_RECORD: result_record(h5)})
     files.checkpoint.unlink(missing_ok=True)  # the run is complete: nothing to continue
     export = run.experiment.export
     exported = export.write(files, result, mesh, run.complex) if export is not None else []

@@ -220,10 +220,10 @@ def default_override(cfg, key: str) -> str | None:
             found = OmegaConf.select(defaults, rest, default="<absent>") if rest else "<absent>"
         else:
             found = OmegaConf.select(OmegaConf.structured(DecrunConfig), key, default="<absent>")
-            found = OmegaConf.to_container(found) if OmegaConf.is_config(found) else found
+        found = OmegaConf.to_container(found) if OmegaConf.is_config(found) else found
     except Exception:  # noqa: BLE001 — not a path OmegaConf can walk: no default to offer
         return None
-    if found == "<absent>" or OmegaConf.is_config(found):
+    if isinstance(found, dict) or (isinstance(found, str) and found == "<absent>"):
         return None
     if hasattr(found, "value") and isinstance(getattr(found, "value"), str):  # a Choice member
         found = found.value

@@ -72,6 +72,13 @@ class Figure:
     draw: str
     data: dict[str, Any] = field(default_factory=dict)
 
+    @classmethod
+    def of_kind(cls, kind: str, **data) -> "Figure":
+        """A figure named by its kind (``surface``, ``snapshots``, ``animation``, ``series`` …:
+        the table ``FIGURE_KINDS`` of :mod:`decrun.runner.plots`), so an app names no runner
+        module."""
+        return cls(kind, data)
+
 
 @dataclass
 class FieldOnEdges:
@@ -96,12 +103,17 @@ class Result:
         Flat scalars whose names say their unit or meaning.
     figures : dict[str, Figure]
         Keyed by file stem.
+    provenance : dict[str, str]
+        Root attributes of result.h5 saying how the result was made.
     """
 
     fields: dict[str, Any] = field(default_factory=dict)
     series: dict[str, np.ndarray] = field(default_factory=dict)
     metrics: dict[str, Any] = field(default_factory=dict)
     figures: dict[str, Figure] = field(default_factory=dict)
+    #: short strings recorded as root attributes of result.h5 (how the result was made, e.g. a
+    #: model's equations as resolved), not metrics
+    provenance: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass

@@ -227,6 +227,9 @@ class FluidStepper:
     Recorded: ``vorticity`` (n0), ``flux`` (n1) and the scalars of :data:`SCALARS`."""
 
     record_divergent_step = False
+    #: the last step's diagnostics (a step adds keys to the initial ones) and the shadow's
+    #: growth fit points (one more a step, up to its window)
+    state_variable = ("last", "shadow.window", "shadow.start")
 
     def __init__(self, fluid, forces, shadow=None):
         self.fluid, self.forces, self.shadow = fluid, forces, shadow

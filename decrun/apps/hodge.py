@@ -292,4 +292,9 @@ def _form_from_result(K, cfg, ctx: Context) -> np.ndarray:
     if vertices.shape != K.vertices.shape or not np.allclose(vertices, K.vertices):
         raise ConfigError(f"app.input_path: the mesh stored in {path} differs from this run's mesh "
                           "(use the same mesh config as that run)")
+    bad = np.flatnonzero(~np.isfinite(omega))
+    if bad.size:
+        raise ConfigError(f"app.input_field: {cfg.input_field!r} in {path} holds NaN or ±inf on {bad.size} "
+                          f"{k}-simplices (e.g. {bad[:5].tolist()}: the source run diverged?); decompose a finite "
+                          "field, e.g. `app.input=random`")
     return omega

@@ -273,6 +273,8 @@ class SmoothingStepper:
     far (``series``, for the figures and the final ratios: four floats per step)."""
 
     record_divergent_step = True
+    #: the measures so far grow by one a step (and hold NaN volumes on open surfaces)
+    state_variable = ("series",)
 
     def __init__(self, flow, vertices, faces, centroid, rescale: str, has_volume: bool, blowup_factor: float):
         self.flow, self.faces, self.centroid = flow, faces, centroid

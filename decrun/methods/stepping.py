@@ -24,7 +24,7 @@ from typing import Any, Callable, Iterable, Optional, Protocol
 
 import numpy as np
 
-__all__ = ["Stepper", "Checkpoint", "StepReport", "run_steps", "nonfinite_in"]
+__all__ = ["Stepper", "Checkpoint", "StepReport", "run_steps", "nonfinite_in", "state_mismatch"]
 
 
 class Stepper(Protocol):
@@ -33,6 +33,12 @@ class Stepper(Protocol):
     #: record the step at which the state blew up (smoothing: its NaN measures) or not (fluid:
     #: its state stays the last finite one)
     record_divergent_step: bool
+    #: optional: dotted paths of the state (e.g. ``("series",)``) whose size changes as the
+    #: run goes -- an array there may differ from the fresh state's in its first axis and
+    #: hold NaN (a history of measures), a dict there may have more keys (diagnostics).
+    #: Everything else of a checkpoint's state must have the fresh state's structure
+    #: (:func:`state_mismatch`).
+    state_variable: tuple[str, ...]
 
     def values(self) -> dict[str, Any]:
         """What is recorded for the current state: scalars and fixed-shape arrays."""
@@ -50,9 +56,11 @@ class Stepper(Protocol):
 class Checkpoint(Protocol):
     """Where :func:`run_steps` keeps its state while it runs (the runner's is an HDF5 file)."""
 
-    def load(self) -> Optional[tuple[int, dict[str, Any]]]:
+    def load(self, check: Callable[[int, dict[str, Any]], str]) -> Optional[tuple[int, dict[str, Any]]]:
         """``(step, state)`` of a valid checkpoint of this same run (also setting the records
-        back to that step), or None: none, another config's, or corrupt (said in the log)."""
+        back to that step), or None: none, another config's, corrupt, or one whose
+        ``check(step, state)`` is not ``""`` (why it is not a state of this run; said in the
+        log). ``check`` runs before anything is changed (the records)."""
 
     def due(self, step: int) -> bool:
         """Whether to write a checkpoint after ``step`` (every k steps, every s seconds)."""
@@ -112,6 +120,74 @@ def nonfinite_in(state: dict[str, Any], prefix: str = "") -> str:
     return ""
 
 
+def _kind(value: Any) -> str:
+    """The kind of a state leaf: dict, none, bool, int, float, array or other."""
+    if isinstance(value, dict):
+        return "dict"
+    if value is None:
+        return "none"
+    if isinstance(value, (bool, np.bool_)):
+        return "bool"
+    if isinstance(value, (int, np.integer)):
+        return "int"
+    if isinstance(value, (float, np.floating)):
+        return "float"
+    return "array" if isinstance(value, np.ndarray) else "other"
+
+
+def _a(kind: str) -> str:
+    return f"an {kind}" if kind[0] in "aeiou" else f"a {kind}"
+
+
+def _under(path: str, variable: tuple[str, ...]) -> bool:
+    return any(path == v or path.startswith(v + ".") for v in variable)
+
+
+def state_mismatch(state: Any, template: Any, variable: tuple[str, ...] = (), prefix: str = "") -> str:
+    """Why ``state`` (read back from a checkpoint) is not a state with the structure of
+    ``template`` (the fresh stepper's :meth:`~Stepper.state_dict`), or ``""``.
+
+    Every dict has the template's keys (no fewer, no more); a leaf has the template's kind
+    (a number where the template has a float; None where it has None, which also stands for
+    an optional number); an array has the template's dtype and shape -- on this mesh: (n0, 3)
+    is (n0, 3) -- and finite values. Under ``variable`` (:attr:`Stepper.state_variable`) an
+    array's first axis is free and it may hold NaN, and a dict may have extra keys."""
+    where = prefix or "the state"
+    kind, expected = _kind(state), _kind(template)
+    free = _under(prefix, variable)
+    if expected == "dict":
+        if kind != "dict":
+            return f"{where} is {_a(kind)}, not a group"
+        missing = [name for name in template if name not in state]
+        if missing:
+            return f"{prefix + '.' if prefix else ''}{missing[0]} is missing"
+        extra = [name for name in state if name not in template]
+        if extra and not free:
+            return f"{prefix + '.' if prefix else ''}{extra[0]} is not part of this run's state"
+        for name in template:
+            found = state_mismatch(state[name], template[name], variable, f"{prefix}.{name}" if prefix else name)
+            if found:
+                return found
+        return ""
+    if expected == "none":
+        return "" if kind in ("none", "bool", "int", "float") else f"{where} is {_a(kind)}, not a number or None"
+    if expected == "float":
+        return "" if kind in ("int", "float") else f"{where} is {_a(kind)}, not a number"
+    if expected in ("int", "bool"):
+        return "" if kind == expected else f"{where} is {_a(kind)}, not {_a(expected)}"
+    if kind != "array":
+        return f"{where} is {_a(kind)}, not an array"
+    if state.dtype != template.dtype:
+        return f"{where} has dtype {state.dtype}, this run's has {template.dtype}"
+    shape_ok = state.shape[1:] == template.shape[1:] if free and state.ndim == template.ndim and state.ndim \
+        else state.shape == template.shape
+    if not shape_ok:
+        return f"{where} has shape {state.shape}, this run's has {template.shape}"
+    if not free and state.dtype.kind in "fc" and not np.all(np.isfinite(state)):
+        return f"{where} holds {int(np.sum(~np.isfinite(state)))} non-finite values"
+    return ""
+
+
 def _passthrough(iterable: Iterable, **_) -> Iterable:
     return iterable
 
@@ -128,11 +204,31 @@ def run_steps(stepper: Stepper, steps: int, *, progress: Callable | None = None,
     not finite: the loop stops there (``diverged_at_step``, ``reason``). A checkpoint is
     written after step n when ``checkpoint.due(n)`` (not after the last step: the run is
     ending). ``progress(iterable, total=, desc=, initial=)`` is a tqdm-like factory.
+
+    A checkpoint's state is used only when its step is within [0, ``steps``] and it has the
+    structure of the fresh stepper's :meth:`~Stepper.state_dict` (:func:`state_mismatch`,
+    with :attr:`Stepper.state_variable`) and finite, non-negative driver times; the
+    checkpoint is asked (``checkpoint.load(check)``) before it changes anything.
     """
     progress = progress or _passthrough
     report = StepReport()
     start = 0
-    loaded = checkpoint.load() if checkpoint is not None else None
+    loaded = None
+    if checkpoint is not None:
+        template = {"stepper": stepper.state_dict(), "driver": {"seconds": 0.0, "step_seconds_max": 0.0}}
+        variable = tuple(f"stepper.{path}" for path in getattr(stepper, "state_variable", ()))
+
+        def check(step: int, state: dict[str, Any]) -> str:
+            if not 0 <= step <= steps:
+                return f"step {step} is outside [0, {steps}] (this run has {steps} steps)"
+            found = state_mismatch(state, template, variable)
+            if found:
+                return found
+            driver = state["driver"]
+            bad = [name for name in driver if not 0 <= driver[name] < float("inf")]
+            return f"driver.{bad[0]} is {driver[bad[0]]}, not a time in seconds" if bad else ""
+
+        loaded = checkpoint.load(check)
     if loaded is not None:
         start, state = loaded
         stepper.load_state(state["stepper"])

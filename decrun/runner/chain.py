@@ -10,6 +10,14 @@ apps that take initial data say so (``app=fluid app.initial=mesh_field``). A fie
 the mesh only while its simplices stay the same: ``refine``, ``holes`` and ``clean`` are
 refused together with it.
 
+What is read is checked against the mesh it belongs to before use (issue 34): the stored
+simplices must be whole vertex indices of the stored vertices (floats with fractions are
+not truncated, out-of-range indices not taken), a chained field finite; each refusal is a
+ConfigError naming ``mesh.path`` or ``mesh.field``. A source result that is not complete
+(a failed, interrupted or killed run, or a journal of one still running) is used with one
+warning in the log and the metric ``chained_result_status`` (its status; absent when the
+source is complete).
+
 The source lives beside the run (not in :mod:`decrun.runner.mesh`) because it joins the two
 layers below, the result files and the meshes (pyproject's runner layer contract).
 """
@@ -25,8 +33,36 @@ from decrun.errors import ConfigError, CorruptFileError
 from decrun.runner.files import RunFiles
 from decrun.runner.mesh import Mesh, MeshSource, require
 from decrun.runner.results import read_result
+from decrun.runner.results.reading import CHAINED_STATUS, chained_status
 
-__all__ = ["ResultMesh"]
+__all__ = ["ResultMesh", "integral_simplices"]
+
+def _count(n: int) -> str:
+    return "1 simplex" if n == 1 else f"{n} simplices"
+
+
+def integral_simplices(raw: np.ndarray, n_vertices: int, where: str) -> np.ndarray:
+    """``raw`` (a stored simplex array) as (m, k+1) int64, or a ConfigError starting with
+    ``where`` when it is not one: not 2-D, not numeric, an index with a fraction, NaN or
+    ±inf (never truncated) or outside [0, n_vertices)."""
+    raw = np.asarray(raw)
+    if raw.ndim != 2 or raw.dtype.kind not in "iuf" or raw.shape[1] < 2:
+        raise ConfigError(f"{where}: /mesh/simplices has dtype {raw.dtype} and shape {raw.shape}, not an (m, k+1) "
+                          "array of vertex indices (not a result decrun wrote); chain another run's result")
+    if raw.dtype.kind == "f":
+        bad = np.flatnonzero((~np.isfinite(raw) | (raw != np.round(raw))).any(axis=1))
+        if bad.size:
+            row = raw[bad[0]].tolist()
+            raise ConfigError(f"{where}: /mesh/simplices holds vertex indices that are not whole numbers in "
+                              f"{_count(bad.size)} (e.g. simplex {bad[0]}: {row}); refused, not truncated (the "
+                              "file was altered); chain another run's result")
+    bad = np.flatnonzero(((raw < 0) | (raw >= n_vertices)).any(axis=1))
+    if bad.size:
+        row = raw[bad[0]].tolist()
+        raise ConfigError(f"{where}: /mesh/simplices holds vertex indices outside [0, {n_vertices}) in "
+                          f"{_count(bad.size)} (e.g. simplex {bad[0]}: {row}; the mesh has {n_vertices} vertices); chain "
+                          "another run's result")
+    return raw.astype(np.int64)
 
 
 @dataclass
@@ -60,14 +96,18 @@ class ResultMesh(MeshSource):
                               "result.h5)") from None
         except (OSError, CorruptFileError) as exc:
             raise ConfigError(f"mesh.path={str(self.path)!r}: cannot read it as a decrun result ({exc})") from None
+        where = f"mesh.path={str(self.path)!r}"
         if "vertices" not in stored.mesh or "simplices" not in stored.mesh:
-            raise ConfigError(f"mesh.path={str(self.path)!r}: the result holds no mesh")
-        simplices = np.asarray(stored.mesh["simplices"], dtype=np.int64)
+            raise ConfigError(f"{where}: the result holds no mesh")
         vertices, source = self._vertices(stored, path)
+        simplices = integral_simplices(stored.mesh["simplices"], len(vertices), f"{where} ({path})")
         meta = {"source": "result", "label": f"result:{path.parent.name}", "path": str(path),
                 "result_vertices": source, "result_status": stored.status}
         if self.field:
             meta["field"] = self._field(stored, path, len(vertices), len(simplices))
+        status = chained_status(stored, where)  # after the refusals: a refused source needs no warning
+        if status:
+            meta[CHAINED_STATUS] = status
         return Mesh(vertices, simplices, meta)
 
     def _vertices(self, stored, path: Path) -> tuple[np.ndarray, str]:
@@ -94,6 +134,9 @@ class ResultMesh(MeshSource):
             raise ConfigError(f"mesh.field={self.field}: {path} has no such field (its fields: "
                               f"{sorted(stored.fields)})")
         values = np.asarray(stored.fields[self.field])
+        if values.ndim == 0:
+            raise ConfigError(f"mesh.field={self.field}: {path} stores it as one number, not a field on the mesh; "
+                              f"chain another field (its fields: {sorted(stored.fields)})")
         on = stored.field_on.get(self.field)
         edges = stored.mesh.get("edges")
         if on == "mesh/edges" or (on is None and edges is not None and values.shape[:1] == (len(edges),)
@@ -106,6 +149,14 @@ class ResultMesh(MeshSource):
         else:
             raise ConfigError(f"mesh.field={self.field}: shape {values.shape} is neither per vertex ({n_vertices}), "
                               f"per edge nor per top simplex ({n_top})")
+        if values.dtype.kind not in "biufc":
+            raise ConfigError(f"mesh.field={self.field}: {path} stores it as {values.dtype}, not numbers; chain "
+                              f"another field (its fields: {sorted(stored.fields)})")
+        bad = np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))
+        if bad.size:
+            raise ConfigError(f"mesh.field={self.field}: {path} holds NaN or ±inf in it on {bad.size} {where} (e.g. "
+                              f"{dict(vertices='vertex', edges='edge', faces='face')[where]} {bad[0]}: the source run diverged?); chain a finite field, or none "
+                              "(`mesh.field=''`, with app=fluid also `app.initial=random`)")
         field = {"name": self.field, "values": values, "on": where, "path": str(path)}
         if where == "edges":
             field["edges"] = np.asarray(edges, dtype=np.int64)

@@ -295,7 +295,8 @@ def _report(exc: Exception) -> int:
 
     if _VERBOSE:
         raise exc
-    message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc)
+    message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc) or \
+        group_typo_message(exc) or root_value_message(exc)
     if not message and not isinstance(exc, DecrunError):  # hydra.run.dir=${oc.env:UNSET}: Hydra's own keys
         from decrun.runner.hints import resolution_message
 
@@ -403,6 +404,48 @@ def missing_plugin_message(exc: Exception) -> str | None:
     group, name = match.groups()
     plugin, extra = PLUGIN_EXTRAS[group][name]
     return f'error: {group}={name}: {plugin} is not installed; pip install "decrun[{extra}]"'
+
+
+def group_typo_message(exc: Exception) -> str | None:
+    """For a config-group option that does not exist (``app=smooth``, ``mesh=icosahedron``,
+    ``hydra/launcher=nonexistent``): one line with the closest option and every option of the
+    group (not the files that are shared pieces of one, ``_``-prefixed), instead of Hydra's
+    listing with the config search path. None for any other error."""
+    import difflib
+    import re
+
+    from hydra.errors import MissingConfigException
+
+    if not isinstance(exc, MissingConfigException):
+        return None
+    match = re.search(r"Could not (?:find|load) '([^']+)/([^'/]+)'", str(exc))
+    if match is None:
+        return None
+    group, name = match.groups()
+    options = sorted(option for option in (exc.options or []) if not option.startswith("_"))
+    if not options:
+        return None
+    close = difflib.get_close_matches(name, options, n=1)
+    hint = f"; did you mean `{group}={close[0]}`?" if close else ""
+    return f"error: {group}={name}: no such option{hint} (the options: {' | '.join(options)})"
+
+
+def root_value_message(exc: Exception) -> str | None:
+    """For a root option given a value of the wrong type (``progress=maybe``): one line naming
+    the option, the value and what it takes, instead of Hydra's merge report."""
+    import re
+
+    from omegaconf.errors import ValidationError
+
+    cause = exc.__cause__ if isinstance(exc.__cause__, ValidationError) else None
+    match = re.match(r"Error merging override (\S+)=(.*)", str(exc))
+    if cause is None or match is None:
+        return None
+    key, value = match.groups()
+    text = str(cause).splitlines()[0]
+    if "bool" in text:
+        return f"error: {key}={value}: not a boolean; use `{key}=true` or `{key}=false`"
+    return f"error: {key}={value}: {text}"
 
 
 def _choices_of(cause: BaseException | None) -> type[Choice] | None:

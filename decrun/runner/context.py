@@ -7,6 +7,7 @@ from pathlib import Path
 from decrun.apps.base import Context
 from decrun.errors import ConfigError, CorruptFileError
 from decrun.runner.results import read_mesh, read_result
+from decrun.runner.results.reading import chained_status
 
 __all__ = ["RunContext"]
 
@@ -19,6 +20,9 @@ class RunContext(Context):
         super().__init__(*args, **kwargs)
         self.recorder = recorder
         self.logger = logger
+        #: the status of an incomplete result read by :meth:`read_result` ("" when none was,
+        #: or it was complete): the run's metric ``chained_result_status``
+        self.chained_status = ""
 
     def record(self, step: int, **values) -> None:
         if self.recorder is None:
@@ -27,7 +31,8 @@ class RunContext(Context):
             self.recorder.record(step, **values)
 
     def read_result(self, path: str):
-        """``(Result, vertices)`` of a previous run's result.h5 (complete or not)."""
+        """``(Result, vertices)`` of a previous run's result.h5 (complete or not: an
+        incomplete one is said in one warning and kept in :attr:`chained_status`)."""
         if not Path(path).is_file():
             raise ConfigError(f"app.input_path: no result file at {str(path)!r}")
         try:
@@ -41,6 +46,8 @@ class RunContext(Context):
         except (OSError, ValueError, TypeError) as exc:  # not HDF5, truncated, corrupt, damaged JSON
             raise ConfigError(f"app.input_path={str(path)!r}: cannot read it as a decrun result.h5 "
                               f"({_first_line(exc)})") from None
+        warn = self.logger.warning if self.logger is not None else self.log
+        self.chained_status = chained_status(result, f"app.input_path={str(path)!r}", warn) or self.chained_status
         return result, vertices
 
     def log(self, message: str) -> None:

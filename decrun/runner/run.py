@@ -42,9 +42,10 @@ from decrun.runner.mesh import Mesh
 from decrun.runner.plugins import Recent
 from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
-from decrun.runner.results.provenance import result_record
 from decrun.runner.results.checked import RESULT_RECORD
-from decrun.runner.results.checkpoint import RunCheckpoint
+from decrun.runner.results.checkpoint import RunCheckpoint, remove_checkpoint
+from decrun.runner.results.provenance import result_record
+from decrun.runner.results.reading import CHAINED_STATUS
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
 from decrun.runner.sweep.manifest import config_hash
@@ -226,6 +227,9 @@ def _execute(run: Run) -> Run:
                 "largest_component_dropped_faces"):  # mesh.largest_component: nothing dropped unreported
         if key in mesh.meta:
             result.metrics.setdefault(key, int(mesh.meta[key]))
+    chained = mesh.meta.get(CHAINED_STATUS) or ctx.chained_status  # chained from an incomplete result
+    if chained:
+        result.metrics.setdefault(CHAINED_STATUS, chained)
     run.result = result
     return run
 
@@ -277,7 +281,7 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     # the size and sha256 of result.h5 as written (readers never take a truncated or altered one for it)
     # and the hash of its content, equal for two runs of one config (README: "Reproducible records")
     metrics = write_metrics_json(files.metrics, {**result.metrics, RESULT_RECORD: result_record(h5)})
-    files.checkpoint.unlink(missing_ok=True)  # the run is complete: nothing to continue
+    remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
     export = run.experiment.export
     exported = export.write(files, result, mesh, run.complex) if export is not None else []
     return [h5, metrics, *written, *exported]

@@ -54,8 +54,8 @@ class MemoryCheckpoint:
     def __init__(self, recorder, every):
         self.recorder, self.every, self.saved = recorder, every, None
 
-    def load(self):
-        if self.saved is None:  # a fresh start: the runner's recorder starts a new journal
+    def load(self, check):
+        if self.saved is None or check(self.saved[0], self.saved[1]):  # a fresh start: a new journal
             self.recorder.truncate(0)
             return None
         step, state, records = self.saved

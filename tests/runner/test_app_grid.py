@@ -13,11 +13,13 @@ from decrun.errors import ConfigError
 from decrun.runner.config import compose_config
 from decrun.runner.run import run_experiment, validate
 
-APPS = ["smoothing", "parametrization", "hodge", "vector_field", "fluid"]
+APPS = ["smoothing", "parametrization", "hodge", "vector_field", "fluid", "heat", "poisson", "heat_geodesics"]
 SOLVERS = ["auto", "cholmod", "direct", "cg", "amg", "iterative", "pardiso"]
 APP_MESH = {"parametrization": ["mesh=sphere_cap", "mesh.subdiv=2"], "hodge": ["mesh.subdiv=2", "mesh.noise=0.05"],
             "smoothing": ["mesh.subdiv=2"], "vector_field": ["mesh.subdiv=2"],
-            "fluid": ["mesh.subdiv=2", "mesh.noise=0.0", "app.steps=5", "app.animation=false"]}
+            "fluid": ["mesh.subdiv=2", "mesh.noise=0.0", "app.steps=5", "app.animation=false"],
+            "heat": ["mesh.subdiv=2", "app.t_end=0.01"], "poisson": ["mesh.nx=9", "mesh.ny=9"],
+            "heat_geodesics": ["mesh.subdiv=2"]}
 EXTRA = {"amg": "pyamg", "pardiso": "pypardiso"}
 
 

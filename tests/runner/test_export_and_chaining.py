@@ -151,3 +151,143 @@ def test_chaining_refusals_name_the_fix(decrun_cli, tmp_path):
     assert done.returncode != 0 and "no result file there" in done.stderr
     done = decrun_cli("app=fluid", "app.initial=mesh_field", "mesh.noise=0", "figures=false")
     assert done.returncode != 0 and "mesh=result" in done.stderr
+
+
+# ---------------------------------------------------------------------------------------
+# issue 34 item 2: what a chained run reads is checked against its mesh, and an incomplete
+# source is used with a warning and a metric
+# ---------------------------------------------------------------------------------------
+
+def altered_copy(source: Path, to: Path, change) -> Path:
+    """A copy of ``source``'s result.h5 in ``to`` with ``change(h5 file)`` applied."""
+    import shutil
+
+    import h5py
+
+    to.mkdir()
+    shutil.copy(source / "result.h5", to / "result.h5")
+    with h5py.File(to / "result.h5", "r+") as f:
+        change(f)
+    return to / "result.h5"
+
+
+def replace_dataset(f, name, values):
+    del f[name]
+    f.create_dataset(name, data=values)
+
+
+def one_error_line(done) -> str:
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr[-3000:]
+    (line,) = [line for line in done.stderr.splitlines() if line.strip()]
+    return line
+
+
+def chaining_log(out: Path) -> list[str]:
+    return [line for line in (out / "decrun.log").read_text().splitlines() if "chained anyway" in line]
+
+
+@pytest.mark.parametrize("alter, says", [
+    (lambda s: s + np.where(np.arange(s.size).reshape(s.shape) == 4, 0.5, 0.0),
+     "/mesh/simplices holds vertex indices that are not whole numbers in 1 simplex (e.g. simplex 1: [3.0, 0.5, 2.0]); "
+     "refused, not truncated"),
+    (lambda s: np.where(np.arange(s.size).reshape(s.shape) == 4, 10 ** 6, s),
+     "/mesh/simplices holds vertex indices outside [0, 162) in 1 simplex (e.g. simplex 1: [3, 1000000, 2]; the mesh "
+     "has 162 vertices)"),
+    (lambda s: np.where(np.arange(s.size).reshape(s.shape) == 4, -1, s),
+     "/mesh/simplices holds vertex indices outside [0, 162) in 1 simplex (e.g. simplex 1: [3, -1, 2]; the mesh has 162 "
+     "vertices)"),
+], ids=["fraction", "beyond the vertices", "negative"])
+def test_chained_simplices_that_are_not_vertex_indices_are_refused_naming_mesh_path(decrun_cli, tmp_path, alter, says):
+    source = run_dir(decrun_cli, tmp_path, "app=smoothing", "mesh.subdiv=2", "app.steps=2")
+    altered = altered_copy(source, tmp_path / "altered", lambda f: replace_dataset(
+        f, "mesh/simplices", alter(f["mesh/simplices"][()].astype(np.float64 if "whole" in says else np.int64))))
+    line = one_error_line(decrun_cli("app=smoothing", "app.steps=1", "mesh=result", f"mesh.path={altered}",
+                                     "figures=false"))
+    assert line.startswith(f"error: mesh.path='{altered}' ({altered}): {says}") and "chain another run's result" in line
+    assert decrun_cli("app=smoothing", "app.steps=1", "mesh=result", f"mesh.path={source}",  # the fix: another result
+                      "figures=false").returncode == 0
+
+
+def test_whole_simplices_stored_as_floats_are_used(decrun_cli, tmp_path):
+    source = run_dir(decrun_cli, tmp_path, "app=smoothing", "mesh.subdiv=2", "app.steps=2")
+    altered = altered_copy(source, tmp_path / "altered", lambda f: replace_dataset(
+        f, "mesh/simplices", f["mesh/simplices"][()].astype(np.float64)))
+    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "app.steps=1", "mesh=result", f"mesh.path={altered}")
+    np.testing.assert_array_equal(read_result(out / "result.h5").mesh["simplices"],
+                                  read_result(source / "result.h5").mesh["simplices"])
+
+
+@pytest.fixture(scope="module")
+def designed(tmp_path_factory):
+    """A vector_field run (its ``omega``) and a copy of it with NaN in omega."""
+    import subprocess
+    import sys
+
+    root = tmp_path_factory.mktemp("designed")
+    done = subprocess.run([sys.executable, "-m", "decrun", "app=vector_field", "mesh.subdiv=2", "mesh.noise=0",
+                           "figures=false", f"hydra.run.dir={root / 'run'}"], cwd=root, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+
+    def nan(f):
+        omega = f["fields/omega"][()]
+        omega[[3, 7]] = np.nan
+        f["fields/omega"][...] = omega
+
+    return root / "run", altered_copy(root / "run", root / "nan", nan)
+
+
+def test_a_chained_field_with_nan_is_refused_naming_mesh_field_and_the_hint_runs(decrun_cli, tmp_path, designed):
+    _, nan = designed
+    args = ["app=fluid", "mesh=result", f"mesh.path={nan}", "app.steps=2", "app.animation=false", "figures=false"]
+    line = one_error_line(decrun_cli(*args, "app.initial=mesh_field", "mesh.field=omega"))
+    assert line == (f"error: mesh.field=omega: {nan} holds NaN or ±inf in it on 2 edges (e.g. edge 3: the source run "
+                    "diverged?); chain a finite field, or none (`mesh.field=''`, with app=fluid also "
+                    "`app.initial=random`)"), line
+    done = decrun_cli(*args, "app.initial=random", "mesh.field=''")
+    assert done.returncode == 0, done.stderr
+
+
+def test_a_decomposed_input_with_nan_is_refused_naming_app_input_field(decrun_cli, tmp_path):
+    source = run_dir(decrun_cli, tmp_path, "app=hodge", "mesh.subdiv=2", "app.input=random")
+
+    def nan(f):
+        omega = f["fields/omega"][()]
+        omega[5] = np.inf
+        f["fields/omega"][...] = omega
+
+    altered = altered_copy(source, tmp_path / "altered", nan)
+    args = ["app=hodge", "mesh.subdiv=2", "figures=false"]
+    line = one_error_line(decrun_cli(*args, "app.input=result", f"app.input_path={altered}"))
+    assert line == (f"error: app.input_field: 'omega' in {altered} holds NaN or ±inf on 1 1-simplices (e.g. [5]: the "
+                    "source run diverged?); decompose a finite field, e.g. `app.input=random`"), line
+    assert decrun_cli(*args, "app.input=random").returncode == 0
+
+
+def interrupted(f):
+    """As ``abort`` marks a run stopped by SIGTERM (status interrupted, complete false)."""
+    f.attrs["complete"] = False
+    f.attrs["status"] = "interrupted"
+
+
+def test_chaining_from_an_incomplete_result_warns_once_and_says_it_in_a_metric(decrun_cli, tmp_path):
+    source = run_dir(decrun_cli, tmp_path, "app=smoothing", "mesh.subdiv=2", "app.steps=2")
+    complete = run_dir(decrun_cli, tmp_path, "app=smoothing", "app.steps=1", "mesh=result", f"mesh.path={source}")
+    assert "chained_result_status" not in json.loads((complete / "metrics.json").read_text())
+    assert chaining_log(complete) == []
+
+    stopped = altered_copy(source, tmp_path / "stopped", interrupted)
+    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "app.steps=1", "mesh=result", f"mesh.path={stopped}")
+    assert json.loads((out / "metrics.json").read_text())["chained_result_status"] == "interrupted"
+    (line,) = chaining_log(out)
+    assert line.endswith(f"mesh.path='{stopped}': the result is not complete (status interrupted, 3 steps "
+                         "recorded); chained anyway, metric chained_result_status=interrupted"), line
+
+
+def test_decomposing_an_incomplete_result_warns_once_and_says_it_in_a_metric(decrun_cli, tmp_path):
+    source = run_dir(decrun_cli, tmp_path, "app=hodge", "mesh.subdiv=2", "app.input=random")
+    stopped = altered_copy(source, tmp_path / "stopped", interrupted)
+    out = run_dir(decrun_cli, tmp_path, "app=hodge", "mesh.subdiv=2", "app.input=result", f"app.input_path={stopped}")
+    assert json.loads((out / "metrics.json").read_text())["chained_result_status"] == "interrupted"
+    (line,) = chaining_log(out)
+    assert line.endswith(f"app.input_path='{stopped}': the result is not complete (status interrupted, 0 steps "
+                         "recorded); chained anyway, metric chained_result_status=interrupted"), line

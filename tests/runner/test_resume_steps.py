@@ -7,7 +7,9 @@ and not trusted. Everything runs through the real ``decrun`` command."""
 from __future__ import annotations
 
 import json
+import os
 import signal
+import subprocess
 import time
 from pathlib import Path
 
@@ -169,3 +171,97 @@ def test_a_bad_checkpoint_setting_is_refused_before_any_work_and_its_hint_runs(t
     assert not (tmp_path / "bad" / "result.h5").exists()
     proc = decrun("app.steps=1", *FAST, fix, f"hydra.run.dir={tmp_path / 'fixed'}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
+
+
+# ---------------------------------------------------------------------------------------
+# issue 34 item 1: checkpoints read back are checked against the run; a checkpoint that
+# cannot be written is one error naming it; no temporary file outlives a run
+# ---------------------------------------------------------------------------------------
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    """``tmpfs(size)`` → a mounted tmpfs (needs root and mount(8)); skipped elsewhere."""
+    mounted = []
+
+    def mount(size: str) -> Path:
+        point = tmp_path / f"fs{len(mounted)}"
+        point.mkdir()
+        if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(point)],
+                                               capture_output=True).returncode != 0:
+            pytest.skip("cannot mount a tmpfs (needs root)")
+        mounted.append(point)
+        return point
+
+    yield mount
+    for point in mounted:
+        subprocess.run(["umount", str(point)], check=True)
+
+
+@pytest.mark.parametrize("args, size", [
+    (["app=smoothing", "mesh.subdiv=5", "app.steps=30", "checkpoint.steps=1"], "2000k"),
+    # HDF5's own ENOSPC path killed this one with SIGSEGV after an HDF5 traceback (rc 139)
+    pytest.param(["app=fluid", "app.steps=1500", "checkpoint.steps=1"], "800k", marks=pytest.mark.slow),
+], ids=["smoothing", "fluid"])
+def test_a_full_disk_while_writing_the_checkpoint_is_one_line_naming_it(tmp_path, tmpfs, args, size):
+    disk = tmpfs(size)
+    proc = decrun(*args, *FAST, f"hydra.run.dir={disk}/run", cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr[-3000:]
+    assert "Traceback" not in proc.stderr and "HDF5" not in proc.stderr, proc.stderr[-3000:]
+    assert proc.stderr.splitlines() == [f"error: cannot write {disk}/run/{CHECKPOINT}: No space left on device; "
+                                        "choose another output directory with hydra.run.dir=DIR (hydra.sweep.dir=DIR "
+                                        "with -m)"]
+    assert not list(disk.rglob(".*tmp-*"))
+    assert json.loads((disk / "run" / "metrics.json").read_text())["status"] == "failed"
+    if "app=smoothing" in args:  # the hint works
+        proc = decrun(*args, *FAST, f"hydra.run.dir={tmp_path / 'elsewhere'}", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+
+
+def test_a_finished_run_leaves_no_temporary_file_of_a_killed_checkpoint_write(tmp_path, uninterrupted):
+    run_dir = tmp_path / "run"
+    args = [*CASES["smoothing"], *FAST, f"hydra.run.dir={run_dir}"]
+    kill_after_checkpoint(args, run_dir / CHECKPOINT, tmp_path)
+    (run_dir / f".{CHECKPOINT}.tmp-999999").write_bytes(b"\x89HDF\r\n\x1a\n half written")  # SIGKILL mid-write
+    proc = decrun(*args, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in run_dir.iterdir() if p.name.startswith(".") and p.name != ".hydra") == []
+    assert json.loads((run_dir / "metrics.json").read_text())["resumed_from_step"] > 0
+    assert_same_run(uninterrupted / "smoothing", run_dir)
+
+
+def forge_checkpoint(path: Path, **change) -> None:
+    """Rewrite ``path`` with its step or a stepper leaf changed, the checksum recomputed."""
+    from decrun.runner.results.checkpoint import read_checkpoint, write_checkpoint
+
+    step, state, attrs = read_checkpoint(path)
+    step = change.pop("step", step)
+    for name, value in change.items():
+        if value is None:
+            del state["stepper"][name]
+        else:
+            state["stepper"][name] = value(state["stepper"][name])
+    write_checkpoint(path, step, state, {k: v for k, v in attrs.items() if k not in ("format", "step", "sha256",
+                                                                                       "complete")})
+
+
+@pytest.mark.parametrize("change, reason", [
+    ({"step": -3}, "step -3 is outside [0, 600] (this run has 600 steps)"),
+    ({"step": 10 ** 6}, "step 1000000 is outside [0, 600] (this run has 600 steps)"),
+    ({"v": lambda v: v[:-1]}, "stepper.v has shape (641, 3), this run's has (642, 3)"),
+    ({"last_finite": None}, "stepper.last_finite is missing"),
+    ({"v": lambda v: v * np.nan}, "stepper.v holds 1926 non-finite values"),
+], ids=["negative step", "beyond app.steps", "shape", "missing key", "NaN"])
+def test_a_checkpoint_that_is_not_a_state_of_this_run_is_reported_and_the_run_starts_over(tmp_path, uninterrupted,
+                                                                                          change, reason):
+    """Its checksum is valid (anyone can recompute it): the state is checked against the run."""
+    run_dir = tmp_path / "run"
+    args = [*CASES["smoothing"], *FAST, f"hydra.run.dir={run_dir}"]
+    kill_after_checkpoint(args, run_dir / CHECKPOINT, tmp_path)
+    forge_checkpoint(run_dir / CHECKPOINT, **change)
+    proc = decrun(*args, cwd=tmp_path)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
+    log = (run_dir / "decrun.log").read_text()
+    assert (f"checkpoint: {run_dir / CHECKPOINT}: {reason}; not a state of this run, not trusted: the run starts "
+            "from step 0") in log, log
+    assert "resumed_from_step" not in json.loads((run_dir / "metrics.json").read_text())
+    assert_same_run(uninterrupted / "smoothing", run_dir)

@@ -6,3 +6,15 @@ the mesh) and the arrays the app computed, and returns a ``matplotlib.figure.Fig
 - :mod:`.fields` — tangent vector fields with singularities, Hodge parts
 - :mod:`.parametrization` — uv layouts and checkerboard textures
 """
+
+#: figure kinds → drawing functions (``Figure.of_kind``): apps name a kind, never a runner module
+FIGURE_KINDS = {
+    "surface": "decrun.runner.plots.common.mesh_values",
+    "series": "decrun.runner.plots.common.plot_series",
+    "recorded_series": "decrun.runner.plots.common.recorded_series",
+    "before_after": "decrun.runner.plots.common.before_after",
+    "snapshots": "decrun.runner.plots.snapshots.snapshot_grid",
+    "animation": "decrun.runner.plots.snapshots.animation",
+    "vector_field": "decrun.runner.plots.fields.field_figure",
+}
+

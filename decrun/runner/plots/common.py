@@ -192,6 +192,14 @@ def surface_figure(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray |
     return fig
 
 
+def mesh_values(K, values: np.ndarray, *, title: str | None = None, cmap: str = "viridis",
+                colorbar_label: str | None = None) -> Figure:
+    """The complex's surface (its top simplices as oriented) coloured by per-vertex or per-face
+    ``values`` (a 0-form or a dual 0-form): :func:`surface_figure` on ``K``."""
+    return surface_figure(K.vertices, K.oriented_simplices(), values, title=title, cmap=cmap,
+                          colorbar_label=colorbar_label)
+
+
 def plot_series(series: dict[str, np.ndarray], names: Iterable[str] | None = None, *,
                 xlabel: str = "step", relative: bool = True, title: str | None = None) -> Figure:
     """One figure with the per-step curves ``series[name]`` (divided by their first value
@@ -208,6 +216,25 @@ def plot_series(series: dict[str, np.ndarray], names: Iterable[str] | None = Non
     ax.legend(fontsize=8)
     if title:
         ax.set_title(title, fontsize=9)
+    return fig
+
+
+def recorded_series(recorded, names: Iterable[str], *, times_name: str = "time", title: str | None = None) -> Figure:
+    """The recorded per-step numbers ``names`` (e.g. a model's metrics) against ``times_name``,
+    one panel each (their own scales: a mass conserved to round-off and an energy decaying by
+    orders of magnitude share no axis)."""
+    names = list(names)
+    times = np.asarray(recorded[times_name], dtype=np.float64)
+    fig = new_figure(4.2 * min(len(names), 3), 3.0 * int(np.ceil(len(names) / 3)))
+    for i, name in enumerate(names):
+        ax = fig.add_subplot(int(np.ceil(len(names) / 3)), min(len(names), 3), i + 1)
+        ax.plot(times, np.asarray(recorded[name], dtype=np.float64), marker="." if len(times) < 40 else None)
+        ax.set_xlabel(times_name)
+        ax.set_title(name, fontsize=9)
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
     return fig
 
 
@@ -250,7 +277,9 @@ def draw_figures(figures: dict, out_dir, K=None, series: dict | None = None) -> 
     recorded = RecordedSeries(files.result, series)
     written = []
     for name, figure in figures.items():
-        module_name, _, function_name = figure.draw.rpartition(".")
+        from decrun.runner.plots import FIGURE_KINDS
+
+        module_name, _, function_name = FIGURE_KINDS.get(figure.draw, figure.draw).rpartition(".")
         draw = getattr(importlib.import_module(module_name), function_name)
         data = dict(figure.data)
         parameters = inspect.signature(draw).parameters

@@ -8,6 +8,7 @@ stored with it.
 from __future__ import annotations
 
 import errno as _errno
+import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,12 @@ from decrun.runner.results.checked import check_group, check_record, open_h5, pa
 from decrun.runner.results.journal import BLOCK_BYTES, Journal, journal_path, read_journal
 from decrun.runner.results.provenance import decrun_attrs, plain
 
-__all__ = ["RecordedResult", "read_result", "read_mesh", "check_result", "verify_result"]
+__all__ = ["RecordedResult", "read_result", "read_mesh", "check_result", "verify_result", "chained_status",
+           "CHAINED_STATUS"]
+
+#: the metric (and mesh.meta key) naming the status of an incomplete result a run chained from
+#: (``mesh=result``, ``app.input=result``); absent when the source was complete
+CHAINED_STATUS = "chained_result_status"
 
 
 @dataclass
@@ -159,3 +165,15 @@ def read_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             check_group(f["mesh"], path)
             arrays.append(read_dataset(f[name], path))
     return arrays[0], arrays[1]
+
+
+def chained_status(stored: RecordedResult, where: str, log=None) -> str:
+    """``""`` for a complete result, else its status ("failed", "interrupted", "killed",
+    "unfinished"), said in one warning naming ``where`` (``mesh.path=...``)."""
+    if stored.complete:
+        return ""
+    status = str(stored.status) or "incomplete"
+    (log or logging.getLogger("decrun").warning)(
+        f"{where}: the result is not complete (status {status}, {stored.steps_recorded} steps recorded); chained "
+        f"anyway, metric {CHAINED_STATUS}={status}")
+    return status

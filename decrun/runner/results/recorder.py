@@ -84,7 +84,6 @@ a ``ValueError`` / ``TypeError`` naming the key, and nothing is written for that
 from __future__ import annotations
 
 import datetime as _dt
-import errno as _errno
 import json
 import os
 import zlib
@@ -95,7 +94,9 @@ import numpy as np
 
 from decrun.apps.base import FieldOnEdges, Result
 from decrun.errors import DecrunError
+from decrun.runner.atomic import QuietFile as _QuietFile
 from decrun.runner.atomic import atomic_path
+from decrun.runner.atomic import check_free_space as _check_free_space
 from decrun.runner.results.journal import BLOCK_BYTES, Column, Journal, JournalWriter, journal_path, read_journal
 from decrun.runner.results.provenance import FORMAT, git_commit, metrics_to_json, package_versions, plain
 
@@ -170,11 +171,12 @@ class ResultRecorder:
         the record count it names the journal a checkpoint continues."""
         return self._attrs["created"] if self._journal is not None else ""
 
-    def resume(self, n_records: int, created: str) -> None:
+    def resume(self, n_records: int, created: str, step: int | None = None) -> None:
         """Continue the journal a killed run left at :attr:`journal_path` after its first
         ``n_records`` records (those a checkpoint was written after; later ones are dropped
         and recorded anew), instead of starting one at the first :meth:`record`. The journal
-        must be verified whole up to there, be the one ``created`` names and hold this mesh;
+        must be verified whole up to there, be the one ``created`` names, hold this mesh and
+        (given the checkpoint's ``step``) no record kept may be of a later step;
         else a :class:`~decrun.errors.CorruptFileError` / ValueError / OSError naming the file,
         and nothing is changed. A stale (incomplete) ``result.h5`` at :attr:`path` is removed."""
         self._check_open()
@@ -192,6 +194,9 @@ class ResultRecorder:
         last = None
         for _, block in journal.blocks(stop=n_records):
             last = int(block["step"][-1])
+        if step is not None and last is not None and last > step:
+            raise ValueError(f"{self.journal_path}: record {n_records} is of step {last}, after the checkpoint's "
+                             f"step {step}")
         self._columns = list(journal.columns)
         self._attrs = {key: journal.attrs[key] for key in ("config_yaml", "mesh_hash", "created", "extra")}
         self._journal = JournalWriter.reopen(journal, n_records)
@@ -297,6 +302,7 @@ class ResultRecorder:
                 forms.setdefault(name, 1)
                 value = value.values
             fields[name] = value
+        self._attrs["extra"].update({key: plain(value) for key, value in result.provenance.items()})
         result = Result(fields=fields, series=result.series, metrics=result.metrics, figures=result.figures)
         self._convert(result, dict(timings or {}), forms, status="ok", error="")
         return self.path
@@ -377,71 +383,6 @@ def _series_options(sample: np.ndarray, n_records: int) -> dict:
         if len(zlib.compress(shuffled, 4)) < _WORTH_GZIP_RATIO * len(shuffled):
             options.update(compression="gzip", compression_opts=4, shuffle=True)
     return options
-
-
-class _QuietFile:
-    """The temporary file as h5py sees it (``h5py.File(fileobj)``): a write error is
-    never reported to HDF5 -- it is kept in :attr:`error`, later writes are skipped, and
-    the caller raises it once HDF5 has closed the file. Measured reason: when HDF5's own
-    writes fail with ENOSPC, its file stays half-open and the process segfaults at exit
-    (HDF5 2.0 / h5py 3.16)."""
-
-    def __init__(self, path: Path):
-        self._file = open(path, "w+b", buffering=0)
-        self.error: OSError | None = None
-
-    def write(self, data) -> int:
-        view = memoryview(data).cast("B")
-        if self.error is None:
-            try:
-                done = 0
-                while done < len(view):
-                    done += self._file.write(view[done:])
-                return len(view)
-            except OSError as exc:
-                self.error = exc
-        self._file.seek(len(view), os.SEEK_CUR)
-        return len(view)
-
-    def read(self, size: int = -1) -> bytes:
-        data = self._file.read(size)
-        if size > 0 and len(data) < size:  # a region whose write was skipped
-            data += b"\0" * (size - len(data))
-        return data
-
-    def readinto(self, buffer) -> int:
-        view = memoryview(buffer).cast("B")
-        got = self._file.readinto(view) or 0
-        view[got:] = b"\0" * (len(view) - got)
-        return len(view)
-
-    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
-        return self._file.seek(offset, whence)
-
-    def tell(self) -> int:
-        return self._file.tell()
-
-    def truncate(self, size: int | None = None) -> int:
-        try:
-            return self._file.truncate(size)
-        except OSError as exc:
-            self.error = self.error or exc
-            return self._file.tell() if size is None else size
-
-    def flush(self) -> None:
-        pass
-
-    def close(self) -> None:
-        self._file.close()
-
-
-def _check_free_space(directory: Path, needed: int) -> None:
-    """Fail early (before HDF5 starts) when the disk cannot hold ``needed`` bytes."""
-    stat = os.statvfs(directory)
-    free = stat.f_bavail * stat.f_frsize
-    if free < needed:
-        raise OSError(_errno.ENOSPC, f"No space left on device (needs up to {needed / 1e6:.1f} MB, "
-                                     f"{free / 1e6:.1f} MB free)")
 
 
 def _bytes_needed(result: Result, journal: Journal | None, mesh: dict, attrs: dict) -> int:

@@ -220,6 +220,11 @@ def stack(sweep_dirs: Sequence[str | os.PathLike]) -> pd.DataFrame:
     return table[leading + [c for c in table.columns if c not in leading]]
 
 
+#: a metric naming, comma-separated, further metrics of its run that a table shows by default
+#: (a model's declared metrics: their names are the model's, not the app's)
+HEADLINE_COLUMN = "headline_metrics"
+
+
 def headline_metrics() -> tuple[str, ...]:
     """The metrics a table shows by default: every app's ``headline_metrics`` and ``total_seconds``."""
     import importlib
@@ -245,6 +250,10 @@ def select(table: pd.DataFrame, metrics: Sequence[str] | None = None, sort: Sequ
         if key not in table.columns:
             raise KeyError(f"no column {key!r}; the columns are {', '.join(map(str, table.columns))}")
     keep = list(metrics or (headline_metrics() if narrow else []))
+    if narrow and not metrics and HEADLINE_COLUMN in table.columns:  # a run's own (a model's declared metrics)
+        named = table[HEADLINE_COLUMN].dropna().astype(str)
+        keep += [name for text in named for name in text.split(",") if name and name in table.columns]
+        table = table.drop(columns=[HEADLINE_COLUMN])
     if keep:
         status_at = list(table.columns).index("status")
         fixed = list(table.columns[:status_at + 2]) + ["result"]

@@ -1,0 +1,227 @@
+"""``app=<model>``: a declarative DEC model — the physics written in YAML.
+
+A model is a config of the ``app`` group whose ``_target_`` is :class:`Model`; its options are
+the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual3`` — an ``initial``
+value and optional ``dirichlet`` border values), ``constants``, ``equations`` (evolutions
+``dt(u) = …``, definitions ``v = …``, linear solves ``solve(lhs = rhs)``), an ``integrator`` with
+``dt`` and ``t_end`` (or ``steps``), ``record_every`` and ``metrics`` (numbers, by name).
+Everything about the language — parsing, types, operators, integrators — is
+:mod:`decrun.methods.model`; this adapter checks the model against the mesh before any work
+(types, initial values, the explicit stability limit), steps it through
+:func:`decrun.methods.stepping.run_steps` (progress, records, blow-up, checkpoints) and returns
+the fields by their declared names, the declared metrics and figures by kind.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+
+from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.core.choices import Choice
+from decrun.errors import ConfigError
+from decrun.methods.model import FieldSpec, ModelSpec, compile_model
+from decrun.methods.model.integrators import FROZEN, explicit_stability_limit, make_integrator
+from decrun.methods.model.kinds import NUMBER, VECTOR
+from decrun.methods.model.metrics import model_metrics
+from decrun.methods.model.stepper import ModelStepper
+from decrun.methods.stepping import run_steps
+
+__all__ = ["Model", "FieldOptions", "Integrator"]
+
+
+class Integrator(Choice):
+    """``app.integrator`` (:mod:`decrun.methods.model.integrators`)."""
+
+    explicit_euler = "explicit_euler"
+    rk4 = "rk4"
+    implicit_euler = "implicit_euler"
+    crank_nicolson = "crank_nicolson"
+    imex = "imex"
+    symplectic = "symplectic"
+    bdf = "bdf"
+    radau = "radau"
+    rk45 = "rk45"
+    semi_implicit = "semi_implicit"
+
+
+@dataclass
+class FieldOptions:
+    """``app.fields.<name>``: ``form`` 0 | 1 | 2 | 3 | dual0 … dual3; ``initial`` a number, an
+    expression of x, y, z, a list of expressions (a vector field, for 1- and 2-forms),
+    ``random``, ``vertex(i)`` or ``result:<field>``; ``dirichlet`` its values on the border
+    simplices (null: natural)."""
+
+    form: str = "0"
+    initial: Any = None
+    dirichlet: Any = None
+
+
+@dataclass
+class Model(App):
+    """Options of a model (``conf/app/heat.yaml`` and the other models; module docstring)."""
+
+    name = "model"
+    dimensions = (2, 3)
+    boundaries = ("none", "flux")
+    boundary_note = "boundary=flux replaces δ1 by the thesis' adapted matrix (§6.4.4)"
+    form_degrees = (0,)
+    headline_metrics = ("stable", "steps_done")
+    #: a title for figures and logs
+    model: str = "model"
+    fields: Dict[str, FieldOptions] = field(default_factory=dict)
+    constants: Dict[str, float] = field(default_factory=dict)
+    equations: List[str] = field(default_factory=list)
+    integrator: Integrator = Integrator.implicit_euler
+    dt: float = 0.01
+    t_end: Optional[float] = None  # with dt: steps = t_end / dt (a whole number)
+    steps: Optional[int] = None  # used when t_end is null
+    record_every: int = 1
+    metrics: Dict[str, str] = field(default_factory=dict)
+    seed: int = 0  # for `random` initial values
+    rtol: float = 1e-6  # bdf | radau | rk45
+    atol: float = 1e-9
+    stability_check: bool = True  # refuse an explicit dt beyond 2/λ_max (one eigen-solve)
+    snapshots: int = 6
+    animation: bool = True
+
+    def __post_init__(self):
+        self.integrator = Integrator.of(self.integrator, "app.integrator")
+        if not (self.dt > 0 and math.isfinite(self.dt)):
+            raise ConfigError(f"app.dt: must be > 0, got {self.dt}")
+        if self.t_end is not None and not (self.t_end > 0 and math.isfinite(self.t_end)):
+            raise ConfigError(f"app.t_end: must be > 0 or null, got {self.t_end}")
+        if self.steps is not None and self.steps < 0:
+            raise ConfigError(f"app.steps: must be >= 0, got {self.steps}")
+        if self.record_every < 1:
+            raise ConfigError(f"app.record_every: must be >= 1, got {self.record_every}")
+        if not (self.rtol > 0 and self.atol > 0):
+            raise ConfigError(f"app.rtol, app.atol: must be > 0, got {self.rtol}, {self.atol}")
+        for name, options in self.fields.items():
+            if isinstance(options, dict):  # Python callers
+                self.fields[name] = FieldOptions(**options)
+        self._compiled = None
+
+    # ------------------------------------------------------------------ options → method
+    def spec(self) -> ModelSpec:
+        fields = {name: FieldSpec(options.form, options.initial, options.dirichlet)
+                  for name, options in self.fields.items()}
+        return ModelSpec(fields=fields, equations=list(self.equations), constants=dict(self.constants),
+                         metrics=dict(self.metrics), seed=int(self.seed), key="app", dt=float(self.dt))
+
+    def total_steps(self) -> int:
+        """Steps to run: t_end / dt (refused unless a whole number), else ``steps`` (default 1)."""
+        if self.t_end is None:
+            return int(self.steps) if self.steps is not None else 1
+        ratio = self.t_end / self.dt
+        count = int(round(ratio))
+        if count < 1 or abs(ratio - count) > 1e-9 * max(1.0, ratio):
+            fitted = self.t_end / max(1, math.ceil(ratio))
+            raise ConfigError(f"app.t_end={self.t_end:g} is not a whole number of steps of app.dt={self.dt:g} "
+                              f"({ratio:.6g}); use `app.dt={fitted:.12g}` (or `app.steps=N app.t_end=null`)")
+        return count
+
+    def compiled(self, dec, new_solver=None):
+        """The model compiled on ``dec``'s mesh (once per run: :meth:`check` makes it)."""
+        if self._compiled is None or self._compiled.ops.dec is not dec:
+            self._compiled = compile_model(self.spec(), dec, new_solver, chained=getattr(dec.K, "meta", {}).get("field"))
+        if new_solver is not None:
+            self._compiled.bind(new_solver)
+        return self._compiled
+
+    def check(self, K, dec) -> None:
+        """Before any work: the whole model type-checked and its initial and border values
+        sampled on this mesh, the step count, and for explicit integrators dt against the
+        stability limit of the diffusion blocks (of a nonlinear diffusion, with its
+        coefficients frozen at the initial values)."""
+        model = self.compiled(dec)
+        model.check_compatibility()
+        steps = self.total_steps()
+        if model.is_static or not self.stability_check or steps == 0:
+            return
+        limit, source = explicit_stability_limit(model, str(self.integrator), model.initial_values)
+        if self.dt > limit:
+            if self.t_end is not None:  # a whole number of steps to t_end, each below 0.9 × the limit
+                safe = repr(self.t_end / math.ceil(self.t_end / (0.9 * limit)))
+            else:
+                safe = f"{float(f'{0.9 * limit:.2g}'):g}"
+            frozen = source.endswith(FROZEN)
+            name = source[: -len(FROZEN)] if frozen else source
+            part = "its linear part with the coefficients frozen at t = 0" if frozen else "its linear part"
+            implicit = "semi_implicit" if frozen else "implicit_euler"
+            raise ConfigError(f"app.dt={self.dt:g} exceeds the stability limit {limit:.3g} of "
+                              f"integrator={self.integrator} for dt({name}) on this mesh (2.785/λ_max for rk4, "
+                              f"2/λ_max for Euler, λ_max of {part}); use `app.dt={safe}` or "
+                              f"`app.integrator={implicit}`")
+        self._stability_limit = limit
+
+    def run(self, ctx: Context) -> Result:
+        """Run the model; see the module docstring. Metrics: the declared ones (at the end),
+        and :func:`decrun.methods.model.metrics.model_metrics`'s."""
+        model = self.compiled(ctx.dec, ctx.new_solver)
+        steps = 0 if model.is_static else self.total_steps()
+        integrator = None
+        report = None
+        if model.is_static:
+            with ctx.task(f"{self.model}: definitions and solves"):
+                env = model.environment({}, 0.0)
+            stepper = None
+        else:
+            with ctx.task(f"{self.model}: {self.integrator} set-up"):
+                integrator = make_integrator(model, str(self.integrator), self.dt, ctx.new_solver, self.rtol, self.atol)
+            stepper = ModelStepper(model, integrator, self.dt)
+            report = run_steps(stepper, steps, progress=ctx.progress, record=ctx.record, record_every=self.record_every,
+                               checkpoint=ctx.checkpoint, desc=self.model)
+            env = stepper.environment()
+        metrics = model_metrics(model, env, report, integrator=integrator, dt=self.dt,
+                                integrator_name=str(self.integrator),
+                                stability_limit=getattr(self, "_stability_limit", None))
+        for line in model.kernel_lines():
+            ctx.log(line)
+        return Result(fields=self._fields(model, env), metrics=metrics, figures=self._figures(model, env),
+                      provenance={"model_equations_resolved": "\n".join(model.resolved()),
+                                  "model_operator": ctx.dec.star_variant.describe()})
+
+    # ------------------------------------------------------------------ outputs
+    def _fields(self, model, env) -> dict:
+        """Every field and definition by its name: forms (1-forms with their edge list) and
+        vector fields (n_n, d); numbers are metrics, not fields."""
+        out = {}
+        K = model.ops.K
+        for name, kind in model.kinds.items():
+            if name not in env or kind == NUMBER or name in self.constants:
+                continue
+            value = np.asarray(env[name], dtype=np.float64)
+            if kind != VECTOR and kind.simplex_dimension(K.dim) == 1 and K.dim > 1:
+                out[name] = FieldOnEdges(value)
+            else:
+                out[name] = value
+        return out
+
+    def _figures(self, model, env) -> dict:
+        """By kind: the final value of every 0-form and dual 0-form on the mesh; for a
+        time-dependent model the first evolved field's snapshots and animation, and the
+        declared metrics over time."""
+        K = model.ops.K
+        figures = {}
+        shown = [name for name, kind in model.kinds.items()
+                 if name in env and kind.is_form and kind.simplex_dimension(K.dim) in (0, K.dim)
+                 and name not in ("x", "y", "z")]
+        if K.dim == 2:
+            for name in shown:
+                figures[name] = Figure.of_kind("surface", values=np.asarray(env[name], dtype=np.float64),
+                                               title=f"{self.model}: {name} ({model.kinds[name]})", colorbar_label=name)
+        if model.evolved and K.dim == 2:
+            first = model.evolved[0]
+            if model.kinds[first].simplex_dimension(K.dim) in (0, K.dim):
+                figures[f"{first}_snapshots"] = Figure.of_kind("snapshots", name=first, count=int(self.snapshots),
+                                                               title=f"{self.model}: {first}", symmetric=False)
+                if self.animation:
+                    figures[f"{first}_animation"] = Figure.of_kind("animation", name=first, title=first,
+                                                                   symmetric=False)
+            if self.metrics:
+                figures["metrics"] = Figure.of_kind("recorded_series", names=list(self.metrics), title=self.model)
+        return figures

@@ -1,0 +1,216 @@
+"""Initial (and Dirichlet) values of a model's fields, sampled from expressions (thesis §3.2).
+
+A value is given as
+
+- a number: that value on every simplex that carries the form;
+- an expression of ``x, y, z`` (and constants, ``pi``, ``random``: uniform in [−1, 1], seeded)
+  for a 0-form, evaluated at the vertices; for a top form (a density ρ) integrated over each top
+  simplex, ∫_σ ρ dV (order-2 quadrature, :func:`decrun.core.forms.sample_density`); for a dual
+  0-form evaluated at the circumcentres of the top simplices; for a dual k-form, ⋆ of the
+  primal (n−k)-form sampled from the same expression;
+- a list of ``d`` expressions, a vector field X: for a 1-form its line integral along each edge
+  ∫_e X·t ds by Gauss–Legendre quadrature exact for polynomials of degree ≤ 9 along the edge
+  (so the 1-form of X = ∇φ is d of φ's 0-form to round-off); for a 2-form in R³ its flux through
+  each triangle (:func:`decrun.core.forms.sample_flux`);
+- ``vertex(i)``: the indicator of vertex i (0-forms);
+- ``result:<field>``: the field of a previous run, chained with ``mesh=result mesh.field=<field>``.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+
+from decrun.core.forms import sample_density, sample_flux, sample_vector_field
+from decrun.methods.model.kinds import Kind, primal
+from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Number, Node, parse_expression, \
+    to_text
+from decrun.methods.model.operators import POINTWISE
+
+__all__ = ["sample", "PointExpression"]
+
+#: Gauss–Legendre points along an edge: exact for polynomials of degree ≤ 2·5 − 1 = 9
+EDGE_QUADRATURE = 5
+
+
+class PointExpression:
+    """A value-by-value expression of the coordinates, checked against the whitelist (numbers,
+    ``x y z pi random``, constants, + − * / **, the one-argument functions, two-argument
+    min/max, ``vertex(i)``) and evaluated at any points."""
+
+    def __init__(self, text, where: str, constants: dict[str, float]):
+        self.where, self.constants = where, constants
+        self.tree = parse_expression(text, where)
+        self._check(self.tree)
+
+    def _check(self, node: Node) -> None:
+        if isinstance(node, Number):
+            return
+        if isinstance(node, Name):
+            if node.name not in {"x", "y", "z", "pi", "random"} | set(self.constants):
+                import difflib
+
+                close = difflib.get_close_matches(node.name, ["x", "y", "z", "pi", "random", *self.constants], n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise ModelError(f"{self.where}: unknown name {node.name!r}{hint}; a value is an expression of x, y, z, "
+                                 "pi, random and app.constants")
+            return
+        if isinstance(node, Negate):
+            return self._check(node.operand)
+        if isinstance(node, Binary):
+            if node.op == "^":
+                raise ModelError(f"{self.where}: ^ (the wedge) is not a value; use ** for powers in {to_text(node)!r}")
+            self._check(node.left)
+            self._check(node.right)
+            return
+        if isinstance(node, Call):
+            allowed = node.function in POINTWISE and len(node.args) == 1 or \
+                node.function in ("min", "max") and len(node.args) == 2 or \
+                node.function == "vertex" and len(node.args) == 1
+            if not allowed:
+                raise ModelError(f"{self.where}: {to_text(node)}: an initial or border value is an expression of the "
+                                 "coordinates (exp, sin, sqrt … of x, y, z); operators such as laplacian belong in "
+                                 "app.equations")
+            for arg in node.args:
+                self._check(arg)
+            return
+        raise TypeError(node)
+
+    def uses(self, name: str) -> bool:
+        from decrun.methods.model.language import names_in
+
+        return name in names_in(self.tree)
+
+    def has_vertex(self, node: Node | None = None) -> bool:
+        node = self.tree if node is None else node
+        if isinstance(node, Call):
+            return node.function == "vertex" or any(self.has_vertex(arg) for arg in node.args)
+        if isinstance(node, Binary):
+            return self.has_vertex(node.left) or self.has_vertex(node.right)
+        if isinstance(node, Negate):
+            return self.has_vertex(node.operand)
+        return False
+
+    def at(self, points: np.ndarray, rng: np.random.Generator, n_vertices: int | None = None) -> np.ndarray:
+        """(N,) values at ``points`` (N, d); ``n_vertices`` set when the points are the vertices
+        (``vertex(i)`` is only defined there)."""
+        points = np.asarray(points, dtype=np.float64)
+        env = {"x": points[:, 0], "y": points[:, 1] if points.shape[1] > 1 else np.zeros(len(points)),
+               "z": points[:, 2] if points.shape[1] > 2 else np.zeros(len(points)), "pi": np.pi,
+               **{k: float(v) for k, v in self.constants.items()}}
+        if self.uses("random"):
+            env["random"] = rng.uniform(-1.0, 1.0, len(points))
+        with np.errstate(all="ignore"):
+            value = self._value(self.tree, env, n_vertices)
+        out = np.broadcast_to(np.asarray(value, dtype=np.float64), (len(points),)).copy()
+        bad = ~np.isfinite(out)
+        if bad.any():
+            index = int(np.flatnonzero(bad)[0])
+            raise ModelError(f"{self.where}: the value is not finite at {int(bad.sum())} of {len(out)} points (e.g. at "
+                             f"{np.round(points[index], 6).tolist()}); change the expression there")
+        return out
+
+    def _value(self, node: Node, env: dict, n_vertices):
+        if isinstance(node, Number):
+            return node.value
+        if isinstance(node, Name):
+            return env[node.name]
+        if isinstance(node, Negate):
+            return -self._value(node.operand, env, n_vertices)
+        if isinstance(node, Binary):
+            a, b = self._value(node.left, env, n_vertices), self._value(node.right, env, n_vertices)
+            return {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "**": np.power}[node.op](a, b)
+        if node.function == "vertex":
+            index = self._value(node.args[0], env, n_vertices)
+            if n_vertices is None:
+                raise ModelError(f"{self.where}: vertex(i) is a 0-form (an indicator at a vertex); use it for a field "
+                                 "with form: 0")
+            if np.ndim(index) or not (float(index).is_integer() and 0 <= index < n_vertices):
+                raise ModelError(f"{self.where}: vertex({index}): the mesh has vertices 0..{n_vertices - 1}; give one "
+                                 "of them")
+            out = np.zeros(n_vertices)
+            out[int(index)] = 1.0
+            return out
+        args = [self._value(arg, env, n_vertices) for arg in node.args]
+        if node.function in ("min", "max"):
+            return (np.minimum if node.function == "min" else np.maximum)(*args)
+        return POINTWISE[node.function](*args)
+
+
+def _rng(seed: int, name: str) -> np.random.Generator:
+    """A generator seeded by the model's seed and the field's name (the same every run)."""
+    return np.random.default_rng([int(seed) & 0xFFFFFFFF, zlib.crc32(name.encode())])
+
+
+def sample(value, kind: Kind, dec, where: str, *, constants: dict[str, float], seed: int = 0, name: str = "",
+           chained: dict | None = None) -> np.ndarray:
+    """The values (n_simplices,) of a field of ``kind`` from ``value`` (see the module docstring)."""
+    K = dec.K
+    n, size = K.dim, kind.size(K)
+    rng = _rng(seed, name)
+    if isinstance(value, str) and value.strip().startswith("result:"):
+        return _chained(value.strip()[len("result:"):].strip(), kind, K, where, chained)
+    if isinstance(value, (list, tuple)):
+        return _vector(value, kind, dec, where, constants, rng)
+    if isinstance(value, bool):
+        raise ModelError(f"{where}: expected a number or an expression, got {value!r}")
+    if isinstance(value, (int, float)):
+        if not np.isfinite(value):
+            raise ModelError(f"{where}: must be a finite number, got {value}")
+        return np.full(size, float(value))
+    expression = PointExpression(value, where, constants)
+    if kind.dual and kind.degree == 0:  # one value per top simplex, at its circumcentre
+        return expression.at(dec.circumcenters(n), rng)
+    if kind.dual:  # ⋆ of the primal (n−k)-form of the same expression
+        primal_values = sample(value, primal(n - kind.degree), dec, where, constants=constants, seed=seed, name=name)
+        return dec.star(n - kind.degree) @ primal_values
+    if kind.degree == 0:
+        return expression.at(K.vertices, rng, n_vertices=K.num_simplices(0))
+    if expression.has_vertex():
+        raise ModelError(f"{where}: vertex(i) is a 0-form; a {kind} takes a number or an expression")
+    if kind.degree == n:
+        return sample_density(K, lambda points: expression.at(points, rng), order=2)  # on the oriented simplices
+    example = '["-y", "x", "0"]' if K.embedding_dim == 3 else '["-y", "x"]'
+    what = "line integral along each edge" if kind.degree == 1 else "flux through each face"
+    raise ModelError(f"{where}: a {kind} is sampled from a vector field: give a list of {K.embedding_dim} expressions "
+                     f"(e.g. {example}), its {what}")
+
+
+def _vector(value, kind: Kind, dec, where: str, constants, rng) -> np.ndarray:
+    K = dec.K
+    d = K.embedding_dim
+    if len(value) != d:
+        raise ModelError(f"{where}: a vector field has {d} components on this mesh (its coordinates' dimension), got "
+                         f"{len(value)}")
+    parts = [PointExpression(item, f"{where}[{i}]", constants) for i, item in enumerate(value)]
+
+    def field(points):
+        return np.stack([part.at(points, rng) for part in parts], axis=1)
+
+    if kind.dual:
+        primal_values = _vector(value, primal(K.dim - kind.degree), dec, where, constants, rng)
+        return dec.star(K.dim - kind.degree) @ primal_values
+    if kind.degree == 1:
+        return sample_vector_field(K, field, order=EDGE_QUADRATURE)
+    if kind.degree == 2 and d == 3:
+        flux = sample_flux(K, field, order=2)
+        return flux * K.orientation if K.dim == 2 else flux
+    raise ModelError(f"{where}: a {kind} is not sampled from a vector field; give a number or an expression")
+
+
+def _chained(field: str, kind: Kind, K, where: str, chained: dict | None) -> np.ndarray:
+    if not chained:
+        raise ModelError(f"{where}: result:{field} takes the field of a previous run: add `mesh=result "
+                         f"mesh.path=<run>/result.h5 mesh.field={field}`")
+    if chained.get("name") != field:
+        raise ModelError(f"{where}: result:{field}, but the chained mesh carries the field {chained.get('name')!r}; "
+                         f"use `mesh.field={field}`")
+    values = np.asarray(chained["values"], dtype=np.float64)
+    size = kind.size(K)
+    if values.shape != (size,):
+        raise ModelError(f"{where}: result:{field} has shape {values.shape}, but a {kind} on this mesh has {size} "
+                         f"values (it lives on {chained.get('on')})")
+    if not np.all(np.isfinite(values)):
+        raise ModelError(f"{where}: result:{field} has {int((~np.isfinite(values)).sum())} non-finite values")
+    return values

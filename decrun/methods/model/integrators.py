@@ -1,0 +1,604 @@
+"""Time integrators of the model app: one step of ``dt(u) = F(u, t)`` for the evolved fields.
+
+Each integrator is made once per run (:func:`make_integrator`; its matrices factorized once for
+the run's ``dt``) and then steps a state — a dict ``field → array`` — from t to t + dt.
+Implicit schemes work on the weak form: every evolution is split
+(:meth:`decrun.methods.model.compiler.Compiler.split`) into blocks linear in the evolved fields,
+``⋆_k⁻¹ A_uv`` with constant matrices, and the rest R; row u multiplied by its mass ``M_u = ⋆_k``
+reads ``M_u u' = Σ_v A_uv v + M_u R_u`` (so a Galerkin ⋆ is never inverted, and the Laplacian's
+system is the symmetric ``M + dt S`` of the thesis' implicit smoothing, §1.3).
+
+==================  ==========================================================================
+``explicit_euler``  u ← u + dt F(u, t)
+``rk4``             the classical 4-stage Runge–Kutta
+``implicit_euler``  (M − dt A) u⁺ = M u + dt M R(t⁺); R must not read the evolved fields
+``crank_nicolson``  (M − dt/2 A) u⁺ = (M + dt/2 A) u + dt/2 M (R(t) + R(t⁺)); likewise
+``imex``            (M − dt A) u⁺ = M u + dt M R(u, t): linear part implicit, the rest explicit
+``semi_implicit``   (M − dt A(uⁿ)) u⁺ = M uⁿ + dt M R(uⁿ, t): lagged coefficients (Picard), A refactorized
+                    every step — nonlinear diffusion ∇·(D(u)∇u) with D frozen at uⁿ
+``symplectic``      Störmer–Verlet (kick–drift–kick) for pairs dt(q) = f(p), dt(p) = g(q)
+``bdf``, ``radau``  SciPy's ``solve_ivp`` with the sparse Jacobian pattern of the equations
+``rk45``            SciPy's adaptive Runge–Kutta (no Jacobian)
+==================  ==========================================================================
+
+Fixed (Dirichlet) values stay at their border values in every scheme.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from decrun.methods.model.compiler import NOT_LINEAR
+from decrun.methods.model.language import ModelError, to_text
+from decrun.methods.model.solve import LinearSystem
+
+__all__ = ["INTEGRATORS", "FROZEN", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
+
+INTEGRATORS = ("explicit_euler", "rk4", "implicit_euler", "crank_nicolson", "imex", "symplectic", "bdf", "radau",
+               "rk45", "semi_implicit")
+#: the suffix of :func:`explicit_stability_limit`'s source when the limit is of frozen coefficients
+FROZEN = " (coefficients frozen at t = 0)"
+#: the stability interval on the negative real axis: |1 + z| ≤ 1 (Euler), RK4's ≈ −2.785
+STABILITY_INTERVAL = {"explicit_euler": 2.0, "rk4": 2.785293563405282}
+
+
+class Evolution:
+    """The evolution equations of a :class:`~decrun.methods.model.system.CompiledModel` split
+    for the implicit schemes: ``blocks[(u, v)]`` weak matrices A_uv, ``mass[u]`` the row's M_u
+    (sparse), ``rest[u]``: [(sign, closure)] of the explicit terms and ``rest_trees[u]``."""
+
+    def __init__(self, model):
+        self.model = model
+        compiler, ops = model.compiler, model.ops
+        self.names = list(model.evolved)
+        self.sizes = {name: model.kinds[name].size(ops.K) for name in self.names}
+        offsets = np.cumsum([0] + [self.sizes[name] for name in self.names])
+        self.slices = {name: slice(offsets[i], offsets[i + 1]) for i, name in enumerate(self.names)}
+        self.total = int(offsets[-1])
+        self.blocks, self.mass, self.rest, self.rest_trees = {}, {}, {}, {}
+        unknowns = set(self.names)
+        for equation in model.equations:
+            if equation.kind != "evolution":
+                continue
+            u = equation.target
+            blocks, rest = compiler.split(equation.rhs, unknowns)
+            invs = {block.inv for block in blocks.values()} - {None}
+            if len(invs) > 1:
+                raise ModelError(f"{equation.where}: the linear terms of dt({u}) mix inverse stars {sorted(invs)}; "
+                                 "write them over one ⋆ or use an explicit integrator")
+            kind = model.kinds[u]
+            size = self.sizes[u]
+            if invs:
+                k = invs.pop()
+                M = ops.dec.star(k).tocsr()
+                for v, block in list(blocks.items()):
+                    blocks[v] = block.A.tocsr() if block.inv is not None else (M @ block.A).tocsr()
+            else:
+                M = sp.identity(size, format="csr")
+                blocks = {v: block.A.tocsr() for v, block in blocks.items()}
+            self.mass[u] = M
+            for v, A in blocks.items():
+                self.blocks[(u, v)] = A
+            self.rest_trees[u] = rest
+            self.rest[u] = [(sign, compiler.compile(term, equation.where)) for sign, term in rest]
+            del kind
+
+    def reads_evolved(self, u: str) -> list:
+        """The explicit terms of dt(u) that read an evolved field (not allowed in implicit schemes)."""
+        compiler = self.model.compiler
+        return [term for sign, term in self.rest_trees[u] if compiler.depends_on(term, set(self.names))]
+
+    def rest_value(self, u: str, env: dict) -> np.ndarray:
+        value = np.zeros(self.sizes[u])
+        for sign, closure in self.rest[u]:
+            value = value + sign * closure(env)
+        return value
+
+    def matrix(self, alpha: float) -> sp.csr_matrix:
+        """M − α A over all evolved fields (the block system)."""
+        rows = []
+        for u in self.names:
+            row = []
+            for v in self.names:
+                block = self.blocks.get((u, v))
+                part = None if block is None else -alpha * block
+                if u == v:
+                    part = self.mass[u] if part is None else self.mass[u] + part
+                row.append(part)
+            rows.append(row)
+        return sp.bmat(rows, format="csr") if len(self.names) > 1 else sp.csr_matrix(rows[0][0])
+
+    def apply_blocks(self, state: dict) -> dict:
+        """Σ_v A_uv v for every row u."""
+        out = {u: np.zeros(self.sizes[u]) for u in self.names}
+        for (u, v), A in self.blocks.items():
+            out[u] = out[u] + A @ state[v]
+        return out
+
+    def stack(self, values: dict) -> np.ndarray:
+        return np.concatenate([np.asarray(values[name], dtype=np.float64) for name in self.names])
+
+    def unstack(self, vector: np.ndarray) -> dict:
+        return {name: vector[self.slices[name]] for name in self.names}
+
+    def fixed(self) -> tuple[np.ndarray, np.ndarray]:
+        """Indices in the stacked vector of the fixed values, and those values."""
+        indices, values = [], []
+        for name in self.names:
+            if name in self.model.fixed:
+                border, value = self.model.fixed[name]
+                indices.append(border + self.slices[name].start)
+                values.append(value)
+        if not indices:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        return np.concatenate(indices), np.concatenate(values)
+
+
+def _enforce(model, state: dict) -> dict:
+    """The state with every fixed value set."""
+    for name, (border, values) in model.fixed.items():
+        if name in state:
+            state[name] = np.array(state[name], dtype=np.float64)
+            state[name][border] = values
+    return state
+
+
+class Explicit:
+    """Explicit Euler or RK4 on F(u, t) evaluated in full."""
+
+    def __init__(self, model, dt: float, scheme: str):
+        self.model, self.dt, self.scheme = model, float(dt), scheme
+
+    def _f(self, state, t):
+        return self.model.derivative(self.model.environment(state, t))
+
+    def step(self, state: dict, t: float) -> dict:
+        dt, f = self.dt, self._f
+        if self.scheme == "explicit_euler":
+            k1 = f(state, t)
+            return _enforce(self.model, {u: state[u] + dt * k1[u] for u in state})
+        k1 = f(state, t)
+        k2 = f({u: state[u] + 0.5 * dt * k1[u] for u in state}, t + 0.5 * dt)
+        k3 = f({u: state[u] + 0.5 * dt * k2[u] for u in state}, t + 0.5 * dt)
+        k4 = f({u: state[u] + dt * k3[u] for u in state}, t + dt)
+        return _enforce(self.model, {u: state[u] + dt / 6.0 * (k1[u] + 2 * k2[u] + 2 * k3[u] + k4[u]) for u in state})
+
+    def state_dict(self) -> dict:
+        return {}
+
+    def load_state(self, state: dict) -> None:
+        pass
+
+
+class Implicit:
+    """Implicit Euler, Crank–Nicolson or IMEX: one factorization of M − θ dt A for the run."""
+
+    def __init__(self, model, dt: float, scheme: str, new_solver):
+        self.model, self.dt, self.scheme = model, float(dt), scheme
+        self.evolution = evolution = Evolution(model)
+        if scheme in ("implicit_euler", "crank_nicolson"):
+            for u in evolution.names:
+                terms = evolution.reads_evolved(u)
+                if terms:
+                    equation = next(e for e in model.equations if e.kind == "evolution" and e.target == u)
+                    raise ModelError(f"{equation.where}: integrator={scheme} needs equations linear in the evolved "
+                                     f"fields with constant coefficients; the term {to_text(terms[0])} is not: use "
+                                     "`app.integrator=imex` (that term explicit) or `app.integrator=rk4`")
+        theta = 0.5 if scheme == "crank_nicolson" else 1.0
+        self.theta = theta
+        fixed, self.fixed_values = evolution.fixed()
+        self.system = LinearSystem(evolution.matrix(theta * self.dt), new_solver, fixed)
+        self.fixed = fixed
+
+    def step(self, state: dict, t: float) -> dict:
+        model, evolution, dt = self.model, self.evolution, self.dt
+        rhs = {u: evolution.mass[u] @ state[u] for u in evolution.names}
+        if self.scheme == "imex":
+            env = model.environment(state, t)
+            for u in evolution.names:
+                rhs[u] = rhs[u] + dt * (evolution.mass[u] @ evolution.rest_value(u, env))
+        else:
+            later = model.environment(state, t + dt)  # R reads no evolved field: only t changes
+            if self.scheme == "crank_nicolson":
+                now = model.environment(state, t)
+                applied = evolution.apply_blocks(state)
+                for u in evolution.names:
+                    average = 0.5 * (evolution.rest_value(u, now) + evolution.rest_value(u, later))
+                    rhs[u] = rhs[u] + 0.5 * dt * applied[u] + dt * (evolution.mass[u] @ average)
+            else:
+                for u in evolution.names:
+                    rhs[u] = rhs[u] + dt * (evolution.mass[u] @ evolution.rest_value(u, later))
+        vector = self.system.solve(evolution.stack(rhs), self.fixed_values)
+        return evolution.unstack(vector)
+
+    def state_dict(self) -> dict:
+        return {}
+
+    def load_state(self, state: dict) -> None:
+        pass
+
+
+class SemiImplicit:
+    """Linearly implicit Euler with lagged coefficients (a Picard step): every term of dt(u) is
+    linearized by :meth:`~decrun.methods.model.compiler.Compiler.lagged` — the factors that read
+    the evolved fields but are not linear in them frozen at uⁿ — into weak blocks A(uⁿ) over one
+    mass M = ⋆_k; the terms with no linear unknown left stay explicit (R). Each step solves
+
+        (M − dt A(uⁿ)) u⁺ = M uⁿ + dt M R(uⁿ, tⁿ)
+
+    with a fresh factorization (the matrix changes every step). For nonlinear diffusion
+    dt(h) = −δ(D(h) dh) this is (⋆0 + dt d0ᵀ ⋆1 diag(D(hⁿ)) d0) h⁺ = ⋆0 hⁿ: with ⋆1 ≥ 0 and D ≥ 0
+    an M-matrix, so h⁺ ≥ 0 whenever hⁿ ≥ 0, at any dt (no stability limit; first order in
+    time). ``factorizations`` counts the systems solved."""
+
+    def __init__(self, model, dt: float, new_solver):
+        self.model, self.dt, self.new_solver = model, float(dt), new_solver
+        compiler = model.compiler
+        self.names = list(model.evolved)
+        unknowns = set(self.names)
+        ops = model.ops
+        self.sizes = {name: model.kinds[name].size(ops.K) for name in self.names}
+        offsets = np.cumsum([0] + [self.sizes[name] for name in self.names])
+        self.slices = {name: slice(offsets[i], offsets[i + 1]) for i, name in enumerate(self.names)}
+        self.builders, self.rest, self.where = {}, {}, {}
+        for equation in model.equations:
+            if equation.kind != "evolution":
+                continue
+            u = equation.target
+            self.where[u] = equation.where
+            self.builders[u], self.rest[u] = [], []
+            for sign, term in compiler.terms(equation.rhs):
+                builder = compiler.lagged(term, unknowns)
+                if builder is None or builder is NOT_LINEAR:
+                    self.rest[u].append((sign, compiler.compile(term, equation.where)))
+                else:
+                    self.builders[u].append((sign, builder))
+        self.fixed_indices, self.fixed_values = Evolution.fixed(self)
+        self.factorizations = 0
+
+    def _row(self, u: str, env: dict):
+        """(M_u, {v: weak A_uv}) at ``env``."""
+        ops = self.model.ops
+        blocks = {}
+        for sign, builder in self.builders[u]:
+            for v, block in builder(env).items():
+                block = block.scaled(sign)
+                merged = block if v not in blocks else ops.add(blocks[v], block)
+                if merged is None:
+                    raise ModelError(f"{self.where[u]}: the terms of dt({u}) mix inverse stars; write them over one ⋆ "
+                                     "or use an explicit integrator")
+                blocks[v] = merged
+        invs = {block.inv for block in blocks.values()} - {None}
+        if len(invs) > 1:
+            raise ModelError(f"{self.where[u]}: the linear terms of dt({u}) mix inverse stars {sorted(invs)}; write "
+                             "them over one ⋆ or use an explicit integrator")
+        if invs:
+            M = ops.dec.star(invs.pop()).tocsr()
+            weak = {v: block.A if block.inv is not None else M @ block.A for v, block in blocks.items()}
+        else:
+            M = sp.identity(self.sizes[u], format="csr")
+            weak = {v: block.A for v, block in blocks.items()}
+        return M, weak
+
+    def step(self, state: dict, t: float) -> dict:
+        model, dt = self.model, self.dt
+        env = model.environment(state, t)
+        rows, rhs = [], []
+        for u in self.names:
+            M, weak = self._row(u, env)
+            rest = np.zeros(self.sizes[u])
+            for sign, closure in self.rest[u]:
+                rest = rest + sign * closure(env)
+            rhs.append(M @ (state[u] + dt * rest))
+            row = []
+            for v in self.names:
+                part = -dt * weak[v] if v in weak else None
+                if u == v:
+                    part = M if part is None else M + part
+                row.append(part)
+            rows.append(row)
+        matrix = sp.bmat(rows, format="csr") if len(self.names) > 1 else sp.csr_matrix(rows[0][0])
+        system = LinearSystem(matrix, self.new_solver, self.fixed_indices)
+        vector = system.solve(np.concatenate(rhs), self.fixed_values)
+        self.factorizations += 1
+        return _enforce(model, {name: vector[self.slices[name]] for name in self.names})
+
+    def state_dict(self) -> dict:
+        return {"factorizations": self.factorizations}
+
+    def load_state(self, state: dict) -> None:
+        self.factorizations = int(state.get("factorizations", 0))
+
+
+class Symplectic:
+    """Störmer–Verlet for a pair of groups: dt(q) = f(p) and dt(p) = g(q) (kick p by dt/2,
+    drift q by dt, kick p by dt/2). q is the group of the first evolution equation."""
+
+    def __init__(self, model, dt: float):
+        self.model, self.dt = model, float(dt)
+        compiler = model.compiler
+        reads = {}
+        for equation in model.equations:
+            if equation.kind == "evolution":
+                reads[equation.target] = compiler.reads(equation.rhs) & set(model.evolved)
+        group = {model.evolved[0]: 0}
+        queue = [model.evolved[0]]
+        while queue:
+            u = queue.pop()
+            neighbours = reads[u] | {v for v in model.evolved if u in reads[v]}
+            for v in neighbours:
+                if v not in group:
+                    group[v] = 1 - group[u]
+                    queue.append(v)
+        for u in model.evolved:
+            group.setdefault(u, 0)
+        for u in model.evolved:
+            clash = [v for v in reads[u] if group[v] == group[u]]
+            if clash:
+                equation = next(e for e in model.equations if e.kind == "evolution" and e.target == u)
+                raise ModelError(f"{equation.where}: integrator=symplectic needs pairs dt(q) = f(p), dt(p) = g(q), but "
+                                 f"dt({u}) reads {clash[0]}; use `app.integrator=rk4` or `app.integrator=crank_nicolson`")
+        self.q = [u for u in model.evolved if group[u] == 0]
+        self.p = [u for u in model.evolved if group[u] == 1]
+
+    def step(self, state: dict, t: float) -> dict:
+        model, dt = self.model, self.dt
+        state = dict(state)
+        kick = model.derivative(model.environment(state, t), self.p)
+        for u in self.p:
+            state[u] = state[u] + 0.5 * dt * kick[u]
+        drift = model.derivative(model.environment(state, t + 0.5 * dt), self.q)
+        for u in self.q:
+            state[u] = state[u] + dt * drift[u]
+        kick = model.derivative(model.environment(state, t + dt), self.p)
+        for u in self.p:
+            state[u] = state[u] + 0.5 * dt * kick[u]
+        return _enforce(model, state)
+
+    def state_dict(self) -> dict:
+        return {}
+
+    def load_state(self, state: dict) -> None:
+        pass
+
+
+class Adaptive:
+    """SciPy's ``solve_ivp`` (BDF, Radau or RK45) from t to t + dt, restarted every step from the
+    last accepted step size (kept in the state, so a resumed run repeats the same steps);
+    ``accepted_steps`` counts the solver's accepted steps."""
+
+    def __init__(self, model, dt: float, scheme: str, rtol: float, atol: float):
+        self.model, self.dt, self.scheme = model, float(dt), scheme
+        self.rtol, self.atol = float(rtol), float(atol)
+        self.evolution = Evolution(model)
+        self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") else None
+        self.jacobian = _exact_jacobian(self.evolution) if scheme in ("bdf", "radau") else None
+        self.h = float("nan")
+        self.accepted = 0
+        self.evaluations = 0
+
+    def step(self, state: dict, t: float) -> dict:
+        from scipy.integrate import solve_ivp
+
+        evolution, model = self.evolution, self.model
+
+        def fun(time, y):
+            self.evaluations += 1
+            return evolution.stack(model.derivative(model.environment(evolution.unstack(y), time)))
+
+        options = {"rtol": self.rtol, "atol": self.atol}
+        if np.isfinite(self.h) and self.h > 0:
+            options["first_step"] = min(self.h, self.dt)
+        if self.jacobian is not None:  # a linear model: ∂F/∂u is the constant M⁻¹A, exactly
+            options["jac"] = self.jacobian
+        elif self.pattern is not None:
+            options["jac_sparsity"] = self.pattern
+        method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]
+        solution = solve_ivp(fun, (t, t + self.dt), evolution.stack(state), method=method, **options)
+        if not solution.success:
+            raise FloatingPointError(f"solve_ivp ({method}) failed at t = {t:g}: {solution.message}")
+        self.accepted += len(solution.t) - 1
+        if len(solution.t) > 1:
+            self.h = float(solution.t[-1] - solution.t[-2])
+        return _enforce(model, evolution.unstack(solution.y[:, -1].copy()))
+
+    def state_dict(self) -> dict:
+        return {"h": self.h, "accepted": self.accepted, "evaluations": self.evaluations}
+
+    def load_state(self, state: dict) -> None:
+        self.h, self.accepted = float(state["h"]), int(state["accepted"])
+        self.evaluations = int(state["evaluations"])
+
+
+def _exact_jacobian(evolution: Evolution) -> sp.csr_matrix | None:
+    """M⁻¹A over the stacked fields when every evolution is linear (no explicit term reads an
+    evolved field) and every row mass is diagonal; None otherwise (finite differences on the
+    sparsity pattern then)."""
+    if any(evolution.reads_evolved(u) for u in evolution.names):
+        return None
+    inverse = {}
+    for u in evolution.names:
+        M = evolution.mass[u]
+        diagonal = M.diagonal()
+        if (M - sp.diags(diagonal)).nnz or np.any(diagonal == 0):
+            return None
+        inverse[u] = sp.diags(1.0 / diagonal)
+    rows = [[(inverse[u] @ evolution.blocks[(u, v)]).tocsr() if (u, v) in evolution.blocks else None
+             for v in evolution.names] for u in evolution.names]
+    for i, u in enumerate(evolution.names):
+        if all(block is None for block in rows[i]):
+            rows[i][i] = sp.csr_matrix((evolution.sizes[u], evolution.sizes[u]))
+    return sp.bmat(rows, format="csc")
+
+
+def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-6, atol: float = 1e-9):
+    """The integrator ``scheme`` (one of :data:`INTEGRATORS`) for ``model`` at step ``dt``."""
+    if scheme in ("explicit_euler", "rk4"):
+        return Explicit(model, dt, scheme)
+    if scheme in ("implicit_euler", "crank_nicolson", "imex"):
+        return Implicit(model, dt, scheme, new_solver)
+    if scheme == "symplectic":
+        return Symplectic(model, dt)
+    if scheme in ("bdf", "radau", "rk45"):
+        return Adaptive(model, dt, scheme, rtol, atol)
+    if scheme == "semi_implicit":
+        return SemiImplicit(model, dt, new_solver)
+    raise ModelError(f"app.integrator: unknown integrator {scheme!r}; choose one of {' | '.join(INTEGRATORS)}")
+
+
+def explicit_stability_limit(model, scheme: str, state: dict | None = None) -> tuple[float, str]:
+    """(dt_max, the equation it comes from) for explicit Euler and RK4: s/λ_max with s the scheme's
+    stability interval and λ_max the largest eigenvalue of −A_uu φ = λ M_u φ over the evolved
+    fields whose linear block is symmetric and negative semi-definite (diffusion); (inf, "")
+    when no such block exists.
+
+    With ``state`` (the initial values), a model whose linear part gives no limit — a nonlinear
+    diffusion such as dt(h) = −δ(D(h) dh) has no constant block — is linearized with its
+    coefficients frozen at ``state`` (:meth:`~decrun.methods.model.compiler.Compiler.lagged`,
+    A = −d0ᵀ ⋆1 diag(D(h0)) d0 there) and the same bound is taken of that matrix: the limit of
+    the frozen-coefficient problem at the start (the source is then ``u`` + :data:`FROZEN`).
+    That is a necessary bound, not a sufficient one: the linearization of a flux
+    |∇h|^{p−1}∇h has p times the frozen coefficient along ∇h, and the coefficients change
+    during the run (the Halfar dome, p = 3: explicit Euler at 0.54 of this limit diverges at
+    1 km, at 0.27 it runs). A model with a constant diffusion block is checked as before."""
+    from decrun.methods.mean_curvature_flow import largest_eigenvalue
+
+    if scheme not in STABILITY_INTERVAL:
+        return float("inf"), ""
+    evolution = Evolution(model)
+    best, source = float("inf"), ""
+    for u in evolution.names:
+        A = evolution.blocks.get((u, u))
+        if A is None or A.nnz == 0:
+            continue
+        limit = _diffusion_limit(A, evolution.mass[u], scheme, largest_eigenvalue)
+        if limit < best:
+            best, source = limit, u
+    if np.isfinite(best) or state is None:
+        return best, source
+    frozen = SemiImplicit(model, 1.0, None)
+    env = model.environment({name: np.asarray(state[name], dtype=np.float64) for name in frozen.names}, 0.0)
+    for u in frozen.names:
+        if not frozen.builders[u]:
+            continue
+        M, weak = frozen._row(u, env)
+        A = weak.get(u)
+        if A is None or A.nnz == 0:
+            continue
+        limit = _diffusion_limit(A, M, scheme, largest_eigenvalue)
+        if limit < best:
+            best, source = limit, u + FROZEN
+    return best, source
+
+
+def _diffusion_limit(A, M, scheme: str, largest_eigenvalue) -> float:
+    """s/λ_max(−A, M) for a symmetric negative semi-definite A (inf otherwise)."""
+    A = sp.csr_matrix(A)
+    scale = abs(A).max()
+    if scale == 0 or abs(A - A.T).max() > 1e-12 * scale or np.any(A.diagonal() > 1e-12 * scale):
+        return float("inf")
+    diagonal = M.diagonal()
+    if (M - sp.diags(diagonal)).nnz == 0 and np.all(diagonal > 0):
+        lam = largest_eigenvalue(-A, diagonal)
+    elif (M - sp.diags(diagonal)).nnz == 0:
+        return float("inf")  # a non-positive ⋆: no generalized eigenproblem
+    else:
+        lam = largest_eigenvalue(-A, M)
+    if np.isfinite(lam) and lam > 0:
+        return STABILITY_INTERVAL[scheme] / lam
+    return float("inf")
+
+
+def jacobian_pattern(model) -> sp.csr_matrix:
+    """The sparsity of ∂F/∂u over the stacked evolved fields, from the equations: each term's
+    operators' own patterns (a linear chain's matrix), value-by-value terms the identity. A
+    term through an operator without a matrix (∧, ♯, ♭, a solve) is refused."""
+    evolution = Evolution(model)
+    compiler = model.compiler
+    names = set(evolution.names)
+    rows = []
+    for u in evolution.names:
+        row = {v: None for v in evolution.names}
+        equation = next(e for e in model.equations if e.kind == "evolution" and e.target == u)
+        for (uu, v), A in evolution.blocks.items():
+            if uu == u:
+                row[v] = _structure(A) if row[v] is None else row[v] + _structure(A)
+        for sign, term in evolution.rest_trees[u]:
+            for v in compiler.reads(term) & names:
+                part = _term_pattern(compiler, term, v, evolution.sizes[u], evolution.sizes[v], equation.where)
+                row[v] = part if row[v] is None else row[v] + part
+        rows.append([None if row[v] is None else row[v] for v in evolution.names])
+    for i, u in enumerate(evolution.names):  # bmat needs a block in every row and column
+        if all(block is None for block in rows[i]):
+            rows[i][i] = sp.csr_matrix((evolution.sizes[u], evolution.sizes[u]))
+    pattern = sp.bmat(rows, format="csr")
+    pattern.data[:] = 1.0
+    return pattern
+
+
+def _structure(A) -> sp.csr_matrix:
+    A = sp.csr_matrix(A, copy=True)
+    A.data = np.ones_like(A.data)
+    return A
+
+
+def _term_pattern(compiler, node, v: str, rows: int, cols: int, where: str) -> sp.csr_matrix:
+    """∂(node)/∂v's structure: the product of the linear operators on the way to v, the
+    identity through value-by-value operations."""
+    from decrun.methods.model.language import Binary, Call, Name, Negate, Number
+    from decrun.methods.model.operators import ALIASES, OPERATORS
+
+    def walk(node):
+        if isinstance(node, Number):
+            return None
+        if isinstance(node, Name):
+            if node.name == v:
+                return sp.identity(cols, format="csr")
+            if node.name in compiler.definitions:
+                return walk(compiler.definitions[node.name])
+            if node.name in compiler.solved and compiler.depends_on(node, {v}):
+                raise ModelError(f"{where}: integrator=bdf/radau: {node.name} is a solve's result, whose Jacobian is "
+                                 "dense; use `app.integrator=imex` or `app.integrator=rk4`")
+            return None
+        if isinstance(node, Negate):
+            return walk(node.operand)
+        if isinstance(node, Binary):
+            if node.op == "^":
+                raise ModelError(f"{where}: integrator=bdf/radau: no sparse Jacobian pattern through the wedge in "
+                                 f"{to_text(node)}; use `app.integrator=imex`")
+            parts = [p for p in (walk(node.left), walk(node.right)) if p is not None]
+            if not parts:
+                return None
+            return parts[0] if len(parts) == 1 else (_structure(parts[0]) + _structure(parts[1]))
+        if isinstance(node, Call):
+            name = ALIASES.get(node.function, node.function)
+            operator = OPERATORS[name]
+            parts = [walk(arg) for arg in node.args]
+            parts = [p for p in parts if p is not None]
+            if not parts:
+                return None
+            if operator.linear is not None and len(node.args) == 1:
+                kind = compiler.kind(node.args[0], where)
+                step = operator.linear(compiler.ops, kind)
+                if step is None:
+                    raise ModelError(f"{where}: integrator=bdf/radau: {to_text(node)} has no sparse matrix here; use "
+                                     "`app.integrator=imex`")
+                return _structure(step.A) @ _structure(parts[0])
+            if operator.name in ("exp", "log", "sin", "cos", "tanh", "sqrt", "abs", "max", "min") and \
+                    all(p.shape[0] == p.shape[1] or True for p in parts):
+                total = parts[0]
+                for p in parts[1:]:
+                    total = _structure(total) + _structure(p)
+                return total
+            raise ModelError(f"{where}: integrator=bdf/radau: no sparse Jacobian pattern through {operator.name} in "
+                             f"{to_text(node)}; use `app.integrator=imex` or `app.integrator=rk4`")
+        raise TypeError(node)
+
+    part = walk(node)
+    if part is None:
+        return sp.csr_matrix((rows, cols))
+    return _structure(part)
+
+
+_ = NOT_LINEAR

@@ -1,0 +1,490 @@
+"""The operators of the model language: degree rules, discrete definitions, evaluation.
+
+:data:`OPERATORS` is the one table of the language: for each operator its argument count, its
+typing rule (the degree and duality it takes and gives, checked when a model loads), its
+discrete definition with the thesis' equation, how it is evaluated, and — for the linear
+operators — its matrix as a :class:`Linear` ``⋆_j⁻¹ A``, from which implicit integrators and
+solves assemble their systems. The README's language reference is generated from this table
+(:func:`reference_table`), so the two cannot disagree.
+
+Operators act through :class:`Discrete`, which takes every matrix from
+:class:`decrun.core.dec.DEC` (so ``operator=`` and ``boundary=`` apply unchanged) and keeps the
+few the language adds (:mod:`decrun.methods.model.discrete`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import numpy as np
+import scipy.sparse as sp
+
+from decrun.methods.model import discrete
+from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
+
+__all__ = ["Linear", "Discrete", "Operator", "OPERATORS", "ALIASES", "POINTWISE", "Mismatch", "reference_table"]
+
+
+class Mismatch(Exception):
+    """A typing rule's refusal: the message says what the operator takes and what it got."""
+
+
+@dataclass
+class Linear:
+    """A linear operator on forms written ``⋆_inv⁻¹ A`` (``inv`` None: just ``A``), so that
+    systems containing inverse stars — the Laplacian ⋆0⁻¹ S — are assembled in weak form
+    (multiplied by ⋆_inv) and a non-diagonal (Galerkin) ⋆ is never inverted. ``A`` is a
+    scipy sparse matrix (n_out, n_in)."""
+
+    inv: Optional[int]
+    A: sp.spmatrix
+
+    def scaled(self, c: float) -> "Linear":
+        return Linear(self.inv, (c * self.A).tocsr())
+
+
+class Discrete:
+    """The matrices and geometry every operator reads, from one :class:`DEC` (cached there)."""
+
+    def __init__(self, dec):
+        self.dec, self.K, self.n = dec, dec.K, dec.n
+
+    def cached(self, key, compute: Callable):
+        return self.dec.require(("model",) + tuple(key), compute)
+
+    def diagonal(self, k: int) -> np.ndarray | None:
+        """(n_k,) diagonal of ⋆_k, or None (Galerkin ⋆)."""
+        return self.dec.star_diagonal_or_none(k)
+
+    def star_inverse_apply(self, k: int, x):
+        """⋆_k⁻¹ x (a division for diagonal stars, a factorized solve otherwise)."""
+        return self.dec.star_solve(k, x)
+
+    def matrix(self, linear: Linear) -> Callable[[np.ndarray], np.ndarray]:
+        """x ↦ ⋆_inv⁻¹ A x as one callable: the diagonal ⋆_inv⁻¹ folded into A once."""
+        if linear.inv is None:
+            A = linear.A.tocsr()
+            return lambda x: A @ x
+        diagonal = self.diagonal(linear.inv)
+        if diagonal is not None:
+            A = (sp.diags(1.0 / diagonal) @ linear.A).tocsr()
+            return lambda x: A @ x
+        A, k = linear.A.tocsr(), linear.inv
+        return lambda x: self.dec.star_solve(k, A @ x)
+
+    def compose(self, outer: Linear, inner: Linear) -> Linear | None:
+        """``outer ∘ inner`` as one :class:`Linear`, or None when a non-diagonal ⋆⁻¹ would sit
+        between them (no sparse matrix represents it)."""
+        if inner.inv is None:
+            return Linear(outer.inv, (outer.A @ inner.A).tocsr())
+        diagonal = self.diagonal(inner.inv)
+        if diagonal is None:
+            return None
+        return Linear(outer.inv, (outer.A @ sp.diags(1.0 / diagonal) @ inner.A).tocsr())
+
+    def add(self, first: Linear, second: Linear) -> Linear | None:
+        """``first + second`` with a common ⋆⁻¹ on the left (⋆⁻¹A + B = ⋆⁻¹(A + ⋆B))."""
+        if first.inv == second.inv:
+            return Linear(first.inv, (first.A + second.A).tocsr())
+        if first.inv is None:
+            first, second = second, first
+        if second.inv is None:
+            return Linear(first.inv, (first.A + self.dec.star(first.inv) @ second.A).tocsr())
+        return None  # two different inverse stars on the left: not one weak form
+
+    def identity(self, kind: Kind) -> Linear:
+        return Linear(None, sp.identity(kind.size(self.K), format="csr"))
+
+
+@dataclass(frozen=True)
+class Operator:
+    """One operator of the language (see the module docstring)."""
+
+    name: str
+    arity: tuple[int, ...]
+    takes: str  # the typing rule in words (README)
+    definition: str  # the discrete definition and the thesis' equation (README)
+    kind: Callable[[list[Kind], int], Kind]
+    evaluate: Callable  # (Discrete, kinds, *values) -> value
+    linear: Optional[Callable] = None  # (Discrete, kind of the argument) -> Linear | None
+
+
+def _one_form(args, n, name, allowed: Callable[[Kind], bool], takes: str) -> Kind:
+    (kind,) = args
+    if not (kind.is_form and allowed(kind)):
+        raise Mismatch(f"{name} takes {takes}, got a {kind}")
+    return kind
+
+
+# ------------------------------------------------------------------ d
+def _d_kind(args, n):
+    kind = _one_form(args, n, "d", lambda k: k.degree < n, f"a form of degree < {n} (the mesh dimension)")
+    return Kind("form", kind.degree + 1, kind.dual)
+
+
+def _d_linear(ops: Discrete, kind: Kind) -> Linear:
+    return Linear(None, ops.dec.d_dual(kind.degree) if kind.dual else ops.dec.d(kind.degree))
+
+
+# ------------------------------------------------------------------ ⋆
+def _star_kind(args, n):
+    kind = _one_form(args, n, "star", lambda k: True, "a form")
+    return Kind("form", n - kind.degree, not kind.dual)
+
+
+def _star_linear(ops: Discrete, kind: Kind) -> Linear:
+    n = ops.n
+    if not kind.dual:  # primal k → dual n−k: ⋆_k
+        return Linear(None, ops.dec.star(kind.degree))
+    j = n - kind.degree  # dual k → primal n−k: (−1)^{k(n−k)} ⋆_{n−k}⁻¹, so that ⋆⋆ = (−1)^{k(n−k)}
+    sign = (-1) ** (kind.degree * j)
+    return Linear(j, sign * sp.identity(ops.K.num_simplices(j), format="csr"))
+
+
+def _inv_star_kind(args, n):
+    kind = _one_form(args, n, "inv_star", lambda k: k.dual, "a dual form (star(u) is the dual of a primal u)")
+    return Kind("form", n - kind.degree, False)
+
+
+def _inv_star_linear(ops: Discrete, kind: Kind) -> Linear:
+    j = ops.n - kind.degree
+    return Linear(j, sp.identity(ops.K.num_simplices(j), format="csr"))
+
+
+# ------------------------------------------------------------------ δ, Δ
+def _codifferential_kind(args, n):
+    kind = _one_form(args, n, "codifferential", lambda k: not k.dual and k.degree >= 1,
+                     "a primal k-form with k ≥ 1")
+    return primal(kind.degree - 1)
+
+
+def _codifferential_linear(ops: Discrete, kind: Kind) -> Linear | None:
+    k, dec = kind.degree, ops.dec
+    if dec.boundary.codifferential(dec, k) is not None:  # boundary=flux: the adapted matrix (§6.4.4)
+        matrix = dec.codifferential(k)
+        return Linear(None, matrix) if sp.issparse(matrix) else None
+    return Linear(k - 1, (dec.d(k - 1).T @ dec.star(k)).tocsr())  # eq. 4.14: ⋆_{k−1}⁻¹ d_{k−1}ᵀ ⋆_k
+
+
+def _laplacian_kind(name):
+    def rule(args, n):
+        return _one_form(args, n, name, lambda k: not k.dual, "a primal form")
+    return rule
+
+
+def _laplacian_linear(sign: float):
+    def build(ops: Discrete, kind: Kind) -> Linear | None:
+        k, dec = kind.degree, ops.dec
+        if k == 0 or not all(dec.star_is_diagonal(j) for j in (k - 1, k) if 0 <= j <= ops.n):
+            symmetric = dec.laplacian_symmetric(k)  # ⋆_k Δ_k (the variant's stiffness for k = 0)
+            return Linear(k, sign * symmetric) if sp.issparse(symmetric) else None
+        return Linear(None, (sign * dec.laplacian(k)).tocsr())  # diagonal stars: dδ + δd as DEC builds it
+    return build
+
+
+def _laplacian_evaluate(sign: float):
+    def run(ops: Discrete, kinds, x):
+        k = kinds[0].degree
+        return sign * (ops.dec.laplacian(k) @ x)
+    return run
+
+
+# ------------------------------------------------------------------ ∧, ♯, ♭, averages, advection
+def _wedge_kind(args, n):
+    a, b = args
+    if not (a.is_form and b.is_form) or a.dual or b.dual:
+        raise Mismatch(f"wedge (^) takes two primal forms, got a {a} and a {b} (use * for products with numbers)")
+    if a.degree + b.degree > n:
+        raise Mismatch(f"wedge of a {a} and a {b} has degree {a.degree + b.degree} > {n} (the mesh dimension)")
+    if a.degree and b.degree and not (a.degree == 1 and b.degree == 1):
+        raise Mismatch(f"wedge is defined for 0∧k, k∧0 and 1∧1, not {a.degree}∧{b.degree}")
+    return primal(a.degree + b.degree)
+
+
+def _wedge_evaluate(ops: Discrete, kinds, a, b):
+    ka, kb = kinds
+    if ka.degree == 0:
+        return discrete.wedge_0k(ops.K, a, b, kb.degree)
+    if kb.degree == 0:
+        return discrete.wedge_0k(ops.K, b, a, ka.degree)
+    return discrete.wedge_11(ops.K, a, b)
+
+
+def _sharp_kind(args, n):
+    _one_form(args, n, "sharp", lambda k: not k.dual and k.degree == 1, "a primal 1-form")
+    return VECTOR
+
+
+def _flat_kind(args, n):
+    (kind,) = args
+    if kind != VECTOR:
+        raise Mismatch(f"flat takes a vector field (e.g. sharp(d(u))), got a {kind}")
+    if n != 2:
+        raise Mismatch(f"flat is defined on triangle meshes here (dimension 2), not dimension {n}")
+    return primal(1)
+
+
+def _average_kind(args, n):
+    _one_form(args, n, "average", lambda k: k.degree == 0,
+              "a primal 0-form (values at vertices) or a dual 0-form (values per top simplex)")
+    return primal(1)
+
+
+def _average_linear(ops: "Discrete", kind: Kind) -> Linear:
+    if kind.dual:  # one value per top simplex → the mean over the top simplices at each edge
+        return Linear(None, discrete.cell_to_edge_matrix(ops.K))
+    return Linear(None, ops.cached(("average", 1), lambda: discrete.average_matrix(ops.K, 1)))
+
+
+def _cell_average_kind(args, n):
+    _one_form(args, n, "cell_average", lambda k: not k.dual and k.degree == 0, "a primal 0-form")
+    return dual(0)
+
+
+def _cell_average_linear(ops: "Discrete", kind: Kind) -> Linear:
+    return Linear(None, ops.cached(("average", ops.n), lambda: discrete.average_matrix(ops.K, ops.n)))
+
+
+def _velocity(kind: Kind) -> bool:
+    """A velocity: a vector field, or a primal 1-form (a flux/circulation field, its ♯ taken)."""
+    return kind == VECTOR or (kind.is_form and not kind.dual and kind.degree == 1)
+
+
+def _as_vectors(ops: "Discrete", kind: Kind, value):
+    return value if kind == VECTOR else discrete.sharp(ops.K, value)
+
+
+def _interior_kind(args, n):
+    field, form = args
+    if not _velocity(field) or not (form.is_form and not form.dual and form.degree == 1):
+        raise Mismatch(f"interior takes a vector field (or a 1-form, its ♯) and a primal 1-form, got a {field} and a "
+                       f"{form}")
+    return dual(0)
+
+
+def _lie_kind(args, n):
+    field, form = args
+    if not _velocity(field) or not (form.is_form and not form.dual and form.degree in (0, 1)):
+        raise Mismatch(f"lie takes a vector field (or a 1-form, its ♯) and a primal 0- or 1-form, got a {field} and a "
+                       f"{form}")
+    if form.degree == 1 and n != 2:
+        raise Mismatch("lie of a 1-form is defined on triangle meshes here (dimension 2)")
+    return form
+
+
+def _lie_evaluate(ops: "Discrete", kinds, field, form):
+    vectors = _as_vectors(ops, kinds[0], field)
+    if kinds[1].degree == 0:
+        return discrete.lie_0(ops.K, vectors, form)
+    return discrete.lie_1(ops.K, vectors, form)
+
+
+# ------------------------------------------------------------------ measures
+def _norm_kind(args, n):
+    (kind,) = args
+    if kind == VECTOR:
+        return dual(0)
+    if kind.is_form:
+        return NUMBER
+    raise Mismatch(f"norm takes a vector field (its length per top simplex) or a form (‖u‖), got a {kind}")
+
+
+def weights(ops: Discrete, kind: Kind):
+    """The ⋆ inner product's weight of a form: ``("star", k)`` for primal k-forms,
+    ``("inverse", k)`` for dual forms on k-simplices, ``("volume",)`` for vectors."""
+    if kind == VECTOR:
+        return ("volume",)
+    j = kind.simplex_dimension(ops.n)
+    return ("inverse", j) if kind.dual else ("star", j)
+
+
+def inner_product(ops: Discrete, kind: Kind, a, b) -> float:
+    """⟨a, b⟩ (eq. 4.15): aᵀ ⋆_k b for primal k-forms, aᵀ ⋆_j⁻¹ b for dual forms on
+    j-simplices (⟨⋆⁻¹a, ⋆⁻¹b⟩), Σ |σ| a_σ·b_σ for vectors."""
+    weight = weights(ops, kind)
+    if weight[0] == "volume":
+        return float(np.einsum("f,fd,fd->", ops.K.top_volumes, a, b))
+    if weight[0] == "star":
+        return float(ops.dec.inner(weight[1], a, b))
+    return float(a @ ops.dec.star_solve(weight[1], b))
+
+
+def _norm_evaluate(ops: Discrete, kinds, x):
+    if kinds[0] == VECTOR:
+        return np.sqrt(np.einsum("fd,fd->f", x, x))
+    return float(np.sqrt(max(inner_product(ops, kinds[0], x, x), 0.0)))
+
+
+def _integral_kind(args, n):
+    (kind,) = args
+    if kind.is_form and (kind.degree == 0 or kind.degree == n):
+        return NUMBER
+    raise Mismatch(f"integral takes a 0-form or an {n}-form (primal or dual), got a {kind}")
+
+
+def integral(ops: Discrete, kind: Kind, x) -> float:
+    """∫ u: Σ ⋆0 u for a primal 0-form, Σ u for a primal n-form (oriented) or a dual n-form
+    (values on dual cells), Σ |σ| u for a dual 0-form (values per top simplex)."""
+    if not kind.dual and kind.degree == 0:
+        return float(np.sum(ops.dec.star(0) @ x))
+    if kind.dual and kind.degree == 0:
+        return float(ops.K.top_volumes @ x)
+    return float(np.sum(x))
+
+
+def _inner_kind(args, n):
+    a, b = args
+    if a != b or a == NUMBER:
+        raise Mismatch(f"inner takes two forms of the same kind (or two vector fields), got a {a} and a {b}")
+    return NUMBER
+
+
+def _reduction_or_pointwise(name):
+    def rule(args, n):
+        if len(args) == 1:
+            if args[0] == VECTOR:
+                raise Mismatch(f"{name} takes a form or numbers, got a {args[0]}")
+            return NUMBER
+        return _pointwise_kind(name, args)
+    return rule
+
+
+def _reduction_or_pointwise_evaluate(function, reduce):
+    def run(ops, kinds, *values):
+        if len(values) == 1:
+            value = values[0]
+            return float(reduce(value)) if np.ndim(value) else float(value)
+        return function(*values)
+    return run
+
+
+def _pointwise_kind(name, args):
+    kinds = [kind for kind in args if kind != NUMBER]
+    if any(kind == VECTOR for kind in kinds):
+        raise Mismatch(f"{name} acts on numbers and forms value by value, not on a vector field")
+    if len(set(kinds)) > 1:
+        raise Mismatch(f"{name} takes forms of one kind, got a {kinds[0]} and a {kinds[1]}")
+    return kinds[0] if kinds else NUMBER
+
+
+def _vertex_kind(args, n):
+    if args[0] != NUMBER:
+        raise Mismatch(f"vertex takes a vertex index (a number), got a {args[0]}")
+    return primal(0)
+
+
+def _vertex_evaluate(ops: Discrete, kinds, index):
+    n0 = ops.K.num_simplices(0)
+    if not (float(index).is_integer() and 0 <= index < n0):
+        raise ValueError(f"vertex({index:g}): the mesh has vertices 0..{n0 - 1}; give one of them")
+    out = np.zeros(n0)
+    out[int(index)] = 1.0
+    return out
+
+
+def _unary(function):
+    return lambda ops, kinds, x: function(x)
+
+
+#: value-by-value functions of one argument (numbers and forms)
+POINTWISE = {"exp": np.exp, "log": np.log, "sin": np.sin, "cos": np.cos, "tan": np.tan, "tanh": np.tanh,
+             "sinh": np.sinh, "cosh": np.cosh, "arcsin": np.arcsin, "arccos": np.arccos, "arctan": np.arctan,
+             "sqrt": np.sqrt, "abs": np.abs, "sign": np.sign}
+
+
+def _pointwise_rule(name):
+    return lambda args, n: _pointwise_kind(name, args)
+
+
+OPERATORS: dict[str, Operator] = {}
+
+
+def _register(operator: Operator) -> None:
+    OPERATORS[operator.name] = operator
+
+
+_register(Operator("d", (1,), "primal k → primal k+1; dual k → dual k+1 (k < n)",
+                   "d_k = δ_{k+1}ᵀ (§4.5.1); on dual forms d^dual_{n−k} = (−1)^k δ_k (eq. 4.13)",
+                   _d_kind, lambda ops, kinds, x: _d_linear(ops, kinds[0]).A @ x, _d_linear))
+_register(Operator("star", (1,), "primal k → dual n−k; dual k → primal n−k",
+                   "⋆_k = |⋆σ|/|σ| of the configured `operator=` (§4.5.4; Whitney's Galerkin ⋆ too); on dual "
+                   "forms (−1)^{k(n−k)} ⋆_{n−k}⁻¹, so ⋆⋆ = (−1)^{k(n−k)}",
+                   _star_kind, None, _star_linear))
+_register(Operator("inv_star", (1,), "dual k → primal n−k",
+                   "⋆_{n−k}⁻¹ (a factorized solve for a Galerkin ⋆, never an inverse matrix)",
+                   _inv_star_kind, None, _inv_star_linear))
+_register(Operator("codifferential", (1,), "primal k → primal k−1 (k ≥ 1)",
+                   "δ_k = ⋆_{k−1}⁻¹ d_{k−1}ᵀ ⋆_k (eq. 4.14); `boundary=flux` replaces δ_1 (§6.4.4)",
+                   _codifferential_kind, lambda ops, kinds, x: ops.dec.codifferential(kinds[0].degree) @ x,
+                   _codifferential_linear))
+_register(Operator("laplacian", (1,), "primal k → primal k",
+                   "Laplace–Beltrami sign: −(dδ + δd); on 0-forms −⋆0⁻¹ d0ᵀ ⋆1 d0 (the variant's stiffness), "
+                   "negative semi-definite (§4.5.7, §1.3)",
+                   _laplacian_kind("laplacian"), _laplacian_evaluate(-1.0), _laplacian_linear(-1.0)))
+_register(Operator("laplace_de_rham", (1,), "primal k → primal k",
+                   "dδ + δd, positive semi-definite, as the thesis writes Δ (§4.5.7)",
+                   _laplacian_kind("laplace_de_rham"), _laplacian_evaluate(1.0), _laplacian_linear(1.0)))
+_register(Operator("wedge", (2,), "primal j, primal k → primal j+k (0∧k, k∧0, 1∧1); also `a ^ b`",
+                   "(f∧ω)(σ) = f̄_σ ω(σ); (α∧β)(σ) = 1/6 Σ_τ sign(τ) α(τ0τ1) β(τ1τ2) (§3.1.3; Hirani's "
+                   "primal-primal wedge with barycentric weights)",
+                   _wedge_kind, _wedge_evaluate))
+_register(Operator("sharp", (1,), "primal 1-form → vector",
+                   "Whitney interpolation at each top simplex's barycentre (eq. 6.7); sharp(d(u)) is the "
+                   "gradient of the piecewise-linear u",
+                   _sharp_kind, lambda ops, kinds, x: discrete.sharp(ops.K, x)))
+_register(Operator("flat", (1,), "vector → primal 1-form (triangles)",
+                   "ω_e = Σ_{f∋e} (|⋆e∩f|/|⋆e|) X_f·e (Hirani's primal-primal ♭), so −δ X♭ is the cotan "
+                   "divergence",
+                   _flat_kind, lambda ops, kinds, x: discrete.flat(ops.K, x)))
+_register(Operator("average", (1,), "primal 0-form → primal 1-form; dual 0-form → primal 1-form",
+                   "(u_a + u_b)/2 on each edge ab (a coefficient per edge); of a dual 0-form g (one value per "
+                   "top simplex): Σ_{σ∋e} g_σ / #{σ∋e}, the mean over the top simplices at the edge",
+                   _average_kind, lambda ops, kinds, x: _average_linear(ops, kinds[0]).A @ x, _average_linear))
+_register(Operator("cell_average", (1,), "primal 0-form → dual 0-form",
+                   "ū_σ = Σ_{v∈σ} u_v / (n+1), the mean over the vertices of each top simplex (its value at the "
+                   "barycentre)",
+                   _cell_average_kind, lambda ops, kinds, x: _cell_average_linear(ops, kinds[0]).A @ x,
+                   _cell_average_linear))
+_register(Operator("interior", (2,), "vector (or 1-form), primal 1-form → dual 0-form",
+                   "i_X ω = X · ω♯ in each top simplex (a 1-form velocity is taken through ♯)",
+                   _interior_kind, lambda ops, kinds, X, w: discrete.interior_1(ops.K, _as_vectors(ops, kinds[0], X), w)))
+_register(Operator("lie", (2,), "vector (or 1-form), primal 0- or 1-form → the same form",
+                   "L_X u = X·∇u per top simplex, volume-averaged to the vertices (centred advection); on 1-forms "
+                   "Cartan's L_X ω = i_X dω + d i_X ω",
+                   _lie_kind, _lie_evaluate))
+_register(Operator("norm", (1,), "vector → dual 0-form; form → number",
+                   "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate))
+_register(Operator("integral", (1,), "0-form or n-form (primal or dual) → number",
+                   "Σ ⋆0 u for a primal 0-form (the configured ⋆0); Σ u for an n-form", _integral_kind,
+                   lambda ops, kinds, x: integral(ops, kinds[0], x)))
+_register(Operator("inner", (2,), "two forms of one kind (or two vectors) → number",
+                   "⟨a, b⟩ = aᵀ ⋆_k b (eq. 4.15); dual forms aᵀ ⋆⁻¹ b", _inner_kind,
+                   lambda ops, kinds, a, b: inner_product(ops, kinds[0], a, b)))
+_register(Operator("max", (1, 2), "form → number (largest value); two forms/numbers → value by value",
+                   "max over the values, or the larger of two values at each simplex",
+                   _reduction_or_pointwise("max"), _reduction_or_pointwise_evaluate(np.maximum, np.max)))
+_register(Operator("min", (1, 2), "form → number (smallest value); two forms/numbers → value by value",
+                   "min over the values, or the smaller of two values at each simplex",
+                   _reduction_or_pointwise("min"), _reduction_or_pointwise_evaluate(np.minimum, np.min)))
+_register(Operator("mean", (1,), "form → number", "the arithmetic mean of the values (unweighted)",
+                   _reduction_or_pointwise("mean"), _reduction_or_pointwise_evaluate(None, np.mean)))
+_register(Operator("vertex", (1,), "number i → primal 0-form",
+                   "the indicator of vertex i (1 there, 0 elsewhere): a point source", _vertex_kind,
+                   _vertex_evaluate))
+for _name, _function in POINTWISE.items():
+    _register(Operator(_name, (1,), "number or form → the same", f"{_name} of each value",
+                       _pointwise_rule(_name), _unary(_function)))
+
+#: other spellings of the operators
+ALIASES = {"codiff": "codifferential", "delta": "codifferential", "hodge": "star", "star_inv": "inv_star",
+           "laplace": "laplacian", "avg": "average", "interior_product": "interior"}
+
+
+def reference_table() -> str:
+    """The language reference as a markdown table (operator, degree rule, discrete definition),
+    generated from :data:`OPERATORS`."""
+    rows = ["| operator | takes → gives | discrete definition |", "|---|---|---|"]
+    for operator in OPERATORS.values():
+        rows.append(f"| `{operator.name}` | {operator.takes} | {operator.definition} |")
+    return "\n".join(rows)

@@ -1,0 +1,160 @@
+"""Linear systems of a model: fixed values condensed out, kernels of singular systems handled.
+
+A system ``A x = b`` (A sparse, square, constant during a run) is factorized once by a fresh
+solver of the configured kind (``solver=``) and solved every step. Two things are handled here
+and never silently:
+
+- **fixed values** (Dirichlet rows): the unknowns at ``fixed`` take the values ``g``, the others
+  solve ``A_FF x_F = b_F − A_FB g`` (scikit-fem's ``condense``);
+- **a kernel of constants** (a Laplacian of 0-forms with no fixed value: a closed surface, or
+  natural borders): one vertex per connected piece is pinned, the right-hand side's component
+  along the kernel is removed (``b ← b − (Σ_c b) ⋆0_c / Σ_c ⋆0``, i.e. the mean of f — reported,
+  and refused when it is not round-off-small compared with b), and the solution is shifted to
+  zero ⋆0-weighted mean on every piece: "the mean fixed".
+
+A symmetric negative definite A (the Laplace–Beltrami sign) is negated with b, so that
+Cholesky-based solvers see an SPD matrix.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from decrun.methods.model.language import ModelError
+
+__all__ = ["LinearSystem", "KernelReport", "COMPATIBILITY_LIMIT"]
+
+#: largest |Σ b| / Σ |b| accepted on a singular system (the part removed from b); beyond it the
+#: problem has no solution and the model is refused
+COMPATIBILITY_LIMIT = 0.05
+
+
+@dataclass
+class KernelReport:
+    """What a singular system's handling did: ``pieces`` pinned (one per connected piece) and
+    the largest relative part of b removed (``removed``: |Σ_c b| / Σ_c |b|)."""
+
+    pieces: int = 0
+    removed: float = 0.0
+
+
+@dataclass
+class LinearSystem:
+    """``A x = b`` with fixed values and an optional kernel of constants (see the module
+    docstring). ``A`` (n, n) sparse; ``fixed`` (m,) indices with values from ``fixed_values``;
+    ``pieces`` (n,) connected-piece labels and ``mass`` (n,) weights when the kernel is the
+    constants on each piece (None otherwise); ``new_solver()`` a fresh solver."""
+
+    A: sp.spmatrix
+    new_solver: Callable | None
+    fixed: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    pieces: np.ndarray | None = None
+    mass: np.ndarray | None = None
+    report: KernelReport = field(default_factory=KernelReport)
+
+    def __post_init__(self):
+        A = sp.csr_matrix(self.A, dtype=np.float64)
+        n = A.shape[0]
+        self.sign = 1.0
+        diagonal = A.diagonal()
+        if diagonal.size and np.all(diagonal <= 0) and np.any(diagonal < 0) and _symmetric(A):
+            self.sign = -1.0  # the Laplace–Beltrami sign: hand the SPD −A to the solver
+        A = self.sign * A
+        keep = np.ones(n, dtype=bool)
+        keep[self.fixed] = False
+        self.pinned = np.zeros(0, dtype=np.int64)
+        if self.pieces is not None:
+            labels = np.unique(self.pieces)
+            self.pinned = np.array([int(np.flatnonzero(self.pieces == label)[0]) for label in labels], dtype=np.int64)
+            keep[self.pinned] = False
+            self.report.pieces = len(labels)
+        self.free = np.flatnonzero(keep)
+        self.A_full = A
+        self.A_free_fixed = A[self.free][:, self.fixed] if self.fixed.size else None
+        self.solver = None  # factorized at the first solve, with the solver bound then
+
+    def bind(self, new_solver: Callable) -> None:
+        """Use ``new_solver()`` for the factorization (before the first solve)."""
+        if self.solver is None:
+            self.new_solver = new_solver
+
+    def factorize(self) -> None:
+        """Factorize A (free rows and columns) once."""
+        if self.solver is None:
+            if self.new_solver is None:
+                from decrun.core.solvers import solver_factory
+
+                self.new_solver = solver_factory(None)
+            solver = self.new_solver()
+            matrix = self.A_full[self.free][:, self.free]
+            if getattr(solver, "needs_spd", False) and not _symmetric(matrix.tocsr()):
+                raise UnsymmetricSystem(solver.name)
+            solver.factorize(matrix)
+            self.solver = solver
+
+    def solve(self, b: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
+        """x (n,) with ``x[fixed] = fixed_values``; ``b`` (n,) the right-hand side."""
+        b = self.sign * np.asarray(b, dtype=np.float64)
+        x = np.zeros(self.A_full.shape[0])
+        if self.pieces is not None:
+            b = self._compatible(b)
+        self.factorize()
+        rhs = b[self.free]
+        if self.fixed.size:
+            x[self.fixed] = fixed_values
+            rhs = rhs - self.A_free_fixed @ fixed_values
+        x[self.free] = self.solver.solve(rhs)
+        if self.pieces is not None:
+            totals = np.bincount(self.pieces, weights=self.mass)
+            means = np.bincount(self.pieces, weights=self.mass * x) / totals
+            x = x - means[self.pieces]
+        return x
+
+    def _compatible(self, b: np.ndarray) -> np.ndarray:
+        sums = np.bincount(self.pieces, weights=b)
+        sizes = np.bincount(self.pieces, weights=np.abs(b))
+        relative = np.abs(sums) / np.where(sizes > 0, sizes, 1.0)
+        self.report.removed = max(self.report.removed, float(relative.max(initial=0.0)))
+        if relative.max(initial=0.0) > COMPATIBILITY_LIMIT:
+            raise IncompatibleRightHandSide(float(relative.max()))
+        totals = np.bincount(self.pieces, weights=self.mass)
+        return b - (sums / totals)[self.pieces] * self.mass
+
+
+class UnsymmetricSystem(ModelError):
+    """A solver that needs SPD matrices was handed an unsymmetric one."""
+
+    def __init__(self, solver: str):
+        super().__init__(f"solver={solver}: needs a symmetric positive definite matrix, but this system is not "
+                         "symmetric; use `solver=direct` (or `solver=iterative`)")
+
+
+class IncompatibleRightHandSide(ValueError):
+    """The right-hand side of a singular system has a part along the kernel beyond round-off."""
+
+    def __init__(self, relative: float):
+        super().__init__(relative)
+        self.relative = relative
+
+
+def _symmetric(A: sp.csr_matrix) -> bool:
+    difference = abs(A - A.T).max() if A.nnz else 0.0
+    scale = abs(A).max() if A.nnz else 1.0
+    return bool(difference <= 1e-12 * scale)
+
+
+def constant_kernel(A: sp.spmatrix, pieces: np.ndarray) -> bool:
+    """Whether every piece's constant vector is in A's kernel (‖A 1_c‖ ≤ 1e-10 ‖A‖)."""
+    A = sp.csr_matrix(A)
+    scale = abs(A).max() if A.nnz else 0.0
+    if scale == 0:
+        return True
+    for label in np.unique(pieces):
+        indicator = (pieces == label).astype(np.float64)
+        if np.abs(A @ indicator).max() > 1e-10 * scale * max(1.0, np.sqrt(indicator.sum())):
+            return False
+    return True

@@ -1,0 +1,520 @@
+"""A model's equations compiled against one mesh: the plan every step runs.
+
+:func:`compile_model` takes the model as plain data (:class:`ModelSpec`: fields with their form,
+initial and border values, constants, equations, metrics) and a :class:`decrun.core.dec.DEC`,
+and returns a :class:`CompiledModel`:
+
+1. every equation is parsed (:mod:`~decrun.methods.model.language`) and classified — evolution
+   ``dt(u) = …``, definition ``v = …``, solve ``solve(lhs = rhs)`` whose unknown is the one
+   declared field of its left side that nothing else computes;
+2. definitions and solves are ordered by what they read (a cycle is refused, naming it) and
+   typed in that order; every term is type-checked (:class:`~decrun.methods.model.compiler.Compiler`);
+3. each solve's left side is split into a constant sparse matrix (factorized once) and terms
+   moved to the right; each evolution's right side into its linear blocks and the rest (for
+   the integrators, :mod:`~decrun.methods.model.integrators`).
+
+Evaluating the model at a state (:meth:`CompiledModel.environment`) computes every definition
+and solve once, in order, into one dict of values that the equations and metrics read.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from decrun.methods.model.compiler import NOT_LINEAR, Compiler
+from decrun.methods.model.initial import sample
+from decrun.methods.model.kinds import NUMBER, Kind, form_kind, primal
+from decrun.methods.model.language import Binary, Equation, ModelError, Name, Node, names_in, parse_equation, \
+    parse_expression, to_text
+from decrun.methods.model.operators import OPERATORS, Discrete, Linear
+from decrun.methods.model.solve import IncompatibleRightHandSide, LinearSystem, constant_kernel
+
+__all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
+
+RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random"} | set(OPERATORS) | {"solve"}
+
+
+@dataclass
+class FieldSpec:
+    """One field: ``form`` (``0..3`` or ``dual0..dual3``), ``initial`` (number, expression,
+    list of expressions, ``result:<field>`` or None) and ``dirichlet`` (its values on the border
+    simplices, None: natural)."""
+
+    form: Any = 0
+    initial: Any = None
+    dirichlet: Any = None
+
+
+@dataclass
+class ModelSpec:
+    """A model as data; ``key`` prefixes every config key in messages (``app``)."""
+
+    fields: dict[str, FieldSpec]
+    equations: list[str]
+    constants: dict[str, float] = field(default_factory=dict)
+    metrics: dict[str, str] = field(default_factory=dict)
+    seed: int = 0
+    key: str = "app"
+    #: the time step (the name ``dt`` in expressions); NaN for models without one
+    dt: float = float("nan")
+
+
+def vertex_pieces(K) -> np.ndarray:
+    """(n0,) label of the connected piece of each vertex (unused vertices: their own label)."""
+    count, labels = K.connected_components()
+    out = np.full(K.num_simplices(0), -1, dtype=np.int64)
+    top = K.simplices(K.dim)
+    out[top.ravel()] = np.repeat(labels, K.dim + 1)
+    lonely = out < 0
+    out[lonely] = count + np.arange(int(lonely.sum()))
+    return out
+
+
+def border_simplices(K, k: int) -> np.ndarray:
+    """(b,) indices of the k-simplices (k < n) on the border: the faces of border (n−1)-simplices."""
+    from itertools import combinations
+
+    n = K.dim
+    border = K.border_faces()[0]
+    if k >= n or border.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    facets = K.simplices(n - 1)[border]
+    if k == n - 1:
+        return np.sort(border)
+    tuples = np.concatenate([facets[:, list(c)] for c in combinations(range(n), k + 1)])
+    return np.unique(K.find_simplices(np.unique(tuples, axis=0)))
+
+
+@dataclass
+class Solve:
+    """A compiled ``solve(lhs = rhs)``: the unknown's system and the weak right-hand side."""
+
+    equation: Equation
+    unknown: str
+    system: LinearSystem
+    rhs: Callable[[dict], np.ndarray]  # the weak right-hand side ⋆_inv (rhs − other lhs terms)
+    fixed_values: np.ndarray | None
+
+
+@dataclass
+class CompiledModel:
+    """A model ready to run (see the module docstring).
+
+    ``kinds``: every name's kind; ``evolved``: the fields with an evolution equation, in order;
+    ``inputs``: declared fields nothing computes (their initial value stays); ``order``: the
+    definitions and solves in evaluation order; ``rhs``: name → compiled right side of its
+    evolution; ``metrics``: name → compiled number; ``fixed``: field → (border indices,
+    values) of its Dirichlet condition."""
+
+    spec: ModelSpec
+    ops: Discrete
+    compiler: Compiler
+    kinds: dict[str, Kind]
+    equations: list[Equation]
+    evolved: list[str]
+    inputs: list[str]
+    order: list[tuple[str, Any]]  # ("definition", (name, closure)) | ("solve", Solve)
+    rhs: dict[str, Callable]
+    metrics: dict[str, Callable]
+    fixed: dict[str, tuple[np.ndarray, np.ndarray]]
+    base: dict[str, Any]
+    initial_values: dict[str, np.ndarray]
+
+    @property
+    def is_static(self) -> bool:
+        """True when nothing evolves: the definitions and solves run once."""
+        return not self.evolved
+
+    def environment(self, state: dict[str, np.ndarray], t: float) -> dict[str, Any]:
+        """Every value at ``state`` (the evolved fields) and time ``t``: built-ins, constants,
+        inputs, the state, then each definition and solve in order."""
+        env = dict(self.base)
+        env.update(state)
+        env["t"] = float(t)
+        for what, item in self.order:
+            if what == "definition":
+                name, closure = item
+                env[name] = closure(env)
+            else:
+                env[item.unknown] = item.system.solve(item.rhs(env), item.fixed_values)
+        return env
+
+    def derivative(self, env: dict, names=None) -> dict[str, np.ndarray]:
+        """dt(u) for each evolved field (or those in ``names``) at ``env``."""
+        out = {}
+        for name in names or self.evolved:
+            value = self.rhs[name](env)
+            if np.ndim(value) == 0:
+                value = np.full(self.kinds[name].size(self.ops.K), float(value))
+            if name in self.fixed:
+                value = np.array(value, dtype=np.float64)
+                value[self.fixed[name][0]] = 0.0  # fixed values do not move
+            out[name] = value
+        return out
+
+    def bind(self, new_solver: Callable) -> None:
+        """Factorize every solve's system with ``new_solver()`` (the run's configured solver)."""
+        for what, item in self.order:
+            if what == "solve":
+                item.system.bind(new_solver)
+
+    def check_compatibility(self) -> None:
+        """Before any work: a singular solve (kernel of constants) whose right side reads only
+        inputs, constants and coordinates is checked for a solution now (its right side's mean
+        must be round-off), so the refusal comes before the run, not at its first step."""
+        computed = {item.unknown if what == "solve" else item[0] for what, item in self.order}
+        for what, item in self.order:
+            if what != "solve" or item.system.pieces is None:
+                continue
+            equation = item.equation
+            reads = self.compiler.reads(equation.rhs) | self.compiler.reads(equation.lhs)
+            if reads & (computed | set(self.evolved) | {"t"}) - {item.unknown}:
+                continue
+            item.system.solve_check(item.rhs(self.base))
+
+    def kernel_lines(self) -> list[str]:
+        """One log line per solve whose singular system had its kernel handled."""
+        lines = []
+        for name, report in self.solve_reports().items():
+            lines.append(f"{name}: the system is singular (constants on each of {report.pieces} piece(s)); the mean "
+                         f"of {name} is fixed to 0 and {report.removed:.2g} of the right side (its mean) was removed")
+        return lines
+
+    def metric_values(self, env: dict) -> dict[str, float]:
+        return {name: float(closure(env)) for name, closure in self.metrics.items()}
+
+    def solve_reports(self) -> dict[str, Any]:
+        """Per solve: the pieces whose kernel was handled and the largest part of b removed."""
+        out = {}
+        for what, item in self.order:
+            if what == "solve" and item.system.pieces is not None:
+                out[item.unknown] = item.system.report
+        return out
+
+    def resolved(self) -> list[str]:
+        """The equations as resolved: each with the kinds of its target (for the provenance)."""
+        lines = []
+        for equation in self.equations:
+            target = equation.target
+            lines.append(f"{equation.kind} {target} : {self.kinds[target]} := {equation.text.strip()}")
+        return lines
+
+
+def _kind_of_field(name: str, spec: FieldSpec, key: str, n: int) -> Kind:
+    return form_kind(spec.form, f"{key}.fields.{name}.form", n)
+
+
+def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | None = None) -> CompiledModel:
+    """The :class:`CompiledModel` of ``spec`` on ``dec``'s mesh (see the module docstring);
+    ``new_solver()`` gives a fresh solver for each linear system; ``chained`` is a previous run's
+    field (``mesh=result mesh.field=…``) for ``initial: result:<field>``."""
+    key = spec.key
+    ops = Discrete(dec)
+    K, n = ops.K, ops.n
+    _check_names(spec)
+    kinds = {name: _kind_of_field(name, field_spec, key, n) for name, field_spec in spec.fields.items()}
+    for name, value in spec.constants.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise ModelError(f"{key}.constants.{name}: must be a finite number, got {value!r}")
+        kinds[name] = NUMBER
+
+    equations = [parse_equation(text, f"{key}.equations[{i}]") for i, text in enumerate(spec.equations)]
+    if not equations:
+        raise ModelError(f"{key}.equations: a model needs at least one equation, e.g. "
+                         f"'{key}.equations=[\"dt(u) = laplacian(u)\"]'")
+    evolved, definitions, solves = [], {}, []
+    targets: dict[str, str] = {}
+
+    def claim(target: str, where: str):
+        if target in RESERVED:
+            raise ModelError(f"{where}: {target!r} is a built-in name; choose another name for the field")
+        if target in spec.constants:
+            raise ModelError(f"{where}: {target!r} is a constant (app.constants.{target}); an equation cannot set it")
+        if target in targets:
+            raise ModelError(f"{where}: {target!r} is already computed by {targets[target]}; a field has one equation")
+        targets[target] = where
+
+    for equation in equations:
+        if equation.kind == "evolution":
+            if equation.target not in spec.fields:
+                raise ModelError(f"{equation.where}: dt({equation.target}) evolves a field that is not declared; add "
+                                 f"{key}.fields.{equation.target} with its form and initial value")
+            claim(equation.target, equation.where)
+            evolved.append(equation.target)
+        elif equation.kind == "definition":
+            claim(equation.target, equation.where)
+            definitions[equation.target] = equation
+    # a solve's unknown: the declared field of its left side that no other equation computes
+    for index, equation in enumerate(equations):
+        if equation.kind != "solve":
+            continue
+        candidates = sorted(name for name in names_in(equation.lhs)
+                            if name in spec.fields and name not in targets and name not in evolved)
+        if not candidates:
+            raise ModelError(f"{equation.where}: the solve has no unknown: its left side {to_text(equation.lhs)} reads "
+                             f"no declared field that another equation does not compute; declare the unknown under "
+                             f"{key}.fields (e.g. {key}.fields.phi.form=0)")
+        if len(candidates) > 1:
+            without = [name for name in candidates if spec.fields[name].initial is None]
+            if len(without) != 1:
+                raise ModelError(f"{equation.where}: the solve's left side reads several undetermined fields "
+                                 f"{candidates}; a solve has one unknown")
+            candidates = without
+        equation = Equation("solve", candidates[0], equation.lhs, equation.rhs, equation.where, equation.text)
+        equations[index] = equation
+        claim(equation.target, equation.where)
+        solves.append(equation)
+
+    inputs = [name for name in spec.fields if name not in targets]
+    for name in evolved + inputs:
+        if spec.fields[name].initial is None:
+            role = "dt(" + name + ") needs it" if name in evolved else "no equation computes it"
+            raise ModelError(f"{key}.fields.{name}.initial: missing initial value ({role}); e.g. "
+                             f"`{key}.fields.{name}.initial=0`")
+
+    ordered = _order(definitions, solves, set(spec.fields) | set(spec.constants), key)
+    varying = set(evolved) | {"t"}
+    inlinable = {name: eq.rhs for name, eq in definitions.items()}
+    solved = {eq.target: Binary("-", eq.lhs, eq.rhs) for eq in solves}
+    compiler = Compiler(ops, kinds, inlinable, varying, solved)
+    for equation in ordered:  # type every definition in order (solve unknowns are declared)
+        if equation.kind == "definition":
+            kinds[equation.target] = compiler.kind(equation.rhs, equation.where)
+            if equation.target in spec.fields:
+                declared = _kind_of_field(equation.target, spec.fields[equation.target], key, n)
+                if declared != kinds[equation.target]:
+                    raise ModelError(f"{equation.where}: {to_text(equation.rhs)} is a {kinds[equation.target]} but "
+                                     f"{equation.target} is declared a {declared} ({key}.fields.{equation.target}.form)")
+        compiler.kinds.update(kinds)
+    compiler.kinds.update(kinds)
+    compiler.varying |= {name for name in targets if compiler.reads(Name(name)) & compiler.varying} | \
+        {eq.target for eq in solves if compiler.reads(Name(eq.target)) & compiler.varying}
+
+    base = {"x": K.vertices[:, 0].copy(), "y": K.vertices[:, 1].copy() if K.embedding_dim > 1 else
+            np.zeros(K.num_simplices(0)), "z": K.vertices[:, 2].copy() if K.embedding_dim > 2 else
+            np.zeros(K.num_simplices(0)), "h": float(K.mean_edge_length), "pi": float(np.pi), "t": 0.0,
+            "dt": float(spec.dt)}
+    base.update({name: float(value) for name, value in spec.constants.items()})
+    initial_values = {}
+    for name in evolved + inputs:
+        initial_values[name] = sample(spec.fields[name].initial, kinds[name], dec, f"{key}.fields.{name}.initial",
+                                      constants=spec.constants, seed=spec.seed, name=name, chained=chained)
+    base.update({name: initial_values[name] for name in inputs})
+    fixed = _dirichlet(spec, kinds, dec, key)
+    compiler.static_env = dict(base)
+
+    model = CompiledModel(spec, ops, compiler, kinds, equations, evolved, inputs, [], {}, {}, fixed, base,
+                          initial_values)
+    for equation in ordered:
+        if equation.kind == "definition":
+            model.order.append(("definition", (equation.target, compiler.compile(equation.rhs, equation.where))))
+        else:
+            model.order.append(("solve", _compile_solve(equation, model, new_solver)))
+    for equation in equations:
+        if equation.kind != "evolution":
+            continue
+        kind = compiler.kind(equation.rhs, equation.where)
+        target_kind = kinds[equation.target]
+        if kind != target_kind and kind != NUMBER:
+            raise ModelError(f"{equation.where}: {to_text(equation.rhs)} is a {kind} but dt({equation.target}) is a "
+                             f"{target_kind}")
+        model.rhs[equation.target] = compiler.compile(equation.rhs, equation.where)
+    trees = [(eq.where, eq.rhs) for eq in equations] + [(eq.where, eq.lhs) for eq in equations if eq.kind == "solve"]
+    for name, text in spec.metrics.items():
+        where = f"{key}.metrics.{name}"
+        tree = parse_expression(text, where)
+        kind = compiler.kind(tree, where)
+        if kind != NUMBER:
+            raise ModelError(f"{where}: {to_text(tree)} is a {kind}; a metric is a number: e.g. integral(...), "
+                             "norm(...), max(...) or inner(..., ...)")
+        model.metrics[name] = compiler.compile(tree, where)
+        trees.append((where, tree))
+    _check_stars(compiler, dec, trees)
+    return model
+
+
+def _check_stars(compiler: Compiler, dec, trees) -> None:
+    """Every ⋆_k the model reads exists for the configured variant (before any work)."""
+    degrees = dec.star_variant.form_degrees
+    if degrees is None:
+        return
+    for where, tree in trees:
+        for k, term in compiler.star_degrees(tree, where).items():
+            if k not in degrees:
+                raise ModelError(f"{where}: {to_text(term)} needs ⋆_{k}, but operator={dec.star_variant.name} provides "
+                                 f"⋆ on {list(degrees)}-forms only; use `operator=mixed_area` (or leave that term out)")
+
+
+def _check_names(spec: ModelSpec) -> None:
+    key = spec.key
+    for group, names in (("fields", spec.fields), ("constants", spec.constants), ("metrics", spec.metrics)):
+        for name in names:
+            if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
+                raise ModelError(f"{key}.{group}.{name}: a name is a letter followed by letters, digits or '_'")
+            if group != "metrics" and name in RESERVED:
+                raise ModelError(f"{key}.{group}.{name}: {name!r} is a built-in name of the model language "
+                                 "(x y z t dt h pi random and the operators); choose another")
+    both = set(spec.fields) & set(spec.constants)
+    if both:
+        name = sorted(both)[0]
+        raise ModelError(f"{key}.constants.{name}: {name!r} is also a field ({key}.fields.{name}); rename one")
+
+
+def _order(definitions: dict[str, Equation], solves: list[Equation], known: set[str], key: str) -> list[Equation]:
+    """Definitions and solves in an order where each reads only what comes before it (or
+    fields, constants and built-ins); a cycle is a ModelError naming it."""
+    computed = {**definitions, **{eq.target: eq for eq in solves}}
+
+    def needs(equation: Equation) -> set[str]:
+        reads = names_in(equation.rhs) | (names_in(equation.lhs) if equation.kind == "solve" else set())
+        # a solve reads its own unknown; a definition that reads itself is a cycle of one
+        return {name for name in reads if name in computed and (name != equation.target or equation.kind != "solve")}
+
+    order, state = [], {}
+
+    def visit(name: str, path: list[str]):
+        if state.get(name) == "done":
+            return
+        if state.get(name) == "active":
+            cycle = path[path.index(name):] + [name]
+            raise ModelError(f"{key}.equations: the equations for {' → '.join(cycle)} form a cycle; a definition may "
+                             "read only what is computed before it (break the cycle with an evolved field or a solve)")
+        state[name] = "active"
+        for other in sorted(needs(computed[name])):
+            visit(other, path + [name])
+        state[name] = "done"
+        order.append(computed[name])
+
+    for name in computed:  # in the order they were written, dependencies first
+        visit(name, [])
+    return order
+
+
+def _dirichlet(spec: ModelSpec, kinds: dict[str, Kind], dec, key: str) -> dict:
+    fixed = {}
+    K = dec.K
+    for name, field_spec in spec.fields.items():
+        if field_spec.dirichlet is None:
+            continue
+        where = f"{key}.fields.{name}.dirichlet"
+        kind = kinds[name]
+        if kind.dual or kind.degree >= K.dim:
+            raise ModelError(f"{where}: border values fix primal forms of degree < {K.dim} on the border simplices; "
+                             f"{name} is a {kind}")
+        border = border_simplices(K, kind.degree)
+        if border.size == 0:
+            raise ModelError(f"{where}: this mesh has no border (a closed surface); drop the condition with "
+                             f"`{key}.fields.{name}.dirichlet=null`")
+        text = field_spec.dirichlet
+        if isinstance(text, str) and "t" in names_in(parse_expression(text, where)):
+            raise ModelError(f"{where}: border values are fixed in time here; write them without t")
+        values = sample(text, kind, dec, where, constants=spec.constants, seed=spec.seed, name=name)
+        fixed[name] = (border, values[border])
+    return fixed
+
+
+def _compile_solve(equation: Equation, model: CompiledModel, new_solver: Callable) -> Solve:
+    compiler, ops, K = model.compiler, model.ops, model.ops.K
+    unknown, where = equation.target, equation.where
+    kind = model.kinds[unknown]
+    lhs_kind = compiler.kind(equation.lhs, where)
+    rhs_kind = compiler.kind(equation.rhs, where)
+    if lhs_kind != kind:
+        raise ModelError(f"{where}: the left side {to_text(equation.lhs)} is a {lhs_kind} but the unknown {unknown} is "
+                         f"a {kind}")
+    if rhs_kind != kind and rhs_kind != NUMBER:
+        raise ModelError(f"{where}: {to_text(equation.lhs)} is a {lhs_kind} but {to_text(equation.rhs)} is a "
+                         f"{rhs_kind}")
+    blocks, rest = compiler.split(equation.lhs, {unknown})
+    if unknown not in blocks:
+        raise ModelError(f"{where}: the left side {to_text(equation.lhs)} is not linear in {unknown} with constant "
+                         "coefficients (a solve is linear); move nonlinear terms to an evolution equation")
+    for sign, term in rest:
+        if compiler.depends_on(term, {unknown}):
+            raise ModelError(f"{where}: the term {to_text(term)} of the left side is not linear in {unknown}; a solve "
+                             "is linear in its unknown")
+    linear: Linear = blocks[unknown]
+    rhs_closure = compiler.compile(equation.rhs, where)
+    rest_closures = [(sign, compiler.compile(term, where)) for sign, term in rest]
+    star = ops.dec.star(linear.inv) if linear.inv is not None else None
+    size = kind.size(K)
+
+    def weak_rhs(env):
+        value = rhs_closure(env)
+        for sign, closure in rest_closures:
+            value = value - sign * closure(env)
+        value = np.broadcast_to(np.asarray(value, dtype=np.float64), (size,))
+        return star @ value if star is not None else np.array(value)
+
+    border, values = model.fixed.get(unknown, (np.zeros(0, dtype=np.int64), None))
+    pieces = mass = None
+    if not border.size and not kind.dual and kind.degree == 0:
+        labels = vertex_pieces(K)
+        if constant_kernel(linear.A, labels):
+            pieces = labels
+            mass = np.asarray(ops.dec.star(0).sum(axis=1)).ravel()
+    elif not border.size and kind.degree >= 1 and not kind.dual and _pure_laplacian(equation.lhs):
+        betti = K.betti_numbers()[kind.degree]
+        if betti:
+            raise ModelError(f"{where}: {to_text(equation.lhs)} = … is singular on this mesh: the harmonic "
+                             f"{kind.degree}-forms (Betti_{kind.degree} = {betti}) are its kernel; add a term such as "
+                             f"'{unknown} - t0*laplacian({unknown})' or fix border values")
+    try:
+        system = LinearSystem(linear.A, new_solver, border, pieces, mass)
+    except Exception as error:  # noqa: BLE001 - a solver refusing the matrix: say which equation
+        if isinstance(error, ModelError):
+            raise
+        raise ModelError(f"{where}: the system of {to_text(equation.lhs)} could not be factorized "
+                         f"({str(error).splitlines()[0]}); try `solver=direct`") from None
+    solve = Solve(equation, unknown, system, weak_rhs, values)
+    original = system.solve
+
+    def checked(b, fixed_values):
+        try:
+            return original(b, fixed_values)
+        except IncompatibleRightHandSide as error:
+            raise ModelError(_incompatible_message(where, equation, error.relative)) from None
+
+    def check_only(b):
+        try:
+            system._compatible(system.sign * np.asarray(b, dtype=np.float64))
+        except IncompatibleRightHandSide as error:
+            checked_error = error
+        else:
+            return
+        raise ModelError(_incompatible_message(where, equation, checked_error.relative)) from None
+
+    system.solve = checked
+    system.solve_check = check_only
+    return solve
+
+
+def _incompatible_message(where: str, equation: Equation, relative: float) -> str:
+    return (f"{where}: on this mesh {to_text(equation.lhs)} is singular (constants are its kernel, no border value "
+            f"fixes them) and the right side's integral is {relative:.2g} of its size, not zero: no solution exists; "
+            "subtract its mean (a right side f becomes f - integral(f)/integral(1 + 0*x)) or fix border values "
+            "(fields.<name>.dirichlet)")
+
+
+def _pure_laplacian(node: Node) -> bool:
+    """True when ``node`` is c·laplacian(u) or c·laplace_de_rham(u) alone (no shift)."""
+    from decrun.methods.model.language import Call, Negate, Number
+
+    while isinstance(node, (Negate, Binary)):
+        if isinstance(node, Negate):
+            node = node.operand
+        elif node.op in "*/" and isinstance(node.left, Number):
+            node = node.right
+        elif node.op in "*/" and isinstance(node.right, Number):
+            node = node.left
+        else:
+            return False
+    return isinstance(node, Call) and node.function in ("laplacian", "laplace_de_rham", "laplace")
+
+
+# keep sp imported for type hints of callers
+_ = (sp, primal, NOT_LINEAR)

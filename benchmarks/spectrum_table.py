@@ -7,7 +7,8 @@ unit ball (TetGen, surface kept on the sphere, max volume 0.002; functions only)
 
 Cells: ``eigenvalue_relative_error_max`` over the nonzero analytic eigenvalues; ``zero ⋆``
 where the variant's ⋆_{k-1} or ⋆_k has zero entries and the run is refused; ``⋆ < 0`` where
-the mass ⋆_k has negative entries (an indefinite pencil: refused); ``†`` where ⋆_k has zero
+the mass ⋆_k (an indefinite pencil) or a stiffness ⋆_{k±1} inside Δ_k (an indefinite operator)
+has negative entries: refused; ``†`` where ⋆_k has zero
 entries (a semi-definite mass: the Arnoldi solve); ``n/a`` where the variant has no operators for k;
 ``R³ only`` where the variant's geometry needs vertices in R³ (the torus lives in R⁴).
 
@@ -63,8 +64,8 @@ def cell(K, variant, k):
             return "n/a"
         pairs = laplacian_eigenpairs(dec, k, 10)
     except DecrunError as exc:
-        return "zero ⋆" if "zero on" in str(exc) else "⋆ < 0" if "positive mass" in str(exc) else \
-            f"refused ({str(exc)[:40]}…)"
+        return "zero ⋆" if "zero on" in str(exc) else "⋆ < 0" if "positive mass" in str(exc) or \
+            "indefinite" in str(exc) else f"refused ({str(exc)[:40]}…)"
     except ValueError:  # mixed_area / intrinsic_delaunay compute in R³: not for the torus in R⁴
         return "R³ only"
     domain = detect_domain(K)

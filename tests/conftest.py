@@ -28,6 +28,7 @@ def run_app():
     from decrun.core.dec import DEC
 
     def run(app, K, star="circumcentric", boundary="none", solver="direct", meta=None):
+        app.check_pieces(K)
         dec = DEC(K, star=star, boundary=boundary)
         app.check_operators(dec)
         app.check(K, dec)

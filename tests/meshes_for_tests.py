@@ -186,3 +186,14 @@ def kuhn_cells(n: int, kept=None, removed=()):
         inside = np.ones(len(corners), dtype=bool) if kept is None else member(corners, kept)
         return inside & ~member(corners, removed)
     return kuhn_cube(n, keep_cell=keep)
+
+
+def pieces_mesh():
+    """22 pieces in z = 0: a unit square (30 × 30 grid) and 21 squares of side 0.05 (2 triangles each)."""
+    vertices, triangles, offset = [], [], 0
+    for i, (n, side) in enumerate([(30, 1.0)] + [(1, 0.05)] * 21):
+        V, T = grid_triangles(n)
+        vertices.append(np.column_stack([V * side, np.zeros(len(V))]) + [2.0 * i, 0, 0])
+        triangles.append(T + offset)
+        offset += len(V)
+    return np.vstack(vertices), np.vstack(triangles)

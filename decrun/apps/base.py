@@ -37,10 +37,13 @@ import another application. They declare what they accept:
                     amg are then rejected before any work
 ``dimensions``      the mesh dimensions the app runs on (2: triangle meshes, 3: tetrahedral
                     ones); any other is a TopologyError before any work, naming the apps that do
+``one_piece``       why the app assumes a mesh of one piece ("" when it handles several); a
+                    mesh of several pieces is then a TopologyError before any work, naming
+                    `mesh.largest_component=true` (:meth:`App.check_pieces`)
 ``check(K, dec)``   further checks on the mesh before any work (topology)
 
-The runner runs these checks through :meth:`App.validate` (dimension, operators, solver,
-``check``; once each, in that order).
+The runner runs these checks through :meth:`App.validate` (dimension, pieces, operators,
+solver, ``check``; once each, in that order).
 
 Numerical blow-up is a result (``stable: false``), never an exception; bad input is a typed
 :class:`decrun.errors.DecrunError` naming the key. A metric that does not apply is absent,
@@ -105,6 +108,11 @@ class Result:
         Keyed by file stem.
     provenance : dict[str, str]
         Root attributes of result.h5 saying how the result was made.
+    warnings : list[str]
+        One line each: what makes a finished run's answer not the one asked for (e.g. a
+        parametrization that is not an embedding), with the override that gives one. The
+        runner logs each, puts them in the metric ``warnings`` and in the run's closing line;
+        the run's ``status`` stays ``ok`` (it finished).
     """
 
     fields: dict[str, Any] = field(default_factory=dict)
@@ -114,6 +122,7 @@ class Result:
     #: short strings recorded as root attributes of result.h5 (how the result was made, e.g. a
     #: model's equations as resolved), not metrics
     provenance: dict[str, str] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -136,6 +145,9 @@ class App:
     diagonal_stars: ClassVar[str] = ""
     #: the metrics a sweep table shows by default (``decrun-table --all`` shows every one)
     headline_metrics: ClassVar[tuple[str, ...]] = ()
+    #: why the app assumes a mesh of one piece ("" when it handles several, e.g. a spectrum:
+    #: one kernel dimension per piece); several pieces are then refused before any work
+    one_piece: ClassVar[str] = ""
     #: the override a refused operator variant's message names: one that runs this app on
     #: every mesh it accepts (hodge: whitney, whose ⋆1 is SPD where the diagonal ⋆1 is zero)
     operator_hint: ClassVar[str] = "`operator=mixed_area` (or `operator=circumcentric`)"
@@ -148,11 +160,13 @@ class App:
         1. :meth:`check_dimension` on ``K``, before the operators are built (``operators()``,
            the ``DEC``): a Hodge-star variant may not exist in another dimension either, and
            this message names the apps that run on the mesh;
-        2. :meth:`check_operators`, the boundary adaptation and the Hodge-star variant;
-        3. :meth:`check_solver` with the operators (what the config alone says of the solver
+        2. :meth:`check_pieces` (apps that assume one piece);
+        3. :meth:`check_operators`, the boundary adaptation and the Hodge-star variant;
+        4. :meth:`check_solver` with the operators (what the config alone says of the solver
            was checked when the config was: ``check_solver(solver)`` before any mesh);
-        4. :meth:`check`, the app's own checks of the mesh."""
+        5. :meth:`check`, the app's own checks of the mesh."""
         self.check_dimension(K)
+        self.check_pieces(K)
         dec = operators()
         self.check_operators(dec)
         self.check_solver(solver, dec)
@@ -172,6 +186,22 @@ class App:
             fix = "use a mesh of that dimension"
         raise TopologyError(f"app={self.name} runs on {wanted}, but this mesh is "
                             f"{kinds.get(K.dim, f'of dimension {K.dim}')}; {fix}")
+
+    def check_pieces(self, K) -> None:
+        """TopologyError when the app assumes one piece (``one_piece`` says why) and ``K`` has
+        several (top simplices joined through shared vertices,
+        :meth:`~decrun.core.complex.SimplicialComplex.connected_components`), naming the post
+        step that keeps the largest."""
+        if not self.one_piece:
+            return
+        count, label = K.connected_components()
+        if count == 1:
+            return
+        sizes = np.sort(np.bincount(label))[::-1]
+        raise TopologyError(f"mesh: app={self.name} needs one connected piece ({self.one_piece}), but this mesh has "
+                            f"{count} pieces of {', '.join(map(str, sizes[:4]))}{', …' if count > 4 else ''} "
+                            f"{'triangles' if K.dim == 2 else 'top simplices'}; keep the largest with "
+                            "`mesh.largest_component=true`")
 
     def check(self, K, dec) -> None:
         """Raise a DecrunError when the mesh does not suit the app (before any work)."""

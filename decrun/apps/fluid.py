@@ -24,7 +24,7 @@ import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.apps.surface_points import check_points_on_surface
-from decrun.errors import ConfigError, TopologyError
+from decrun.errors import ConfigError
 from decrun.methods.fluid.metrics import fluid_metrics
 from decrun.methods.fluid.options import Circulation, Initial, Kernels, Velocity, Walls
 from decrun.methods.stepping import run_steps
@@ -49,6 +49,7 @@ class Fluid(App):
     """Options of ``app=fluid`` (conf/app/fluid.yaml)."""
 
     name = "fluid"
+    one_piece = "the velocity solve's matrix is singular with one kernel per piece"
     headline_metrics = ("stable", "diverged_at_step", "max_abs_divergence", "energy_ratio", "enstrophy_ratio")
     form_degrees = (0, 1, 2)
     diagonal_stars = "the scheme divides by ⋆0 and ⋆1 entrywise (vorticity = circulation / ⋆0)"
@@ -114,10 +115,6 @@ class Fluid(App):
         return int(math.ceil(self.t_end / self.dt - 1e-9)) if self.t_end is not None else int(self.steps)
 
     def check(self, K, dec) -> None:
-        components = K.connected_components()[0]
-        if components != 1:  # the velocity solve's matrix would be singular, one kernel per piece
-            raise TopologyError(f"mesh: the fluid needs one connected surface, this mesh has {components} connected "
-                                "components; keep the largest with `mesh.largest_component=true`")
         closed = K.border_faces()[0].size == 0
         if self.inflow and closed:
             raise ConfigError("app.inflow: a closed surface has no border to flow in through; use app.inflow=[]")

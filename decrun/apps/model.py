@@ -24,7 +24,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
-from decrun.methods.model.integrators import FROZEN, explicit_stability_limit, make_integrator
+from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_stability_limit, make_integrator
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.stepper import ModelStepper
@@ -120,8 +120,10 @@ class Model(App):
         count = int(round(ratio))
         if count < 1 or abs(ratio - count) > 1e-9 * max(1.0, ratio):
             fitted = self.t_end / max(1, math.ceil(ratio))
+            # `++`: a model's YAML need not list `steps`, and Hydra refuses `app.steps=` for a key it lacks
             raise ConfigError(f"app.t_end={self.t_end:g} is not a whole number of steps of app.dt={self.dt:g} "
-                              f"({ratio:.6g}); use `app.dt={fitted:.12g}` (or `app.steps=N app.t_end=null`)")
+                              f"({ratio:.6g}); use `app.dt={fitted:.12g}` (or `++app.steps={max(1, round(ratio))} "
+                              "app.t_end=null`)")
         return count
 
     def compiled(self, dec, new_solver=None):
@@ -140,6 +142,8 @@ class Model(App):
         model = self.compiled(dec)
         model.check_compatibility()
         steps = self.total_steps()
+        if not model.is_static:
+            check_integrator(model, str(self.integrator), self.dt)
         if model.is_static or not self.stability_check or steps == 0:
             return
         limit, source = explicit_stability_limit(model, str(self.integrator), model.initial_values)

@@ -69,6 +69,7 @@ class Parametrization(App):
     """
 
     name = "parametrization"
+    one_piece = "one disk-like surface is mapped into [0, 1]²"
     headline_metrics = ("is_embedding", "flipped_triangles", "angle_distortion_mean_deg", "qc_distortion_max")
     form_degrees = (0,)
     border: Border = Border.conformal
@@ -119,7 +120,9 @@ class Parametrization(App):
         """Parametrize the mesh (a connected genus-0 triangle mesh with border) into [0, 1]².
 
         Fields: ``uv`` (n0, 2), ``row_kind`` (n0,), per triangle ``qc_distortion`` and
-        ``angle_distortion_deg`` (n2,), ``flipped``. Metrics: see
+        ``angle_distortion_deg`` (n2,), ``flipped``. A map that is not an embedding says so in
+        a warning (:func:`not_an_embedding`, with the override that gives one: the run's
+        closing line and the metric ``warnings``) and in red on both figures. Metrics: see
         :func:`decrun.methods.parametrization_metrics.parametrization_metrics` plus
         ``solve_seconds``, ``negative_weights`` (off-diagonal entries < 0 in the harmonic
         matrix, violations of eq. 5.7), ``reflex_border_vertices_predicted`` (under
@@ -161,10 +164,29 @@ class Parametrization(App):
             "flipped": flipped,
         }
         title = f"border={self.border}, weights={self.weights}"
+        warning = not_an_embedding(metrics)
         figures = {
             "uv_layout": Figure("decrun.runner.plots.parametrization.uv_layout", dict(
-                uv=uv, faces=faces, angle_distortion_deg=face_angle_error_deg, flipped=flipped, title=title)),
+                uv=uv, faces=faces, angle_distortion_deg=face_angle_error_deg, flipped=flipped, title=title,
+                warning=warning)),
             "checkerboard": Figure("decrun.runner.plots.parametrization.checkerboard", dict(
-                uv=uv, faces=faces, squares=int(self.checker_squares), title=title)),
+                uv=uv, faces=faces, squares=int(self.checker_squares), title=title, warning=warning)),
         }
-        return Result(fields=fields, metrics=metrics, figures=figures)
+        warnings = [f"{warning}; `app.border=circle` with `app.weights=mean_value` is one (Floater's map into a "
+                    "convex border, holes filled: positive weights, an embedding by Tutte's theorem)"] if warning else []
+        return Result(fields=fields, metrics=metrics, figures=figures, warnings=warnings)
+
+
+def not_an_embedding(metrics: dict) -> str:
+    """"" for an embedding (``metrics['is_embedding']``), else the short line that says why
+    not: ``not an embedding: 16 flipped, 2 border self-intersections`` (the nonzero counts of
+    flipped and degenerate triangles and border self-intersections, and a wrong border winding)."""
+    if metrics["is_embedding"]:
+        return ""
+    counts = [f"{metrics[key]} {what}" for key, what in (("flipped_triangles", "flipped triangles"),
+                                                         ("degenerate_triangles", "degenerate triangles"),
+                                                         ("border_self_intersections", "border self-intersections"))
+              if metrics.get(key)]
+    if metrics.get("border_winding_ok") is False:
+        counts.append("border winding wrong")
+    return "not an embedding: " + (", ".join(counts) or "see the metrics")

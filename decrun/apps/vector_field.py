@@ -99,6 +99,8 @@ class VectorField(App):
     """Options of ``app=vector_field`` (conf/app/vector_field.yaml)."""
 
     name = "vector_field"
+    one_piece = ("with boundary=none the outflows must sum to 0 on every piece, and the default source and sink "
+                 "are the two ends of the whole mesh")
     headline_metrics = ("singularity_cluster_indices", "poincare_hopf_holds", "smoothness_energy",
                         "adjointness_defect")
     boundaries = ("none", "flux")

@@ -13,7 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-__all__ = ["edge_table", "edge_owners", "component_labels", "largest_component", "drop_unreferenced"]
+__all__ = ["edge_table", "edge_owners", "component_labels", "largest_component", "drop_unreferenced", "simplex_pieces"]
 
 
 def edge_table(faces: np.ndarray, n_vertices: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -82,3 +82,14 @@ def drop_unreferenced(vertices: np.ndarray, simplices: np.ndarray) -> tuple[np.n
     used[simplices.ravel()] = True
     renumber = np.cumsum(used) - 1
     return vertices[used], renumber[simplices], used
+
+
+def simplex_pieces(top_label: np.ndarray, top_simplices: np.ndarray, simplices: np.ndarray,
+                   n_vertices: int) -> np.ndarray:
+    """(m_k,) int: the piece of each k-simplex, given the piece of each top simplex
+    (``top_label`` (m,), e.g. ``SimplicialComplex.connected_components()[1]``, whose pieces
+    join top simplices through shared vertices, so a k-simplex's vertices all lie in one
+    piece). ``top_simplices`` (m, n+1), ``simplices`` (m_k, k+1) vertex indices."""
+    vertex_label = np.full(int(n_vertices), -1, dtype=np.int64)
+    vertex_label[np.asarray(top_simplices)] = np.asarray(top_label)[:, None]
+    return vertex_label[np.asarray(simplices)[:, 0]]

@@ -24,6 +24,21 @@ spectrum of Δ_k (measured: −17.0 and −4.6 on ``mesh=box mesh.jitter=0.2 mes
 degree 1), so it is refused before any work (:func:`check_stars`), naming the Galerkin stars.
 Zero entries only make the mass semi-definite (infinite eigenvalues, which the shift-invert
 solve never reaches; Arnoldi on (⋆_kΔ_k − σ⋆_k)⁻¹ ⋆_k, since ⋆_k is then no inner product). A ⋆_{k-1} with zero entries makes ⋆_kΔ_k infinite: refused.
+A *stiffness* star with negative entries — ⋆_{k-1} inside ⋆_k d ⋆_{k-1}⁻¹ dᵀ ⋆_k (k ≥ 1), or
+⋆_{k+1} inside d_kᵀ ⋆_{k+1} d_k (1 ≤ k ≤ n−2) — makes ⋆_kΔ_k itself indefinite: on the
+jittered 16 × 16 square, Δ2 with the cot ⋆1 (negative on 137 of 800 edges) has exactly 137
+negative eigenvalues, down to −6.8e5, and shift-invert about σ < 0 skipped all of them. It is
+refused before any work too (:func:`check_stars`). (⋆1 inside Δ0 = d0ᵀ ⋆1 d0 is not checked:
+for the cot weights that is the P1 stiffness matrix, positive semi-definite whatever their
+signs.) As a last guard, computed eigenvalues below −1e-8/h̄² (an indefinite operator the
+checks did not foresee, e.g. a plugin star) are refused after the solve
+(:func:`refuse_negative`).
+
+A mesh of several pieces (top simplices joined through shared vertices) has a block-diagonal
+Δ_k: its spectrum is the union of the pieces' spectra, and the kernel of Δ0 has one dimension
+per piece. One Lanczos run finds only a few copies of such a repeated eigenvalue (3 of 22 zero
+eigenvalues on a 22-piece scan, the rest listed as nonzero), so every piece is solved on its
+own and the ``count`` lowest of all are returned (:func:`laplacian_eigenpairs`).
 
 Every returned eigenpair is checked (:func:`eigen_accuracy`): the backward residual
 ‖A u − λ M u‖ / (‖A‖ ‖u‖) and the M-orthonormality max |UᵀMU − I|; ``converged`` is False
@@ -45,11 +60,12 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from decrun.core.connectivity import drop_unreferenced, simplex_pieces
 from decrun.core.solvers import solver_factory
 from decrun.errors import ConfigError, MeshError, SolverError
 
 __all__ = ["Eigenpairs", "Domain", "laplacian_eigenpairs", "check_stars", "needs_indefinite_solve", "analytic_spectrum",
-           "detect_domain", "spectrum_errors", "eigen_accuracy"]
+           "detect_domain", "spectrum_errors", "eigen_accuracy", "refuse_negative", "stiffness_degrees", "piece_decs"]
 
 #: up to this many k-simplices the eigenpairs come from a dense LAPACK solve
 DENSE_MAX = 400
@@ -113,10 +129,11 @@ def _negative_entries(dec, j: int) -> np.ndarray:
 def check_stars(dec, k: int) -> None:
     """MeshError when the mass ⋆_k has negative entries (an indefinite pencil: negative and
     complex eigenvalues, no spectrum of Δ_k), naming the operator whose mass is positive there
-    (``mixed_area`` for functions on a surface, else the Galerkin ``whitney``), or when a
+    (``mixed_area`` for functions on a surface, else the Galerkin ``whitney``); when a
     diagonal ⋆_{k-1} has zero entries (degenerate dual cells, as in Kuhn cubes): ⋆_{k-1}⁻¹ in
-    Δ_k is then infinite. (Zeros in ⋆_k only make the mass singular: infinite eigenvalues,
-    which the shift-invert solve never reaches.)"""
+    Δ_k is then infinite; or when a stiffness star ⋆_j, j in :func:`stiffness_degrees`, has
+    negative entries: ⋆_kΔ_k is then indefinite (module docstring). (Zeros in ⋆_k only make
+    the mass singular: infinite eigenvalues, which the shift-invert solve never reaches.)"""
     negative = _negative_entries(dec, k)
     if negative.size:
         fix = "operator=mixed_area" if k == 0 and dec.n == 2 else "operator=whitney"
@@ -126,13 +143,40 @@ def check_stars(dec, k: int) -> None:
                         f"{dec.star_variant.name} is negative on {negative.size} of {dec.K.num_simplices(k)} simplices "
                         f"(e.g. {negative[:5].tolist()}: non-Delaunay or not well-centred dual cells), which gives "
                         f"negative and complex eigenvalues; use `{fix}` ({what})")
-    if k == 0 or _galerkin_lower(dec, k):
-        return
-    zero = _zero_entries(dec, k - 1)
-    if zero.size:
-        raise MeshError(f"Δ_{k} contains ⋆_{k - 1}⁻¹, but ⋆_{k - 1} of operator={dec.star_variant.name} is zero on "
-                        f"{zero.size} simplices (e.g. {zero[:5].tolist()}: degenerate dual cells, as in Kuhn cubes); "
-                        "use `operator=whitney` (Galerkin stars, SPD on every mesh)")
+    if k > 0 and not _galerkin_lower(dec, k):
+        zero = _zero_entries(dec, k - 1)
+        if zero.size:
+            raise MeshError(f"Δ_{k} contains ⋆_{k - 1}⁻¹, but ⋆_{k - 1} of operator={dec.star_variant.name} is zero on "
+                            f"{zero.size} simplices (e.g. {zero[:5].tolist()}: degenerate dual cells, as in Kuhn cubes); "
+                            "use `operator=whitney` (Galerkin stars, SPD on every mesh)")
+    for j in stiffness_degrees(dec.n, k):
+        negative = _negative_entries(dec, j)
+        if negative.size:
+            term = f"⋆_{k} d ⋆_{j}⁻¹ dᵀ ⋆_{k}" if j == k - 1 else f"dᵀ ⋆_{j} d"
+            raise MeshError(f"⋆_{k}Δ_{k} contains {term}, but ⋆_{j} of operator={dec.star_variant.name} is negative on "
+                            f"{negative.size} of {dec.K.num_simplices(j)} simplices (e.g. {negative[:5].tolist()}: "
+                            f"non-Delaunay or not well-centred dual cells), which makes Δ_{k} indefinite (negative "
+                            "eigenvalues, no spectrum); use `operator=whitney` (Galerkin stars, SPD on every mesh)")
+
+
+def stiffness_degrees(n: int, k: int) -> tuple[int, ...]:
+    """The degrees j of the stars inside ⋆_kΔ_k = ⋆_k d ⋆_{k-1}⁻¹ dᵀ ⋆_k + d_kᵀ ⋆_{k+1} d_k whose
+    negative entries make it indefinite: k − 1 (k ≥ 1) and k + 1 (1 ≤ k ≤ n − 2). Not ⋆1 in
+    Δ0 = d0ᵀ ⋆1 d0 (the cot weights' P1 stiffness matrix: semi-definite whatever their signs) and
+    not ⋆_n (1/|σ| > 0 for every variant: a dual 0-cell)."""
+    return tuple(j for j in (k - 1, k + 1) if (j == k - 1 and k >= 1) or (j == k + 1 and 1 <= k <= n - 2))
+
+
+def refuse_negative(dec, k: int, values: np.ndarray) -> None:
+    """MeshError when a computed eigenvalue of Δ_k (positive semi-definite) is below −1e-8/h̄²
+    (h̄ the mean edge length; the kernel bound of :func:`decrun.methods.spectrum_metrics.eigen_metrics`):
+    ⋆_kΔ_k of this operator is indefinite on this mesh, and the values are no spectrum."""
+    length = float(np.linalg.norm(np.diff(dec.K.vertices[dec.K.simplices(1)], axis=1)[:, 0], axis=1).mean())
+    negative = np.asarray(values)[np.asarray(values) < -1e-8 / length**2]
+    if negative.size:
+        raise MeshError(f"Δ_{k} with operator={dec.star_variant.name} is indefinite on this mesh: {negative.size} of the "
+                        f"{len(values)} lowest eigenvalues are negative (down to {negative.min():.4g}), no spectrum of "
+                        "Δ_k; use `operator=whitney` (Galerkin stars, SPD on every mesh)")
 
 
 def _default_shift(dec) -> float:
@@ -188,48 +232,99 @@ def laplacian_eigenpairs(dec, k: int, count: int, solver=None, shift: float | No
     Returns
     -------
     :class:`Eigenpairs`, checked (``residual_max``, ``orthonormality_error``, ``converged``).
-    Raises MeshError for a mass ⋆_k with negative entries, SolverError when ARPACK stops
-    short of ``count`` pairs.
+    On a mesh of several pieces each piece is solved on its own (:func:`piece_decs`) and the
+    ``count`` lowest pairs of all are kept (vectors zero off their piece). Raises MeshError for
+    a mass ⋆_k or a stiffness ⋆_{k±1} with negative entries (:func:`check_stars`) and for
+    negative eigenvalues (:func:`refuse_negative`), SolverError when ARPACK stops short of
+    ``count`` pairs.
     """
     size = dec.K.num_simplices(k)
     if not 1 <= count < size:
         raise ConfigError(f"app.count: needs 1 ≤ count < {size} (the number of {k}-simplices), got {count}")
     check_stars(dec, k)
     M = sp.csr_matrix(dec.star(k))
-    if size <= DENSE_MAX:
-        values, vectors, shift = *_dense(dec, k, count, M, _star_positive(dec, k)), 0.0
+    pieces = piece_decs(dec, k)
+    if pieces is None:
+        values, vectors, shift = _lowest(dec, k, count, M, solver, shift, tol, seed)
     else:
-        shift = _default_shift(dec) if shift is None else float(shift)
-        if shift >= 0:
-            raise ConfigError(f"app.shift: must be negative (below the spectrum), got {shift}")
-        inverse = _shifted_inverse(dec, k, shift, solver_factory(solver)())
-        v0 = np.random.default_rng(seed).standard_normal(size)
-        # a few more than asked, and a wide Krylov space: symmetric meshes have exactly repeated
-        # eigenvalues (5-fold l = 2 on an icosphere), which Lanczos from one start vector finds
-        # only through rounding; too small a space missed two of five (measured, icosphere(3))
-        wanted = min(count + max(5, count // 2), size - 2)
-        ncv = min(size - 1, max(2 * wanted + 1, wanted + 20))
-        try:
-            if _star_positive(dec, k):  # the symmetric Lanczos solve in the M inner product
-                values, vectors = spla.eigsh(dec.laplacian_symmetric(k), k=wanted, M=M, sigma=shift, which="LM",
-                                             OPinv=inverse, v0=v0, tol=tol, ncv=ncv)
-            else:  # a mass with zero entries (check_stars refused negative ones) is no inner product:
-                # Arnoldi on (A − σM)⁻¹ M; its finite eigenvalues are real (A symmetric, M ≥ 0)
-                operator = spla.LinearOperator((size, size), matvec=lambda x: inverse @ (M @ np.ravel(x)),
-                                               dtype=np.float64)
-                nu, vectors = spla.eigs(operator, k=wanted, which="LM", v0=v0, tol=tol, ncv=ncv)
-                values, vectors = _real_orthonormal(shift + 1.0 / nu, vectors, M)
-        except spla.ArpackNoConvergence as exc:
-            raise SolverError(f"eigen-solve of Δ_{k}: ARPACK converged {len(exc.eigenvalues)} of {wanted} "
-                              f"eigenpairs (app.tol={tol:g}, {ncv} Lanczos vectors)") from None
+        shift = _default_shift(dec) if shift is None else float(shift)  # one σ, in the whole mesh's units
+        values, vectors = [], []
+        for piece, index in pieces:  # a loop over the pieces, each solved as a whole
+            got, local, _ = _lowest(piece, k, min(count, len(index)), sp.csr_matrix(piece.star(k)), solver, shift,
+                                    tol, seed)
+            embedded = np.zeros((size, local.shape[1]))
+            embedded[index] = local
+            values.append(got)
+            vectors.append(embedded)
+        values, vectors = np.concatenate(values), np.hstack(vectors)
     order = np.argsort(values)[:count]
     values, vectors = np.asarray(values)[order], np.asarray(vectors)[:, order]
+    refuse_negative(dec, k, values)
     norms = np.sqrt(np.abs(np.einsum("ij,ij->j", vectors, M @ vectors)))
     vectors = vectors / np.where(norms > 0, norms, 1.0)
     residual, orthonormality = eigen_accuracy(dec, k, values, vectors)
     converged = bool(residual <= max(RESIDUAL_MAX, 100 * tol) and orthonormality <= ORTHONORMALITY_MAX)
     return Eigenpairs(values=values, vectors=vectors, shift=shift, residual_max=residual,
                       orthonormality_error=orthonormality, converged=converged)
+
+
+def piece_decs(dec, k: int) -> list[tuple] | None:
+    """None for a connected mesh; else per piece (top simplices joined through shared
+    vertices, :meth:`~decrun.core.complex.SimplicialComplex.connected_components`) the pair
+    (DEC of the piece with ``dec``'s star variant and boundary adaptation, (m_p,) indices of its
+    k-simplices in ``dec``'s order). Δ_k is block-diagonal over the pieces, and the stars are
+    local, so the piece's operators are the blocks of the whole mesh's. Vertices are renumbered
+    in their order, so the piece's sorted k-simplices come in the whole mesh's order."""
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+
+    K = dec.K
+    count, top_label = K.connected_components()
+    if count == 1:
+        return None
+    label = simplex_pieces(top_label, K.simplices(K.dim), K.simplices(k), K.num_simplices(0))
+    top = K.oriented_simplices()
+    out = []
+    for p in range(count):  # a loop over the pieces, not the simplices
+        vertices, simplices, _ = drop_unreferenced(K.vertices, top[top_label == p])
+        piece = DEC(SimplicialComplex(vertices, simplices, orient="check"), star=dec.star_variant,
+                    boundary=dec.boundary)
+        out.append((piece, np.flatnonzero(label == p)))
+    return out
+
+
+def _lowest(dec, k: int, count: int, M, solver, shift, tol: float, seed: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """(values, vectors, σ): at least the ``count`` lowest eigenpairs of Δ_k on a connected mesh
+    (``count`` ≤ n_k; the dense LAPACK solve up to :data:`DENSE_MAX` k-simplices, else ARPACK
+    in shift-invert mode about σ), unsorted and not yet normalized."""
+    size = M.shape[0]
+    if size <= DENSE_MAX:
+        values, vectors = _dense(dec, k, count, M, _star_positive(dec, k))
+        return values, vectors, 0.0
+    shift = _default_shift(dec) if shift is None else float(shift)
+    if shift >= 0:
+        raise ConfigError(f"app.shift: must be negative (below the spectrum), got {shift}")
+    inverse = _shifted_inverse(dec, k, shift, solver_factory(solver)())
+    v0 = np.random.default_rng(seed).standard_normal(size)
+    # a few more than asked, and a wide Krylov space: symmetric meshes have exactly repeated
+    # eigenvalues (5-fold l = 2 on an icosphere), which Lanczos from one start vector finds
+    # only through rounding; too small a space missed two of five (measured, icosphere(3))
+    wanted = min(count + max(5, count // 2), size - 2)
+    ncv = min(size - 1, max(2 * wanted + 1, wanted + 20))
+    try:
+        if _star_positive(dec, k):  # the symmetric Lanczos solve in the M inner product
+            values, vectors = spla.eigsh(dec.laplacian_symmetric(k), k=wanted, M=M, sigma=shift, which="LM",
+                                         OPinv=inverse, v0=v0, tol=tol, ncv=ncv)
+        else:  # a mass with zero entries (check_stars refused negative ones) is no inner product:
+            # Arnoldi on (A − σM)⁻¹ M; its finite eigenvalues are real (A symmetric, M ≥ 0)
+            operator = spla.LinearOperator((size, size), matvec=lambda x: inverse @ (M @ np.ravel(x)),
+                                           dtype=np.float64)
+            nu, vectors = spla.eigs(operator, k=wanted, which="LM", v0=v0, tol=tol, ncv=ncv)
+            values, vectors = _real_orthonormal(shift + 1.0 / nu, vectors, M)
+    except spla.ArpackNoConvergence as exc:
+        raise SolverError(f"eigen-solve of Δ_{k}: ARPACK converged {len(exc.eigenvalues)} of {wanted} "
+                          f"eigenpairs (app.tol={tol:g}, {ncv} Lanczos vectors)") from None
+    return values, vectors, shift
 
 
 def _real_orthonormal(values: np.ndarray, vectors: np.ndarray, M, rtol: float = 1e-8):

@@ -180,9 +180,10 @@ def _prepare(run: Run, cache: bool, t: float) -> Run:
 
 
 def execute(run: Run) -> Run:
-    """``app.run`` on the prepared ``run``; sets ``run.result`` (with ``status``,
-    ``n_vertices``, ``n_faces`` and what ``mesh.largest_component`` dropped among its
-    metrics) and ``run.timings["app_seconds"]``.
+    """``app.run`` on the prepared ``run``; sets ``run.result`` (with ``status``, the app's
+    ``warnings`` logged and joined into the metric ``warnings``,
+    ``n_vertices``, ``n_faces`` and what ``mesh.clean``, ``mesh.largest_component`` and the
+    holes' cut dropped among its metrics) and ``run.timings["app_seconds"]``.
 
     With ``run.files`` the app's ``ctx.record`` calls stream to its result.h5 through a
     :class:`~decrun.runner.results.recorder.ResultRecorder` (``run.recorder``; :func:`write`
@@ -221,12 +222,16 @@ def _execute(run: Run) -> Run:
             result.series.setdefault(name, values)
     run.timings["app_seconds"] = time.perf_counter() - t
     result.metrics.setdefault("status", "ok")
+    for warning in result.warnings:
+        log.warning("warning: %s", warning)
+    if result.warnings:
+        result.metrics["warnings"] = "; ".join(result.warnings)
     result.metrics.setdefault("n_vertices", int(complex_.num_simplices(0)))
     result.metrics.setdefault("n_faces", int(complex_.num_simplices(complex_.dim)))
-    for key in ("largest_component_components", "largest_component_dropped_vertices",
-                "largest_component_dropped_faces"):  # mesh.largest_component: nothing dropped unreported
-        if key in mesh.meta:
-            result.metrics.setdefault(key, int(mesh.meta[key]))
+    for step in ("clean", "largest_component", "holes"):  # the steps that keep the largest piece: nothing
+        for what in ("components", "dropped_vertices", "dropped_faces"):  # dropped unreported
+            if f"{step}_{what}" in mesh.meta:
+                result.metrics.setdefault(f"{step}_{what}", int(mesh.meta[f"{step}_{what}"]))
     chained = mesh.meta.get(CHAINED_STATUS) or ctx.chained_status  # chained from an incomplete result
     if chained:
         result.metrics.setdefault(CHAINED_STATUS, chained)
@@ -364,7 +369,8 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
             where = out.relative_to(Path.cwd())
         except ValueError:
             where = out
-        print(f"decrun: wrote {where}/ ({', '.join(p.name for p in written)}, {log_name}.log)")
+        warned = f"; warning: {metrics['warnings']}" if metrics.get("warnings") else ""
+        print(f"decrun: wrote {where}/ ({', '.join(p.name for p in written)}, {log_name}.log){warned}")
     return 0
 
 

@@ -110,3 +110,33 @@ def test_a_closed_mesh_is_refused_naming_the_file_or_sample(decrun_cli, tmp_path
     if source == "file":
         fix = re.search(r"`(mesh\.hole_balls=[^`]+)`", line).group(1)
         assert _cli_metrics(decrun_cli, tmp_path, "app=parametrization", *mesh, fix)["status"] == "ok"
+
+
+def test_a_map_that_is_not_an_embedding_says_so_in_the_closing_line_metrics_and_figures(decrun_cli, tmp_path):
+    """Issue 34 item 8: the default map of pymeshlab's bunny10k scan (conformal border, eq. 5.9
+    rows on its 4 holes) turns 16 triangles over and crosses its border twice, and the run
+    ended with rc 0 and no word of it. The closing line, the metric ``warnings`` and both
+    figures say so now, with the override that gives an embedding — which the second run
+    takes: no flip, no warning."""
+    import json
+
+    from decrun.runner.plots.parametrization import checkerboard, uv_layout
+
+    proc = decrun_cli("app=parametrization", "mesh=sample", "figures=false", f"hydra.run.dir={tmp_path / 'run'}")
+    assert proc.returncode == 0, proc.stderr
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["is_embedding"] is False and metrics["status"] == "ok"
+    assert metrics["flipped_triangles"] == 16 and metrics["border_self_intersections"] == 2
+    closing = proc.stdout.strip().splitlines()[-1]
+    assert closing.startswith("decrun: wrote ") and "; warning: not an embedding: 16 flipped triangles" in closing
+    assert "2 border self-intersections" in closing and metrics["warnings"] in closing
+    assert closing.endswith("`app.border=circle` with `app.weights=mean_value` is one (Floater's map into a convex "
+                            "border, holes filled: positive weights, an embedding by Tutte's theorem)")
+    run = run_experiment(compose_config(["app=parametrization", "mesh=sample"]))
+    assert run.result.warnings == [metrics["warnings"]]
+    for name, draw in (("uv_layout", uv_layout), ("checkerboard", checkerboard)):
+        texts = [t.get_text().replace("\n", " ") for t in draw(run.complex, **run.result.figures[name].data).texts]
+        assert [t for t in texts if t.startswith("not an embedding: 16 flipped triangles")], (name, texts)
+    fixed = _cli_metrics(decrun_cli, tmp_path / "fixed", "app=parametrization", "mesh=sample", "app.border=circle",
+                         "app.weights=mean_value")
+    assert fixed["is_embedding"] is True and fixed["flipped_triangles"] == 0 and "warnings" not in fixed

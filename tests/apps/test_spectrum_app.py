@@ -14,7 +14,7 @@ from decrun.core.primitives import kuhn_cube
 from decrun.core.solvers import make_solver
 from decrun.errors import ConfigError, TopologyError
 
-from meshes_for_tests import icosphere
+from meshes_for_tests import icosphere, pieces_mesh
 
 
 def run(K, star="circumcentric", **options):
@@ -98,3 +98,29 @@ def test_an_unconverged_eigen_solve_makes_no_betti_claim(monkeypatch):
     bad = run(K, count=6).metrics
     assert bad["eigen_converged"] is False and bad["eigen_residual_max"] > 1e-6
     assert "kernel_dimension_matches_betti" not in bad
+
+
+def test_negative_stiffness_star_is_refused_and_the_override_runs(decrun_cli, tmp_path):
+    """Issue 34 item 7 through the command: Δ2 of a noisy grid with the cot ⋆1 (negative on
+    13 of 161 edges) is refused before any work, in one line naming `operator=whitney`; that
+    override runs and its eigenvalues are positive."""
+    import json
+
+    common = ("app=spectrum", "mesh=grid", "mesh.nx=8", "mesh.ny=8", "mesh.noise=0.3", "app.degree=2", "figures=false")
+    refused = decrun_cli(*common, "hydra.run.dir=refused")
+    assert refused.returncode == 1 and not (tmp_path / "refused" / "result.h5").exists()
+    line = [x for x in (refused.stdout + refused.stderr).splitlines() if "indefinite" in x]
+    assert len(line) == 1 and "⋆_1 of operator=mixed_area is negative on 13 of 161" in line[0]
+    assert line[0].endswith("use `operator=whitney` (Galerkin stars, SPD on every mesh)")
+    fixed = decrun_cli(*common, "operator=whitney", "hydra.run.dir=fixed")
+    assert fixed.returncode == 0, fixed.stderr
+    metrics = json.loads((tmp_path / "fixed" / "metrics.json").read_text())
+    assert metrics["eigen_converged"] and metrics["eigenvalue_min"] > 0 and metrics["kernel_dimension"] == 0
+
+
+def test_several_pieces_kernel_matches_betti_0():
+    """Issue 34 item 8: 22 pieces, 22 zero eigenvalues (one per piece), then the big square's
+    π² — kernel_dimension = betti_0 = 22 (17 before, with 9.86 among "the lowest")."""
+    m = run(SimplicialComplex(*pieces_mesh()), star="mixed_area", count=25, analytic="none").metrics
+    assert m["betti_0"] == 22 and m["kernel_dimension"] == 22 and m["kernel_dimension_matches_betti"]
+    assert m["eigen_converged"] and m["eigenvalue_max"] == pytest.approx(2 * np.pi**2, rel=0.01)  # π², π², 2π²

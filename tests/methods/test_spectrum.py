@@ -15,7 +15,7 @@ from decrun.errors import MeshError
 from decrun.methods import spectrum
 from decrun.methods.spectrum import Domain, analytic_spectrum, detect_domain, laplacian_eigenpairs, spectrum_errors
 
-from meshes_for_tests import icosphere
+from meshes_for_tests import icosphere, pieces_mesh
 
 PI2 = np.pi**2
 
@@ -74,10 +74,11 @@ def test_cube_spectrum_with_whitney_stars_every_degree(k):
     assert fine < 0.16 and coarse > 1.5 * fine, (coarse, fine)
 
 
-@pytest.mark.parametrize("k, star", [(1, "whitney"), (2, "circumcentric")])
+@pytest.mark.parametrize("k, star", [(1, "whitney"), (2, "whitney")])
 def test_unit_square_absolute_spectrum_for_one_and_two_forms(k, star):
     """(The jittered square's circumcentric ⋆1 is negative on 137 edges: refused for k = 1,
-    see test_indefinite_mass_is_refused_naming_the_operator_that_works.)"""
+    see test_indefinite_mass_is_refused_naming_the_operator_that_works, and for k = 2, see
+    test_negative_stiffness_star_is_refused_naming_the_operator_that_works.)"""
     got = errors(*grid_triangles(16, jitter=0.2), star, k)
     assert got["eigenvalue_relative_error_max"] < 0.06
 
@@ -159,3 +160,76 @@ def test_degenerate_star_is_refused_with_the_galerkin_hint():
         laplacian_eigenpairs(dec, 2, 4)  # Δ2 contains ⋆1⁻¹
     with pytest.raises(MeshError, match=r"singular: ⋆_1 .*`operator=whitney`"):
         laplacian_eigenpairs(dec, 1, 4)  # zero ⋆1 rows that Δ1 does not reach
+
+
+@pytest.mark.parametrize("star", ["circumcentric", "barycentric", "mixed_area"])
+def test_negative_stiffness_star_is_refused_naming_the_operator_that_works(star):
+    """Issue 34 item 7: Δ2 on a surface contains ⋆1⁻¹ (⋆2 d1 ⋆1⁻¹ d1ᵀ ⋆2), and the cot ⋆1 of
+    the jittered square is negative on 137 of 800 edges. ⋆2Δ2 then has exactly as many
+    negative eigenvalues (Sylvester), down to −6.8e5; the app returned either those (4 × 4 grid,
+    dense solve: −864.5 as "the lowest eigenvalue") or the non-negative part with the 137
+    skipped (16 × 16, shift-invert: 19.66 first), converged both times. Refused now before
+    any work, naming `operator=whitney`, whose spectrum is the analytic one."""
+    import scipy.linalg as la
+
+    for n in (4, 16):
+        K = SimplicialComplex(*grid_triangles(n, jitter=0.2), orient="fix")
+        dec = DEC(K, star=star)
+        negative = int(np.sum(dec.star_diagonal(1) < 0))
+        A, M = dec.laplacian_symmetric(2), dec.star(2)
+        A, M = (x.toarray() if hasattr(x, "toarray") else np.asarray(x) for x in (A, M))
+        assert np.sum(la.eigh(0.5 * (A + A.T), M, eigvals_only=True) < -1e-6) == negative > 0  # indefinite
+        with pytest.raises(MeshError, match=rf"contains ⋆_2 d ⋆_1⁻¹ dᵀ ⋆_2, but ⋆_1 of operator={star} is negative "
+                                            rf"on {negative} of .*indefinite.*`operator=whitney`"):
+            laplacian_eigenpairs(dec, 2, 10)
+    got = errors(*grid_triangles(16, jitter=0.2), "whitney", 2)  # the override: the analytic spectrum
+    assert got["eigenvalue_relative_error_max"] < 0.02
+
+
+def test_stiffness_degrees_are_the_stars_whose_signs_matter():
+    """⋆_{k-1} (inverted) and ⋆_{k+1} between two derivatives; not ⋆1 in Δ0 (the cot weights'
+    P1 stiffness: semi-definite whatever their signs — the jittered square's Δ0 with 137
+    negative ⋆1 entries has no negative eigenvalue) and not ⋆_n."""
+    assert spectrum.stiffness_degrees(2, 0) == () and spectrum.stiffness_degrees(2, 1) == (0,)
+    assert spectrum.stiffness_degrees(2, 2) == (1,) and spectrum.stiffness_degrees(3, 1) == (0, 2)
+    assert spectrum.stiffness_degrees(3, 2) == (1,) and spectrum.stiffness_degrees(3, 3) == (2,)
+    dec = DEC(SimplicialComplex(*grid_triangles(16, jitter=0.2), orient="fix"), star="mixed_area")
+    values = laplacian_eigenpairs(dec, 0, 6).values
+    assert values[0] > -1e-9 and abs(values[1] - PI2) < 0.05 * PI2
+
+
+def test_negative_eigenvalues_the_checks_miss_are_refused_after_the_solve(monkeypatch):
+    """The last guard: an indefinite operator that check_stars does not foresee (here: the
+    check switched off) is refused when its eigenvalues come out negative, not returned."""
+    monkeypatch.setattr(spectrum, "check_stars", lambda dec, k: None)
+    dec = DEC(SimplicialComplex(*grid_triangles(4, jitter=0.2), orient="fix"), star="circumcentric")
+    with pytest.raises(MeshError, match=r"Δ_2 with operator=circumcentric is indefinite.*negative \(down to "
+                                        r"-864.5\).*`operator=whitney`"):
+        laplacian_eigenpairs(dec, 2, 10)
+
+
+def test_several_pieces_have_one_kernel_dimension_each():
+    """Issue 34 item 8: the spectrum of a mesh of several pieces is the union of the pieces'
+    spectra; Δ0's kernel is the 22 piecewise constants. One Lanczos run about σ found 17 of
+    the 22 zero eigenvalues and listed 9.86, 9.86, 19.7, 39.3, … (the big square's) as the
+    lowest, converged. Each piece is solved on its own now."""
+    K = SimplicialComplex(*pieces_mesh())
+    assert K.connected_components()[0] == 22 and K.betti_numbers()[0] == 22
+    dec = DEC(K, star="mixed_area")
+    pairs = laplacian_eigenpairs(dec, 0, 25)
+    assert pairs.converged and pairs.orthonormality_error < 1e-10
+    np.testing.assert_allclose(pairs.values[:22], 0, atol=1e-9)
+    kernel = pairs.vectors[:, :22]  # piecewise constant, spanning the 22 pieces' constants
+    _, top_label = K.connected_components()
+    vertex_piece = np.zeros(K.num_simplices(0), dtype=np.int64)
+    vertex_piece[K.simplices(2)] = top_label[:, None]
+    indicator = np.eye(22)[vertex_piece]  # (n0, 22)
+    coefficients = np.linalg.lstsq(indicator, kernel, rcond=None)[0]
+    np.testing.assert_allclose(indicator @ coefficients, kernel, atol=1e-9)
+    assert np.linalg.matrix_rank(coefficients) == 22
+    big = SimplicialComplex(*grid_triangles(30))  # the rest: the big square's own lowest nonzero eigenvalues
+    alone = laplacian_eigenpairs(DEC(big, star="mixed_area"), 0, 4).values
+    np.testing.assert_allclose(pairs.values[22:], alone[1:4], rtol=1e-9)
+    np.testing.assert_allclose(alone[1:3], PI2, rtol=0.01)
+    one_forms = laplacian_eigenpairs(dec, 1, 4)  # Betti_1 = 0: no kernel, the big square's π²
+    assert one_forms.converged and one_forms.values[0] == pytest.approx(PI2, rel=0.01)

@@ -115,6 +115,15 @@ APP_EXPECT = {  # the one claim of each app's default run
     # years, thickness never below 0, RMS error against Halfar's solution 13.9 m
     "halfar": lambda m: (m["stable"] and m["steps_done"] == 200 and m["min_thickness_m"] >= 0
                          and m["rms_error_m"] < 15),
+    # reaction–diffusion (issue 40): Gray–Scott's default seed grows a spot (v_std > 0.02)
+    "gray_scott": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
+    # the Brusselator beyond its Hopf point (B = 2.5 > 1 + A²): the homogeneous state is left
+    "brusselator": lambda m: m["stable"] and m["growth_rate_linear"] > 0 and m["deviation_rms"] > 0.1,
+    # Cahn–Hilliard separates (c reaches ±1) with its mass 0.0991 of the start kept
+    "cahn_hilliard": lambda m: m["stable"] and abs(m["mass"] / 0.0991164229027186 - 1) < 1e-12
+    and m["c_min"] < -0.9 and m["c_max"] > 0.9,
+    # Klausmeier on the (too small for bands) default grid: it runs, the vegetation stays near n*
+    "klausmeier": lambda m: m["stable"] and abs(m["n_mean"] - 1.3459) < 0.05,
 }
 
 
@@ -164,6 +173,15 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     # the CISM Halfar benchmark's single run is its 4 km grid (the sweep adds 2 and 1 km)
     "cism_halfar": lambda m: (m["stable"] and m["grid_spacing_m"] == 4000 and m["min_thickness_m"] >= 0
                               and m["rms_error_m"] < 15),
+    # Gray–Scott at Pearson's (F, k) = (0.035, 0.065): spots on the square and on the sphere
+    "gray_scott_pearson": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
+    "gray_scott_sphere": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
+    # the Brusselator at B = 2.2: a small perturbation grows at Re λ = 0.1 of its linearization
+    "brusselator_hopf": lambda m: m["stable"] and abs(m["growth_rate_measured"] / m["growth_rate_linear"] - 1) < 0.05,
+    # Cahn–Hilliard coarsening: separated, the free energy down from 0.2517 at the start
+    "cahn_hilliard_coarsening": lambda m: m["stable"] and m["free_energy"] < 0.5 * 0.2517 and m["c_min"] < -0.9,
+    # Klausmeier's bands on a slope: biomass peaks (n > 3) over bare soil, from 1 % noise
+    "klausmeier_bands": lambda m: m["stable"] and m["n_max"] > 3 and m["n_std"] > 0.5,
 }
 
 

@@ -235,3 +235,58 @@ def test_no_regions_is_the_identity_and_bad_input_is_named():
         cut_holes(V, F, boxes=[[1, 0, 0, 0, 1, 1]])  # min > max
     with pytest.raises(MeshError, match="every face"):
         cut_holes(V, F, balls=[[0, 0, 0, 2.0]])
+
+
+def two_spheres_obj(tmp_path: Path) -> str:
+    """A unit sphere (subdiv 3, 642 vertices) and, 3 units away, a small one (subdiv 1, 42)."""
+    big, small = icosphere(3), icosphere(1)
+    vertices = np.vstack([big[0], 0.5 * small[0] + [3.0, 0.0, 0.0]])
+    faces = np.vstack([big[1], small[1] + len(big[0])])
+    lines = [f"v {x} {y} {z}" for x, y, z in vertices] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    (tmp_path / "two_spheres.obj").write_text("\n".join(lines) + "\n")
+    return str(tmp_path / "two_spheres.obj")
+
+
+@pytest.mark.parametrize("cut", ["split", "whole_triangles"])
+def test_a_cut_that_drops_pieces_says_so_and_hole_pieces_all_keeps_them(tmp_path, caplog, cut):
+    """Issue 34 item 8: a hole in the big sphere of a two-sphere OBJ kept only the largest
+    piece — the small sphere's 42 vertices gone — with no log line and no metric. Now the
+    dropped piece is logged (one line naming `mesh.hole_pieces=all`) and counted in the
+    metrics; `mesh.hole_pieces=all` keeps both, and the spectrum then finds one zero
+    eigenvalue per piece."""
+    import logging
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    common = ["mesh=file", f"mesh.path={two_spheres_obj(tmp_path)}", "mesh.hole_balls=[[0.0,0.0,1.0,0.5]]",
+              f"mesh.hole_cut={cut}", "app=spectrum", "app.count=4", "figures=false"]
+    with caplog.at_level(logging.INFO, logger="decrun"):
+        dropped = run_experiment(compose_config(common)).result.metrics
+    lines = [r.getMessage() for r in caplog.records if "hole_pieces" in r.getMessage()]
+    assert len(lines) == 1 and "the cut left 2 pieces" in lines[0] and "dropped 42 vertices, 80 simplices" in lines[0]
+    assert lines[0].endswith("`mesh.hole_pieces=all` keeps every piece")
+    assert dropped["holes_components"] == 2 and dropped["holes_dropped_vertices"] == 42
+    assert dropped["holes_dropped_faces"] == 80 and dropped["betti_0"] == dropped["kernel_dimension"] == 1
+    kept = run_experiment(compose_config(common + ["mesh.hole_pieces=all"])).result.metrics
+    assert kept["n_vertices"] == dropped["n_vertices"] + 42 and kept["n_faces"] == dropped["n_faces"] + 80
+    assert kept["betti_0"] == kept["kernel_dimension"] == 2 and kept["kernel_dimension_matches_betti"]
+    assert "holes_components" not in kept  # nothing dropped, nothing kept out: no count to report
+
+
+def test_clean_says_what_it_drops(tmp_path, caplog):
+    """`mesh.clean` (on for samples) kept the largest piece silently too: a log line and
+    metrics now, naming `mesh.clean=false`, which keeps every piece."""
+    import logging
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    common = ["mesh=file", f"mesh.path={two_spheres_obj(tmp_path)}", "app=spectrum", "app.count=4", "figures=false"]
+    with caplog.at_level(logging.INFO, logger="decrun"):
+        metrics = run_experiment(compose_config(common + ["mesh.clean=true"])).result.metrics
+    lines = [r.getMessage() for r in caplog.records if "mesh.clean" in r.getMessage()]
+    assert len(lines) == 1 and "left 2 pieces; kept the largest: 642 of 684 vertices" in lines[0]
+    assert metrics["clean_components"] == 2 and metrics["clean_dropped_vertices"] == 42
+    assert metrics["clean_dropped_faces"] == 80 and metrics["n_vertices"] == 642
+    assert run_experiment(compose_config(common)).result.metrics["kernel_dimension"] == 2

@@ -76,12 +76,23 @@ def _yaml_defaults():
             yield str(relative) + where, cls, values
 
 
+#: the options that make a declarative model (decrun/apps/model.py): a model file is data and
+#: differs from the dataclass' empty model there by design; its other options come from
+#: conf/app/_model.yaml, which equals the dataclass defaults (compared here like any plugin)
+MODEL_DATA = {"model", "fields", "constants", "equations", "metrics", "integrator", "dt", "t_end", "steps",
+              "record_every", "snapshots", "animation", "seed"}
+
+
 def differences():
+    from decrun.apps.model import Model
+
     found = {}
     for where, cls, values in _yaml_defaults():
         schema = OmegaConf.structured(cls)
         for key, value in values.items():
             if key == "_target_" or (isinstance(value, dict) and "_target_" in value):
+                continue
+            if cls is Model and key in MODEL_DATA and not where.startswith("app/_model.yaml"):
                 continue
             assert key in schema, f"{where}: {key} is not an option of {cls.__name__}"
             default = OmegaConf.to_container(schema, enum_to_str=True)[key]

@@ -171,20 +171,37 @@ class Explicit:
         pass
 
 
+def _require_linear(model, evolution, scheme: str) -> None:
+    """Implicit Euler and Crank–Nicolson step only terms linear in the evolved fields."""
+    if scheme in ("implicit_euler", "crank_nicolson"):
+        for u in evolution.names:
+            terms = evolution.reads_evolved(u)
+            if terms:
+                equation = next(e for e in model.equations if e.kind == "evolution" and e.target == u)
+                raise ModelError(f"{equation.where}: integrator={scheme} needs equations linear in the evolved "
+                                 f"fields with constant coefficients; the term {to_text(terms[0])} is not: use "
+                                 "`app.integrator=imex` (that term explicit) or `app.integrator=rk4`")
+
+
+def check_integrator(model, scheme: str, dt: float) -> None:
+    """The structural checks of integrator ``scheme`` on ``model`` — symplectic pairs, linear
+    equations for implicit Euler and Crank–Nicolson, a Jacobian pattern for bdf/radau — without
+    factorizing anything: raised when the model loads, before any work."""
+    if scheme == "symplectic":
+        Symplectic(model, dt)
+    elif scheme in ("implicit_euler", "crank_nicolson"):
+        _require_linear(model, Evolution(model), scheme)
+    elif scheme in ("bdf", "radau"):
+        jacobian_pattern(model)
+
+
 class Implicit:
     """Implicit Euler, Crank–Nicolson or IMEX: one factorization of M − θ dt A for the run."""
 
     def __init__(self, model, dt: float, scheme: str, new_solver):
         self.model, self.dt, self.scheme = model, float(dt), scheme
         self.evolution = evolution = Evolution(model)
-        if scheme in ("implicit_euler", "crank_nicolson"):
-            for u in evolution.names:
-                terms = evolution.reads_evolved(u)
-                if terms:
-                    equation = next(e for e in model.equations if e.kind == "evolution" and e.target == u)
-                    raise ModelError(f"{equation.where}: integrator={scheme} needs equations linear in the evolved "
-                                     f"fields with constant coefficients; the term {to_text(terms[0])} is not: use "
-                                     "`app.integrator=imex` (that term explicit) or `app.integrator=rk4`")
+        _require_linear(model, evolution, scheme)
         theta = 0.5 if scheme == "crank_nicolson" else 1.0
         self.theta = theta
         fixed, self.fixed_values = evolution.fixed()
@@ -388,8 +405,8 @@ class Adaptive:
             return evolution.stack(model.derivative(model.environment(evolution.unstack(y), time)))
 
         options = {"rtol": self.rtol, "atol": self.atol}
-        if np.isfinite(self.h) and self.h > 0:
-            options["first_step"] = min(self.h, self.dt)
+        if np.isfinite(self.h) and self.h > 0:  # within the span as SciPy computes it: (t + dt) - t can be < dt
+            options["first_step"] = min(self.h, (t + self.dt) - t)
         if self.jacobian is not None:  # a linear model: ∂F/∂u is the constant M⁻¹A, exactly
             options["jac"] = self.jacobian
         elif self.pattern is not None:
@@ -585,7 +602,7 @@ def _term_pattern(compiler, node, v: str, rows: int, cols: int, where: str) -> s
                     raise ModelError(f"{where}: integrator=bdf/radau: {to_text(node)} has no sparse matrix here; use "
                                      "`app.integrator=imex`")
                 return _structure(step.A) @ _structure(parts[0])
-            if operator.name in ("exp", "log", "sin", "cos", "tanh", "sqrt", "abs", "max", "min") and \
+            if operator.name in ("exp", "log", "sin", "cos", "tanh", "sqrt", "abs", "max", "min", "explicit") and \
                     all(p.shape[0] == p.shape[1] or True for p in parts):
                 total = parts[0]
                 for p in parts[1:]:

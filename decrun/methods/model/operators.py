@@ -415,7 +415,7 @@ _register(Operator("inv_star", (1,), "dual k → primal n−k",
                    "⋆_{n−k}⁻¹ (a factorized solve for a Galerkin ⋆, never an inverse matrix)",
                    _inv_star_kind, None, _inv_star_linear))
 _register(Operator("codifferential", (1,), "primal k → primal k−1 (k ≥ 1)",
-                   "δ_k = ⋆_{k−1}⁻¹ d_{k−1}ᵀ ⋆_k (eq. 4.14); `boundary=flux` replaces δ_1 (§6.4.4)",
+                   "δ_k = ⋆_{k−1}⁻¹ d_{k−1}ᵀ ⋆_k (eq. 4.14); boundary=flux replaces δ_1 (§6.4.4)",
                    _codifferential_kind, lambda ops, kinds, x: ops.dec.codifferential(kinds[0].degree) @ x,
                    _codifferential_linear))
 _register(Operator("laplacian", (1,), "primal k → primal k",
@@ -472,6 +472,16 @@ _register(Operator("mean", (1,), "form → number", "the arithmetic mean of the 
 _register(Operator("vertex", (1,), "number i → primal 0-form",
                    "the indicator of vertex i (1 there, 0 elsewhere): a point source", _vertex_kind,
                    _vertex_evaluate))
+def _explicit_kind(args, n):
+    return args[0]
+
+
+_register(Operator("explicit", (1,), "anything → the same",
+                   "the argument's value at the start of the step: a term under explicit(·) is never put into an "
+                   "implicit integrator's matrix (imex splittings: s*laplacian(c) - D*laplacian(explicit(s*c)) "
+                   "stabilizes; convex splitting); the identity for every other use",
+                   _explicit_kind, lambda ops, kinds, x: x))
+
 for _name, _function in POINTWISE.items():
     _register(Operator(_name, (1,), "number or form → the same", f"{_name} of each value",
                        _pointwise_rule(_name), _unary(_function)))
@@ -484,7 +494,10 @@ ALIASES = {"codiff": "codifferential", "delta": "codifferential", "hodge": "star
 def reference_table() -> str:
     """The language reference as a markdown table (operator, degree rule, discrete definition),
     generated from :data:`OPERATORS`."""
+    def cell(text: str) -> str:  # a | inside a cell (|⋆σ|/|σ|) would end the column
+        return text.replace("|", "\\|")
+
     rows = ["| operator | takes → gives | discrete definition |", "|---|---|---|"]
     for operator in OPERATORS.values():
-        rows.append(f"| `{operator.name}` | {operator.takes} | {operator.definition} |")
+        rows.append(f"| `{operator.name}` | {cell(operator.takes)} | {cell(operator.definition)} |")
     return "\n".join(rows)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from decrun.methods.model.integrators import _enforce
+
 __all__ = ["ModelStepper"]
 
 
@@ -21,7 +23,9 @@ class ModelStepper:
 
     def __init__(self, model, integrator, dt: float, t0: float = 0.0):
         self.model, self.integrator, self.dt, self.t0 = model, integrator, float(dt), float(t0)
-        self.state = {name: np.array(model.initial_values[name], dtype=np.float64) for name in model.evolved}
+        # fixed (Dirichlet) values hold from t = 0: the first step must not see the initial value's border
+        self.state = _enforce(model, {name: np.array(model.initial_values[name], dtype=np.float64)
+                                      for name in model.evolved})
         self.n = 0
         self._env = None
 
@@ -53,10 +57,14 @@ class ModelStepper:
         return ""
 
     def state_dict(self) -> dict:
-        return {"fields": dict(self.state), "n": self.n, "integrator": self.integrator.state_dict()}
+        state = {"fields": dict(self.state), "n": self.n}
+        integrator = self.integrator.state_dict()
+        if integrator:  # an empty group leaves nothing in checkpoint.h5: the state read back has no key for it
+            state["integrator"] = integrator
+        return state
 
     def load_state(self, state: dict) -> None:
         self.state = {name: np.array(state["fields"][name], dtype=np.float64) for name in self.model.evolved}
         self.n = int(state["n"])
-        self.integrator.load_state(state["integrator"])
+        self.integrator.load_state(state.get("integrator", {}))  # an empty state leaves no group in the file
         self._env = None

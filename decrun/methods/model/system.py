@@ -36,6 +36,11 @@ from decrun.methods.model.solve import IncompatibleRightHandSide, LinearSystem, 
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
 
 RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random"} | set(OPERATORS) | {"solve"}
+#: metric names the run itself reports (decrun.methods.model.metrics and the runner's status columns)
+RESERVED_METRICS = {"status", "error", "stable", "unstable_reason", "diverged_at_step", "steps_done", "solve_seconds",
+                    "steps_per_second", "step_seconds_max", "resumed_from_step", "t_final", "dt", "integrator",
+                    "dt_stability_limit", "dt_over_stability_limit", "accepted_steps", "rhs_evaluations",
+                    "headline_metrics", "factorizations", "total_seconds", "n_vertices", "n_faces", "warnings"}
 
 
 @dataclass
@@ -152,9 +157,35 @@ class CompiledModel:
                 value = np.full(self.kinds[name].size(self.ops.K), float(value))
             if name in self.fixed:
                 value = np.array(value, dtype=np.float64)
+                constrained = self._constrained_masses().get(name)
+                if constrained is not None:  # a Galerkin ⋆: the interior rows of M u' = M F, as the implicit schemes
+                    M, inner, solve = constrained
+                    value[inner] = solve((M @ value)[inner])
                 value[self.fixed[name][0]] = 0.0  # fixed values do not move
             out[name] = value
         return out
+
+    def _constrained_masses(self) -> dict:
+        """field → (M, interior indices, solve with M_II) for each evolved field with fixed values
+        whose evolution is weighted by a non-diagonal mass M (Whitney's ⋆): there dt(u) at the
+        free values is M_II⁻¹ (M F)_I, not F_I — M⁻¹ spreads the border rows into the interior.
+        Made once; empty for diagonal stars."""
+        cached = getattr(self, "_constrained", None)
+        if cached is None:
+            from scipy.sparse.linalg import factorized
+
+            from decrun.methods.model.integrators import Evolution  # lazy: integrators imports this module
+
+            cached = {}
+            evolution = Evolution(self)
+            for name in self.fixed:
+                M = evolution.mass.get(name)
+                if M is None or (M - sp.diags(M.diagonal())).count_nonzero() == 0:
+                    continue
+                inner = np.setdiff1d(np.arange(M.shape[0]), self.fixed[name][0])
+                cached[name] = (M.tocsr(), inner, factorized(M.tocsr()[inner][:, inner].tocsc()))
+            self._constrained = cached
+        return cached
 
     def bind(self, new_solver: Callable) -> None:
         """Factorize every solve's system with ``new_solver()`` (the run's configured solver)."""
@@ -355,6 +386,9 @@ def _check_names(spec: ModelSpec) -> None:
         for name in names:
             if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
                 raise ModelError(f"{key}.{group}.{name}: a name is a letter followed by letters, digits or '_'")
+            if group == "metrics" and name in RESERVED_METRICS:
+                raise ModelError(f"{key}.metrics.{name}: {name!r} is a metric every model run reports (or a column of "
+                                 f"the sweep table); name yours otherwise, e.g. {name}_value")
             if group != "metrics" and name in RESERVED:
                 raise ModelError(f"{key}.{group}.{name}: {name!r} is a built-in name of the model language "
                                  "(x y z t dt h pi random and the operators); choose another")

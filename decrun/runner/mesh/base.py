@@ -18,7 +18,7 @@ import numpy as np
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError, IndexOutOfRangeError, MeshError, NonFiniteCoordinateError
 
-__all__ = ["Mesh", "HoleCut", "Refine", "Orient", "mesh_hash", "check_mesh", "check_size", "bounding_diagonal", "SIZE_RANGE", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
+__all__ = ["Mesh", "HoleCut", "HolePieces", "Refine", "Orient", "mesh_hash", "check_mesh", "check_size", "bounding_diagonal", "SIZE_RANGE", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
            "from_meshset", "to_meshset", "pymeshlab_primitive"]
 
 
@@ -28,6 +28,14 @@ class HoleCut(Choice):
 
     split = "split"
     whole_triangles = "whole_triangles"
+
+
+class HolePieces(Choice):
+    """``mesh.hole_pieces``: after the cut keep the ``largest`` piece (triangles joined across
+    edges; what was dropped is logged and recorded) or ``all`` of them."""
+
+    largest = "largest"
+    all = "all"
 
 
 class Refine(Choice):

@@ -9,7 +9,8 @@ is made a manifold with border again, so :class:`decrun.core.complex.SimplicialC
    ``[xmin, ymin, xmax, ymax]``);
 2. a vertex where two holes touch (more than two border edges meet — a pinch) loses all its
    faces, repeated until no pinch is left (the holes grow by one ring there);
-3. only the largest edge-connected piece is kept and unreferenced vertices are dropped.
+3. only the largest edge-connected piece is kept (unless ``keep_all_pieces``) and unreferenced
+   vertices are dropped.
 
 Pure numpy/scipy. The ``holes`` post step (:func:`decrun.runner.mesh.post.holes`) uses it
 with ``mesh.hole_cut=whole_triangles``; its default cut, ``split``, is
@@ -58,8 +59,9 @@ def _pinched_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
 
 
 def cut_holes(vertices: np.ndarray, faces: np.ndarray, balls: Sequence = (), boxes: Sequence = (),
-              max_repairs: int = 50) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Remove faces in ``balls``/``boxes``, repair pinches, keep the largest piece.
+              max_repairs: int = 50, keep_all_pieces: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Remove faces in ``balls``/``boxes``, repair pinches, keep the largest piece (every
+    piece with ``keep_all_pieces``: the ``holes`` post step keeps, counts and logs itself).
 
     vertices (n, d), faces (m, 3) -> (vertices (n', d), faces (m', 3), kept_vertex_index (n',)),
     ``kept_vertex_index`` mapping new vertex numbers to the input ones. Raises
@@ -78,6 +80,7 @@ def cut_holes(vertices: np.ndarray, faces: np.ndarray, balls: Sequence = (), box
         kept = kept[~np.isin(kept, pinched).any(axis=1)]
     if len(kept) == 0:
         raise MeshError("mesh.hole_balls/hole_boxes: the holes remove every face of the mesh")
-    kept = kept[largest_component(kept, len(vertices))]
+    if not keep_all_pieces:
+        kept = kept[largest_component(kept, len(vertices))]
     kept_vertices, kept, used = drop_unreferenced(vertices, kept)
     return kept_vertices, kept, np.flatnonzero(used)

@@ -9,14 +9,15 @@ the order they run; adding a step is adding a function here (and its option fiel
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from decrun.core.connectivity import component_labels, drop_unreferenced
-from decrun.core.connectivity import largest_component as largest_piece
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
-from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, Mesh, Refine, bounding_diagonal, from_meshset, require,
-                                     require_surface, require_triangles, to_meshset)
+from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, HolePieces, Mesh, Refine, bounding_diagonal, from_meshset,
+                                     require, require_surface, require_triangles, to_meshset)
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
 from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
@@ -85,32 +86,70 @@ def holes(mesh: Mesh, cfg) -> Mesh:
     method = HoleCut.of(getattr(cfg, "hole_cut", HoleCut.split), "mesh.hole_cut")
     meta = dict(mesh.meta)
     if method == HoleCut.whole_triangles:
-        vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes)
+        vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes,
+                                                          keep_all_pieces=True)
         if "clean_vertices" in meta:
             meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[kept]
         meta["holes"] = {"removed_faces": int(len(mesh.simplices) - len(faces))}
     else:
         vertices, faces, info = split_along_holes(mesh.vertices, mesh.simplices, balls, boxes,
-                                              snap=float(getattr(cfg, "hole_snap", 0.25)))
+                                                  snap=float(getattr(cfg, "hole_snap", 0.25)), keep_all_pieces=True)
         if "clean_vertices" in meta:
             meta["clean_vertices"] = info["interpolation"] @ np.asarray(meta["clean_vertices"])
         meta["holes"] = {k: v for k, v in info.items() if np.isscalar(v)}
         meta["hole_border_vertices"] = int(np.sum(info["on_border"]))
     meta["holes_removed_faces"] = int(meta["holes"]["removed_faces"])
-    return type(mesh)(vertices, faces, meta)
+    cut = type(mesh)(vertices, faces, meta)
+    if HolePieces.of(getattr(cfg, "hole_pieces", HolePieces.largest), "mesh.hole_pieces") == HolePieces.all:
+        return cut
+    kept = keep_largest_piece(cut, "holes", "edges", "mesh.hole_balls/hole_boxes: the cut",
+                              "`mesh.hole_pieces=all` keeps every piece")
+    used = kept.meta.pop("_used")
+    if method == HoleCut.split:  # counted again on what is kept
+        kept.meta["hole_border_vertices"] = int(np.sum(info["on_border"][used]))
+    kept.meta["holes"]["dropped_piece_faces"] = kept.meta["holes_dropped_faces"]
+    return kept
+
+
+def keep_largest_piece(mesh: Mesh, step: str, through: str, what: str, fix: str) -> Mesh:
+    """``mesh`` reduced to its largest piece — the most top simplices, the first on a tie;
+    pieces joined across shared ``"edges"`` (triangles) or ``"vertices"``
+    (:func:`decrun.core.connectivity.component_labels`) — and the vertices it uses.
+
+    Nothing is dropped unreported: ``meta`` gets ``<step>_components``,
+    ``<step>_dropped_vertices`` and ``<step>_dropped_faces`` (the run's metrics,
+    :func:`decrun.runner.run.execute`), and when anything was dropped one log line says
+    ``<what> left N pieces; kept …, dropped …; <fix>``. ``meta['clean_vertices']`` follows
+    the kept vertices; ``meta['_used']`` is the (n,) bool mask of the kept input vertices."""
+    S = np.asarray(mesh.simplices, dtype=np.int64)
+    label = component_labels(S, len(mesh.vertices), through=through)
+    counts = np.bincount(label)
+    keep_faces = label == np.argmax(counts)
+    V, F, used = drop_unreferenced(mesh.vertices, S[keep_faces])
+    dropped_v, dropped_f = int((~used).sum()), int((~keep_faces).sum())
+    if dropped_v or dropped_f:
+        logging.getLogger("decrun").info("%s left %d piece%s; kept the largest: %d of %d vertices and %d of %d "
+                                         "simplices (dropped %d vertices, %d simplices); %s", what, len(counts),
+                                         "" if len(counts) == 1 else "s", len(V), len(mesh.vertices), len(F), len(S),
+                                         dropped_v, dropped_f, fix)
+    meta = dict(mesh.meta, _used=used, **{f"{step}_components": len(counts), f"{step}_dropped_vertices": dropped_v,
+                                          f"{step}_dropped_faces": dropped_f})
+    if "clean_vertices" in meta:
+        meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[used]
+    return type(mesh)(V, F, meta)
 
 
 def clean(mesh: Mesh, cfg) -> Mesh:
     """``clean``: keep the largest connected component (by triangle count, components
-    joined through shared vertices) and drop unreferenced vertices."""
+    joined through shared vertices) and drop unreferenced vertices
+    (:func:`keep_largest_piece`: logged and recorded as ``clean_*``; also
+    ``dropped_vertices`` / ``dropped_faces``)."""
     if not cfg.clean:
         return mesh
-    keep_faces = largest_piece(mesh.simplices, len(mesh.vertices), through="vertices")
-    V, F, used = drop_unreferenced(mesh.vertices, mesh.simplices[keep_faces])
-    meta = dict(mesh.meta, dropped_vertices=int((~used).sum()), dropped_faces=int((~keep_faces).sum()))
-    if "clean_vertices" in meta:
-        meta["clean_vertices"] = meta["clean_vertices"][used]
-    return Mesh(V, F, meta)
+    kept = keep_largest_piece(mesh, "clean", "vertices", "mesh.clean", "`mesh.clean=false` keeps every piece")
+    kept.meta.pop("_used")
+    kept.meta.update(dropped_vertices=kept.meta["clean_dropped_vertices"], dropped_faces=kept.meta["clean_dropped_faces"])
+    return Mesh(kept.vertices, kept.simplices, kept.meta)
 
 
 def largest_component(mesh: Mesh, cfg) -> Mesh:
@@ -119,26 +158,14 @@ def largest_component(mesh: Mesh, cfg) -> Mesh:
     :meth:`decrun.core.complex.SimplicialComplex.connected_components` counts them; the first
     on a tie) and the vertices it uses. The numbers of components, dropped vertices and dropped
     top simplices go to the run log and to ``meta`` (``largest_component_components``,
-    ``largest_component_dropped_vertices``, ``largest_component_dropped_faces``)."""
+    ``largest_component_dropped_vertices``, ``largest_component_dropped_faces``;
+    :func:`keep_largest_piece`)."""
     if not getattr(cfg, "largest_component", False):
         return mesh
-    import logging
-
-    S = np.asarray(mesh.simplices, dtype=np.int64)
-    m = len(S)
-    label = component_labels(S, len(mesh.vertices), through="vertices")
-    counts = np.bincount(label)
-    keep_faces = label == np.argmax(counts)
-    V, F, used = drop_unreferenced(mesh.vertices, S[keep_faces])
-    dropped_v, dropped_f = int((~used).sum()), int((~keep_faces).sum())
-    logging.getLogger("decrun").info("mesh.largest_component: %d components; kept %d of %d vertices and %d of %d "
-                                     "simplices (dropped %d vertices, %d simplices)", len(counts), len(V),
-                                     len(mesh.vertices), len(F), m, dropped_v, dropped_f)
-    meta = dict(mesh.meta, largest_component_components=len(counts),
-                largest_component_dropped_vertices=dropped_v, largest_component_dropped_faces=dropped_f)
-    if "clean_vertices" in meta:
-        meta["clean_vertices"] = np.asarray(meta["clean_vertices"])[used]
-    return type(mesh)(V, F, meta)
+    kept = keep_largest_piece(mesh, "largest_component", "vertices", "mesh.largest_component: the mesh",
+                              "`mesh.largest_component=false` keeps every piece")
+    kept.meta.pop("_used")
+    return kept
 
 
 def refine(mesh: Mesh, cfg) -> Mesh:

@@ -27,8 +27,10 @@ and models with known defects), and what they change is counted in ``meta``.
 - ``clean_vertices``: ``(n0, d)`` positions before ``noise`` was added (only when noise > 0)
 - ``noise_amplitude``: the absolute noise standard deviation (``noise * mean edge length``)
 - ``dropped_vertices`` / ``dropped_faces``: what ``clean`` removed (only when clean ran)
-- ``largest_component_components`` / ``_dropped_vertices`` / ``_dropped_faces``: what
-  ``largest_component`` found and removed (only when it ran; also metrics of the run)
+- ``<step>_components`` / ``<step>_dropped_vertices`` / ``<step>_dropped_faces`` for the
+  steps that keep the largest piece (``clean``, ``largest_component``, ``holes``): the pieces
+  found and what was removed (only when the step ran; also metrics of the run, and a log line
+  whenever something was dropped)
 - ``repair``: the counts of :func:`decrun.runner.mesh.repair.repair_mesh` (only when repair ran)
 - ``up_axis``: the axis rotated to +z (only when not z)
 - ``holes``: the cut's counts, ``holes_removed_faces`` (only when holes were cut)
@@ -44,7 +46,7 @@ import numpy as np
 from decrun.core.geometry import mean_edge_length
 from decrun.errors import ConfigError
 from decrun.runner.mesh import post as post_steps
-from decrun.runner.mesh.base import HoleCut, Mesh, Orient, Refine, check_mesh, check_size, mesh_hash, require
+from decrun.runner.mesh.base import HoleCut, HolePieces, Mesh, Orient, Refine, check_mesh, check_size, mesh_hash, require
 
 __all__ = ["MeshSource"]
 
@@ -81,6 +83,8 @@ class MeshSource:
     #: remove triangles whose centroid is inside (sawtooth borders, the earlier cut)
     hole_cut: HoleCut = HoleCut.split
     hole_snap: float = 0.25  # split: crossings this close (× edge length) to a vertex move it instead
+    #: after the cut: keep the largest piece (what is dropped is logged and recorded) | all
+    hole_pieces: HolePieces = HolePieces.largest
     refine: Refine = Refine.none  # none | loop | midpoint | isotropic
     refine_iterations: int = 1
     refine_target_edge: float = 0.0  # isotropic only; 0 = keep the mean edge length
@@ -95,6 +99,7 @@ class MeshSource:
             if step not in post_steps.__all__:
                 raise ConfigError(f"mesh.post: unknown step {step!r}; choose from {sorted(post_steps.__all__)}")
         self.hole_cut = HoleCut.of(self.hole_cut, "mesh.hole_cut")  # also for Python callers (strings)
+        self.hole_pieces = HolePieces.of(self.hole_pieces, "mesh.hole_pieces")
         self.refine = Refine.of(self.refine, "mesh.refine")
         self.orient = Orient.of(self.orient, "mesh.orient")
         require(0 <= self.hole_snap < 0.5, "hole_snap", f"must be in [0, 0.5), got {self.hole_snap}")

@@ -226,6 +226,7 @@ def recorded_series(recorded, names: Iterable[str], *, times_name: str = "time",
     names = list(names)
     times = np.asarray(recorded[times_name], dtype=np.float64)
     fig = new_figure(4.2 * min(len(names), 3), 3.0 * int(np.ceil(len(names) / 3)))
+    fig.set_layout_engine("constrained")
     for i, name in enumerate(names):
         ax = fig.add_subplot(int(np.ceil(len(names) / 3)), min(len(names), 3), i + 1)
         ax.plot(times, np.asarray(recorded[name], dtype=np.float64), marker="." if len(times) < 40 else None)
@@ -234,7 +235,6 @@ def recorded_series(recorded, names: Iterable[str], *, times_name: str = "time",
         ax.grid(alpha=0.3)
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
     return fig
 
 

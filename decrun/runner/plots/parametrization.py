@@ -10,10 +10,20 @@ from decrun.runner.plots.common import new_figure, plot_surface
 __all__ = ["uv_layout", "checkerboard"]
 
 
+def _warn(fig, warning: str) -> None:
+    """``warning`` (e.g. "not an embedding: 16 flipped triangles") in red at the foot of the
+    figure, wrapped to its width."""
+    if warning:
+        import textwrap
+
+        fig.text(0.5, 0.01, textwrap.fill(warning, 70), ha="center", va="bottom", color="red", fontsize=8,
+                 fontweight="bold")
+
+
 def uv_layout(K, uv: np.ndarray, faces: np.ndarray, angle_distortion_deg: np.ndarray, flipped: np.ndarray, *,
-              title: str = "") -> "Figure":  # noqa: F821
+              title: str = "", warning: str = "") -> "Figure":  # noqa: F821
     """uv (n0, 2) triangles coloured by the mean angle distortion per triangle (degrees);
-    flipped triangles drawn on top in cyan."""
+    flipped triangles drawn on top in cyan; ``warning`` (a map that is not an embedding) in red."""
     fig = new_figure(5.0, 5.0)
     ax = fig.add_subplot()
     mappable = plot_surface(ax, uv, faces, angle_distortion_deg, cmap="magma", vmin=0.0,
@@ -23,6 +33,7 @@ def uv_layout(K, uv: np.ndarray, faces: np.ndarray, angle_distortion_deg: np.nda
     if flipped.any():
         plot_surface(ax, uv, faces[flipped], np.ones(int(flipped.sum())), cmap="cool", linewidth=0.3)
     fig.colorbar(mappable, ax=ax, shrink=0.7, label="angle distortion (deg, mean per triangle)")
+    _warn(fig, warning)
     return fig
 
 
@@ -50,10 +61,11 @@ def checker_square_size(vertices: np.ndarray, uv: np.ndarray, faces: np.ndarray,
     return side if side > 0 and np.isfinite(side) else 1.0 / squares
 
 
-def checkerboard(K, uv: np.ndarray, faces: np.ndarray, *, squares: int = 10, title: str = "") -> "Figure":  # noqa: F821
+def checkerboard(K, uv: np.ndarray, faces: np.ndarray, *, squares: int = 10, title: str = "",
+                 warning: str = "") -> "Figure":  # noqa: F821
     """The mesh textured with a checkerboard in uv (squares sized by
     :func:`checker_square_size`), shaded by the light so the shape stays readable, seen
-    along its area-weighted mean normal (the open side faces away)."""
+    along its area-weighted mean normal (the open side faces away); ``warning`` in red."""
     side = checker_square_size(K.vertices, uv, faces, squares)
     centroid = uv[faces].mean(axis=1)
     checker = (np.floor(centroid[:, 0] / side) + np.floor(centroid[:, 1] / side)) % 2
@@ -68,4 +80,5 @@ def checkerboard(K, uv: np.ndarray, faces: np.ndarray, *, squares: int = 10, tit
             normal = normal / np.linalg.norm(normal)
             ax.view_init(elev=float(np.degrees(np.arcsin(np.clip(normal[2], -1, 1)))),
                          azim=float(np.degrees(np.arctan2(normal[1], normal[0]))))
+    _warn(fig, warning)
     return fig

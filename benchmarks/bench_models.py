@@ -1,0 +1,406 @@
+"""Benchmark: declarative models (``app=<model>``, :mod:`decrun.methods.model`) — speed against
+the same step written by hand, the cost of compiling a model, and convergence to exact answers.
+
+1. **Step speed** (issue 39 §6, goal ≤ 1.2×). On the unit icosphere (subdiv 7: 163,842 vertices,
+   ``operator=mixed_area``) each case runs the compiled model's step (the
+   :class:`~decrun.methods.model.stepper.ModelStepper` step that ``run_steps`` calls) and the same
+   scheme written by hand with numpy/scipy, interleaved in rounds in one process, both factorizing
+   the same matrix with the same library: SuperLU (``solver=direct`` vs ``scipy.sparse.linalg.splu``)
+   and CHOLMOD (``solver=auto``, the default, vs ``cholespy`` called directly). Cases: heat
+   ``dt(u) = k*laplacian(u)`` by implicit Euler and by Crank–Nicolson, and Gray–Scott by IMEX
+   (``dt(u) = Du*laplacian(u) - u*v**2 + F*(1-u)``, ``dt(v) = Dv*laplacian(v) + u*v**2 - (F+k)*v``:
+   the terms linear in the fields with constant coefficients — the diffusions and −(F+k)v —
+   implicit, one factorization per field for the run; the rest explicit). The hand-written
+   steps compute the same scheme (their final states agree with the model's to round-off: the
+   last column). Reported: steps/s both ways (best round) and model/hand time per step.
+2. **Compile cost** (goal ≤ 0.2 s): loading a model (its YAML read, the app's options built) and
+   compiling it (:func:`~decrun.methods.model.compile_model`: parse, type, fold the linear blocks,
+   sample initial values) plus the integrator's set-up — without the factorization, which
+   either way is paid at the first step — against the DEC operator build the step needs (complex,
+   ⋆0, ⋆1, d0, the stiffness d0ᵀ⋆1d0).
+3. **Convergence** over ≥ 3 refinements, through the public API (``compose_config`` +
+   ``run_experiment``, the shipped configs): heat on the unit sphere for l = 1, 2, 3
+   (Crank–Nicolson, dt = 1e-4 to t = 0.1; relative L2 error against e^{−l(l+1)t} Y_l), Poisson
+   with border values on the square (``mesh=grid``, nx = 9 … 65) and on a disk (``mesh=planar``,
+   a 96-gon, max_area quartered), the heat method on the sphere (mean relative error against
+   the great-circle distance), and the wave's l = 2 frequency (a cosine fitted to the recorded
+   projection over 10 periods, subdiv 3–5) against √6, with the relative drift of Störmer–Verlet's
+   modified energy. Orders are log(e_i/e_{i+1}) / log(h_i/h_{i+1}), h the mean edge length.
+4. **Halfar** (``--part halfar``): the CISM v2.1 Halfar dome at 4, 2 and 1 km (``+experiment=cism_halfar``).
+
+    python benchmarks/bench_models.py               # all three parts (~8 min on 2 shared cores)
+    python benchmarks/bench_models.py --quick       # subdiv 5 (10,242 vertices) for parts 1 and 2
+    python benchmarks/bench_models.py --part speed  # speed | compile | convergence | halfar
+
+One core for BLAS (the steps are sparse solves and vector arithmetic); the load average is printed
+with each table, since other processes share the machine.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+import argparse  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy.sparse as sp  # noqa: E402
+import scipy.sparse.linalg as spla  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from harness import icosphere_or_kuhn_cube  # noqa: E402
+
+GRAY_SCOTT = {"Du": 2e-5, "Dv": 1e-5, "F": 0.04, "k": 0.06}
+GRAY_SCOTT_EQUATIONS = ["dt(u) = Du*laplacian(u) - u*v**2 + F*(1-u)", "dt(v) = Dv*laplacian(v) + u*v**2 - (F+k)*v"]
+BUMP = "exp(-10*((x-1)**2 + y**2 + z**2))"
+
+
+def load() -> str:
+    return f"load average {os.getloadavg()[0]:.2f}"
+
+
+def sphere_dec(subdiv: int):
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+
+    vertices, faces = icosphere_or_kuhn_cube("icosphere", subdiv)
+    vertices = vertices / np.linalg.norm(vertices, axis=1, keepdims=True)
+    return vertices, faces, DEC(SimplicialComplex(vertices, faces), star="mixed_area")
+
+
+# ---------------------------------------------------------------------------------------------- part 1
+class HandSolver:
+    """One factorized SPD matrix, solved by SuperLU (scipy) or CHOLMOD (cholespy) directly."""
+
+    def __init__(self, A: sp.spmatrix, library: str):
+        A = sp.csr_matrix(A)
+        if library == "direct":
+            lu = spla.splu(A.tocsc(), permc_spec="COLAMD")
+            self.solve = lu.solve
+        else:
+            import cholespy
+
+            A.sort_indices()
+            factor = cholespy.CholeskySolverD(A.shape[0], A.indptr.astype(np.int32), A.indices.astype(np.int32),
+                                              np.ascontiguousarray(A.data), cholespy.MatrixType.CSR)
+
+            def solve(b):
+                x = np.empty_like(b)
+                factor.solve(np.ascontiguousarray(b), x)
+                return x
+
+            self.solve = solve
+
+
+def hand_heat(dec, u0: np.ndarray, k: float, dt: float, scheme: str, library: str):
+    """The heat step by hand: M = ⋆0 (a vector), S = d0ᵀ⋆1d0; implicit Euler (M + dt k S) u⁺ = M u,
+    Crank–Nicolson (M + dt/2 k S) u⁺ = (M − dt/2 k S) u."""
+    m = dec.star(0).diagonal().copy()
+    S = sp.csr_matrix(dec.laplacian_symmetric(0))
+    theta = 0.5 if scheme == "crank_nicolson" else 1.0
+    solver = HandSolver(sp.diags(m) + (theta * dt * k) * S, library)
+    state = {"u": u0.copy()}
+    if scheme == "crank_nicolson":
+        explicit = (sp.diags(m) - (0.5 * dt * k) * S).tocsr()
+
+        def step():
+            state["u"] = solver.solve(explicit @ state["u"])
+    else:
+        def step():
+            state["u"] = solver.solve(m * state["u"])
+    return step, state
+
+
+def hand_gray_scott(dec, u0, v0, dt: float, library: str, c=GRAY_SCOTT):
+    """Gray–Scott by IMEX by hand: (M + dt Du S) u⁺ = M (u + dt (−u v² + F (1 − u))),
+    ((1 + dt (F + k)) M + dt Dv S) v⁺ = M (v + dt u v²)."""
+    m = dec.star(0).diagonal().copy()
+    S = sp.csr_matrix(dec.laplacian_symmetric(0))
+    solve_u = HandSolver(sp.diags(m) + (dt * c["Du"]) * S, library).solve
+    solve_v = HandSolver(sp.diags((1 + dt * (c["F"] + c["k"])) * m) + (dt * c["Dv"]) * S, library).solve
+    state = {"u": u0.copy(), "v": v0.copy()}
+    F = c["F"]
+
+    def step():
+        u, v = state["u"], state["v"]
+        uvv = u * v * v
+        state["u"] = solve_u(m * (u + dt * (F * (1.0 - u) - uvv)))
+        state["v"] = solve_v(m * (v + dt * uvv))
+    return step, state
+
+
+def model_step(dec, spec, scheme: str, dt: float, library: str):
+    """The compiled model's step as ``run_steps`` calls it."""
+    from decrun.core.solvers import solver_factory
+    from decrun.methods.model import compile_model
+    from decrun.methods.model.integrators import make_integrator
+    from decrun.methods.model.stepper import ModelStepper
+
+    new_solver = solver_factory(library)
+    model = compile_model(spec, dec, new_solver)
+    stepper = ModelStepper(model, make_integrator(model, scheme, dt, new_solver), dt)
+    counter = {"n": 0}
+
+    def step():
+        counter["n"] += 1
+        error = stepper.step(counter["n"])
+        if error:
+            raise FloatingPointError(error)
+    return step, stepper
+
+
+def rounds(first, second, steps: int, count: int) -> tuple[float, float]:
+    """Best seconds per step of ``first`` and ``second`` over ``count`` interleaved rounds of
+    ``steps`` steps each (one warm-up step each first: the factorization)."""
+    first()
+    second()
+    best = [math.inf, math.inf]
+    for _ in range(count):
+        for i, step in enumerate((first, second)):
+            start = time.perf_counter()
+            for _ in range(steps):
+                step()
+            best[i] = min(best[i], (time.perf_counter() - start) / steps)
+    return best[0], best[1]
+
+
+def speed(subdiv: int, steps: int, count: int) -> None:
+    from decrun.methods.model import FieldSpec, ModelSpec
+
+    vertices, faces, dec = sphere_dec(subdiv)
+    n = len(vertices)
+    x, y, z = vertices.T
+    bump = np.exp(-10 * ((x - 1) ** 2 + y ** 2 + z ** 2))
+    print(f"\n### Step speed: the compiled model against the same step by hand ({n:,} vertices, "
+          f"{len(faces):,} triangles, operator=mixed_area; {steps} steps × {count} rounds, best round)\n")
+    print("| case | solver | hand steps/s | model steps/s | model / hand (time per step) | max \\|model − hand\\| |")
+    print("|---|---|---:|---:|---:|---:|")
+    for library, label in (("direct", "SuperLU (solver=direct)"), ("auto", "CHOLMOD (solver=auto)")):
+        for scheme in ("implicit_euler", "crank_nicolson"):
+            dt = 1e-3
+            spec = ModelSpec(fields={"u": FieldSpec(0, BUMP)}, equations=["dt(u) = k*laplacian(u)"],
+                             constants={"k": 1.0}, dt=dt)
+            model, stepper = model_step(dec, spec, scheme, dt, library)
+            hand, state = hand_heat(dec, bump, 1.0, dt, scheme, library)
+            hand_s, model_s = rounds(hand, model, steps, count)
+            difference = float(np.abs(stepper.state["u"] - state["u"]).max())
+            print(f"| heat, {scheme} | {label} | {1 / hand_s:.1f} | {1 / model_s:.1f} | {model_s / hand_s:.2f}× |"
+                  f" {difference:.1e} |", flush=True)
+        dt = 1.0
+        u0, v0 = 1 - 0.5 * bump, 0.25 * bump
+        spec = ModelSpec(fields={"u": FieldSpec(0, f"1 - 0.5*{BUMP}"), "v": FieldSpec(0, f"0.25*{BUMP}")},
+                         equations=GRAY_SCOTT_EQUATIONS, constants=dict(GRAY_SCOTT), dt=dt)
+        model, stepper = model_step(dec, spec, "imex", dt, library)
+        hand, state = hand_gray_scott(dec, u0, v0, dt, library)
+        hand_s, model_s = rounds(hand, model, steps, count)
+        difference = max(float(np.abs(stepper.state[f] - state[f]).max()) for f in "uv")
+        print(f"| Gray–Scott (2 fields), imex | {label} | {1 / hand_s:.1f} | {1 / model_s:.1f} |"
+              f" {model_s / hand_s:.2f}× | {difference:.1e} |", flush=True)
+    print(f"\n{load()}")
+
+
+# ---------------------------------------------------------------------------------------------- part 2
+def compile_cost(subdiv: int, repeat: int) -> None:
+    from omegaconf import OmegaConf
+
+    from decrun.apps.model import Model
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.core.solvers import solver_factory
+    from decrun.methods.model.integrators import make_integrator
+    from decrun.runner.config import config_dir
+
+    vertices, faces = icosphere_or_kuhn_cube("icosphere", subdiv)
+    vertices = vertices / np.linalg.norm(vertices, axis=1, keepdims=True)
+    gray_scott = {"model": "gray_scott", "fields": {"u": {"form": 0, "initial": f"1 - 0.5*{BUMP}"},
+                                                    "v": {"form": 0, "initial": f"0.25*{BUMP}"}},
+                  "constants": dict(GRAY_SCOTT), "equations": GRAY_SCOTT_EQUATIONS, "integrator": "imex", "dt": 1.0,
+                  "steps": 10}
+    cases = {"heat (crank_nicolson)": config_dir() / "app" / "heat.yaml", "gray_scott (imex)": gray_scott,
+             "heat_geodesics (3 solves)": config_dir() / "app" / "heat_geodesics.yaml",
+             "wave (symplectic)": config_dir() / "app" / "wave.yaml"}
+    print(f"\n### Loading and compiling a model against the operator build ({len(vertices):,} vertices; best of "
+          f"{repeat})\n")
+    print("| model | operator build s | load s | compile + integrator set-up s | load + compile s | "
+          "/ operator build | goal |")
+    print("|---|---:|---:|---:|---:|---:|---|")
+    for name, source in cases.items():
+        best = [math.inf, math.inf, math.inf]
+        for _ in range(repeat):
+            start = time.perf_counter()
+            dec = DEC(SimplicialComplex(vertices, faces), star="mixed_area")
+            dec.star(0), dec.star(1), dec.d(0), dec.laplacian_symmetric(0), dec.laplacian(0)
+            built = time.perf_counter()
+            if isinstance(source, dict):
+                options = dict(source)
+            else:
+                options = OmegaConf.to_container(OmegaConf.load(source))
+                options.pop("defaults", None)
+                options.pop("_target_", None)
+            app = Model(**options)
+            loaded = time.perf_counter()
+            new_solver = solver_factory("auto")
+            model = app.compiled(dec, new_solver)
+            if not model.is_static:
+                make_integrator(model, str(app.integrator), app.dt, new_solver)
+            done = time.perf_counter()
+            best = [min(best[0], built - start), min(best[1], loaded - built), min(best[2], done - loaded)]
+        total = best[1] + best[2]
+        print(f"| {name} | {best[0]:.3f} | {best[1]:.4f} | {best[2]:.3f} | {total:.3f} | {total / best[0]:.2f} |"
+              f" {'≤ 0.2 s: yes' if total <= 0.2 else '≤ 0.2 s: NO'} |", flush=True)
+    print(f"\n{load()}")
+
+
+# ---------------------------------------------------------------------------------------------- part 3
+def run(overrides: list[str]):
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    done = run_experiment(compose_config(["figures=false", "progress=false", *overrides]))
+    return done, float(done.complex.mean_edge_length)
+
+
+def orders(errors: list[float], hs: list[float]) -> list[str]:
+    return ["–"] + [f"{math.log(errors[i] / errors[i + 1]) / math.log(hs[i] / hs[i + 1]):.2f}"
+                    for i in range(len(errors) - 1)]
+
+
+def table(title: str, header: str, rows: list[str]) -> None:
+    print(f"\n### {title}\n")
+    print(header)
+    print("|" + "---|" * (header.count("|") - header.count("\\|") - 1))
+    for row in rows:
+        print(row)
+    sys.stdout.flush()
+
+
+def convergence(subdivs: list[int]) -> None:
+    harmonics = {1: "z", 2: "x*y", 3: "x*y*z"}
+    for l, initial in harmonics.items():
+        decay = l * (l + 1)
+        exact = f"exp(-{decay}*k*t)*{initial}"
+        errors, hs, rows = [], [], []
+        for s in subdivs:
+            done, h = run(["+experiment=heat_sphere", f"mesh.subdiv={s}", "app.dt=0.0001", "app.record_every=1000",
+                           f"app.fields.u.initial='{initial}'",
+                           f"app.metrics={{l2_error_rel: 'norm(u - {exact})/norm({exact})'}}"])
+            errors.append(done.result.metrics["l2_error_rel"])
+            hs.append(h)
+            rows.append((s, done.result.metrics["n_vertices"], h))
+        table(f"Heat on the unit sphere, l = {l} (u0 = {initial}, exact e^(−{decay}t) u0; crank_nicolson, dt = 1e-4, "
+              "t = 0.1)", "| subdiv | vertices | h | relative L2 error | order |",
+              [f"| {s} | {n:,} | {h:.4f} | {e:.3e} | {o} |" for (s, n, h), e, o in zip(rows, errors, orders(errors, hs))])
+
+    errors, hs, rows = [], [], []
+    for nx in (9, 17, 33, 65):
+        done, h = run(["app=poisson", f"mesh.nx={nx}", f"mesh.ny={nx}"])
+        errors.append(done.result.metrics["l2_error_rel"])
+        hs.append(1.0 / (nx - 1))
+        rows.append((nx, done.result.metrics["n_vertices"], h, done.result.metrics["max_abs_error"]))
+    table("Poisson on the unit square (mesh=grid; u = sin(πx)cos(πy) + x², border values)",
+          "| nx = ny | vertices | h (mean edge) | relative L2 error | max abs error | order |",
+          [f"| {nx} | {n:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
+           for (nx, n, h, m), e, o in zip(rows, errors, orders(errors, hs))])
+
+    angles = np.linspace(0.0, 2 * np.pi, 96, endpoint=False)
+    outer = "[" + ",".join(f"[{math.cos(a):.12f},{math.sin(a):.12f}]" for a in angles) + "]"
+    errors, hs, rows = [], [], []
+    for area in (0.01, 0.0025, 0.000625, 0.00015625):
+        done, h = run(["app=poisson", "mesh=planar", f"mesh.outer={outer}", "mesh.holes=[]", f"mesh.max_area={area}"])
+        errors.append(done.result.metrics["l2_error_rel"])
+        hs.append(h)
+        rows.append((area, done.result.metrics["n_vertices"], h, done.result.metrics["max_abs_error"]))
+    table("Poisson on the unit disk (mesh=planar, a 96-gon, min angle 25°; same u, border values)",
+          "| max_area | vertices | h | relative L2 error | max abs error | order |",
+          [f"| {a:g} | {n:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
+           for (a, n, h, m), e, o in zip(rows, errors, orders(errors, hs))])
+
+    errors, hs, rows = [], [], []
+    for s in (3, 4, 5, 6):
+        done, h = run(["+experiment=heat_geodesics_sphere", f"mesh.subdiv={s}"])
+        errors.append(done.result.metrics["mean_relative_error"])
+        hs.append(h)
+        rows.append((s, done.result.metrics["n_faces"], h, done.result.metrics["max_abs_error"]))
+    table("The heat method on the unit sphere (exact: arccos(p·s); t = h², operator=mixed_area)",
+          "| subdiv | faces | h | mean relative error | max abs error | order |",
+          [f"| {s} | {f:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
+           for (s, f, h, m), e, o in zip(rows, errors, orders(errors, hs))])
+
+    from scipy.optimize import minimize_scalar
+
+    errors, hs, rows = [], [], []
+    for s in subdivs[:3]:  # every recorded step holds u and v: 10 periods at subdiv 6 would be 0.3 GB per record_every
+        done, h = run(["app=wave", f"mesh.subdiv={s}", "app.record_every=5"])
+        series = done.result.series
+        time_, projection = np.asarray(series["time"]), np.asarray(series["projection"])
+        energy = np.asarray(series["energy_modified"])
+
+        def misfit(omega):
+            basis = np.stack([np.cos(omega * time_), np.sin(omega * time_)], axis=1)
+            coefficients = np.linalg.lstsq(basis, projection, rcond=None)[0]
+            return float(np.sum((basis @ coefficients - projection) ** 2))
+
+        omega = minimize_scalar(misfit, bounds=(0.95 * math.sqrt(6), 1.05 * math.sqrt(6)), method="bounded",
+                                options={"xatol": 1e-12}).x
+        error = abs(omega - math.sqrt(6)) / math.sqrt(6)
+        drift = float(np.abs(energy - energy[0]).max() / abs(energy[0]))
+        errors.append(error)
+        hs.append(h)
+        rows.append((s, done.result.metrics["n_vertices"], h, omega, drift))
+    table("The wave's l = 2 mode on the unit sphere (symplectic, dt = 0.005, 10 periods): frequency against √6",
+          "| subdiv | vertices | h | ω fitted | \\|ω − √6\\| / √6 | order | modified-energy drift (relative) |",
+          [f"| {s} | {n:,} | {h:.4f} | {w:.6f} | {e:.3e} | {o} | {d:.1e} |"
+           for (s, n, h, w, d), e, o in zip(rows, errors, orders(errors, hs))])
+    print(f"\n{load()}")
+
+
+def halfar() -> None:
+    """The CISM v2.1 Halfar dome (``+experiment=cism_halfar``, ``app=halfar``: semi_implicit, dt = 1 a,
+    0 → 200 a) on the benchmark's grid at 4, 2 and 1 km: RMS and max error against Halfar's solution
+    over the ice (CISM reports 6.43 m and 9.06 m RMS at 2 km)."""
+    rows = []
+    for spacing in ("4km", "2km", "1km"):
+        done, h = run(["+experiment=cism_halfar", f"mesh=cism_halfar/{spacing}"])
+        m = done.result.metrics
+        volume = np.asarray(done.result.series["volume_m3"])
+        rows.append(f"| {spacing} | {m['n_vertices']:,} | {m['rms_error_m']:.2f} | {m['max_error_ice_m']:.1f} |"
+                    f" {m['min_thickness_m']:.1e} | {abs(volume[-1] - volume[0]) / volume[0]:.1e} |"
+                    f" {m['factorizations']} | {m['steps_per_second']:.0f} |")
+    table("The Halfar dome, CISM v2.1 (+experiment=cism_halfar: semi_implicit, dt = 1 a, 200 a; CISM: 6.43 / 9.06 m "
+          "RMS at 2 km)", "| grid | vertices | RMS error over the ice (m) | max error over the ice (m) | min H (m) |"
+          " volume drift (relative) | factorizations | steps/s |", rows)
+    print(f"\n{load()}")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="subdiv 5 (10,242 vertices) for the speed and compile parts")
+    parser.add_argument("--part", choices=["speed", "compile", "convergence", "halfar"], action="append",
+                        help="only these parts (default: all)")
+    parser.add_argument("--steps", type=int, default=40, help="steps per round (speed)")
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (speed; the best is reported)")
+    args = parser.parse_args(argv)
+    parts = args.part or ["speed", "compile", "convergence", "halfar"]
+    subdiv = 5 if args.quick else 7
+    print(f"bench_models: {' '.join(sys.argv)}  ({load()}, {os.cpu_count()} cores)")
+    if "speed" in parts:
+        speed(subdiv, args.steps, args.rounds)
+    if "compile" in parts:
+        compile_cost(subdiv, 3)
+    if "convergence" in parts:
+        convergence([3, 4, 5] if args.quick else [3, 4, 5, 6])
+    if "halfar" in parts:
+        halfar()
+    print(f"\nrerun: OMP_NUM_THREADS=1 python benchmarks/bench_models.py {' '.join(argv if argv is not None else sys.argv[1:])}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,206 @@
+"""docs/models.md and the README's "Declarative models" section say what the code does:
+
+- the operator table in docs/models.md is the one ``reference_table()`` generates
+  (``scripts/model_reference.py`` writes it);
+- the "Your first model" walk-through runs as written: its YAML blocks are written to the files
+  their first line names, its ``decrun``/``decrun-table`` commands and Python blocks run in a
+  temporary directory in order, and each ``text`` block that follows one is its output (every
+  line found in it; numbers within 2 %, ``…`` stands for anything);
+- the README's three example commands run.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = ROOT / "docs" / "models.md"
+README = ROOT / "README.md"
+FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
+NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+TABLE = "import sys; from decrun.runner.cli import table_main; sys.exit(table_main())"
+
+
+def reference_script():
+    spec = importlib.util.spec_from_file_location("model_reference", ROOT / "scripts" / "model_reference.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def section(text: str, title: str) -> str:
+    """The markdown from the heading ``title`` to the next heading of the same level."""
+    match = re.search(rf"^(#+) {re.escape(title)}\n", text, re.M)
+    assert match, f"no section {title!r}"
+    level = match.group(1)
+    rest = text[match.end():]
+    end = re.search(rf"^{level} ", rest, re.M)
+    return rest[: end.start()] if end else rest
+
+
+def blocks(text: str) -> list[tuple[str, str]]:
+    """(language, body) of every fenced block, in order."""
+    return [(m.group(1), m.group(2)) for m in FENCE.finditer(text)]
+
+
+def commands(body: str) -> list[list[str]]:
+    """The command lines of a bash block (comments dropped), each as argv for this Python."""
+    out = []
+    for line in body.splitlines():
+        words = shlex.split(line, comments=True)
+        if not words:
+            continue
+        if words[0] == "decrun":
+            out.append([sys.executable, "-m", "decrun", *words[1:]])
+        elif words[0] == "decrun-table":
+            out.append([sys.executable, "-c", TABLE, *words[1:]])
+        else:
+            raise AssertionError(f"the walk-through runs decrun and decrun-table only, got {line!r}")
+    return out
+
+
+def run(argv: list[str], cwd: Path, fails: bool = False) -> str:
+    """The output (stdout then stderr) of ``argv``, which must succeed (or fail, ``fails``)."""
+    paths = [str(ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=os.pathsep.join(paths))
+    done = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, timeout=600, env=env)
+    output = done.stdout + done.stderr
+    assert (done.returncode != 0) == fails, f"{' '.join(argv[2:])} exited {done.returncode}:\n{output[-3000:]}"
+    return output
+
+
+def line_matches(expected: str, actual: str, rtol: float = 0.02) -> bool:
+    """``actual`` has ``expected``'s words, ``…`` matching anything and numbers within ``rtol``."""
+    pattern, numbers = "", []
+    for piece in re.split(r"(…)", expected.strip()):
+        if piece == "…":
+            pattern += ".*?"
+            continue
+        position = 0
+        for match in NUMBER.finditer(piece):
+            pattern += re.escape(piece[position:match.start()]) + f"({NUMBER.pattern})"
+            numbers.append(float(match.group()))
+            position = match.end()
+        pattern += re.escape(piece[position:])
+    found = re.search(pattern, actual)
+    if not found:
+        return False
+    return all(math.isclose(float(value), number, rel_tol=rtol, abs_tol=1e-12)
+               for value, number in zip(found.groups(), numbers))
+
+
+def check_output(expected: str, output: str, what: str) -> None:
+    lines = output.splitlines()
+    for line in expected.strip().splitlines():
+        assert any(line_matches(line, actual) for actual in lines), \
+            f"{what}: the documented line\n  {line}\nis not in the output:\n{output[-3000:]}"
+
+
+def test_the_operator_table_is_the_generated_one():
+    text = PAGE.read_text(encoding="utf-8")
+    script = reference_script()
+    from decrun.methods.model.operators import OPERATORS, reference_table
+
+    committed = script.committed_table(text)
+    assert committed == script.generated_table(), \
+        "docs/models.md's operator table is stale: run python scripts/model_reference.py"
+    assert committed == reference_table()
+    assert script.render(text) == text
+    for row in committed.splitlines():  # every row has exactly its three columns in markdown
+        assert len(re.findall(r"(?<!\\)\|", row)) == 4, row
+    for name in OPERATORS:
+        assert f"| `{name}` |" in text
+
+
+def test_the_checker_sees_a_stale_table():
+    text = PAGE.read_text(encoding="utf-8")
+    script = reference_script()
+    stale = text.replace("| `laplacian` |", "| `laplacian_old` |", 1)
+    assert script.render(stale) == text
+    assert script.committed_table(stale) != script.generated_table()
+
+
+def test_line_matching():
+    assert line_matches("metrics: amplitude=0.2744, exact=0.2725, …", "metrics: amplitude=0.27441, exact=0.2725, x=1")
+    assert not line_matches("metrics: amplitude=0.2744, …", "metrics: amplitude=0.30, x=1")
+    assert line_matches("| 0 | 0 | ok | 0.3033 |", "| 0 | 0 | ok | 0.3033 |")
+    assert not line_matches("| 0 | 0 | ok |", "| 0 | 0 | failed |")
+
+
+def test_the_first_model_walkthrough_runs_as_written(tmp_path):
+    steps = blocks(section(PAGE.read_text(encoding="utf-8"), "Your first model"))
+    kinds = [language for language, _ in steps]
+    assert kinds.count("yaml") >= 1 and kinds.count("bash") >= 2 and kinds.count("text") >= 2, kinds
+    output = None
+    checked = 0
+    for language, body in steps:
+        if language == "yaml":
+            first = body.splitlines()[0]
+            assert first.startswith("# "), f"a walk-through YAML block starts with '# <path>', got {first!r}"
+            path = tmp_path / first[2:].strip()
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(body)
+            output = None
+        elif language == "bash":
+            output = "".join(run(argv, tmp_path) for argv in commands(body))
+        elif language == "python":
+            output = run([sys.executable, "-c", body], tmp_path)
+        elif language == "text":
+            assert output is not None, "a text block follows a command or a Python block"
+            check_output(body, output, "walk-through")
+            checked += 1
+    assert checked >= 3
+    assert (tmp_path / "outputs" / "sweeps" / "damping" / "metrics.csv").is_file()
+
+
+def test_the_readme_section_links_the_docs_and_its_commands_run(tmp_path):
+    text = section(README.read_text(encoding="utf-8"), "Declarative models (`app=heat`, your own `app=<model>`)")
+    assert "docs/models.md" in text
+    assert len(text.strip().splitlines()) <= 25
+    bash = [body for language, body in blocks(text) if language == "bash"]
+    assert len(bash) == 1
+    argvs = commands(bash[0])
+    assert len(argvs) == 3
+    for argv in argvs:
+        output = run(argv, tmp_path)
+        assert "stable=True" in output, output[-2000:]
+        if "-m" in argv[3:]:
+            assert "(0 not ok)" in output, output[-2000:]
+
+
+def test_the_bad_input_commands_end_with_the_documented_lines(tmp_path):
+    steps = blocks(section(PAGE.read_text(encoding="utf-8"), "Bad input"))
+    assert [language for language, _ in steps] == ["bash", "text"]
+    argvs, expected = commands(steps[0][1]), steps[1][1].strip().splitlines()
+    assert len(argvs) == len(expected) >= 5
+    for argv, line in zip(argvs, expected):
+        output = run(argv, tmp_path, fails=True)
+        last = output.strip().splitlines()[-1]
+        assert last == line, f"{' '.join(argv[3:])}:\n  documented {line}\n  got        {last}"
+        assert not (tmp_path / "outputs" / "runs").exists() or not any((tmp_path / "outputs" / "runs").glob(
+            "*/result.h5")), "a refused model wrote a result"
+
+
+def shipped_models() -> list[str]:
+    """The model configs of conf/app (those whose _target_ is the model app; not _model.yaml,
+    the options' defaults every model starts from)."""
+    return sorted(path.stem for path in (ROOT / "conf" / "app").glob("*.yaml")
+                  if not path.stem.startswith("_")
+                  and "_target_: decrun.apps.model.Model" in path.read_text(encoding="utf-8"))
+
+
+def test_every_shipped_model_is_in_the_docs():
+    names = shipped_models()
+    assert {"heat", "poisson", "wave", "heat_geodesics", "mcf"} <= set(names)
+    rows = section(PAGE.read_text(encoding="utf-8"), "Shipped models")
+    missing = [name for name in names if f"| `{name}`" not in rows]
+    assert not missing, (f"conf/app/{missing[0]}.yaml is a model: give it a row in docs/models.md, 'Shipped models' "
+                         "(its equations, exact answer and measured numbers)")

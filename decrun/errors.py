@@ -79,3 +79,21 @@ class CorruptFileError(DecrunError, ValueError):
     """A file decrun reads back (``result.h5``, its journal, ``metrics.json``,
     ``manifest.json``, ``overrides.yaml``) is truncated, altered or not what decrun writes;
     the message names the file and what is wrong with it."""
+
+
+#: a word (a run of non-blank characters) longer than this is cut in a message
+LONG_WORD = 160
+
+
+def shorten_words(text: str, head: int = 60, tail: int = 16) -> str:
+    """``text`` with every word longer than :data:`LONG_WORD` characters — a 120 kB override
+    value, a path of thousands of characters — cut to its first ``head`` and last ``tail``
+    characters around ``…(<n> characters)…``: an error line stays a line, and still shows
+    where the value starts and ends."""
+    import re
+
+    def cut(match) -> str:
+        word = match.group()
+        return f"{word[:head]}…({len(word)} characters)…{word[-tail:]}"
+
+    return re.sub(rf"\S{{{LONG_WORD + 1},}}", cut, text) if len(text) > LONG_WORD else text

@@ -43,6 +43,7 @@ from decrun.runner.failures import (
     os_error_message,
     override_nesting_error,
     record_status,
+    shorten_words,
     stop,
 )
 from decrun.runner.locks import LockedError, acquire, release
@@ -106,6 +107,17 @@ class OutputGuard(Callback):
     ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written."""
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
+        try:
+            self._guard(config)
+        except Exception as exc:  # hydra.run.dir=${oc.env:UNSET}: one line naming the key, not Hydra's warning
+            from decrun.runner.hints import resolution_message
+
+            unresolved = None if isinstance(exc, DecrunError) else resolution_message(exc)
+            if unresolved is None:
+                raise
+            stop(f"error: {unresolved}")
+
+    def _guard(self, config: DictConfig) -> None:
         out = Path(str(config.hydra.run.dir))
         try:
             for name in hydra_files(config.hydra):
@@ -145,7 +157,11 @@ class SweepTable(Callback):
 
             refuse(SweepError(f"error: hydra.sweep.dir={sweep_dir} is not empty; its old jobs would mix into the "
                              f"new table: choose a new hydra.sweep.dir (only hydra/sweeper=decrun resumes)"))
-        if not terminal(bool(config.get("progress", True))):
+        try:
+            shown = bool(config.progress) if "progress" in config else True
+        except Exception:  # noqa: BLE001 — an interpolation that does not resolve: the job checks name its key
+            shown = False
+        if not terminal(shown):
             return
         params = config.hydra.sweeper.get("params") or {}
         params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
@@ -286,30 +302,56 @@ def _report(exc: Exception) -> int:
         raise exc
     message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc) or \
         group_typo_message(exc) or root_value_message(exc)
+    if not message and not isinstance(exc, DecrunError):  # hydra.run.dir=${oc.env:UNSET}: Hydra's own keys
+        from decrun.runner.hints import resolution_message
+
+        unresolved = resolution_message(exc)
+        message = f"error: {unresolved}" if unresolved else None
     if message:
-        print(message, file=sys.stderr)
+        _say(message)
         return 1
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
         choices = _choices_of(exc.__cause__)
         if choices is not None:  # a schema field with a closed set of values (optimize.direction)
-            print(f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}", file=sys.stderr)
+            _say(f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}")
             return 1
-        print(str(exc), file=sys.stderr)
+        _say(str(exc))
         if isinstance(exc.__cause__, OmegaConfBaseException):
-            print(str(exc.__cause__), file=sys.stderr)
+            _say(str(exc.__cause__))
         return 1
     if isinstance(exc, DecrunError):
-        print(f"error: {exc}", file=sys.stderr)
+        _say(f"error: {exc}")
         return 1
     os_error = find_os_error(exc)
     if os_error is not None:
-        print(f"error: {os_error_message(os_error)}", file=sys.stderr)
+        _say(f"error: {_name_too_long(os_error) or os_error_message(os_error)}")
         return 1
     memory = find_memory_error(exc)  # outside a run (composing a sweep): no run config to name
     if memory is not None:
-        print(f"error: {memory_error_text(memory)}", file=sys.stderr)
+        _say(f"error: {memory_error_text(memory)}")
         return 1
     raise exc  # a bug: show it
+
+
+def _say(message: str) -> None:
+    """One line on stderr, its over-long words cut (:func:`~decrun.runner.failures.shorten_words`)."""
+    print(shorten_words(message), file=sys.stderr)
+
+
+def _name_too_long(exc: OSError) -> str | None:
+    """For a name too long for the file system (``mesh=<120 kB>``, ``+app.<120 kB>=1``: Hydra
+    looks the name up as a config file or group), the command-line override it came from —
+    the longest one — as the culprit; None for any other OS error."""
+    import errno
+
+    if exc.errno != errno.ENAMETOOLONG:
+        return None
+    args = [a for a in sys.argv[1:] if not a.startswith("-")]
+    if not args:
+        return None
+    culprit = max(args, key=len)
+    return f"{culprit}: a name too long for the file system ({os.strerror(exc.errno)}: a file or directory " \
+           f"name has at most 255 bytes); shorten it"
 
 
 def typo_message(exc: Exception) -> str | None:
@@ -436,7 +478,8 @@ def table_main(argv: list[str] | None = None) -> int:
     """Console script ``decrun-table SWEEP [SWEEP ...]``: rebuild each sweep's ``metrics.csv``
     / ``metrics.md`` (only in directories a sweep wrote) and print the table — several
     sweeps stacked with a ``sweep`` column; one line on stderr for each ``corrupt`` job,
-    naming the file. Exit 1 when a job is not ok, 2 on an error."""
+    naming the file, and for each sweep directory the table could not be saved in (read-only:
+    the table is printed all the same). Exit 1 when a job is not ok, 2 on an error."""
     import argparse
 
     # lazy: pandas, only for decrun-table (start-up speed)
@@ -457,12 +500,19 @@ def table_main(argv: list[str] | None = None) -> int:
     def split(text: str | None) -> list[str] | None:
         return [k.strip() for k in text.split(",") if k.strip()] if text else None
 
+    unsaved = []  # a sweep directory the table cannot be written into (read-only): printed, not saved
     try:
         for sweep_dir in args.sweep_dirs:
             if not Path(sweep_dir).is_dir():
                 raise FileNotFoundError(f"sweep directory {sweep_dir!r} does not exist")
             if is_sweep_dir(sweep_dir):
-                write_sweep_table(sweep_dir)
+                try:
+                    write_sweep_table(sweep_dir)
+                except OSError as exc:
+                    cause = os.strerror(exc.errno) if exc.errno else str(exc)
+                    unsaved.append(f"decrun-table: the table above could not be saved in {sweep_dir} "
+                                   f"({SweepFiles.TABLE_CSV}, {SweepFiles.TABLE_MD}: {cause}); it is printed only "
+                                   f"(`decrun-table --csv {sweep_dir} > FILE` saves it elsewhere)")
         table = stack(args.sweep_dirs)
         if len(args.sweep_dirs) == 1:
             table = table.drop(columns="sweep")
@@ -470,7 +520,8 @@ def table_main(argv: list[str] | None = None) -> int:
         shown = select(table, split(args.metrics), split(args.sort), args.descending, drop,
                        narrow=not (args.all or args.csv))
     except (FileNotFoundError, KeyError, DecrunError) as exc:
-        print(f"decrun-table: error: {exc.args[0] if isinstance(exc, KeyError) else exc}", file=sys.stderr)
+        print(shorten_words(f"decrun-table: error: {exc.args[0] if isinstance(exc, KeyError) else exc}"),
+              file=sys.stderr)
         return 2
     if table.empty:
         print(f"decrun-table: error: no jobs (no manifest.json, no job directories with .hydra/) in "
@@ -479,4 +530,6 @@ def table_main(argv: list[str] | None = None) -> int:
     print(shown.to_csv(index=False) if args.csv else to_markdown(shown), end="")
     for row in table[table["status"] == "corrupt"].itertuples(index=False):  # one line each, naming the file
         print(f"decrun-table: job {row.job} corrupt: {row.error}", file=sys.stderr)
+    for line in unsaved:
+        print(line, file=sys.stderr)
     return 1 if len(failed_jobs(table)) else 0

@@ -10,16 +10,18 @@ every planned job of a sweep (memoized: :func:`validate`'s ``memo`` and ``delta`
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 from typing import Any, Callable
 
 from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, TopologyError
-from decrun.runner.config import GROUPS, CheckpointConfig, DecrunConfig
+from decrun.runner.config import GROUPS, CheckpointConfig, DecrunConfig, OptimizeConfig
+from decrun.runner.hints import resolution_message
 from decrun.runner.plugins import Rebuilt, Recent, build
 
-__all__ = ["Experiment", "validate", "name_the_key", "mesh_where", "check_root_keys"]
+__all__ = ["Experiment", "validate", "name_the_key", "mesh_where", "check_root_keys", "root_options"]
 
 
 class Experiment:
@@ -31,10 +33,22 @@ class Experiment:
     :data:`decrun.runner.config.GROUPS` (built in its order). The app then checks the
     solver against what the config alone says of its systems (before any mesh is loaded:
     a sweep's plan is refused before its first job). ``checkpoint``: the
-    :class:`~decrun.runner.config.CheckpointConfig` of a time-stepping run.
+    :class:`~decrun.runner.config.CheckpointConfig` of a time-stepping run; ``optimize``: the
+    :class:`~decrun.runner.config.OptimizeConfig` (:func:`root_options`). An interpolation
+    that does not resolve (``${oc.env:NAME}`` unset, an unknown resolver, a key referring to
+    itself) is a ConfigError naming its key (:func:`decrun.runner.hints.resolution_message`).
     """
 
     def __init__(self, cfg: DictConfig, make: Callable[[Any, str, type], Any] = build):
+        try:
+            self._build(cfg, make)
+        except Exception as exc:  # an interpolation that does not resolve: one line naming its key
+            message = resolution_message(exc, cfg)
+            if message is None or isinstance(exc, DecrunError):
+                raise
+            raise ConfigError(message) from exc
+
+    def _build(self, cfg: DictConfig, make: Callable[[Any, str, type], Any]) -> None:
         check_root_keys(cfg)
         for group in GROUPS:
             plugin = None
@@ -42,8 +56,31 @@ class Experiment:
                 plugin = make(cfg[group.key], group.key, group.base_class())  # e.g. a solver's missing package: SolverError
             setattr(self, group.attribute, plugin)
         self.app.check_solver(self.solver)
-        self.checkpoint = (CheckpointConfig(**OmegaConf.to_container(cfg.checkpoint, resolve=True))
-                           if "checkpoint" in cfg else CheckpointConfig())
+        self.checkpoint = root_options(cfg, "checkpoint", CheckpointConfig)
+        self.optimize = root_options(cfg, "optimize", OptimizeConfig)
+        for key in ("progress", "figures"):  # plain root values: resolved here, not first in the run
+            if key in cfg:
+                cfg[key]  # noqa: B018 — item access names the key in OmegaConf's error (get does not)
+
+
+def root_options(cfg: DictConfig, key: str, cls: type) -> Any:
+    """The dataclass ``cls`` (:class:`~decrun.runner.config.CheckpointConfig`,
+    :class:`~decrun.runner.config.OptimizeConfig`) of the root node ``cfg[key]``, its
+    defaults when absent. ConfigError naming ``<key>.<option>`` for an option ``cls`` does
+    not have — ``+checkpoint._target_=…`` too: these nodes are plain options, not plugins."""
+    if key not in cfg:
+        return cls()
+    values = OmegaConf.to_container(cfg[key], resolve=True)
+    known = [f.name for f in dataclasses.fields(cls)]
+    unknown = [name for name in values if name not in known]
+    if unknown:
+        name = unknown[0]
+        what = (f"{key} holds plain options, it builds no class (only {', '.join(g.key for g in GROUPS)} name a "
+                f"_target_)" if name == "_target_" else f"unknown option of {key}")
+        close = difflib.get_close_matches(str(name), known, n=1)
+        close_hint = f"; did you mean {key}.{close[0]}?" if close and name != "_target_" else ""
+        raise ConfigError(f"{key}.{name}: {what}; {key} has {known}: drop +{key}.{name}=...{close_hint}")
+    return cls(**values)
 
 
 def check_root_keys(cfg: DictConfig) -> None:

@@ -42,12 +42,12 @@ import sys
 from pathlib import Path
 from typing import NoReturn
 
-from decrun.errors import DecrunError
+from decrun.errors import LONG_WORD, DecrunError, shorten_words
 from decrun.runner.files import RunFiles
 from decrun.runner.paths import NEW_OUTPUT
 
-__all__ = ["stop", "Terminated", "install_sigterm", "interrupt_cause", "exit_code", "os_error_message",
-           "record_status", "file_identity", "set_aside_stale", "MAX_NESTING", "nesting_depth",
+__all__ = ["stop", "shorten_words", "LONG_WORD", "Terminated", "install_sigterm", "interrupt_cause", "exit_code",
+           "os_error_message", "record_status", "file_identity", "set_aside_stale", "MAX_NESTING", "nesting_depth",
            "override_nesting_error", "config_error_message", "find_memory_error", "memory_error_text"]
 
 
@@ -106,6 +106,8 @@ def os_error_message(exc: OSError) -> str:
         if blocking is not None:
             path, cause = blocking, "a file is in the way where a directory is needed"
     where = f"{path}" if path is not None else "the run's output"
+    if code == errno.ENAMETOOLONG:  # met reading as often as writing (a mesh.path, a config group name)
+        return f"cannot use {where}: {cause} (a file or directory name has at most 255 bytes)"
     hint = ""
     if code in (errno.EROFS, errno.EACCES, errno.EPERM, errno.EEXIST, errno.ENOTDIR, errno.ENOSPC, errno.EDQUOT):
         hint = f"; {NEW_OUTPUT}"
@@ -113,9 +115,9 @@ def os_error_message(exc: OSError) -> str:
 
 
 def stop(message: str) -> NoReturn:
-    """Print the one-line ``message`` on stderr and exit 1 — also from a Hydra callback,
-    where Hydra would turn an exception into a warning and go on."""
-    print(message, file=sys.stderr)
+    """Print the one-line ``message`` on stderr (:func:`shorten_words`) and exit 1 — also from
+    a Hydra callback, where Hydra would turn an exception into a warning and go on."""
+    print(shorten_words(message), file=sys.stderr)
     sys.exit(1)
 
 

@@ -21,7 +21,8 @@ from decrun.errors import (
     UnreferencedVertexError,
 )
 
-__all__ = ["cli_hint", "cli_message", "memory_hint", "plugin_name", "PLUGIN_EXTRAS"]
+__all__ = ["cli_hint", "cli_message", "memory_hint", "plugin_name", "PLUGIN_EXTRAS", "resolution_error",
+           "resolution_message", "default_override"]
 
 #: Hydra group → option → (the plugin, the decrun extra that installs it)
 PLUGIN_EXTRAS = {
@@ -148,3 +149,119 @@ def memory_hint(cfg, shape: tuple | None = None) -> str:
     if coarser:
         return f"use a coarser mesh: `{' '.join(coarser)}` ({_defaults(coarser)})"
     return "use a coarser mesh or smaller app options"
+
+
+# ----------------------------------------------------------------------------------
+# interpolations that do not resolve
+# ----------------------------------------------------------------------------------
+
+
+def resolution_error(exc: BaseException) -> BaseException | None:
+    """``exc`` or the first exception in its chain that is OmegaConf's refusal to resolve
+    an interpolation (an unset ``${oc.env:NAME}``, an unknown resolver, a key that refers
+    to itself or to nothing, invalid ``${…}`` syntax), or None."""
+    from omegaconf.errors import GrammarParseError, InterpolationResolutionError
+
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, (InterpolationResolutionError, GrammarParseError)):
+            return exc
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _raw_value(cfg, key: str):
+    """The unresolved value at the dotted ``key`` of ``cfg`` (the ``${…}`` text), or None."""
+    from omegaconf import OmegaConf
+
+    parent, _, leaf = key.rpartition(".")
+
+    try:
+        node = OmegaConf.select(cfg, parent, throw_on_resolution_failure=False) if parent else cfg
+        child = node._get_node(leaf) if node is not None else None
+        return child._value() if child is not None else None
+    except Exception:  # noqa: BLE001 — a key path OmegaConf cannot walk (list indices): no value to show
+        return None
+
+
+def _override_value(value) -> str | None:
+    """``value`` as Hydra's override grammar types it (``null``, ``true``, ``0.5``, ``[1,2]``,
+    a plain word), or None when it has no short plain spelling."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        import re
+
+        return value if re.fullmatch(r"[A-Za-z_][\w./-]*", value) and value not in ("null", "true", "false") \
+            else None
+    if isinstance(value, list):
+        items = [_override_value(v) for v in value]
+        return None if any(i is None for i in items) else f"[{','.join(items)}]"
+    return None
+
+
+def default_override(cfg, key: str) -> str | None:
+    """``<key>=<its default>`` (the value of the option file ``cfg``'s plugin names, or of the
+    root schema for ``progress``, ``checkpoint.*``, ``optimize.*``), typed as on the command
+    line; None when the key has no default (an option the command added with ``+``)."""
+    from omegaconf import OmegaConf
+
+    from decrun.runner.config import PLUGIN_GROUPS, DecrunConfig
+
+    root, _, rest = key.partition(".")
+    try:
+        if root in PLUGIN_GROUPS:
+            defaults = OmegaConf.create(_option_defaults(cfg, root))
+            found = OmegaConf.select(defaults, rest, default="<absent>") if rest else "<absent>"
+        else:
+            found = OmegaConf.select(OmegaConf.structured(DecrunConfig), key, default="<absent>")
+        found = OmegaConf.to_container(found) if OmegaConf.is_config(found) else found
+    except Exception:  # noqa: BLE001 — not a path OmegaConf can walk: no default to offer
+        return None
+    if isinstance(found, dict) or (isinstance(found, str) and found == "<absent>"):
+        return None
+    if hasattr(found, "value") and isinstance(getattr(found, "value"), str):  # a Choice member
+        found = found.value
+    text = _override_value(found)
+    return f"{key}={text}" if text is not None else None
+
+
+def resolution_message(exc: BaseException, cfg=None) -> str | None:
+    """``<key>='<value>': <why it does not resolve>; use `<key>=<default>` (the default)``
+    for an interpolation OmegaConf could not resolve (:func:`resolution_error` in ``exc``'s
+    chain), else None. ``cfg``: the config, for the raw value and the default."""
+    import re
+
+    error = resolution_error(exc)
+    if error is None:
+        return None
+    key = str(getattr(error, "full_key", "") or "") or "the config"
+    text = " ".join(str(getattr(error, "msg", None) or error).split())
+    text = text.split(" full_key:")[0]
+    raw = _raw_value(cfg, key) if cfg is not None and key != "the config" else None
+    where = f"{key}={raw!r}" if isinstance(raw, str) else key
+    env = re.search(r"Environment variable '([^']+)' not found", text)
+    resolver = re.search(r"Unsupported interpolation type (\S+)", text)
+    missing = re.search(r"Interpolation key '([^']+)' not found", text)
+    if env:
+        cause = f"the environment variable {env.group(1)} is not set; set it, or give a default in the " \
+                f"interpolation (${{oc.env:{env.group(1)},<default>}})"
+    elif resolver:
+        from omegaconf.basecontainer import BaseContainer
+
+        known = ", ".join(sorted(BaseContainer._resolvers))
+        cause = f"there is no resolver {resolver.group(1)!r} (resolvers: {known})"
+    elif "Recursive interpolation" in text:
+        cause = "the interpolation refers to itself (a cycle)"
+    elif missing:
+        cause = f"the interpolation refers to {missing.group(1)}, which the config does not have"
+    else:
+        cause = f"the interpolation cannot be resolved ({text})"
+    fix = default_override(cfg, key) if cfg is not None and key != "the config" else None
+    return f"{where}: {cause}; " + (f"use `{fix}` (the default)" if fix else
+                                    f"drop the override of {key}, or give it a plain value")

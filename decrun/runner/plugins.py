@@ -44,7 +44,8 @@ __all__ = ["target_class", "build", "plain_values", "Rebuilt", "Recent"]
 
 def target_class(node: Any, key: str, base: type) -> type:
     """The class named by ``node._target_``, checked to be a dataclass subclass of ``base``."""
-    target = node.get("_target_") if isinstance(node, (dict, DictConfig)) else None
+    # item access: an interpolation that does not resolve names `<key>._target_` (get does not)
+    target = node["_target_"] if isinstance(node, (dict, DictConfig)) and "_target_" in node else None
     if not target:
         raise ConfigError(f"{key}: the config node names no `_target_` (the {base.__name__} class to build), "
                           f"e.g. `_target_: decrun...`; choose a {key} option from conf/{key}/")

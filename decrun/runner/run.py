@@ -22,27 +22,29 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from decrun.apps.base import Result
 from decrun.core import jit
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.errors import DecrunError, MeshError
+from decrun.errors import ConfigError, DecrunError, MeshError
 from decrun.runner.config import OptimizeConfig
 from decrun.runner.context import RunContext
-from decrun.runner.experiment import Experiment, mesh_where, name_the_key, validate
+from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
 from decrun.runner.failures import (exit_code, file_identity, find_memory_error, find_os_error, interrupt_cause,
-                                    memory_error_text, os_error_message, record_status, set_aside_stale)
+                                    memory_error_text, os_error_message, record_status, set_aside_stale,
+                                    shorten_words)
 from decrun.runner.files import RunFiles
-from decrun.runner.hints import cli_message, memory_hint, plugin_name
+from decrun.runner.hints import cli_message, memory_hint, plugin_name, resolution_message
 from decrun.runner.locks import LockedError, acquire, release
 from decrun.runner.mesh import Mesh
 from decrun.runner.plugins import Recent
 from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
-from decrun.runner.results.checked import RESULT_RECORD, file_record
+from decrun.runner.results.checked import RESULT_RECORD
 from decrun.runner.results.checkpoint import RunCheckpoint, remove_checkpoint
+from decrun.runner.results.provenance import result_record
 from decrun.runner.results.reading import CHAINED_STATUS
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.job_cache import mesh_and_dec
@@ -259,8 +261,9 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 def write(run: Run, out: Path | None = None) -> list[Path]:
     """Write the finished ``run`` into its directory (``out`` when the run has none): the
     figures, ``result.h5`` (atomic; finishing the run's recorder when it has one),
-    ``metrics.json`` (the metrics and ``result_h5``: the size and sha256 of result.h5,
-    :func:`~decrun.runner.results.checked.file_record`) and the export's files."""
+    ``metrics.json`` (the metrics and ``result_h5``: the size and sha256 of result.h5 and the
+    hash of its content, :func:`~decrun.runner.results.provenance.result_record`) and the
+    export's files."""
     files = run.files if out is None else RunFiles(out)
     if files is None:
         raise ValueError("write(run): the run has no directory; give one (out=...)")
@@ -280,8 +283,9 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         h5 = write_result(files.result, result, vertices=mesh.vertices, simplices=mesh.simplices,
                           edges=run.complex.simplices(1), config_yaml=to_yaml(cfg, resolve=True),
                           mesh_hash=mesh.meta.get("hash", ""), timings=timings)
-    # the size and sha256 of result.h5 as written: readers never take a truncated or altered one for it
-    metrics = write_metrics_json(files.metrics, {**result.metrics, RESULT_RECORD: file_record(h5)})
+    # the size and sha256 of result.h5 as written (readers never take a truncated or altered one for it)
+    # and the hash of its content, equal for two runs of one config (README: "Reproducible records")
+    metrics = write_metrics_json(files.metrics, {**result.metrics, RESULT_RECORD: result_record(h5)})
     remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
     export = run.experiment.export
     exported = export.write(files, result, mesh, run.complex) if export is not None else []
@@ -321,8 +325,8 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
     earlier = file_identity(RunFiles(out).result)  # an earlier run's result, set aside if this one fails
     optimize = None
     try:
-        optimize = OptimizeConfig(**OmegaConf.to_container(cfg.optimize)) if "optimize" in cfg else OptimizeConfig()
-        progress = make_progress(bool(cfg.get("progress", True)) and not multirun)
+        optimize = root_options(cfg, "optimize", OptimizeConfig)
+        progress = make_progress(bool(cfg["progress"] if "progress" in cfg else True) and not multirun)
         prepared = prepare(cfg, progress, out=out, cache=multirun)
         prepared.hashed = identity.get("config_hash")  # made above for a sweep job: not twice
         done = execute(prepared)
@@ -338,10 +342,14 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
             raise
         sys.exit(exit_code(exc))
     except Exception as exc:
+        unresolved = None if isinstance(exc, DecrunError) else resolution_message(exc, cfg)
+        if unresolved is not None:  # an interpolation read outside the checks (progress=${oc.env:X}): no bug
+            exc = ConfigError(unresolved)
         os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)
         memory = None if isinstance(exc, DecrunError) or os_error is not None else find_memory_error(exc)
         message = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None
                    else memory_message(memory, cfg) if memory is not None else f"{type(exc).__name__}: {exc}")
+        message = shorten_words(message)  # a 120 kB value stays out of the line, the log and metrics.json
         note = set_aside_stale(out, earlier) + record_status(out, "failed", message, identity)
         if verbose or not (isinstance(exc, DecrunError) or os_error is not None or memory is not None):
             log.exception("error: %s%s", message, note)

@@ -105,6 +105,9 @@ CASES = {
     "tiny-file-mesh": (["mesh=file", "mesh.path=small.obj"], {"small.obj": tetrahedron_obj(1e-40)},
                        ["mesh.path='small.obj'", "bounding-box diagonal 1.73e-40", "mesh.normalize=true"]),
     "tiny-generated-mesh": (["mesh.radius=1e-35"], {}, ["mesh icosphere3", "outside decrun's range"]),
+    # issue 34.6: no rescaling can fix a mesh without extent, so none is offered
+    "coincident-file-mesh": (["mesh=file", "mesh.path=point.obj"], {"point.obj": "v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n"},
+                             ["mesh.path='point.obj': all 3 vertices coincide"]),
     "negative-relative-index": (["mesh=file", "mesh.path=neg.obj"], {"neg.obj": "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n"},
                                 ["mesh.path='neg.obj'", "line 4", "-4 (relative)"]),
     # planar domains that triangle would crash on or silently misread

@@ -18,6 +18,7 @@ from decrun.runner.config import compose_config, unique_stamp
 from decrun.runner.config import config_dir
 from decrun.runner.results import read_provenance, read_result
 from decrun.runner.results.checked import RESULT_RECORD, file_record
+from decrun.runner.results.provenance import content_sha256
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -46,7 +47,9 @@ def test_default_run_writes_result_metrics_figure_and_log(tmp_path):
         assert (run / name).is_file(), name
     metrics = json.loads((run / "metrics.json").read_text())
     result = read_result(run / "result.h5")
-    assert metrics.pop(RESULT_RECORD) == file_record(run / "result.h5")  # the size and sha256 of the result
+    # the size and sha256 of the result, and the hash of its content (README: "Reproducible records")
+    assert metrics.pop(RESULT_RECORD) == {**file_record(run / "result.h5"),
+                                          "content_sha256": content_sha256(run / "result.h5")}
     assert result.metrics == metrics
     assert metrics["status"] == "ok" and metrics["stable"] is True
     assert metrics["distance_to_clean_rms"] < 0.35 * metrics["distance_to_clean_rms_initial"]

@@ -35,6 +35,7 @@ EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key"}
 PREREQUISITES = {
     "hydra.sweeper.resume=true": ["-m", "app.dt=0.001,0.002", "hydra.sweep.dir=outputs/sweeps/dt"],
     "outputs/sweeps/A outputs/sweeps/B": ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/A"],
+    "outputs/runs --metrics content_sha256": ["mesh.subdiv=1", "figures=false"],  # a single run to compare
 }
 PREREQUISITES_B = ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/B"]
 

@@ -49,7 +49,13 @@ def files(tmp: Path) -> dict[str, str]:
         "result": _result_file(tmp),
         "model_result": _model_result_file(tmp),
         "two_pieces": _two_pieces(tmp),
+        # issue 34.6: mesh.normalize=true was offered at 1e-300 and then found "all vertices coincide"
+        "tiny": write_obj(tmp / "tiny.obj", np.asarray(OCTAHEDRON) * 1e-300, OCTAHEDRON_FACES),
     }
+
+
+OCTAHEDRON = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+OCTAHEDRON_FACES = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
 
 
 def _two_pieces(tmp: Path) -> str:
@@ -128,6 +134,7 @@ CASES = {
                                           "app.holes=fill"], ["app.holes=auto"]),
     "parametrization_of_a_closed_mesh": (["app=parametrization", "mesh.noise=0"], ["mesh.hole_balls="]),
     "up_axis_of_a_planar_mesh": (["mesh=planar", "mesh.up_axis=y", "app.steps=1"], ["mesh.up_axis=z"]),
+    "file_mesh_at_1e-300": (["mesh=file", "mesh.path={tiny}"], ["mesh.normalize=true"]),
     "file_with_unreferenced_vertex": (["mesh=file", "mesh.path={unreferenced}", "app.steps=1"], ["mesh.repair=true"]),
     "file_with_flipped_triangle": (["mesh=file", "mesh.path={flipped}", "app.steps=1"], ["mesh.orient=fix"]),
     "file_with_bowtie_vertex": (["mesh=file", "mesh.path={bowtie}", "app.steps=1"], ["mesh.repair=true"]),

@@ -301,3 +301,45 @@ def test_no_override_shares_a_column_with_a_metric(app, tmp_path):
         if name not in ("status", "error"):
             assert table.loc[0, metric_column(name, reserved | {"experiment", "app"})] == value, name
     assert table_main([str(sweep)]) == 0
+
+
+def test_decrun_table_prints_a_read_only_sweeps_table_and_says_it_was_not_saved(tmp_path, capsys, monkeypatch):
+    """issue 34.6: an OSError traceback before; now the table, then one line saying why it was not saved."""
+    import errno
+
+    import decrun.runner.sweep.tables as tables
+
+    sweep = make_sweep(tmp_path / "s", {"0": {"status": "ok", "e": 1.0}, "1": {"status": "ok", "e": 2.0}})
+
+    def read_only(path, text):
+        raise OSError(errno.EROFS, "Read-only file system", str(path))
+
+    monkeypatch.setattr(tables, "write_text_atomic", read_only)
+    assert table_main([str(sweep), "--csv"]) == 0
+    out, err = capsys.readouterr()
+    assert out.splitlines()[0].startswith("job,") and len(out.splitlines()) == 3
+    assert err.splitlines() == [f"decrun-table: the table above could not be saved in {sweep} (metrics.csv, "
+                                f"metrics.md: Read-only file system); it is printed only (`decrun-table --csv "
+                                f"{sweep} > FILE` saves it elsewhere)"]
+    assert not (sweep / "metrics.csv").exists()
+
+
+def test_decrun_table_on_a_read_only_mount(tmp_path):
+    """The same on a real read-only bind mount (where this machine allows one: root in a mount namespace)."""
+    import shutil
+    import subprocess
+    import sys
+
+    if shutil.which("unshare") is None:
+        pytest.skip("no unshare")
+    sweep = make_sweep(tmp_path / "s", {"0": {"status": "ok", "e": 1.0}})
+    table = f"import sys; from decrun.runner.cli import table_main; sys.exit(table_main([{str(sweep)!r}]))"
+    script = (f"mount --bind {sweep} {sweep} && mount -o remount,ro,bind {sweep} || exit 77; "
+              f"{sys.executable} -c {table!r}")
+    proc = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True, text=True, timeout=120)
+    if proc.returncode == 77 or "unshare:" in proc.stderr:
+        pytest.skip(f"no read-only mount here: {proc.stderr.strip()[:200]}")
+    assert proc.returncode == 0, proc.stderr
+    assert "| job |" in proc.stdout and "Traceback" not in proc.stderr
+    assert proc.stderr.strip().startswith(f"decrun-table: the table above could not be saved in {sweep}")
+    assert "Read-only file system" in proc.stderr and not (sweep / "metrics.csv").exists()

@@ -16,8 +16,8 @@ import numpy as np
 from decrun.core.connectivity import component_labels, drop_unreferenced
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
-from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, HolePieces, Mesh, Refine, from_meshset, require, require_surface,
-                                     require_triangles, to_meshset)
+from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, HolePieces, Mesh, Refine, bounding_diagonal, from_meshset,
+                                     require, require_surface, require_triangles, to_meshset)
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
 from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
@@ -212,7 +212,7 @@ def normalize(mesh: Mesh, cfg) -> Mesh:
     if not cfg.normalize:
         return mesh
     lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
-    center, diagonal = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+    center, diagonal = lo / 2 + hi / 2, bounding_diagonal(mesh.vertices)  # halves first: no overflow at 1e308
     if diagonal == 0:
         raise MeshError("mesh.normalize: all vertices coincide")
     meta = dict(mesh.meta)

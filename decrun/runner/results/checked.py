@@ -30,10 +30,13 @@ from decrun.errors import CorruptFileError
 from decrun.runner.files import RunFiles
 
 __all__ = ["parse_json", "load_json", "load_yaml", "open_h5", "check_group", "check_dataset", "read_dataset", "file_record",
-           "check_record", "MAX_DEFLATE_RATIO", "RESULT_RECORD"]
+           "check_record", "MAX_DEFLATE_RATIO", "RESULT_RECORD", "CONTENT"]
 
 #: the key of metrics.json recording its result.h5 (:func:`file_record`)
 RESULT_RECORD = "result_h5"
+#: the key of that record holding the hash of the result's content, equal for two runs of one
+#: config (:func:`decrun.runner.results.provenance.content_sha256`)
+CONTENT = "content_sha256"
 #: deflate cannot shrink data more than 1032:1; a filtered dataset claiming more is refused
 MAX_DEFLATE_RATIO = 1100
 #: a dataset this small may be unallocated (read as its fill value) without harm

@@ -10,7 +10,9 @@ on :mod:`decrun.runner.results.journal`, never on each other.
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
+import re
 import os
 import subprocess
 import sys
@@ -21,10 +23,10 @@ import numpy as np
 
 from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
-from decrun.runner.results.checked import open_h5, parse_json
+from decrun.runner.results.checked import CONTENT, check_dataset, file_record, open_h5, parse_json
 
 __all__ = ["FORMAT", "package_versions", "git_commit", "plain", "metrics_to_json", "write_metrics_json", "read_provenance",
-           "decrun_attrs"]
+           "decrun_attrs", "is_wall_time", "NOT_CONTENT", "NOT_CONTENT_METRICS", "content_sha256", "result_record"]
 
 FORMAT = "decrun-result-1"
 
@@ -132,3 +134,117 @@ def read_provenance(path: str | os.PathLike) -> dict[str, Any]:
         raise CorruptFileError(f"{path}: attribute timings_json is not a JSON object")
     out["timings"] = timings
     return out
+
+
+# ----------------------------------------------------------------------------------
+# what two runs of one config share: the content hash
+# ----------------------------------------------------------------------------------
+
+#: root attributes of result.h5 that say when, how long, with what and from which config
+#: text a result was made — not what it holds: :func:`content_sha256` leaves them out
+NOT_CONTENT = ("created", "finished", "timings_json", "config_yaml", "git_commit", "decrun_version",
+               "numpy_version", "scipy_version", "pymeshlab_version", "h5py_version", "python_version")
+
+#: metrics that say how a run was made, not what it computed (a sweep job's config hash; the
+#: step a resumed run continued from: resumed bit for bit, it holds what an uninterrupted run holds)
+NOT_CONTENT_METRICS = ("config_hash", "resumed_from_step")
+
+_WALL_TIME = re.compile(r"(^|_)(seconds|per_second)(_|$)")
+#: rows hashed at a time (~16 MB of float64 triples): memory stays flat on a large result
+_BLOCK_BYTES = 16 << 20
+
+
+def is_wall_time(name: str) -> bool:
+    """Whether a metric (or ``timing_*`` attribute) is a wall-clock measurement — its name
+    has the word ``seconds`` or ``per_second`` (``solve_seconds``, ``step_seconds_max``,
+    ``steps_per_second``, as metric names say their unit) — which differs between two runs
+    of one config and is left out of :func:`content_sha256`."""
+    return bool(_WALL_TIME.search(name))
+
+
+def _not_content_metric(name: str) -> bool:
+    return is_wall_time(name) or name in NOT_CONTENT_METRICS
+
+
+def _canonical(value: Any) -> bytes:
+    """An attribute value as bytes that are equal exactly when the values are (type included)."""
+    if isinstance(value, np.ndarray):
+        array = np.ascontiguousarray(value)
+        return f"array {array.dtype.str} {array.shape} ".encode() + array.tobytes()
+    value = plain(value)
+    if isinstance(value, bytes):
+        return b"bytes " + value
+    return f"{type(value).__name__} {value!r}".encode()
+
+
+def _hash_attrs(digest, where: str, attrs) -> None:
+    """Hash the attributes ``attrs`` (a mapping) of the object named ``where``: at the root
+    without :data:`NOT_CONTENT` and ``timing_*``, and the metrics (``/metrics``, the root's
+    ``metrics_json``) without the wall times and :data:`NOT_CONTENT_METRICS`."""
+    for key in sorted(attrs):
+        if where == "/" and (key in NOT_CONTENT or key.startswith("timing_")):
+            continue
+        if where == "/metrics" and _not_content_metric(key):
+            continue
+        value = attrs[key]
+        if where == "/" and key == "metrics_json":
+            metrics = parse_json(value, f"attribute {key}")
+            value = json.dumps({k: v for k, v in metrics.items() if not _not_content_metric(k)}, sort_keys=True)
+        digest.update(f"attr {where} {key}=".encode() + _canonical(value) + b"\n")
+
+
+def _hash_group(digest, group, path: Path, checked: bool) -> None:
+    """Hash the members of ``group`` in name order: groups recursively, datasets as name,
+    dtype, shape and their values read in row blocks (memory stays flat), then their
+    attributes. ``checked``: refuse links and datasets :func:`check_dataset` refuses first."""
+    import h5py
+
+    for name in sorted(group):
+        if checked and not isinstance(group.get(name, getlink=True), h5py.HardLink):
+            raise CorruptFileError(f"{path}: {group.name.rstrip('/')}/{name} is a link; refused (decrun writes "
+                                   "only datasets inside the file)")
+        member = group[name]
+        where = member.name
+        if isinstance(member, h5py.Group):
+            digest.update(f"group {where}\n".encode())
+            _hash_attrs(digest, where, member.attrs)
+            _hash_group(digest, member, path, checked)
+            continue
+        if checked:
+            check_dataset(member, path)
+        shape, dtype = member.shape, member.dtype
+        digest.update(f"dataset {where} {dtype.str} {shape}\n".encode())
+        if not shape or 0 in shape:
+            digest.update(np.ascontiguousarray(member[()]).tobytes())
+        else:
+            row = max(1, int(np.prod(shape[1:], dtype=np.int64)) * dtype.itemsize)
+            step = max(1, _BLOCK_BYTES // row)
+            for start in range(0, shape[0], step):
+                digest.update(np.ascontiguousarray(member[start:start + step]).tobytes())
+        _hash_attrs(digest, where, member.attrs)
+
+
+def content_sha256(path: str | os.PathLike, *, checked: bool = True) -> str:
+    """sha256 of what ``result.h5`` holds — every dataset (name, dtype, shape, values) and
+    every attribute — but not of when, how long, with which versions or from which config
+    text it was made (:data:`NOT_CONTENT`, the ``timing_*`` attributes, the wall-time
+    metrics :func:`is_wall_time`, :data:`NOT_CONTENT_METRICS`). Two runs of one config that
+    compute the same numbers have the same content hash; their files' sha256 differ (the
+    file stores its times). Reads the file as the checked readers do
+    (:class:`~decrun.errors.CorruptFileError` naming it); ``checked=False`` skips the
+    per-dataset checks, for a file this process has just written (the runner: ~half the cost
+    on a small result)."""
+    path = Path(path)
+    digest = hashlib.sha256(b"decrun content 1\n")
+    with open_h5(path) as f:
+        _hash_attrs(digest, "/", decrun_attrs(f, path))
+        _hash_group(digest, f, path, checked)
+    return digest.hexdigest()
+
+
+def result_record(path: str | os.PathLike) -> dict[str, Any]:
+    """The ``result_h5`` entry of ``metrics.json``: the file's size and sha256
+    (:func:`~decrun.runner.results.checked.file_record`: readers never take a truncated or
+    altered file for it) and its ``content_sha256`` (:func:`content_sha256`: equal for two
+    runs that computed the same result) — of a file this process has just written."""
+    return {**file_record(path), CONTENT: content_sha256(path, checked=False)}

@@ -48,7 +48,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
-from decrun.runner.results.checked import RESULT_RECORD, load_json
+from decrun.runner.results.checked import CONTENT, RESULT_RECORD, load_json
 from decrun.runner.results.journal import journal_path, read_journal
 from decrun.runner.results.reading import verify_result
 from decrun.runner.yaml_text import PythonDumper as _Dumper
@@ -203,4 +203,7 @@ def job_state(job_dir: Path, expected_hash: str | None = None) -> dict[str, Any]
             verify_result(RunFiles(job_dir).result, record)
         except CorruptFileError as exc:
             metrics.update(status="corrupt", error=str(exc))
+        else:  # what two runs of one config share (README: "Reproducible records"); older records have none
+            if isinstance(record, dict) and isinstance(record.get(CONTENT), str):
+                metrics[CONTENT] = record[CONTENT]
     return metrics

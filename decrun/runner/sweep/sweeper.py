@@ -72,7 +72,9 @@ def refuse(exc: SweepError) -> None:
     with HYDRA_FULL_ERROR=1 (``decrun -v``) raise it instead."""
     if os.environ.get("HYDRA_FULL_ERROR") == "1":
         raise exc
-    print(exc, file=sys.stderr)
+    from decrun.errors import shorten_words
+
+    print(shorten_words(str(exc)), file=sys.stderr)
     sys.exit(1)
 
 

@@ -20,6 +20,7 @@ aborts (heap corruption) on an index above the vertex count.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -92,7 +93,11 @@ def read_mesh_file(path, *, key: str = "mesh.path") -> MeshFile:
     given = str(path)
     where = f"{key}={given!r}"
     path = Path(given).expanduser()
-    if not path.exists():
+    try:
+        found = path.exists()
+    except OSError as exc:  # a name too long for the file system (Path.exists raises it)
+        raise MeshError(f"{where}: cannot be read ({os.strerror(exc.errno or 0)})") from None
+    if not found:
         raise MeshError(f"{where}: file not found")
     if path.is_dir():
         raise MeshError(f"{where}: is a directory, not a file")

@@ -10,7 +10,7 @@ apps that take initial data say so (``app=fluid app.initial=mesh_field``). A fie
 the mesh only while its simplices stay the same: ``refine``, ``holes`` and ``clean`` are
 refused together with it.
 
-What is read is checked against the mesh it belongs to before use (issue 34): the stored
+What is read is checked against the mesh it belongs to before use: the stored
 simplices must be whole vertex indices of the stored vertices (floats with fractions are
 not truncated, out-of-range indices not taken), a chained field finite; each refusal is a
 ConfigError naming ``mesh.path`` or ``mesh.field``. A source result that is not complete

@@ -25,7 +25,7 @@ __all__ = ["DecrunConfig", "OptimizeConfig", "Direction", "PluginGroup", "GROUPS
 
 @dataclass(frozen=True)
 class PluginGroup:
-    """One config group whose node is a plugin (issue 27.7: the groups are listed once, in
+    """One config group whose node is a plugin (the groups are listed once, in
     :data:`GROUPS`).
 
     ``key``: the config key (``cfg.<key>``, ``decrun <key>=<option>``), its options are

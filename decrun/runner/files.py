@@ -1,4 +1,4 @@
-"""Every file name of a run directory and of a sweep directory, in one place (issue 27.5).
+"""Every file name of a run directory and of a sweep directory, in one place.
 
 A run directory (``outputs/runs/<stamp>/``, or one sweep job's ``outputs/sweeps/<stamp>/<job>/``)
 holds the files of :class:`RunFiles`; a sweep's root those of :class:`SweepFiles`. Code

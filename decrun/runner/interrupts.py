@@ -1,4 +1,4 @@
-"""Ctrl-C and SIGTERM while an interrupt is being handled (issue 34): the ``decrun`` command
+"""Ctrl-C and SIGTERM while an interrupt is being handled: the ``decrun`` command
 ends after its first interrupt, so a second one — while the sweep counts its jobs, while the
 interrupted jobs are marked and the message printed, while the process exits — is
 ignored instead of breaking off the message with a traceback. Imports only ``signal``

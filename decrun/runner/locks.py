@@ -1,4 +1,4 @@
-"""One decrun process at a time per output directory (issue 24): an exclusive, non-blocking
+"""One decrun process at a time per output directory: an exclusive, non-blocking
 ``fcntl.flock`` on ``<dir>/.decrun.lock``.
 
 Who holds what:

@@ -1,4 +1,4 @@
-"""Nothing decrun writes or deletes leaves its output directory (issue 24).
+"""Nothing decrun writes or deletes leaves its output directory.
 
 Paths are judged the way the OS will follow them: :func:`os.path.realpath`, every symlink
 in every component followed. Two checks:

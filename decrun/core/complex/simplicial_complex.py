@@ -6,7 +6,7 @@ tuples in lexicographic order (§2.3.3), the parity of each top simplex relative
 sorted tuple (the inversion count), and the boundary operators δ_j (Fig. 2.20) as sparse
 matrices. Everything is vectorized: there is no Python loop over simplices.
 
-Conventions (``shared/DESIGN.md``):
+Conventions:
 
 * ``simplices(j)`` for ``j < n`` are sorted tuples in lexicographic order; ``simplices(n)``
   are the top simplices in *input order*, each row sorted, with ``orientation`` (±1)

@@ -12,7 +12,7 @@ is exact: c = d0 χ with
 a square symmetric system (:func:`harmonic_flux`). Computing c as d0 χ keeps
 ``d1 c = 0`` to round-off, which the least-squares form (7.11) only reaches to its
 solver accuracy; :func:`harmonic_flux_least_squares` solves (7.11) as printed (with the
-corrections of FLUIDS.md) for comparison and reports its residual.
+printed formula corrected) for comparison and reports its residual.
 """
 
 from __future__ import annotations
@@ -124,7 +124,7 @@ def harmonic_flux(dec: DEC, face_normal: np.ndarray, label: np.ndarray, inflow_v
 
 def harmonic_flux_least_squares(dec: DEC, label: np.ndarray, border_flux: np.ndarray, new_solver,
                                 weight: float | None = None) -> tuple[np.ndarray, dict]:
-    """Eq. 7.11 as corrected in FLUIDS.md:
+    """Eq. 7.11, corrected (the printed version is wrong):
 
         (d1ᵀ ⋆2 d1 + ⋆1 d̃ᵀ ⋆̃0⁻¹ d̃ ⋆1 + λ I_B) c = λ u_B
 

@@ -1,4 +1,4 @@
-"""Energy- and enstrophy-bounded swept vorticity (issue 25), with an optional local clamp.
+"""Energy- and enstrophy-bounded swept vorticity, with an optional local clamp.
 
 The swept circulation (swept.py) is consistent but, at ν = 0, not a contraction: its energy
 rises almost every step (1.2e-4 per step at 5120 faces, dt = 0.02, +2 % in 4 s) and fine

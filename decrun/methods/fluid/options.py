@@ -1,6 +1,6 @@
 """The fluid's closed option sets (``app.initial``, ``app.velocity``, ``app.circulation``,
 ``app.walls``, ``app.kernels``): they name the method's own variants, so they live with the method
-(DESIGN.md layers: core <- methods <- apps) and :mod:`decrun.apps.fluid` imports them.
+(the layers: core <- methods <- apps) and :mod:`decrun.apps.fluid` imports them.
 Light on purpose (no numerical import): composing a config reads them for hints."""
 
 from __future__ import annotations

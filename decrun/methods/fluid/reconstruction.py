@@ -10,7 +10,7 @@ dual-cell corners (to measure circulation, step d). Two reconstructions, chosen 
     that depends on the field: for a rigid rotation it is exact at the circumcenter, for a
     strain it is not (the flux of a strain through the edges vanishes about another point),
     so a straining flow is interpolated from O(h)-wrong corner values and the circulation of
-    a backtracked cell drifts by O(dt) per step whatever the mesh size (issue 18).
+    a backtracked cell drifts by O(dt) per step whatever the mesh size.
 
 ``"least_squares"``: per vertex, the linear field v(x) = a + G (x − x_v) in the vertex's
     tangent plane that best matches (least squares) the fluxes of the edges of its triangles,

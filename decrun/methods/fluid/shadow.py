@@ -2,7 +2,7 @@
 
 The energy bound of :class:`~decrun.methods.fluid.simulation.VorticityFluid` only sees runs
 that blow up. A step that amplifies round-off without bound-breaking (a grid-scale instability
-that saturates) leaves the energy bounded while the result depends on round-off (issue 18).
+that saturates) leaves the energy bounded while the result depends on round-off.
 The shadow is a second state started at w0 + ε‖w0‖ δ (δ a smooth random vorticity of unit
 ⋆0-norm, ε = ``perturbation``) and stepped with the same forces. After every step the
 separation d = ‖w_shadow − w‖_⋆0 is measured and the shadow is pulled back to the relative
@@ -11,7 +11,7 @@ rescaled the same way) — the Benettin renormalisation, so the estimate does no
 Summing g_k = ln(d_after / d_before) gives L_n = Σ_{k ≤ n} g_k, the log of the separation a
 never-renormalised shadow would have after n steps (L_0 = 0).
 
-Growth rate (issue 25): the least-squares slope of L_n against n over a trailing window — the
+Growth rate: the least-squares slope of L_n against n over a trailing window — the
 last ``window_steps`` steps, never the first ``transient_steps`` (see :func:`fitted_growth`) —
 per step: ``perturbation_growth_per_step``; per second: ``perturbation_growth_per_s``. The
 slope of a sustained exponent is that exponent; a single jump of L by J (the random δ aligning

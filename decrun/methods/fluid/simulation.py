@@ -3,7 +3,7 @@
 State (§7.2.1, primal and dual roles swapped): the stream function ψ (n0), the flux
 1-form u = d0 ψ + c through the primal edges (n1; edge a → b, a < b, flux to its right
 on the oriented surface) and the vorticity w = ⋆0⁻¹ d0ᵀ ⋆1 u per vertex (n0). One step
-(Fig. 7.4 / 7.6, with the corrections of FLUIDS.md):
+(Fig. 7.4 / 7.6, with the printed formulas corrected as noted below):
 
 a.–b. a continuous velocity from u (and from d0 ψ alone), by ``velocity`` (reconstruction.py):
    ``"least_squares"`` (default) per-vertex least-squares fit to the edge fluxes, linear in each
@@ -26,8 +26,8 @@ d. circulation Γ around each backtracked cell. *Border cells* take the trapezoi
    ``"swept_bounded"`` (default): ``"swept"``, then bounded (limiter.py): where no vorticity is
      made or enters (closed surfaces; slip walls without inflow) blended towards one implicit
      smoothing step (or rescaled) so that neither enstrophy nor energy exceeds the previous
-     step's — energy and enstrophy non-increasing at ν = 0, as consistent as ``"swept"``
-     (issue 25); at no-slip walls without inflow the energy alone (the walls make enstrophy);
+     step's — energy and enstrophy non-increasing at ν = 0, as consistent as ``"swept"``;
+     at no-slip walls without inflow the energy alone (the walls make enstrophy);
      with slip walls and inflow each cell clamped to its footprint's range (the
      ``"swept_clamped"`` clamp: a local maximum principle, where no global bound holds); at
      no-slip walls with inflow it is ``"swept"``;

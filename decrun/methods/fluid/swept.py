@@ -17,7 +17,7 @@ conserved exactly. The result does not depend on how the quad is cut when ω is 
 Why not the trapezoid circulation of interpolated corner velocities: it differentiates the
 velocity reconstruction once more, and the reconstruction's cell-scale errors (O(h) for the
 thesis' WSHD07 corner values of a strain) then make the steady-flow drift O(dt) per step
-independently of the mesh size (issue 18, benchmarks/bench_fluid_drift.py).
+independently of the mesh size (benchmarks/bench_fluid_drift.py).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Repair a triangle mesh with pymeshlab's cleaning filters so it builds a simplicial complex.
 
 :func:`repair_mesh` runs, in this order (every count it changes goes into the report, so
-nothing is dropped silently — DESIGN.md "Errors"):
+nothing is dropped silently):
 
 1. ``duplicate_vertices``   merge vertices with identical coordinates
    (``meshing_remove_duplicate_vertices``);

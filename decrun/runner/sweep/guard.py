@@ -1,4 +1,4 @@
-"""What the ``decrun`` sweeper checks and holds before it touches a sweep directory (issue 24):
+"""What the ``decrun`` sweeper checks and holds before it touches a sweep directory:
 the sweep directory's lock (:mod:`decrun.runner.locks`), and on resume that every job
 directory the manifest names — and the ``.hydra/`` files and log Hydra will write into it
 (:func:`decrun.runner.paths.hydra_files`) — resolves inside the sweep directory, before

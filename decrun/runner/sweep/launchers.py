@@ -1,5 +1,5 @@
 """Launchers that cannot start, and a joblib job over its time limit: one line naming the
-launcher, the cause and the command that fixes it, within a bounded time (issue 34).
+launcher, the cause and the command that fixes it, within a bounded time.
 
 * :func:`preflight`, before the sweep is planned (nothing is written when it refuses):
   ``hydra/launcher=submitit_slurm`` (or a config built on it) on a machine without ``srun``

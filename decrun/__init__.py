@@ -9,7 +9,9 @@ Layers (each imports only the ones below it; ``tests/test_layers.py`` enforces i
 ``decrun.runner``   the Hydra command line, configs, mesh sources, result files, tables, plots
 
 ``decrun.SimplicialComplex`` and ``decrun.DEC`` are imported lazily, so ``import decrun``
-(and ``decrun --help``) stays fast.
+(and ``decrun --help``) stays fast. ``import decrun`` changes nothing in ``os.environ``: the
+``decrun`` command bounds GNU OpenMP's spinning (:func:`decrun.core.threads.bound_openmp_spin`)
+before anything loads libgomp, and a program of your own may call it first too.
 """
 
 from decrun.errors import (  # noqa: F401
@@ -19,10 +21,6 @@ from decrun.errors import (  # noqa: F401
     SolverError,
     TopologyError,
 )
-
-from decrun.core.threads import bound_openmp_spin
-
-bound_openmp_spin()  # before pymeshlab loads libgomp (decrun.core.threads)
 
 __version__ = "0.1.0"
 

@@ -10,6 +10,10 @@ import sys
 import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# as the decrun command does (decrun/__main__.py): bound GNU OpenMP's spinning before libgomp loads
+from decrun.core.threads import bound_openmp_spin  # noqa: E402
+
+bound_openmp_spin()
 
 
 @pytest.fixture

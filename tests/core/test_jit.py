@@ -291,19 +291,43 @@ def test_ctrl_c_during_a_kernel_call_raises_keyboardinterrupt_not_systemerror():
 
 SPIN_PROBE = """
 import os, sys
-import decrun
+sys.argv = ["decrun", "--help"]
+import decrun.__main__ as entry
+try:
+    entry.console_main()  # the decrun command: --help prints and returns
+except SystemExit:
+    pass
 import pymeshlab  # loads its bundled libgomp, which reads the variable now
 print(os.environ.get("GOMP_SPINCOUNT"))
+"""
+
+IMPORT_PROBE = """
+import os
+before = dict(os.environ)
+import decrun
+import decrun.core.threads
+assert dict(os.environ) == before, set(os.environ.items()) ^ set(before.items())
+print("unchanged")
 """
 
 
 @pytest.mark.parametrize("environment, expected", [({}, "10000"), ({"GOMP_SPINCOUNT": "500"}, "500"),
                                                    ({"OMP_WAIT_POLICY": "passive"}, "None")])
-def test_import_decrun_bounds_openmp_spinning_unless_the_environment_says(environment, expected):
+def test_the_decrun_command_bounds_openmp_spinning_unless_the_environment_says(environment, expected):
     """GNU OpenMP's idle threads spin 300,000 rounds by default, which cost 33 % on the fluid tests
-    with more processes than cores: ``import decrun`` sets GOMP_SPINCOUNT=10000, before pymeshlab
+    with more processes than cores: the ``decrun`` command sets GOMP_SPINCOUNT=10000 before anything
     loads libgomp, unless GOMP_SPINCOUNT or OMP_WAIT_POLICY is set."""
     env = {k: v for k, v in os.environ.items() if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")} | environment
     out = subprocess.run([sys.executable, "-c", SPIN_PROBE], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == expected
+
+
+def test_import_decrun_changes_nothing_in_the_environment():
+    """A library import leaves the process environment as it found it (the spin bound is the
+    command's)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")}
+    out = subprocess.run([sys.executable, "-c", IMPORT_PROBE], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == "unchanged"
+

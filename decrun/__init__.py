@@ -8,8 +8,10 @@ Layers (each imports only the ones below it; ``tests/test_layers.py`` enforces i
 ``decrun.apps``     thin adapters: typed config → method → Result
 ``decrun.runner``   the Hydra command line, configs, mesh sources, result files, tables, plots
 
-``decrun.SimplicialComplex`` and ``decrun.DEC`` are imported lazily, so ``import decrun``
-(and ``decrun --help``) stays fast. ``import decrun`` changes nothing in ``os.environ``: the
+``decrun.run(overrides)`` and ``decrun.sweep(overrides)`` are the ``decrun`` command called from
+Python or a notebook (:mod:`decrun.runner.api`): a :class:`~decrun.runner.api.Run`, a sweep's
+table. They, ``decrun.SimplicialComplex`` and ``decrun.DEC`` are imported lazily, so
+``import decrun`` (and ``decrun --help``) stays fast. ``import decrun`` changes nothing in ``os.environ``: the
 ``decrun`` command bounds GNU OpenMP's spinning (:func:`decrun.core.threads.bound_openmp_spin`)
 before anything loads libgomp, and a program of your own may call it first too.
 """
@@ -24,7 +26,7 @@ from decrun.errors import (  # noqa: F401
 
 __version__ = "0.1.0"
 
-__all__ = ["DEC", "SimplicialComplex", "ConfigError", "DecrunError", "MeshError", "SolverError", "TopologyError"]
+__all__ = ["run", "sweep", "Run", "RunError", "DEC", "SimplicialComplex", "ConfigError", "DecrunError", "MeshError", "SolverError", "TopologyError"]
 
 
 def __getattr__(name: str):
@@ -36,4 +38,8 @@ def __getattr__(name: str):
         from decrun.core.dec import DEC
 
         return DEC
+    if name in ("run", "sweep", "Run", "RunError"):
+        from decrun.runner import api
+
+        return getattr(api, name)
     raise AttributeError(f"module 'decrun' has no attribute {name!r}")

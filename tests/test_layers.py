@@ -1,6 +1,6 @@
 """The layers of DESIGN.md, enforced: the import-linter contracts of pyproject.toml
 (core ← methods ← apps ← runner; no app imports another; only the runner imports hydra,
-omegaconf, pymeshlab, h5py and matplotlib; inside the runner cli > run > helpers >
+omegaconf, pymeshlab, h5py and matplotlib; inside the runner api > cli > run > helpers >
 sweep | plots > results | mesh, and the layers of runner.mesh and runner.results) hold,
 a planted violation is caught, and no module imports itself through others (no cycle,
 not even through an import inside a function)."""
@@ -37,8 +37,8 @@ def test_the_layer_contracts_are_kept():
     ("core/geometry.py", "    from decrun.runner import cli  # noqa\n", "layers"),
     ("apps/hodge.py", "    from decrun.apps import smoothing  # noqa\n", "no app imports another app"),
     ("methods/singularities.py", "    import matplotlib  # noqa\n", "only the runner imports"),
-    ("runner/mesh/base.py", "    from decrun.runner.results import read_result  # noqa\n", "runner: cli > run"),
-    ("runner/sweep/manifest.py", "    from decrun.runner.run import run  # noqa\n", "runner: cli > run"),
+    ("runner/mesh/base.py", "    from decrun.runner.results import read_result  # noqa\n", "runner: api > cli > run"),
+    ("runner/sweep/manifest.py", "    from decrun.runner.run import run  # noqa\n", "runner: api > cli > run"),
     ("runner/mesh/files/obj.py", "    from decrun.runner.mesh import post  # noqa\n", "mesh: sources > source"),
     ("runner/mesh/cut.py", "    from decrun.runner.mesh import holes  # noqa\n", "mesh: sources > source"),
     ("runner/results/journal.py", "    from decrun.runner.results import recorder  # noqa\n", "results: recorder"),

@@ -104,7 +104,11 @@ class OutputGuard(Callback):
     (:func:`decrun.runner.paths.inside`) and takes the run directory's lock
     (:mod:`decrun.runner.locks`) until the run ends. After a sweep, once
     :class:`SweepTable` has written the table, drops the sweep directory's lock (the
-    ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written."""
+    ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written.
+    ``run_dir``: the directory of the last single run this process started (for
+    :func:`decrun.run`)."""
+
+    run_dir: Path | None = None
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
         try:
@@ -119,6 +123,7 @@ class OutputGuard(Callback):
 
     def _guard(self, config: DictConfig) -> None:
         out = Path(str(config.hydra.run.dir))
+        OutputGuard.run_dir = out
         try:
             for name in hydra_files(config.hydra):
                 inside(out, out / name, fix="remove the link, or choose another run directory with hydra.run.dir=DIR")
@@ -141,16 +146,18 @@ class SweepTable(Callback):
     """Hydra callback (``hydra.callbacks.sweep_table`` in conf/config.yaml): before a sweep,
     refuses a non-empty ``hydra.sweep.dir`` for sweepers without resume (the ``decrun``
     sweeper checks it itself, see :mod:`decrun.runner.sweep.sweeper`); at its end writes
-    ``metrics.csv`` and ``metrics.md`` at the sweep root and prints the table."""
+    ``metrics.csv`` and ``metrics.md`` at the sweep root and prints the table. ``sweep_dir``:
+    the directory of the last sweep this process started (for :func:`decrun.sweep`)."""
 
     failed = 0
+    sweep_dir: Path | None = None
     _progress = None
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
         """Refuse a non-empty sweep dir for sweepers without resume; then show jobs done /
         total with ETA in the submitting process (a terminal only)."""
         _CHECKED.clear()  # a sweep's checks see its own files (a mesh file changed since)
-        sweep_dir = Path(str(config.hydra.sweep.dir))
+        sweep_dir = SweepTable.sweep_dir = Path(str(config.hydra.sweep.dir))
         target = str(config.hydra.sweeper.get("_target_", ""))
         if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):
             from decrun.runner.sweep.sweeper import SweepError, refuse  # lazy: Hydra's sweeper machinery (start-up speed)
@@ -295,11 +302,23 @@ def _completion() -> None:
 def _report(exc: Exception) -> int:
     """Print an exception Hydra let through (see :func:`main`) as one line, as Hydra itself
     would for its own errors; returns the exit code. With -v: the traceback."""
+    if _VERBOSE:
+        raise exc
+    message = error_message(exc)
+    if message is None:
+        raise exc  # a bug: show it
+    for line in message.splitlines():
+        _say(line)
+    return 1
+
+
+def error_message(exc: Exception) -> str | None:
+    """What the ``decrun`` command prints for an exception Hydra let through (one line; two
+    for a Hydra error with an OmegaConf cause, as Hydra prints it), or None for a bug (the
+    command shows its traceback). Overrides are read from ``sys.argv`` (the command line)."""
     from hydra.errors import CompactHydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    if _VERBOSE:
-        raise exc
     message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc) or \
         group_typo_message(exc) or root_value_message(exc)
     if not message and not isinstance(exc, DecrunError):  # hydra.run.dir=${oc.env:UNSET}: Hydra's own keys
@@ -308,29 +327,23 @@ def _report(exc: Exception) -> int:
         unresolved = resolution_message(exc)
         message = f"error: {unresolved}" if unresolved else None
     if message:
-        _say(message)
-        return 1
+        return message
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
         choices = _choices_of(exc.__cause__)
         if choices is not None:  # a schema field with a closed set of values (optimize.direction)
-            _say(f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}")
-            return 1
-        _say(str(exc))
+            return f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}"
         if isinstance(exc.__cause__, OmegaConfBaseException):
-            _say(str(exc.__cause__))
-        return 1
+            return f"{exc}\n{exc.__cause__}"
+        return str(exc)
     if isinstance(exc, DecrunError):
-        _say(f"error: {exc}")
-        return 1
+        return f"error: {exc}"
     os_error = find_os_error(exc)
     if os_error is not None:
-        _say(f"error: {_name_too_long(os_error) or os_error_message(os_error)}")
-        return 1
+        return f"error: {_name_too_long(os_error) or os_error_message(os_error)}"
     memory = find_memory_error(exc)  # outside a run (composing a sweep): no run config to name
     if memory is not None:
-        _say(f"error: {memory_error_text(memory)}")
-        return 1
-    raise exc  # a bug: show it
+        return f"error: {memory_error_text(memory)}"
+    return None
 
 
 def _say(message: str) -> None:

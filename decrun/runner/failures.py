@@ -46,7 +46,7 @@ from decrun.errors import LONG_WORD, DecrunError, shorten_words
 from decrun.runner.files import RunFiles
 from decrun.runner.paths import NEW_OUTPUT
 
-__all__ = ["stop", "shorten_words", "LONG_WORD", "Terminated", "install_sigterm", "interrupt_cause", "exit_code",
+__all__ = ["stop", "Stopped", "shorten_words", "LONG_WORD", "Terminated", "install_sigterm", "interrupt_cause", "exit_code",
            "os_error_message", "record_status", "file_identity", "set_aside_stale", "MAX_NESTING", "nesting_depth",
            "override_nesting_error", "config_error_message", "find_memory_error", "memory_error_text"]
 
@@ -114,11 +114,23 @@ def os_error_message(exc: OSError) -> str:
     return f"cannot write {where}: {cause}{hint}"
 
 
+class Stopped(SystemExit):
+    """``sys.exit(code)`` once the one line ``message`` has been said (printed or logged): the
+    ``decrun`` command exits with ``code`` as before; :func:`decrun.run` and :func:`decrun.sweep`,
+    in the caller's process, raise ``message`` instead (:mod:`decrun.runner.api`)."""
+
+    def __init__(self, message: str, code: int = 1):
+        super().__init__(code)
+        self.message = message
+
+
 def stop(message: str) -> NoReturn:
-    """Print the one-line ``message`` on stderr (:func:`shorten_words`) and exit 1 — also from
-    a Hydra callback, where Hydra would turn an exception into a warning and go on."""
-    print(shorten_words(message), file=sys.stderr)
-    sys.exit(1)
+    """Print the one-line ``message`` on stderr (:func:`shorten_words`) and exit 1
+    (:class:`Stopped`) — also from a Hydra callback, where Hydra would turn an exception into a
+    warning and go on."""
+    message = shorten_words(message)
+    print(message, file=sys.stderr)
+    raise Stopped(message)
 
 
 def record_status(out: Path, status: str, error: str, extra: dict | None = None) -> str:

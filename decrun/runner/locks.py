@@ -34,7 +34,7 @@ from decrun.errors import DecrunError
 from decrun.runner.files import RunFiles
 from decrun.runner.paths import OutsideError
 
-__all__ = ["LOCK_NAME", "LockedError", "acquire", "release", "locked", "holds"]
+__all__ = ["LOCK_NAME", "LockedError", "acquire", "release", "locked", "holds", "released_after"]
 
 LOCK_NAME = RunFiles.LOCK
 #: what a holder does, as the refusal names it
@@ -128,3 +128,16 @@ def locked(directory: str | os.PathLike, what: str = "run", fix: str = "") -> It
     finally:
         if taken:
             release(directory)
+
+
+@contextmanager
+def released_after() -> Iterator[None]:
+    """After the block, release every lock taken in it that is still held: a process that goes
+    on after a run or sweep stopped early (:func:`decrun.run`, :func:`decrun.sweep`) leaves no
+    directory locked, as the ``decrun`` command's exit does."""
+    before = set(_held)
+    try:
+        yield
+    finally:
+        for key in [k for k in _held if k not in before]:
+            release(key)

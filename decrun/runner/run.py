@@ -32,9 +32,9 @@ from decrun.errors import ConfigError, DecrunError, MeshError
 from decrun.runner.config import OptimizeConfig
 from decrun.runner.context import RunContext
 from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
-from decrun.runner.failures import (exit_code, file_identity, find_memory_error, find_os_error, interrupt_cause,
-                                    memory_error_text, os_error_message, record_status, set_aside_stale,
-                                    shorten_words)
+from decrun.runner.failures import (Stopped, exit_code, file_identity, find_memory_error, find_os_error,
+                                    interrupt_cause, memory_error_text, os_error_message, record_status,
+                                    set_aside_stale, shorten_words)
 from decrun.runner.files import RunFiles
 from decrun.runner.hints import cli_message, memory_hint, plugin_name, resolution_message
 from decrun.runner.locks import LockedError, acquire, release
@@ -311,7 +311,7 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
         print(f"error: {exc}", file=sys.stderr)  # not the log: it is the other process's
         if multirun:
             return 1
-        sys.exit(1)
+        raise Stopped(f"error: {exc}") from exc
     try:
         return _run(cfg, out, multirun=multirun, verbose=verbose, log_name=log_name)
     finally:
@@ -337,10 +337,11 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (failures.Terminated)
         cause = interrupt_cause(exc)
         note = set_aside_stale(out, earlier) + record_status(out, "interrupted", f"interrupted ({cause})", identity)
-        print(f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}", file=sys.stderr)
+        said = f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}"
+        print(said, file=sys.stderr)
         if multirun:  # the sweeper says which jobs finished (decrun.runner.sweep.stops)
             raise
-        sys.exit(exit_code(exc))
+        raise Stopped(said, exit_code(exc)) from exc
     except Exception as exc:
         unresolved = None if isinstance(exc, DecrunError) else resolution_message(exc, cfg)
         if unresolved is not None:  # an interpolation read outside the checks (progress=${oc.env:X}): no bug
@@ -357,7 +358,7 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
             log.error("error: %s%s", message, note)
         if multirun:
             return optimize.objective(None) if optimize is not None and optimize.metric else 1
-        sys.exit(1)
+        raise Stopped(f"error: {message}{note}") from exc
     metrics = result.metrics
     shown = ", ".join(f"{k}={_short(v)}" for k, v in metrics.items() if k not in ("status", "config_hash"))
     log.info("metrics: %s", shown)

@@ -1,0 +1,254 @@
+"""``decrun.run`` and ``decrun.sweep``: the ``decrun`` command, called from Python.
+
+``decrun.run(["app=heat", "mesh.subdiv=3"])`` is ``decrun app=heat mesh.subdiv=3`` and returns
+the :class:`Run` it wrote; ``decrun.sweep(["app=heat", "app.constants.k=0.5,1"])`` is ``decrun -m
+...`` and returns the sweep's table — the ``pandas.DataFrame`` that ``pandas.read_csv`` gives for
+its ``metrics.csv``, the table ``decrun-table --csv`` prints
+(:func:`decrun.runner.sweep.tables.load_sweep`).
+
+How: each call runs the ``decrun`` command's own Hydra application in this process —
+:data:`decrun.runner.cli._hydra_main`, the ``@hydra.main`` function the console script calls,
+with the overrides (and ``-m``) as its command line. So a call composes, checks, plans, locks,
+writes ``manifest.json``, launches, resumes and tabulates exactly as the command does: the same
+config search path and callbacks (:class:`~decrun.runner.cli.OutputGuard`,
+:class:`~decrun.runner.cli.SweepTable`), the ``decrun`` sweeper and any launcher, because it *is*
+that code path. The alternatives re-implement part of it: Hydra's compose API runs no sweeper,
+launcher or callback (it cannot run a multirun, hydra#2673), and calling the sweeper with a
+composed config means rebuilding Hydra's ``multirun`` from its internals (its
+``HydraContext``, config loader, callbacks), which is what ``hydra.main`` already does through
+Hydra's public entry point.
+
+What the command does to its process is done for the call and undone after it: ``sys.argv``
+(Hydra reads the command line from it), ``HYDRA_FULL_ERROR=1`` in ``os.environ`` (errors reach
+decrun's one-line messages instead of Hydra's printing), ``logging.raiseExceptions``, the root
+logger's handlers and level (Hydra configures logging for each job: its log file handler is
+closed after the call), and any directory lock the call took and still holds (a run or sweep
+that stopped early; the command's exit drops them). The command's SIGTERM handler is not
+installed: a library leaves the signals to its program. Calls are therefore one at a time in a
+process (not from several threads); any number of them, one after the other.
+
+Outputs go where the command puts them, relative to the working directory
+(``outputs/runs/<stamp>/``, ``outputs/sweeps/<stamp>/``), or under ``root`` (``<root>/runs/<stamp>``,
+``<root>/sweeps/<stamp>``), or into exactly ``dir`` (``hydra.run.dir`` / ``hydra.sweep.dir``:
+what ``resume=True`` needs to find the sweep again).
+
+Errors: whatever the command would end with a non-zero exit is a :class:`RunError` whose text is
+the line the command prints (a bad override, a refused directory, a run that failed). A sweep
+whose jobs failed is not an error: its table says which (``status``, ``error``), as the command
+does with exit 1. Ctrl-C (a notebook's interrupt) is a ``KeyboardInterrupt``, after the sweep's
+jobs were marked as the command marks them.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shlex
+import sys
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterator, Sequence
+
+from decrun.errors import DecrunError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["Run", "RunError", "run", "sweep"]
+
+
+class RunError(DecrunError):
+    """A run or sweep the ``decrun`` command would have ended with a non-zero exit: ``str(exc)``
+    is the line the command prints, ``code`` its exit code, ``dir`` the run or sweep directory
+    when one had been chosen (None when it stopped before)."""
+
+    def __init__(self, message: str, code: int = 1, dir: Path | None = None):
+        super().__init__(message)
+        self.code, self.dir = code, dir
+
+
+@dataclass(frozen=True)
+class Run:
+    """One finished run: its directory ``dir`` (absolute) and its ``metrics`` (``metrics.json``:
+    the app's metrics, ``status``, ``result_h5``)."""
+
+    dir: Path
+    metrics: dict
+
+    @property
+    def status(self) -> str:
+        """``ok`` for a finished run (a failed one is a :class:`RunError`)."""
+        return str(self.metrics.get("status", ""))
+
+    @property
+    def result_path(self) -> Path:
+        """The run's ``result.h5``."""
+        from decrun.runner.files import RunFiles
+
+        return RunFiles(self.dir).result
+
+    def result(self):
+        """The stored result — mesh, fields, series, metrics, provenance
+        (:func:`decrun.runner.results.read_result`, checked on read)."""
+        from decrun.runner.results import read_result
+
+        return read_result(self.result_path)
+
+
+def run(overrides: str | Sequence[str] = (), *, dir: str | os.PathLike | None = None,
+        root: str | os.PathLike | None = None) -> Run:
+    """``decrun <overrides>`` in this process (module docstring): one run, its :class:`Run`.
+
+    ``overrides``: the command line's overrides (``["app=heat", "mesh.subdiv=3"]``, or one string
+    split as a shell would); ``dir``: the run directory (``hydra.run.dir``); ``root``: the run goes
+    to ``<root>/runs/<stamp>/`` (default: ``outputs/runs/<stamp>/`` in the working directory).
+    Raises :class:`RunError` with the command's message when the run cannot start or fails."""
+    from decrun.runner.cli import OutputGuard
+    from decrun.runner.files import RunFiles
+    from decrun.runner.results.checked import load_json
+
+    args = _overrides(overrides, "run") + _directory("run", dir, root, overrides)
+    OutputGuard.run_dir = None
+    _command(args, lambda: OutputGuard.run_dir)
+    out = OutputGuard.run_dir.absolute()
+    return Run(out, load_json(RunFiles(out).metrics))
+
+
+def sweep(overrides: str | Sequence[str] = (), *, launcher: str | None = None, resume: bool = False,
+          dir: str | os.PathLike | None = None, root: str | os.PathLike | None = None) -> "pd.DataFrame":
+    """``decrun -m <overrides>`` in this process (module docstring): the sweep's table.
+
+    ``launcher``: a Hydra launcher (``"joblib"``, ``"submitit_local"``, ``"ray"``...; its options
+    as overrides, ``hydra.launcher.n_jobs=2``); ``resume``: rerun the jobs of ``dir`` that are not
+    ok (``hydra.sweeper.resume=true``); ``dir``: the sweep directory (``hydra.sweep.dir``);
+    ``root``: the sweep goes to ``<root>/sweeps/<stamp>/`` (default: ``outputs/sweeps/<stamp>/``).
+
+    Returns the table ``pandas.read_csv(<sweep dir>/metrics.csv)`` gives (one row per planned
+    job; ``status`` and ``error`` say which jobs failed), with the sweep directory (absolute) in
+    ``table.attrs["sweep_dir"]``. Raises :class:`RunError` with the command's message when the
+    sweep cannot start or its launcher stops it."""
+    from decrun.runner.cli import SweepTable
+    from decrun.runner.sweep.tables import load_sweep
+
+    args = ["-m", *_overrides(overrides, "sweep")]
+    if launcher is not None:
+        _refuse_both(overrides, "hydra/launcher", "launcher")
+        args.append(f"hydra/launcher={launcher}")
+    if resume:
+        _refuse_both(overrides, "hydra.sweeper.resume", "resume")
+        args.append("hydra.sweeper.resume=true")
+    args += _directory("sweep", dir, root, overrides)
+    SweepTable.sweep_dir = None
+    _command(args, lambda: SweepTable.sweep_dir)
+    sweep_dir = SweepTable.sweep_dir.absolute()
+    table = load_sweep(sweep_dir)
+    table.attrs["sweep_dir"] = str(sweep_dir)
+    return table
+
+
+def _overrides(overrides: str | Sequence[str], what: str) -> list[str]:
+    """The overrides as the command line's words; an option (``-m``, ``--cfg``) is refused."""
+    words = shlex.split(overrides) if isinstance(overrides, str) else [str(o) for o in overrides]
+    options = [w for w in words if w.startswith("-")]
+    if options:
+        raise ValueError(f"decrun.{what}: {', '.join(options)}: overrides only (key=value), no command-line "
+                         f"options{'; a sweep is decrun.sweep(...)' if '-m' in options or '--multirun' in options else ''}")
+    return words
+
+
+def _keys(overrides: str | Sequence[str]) -> set[str]:
+    words = shlex.split(overrides) if isinstance(overrides, str) else [str(o) for o in overrides]
+    return {w.partition("=")[0].lstrip("+~") for w in words}
+
+
+def _refuse_both(overrides: str | Sequence[str], key: str, argument: str) -> None:
+    if key in _keys(overrides):
+        raise ValueError(f"{key} is set both by the overrides and by {argument}=...; give one")
+
+
+def _directory(kind: str, dir: str | os.PathLike | None, root: str | os.PathLike | None,
+               overrides: str | Sequence[str]) -> list[str]:
+    """The ``hydra.<kind>.dir`` override for ``dir`` or ``root`` (none: the command's default)."""
+    if dir is not None and root is not None:
+        raise ValueError("give dir= (the directory itself) or root= (where its stamped directory goes), not both")
+    if dir is None and root is None:
+        return []
+    _refuse_both(overrides, f"hydra.{kind}.dir", "dir" if dir is not None else "root")
+    path = str(dir) if dir is not None else os.path.join(str(root), f"{kind}s")
+    quoted = "'" + path.replace("\\", "\\\\").replace("'", "\\'") + "'"
+    if dir is None:  # the command's stamp, made by Hydra's interpolation as for the default
+        quoted = quoted[:-1] + "/${decrun.stamp:}'"
+    return [f"hydra.{kind}.dir={quoted}"]
+
+
+def _command(args: list[str], where) -> None:
+    """Run the ``decrun`` command's Hydra app with the command line ``args`` in this process;
+    raise what the command would exit with (module docstring). ``where()``: the directory
+    chosen so far, for the error."""
+    from decrun.runner import cli
+    from decrun.runner.failures import Stopped, interrupt_cause
+    from decrun.runner.locks import released_after
+
+    cli.SweepTable.failed = 0
+    with _as_command(args), released_after():
+        try:
+            cli._hydra_main()
+        except Stopped as exc:
+            if isinstance(exc.__cause__, KeyboardInterrupt):  # a single run, recorded as interrupted
+                raise exc.__cause__ from None
+            raise RunError(exc.message, _code(exc), _absolute(where())) from exc
+        except SystemExit as exc:  # an exit decrun did not make (Hydra's argument parser)
+            if _code(exc) == 0:
+                return
+            raise RunError(f"decrun {shlex.join(args)}: exit {exc.code}", _code(exc), _absolute(where())) from exc
+        except KeyboardInterrupt as exc:  # a sweep: its running jobs marked interrupted, as the command does
+            print(f"decrun: interrupted ({interrupt_cause(exc)}) {cli._interrupted_where(exc)}", file=sys.stderr)
+            raise
+        except Exception as exc:
+            message = cli.error_message(exc)
+            if message is None:  # a bug: its traceback
+                raise
+            raise RunError(message, 1, _absolute(where())) from exc
+
+
+def _code(exc: SystemExit) -> int:
+    return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+
+
+def _absolute(path: Path | None) -> Path | None:
+    return None if path is None else path.absolute()
+
+
+@contextmanager
+def _as_command(args: list[str]) -> Iterator[None]:
+    """The process as the ``decrun`` command sets it up for Hydra, restored after the block."""
+    saved_argv, saved_error = sys.argv, os.environ.get("HYDRA_FULL_ERROR")
+    saved_raise = logging.raiseExceptions
+    root = logging.getLogger()
+    saved_handlers, saved_level = list(root.handlers), root.level
+    sys.argv = ["decrun", *args]
+    os.environ["HYDRA_FULL_ERROR"] = "1"  # errors reach decrun's messages (cli.main does the same)
+    logging.raiseExceptions = False
+    try:
+        yield
+    finally:
+        sys.argv = saved_argv
+        if saved_error is None:
+            os.environ.pop("HYDRA_FULL_ERROR", None)
+        else:
+            os.environ["HYDRA_FULL_ERROR"] = saved_error
+        logging.raiseExceptions = saved_raise
+        for handler in root.handlers:
+            if handler not in saved_handlers:
+                _close(handler)
+        root.handlers[:] = saved_handlers
+        root.setLevel(saved_level)
+
+
+def _close(handler: Any) -> None:
+    try:
+        handler.flush()
+        handler.close()
+    except Exception:  # noqa: BLE001 — a handler that cannot flush (its file gone) is dropped all the same
+        pass

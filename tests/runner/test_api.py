@@ -1,0 +1,216 @@
+"""``decrun.run`` and ``decrun.sweep`` (decrun.runner.api): the command called from Python goes
+through the command's own composition, manifest, locks, resume and table; it can be called again
+and again in one process, which it leaves as it found it; its errors are the command's lines.
+Also the README's Python block and ``examples/first_sweep.ipynb`` (executed on a real kernel)."""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import os
+import re
+import subprocess
+import sys
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+import decrun
+from decrun.runner.locks import _held
+
+ROOT = Path(__file__).resolve().parents[2]
+HEAT = ["app=heat", "mesh.subdiv=1", "figures=false"]
+SWEEP = ["app=heat", "app.constants.k=0.5,1", "mesh.subdiv=1", "figures=false"]
+
+
+def _env(**extra) -> dict:
+    """This checkout first on the path (a worktree's decrun, not the installed one)."""
+    path = os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])
+    return dict(os.environ, PYTHONPATH=path, MPLBACKEND="Agg", **extra)
+
+
+def _command(*args, cwd) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "decrun", *args], cwd=cwd, env=_env(), capture_output=True,
+                          text=True, timeout=240)
+
+
+def _table_csv(sweep_dir: Path, cwd: Path) -> pd.DataFrame:
+    """What ``decrun-table --csv`` prints for ``sweep_dir``, read by pandas."""
+    out = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+                          "sys.exit(table_main(sys.argv[1:]))", "--csv", str(sweep_dir)], cwd=cwd, env=_env(),
+                         capture_output=True, text=True, timeout=240)
+    assert out.returncode == 0, out.stderr
+    return pd.read_csv(io.StringIO(out.stdout))
+
+
+@pytest.fixture
+def here(tmp_path, monkeypatch):
+    """The working directory is ``tmp_path``."""
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+@contextmanager
+def leaves_the_process_alone():
+    """The process state the calls must restore (what the command sets up for Hydra), and no
+    directory left locked."""
+    root = logging.getLogger()
+
+    def state():
+        return dict(os.environ), list(sys.argv), list(root.handlers), root.level, logging.raiseExceptions
+
+    before = state()
+    yield
+    assert state() == before
+    assert not _held
+
+
+def test_runs_and_sweeps_again_and_again_in_one_process_as_the_command(here):
+    with leaves_the_process_alone():
+        first = decrun.run(HEAT)
+        second = decrun.run(HEAT + ["app.constants.k=0.5"], root="elsewhere")
+    assert first.dir.parent == here / "outputs" / "runs" and first.dir.is_absolute()
+    assert second.dir.parent == here / "elsewhere" / "runs"
+    for run in (first, second):
+        assert run.status == "ok" and (run.dir / ".hydra" / "config.yaml").is_file()
+        assert run.metrics == json.loads((run.dir / "metrics.json").read_text())
+        assert set(run.result().fields) == {"u"} and run.result().complete
+    assert second.metrics["dirichlet_energy"] > first.metrics["dirichlet_energy"]  # slower diffusion: rougher
+
+    with leaves_the_process_alone():
+        named = decrun.sweep(SWEEP, dir="sweeps/k")
+        stamped = decrun.sweep(SWEEP, root="elsewhere")
+    assert named.attrs["sweep_dir"] == str(here / "sweeps" / "k")
+    assert Path(stamped.attrs["sweep_dir"]).parent == here / "elsewhere" / "sweeps"
+    for table in (named, stamped):
+        sweep_dir = Path(table.attrs["sweep_dir"])
+        assert (sweep_dir / "manifest.json").is_file()
+        assert list(table["status"]) == ["ok", "ok"] and list(table["app.constants.k"]) == [0.5, 1.0]
+        pd.testing.assert_frame_equal(table, _table_csv(sweep_dir, here))  # decrun-table's table
+    # the same jobs as the command's, bit for bit (content hashes), in a directory the command chose
+    command = _command("-m", *SWEEP, "hydra.sweep.dir=by_command", cwd=here)
+    assert command.returncode == 0, command.stderr
+    assert list(_table_csv(here / "by_command", here)["content_sha256"]) == list(named["content_sha256"])
+
+
+def test_resume_reruns_only_the_jobs_that_are_not_ok_and_a_used_directory_is_refused(here):
+    table = decrun.sweep(SWEEP, dir="sw")
+    kept = here / "sw" / "0" / "result.h5"
+    stamp = kept.stat().st_mtime_ns
+    (here / "sw" / "1" / "metrics.json").unlink()  # job 1 never finished
+    assert list(decrun.sweep(SWEEP, dir="sw", resume=True)["status"]) == ["ok", "ok"]
+    assert kept.stat().st_mtime_ns == stamp  # job 0 was not rerun
+    with leaves_the_process_alone(), \
+            pytest.raises(decrun.RunError, match=r"hydra.sweep.dir=sw is not empty .*hydra.sweeper.resume=true") as info:
+        decrun.sweep(SWEEP, dir="sw")
+    assert info.value.code == 1 and info.value.dir == here / "sw"
+    with pytest.raises(decrun.RunError, match=r"resume with the same overrides|planned 2 jobs"):
+        decrun.sweep(SWEEP[:1] + ["app.constants.k=0.5,1,2"] + SWEEP[2:], dir="sw", resume=True)
+    assert pd.read_csv(here / "sw" / "metrics.csv")["status"].tolist() == table["status"].tolist()
+
+
+def test_errors_are_the_commands_lines(here):
+    with leaves_the_process_alone(), pytest.raises(decrun.RunError) as info:
+        decrun.run(["app.stpes=3"])
+    command = _command("app.stpes=3", cwd=here)
+    assert command.returncode == 1 and str(info.value) == command.stderr.strip()
+    assert info.value.dir is None and not (here / "outputs").exists()
+
+    with pytest.raises(decrun.RunError, match=r"^error: job 1 \(app=heat app.dt=fast"):  # the plan refuses it
+        decrun.sweep(["app=heat", "app.dt=0.001,fast"], dir="bad")
+    assert not (here / "bad" / "manifest.json").exists()
+
+    with leaves_the_process_alone(), pytest.raises(decrun.RunError, match=r"^error: app.dt: must be > 0") as info:
+        decrun.run(["app=heat", "app.dt=-1", "figures=false"])  # a run that failed
+    assert '"status": "failed"' in (info.value.dir / "metrics.json").read_text()
+
+    with pytest.raises(ValueError, match="decrun.sweep"):
+        decrun.run(["-m", "app.dt=1,2"])
+    with pytest.raises(ValueError, match="not both"):
+        decrun.run(HEAT, dir="a", root="b")
+    with pytest.raises(ValueError, match="hydra.run.dir is set both"):
+        decrun.run([*HEAT, "hydra.run.dir=x"], dir="a")
+
+
+def test_a_directory_another_process_uses_is_refused_and_left_alone(here):
+    (here / "busy").mkdir()
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from decrun.runner.locks import acquire; "
+                               "acquire('busy', 'run'); print('held', flush=True); time.sleep(60)"],
+                              cwd=here, env=_env(), stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with leaves_the_process_alone(), \
+                pytest.raises(decrun.RunError, match=rf"busy is in use by decrun process {holder.pid}") as info:
+            decrun.run(HEAT, dir="busy")
+        assert info.value.dir == here / "busy" and sorted(p.name for p in (here / "busy").iterdir()) == [".decrun.lock"]
+    finally:
+        holder.kill()
+        holder.wait()
+    assert decrun.run(HEAT, dir="busy").status == "ok"  # free again: this process kept no lock
+
+
+def test_an_interrupted_run_is_a_keyboard_interrupt_and_recorded(tmp_path):
+    script = ("import os, signal, threading, time, decrun\n"
+              "def interrupt():  # Ctrl-C once the run records its steps\n"
+              "    while not os.path.exists('long/result.h5.partial'):\n"
+              "        time.sleep(0.05)\n"
+              "    os.kill(os.getpid(), signal.SIGINT)\n"
+              "threading.Thread(target=interrupt, daemon=True).start()\n"
+              "try:\n"
+              "    decrun.run(['app=heat', 'app.t_end=1e6', 'figures=false', 'hydra.run.dir=long'])\n"
+              "except KeyboardInterrupt:\n"
+              "    from decrun.runner.locks import _held\n"
+              "    print('interrupted', not _held)\n")
+    out = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, env=_env(), capture_output=True, text=True,
+                         timeout=120)
+    assert out.stdout.strip() == "interrupted True", out.stdout + out.stderr
+    assert "decrun: interrupted (Ctrl-C)" in out.stderr
+    assert '"status": "interrupted"' in (tmp_path / "long" / "metrics.json").read_text()
+
+
+def test_a_sweep_on_another_launcher_gives_the_same_table(here):
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    basic = decrun.sweep(SWEEP, dir="basic")
+    joblib = decrun.sweep([*SWEEP, "hydra.launcher.n_jobs=2"], launcher="joblib", dir="joblib")
+    timing = [c for c in basic if "seconds" in c or c == "steps_per_second"]
+    pd.testing.assert_frame_equal(basic.drop(columns=timing), joblib.drop(columns=timing))
+
+
+def test_import_decrun_stays_light_until_run_or_sweep_is_used():
+    probe = ("import sys, decrun\n"
+             "assert 'hydra' not in sys.modules and 'decrun.runner' not in sys.modules, 'import decrun'\n"
+             "decrun.run, decrun.sweep, decrun.Run, decrun.RunError\n"
+             "assert 'hydra' not in sys.modules and 'pandas' not in sys.modules, 'decrun.run'\n")
+    out = subprocess.run([sys.executable, "-c", probe], env=_env(), capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+
+
+def test_the_readme_python_block_runs(tmp_path):
+    block = re.search(r"<!-- python-api -->\n```python\n(.*?)```\n<!-- /python-api -->",
+                      (ROOT / "README.md").read_text(), flags=re.S)
+    assert block, "README.md: the <!-- python-api --> block"
+    out = subprocess.run([sys.executable, "-c", block.group(1)], cwd=tmp_path, env=_env(), capture_output=True,
+                         text=True, timeout=240)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert (tmp_path / "outputs" / "sweeps" / "k" / "manifest.json").is_file()
+
+
+def test_the_first_sweep_notebook_runs_and_plots_its_table(tmp_path):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    notebook = nbformat.read(ROOT / "examples" / "first_sweep.ipynb", as_version=4)
+    assert all(not cell.get("outputs") for cell in notebook.cells if cell.cell_type == "code"), "stored outputs"
+    env = {k: v for k, v in _env().items() if k != "MPLBACKEND"}  # the notebook's own (inline) backend
+    start = time.monotonic()
+    nbclient.NotebookClient(notebook, timeout=180, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}}).execute(env=env)
+    assert time.monotonic() - start < 180
+    outputs = [o for cell in notebook.cells if cell.cell_type == "code" for o in cell.outputs]
+    assert any("image/png" in o.get("data", {}) for o in outputs), "the plot"
+    sweeps = list((tmp_path / "outputs" / "sweeps").iterdir())
+    assert len(sweeps) == 1 and pd.read_csv(sweeps[0] / "metrics.csv")["status"].tolist() == ["ok"] * 4

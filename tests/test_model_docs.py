@@ -161,6 +161,28 @@ def test_the_first_model_walkthrough_runs_as_written(tmp_path):
     assert (tmp_path / "outputs" / "sweeps" / "damping" / "metrics.csv").is_file()
 
 
+def test_the_composed_model_example_runs_as_written(tmp_path):
+    """The "Composed models" section: its part and model files written where their first line
+    says, its commands run in order (the refusals fail), each text block their output's lines."""
+    steps = blocks(section(PAGE.read_text(encoding="utf-8"), "Composed models"))
+    assert [language for language, _ in steps] == ["yaml"] * 3 + ["bash", "text"] * 2
+    outputs = []
+    for language, body in steps:
+        if language == "yaml":
+            path = tmp_path / body.splitlines()[0][2:].strip()
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(body)
+        elif language == "bash":
+            argvs = commands(body)
+            refused = len(outputs) == 1  # the first block runs, the second is refused
+            outputs.append("".join(run(argv, tmp_path, fails=refused) for argv in argvs))
+            assert not refused or not (tmp_path / "outputs" / "runs").exists() or \
+                len(list((tmp_path / "outputs" / "runs").glob("*/result.h5"))) == 1  # the refusals wrote nothing
+        else:
+            check_output(body, outputs[-1], "composed models")
+    assert (tmp_path / "outputs" / "sweeps" / "decay" / "metrics.csv").is_file()
+
+
 def test_the_readme_section_links_the_docs_and_its_commands_run(tmp_path):
     text = section(README.read_text(encoding="utf-8"), "Declarative models (`app=heat`, your own `app=<model>`)")
     assert "docs/models.md" in text

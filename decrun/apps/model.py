@@ -5,6 +5,20 @@ the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual
 value and optional ``dirichlet`` border values), ``constants``, ``equations`` (evolutions
 ``dt(u) = …``, definitions ``v = …``, linear solves ``solve(lhs = rhs)``), an ``integrator`` with
 ``dt`` and ``t_end`` (or ``steps``), ``record_every`` and ``metrics`` (numbers, by name).
+
+A model may be composed of ``parts`` (:class:`PartOptions`: fields, equations, metrics) that
+share fields by name; they are merged with the model's own declarations by
+:func:`decrun.methods.model.parts.compose_parts`, which refuses a conflict naming both parts.
+The parts arrive already composed into this node by Hydra: a part is a config file
+``conf/app/parts/<name>.yaml`` that a model selects in its defaults list
+(``- parts@_here_: [halfar_dynamics, glen_law]``). That keeps a model declarative and makes a
+part an ordinary config — found on ``hydra.searchpath`` like any model (a user's own
+``my_conf/app/parts/``), listed with a ``did you mean`` when it does not exist, shown by
+``--cfg job`` and recorded with the run — and this adapter never opens a file. A part file
+puts its constants in the model's ``constants`` (one value per name, so
+``app.constants.A=1e-17`` overrides and ``-m`` sweeps a part's constant, no ``+``) and its
+fields, equations and metrics under ``parts.<its name>``, where each part keeps its own and a
+clash can name both.
 Everything about the language — parsing, types, operators, integrators — is
 :mod:`decrun.methods.model`; this adapter checks the model against the mesh before any work
 (types, initial values, the explicit stability limit), steps it through
@@ -27,10 +41,11 @@ from decrun.methods.model import FieldSpec, ModelSpec, compile_model
 from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_stability_limit, make_integrator
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.metrics import model_metrics
+from decrun.methods.model.parts import PartSpec, compose_parts
 from decrun.methods.model.stepper import ModelStepper
 from decrun.methods.stepping import run_steps
 
-__all__ = ["Model", "FieldOptions", "Integrator"]
+__all__ = ["Model", "FieldOptions", "PartOptions", "Integrator"]
 
 
 class Integrator(Choice):
@@ -61,6 +76,17 @@ class FieldOptions:
 
 
 @dataclass
+class PartOptions:
+    """``app.parts.<part>``: one part of a composed model (``conf/app/parts/<part>.yaml``; the
+    module docstring): its ``fields`` (shared with the other parts by name), ``equations`` and
+    ``metrics``. Its constants are the model's (``app.constants``)."""
+
+    fields: Dict[str, FieldOptions] = field(default_factory=dict)
+    equations: List[str] = field(default_factory=list)
+    metrics: Dict[str, str] = field(default_factory=dict)
+
+
+@dataclass
 class Model(App):
     """Options of a model (``conf/app/heat.yaml`` and the other models; module docstring)."""
 
@@ -87,6 +113,8 @@ class Model(App):
     stability_check: bool = True  # refuse an explicit dt beyond 2/λ_max (one eigen-solve)
     snapshots: int = 6
     animation: bool = True
+    #: the parts this model is composed of (name → PartOptions), merged with its own declarations
+    parts: Dict[str, PartOptions] = field(default_factory=dict)
 
     def __post_init__(self):
         self.integrator = Integrator.of(self.integrator, "app.integrator")
@@ -103,14 +131,27 @@ class Model(App):
         for name, options in self.fields.items():
             if isinstance(options, dict):  # Python callers
                 self.fields[name] = FieldOptions(**options)
+        for name, part in self.parts.items():
+            if isinstance(part, dict):  # Python callers
+                part = self.parts[name] = PartOptions(**part)
+            for field_name, options in part.fields.items():
+                if isinstance(options, dict):
+                    part.fields[field_name] = FieldOptions(**options)
+        own = PartSpec(dict(self.fields), list(self.equations), dict(self.metrics))
+        parts = {name: PartSpec(dict(part.fields), list(part.equations), dict(part.metrics))
+                 for name, part in self.parts.items()}
+        self._composed = compose_parts(own, parts, key="app", own_name=f"the model's own (app={self.model})")
         self._compiled = None
 
     # ------------------------------------------------------------------ options → method
     def spec(self) -> ModelSpec:
-        fields = {name: FieldSpec(options.form, options.initial, options.dirichlet)
-                  for name, options in self.fields.items()}
-        return ModelSpec(fields=fields, equations=list(self.equations), constants=dict(self.constants),
-                         metrics=dict(self.metrics), seed=int(self.seed), key="app", dt=float(self.dt))
+        """The model as data, its parts merged (:func:`~decrun.methods.model.parts.compose_parts`)."""
+        composed = self._composed
+        fields = {name: FieldSpec(*values) for name, values in composed.fields.items()}
+        keys = composed.equation_keys if self.parts else None
+        return ModelSpec(fields=fields, equations=list(composed.equations), constants=dict(self.constants),
+                         metrics=dict(composed.metrics), seed=int(self.seed), key="app", dt=float(self.dt),
+                         equation_keys=keys)
 
     def total_steps(self) -> int:
         """Steps to run: t_end / dt (refused unless a whole number), else ``steps`` (default 1)."""
@@ -226,6 +267,7 @@ class Model(App):
                 if self.animation:
                     figures[f"{first}_animation"] = Figure.of_kind("animation", name=first, title=first,
                                                                    symmetric=False)
-            if self.metrics:
-                figures["metrics"] = Figure.of_kind("recorded_series", names=list(self.metrics), title=self.model)
+            if self._composed.metrics:
+                figures["metrics"] = Figure.of_kind("recorded_series", names=list(self._composed.metrics),
+                                                    title=self.model)
         return figures

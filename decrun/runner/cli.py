@@ -320,7 +320,7 @@ def error_message(exc: Exception) -> str | None:
     from omegaconf.errors import OmegaConfBaseException
 
     message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc) or \
-        group_typo_message(exc) or root_value_message(exc)
+        part_missing_message(exc) or group_typo_message(exc) or root_value_message(exc)
     if not message and not isinstance(exc, DecrunError):  # hydra.run.dir=${oc.env:UNSET}: Hydra's own keys
         from decrun.runner.hints import resolution_message
 
@@ -422,6 +422,35 @@ def missing_plugin_message(exc: Exception) -> str | None:
     group, name = match.groups()
     plugin, extra = PLUGIN_EXTRAS[group][name]
     return f'error: {group}={name}: {plugin} is not installed; pip install "decrun[{extra}]"'
+
+
+def part_missing_message(exc: Exception) -> str | None:
+    """For a part a composed model names that no config directory has (``- parts@_here_:
+    [halfar_dynamics, glen_lw]`` in ``app/halfar``): one line naming the model and the part,
+    with the closest part and every part of the search path's ``<group>/parts/`` directories
+    (decrun's and those added with ``hydra.searchpath``). None for any other error."""
+    import difflib
+    import re
+
+    from hydra.errors import MissingConfigException
+
+    if not isinstance(exc, MissingConfigException):
+        return None
+    text = str(exc)
+    match = re.search(r"In '([^'/]+)/([^']+)': Could not (?:find|load) '([^']+)/parts/([^'/]+)'", text)
+    if match is None or match.group(1) != match.group(3):
+        return None
+    group, model, _, part = match.groups()
+    options = set()
+    for root in re.findall(r"path=file://(\S+)", text):
+        directory = Path(root) / group / "parts"
+        if directory.is_dir():
+            options.update(p.stem for p in directory.glob("*.yaml") if not p.stem.startswith("_"))
+    close = difflib.get_close_matches(part, sorted(options), n=1)
+    hint = f"; did you mean {close[0]}?" if close else ""
+    listing = f" (the parts: {' | '.join(sorted(options))})" if options else " (there are none)"
+    return (f"error: {group}={model}: no part {part} ({group}/parts/{part}.yaml is in no config directory of the "
+            f"search path){hint}{listing}")
 
 
 def group_typo_message(exc: Exception) -> str | None:

@@ -211,8 +211,18 @@ def load_option(group: str, name: str):
     if not path.is_file():
         raise ConfigError(f"{group}={name}: no such option (conf/{group}/{name}.yaml)")
     node = OmegaConf.load(path)
-    # same-group entries only: an override of another group (app/hodge's operator) is not part of this node
-    parts = [load_option(group, entry) for entry in node.pop("defaults", []) if isinstance(entry, str) and entry != "_self_"]
+    # same-group entries only: an override of another group (app/hodge's operator) is not part of this node;
+    # a subgroup merged here (a composed model's `parts@_here_: [a, b]`: conf/app/parts/a.yaml …) is
+    parts = []
+    for entry in node.pop("defaults", []):
+        if isinstance(entry, str) and entry != "_self_":
+            parts.append(load_option(group, entry))
+        elif isinstance(entry, DictConfig):
+            for key, names in entry.items():
+                sub, _, package = str(key).partition("@")
+                if package == "_here_" and not sub.startswith(("/", "override ")):
+                    for name_ in [names] if isinstance(names, str) else names:
+                        parts.append(load_option(f"{group}/{sub}", name_))
     return OmegaConf.merge(*parts, node)
 
 

@@ -66,6 +66,9 @@ class ModelSpec:
     key: str = "app"
     #: the time step (the name ``dt`` in expressions); NaN for models without one
     dt: float = float("nan")
+    #: the config key of each equation in messages (a composed model's ``app.parts.<part>.equations[i]``);
+    #: None: ``<key>.equations[i]``
+    equation_keys: list[str] | None = None
 
 
 def vertex_pieces(K) -> np.ndarray:
@@ -253,7 +256,8 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
             raise ModelError(f"{key}.constants.{name}: must be a finite number, got {value!r}")
         kinds[name] = NUMBER
 
-    equations = [parse_equation(text, f"{key}.equations[{i}]") for i, text in enumerate(spec.equations)]
+    wheres = spec.equation_keys or [f"{key}.equations[{i}]" for i in range(len(spec.equations))]
+    equations = [parse_equation(text, where) for text, where in zip(spec.equations, wheres)]
     if not equations:
         raise ModelError(f"{key}.equations: a model needs at least one equation, e.g. "
                          f"'{key}.equations=[\"dt(u) = laplacian(u)\"]'")

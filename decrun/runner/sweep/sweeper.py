@@ -452,8 +452,12 @@ def _too_many(size: int, swept: list[tuple[str, int]], limit: int) -> str:
 
 
 def _terminal(config) -> bool:
-    """Whether to show progress: ``progress`` is on and stderr is a terminal (not under pytest)."""
-    return bool(config.get("progress", True)) and sys.stderr.isatty() and "PYTEST_CURRENT_TEST" not in os.environ
+    """Whether to show progress: ``progress`` is on and stderr is a terminal (not under pytest).
+    A ``progress`` that does not resolve counts as off here: the job's own check names it."""
+    from omegaconf import OmegaConf
+
+    progress = OmegaConf.select(config, "progress", default=True, throw_on_resolution_failure=False)
+    return bool(progress) and sys.stderr.isatty() and "PYTEST_CURRENT_TEST" not in os.environ
 
 
 class PlanningProgress:

@@ -111,7 +111,7 @@ def run(overrides: str | Sequence[str] = (), *, dir: str | os.PathLike | None = 
     args = _overrides(overrides, "run") + _directory("run", dir, root, overrides)
     OutputGuard.run_dir = None
     _command(args, lambda: OutputGuard.run_dir)
-    out = OutputGuard.run_dir.absolute()
+    out = _made(OutputGuard.run_dir, "hydra.callbacks.output_guard")
     return Run(out, load_json(RunFiles(out).metrics))
 
 
@@ -141,7 +141,7 @@ def sweep(overrides: str | Sequence[str] = (), *, launcher: str | None = None, r
     args += _directory("sweep", dir, root, overrides)
     SweepTable.sweep_dir = None
     _command(args, lambda: SweepTable.sweep_dir)
-    sweep_dir = SweepTable.sweep_dir.absolute()
+    sweep_dir = _made(SweepTable.sweep_dir, "hydra.callbacks.sweep_table")
     table = load_sweep(sweep_dir)
     table.attrs["sweep_dir"] = str(sweep_dir)
     return table
@@ -210,6 +210,13 @@ def _command(args: list[str], where) -> None:
             if message is None:  # a bug: its traceback
                 raise
             raise RunError(message, 1, _absolute(where())) from exc
+
+
+def _made(directory: Path | None, callback: str) -> Path:
+    """The directory the command's callback saw made (absolute)."""
+    if directory is None:  # the config dropped the callback that notes it
+        raise RunError(f"error: no directory was recorded: {callback} (conf/config.yaml) is not among the callbacks")
+    return directory.absolute()
 
 
 def _code(exc: SystemExit) -> int:

@@ -27,15 +27,18 @@ def test_vtu_holds_mesh_and_every_field_of_a_volume_run(decrun_cli, tmp_path):
     stored = read_result(out / "result.h5")
     mesh = meshio.read(out / "result.vtu")
     np.testing.assert_array_equal(mesh.points, stored.mesh["vertices"])
-    tetra, lines = (block.data for block in mesh.cells)
-    assert [block.type for block in mesh.cells] == ["tetra", "line"]
+    tetra, triangles, lines = (block.data for block in mesh.cells)
+    assert [block.type for block in mesh.cells] == ["tetra", "triangle", "line"]
     np.testing.assert_array_equal(tetra, stored.mesh["simplices"])
     np.testing.assert_array_equal(lines, stored.mesh["edges"])
     for name in ("omega", "exact", "coexact", "harmonic"):  # 1-forms on the line block
-        np.testing.assert_array_equal(mesh.cell_data[name][1], stored.fields[name])
-        assert np.isnan(mesh.cell_data[name][0]).all()
+        np.testing.assert_array_equal(mesh.cell_data[name][2], stored.fields[name])
+        assert np.isnan(mesh.cell_data[name][0]).all() and np.isnan(mesh.cell_data[name][1]).all()
     np.testing.assert_array_equal(mesh.cell_data["omega_vectors"][0], stored.fields["omega_vectors"])
     np.testing.assert_array_equal(mesh.point_data["alpha"], stored.fields["alpha"])
+    # β, the 2-form potential, lives on the triangles of the volume: a block of its own
+    assert len(triangles) == len(stored.fields["beta"])
+    np.testing.assert_array_equal(mesh.cell_data["beta"][1], stored.fields["beta"])
 
 
 def test_xdmf_time_series_of_a_fluid_run_reads_back_step_by_step(decrun_cli, tmp_path):
@@ -87,15 +90,59 @@ def test_obj_carries_the_parametrization_uv_as_texture_coordinates(decrun_cli, t
     assert all(re.fullmatch(r"f (\d+)/\1 (\d+)/\2 (\d+)/\3", line) for line in face_lines)
 
 
-def test_export_of_a_missing_field_names_the_fix(decrun_cli, tmp_path):
-    done = decrun_cli("app=spectrum", "mesh.subdiv=1", "export=obj", "figures=false")
-    assert done.returncode != 0 and "use `export=vtu`" in done.stderr and "Traceback" not in done.stderr
-    assert decrun_cli("app=spectrum", "mesh.subdiv=1", "export=vtu", "figures=false").returncode == 0
-    done = decrun_cli("app=smoothing", "app.steps=1", "export=ply", "export.field=nothing", "figures=false")
-    assert done.returncode != 0 and "use `export.field=auto`" in done.stderr
-    assert decrun_cli("app=smoothing", "app.steps=1", "export=ply", "export.field=auto", "figures=false").returncode == 0
-    done = decrun_cli("app=spectrum", "mesh.subdiv=1", "export=ply", "export.field=eigenforms:1", "figures=false")
+def refused_before_any_work(decrun_cli, tmp_path, *args) -> str:
+    """The one error line of a run refused from its config, before its mesh loads: the mesh
+    is a file that would not load (its own error would come first), and no result is written."""
+    bad = tmp_path / "not_a_mesh.obj"
+    bad.write_text("garbage\n")
+    assert "unknown OBJ statement" in one_error_line(decrun_cli("mesh=file", f"mesh.path={bad}", "figures=false"))
+    before = set(tmp_path.glob("outputs/runs/*"))
+    line = one_error_line(decrun_cli(*args, "mesh=file", f"mesh.path={bad}", "figures=false"))
+    assert not any((new / "result.h5").exists() for new in set(tmp_path.glob("outputs/runs/*")) - before)
+    return line
+
+
+@pytest.mark.parametrize("args, says, fix", [
+    (["app=spectrum", "export=obj"], "export.uv: app=spectrum writes no per-vertex field 'uv'", "export=vtu"),
+    (["app=smoothing", "app.steps=1", "export=ply", "export.field=nothing"], "export.field: app=smoothing writes no per-vertex field "
+     "'nothing' (those are ['displacement', 'vertices_final', 'vertices_initial'])", "export.field=auto"),
+    (["app=spectrum", "export=ply"], "export.field=auto: app=spectrum writes no one-value-per-vertex field",
+     "export.field=eigenforms:0"),
+    (["app=spectrum", "export=ply", "export.field=eigenforms:12"], "export.field: 'eigenforms' has 10 columns",
+     "export.field=eigenforms:0"),
+    (["app=smoothing", "app.steps=1", "export=ply", "export.field=displacement:1"], "export.field: 'displacement' has one value per "
+     "vertex, no columns", "export.field=displacement"),
+], ids=["obj without uv", "ply missing field", "ply auto without a scalar", "ply column", "ply scalar column"])
+def test_an_export_the_app_cannot_feed_is_refused_before_the_mesh_loads_and_the_fix_runs(decrun_cli, tmp_path, args,
+                                                                                         says, fix):
+    line = refused_before_any_work(decrun_cli, tmp_path, *args)
+    assert line.startswith(f"error: {says}") and f"`{fix}`" in line, line
+    out = run_dir(decrun_cli, tmp_path, *args, fix, "mesh.subdiv=1")
+    assert json.loads((out / "metrics.json").read_text())["status"] == "ok"
+
+
+def test_a_sweep_with_an_export_the_app_cannot_feed_runs_no_job(decrun_cli, tmp_path):
+    done = decrun_cli("-m", "app=spectrum", "mesh.subdiv=1,2", "export=obj", "figures=false")
+    assert done.returncode != 0 and "export.uv: app=spectrum writes no per-vertex field 'uv'" in done.stderr
+    assert "nothing ran" in done.stderr and not list(tmp_path.glob("outputs/**/metrics.json"))
+    done = decrun_cli("-m", "app=spectrum", "mesh.subdiv=1,2", "export=vtu", "figures=false")
     assert done.returncode == 0, done.stderr
+
+
+def test_an_export_that_fails_after_the_run_keeps_its_metrics(decrun_cli, tmp_path):
+    """A model's definitions are known once compiled: an export naming one that does not exist
+    fails after the run — with the run's result and metrics kept, the error beside them."""
+    args = ["app=heat", "mesh.subdiv=1", "app.t_end=0.002", "export=ply", "figures=false"]
+    before = set(tmp_path.glob("outputs/runs/*"))
+    line = one_error_line(decrun_cli(*args, "export.field=nothing"))
+    (out,) = set(tmp_path.glob("outputs/runs/*")) - before
+    assert line.startswith("error: export.field: 'nothing' is not a per-vertex field of this run") and \
+        "`export.field=auto`" in line and "keep its result and metrics" in line, line
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "ok" and "mass" in metrics and metrics["steps_done"] == 2, metrics
+    assert metrics["export_error"].startswith("export.field: 'nothing'")
+    assert read_result(out / "result.h5").fields["u"].shape == (42,)
+    assert decrun_cli(*args, "export.field=auto").returncode == 0
 
 
 def test_a_smoothed_mesh_feeds_a_parametrization(decrun_cli, tmp_path):

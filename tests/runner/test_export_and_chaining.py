@@ -338,3 +338,90 @@ def test_decomposing_an_incomplete_result_warns_once_and_says_it_in_a_metric(dec
     (line,) = chaining_log(out)
     assert line.endswith(f"app.input_path='{stopped}': the result is not complete (status interrupted, 0 steps "
                          "recorded); chained anyway, metric chained_result_status=interrupted"), line
+
+
+# ---------------------------------------------------------------------------------------
+# exports hold every field: sets as vertex cells or indicators, eigenvectors by column,
+# arrays with no place on the mesh as field data; what a format cannot hold is one log line
+# ---------------------------------------------------------------------------------------
+
+def export_log(out: Path, export: str) -> list[str]:
+    return [line for line in (out / "decrun.log").read_text().splitlines() if f"export={export}:" in line]
+
+
+def test_vtu_holds_every_field_of_a_designed_field(decrun_cli, tmp_path):
+    out = run_dir(decrun_cli, tmp_path, "app=vector_field", "mesh.subdiv=2", "mesh.noise=0",
+                  "app.strokes=[{points:[[1,0,0.1],[0.7,0.7,0.1]]}]", "app.vortices=[{point:[0,0,1],curl:1.0}]",
+                  "app.region_normal=[0,0,1]", "export=vtu")
+    stored = read_result(out / "result.h5")
+    mesh = meshio.read(out / "result.vtu")
+    assert [block.type for block in mesh.cells] == ["triangle", "line", "vertex"]
+    top = 0
+    held = set(mesh.point_data) | set(mesh.cell_data) | set(mesh.field_data)
+    assert held == set(stored.fields), set(stored.fields) - held  # all 15, none left out
+    assert export_log(out, "vtu") == []
+    vertex_cells = mesh.cells[2].data[:, 0]
+    for name, along in (("singular_vertices", None), ("source_vertices", "source_divergences")):
+        on = ~np.isnan(mesh.cell_data[name][2])  # the vertex cells of this set
+        np.testing.assert_array_equal(vertex_cells[on], stored.fields[name])
+        assert np.isnan(mesh.cell_data[name][top]).all()
+        if along:
+            np.testing.assert_array_equal(mesh.cell_data[along][2][on], stored.fields[along])
+    for name in ("singular_faces", "vortex_faces", "stroke_faces", "region_faces"):  # 1 on the set's triangles
+        assert len(stored.fields[name]) > 0
+        np.testing.assert_array_equal(np.flatnonzero(mesh.cell_data[name][top] == 1), np.sort(stored.fields[name]))
+    vectors = mesh.cell_data["stroke_vectors"][top]
+    np.testing.assert_array_equal(vectors[stored.fields["stroke_faces"]], stored.fields["stroke_vectors"])
+    assert np.isnan(np.delete(vectors, stored.fields["stroke_faces"], axis=0)).all()
+    for name in ("cluster_positions", "cluster_indices"):  # points off the vertices: field data, every digit
+        np.testing.assert_array_equal(mesh.field_data[name], stored.fields[name])
+    np.testing.assert_array_equal(mesh.cell_data["omega_without_strokes"][1], stored.fields["omega_without_strokes"])
+
+
+@pytest.mark.parametrize("degree", [0, 1])
+def test_vtu_of_a_spectrum_names_each_eigenvector_and_keeps_the_eigenvalues(decrun_cli, tmp_path, degree):
+    out = run_dir(decrun_cli, tmp_path, "app=spectrum", "mesh.subdiv=1", f"app.degree={degree}", "app.count=4",
+                  "export=vtu")
+    stored = read_result(out / "result.h5")
+    mesh = meshio.read(out / "result.vtu")
+    np.testing.assert_array_equal(mesh.field_data["eigenvalues"], stored.fields["eigenvalues"])
+    for j in range(4):
+        values = mesh.point_data[f"eigenforms_{j}"] if degree == 0 else mesh.cell_data[f"eigenforms_{j}"][1]
+        np.testing.assert_array_equal(values, stored.fields["eigenforms"][:, j])
+    assert "eigenforms" not in mesh.point_data and "eigenforms" not in mesh.cell_data
+
+
+@pytest.mark.parametrize("mesh_args, blocks", [(["mesh.subdiv=1"], ["triangle", "line"]),
+                                               (["mesh=box", "mesh.cells=2"], ["tetra", "triangle", "line"])])
+def test_vtu_holds_a_models_fields_by_their_declared_names(decrun_cli, tmp_path, mesh_args, blocks):
+    out = run_dir(decrun_cli, tmp_path, "app=heat", *mesh_args, "app.t_end=0.002", "+app.fields.A={form:1,initial:[y,x,1]}",
+                  "+app.fields.B={form:2,initial:1}", "+app.fields.r={form:dual0,initial:x}", "export=vtu")
+    stored = read_result(out / "result.h5")
+    mesh = meshio.read(out / "result.vtu")
+    assert [block.type for block in mesh.cells] == blocks
+    np.testing.assert_array_equal(mesh.point_data["u"], stored.fields["u"])  # primal 0-form: per vertex
+    np.testing.assert_array_equal(mesh.cell_data["r"][0], stored.fields["r"])  # dual 0-form: per top simplex
+    np.testing.assert_array_equal(mesh.cell_data["A"][blocks.index("line")], stored.fields["A"])  # 1-form: per edge
+    np.testing.assert_array_equal(mesh.cell_data["B"][blocks.index("triangle")], stored.fields["B"])  # per triangle
+
+
+def test_xdmf_of_a_smoothing_is_the_final_state_on_its_cells_and_says_what_it_cannot_hold(decrun_cli, tmp_path):
+    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "mesh.subdiv=2", "app.steps=3", "export=xdmf")
+    stored = read_result(out / "result.h5")
+    with meshio.xdmf.TimeSeriesReader(out / "series.xdmf") as reader:
+        _, cells = reader.read_points_cells()
+        assert reader.num_steps == 1
+        t, point_data, cell_data = reader.read_data(0)
+    assert t == stored.series["step"][-1] == 3
+    assert cell_data == {}  # the oriented faces are the cells, not a cell array
+    np.testing.assert_array_equal(point_data["vertices_final"], stored.fields["vertices_final"])
+    (line,) = [line for line in export_log(out, "xdmf") if "cannot hold" in line]
+    assert line.endswith("series.xdmf cannot hold series area, series distortion, series roughness, series volume; "
+                         "they are in result.h5"), line
+
+
+def test_ply_and_obj_say_in_one_line_what_they_leave_out(decrun_cli, tmp_path):
+    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "app.steps=1", "export=ply", "export.field=displacement")
+    (line,) = export_log(out, "ply")
+    assert line.endswith("result.ply (the triangles, colours of displacement) cannot hold vertices_initial, "
+                         "vertices_final, faces; they are in result.h5 (export=vtu holds every field)"), line

@@ -4,15 +4,22 @@ OBJ reader. Written into the run directory beside ``result.h5`` after the run.
 =============  ===========================================================================
 ``none``       nothing (the default)
 ``vtu``        ``result.vtu``: the mesh (triangles or tetrahedra) with every field on it —
-               per vertex as point data, per top simplex as cell data, per edge (1-forms) as
-               cell data of a second block of ``line`` cells (NaN on the other block), and
-               the other arrays (e.g. eigenvalues) as field data
+               per vertex as point data, per top simplex as cell data, per edge (1-forms) and
+               per triangle of a volume (2-forms) as cell data of a block of ``line`` /
+               ``triangle`` cells (NaN on the other blocks); a set of vertices (singular
+               vertices, sources) as a block of ``vertex`` cells carrying 1 under its name and
+               the values along it (source divergences); a set of top simplices (singular,
+               vortex, stroke faces) as an indicator on them (1 on its members), the values
+               along it on its members; a multi-column field whose columns are fields of
+               their own (eigenvectors) as ``name_0``, ``name_1`` …; arrays with no place on the
+               mesh (eigenvalues, singularity clusters) as VTK field data
 ``xdmf``       ``series.xdmf`` + ``series.h5`` (HDF5 heavy data): the recorded series
                over the mesh as a time series (meshio's ``TimeSeriesWriter``; times from the
                series ``time`` when recorded, else ``step``), which ParaView plays as an
                animation; per-edge series (1-forms, e.g. the fluid's flux) in
                ``series_edges.xdmf`` on line cells (meshio cannot mix them with triangles in
-               one time series); a run without such series gets its fields as one step at t = 0
+               one time series); a run without such series gets its fields as one step at
+               the end of the run (sets as indicators, as in vtu)
 ``ply``        ``result.ply``: the triangles (of the border surface for tetrahedra) with
                per-vertex colours (``red``/``green``/``blue`` uint8) of one per-vertex field
                through a colormap, and that field itself, for MeshLab
@@ -20,7 +27,14 @@ OBJ reader. Written into the run directory beside ``result.h5`` after the run.
                ``uv`` (the parametrization), faces ``f a/a b/b c/c``
 =============  ===========================================================================
 
-Arrays are exported as they are (float64, ints; bools as uint8); nothing is resampled.
+Where a field goes is what the app declares (:meth:`decrun.apps.base.App.outputs`), else
+its shape; a field that is the cells themselves (the smoothing's oriented ``faces``) is the
+cells. What a format cannot hold is named in one log line (``export=<name>: <file> cannot
+hold …``). ``obj`` and ``ply`` check their options against the declared fields when the
+config is checked, before any mesh loads (:meth:`Export.check`); an export that fails after
+the run leaves ``result.h5`` and ``metrics.json`` as the run wrote them, with
+``export_error`` added. Arrays are exported as they are (float64, ints; bools as uint8);
+nothing is resampled.
 """
 
 from __future__ import annotations

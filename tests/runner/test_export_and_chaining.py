@@ -424,4 +424,47 @@ def test_ply_and_obj_say_in_one_line_what_they_leave_out(decrun_cli, tmp_path):
     out = run_dir(decrun_cli, tmp_path, "app=smoothing", "app.steps=1", "export=ply", "export.field=displacement")
     (line,) = export_log(out, "ply")
     assert line.endswith("result.ply (the triangles, colours of displacement) cannot hold vertices_initial, "
-                         "vertices_final, faces; they are in result.h5 (export=vtu holds every field)"), line
+                         "vertices_final; they are in result.h5 (export=vtu holds every field)"), line  # faces: the cells
+
+
+@pytest.mark.parametrize("overrides", [
+    ["app=parametrization", "mesh.subdiv=2", "mesh.noise=0", "mesh.hole_balls=[[0,0,1,0.6]]"],
+    ["app=smoothing", "mesh.subdiv=1", "app.steps=1"],
+    ["app=spectrum", "mesh.subdiv=1", "app.degree=1", "app.count=3"],
+    ["app=vector_field", "mesh.subdiv=2", "mesh.noise=0", "app.strokes=[{points:[[1,0,0.1],[0.7,0.7,0.1]]}]",
+     "app.vortices=[{point:[0,0,1],curl:1.0}]", "app.region_normal=[0,0,1]"],
+    ["app=hodge", "mesh=box", "mesh.cells=2", "operator=whitney", "app.input=random", "app.degree=2"],
+    ["app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=1", "app.animation=false"],
+    ["app=heat", "mesh.subdiv=1", "app.t_end=0.002", "+app.fields.A={form:1,initial:[y,x,1]}",
+     "+app.fields.r={form:dual0,initial:x}"],
+], ids=lambda overrides: overrides[0])
+def test_each_app_writes_the_fields_it_declares_where_it_declares_them(overrides):
+    """The declarations the exports are checked against before any work (App.outputs) are
+    what the app writes: every field declared (a model's definitions aside), each with the
+    rows of its place."""
+    from decrun.apps.base import FieldOnEdges
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    done = run_experiment(compose_config([*overrides, "figures=false"]))
+    app, K, fields = done.experiment.app, done.complex, done.result.fields
+    outputs = app.outputs()
+    if app.outputs_complete:
+        assert set(fields) <= set(outputs), set(fields) - set(outputs)
+    for name, output in outputs.items():
+        if name not in fields:
+            continue
+        value = fields[name]
+        array = np.asarray(value.values if isinstance(value, FieldOnEdges) else value)
+        k = output.simplex_dimension(K.dim)
+        if k is not None:
+            assert len(array) == K.num_simplices(k), (name, output, array.shape)
+        elif output.on in ("vertex_set", "top_set"):
+            top = K.num_simplices(0 if output.on == "vertex_set" else K.dim)
+            assert array.ndim == 1 and array.dtype.kind in "iu" and ((0 <= array) & (array < top)).all(), name
+        elif output.on.startswith("along:"):
+            assert len(array) == len(fields[output.on.partition(":")[2]]), name
+        elif output.on == "connectivity":
+            assert array.shape == done.mesh.simplices.shape, name
+        if output.width is not None and output.on != "global":
+            assert (array.shape[1] if array.ndim == 2 else 1) == output.width, (name, output, array.shape)

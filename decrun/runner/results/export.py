@@ -143,6 +143,13 @@ def _same_oriented_cells(array: np.ndarray, simplices: np.ndarray) -> bool:
                 and np.array_equal(_parity(array), _parity(simplices)))
 
 
+def _cells(result, mesh, app) -> list[str]:
+    """The fields ``app`` declares as the connectivity that are the mesh's cells (written as them)."""
+    outputs = (app.outputs() if app is not None else None) or {}
+    return [name for name, output in outputs.items() if output.on == "connectivity" and name in result.fields
+            and _same_oriented_cells(np.asarray(result.fields[name]), mesh.simplices)]
+
+
 def place_fields(result, mesh, K, app=None) -> Placed:
     """Where each field of ``result`` goes: by what ``app`` declares (:meth:`App.outputs`),
     checked against the shapes, else by its shape (:func:`classify_fields`); nothing is left
@@ -262,7 +269,8 @@ def _add_field_data(path: Path, arrays: dict[str, np.ndarray]) -> None:
         if array.ndim == 2:
             element.set("NumberOfComponents", str(array.shape[1]))
         flat = array.reshape(-1)
-        element.text = " ".join(repr(float(v)) if kind == "f" else str(int(v)) for v in flat)
+        # an empty array keeps a blank (an element without text is not read as one)
+        element.text = " ".join(repr(float(v)) if kind == "f" else str(int(v)) for v in flat) or " "
     grid.insert(0, data)
     tree.write(path)
 
@@ -532,7 +540,7 @@ class Ply(Export):
                                             point_data=point_data), binary=True)
         base, _, column = name.partition(":")
         left = [other if other != base else f"{base} (but column {column})" for other in result.fields
-                if other != base or column]
+                if (other != base or column) and other not in _cells(result, mesh, app)]
         report_left_out(self.name, left, f"{path.name} (the triangles, colours of {name})")
         return [path]
 
@@ -571,6 +579,7 @@ class Obj(Export):
             np.savetxt(f, _points(mesh.vertices), fmt="v %.17g %.17g %.17g")
             np.savetxt(f, uv, fmt="vt %.17g %.17g")
             np.savetxt(f, np.repeat(faces, 2, axis=1), fmt="f %d/%d %d/%d %d/%d")
-        report_left_out(self.name, [name for name in result.fields if name != self.uv],
+        report_left_out(self.name, [name for name in result.fields if name != self.uv
+                                    and name not in _cells(result, mesh, app)],
                         f"{path.name} (the triangles, texture coordinates {self.uv})")
         return [path]

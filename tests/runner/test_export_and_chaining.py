@@ -468,3 +468,17 @@ def test_each_app_writes_the_fields_it_declares_where_it_declares_them(overrides
             assert array.shape == done.mesh.simplices.shape, name
         if output.width is not None and output.on != "global":
             assert (array.shape[1] if array.ndim == 2 else 1) == output.width, (name, output, array.shape)
+
+
+def test_a_sweep_says_which_jobs_exports_failed_and_keeps_their_rows(decrun_cli, tmp_path):
+    args = ["-m", "app=heat", "mesh.subdiv=1", "app.t_end=0.002,0.004", "export=ply", "figures=false"]
+    done = decrun_cli(*args, "export.field=nothing")
+    assert done.returncode == 1 and "(0 not ok, 2 export failed)" in done.stdout, done.stdout
+    assert "decrun: job 1 export failed: export.field: 'nothing'" in done.stderr
+    (table,) = tmp_path.glob("outputs/sweeps/*/metrics.csv")
+    import pandas as pd
+
+    rows = pd.read_csv(table)
+    assert list(rows["status"]) == ["ok", "ok"] and rows["mass"].notna().all() and rows["export_error"].notna().all()
+    done = decrun_cli(*args, "export.field=auto")
+    assert done.returncode == 0 and "export failed" not in done.stdout, done.stderr

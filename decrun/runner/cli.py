@@ -179,7 +179,8 @@ class SweepTable(Callback):
         table = write_sweep_table(sweep_dir, sweep=True)
         bad = failed_jobs(table)
         # jobs that ran (status ok, metrics kept) but whose export failed after the run
-        exports = table[table["export_error"].fillna("").astype(str) != ""] if "export_error" in table else table[:0]
+        exports = ([(job, error) for job, error in zip(table["job"], table["export_error"].fillna("").astype(str))
+                    if error] if "export_error" in table else [])
         SweepTable.failed = len(bad) + len(exports)
         shown = select(table, drop_constant=True, narrow=True)
         print(to_markdown(shown), end="")
@@ -191,7 +192,7 @@ class SweepTable(Callback):
               f"{SweepFiles(sweep_dir).table_csv}, {SweepFiles.TABLE_MD}")
         for row in bad.itertuples(index=False):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
-        for job, error in zip(exports["job"], exports["export_error"]):
+        for job, error in exports:
             print(f"decrun: job {job} export failed: {error}", file=sys.stderr)
 
 

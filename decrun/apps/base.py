@@ -41,6 +41,8 @@ import another application. They declare what they accept:
                     mesh of several pieces is then a TopologyError before any work, naming
                     `mesh.largest_component=true` (:meth:`App.check_pieces`)
 ``check(K, dec)``   further checks on the mesh before any work (topology)
+``outputs()``       the fields it writes and where they live (:class:`Output`): an export
+                    is checked against them before any work and writes each in its place
 
 The runner runs these checks through :meth:`App.validate` (dimension, pieces, operators,
 solver, ``check``; once each, in that order).
@@ -61,7 +63,7 @@ import numpy as np
 
 from decrun.errors import ConfigError, TopologyError
 
-__all__ = ["App", "Context", "Figure", "Result", "FieldOnEdges"]
+__all__ = ["App", "Context", "Figure", "Result", "FieldOnEdges", "Output"]
 
 
 @dataclass
@@ -89,6 +91,38 @@ class FieldOnEdges:
     result.h5 as ``fields/<name>`` with the attribute ``edges = "mesh/edges"``."""
 
     values: np.ndarray
+
+
+@dataclass(frozen=True)
+class Output:
+    """Where a field of an app's :class:`Result` lives, as the app declares it
+    (:meth:`App.outputs`), so an export is checked against it before any mesh is loaded and
+    writes each field where it belongs.
+
+    on : ``"0"`` … ``"3"`` one row per primal k-simplex (``"0"`` per vertex, ``"1"`` per
+        edge); ``"dual0"`` … ``"dual3"`` per dual k-cell, i.e. per primal (n−k)-simplex
+        (``"dual0"``: per top simplex — a face of a surface, a tetrahedron of a volume);
+        ``"vertex_set"`` / ``"top_set"`` indices of vertices / top simplices (singularities,
+        sources, strokes); ``"along:<name>"`` one row per entry of the index set ``<name>``;
+        ``"connectivity"`` the top simplices as vertex indices; ``"global"`` no place on the
+        mesh (eigenvalues, points off the vertices)
+    width : values per row (1: a scalar; None: not known from the config alone)
+    columns : each column is a field of its own (``name_j``: the eigenvectors), not the
+        components of one vector
+    """
+
+    on: str
+    width: int | None = 1
+    columns: bool = False
+
+    def simplex_dimension(self, n: int) -> int | None:
+        """The dimension of the simplices the rows are on, for a mesh of dimension ``n``
+        (None for the sets, ``along``, ``connectivity`` and ``global``)."""
+        if self.on.isdigit():
+            return int(self.on)
+        if self.on.startswith("dual") and self.on[4:].isdigit():
+            return n - int(self.on[4:])
+        return None
 
 
 @dataclass
@@ -151,6 +185,16 @@ class App:
     #: the override a refused operator variant's message names: one that runs this app on
     #: every mesh it accepts (hodge: whitney, whose ⋆1 is SPD where the diagonal ⋆1 is zero)
     operator_hint: ClassVar[str] = "`operator=mixed_area` (or `operator=circumcentric`)"
+
+    #: False when :meth:`outputs` may miss fields the app writes (the model app's definitions):
+    #: an export then checks those after the run
+    outputs_complete: ClassVar[bool] = True
+
+    def outputs(self) -> dict[str, Output] | None:
+        """The fields this app may write with this config (name → :class:`Output`), known
+        before any mesh is loaded; None when the app does not say (an export then checks its
+        options against the fields after the run, and places them by their shapes)."""
+        return None
 
     def validate(self, K, solver, operators: Callable[[], Any]) -> Any:
         """Every check of this app against the run's mesh, operators and solver, before any

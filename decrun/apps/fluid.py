@@ -22,7 +22,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.errors import ConfigError
 from decrun.methods.fluid.metrics import fluid_metrics
@@ -133,6 +133,10 @@ class Fluid(App):
         if self.initial in ("rotation", "vortex_pair") and not closed:
             raise ConfigError(f"app.initial={self.initial} is defined on the unit sphere; use app.initial=random "
                               "or zero on domains with borders")
+
+    def outputs(self) -> dict[str, Output]:
+        """Vorticity and stream function per vertex, the flux per edge."""
+        return {"vorticity": Output("0"), "psi": Output("0"), "flux": Output("1")}
 
     def run(self, ctx: Context) -> Result:
         """Run the fluid; see the module docstring.

@@ -47,7 +47,7 @@ from typing import List
 
 import numpy as np
 
-from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
 from decrun.core.choices import Choice
 from decrun.core.complex import simplex_volumes
 from decrun.core.forms import sample_flux, sample_vector_field, whitney_sharp, whitney_sharp2
@@ -148,6 +148,14 @@ class Hodge(App):
                               "coexact part of app=hodge is a symmetric indefinite saddle-point system; use "
                               "`solver=iterative` (GMRES with an incomplete LU), `solver=direct` (or "
                               "`operator.lumped=true`)")
+
+    def outputs(self) -> dict[str, Output]:
+        """The k-form and its parts (k-simplices), their vectors per top simplex, the potentials
+        α ((k−1)-simplices) and β ((k+1)-simplices)."""
+        k = int(self.degree)
+        parts = ("omega", "exact", "coexact", "harmonic")
+        return {**{name: Output(str(k)) for name in parts}, **{f"{name}_vectors": Output("dual0", 3) for name in parts},
+                "alpha": Output(str(k - 1)), "beta": Output(str(k + 1))}
 
     def run(self, ctx: Context) -> Result:
         """Decompose the configured k-form; see the module docstring.

@@ -34,7 +34,7 @@ from typing import Any, Dict, List, Optional
 
 import numpy as np
 
-from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
@@ -202,6 +202,15 @@ class Model(App):
                               f"2/λ_max for Euler, λ_max of {part}); use `app.dt={safe}` or "
                               f"`app.integrator={implicit}`")
         self._stability_limit = limit
+
+    #: the definitions (derived quantities) are fields too, their places known once compiled
+    outputs_complete = False
+
+    def outputs(self) -> dict[str, Output]:
+        """The declared fields by their names, each on the simplices its form says (``0`` per
+        vertex, ``1`` per edge, ``dual0`` per top simplex …)."""
+        return {name: Output(str(options.form)) for name, options in self.fields.items()
+                if isinstance(options, FieldOptions)}
 
     def run(self, ctx: Context) -> Result:
         """Run the model; see the module docstring. Metrics: the declared ones (at the end),

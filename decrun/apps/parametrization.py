@@ -17,7 +17,7 @@ from typing import Optional
 
 import numpy as np
 
-from decrun.apps.base import App, Context, Figure, Result
+from decrun.apps.base import App, Context, Figure, Output, Result
 from decrun.errors import ConfigError, TopologyError
 from decrun.methods.parametrization import (
     CAUCHY_RIEMANN,
@@ -115,6 +115,11 @@ class Parametrization(App):
                                 f"(χ = {K.euler_characteristic}): cut a hole into it, e.g. "
                                 f"`{hole_override(K)}`")
         check_disk_topology(K)
+
+    def outputs(self) -> dict[str, Output]:
+        """uv per vertex (the texture coordinates), row kinds per vertex, distortions per face."""
+        return {"uv": Output("0", 2), "row_kind": Output("0"), "qc_distortion": Output("dual0"),
+                "angle_distortion_deg": Output("dual0"), "flipped": Output("dual0")}
 
     def run(self, ctx: Context) -> Result:
         """Parametrize the mesh (a connected genus-0 triangle mesh with border) into [0, 1]².

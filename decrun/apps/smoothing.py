@@ -25,7 +25,7 @@ from typing import Optional
 
 import numpy as np
 
-from decrun.apps.base import App, Context, Figure, Result
+from decrun.apps.base import App, Context, Figure, Output, Result
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.mean_curvature_flow import (
@@ -127,6 +127,11 @@ class Smoothing(App):
             reason += (f" (⋆0 ≤ 0 on {nonpositive} vertices: M + dt S is indefinite; "
                        "`operator=mixed_area` has a positive ⋆0)")
         return reason
+
+    def outputs(self) -> dict[str, Output]:
+        """The input and smoothed positions and the displacement per vertex; the (oriented) faces."""
+        return {"vertices_initial": Output("0", None), "vertices_final": Output("0", None),
+                "faces": Output("connectivity", 3), "displacement": Output("0")}
 
     def run(self, ctx: Context) -> Result:
         """Smooth the mesh; see the module docstring.

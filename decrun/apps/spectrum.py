@@ -18,7 +18,7 @@ from typing import Optional
 
 import numpy as np
 
-from decrun.apps.base import App, Context, Figure, Result
+from decrun.apps.base import App, Context, Figure, Output, Result
 from decrun.core.choices import Choice
 from decrun.core.forms import whitney_sharp, whitney_sharp2
 from decrun.errors import ConfigError, TopologyError
@@ -85,6 +85,11 @@ class Spectrum(App):
             raise ConfigError(f"solver={solver.name}: the shifted eigen-system of Δ_{self.degree} with "
                               f"operator={dec.star_variant.name} is symmetric indefinite (a Galerkin ⋆_{self.degree - 1} "
                               f"or a ⋆_{self.degree} that is not positive); use `solver=direct`")
+
+    def outputs(self) -> dict[str, Output]:
+        """The eigenvalues (with a known shape the exact ones too) and one eigenform per column."""
+        return {"eigenvalues": Output("global", None), "eigenvalues_analytic": Output("global", None),
+                "eigenforms": Output(str(int(self.degree)), int(self.count), columns=True)}
 
     def run(self, ctx: Context) -> Result:
         """The ``count`` lowest eigenpairs of Δ_k; see the module docstring.

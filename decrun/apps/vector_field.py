@@ -39,7 +39,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from decrun.apps.base import App, Context, FieldOnEdges, Figure, Result
+from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.core.forms import whitney_sharp
 from decrun.core.geometry import embed3
@@ -161,6 +161,18 @@ class VectorField(App):
 # ----------------------------------------------------------------------------------
 # configuration helpers
 # ----------------------------------------------------------------------------------
+
+    def outputs(self) -> dict[str, Output]:
+        """The circulation 1-form, its vectors per face, the indices, and the places the design
+        used: singular vertices and faces, sources (with their divergences), vortices, strokes
+        (with their vectors), the region; singularity clusters are points off the vertices."""
+        return {"omega": Output("1"), "omega_without_strokes": Output("1"), "face_vectors": Output("dual0", 3),
+                "vertex_index": Output("0"), "face_index": Output("dual0"),
+                "singular_vertices": Output("vertex_set"), "singular_faces": Output("top_set"),
+                "cluster_positions": Output("global", 3), "cluster_indices": Output("global"),
+                "source_vertices": Output("vertex_set"), "source_divergences": Output("along:source_vertices"),
+                "vortex_faces": Output("top_set"), "stroke_faces": Output("top_set"),
+                "stroke_vectors": Output("along:stroke_faces", 3), "region_faces": Output("top_set")}
 
     def run(self, ctx: Context) -> Result:
         """Design the field (see :func:`_design` for fields and metrics)."""

@@ -185,16 +185,22 @@ class SweepTable(Callback):
         sweep_dir = Path(str(config.hydra.sweep.dir))
         table = write_sweep_table(sweep_dir, sweep=True)
         bad = failed_jobs(table)
-        SweepTable.failed = len(bad)
+        # jobs that ran (status ok, metrics kept) but whose export failed after the run
+        exports = ([(job, error) for job, error in zip(table["job"], table["export_error"].fillna("").astype(str))
+                    if error] if "export_error" in table else [])
+        SweepTable.failed = len(bad) + len(exports)
         shown = select(table, drop_constant=True, narrow=True)
         print(to_markdown(shown), end="")
         hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
         if hidden:
             print(f"decrun: {hidden} more columns in {SweepFiles.TABLE_MD} (`decrun-table --all {sweep_dir}`)")
-        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok) → {SweepFiles(sweep_dir).table_csv}, "
-              f"{SweepFiles.TABLE_MD}")
+        failed_exports = f", {len(exports)} export failed" if len(exports) else ""
+        print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok{failed_exports}) → "
+              f"{SweepFiles(sweep_dir).table_csv}, {SweepFiles.TABLE_MD}")
         for row in bad.itertuples(index=False):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
+        for job, error in exports:
+            print(f"decrun: job {job} export failed: {error}", file=sys.stderr)
 
 
 def fast_help() -> str:

@@ -56,6 +56,8 @@ class Experiment:
                 plugin = make(cfg[group.key], group.key, group.base_class())  # e.g. a solver's missing package: SolverError
             setattr(self, group.attribute, plugin)
         self.app.check_solver(self.solver)
+        if self.export is not None:  # what the app writes against what the export needs: before any mesh
+            self.export.check(self.app)
         self.checkpoint = root_options(cfg, "checkpoint", CheckpointConfig)
         self.optimize = root_options(cfg, "optimize", OptimizeConfig)
         for key in ("progress", "figures"):  # plain root values: resolved here, not first in the run

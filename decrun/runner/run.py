@@ -44,6 +44,7 @@ from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
 from decrun.runner.results.checked import RESULT_RECORD
 from decrun.runner.results.checkpoint import RunCheckpoint, remove_checkpoint
+from decrun.runner.results.export import ExportFailed
 from decrun.runner.results.provenance import result_record
 from decrun.runner.results.reading import CHAINED_STATUS
 from decrun.runner.results.recorder import ResultRecorder
@@ -285,10 +286,16 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
                           mesh_hash=mesh.meta.get("hash", ""), timings=timings)
     # the size and sha256 of result.h5 as written (readers never take a truncated or altered one for it)
     # and the hash of its content, equal for two runs of one config (README: "Reproducible records")
-    metrics = write_metrics_json(files.metrics, {**result.metrics, RESULT_RECORD: result_record(h5)})
+    record = {**result.metrics, RESULT_RECORD: result_record(h5)}
+    metrics = write_metrics_json(files.metrics, record)
     remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
     export = run.experiment.export
-    exported = export.write(files, result, mesh, run.complex) if export is not None else []
+    try:
+        exported = export.write(files, result, mesh, run.complex, run.experiment.app) if export is not None else []
+    except Exception as exc:  # the run is done: its metrics stay, the export's error is added to them
+        message = str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}"
+        write_metrics_json(files.metrics, {**record, "export_error": shorten_words(message)})
+        raise ExportFailed(message, exc) from exc
     return [h5, metrics, *written, *exported]
 
 
@@ -342,6 +349,13 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
         if multirun:  # the sweeper says which jobs finished (decrun.runner.sweep.stops)
             raise
         raise Stopped(said, exit_code(exc)) from exc
+    except ExportFailed as exc:  # after a finished run: result.h5 and the metrics stay (plus export_error)
+        said = (f"error: {exc} (the run finished: {RunFiles.RESULT} and {RunFiles.METRICS} in {out} keep its result "
+                "and metrics)")
+        log.error("%s", said)
+        if multirun:
+            return optimize.objective(None) if optimize is not None and optimize.metric else 1
+        raise Stopped(said, 1) from exc
     except Exception as exc:
         unresolved = None if isinstance(exc, DecrunError) else resolution_message(exc, cfg)
         if unresolved is not None:  # an interpolation read outside the checks (progress=${oc.env:X}): no bug

@@ -27,15 +27,18 @@ def test_vtu_holds_mesh_and_every_field_of_a_volume_run(decrun_cli, tmp_path):
     stored = read_result(out / "result.h5")
     mesh = meshio.read(out / "result.vtu")
     np.testing.assert_array_equal(mesh.points, stored.mesh["vertices"])
-    tetra, lines = (block.data for block in mesh.cells)
-    assert [block.type for block in mesh.cells] == ["tetra", "line"]
+    tetra, triangles, lines = (block.data for block in mesh.cells)
+    assert [block.type for block in mesh.cells] == ["tetra", "triangle", "line"]
     np.testing.assert_array_equal(tetra, stored.mesh["simplices"])
     np.testing.assert_array_equal(lines, stored.mesh["edges"])
     for name in ("omega", "exact", "coexact", "harmonic"):  # 1-forms on the line block
-        np.testing.assert_array_equal(mesh.cell_data[name][1], stored.fields[name])
-        assert np.isnan(mesh.cell_data[name][0]).all()
+        np.testing.assert_array_equal(mesh.cell_data[name][2], stored.fields[name])
+        assert np.isnan(mesh.cell_data[name][0]).all() and np.isnan(mesh.cell_data[name][1]).all()
     np.testing.assert_array_equal(mesh.cell_data["omega_vectors"][0], stored.fields["omega_vectors"])
     np.testing.assert_array_equal(mesh.point_data["alpha"], stored.fields["alpha"])
+    # β, the 2-form potential, lives on the triangles of the volume: a block of its own
+    assert len(triangles) == len(stored.fields["beta"])
+    np.testing.assert_array_equal(mesh.cell_data["beta"][1], stored.fields["beta"])
 
 
 def test_xdmf_time_series_of_a_fluid_run_reads_back_step_by_step(decrun_cli, tmp_path):
@@ -87,15 +90,59 @@ def test_obj_carries_the_parametrization_uv_as_texture_coordinates(decrun_cli, t
     assert all(re.fullmatch(r"f (\d+)/\1 (\d+)/\2 (\d+)/\3", line) for line in face_lines)
 
 
-def test_export_of_a_missing_field_names_the_fix(decrun_cli, tmp_path):
-    done = decrun_cli("app=spectrum", "mesh.subdiv=1", "export=obj", "figures=false")
-    assert done.returncode != 0 and "use `export=vtu`" in done.stderr and "Traceback" not in done.stderr
-    assert decrun_cli("app=spectrum", "mesh.subdiv=1", "export=vtu", "figures=false").returncode == 0
-    done = decrun_cli("app=smoothing", "app.steps=1", "export=ply", "export.field=nothing", "figures=false")
-    assert done.returncode != 0 and "use `export.field=auto`" in done.stderr
-    assert decrun_cli("app=smoothing", "app.steps=1", "export=ply", "export.field=auto", "figures=false").returncode == 0
-    done = decrun_cli("app=spectrum", "mesh.subdiv=1", "export=ply", "export.field=eigenforms:1", "figures=false")
+def refused_before_any_work(decrun_cli, tmp_path, *args) -> str:
+    """The one error line of a run refused from its config, before its mesh loads: the mesh
+    is a file that would not load (its own error would come first), and no result is written."""
+    bad = tmp_path / "not_a_mesh.obj"
+    bad.write_text("garbage\n")
+    assert "unknown OBJ statement" in one_error_line(decrun_cli("mesh=file", f"mesh.path={bad}", "figures=false"))
+    before = set(tmp_path.glob("outputs/runs/*"))
+    line = one_error_line(decrun_cli(*args, "mesh=file", f"mesh.path={bad}", "figures=false"))
+    assert not any((new / "result.h5").exists() for new in set(tmp_path.glob("outputs/runs/*")) - before)
+    return line
+
+
+@pytest.mark.parametrize("args, says, fix", [
+    (["app=spectrum", "export=obj"], "export.uv: app=spectrum writes no per-vertex field 'uv'", "export=vtu"),
+    (["app=smoothing", "app.steps=1", "export=ply", "export.field=nothing"], "export.field: app=smoothing writes no per-vertex field "
+     "'nothing' (those are ['displacement', 'vertices_final', 'vertices_initial'])", "export.field=auto"),
+    (["app=spectrum", "export=ply"], "export.field=auto: app=spectrum writes no one-value-per-vertex field",
+     "export.field=eigenforms:0"),
+    (["app=spectrum", "export=ply", "export.field=eigenforms:12"], "export.field: 'eigenforms' has 10 columns",
+     "export.field=eigenforms:0"),
+    (["app=smoothing", "app.steps=1", "export=ply", "export.field=displacement:1"], "export.field: 'displacement' has one value per "
+     "vertex, no columns", "export.field=displacement"),
+], ids=["obj without uv", "ply missing field", "ply auto without a scalar", "ply column", "ply scalar column"])
+def test_an_export_the_app_cannot_feed_is_refused_before_the_mesh_loads_and_the_fix_runs(decrun_cli, tmp_path, args,
+                                                                                         says, fix):
+    line = refused_before_any_work(decrun_cli, tmp_path, *args)
+    assert line.startswith(f"error: {says}") and f"`{fix}`" in line, line
+    out = run_dir(decrun_cli, tmp_path, *args, fix, "mesh.subdiv=1")
+    assert json.loads((out / "metrics.json").read_text())["status"] == "ok"
+
+
+def test_a_sweep_with_an_export_the_app_cannot_feed_runs_no_job(decrun_cli, tmp_path):
+    done = decrun_cli("-m", "app=spectrum", "mesh.subdiv=1,2", "export=obj", "figures=false")
+    assert done.returncode != 0 and "export.uv: app=spectrum writes no per-vertex field 'uv'" in done.stderr
+    assert "nothing ran" in done.stderr and not list(tmp_path.glob("outputs/**/metrics.json"))
+    done = decrun_cli("-m", "app=spectrum", "mesh.subdiv=1,2", "export=vtu", "figures=false")
     assert done.returncode == 0, done.stderr
+
+
+def test_an_export_that_fails_after_the_run_keeps_its_metrics(decrun_cli, tmp_path):
+    """A model's definitions are known once compiled: an export naming one that does not exist
+    fails after the run — with the run's result and metrics kept, the error beside them."""
+    args = ["app=heat", "mesh.subdiv=1", "app.t_end=0.002", "export=ply", "figures=false"]
+    before = set(tmp_path.glob("outputs/runs/*"))
+    line = one_error_line(decrun_cli(*args, "export.field=nothing"))
+    (out,) = set(tmp_path.glob("outputs/runs/*")) - before
+    assert line.startswith("error: export.field: 'nothing' is not a per-vertex field of this run") and \
+        "`export.field=auto`" in line and "keep its result and metrics" in line, line
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "ok" and "mass" in metrics and metrics["steps_done"] == 2, metrics
+    assert metrics["export_error"].startswith("export.field: 'nothing'")
+    assert read_result(out / "result.h5").fields["u"].shape == (42,)
+    assert decrun_cli(*args, "export.field=auto").returncode == 0
 
 
 def test_a_smoothed_mesh_feeds_a_parametrization(decrun_cli, tmp_path):
@@ -291,3 +338,147 @@ def test_decomposing_an_incomplete_result_warns_once_and_says_it_in_a_metric(dec
     (line,) = chaining_log(out)
     assert line.endswith(f"app.input_path='{stopped}': the result is not complete (status interrupted, 0 steps "
                          "recorded); chained anyway, metric chained_result_status=interrupted"), line
+
+
+# ---------------------------------------------------------------------------------------
+# exports hold every field: sets as vertex cells or indicators, eigenvectors by column,
+# arrays with no place on the mesh as field data; what a format cannot hold is one log line
+# ---------------------------------------------------------------------------------------
+
+def export_log(out: Path, export: str) -> list[str]:
+    return [line for line in (out / "decrun.log").read_text().splitlines() if f"export={export}:" in line]
+
+
+def test_vtu_holds_every_field_of_a_designed_field(decrun_cli, tmp_path):
+    out = run_dir(decrun_cli, tmp_path, "app=vector_field", "mesh.subdiv=2", "mesh.noise=0",
+                  "app.strokes=[{points:[[1,0,0.1],[0.7,0.7,0.1]]}]", "app.vortices=[{point:[0,0,1],curl:1.0}]",
+                  "app.region_normal=[0,0,1]", "export=vtu")
+    stored = read_result(out / "result.h5")
+    mesh = meshio.read(out / "result.vtu")
+    assert [block.type for block in mesh.cells] == ["triangle", "line", "vertex"]
+    top = 0
+    held = set(mesh.point_data) | set(mesh.cell_data) | set(mesh.field_data)
+    assert held == set(stored.fields), set(stored.fields) - held  # all 15, none left out
+    assert export_log(out, "vtu") == []
+    vertex_cells = mesh.cells[2].data[:, 0]
+    for name, along in (("singular_vertices", None), ("source_vertices", "source_divergences")):
+        on = ~np.isnan(mesh.cell_data[name][2])  # the vertex cells of this set
+        np.testing.assert_array_equal(vertex_cells[on], stored.fields[name])
+        assert np.isnan(mesh.cell_data[name][top]).all()
+        if along:
+            np.testing.assert_array_equal(mesh.cell_data[along][2][on], stored.fields[along])
+    for name in ("singular_faces", "vortex_faces", "stroke_faces", "region_faces"):  # 1 on the set's triangles
+        assert len(stored.fields[name]) > 0
+        np.testing.assert_array_equal(np.flatnonzero(mesh.cell_data[name][top] == 1), np.sort(stored.fields[name]))
+    vectors = mesh.cell_data["stroke_vectors"][top]
+    np.testing.assert_array_equal(vectors[stored.fields["stroke_faces"]], stored.fields["stroke_vectors"])
+    assert np.isnan(np.delete(vectors, stored.fields["stroke_faces"], axis=0)).all()
+    for name in ("cluster_positions", "cluster_indices"):  # points off the vertices: field data, every digit
+        np.testing.assert_array_equal(mesh.field_data[name], stored.fields[name])
+    np.testing.assert_array_equal(mesh.cell_data["omega_without_strokes"][1], stored.fields["omega_without_strokes"])
+
+
+@pytest.mark.parametrize("degree", [0, 1])
+def test_vtu_of_a_spectrum_names_each_eigenvector_and_keeps_the_eigenvalues(decrun_cli, tmp_path, degree):
+    out = run_dir(decrun_cli, tmp_path, "app=spectrum", "mesh.subdiv=1", f"app.degree={degree}", "app.count=4",
+                  "export=vtu")
+    stored = read_result(out / "result.h5")
+    mesh = meshio.read(out / "result.vtu")
+    np.testing.assert_array_equal(mesh.field_data["eigenvalues"], stored.fields["eigenvalues"])
+    for j in range(4):
+        values = mesh.point_data[f"eigenforms_{j}"] if degree == 0 else mesh.cell_data[f"eigenforms_{j}"][1]
+        np.testing.assert_array_equal(values, stored.fields["eigenforms"][:, j])
+    assert "eigenforms" not in mesh.point_data and "eigenforms" not in mesh.cell_data
+
+
+@pytest.mark.parametrize("mesh_args, blocks", [(["mesh.subdiv=1"], ["triangle", "line"]),
+                                               (["mesh=box", "mesh.cells=2"], ["tetra", "triangle", "line"])])
+def test_vtu_holds_a_models_fields_by_their_declared_names(decrun_cli, tmp_path, mesh_args, blocks):
+    out = run_dir(decrun_cli, tmp_path, "app=heat", *mesh_args, "app.t_end=0.002", "+app.fields.A={form:1,initial:[y,x,1]}",
+                  "+app.fields.B={form:2,initial:1}", "+app.fields.r={form:dual0,initial:x}", "export=vtu")
+    stored = read_result(out / "result.h5")
+    mesh = meshio.read(out / "result.vtu")
+    assert [block.type for block in mesh.cells] == blocks
+    np.testing.assert_array_equal(mesh.point_data["u"], stored.fields["u"])  # primal 0-form: per vertex
+    np.testing.assert_array_equal(mesh.cell_data["r"][0], stored.fields["r"])  # dual 0-form: per top simplex
+    np.testing.assert_array_equal(mesh.cell_data["A"][blocks.index("line")], stored.fields["A"])  # 1-form: per edge
+    np.testing.assert_array_equal(mesh.cell_data["B"][blocks.index("triangle")], stored.fields["B"])  # per triangle
+
+
+def test_xdmf_of_a_smoothing_is_the_final_state_on_its_cells_and_says_what_it_cannot_hold(decrun_cli, tmp_path):
+    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "mesh.subdiv=2", "app.steps=3", "export=xdmf")
+    stored = read_result(out / "result.h5")
+    with meshio.xdmf.TimeSeriesReader(out / "series.xdmf") as reader:
+        _, cells = reader.read_points_cells()
+        assert reader.num_steps == 1
+        t, point_data, cell_data = reader.read_data(0)
+    assert t == stored.series["step"][-1] == 3
+    assert cell_data == {}  # the oriented faces are the cells, not a cell array
+    np.testing.assert_array_equal(point_data["vertices_final"], stored.fields["vertices_final"])
+    (line,) = [line for line in export_log(out, "xdmf") if "cannot hold" in line]
+    assert line.endswith("series.xdmf cannot hold series area, series distortion, series roughness, series volume; "
+                         "they are in result.h5"), line
+
+
+def test_ply_and_obj_say_in_one_line_what_they_leave_out(decrun_cli, tmp_path):
+    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "app.steps=1", "export=ply", "export.field=displacement")
+    (line,) = export_log(out, "ply")
+    assert line.endswith("result.ply (the triangles, colours of displacement) cannot hold vertices_initial, "
+                         "vertices_final; they are in result.h5 (export=vtu holds every field)"), line  # faces: the cells
+
+
+@pytest.mark.parametrize("overrides", [
+    ["app=parametrization", "mesh.subdiv=2", "mesh.noise=0", "mesh.hole_balls=[[0,0,1,0.6]]"],
+    ["app=smoothing", "mesh.subdiv=1", "app.steps=1"],
+    ["app=spectrum", "mesh.subdiv=1", "app.degree=1", "app.count=3"],
+    ["app=vector_field", "mesh.subdiv=2", "mesh.noise=0", "app.strokes=[{points:[[1,0,0.1],[0.7,0.7,0.1]]}]",
+     "app.vortices=[{point:[0,0,1],curl:1.0}]", "app.region_normal=[0,0,1]"],
+    ["app=hodge", "mesh=box", "mesh.cells=2", "operator=whitney", "app.input=random", "app.degree=2"],
+    ["app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=1", "app.animation=false"],
+    ["app=heat", "mesh.subdiv=1", "app.t_end=0.002", "+app.fields.A={form:1,initial:[y,x,1]}",
+     "+app.fields.r={form:dual0,initial:x}"],
+], ids=lambda overrides: overrides[0])
+def test_each_app_writes_the_fields_it_declares_where_it_declares_them(overrides):
+    """The declarations the exports are checked against before any work (App.outputs) are
+    what the app writes: every field declared (a model's definitions aside), each with the
+    rows of its place."""
+    from decrun.apps.base import FieldOnEdges
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    done = run_experiment(compose_config([*overrides, "figures=false"]))
+    app, K, fields = done.experiment.app, done.complex, done.result.fields
+    outputs = app.outputs()
+    if app.outputs_complete:
+        assert set(fields) <= set(outputs), set(fields) - set(outputs)
+    for name, output in outputs.items():
+        if name not in fields:
+            continue
+        value = fields[name]
+        array = np.asarray(value.values if isinstance(value, FieldOnEdges) else value)
+        k = output.simplex_dimension(K.dim)
+        if k is not None:
+            assert len(array) == K.num_simplices(k), (name, output, array.shape)
+        elif output.on in ("vertex_set", "top_set"):
+            top = K.num_simplices(0 if output.on == "vertex_set" else K.dim)
+            assert array.ndim == 1 and array.dtype.kind in "iu" and ((0 <= array) & (array < top)).all(), name
+        elif output.on.startswith("along:"):
+            assert len(array) == len(fields[output.on.partition(":")[2]]), name
+        elif output.on == "connectivity":
+            assert array.shape == done.mesh.simplices.shape, name
+        if output.width is not None and output.on != "global":
+            assert (array.shape[1] if array.ndim == 2 else 1) == output.width, (name, output, array.shape)
+
+
+def test_a_sweep_says_which_jobs_exports_failed_and_keeps_their_rows(decrun_cli, tmp_path):
+    args = ["-m", "app=heat", "mesh.subdiv=1", "app.t_end=0.002,0.004", "export=ply", "figures=false"]
+    done = decrun_cli(*args, "export.field=nothing")
+    assert done.returncode == 1 and "(0 not ok, 2 export failed)" in done.stdout, done.stdout
+    assert "decrun: job 1 export failed: export.field: 'nothing'" in done.stderr
+    (table,) = tmp_path.glob("outputs/sweeps/*/metrics.csv")
+    import pandas as pd
+
+    rows = pd.read_csv(table)
+    assert list(rows["status"]) == ["ok", "ok"] and rows["mass"].notna().all() and rows["export_error"].notna().all()
+    done = decrun_cli(*args, "export.field=auto")
+    assert done.returncode == 0 and "export failed" not in done.stdout, done.stderr

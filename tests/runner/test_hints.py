@@ -171,8 +171,16 @@ CASES = {
                                       ["app.analytic=frame", "app.input=random", "app.analytic=gradient"]),
     "hodge_frame_has_no_vector": (["app=hodge", "mesh.subdiv=1", "app.vector=[1.0,0.0,0.0]"],
                                   ["app.analytic=gradient"]),
-    "export_unknown_colormap": (["mesh.subdiv=1", "app=spectrum", "export=ply", "export.colormap=nope"],
+    "export_unknown_colormap": (["mesh.subdiv=1", "app=smoothing", "app.steps=1", "export=ply", "export.colormap=nope"],
                                 ["export.colormap=viridis"]),
+    # an export the app's declared fields cannot feed: refused with the config, before the mesh
+    "export_obj_without_uv": (["mesh.subdiv=1", "app=spectrum", "export=obj"], ["export=vtu"]),
+    "export_ply_missing_field": (["mesh.subdiv=1", "app=smoothing", "app.steps=1", "export=ply",
+                                  "export.field=nothing"], ["export.field=auto"]),
+    "export_ply_auto_without_a_scalar": (["mesh.subdiv=1", "app=spectrum", "export=ply"],
+                                         ["export.field=eigenforms:0"]),
+    "export_ply_column_of_a_scalar": (["mesh.subdiv=1", "app=smoothing", "app.steps=1", "export=ply",
+                                       "export.field=displacement:1"], ["export.field=displacement"]),
     "result_vertices_field_missing": (["mesh=result", "mesh.path={result}", "mesh.vertices=nowhere", "app=spectrum"],
                                       ["mesh.vertices=mesh"]),
     "hodge_degree_two_on_a_surface": (["app=hodge", "mesh.subdiv=2", "mesh.noise=0", "app.degree=2"],
@@ -184,9 +192,6 @@ UNREACHABLE = {
     "mesh.max_volume=": "the tetrahedron-count refusal's fix makes millions of tetrahedra (too slow for a hint case): "
                         "tests/runner/test_volumes.py runs it under a lowered mesh.max_tetrahedra",
     "mesh.max_tetrahedra=": "see mesh.max_volume=; tests/runner/test_volumes.py runs this fix",
-    "export=vtu": "export errors come after the run (the fields are known then), where run_experiment does not "
-                  "reach: tests/runner/test_export_and_chaining.py runs this fix through the CLI",
-    "export.field=auto": "see export=vtu",
     "app.weights=uniform": "zero diagonal of the cot rows: needs cot weights that cancel exactly; the same "
                            "message's app.weights=mean_value is positive by construction (tested in methods)",
     "app.weights=mean_value": "see app.weights=uniform",

@@ -390,14 +390,11 @@ class Compiler:
                 return self._scale(inner, value)
             return NOT_LINEAR
         if isinstance(node, Call):
-            operator = OPERATORS.get(ALIASES.get(node.function, node.function))
-            if operator is None or operator.linear is None or len(node.args) != 1:
+            step = self._operator_matrix(node)
+            if step is None:
                 return NOT_LINEAR
             inner = self.linear(node.args[0], unknowns)
             if inner is NOT_LINEAR:
-                return NOT_LINEAR
-            step = operator.linear(self.ops, self.kind(node.args[0], "?"))
-            if step is None:
                 return NOT_LINEAR
             out = {}
             for name, block in inner.items():
@@ -471,14 +468,11 @@ class Compiler:
                 return NOT_LINEAR
             return NOT_LINEAR
         if isinstance(node, Call):
-            operator = OPERATORS.get(ALIASES.get(node.function, node.function))
-            if operator is None or operator.linear is None or len(node.args) != 1:
+            step = self._operator_matrix(node)
+            if step is None:
                 return NOT_LINEAR
             inner = self.lagged(node.args[0], unknowns)
             if inner is NOT_LINEAR:
-                return NOT_LINEAR
-            step = operator.linear(self.ops, self.kind(node.args[0], "?"))
-            if step is None:
                 return NOT_LINEAR
 
             def applied(env):
@@ -492,6 +486,14 @@ class Compiler:
                 return out
             return applied
         return NOT_LINEAR
+
+    def _operator_matrix(self, node: Call) -> Linear | None:
+        """The :class:`Linear` of the one-argument linear operator ``node`` calls, or None (not a
+        linear operator, or no sparse matrix for it here)."""
+        operator = OPERATORS.get(ALIASES.get(node.function, node.function))
+        if operator is None or operator.linear is None or len(node.args) != 1:
+            return None
+        return operator.linear(self.ops, self.kind(node.args[0], "?"))
 
     def _merge(self, left: dict, right: dict):
         out = dict(left)

@@ -116,7 +116,7 @@ def test_a_ray_address_that_refuses_is_given_up_at_once(tmp_path):
     assert line.startswith(f"error: hydra/launcher=ray: cannot reach the Ray cluster at "
                            f"hydra.launcher.ray.init.address={address} (connection refused)"), line
     assert "nothing ran" in line and seconds < 30 and not (tmp_path / "r").exists(), (line, seconds)
-    assert fixed_command(line, "on a local Ray with: ")[-1] == "hydra.launcher.ray.init.address=null"
+    assert fixed_command(line, "on a local Ray with: ")[-1] == "hydra.launcher.ray.init.address=local"
 
 
 @pytest.mark.skipif(not has("hydra_ray_launcher"), reason="hydra-ray-launcher is not installed")

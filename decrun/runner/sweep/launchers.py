@@ -291,7 +291,7 @@ def launch_failure(launcher, config, exc: BaseException) -> Optional[tuple[str, 
 
 #: the fixes
 TO_SUBMITIT_LOCAL = Fix(["hydra/launcher=submitit_local"], _slurm_only)
-TO_LOCAL_RAY = Fix(["hydra.launcher.ray.init.address=null"])
+TO_LOCAL_RAY = Fix(["hydra.launcher.ray.init.address=local"])  # "local": a new Ray here, never a running one
 NO_TIME_LIMIT = Fix(["hydra.launcher.timeout=null"])
 
 

@@ -67,7 +67,6 @@ class Evolution:
             if len(invs) > 1:
                 raise ModelError(f"{equation.where}: the linear terms of dt({u}) mix inverse stars {sorted(invs)}; "
                                  "write them over one ⋆ or use an explicit integrator")
-            kind = model.kinds[u]
             size = self.sizes[u]
             if invs:
                 k = invs.pop()
@@ -82,7 +81,6 @@ class Evolution:
                 self.blocks[(u, v)] = A
             self.rest_trees[u] = rest
             self.rest[u] = [(sign, compiler.compile(term, equation.where)) for sign, term in rest]
-            del kind
 
     def reads_evolved(self, u: str) -> list:
         """The explicit terms of dt(u) that read an evolved field (not allowed in implicit schemes)."""
@@ -617,5 +615,3 @@ def _term_pattern(compiler, node, v: str, rows: int, cols: int, where: str) -> s
         return sp.csr_matrix((rows, cols))
     return _structure(part)
 
-
-_ = NOT_LINEAR

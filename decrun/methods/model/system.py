@@ -25,9 +25,9 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.methods.model.compiler import NOT_LINEAR, Compiler
+from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.initial import sample
-from decrun.methods.model.kinds import NUMBER, Kind, form_kind, primal
+from decrun.methods.model.kinds import NUMBER, Kind, form_kind
 from decrun.methods.model.language import Binary, Equation, ModelError, Name, Node, names_in, parse_equation, \
     parse_expression, to_text
 from decrun.methods.model.operators import OPERATORS, Discrete, Linear
@@ -553,6 +553,3 @@ def _pure_laplacian(node: Node) -> bool:
             return False
     return isinstance(node, Call) and node.function in ("laplacian", "laplace_de_rham", "laplace")
 
-
-# keep sp imported for type hints of callers
-_ = (sp, primal, NOT_LINEAR)

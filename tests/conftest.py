@@ -53,3 +53,35 @@ def decrun_cli(tmp_path):
                               text=True, timeout=timeout, env=environment)
 
     return run
+
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    """``tmpfs(size, read_only=False)`` → a freshly mounted tmpfs under ``tmp_path`` (a full or
+    read-only disk for the tests that need one; root and mount(8) only, skipped elsewhere),
+    unmounted after the test."""
+    import subprocess
+    from pathlib import Path
+
+    mounted: list[Path] = []
+
+    def mount(size: str, read_only: bool = False) -> Path:
+        point = tmp_path / f"fs{len(mounted)}"
+        point.mkdir()
+        options = f"size={size}" + (",ro" if read_only else "")
+        if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(point)],
+                                               capture_output=True).returncode != 0:
+            pytest.skip("cannot mount a tmpfs (needs root)")
+        mounted.append(point)
+        return point
+
+    yield mount
+    for point in mounted:
+        subprocess.run(["umount", str(point)], check=True)
+
+
+@pytest.fixture
+def tiny_disk(tmpfs):
+    """A 1 MiB tmpfs (:func:`tmpfs`)."""
+    return tmpfs("1m")
+

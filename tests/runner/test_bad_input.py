@@ -322,24 +322,6 @@ def test_a_regular_octahedron_smooths_through_the_command_line(tmp_path):
     assert json.loads(metrics.read_text())["dt_critical_explicit"] == pytest.approx(2 / 3, rel=1e-12)
 
 
-@pytest.fixture
-def tmpfs(tmp_path):
-    """``tmpfs(size, read_only)`` → a mounted tmpfs (needs root and mount(8)); skipped elsewhere."""
-    mounted = []
-
-    def mount(size: str, read_only: bool = False) -> Path:
-        point = tmp_path / f"fs{len(mounted)}"
-        point.mkdir()
-        options = f"size={size}" + (",ro" if read_only else "")
-        if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(point)],
-                                               capture_output=True).returncode != 0:
-            pytest.skip("cannot mount a tmpfs (needs root)")
-        mounted.append(point)
-        return point
-
-    yield mount
-    for point in mounted:
-        subprocess.run(["umount", str(point)], check=True)
 
 
 def test_a_read_only_output_directory_is_one_line(tmp_path, tmpfs):

@@ -5,7 +5,6 @@ that is not the checkpoint's."""
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 
@@ -270,18 +269,6 @@ def test_leftovers_of_a_killed_checkpoint_write_are_removed(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
-@pytest.fixture
-def tiny_disk(tmp_path):
-    """A 1 MiB tmpfs (needs root and mount(8)); skipped elsewhere."""
-    mount_point = tmp_path / "tiny"
-    mount_point.mkdir()
-    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mount_point)],
-                                           capture_output=True).returncode != 0:
-        pytest.skip("cannot mount a tmpfs (needs root)")
-    try:
-        yield mount_point
-    finally:
-        subprocess.run(["umount", str(mount_point)], check=True)
 
 
 _FULL_DISK_DURING_CHECKPOINT = """

@@ -369,18 +369,6 @@ def test_a_failed_append_is_truncated_away(tmp_path, monkeypatch):
     assert_series_are_steps(read_result(path).series, 9, 100)
 
 
-@pytest.fixture
-def tiny_disk(tmp_path):
-    """A 1 MiB tmpfs (needs root and mount(8)); skipped elsewhere."""
-    mount_point = tmp_path / "tiny"
-    mount_point.mkdir()
-    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mount_point)],
-                                           capture_output=True).returncode != 0:
-        pytest.skip("cannot mount a tmpfs (needs root)")
-    try:
-        yield mount_point
-    finally:
-        subprocess.run(["umount", str(mount_point)], check=True)
 
 
 def test_a_full_disk_is_one_clear_error_and_leaves_nothing_corrupt(tiny_disk):

@@ -7,9 +7,7 @@ and not trusted. Everything runs through the real ``decrun`` command."""
 from __future__ import annotations
 
 import json
-import os
 import signal
-import subprocess
 import time
 from pathlib import Path
 
@@ -178,23 +176,6 @@ def test_a_bad_checkpoint_setting_is_refused_before_any_work_and_its_hint_runs(t
 # cannot be written is one error naming it; no temporary file outlives a run
 # ---------------------------------------------------------------------------------------
 
-@pytest.fixture
-def tmpfs(tmp_path):
-    """``tmpfs(size)`` → a mounted tmpfs (needs root and mount(8)); skipped elsewhere."""
-    mounted = []
-
-    def mount(size: str) -> Path:
-        point = tmp_path / f"fs{len(mounted)}"
-        point.mkdir()
-        if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(point)],
-                                               capture_output=True).returncode != 0:
-            pytest.skip("cannot mount a tmpfs (needs root)")
-        mounted.append(point)
-        return point
-
-    yield mount
-    for point in mounted:
-        subprocess.run(["umount", str(point)], check=True)
 
 
 @pytest.mark.parametrize("args, size", [

@@ -36,3 +36,18 @@ def start(*args: str, cwd) -> subprocess.Popen:
 def comparable(table: pd.DataFrame) -> pd.DataFrame:
     """A sweep table without its wall-time columns (:data:`TIMES`), rows renumbered."""
     return table.drop(columns=[c for c in TIMES if c in table.columns]).reset_index(drop=True)
+
+
+def result_contents(h5) -> dict:
+    """Every dataset under fields/ and series/ of a result.h5, and its status attributes
+    (``complete``, ``status``): what two runs that should be bit-equal are compared by."""
+    import h5py
+
+    out = {}
+    with h5py.File(h5, "r") as f:
+        for group in ("fields", "series"):
+            for name, dataset in f[group].items():
+                out[f"{group}/{name}"] = dataset[()]
+        out["complete"], out["status"] = bool(f.attrs["complete"]), str(f.attrs["status"])
+    return out
+

@@ -16,14 +16,13 @@ import signal
 import time
 from pathlib import Path
 
-import h5py
 import numpy as np
 import pandas as pd
 import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import expm_multiply, spsolve
 
-from cli_processes import decrun, start
+from cli_processes import decrun, result_contents, start
 from decrun.errors import DecrunError
 from decrun.runner.config import compose_config
 from decrun.runner.results import read_result
@@ -410,14 +409,6 @@ def test_an_initial_value_override_and_a_users_own_model_on_the_searchpath(tmp_p
     assert recorded.metrics["steps_done"] == 400 and len(recorded.series["c"]) == 5
 
 
-def h5_contents(h5: Path) -> dict:
-    out = {}
-    with h5py.File(h5, "r") as f:
-        for group in ("fields", "series"):
-            for name, dataset in f[group].items():
-                out[f"{group}/{name}"] = dataset[()]
-        out["complete"] = bool(f.attrs["complete"])
-    return out
 
 
 def kill_after_checkpoint(args, checkpoint: Path, cwd) -> None:
@@ -448,7 +439,7 @@ def test_a_killed_model_run_continues_from_its_checkpoint_bit_for_bit(tmp_path):
     assert "checkpoint: continuing from step" in (run_dir / "decrun.log").read_text()
     resumed = json.loads((run_dir / "metrics.json").read_text())
     assert 0 < resumed["resumed_from_step"] < 10260 and resumed["steps_done"] == 10260
-    first, second = h5_contents(tmp_path / "reference" / "result.h5"), h5_contents(run_dir / "result.h5")
+    first, second = result_contents(tmp_path / "reference" / "result.h5"), result_contents(run_dir / "result.h5")
     assert first.keys() == second.keys() and second["complete"]
     for key in first:
         assert np.array_equal(first[key], second[key]), key
@@ -523,7 +514,7 @@ def test_a_killed_sweep_of_an_adaptive_model_resumes_bit_for_bit(tmp_path):
     assert proc.returncode == 0, proc.stderr
     resumed = json.loads((sweep / "0" / "metrics.json").read_text())
     assert 0 < resumed["resumed_from_step"] < 500 and resumed["steps_done"] == 500
-    first, second = h5_contents(tmp_path / "reference" / "result.h5"), h5_contents(sweep / "0" / "result.h5")
+    first, second = result_contents(tmp_path / "reference" / "result.h5"), result_contents(sweep / "0" / "result.h5")
     assert first.keys() == second.keys() and second["complete"]
     for key in first:
         assert np.array_equal(first[key], second[key]), key

@@ -11,11 +11,10 @@ import signal
 import time
 from pathlib import Path
 
-import h5py
 import numpy as np
 import pytest
 
-from cli_processes import decrun, start
+from cli_processes import decrun, result_contents, start
 from decrun.runner.results.checkpoint import CHECKPOINT
 
 #: a fluid run of ~3 s of steps (~500 steps/s on 1,280 faces) and a smoothing run of ~1.5 s,
@@ -30,19 +29,10 @@ UNEQUAL = ("setup_seconds", "solve_seconds", "total_seconds", "steps_per_second"
            "resumed_from_step", "config_hash")
 
 
-def contents(h5: Path) -> dict:
-    """Every dataset under fields/ and series/ of a result.h5, and its status attributes."""
-    out = {}
-    with h5py.File(h5, "r") as f:
-        for group in ("fields", "series"):
-            for name, dataset in f[group].items():
-                out[f"{group}/{name}"] = dataset[()]
-        out["complete"], out["status"] = bool(f.attrs["complete"]), str(f.attrs["status"])
-    return out
 
 
 def assert_same_run(a: Path, b: Path) -> None:
-    first, second = contents(a / "result.h5"), contents(b / "result.h5")
+    first, second = result_contents(a / "result.h5"), result_contents(b / "result.h5")
     assert first.keys() == second.keys()
     for key in first:
         assert np.array_equal(first[key], second[key]), key
@@ -104,7 +94,7 @@ def test_a_killed_run_rerun_in_its_directory_ends_as_the_uninterrupted_run(tmp_p
         assert not (run_dir / "result.h5").exists()
     else:
         assert json.loads((run_dir / "metrics.json").read_text())["status"] == "interrupted"
-        assert not contents(run_dir / "result.h5")["complete"]
+        assert not result_contents(run_dir / "result.h5")["complete"]
     proc = decrun(*args, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     log = (run_dir / "decrun.log").read_text()

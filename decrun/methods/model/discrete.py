@@ -31,11 +31,14 @@ def top_sign(K, k: int) -> np.ndarray | float:
 
 def average_matrix(K, k: int) -> sp.csr_matrix:
     """(n_k, n0) mean over the k+1 vertices of each k-simplex: ``(A f)_σ = Σ_{v∈σ} f_v / (k+1)``.
-    With k = 1 this is the averaging of a 0-form onto edges (a diffusivity per edge)."""
-    simplices = K.simplices(k)
-    rows = np.repeat(np.arange(simplices.shape[0]), k + 1)
-    data = np.full(rows.size, 1.0 / (k + 1))
-    return sp.csr_matrix((data, (rows, simplices.ravel())), shape=(simplices.shape[0], K.num_simplices(0)))
+    With k = 1 this is the averaging of a 0-form onto edges (a diffusivity per edge). Made
+    once per complex (every step's ∧ and averages reuse it)."""
+    def compute():
+        simplices = K.simplices(k)
+        rows = np.repeat(np.arange(simplices.shape[0]), k + 1)
+        data = np.full(rows.size, 1.0 / (k + 1))
+        return sp.csr_matrix((data, (rows, simplices.ravel())), shape=(simplices.shape[0], K.num_simplices(0)))
+    return K.require(("model", "average_matrix", k), compute)
 
 
 def cell_to_edge_matrix(K) -> sp.csr_matrix:
@@ -158,15 +161,18 @@ def interior_1(K, vectors: np.ndarray, omega: np.ndarray) -> np.ndarray:
 
 def vertex_average_matrix(K) -> sp.csr_matrix:
     """(n0, n_n) volume-weighted mean over the top simplices at each vertex:
-    ``(A g)_v = Σ_{σ∋v} |σ| g_σ / Σ_{σ∋v} |σ|`` (a dual 0-form brought to the vertices)."""
-    n = K.dim
-    top = K.simplices(n)
-    volume = np.repeat(K.top_volumes, n + 1)
-    rows = top.ravel()
-    cols = np.repeat(np.arange(top.shape[0]), n + 1)
-    total = np.bincount(rows, weights=volume, minlength=K.num_simplices(0))
-    data = volume / total[rows]
-    return sp.csr_matrix((data, (rows, cols)), shape=(K.num_simplices(0), top.shape[0]))
+    ``(A g)_v = Σ_{σ∋v} |σ| g_σ / Σ_{σ∋v} |σ|`` (a dual 0-form brought to the vertices). Made
+    once per complex."""
+    def compute():
+        n = K.dim
+        top = K.simplices(n)
+        volume = np.repeat(K.top_volumes, n + 1)
+        rows = top.ravel()
+        cols = np.repeat(np.arange(top.shape[0]), n + 1)
+        total = np.bincount(rows, weights=volume, minlength=K.num_simplices(0))
+        data = volume / total[rows]
+        return sp.csr_matrix((data, (rows, cols)), shape=(K.num_simplices(0), top.shape[0]))
+    return K.require(("model", "vertex_average_matrix"), compute)
 
 
 def lie_0(K, vectors: np.ndarray, f: np.ndarray) -> np.ndarray:

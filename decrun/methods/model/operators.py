@@ -50,9 +50,6 @@ class Discrete:
     def __init__(self, dec):
         self.dec, self.K, self.n = dec, dec.K, dec.n
 
-    def cached(self, key, compute: Callable):
-        return self.dec.require(("model",) + tuple(key), compute)
-
     def diagonal(self, k: int) -> np.ndarray | None:
         """(n_k,) diagonal of ⋆_k, or None (Galerkin ⋆)."""
         return self.dec.star_diagonal_or_none(k)
@@ -234,7 +231,7 @@ def _average_kind(args, n):
 def _average_linear(ops: "Discrete", kind: Kind) -> Linear:
     if kind.dual:  # one value per top simplex → the mean over the top simplices at each edge
         return Linear(None, discrete.cell_to_edge_matrix(ops.K))
-    return Linear(None, ops.cached(("average", 1), lambda: discrete.average_matrix(ops.K, 1)))
+    return Linear(None, discrete.average_matrix(ops.K, 1))
 
 
 def _cell_average_kind(args, n):
@@ -243,7 +240,7 @@ def _cell_average_kind(args, n):
 
 
 def _cell_average_linear(ops: "Discrete", kind: Kind) -> Linear:
-    return Linear(None, ops.cached(("average", ops.n), lambda: discrete.average_matrix(ops.K, ops.n)))
+    return Linear(None, discrete.average_matrix(ops.K, ops.n))
 
 
 def _velocity(kind: Kind) -> bool:

@@ -150,12 +150,8 @@ def profile() -> None:
 
         setattr(owner, name, wrapper)
 
-    if hasattr(sweeper, "local"):  # decrun runs the basic launcher's loop itself (decrun.runner.sweep.local)
-        timed(sweeper.local, "run_job", "run_job (Hydra's per-job work + the job)")
-        timed(sweeper.local, "_save_config", "  hydra: .hydra/*.yaml")
-    else:  # an older checkout: Hydra's own
-        timed(hydra_utils, "run_job", "hydra run_job (Hydra's per-job work + the job)")
-        timed(hydra_utils, "_save_config", "  hydra: .hydra/*.yaml")
+    timed(hydra_utils, "run_job", "hydra run_job (Hydra's per-job work + the job)")
+    timed(hydra_utils, "_save_config", "  hydra: .hydra/*.yaml")
     timed(hydra_config.HydraConfig, "set_config", "  hydra: HydraConfig.set_config")
     timed(run, "run", "  decrun job (run)")
     timed(run, "prepare", "    prepare (plugins, mesh, complex, checks)")

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from decrun.apps.base import Result
 from decrun.core import jit
@@ -48,9 +48,8 @@ from decrun.runner.results.export import ExportFailed
 from decrun.runner.results.provenance import result_record
 from decrun.runner.results.reading import CHAINED_STATUS
 from decrun.runner.results.recorder import ResultRecorder
-from decrun.runner.sweep.job_cache import mesh_and_dec
+from decrun.runner.job_cache import mesh_and_dec
 from decrun.runner.sweep.manifest import config_hash
-from decrun.runner.yaml_text import to_yaml
 
 __all__ = ["Experiment", "Run", "validate", "prepare", "execute", "write", "run_experiment", "run"]
 
@@ -137,7 +136,7 @@ def prepare(cfg: DictConfig, progress: Callable | None = None, out: Path | None 
 
     ``out``: the run directory (:func:`execute` then streams the app's records to its
     result.h5). With ``cache`` (sweep jobs) the mesh, complex and DEC come from the
-    per-process cache :mod:`decrun.runner.sweep.job_cache` when an earlier job had the same
+    per-process cache :mod:`decrun.runner.job_cache` when an earlier job had the same
     mesh / operator / boundary config (``mesh_seconds`` is then 0), and a plugin node equal to
     the previous job's is made from that one's typed config (:class:`~decrun.runner.plugins.Recent`)."""
     t = time.perf_counter()
@@ -203,7 +202,7 @@ def _execute(run: Run) -> Run:
     mesh, complex_, app = run.mesh, run.complex, run.experiment.app
     if run.files is not None:
         run.recorder = ResultRecorder(run.files.result, vertices=mesh.vertices, simplices=mesh.simplices,
-                                      edges=complex_.simplices(1), config_yaml=to_yaml(run.cfg, resolve=True),
+                                      edges=complex_.simplices(1), config_yaml=OmegaConf.to_yaml(run.cfg, resolve=True),
                                       mesh_hash=mesh.meta.get("hash", ""))
     ctx = RunContext(app, complex_, run.dec, new_solver=run.experiment.solver.fresh, meta=mesh.meta,
                      progress=run.progress, recorder=run.recorder, logger=log)
@@ -282,7 +281,7 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         h5 = run.recorder.finish(result, timings)
     else:
         h5 = write_result(files.result, result, vertices=mesh.vertices, simplices=mesh.simplices,
-                          edges=run.complex.simplices(1), config_yaml=to_yaml(cfg, resolve=True),
+                          edges=run.complex.simplices(1), config_yaml=OmegaConf.to_yaml(cfg, resolve=True),
                           mesh_hash=mesh.meta.get("hash", ""), timings=timings)
     # the size and sha256 of result.h5 as written (readers never take a truncated or altered one for it)
     # and the hash of its content, equal for two runs of one config (README: "Reproducible records")

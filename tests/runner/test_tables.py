@@ -147,7 +147,7 @@ def test_the_objective_a_job_returns():
 
 
 def test_jobs_of_one_process_share_mesh_complex_and_operators():
-    from decrun.runner.sweep import job_cache
+    from decrun.runner import job_cache
 
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment

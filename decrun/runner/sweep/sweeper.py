@@ -47,7 +47,6 @@ from decrun.runner.locks import LOCK_NAME
 from decrun.runner.paths import hydra_files
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
-from decrun.runner.sweep import local
 from decrun.runner.sweep.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, joblib_timeout, launch_failure, \
     launcher_choice, preflight, timed_out
 from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
@@ -343,8 +342,6 @@ class ManifestSweeper(Sweeper):
         ``missing``, and ``hydra.sweeper.resume=true`` reruns it."""
         if type(self.launcher).__name__ == "RayLauncher":
             _connect_ray_as_is(self.launcher)
-        if local.is_basic_launcher(self.launcher):  # its loop, Hydra's bookkeeping once a job
-            return local.launch(self.launcher, overrides, initial_job_idx=first)
         if type(self.launcher).__name__ != "SlurmLauncher":
             return self.launcher.launch(overrides, initial_job_idx=first)
         from decrun.runner.sweep import slurm  # lazy: submitit

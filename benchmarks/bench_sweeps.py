@@ -17,7 +17,7 @@ as a user waits for them), best of ``--repeat``:
    manifest is written (every job composed, checked and hashed; no job has run), for a
    1-job and an N-job ``app.steps`` sweep (``--jobs``, default 2000): ms per planned job =
    (t_N − t_1) / (N − 1). Target ≤ 2 ms/job (10 000 jobs planned within 30 s). Measured
-   with ``hydra.sweeper.derive=true`` (decrun's default: jobs derived from their group's
+   with ``hydra.sweeper.fast=true`` (decrun's default: jobs derived from their group's
    composition) and ``false`` (Hydra composes every job; on 1/10 of the jobs, it is slow),
    and their ratio.
 
@@ -117,7 +117,7 @@ def planning(jobs: int, repeat: int) -> dict:
     one = min(time_to_manifest(1) for _ in range(repeat))
     derived = min(time_to_manifest(jobs) for _ in range(repeat))
     small = max(jobs // 10, 2)
-    hydra = min(time_to_manifest(small, "hydra.sweeper.derive=false") for _ in range(repeat))
+    hydra = min(time_to_manifest(small, "hydra.sweeper.fast=false") for _ in range(repeat))
     per_derived = 1000 * (derived - one) / (jobs - 1)
     per_hydra = 1000 * (hydra - one) / (small - 1)
     return {"one_s": one, "jobs": jobs, "derived_s": derived, "derived_ms": per_derived, "hydra_jobs": small,
@@ -131,7 +131,7 @@ def profile() -> None:
 
     import decrun.runner.cli as cli
     import decrun.runner.run as run
-    import decrun.runner.sweep.planning as planning_module
+    import decrun.runner.sweep.fast.planning as planning_module
     import decrun.runner.sweep.sweeper as sweeper
 
     totals, calls = collections.defaultdict(float), collections.Counter()
@@ -195,7 +195,7 @@ def main(argv: list[str] | None = None) -> None:
         r = planning(args.jobs, args.repeat)
         print(f"planning: {r['jobs']} jobs planned in {r['derived_s']:.2f} s (1 job {r['one_s']:.2f} s): "
               f"{r['derived_ms']:.2f} ms/job (target <= 2); Hydra composing every job "
-              f"(hydra.sweeper.derive=false, {r['hydra_jobs']} jobs) {r['hydra_ms']:.1f} ms/job = "
+              f"(hydra.sweeper.fast=false, {r['hydra_jobs']} jobs) {r['hydra_ms']:.1f} ms/job = "
               f"{r['ratio']:.0f}x (load average {os.getloadavg()[0]:.1f})", flush=True)
 
 

@@ -21,6 +21,7 @@ import logging
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -79,16 +80,13 @@ def _hydra_task(cfg: DictConfig) -> int | float:
                log_name=hydra_cfg.job.name)
 
 
-#: the plugins the sweeper's checks built, by node (a sweep's jobs share most of them)
-_CHECKED: dict = {}
-
-
-def _check_job(cfg: DictConfig, delta=None) -> None:
-    """The sweeper's check of each planned job: :func:`decrun.runner.experiment.validate`, each
-    distinct plugin node built once per process, a derived job's changed leaves only."""
+def _check_job(cfg: DictConfig, memo: dict | None = None, delta: Any = None) -> None:
+    """The sweeper's check of each planned job: :func:`decrun.runner.experiment.validate`;
+    with the sweeper's ``memo`` each distinct plugin node is built once per sweep, and with
+    a ``delta`` only a derived job's changed leaves are checked anew."""
     from decrun.runner.experiment import validate  # lazy: the numerical stack (start-up speed)
 
-    validate(cfg, memo=_CHECKED, delta=delta)
+    validate(cfg, memo=memo, delta=delta)
 
 
 _hydra_main = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_hydra_task)
@@ -156,7 +154,6 @@ class SweepTable(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
         """Refuse a non-empty sweep dir for sweepers without resume; then show jobs done /
         total with ETA in the submitting process (a terminal only)."""
-        _CHECKED.clear()  # a sweep's checks see its own files (a mesh file changed since)
         sweep_dir = SweepTable.sweep_dir = Path(str(config.hydra.sweep.dir))
         target = str(config.hydra.sweeper.get("_target_", ""))
         if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):

@@ -144,7 +144,7 @@ def validate(cfg: DictConfig, memo: dict | None = None, delta: Any = None, recen
     values equal those of a node already built with the same memo is not built again —
     its plugin, or its error, is the earlier one's (the same checks, once per distinct node).
 
-    ``delta`` (:class:`~decrun.runner.sweep.checks.JobDelta`, with ``memo``): ``cfg`` equals
+    ``delta`` (:class:`~decrun.runner.sweep.fast.JobDelta`, with ``memo``): ``cfg`` equals
     the config last checked with the same ``delta.group`` except at the plain keys
     ``delta.keys`` (and in the roots ``delta.interpolated``, which are built as above). A
     root none of those keys is under keeps its plugin; a root they are under is rebuilt

@@ -169,15 +169,26 @@ def test_launch_failures_are_recognised_by_their_launcher_only():
 
     from decrun.runner.sweep.launchers import launch_failure, timed_out
 
-    class SlurmLauncher:
+    from hydra_plugins.hydra_joblib_launcher.joblib_launcher import JoblibLauncher as Joblib
+    from hydra_plugins.hydra_ray_launcher.ray_launcher import RayLauncher as Ray
+    from hydra_plugins.hydra_submitit_launcher.submitit_launcher import SlurmLauncher as Slurm
+
+    class SlurmLauncher(Slurm):  # the plugin classes, not set up (no cluster here)
+        def __init__(self):
+            pass
+
+    class JoblibLauncher(Joblib):
+        def __init__(self):
+            self.joblib = {"timeout": 2}
+
+    class RayLauncher(Ray):
+        def __init__(self):
+            self.ray_cfg = SimpleNamespace(init={"address": "10.0.0.1:6379"})
+
+    class Named:  # a launcher that only bears a known plugin's name is not that plugin
         pass
 
-    class JoblibLauncher:
-        joblib = {"timeout": 2}
-
-    class RayLauncher:
-        ray_cfg = SimpleNamespace(init={"address": "10.0.0.1:6379"})
-
+    Named.__name__ = "RayLauncher"
     config = {}
     refused = RuntimeError("sbatch: error: invalid partition")
     refused.__cause__ = sp.CalledProcessError(1, ["sbatch", "/x/submission.sh"])
@@ -185,6 +196,7 @@ def test_launch_failures_are_recognised_by_their_launcher_only():
     assert launch_failure(SlurmLauncher(), config, RuntimeError("the job's own failure")) is None
     assert launch_failure(JoblibLauncher(), config, ConnectionError("a job's socket")) is None
     assert launch_failure(RayLauncher(), config, ConnectionError("Failed to connect")) is not None
+    assert launch_failure(Named(), config, ConnectionError("Failed to connect")) is None
     import multiprocessing
 
     assert timed_out(JoblibLauncher(), multiprocessing.TimeoutError())

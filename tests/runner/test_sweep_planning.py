@@ -1,4 +1,4 @@
-"""The sweep plan's compositions (decrun.runner.sweep.planning) are Hydra's: for a mix of
+"""The sweep plan's compositions (decrun.runner.sweep.fast.planning) are Hydra's: for a mix of
 plain values, config groups, ``+key=``, ``~key`` and interpolations, every planned job's
 config hash and every launched job's whole config (``hydra`` node included) equal those of
 Hydra's own ``load_sweep_config`` of the same overrides. Timings are the benchmark's
@@ -17,7 +17,7 @@ from omegaconf import OmegaConf
 
 from decrun.runner.config import DecrunConfig, config_dir, register_configs
 from decrun.runner.sweep.manifest import UNHASHED, config_hash
-from decrun.runner.sweep.planning import Composer, PlannedConfigs, simple_subdir, subdir_of
+from decrun.runner.sweep.fast.planning import Composer, PlannedConfigs, simple_subdir, subdir_of
 
 #: groups of jobs: plain values only; a config group; + and ~; an interpolation into a
 #: swept key; an interpolated override value; quoted strings, null and a root value
@@ -111,7 +111,7 @@ def test_a_derived_job_is_checked_as_a_full_build_is_with_one_build_per_plugin(h
     import decrun.runner.experiment as run_module
     from decrun.errors import ConfigError
     from decrun.runner.run import validate
-    from decrun.runner.sweep.checks import JobDelta
+    from decrun.runner.sweep.fast import JobDelta
 
     loader, master = hydra_loader
     jobs = [(f"app.steps={n}", f"app.dt={dt}") for n in (3, 4, 5) for dt in (0.001, 0.25)]
@@ -164,22 +164,44 @@ def test_repeated_values_run_as_jobs_of_their_own(tmp_path):
     assert list(table["status"]) == ["ok", "ok"] and list(table["steps_done"]) == [2, 2]
 
 
-def test_a_plan_composed_by_hydra_for_every_job_is_the_derived_plan(tmp_path):
-    """``hydra.sweeper.derive=false`` (Hydra composes every job, its public API only) plans
-    the same jobs, directories and config hashes as decrun's derived plan."""
+def test_a_sweep_without_the_speed_layer_plans_runs_and_writes_what_it_does_with_it(tmp_path):
+    """``hydra.sweeper.fast=false`` (Hydra composes every job, its public API only; no loader
+    swap, no memo, no warm-up) plans the same jobs, directories and config hashes as the
+    speed layer, and every job writes the same ``.hydra/`` files, metrics and result fields;
+    a bad value is refused the same way, naming the job."""
     import json
+    import re
 
-    from cli_processes import decrun
+    from cli_processes import decrun, result_contents
 
-    manifests = {}
-    for derive in ("true", "false"):
+    runs, refusals = {}, {}
+    for fast in ("true", "false"):
         proc = decrun("-m", "app.steps=1,2", "app.dt=0.001,0.002", "operator=circumcentric,barycentric",
-                      "figures=false", "progress=false", f"hydra.sweeper.derive={derive}",
-                      f"hydra.sweep.dir={tmp_path}/{derive}", cwd=tmp_path)
+                      "figures=false", "progress=false", f"hydra.sweeper.fast={fast}",
+                      f"hydra.sweep.dir={tmp_path}/{fast}", cwd=tmp_path)
         assert proc.returncode == 0, proc.stderr[-2000:]
-        jobs = json.loads((tmp_path / derive / "manifest.json").read_text())["jobs"]
-        manifests[derive] = [(job["dir"], job["overrides"], job["config_hash"]) for job in jobs]
-    assert len(manifests["true"]) == 8 and manifests["true"] == manifests["false"]
+        sweep = tmp_path / fast
+        jobs = json.loads((sweep / "manifest.json").read_text())["jobs"]
+        files = {}
+        for job in jobs:
+            where = sweep / job["dir"]
+            for name in ("config.yaml", "overrides.yaml", "hydra.yaml"):
+                text = (where / ".hydra" / name).read_text().replace(str(sweep), "<sweep>")
+                files[job["dir"], name] = re.sub(r"fast(=|: )(true|false)", "fast", text)
+            metrics = json.loads((where / "metrics.json").read_text())
+            files[job["dir"], "metrics"] = {k: v for k, v in metrics.items() if "seconds" not in k and k != "result_h5"}
+            files[job["dir"], "result"] = {k: v.tolist() if hasattr(v, "tolist") else v
+                                           for k, v in result_contents(where / "result.h5").items()}
+        runs[fast] = ([(job["dir"], job["overrides"], job["config_hash"]) for job in jobs], files)
+        bad = decrun("-m", "app.steps=1,2", "app.dt=0.001,oops", "figures=false", f"hydra.sweeper.fast={fast}",
+                     f"hydra.sweep.dir={tmp_path}/bad_{fast}", cwd=tmp_path)
+        refusals[fast] = (bad.returncode, bad.stderr.strip().splitlines()[-1])
+    assert len(runs["true"][0]) == 8 and runs["true"][0] == runs["false"][0]
+    assert runs["true"][1].keys() == runs["false"][1].keys()
+    for key, value in runs["true"][1].items():
+        assert value == runs["false"][1][key], key
+    assert refusals["true"] == refusals["false"] and refusals["true"][0] == 1
+    assert "error: job 1 (app.steps=1 app.dt=oops " in refusals["true"][1], refusals["true"]
 
 
 #: strings whose YAML needs care: booleans and numbers to YAML or Python (quoted), empty,
@@ -217,7 +239,7 @@ def test_override_dirname_is_hydras():
     from hydra._internal.config_loader_impl import get_overrides_dirname
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from decrun.runner.sweep.planning import override_dirname
+    from decrun.runner.sweep.fast.planning import override_dirname
 
     lines = ["app.dt=0.1", "mesh.subdiv=3", "operator=circumcentric", "+app.note=first", "~app.rescale",
              "++figures=false", "app.label='a=b, c'", "seed=1", "a.b.c=[1,2]", "x={k:v}", "name=${mesh.subdiv}",

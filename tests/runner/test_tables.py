@@ -202,8 +202,8 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
     import copy
 
     from decrun.runner.config import config_dir
-    from decrun.runner.sweep import planning
-    from decrun.runner.sweep.planning import Composer
+    from decrun.runner.sweep.fast import planning
+    from decrun.runner.sweep.fast.planning import Composer
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(config_dir()), version_base="1.3"):

@@ -7,10 +7,9 @@ Imports nothing: the ``decrun`` command registers its task at start-up."""
 
 from __future__ import annotations
 
-import dataclasses
-from typing import Any, Callable, Hashable
+from typing import Any, Callable
 
-__all__ = ["CHECKS", "WARM", "JobDelta", "register_check", "import_modules"]
+__all__ = ["CHECKS", "WARM", "register_check", "import_modules"]
 
 #: task function → the check run on every planned job's config before the first job starts
 CHECKS: dict[Callable, Callable[[Any], Any]] = {}
@@ -18,26 +17,15 @@ CHECKS: dict[Callable, Callable[[Any], Any]] = {}
 WARM: dict[Callable, tuple[str, ...]] = {}
 
 
-@dataclasses.dataclass(frozen=True)
-class JobDelta:
-    """What a planned job's config shares with the job checked before it in its group (the
-    sweeper derives a group's jobs from one composition, :mod:`~decrun.runner.sweep.planning`):
-    it equals the config last checked with the same ``group`` except at the dotted plain
-    ``keys`` (``("app.dt",)``) and anywhere in the root keys ``interpolated`` (their values
-    may follow the changed keys)."""
-
-    group: Hashable
-    keys: tuple[str, ...]
-    interpolated: frozenset[str]
-
-
 def register_check(task_function: Callable, check: Callable[[Any], Any], warm: tuple[str, ...] = ()) -> None:
     """Run ``check(job_config)`` on each planned job of ``task_function`` (the function
-    ``@hydra.main`` wraps) before any job starts — ``check(job_config, delta=JobDelta(...))``
-    for a job derived from its group's composition, so the check may redo only what the
-    changed keys touch; a :class:`~decrun.errors.DecrunError` it
-    raises stops the sweep in one line naming the job. ``warm``: modules its jobs import,
-    which joblib's workers import while the sweep is planned."""
+    ``@hydra.main`` wraps) before any job starts; a :class:`~decrun.errors.DecrunError` it
+    raises stops the sweep in one line naming the job. With ``hydra.sweeper.fast`` the
+    sweeper calls ``check(job_config, memo=<dict>)``, the dict shared by the sweep's jobs,
+    and adds ``delta=JobDelta(...)`` for a job derived from its group's composition
+    (:class:`decrun.runner.sweep.fast.JobDelta`), so the check may redo only what the
+    changed keys touch. ``warm``: modules its jobs import, which joblib's workers import
+    while the sweep is planned."""
     CHECKS[task_function] = check
     WARM[task_function] = tuple(warm)
 

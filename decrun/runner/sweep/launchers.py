@@ -32,8 +32,8 @@ import threading
 import time
 from typing import Any, Callable, Iterator, Optional, Sequence
 
-__all__ = ["CONNECT_TIMEOUT", "Fix", "preflight", "launch_failure", "timed_out", "launcher_choice", "command_with",
-           "ray_address", "NO_TIME_LIMIT"]
+__all__ = ["CONNECT_TIMEOUT", "is_launcher", "SLURM", "RAY", "JOBLIB", "Fix", "preflight", "launch_failure", "timed_out", "launcher_choice", "command_with",
+           "ray_address", "NO_TIME_LIMIT", "connect_ray_as_is"]
 
 #: seconds to give up on a cluster that does not answer (``hydra.sweeper.connect_timeout``)
 CONNECT_TIMEOUT = 20.0
@@ -65,8 +65,18 @@ def command_with(argv: Sequence[str] | None = None, set_: Sequence[str] = (), dr
     return shlex.join(["decrun", *kept, *set_])
 
 
-def _kind(launcher) -> str:
-    return type(launcher).__name__
+#: Hydra's launcher plugins decrun knows, by their plugin classes (module, class name)
+SLURM = ("hydra_plugins.hydra_submitit_launcher.submitit_launcher", "SlurmLauncher")
+RAY = ("hydra_plugins.hydra_ray_launcher.ray_launcher", "RayLauncher")
+JOBLIB = ("hydra_plugins.hydra_joblib_launcher.joblib_launcher", "JoblibLauncher")
+
+
+def is_launcher(launcher: Any, module: str, name: str) -> bool:
+    """Whether ``launcher`` is an instance of the plugin class ``module.name`` (or of a
+    subclass). The plugin's module is not imported for it: an instance of its class means
+    it is imported already, and a plugin that is not installed is no instance."""
+    cls = getattr(sys.modules.get(module), name, None)
+    return isinstance(cls, type) and isinstance(launcher, cls)
 
 
 # ----------------------------------------------------------------------------------
@@ -162,6 +172,21 @@ def _ray_unreachable(config, launcher, address: str, cause: str) -> str:
             f"{TO_LOCAL_RAY.command()}")
 
 
+def connect_ray_as_is(launcher: Any) -> None:
+    """With ``hydra.launcher.ray.init.address`` set (an existing Ray cluster), leave the
+    cluster's object store as it is: hydra-ray-launcher otherwise passes its default
+    ``object_store_memory`` (75 MiB) to ``ray.init``, which refuses it for an existing
+    cluster (``ValueError: When connecting to an existing cluster, object_store_memory must
+    not be provided``). An ``object_store_memory`` given on the command line is kept."""
+    from omegaconf import OmegaConf, open_dict
+
+    init = getattr(getattr(launcher, "ray_cfg", None), "init", None)
+    if init is None or not init.get("address") or "object_store_memory" in init:
+        return
+    with open_dict(init) if OmegaConf.is_config(init) else contextlib.nullcontext():
+        init["object_store_memory"] = None
+
+
 def connect_ray(launcher, config, timeout: float) -> Optional[str]:
     """Connect this process to the Ray cluster of ``launcher`` (``ray.init`` with its init
     options: the launcher then finds Ray initialized), giving up after ``timeout`` seconds;
@@ -225,11 +250,11 @@ def connect_ray(launcher, config, timeout: float) -> Optional[str]:
 def preflight(launcher, config, timeout: float = CONNECT_TIMEOUT) -> Optional[str]:
     """The one-line error when ``launcher`` cannot start here (module docstring), before
     the sweep is planned; None when it can."""
-    if _kind(launcher) == "SlurmLauncher":
+    if is_launcher(launcher, *SLURM):
         missing = _missing_slurm_command()
         if missing is not None:
             return _no_slurm(config, missing)
-    if _kind(launcher) == "RayLauncher":
+    if is_launcher(launcher, *RAY):
         return connect_ray(launcher, config, timeout)
     return None
 
@@ -280,10 +305,10 @@ def launch_failure(launcher, config, exc: BaseException) -> Optional[tuple[str, 
     ``launch`` that says its jobs could not be submitted (no SLURM commands, a refused
     submission, a Ray cluster not reached); None for any other exception (a job's own
     error, a bug)."""
-    kind, text = _kind(launcher), (str(exc).splitlines() or [type(exc).__name__])[0]
-    if kind == "SlurmLauncher" and _submission_failed(exc):
+    text = (str(exc).splitlines() or [type(exc).__name__])[0]
+    if is_launcher(launcher, *SLURM) and _submission_failed(exc):
         return f"{launcher_choice(config)}: cannot submit its jobs ({_last_line(exc) or text})", TO_SUBMITIT_LOCAL
-    if kind == "RayLauncher" and isinstance(exc, ConnectionError):
+    if is_launcher(launcher, *RAY) and isinstance(exc, ConnectionError):
         return (f"{launcher_choice(config)}: cannot reach the Ray cluster at hydra.launcher.ray.init.address="
                 f"{ray_address(launcher)} ({text})", TO_LOCAL_RAY)
     return None
@@ -298,7 +323,7 @@ NO_TIME_LIMIT = Fix(["hydra.launcher.timeout=null"])
 def timed_out(launcher, exc: BaseException) -> bool:
     """joblib's ``TimeoutError`` (``multiprocessing.TimeoutError`` from loky) for a job that
     ran longer than ``hydra.launcher.timeout``."""
-    return _kind(launcher) == "JoblibLauncher" and any(c.__name__ == "TimeoutError" for c in type(exc).__mro__)
+    return is_launcher(launcher, *JOBLIB) and any(c.__name__ == "TimeoutError" for c in type(exc).__mro__)
 
 
 def joblib_timeout(launcher) -> Any:

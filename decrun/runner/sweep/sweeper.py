@@ -23,13 +23,10 @@ only from the ``hydra_plugins`` namespace: :mod:`hydra_plugins.decrun_sweeper` r
 
 from __future__ import annotations
 
-import contextlib
-import gc
 import logging
 import os
 import shutil
 import sys
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,13 +43,13 @@ from decrun.runner.atomic import write_text_atomic
 from decrun.runner.locks import LOCK_NAME
 from decrun.runner.paths import hydra_files
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
-from decrun.runner.sweep.checks import CHECKS, WARM, JobDelta, import_modules
-from decrun.runner.sweep.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, joblib_timeout, launch_failure, \
-    launcher_choice, preflight, timed_out
+from decrun.runner.sweep.checks import CHECKS, WARM
+from decrun.runner.sweep.fast import SpeedLayer
+from decrun.runner.sweep.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, RAY, SLURM, connect_ray_as_is, \
+    is_launcher, joblib_timeout, launch_failure, launcher_choice, preflight, timed_out
 from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
-from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, config_hash, job_dir_name, job_state, now,
+from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, job_dir_name, job_state, now,
                                           read_manifest, write_manifest)
-from decrun.runner.sweep.planning import Composer, PlannedConfigs, subdir_of
 from decrun.runner.sweep.stops import ignore_interrupts, mark_killed, resume_command, take_stock, worker_died
 from decrun.runner.files import RunFiles, SweepFiles
 
@@ -86,11 +83,11 @@ class DecrunSweeperConf:
     params: Optional[Dict[str, str]] = field(default=None)
     #: rerun the jobs of an existing hydra.sweep.dir that are not ok
     resume: bool = False
-    #: derive the jobs that differ from their group's first job in plain values only from its
-    #: composition, checked against Hydra's (decrun.runner.sweep.planning); false: Hydra
-    #: composes every job itself (its public load_sweep_config; 179x slower to plan:
-    #: benchmarks/bench_sweeps.py --only planning)
-    derive: bool = True
+    #: the speed layer (decrun.runner.sweep.fast): jobs derived from their group's composition,
+    #: the launcher's loader deriving them too, memoized checks, joblib workers warmed while
+    #: planning; false: every job composed by Hydra's public API (the same jobs, ~180x slower
+    #: to plan: benchmarks/bench_sweeps.py --only planning)
+    fast: bool = True
     #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.sweep.launchers)
     connect_timeout: float = CONNECT_TIMEOUT
     #: the most jobs a sweep may plan (each is composed, checked and hashed before the first starts);
@@ -106,11 +103,11 @@ class ManifestSweeper(Sweeper):
     Hydra (``class DecrunSweeper(ManifestSweeper)``)."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
-                 resume: bool = False, derive: bool = True, connect_timeout: float = CONNECT_TIMEOUT,
+                 resume: bool = False, fast: bool = True, connect_timeout: float = CONNECT_TIMEOUT,
                  max_jobs: int = MAX_JOBS):
         super().__init__()
         self.max_batch_size, self.params = max_batch_size, dict(params or {})
-        self.resume, self.derive = resume, derive
+        self.resume, self.speed = resume, SpeedLayer(fast)
         self.connect_timeout = connect_timeout
         self.max_jobs = max_jobs
         #: (jobs planned, jobs to plan) while the sweep is planned
@@ -124,9 +121,9 @@ class ManifestSweeper(Sweeper):
                                                                 task_function=task_function, config=config)
         self.check = CHECKS.get(task_function)
         # what a worker imports to unpickle its first job comes too: the task's module (decrun's
-        # CLI: Hydra, its callbacks) and the planned configs' (~0.1 s before the job could start)
+        # CLI: Hydra, its callbacks) (~0.1 s before the job could start)
         registered = WARM.get(task_function, ())
-        self.warm = (*registered, task_function.__module__, PlannedConfigs.__module__) if registered else ()
+        self.warm = (*registered, task_function.__module__) if registered else ()
 
     def _parse_config(self) -> List[str]:
         """``hydra.sweeper.params`` as override lines (``key=values``), before the command line's."""
@@ -136,14 +133,11 @@ class ManifestSweeper(Sweeper):
         """The jobs of the sweep, in Hydra's order: ``{"job", "dir", "overrides",
         "config_hash"}`` (``dir``: the job's ``hydra.sweep.subdir``, resolved now).
 
-        Composes each job once (this is also Hydra's validation of a batch; most jobs are
-        derived from their group's composition, :mod:`~decrun.runner.sweep.planning`) and
-        runs the ``check`` function on each, before any job starts. The launcher gets the
-        groups' compositions (:meth:`_hand_over`), as it would compose each job again:
-        composition is most of a small job's overhead."""
-        loader = self.hydra_context.config_loader
-        if isinstance(loader, PlannedConfigs):  # a second sweep of this sweeper
-            loader = self.hydra_context.config_loader = loader.wrapped
+        Composes each job once (this is also Hydra's validation of a batch; with
+        ``hydra.sweeper.fast`` most jobs are derived from their group's composition,
+        :mod:`~decrun.runner.sweep.fast`) and runs the ``check`` function on each, before
+        any job starts."""
+        loader = self.speed.unwrap(self.hydra_context)  # Hydra's own, after an earlier sweep
         parser = OverridesParser.create(config_loader=loader)
         overrides = parser.parse_overrides(self._parse_config() + list(arguments))
         try:
@@ -153,28 +147,22 @@ class ManifestSweeper(Sweeper):
         if size > self.max_jobs:  # before a job is made: a grid may be too large to hold
             raise SweepError(_too_many(size, swept, self.max_jobs))
         planned = [tuple(job) for job in grid(overrides)]
-        self._composer = Composer(loader, self.config, derive=self.derive)
         check = self.check
         jobs: list[dict[str, Any]] = []
         shown = PlanningProgress(len(planned), enabled=_terminal(self.config))
         self.planned = (0, len(planned))
         try:
-            for i, (job, cfg, template) in enumerate(self._composer.each(planned)):
+            for i, (job, cfg, template) in enumerate(self.speed.compose(loader, self.config, planned)):
                 self.planned = (i, len(planned))
                 shown.update(i)
                 if check is not None:
                     try:
-                        if template is None:
-                            check(cfg)
-                        else:
-                            check(cfg, delta=JobDelta(id(template), template.varying_keys, template.interpolated))
+                        self.speed.check(check, cfg, template)
                     except DecrunError as exc:
                         raise SweepError(f"error: job {i} ({' '.join(job)}): {exc}; nothing ran") from exc
-                fast = template is not None and not self._composer.hydra_needed(template)
-                jobs.append({"job": str(i), "dir": subdir_of(template.subdir, i) if fast else self._job_dir(cfg, i),
-                             "overrides": list(job),
-                             "config_hash": config_hash(cfg, template.blocks, template.fresh) if template is not None
-                             else config_hash(cfg)})
+                where = self.speed.job_dir(template, i)
+                jobs.append({"job": str(i), "dir": self._job_dir(cfg, i) if where is None else where,
+                             "overrides": list(job), "config_hash": self.speed.config_hash(cfg, template)})
         finally:
             shown.close()
         _check_dirs(jobs, OmegaConf.to_container(self.config.hydra.sweep, resolve=False)["subdir"])
@@ -202,47 +190,20 @@ class ManifestSweeper(Sweeper):
     def _hand_over(self, jobs: list[dict]) -> list[list[str]]:
         """The launcher's job lists: each job's overrides plus its recorded directory
         (``hydra.sweep.subdir='<dir>'``, so it lands where the manifest says whatever
-        the launcher or the clock), and the planned groups' compositions to derive them
-        from (:class:`~decrun.runner.sweep.planning.PlannedConfigs`, the launcher's config
-        loader too: the same object).
-
-        Each job's ``hydra.sweep.dir`` is the sweep directory as this process resolved it
-        (absolute): a job run in another working directory — a Ray worker, a node of a
-        cluster — writes into it, not into a directory of the same name where it runs."""
-        launched = [[*job["overrides"], f"hydra.sweep.subdir={_quoted(job['dir'])}"] for job in jobs]
-        sweep_dir = str(Path(str(self.config.hydra.sweep.dir)).absolute())
-        self.hydra_context.config_loader = PlannedConfigs(self.hydra_context.config_loader, self._composer.templates,
-                                                          extra=(("hydra.sweep.subdir", None),), sweep_dir=sweep_dir)
+        the launcher or the clock) and the sweep directory as this process resolved it
+        (``hydra.sweep.dir='<absolute>'``: a job run in another working directory — a Ray
+        worker, a node of a cluster — writes into it, not into a directory of the same name
+        where it runs). With ``hydra.sweeper.fast`` the launcher's config loader then
+        derives the planned groups' jobs (:meth:`~decrun.runner.sweep.fast.SpeedLayer.swap_loader`)."""
+        sweep_dir = _quoted(str(Path(str(self.config.hydra.sweep.dir)).absolute()))
+        launched = [[*job["overrides"], f"hydra.sweep.dir={sweep_dir}", f"hydra.sweep.subdir={_quoted(job['dir'])}"]
+                    for job in jobs]
+        self.speed.swap_loader(self.hydra_context, extra=(("hydra.sweep.dir", None), ("hydra.sweep.subdir", None)))
         return launched
-
-    def _warm_workers(self) -> Optional[threading.Thread]:
-        """With Hydra's joblib launcher, start its loky workers now, each importing the
-        task's modules (:data:`~decrun.runner.sweep.checks.WARM`), while this process
-        plans the sweep: the launcher's ``Parallel`` call with the same options reuses
-        them (loky's reusable executor). None for other launchers and other Hydra apps."""
-        options = getattr(self.launcher, "joblib", None)
-        if not self.warm or type(self.launcher).__name__ != "JoblibLauncher" or not isinstance(options, dict):
-            return None
-        from joblib import Parallel, delayed, effective_n_jobs
-
-        options = {**options, "backend": "loky"}
-        workers = effective_n_jobs(options.get("n_jobs") or 1)
-        if workers <= 1:
-            return None
-
-        def start():
-            try:
-                Parallel(**options)(delayed(import_modules)(self.warm) for _ in range(workers))
-            except Exception as exc:  # only time is lost: the jobs import what they need themselves
-                log.debug("joblib workers not warmed: %s", exc)
-
-        thread = threading.Thread(target=start, name="decrun-warm-workers", daemon=True)
-        thread.start()
-        return thread
 
     def sweep(self, arguments: List[str]) -> Any:
         try:
-            with _frozen_heap():
+            with self.speed.frozen_heap():
                 return self._sweep(arguments)
         except SweepError as exc:
             refuse(exc)
@@ -252,22 +213,19 @@ class ManifestSweeper(Sweeper):
         if not self.connect_timeout or self.connect_timeout <= 0:
             raise SweepError(f"error: hydra.sweeper.connect_timeout={self.connect_timeout}: must be a number of "
                              f"seconds above 0; use hydra.sweeper.connect_timeout={CONNECT_TIMEOUT:g}")
-        if type(self.launcher).__name__ == "RayLauncher":
-            _connect_ray_as_is(self.launcher)  # the options preflight connects with are the launcher's
+        if is_launcher(self.launcher, *RAY):
+            connect_ray_as_is(self.launcher)  # the options preflight connects with are the launcher's
         cannot = preflight(self.launcher, self.config, self.connect_timeout)  # before planning: nothing written
         if cannot:
             raise SweepError(cannot)
-        warming = self._warm_workers()
         try:
-            jobs = self.plan(arguments)
+            with self.speed.warming(self.launcher, self.warm):
+                jobs = self.plan(arguments)
         except KeyboardInterrupt as exc:  # the decrun command says where (cli.main)
             done, total = self.planned
             exc.sweep_where = (f"while the sweep was planned ({done:,} of {total:,} jobs checked); nothing was written"
                                if total else "while the sweep was planned; nothing was written")
             raise
-        finally:
-            if warming is not None:
-                warming.join()
         lock_sweep(sweep_dir, SweepError)  # before the manifest is read: one sweeping process per directory
         manifest, todo = self._start(sweep_dir, jobs, arguments)
         write_text_atomic(SweepFiles(sweep_dir).multirun, OmegaConf.to_yaml(self.config))
@@ -340,9 +298,9 @@ class ManifestSweeper(Sweeper):
         (``scancel``, time limit: :mod:`decrun.runner.sweep.slurm`) does not end the sweep:
         its other jobs are waited for, the table's row of that job says ``killed`` or
         ``missing``, and ``hydra.sweeper.resume=true`` reruns it."""
-        if type(self.launcher).__name__ == "RayLauncher":
-            _connect_ray_as_is(self.launcher)
-        if type(self.launcher).__name__ != "SlurmLauncher":
+        if is_launcher(self.launcher, *RAY):
+            connect_ray_as_is(self.launcher)
+        if not is_launcher(self.launcher, *SLURM):
             return self.launcher.launch(overrides, initial_job_idx=first)
         from decrun.runner.sweep import slurm  # lazy: submitit
 
@@ -400,21 +358,6 @@ class ManifestSweeper(Sweeper):
         return manifest, todo
 
 
-@contextlib.contextmanager
-def _frozen_heap():
-    """Python's cyclic garbage collector leaves the objects alive when the sweep starts (the
-    imported numerical stack, Hydra's config store: ~100 000) out of its full collections
-    until the sweep ends (``gc.freeze``): each job makes and drops tens of thousands of
-    config nodes, and every full collection they trigger scanned the whole heap again
-    (~30 ms each, about one per two small jobs). What the sweep itself makes is collected
-    as before; the frozen objects are tracked again afterwards (``gc.unfreeze``)."""
-    gc.freeze()
-    try:
-        yield
-    finally:
-        gc.unfreeze()
-
-
 def _batches(nums: list[int], size: Optional[int]) -> list[tuple[int, int]]:
     """``[start, stop)`` index ranges of ``nums`` for the launcher calls: at most ``size``
     jobs each and consecutive job numbers only (a launcher numbers a call's jobs from its
@@ -425,19 +368,6 @@ def _batches(nums: list[int], size: Optional[int]) -> list[tuple[int, int]]:
             ranges.append((start, i))
             start = i
     return ranges
-
-
-def _connect_ray_as_is(launcher) -> None:
-    """With ``hydra.launcher.ray.init.address`` set (an existing Ray cluster), leave the
-    cluster's object store as it is: hydra-ray-launcher otherwise passes its default
-    ``object_store_memory`` (75 MiB) to ``ray.init``, which refuses it for an existing
-    cluster (``ValueError: When connecting to an existing cluster, object_store_memory must
-    not be provided``). An ``object_store_memory`` given on the command line is kept."""
-    init = getattr(getattr(launcher, "ray_cfg", None), "init", None)
-    if init is None or not init.get("address") or "object_store_memory" in init:
-        return
-    with open_dict(init) if OmegaConf.is_config(init) else contextlib.nullcontext():
-        init["object_store_memory"] = None
 
 
 def _too_many(size: int, swept: list[tuple[str, int]], limit: int) -> str:

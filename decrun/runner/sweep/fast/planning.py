@@ -32,7 +32,7 @@ from typing import Any, Iterator
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override, OverrideType
-from omegaconf import DictConfig, OmegaConf, open_dict, read_write
+from omegaconf import DictConfig, OmegaConf
 
 __all__ = ["Composer", "PlannedConfigs", "apply", "override_dirname", "shape"]
 
@@ -47,7 +47,8 @@ class Parsed:
         self.loader = loader
         self._parser = None
         self._cache: dict[str, Override] = {}
-        self._groups: dict[str, bool] = {}
+        #: parent group → the names of its child groups
+        self._groups: dict[str, frozenset[str]] = {}
 
     def __call__(self, lines: list[str]) -> list[Override]:
         missing = [line for line in lines if line not in self._cache]
@@ -65,10 +66,15 @@ class Parsed:
         value = override.value()
         if not isinstance(value, PLAIN) or (isinstance(value, str) and "${" in value):
             return False
-        group = override.key_or_group
-        if group not in self._groups:
-            self._groups[group] = self.loader.repository.group_exists(group.replace(".", "/"))
-        return not self._groups[group]
+        return not self.is_group(override.key_or_group)
+
+    def is_group(self, key: str) -> bool:
+        """Whether ``key`` (``mesh``, ``hydra.launcher``) names a config group: one of the
+        groups the config loader lists under its parent (its public ``list_groups``)."""
+        parent, _, name = key.replace(".", "/").rpartition("/")
+        if parent not in self._groups:
+            self._groups[parent] = frozenset(self.loader.list_groups(parent))
+        return name in self._groups[parent]
 
     def __getstate__(self):  # pickled to a launcher's workers: the parser is rebuilt there
         return {"loader": self.loader, "_parser": None, "_cache": {}, "_groups": {}}
@@ -104,7 +110,7 @@ def override_dirname(task: list[Override], exclude_keys: list[str], item_sep: st
     of those whose key is not in ``exclude_keys``, sorted, joined with ``item_sep``, every
     ``=`` then replaced by ``kv_sep`` (``b=2,a=1`` → ``a=1,b=2``; ``kv_sep`` is a
     ``re.sub`` replacement, as Hydra's: ``\\`` escapes in it are processed). The same text
-    as Hydra's own (``get_overrides_dirname``, in ``hydra._internal``:
+    as Hydra's own (``get_overrides_dirname``, private to Hydra:
     tests/runner/test_sweep_planning.py compares them)."""
     lines = sorted(o.input_line for o in task if o.key_or_group not in exclude_keys)
     return re.sub("=", kv_sep, item_sep.join(lines))
@@ -281,12 +287,10 @@ class PlannedConfigs:
     goes to the wrapped loader. Picklable, so launchers that compose in their workers
     (joblib, submitit, ray) get it too: it holds one config per group, not per job."""
 
-    def __init__(self, loader, templates: dict[tuple, Template], extra: tuple = (), sweep_dir: str | None = None):
+    def __init__(self, loader, templates: dict[tuple, Template], extra: tuple = ()):
         self.wrapped = loader.wrapped if isinstance(loader, PlannedConfigs) else loader
-        #: every job's hydra.sweep.dir (the submitter's absolute path; None: as composed)
-        self._sweep_dir = sweep_dir
         self._templates = templates
-        #: the shape of the lines the sweeper appends to each job (its directory)
+        #: the shape of the lines the sweeper appends to each job (its directories)
         self._extra = tuple(extra)
         self._parse = Parsed(self.wrapped)
 
@@ -296,13 +300,8 @@ class PlannedConfigs:
         template = self._templates.get(key[:len(key) - len(self._extra)]) if key[len(key) - len(self._extra):] == \
             self._extra else None
         if template is None:
-            cfg = self.wrapped.load_sweep_config(master_config, sweep_overrides)
-        else:
-            cfg = template.derive(parsed, self._parse.plain, master_config)
-        if self._sweep_dir is not None:
-            with read_write(cfg.hydra), open_dict(cfg.hydra):
-                cfg.hydra.sweep.dir = self._sweep_dir
-        return cfg
+            return self.wrapped.load_sweep_config(master_config, sweep_overrides)
+        return template.derive(parsed, self._parse.plain, master_config)
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_") or name == "wrapped":

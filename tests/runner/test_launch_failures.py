@@ -1,7 +1,7 @@
 """Launchers that cannot start (issue 34, item 3): no ``srun`` on the machine, ``sbatch``
 refused, a Ray address nobody answers at, a joblib job over ``hydra.launcher.timeout``.
 Each ends in one line naming the launcher, the cause and the command that fixes it, within
-a bounded time; the fix is run as printed (decrun.runner.sweep.launchers)."""
+a bounded time; the fix is run as printed (decrun.runner.launchers)."""
 
 from __future__ import annotations
 
@@ -167,7 +167,7 @@ def test_launch_failures_are_recognised_by_their_launcher_only():
     launcher that cannot start."""
     import subprocess as sp
 
-    from decrun.runner.sweep.launchers import launch_failure, timed_out
+    from decrun.runner.launchers import launch_failure, timed_out
 
     from hydra_plugins.hydra_joblib_launcher.joblib_launcher import JoblibLauncher as Joblib
     from hydra_plugins.hydra_ray_launcher.ray_launcher import RayLauncher as Ray

@@ -45,7 +45,7 @@ from decrun.runner.paths import hydra_files
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM
 from decrun.runner.sweep.fast import SpeedLayer
-from decrun.runner.sweep.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, RAY, SLURM, connect_ray_as_is, \
+from decrun.runner.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, RAY, SLURM, connect_ray_as_is, \
     is_launcher, joblib_timeout, launch_failure, launcher_choice, preflight, timed_out
 from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
 from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, job_dir_name, job_state, now,
@@ -88,7 +88,7 @@ class DecrunSweeperConf:
     #: planning; false: every job composed by Hydra's public API (the same jobs, ~180x slower
     #: to plan: benchmarks/bench_sweeps.py --only planning)
     fast: bool = True
-    #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.sweep.launchers)
+    #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.launchers)
     connect_timeout: float = CONNECT_TIMEOUT
     #: the most jobs a sweep may plan (each is composed, checked and hashed before the first starts);
     #: a larger grid is refused at once, naming this key
@@ -295,14 +295,14 @@ class ManifestSweeper(Sweeper):
     def _launch(self, overrides: list[list[str]], first: int) -> Sequence[Any]:
         """The launcher's results for one batch. With submitit's SLURM launcher, job states
         come from squeue when accounting is off, and a job that ended without a result
-        (``scancel``, time limit: :mod:`decrun.runner.sweep.slurm`) does not end the sweep:
+        (``scancel``, time limit: :mod:`decrun.runner.launchers.slurm`) does not end the sweep:
         its other jobs are waited for, the table's row of that job says ``killed`` or
         ``missing``, and ``hydra.sweeper.resume=true`` reruns it."""
         if is_launcher(self.launcher, *RAY):
             connect_ray_as_is(self.launcher)
         if not is_launcher(self.launcher, *SLURM):
             return self.launcher.launch(overrides, initial_job_idx=first)
-        from decrun.runner.sweep import slurm  # lazy: submitit
+        from decrun.runner.launchers import slurm  # lazy: submitit
 
         slurm.use_queue_states()
         try:

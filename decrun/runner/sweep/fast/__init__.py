@@ -36,7 +36,7 @@ from omegaconf import DictConfig
 
 from decrun.runner.sweep.checks import import_modules
 from decrun.runner.sweep.fast.planning import Composer, PlannedConfigs, Template, subdir_of
-from decrun.runner.sweep.launchers import JOBLIB, is_launcher
+from decrun.runner.launchers import JOBLIB, is_launcher
 from decrun.runner.sweep.manifest import config_hash
 
 __all__ = ["SpeedLayer", "JobDelta"]

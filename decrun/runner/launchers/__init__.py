@@ -1,5 +1,7 @@
-"""Launchers that cannot start, and a joblib job over its time limit: one line naming the
-launcher, the cause and the command that fixes it, within a bounded time.
+"""What the ``decrun`` sweeper knows of Hydra's launcher plugins, each known by its plugin
+class (:func:`is_launcher`): launchers that cannot start, and a joblib job over its time
+limit — one line naming the launcher, the cause and the command that fixes it, within a
+bounded time. SLURM jobs that end without a result: :mod:`.slurm`.
 
 * :func:`preflight`, before the sweep is planned (nothing is written when it refuses):
   ``hydra/launcher=submitit_slurm`` (or a config built on it) on a machine without ``srun``

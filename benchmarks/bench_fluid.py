@@ -35,10 +35,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from decrun.complex import SimplicialComplex  # noqa: E402
 from decrun.core.channel_mesh import channel_mesh  # noqa: E402
+from decrun.core.solvers.direct import DirectSolver  # noqa: E402
 from decrun.dec import DEC  # noqa: E402
 from decrun.methods.fluid import VorticityFluid  # noqa: E402
 from decrun.methods.fluid.initial import random_vorticity  # noqa: E402
-from decrun.core.solvers.direct import DirectSolver  # noqa: E402
 
 
 def icosphere(subdiv: int):

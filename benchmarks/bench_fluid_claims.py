@@ -40,6 +40,7 @@ from decrun.core.solvers.direct import DirectSolver  # noqa: E402
 from decrun.dec import DEC  # noqa: E402
 from decrun.methods.fluid.initial import sphere_vortex_pair  # noqa: E402
 from decrun.methods.fluid.simulation import VorticityFluid  # noqa: E402
+
 from meshes_for_tests import icosphere, square_lattice  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -38,6 +38,7 @@ from decrun.core.solvers.direct import DirectSolver  # noqa: E402
 from decrun.dec import DEC  # noqa: E402
 from decrun.methods.fluid.initial import random_vorticity  # noqa: E402
 from decrun.methods.fluid.simulation import VorticityFluid  # noqa: E402
+
 from fluid_cases import drift_per_s, steady_case  # noqa: E402
 from meshes_for_tests import icosphere, square_lattice  # noqa: E402
 

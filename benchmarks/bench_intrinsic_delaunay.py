@@ -21,7 +21,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
 from harness import best_of, parse_or_run_case, spawn, warm_up_kernels  # noqa: E402
 
 CASES = {

@@ -296,7 +296,7 @@ def convergence(subdivs: list[int]) -> None:
             rows.append((s, done.result.metrics["n_vertices"], h))
         table(f"Heat on the unit sphere, l = {l} (u0 = {initial}, exact e^(−{decay}t) u0; crank_nicolson, dt = 1e-4, "
               "t = 0.1)", "| subdiv | vertices | h | relative L2 error | order |",
-              [f"| {s} | {n:,} | {h:.4f} | {e:.3e} | {o} |" for (s, n, h), e, o in zip(rows, errors, orders(errors, hs))])
+              [f"| {s} | {n:,} | {h:.4f} | {e:.3e} | {o} |" for (s, n, h), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
 
     errors, hs, rows = [], [], []
     for nx in (9, 17, 33, 65):
@@ -307,7 +307,7 @@ def convergence(subdivs: list[int]) -> None:
     table("Poisson on the unit square (mesh=grid; u = sin(πx)cos(πy) + x², border values)",
           "| nx = ny | vertices | h (mean edge) | relative L2 error | max abs error | order |",
           [f"| {nx} | {n:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
-           for (nx, n, h, m), e, o in zip(rows, errors, orders(errors, hs))])
+           for (nx, n, h, m), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
 
     angles = np.linspace(0.0, 2 * np.pi, 96, endpoint=False)
     outer = "[" + ",".join(f"[{math.cos(a):.12f},{math.sin(a):.12f}]" for a in angles) + "]"
@@ -320,7 +320,7 @@ def convergence(subdivs: list[int]) -> None:
     table("Poisson on the unit disk (mesh=planar, a 96-gon, min angle 25°; same u, border values)",
           "| max_area | vertices | h | relative L2 error | max abs error | order |",
           [f"| {a:g} | {n:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
-           for (a, n, h, m), e, o in zip(rows, errors, orders(errors, hs))])
+           for (a, n, h, m), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
 
     errors, hs, rows = [], [], []
     for s in (3, 4, 5, 6):
@@ -331,7 +331,7 @@ def convergence(subdivs: list[int]) -> None:
     table("The heat method on the unit sphere (exact: arccos(p·s); t = h², operator=mixed_area)",
           "| subdiv | faces | h | mean relative error | max abs error | order |",
           [f"| {s} | {f:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
-           for (s, f, h, m), e, o in zip(rows, errors, orders(errors, hs))])
+           for (s, f, h, m), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
 
     from scipy.optimize import minimize_scalar
 
@@ -342,7 +342,7 @@ def convergence(subdivs: list[int]) -> None:
         time_, projection = np.asarray(series["time"]), np.asarray(series["projection"])
         energy = np.asarray(series["energy_modified"])
 
-        def misfit(omega):
+        def misfit(omega, time_=time_, projection=projection):
             basis = np.stack([np.cos(omega * time_), np.sin(omega * time_)], axis=1)
             coefficients = np.linalg.lstsq(basis, projection, rcond=None)[0]
             return float(np.sum((basis @ coefficients - projection) ** 2))
@@ -357,7 +357,7 @@ def convergence(subdivs: list[int]) -> None:
     table("The wave's l = 2 mode on the unit sphere (symplectic, dt = 0.005, 10 periods): frequency against √6",
           "| subdiv | vertices | h | ω fitted | \\|ω − √6\\| / √6 | order | modified-energy drift (relative) |",
           [f"| {s} | {n:,} | {h:.4f} | {w:.6f} | {e:.3e} | {o} | {d:.1e} |"
-           for (s, n, h, w, d), e, o in zip(rows, errors, orders(errors, hs))])
+           for (s, n, h, w, d), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
     print(f"\n{load()}")
 
 

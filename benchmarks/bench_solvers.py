@@ -32,7 +32,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
 from harness import icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E402
 
 SIZES = {"quick": [5, 6], "full": [7, 8]}  # icosphere subdivisions: 10·4^s + 2 vertices

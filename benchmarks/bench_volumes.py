@@ -25,7 +25,6 @@ import sys
 import time
 
 import numpy as np
-
 from harness import peak_rss_bytes, reset_peak_rss  # noqa: E402
 
 CASES = {"quick": [10_000, 50_000], "full": [10_000, 100_000, 1_000_000]}

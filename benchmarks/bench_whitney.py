@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import time
 
-
 from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E402
 
 TRIANGLE_CASES = {"quick": [4, 5], "full": [6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles

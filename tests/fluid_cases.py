@@ -15,6 +15,7 @@ from decrun.complex import SimplicialComplex
 from decrun.core.solvers.direct import DirectSolver
 from decrun.dec import DEC
 from decrun.methods.fluid.simulation import VorticityFluid
+
 from meshes_for_tests import icosphere, square_lattice
 
 CASES = ("rigid_rotation", "degree_2", "cellular_regular", "cellular_jittered")

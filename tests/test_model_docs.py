@@ -20,7 +20,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "models.md"
 README = ROOT / "README.md"
@@ -94,7 +93,7 @@ def line_matches(expected: str, actual: str, rtol: float = 0.02) -> bool:
     if not found:
         return False
     return all(math.isclose(float(value), number, rel_tol=rtol, abs_tol=1e-12)
-               for value, number in zip(found.groups(), numbers))
+               for value, number in zip(found.groups(), numbers, strict=True))
 
 
 def check_output(expected: str, output: str, what: str) -> None:
@@ -203,7 +202,7 @@ def test_the_bad_input_commands_end_with_the_documented_lines(tmp_path):
     assert [language for language, _ in steps] == ["bash", "text"]
     argvs, expected = commands(steps[0][1]), steps[1][1].strip().splitlines()
     assert len(argvs) == len(expected) >= 5
-    for argv, line in zip(argvs, expected):
+    for argv, line in zip(argvs, expected, strict=True):
         output = run(argv, tmp_path, fails=True)
         last = output.strip().splitlines()[-1]
         assert last == line, f"{' '.join(argv[3:])}:\n  documented {line}\n  got        {last}"

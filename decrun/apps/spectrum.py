@@ -22,8 +22,14 @@ from decrun.apps.base import App, Context, Figure, Output, Result
 from decrun.core.choices import Choice
 from decrun.core.forms import whitney_sharp, whitney_sharp2
 from decrun.errors import ConfigError, TopologyError
-from decrun.methods.spectrum import (analytic_spectrum, check_stars, detect_domain, laplacian_eigenpairs,
-                                     needs_indefinite_solve, spectrum_errors)
+from decrun.methods.spectrum import (
+    analytic_spectrum,
+    check_stars,
+    detect_domain,
+    laplacian_eigenpairs,
+    needs_indefinite_solve,
+    spectrum_errors,
+)
 from decrun.methods.spectrum_metrics import eigen_metrics
 
 
@@ -125,7 +131,7 @@ class Spectrum(App):
                 fields["eigenvalues_analytic"] = exact
                 metrics["analytic_domain"] = domain.describe()
                 metrics.update(spectrum_errors(values, exact))
-                titles = [f"λ = {v:.4g} (exact {e:.4g})" for v, e in zip(values, exact)]
+                titles = [f"λ = {v:.4g} (exact {e:.4g})" for v, e in zip(values, exact, strict=True)]
         metrics["solve_seconds"] = seconds
         shown = [i for i in range(len(values)) if abs(values[i]) >= 1e-8 / length**2][: int(self.figure_count)]
         figures = {}

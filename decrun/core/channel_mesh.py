@@ -50,7 +50,7 @@ class ChannelMesh:
     @property
     def obstacle_loops(self) -> list:
         """The obstacle loops (vertex-id arrays), for ``VorticityFluid(obstacle_loops=...)``."""
-        return [loop for loop, label in zip(self.loops, self.loop_labels) if label != "outer"]
+        return [loop for loop, label in zip(self.loops, self.loop_labels, strict=True) if label != "outer"]
 
 
 def _distance_to_polygons(points: np.ndarray, polygons: list) -> np.ndarray:
@@ -142,7 +142,7 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
             polys[index] = np.concatenate([_resample_segment(poly[i], poly[(i + 1) % len(poly)], size)
                                            for i in range(len(poly))])
     rings = []
-    for obstacle, poly in zip(obstacles, polys):  # a layer of near-equilateral triangles round circles
+    for obstacle, poly in zip(obstacles, polys, strict=True):  # a layer of near-equilateral triangles round circles
         if isinstance(obstacle, tuple) and obstacle and obstacle[0] == "circle":
             _, center, radius = obstacle
             n = poly.shape[0]
@@ -156,7 +156,7 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
     loops = [outer] + polys
     offsets = np.cumsum([0] + [len(loop) for loop in loops])
     segments = np.concatenate([np.stack([np.arange(n), (np.arange(n) + 1) % n], 1) + o
-                               for n, o in zip([len(loop) for loop in loops], offsets[:-1])])
+                               for n, o in zip([len(loop) for loop in loops], offsets[:-1], strict=True)])
     fixed = np.concatenate(loops + rings)
     holes = np.array([poly.mean(axis=0) for poly in polys]) if polys else None
 
@@ -213,7 +213,7 @@ def _mesh_at_scale(length, height, obstacles, scale, refinement, gradation, min_
             break
         vertices, faces = without_low_valence(vertices, faces)
         vertices, faces = moved_inside(_thales_step(vertices, faces, n_fixed), vertices)
-    loops_ids = [np.arange(o, o + len(loop)) for o, loop in zip(offsets[:-1], loops)]
+    loops_ids = [np.arange(o, o + len(loop)) for o, loop in zip(offsets[:-1], loops, strict=True)]
     loops_ids = [loop if i == 0 else loop[::-1] for i, loop in enumerate(loops_ids)]  # holes run clockwise
     angle = np.degrees(corner_angles(vertices, faces))
     return ChannelMesh(vertices, faces, loops_ids, ["outer"] + [f"obstacle {i}" for i in range(len(polys))],
@@ -249,7 +249,7 @@ def _thales_step(vertices: np.ndarray, faces: np.ndarray, n_fixed: int, margin: 
     hits += np.bincount(vi[movable_i], minlength=vertices.shape[0])
     fixed_i = ~movable_i
     shrink = (1.0 - distance / (radius * (1 + margin)))[:, None]  # fraction to pull each end inwards
-    for end, other in ((vj, pk), (vk, pj)):
+    for end in (vj, vk):
         sel = fixed_i & (end >= n_fixed)
         move = (mid - vertices[end]) * shrink
         for comp in range(2):

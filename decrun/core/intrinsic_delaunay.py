@@ -304,7 +304,7 @@ def _flip(edges, faces, face_edges, sides, lengths) -> np.ndarray:
     faces[g] = np.stack([y, q, x], axis=1)
     face_edges[f] = np.stack([e_py, edges, e_xp], axis=1)
     face_edges[g] = np.stack([e_xq, edges, e_yq], axis=1)
-    for (edge, _, new_side), column in zip(old, columns):
+    for (edge, _, new_side), column in zip(old, columns, strict=True):
         sides[edge, column] = new_side
     sides[edges, 0] = 3 * f + 1
     sides[edges, 1] = 3 * g + 1

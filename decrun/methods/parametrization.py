@@ -27,9 +27,9 @@ import scipy.sparse as sp
 
 from decrun.core.choices import Choice
 from decrun.core.complex import SimplicialComplex
-from decrun.errors import ConfigError, SolverError, TopologyError
 from decrun.core.geometry import corner_angles
 from decrun.core.solvers import solve_with_fixed
+from decrun.errors import ConfigError, SolverError, TopologyError
 
 __all__ = [
     "WEIGHTS",

@@ -412,7 +412,7 @@ def _lattice_values(steps, low, count: int) -> np.ndarray:
     bound = 4
     while True:
         axes = []
-        for step, lowest in zip(steps, low):
+        for step, lowest in zip(steps, low, strict=True):
             start = -bound if lowest == -np.inf else lowest
             axes.append((np.arange(start, bound + 1) * step) ** 2)
         grid = np.zeros(1)
@@ -438,7 +438,7 @@ def _ball_neumann(radius: float, count: int) -> np.ndarray:
         for degree in range(int(limit) + 2):
             f = spherical_jn(degree, grid, derivative=True)
             for i in np.flatnonzero(np.sign(f[:-1]) * np.sign(f[1:]) < 0):
-                root = brentq(lambda x: spherical_jn(degree, x, derivative=True), grid[i], grid[i + 1])
+                root = brentq(lambda x, degree=degree: spherical_jn(degree, x, derivative=True), grid[i], grid[i + 1])
                 values += [(root / radius) ** 2] * (2 * degree + 1)
         values.sort()
         # every zero of j_l' exceeds l (McMahon), so zeros beyond `limit` come from l < limit + 2

@@ -43,15 +43,15 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from decrun.core import geometry
+from decrun.core.boundary import border_edge_frames
 from decrun.core.choices import Choice
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.errors import ConfigError, TopologyError
 from decrun.core.forms import whitney_sharp
-from decrun.core import geometry
-from decrun.core.boundary import border_edge_frames
 from decrun.core.geometry import embed3
 from decrun.core.solvers import SingularSolve, Solver
+from decrun.errors import ConfigError, TopologyError
 
 __all__ = [
     "StrokeMagnitude",

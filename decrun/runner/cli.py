@@ -32,7 +32,6 @@ from omegaconf import DictConfig, OmegaConf
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
 from decrun.runner.config import config_dir, load_option, register_configs
-from decrun.runner.files import SweepFiles
 from decrun.runner.failures import (
     config_error_message,
     exit_code,
@@ -47,10 +46,11 @@ from decrun.runner.failures import (
     shorten_words,
     stop,
 )
+from decrun.runner.files import SweepFiles
+from decrun.runner.interrupts import ignore_interrupts
 from decrun.runner.locks import LockedError, acquire, release
 from decrun.runner.paths import OutsideError, hydra_files, inside
 from decrun.runner.progress import SweepProgress, sweep_size, terminal
-from decrun.runner.interrupts import ignore_interrupts
 from decrun.runner.sweep.checks import register_check
 
 register_configs()
@@ -157,7 +157,10 @@ class SweepTable(Callback):
         sweep_dir = SweepTable.sweep_dir = Path(str(config.hydra.sweep.dir))
         target = str(config.hydra.sweeper.get("_target_", ""))
         if not target.startswith("hydra_plugins.decrun_sweeper.") and sweep_dir.is_dir() and any(sweep_dir.iterdir()):
-            from decrun.runner.sweep.sweeper import SweepError, refuse  # lazy: Hydra's sweeper machinery (start-up speed)
+            from decrun.runner.sweep.sweeper import (  # lazy: Hydra's sweeper machinery (start-up speed)
+                SweepError,
+                refuse,
+            )
 
             refuse(SweepError(f"error: hydra.sweep.dir={sweep_dir} is not empty; its old jobs would mix into the "
                              f"new table: choose a new hydra.sweep.dir (only hydra/sweeper=decrun resumes)"))
@@ -174,7 +177,12 @@ class SweepTable(Callback):
             planned=target.startswith("hydra_plugins.decrun_sweeper."))
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        from decrun.runner.sweep.tables import failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
+        from decrun.runner.sweep.tables import (  # lazy: pandas (start-up speed)
+            failed_jobs,
+            select,
+            to_markdown,
+            write_sweep_table,
+        )
 
         if SweepTable._progress is not None:
             SweepTable._progress.stop()
@@ -183,7 +191,7 @@ class SweepTable(Callback):
         table = write_sweep_table(sweep_dir, sweep=True)
         bad = failed_jobs(table)
         # jobs that ran (status ok, metrics kept) but whose export failed after the run
-        exports = ([(job, error) for job, error in zip(table["job"], table["export_error"].fillna("").astype(str))
+        exports = ([(job, error) for job, error in zip(table["job"], table["export_error"].fillna("").astype(str), strict=True)
                     if error] if "export_error" in table else [])
         SweepTable.failed = len(bad) + len(exports)
         shown = select(table, drop_constant=True, narrow=True)

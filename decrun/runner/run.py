@@ -32,11 +32,22 @@ from decrun.errors import ConfigError, DecrunError, MeshError
 from decrun.runner.config import OptimizeConfig
 from decrun.runner.context import RunContext
 from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
-from decrun.runner.failures import (Stopped, exit_code, file_identity, find_memory_error, find_os_error,
-                                    interrupt_cause, memory_error_text, os_error_message, record_status,
-                                    set_aside_stale, shorten_words)
+from decrun.runner.failures import (
+    Stopped,
+    exit_code,
+    file_identity,
+    find_memory_error,
+    find_os_error,
+    interrupt_cause,
+    memory_error_text,
+    os_error_message,
+    record_status,
+    set_aside_stale,
+    shorten_words,
+)
 from decrun.runner.files import RunFiles
 from decrun.runner.hints import cli_message, memory_hint, plugin_name, resolution_message
+from decrun.runner.job_cache import mesh_and_dec
 from decrun.runner.locks import LockedError, acquire, release
 from decrun.runner.mesh import Mesh
 from decrun.runner.plugins import Recent
@@ -48,7 +59,6 @@ from decrun.runner.results.export import ExportFailed
 from decrun.runner.results.provenance import result_record
 from decrun.runner.results.reading import CHAINED_STATUS
 from decrun.runner.results.recorder import ResultRecorder
-from decrun.runner.job_cache import mesh_and_dec
 from decrun.runner.sweep.manifest import config_hash
 
 __all__ = ["Experiment", "Run", "validate", "prepare", "execute", "write", "run_experiment", "run"]
@@ -271,7 +281,9 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     written = []
     t = time.perf_counter()
     if cfg.get("figures", True) and result.figures:
-        from decrun.runner.plots.common import draw_figures  # lazy: matplotlib only when there are figures (start-up speed)
+        from decrun.runner.plots.common import (
+            draw_figures,  # lazy: matplotlib only when there are figures (start-up speed)
+        )
 
         written += draw_figures(result.figures, files.dir, run.complex)
     timings["figures_seconds"] = time.perf_counter() - t

@@ -11,6 +11,7 @@ import pytest
 
 from decrun.apps.fluid import Fluid, Stir
 from decrun.errors import ConfigError
+
 from meshes_for_tests import complex_of
 
 
@@ -86,6 +87,7 @@ def test_obtuse_triangles_are_counted(run_app):
     """§7.3: the circumcentric dual cells of obtuse triangles turn inside out; the app counts
     them (independently recomputed here from the corner angles) and still runs."""
     from decrun.complex import SimplicialComplex
+
     from meshes_for_tests import random_planar
 
     K = SimplicialComplex(*random_planar(150, seed=3))

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from decrun.apps import hodge as app
+from decrun.apps.base import FieldOnEdges, Result
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.core.stars import HodgeStar
-from decrun.errors import ConfigError
 from decrun.core.forms import sample_density, sample_vector_field
 from decrun.core.hodge import harmonic_basis, hodge_decomposition
-from decrun.apps.base import FieldOnEdges, Result
+from decrun.core.stars import HodgeStar
+from decrun.errors import ConfigError
 from decrun.runner.results import write_result
 
 from meshes_for_tests import complex_of, kuhn_cube, mesh
@@ -168,8 +168,8 @@ def test_a_zero_harmonic_part_is_drawn_empty_on_the_shared_scale_and_has_no_rati
     """On the sphere (Betti_1 = 0) the harmonic part is round-off (energy ~1e-30): the ratios
     ‖dγ‖/‖dω‖, ‖δγ‖/‖δω‖ of round-off are absent, and the figure draws that panel without
     arrows on ω's grey scale, shared by all four panels (one colour bar)."""
-    from decrun.runner.plots.fields import hodge_parts_figure
     from decrun.core.complex import SimplicialComplex
+    from decrun.runner.plots.fields import hodge_parts_figure
     from decrun.runner.results import read_result
     from decrun.runner.results.reading import read_mesh
 

@@ -22,12 +22,13 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import expm_multiply, spsolve
 
-from cli_processes import decrun, result_contents, start
 from decrun.errors import DecrunError
 from decrun.runner.config import compose_config
 from decrun.runner.results import read_result
 from decrun.runner.results.checkpoint import CHECKPOINT
 from decrun.runner.run import prepare, run_experiment
+
+from cli_processes import decrun, result_contents, start
 
 FAST = ["figures=false", "progress=false"]
 

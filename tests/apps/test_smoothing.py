@@ -5,12 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as sla
+
 from decrun.apps.base import Context, Figure
 from decrun.apps.smoothing import Smoothing as Config
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.errors import ConfigError
 from decrun.methods.mean_curvature_flow import enclosed_volume, surface_area
+
 from meshes_for_tests import mesh as make_mesh
 
 

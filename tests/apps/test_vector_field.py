@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from decrun.core.dec import DEC
-from decrun.errors import ConfigError
 from decrun.core.forms import sample_vector_field, whitney_sharp
-from decrun.methods.singularities import find_singularities
 from decrun.core.solvers import make_solver
+from decrun.errors import ConfigError
 from decrun.methods import vector_design as vd
+from decrun.methods.singularities import find_singularities
 
 from meshes_for_tests import complex_of, flux_through_circle
 

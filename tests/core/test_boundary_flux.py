@@ -10,6 +10,7 @@ from decrun.core.dec import DEC
 from decrun.core.forms import sample_vector_field
 from decrun.errors import ConfigError
 from decrun.methods.vector_design import adjointness_defect
+
 from meshes_for_tests import complex_of
 
 

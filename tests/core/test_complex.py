@@ -6,8 +6,17 @@ import pytest
 from decrun import errors
 from decrun.core.complex import SimplicialComplex, inversion_parity, unique_rows
 from decrun.core.complex.topology import betti_by_rank
-from meshes_for_tests import (annulus, icosphere, kuhn_cells, kuhn_cube, planar_domain, random_planar, random_tets,
-                              remeshed_torus)
+
+from meshes_for_tests import (
+    annulus,
+    icosphere,
+    kuhn_cells,
+    kuhn_cube,
+    planar_domain,
+    random_planar,
+    random_tets,
+    remeshed_torus,
+)
 
 
 def thesis_matrix(K, j, thesis_simplices):

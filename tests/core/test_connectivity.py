@@ -6,6 +6,7 @@ import numpy as np
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.connectivity import drop_unreferenced, edge_owners, edge_table, largest_component
+
 from meshes_for_tests import icosphere
 
 BOWTIE = np.array([[0, 1, 2], [0, 3, 4], [3, 4, 5]])  # two pieces touching at vertex 0

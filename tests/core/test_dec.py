@@ -4,16 +4,17 @@ from math import comb
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
 import scipy.linalg
+import scipy.sparse.linalg as spla
 import scipy.spatial
+from test_complex import regular_tetrahedron_surface
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.core.forms import sample_function, sample_vector_field
 from decrun.errors import ConfigError
+
 from meshes_for_tests import grid_triangles, icosphere, kuhn_cube, random_planar, random_tets
-from test_complex import regular_tetrahedron_surface
 
 MESHES = {
     "obtuse_planar": lambda: random_planar(150, seed=1),

@@ -6,11 +6,20 @@ import scipy.spatial
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.errors import MeshError
 from decrun.core.forms import barycentric_gradients, sample_density, sample_function, sample_vector_field, whitney_sharp
 from decrun.core.hodge import HodgeDecomposer, harmonic_basis, hodge_decomposition
-from meshes_for_tests import (annulus, grid_triangles, icosphere, kuhn_cube, planar_domain, random_planar,
-                              random_tets, remeshed_torus)
+from decrun.errors import MeshError
+
+from meshes_for_tests import (
+    annulus,
+    grid_triangles,
+    icosphere,
+    kuhn_cube,
+    planar_domain,
+    random_planar,
+    random_tets,
+    remeshed_torus,
+)
 
 
 def cubic(points):
@@ -64,7 +73,7 @@ def test_sample_density_integrates_volume():
 def test_whitney_reproduces_constant_fields_and_edge_integrals():
     K = SimplicialComplex(*icosphere(2))
     # a constant ambient field projected per face is reproduced at every point of the face
-    for name, (vertices, faces) in {"planar": random_planar(80, seed=6), "grid": grid_triangles(5)}.items():
+    for vertices, faces in {"planar": random_planar(80, seed=6), "grid": grid_triangles(5)}.values():
         Kp = SimplicialComplex(vertices, faces, orient="fix")
         omega = sample_vector_field(Kp, np.array([0.7, -0.2]))
         for bary in ([1 / 3] * 3, [0.6, 0.3, 0.1], [0.0, 0.5, 0.5]):
@@ -73,7 +82,7 @@ def test_whitney_reproduces_constant_fields_and_edge_integrals():
     # tangential component along each edge of each face integrates to the edge value
     omega = np.random.default_rng(7).standard_normal(K.num_simplices(1))
     tri = K.simplices(2)
-    for a, b, c in [(0, 1, 2), (0, 2, 1), (1, 2, 0)]:
+    for a, b, _c in [(0, 1, 2), (0, 2, 1), (1, 2, 0)]:
         bary = np.zeros((len(tri), 3))
         bary[:, a] = bary[:, b] = 0.5
         u = whitney_sharp(K, omega, barycentric=bary)

@@ -12,10 +12,10 @@ import scipy.sparse as sp
 import scipy.spatial
 
 from decrun.core.complex import SimplicialComplex
-from decrun.core.intrinsic_delaunay import intrinsic_delaunay, intrinsic_delaunay_operators
 from decrun.core.dec import DEC
-from decrun.errors import DegenerateSimplexError, NonManifoldError, OrientationError
+from decrun.core.intrinsic_delaunay import intrinsic_delaunay, intrinsic_delaunay_operators
 from decrun.core.primitives import grid_triangles
+from decrun.errors import DegenerateSimplexError, NonManifoldError, OrientationError
 
 from meshes_for_tests import icosphere  # noqa: E402
 

@@ -14,6 +14,7 @@ from decrun.core.dec import DEC
 from decrun.core.solvers import make_solver
 from decrun.core.solvers.iterative import choose_method, is_symmetric
 from decrun.errors import ConfigError, SolverError
+
 from meshes_for_tests import mesh
 
 

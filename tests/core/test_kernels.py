@@ -26,8 +26,15 @@ from decrun.core.simplex_arrays import (
     vertex_volumes,
     vertex_volumes_numpy,
 )
-from tests.meshes_for_tests import (annulus, icosphere, kuhn_cube, planar_domain, random_planar, random_tets,
-                                     spiral_strip)
+from tests.meshes_for_tests import (
+    annulus,
+    icosphere,
+    kuhn_cube,
+    planar_domain,
+    random_planar,
+    random_tets,
+    spiral_strip,
+)
 
 
 def _polyline(count: int = 40):
@@ -62,7 +69,7 @@ def _assert_same(a, b):
     assert type(a) is type(b)
     if isinstance(a, (tuple, list)):
         assert len(a) == len(b)
-        for x, y in zip(a, b):
+        for x, y in zip(a, b, strict=True):
             _assert_same(x, y)
     elif isinstance(a, np.ndarray):
         assert a.dtype == b.dtype and a.shape == b.shape

@@ -14,6 +14,7 @@ from decrun.core.dec import DEC
 from decrun.core.plugins import builtin_names
 from decrun.core.solvers import Solver, make_solver
 from decrun.errors import ConfigError, SolverError
+
 from meshes_for_tests import mesh
 
 SOLVERS = builtin_names("decrun.core.solvers", Solver)
@@ -171,6 +172,7 @@ def test_gmres_stops_at_the_backward_error_on_the_galerkin_saddle_point():
     stops there too instead of running every restart cycle to maxiter (4,755 iterations
     before). The coexact part matches solver=direct to 1e-10."""
     from decrun.core.hodge import _GalerkinCoexact
+
     from meshes_for_tests import remeshed_torus
 
     dec = DEC(SimplicialComplex(*remeshed_torus(0.12)), star="whitney")

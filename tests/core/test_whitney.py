@@ -17,9 +17,9 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from decrun.core.complex import SimplicialComplex
-from decrun.core.whitney import top_face_table, whitney_lumped_mass, whitney_mass_matrix
 from decrun.core.dec import DEC
 from decrun.core.primitives import grid_triangles, kuhn_cube
+from decrun.core.whitney import top_face_table, whitney_lumped_mass, whitney_mass_matrix
 
 from meshes_for_tests import annulus, icosphere, random_planar, random_tets  # noqa: E402
 
@@ -129,7 +129,7 @@ def quadrature_mass(K, k):
     rule = TRI_RULE if K.dim == 2 else TET_RULE
     vol = volumes(K)
     local = 0.0
-    for lam, w in zip(*rule):
+    for lam, w in zip(*rule, strict=True):
         W = whitney_proxies(K, k, lam)
         local = local + w * np.einsum("m,mad,mbd->mab", vol, W, W)
     faces = top_face_table(K, k)

@@ -8,21 +8,17 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-
-from meshes_for_tests import icosphere, jittered_lattice  # noqa: E402
-
 from decrun.complex import SimplicialComplex  # noqa: E402
 from decrun.core.channel_mesh import channel_mesh  # noqa: E402
+from decrun.core.solvers.direct import DirectSolver  # noqa: E402
 from decrun.dec import DEC  # noqa: E402
 from decrun.methods.fluid.dual_cells import build_dual_cells, vertex_normals  # noqa: E402
-from decrun.methods.fluid.harmonic import (border_layout, harmonic_flux,  # noqa: E402
-                                           harmonic_flux_least_squares, uniform_flux)
-from decrun.methods.fluid.initial import (random_vorticity, solid_body_rotation,  # noqa: E402
-                                          sphere_vortex_pair, stroke_force)
-from decrun.methods.fluid.interpolation import (CellInterpolator, triangle_velocity_matrix,  # noqa: E402
-                                                wachspress_weights)
+from decrun.methods.fluid.harmonic import border_layout, harmonic_flux, harmonic_flux_least_squares, uniform_flux  # noqa: E402
+from decrun.methods.fluid.initial import random_vorticity, solid_body_rotation, sphere_vortex_pair, stroke_force  # noqa: E402
+from decrun.methods.fluid.interpolation import CellInterpolator, triangle_velocity_matrix, wachspress_weights  # noqa: E402
 from decrun.methods.fluid.simulation import VorticityFluid  # noqa: E402
-from decrun.core.solvers.direct import DirectSolver  # noqa: E402
+
+from meshes_for_tests import icosphere, jittered_lattice  # noqa: E402
 
 
 def new_solver():
@@ -521,7 +517,7 @@ def test_the_drift_table_of_the_default_scheme_converges():
     for case, levels in (("rigid_rotation", (2, 3, 4, 5)), ("degree_2", (2, 3, 4, 5)),
                          ("cellular_jittered", (8, 16, 32))):
         drift = [drift_per_s(*steady_case(case, level)) for level in levels]
-        assert all(fine < 0.7 * coarse for coarse, fine in zip(drift, drift[1:])), (case, drift)
+        assert all(fine < 0.7 * coarse for coarse, fine in zip(drift, drift[1:], strict=False)), (case, drift)
     regular = [drift_per_s(*steady_case("cellular_regular", level)) for level in (8, 16, 32)]
     assert regular[1] < 0.5 * regular[0] and regular[2] < 2e-3, regular
 
@@ -553,8 +549,9 @@ def test_least_squares_velocity_reproduces_linear_fields_at_vertices_and_inside_
     """reconstruction.py: the flux of a linear field through an edge is exactly
     v(midpoint)·(x_b − x_a) × N, so the per-vertex fit is exact for any linear field — at every
     vertex, border corners (2-ring fits) included — and its P1 interpolation is exact inside."""
-    from meshes_for_tests import square_lattice
     from decrun.methods.fluid.reconstruction import LeastSquaresVelocity
+
+    from meshes_for_tests import square_lattice
 
     v, f = square_lattice(6, jitter=0.15)
     for dec in (lattice(), DEC(SimplicialComplex(v, f))):
@@ -662,8 +659,8 @@ def test_slip_walls_make_the_cellular_steady_state_converge_up_to_the_walls():
         inside = np.flatnonzero(inner)
         assert relative(runs["auto"][inside], w0[inside], star[inside]) == pytest.approx(
             relative(runs["no_slip"][inside], w0[inside], star[inside]), rel=1e-6)
-    assert all(fine < 0.5 * coarse for coarse, fine in zip(slip, slip[1:])), slip
-    assert no_slip[0] > 1e3 and all(fine > coarse for coarse, fine in zip(no_slip, no_slip[1:])), no_slip
+    assert all(fine < 0.5 * coarse for coarse, fine in zip(slip, slip[1:], strict=False)), slip
+    assert no_slip[0] > 1e3 and all(fine > coarse for coarse, fine in zip(no_slip, no_slip[1:], strict=False)), no_slip
 
 
 def test_the_default_keeps_energy_and_enstrophy_at_zero_viscosity_between_walls():

@@ -24,7 +24,9 @@ from decrun.core.solvers.direct import DirectSolver
 from decrun.dec import DEC
 from decrun.methods.fluid.initial import random_vorticity
 from decrun.methods.fluid.simulation import VorticityFluid
+
 from meshes_for_tests import icosphere, jittered_lattice, random_planar
+
 
 @lru_cache(maxsize=None)
 def case(name: str):
@@ -253,7 +255,7 @@ def test_parallel_kernels_give_the_same_bits_on_one_thread_and_on_all(name, sche
     try:
         for _ in range(6):
             got = []
-            for sim, threads in zip(sims, (1, numba.config.NUMBA_NUM_THREADS)):
+            for sim, threads in zip(sims, (1, numba.config.NUMBA_NUM_THREADS), strict=True):
                 numba.set_num_threads(threads)
                 got.append(sim.step())
             assert got[0] == got[1]  # every diagnostic, bitwise

@@ -7,8 +7,8 @@ import scipy.sparse as sp
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
+from decrun.core.solvers import make_solver
 from decrun.errors import TopologyError
-from decrun.runner.mesh.holes import cut_holes
 from decrun.methods.parametrization import (
     conformal_border,
     conformal_border_rows,
@@ -17,7 +17,8 @@ from decrun.methods.parametrization import (
     target_border_angles,
 )
 from decrun.methods.parametrization_metrics import parametrization_metrics
-from decrun.core.solvers import make_solver
+from decrun.runner.mesh.holes import cut_holes
+
 from meshes_for_tests import icosphere, planar_domain, random_planar
 
 # a T on the front (y > 0) of the unit sphere: bar 1.0 × 0.2, stem 0.24 wide (thesis Fig. 5.8)

@@ -3,19 +3,20 @@
 import numpy as np
 import pytest
 
+from decrun.core.primitives import grid_triangles
 from decrun.methods.parametrization_metrics import (
     angle_distortion,
     area_distortion_std,
+    border_self_intersections,
     border_turning_numbers,
     border_vertex_uv_angles,
     degenerate_triangles,
-    border_self_intersections,
     flipped_triangles,
     is_embedding,
     map_singular_values,
     parametrization_metrics,
 )
-from decrun.core.primitives import grid_triangles
+
 from meshes_for_tests import spiral_strip
 
 RIGHT_TRIANGLE = (np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), np.array([[0, 1, 2]]))

@@ -96,7 +96,7 @@ def test_eigenvectors_are_star_orthonormal_and_solve_the_pencil():
     pairs = laplacian_eigenpairs(dec, 1, 6)
     M, A = dec.star(1), dec.laplacian_symmetric(1)
     np.testing.assert_allclose(pairs.vectors.T @ (M @ pairs.vectors), np.eye(6), atol=1e-9)
-    for value, u in zip(pairs.values, pairs.vectors.T):
+    for value, u in zip(pairs.values, pairs.vectors.T, strict=True):
         assert np.linalg.norm(A @ u - value * (M @ u)) < 1e-7 * value * np.linalg.norm(M @ u)
 
 

@@ -112,7 +112,7 @@ def test_a_run_killed_after_a_checkpoint_resumes_to_the_uninterrupted_records(ki
     report = run_steps(Growth(), 15, record=record, record_every=2, checkpoint=checkpoint)
     assert report.resumed_from_step == (None if kill_at < 5 else 5 * ((kill_at - 1) // 5))
     assert [s for s, _ in record.records] == [s for s, _ in reference.records]
-    for (_, a), (_, b) in zip(record.records, reference.records):
+    for (_, a), (_, b) in zip(record.records, reference.records, strict=True):
         assert np.array_equal(a["x"], b["x"]) and a["norm"] == b["norm"]
 
 
@@ -123,6 +123,7 @@ def test_the_fluid_and_its_shadow_continue_bitwise_from_a_state_dict():
     from decrun.methods.fluid import initial
     from decrun.methods.fluid.shadow import Shadow
     from decrun.methods.fluid.simulation import VorticityFluid
+
     from meshes_for_tests import icosphere
 
     V, F = icosphere(2)

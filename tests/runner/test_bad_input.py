@@ -26,8 +26,8 @@ import scipy.sparse as sp
 
 from decrun.errors import DecrunError, SolverError
 from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment
 from decrun.runner.mesh import MAX_TRIANGLES
+from decrun.runner.run import run_experiment
 
 OCTAHEDRON = ("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
               "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n")
@@ -227,9 +227,9 @@ def test_smoothing_a_regular_octahedron_has_the_exact_critical_step(tmp_path):
 def test_sparse_and_dense_largest_eigenvalues_agree():
     """The ARPACK path (seeded start vector) and the dense path give the same λ_max."""
     import decrun.methods.mean_curvature_flow as mcf
-    from meshes_for_tests import complex_of
-
     from decrun.core.dec import DEC
+
+    from meshes_for_tests import complex_of
 
     dec = DEC(complex_of("icosphere", subdiv=2), star="mixed_area")
     S, M = dec.laplacian_symmetric(0), dec.star_diagonal(0)
@@ -390,8 +390,8 @@ def test_a_post_step_that_breaks_the_mesh_is_named(monkeypatch):
     """A step that produced non-finite coordinates is reported by name, not as a strange
     error far away (e.g. "app.rescale=volume needs a closed surface")."""
     from decrun.errors import NonFiniteCoordinateError
-    from decrun.runner.mesh import post as post_steps
     from decrun.runner.mesh import Mesh
+    from decrun.runner.mesh import post as post_steps
     from decrun.runner.plugins import option
 
     def broken(mesh, cfg):

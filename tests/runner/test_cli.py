@@ -14,8 +14,7 @@ import pytest
 import yaml
 
 from decrun.runner.cli import table_main
-from decrun.runner.config import compose_config, unique_stamp
-from decrun.runner.config import config_dir
+from decrun.runner.config import compose_config, config_dir, unique_stamp
 from decrun.runner.results import read_provenance, read_result
 from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.provenance import content_sha256
@@ -138,7 +137,7 @@ def test_sweeps_tables_failures_and_unique_dirs(tmp_path):
     # one column per overridden parameter, then status/error, then one per metric
     assert list(table.columns[:8]) == ["job", "app.scheme", "app.dt", "mesh.subdiv", "app.steps", "figures",
                                        "status", "error"]
-    assert sorted(zip(table["app.scheme"], table["app.dt"])) == sorted(
+    assert sorted(zip(table["app.scheme"], table["app.dt"], strict=True)) == sorted(
         (s, d) for s in ("explicit", "implicit") for d in (0.001, 0.01, 0.1))
     assert (table["status"] == "ok").all() and "stable" in table.columns and "area_ratio" in table.columns
     assert (tables[6] / "metrics.md").read_text().startswith("| job |")
@@ -176,7 +175,6 @@ def test_every_plugin_yaml_names_a_class_of_its_kind():
     """Contract: every conf/<group>/<option>.yaml names with `_target_` a dataclass of the
     group's kind, and its keys are options of that class (declared once, in the class)."""
     import dataclasses
-
 
     from decrun.runner.config import GROUPS
     from decrun.runner.plugins import option, target_class

@@ -13,6 +13,7 @@ import pytest
 
 from decrun.core.complex import SimplicialComplex
 from decrun.runner.results import read_mesh, read_result
+
 from meshes_for_tests import flux_through_circle, spiral_strip
 
 

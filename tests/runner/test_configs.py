@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
+from decrun.runner.run import run_experiment
 
 CONF = Path(__file__).resolve().parents[2] / "conf"
 

@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 
 from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment, write
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
+from decrun.runner.run import run_experiment, write
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMAND = re.compile(r"^(?:\.venv/bin/)?(?:decrun(?:-table)?|python -m decrun)(?=\s|$)")

@@ -15,7 +15,6 @@ import time
 import h5py
 import numpy as np
 import pytest
-from cli_processes import decrun
 
 from decrun.apps.base import Result
 from decrun.errors import CorruptFileError
@@ -24,6 +23,8 @@ from decrun.runner.results import read_mesh, read_provenance, read_result, write
 from decrun.runner.results.checked import RESULT_RECORD
 from decrun.runner.results.journal import read_journal
 from decrun.runner.sweep.tables import sweep_table
+
+from cli_processes import decrun
 
 SWEEP = ["-m", "app.dt=0.001,0.002,0.003", "mesh.subdiv=2", "app.steps=2", "figures=false"]
 DEEP = "[" * 100_000 + "]" * 100_000

@@ -17,9 +17,10 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from cli_processes import env
 
 from decrun.runner.sweep.tables import load_sweep
+
+from cli_processes import env
 
 #: two jobs of a fraction of a second
 TINY = ["-m", "app.dt=0.001,0.002", "app.steps=2", "mesh.subdiv=1", "app.critical_dt=false", "figures=false",
@@ -167,11 +168,11 @@ def test_launch_failures_are_recognised_by_their_launcher_only():
     launcher that cannot start."""
     import subprocess as sp
 
-    from decrun.runner.launchers import launch_failure, timed_out
-
     from hydra_plugins.hydra_joblib_launcher.joblib_launcher import JoblibLauncher as Joblib
     from hydra_plugins.hydra_ray_launcher.ray_launcher import RayLauncher as Ray
     from hydra_plugins.hydra_submitit_launcher.submitit_launcher import SlurmLauncher as Slurm
+
+    from decrun.runner.launchers import launch_failure, timed_out
 
     class SlurmLauncher(Slurm):  # the plugin classes, not set up (no cluster here)
         def __init__(self):

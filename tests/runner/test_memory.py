@@ -12,8 +12,8 @@ import sys
 import pytest
 from test_bad_input import assert_one_clear_line, decrun
 
-from decrun.runner.failures import find_memory_error, memory_error_text
 from decrun.runner.config import compose_config
+from decrun.runner.failures import find_memory_error, memory_error_text
 from decrun.runner.hints import memory_hint
 
 

@@ -11,11 +11,12 @@ import yaml
 
 from decrun.complex import SimplicialComplex
 from decrun.errors import ConfigError, MeshError
+
 try:  # the old cut (whole triangles), for comparison; it moves to decrun.runner with the restructuring
     from decrun.runner.mesh.holes import cut_holes as cut_whole_triangles
 except ImportError:
     from decrun.mesh_holes import cut_holes as cut_whole_triangles
-from decrun.runner.mesh.cut import cut_holes, signed_distance, parse_regions
+from decrun.runner.mesh.cut import cut_holes, parse_regions, signed_distance
 
 FIG5_7 = Path(__file__).resolve().parents[2] / "conf" / "experiment" / "fig5_7_half_sphere_holes.yaml"
 BALL = np.array([0.3, 0.5, 0.8, 0.5])  # centre at distance 0.99 from the origin, radius 0.5
@@ -88,7 +89,7 @@ def test_removed_area_converges_to_the_spherical_cap():
         v, f, _ = cut_holes(V, F, balls=[BALL])
         errors.append(abs(area(V, F) - area(v, f) - cap) / cap)
     # second order: the error drops ~4× per subdivision (measured 4.3e-2, 1.0e-2, 2.6e-3, 6.4e-4)
-    assert all(e1 < 0.3 * e0 for e0, e1 in zip(errors, errors[1:]))
+    assert all(e1 < 0.3 * e0 for e0, e1 in zip(errors, errors[1:], strict=False))
     assert errors[-1] < 1e-3
 
 
@@ -126,8 +127,8 @@ def test_planar_circular_hole_border_length_and_area_converge():
         perimeter_errors.append(abs(loop_length(v, hole) - 2 * np.pi * r) / (2 * np.pi * r))
         area_errors.append(abs(area(v, f) - (4 - np.pi * r * r)) / (np.pi * r * r))
     # an inscribed polygon: both errors O(h²) (measured 2.8e-3, 1.0e-3, 2.4e-4 and 1.1e-2, 4.0e-3, 9.6e-4)
-    assert all(e1 < 0.5 * e0 for e0, e1 in zip(perimeter_errors, perimeter_errors[1:]))
-    assert all(e1 < 0.5 * e0 for e0, e1 in zip(area_errors, area_errors[1:]))
+    assert all(e1 < 0.5 * e0 for e0, e1 in zip(perimeter_errors, perimeter_errors[1:], strict=False))
+    assert all(e1 < 0.5 * e0 for e0, e1 in zip(area_errors, area_errors[1:], strict=False))
     assert perimeter_errors[-1] < 5e-4 and area_errors[-1] < 2e-3
 
 

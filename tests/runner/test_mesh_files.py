@@ -459,7 +459,7 @@ def test_pymeshlab_drops_ply_faces_whose_flags_mark_them_deleted_and_decrun_read
 def test_fast_decimal_parser_equals_python_float_and_int_bit_for_bit():
     rng = np.random.default_rng(7)
     values = rng.standard_normal(5000) * 10.0 ** rng.integers(-9, 9, 5000)
-    tokens = [f"{v:.{p}f}" for v, p in zip(values, rng.integers(0, 14, 5000))]
+    tokens = [f"{v:.{p}f}" for v, p in zip(values, rng.integers(0, 14, 5000), strict=True)]
     tokens += ["-0.0", "0", ".5", "5.", "+1.25", "-.5", "123456789012345", "1234567890123456", "1e5",
                "-2.5E-3", "nan", "-inf", "00012.5000", "0.1", "0.30000000000000004"]
     text = TextTokens(" ".join(tokens).encode(), "w")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import pymeshlab
 import pytest
@@ -10,7 +9,6 @@ import pytest
 from decrun.complex import SimplicialComplex
 from decrun.errors import NonOrientableError
 from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
-
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES as SAMPLES  # noqa: E402
 from decrun.runner.mesh.sources.files import sample_mesh_dir  # noqa: E402
 

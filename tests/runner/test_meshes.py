@@ -10,6 +10,7 @@ from decrun.core.geometry import mean_edge_length, vertex_normals
 from decrun.errors import ConfigError, MeshError
 from decrun.runner.mesh import mesh_hash
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
+
 from meshes_for_tests import mesh
 
 

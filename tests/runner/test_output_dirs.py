@@ -14,11 +14,12 @@ import time
 from pathlib import Path
 
 import pytest
-from cli_processes import decrun, start
 
 from decrun.runner.atomic import temporary_name, write_text_atomic
 from decrun.runner.locks import LOCK_NAME, LockedError, acquire, holds, release
 from decrun.runner.paths import OutsideError
+
+from cli_processes import decrun, start
 
 QUICK = ["mesh.subdiv=1", "app.steps=2", "app.critical_dt=false", "figures=false"]
 SWEEP = ["-m", "app.dt=0.001,0.002", *QUICK]

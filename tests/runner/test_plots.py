@@ -8,6 +8,7 @@ import pytest
 from decrun.core.primitives import grid_triangles
 from decrun.runner.plots.common import before_after
 from decrun.runner.plots.parametrization import checker_square_size
+
 from meshes_for_tests import icosphere
 
 

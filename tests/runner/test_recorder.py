@@ -21,14 +21,13 @@ import h5py
 import numpy as np
 import pytest
 
+from decrun.apps.base import Result
 from decrun.complex import SimplicialComplex
 from decrun.dec import DEC
 from decrun.errors import DecrunError
-from decrun.apps.base import Result
-from decrun.runner.results import read_provenance, read_result, write_result
 from decrun.runner.results import journal as journal_module
-from decrun.runner.results.journal import read_journal
-from decrun.runner.results.journal import journal_path
+from decrun.runner.results import read_provenance, read_result, write_result
+from decrun.runner.results.journal import journal_path, read_journal
 from decrun.runner.results.recorder import ResultRecorder, ResultWriteError, recover_result
 
 VERTICES = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.5, 0.2]])
@@ -233,7 +232,7 @@ def test_an_exception_keeps_the_steps_and_removes_temporaries(tmp_path):
     with pytest.raises(ZeroDivisionError):
         with ResultRecorder(path, vertices=VERTICES, simplices=TRIANGLES) as recorder:
             record_steps(recorder, range(7), 20)
-            1 / 0
+            raise ZeroDivisionError("the run's own error")
     assert files_in(tmp_path) == ["result.h5"]
     back = read_result(path)
     assert not back.complete and back.status == "failed" and back.steps_recorded == 7

@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli_processes import decrun, result_contents, start
 from decrun.runner.results.checkpoint import CHECKPOINT
+
+from cli_processes import decrun, result_contents, start
 
 #: a fluid run of ~3 s of steps (~500 steps/s on 1,280 faces) and a smoothing run of ~1.5 s,
 #: checkpointed early

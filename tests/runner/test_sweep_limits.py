@@ -14,9 +14,9 @@ import sys
 import textwrap
 import time
 
-from cli_processes import env
-
 from decrun.runner.sweep.tables import load_sweep
+
+from cli_processes import env
 
 TINY = ["app.steps=2", "mesh.subdiv=1", "app.critical_dt=false", "figures=false", "progress=false"]
 

@@ -16,8 +16,8 @@ from hydra.types import RunMode
 from omegaconf import OmegaConf
 
 from decrun.runner.config import DecrunConfig, config_dir, register_configs
-from decrun.runner.sweep.manifest import UNHASHED, config_hash
 from decrun.runner.sweep.fast.planning import Composer, PlannedConfigs, simple_subdir, subdir_of
+from decrun.runner.sweep.manifest import UNHASHED, config_hash
 
 #: groups of jobs: plain values only; a config group; + and ~; an interpolation into a
 #: swept key; an interpolated override value; quoted strings, null and a root value
@@ -53,7 +53,7 @@ def test_every_planned_job_hashes_as_hydras_composition_and_launches_as_it(hydra
     loader, master = hydra_loader
     composer = Composer(loader, master)
     planned = []
-    for job, cfg, template in composer.each(JOBS):  # cfg: the group's working copy, valid until the next job
+    for _job, cfg, template in composer.each(JOBS):  # cfg: the group's working copy, valid until the next job
         planned.append(config_hash(cfg, template.blocks, template.fresh) if template is not None else config_hash(cfg))
     hydra = [loader.load_sweep_config(master, list(job)) for job in JOBS]
     assert planned == [config_hash(cfg) for cfg in hydra]
@@ -107,8 +107,8 @@ def test_a_derived_job_is_checked_as_a_full_build_is_with_one_build_per_plugin(h
     each built in full once (issue 24: a 2000-job sweep built all six plugins of every job)."""
     import copy
 
-    import decrun.runner.plugins as plugins
     import decrun.runner.experiment as run_module
+    import decrun.runner.plugins as plugins
     from decrun.errors import ConfigError
     from decrun.runner.run import validate
     from decrun.runner.sweep.fast import JobDelta
@@ -306,6 +306,6 @@ def test_a_group_of_plain_jobs_is_derived_from_the_master_with_one_hydra_composi
     hydra_composed = [loader.load_sweep_config(master, list(job)) for job in jobs]
     assert hashes == [config_hash(cfg) for cfg in hydra_composed]
     launcher = PlannedConfigs(loader, composer.templates)  # what each job launches with: its whole config
-    for job, cfg in zip(jobs, hydra_composed):
+    for job, cfg in zip(jobs, hydra_composed, strict=True):
         assert OmegaConf.to_yaml(launcher.load_sweep_config(master, list(job))) == OmegaConf.to_yaml(cfg), job
     assert "differs from Hydra's" not in capsys.readouterr().err

@@ -16,9 +16,10 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from cli_processes import comparable, decrun, env
 
 from decrun.runner.sweep.tables import load_sweep
+
+from cli_processes import comparable, decrun, env
 
 pytest.importorskip("hydra_plugins.hydra_joblib_launcher", reason="hydra-joblib-launcher is not installed")
 

@@ -15,11 +15,12 @@ import time
 
 import pandas as pd
 import pytest
-from cli_processes import comparable, decrun, env
 import yaml
 
 from decrun.runner.cli import table_main
 from decrun.runner.sweep.tables import load_sweep
+
+from cli_processes import comparable, decrun, env
 
 # 4 jobs of ~0.5 s: explicit Euler on 162 vertices, no eigen-solve, well below dt_crit 0.0278
 SWEEP = ["-m", "app.dt=0.001,0.002,0.003,0.004", "mesh.subdiv=2", "app.scheme=explicit", "app.steps=1500",

@@ -11,10 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from decrun.apps.base import Result
 from decrun.errors import ConfigError
 from decrun.runner.cli import table_main
 from decrun.runner.config import OptimizeConfig
-from decrun.apps.base import Result
 from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.recorder import ResultRecorder, write_result
 from decrun.runner.sweep.manifest import FORMAT, MANIFEST
@@ -148,7 +148,6 @@ def test_the_objective_a_job_returns():
 
 def test_jobs_of_one_process_share_mesh_complex_and_operators():
     from decrun.runner import job_cache
-
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment
 
@@ -194,12 +193,12 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
     """The sweeper derives jobs that differ only in plain values from one composition:
     every derived config (hydra node included) is the one Hydra composes; when a
     derivation differs, the sweeper says so and uses Hydra's."""
+    import copy
+
     from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
     from hydra.types import RunMode
     from omegaconf import OmegaConf
-
-    import copy
 
     from decrun.runner.config import config_dir
     from decrun.runner.sweep.fast import planning
@@ -275,9 +274,8 @@ ROOT_OVERRIDES = ["mesh=icosphere", "operator=mixed_area", "boundary=none", "sol
 def test_no_override_shares_a_column_with_a_metric(app, tmp_path):
     """Each app's real metrics against an override of every root key and group: one column
     each, the override's value under its key, each metric under :func:`metric_column`."""
-    from test_app_grid import APP_MESH
-
     from omegaconf import OmegaConf
+    from test_app_grid import APP_MESH
 
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment

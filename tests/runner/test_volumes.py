@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from decrun.core.primitives import kuhn_cube
-from meshes_for_tests import kuhn_cells
 from decrun.errors import ConfigError, DegenerateSimplexError
 from decrun.runner.config import compose_config
 from decrun.runner.run import run_experiment
+
+from meshes_for_tests import kuhn_cells
 
 TUNNEL = "mesh.tunnels=[[0.4,0.4,-1,0.6,0.6,2]]"
 CAVITY = "mesh.cavities=[[0.4,0.4,0.4,0.6,0.6,0.6]]"

@@ -13,8 +13,8 @@ import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from decrun.core.dec import DEC
-from decrun.errors import ConfigError
 from decrun.core.geometry import embed3
+from decrun.errors import ConfigError
 from decrun.methods.fluid.dual_cells import face_normals
 
 __all__ = ["zero_vorticity", "solid_body_rotation", "vortex_blobs", "sphere_vortex_pair", "random_vorticity",
@@ -52,7 +52,7 @@ def vortex_blobs(dec: DEC, centers, circulations, radius: float) -> np.ndarray:
     circulations = np.atleast_1d(np.asarray(circulations, dtype=np.float64))
     star0 = dec.star_diagonal(0)
     w = np.zeros(x.shape[0])
-    for center, gamma in zip(centers, circulations):  # a handful of blobs
+    for center, gamma in zip(centers, circulations, strict=True):  # a handful of blobs
         g = np.exp(-np.sum((x - center) ** 2, axis=1) / (2.0 * radius**2))
         w += gamma * g / (star0 @ g)
     return w

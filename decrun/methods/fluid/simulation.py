@@ -61,18 +61,18 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.core import jit
+from decrun.core.connectivity import edge_owners
 from decrun.core.dec import DEC
+from decrun.core.geometry import embed3, obtuse_triangle_count
 from decrun.core.threads import one_blas_thread
 from decrun.errors import ConfigError, SolverError
 from decrun.methods.fluid.backtrack import BacktrackResult, TriangleWalker
-from decrun.core.connectivity import edge_owners
-from decrun.core.geometry import embed3, obtuse_triangle_count
 from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
 from decrun.methods.fluid.interpolation import CellInterpolator, dot3, triangle_velocity_matrix
 from decrun.methods.fluid.limiter import EnergyEnstrophyBound, conservative_clamp, footprint_range
-from decrun.methods.fluid.swept import SweptVorticity, rest_point_interpolation
 from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS, make_reconstruction
+from decrun.methods.fluid.swept import SweptVorticity, rest_point_interpolation
 
 __all__ = ["VorticityFluid", "CIRCULATIONS", "KERNELS", "WALLS"]
 

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
-from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Number, Node, to_text
+from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, Number, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS, POINTWISE, Discrete, Linear, Mismatch
 
 __all__ = ["Compiler", "BUILTIN_NAMES", "NOT_LINEAR"]

@@ -24,8 +24,17 @@ import numpy as np
 
 from decrun.core.forms import sample_density, sample_flux, sample_vector_field
 from decrun.methods.model.kinds import Kind, primal
-from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Number, Node, parse_expression, \
-    to_text
+from decrun.methods.model.language import (
+    Binary,
+    Call,
+    ModelError,
+    Name,
+    Negate,
+    Node,
+    Number,
+    parse_expression,
+    to_text,
+)
 from decrun.methods.model.operators import POINTWISE
 
 __all__ = ["sample", "PointExpression"]

@@ -539,7 +539,7 @@ def jacobian_pattern(model) -> sp.csr_matrix:
         for (uu, v), A in evolution.blocks.items():
             if uu == u:
                 row[v] = _structure(A) if row[v] is None else row[v] + _structure(A)
-        for sign, term in evolution.rest_trees[u]:
+        for _sign, term in evolution.rest_trees[u]:
             for v in compiler.reads(term) & names:
                 part = _term_pattern(compiler, term, v, evolution.sizes[u], evolution.sizes[v], equation.where)
                 row[v] = part if row[v] is None else row[v] + part

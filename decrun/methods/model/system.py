@@ -28,8 +28,17 @@ import scipy.sparse as sp
 from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.initial import sample
 from decrun.methods.model.kinds import NUMBER, Kind, form_kind
-from decrun.methods.model.language import Binary, Equation, ModelError, Name, Node, names_in, parse_equation, \
-    parse_expression, to_text
+from decrun.methods.model.language import (
+    Binary,
+    Equation,
+    ModelError,
+    Name,
+    Node,
+    names_in,
+    parse_equation,
+    parse_expression,
+    to_text,
+)
 from decrun.methods.model.operators import OPERATORS, Discrete, Linear
 from decrun.methods.model.solve import IncompatibleRightHandSide, LinearSystem, constant_kernel
 
@@ -257,7 +266,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
         kinds[name] = NUMBER
 
     wheres = spec.equation_keys or [f"{key}.equations[{i}]" for i in range(len(spec.equations))]
-    equations = [parse_equation(text, where) for text, where in zip(spec.equations, wheres)]
+    equations = [parse_equation(text, where) for text, where in zip(spec.equations, wheres, strict=True)]
     if not equations:
         raise ModelError(f"{key}.equations: a model needs at least one equation, e.g. "
                          f"'{key}.equations=[\"dt(u) = laplacian(u)\"]'")
@@ -471,7 +480,7 @@ def _compile_solve(equation: Equation, model: CompiledModel, new_solver: Callabl
     if unknown not in blocks:
         raise ModelError(f"{where}: the left side {to_text(equation.lhs)} is not linear in {unknown} with constant "
                          "coefficients (a solve is linear); move nonlinear terms to an evolution equation")
-    for sign, term in rest:
+    for _sign, term in rest:
         if compiler.depends_on(term, {unknown}):
             raise ModelError(f"{where}: the term {to_text(term)} of the left side is not linear in {unknown}; a solve "
                              "is linear in its unknown")

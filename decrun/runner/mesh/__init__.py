@@ -6,8 +6,20 @@ steps (:mod:`.post`) with the hole cuts (:mod:`.cut`, :mod:`.holes`) and pymeshl
 Layers (tests/test_layers.py): ``sources > source > post > cut | holes | repair > base | files``.
 """
 
-from decrun.runner.mesh.base import (MAX_TRIANGLES, SIZE_RANGE, Mesh, check_mesh, check_size, from_meshset, mesh_hash,
-                                     pymeshlab_primitive, require, require_surface, require_triangles, to_meshset)
+from decrun.runner.mesh.base import (
+                                     MAX_TRIANGLES,
+                                     SIZE_RANGE,
+                                     Mesh,
+                                     check_mesh,
+                                     check_size,
+                                     from_meshset,
+                                     mesh_hash,
+                                     pymeshlab_primitive,
+                                     require,
+                                     require_surface,
+                                     require_triangles,
+                                     to_meshset,
+)
 from decrun.runner.mesh.source import MeshSource
 
 __all__ = ["Mesh", "MeshSource", "mesh_hash", "check_mesh", "check_size", "require", "require_triangles",

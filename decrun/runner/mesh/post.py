@@ -16,8 +16,19 @@ import numpy as np
 from decrun.core.connectivity import component_labels, drop_unreferenced
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
-from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, HolePieces, Mesh, Refine, bounding_diagonal, from_meshset,
-                                     require, require_surface, require_triangles, to_meshset)
+from decrun.runner.mesh.base import (
+    MAX_TRIANGLES,
+    HoleCut,
+    HolePieces,
+    Mesh,
+    Refine,
+    bounding_diagonal,
+    from_meshset,
+    require,
+    require_surface,
+    require_triangles,
+    to_meshset,
+)
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
 from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z

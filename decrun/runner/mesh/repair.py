@@ -202,7 +202,7 @@ def repair_mesh(vertices, faces, *, max_rounds: int = 5,
             ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=f[~bad].astype(np.int32)))
 
     rounds = 0
-    for rounds in range(1, max_rounds + 1):
+    for rounds in range(1, max_rounds + 1):  # noqa: B007 — read after the loop: the rounds it took
         changed = run("zero_area_faces", ms.meshing_remove_null_faces, None, "zero_area_faces_removed")
         changed += run("degenerate_faces", remove_degenerate, None, "degenerate_faces_removed")
         changed += run("non_manifold_edges", lambda: ms.meshing_repair_non_manifold_edges(method="Remove Faces"),

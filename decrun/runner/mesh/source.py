@@ -46,7 +46,17 @@ import numpy as np
 from decrun.core.geometry import mean_edge_length
 from decrun.errors import ConfigError
 from decrun.runner.mesh import post as post_steps
-from decrun.runner.mesh.base import HoleCut, HolePieces, Mesh, Orient, Refine, check_mesh, check_size, mesh_hash, require
+from decrun.runner.mesh.base import (
+    HoleCut,
+    HolePieces,
+    Mesh,
+    Orient,
+    Refine,
+    check_mesh,
+    check_size,
+    mesh_hash,
+    require,
+)
 
 __all__ = ["MeshSource"]
 

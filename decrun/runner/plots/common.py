@@ -21,7 +21,6 @@ from matplotlib.figure import Figure
 from decrun.runner.paths import check_file
 from decrun.runner.results import read_result
 
-
 #: two contrasting colours for checkerboard textures (0 → dark blue, 1 → light sand)
 CHECKER = ListedColormap([(0.16, 0.27, 0.52), (0.98, 0.93, 0.80)], name="checker")
 
@@ -131,7 +130,7 @@ def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces:
         if both.size:
             vmin, vmax = float(both.min()), float(both.max())
     mappable = None
-    for ax, vertices, values, title in zip(axes, (vertices_before, vertices_after), (values_before, values_after), titles):
+    for ax, vertices, values, title in zip(axes, (vertices_before, vertices_after), (values_before, values_after), titles, strict=True):
         m = plot_surface(ax, vertices, faces, values, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
         mappable = mappable or m
     sets = [np.asarray(vertices_before), np.asarray(vertices_after)]
@@ -139,7 +138,7 @@ def before_after(vertices_before: np.ndarray, vertices_after: np.ndarray, faces:
     if share_axes and ratio <= SHARE_EXTENT_RATIO:
         _share_limits(axes, sets)
     elif share_axes:  # one would be a dot beside the other: each on its own box, said in the title
-        for ax, vertices, title in zip(axes, sets, titles):
+        for ax, vertices in zip(axes, sets, strict=True):
             _share_limits([ax], [vertices])
         bigger = int(_extent(sets[1]) > _extent(sets[0]))
         axes[bigger].set_title(f"{titles[bigger]}\n(own scale: {ratio:.3g}× the other's extent)", fontsize=9)

@@ -117,7 +117,7 @@ def _draw_clusters(ax, x, positions, indices, planar, view) -> None:
     if not planar:
         visible = (positions - x.mean(axis=0)) @ _view_direction(*view) > 0
         positions, indices = positions[visible], indices[visible]
-    for p, i in zip(positions, indices):
+    for p, i in zip(positions, indices, strict=True):
         colour = "red" if i > 0 else "blue"
         if planar:
             ax.scatter([p[0]], [p[1]], s=220, facecolors="none", edgecolors=colour, linewidths=1.5, zorder=6)

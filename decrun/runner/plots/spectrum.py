@@ -27,7 +27,7 @@ def eigenforms_figure(K, values: list, titles: list, degree: int):
         faces, owner = border_triangles(K)
     else:
         faces, owner = K.simplices(2), None
-    for i, (value, title) in enumerate(zip(values, titles)):
+    for i, (value, title) in enumerate(zip(values, titles, strict=True)):
         ax = fig.add_subplot(1, count, i + 1, projection="3d" if three_d else None)
         value = np.asarray(value)
         shown = value if degree == 0 or owner is None else value[owner]

@@ -40,8 +40,8 @@ import numpy as np
 
 from decrun.errors import CorruptFileError
 from decrun.runner.atomic import QuietFile, atomic_path, check_free_space
-from decrun.runner.results.checked import check_group, open_h5, read_dataset
 from decrun.runner.files import RunFiles
+from decrun.runner.results.checked import check_group, open_h5, read_dataset
 
 __all__ = ["CHECKPOINT", "RunCheckpoint", "write_checkpoint", "read_checkpoint", "remove_checkpoint"]
 

@@ -399,7 +399,7 @@ class Xdmf(Export):
             # the writer puts its HDF5 file in the working directory (by stem): write from out/
             with _working_directory(target.parent), meshio.xdmf.TimeSeriesWriter(target.name) as writer:
                 writer.write_points_cells(points, cells)
-                for t, frame in zip(times, frames):
+                for t, frame in zip(times, frames, strict=True):
                     if pick == (2,):
                         writer.write_data(float(t), cell_data={k: [v] for k, v in frame[2].items()})
                     else:

@@ -127,7 +127,7 @@ class JournalWriter:
             at = _aligned(at + array.nbytes)
         header = {"format": FORMAT, "record_size": self.record_size, "data_offset": at,
                   "columns": [{"name": c.name, "dtype": c.dtype.str, "shape": list(c.shape), "offset": o}
-                              for c, o in zip(self.columns, self._offsets)],
+                              for c, o in zip(self.columns, self._offsets, strict=True)],
                   "blobs": blob_specs, "attrs": attrs}
         text = json.dumps(header).encode()
         base = _aligned(16 + len(text))
@@ -170,7 +170,7 @@ class JournalWriter:
         if self._fd is None:
             raise RuntimeError(f"{self.path}: the journal is closed")
         parts: list[Any] = []
-        for value, pad in zip(values, self._pads):
+        for value, pad in zip(values, self._pads, strict=True):
             parts.append(value.reshape(-1).view(np.uint8))
             if pad:
                 parts.append(b"\0" * pad)

@@ -12,8 +12,8 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import re
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path

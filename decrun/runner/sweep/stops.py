@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
+from decrun.runner.files import RunFiles
 from decrun.runner.interrupts import ignore_interrupts
 from decrun.runner.sweep.manifest import job_dir_name, job_state
-from decrun.runner.files import RunFiles
 
 __all__ = ["Stock", "take_stock", "worker_died", "mark_killed", "resume_command", "job_list", "ignore_interrupts"]
 

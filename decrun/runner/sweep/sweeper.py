@@ -40,18 +40,37 @@ from omegaconf import OmegaConf, open_dict, read_write
 
 from decrun.errors import ConfigError, CorruptFileError, DecrunError
 from decrun.runner.atomic import write_text_atomic
+from decrun.runner.files import RunFiles, SweepFiles
+from decrun.runner.launchers import (
+    CONNECT_TIMEOUT,
+    NO_TIME_LIMIT,
+    RAY,
+    SLURM,
+    connect_ray_as_is,
+    is_launcher,
+    joblib_timeout,
+    launch_failure,
+    launcher_choice,
+    preflight,
+    timed_out,
+)
 from decrun.runner.locks import LOCK_NAME
 from decrun.runner.paths import hydra_files
-from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.checks import CHECKS, WARM
 from decrun.runner.sweep.fast import SpeedLayer
-from decrun.runner.launchers import CONNECT_TIMEOUT, NO_TIME_LIMIT, RAY, SLURM, connect_ray_as_is, \
-    is_launcher, joblib_timeout, launch_failure, launcher_choice, preflight, timed_out
 from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
-from decrun.runner.sweep.manifest import (DONE, FORMAT, MANIFEST, job_dir_name, job_state, now,
-                                          read_manifest, write_manifest)
+from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
+from decrun.runner.sweep.manifest import (
+    DONE,
+    FORMAT,
+    MANIFEST,
+    job_dir_name,
+    job_state,
+    now,
+    read_manifest,
+    write_manifest,
+)
 from decrun.runner.sweep.stops import ignore_interrupts, mark_killed, resume_command, take_stock, worker_died
-from decrun.runner.files import RunFiles, SweepFiles
 
 log = logging.getLogger("decrun")
 
@@ -340,14 +359,14 @@ class ManifestSweeper(Sweeper):
             raise SweepError(f"error: hydra.sweeper.resume=true: {sweep_dir} planned {len(planned)} jobs, this "
                              f"command plans {len(jobs)}; resume with the sweep's own overrides: "
                              f"{' '.join(manifest['overrides'])}")
-        for old, new in zip(planned, jobs):
+        for old, new in zip(planned, jobs, strict=True):
             if old["overrides"] != new["overrides"] or old["config_hash"] != new["config_hash"]:
                 what = ("overrides " + " ".join(new["overrides"]) + " differ from " + " ".join(old["overrides"])
                         if old["overrides"] != new["overrides"] else
                         f"config hash {new['config_hash']} differs from {old['config_hash']} (a config file changed)")
                 raise SweepError(f"error: hydra.sweeper.resume=true: job {old['job']}: {what}; resume with "
                                  "the same overrides and configs, or start a new sweep")
-        for old, new in zip(planned, jobs):
+        for old, new in zip(planned, jobs, strict=True):
             new["dir"] = job_dir_name(old)  # where it was planned (a pattern may resolve anew, e.g. ${now:})
         check_job_dirs(sweep_dir, jobs, hydra_files(self.config.hydra), sweep_dir / MANIFEST, SweepError)
         todo = [j for j in jobs if job_state(sweep_dir / j["dir"], j["config_hash"])["status"] not in DONE]

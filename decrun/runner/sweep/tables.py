@@ -37,9 +37,9 @@ from hydra.errors import HydraException
 
 from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
+from decrun.runner.files import RunFiles, SweepFiles
 from decrun.runner.results.checked import load_yaml
 from decrun.runner.sweep.manifest import MANIFEST, job_dir_name, job_state, read_manifest
-from decrun.runner.files import RunFiles, SweepFiles
 
 __all__ = ["sweep_table", "load_sweep", "stack", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]

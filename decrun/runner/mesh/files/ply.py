@@ -238,7 +238,7 @@ class _BinaryBody:
         if end0[0] <= n and self.offset + count * size <= n:  # try: every record like the first
             starts = self.offset + size * np.arange(count, dtype=np.int64)
             ends, offsets, counts = self._walk(element, starts)
-            same = all(c is None or (c == c0[0]).all() for c, c0 in zip(counts, counts0))
+            same = all(c is None or (c == c0[0]).all() for c, c0 in zip(counts, counts0, strict=True))
             if same and (ends == starts + size).all():
                 self.offset = int(ends[-1])
                 return starts, offsets, counts

@@ -147,7 +147,7 @@ class Planar(MeshSource):
         starts = np.cumsum([0] + [len(r) for r in rings[:-1]])
         domain = {
             "vertices": np.concatenate(rings),
-            "segments": np.concatenate([_ring_segments(s, len(r)) for s, r in zip(starts, rings)]),
+            "segments": np.concatenate([_ring_segments(s, len(r)) for s, r in zip(starts, rings, strict=True)]),
         }
         if holes:
             domain["holes"] = np.array([_point_inside(h) for h in holes])

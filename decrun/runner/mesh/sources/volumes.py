@@ -144,7 +144,7 @@ class Box(MeshSource):
         def keep(centers):
             centers = centers * size
             removed = np.zeros(len(centers), dtype=bool)
-            for key, box in zip(keys, holes):
+            for key, box in zip(keys, holes, strict=True):
                 inside = _inside(centers, box)
                 require(bool(inside.any()), key, f"{list(box)} contains no cell centre (cells of "
                         f"{(size / self.cells).round(6).tolist()}), so it would remove nothing: enlarge it")

@@ -55,7 +55,7 @@ class Parsed:
         if missing:
             if self._parser is None:
                 self._parser = OverridesParser.create(config_loader=self.loader)
-            self._cache.update(zip(missing, self._parser.parse_overrides(missing)))
+            self._cache.update(zip(missing, self._parser.parse_overrides(missing), strict=True))
         return [self._cache[line] for line in lines]
 
     def plain(self, override: Override) -> bool:
@@ -198,7 +198,7 @@ class Composer:
             groups.setdefault(key, []).append((job, parsed))
             member.append(key)
         work: dict[tuple, tuple[DictConfig, Template] | None] = {}
-        for job, key in zip(jobs, member):
+        for job, key in zip(jobs, member, strict=True):
             if key not in work:
                 work[key] = self._start(key, groups[key]) if self.derive else None
             if work[key] is None:  # composed by Hydra

@@ -74,7 +74,7 @@ class Fluid(App):
     record_every: int = 5
     snapshots: int = 6
     animation: bool = True
-    kernels: Kernels = Kernels.auto  # auto | numba (compiled loops) | numpy (their twins): decrun/core/jit.py
+    kernels: Kernels = Kernels.auto  # auto | numba (compiled loops) | numpy (their twins): decrun.core.jit
 
     def __post_init__(self):
         if not (self.dt > 0 and math.isfinite(self.dt)):

@@ -25,7 +25,7 @@ OPENMP_SPIN = "10000"
 def bound_openmp_spin() -> None:
     """``GOMP_SPINCOUNT=10000`` unless the environment sets ``GOMP_SPINCOUNT`` or ``OMP_WAIT_POLICY``.
 
-    The fluid's parallel kernels run on OpenMP (:func:`decrun.core.jit._threading_layer`); after a
+    The fluid's parallel kernels run on OpenMP (:func:`decrun.core.jit.threading_layer`); after a
     region GNU OpenMP's idle threads spin 300,000 rounds (its default) before they sleep. On idle
     cores that keeps them awake between a step's regions, but where processes outnumber the cores
     they spin on cores others need: the fluid tests on four pytest workers over two cores took 40 s

@@ -1,4 +1,4 @@
-"""The one kernel switch (decrun/core/jit.py): ``app.kernels`` and ``DECRUN_NUMBA`` reach every
+"""The one kernel switch (decrun/core/jit/): ``app.kernels`` and ``DECRUN_NUMBA`` reach every
 compiled kernel, the fluid's and the core's.
 
 ``numpy`` never imports numba (so no kernel can run); ``numba`` runs every kernel on the path of

@@ -43,7 +43,7 @@ class Circulation(Choice):
 
 
 class Kernels(Choice):
-    """``app.kernels``: the one kernel switch of decrun/core/jit.py for the whole run (mesh,
+    """``app.kernels``: the one kernel switch of decrun.core.jit for the whole run (mesh,
     complex, operators and the fluid): ``auto`` (``DECRUN_NUMBA`` if set, else the fluid's loops
     compiled and the core's from 500k simplices on), ``numba`` (every compiled kernel,
     decrun/methods/fluid/compiled.py and the core's) or ``numpy`` (their reference twins; numba

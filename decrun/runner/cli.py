@@ -21,7 +21,7 @@ import logging
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -149,7 +149,7 @@ class SweepTable(Callback):
 
     failed = 0
     sweep_dir: Path | None = None
-    _progress = None
+    _progress: Any = None
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
         """Refuse a non-empty sweep dir for sweepers without resume; then show jobs done /
@@ -171,7 +171,7 @@ class SweepTable(Callback):
         if not terminal(shown):
             return
         params = config.hydra.sweeper.get("params") or {}
-        params = OmegaConf.to_container(params, resolve=False) if isinstance(params, DictConfig) else dict(params)
+        params = cast(dict, OmegaConf.to_container(params, resolve=False)) if isinstance(params, DictConfig) else dict(params)
         total = sweep_size(list(config.hydra.overrides.task), params)
         SweepTable._progress = SweepProgress(sweep_dir, total, enabled=True).start(
             planned=target.startswith("hydra_plugins.decrun_sweeper."))
@@ -228,8 +228,8 @@ def fast_help() -> str:
         for group, option in entry.items():
             if not group.startswith(("override ", "hydra/")):  # Hydra's own groups are not the task's
                 merged[group] = load_option(group, option)
-    body = {k: v for k, v in OmegaConf.to_container(main_cfg).items() if k not in ("defaults", "hydra")}
-    merged = OmegaConf.merge(merged, body)
+    body = {k: v for k, v in cast(dict, OmegaConf.to_container(main_cfg)).items() if k not in ("defaults", "hydra")}
+    merged = cast(DictConfig, OmegaConf.merge(merged, body))
     lines += ["", "", "== Config ==", "Override anything in the config (foo.bar=value)", "",
               OmegaConf.to_yaml(merged).rstrip(), "", str(main_cfg.hydra.help.footer).rstrip(), ""]
     return "\n".join(lines)
@@ -340,9 +340,10 @@ def error_message(exc: Exception) -> str | None:
     if message:
         return message
     if isinstance(exc, CompactHydraException):  # what Hydra's run_and_report prints
-        choices = _choices_of(exc.__cause__)
+        cause: Any = exc.__cause__  # an OmegaConf validation error when choices is not None
+        choices = _choices_of(cause)
         if choices is not None:  # a schema field with a closed set of values (optimize.direction)
-            return f"error: {choice_error(exc.__cause__.full_key, exc.__cause__.value, choices)}"
+            return f"error: {choice_error(cause.full_key, cause.value, choices)}"
         if isinstance(exc.__cause__, OmegaConfBaseException):
             return f"{exc}\n{exc.__cause__}"
         return str(exc)
@@ -452,7 +453,7 @@ def part_missing_message(exc: Exception) -> str | None:
     if match is None or match.group(1) != match.group(3):
         return None
     group, model, _, part = match.groups()
-    options = set()
+    options: set[str] = set()
     for root in re.findall(r"path=file://(\S+)", text):
         directory = Path(root) / group / "parts"
         if directory.is_dir():

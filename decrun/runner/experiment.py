@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -20,6 +20,14 @@ from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, Topo
 from decrun.runner.config import GROUPS, CheckpointConfig, DecrunConfig, OptimizeConfig
 from decrun.runner.hints import resolution_message
 from decrun.runner.plugins import Rebuilt, Recent, build
+
+if TYPE_CHECKING:  # the plugins' base classes, for the attributes' types only
+    from decrun.apps.base import App
+    from decrun.core.boundary import BoundaryAdaptation
+    from decrun.core.solvers import Solver
+    from decrun.core.stars import HodgeStar
+    from decrun.runner.mesh import MeshSource
+    from decrun.runner.results.export import Export
 
 __all__ = ["Experiment", "validate", "name_the_key", "mesh_where", "check_root_keys", "root_options"]
 
@@ -38,6 +46,15 @@ class Experiment:
     that does not resolve (``${oc.env:NAME}`` unset, an unknown resolver, a key referring to
     itself) is a ConfigError naming its key (:func:`decrun.runner.hints.resolution_message`).
     """
+
+    mesh_source: MeshSource
+    operator: HodgeStar
+    boundary: BoundaryAdaptation
+    app: App
+    solver: Solver
+    export: Export | None
+    checkpoint: CheckpointConfig
+    optimize: OptimizeConfig
 
     def __init__(self, cfg: DictConfig, make: Callable[[Any, str, type], Any] = build):
         try:

@@ -225,8 +225,9 @@ def default_override(cfg, key: str) -> str | None:
         return None
     if isinstance(found, dict) or (isinstance(found, str) and found == "<absent>"):
         return None
-    if hasattr(found, "value") and isinstance(found.value, str):  # a Choice member
-        found = found.value
+    value = getattr(found, "value", None)
+    if isinstance(value, str):  # a Choice member
+        found = value
     text = _override_value(found)
     return f"{key}={text}" if text is not None else None
 

@@ -32,7 +32,7 @@ import sys
 import tempfile
 import threading
 import time
-from typing import Any, Callable, Iterator, Optional, Sequence
+from typing import Any, Callable, Iterator, Optional, Sequence, cast
 
 __all__ = ["CONNECT_TIMEOUT", "is_launcher", "SLURM", "RAY", "JOBLIB", "Fix", "preflight", "launch_failure", "timed_out", "launcher_choice", "command_with",
            "ray_address", "NO_TIME_LIMIT", "connect_ray_as_is"]
@@ -52,7 +52,7 @@ def launcher_choice(config) -> str:
     return f"hydra/launcher={choice or 'basic'}"
 
 
-def command_with(argv: Sequence[str] | None = None, set_: Sequence[str] = (), drop: Callable[[str], bool] = None,
+def command_with(argv: Sequence[str] | None = None, set_: Sequence[str] = (), drop: Callable[[str], bool] | None = None,
                  ) -> str:
     """The ``decrun`` command as typed (``argv``, default ``sys.argv[1:]``) with each override
     of ``set_`` (``key=value``) in place of any override of that key, and without the
@@ -213,7 +213,7 @@ def connect_ray(launcher, config, timeout: float) -> Optional[str]:
     if ray.is_initialized():
         return None
     init = launcher.ray_cfg.init
-    options = OmegaConf.to_container(init, resolve=True) if OmegaConf.is_config(init) else dict(init)
+    options = cast(dict, OmegaConf.to_container(init, resolve=True)) if OmegaConf.is_config(init) else dict(init)
     failure: list[BaseException] = []
 
     def init_ray() -> None:
@@ -236,9 +236,9 @@ def connect_ray(launcher, config, timeout: float) -> Optional[str]:
                                     f"no Ray cluster answered within {timeout:g} s, hydra.sweeper.connect_timeout="
                                     f"{timeout:g}{'; Ray: ' + last if last else ''}")
         if failure:
-            exc = failure[0]
-            cause = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            return _ray_unreachable(config, launcher, address, f"{type(exc).__name__}: {cause}")
+            error = failure[0]
+            cause = str(error).splitlines()[0] if str(error) else type(error).__name__
+            return _ray_unreachable(config, launcher, address, f"{type(error).__name__}: {cause}")
         return None
     finally:
         with contextlib.suppress(OSError):
@@ -272,7 +272,7 @@ class Fix:
         return command_with(argv, [*self.set_, *extra], drop=self.drop)
 
 
-def _chain(exc: BaseException) -> Iterator[BaseException]:
+def _chain(exc: BaseException | None) -> Iterator[BaseException]:
     seen = set()
     while exc is not None and id(exc) not in seen:
         seen.add(id(exc))

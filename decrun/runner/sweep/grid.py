@@ -22,7 +22,7 @@ MAX_JOBS = 10_000
 
 def _refuse_interval(override: Override) -> None:
     key = override.get_key_element()
-    kind = override.value_type.name.lower().replace("_sweep", "")
+    kind = (override.value_type.name if override.value_type is not None else "sweep").lower().replace("_sweep", "")
     raise ValueError(f"{override.input_line}: the decrun sweeper runs a grid of values: give them as a "
                      f"list ({key}=a,b,c) or a range ({key}=range(start,stop,step)); an {kind} is for a "
                      "sampling sweeper's search")
@@ -53,7 +53,7 @@ def grid(overrides: list[Override]) -> list[list[str]]:
 def _count(override: Override) -> int:
     """The number of values of a discrete sweep override, a range's by arithmetic."""
     value = override.value()
-    if isinstance(value, RangeSweep) and value.start is not None:
+    if isinstance(value, RangeSweep) and value.start is not None and value.stop is not None:
         span = value.range()
         if isinstance(span, range):
             return len(span)

@@ -30,7 +30,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence, cast
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.plugins import Plugins
@@ -131,7 +131,10 @@ class ManifestSweeper(Sweeper):
         self.max_jobs = max_jobs
         #: (jobs planned, jobs to plan) while the sweep is planned
         self.planned = (0, 0)
-        self.hydra_context = self.config = self.launcher = None
+        #: Hydra's context, the sweep's config and the launcher (:meth:`setup`)
+        self.hydra_context: Any = None
+        self.config: Any = None
+        self.launcher: Any = None
         self.check: Optional[Callable[[Any], Any]] = None
 
     def setup(self, *, hydra_context, task_function, config) -> None:
@@ -184,7 +187,7 @@ class ManifestSweeper(Sweeper):
                              "overrides": list(job), "config_hash": self.speed.config_hash(cfg, template)})
         finally:
             shown.close()
-        _check_dirs(jobs, OmegaConf.to_container(self.config.hydra.sweep, resolve=False)["subdir"])
+        _check_dirs(jobs, cast(dict, OmegaConf.to_container(self.config.hydra.sweep, resolve=False))["subdir"])
         return jobs
 
     def _job_dir(self, cfg, num: int) -> str:
@@ -195,7 +198,7 @@ class ManifestSweeper(Sweeper):
         with read_write(cfg.hydra), open_dict(cfg.hydra):
             cfg.hydra.job.num = num
             cfg.hydra.job.id = num
-        if "${hydra:" not in OmegaConf.to_container(cfg.hydra.sweep, resolve=False)["subdir"]:
+        if "${hydra:" not in cast(dict, OmegaConf.to_container(cfg.hydra.sweep, resolve=False))["subdir"]:
             return str(OmegaConf.select(cfg, "hydra.sweep.subdir"))
         state = HydraConfig.instance()
         before = state.cfg
@@ -242,8 +245,9 @@ class ManifestSweeper(Sweeper):
                 jobs = self.plan(arguments)
         except KeyboardInterrupt as exc:  # the decrun command says where (cli.main)
             done, total = self.planned
-            exc.sweep_where = (f"while the sweep was planned ({done:,} of {total:,} jobs checked); nothing was written"
-                               if total else "while the sweep was planned; nothing was written")
+            where = (f"while the sweep was planned ({done:,} of {total:,} jobs checked); nothing was written"
+                     if total else "while the sweep was planned; nothing was written")
+            exc.sweep_where = where  # type: ignore[attr-defined]  # read by cli.main
             raise
         lock_sweep(sweep_dir, SweepError)  # before the manifest is read: one sweeping process per directory
         manifest, todo = self._start(sweep_dir, jobs, arguments)
@@ -259,7 +263,7 @@ class ManifestSweeper(Sweeper):
                 results = self._launch(launched[start:stop], int(todo[start]["job"]))
             except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (cli.main)
                 ignore_interrupts()  # a second Ctrl-C while the jobs are counted is ignored (the sweep is ending)
-                exc.sweep_stock = take_stock(sweep_dir, todo)
+                exc.sweep_stock = take_stock(sweep_dir, todo)  # type: ignore[attr-defined]  # read by cli.main
                 raise
             except Exception as exc:
                 if worker_died(exc):

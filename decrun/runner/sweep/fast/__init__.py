@@ -92,7 +92,7 @@ class SpeedLayer:
         """Job ``num``'s ``hydra.sweep.subdir`` read off its group's pattern (literal text and
         the job number: no ``HydraConfig`` needed), or None when it must be resolved on the
         job's config."""
-        if template is None or Composer.hydra_needed(template):
+        if template is None or template.subdir is None or Composer.hydra_needed(template):
             return None
         return subdir_of(template.subdir, num)
 

@@ -28,7 +28,7 @@ import copy
 import pickle
 import re
 import sys
-from typing import Any, Iterator
+from typing import Any, Iterator, cast
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override, OverrideType
@@ -97,7 +97,7 @@ def apply(cfg: DictConfig, parsed: list[Override], plain, template_hydra_lines: 
             OmegaConf.update(cfg, override.key_or_group, override.value(), merge=True)
     hydra_lines = [o.input_line for o in parsed if o.is_hydra_override()]
     task = [o for o in parsed if not o.is_hydra_override()]
-    lines = OmegaConf.to_container(cfg.hydra.overrides.hydra, resolve=False)  # a line may hold ${...}
+    lines = cast(list, OmegaConf.to_container(cfg.hydra.overrides.hydra, resolve=False))  # a line may hold ${...}
     cfg.hydra.overrides.hydra = lines[:len(lines) - template_hydra_lines] + hydra_lines
     cfg.hydra.overrides.task = [o.input_line for o in task]
     dirname = cfg.hydra.job.config.override_dirname
@@ -112,7 +112,7 @@ def override_dirname(task: list[Override], exclude_keys: list[str], item_sep: st
     ``re.sub`` replacement, as Hydra's: ``\\`` escapes in it are processed). The same text
     as Hydra's own (``get_overrides_dirname``, private to Hydra:
     tests/runner/test_sweep_planning.py compares them)."""
-    lines = sorted(o.input_line for o in task if o.key_or_group not in exclude_keys)
+    lines = sorted(cast(str, o.input_line) for o in task if o.key_or_group not in exclude_keys)
     return re.sub("=", kv_sep, item_sep.join(lines))
 
 
@@ -132,7 +132,7 @@ class Template:
         #: the task keys those overrides set (``app.dt``)
         self.varying_keys = tuple(first[i].key_or_group for i in self.varying if not first[i].is_hydra_override())
         changed = {key.split(".")[0] for key in self.varying_keys}
-        raw = OmegaConf.to_container(cfg, resolve=False)
+        raw = cast(dict, OmegaConf.to_container(cfg, resolve=False))
         self.interpolated = frozenset(str(key) for key, value in raw.items() if key != "hydra" and "${" in repr(value))
         self.fresh = frozenset(changed | self.interpolated)
         #: the job's hydra.sweep.subdir before resolution (None: it varies between the jobs)
@@ -201,10 +201,11 @@ class Composer:
         for job, key in zip(jobs, member, strict=True):
             if key not in work:
                 work[key] = self._start(key, groups[key]) if self.derive else None
-            if work[key] is None:  # composed by Hydra
+            entry = work[key]
+            if entry is None:  # composed by Hydra
                 yield job, self._hydra(job), None
                 continue
-            cfg, template = work[key]
+            cfg, template = entry
             template.update(cfg, self.parse(list(job)), self.parse.plain, hydra=self.hydra_needed(template))
             yield job, cfg, template
 
@@ -247,7 +248,7 @@ class Composer:
         applied: :func:`apply`), if every override of ``first`` is plain or a line the master
         applied (one of its ``hydra.overrides.task``), and if it derives the group's last job
         as Hydra composed it (``composed_last``); else None."""
-        applied = set(OmegaConf.to_container(self.master.hydra.overrides.task, resolve=False))
+        applied = set(cast(list, OmegaConf.to_container(self.master.hydra.overrides.task, resolve=False)))
         if not all(self.parse.plain(o) or o.input_line in applied for o in first):
             return None
         try:
@@ -287,8 +288,8 @@ class PlannedConfigs:
     goes to the wrapped loader. Picklable, so launchers that compose in their workers
     (joblib, submitit, ray) get it too: it holds one config per group, not per job."""
 
-    def __init__(self, loader, templates: dict[tuple, Template], extra: tuple = ()):
-        self.wrapped = loader.wrapped if isinstance(loader, PlannedConfigs) else loader
+    def __init__(self, loader: Any, templates: dict[tuple, Template], extra: tuple = ()):
+        self.wrapped: Any = loader.wrapped if isinstance(loader, PlannedConfigs) else loader
         self._templates = templates
         #: the shape of the lines the sweeper appends to each job (its directories)
         self._extra = tuple(extra)

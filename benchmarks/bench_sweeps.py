@@ -38,6 +38,7 @@ import collections
 import functools
 import json
 import os
+import resource
 import signal
 import subprocess
 import sys
@@ -62,26 +63,39 @@ def decrun(*args: str) -> list[str]:
     return [sys.executable, "-m", "decrun", *args]
 
 
-def timed_sweep(args: list[str], repeat: int) -> tuple[float, float]:
-    """(best wall seconds, mean job ``total_seconds`` of that run) of ``decrun -m args``."""
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of this process's finished children."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def timed_sweep(args: list[str], repeat: int, cpu: list | None = None) -> tuple[float, float]:
+    """(best wall seconds, mean job ``total_seconds`` of that run) of ``decrun -m args``;
+    ``cpu``, when given, gets the least CPU seconds (user + system) of the runs appended."""
     best = (float("inf"), 0.0)
+    least_cpu = float("inf")
     for _ in range(repeat):
         with tempfile.TemporaryDirectory() as tmp:
-            t = time.perf_counter()
+            t, c = time.perf_counter(), _children_cpu()
             proc = subprocess.run(decrun("-m", *args, f"hydra.sweep.dir={tmp}/s"), cwd=tmp, env=_env(),
                                   capture_output=True, text=True)
             seconds = time.perf_counter() - t
+            least_cpu = min(least_cpu, _children_cpu() - c)
             if proc.returncode != 0:
                 raise RuntimeError(f"decrun -m {' '.join(args)} failed:\n{proc.stderr[-2000:]}")
             jobs = [json.loads(p.read_text())["total_seconds"] for p in Path(tmp, "s").glob("*/metrics.json")]
             best = min(best, (seconds, sum(jobs) / len(jobs)))
+    if cpu is not None:
+        cpu.append(least_cpu)
     return best
 
 
 def overhead(repeat: int) -> dict:
-    one, _ = timed_sweep([f"app.dt={DTS[0]}", *SMALL], repeat)
-    eight, _ = timed_sweep([f"app.dt={','.join(map(str, DTS))}", *SMALL], repeat)
-    return {"sweep1_s": one, "sweep8_s": eight, "ratio": eight / one}
+    cpu: list[float] = []
+    one, _ = timed_sweep([f"app.dt={DTS[0]}", *SMALL], repeat, cpu)
+    eight, _ = timed_sweep([f"app.dt={','.join(map(str, DTS))}", *SMALL], repeat, cpu)
+    return {"sweep1_s": one, "sweep8_s": eight, "ratio": eight / one, "cpu1_s": cpu[0], "cpu8_s": cpu[1],
+            "cpu_ratio": cpu[1] / cpu[0]}
 
 
 def parallel(repeat: int) -> dict:
@@ -185,7 +199,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.only in (None, "overhead"):
         r = overhead(args.repeat)
         print(f"overhead: basic launcher, 8-job app.dt sweep {r['sweep8_s']:.2f} s / 1-job sweep {r['sweep1_s']:.2f} s"
-              f" = {r['ratio']:.2f}x (target <= 1.3; load average {os.getloadavg()[0]:.1f})", flush=True)
+              f" = {r['ratio']:.2f}x (target <= 1.3); CPU {r['cpu8_s']:.2f} s / {r['cpu1_s']:.2f} s = "
+              f"{r['cpu_ratio']:.2f}x (load average {os.getloadavg()[0]:.1f})", flush=True)
     if args.only in (None, "parallel"):
         r = parallel(args.repeat)
         print(f"parallel: 4 jobs of {r['job_s']:.1f} s, basic {r['basic_s']:.2f} s / joblib n_jobs=2 "

@@ -43,7 +43,7 @@ CONNECT_TIMEOUT = 20.0
 SLURM_COMMANDS = ("srun", "sbatch")
 
 
-def launcher_choice(config) -> str:
+def launcher_choice(config: Any) -> str:
     """``hydra/launcher=<choice>`` as the user chose it (``submitit_slurm``, ``slurm_example``)."""
     try:
         choice = config.hydra.runtime.choices.get("hydra/launcher")
@@ -112,7 +112,7 @@ def _no_slurm(config, missing: str) -> str:
 # Ray
 # ----------------------------------------------------------------------------------
 
-def ray_address(launcher) -> Optional[str]:
+def ray_address(launcher: Any) -> Optional[str]:
     """``hydra.launcher.ray.init.address`` of a Ray launcher, None when unset (a local Ray)."""
     init = getattr(getattr(launcher, "ray_cfg", None), "init", None)
     address = init.get("address") if init is not None else None
@@ -189,7 +189,7 @@ def connect_ray_as_is(launcher: Any) -> None:
         init["object_store_memory"] = None
 
 
-def connect_ray(launcher, config, timeout: float) -> Optional[str]:
+def connect_ray(launcher: Any, config: Any, timeout: float) -> Optional[str]:
     """Connect this process to the Ray cluster of ``launcher`` (``ray.init`` with its init
     options: the launcher then finds Ray initialized), giving up after ``timeout`` seconds;
     the one-line error, or None when connected."""
@@ -249,7 +249,7 @@ def connect_ray(launcher, config, timeout: float) -> Optional[str]:
 # the sweeper's entry points
 # ----------------------------------------------------------------------------------
 
-def preflight(launcher, config, timeout: float = CONNECT_TIMEOUT) -> Optional[str]:
+def preflight(launcher: Any, config: Any, timeout: float = CONNECT_TIMEOUT) -> Optional[str]:
     """The one-line error when ``launcher`` cannot start here (module docstring), before
     the sweep is planned; None when it can."""
     if is_launcher(launcher, *SLURM):
@@ -265,7 +265,7 @@ class Fix:
     """What replaces the command's launcher options to fix a launcher that cannot start:
     the overrides ``set_`` and the keys ``drop`` is true for (see :func:`command_with`)."""
 
-    def __init__(self, set_: Sequence[str], drop: Optional[Callable[[str], bool]] = None):
+    def __init__(self, set_: Sequence[str], drop: Optional[Callable[[str], bool]] = None) -> None:
         self.set_, self.drop = list(set_), drop
 
     def command(self, extra: Sequence[str] = (), argv: Sequence[str] | None = None) -> str:
@@ -302,7 +302,7 @@ def _last_line(exc: BaseException) -> str:
     return text.splitlines()[-1] if text else ""
 
 
-def launch_failure(launcher, config, exc: BaseException) -> Optional[tuple[str, Fix]]:
+def launch_failure(launcher: Any, config: Any, exc: BaseException) -> Optional[tuple[str, Fix]]:
     """``("<launcher>: cannot … (<cause>)", fix)`` for an exception of a cluster launcher's
     ``launch`` that says its jobs could not be submitted (no SLURM commands, a refused
     submission, a Ray cluster not reached); None for any other exception (a job's own
@@ -322,12 +322,12 @@ TO_LOCAL_RAY = Fix(["hydra.launcher.ray.init.address=local"])  # "local": a new 
 NO_TIME_LIMIT = Fix(["hydra.launcher.timeout=null"])
 
 
-def timed_out(launcher, exc: BaseException) -> bool:
+def timed_out(launcher: Any, exc: BaseException) -> bool:
     """joblib's ``TimeoutError`` (``multiprocessing.TimeoutError`` from loky) for a job that
     ran longer than ``hydra.launcher.timeout``."""
     return is_launcher(launcher, *JOBLIB) and any(c.__name__ == "TimeoutError" for c in type(exc).__mro__)
 
 
-def joblib_timeout(launcher) -> Any:
+def joblib_timeout(launcher: Any) -> Any:
     """``hydra.launcher.timeout`` of a joblib launcher."""
     return (getattr(launcher, "joblib", None) or {}).get("timeout")

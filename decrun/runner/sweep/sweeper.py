@@ -123,7 +123,7 @@ class ManifestSweeper(Sweeper):
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
                  resume: bool = False, fast: bool = True, connect_timeout: float = CONNECT_TIMEOUT,
-                 max_jobs: int = MAX_JOBS):
+                 max_jobs: int = MAX_JOBS) -> None:
         super().__init__()
         self.max_batch_size, self.params = max_batch_size, dict(params or {})
         self.resume, self.speed = resume, SpeedLayer(fast)
@@ -137,7 +137,7 @@ class ManifestSweeper(Sweeper):
         self.launcher: Any = None
         self.check: Optional[Callable[[Any], Any]] = None
 
-    def setup(self, *, hydra_context, task_function, config) -> None:
+    def setup(self, *, hydra_context: Any, task_function: Callable, config: Any) -> None:
         self.hydra_context, self.config = hydra_context, config
         self.launcher = Plugins.instance().instantiate_launcher(hydra_context=hydra_context,
                                                                 task_function=task_function, config=config)

@@ -62,7 +62,7 @@ class SpeedLayer:
     what Hydra's public API does (every job composed by Hydra, the check without memo,
     no loader swap, no warm-up, the heap as it is)."""
 
-    def __init__(self, enabled: bool = True):
+    def __init__(self, enabled: bool = True) -> None:
         self.enabled = enabled
         #: the memo of the task's check: shared by every job the sweep plans
         self.memo: dict = {}

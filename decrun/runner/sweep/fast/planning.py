@@ -28,7 +28,7 @@ import copy
 import pickle
 import re
 import sys
-from typing import Any, Iterator, cast
+from typing import Any, Callable, Iterator, cast
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import Override, OverrideType
@@ -38,14 +38,16 @@ __all__ = ["Composer", "PlannedConfigs", "apply", "override_dirname", "shape"]
 
 #: the value types of a plain override
 PLAIN = (str, int, float, bool, type(None))
+#: whether an override is plain (:meth:`Parsed.plain`)
+Plain = Callable[[Override], bool]
 
 
 class Parsed:
     """Hydra's override parser with a cache: a sweep's jobs repeat most of their overrides."""
 
-    def __init__(self, loader):
+    def __init__(self, loader: Any) -> None:
         self.loader = loader
-        self._parser = None
+        self._parser: OverridesParser | None = None
         self._cache: dict[str, Override] = {}
         #: parent group → the names of its child groups
         self._groups: dict[str, frozenset[str]] = {}
@@ -55,7 +57,8 @@ class Parsed:
         if missing:
             if self._parser is None:
                 self._parser = OverridesParser.create(config_loader=self.loader)
-            self._cache.update(zip(missing, self._parser.parse_overrides(missing), strict=True))
+            parsed = self._parser.parse_overrides(missing)
+            self._cache.update(zip(missing, parsed, strict=True))
         return [self._cache[line] for line in lines]
 
     def plain(self, override: Override) -> bool:
@@ -80,13 +83,13 @@ class Parsed:
         return {"loader": self.loader, "_parser": None, "_cache": {}, "_groups": {}}
 
 
-def shape(parsed: list[Override], plain) -> tuple:
+def shape(parsed: list[Override], plain: Plain) -> tuple:
     """The group of a job: its keys in order, and the whole line of each override that is
     not plain (``plain``: :meth:`Parsed.plain`)."""
     return tuple((o.key_or_group, None if plain(o) else o.input_line) for o in parsed)
 
 
-def apply(cfg: DictConfig, parsed: list[Override], plain, template_hydra_lines: int) -> None:
+def apply(cfg: DictConfig, parsed: list[Override], plain: Plain, template_hydra_lines: int) -> None:
     """Turn ``cfg`` (a composition of a job of the same group) into the composition of the
     job ``parsed``, in place: each plain override applied as Hydra applies it (the key
     must exist, the node's type converts or refuses the value), ``hydra.overrides.task`` /
@@ -122,7 +125,7 @@ class Template:
     whose value may differ between them (``fresh``: those its plain task overrides
     change, and those holding an interpolation) and the YAML blocks of the others."""
 
-    def __init__(self, cfg: DictConfig, members: list[list[Override]], plain):
+    def __init__(self, cfg: DictConfig, members: list[list[Override]], plain: Plain) -> None:
         self.cfg = cfg
         first = members[0]
         self.hydra_lines = sum(1 for o in first if o.is_hydra_override())
@@ -141,7 +144,7 @@ class Template:
         self.blocks: dict[str, str] = {}
         self._pickled: bytes | None = None
 
-    def update(self, cfg: DictConfig, parsed: list[Override], plain, hydra: bool) -> None:
+    def update(self, cfg: DictConfig, parsed: list[Override], plain: Plain, hydra: bool) -> None:
         """Turn the working copy ``cfg`` (the composition of an earlier job of the group)
         into job ``parsed``'s for the plan: its varying overrides applied, and with
         ``hydra`` its ``hydra.overrides`` and ``override_dirname`` (:func:`apply`)."""
@@ -166,7 +169,7 @@ class Template:
                 self._pickled = b""
         return pickle.loads(self._pickled) if self._pickled else copy.deepcopy(self.cfg)
 
-    def derive(self, parsed: list[Override], plain, master: DictConfig) -> DictConfig:
+    def derive(self, parsed: list[Override], plain: Plain, master: DictConfig) -> DictConfig:
         """A job's own composition: a copy of the template (:meth:`copy`) with ``parsed`` applied."""
         cfg = self.copy()
         apply(cfg, parsed, plain, self.hydra_lines)
@@ -177,7 +180,7 @@ class Template:
 class Composer:
     """The compositions of a sweep's jobs (module docstring)."""
 
-    def __init__(self, loader, master: DictConfig, derive: bool = True):
+    def __init__(self, loader: Any, master: DictConfig, derive: bool = True) -> None:
         self.loader, self.master, self.derive = loader, master, derive
         self.parse = Parsed(loader)
         #: shape → Template of the groups whose jobs are derived (the others Hydra composes)
@@ -288,14 +291,14 @@ class PlannedConfigs:
     goes to the wrapped loader. Picklable, so launchers that compose in their workers
     (joblib, submitit, ray) get it too: it holds one config per group, not per job."""
 
-    def __init__(self, loader: Any, templates: dict[tuple, Template], extra: tuple = ()):
+    def __init__(self, loader: Any, templates: dict[tuple, Template], extra: tuple = ()) -> None:
         self.wrapped: Any = loader.wrapped if isinstance(loader, PlannedConfigs) else loader
         self._templates = templates
         #: the shape of the lines the sweeper appends to each job (its directories)
         self._extra = tuple(extra)
         self._parse = Parsed(self.wrapped)
 
-    def load_sweep_config(self, master_config, sweep_overrides):
+    def load_sweep_config(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
         parsed = self._parse(list(sweep_overrides))
         key = shape(parsed, self._parse.plain)
         template = self._templates.get(key[:len(key) - len(self._extra)]) if key[len(key) - len(self._extra):] == \

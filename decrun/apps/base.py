@@ -57,11 +57,16 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar
+from typing import TYPE_CHECKING, Any, Callable, ClassVar
 
 import numpy as np
 
 from decrun.errors import ConfigError, TopologyError
+
+if TYPE_CHECKING:  # types of the parameters only
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.core.solvers import Solver
 
 __all__ = ["App", "Context", "Figure", "Result", "FieldOnEdges", "Output"]
 
@@ -196,7 +201,7 @@ class App:
         options against the fields after the run, and places them by their shapes)."""
         return None
 
-    def validate(self, K, solver, operators: Callable[[], Any]) -> Any:
+    def validate(self, K: SimplicialComplex, solver: Solver, operators: Callable[[], Any]) -> Any:
         """Every check of this app against the run's mesh, operators and solver, before any
         work, each once and in this order; returns the operators. The runner calls it once
         per run (:func:`decrun.runner.run.prepare`); apps override the checks below, not this.
@@ -217,7 +222,7 @@ class App:
         self.check(K, dec)
         return dec
 
-    def check_dimension(self, K) -> None:
+    def check_dimension(self, K: SimplicialComplex) -> None:
         """TopologyError when ``K``'s dimension is not in ``dimensions`` (before any work), naming
         the apps that run on it."""
         if K.dim in self.dimensions:
@@ -231,7 +236,7 @@ class App:
         raise TopologyError(f"app={self.name} runs on {wanted}, but this mesh is "
                             f"{kinds.get(K.dim, f'of dimension {K.dim}')}; {fix}")
 
-    def check_pieces(self, K) -> None:
+    def check_pieces(self, K: SimplicialComplex) -> None:
         """TopologyError when the app assumes one piece (``one_piece`` says why) and ``K`` has
         several (top simplices joined through shared vertices,
         :meth:`~decrun.core.complex.SimplicialComplex.connected_components`), naming the post
@@ -247,13 +252,13 @@ class App:
                             f"{'triangles' if K.dim == 2 else 'top simplices'}; keep the largest with "
                             "`mesh.largest_component=true`")
 
-    def check(self, K, dec) -> None:
+    def check(self, K: SimplicialComplex, dec: DEC) -> None:
         """Raise a DecrunError when the mesh does not suit the app (before any work)."""
 
     def run(self, ctx: "Context") -> Result:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def check_solver(self, solver, dec=None) -> None:
+    def check_solver(self, solver: Solver, dec: DEC | None = None) -> None:
         """Reject a solver that cannot solve this app's systems (before any work; ``dec``
         given once the operators are chosen)."""
         if getattr(solver, "needs_spd", False) and self.unsymmetric_systems:
@@ -261,7 +266,7 @@ class App:
                               f"definite ({self.unsymmetric_systems}); use `solver=iterative` (GMRES/MINRES), "
                               "`solver=direct` (or `solver=pardiso`)")
 
-    def check_operators(self, dec) -> None:
+    def check_operators(self, dec: DEC) -> None:
         """Reject a boundary adaptation or Hodge-star variant this app cannot use, with the
         override that fixes it. Called by the runner before any work."""
         if dec.boundary.name not in self.boundaries:
@@ -299,7 +304,7 @@ class Context:
     progress : tqdm-like factory (default: silent)
     """
 
-    def __init__(self, config: App, K, dec, new_solver: Callable | None = None, meta: dict | None = None,
+    def __init__(self, config: App, K: SimplicialComplex, dec: DEC, new_solver: Callable | None = None, meta: dict | None = None,
                  progress: Callable | None = None):
         from decrun.core.solvers import solver_factory
 

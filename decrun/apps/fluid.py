@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import TYPE_CHECKING, List, Optional
 
 import numpy as np
 
@@ -28,6 +28,10 @@ from decrun.errors import ConfigError
 from decrun.methods.fluid.metrics import fluid_metrics
 from decrun.methods.fluid.options import Circulation, Initial, Kernels, Velocity, Walls
 from decrun.methods.stepping import run_steps
+
+if TYPE_CHECKING:  # types of the parameters only
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
 
 SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
            "vorticity_max")
@@ -114,7 +118,7 @@ class Fluid(App):
     def total_steps(self) -> int:
         return int(math.ceil(self.t_end / self.dt - 1e-9)) if self.t_end is not None else int(self.steps)
 
-    def check(self, K, dec) -> None:
+    def check(self, K: SimplicialComplex, dec: DEC) -> None:
         closed = K.border_faces()[0].size == 0
         if self.inflow and closed:
             raise ConfigError("app.inflow: a closed surface has no border to flow in through; use app.inflow=[]")
@@ -205,7 +209,7 @@ class Fluid(App):
                                                     dict(name="vorticity", title="vorticity", **view))
         return Result(fields=fields, metrics=metrics, figures=figures)
 
-    def _initial_vorticity(self, dec, initial_vorticity, meta=None) -> np.ndarray:
+    def _initial_vorticity(self, dec: DEC, initial_vorticity, meta=None) -> np.ndarray:
         if self.initial == "mesh_field":
             return vorticity_of_field(dec, (meta or {})["field"])
         if self.initial == "zero":
@@ -269,7 +273,7 @@ class FluidStepper:
         self.last = dict(state["last"])
 
 
-def vorticity_of_field(dec, field: dict) -> np.ndarray:
+def vorticity_of_field(dec: DEC, field: dict) -> np.ndarray:
     """(n0,) initial vorticity from a field of a previous run (``mesh=result mesh.field=...``):
     a per-vertex field is the vorticity itself; a circulation 1-form ω per edge (app=vector_field's
     ``omega``, the line integrals of its tangent field u) gives by Stokes the exact integral of

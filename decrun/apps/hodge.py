@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import List
+from typing import TYPE_CHECKING, List
 
 import numpy as np
 
@@ -55,6 +55,11 @@ from decrun.core.geometry import embed3, principal_frame
 from decrun.core.hodge import HodgeDecomposer, harmonic_basis
 from decrun.errors import ConfigError, TopologyError
 from decrun.methods.hodge_metrics import harmonic_residuals, orthogonality_metrics
+
+if TYPE_CHECKING:  # types of the parameters only
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.core.solvers import Solver
 
 
 class Input(Choice):
@@ -123,12 +128,12 @@ class Hodge(App):
             raise ConfigError("app.input_path: app.input=result needs the path of a previous run's result.h5, "
                               "e.g. app.input_path=outputs/runs/<stamp>/result.h5")
 
-    def check(self, K, dec) -> None:
+    def check(self, K: SimplicialComplex, dec: DEC) -> None:
         if self.degree >= K.dim:
             raise TopologyError(f"app.degree={self.degree}: a mesh of dimension {K.dim} has nothing to decompose "
                                 f"in degree {self.degree} (only exact and harmonic parts); use `app.degree=1`")
 
-    def check_solver(self, solver, dec=None) -> None:
+    def check_solver(self, solver: Solver, dec: DEC | None = None) -> None:
         super().check_solver(solver, dec)
         k = self.degree
         if dec is not None and k <= dec.n and getattr(solver, "needs_spd", False) and dec.star_is_diagonal(k):
@@ -258,7 +263,7 @@ def analytic_field(name: str, a, vertices: np.ndarray | None = None) -> callable
             "toroidal": toroidal, "mixed": mixed}[name]
 
 
-def input_form(K, cfg, ctx: Context | None = None) -> np.ndarray:
+def input_form(K: SimplicialComplex, cfg, ctx: Context | None = None) -> np.ndarray:
     """The k-form to decompose, (n_k,), as configured (``app.input``, ``app.degree``): line
     integrals (k = 1) or fluxes (k = 2) of the analytic field, or ξ_σ |σ| with ξ ~ N(0, 1);
     ``input=result`` reads the previous run through ``ctx.read_result``."""
@@ -287,7 +292,7 @@ def input_form(K, cfg, ctx: Context | None = None) -> np.ndarray:
     return _form_from_result(K, cfg, ctx)
 
 
-def _form_from_result(K, cfg, ctx: Context) -> np.ndarray:
+def _form_from_result(K: SimplicialComplex, cfg, ctx: Context) -> np.ndarray:
     path = cfg.input_path
     k = int(getattr(cfg, "degree", 1))
     result, vertices = ctx.read_result(path)

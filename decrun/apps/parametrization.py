@@ -13,7 +13,7 @@ Laplacian used: eq. 5.3's ⋆0⁻¹ d1^dual ⋆1 d0, the Laplace–Beltrami oper
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
@@ -41,8 +41,12 @@ from decrun.methods.parametrization_metrics import (
     signed_uv_areas,
 )
 
+if TYPE_CHECKING:  # types of the parameters only
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.core.solvers import Solver
 
-def hole_override(K) -> str:
+def hole_override(K: SimplicialComplex) -> str:
     """The override cutting a ball around the vertex of largest z out of ``K`` (radius: a
     quarter of the bounding-box diagonal), e.g. ``mesh.hole_balls=[[0.0,0.0,1.0,0.5]]``."""
     x = np.asarray(K.vertices, dtype=np.float64)
@@ -85,7 +89,7 @@ class Parametrization(App):
         self.reflex_rows = ReflexRows.of(self.reflex_rows, "app.reflex_rows")
         self.holes = Holes.of(self.holes, "app.holes")
 
-    def check_solver(self, solver, dec=None) -> None:
+    def check_solver(self, solver: Solver, dec: DEC | None = None) -> None:
         """Pinned borders with symmetric weights give SPD systems (cg, amg apply); the
         conformal border's eq. 5.9 rows, the Cauchy–Riemann rows and the mean-value weights do
         not: those need solver=direct or solver=pardiso."""
@@ -109,7 +113,7 @@ class Parametrization(App):
         """True when inner borders are closed by virtual vertices (``app.holes``)."""
         return self.holes == "fill" or (self.holes == "auto" and self.border in ("circle", "circle_arclength"))
 
-    def check(self, K, dec) -> None:
+    def check(self, K: SimplicialComplex, dec: DEC) -> None:
         if not K.border_vertices().any() and K.embedding_dim == 3:
             raise TopologyError(f"app=parametrization needs a disk-like surface with a border; this mesh is closed "
                                 f"(χ = {K.euler_characteristic}): cut a hole into it, e.g. "

@@ -181,7 +181,7 @@ class Smoothing(App):
                 raise ConfigError(
                     f"app.dt_factor: the explicit critical step 2/λ_max does not exist for operator="
                     f"{dec.star_variant.name} on this mesh (⋆0 is not positive on "
-                    f"{int(np.sum(dec.star_diagonal_or_none(0) <= 0)) if dec.star_is_diagonal(0) else 0} vertices); "
+                    f"{int(np.sum(dec.star_diagonal(0) <= 0)) if dec.star_is_diagonal(0) else 0} vertices); "
                     "use `operator=mixed_area` (positive ⋆0, so app.dt_factor scales its critical step); with "
                     "a negative ⋆0 a given app.dt may diverge (the implicit matrix is indefinite)")
             dt = self.dt_factor * dt_crit

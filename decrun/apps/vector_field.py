@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import TYPE_CHECKING, List, Optional
 
 import numpy as np
 
@@ -63,6 +63,9 @@ from decrun.methods.vector_design import (
     stroke_face_directions,
 )
 
+if TYPE_CHECKING:  # types of the parameters only
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
 
 @dataclass
 class Source:
@@ -183,7 +186,7 @@ def _as_list(value) -> list:
     return [] if value is None else list(value)
 
 
-def _vertex_ids(K, items, key: str, tolerance: float = float("inf")) -> tuple[np.ndarray, np.ndarray]:
+def _vertex_ids(K: SimplicialComplex, items, key: str, tolerance: float = float("inf")) -> tuple[np.ndarray, np.ndarray]:
     ids, values = [], []
     for i, item in enumerate(items):
         if getattr(item, "vertex", None) is not None:
@@ -198,7 +201,7 @@ def _vertex_ids(K, items, key: str, tolerance: float = float("inf")) -> tuple[np
     return np.asarray(ids, dtype=np.int64), np.asarray(values)
 
 
-def _face_ids(K, items, key: str, tolerance: float = float("inf")) -> tuple[np.ndarray, np.ndarray]:
+def _face_ids(K: SimplicialComplex, items, key: str, tolerance: float = float("inf")) -> tuple[np.ndarray, np.ndarray]:
     ids, values = [], []
     for i, item in enumerate(items):
         if getattr(item, "face", None) is not None:
@@ -213,7 +216,7 @@ def _face_ids(K, items, key: str, tolerance: float = float("inf")) -> tuple[np.n
     return np.asarray(ids, dtype=np.int64), np.asarray(values)
 
 
-def sources_from_mesh(K, log=None) -> tuple[list[Source], dict]:
+def sources_from_mesh(K: SimplicialComplex, log=None) -> tuple[list[Source], dict]:
     """The default source/sink pair (module docstring) as ``Source`` items by vertex id, and
     the metrics that record it; ``log`` (a callable) is told which vertices were chosen."""
     pair = principal_extremes(K)
@@ -232,7 +235,7 @@ def sources_from_mesh(K, log=None) -> tuple[list[Source], dict]:
     return [Source(vertex=pair.source, divergence=1.0), Source(vertex=pair.sink, divergence=-1.0)], metrics
 
 
-def build_constraints(K, dec, cfg, log=None) -> tuple[DesignConstraints, dict]:
+def build_constraints(K: SimplicialComplex, dec: DEC, cfg, log=None) -> tuple[DesignConstraints, dict]:
     """Curl and divergence targets of eq. 6.5 from ``cfg.sources`` (None: a pair from the mesh,
     :func:`sources_from_mesh`) / ``cfg.vortices`` and the stroke geometry (faces, unit
     directions) from ``cfg.strokes``. ``geometry["source_metrics"]`` records the sources' origin."""

@@ -309,3 +309,20 @@ def test_a_group_of_plain_jobs_is_derived_from_the_master_with_one_hydra_composi
     for job, cfg in zip(jobs, hydra_composed, strict=True):
         assert OmegaConf.to_yaml(launcher.load_sweep_config(master, list(job))) == OmegaConf.to_yaml(cfg), job
     assert "differs from Hydra's" not in capsys.readouterr().err
+
+
+def test_config_groups_are_known_through_the_loaders_public_listing_as_hydras_repository_knows_them(hydra_loader):
+    """A plain override is one whose key names no config group: the planner asks the
+    loader's public ``list_groups``; Hydra's own (private) repository agrees on every group,
+    nested group, plain key and missing key."""
+    from decrun.runner.sweep.fast.planning import Parsed
+
+    loader, _ = hydra_loader
+    parse = Parsed(loader)
+    keys = ["mesh", "app", "operator", "boundary", "solver", "hydra.launcher", "hydra.sweeper", "hydra.job_logging",
+            "app.parts", "app.dt", "mesh.subdiv", "figures", "hydra.sweep.dir", "nothing", "nothing.deeper",
+            "app.parts.none"]
+    known = {key: parse.is_group(key) for key in keys}
+    assert known == {key: loader.repository.group_exists(key.replace(".", "/")) for key in keys}
+    assert known["mesh"] and known["hydra.launcher"] and not known["app.dt"] and not known["nothing.deeper"]
+    assert [o.key_or_group for o in parse(["app.dt=0.5", "mesh=icosphere"]) if parse.plain(o)] == ["app.dt"]

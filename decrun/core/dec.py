@@ -188,7 +188,7 @@ class DEC(Cached):
         return np.column_stack([factor(b[:, j]) for j in range(b.shape[1])])
 
     # ---------------------------------------------------------------- codifferential, Laplacians
-    def codifferential(self, k: int):
+    def codifferential(self, k: int) -> sp.csr_matrix | spla.LinearOperator:
         """δ_k = (−1)^k ⋆_{k-1}⁻¹ d^dual_{n-k} ⋆_k = ⋆_{k-1}⁻¹ d_{k-1}ᵀ ⋆_k (§4.5.6, eq. 4.13,
         4.14): maps k-forms to (k-1)-forms, (n_{k-1}, n_k).
 
@@ -211,7 +211,7 @@ class DEC(Cached):
 
         return self.require(("codifferential", k), compute)
 
-    def laplacian(self, k: int):
+    def laplacian(self, k: int) -> sp.csr_matrix | spla.LinearOperator:
         """Laplace–de Rham operator Δ_k = d δ + δ d on k-forms, (n_k, n_k).
 
         Positive semi-definite and self-adjoint under the ⋆ inner product. For k = 0 it is
@@ -237,7 +237,7 @@ class DEC(Cached):
 
         return self.require(("laplacian", k), compute)
 
-    def laplacian_symmetric(self, k: int):
+    def laplacian_symmetric(self, k: int) -> sp.csr_matrix | spla.LinearOperator:
         """⋆_k Δ_k, the symmetric positive semi-definite (weak) form of the Laplacian, (n_k, n_k).
 
         ⋆_k Δ_k = ⋆_k d δ + d_kᵀ ⋆_{k+1} d_k; for k = 0 this is the cot "stiffness" matrix

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from decrun.core import jit
 from decrun.core.cache import Cached
@@ -87,8 +88,8 @@ class SimplicialComplex(Cached):
 
     def __init__(
         self,
-        vertices,
-        simplices,
+        vertices: ArrayLike,
+        simplices: ArrayLike,
         *,
         orient: str = "check",
         unreferenced: str = "error",
@@ -238,7 +239,7 @@ class SimplicialComplex(Cached):
         """
         return self.require(("boundary", j), lambda: self.incidence(j).T.tocsr())
 
-    def find_simplices(self, tuples) -> np.ndarray:
+    def find_simplices(self, tuples: ArrayLike) -> np.ndarray:
         """Indices in ``simplices(j)`` of vertex tuples given in any vertex order; -1 if absent.
 
         Parameters

@@ -12,12 +12,12 @@ from typing import Any, Callable
 __all__ = ["CHECKS", "WARM", "register_check", "import_modules"]
 
 #: task function → the check run on every planned job's config before the first job starts
-CHECKS: dict[Callable, Callable[[Any], Any]] = {}
+CHECKS: dict[Callable, Callable[..., Any]] = {}
 #: task function → the modules its jobs import (imported ahead in joblib's workers)
 WARM: dict[Callable, tuple[str, ...]] = {}
 
 
-def register_check(task_function: Callable, check: Callable[[Any], Any], warm: tuple[str, ...] = ()) -> None:
+def register_check(task_function: Callable, check: Callable[..., Any], warm: tuple[str, ...] = ()) -> None:
     """Run ``check(job_config)`` on each planned job of ``task_function`` (the function
     ``@hydra.main`` wraps) before any job starts; a :class:`~decrun.errors.DecrunError` it
     raises stops the sweep in one line naming the job. With ``hydra.sweeper.fast`` the

@@ -135,7 +135,7 @@ class ManifestSweeper(Sweeper):
         self.hydra_context: Any = None
         self.config: Any = None
         self.launcher: Any = None
-        self.check: Optional[Callable[[Any], Any]] = None
+        self.check: Optional[Callable[..., Any]] = None
 
     def setup(self, *, hydra_context: Any, task_function: Callable, config: Any) -> None:
         self.hydra_context, self.config = hydra_context, config

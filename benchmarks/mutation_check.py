@@ -110,7 +110,7 @@ MUTATIONS = [
     Mutation("vertex normals point inwards", "decrun/core/geometry.py",
              [("face_normal = area_normals(points, f)  # length = 2 * area",
                "face_normal = -area_normals(points, f)")],
-             [["tests/runner/test_meshes.py"], REG_SMOOTHING]),
+             [["tests/runner/mesh/test_meshes.py"], REG_SMOOTHING]),
     # ---------------------------------------------------------------- the fluid (issue 18)
     Mutation("fluid force with the wrong sign", "decrun/methods/fluid/simulation.py",
              [("w = w + self.dt * (self.d0T @", "w = w - self.dt * (self.d0T @")],

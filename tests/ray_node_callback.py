@@ -1,4 +1,4 @@
-"""A Hydra callback for the Ray cluster tests (``tests/runner/test_ray_cluster.py``): each
+"""A Hydra callback for the Ray cluster tests (``tests/runner/sweep/test_ray_cluster.py``): each
 job appends the id of the Ray node it runs on to ``<job dir>/ray_node.txt`` when it starts
 (one line per attempt: a job Ray reruns after its node was lost has two)."""
 

@@ -7,7 +7,7 @@ number. :class:`PythonDumper` is that dumper written with public PyYAML API, so 
 hashes in existing sweep manifests (:func:`decrun.runner.sweep.manifest.config_hash`) stay
 what they are whatever OmegaConf's own dumper becomes; it writes the same text as
 ``OmegaConf.to_yaml`` for every config in ``conf/`` and for Hydra's own node
-(tests/runner/test_yaml_text.py).
+(tests/runner/sweep/test_yaml_text.py).
 """
 
 from __future__ import annotations

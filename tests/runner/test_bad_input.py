@@ -1,7 +1,7 @@
 """A corpus of bad input and faults (issue 11, item 1): each is a minimal input made here
 and must end as one clear line naming the key or file and the cause — exit 1, no
 traceback, no result.h5 unless steps were recorded. Mesh-file contents have their own
-corpus (tests/runner/test_mesh_files.py).
+corpus (tests/runner/mesh/test_mesh_files.py).
 
 The in-process corpus runs the runner's own path (compose → validate → load → app) without
 the cost of a process per case; the CLI corpus runs the real ``decrun`` where the command

@@ -190,16 +190,16 @@ CASES = {
 #: backticked overrides in the sources that no CLI run can reach, and why
 UNREACHABLE = {
     "mesh.max_volume=": "the tetrahedron-count refusal's fix makes millions of tetrahedra (too slow for a hint case): "
-                        "tests/runner/test_volumes.py runs it under a lowered mesh.max_tetrahedra",
-    "mesh.max_tetrahedra=": "see mesh.max_volume=; tests/runner/test_volumes.py runs this fix",
+                        "tests/runner/mesh/test_volumes.py runs it under a lowered mesh.max_tetrahedra",
+    "mesh.max_tetrahedra=": "see mesh.max_volume=; tests/runner/mesh/test_volumes.py runs this fix",
     "app.weights=uniform": "zero diagonal of the cot rows: needs cot weights that cancel exactly; the same "
                            "message's app.weights=mean_value is positive by construction (tested in methods)",
     "app.weights=mean_value": "see app.weights=uniform",
     "mesh.hole_pieces=all": "a log line's hint (the cut dropped pieces), not an error's: "
-                            "tests/runner/test_mesh_cut.py runs it and counts the pieces kept",
-    "mesh.clean=false": "a log line's hint (mesh.clean dropped pieces): tests/runner/test_mesh_cut.py runs it",
+                            "tests/runner/mesh/test_mesh_cut.py runs it and counts the pieces kept",
+    "mesh.clean=false": "a log line's hint (mesh.clean dropped pieces): tests/runner/mesh/test_mesh_cut.py runs it",
     "mesh.largest_component=false": "a log line's hint of the step the user asked for; it is the default",
-    "mesh.field=''": "a chained field with NaN: tests/runner/test_export_and_chaining.py runs this fix",
+    "mesh.field=''": "a chained field with NaN: tests/runner/results/test_export_and_chaining.py runs this fix",
     "app.initial=random": "see mesh.field=''",
 }
 

@@ -32,7 +32,7 @@ after the rename                       ``result.h5``, complete (a journal still 
 :func:`recover_result` converts a leftover journal into an incomplete ``result.h5``
 (``status="killed"``) for tools that only read HDF5, and removes leftover temporaries.
 This guarantees survival of process death, not of a power cut (there is no fsync; the
-checksums still catch a torn or zeroed tail). Proved by ``tests/runner/test_recorder.py``
+checksums still catch a torn or zeroed tail). Proved by ``tests/runner/results/test_recorder.py``
 (SIGKILL at 20 random moments of a recording process, every outcome checked).
 
 A Python exception is not a kill: used as a context manager the recorder calls

@@ -1,7 +1,7 @@
 """The jobs of a grid sweep, on Hydra's public override parser only: ``key=a,b`` and
 ``key=range(...)`` / ``glob(...)`` overrides expanded to their cartesian product, in the
 order of Hydra's basic sweeper (``BasicSweeper.split_arguments``, which decrun does not
-import: it is private to Hydra; ``tests/runner/test_sweep_grid.py`` compares the two).
+import: it is private to Hydra; ``tests/runner/sweep/test_sweep_grid.py`` compares the two).
 
 :func:`grid_size` counts the jobs without making them (a ``range`` by arithmetic), so a
 sweep beyond ``hydra.sweeper.max_jobs`` is refused at once, whatever its size."""

@@ -1,7 +1,7 @@
 """The sweep speed layer: everything the ``decrun`` sweeper does only to be fast, behind one
 switch, ``hydra.sweeper.fast`` (default true). With ``fast=false`` the sweeper plans and
 launches every job on Hydra's public API alone; the jobs, their directories, their config
-hashes and their results are the same either way (tests/runner/test_sweep_planning.py runs
+hashes and their results are the same either way (tests/runner/sweep/test_sweep_planning.py runs
 sweeps both ways and compares them).
 
 With the switch on (:class:`SpeedLayer`):

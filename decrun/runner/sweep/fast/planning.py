@@ -114,7 +114,7 @@ def override_dirname(task: list[Override], exclude_keys: list[str], item_sep: st
     ``=`` then replaced by ``kv_sep`` (``b=2,a=1`` → ``a=1,b=2``; ``kv_sep`` is a
     ``re.sub`` replacement, as Hydra's: ``\\`` escapes in it are processed). The same text
     as Hydra's own (``get_overrides_dirname``, private to Hydra:
-    tests/runner/test_sweep_planning.py compares them)."""
+    tests/runner/sweep/test_sweep_planning.py compares them)."""
     lines = sorted(cast(str, o.input_line) for o in task if o.key_or_group not in exclude_keys)
     return re.sub("=", kv_sep, item_sep.join(lines))
 

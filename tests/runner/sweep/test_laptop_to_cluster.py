@@ -24,7 +24,7 @@ import pytest
 
 from decrun.runner.sweep.tables import load_sweep
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 TIMES = ("setup_seconds", "solve_seconds", "total_seconds", "step_seconds_max")
 #: keep the README's jobs tiny here (the README's commands run the default experiment)
 TINY = ["mesh.subdiv=2", "app.steps=3", "figures=false"]

@@ -23,7 +23,7 @@ from decrun.runner.sweep.tables import load_sweep
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is None,
                                 reason="hydra-ray-launcher is not installed (pip install 'decrun[ray]')")
 
-TESTS = Path(__file__).resolve().parents[1]
+TESTS = Path(__file__).resolve().parents[2]
 #: 4 jobs of ~2 s: explicit smoothing on 162 vertices, no eigen-solve
 SWEEP = ["-m", "app.dt=0.001,0.002,0.003,0.004", "app.steps=3000", "mesh.subdiv=2", "app.scheme=explicit",
          "app.critical_dt=false", "figures=false"]

@@ -14,7 +14,7 @@ from omegaconf import OmegaConf
 from decrun.runner.config import GROUPS, compose_config, load_option
 from decrun.runner.yaml_text import PythonDumper
 
-CONF = Path(__file__).resolve().parents[2] / "conf"
+CONF = Path(__file__).resolve().parents[3] / "conf"
 
 
 def to_yaml(cfg, resolve: bool = False, sort_keys: bool = False) -> str:

@@ -21,7 +21,7 @@ INTENDED = {
                                      "Python is the raw primitive (refine is MeshSource's post-processing, off)",
     ("mesh/annulus.yaml", "refine_iterations"): "see annulus refine",
     ("mesh/cube.yaml", "refine"): "the CLI Loop-subdivides the 12 triangles twice; Cube() in Python is the raw "
-                                  "12-triangle cube (tests/runner/test_meshes.py builds on it)",
+                                  "12-triangle cube (tests/runner/mesh/test_meshes.py builds on it)",
     ("mesh/cube.yaml", "refine_iterations"): "see cube refine",
     ("app/vector_field.yaml", "sources"): "the CLI's null: a source/sink pair from the mesh (issue 27.2), so the "
                                           "default runs on every mesh; in Python a design of strokes or vortices "

@@ -14,7 +14,7 @@ from decrun.runner.config import compose_config
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
 from decrun.runner.run import run_experiment
 
-CONF = Path(__file__).resolve().parents[2] / "conf"
+CONF = Path(__file__).resolve().parents[3] / "conf"
 
 
 def options(group: str) -> list[str]:

@@ -18,7 +18,7 @@ except ImportError:
     from decrun.mesh_holes import cut_holes as cut_whole_triangles
 from decrun.runner.mesh.cut import cut_holes, parse_regions, signed_distance
 
-FIG5_7 = Path(__file__).resolve().parents[2] / "conf" / "experiment" / "fig5_7_half_sphere_holes.yaml"
+FIG5_7 = Path(__file__).resolve().parents[3] / "conf" / "experiment" / "fig5_7_half_sphere_holes.yaml"
 BALL = np.array([0.3, 0.5, 0.8, 0.5])  # centre at distance 0.99 from the origin, radius 0.5
 
 

@@ -275,7 +275,7 @@ def test_no_override_shares_a_column_with_a_metric(app, tmp_path):
     """Each app's real metrics against an override of every root key and group: one column
     each, the override's value under its key, each metric under :func:`metric_column`."""
     from omegaconf import OmegaConf
-    from test_app_grid import APP_MESH
+    from runner.config.test_app_grid import APP_MESH  # tests/ is on sys.path (conftest)
 
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment

@@ -23,7 +23,7 @@ from decrun.runner.config import compose_config
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
 from decrun.runner.run import run_experiment, write
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 COMMAND = re.compile(r"^(?:\.venv/bin/)?(?:decrun(?:-table)?|python -m decrun)(?=\s|$)")
 #: placeholders in examples → what the test substitutes
 PLACEHOLDERS = {"/data/dragon.ply": str(sample_mesh_dir() / SAMPLE_MESHES["cow"])}
@@ -56,7 +56,7 @@ def _commands_in(text: str) -> list[str]:
 def examples() -> list[tuple[str, str]]:
     """(where, command) of every example in README.md and conf/**/*.yaml comments."""
     readme = (ROOT / "README.md").read_text()
-    # the laptop-to-cluster block needs SLURM and a Ray cluster: tests/runner/test_laptop_to_cluster.py
+    # the laptop-to-cluster block needs SLURM and a Ray cluster: tests/runner/sweep/test_laptop_to_cluster.py
     readme = re.sub(r"<!-- laptop-to-cluster -->.*?<!-- /laptop-to-cluster -->", "", readme, flags=re.S)
     found = [("README.md", c) for c in _commands_in(readme)]
     for path in sorted((ROOT / "conf").rglob("*.yaml")):

@@ -198,11 +198,10 @@ class Fluid(App):
         strokes = [np.asarray(stir.points, dtype=np.float64) for stir in self.stirs]
         towards = np.concatenate(strokes).mean(axis=0) if strokes and K.embedding_dim == 3 else None
         view = {"towards": None if towards is None or not np.linalg.norm(towards) > 0 else towards.tolist()}
-        figures = {"vorticity": Figure("decrun.runner.plots.snapshots.snapshot_grid",
-                                       dict(name="vorticity", count=int(self.snapshots), title=title, **view))}
+        figures = {"vorticity": Figure.of_kind("snapshots", name="vorticity", count=int(self.snapshots), title=title,
+                                               **view)}
         if self.animation:
-            figures["vorticity_animation"] = Figure("decrun.runner.plots.snapshots.animation",
-                                                    dict(name="vorticity", title="vorticity", **view))
+            figures["vorticity_animation"] = Figure.of_kind("animation", name="vorticity", title="vorticity", **view)
         return Result(fields=fields, metrics=metrics, figures=figures)
 
     def _initial_vorticity(self, dec, initial_vorticity, meta=None) -> np.ndarray:

@@ -380,8 +380,9 @@ def _design(self, ctx: Context) -> Result:
                 metrics["field_change_region_relative"] = field_change_relative(before, face_vectors, area, region)
             fields["region_faces"] = np.flatnonzero(region)
     title = f"{mode} border" if not closed else "closed surface"
-    figures = {"field": Figure("decrun.runner.plots.fields.field_figure", dict(
-        face_vectors=face_vectors, vertex_index=singular.vertex_index, face_index=singular.face_index,
-        stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows),
-        cluster_positions=clusters.positions[clusters.nonzero], cluster_indices=clusters.indices[clusters.nonzero]))}
+    figures = {"field": Figure.of_kind(
+        "vector_field", face_vectors=face_vectors, vertex_index=singular.vertex_index,
+        face_index=singular.face_index, stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})",
+        max_arrows=int(cfg.figure_arrows), cluster_positions=clusters.positions[clusters.nonzero],
+        cluster_indices=clusters.indices[clusters.nonzero])}
     return Result(fields=fields, metrics=metrics, figures=figures)

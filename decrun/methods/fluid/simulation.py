@@ -95,6 +95,9 @@ class VorticityFluid:
     penalty : μ of eq. 7.14 (default 1e6 · max ⋆1)
     blowup_factor : the run is reported unstable when the kinetic energy exceeds this
         factor times the largest legitimate energy (initial, harmonic, or after a forced step)
+    options : :class:`~decrun.methods.fluid.options.FluidOptions`, the scheme's choices below
+        (``integrator``, ``circulation``, ``velocity``, ``walls``, ``kernels``) validated once
+        there; or give those as keywords (strings or members; the defaults are FluidOptions')
     integrator, substeps, max_cfl, max_rounds : passed to the backtracking (backtrack.py):
         each point takes at least ``substeps`` substeps and enough that one substep moves it
         at most ``max_cfl`` mean edge lengths of its start triangle (None: no such bound).

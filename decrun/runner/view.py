@@ -34,7 +34,9 @@ from __future__ import annotations
 import argparse
 import difflib
 import logging
+import os
 import sys
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
@@ -427,6 +429,32 @@ def show(view: View, field: str | None = None, step: int | None = None, screensh
     if view.left_out:
         log.warning("decrun-view: not shown: %s", left_out_line(view.left_out))
     ps = _polyscope()
+    screenshot = Path(screenshot).resolve() if screenshot is not None else None
+    with _settings_directory():  # ImGui writes imgui.ini into the working directory: not the user's
+        try:
+            _draw(ps, view, selected, index, screenshot, size)
+        finally:
+            if ps.is_initialized():
+                ps.shutdown()
+
+
+@contextmanager
+def _settings_directory():
+    """Work in decrun's cache folder while polyscope runs (its window settings file lands there)."""
+    where = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "decrun" / "polyscope"
+    where.mkdir(parents=True, exist_ok=True)
+    before = os.getcwd()
+    os.chdir(where)
+    try:
+        yield
+    finally:
+        os.chdir(before)
+
+
+def _draw(ps, view: View, selected: Quantity | None, index: int, screenshot: Path | None,
+          size: tuple[int, int]) -> None:
+    """Start polyscope, register the mesh and the quantities, then screenshot or open the window."""
+    ps.set_use_prefs_file(False)
     _init(ps, headless=screenshot is not None)
     ps.set_program_name("decrun-view")
     ps.set_window_size(*size)

@@ -164,7 +164,7 @@ def test_screenshot_puts_the_extreme_colours_at_the_extreme_vertices(runs, tmp_p
     bottom colour at the bottom; u = −z the other way round."""
     for name, top_is_yellow in (("height", True), ("depth", False)):
         shot = tmp_path / f"{name}.png"
-        done = _view(str(runs[name]), "--field", "u", "--screenshot", str(shot), "--size", "400x400", cwd=tmp_path)
+        done = _view(str(runs[name]), "--field", "u", "--screenshot", shot.name, "--size", "400x400", cwd=tmp_path)
         assert done.returncode == 0, done.stderr
         yellow, purple, top, bottom = _extremes(_image(shot))
         span = bottom - top
@@ -180,5 +180,6 @@ def test_screenshots_of_two_fields_differ(runs, tmp_path, headless):
                      cwd=tmp_path)
         assert done.returncode == 0, done.stderr
         shots.append(_image(shot))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["omega.png", "vertex_index.png"]  # no imgui.ini here
     differ = np.abs(shots[0] - shots[1]).sum(axis=2) > 30
     assert differ.mean() > 0.05

@@ -119,8 +119,9 @@ APP_EXPECT = {  # the one claim of each app's default run
     "gray_scott": lambda m: m["stable"] and m["pattern"] == 1 and m["v_std"] > 0.02,
     # the Brusselator beyond its Hopf point (B = 2.5 > 1 + A²): the homogeneous state is left
     "brusselator": lambda m: m["stable"] and m["growth_rate_linear"] > 0 and m["deviation_rms"] > 0.1,
-    # Cahn–Hilliard separates (c reaches ±1) with its mass 0.0991 of the start kept
-    "cahn_hilliard": lambda m: m["stable"] and abs(m["mass"] / 0.0991164229027186 - 1) < 1e-12
+    # Cahn–Hilliard separates (c reaches ±1) with its mass 0.0991 of the start kept (the start's Σ⋆0 c0
+    # on the centred grid, exact lattice positions)
+    "cahn_hilliard": lambda m: m["stable"] and abs(m["mass"] / 0.09911642328115383 - 1) < 1e-12
     and m["c_min"] < -0.9 and m["c_max"] > 0.9,
     # Klausmeier on the (too small for bands) default grid: it runs, the vegetation stays near n*
     "klausmeier": lambda m: m["stable"] and abs(m["n_mean"] - 1.3459) < 0.05,

@@ -37,3 +37,15 @@ def test_checker_squares_follow_the_median_scale_of_the_map():
     V, F = grid_triangles(11, 11)
     coarse = np.asarray(V, dtype=np.float64)
     assert checker_square_size(coarse, coarse, F, squares=10) == pytest.approx(4 / 11, rel=1e-9)
+
+
+def test_a_flat_mesh_with_3d_vertices_is_drawn_from_above_and_a_curved_one_in_3d():
+    """mesh=grid has z = 0 vertices: its fields (the Halfar error map) are maps, drawn in 2-D."""
+    from decrun.runner.plots.common import surface_figure
+
+    V, F = grid_triangles(6, 5)
+    flat = np.column_stack([V[:, :2], np.full(len(V), 2.0)])
+    curved = np.column_stack([V[:, :2], V[:, 0] ** 2])
+    values = V[:, 0] - V[:, 1]
+    assert surface_figure(flat, F, values).axes[0].name == "rectilinear"
+    assert surface_figure(curved, F, values).axes[0].name == "3d"

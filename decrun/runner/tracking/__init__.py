@@ -433,12 +433,12 @@ def warning_line(tracker: Tracker, exc: BaseException, where: Path, fix: str) ->
             f"{text}); the files in {where} are complete; to log them: {fix}")
 
 
-def require(module: str, key: str, extra: str) -> None:
+def require(module: str, key: str, install: str) -> None:
     """ConfigError ``tracker=<key>: needs the package <module> …`` when ``module`` cannot be
-    imported here, with the install command and the override that turns tracking off."""
+    imported here, with ``pip install <install>`` and the override that turns tracking off."""
     import importlib.util
 
     if importlib.util.find_spec(module) is None:
         raise ConfigError(f"tracker={key}: needs the package {module!r}, not installed here; "
-                          f"pip install 'decrun[{extra}]', or run without it: tracker=none")
+                          f"pip install {install}, or run without it: tracker=none")
 

@@ -64,7 +64,7 @@ class MlflowTracker(Tracker):
         self._experiment_id = None
 
     def check(self) -> None:
-        require("mlflow", "mlflow", "mlflow")
+        require("mlflow", "mlflow", "'decrun[mlflow]'")
 
     def store(self) -> str:
         if self.uri:

@@ -67,15 +67,22 @@ class MlflowTracker(Tracker):
         require("mlflow", "mlflow", "'decrun[mlflow]'")
 
     def store(self) -> str:
+        """The tracking URI (``uri``, ``MLFLOW_TRACKING_URI``, MLflow's default), a relative
+        ``sqlite:///`` path made absolute: the same database from any working directory."""
         if self.uri:
-            return str(self.uri)
-        if os.environ.get("MLFLOW_TRACKING_URI"):
-            return os.environ["MLFLOW_TRACKING_URI"]
-        if self._client is not None:
-            return str(self._client.tracking_uri)
-        from mlflow.tracking import get_tracking_uri
+            uri = str(self.uri)
+        elif os.environ.get("MLFLOW_TRACKING_URI"):
+            uri = os.environ["MLFLOW_TRACKING_URI"]
+        elif self._client is not None:
+            uri = str(self._client.tracking_uri)
+        else:
+            from mlflow.tracking import get_tracking_uri
 
-        return str(get_tracking_uri())
+            uri = str(get_tracking_uri())
+        prefix = "sqlite:///"
+        if uri.startswith(prefix) and not uri[len(prefix):].startswith("/") and uri[len(prefix):] != ":memory:":
+            uri = prefix + os.path.abspath(uri[len(prefix):])
+        return uri
 
     def client(self):
         """The ``MlflowClient`` of :meth:`store` and the id of :attr:`experiment` (made once)."""

@@ -237,3 +237,20 @@ def test_the_docs_commands_run(tmp_path):
         assert proc.returncode == 0, (command, proc.stderr)
     runs = _runs(f"sqlite:///{tmp_path / 'mlflow.db'}")
     assert runs and all(r.data.tags["status"] == "ok" for r in runs)
+
+
+def test_jobs_of_another_launcher_are_logged_from_the_sweeps_end(tmp_path):
+    """hydra/launcher=joblib: the jobs run in worker processes; their runs are made by the
+    command's own process from the job directories, as for every launcher."""
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher", reason="needs hydra-joblib-launcher (the parallel extra)")
+    uri = f"sqlite:///{tmp_path / 'joblib.db'}"
+    proc = decrun("-m", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "app=heat", "mesh.subdiv=1",
+                  "app.t_end=0.002", "app.dt=1e-3,2e-3", "figures=false", "tracker=mlflow", f"tracker.uri={uri}",
+                  "hydra.sweep.dir=sweep", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    runs = {r.data.tags.get("decrun.job"): r for r in _runs(uri)}
+    assert set(runs) == {None, "0", "1"}
+    for job in ("0", "1"):
+        metrics = json.loads((tmp_path / "sweep" / job / "metrics.json").read_text())
+        assert runs[job].data.metrics["dirichlet_energy"] == metrics["dirichlet_energy"]
+        assert runs[job].data.tags["mlflow.parentRunId"] == runs[None].info.run_id

@@ -58,34 +58,44 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=8)
     args = parser.parse_args()
     n = args.jobs
+    here = os.getcwd()
+    with tempfile.TemporaryDirectory(prefix="bench_tracker_") as tmp:
+        work = Path(tmp)
+        os.chdir(work)  # a new experiment's artifacts go to ./mlruns of the process that makes it
+        try:
+            measure(work, n)
+        finally:
+            os.chdir(here)
+
+
+def measure(work: Path, n: int) -> None:
+    """The two measurements of the module docstring, in ``work``."""
     from decrun.runner.tracking import track_sweep
     from decrun.runner.tracking.mlflow_tracker import MlflowTracker
     import pandas as pd
 
-    with tempfile.TemporaryDirectory(prefix="bench_tracker_") as tmp:
-        work = Path(tmp)
-        none_wall, none_cpu = sweep(work, n, [], "none")
-        uri = f"sqlite:///{work / 'e2e.db'}"
-        ml_wall, ml_cpu = sweep(work, n, ["tracker=mlflow", f"tracker.uri={uri}"], "mlflow")
-        mean_job = float(pd.read_csv(work / "none" / "metrics.csv")["total_seconds"].mean())
-        print(f"load average {os.getloadavg()[0]:.1f}; {n} jobs, mean job total_seconds {mean_job * 1e3:.0f} ms")
-        print(f"end to end: tracker=none {none_wall:.2f} s wall / {none_cpu:.2f} s CPU, tracker=mlflow "
-              f"{ml_wall:.2f} s wall / {ml_cpu:.2f} s CPU → per job {(ml_wall - none_wall) / n * 1e3:+.0f} ms wall, "
-              f"{(ml_cpu - none_cpu) / n * 1e3:+.0f} ms CPU (one-time costs included)")
+    none_wall, none_cpu = sweep(work, n, [], "none")
+    uri = f"sqlite:///{work / 'e2e.db'}"
+    ml_wall, ml_cpu = sweep(work, n, ["tracker=mlflow", f"tracker.uri={uri}"], "mlflow")
+    mean_job = float(pd.read_csv(work / "none" / "metrics.csv")["total_seconds"].mean())
+    print(f"load average {os.getloadavg()[0]:.1f}; {n} jobs, mean job total_seconds {mean_job * 1e3:.0f} ms")
+    print(f"end to end: tracker=none {none_wall:.2f} s wall / {none_cpu:.2f} s CPU, tracker=mlflow "
+          f"{ml_wall:.2f} s wall / {ml_cpu:.2f} s CPU → per job {(ml_wall - none_wall) / n * 1e3:+.0f} ms wall, "
+          f"{(ml_cpu - none_cpu) / n * 1e3:+.0f} ms CPU (one-time costs included)")
 
-        tracker = MlflowTracker(uri=f"sqlite:///{work / 'direct.db'}")
-        _, fixed_wall, fixed_cpu = timed(tracker.client)
-        tracked, wall, cpu = timed(lambda: track_sweep(tracker, work / "none"))
-        runs = tracked.sent
-        assert runs == n + 1, tracked
-        again, resume_wall, resume_cpu = timed(lambda: track_sweep(tracker, work / "none"))
-        assert again.sent == 0, again
-        print(f"one-time: {fixed_wall * 1e3:.0f} ms wall / {fixed_cpu * 1e3:.0f} ms CPU (import mlflow, new store, "
-              f"experiment)")
-        print(f"per job: {wall / runs * 1e3:.1f} ms wall / {cpu / runs * 1e3:.1f} ms CPU "
-              f"({wall / runs / mean_job * 100:.1f} % of a mean job's time; target ≤ 30 ms)")
-        print(f"resume, nothing changed: {resume_wall / runs * 1e3:.1f} ms wall / {resume_cpu / runs * 1e3:.1f} ms "
-              f"CPU per job (nothing sent)")
+    tracker = MlflowTracker(uri=f"sqlite:///{work / 'direct.db'}")
+    _, fixed_wall, fixed_cpu = timed(tracker.client)
+    tracked, wall, cpu = timed(lambda: track_sweep(tracker, work / "none"))
+    runs = tracked.sent
+    assert runs == n + 1, tracked
+    again, resume_wall, resume_cpu = timed(lambda: track_sweep(tracker, work / "none"))
+    assert again.sent == 0, again
+    print(f"one-time: {fixed_wall * 1e3:.0f} ms wall / {fixed_cpu * 1e3:.0f} ms CPU (import mlflow, new store, "
+          f"experiment)")
+    print(f"per job: {wall / runs * 1e3:.1f} ms wall / {cpu / runs * 1e3:.1f} ms CPU "
+          f"({wall / runs / mean_job * 100:.1f} % of a mean job's time; target ≤ 30 ms)")
+    print(f"resume, nothing changed: {resume_wall / runs * 1e3:.1f} ms wall / {resume_cpu / runs * 1e3:.1f} ms "
+          f"CPU per job (nothing sent)")
 
 
 if __name__ == "__main__":

@@ -214,6 +214,24 @@ class Compiler:
         return self._compile(node, where)
 
     def _compile(self, node: Node, where: str) -> Callable[[dict], object]:
+        """The closure of ``node``; a static subtree (constants, coordinates, static definitions:
+        :meth:`is_static`) is evaluated once, at its first call, and its value reused — read-only,
+        so no step can change it — instead of being recomputed at every step and stage."""
+        closure = self._compile_node(node, where)
+        if isinstance(node, (Number, Name)) or not self.is_static(node):
+            return closure
+        cache: list = []
+
+        def once(env):
+            if not cache:
+                value = closure(env)
+                if isinstance(value, np.ndarray):
+                    value.setflags(write=False)
+                cache.append(value)
+            return cache[0]
+        return once
+
+    def _compile_node(self, node: Node, where: str) -> Callable[[dict], object]:
         if isinstance(node, Number):
             value = node.value
             return lambda env: value
@@ -245,6 +263,17 @@ class Compiler:
                 (arg,) = args
                 return lambda env: apply(arg(env))
             evaluate = operator.evaluate
+            if operator.fixed_first is not None and self.is_static(node.args[0]):
+                matrix = []  # made at the first evaluation, from the static first argument's value
+                first, second = args
+
+                def applied(env):
+                    if not matrix:
+                        matrix.append(operator.fixed_first(ops, kinds, first(env)))
+                    if matrix[0] is None:
+                        return evaluate(ops, kinds, first(env), second(env))
+                    return matrix[0] @ second(env)
+                return applied
             if len(args) == 1:
                 (arg,) = args
                 return lambda env: evaluate(ops, kinds, arg(env))

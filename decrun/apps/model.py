@@ -333,11 +333,13 @@ class Model(App):
         if model.evolved and K.dim == 2:
             first = model.evolved[0]
             if model.kinds[first].simplex_dimension(K.dim) in (0, K.dim):
+                # the whole range, coloured by sign: a model's field has no thin layers to wash out
                 figures[f"{first}_snapshots"] = Figure.of_kind("snapshots", name=first, count=int(self.snapshots),
-                                                               title=f"{self.model}: {first}", symmetric=False)
+                                                               title=f"{self.model}: {first}", cmap="auto",
+                                                               percentile=100.0)
                 if self.animation:
                     figures[f"{first}_animation"] = Figure.of_kind("animation", name=first, title=first,
-                                                                   symmetric=False)
+                                                                   cmap="auto", percentile=100.0)
             if self._composed.metrics:
                 figures["metrics"] = Figure.of_kind("recorded_series", names=list(self._composed.metrics),
                                                     title=self.model)

@@ -183,9 +183,12 @@ def _share_limits(axes, vertex_sets) -> None:
 
 def surface_figure(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,
                    title: str | None = None, cmap: str = "viridis", colorbar_label: str | None = None) -> Figure:
-    """One mesh (3-D or planar), optionally coloured by per-vertex or per-face ``values``."""
+    """One mesh (3-D or planar), optionally coloured by per-vertex or per-face ``values``; a
+    planar mesh (also one given with z = 0) is drawn from above, not in perspective."""
+    from decrun.core.geometry import is_planar
+
     fig = new_figure(5.0, 5.0)
-    ax = fig.add_subplot(1, 1, 1, **({"projection": "3d"} if np.asarray(vertices).shape[1] == 3 else {}))
+    ax = fig.add_subplot(1, 1, 1, **({} if is_planar(np.asarray(vertices)) else {"projection": "3d"}))
     mappable = plot_surface(ax, vertices, faces, values, cmap=cmap, title=title)
     if mappable is not None:
         fig.colorbar(mappable, ax=ax, shrink=0.6, label=colorbar_label)

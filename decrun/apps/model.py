@@ -329,7 +329,8 @@ class Model(App):
         if K.dim == 2:
             for name in shown:
                 figures[name] = Figure.of_kind("surface", values=np.asarray(env[name], dtype=np.float64),
-                                               title=f"{self.model}: {name} ({model.kinds[name]})", colorbar_label=name)
+                                               title=f"{self.model}: {name} ({model.kinds[name]})", colorbar_label=name,
+                                               cmap="auto")
         if model.evolved and K.dim == 2:
             first = model.evolved[0]
             if model.kinds[first].simplex_dimension(K.dim) in (0, K.dim):

@@ -1,18 +1,17 @@
 """Benchmark: declarative models (``app=<model>``, :mod:`decrun.methods.model`) — speed against
 the same step written by hand, the cost of compiling a model, and convergence to exact answers.
 
-1. **Step speed** (issue 39 §6, goal ≤ 1.2×). On the unit icosphere (subdiv 7: 163,842 vertices,
-   ``operator=mixed_area``) each case runs the compiled model's step (the
-   :class:`~decrun.methods.model.stepper.ModelStepper` step that ``run_steps`` calls) and the same
-   scheme written by hand with numpy/scipy, interleaved in rounds in one process, both factorizing
-   the same matrix with the same library: SuperLU (``solver=direct`` vs ``scipy.sparse.linalg.splu``)
-   and CHOLMOD (``solver=auto``, the default, vs ``cholespy`` called directly). Cases: heat
-   ``dt(u) = k*laplacian(u)`` by implicit Euler and by Crank–Nicolson, and Gray–Scott by IMEX
-   (``dt(u) = Du*laplacian(u) - u*v**2 + F*(1-u)``, ``dt(v) = Dv*laplacian(v) + u*v**2 - (F+k)*v``:
-   the terms linear in the fields with constant coefficients — the diffusions and −(F+k)v —
-   implicit, one factorization per field for the run; the rest explicit). The hand-written
-   steps compute the same scheme (their final states agree with the model's to round-off: the
-   last column). Reported: steps/s both ways (best round) and model/hand time per step.
+1. **Step speed** (goal ≤ 1.2×). Every shipped time-dependent model — heat (implicit Euler and
+   Crank–Nicolson), wave (Störmer–Verlet), mcf (implicit Euler, 3 fields), gray_scott (imex),
+   brusselator (rk4), klausmeier (rk4, with lie), cahn_hilliard (imex, Δ² and explicit(·)) and
+   halfar (semi_implicit: a new factorization every step) — runs its own config on a larger mesh
+   (:func:`speed_cases`) as the compiled model's step (the
+   :class:`~decrun.methods.model.stepper.ModelStepper` step that ``run_steps`` calls) and as the
+   same scheme written by hand with numpy/scipy (``model_twins.py``), interleaved in rounds in one
+   process, both factorizing the same matrices with the same library: SuperLU (``solver=direct``
+   vs ``scipy.sparse.linalg.splu``) and CHOLMOD (``solver=auto``, the default, vs ``cholespy``
+   called directly). The final states must agree to round-off (asserted; the last column).
+   Reported: steps/s both ways (best round) and model/hand of wall and of CPU time per step.
 2. **Compile cost** (goal ≤ 0.2 s): loading a model (its YAML read, the app's options built) and
    compiling it (:func:`~decrun.methods.model.compile_model`: parse, type, fold the linear blocks,
    sample initial values) plus the integrator's set-up — without the factorization, which
@@ -29,8 +28,9 @@ the same step written by hand, the cost of compiling a model, and convergence to
 4. **Halfar** (``--part halfar``): the CISM v2.1 Halfar dome at 4, 2 and 1 km (``+experiment=cism_halfar``).
 
     python benchmarks/bench_models.py               # all three parts (~8 min on 2 shared cores)
-    python benchmarks/bench_models.py --quick       # subdiv 5 (10,242 vertices) for parts 1 and 2
+    python benchmarks/bench_models.py --quick       # ~10,000 vertices for parts 1 and 2
     python benchmarks/bench_models.py --part speed  # speed | compile | convergence | halfar
+    python benchmarks/bench_models.py --quick --part speed --model halfar   # one model's rows
 
 One core for BLAS (the steps are sparse solves and vector arithmetic); the load average is printed
 with each table, since other processes share the machine.
@@ -120,12 +120,14 @@ def speed(quick: bool, steps: int, count: int, only: list[str] | None = None) ->
             continue
         for library, solver in (("direct", "SuperLU (solver=direct)"), ("auto", "CHOLMOD (solver=auto)")):
             model, stepper, hand, state = model_and_twin(name, overrides, library)
+            explicit = stepper.integrator.__class__.__name__ in ("Explicit", "Symplectic")
+            solver = "– (explicit: no solve)" if explicit else solver
             hand_s, model_s, hand_cpu, model_cpu = rounds(hand, model, steps, count)
             difference = max(float(np.abs(stepper.state[u] - state[u]).max() / np.abs(state[u]).max()) for u in state)
             assert difference <= 1e-10, f"{label}: the model and its twin differ by {difference:.1e} (relative)"
             print(f"| {label} | {len(stepper.model.ops.K.vertices):,} | {solver} | {1 / hand_s:.1f} | {1 / model_s:.1f} |"
                   f" {model_s / hand_s:.2f}× | {model_cpu / hand_cpu:.2f}× | {difference:.1e} |", flush=True)
-            if str(stepper.integrator.__class__.__name__) in ("Explicit", "Symplectic"):
+            if explicit:
                 break  # no factorization: the solver does not matter
     print(f"\n{load()}")
 

@@ -15,10 +15,14 @@ The parts arrive already composed into this node by Hydra: a part is a config fi
 part an ordinary config — found on ``hydra.searchpath`` like any model (a user's own
 ``my_conf/app/parts/``), listed with a ``did you mean`` when it does not exist, shown by
 ``--cfg job`` and recorded with the run — and this adapter never opens a file. A part file
-puts its constants in the model's ``constants`` (one value per name, so
-``app.constants.A=1e-17`` overrides and ``-m`` sweeps a part's constant, no ``+``) and its
-fields, equations and metrics under ``parts.<its name>``, where each part keeps its own and a
-clash can name both.
+puts its fields, equations, metrics, requirements and its constants' defaults under
+``parts.<its name>``, where each part keeps its own and a clash can name both, and takes each
+default into the model's ``constants`` by an interpolation (``A: ${..parts.glen_law.constants.A}``:
+one value per name, so ``app.constants.A=1e-17`` overrides and ``-m`` sweeps a part's constant,
+no ``+``). Two parts' different defaults for one constant are refused unless the model sets it
+(:meth:`Model.check_node`, on the unresolved node where the interpolation names its part); the
+``require`` lists of the model and its parts are checked on the constants before any mesh work
+(:mod:`decrun.methods.model.require`).
 Everything about the language — parsing, types, operators, integrators — is
 :mod:`decrun.methods.model`; this adapter checks the model against the mesh before any work
 (types, initial values, the explicit stability limit), steps it through

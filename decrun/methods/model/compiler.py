@@ -248,6 +248,9 @@ class Compiler:
         if isinstance(node, Binary):
             if node.op == "^":
                 return self._compile(Call("wedge", (node.left, node.right)), where)
+            scaled = self._scaled_chain(node, where)
+            if scaled is not None:
+                return scaled
             left, right = self._compile(node.left, where), self._compile(node.right, where)
             lk, rk = self.kind(node.left, where), self.kind(node.right, where)
             return _arithmetic(node.op, left, right, lk, rk)
@@ -298,6 +301,35 @@ class Compiler:
     def _linear_chain(self, node: Node):
         """``(name, apply)`` when ``node`` is one or more linear operators applied to one name
         (``laplacian(u)``, ``codifferential(d(u))``): ``apply`` is the folded matrix; else None."""
+        chain = self._chain_linear(node)
+        return None if chain is None else (chain[0], self.ops.matrix(chain[1]))
+
+    def _scaled_chain(self, node: Node, where: str):
+        """The closure of ``c * chain`` or ``chain * c`` — a static number times a
+        :meth:`_linear_chain` (``c**2 * laplacian(u)``, ``D*s*laplacian(c)``) — with c folded
+        into the chain's matrix at the first evaluation (one sparse product per evaluation, not
+        a product and a scaling); None for any other node."""
+        if not (isinstance(node, Binary) and node.op == "*"):
+            return None
+        for factor, other in ((node.left, node.right), (node.right, node.left)):
+            if not self.is_static(factor) or self.kind(factor, where) != NUMBER:
+                continue
+            chain = self._chain_linear(other)
+            if chain is None:
+                continue
+            name, linear = chain
+            value = self._compile(factor, where)
+            folded: list = []
+
+            def applied(env, name=name, linear=linear, value=value, folded=folded):
+                if not folded:
+                    folded.append(self.ops.matrix(linear.scaled(float(value(env)))))
+                return folded[0](env[name])
+            return applied
+        return None
+
+    def _chain_linear(self, node: Node):
+        """``(name, Linear)``: the operators of a :meth:`_linear_chain` composed, or None."""
         operators, inner = [], node
         while isinstance(inner, Call) and len(inner.args) == 1:
             name = ALIASES.get(inner.function, inner.function)
@@ -316,7 +348,7 @@ class Compiler:
             linear = step if linear is None else self.ops.compose(step, linear)
             if linear is None:
                 return None
-        return inner.name, self.ops.matrix(linear)
+        return inner.name, linear
 
     # ------------------------------------------------------------------ linear terms
     def terms(self, node: Node, sign: float = 1.0) -> list[tuple[float, Node]]:

@@ -43,7 +43,7 @@ class AutoSolver(Solver):
         self._factor = self._lu = None
         if self._have_cholmod and (A.diagonal() > 0).all() and asymmetry(A) <= SYMMETRY_TOL:
             try:
-                self._factor = cholesky_factor(A, self.name, symmetric=True)
+                self._factor = cholesky_factor(A, self.name)
                 self.method = "cholmod"
                 return
             except SolverError:  # symmetric but indefinite: LU below

@@ -66,13 +66,12 @@ class CholmodSolver(Solver):
         return cholesky_solve(self._factor, np.ascontiguousarray(b))
 
 
-def cholesky_factor(A: sp.csr_matrix, name: str, symmetric: bool = False):
+def cholesky_factor(A: sp.csr_matrix, name: str):
     """The cholespy factor of the symmetric positive definite CSR matrix ``A``; SolverError
-    (naming ``solver=direct``) when ``A`` is not symmetric or not positive definite.
-    ``symmetric``: the caller has checked the symmetry already (not measured again)."""
+    (naming ``solver=direct``) when ``A`` is not symmetric or not positive definite."""
     import cholespy
 
-    skew = 0.0 if symmetric else asymmetry(A)
+    skew = asymmetry(A)
     if skew > SYMMETRY_TOL:
         raise SolverError(f"{name} solver: the {A.shape} matrix is not symmetric (max |A − Aᵀ| = {skew:.2g} × max |A|); "
                           "Cholesky needs a symmetric positive definite matrix: use solver=direct")

@@ -183,14 +183,23 @@ def _share_limits(axes, vertex_sets) -> None:
 
 def surface_figure(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,
                    title: str | None = None, cmap: str = "viridis", colorbar_label: str | None = None) -> Figure:
-    """One mesh, optionally coloured by per-vertex or per-face ``values``: in 3-D, or from above
-    when it is planar (2-D vertices, or 3-D ones in a plane z = const such as ``mesh=grid``:
-    a field on a flat domain, e.g. an error map, is read as a map, not in perspective)."""
+    """One mesh (3-D or planar), optionally coloured by per-vertex or per-face ``values``; a
+    planar mesh (also one given with z = 0) is drawn from above, not in perspective. With
+    ``cmap="auto"`` values of both signs (an error, a signed field) get the diverging RdBu_r
+    centred on 0 (white is 0), one-signed values viridis over their range."""
     from decrun.core.geometry import is_planar
 
+    vmin = vmax = None
+    if cmap == "auto":
+        finite = np.asarray(values, dtype=np.float64) if values is not None else np.zeros(0)
+        finite = finite[np.isfinite(finite)]
+        cmap = "viridis"
+        if finite.size and finite.min() < 0 < finite.max():
+            cmap, vmax = "RdBu_r", float(np.abs(finite).max())
+            vmin = -vmax
     fig = new_figure(5.0, 5.0)
-    ax = fig.add_subplot(1, 1, 1, **({} if is_planar(vertices) else {"projection": "3d"}))
-    mappable = plot_surface(ax, vertices, faces, values, cmap=cmap, title=title)
+    ax = fig.add_subplot(1, 1, 1, **({} if is_planar(np.asarray(vertices)) else {"projection": "3d"}))
+    mappable = plot_surface(ax, vertices, faces, values, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
     if mappable is not None:
         fig.colorbar(mappable, ax=ax, shrink=0.6, label=colorbar_label)
     return fig

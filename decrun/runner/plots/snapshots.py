@@ -20,8 +20,13 @@ __all__ = ["snapshot_grid", "animation"]
 
 def _scale(frames: np.ndarray, symmetric: bool, percentile: float = 95.0) -> tuple[float, float]:
     """Colour limits: the ``percentile`` of |values| (symmetric) or of the values, over all
-    frames — the thin, strong layers at no-slip walls would otherwise wash out the wake."""
+    frames — the thin, strong layers at no-slip walls would otherwise wash out the wake;
+    ``percentile`` 100: the whole range, zeros included."""
     finite = frames[np.isfinite(frames)]
+    if percentile >= 100.0 and finite.size:
+        hi = float(np.abs(finite).max()) if symmetric else float(finite.max())
+        lo = -hi if symmetric else float(finite.min())
+        return (lo, hi) if hi > lo else (lo - 1.0, lo + 1.0)
     nonzero = finite[finite != 0]
     finite = nonzero if nonzero.size else finite
     if not finite.size:
@@ -29,6 +34,23 @@ def _scale(frames: np.ndarray, symmetric: bool, percentile: float = 95.0) -> tup
     hi = float(np.percentile(np.abs(finite), percentile)) if symmetric else float(np.percentile(finite, percentile))
     lo = -hi if symmetric else float(np.percentile(finite, 100.0 - percentile))
     return (lo, hi) if hi > lo else (lo - 1.0, lo + 1.0)
+
+
+def _colours(frames: np.ndarray, cmap: str, symmetric: bool, percentile: float) -> tuple[str, bool, float, float, str]:
+    """``(cmap, symmetric, lo, hi, extend)``: with ``cmap="auto"`` a field of both signs gets the
+    diverging RdBu_r centred on 0 and a one-signed field viridis over its range (a diverging map
+    would give a meaningless midpoint a colour of its own); ``extend`` marks the colour bar's
+    ends where values lie beyond the limits (drawn in the end colours), so nothing beyond them
+    passes unseen."""
+    finite = frames[np.isfinite(frames)]
+    if cmap == "auto":
+        signed = bool(finite.size) and finite.min() < 0 < finite.max()
+        cmap, symmetric = ("RdBu_r", True) if signed else ("viridis", False)
+    lo, hi = _scale(frames, symmetric, percentile)
+    below = bool(finite.size) and finite.min() < lo
+    above = bool(finite.size) and finite.max() > hi
+    extend = "both" if below and above else "min" if below else "max" if above else "neither"
+    return cmap, symmetric, lo, hi, extend
 
 
 def _axes(fig, rows, cols, index, planar):
@@ -43,10 +65,13 @@ def _look_at(ax, towards):
 
 
 def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times_name: str = "time",
-                  cmap: str = "RdBu_r", title: str = "", symmetric: bool = True, towards=None):
+                  cmap: str = "RdBu_r", title: str = "", symmetric: bool = True, towards=None,
+                  percentile: float = 95.0):
     """``count`` evenly spaced recorded frames of ``recorded[name]`` (records, n0) side by side,
-    one shared colour scale (symmetric about 0 for signed fields such as vorticity); 3-D
-    surfaces are seen from the direction ``towards`` (e.g. where they were stirred)."""
+    one shared colour scale (symmetric about 0 for signed fields such as vorticity) to the
+    ``percentile`` of the values (100: their whole range), the colour bar's ends extended where
+    values lie beyond it; ``cmap="auto"`` chooses by sign (:func:`_colours`). 3-D surfaces are
+    seen from the direction ``towards`` (e.g. where they were stirred)."""
     frames = np.asarray(recorded[name])
     times = np.asarray(recorded[times_name]) if times_name else np.arange(len(frames))
     picks = np.unique(np.linspace(0, len(frames) - 1, min(count, len(frames))).round().astype(int))
@@ -54,7 +79,7 @@ def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times
     cols = min(3, len(picks))
     rows = int(np.ceil(len(picks) / cols))
     fig = new_figure(4.0 * cols, 3.6 * rows if planar else 4.0 * rows)
-    lo, hi = _scale(frames[picks], symmetric)
+    cmap, symmetric, lo, hi, extend = _colours(frames[picks], cmap, symmetric, percentile)
     faces = K.oriented_simplices()
     mappable = None
     for slot, index in enumerate(picks):
@@ -62,7 +87,7 @@ def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times
         mappable = plot_surface(ax, K.vertices, faces, frames[index], cmap=cmap, vmin=lo, vmax=hi, linewidth=0.0,
                                 title=f"t = {times[index]:.3g}") or mappable
         _look_at(ax, towards)
-    fig.colorbar(mappable, ax=fig.axes, shrink=0.7, label=name)
+    fig.colorbar(mappable, ax=fig.axes, shrink=0.7, label=name, extend=extend)
     if title:
         fig.suptitle(title, fontsize=10)
     return fig
@@ -70,16 +95,17 @@ def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times
 
 def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str = "time", fps: int = 12,
               max_frames: int = 120, cmap: str = "RdBu_r", title: str = "", symmetric: bool = True,
-              towards=None) -> Path:
+              towards=None, percentile: float = 95.0) -> Path:
     """An animated GIF of ``recorded[name]`` over time (at most ``max_frames`` evenly spaced
-    frames, one colour scale), written with matplotlib's Pillow writer to ``out_path``.gif."""
+    frames, one colour scale as :func:`snapshot_grid`'s), written with matplotlib's Pillow
+    writer to ``out_path``.gif."""
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     frames = np.asarray(recorded[name])
     times = np.asarray(recorded[times_name]) if times_name else np.arange(len(frames))
     picks = np.unique(np.linspace(0, len(frames) - 1, min(max_frames, len(frames))).round().astype(int))
     planar = is_planar(K.vertices)
-    lo, hi = _scale(frames[picks], symmetric)
+    cmap, symmetric, lo, hi, _ = _colours(frames[picks], cmap, symmetric, percentile)
     faces = K.oriented_simplices()
     fig = new_figure(5.0, 4.0 if planar else 5.0, dpi=90)
     ax = _axes(fig, 1, 1, 1, planar)

@@ -403,3 +403,18 @@ def test_a_mesh_of_several_pieces_is_refused_before_the_design_misses_its_source
     pieces = np.repeat([0, 1], len(V))
     divergence = dec.star(0) @ dec.codifferential(1) @ np.random.default_rng(0).standard_normal(two.num_simplices(1))
     np.testing.assert_allclose(np.bincount(pieces, weights=divergence), 0, atol=1e-10)  # per piece, any w
+
+
+def test_points_a_hint_quotes_carry_no_round_off_digits():
+    """The default pair on a noise-free torus sits at x = 8.6e-17 (round-off of cos 90°) and
+    the principal axis has z = -1e-17: the log line a user copies the points from says 0."""
+    from decrun.apps.vector_field import sources_from_mesh
+    from decrun.errors import format_point
+
+    torus = complex_of(source="torus", noise=0.0)
+    lines = []
+    _, metrics = sources_from_mesh(torus, log=lines.append)
+    assert metrics["source_point"] == "[0, 1.4, 0]" and metrics["source_axis"] == "[0, 1, 0]", metrics
+    assert "e-1" not in lines[0] and "-0," not in lines[0] and "[0, -1.4, 0]" in lines[0]
+    assert format_point([-0.290327, 1.04921, -1.299e-19]) == "[-0.290327, 1.04921, 0]"
+    assert format_point([1e-5, -2e-5, -1e-22]) == "[1e-05, -2e-05, 0]"  # small points keep their digits

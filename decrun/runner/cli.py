@@ -177,7 +177,7 @@ class SweepTable(Callback):
             planned=target.startswith("hydra_plugins.decrun_sweeper."))
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        from decrun.runner.sweep.tables import failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
+        from decrun.runner.sweep.tables import SAME_AS, failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
 
         if SweepTable._progress is not None:
             SweepTable._progress.stop()
@@ -194,6 +194,11 @@ class SweepTable(Callback):
         hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
         if hidden:
             print(f"decrun: {hidden} more columns in {SweepFiles.TABLE_MD} (`decrun-table --all {sweep_dir}`)")
+        if SAME_AS in table:
+            repeats = table[table[SAME_AS].notna()]
+            print(f"decrun: {len(repeats)} jobs repeat an earlier job's result exactly (column {SAME_AS}: "
+                  f"{', '.join(f'{j} = {s}' for j, s in zip(repeats['job'], repeats[SAME_AS]))}); the keys they differ "
+                  f"in do not change the result")
         failed_exports = f", {len(exports)} export failed" if len(exports) else ""
         print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok{failed_exports}) → "
               f"{SweepFiles(sweep_dir).table_csv}, {SweepFiles.TABLE_MD}")
@@ -538,11 +543,11 @@ def table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--csv", action="store_true", help="print CSV instead of markdown")
     parser.add_argument("--metrics", help="comma-separated metric columns to show (default: the apps' headline "
                                           "metrics in markdown, all in --csv)")
-    parser.add_argument("--all", action="store_true", help="show every metric column")
+    parser.add_argument("--all", action="store_true", help="show every column, constant ones included")
     parser.add_argument("--sort", help="comma-separated columns to sort the rows by")
     parser.add_argument("--descending", action="store_true", help="sort in descending order")
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
-                        help="drop columns with one value in every row (default: on for markdown, off for --csv)")
+                        help="drop columns with one value in every row (default: on for markdown, off for --csv and --all)")
     args = parser.parse_args(argv)
 
     def split(text: str | None) -> list[str] | None:
@@ -564,7 +569,7 @@ def table_main(argv: list[str] | None = None) -> int:
         table = stack(args.sweep_dirs)
         if len(args.sweep_dirs) == 1:
             table = table.drop(columns="sweep")
-        drop = (not args.csv) if args.drop_constant is None else args.drop_constant
+        drop = not (args.csv or args.all) if args.drop_constant is None else args.drop_constant
         shown = select(table, split(args.metrics), split(args.sort), args.descending, drop,
                        narrow=not (args.all or args.csv))
     except (FileNotFoundError, KeyError, DecrunError) as exc:

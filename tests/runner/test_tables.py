@@ -67,6 +67,12 @@ def test_every_planned_job_has_a_row_with_its_state(tmp_path):
     # the planned overrides are known also for the jobs that never wrote anything
     assert list(table["app.dt"]) == [0.1, 0.2, 0.3, 0.4]
     assert list(table["result"]) == ["0/result.h5", "", "2/result.h5.partial", ""]
+    # the path the table prints reads back, a killed job's journal included (and a job directory)
+    from decrun.runner.results import read_result
+
+    killed = read_result(sweep / table.loc[2, "result"])
+    assert not killed.complete and killed.steps_recorded == 5 and list(killed.series["energy"]) == [0, 1, 2, 3, 4]
+    assert read_result(sweep / "2").steps_recorded == 5 and read_result(sweep / table.loc[0, "result"]).complete
     # integers stay integers where a row lacks them
     assert str(table["iterations"].dtype) == "Int64"
     written = write_sweep_table(sweep)

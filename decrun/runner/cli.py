@@ -75,8 +75,9 @@ def _hydra_task(cfg: DictConfig) -> int | float:
     from decrun.runner.run import run
 
     hydra_cfg = HydraConfig.get()
-    return run(cfg, Path(hydra_cfg.runtime.output_dir), multirun=_is_multirun(), verbose=_verbose(),
-               log_name=hydra_cfg.job.name)
+    out = Path(hydra_cfg.runtime.output_dir)
+    made = OutputGuard.made is not None and OutputGuard.made.absolute() == out.absolute()
+    return run(cfg, out, multirun=_is_multirun(), verbose=_verbose(), log_name=hydra_cfg.job.name, made=made)
 
 
 #: the plugins the sweeper's checks built, by node (a sweep's jobs share most of them)
@@ -102,13 +103,16 @@ class OutputGuard(Callback):
     before a single run — before Hydra creates its directory, saves ``.hydra/`` and opens
     the log — refuses a ``.hydra/`` file or log that resolves out of the run directory
     (:func:`decrun.runner.paths.inside`) and takes the run directory's lock
-    (:mod:`decrun.runner.locks`) until the run ends. After a sweep, once
+    (:mod:`decrun.runner.locks`) until the run ends; ``made`` says whether it made the
+    directory (a run refused as bad input removes it again). After a sweep, once
     :class:`SweepTable` has written the table, drops the sweep directory's lock (the
     ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written.
     ``run_dir``: the directory of the last single run this process started (for
     :func:`decrun.run`)."""
 
     run_dir: Path | None = None
+    #: the run directory when this process made it (it did not exist before the run), else None
+    made: Path | None = None
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
         try:
@@ -124,6 +128,7 @@ class OutputGuard(Callback):
     def _guard(self, config: DictConfig) -> None:
         out = Path(str(config.hydra.run.dir))
         OutputGuard.run_dir = out
+        OutputGuard.made = None if os.path.lexists(out) else out
         try:
             for name in hydra_files(config.hydra):
                 inside(out, out / name, fix="remove the link, or choose another run directory with hydra.run.dir=DIR")

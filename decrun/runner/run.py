@@ -28,7 +28,7 @@ from decrun.apps.base import Result
 from decrun.core import jit
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.errors import ConfigError, DecrunError, MeshError
+from decrun.errors import ConfigError, DecrunError, MeshError, TopologyError
 from decrun.runner.config import OptimizeConfig
 from decrun.runner.context import RunContext
 from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
@@ -299,7 +299,8 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     return [h5, metrics, *written, *exported]
 
 
-def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = False, log_name: str = "") -> int | float:
+def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = False, log_name: str = "",
+        made: bool = False) -> int | float:
     """One run (or one sweep job, ``multirun``) of ``cfg`` into the directory ``out``: the
     experiment (:func:`prepare`, :func:`execute`), its files (:func:`write`) and what it prints. Returns 0 (1 for a failed
     sweep job), or with ``optimize.metric`` set the objective
@@ -307,7 +308,8 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     run exits 1 (an interrupted one 130/143) after recording its status in ``out``; an
     interrupted sweep job re-raises the interrupt, for the sweeper to say which jobs finished.
     ``verbose`` logs the traceback of a DecrunError; ``log_name`` is the job's log file
-    (``<log_name>.log``, named in the closing line).
+    (``<log_name>.log``, named in the closing line). ``made``: the caller made ``out`` for
+    this run (it did not exist): a single run refused as bad input then removes it again.
 
     The run holds ``out``'s lock (:mod:`decrun.runner.locks`; a single run took it before
     Hydra made the directory) while it runs: when another process holds it, one line on
@@ -319,11 +321,40 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
         if multirun:
             return 1
         raise Stopped(f"error: {exc}") from exc
+    fresh = made and not multirun and _only_hydras_files(out, log_name)
     try:
         return _run(cfg, out, multirun=multirun, verbose=verbose, log_name=log_name)
+    except Stopped as exc:
+        if fresh and getattr(exc, "refused", False) and _only_hydras_files(out, log_name, RunFiles.METRICS):
+            exc.leave_nothing = out  # removed below, once the lock is dropped
+        raise
     finally:
         if taken:
             release(out)
+        _remove_failed_attempt(sys.exc_info()[1])
+
+
+def _only_hydras_files(out: Path, log_name: str, *more: str) -> bool:
+    """Whether ``out`` holds nothing but what Hydra and the lock put there before the task
+    (``.hydra/``, ``<log_name>.log``, the lock file) and ``more``: a directory this run made."""
+    try:
+        names = {p.name for p in out.iterdir()}
+    except OSError:
+        return False
+    return names <= {RunFiles.HYDRA, f"{log_name}.log", RunFiles.LOCK, *more}
+
+
+def _remove_failed_attempt(exc: BaseException | None) -> None:
+    """A single run refused as bad input (a ConfigError, MeshError or TopologyError: a value
+    typo, a missing file) in a directory made for it leaves no directory behind: the one line
+    said everything, and ``outputs/runs`` keeps only runs that ran. A sweep job keeps its
+    directory (the table's row needs its metrics.json); so does a run into a directory that
+    existed before, or one that failed otherwise (out of memory, a full disk)."""
+    import shutil
+
+    out = getattr(exc, "leave_nothing", None)
+    if out is not None:
+        shutil.rmtree(out, ignore_errors=True)
 
 
 def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name: str) -> int | float:
@@ -372,7 +403,10 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
             log.error("error: %s%s", message, note)
         if multirun:
             return optimize.objective(None) if optimize is not None and optimize.metric else 1
-        raise Stopped(f"error: {message}{note}") from exc
+        stopped = Stopped(f"error: {message}{note}")
+        # bad input (a config value, a mesh): the attempt leaves nothing (see run); not a full disk
+        stopped.refused = isinstance(exc, (ConfigError, MeshError, TopologyError)) and find_os_error(exc) is None
+        raise stopped from exc
     metrics = result.metrics
     shown = ", ".join(f"{k}={_short(v)}" for k, v in metrics.items() if k not in ("status", "config_hash"))
     log.info("metrics: %s", shown)

@@ -281,7 +281,7 @@ def _design(self, ctx: Context) -> Result:
     are given).
 
     Metrics: ``curl_residual``, ``divergence_residual``, ``direction_residual`` (⋆2, ⋆0 and
-    W norms; each also ``*_relative`` to its target), ``smoothness_energy``
+    W norms; each also ``*_relative`` to its target when that is non-zero), ``smoothness_energy``
     (⟨dω,dω⟩ + ⟨δω,δω⟩), ``index_sum``, ``euler_characteristic``, ``poincare_hopf_holds``
     (closed meshes), ``singularities`` (count of singular vertices and faces) with
     ``singularities_positive`` / ``_negative``, ``singularity_clusters`` (sites within

@@ -193,8 +193,25 @@ def execute(run: Run) -> Run:
     Without ``run.files`` the recorded series end up in ``result.series``. A time-stepping
     app continues from ``run.files.checkpoint`` when it holds this config's state
     (``ctx.checkpoint``, :mod:`decrun.methods.stepping`)."""
-    with run.kernels():
+    with run.kernels(), compile_notice():
         return _execute(run)
+
+
+@contextmanager
+def compile_notice():
+    """While the block runs, a kernel numba must compile (its disk cache holds none for this
+    install or this source: :data:`decrun.core.jit.compile_notice`) is said once in the log:
+    the first step of a first run otherwise waits 10–150 s at "0 %" without a word."""
+    def say(name: str) -> None:
+        log.info("compiling decrun's numba kernels (%s first): once per install — numba caches the machine "
+                 "code beside the modules and later runs load it in a second; this first time takes 10-150 s",
+                 name)
+
+    before, jit.compile_notice = jit.compile_notice, say
+    try:
+        yield
+    finally:
+        jit.compile_notice = before
 
 
 def _execute(run: Run) -> Run:

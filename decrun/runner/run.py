@@ -277,23 +277,20 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 
 
 def write(run: Run, out: Path | None = None) -> list[Path]:
-    """Write the finished ``run`` into its directory (``out`` when the run has none): the
-    figures, ``result.h5`` (atomic; finishing the run's recorder when it has one),
-    ``metrics.json`` (the metrics and ``result_h5``: the size and sha256 of result.h5 and the
-    hash of its content, :func:`~decrun.runner.results.provenance.result_record`) and the
-    export's files."""
+    """Write the finished ``run`` into its directory (``out`` when the run has none):
+    ``result.h5`` (atomic; finishing the run's recorder when it has one) and ``metrics.json``
+    (the metrics and ``result_h5``: the size and sha256 of result.h5 and the hash of its
+    content, :func:`~decrun.runner.results.provenance.result_record`) first — the result is
+    complete before any figure is drawn, so an interrupt while drawing (SIGTERM, Ctrl-C) keeps
+    it (the interrupt carries ``result_complete``) — then the figures (each written under a
+    temporary name and renamed: none is left truncated), after removing the figures an earlier
+    run left in the directory (:func:`remove_earlier_figures`), then the export's files.
+    ``total_seconds`` is the run's time up to its result; ``figures_seconds`` is logged."""
     files = run.files if out is None else RunFiles(out)
     if files is None:
         raise ValueError("write(run): the run has no directory; give one (out=...)")
     cfg, result, mesh, timings = run.cfg, run.result, run.mesh, run.timings
-    written = []
-    t = time.perf_counter()
-    if cfg.get("figures", True) and result.figures:
-        from decrun.runner.plots.common import draw_figures  # lazy: matplotlib only when there are figures (start-up speed)
-
-        written += draw_figures(result.figures, files.dir, run.complex)
-    timings["figures_seconds"] = time.perf_counter() - t
-    timings["total_seconds"] = sum(v for k, v in timings.items() if k != "total_seconds")
+    timings["total_seconds"] = sum(v for k, v in timings.items() if k not in ("total_seconds", "figures_seconds"))
     result.metrics.setdefault("total_seconds", timings["total_seconds"])
     if run.recorder is not None:
         h5 = run.recorder.finish(result, timings)
@@ -305,7 +302,23 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     # and the hash of its content, equal for two runs of one config (README: "Reproducible records")
     record = {**result.metrics, RESULT_RECORD: result_record(h5)}
     metrics = write_metrics_json(files.metrics, record)
-    remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
+    drawn = bool(cfg.get("figures", True) and result.figures)
+    written = []
+    t = time.perf_counter()
+    try:
+        remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
+        removed = remove_earlier_figures(files.dir, result.figures if drawn else {})
+        if removed:
+            log.info("removed the earlier run's figures %s (they do not show this result)", ", ".join(removed))
+        if drawn:
+            from decrun.runner.plots.common import draw_figures  # lazy: matplotlib only for figures (start-up speed)
+
+            written += draw_figures(result.figures, files.dir, run.complex)
+            log.info("figures: %s in %.1f s", ", ".join(p.name for p in written), time.perf_counter() - t)
+    except KeyboardInterrupt as exc:  # the result is complete: the caller keeps it (see _run)
+        exc.result_complete = [name for name in result.figures if drawn and not _drawn(files.dir, name)]
+        raise
+    timings["figures_seconds"] = time.perf_counter() - t
     export = run.experiment.export
     try:
         exported = export.write(files, result, mesh, run.complex, run.experiment.app) if export is not None else []
@@ -314,6 +327,28 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         write_metrics_json(files.metrics, {**record, "export_error": shorten_words(message)})
         raise ExportFailed(message, exc) from exc
     return [h5, metrics, *written, *exported]
+
+
+#: the endings of the figures a run draws (``<name>.png``; an animation's ``<name>.gif``)
+FIGURE_ENDINGS = (".png", ".gif")
+
+
+def _drawn(directory: Path, name: str) -> bool:
+    return any((Path(directory) / f"{name}{ending}").is_file() for ending in FIGURE_ENDINGS)
+
+
+def remove_earlier_figures(directory: Path, figures: dict) -> list[str]:
+    """Remove the figures (``*.png``, ``*.gif`` directly in the run directory) that an earlier
+    run in ``directory`` drew and this run, whose result was just written, does not draw
+    again under the same name (``figures``: this run's, empty when it draws none): they
+    would show another result beside this one. Returns the names removed, sorted."""
+    mine = {f"{name}{ending}" for name in figures for ending in FIGURE_ENDINGS}
+    removed = []
+    for path in sorted(Path(directory).iterdir()):
+        if path.suffix in FIGURE_ENDINGS and path.name not in mine and path.is_file() and not path.is_symlink():
+            path.unlink()
+            removed.append(path.name)
+    return removed
 
 
 def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = False, log_name: str = "",
@@ -391,6 +426,12 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
         objective = optimize.objective(result.metrics) if optimize.metric else 0
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (failures.Terminated)
         cause = interrupt_cause(exc)
+        missing = getattr(exc, "result_complete", None)
+        if missing is not None and not multirun:  # while drawing the figures: the result and metrics stand
+            said = (f"decrun: interrupted ({cause}) while drawing the figures; the run is complete: "
+                    f"{RunFiles.RESULT} and {RunFiles.METRICS} in {out}; not drawn: {', '.join(missing) or 'none'}")
+            print(said, file=sys.stderr)
+            raise Stopped(said, exit_code(exc)) from exc
         note = set_aside_stale(out, earlier) + record_status(out, "interrupted", f"interrupted ({cause})", identity)
         said = f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}"
         print(said, file=sys.stderr)

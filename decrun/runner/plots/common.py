@@ -239,12 +239,24 @@ def recorded_series(recorded, names: Iterable[str], *, times_name: str = "time",
 
 
 def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
-    """Save ``fig`` as PNG through the Agg canvas (works without any display); refused
+    """Save ``fig`` as PNG through the Agg canvas (works without any display), under a
+    temporary name renamed onto ``path`` when complete; refused
     (:class:`~decrun.runner.paths.OutsideError`) when ``path`` is a symlink leaving its directory."""
+    import os
+
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
+    from decrun.runner.atomic import temporary_name
+
     FigureCanvasAgg(fig)
-    fig.savefig(check_file(path), dpi=dpi or fig.dpi)
+    path = check_file(path)
+    temporary = temporary_name(path)  # renamed when complete: an interrupt leaves no truncated PNG
+    try:
+        fig.savefig(temporary, dpi=dpi or fig.dpi, format="png")
+        os.replace(temporary, path)
+    finally:
+        if temporary.exists():
+            temporary.unlink()
 
 
 class RecordedSeries:

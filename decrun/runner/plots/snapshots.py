@@ -68,12 +68,26 @@ def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times
     return fig
 
 
-def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str = "time", fps: int = 12,
-              max_frames: int = 120, cmap: str = "RdBu_r", title: str = "", symmetric: bool = True,
+def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str = "time", fps: int = 10,
+              max_frames: int = 60, cmap: str = "RdBu_r", title: str = "", symmetric: bool = True,
               towards=None) -> Path:
-    """An animated GIF of ``recorded[name]`` over time (at most ``max_frames`` evenly spaced
-    frames, one colour scale), written with matplotlib's Pillow writer to ``out_path``.gif."""
-    from matplotlib.animation import FuncAnimation, PillowWriter
+    """An animated GIF of ``recorded[name]`` over time: at most ``max_frames`` evenly spaced
+    frames, one colour scale, shown at ``fps`` frames per second; returns ``out_path``.gif.
+
+    The surface is built once and only its face colours and the title change from frame to
+    frame; each frame is rendered by the Agg canvas and quantised by Pillow to the palette of
+    the first frame (the colour map's colours). The GIF is written to a hidden temporary name
+    beside ``out_path`` and renamed onto it when complete: an interrupted drawing (SIGTERM,
+    Ctrl-C) leaves no truncated GIF."""
+    import os
+
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import Normalize
+    from PIL import Image
+
+    from decrun.runner.atomic import temporary_name
+    from decrun.runner.plots.common import CHECKER
 
     frames = np.asarray(recorded[name])
     times = np.asarray(recorded[times_name]) if times_name else np.arange(len(frames))
@@ -82,15 +96,29 @@ def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str
     lo, hi = _scale(frames[picks], symmetric)
     faces = K.oriented_simplices()
     fig = new_figure(5.0, 4.0 if planar else 5.0, dpi=90)
+    canvas = FigureCanvasAgg(fig)
     ax = _axes(fig, 1, 1, 1, planar)
-
-    def draw(index):
-        ax.clear()
-        plot_surface(ax, K.vertices, faces, frames[picks[index]], cmap=cmap, vmin=lo, vmax=hi, linewidth=0.0,
-                     title=f"{title} t = {times[picks[index]]:.3g}".strip())
-        _look_at(ax, towards)
-        return []
-
+    plot_surface(ax, K.vertices, faces, frames[picks[0]], cmap=cmap, vmin=lo, vmax=hi, linewidth=0.0, title=" ")
+    _look_at(ax, towards)
+    surface = ax.collections[-1]
+    colour_map = CHECKER if cmap == "checker" else colormaps[cmap]
+    norm = Normalize(lo, hi)
+    images, palette = [], None
+    for index in picks:
+        surface.set_facecolor(colour_map(norm(frames[index][faces].mean(axis=1))))
+        ax.set_title(f"{title} t = {times[index]:.3g}".strip(), fontsize=9)
+        canvas.draw()
+        image = Image.fromarray(np.asarray(canvas.buffer_rgba())[..., :3])
+        if palette is None:
+            palette = image.quantize(colors=255)
+        images.append(image.quantize(palette=palette, dither=Image.Dither.NONE))
     path = check_file(Path(out_path).with_suffix(".gif"))
-    FuncAnimation(fig, draw, frames=len(picks), blit=False).save(path, writer=PillowWriter(fps=fps))
+    temporary = temporary_name(path)
+    try:
+        images[0].save(temporary, format="GIF", save_all=True, append_images=images[1:], loop=0,
+                       duration=int(round(1000 / fps)))
+        os.replace(temporary, path)
+    finally:
+        if temporary.exists():
+            temporary.unlink()
     return path

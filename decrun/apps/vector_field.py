@@ -383,5 +383,7 @@ def _design(self, ctx: Context) -> Result:
     figures = {"field": Figure("decrun.runner.plots.fields.field_figure", dict(
         face_vectors=face_vectors, vertex_index=singular.vertex_index, face_index=singular.face_index,
         stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows),
-        cluster_positions=clusters.positions[clusters.nonzero], cluster_indices=clusters.indices[clusters.nonzero]))}
+        cluster_positions=clusters.positions[clusters.nonzero], cluster_indices=clusters.indices[clusters.nonzero],
+        source_vertices=geometry["source_vertices"], source_divergences=geometry["source_divergences"],
+        vortex_faces=geometry["vortex_faces"]))}
     return Result(fields=fields, metrics=metrics, figures=figures)

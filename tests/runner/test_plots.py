@@ -37,3 +37,30 @@ def test_checker_squares_follow_the_median_scale_of_the_map():
     V, F = grid_triangles(11, 11)
     coarse = np.asarray(V, dtype=np.float64)
     assert checker_square_size(coarse, coarse, F, squares=10) == pytest.approx(4 / 11, rel=1e-9)
+
+
+def test_field_arrows_are_as_long_as_their_spacing_and_the_legend_names_every_mark():
+    """Arrows stand for √(A/N) of the visible area each (0.8 of it; at least 0.9 edge lengths,
+    the old length): on a fine mesh they grow with the spacing, on a coarse one they stay.
+    The figure's legend names every kind of mark it drew: arrows, singularities, sources,
+    sinks, vortices, stroke faces."""
+    from decrun.core.complex import SimplicialComplex
+    from decrun.runner.plots.fields import arrow_length, field_figure
+
+    assert arrow_length(0.01, 1.0, 100) == pytest.approx(0.08)  # fine: the spacing 0.1 decides
+    assert arrow_length(0.2, 1.0, 100) == pytest.approx(0.18)  # coarse: the edge length decides
+    assert arrow_length(0.2, 0.0, 0) == pytest.approx(0.18)
+    K = SimplicialComplex(*icosphere(2))
+    faces = K.simplices(2)
+    centre = K.vertices[faces].mean(axis=1)
+    vectors = np.cross([0.0, 0.0, 1.0], centre)  # rotation about z: index +1 at both poles
+    vertex_index = np.zeros(K.num_simplices(0))
+    face_index = np.zeros(len(faces))
+    face_index[[np.argmax(centre[:, 2]), np.argmin(centre[:, 2])]] = 1
+    fig = field_figure(K, vectors, vertex_index, face_index, stroke_faces=[0, 1], source_vertices=[0, 5],
+                       source_divergences=[1.0, -1.0], vortex_faces=[7])
+    (legend,) = fig.legends
+    labels = [text.get_text() for text in legend.get_texts()]
+    for word in ("direction of u", "singularity of index +1", "source", "sink", "vortex", "stroke faces"):
+        assert any(word in label for label in labels), (word, labels)
+    assert not any("−1" in label for label in labels)  # no index −1 drawn: not in the legend

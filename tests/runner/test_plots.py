@@ -64,3 +64,29 @@ def test_field_arrows_are_as_long_as_their_spacing_and_the_legend_names_every_ma
     for word in ("direction of u", "singularity of index +1", "source", "sink", "vortex", "stroke faces"):
         assert any(word in label for label in labels), (word, labels)
     assert not any("−1" in label for label in labels)  # no index −1 drawn: not in the legend
+
+
+def test_the_snapshot_colour_scale_is_set_inside_and_the_figure_says_what_lies_beyond():
+    """A ±30 odd-even pattern on the border (an outflow's) no longer sets the colours of a
+    field of size 1 inside; the note names the rule and the values beyond (where, how many),
+    and the colour bar gets end arrows."""
+    from decrun.core.complex import SimplicialComplex
+    from decrun.runner.plots.snapshots import colour_scale, snapshot_grid
+
+    V, F = grid_triangles(10)
+    K = SimplicialComplex(V, F)
+    border = K.border_vertices()
+    w = np.sin(np.pi * V[:, 0]) * np.sin(np.pi * V[:, 1]) + 0.01  # ≤ 1.01 inside
+    w[border] = 30.0 * (-1.0) ** np.arange(border.sum())
+    frames = np.stack([w, 0.5 * w])
+    lo, hi, note = colour_scale(K, frames, "vorticity")
+    inside = np.abs(frames[:, ~border])
+    assert lo == -hi and hi == pytest.approx(np.percentile(inside, 95)) and hi < 1.02
+    share = (np.abs(frames) > hi).mean()
+    assert f"±{hi:.3g} = the 95th percentile of |vorticity| at the interior vertices" in note
+    assert f"{share:.1%} of the values lie beyond (up to 30 at the border)" in note
+    fig = snapshot_grid(K, {"vorticity": frames, "time": np.array([0.0, 1.0])}, count=2)
+    assert fig.get_supxlabel() == note and fig.axes[-1].get_label() == "<colorbar>"
+    sphere = SimplicialComplex(*icosphere(1))
+    _, _, closed = colour_scale(sphere, np.ones((1, sphere.num_simplices(0))), "w")
+    assert "at all vertices" in closed and "no value lies beyond" in closed

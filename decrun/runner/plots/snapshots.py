@@ -15,7 +15,7 @@ from decrun.core.geometry import is_planar
 from decrun.runner.paths import check_file
 from decrun.runner.plots.common import new_figure, plot_surface
 
-__all__ = ["snapshot_grid", "animation"]
+__all__ = ["snapshot_grid", "animation", "colour_scale"]
 
 
 def _scale(frames: np.ndarray, symmetric: bool, percentile: float = 95.0) -> tuple[float, float]:
@@ -54,7 +54,7 @@ def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times
     cols = min(3, len(picks))
     rows = int(np.ceil(len(picks) / cols))
     fig = new_figure(4.0 * cols, 3.6 * rows if planar else 4.0 * rows)
-    lo, hi = _scale(frames[picks], symmetric)
+    lo, hi, note = colour_scale(K, frames[picks], name, symmetric)
     faces = K.oriented_simplices()
     mappable = None
     for slot, index in enumerate(picks):
@@ -62,10 +62,40 @@ def snapshot_grid(K, recorded, name: str = "vorticity", *, count: int = 6, times
         mappable = plot_surface(ax, K.vertices, faces, frames[index], cmap=cmap, vmin=lo, vmax=hi, linewidth=0.0,
                                 title=f"t = {times[index]:.3g}") or mappable
         _look_at(ax, towards)
-    fig.colorbar(mappable, ax=fig.axes, shrink=0.7, label=name)
+    beyond = bool(np.any(frames[picks] > hi) or np.any(frames[picks] < lo))
+    fig.colorbar(mappable, ax=fig.axes, shrink=0.7, label=name, extend="both" if beyond else "neither")
     if title:
         fig.suptitle(title, fontsize=10)
+    fig.supxlabel(note, fontsize=8)
     return fig
+
+
+def colour_scale(K, frames: np.ndarray, name: str, symmetric: bool = True,
+                 percentile: float = 95.0) -> tuple[float, float, str]:
+    """``(lo, hi, note)``: the colour limits of ``frames`` (F, n0) — :func:`_scale` of the
+    values at interior vertices when the mesh has a border (the thin layers at walls and the
+    odd-even pattern at an outflow border would otherwise set it) — and one line saying how
+    they were chosen and what lies beyond them (drawn in the end colours), for the figure."""
+    frames = np.asarray(frames, dtype=np.float64)
+    interior = np.ones(frames.shape[1], dtype=bool)
+    border = np.flatnonzero(K.border_vertices())
+    interior[border] = False
+    inside = frames[:, interior] if interior.any() else frames
+    lo, hi = _scale(inside, symmetric, percentile)
+    where = "the interior vertices (the border's left out)" if border.size else "all vertices"
+    rule = (f"±{hi:.3g} = the {percentile:g}th percentile of |{name}|" if symmetric else
+            f"{lo:.3g} … {hi:.3g} = the {100 - percentile:g}th … {percentile:g}th percentiles of {name}")
+    finite = frames[np.isfinite(frames)]
+    outside = (finite > hi) | (finite < lo)
+    if outside.any():
+        largest = float(np.abs(finite).max())
+        at = ""
+        if border.size:
+            at = " at the border" if np.abs(frames[:, border]).max() >= largest else " inside"
+        rest = f"; {outside.mean():.1%} of the values lie beyond (up to {largest:.3g}{at}), in the end colours"
+    else:
+        rest = "; no value lies beyond"
+    return lo, hi, f"colours: {rule} at {where} over these frames{rest}"
 
 
 def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str = "time", fps: int = 10,
@@ -93,7 +123,7 @@ def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str
     times = np.asarray(recorded[times_name]) if times_name else np.arange(len(frames))
     picks = np.unique(np.linspace(0, len(frames) - 1, min(max_frames, len(frames))).round().astype(int))
     planar = is_planar(K.vertices)
-    lo, hi = _scale(frames[picks], symmetric)
+    lo, hi, _ = colour_scale(K, frames[picks], name, symmetric)
     faces = K.oriented_simplices()
     fig = new_figure(5.0, 4.0 if planar else 5.0, dpi=90)
     canvas = FigureCanvasAgg(fig)

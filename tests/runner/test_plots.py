@@ -90,3 +90,21 @@ def test_the_snapshot_colour_scale_is_set_inside_and_the_figure_says_what_lies_b
     sphere = SimplicialComplex(*icosphere(1))
     _, _, closed = colour_scale(sphere, np.ones((1, sphere.num_simplices(0))), "w")
     assert "at all vertices" in closed and "no value lies beyond" in closed
+
+
+def test_a_sphere_with_a_hole_is_seen_from_its_hole_and_a_cap_from_its_convex_side():
+    """Fig. 5.8's checkerboard looked along the mean normal of a sphere with a small hole,
+    which points away from the hole; a nearly closed surface is now seen from its border,
+    an open cap still along its mean normal (from outside)."""
+    from decrun.core.complex import SimplicialComplex
+    from decrun.runner.plots.parametrization import view_direction
+
+    V, F = icosphere(3)
+    centre = V[F].mean(axis=1)
+    for keep, expected in ((centre[:, 0] < 0.9, [1.0, 0.0, 0.0]), (centre[:, 0] > 0.3, [1.0, 0.0, 0.0]),
+                           (centre[:, 1] > -0.85, [0.0, -1.0, 0.0])):
+        faces = F[keep]
+        used = np.unique(faces)
+        K = SimplicialComplex(V[used], np.searchsorted(used, faces), orient="fix")
+        towards = view_direction(K.vertices, K.oriented_simplices(), K.border_vertices())
+        assert towards @ np.asarray(expected) > 0.99, (expected, towards)

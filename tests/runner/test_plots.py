@@ -108,3 +108,27 @@ def test_a_sphere_with_a_hole_is_seen_from_its_hole_and_a_cap_from_its_convex_si
         K = SimplicialComplex(V[used], np.searchsorted(used, faces), orient="fix")
         towards = view_direction(K.vertices, K.oriented_simplices(), K.border_vertices())
         assert towards @ np.asarray(expected) > 0.99, (expected, towards)
+
+
+def test_sub_pixel_uv_triangles_are_drawn_in_their_own_colour_not_grey_edges():
+    """A layout whose centre is squeezed (a free border's far side of a sphere): the edges of
+    triangles below 10 pixels take their face colour (the centre showed flat grey), the
+    others keep thin grey edges."""
+    from decrun.core.complex import SimplicialComplex
+    from decrun.runner.plots.parametrization import edge_widths, uv_layout
+
+    V, F = grid_triangles(20)
+    uv = V[:, :2] - 0.5
+    radius = np.linalg.norm(uv, axis=1, keepdims=True)
+    uv = uv * radius**3 * 8  # triangles near the centre shrink by orders of magnitude
+    widths = edge_widths(uv, F, 440.0)
+    p = uv[F]
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    size = np.sqrt(np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])) * 440.0 / np.ptp(uv, axis=0).max()
+    assert np.all(widths[size >= 10] == 0.15) and np.all(widths[size < 10] == 0) and 0 < (widths == 0).sum() < len(F)
+    K = SimplicialComplex(V, F)
+    fig = uv_layout(K, uv, F, np.linspace(0, 5, len(F)), np.zeros(len(F), bool))
+    surface = fig.axes[0].collections[0]
+    small = widths == 0
+    np.testing.assert_allclose(surface.get_edgecolors()[small], surface.get_facecolors()[small])
+    assert np.allclose(surface.get_edgecolors()[~small][:, :3], 0.35)

@@ -7,7 +7,7 @@ import numpy as np
 
 from decrun.runner.plots.common import new_figure, plot_surface
 
-__all__ = ["uv_layout", "checkerboard", "view_direction"]
+__all__ = ["uv_layout", "checkerboard", "view_direction", "edge_widths"]
 
 
 def _warn(fig, warning: str) -> None:
@@ -22,19 +22,41 @@ def _warn(fig, warning: str) -> None:
 
 def uv_layout(K, uv: np.ndarray, faces: np.ndarray, angle_distortion_deg: np.ndarray, flipped: np.ndarray, *,
               title: str = "", warning: str = "") -> "Figure":  # noqa: F821
-    """uv (n0, 2) triangles coloured by the mean angle distortion per triangle (degrees);
-    flipped triangles drawn on top in cyan; ``warning`` (a map that is not an embedding) in red."""
+    """uv (n0, 2) triangles coloured by the mean angle distortion per triangle (degrees), their
+    edges drawn where they are wide enough to see (:func:`edge_widths`); flipped triangles
+    drawn on top in cyan; ``warning`` (a map that is not an embedding) in red."""
     fig = new_figure(5.0, 5.0)
     ax = fig.add_subplot()
     mappable = plot_surface(ax, uv, faces, angle_distortion_deg, cmap="magma", vmin=0.0,
                             vmax=max(1.0, float(np.nanmax(angle_distortion_deg))), linewidth=0.15,
                             title=f"uv layout, {title}")
+    surface = ax.collections[-1]
+    seen = edge_widths(uv, faces, 4.0 * fig.dpi) > 0  # edges of sub-pixel triangles take their face colour
+    surface.set_edgecolors(np.where(seen[:, None], np.array([0.35, 0.35, 0.35, 1.0]), surface.get_facecolors()))
+    surface.set_linewidths(np.where(seen, 0.15, 0.3))
     flipped = np.asarray(flipped, dtype=bool)
     if flipped.any():
         plot_surface(ax, uv, faces[flipped], np.ones(int(flipped.sum())), cmap="cool", linewidth=0.3)
     fig.colorbar(mappable, ax=ax, shrink=0.7, label="angle distortion (deg, mean per triangle)")
     _warn(fig, warning)
     return fig
+
+
+def edge_widths(uv: np.ndarray, faces: np.ndarray, pixels: float, width: float = 0.15,
+                min_pixels: float = 10.0) -> np.ndarray:
+    """(m,) line widths of the triangles' edges in a uv layout drawn ``pixels`` wide: ``width``
+    where a triangle spans at least ``min_pixels`` (its size √(2·area) times pixels per uv
+    unit), 0 below. A free or conformal border squeezes part of a surface into a small region
+    of uv (the far side of a sphere with a hole into the centre): there the edges of
+    sub-pixel triangles drew over their colours and turned the region flat grey (their
+    edges take their face colour instead, closing the anti-aliasing seams)."""
+    uv = np.asarray(uv, dtype=np.float64)
+    p = uv[faces]
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    span = float(np.ptp(uv, axis=0).max()) if len(uv) else 0.0
+    size = np.sqrt(2.0 * area) * (pixels / span if span > 0 else 0.0)
+    return np.where(size >= min_pixels, width, 0.0)
 
 
 def checker_square_size(vertices: np.ndarray, uv: np.ndarray, faces: np.ndarray, squares: int) -> float:

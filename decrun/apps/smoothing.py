@@ -34,6 +34,7 @@ from decrun.methods.mean_curvature_flow import (
     enclosed_volume,
     gershgorin_safe_dt,
     resolution_dt,
+    smallest_positive_eigenvalue,
     surface_area,
 )
 from decrun.methods.smoothing_metrics import degeneration, normal_deviation_deg
@@ -262,7 +263,9 @@ class Smoothing(App):
                 vertices_before=vertices, vertices_after=last_finite, faces=faces, share_axes=True,
                 titles=("input", f"after {state}"), suptitle=f"mean curvature flow (§1.3): {label}")),
             "smoothing_series": Figure("decrun.runner.plots.common.plot_series", dict(
-                series={name: series[name] for name in shown}, title=label)),
+                series={name: series[name] for name in shown}, title=label,
+                floors={"roughness": (smallest_positive_eigenvalue(flow.S, flow.mass) / first["roughness"],
+                                      "roughness bound λ1/R0 (R ≥ λ1 > 0 of L: no smoothing takes it to 0)")})),
         }
         return Result(fields=fields, metrics=metrics, figures=figures)
 

@@ -132,3 +132,24 @@ def test_sub_pixel_uv_triangles_are_drawn_in_their_own_colour_not_grey_edges():
     small = widths == 0
     np.testing.assert_allclose(surface.get_edgecolors()[small], surface.get_facecolors()[small])
     assert np.allclose(surface.get_edgecolors()[~small][:, :3], 0.35)
+
+
+def test_the_roughness_floor_is_the_smallest_nonzero_eigenvalue_and_the_series_draws_it():
+    """R ≥ λ1: on the unit sphere λ1 ≈ 2 (x, y, z: l = 1), so a smoothed sphere's roughness
+    ratio levels off above λ1/R0, never at 0; the series figure draws and names the bound."""
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.methods.mean_curvature_flow import smallest_positive_eigenvalue
+    from decrun.runner.plots.common import plot_series
+
+    for subdiv, tolerance in ((1, 0.2), (3, 0.01)):  # dense and ARPACK paths
+        dec = DEC(SimplicialComplex(*icosphere(subdiv)))
+        S, M = dec.laplacian_symmetric(0), dec.star(0)
+        floor = smallest_positive_eigenvalue(S, M)
+        assert floor == pytest.approx(2.0, rel=tolerance)
+        x = dec.K.vertices - np.asarray(M @ dec.K.vertices).sum(axis=0) / M.sum()  # M-orthogonal to constants
+        assert np.einsum("ij,ij->", x, S @ x) / np.einsum("ij,ij->", x, M @ x) >= floor * (1 - 1e-9)
+    fig = plot_series({"roughness": np.array([4.0, 3.0, 2.2])}, floors={"roughness": (0.5, "bound")})
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["roughness / initial", "bound = 0.5"]
+    assert [line.get_ydata()[0] for line in fig.axes[0].lines][1] == 0.5

@@ -338,12 +338,14 @@ def _drawn(directory: Path, name: str) -> bool:
 
 
 def remove_earlier_figures(directory: Path, figures: dict) -> list[str]:
-    """Remove the figures (``*.png``, ``*.gif`` directly in the run directory) that an earlier
-    run in ``directory`` drew and this run, whose result was just written, does not draw
+    """Remove the figures (``*.png``, ``*.gif`` directly in the run directory, one with Hydra's
+    ``.hydra/``: nowhere else) that an earlier run in ``directory`` drew and this run, whose result was just written, does not draw
     again under the same name (``figures``: this run's, empty when it draws none): they
     would show another result beside this one. Returns the names removed, sorted."""
     mine = {f"{name}{ending}" for name in figures for ending in FIGURE_ENDINGS}
     removed = []
+    if not (Path(directory) / RunFiles.HYDRA).is_dir():  # not a run directory the command made: not ours
+        return removed
     for path in sorted(Path(directory).iterdir()):
         if path.suffix in FIGURE_ENDINGS and path.name not in mine and path.is_file() and not path.is_symlink():
             path.unlink()

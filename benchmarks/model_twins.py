@@ -43,12 +43,19 @@ MODELS = {"heat": "crank_nicolson", "wave": "symplectic", "mcf": "implicit_euler
 
 class HandSolver:
     """One factorized SPD matrix, solved by SuperLU (``library="direct"``, scipy) or CHOLMOD
-    (``"auto"``, cholespy) directly; ``solve(b)`` takes (n,) or (n, k) right sides."""
+    (``"auto"``: the binding ``solver=auto`` uses here — scikit-sparse's supernodal factorization
+    where installed, else cholespy — called directly); ``solve(b)`` takes (n,) or (n, k) right sides."""
 
     def __init__(self, A: sp.spmatrix, library: str):
+        from decrun.core.solvers.cholmod import CholmodBackend, installed_backends
+
         A = sp.csr_matrix(A)
         if library == "direct":
             self.solve = spla.splu(A.tocsc(), permc_spec="COLAMD").solve
+        elif installed_backends()[0] is CholmodBackend.sksparse:
+            from sksparse.cholmod import cholesky
+
+            self.solve = cholesky(A.tocsc(), mode="supernodal")
         else:
             import cholespy
 

@@ -75,8 +75,9 @@ def _hydra_task(cfg: DictConfig) -> int | float:
     from decrun.runner.run import run
 
     hydra_cfg = HydraConfig.get()
-    return run(cfg, Path(hydra_cfg.runtime.output_dir), multirun=_is_multirun(), verbose=_verbose(),
-               log_name=hydra_cfg.job.name)
+    out = Path(hydra_cfg.runtime.output_dir)
+    made = OutputGuard.made is not None and OutputGuard.made.absolute() == out.absolute()
+    return run(cfg, out, multirun=_is_multirun(), verbose=_verbose(), log_name=hydra_cfg.job.name, made=made)
 
 
 #: the plugins the sweeper's checks built, by node (a sweep's jobs share most of them)
@@ -102,13 +103,16 @@ class OutputGuard(Callback):
     before a single run — before Hydra creates its directory, saves ``.hydra/`` and opens
     the log — refuses a ``.hydra/`` file or log that resolves out of the run directory
     (:func:`decrun.runner.paths.inside`) and takes the run directory's lock
-    (:mod:`decrun.runner.locks`) until the run ends. After a sweep, once
+    (:mod:`decrun.runner.locks`) until the run ends; ``made`` says whether it made the
+    directory (a run refused as bad input removes it again). After a sweep, once
     :class:`SweepTable` has written the table, drops the sweep directory's lock (the
     ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written.
     ``run_dir``: the directory of the last single run this process started (for
     :func:`decrun.run`)."""
 
     run_dir: Path | None = None
+    #: the run directory when this process made it (it did not exist before the run), else None
+    made: Path | None = None
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
         try:
@@ -124,6 +128,7 @@ class OutputGuard(Callback):
     def _guard(self, config: DictConfig) -> None:
         out = Path(str(config.hydra.run.dir))
         OutputGuard.run_dir = out
+        OutputGuard.made = None if os.path.lexists(out) else out
         try:
             for name in hydra_files(config.hydra):
                 inside(out, out / name, fix="remove the link, or choose another run directory with hydra.run.dir=DIR")
@@ -181,7 +186,7 @@ class SweepTable(Callback):
             planned=target.startswith("hydra_plugins.decrun_sweeper."))
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        from decrun.runner.sweep.tables import failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
+        from decrun.runner.sweep.tables import SAME_AS, failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
 
         if SweepTable._progress is not None:
             SweepTable._progress.stop()
@@ -198,6 +203,11 @@ class SweepTable(Callback):
         hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
         if hidden:
             print(f"decrun: {hidden} more columns in {SweepFiles.TABLE_MD} (`decrun-table --all {sweep_dir}`)")
+        if SAME_AS in table:
+            repeats = table[table[SAME_AS].notna()]
+            print(f"decrun: {len(repeats)} jobs repeat an earlier job's result exactly (column {SAME_AS}: "
+                  f"{', '.join(f'{j} = {s}' for j, s in zip(repeats['job'], repeats[SAME_AS]))}); the keys they differ "
+                  f"in do not change the result")
         failed_exports = f", {len(exports)} export failed" if len(exports) else ""
         print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok{failed_exports}) → "
               f"{SweepFiles(sweep_dir).table_csv}, {SweepFiles.TABLE_MD}")
@@ -590,11 +600,11 @@ def table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--csv", action="store_true", help="print CSV instead of markdown")
     parser.add_argument("--metrics", help="comma-separated metric columns to show (default: the apps' headline "
                                           "metrics in markdown, all in --csv)")
-    parser.add_argument("--all", action="store_true", help="show every metric column")
+    parser.add_argument("--all", action="store_true", help="show every column, constant ones included")
     parser.add_argument("--sort", help="comma-separated columns to sort the rows by")
     parser.add_argument("--descending", action="store_true", help="sort in descending order")
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
-                        help="drop columns with one value in every row (default: on for markdown, off for --csv)")
+                        help="drop columns with one value in every row (default: on for markdown, off for --csv and --all)")
     args = parser.parse_args(argv)
 
     def split(text: str | None) -> list[str] | None:
@@ -616,7 +626,7 @@ def table_main(argv: list[str] | None = None) -> int:
         table = stack(args.sweep_dirs)
         if len(args.sweep_dirs) == 1:
             table = table.drop(columns="sweep")
-        drop = (not args.csv) if args.drop_constant is None else args.drop_constant
+        drop = not (args.csv or args.all) if args.drop_constant is None else args.drop_constant
         shown = select(table, split(args.metrics), split(args.sort), args.descending, drop,
                        narrow=not (args.all or args.csv))
     except (FileNotFoundError, KeyError, DecrunError) as exc:

@@ -293,6 +293,9 @@ def hand_halfar(done, library: str) -> tuple[np.ndarray, float, float]:
     lagged steps (⋆0 + dt d0ᵀ diag(⋆1 D(Hⁿ)) d0) H⁺ = ⋆0 Hⁿ, dt = 1 a, with D per edge the mean
     over its triangles of Γ H̄^{n+2} |∇H|^{n−1} (H̄ the triangle's vertex mean, ∇H its P1 gradient).
     Returns (H at 200 a, wall s, CPU s)."""
+    import scipy.sparse as sp
+    from model_twins import HandSolver
+
     from decrun.core.dec import DEC
     from decrun.methods.model import discrete
 

@@ -39,6 +39,34 @@ def test_the_switch_app_kernels_over_decrun_numba_over_sizes(monkeypatch):
     assert jit.mode() == "numba"
 
 
+def test_auto_takes_the_kernels_below_min_size_once_numba_started_or_its_start_is_amortized(monkeypatch):
+    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    monkeypatch.setattr(jit, "_started", False)
+    monkeypatch.setattr(jit, "_numpy_items", 0)
+    middle = jit.WARM_MIN_SIZE * 5  # below MIN_SIZE: a fresh process keeps to numpy
+    assert middle < jit.MIN_SIZE and not jit.enabled(middle)
+    # rent until the rent paid reaches the price: the refused numpy work adds up to AMORTIZE_SIZE
+    calls = 2  # the one above and the one that returns True
+    while not jit.enabled(middle):
+        calls += 1
+    assert calls * middle >= jit.AMORTIZE_SIZE > (calls - 1) * middle  # the call that reaches it takes the kernels
+    assert jit.enabled(middle)
+    assert not jit.enabled(jit.WARM_MIN_SIZE - 1)  # tiny inputs stay numpy: their tally is never counted
+    monkeypatch.setattr(jit, "_numpy_items", 0)
+    jit.enabled(jit.WARM_MIN_SIZE - 1)
+    assert jit._numpy_items == 0
+    # a kernel that ran marks the process started: from WARM_MIN_SIZE on, the kernels
+    from decrun.core.simplex_arrays import _sorted_rows_kernel
+
+    import numpy as np
+
+    _sorted_rows_kernel(np.array([[2, 0, 1]]))
+    assert jit.started() and jit.enabled(jit.WARM_MIN_SIZE) and not jit.enabled(jit.WARM_MIN_SIZE - 1)
+    assert jit.enabled(5, min_size=0)  # a caller's smaller min_size still holds
+    with jit.use("numpy"):  # the switch still wins
+        assert not jit.enabled(jit.MIN_SIZE)
+
+
 def test_bad_switch_values_are_refused_with_the_fix(monkeypatch):
     monkeypatch.setenv("DECRUN_NUMBA", "yes")
     with pytest.raises(ConfigError, match="DECRUN_NUMBA=auto"):

@@ -121,11 +121,13 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
 
 def jit_times() -> None:
     """numba's start in fresh processes, in CPU time: its import, then the first build of a
-    small complex with every kernel on the operators' path (compile, or load from the cache)."""
+    small complex with every kernel on the operators' path (compile, or load from the cache);
+    decrun's own modules are imported before either is timed."""
     import subprocess
     import tempfile
 
-    code = ("import time, sys; from decrun.core import jit; from decrun.core.primitives import grid_triangles; "
+    code = ("import time, sys; import decrun.core.complex, decrun.core.dec; "
+            "from decrun.core.primitives import grid_triangles; "
             "sys.path.insert(0, %r); from bench_operators import _decrun_operators; "
             "V, F = grid_triangles(4, 4, jitter=0.2); t = time.process_time(); import numba; "
             "imported = time.process_time() - t; t = time.process_time(); _decrun_operators(V, F); "

@@ -16,7 +16,7 @@ with. A caller takes the kernel when :func:`enabled` says so. **The switch** (:f
   ``numpy`` (or ``0``) never (to rule out a kernel when chasing a bug), ``auto`` or unset;
 * ``auto``: a kernel runs from its caller's ``min_size`` items on — by default
   :data:`MIN_SIZE`, where the time saved outweighs what a fresh process pays once to import
-  numba and start it (its typing registries, then each cached kernel's machine code: ~0.35 s
+  numba and start it (its typing registries, then each cached kernel's machine code: ~0.45 s
   of CPU, ``benchmarks/bench_operators.py --jit``); the fluid's kernels run at any size (a run
   steps hundreds of times). Once that price is paid — a kernel ran in this process — kernels
   run from :data:`WARM_MIN_SIZE` items on (loading one more cached kernel costs milliseconds).
@@ -51,9 +51,10 @@ MIN_SIZE = 500_000
 WARM_MIN_SIZE = 10_000
 
 #: under ``auto``, the items of numpy work (inputs of at least :data:`WARM_MIN_SIZE` items) after
-#: which a process starts numba: a triangle mesh's complex and operators pass ~15·m items through
-#: :func:`enabled` and the kernels save ~0.35 µs of CPU per triangle, so 15M items ≈ the start's 0.35 s
-AMORTIZE_SIZE = 15_000_000
+#: which a process starts numba: a triangle mesh's complex and operators (d0, d1, ⋆0–⋆2) pass
+#: 15.5·m items through :func:`enabled` and the kernels save ~0.32 µs of CPU per triangle, so
+#: 20M items ≈ 1.3M triangles ≈ the start's ~0.45 s of CPU
+AMORTIZE_SIZE = 20_000_000
 
 #: the switch's values
 MODES = ("auto", "numba", "numpy")

@@ -215,6 +215,8 @@ def test_small_inputs_take_numpy_and_large_ones_the_kernels(monkeypatch):
     from decrun.core import jit
 
     monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    monkeypatch.setattr(jit, "_started", False)  # a fresh process (no kernel ran, no numpy work tallied)
+    monkeypatch.setattr(jit, "_numpy_items", 0)
     assert not jit.enabled(jit.MIN_SIZE - 1) and jit.enabled(jit.MIN_SIZE)
     monkeypatch.setenv("DECRUN_NUMBA", "1")
     assert jit.enabled(1)

@@ -47,8 +47,8 @@ prange = range
 #: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
 #: in a process where numba has not started: a triangle mesh's largest input is its 3·m edge
 #: slots, and one build of its complex and operators saves the start (~0.45 s of CPU) from
-#: ~1.3M triangles on (0.32 µs per triangle)
-MIN_SIZE = 4_000_000
+#: ~1M triangles on (0.3–0.5 µs per triangle)
+MIN_SIZE = 3_000_000
 
 #: under ``auto``, once a kernel ran in this process, inputs from this many items on take the kernels
 WARM_MIN_SIZE = 10_000

@@ -74,7 +74,7 @@ def checked_input(vertices, simplices, unreferenced: str):
     if not np.issubdtype(simplices.dtype, np.integer):
         if not np.all(np.equal(np.mod(simplices, 1), 0)):
             raise MeshError("simplices must hold integer vertex indices")
-    simplices = simplices.astype(np.int64)
+    simplices = simplices.astype(np.int64, copy=False)  # read only: sorted into new rows below
     n = simplices.shape[1] - 1
     if vertices.shape[1] < n:
         raise MeshError(f"a {n}-dimensional complex needs vertices in at least {n} dimensions, "
@@ -82,8 +82,8 @@ def checked_input(vertices, simplices, unreferenced: str):
     top_sorted, parity, smallest, largest, repeated = sorted_rows_and_parity(simplices)
     if smallest < 0 or largest >= vertices.shape[0] or repeated:
         _check_indices(vertices.shape[0], simplices, top_sorted, n)
-    bad = ~np.isfinite(vertices).all(axis=1)
-    if bad.any():
+    if not np.isfinite(vertices).all():  # one pass over the coordinates; the rows only to name them
+        bad = ~np.isfinite(vertices).all(axis=1)
         raise NonFiniteCoordinateError(f"{name_indices(np.flatnonzero(bad), 'vertex')} has NaN or infinite coordinates")
     original = np.arange(vertices.shape[0])
     used = np.zeros(vertices.shape[0], dtype=bool)
@@ -164,9 +164,11 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
                 f"{plural(simplex_name(n))} (e.g. {name_indices(owners, simplex_name(n))})"
             )
     if jit.enabled(order.shape[0]):
-        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top))
-        index_type = np.int32 if pairs[1].size and top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
-        pairs = FacetPairs(pairs[0], *(a.astype(index_type) for a in pairs[1:]))
+        index_type = np.int32 if top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
+        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, index_type))
+        if not pairs[1].size:  # no interior facet: int64, as the numpy twin's
+            pairs = (pairs[0], *(a.astype(np.int64) for a in pairs[1:]))
+        pairs = FacetPairs(*pairs)
     else:
         pairs, suspect = facet_pairs_numpy(order, starts, top)
     if suspect:
@@ -192,9 +194,9 @@ def facet_pairs_numpy(order: np.ndarray, starts: np.ndarray, top: np.ndarray) ->
 
 
 @jit.njit
-def _facet_pairs_kernel(order, starts, top):
-    """One pass over the facet groups: the pairs of :func:`facet_pairs_numpy` (int64) and the
-    duplicate suspicion."""
+def _facet_pairs_kernel(order, starts, top, index_like):
+    """One pass over the facet groups: the pairs of :func:`facet_pairs_numpy` (the facets int64,
+    the simplices and slots of ``index_like``'s type) and the duplicate suspicion."""
     width = top.shape[1]
     n = width - 1
     groups = starts.shape[0] - 1
@@ -203,10 +205,10 @@ def _facet_pairs_kernel(order, starts, top):
         if starts[g + 1] - starts[g] == 2:
             count += 1
     interior = np.empty(count, np.int64)
-    first = np.empty(count, np.int64)
-    second = np.empty(count, np.int64)
-    first_slot = np.empty(count, np.int64)
-    second_slot = np.empty(count, np.int64)
+    first = np.empty(count, index_like.dtype)
+    second = np.empty(count, index_like.dtype)
+    first_slot = np.empty(count, index_like.dtype)
+    second_slot = np.empty(count, index_like.dtype)
     suspect = False
     p = 0
     for g in range(groups):

@@ -16,10 +16,10 @@ with. A caller takes the kernel when :func:`enabled` says so. **The switch** (:f
   ``numpy`` (or ``0``) never (to rule out a kernel when chasing a bug), ``auto`` or unset;
 * ``auto``: a kernel runs from its caller's ``min_size`` items on — by default
   :data:`MIN_SIZE`, where the time saved outweighs what a fresh process pays once to import
-  numba and start it (its typing registries, then each cached kernel's machine code: ~0.45 s
-  of CPU, ``benchmarks/bench_operators.py --jit``); the fluid's kernels run at any size (a run
-  steps hundreds of times). Once that price is paid — a kernel ran in this process — kernels
-  run from :data:`WARM_MIN_SIZE` items on (loading one more cached kernel costs milliseconds).
+  numba and start it (its typing registries, then each cached kernel's machine code;
+  ``benchmarks/bench_operators.py --jit``); the fluid's kernels run at any size (a run steps
+  hundreds of times). Once that price is paid — a kernel ran in this process — kernels
+  run from :data:`WARM_MIN_SIZE` items on (loading one more cached kernel is cheap).
   A long-lived process (a sweep worker building one mesh after another) pays it when the numpy
   work it did on inputs of at least :data:`WARM_MIN_SIZE` items adds up to
   :data:`AMORTIZE_SIZE` items, about the time the start costs (rent until the rent paid equals
@@ -46,8 +46,8 @@ prange = range
 
 #: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
 #: in a process where numba has not started: a triangle mesh's largest input is its 3·m edge
-#: slots, and one build of its complex and operators saves the start (~0.45 s of CPU) from
-#: ~1M triangles on (0.3–0.5 µs per triangle)
+#: slots, and one build of its complex and operators saves numba's start from ~1M triangles on
+#: (``benchmarks/bench_operators.py``, docs/performance.md)
 MIN_SIZE = 3_000_000
 
 #: under ``auto``, once a kernel ran in this process, inputs from this many items on take the kernels
@@ -55,8 +55,8 @@ WARM_MIN_SIZE = 10_000
 
 #: under ``auto``, the items of numpy work (inputs of at least :data:`WARM_MIN_SIZE` items) after
 #: which a process starts numba: a triangle mesh's complex and operators (d0, d1, ⋆0–⋆2) pass
-#: 15.5·m items through :func:`enabled` and the kernels save ~0.32 µs of CPU per triangle, so
-#: 20M items ≈ 1.3M triangles ≈ the start's ~0.45 s of CPU
+#: 15.5·m items through :func:`enabled`, so 20M items ≈ 1.3M triangles of builds, whose saving
+#: with the kernels is about what numba's start costs (docs/performance.md)
 AMORTIZE_SIZE = 20_000_000
 
 #: the switch's values

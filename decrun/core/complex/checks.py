@@ -426,7 +426,11 @@ def single_fan_surface(top, orientation, pairs: FacetPairs, n_vertices: int) -> 
     first = start[walking]
     current = first
     length = 1  # the corners every walk still going has visited
+    longest = int(valence.max())
     while walking.size:
+        if length > longest:  # an orbit longer than any vertex's corners: not one fan of v (cannot
+            single[walking] = False  # happen on a consistently oriented edge-manifold surface)
+            break
         step = following[current]
         done = (step == current) | (step == first)  # a path end steps to itself; a cycle returns
         if done.any():

@@ -39,6 +39,42 @@ def test_the_switch_app_kernels_over_decrun_numba_over_sizes(monkeypatch):
     assert jit.mode() == "numba"
 
 
+def test_auto_takes_the_kernels_below_min_size_once_numba_started_or_its_start_is_amortized(monkeypatch):
+    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    monkeypatch.setattr(jit, "_started", False)
+    monkeypatch.setattr(jit, "_numpy_items", 0)
+    middle = jit.WARM_MIN_SIZE * 5  # below MIN_SIZE: a fresh process keeps to numpy
+    assert middle < jit.MIN_SIZE and not jit.enabled(middle)
+    # rent until the rent paid reaches the price: the refused numpy work adds up to AMORTIZE_SIZE
+    calls = 2  # the one above and the one that returns True
+    while not jit.enabled(middle):
+        calls += 1
+    assert calls * middle >= jit.AMORTIZE_SIZE > (calls - 1) * middle  # the call that reaches it takes the kernels
+    assert jit.enabled(middle)
+    assert not jit.enabled(jit.WARM_MIN_SIZE - 1)  # tiny inputs stay numpy: their tally is never counted
+    monkeypatch.setattr(jit, "_numpy_items", 0)
+    jit.enabled(jit.WARM_MIN_SIZE - 1)
+    assert jit._numpy_items == 0
+    monkeypatch.setattr(jit, "_started", True)
+    assert jit.enabled(jit.WARM_MIN_SIZE) and not jit.enabled(jit.WARM_MIN_SIZE - 1)
+    assert jit.enabled(5, min_size=0)  # a caller's smaller min_size still holds
+    with jit.use("numpy"):  # the switch still wins
+        assert not jit.enabled(jit.MIN_SIZE)
+
+
+def test_a_process_is_started_by_its_first_kernel_call_and_then_takes_kernels_from_warm_min_size():
+    """In a fresh process: auto keeps a 50k-item input on numpy; one complex built with the kernels
+    (a small one, app.kernels=numba) starts numba, and from then on auto takes them."""
+    code = ("from decrun.core import jit; from decrun.core.complex import SimplicialComplex; "
+            "from decrun.core.primitives import grid_triangles; size = 5 * jit.WARM_MIN_SIZE; "
+            "before = (jit.started(), jit.enabled(size)); V, F = grid_triangles(3, 3)\n"
+            "with jit.use('numba'): SimplicialComplex(V, F)\n"
+            "print(before, (jit.started(), jit.enabled(size), jit.enabled(jit.WARM_MIN_SIZE - 1)))")
+    env = {k: v for k, v in os.environ.items() if k != "DECRUN_NUMBA"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stdout.split("\n")[0] == "(False, False) (True, True, False)"
+
+
 def test_bad_switch_values_are_refused_with_the_fix(monkeypatch):
     monkeypatch.setenv("DECRUN_NUMBA", "yes")
     with pytest.raises(ConfigError, match="DECRUN_NUMBA=auto"):

@@ -26,7 +26,7 @@ import scipy.sparse as sp
 
 from decrun.methods.model.language import ModelError
 
-__all__ = ["LinearSystem", "KernelReport", "COMPATIBILITY_LIMIT"]
+__all__ = ["LinearSystem", "BlockSystem", "KernelReport", "COMPATIBILITY_LIMIT"]
 
 #: largest |Σ b| / Σ |b| accepted on a singular system (the part removed from b); beyond it the
 #: problem has no solution and the model is refused
@@ -123,6 +123,42 @@ class LinearSystem:
             raise IncompatibleRightHandSide(float(relative.max()))
         totals = np.bincount(self.pieces, weights=self.mass)
         return b - (sums / totals)[self.pieces] * self.mass
+
+
+@dataclass
+class BlockSystem(LinearSystem):
+    """The block matrix of a system of equations in several unknowns (``solve(l1 = r1, l2 = r2)``):
+    a :class:`LinearSystem` (fixed values condensed out) whose matrix is in general indefinite —
+    a saddle point [[M, B], [C, 0]] has a zero block — so a solver that needs SPD matrices
+    (Cholesky, CG, AMG) is refused unless the matrix is symmetric with a positive diagonal; LU
+    (``solver=direct``, or ``auto``'s SuperLU) factorizes it once. ``where`` names the equation
+    and ``unknowns`` its unknowns in messages."""
+
+    where: str = "app.equations"
+    unknowns: tuple = ()
+
+    def factorize(self) -> None:
+        """Factorize once; refuse an SPD-only solver for a matrix that cannot be SPD."""
+        if self.solver is None and self.new_solver is not None:
+            solver = self.new_solver()
+            matrix = self.A_full[self.free][:, self.free].tocsr()
+            if getattr(solver, "needs_spd", False):
+                diagonal = matrix.diagonal()
+                if not _symmetric(matrix) or diagonal.size and diagonal.min() <= 0:
+                    why = "not symmetric" if not _symmetric(matrix) else \
+                        f"indefinite: {int((diagonal <= 0).sum())} of its diagonal entries are not positive"
+                    raise ModelError(f"{self.where}: solver={solver.name} needs a symmetric positive definite matrix, "
+                                     f"but the block system of {', '.join(self.unknowns)} is {why} (a saddle point); "
+                                     "use `solver=direct`")
+            try:
+                solver.factorize(matrix)
+            except Exception as error:  # noqa: BLE001 - say which equation could not be factorized
+                raise ModelError(f"{self.where}: the block system of {', '.join(self.unknowns)} could not be "
+                                 f"factorized ({str(error).splitlines()[0]}); a pressure with no border value is "
+                                 "defined up to a constant: give natural border values (border(q)) or fix "
+                                 "values (fields.<name>.dirichlet)") from None
+            self.solver = solver
+        super().factorize()
 
 
 class UnsymmetricSystem(ModelError):

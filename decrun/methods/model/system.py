@@ -660,7 +660,7 @@ def _compile_system(equation: Equation, model: CompiledModel, new_solver: Callab
             else:
                 line.append(block.A)
         grid.append(line)
-        rows.append(_weak_row(compiler, rhs, rest, star, row_kind.size(K), where))
+        rows.append(_weak_row(compiler, rhs, rest, star, stars[0] if stars else None, row_kind.size(K), where))
     for j, name in enumerate(unknowns):
         if all(line[j] is None for line in grid):
             raise ModelError(f"{where}: no equation of the system reads {name} linearly; it cannot be solved for")
@@ -691,17 +691,41 @@ def _compile_system(equation: Equation, model: CompiledModel, new_solver: Callab
                        np.concatenate(values) if values else None)
 
 
-def _weak_row(compiler: Compiler, rhs: Node, rest: list, star, size: int, where: str) -> Callable:
-    """env ↦ ⋆_k (rhs − the left side's terms without unknowns) of one row of a system."""
-    rhs_closure = compiler.compile(rhs, where)
-    rest_closures = [(sign, compiler.compile(term, where)) for sign, term in rest]
+def _weak_row(compiler: Compiler, rhs: Node, rest: list, star, degree, size: int, where: str) -> Callable:
+    """env ↦ ⋆_k (rhs − the left side's terms without unknowns) of one row of a system, k =
+    ``degree`` (None: no ⋆). A term linear in a form with a constant ⋆_k⁻¹ A matrix
+    (``border(pb)``, ``codifferential(q)``) contributes A·value: the ⋆_k⁻¹ it carries is not
+    applied only to be multiplied back (for a Galerkin ⋆, a factorization saved)."""
+    terms = [(1.0, term) for term in [rhs]] + [(-sign, term) for sign, term in rest]
+    split = []
+    for sign, tree in terms:
+        names = {name for name in compiler.reads(tree) if name not in compiler.definitions and name in compiler.kinds
+                 and compiler.kinds[name].is_form}
+        blocks, others = compiler.split(tree, names) if names else ({}, compiler.terms(tree))
+        for name, block in blocks.items():
+            if block.inv == degree and degree is not None:
+                split.append(("weak", name, (sign * block.A).tocsr()))
+            elif block.inv is None:
+                split.append(("weak", name, (sign * (star @ block.A if star is not None else block.A)).tocsr()))
+            else:
+                apply = compiler.ops.matrix(block)
+                split.append(("strong", name, lambda x, apply=apply, sign=sign: sign * apply(x)))
+        for inner_sign, term in others:
+            closure = compiler.compile(term, where)
+            split.append(("value", None, (sign * inner_sign, closure)))
 
     def weak(env):
-        value = rhs_closure(env)
-        for sign, closure in rest_closures:
-            value = value - sign * closure(env)
-        value = np.broadcast_to(np.asarray(value, dtype=np.float64), (size,))
-        return star @ value if star is not None else np.array(value)
+        strong = np.zeros(size)
+        total = np.zeros(size)
+        for what, name, item in split:
+            if what == "weak":
+                total += item @ env[name]
+            elif what == "strong":
+                strong += item(env[name])
+            else:
+                factor, closure = item
+                strong += factor * np.broadcast_to(np.asarray(closure(env), dtype=np.float64), (size,))
+        return total + (star @ strong if star is not None else strong)
     return weak
 
 

@@ -213,6 +213,12 @@ def _sharp_kind(args, n):
     return VECTOR
 
 
+def _flux_field_kind(args, n):
+    _one_form(args, n, "flux_field", lambda k: not k.dual and k.degree == n - 1,
+              f"a primal {n - 1}-form (a flux through the {n - 1}-simplices)")
+    return VECTOR
+
+
 def _flat_kind(args, n):
     (kind,) = args
     if kind != VECTOR:
@@ -449,6 +455,11 @@ _register(Operator("sharp", (1,), "primal 1-form → vector",
                    "Whitney interpolation at each top simplex's barycentre (eq. 6.7); sharp(d(u)) is the "
                    "gradient of the piecewise-linear u",
                    _sharp_kind, lambda ops, kinds, x: discrete.sharp(ops.K, x)))
+_register(Operator("flux_field", (1,), "primal (n−1)-form → vector",
+                   "the Whitney (n−1)-form's vector field at each top simplex's barycentre, Σ_i o_i u_i (x − p_i) "
+                   "/ (n |σ|) (lowest-order Raviart–Thomas; o_i u_i the flux out through the face opposite p_i): "
+                   "the velocity whose fluxes are u, exact for constant fields",
+                   _flux_field_kind, lambda ops, kinds, x: discrete.flux_field(ops.K, x)))
 _register(Operator("flat", (1,), "vector → primal 1-form (triangles)",
                    "ω_e = Σ_{f∋e} (|⋆e∩f|/|⋆e|) X_f·e (Hirani's primal-primal ♭), so −δ X♭ is the cotan "
                    "divergence",

@@ -16,5 +16,6 @@ FIGURE_KINDS = {
     "snapshots": "decrun.runner.plots.snapshots.snapshot_grid",
     "animation": "decrun.runner.plots.snapshots.animation",
     "vector_field": "decrun.runner.plots.fields.field_figure",
+    "values_arrows": "decrun.runner.plots.fields.values_and_arrows",
 }
 

@@ -237,12 +237,17 @@ BAD = [
      "app.equations[0]: the system has 3 equations but its left sides read 2 undetermined field(s)", "app.fields"),
     (['app.equations=["solve(u - K*codifferential(p) = -K*border(pb), d(u) = f*u)"]'], "app.equations[0]: f * u "
      "multiplies a primal 2-form and a primal 1-form", ""),
+    # every border flux given (PyDEC's example pins one pressure instead): p only up to a constant
+    (['+app.fields.u.dirichlet={flux: ["-K*(pi*cos(pi*x)*sin(pi*y) + z)", "-K*pi*sin(pi*x)*cos(pi*y)", "-K*x"]}',
+      'app.equations=["solve(u - K*codifferential(p) = 0, d(u) = f)", "velocity = flux_field(u)", "pressure = star(p)"]'],
+     "app.equations[0]: the block system of u, p is singular: p is determined only up to a constant",
+     "drop app.fields.u.dirichlet"),
     (["app.plots.flow.arrows=pressure"], "app.plots.flow.arrows: 'pressure' is a dual 0-form, but a plot's arrows "
      "is a vector field", "`app.plots.flow.arrows=velocity`"),
 ]
 
 
-@pytest.mark.parametrize("overrides, starts, contains", BAD, ids=["degrees", "count", "kinds", "plots"])
+@pytest.mark.parametrize("overrides, starts, contains", BAD, ids=["degrees", "count", "kinds", "kernel", "plots"])
 def test_bad_systems_are_one_line_naming_the_key_before_any_work(overrides, starts, contains):
     with pytest.raises(DecrunError) as refused:
         prepare(compose_config(["app=darcy", *overrides]))

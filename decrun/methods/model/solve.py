@@ -161,6 +161,21 @@ class BlockSystem(LinearSystem):
         super().factorize()
 
 
+    def solve(self, b: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
+        """x with ``x[fixed] = fixed_values``; the residual of the free rows is checked, so a
+        nearly singular block matrix is refused rather than giving a quiet wrong answer."""
+        x = super().solve(b, fixed_values)
+        rhs = self.sign * np.asarray(b, dtype=np.float64)
+        residual = (self.A_full @ x - rhs)[self.free]
+        size = abs(self.A_full).max() * np.abs(x).max() + np.abs(rhs[self.free]).max(initial=0.0)
+        if size > 0 and np.abs(residual).max() > 1e-8 * size:
+            raise ModelError(f"{self.where}: the solution of the block system of {', '.join(self.unknowns)} leaves a "
+                             f"relative residual {np.abs(residual).max() / size:.2g}: the matrix is singular or too "
+                             "ill-conditioned for this mesh (an unknown no equation determines?); check the "
+                             "equations and their border values, or try `solver=direct`")
+        return x
+
+
 class UnsymmetricSystem(ModelError):
     """A solver that needs SPD matrices was handed an unsymmetric one."""
 

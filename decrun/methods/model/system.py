@@ -687,8 +687,36 @@ def _compile_system(equation: Equation, model: CompiledModel, new_solver: Callab
             values.append(fixed_values)
     fixed_index = np.concatenate(fixed).astype(np.int64) if fixed else np.zeros(0, dtype=np.int64)
     system = BlockSystem(matrix, new_solver, fixed_index, where=where, unknowns=tuple(unknowns))
+    _refuse_constant_kernel(system, unknowns, kinds, offsets, K, where,
+                            [f"{model.spec.key}.fields.{name}.dirichlet" for name in unknowns if name in model.fixed])
     return SystemSolve(equation, tuple(unknowns), system, rows, offsets,
                        np.concatenate(values) if values else None)
+
+
+def _refuse_constant_kernel(system: BlockSystem, unknowns, kinds, offsets, K, where: str, fixed: list) -> None:
+    """Before any work: an unknown determined only up to a constant — the block matrix (its free
+    rows and columns) maps the constant of one unknown to zero, e.g. a pressure when every border
+    flux is fixed (``fields.u.dirichlet``) and no border value enters — is refused; a factorization
+    of a singular matrix would give a quiet wrong answer. The constant of a 0-form or dual 0-form
+    is 1 everywhere; of a top form, the integral of the density 1 over each top simplex."""
+    A = system.A_full[system.free][:, system.free]
+    scale = abs(A).max() if A.nnz else 0.0
+    for j, (name, kind) in enumerate(zip(unknowns, kinds)):
+        if kind.is_form and kind.degree == K.dim and not kind.dual:
+            constant = K.top_volumes
+        elif kind.is_form and kind.simplex_dimension(K.dim) in (0, K.dim):
+            constant = np.ones(kind.size(K))
+        else:
+            continue
+        full = np.zeros(system.A_full.shape[0])
+        full[offsets[j]:offsets[j + 1]] = constant
+        vector = full[system.free]
+        if scale and np.abs(A @ vector).max() <= 1e-10 * scale * np.abs(vector).max():
+            given = f"drop {' and '.join(fixed)} and " if fixed else ""
+            raise ModelError(f"{where}: the block system of {', '.join(unknowns)} is singular: {name} is determined "
+                             "only up to a constant (no border value fixes it, as when every border flux is given); "
+                             f"{given}let border values of {name} enter the weak form (a term border(q), as in "
+                             "app=darcy)")
 
 
 def _weak_row(compiler: Compiler, rhs: Node, rest: list, star, degree, size: int, where: str) -> Callable:

@@ -1,5 +1,5 @@
 """Regenerate the gallery: one figure (or a pair to compare) per thesis-figure experiment
-(conf/experiment/fig*.yaml).
+(conf/experiment/fig*.yaml) and per model experiment that has one (darcy_convergence).
 
     python scripts/gallery.py [--out docs] [--only fig5_8_t_hole ...]
 
@@ -86,6 +86,12 @@ GALLERY = {
     "fig7_17_viscosity": ("Fig. 7.17 — the channel flow at 2800 faces without and with viscosity.", [
         (["app.viscosity=0.0"], "vorticity", ["stable", "enstrophy_final"]),
         (["app.viscosity=0.08"], "vorticity", ["stable", "enstrophy_final"]),
+    ]),
+    "darcy_convergence": ("Darcy flow in mixed form with Whitney forms (`app=darcy`): the pressure "
+                          "p = sin(πx) sin(πy) + x z in colour and the velocity u = −∇p (the Raviart–Thomas field "
+                          "of the discrete fluxes) as arrows, on the square and inside the tetrahedral box.", [
+        (["mesh=darcy/square_2"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual"]),
+        (["mesh=darcy/box_2"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual"]),
     ]),
 }
 

@@ -199,7 +199,8 @@ def values_and_arrows(K, values: np.ndarray, vectors: np.ndarray, *, title: str 
     """A scalar field in colour with a vector field's arrows over it (a model's ``plots``: Darcy's
     pressure and velocity). ``values``: per vertex (n0,) or per top simplex (n_n,); ``vectors``
     (n_n, d): one per top simplex, drawn at its barycentre with length ∝ |X| (the 95th percentile
-    of |X| is 0.9 mean edge lengths), at most ``max_arrows`` of them (a seeded subset). Triangle
+    of |X| is 0.9 mean edge lengths), at most ``max_arrows`` of them (300 inside a volume; a seeded
+    subset). Triangle
     meshes: the surface coloured (from above when planar); tetrahedral meshes: the border
     triangles, translucent, coloured by the value of the tetrahedron under each (or the vertex
     values), with arrows inside."""
@@ -226,6 +227,8 @@ def values_and_arrows(K, values: np.ndarray, vectors: np.ndarray, *, title: str 
     magnitude = np.linalg.norm(vectors, axis=1)
     top = float(np.percentile(magnitude, 95)) if magnitude.size else 0.0
     chosen = np.flatnonzero(magnitude > 0)
+    if n == 3:  # arrows inside a volume hide each other: fewer of them
+        max_arrows = min(max_arrows, 300)
     if chosen.size > max_arrows:
         chosen = np.sort(np.random.default_rng(seed).choice(chosen, max_arrows, replace=False))
     if chosen.size and top > 0:

@@ -1,10 +1,12 @@
 """``app=<model>``: a declarative DEC model — the physics written in YAML.
 
 A model is a config of the ``app`` group whose ``_target_`` is :class:`Model`; its options are
-the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual3`` — an ``initial``
-value and optional ``dirichlet`` border values), ``constants``, ``equations`` (evolutions
-``dt(u) = …``, definitions ``v = …``, linear solves ``solve(lhs = rhs)``), an ``integrator`` with
-``dt`` and ``t_end`` (or ``steps``), ``record_every`` and ``metrics`` (numbers, by name).
+the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual3``, or ``n``,
+``n-1`` … relative to the mesh dimension — an ``initial`` value and optional ``dirichlet`` border
+values), ``constants``, ``equations`` (evolutions ``dt(u) = …``, definitions ``v = …``, linear
+solves ``solve(lhs = rhs)`` and systems ``solve(l1 = r1, l2 = r2)``), an ``integrator`` with
+``dt`` and ``t_end`` (or ``steps``), ``record_every``, ``metrics`` (numbers, by name) and
+``plots`` (:class:`PlotOptions`: a value in colour with a vector field's arrows).
 
 A model may be composed of ``parts`` (:class:`PartOptions`: fields, equations, metrics) that
 share fields by name; they are merged with the model's own declarations by

@@ -6,7 +6,8 @@ and returns a :class:`CompiledModel`:
 
 1. every equation is parsed (:mod:`~decrun.methods.model.language`) and classified — evolution
    ``dt(u) = …``, definition ``v = …``, solve ``solve(lhs = rhs)`` whose unknown is the one
-   declared field of its left side that nothing else computes;
+   declared field of its left side that nothing else computes, system ``solve(l1 = r1, l2 = r2,
+   …)`` with as many unknowns as equations (one block matrix, :func:`_compile_system`);
 2. definitions and solves are ordered by what they read (a cycle is refused, naming it) and
    typed in that order; every term is type-checked (:class:`~decrun.methods.model.compiler.Compiler`);
 3. each solve's left side is split into a constant sparse matrix (factorized once) and terms

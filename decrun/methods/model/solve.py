@@ -167,7 +167,9 @@ class BlockSystem(LinearSystem):
         x = super().solve(b, fixed_values)
         rhs = self.sign * np.asarray(b, dtype=np.float64)
         residual = (self.A_full @ x - rhs)[self.free]
-        size = abs(self.A_full).max() * np.abs(x).max() + np.abs(rhs[self.free]).max(initial=0.0)
+        if getattr(self, "_largest", None) is None:
+            self._largest = abs(self.A_full).max() if self.A_full.nnz else 0.0
+        size = self._largest * np.abs(x).max() + np.abs(rhs[self.free]).max(initial=0.0)
         if size > 0 and np.abs(residual).max() > 1e-8 * size:
             raise ModelError(f"{self.where}: the solution of the block system of {', '.join(self.unknowns)} leaves a "
                              f"relative residual {np.abs(residual).max() / size:.2g}: the matrix is singular or too "

@@ -161,6 +161,29 @@ def test_flux_initial_values_and_flux_field_agree_with_a_vector_field(mesh):
     assert done.result.metrics["stokes"] < 1e-13
 
 
+@pytest.mark.parametrize("star", ["mixed_area", "whitney"])
+def test_a_system_is_any_linear_equations_in_as_many_unknowns(star):
+    """Not Darcy-specific: two 0-forms, a = Δb with b = x y given by the second equation — rows
+    matched to the unknowns by kind, the Laplacian's ⋆0⁻¹ turned into the weak row ⋆0 a − S b = 0
+    (with Whitney's Galerkin ⋆0 too) — equal to the language's laplacian(x*y); and an algebraic
+    pair a + b = 3x, a − b = x solved exactly."""
+    from decrun.core.dec import DEC
+    from decrun.core.solvers import solver_factory
+    from decrun.methods.model import FieldSpec, ModelSpec, compile_model
+    from meshes_for_tests import complex_of
+
+    dec = DEC(complex_of("icosphere", subdiv=2), star=star)
+    spec = ModelSpec(fields={"a": FieldSpec(0), "b": FieldSpec(0), "c": FieldSpec(0), "e": FieldSpec(0)},
+                     equations=["solve(b = x*y, a - laplacian(b) = 0)", "solve(c + e = 3*x, c - e = x)",
+                                "reference = laplacian(x*y)"])
+    model = compile_model(spec, dec, solver_factory("direct"))
+    env = model.environment({}, 0.0)
+    assert np.abs(env["a"] - env["reference"]).max() < 1e-10 * np.abs(env["reference"]).max()
+    assert np.abs(env["b"] - env["x"] * env["y"]).max() < 1e-14
+    assert np.abs(env["c"] - 2 * env["x"]).max() < 1e-14 and np.abs(env["e"] - env["x"]).max() < 1e-14
+    assert "system a : primal 0-form, b : primal 0-form" in "\n".join(model.resolved())
+
+
 def test_the_block_system_is_factorized_once():
     done = run(*SQUARE)
     model = done.experiment.app.compiled(done.dec)
@@ -232,7 +255,10 @@ BAD = [
     # the second equation's left side is a dual 0-form (star(d(u))) where p is a primal top form
     (['app.equations=["solve(u - K*codifferential(p) = -K*border(pb), star(d(u)) = star(f))"]'],
      "app.equations[0]: the system's equations (u - K * codifferential(p) : primal 1-form, star(d(u)) : dual "
-     "0-form) do not match its unknowns (u : primal 1-form, p : primal 2-form)", "d(u) = f"),
+     "0-form) do not match its unknowns (u : primal 1-form, p : primal 2-form)", "one more left side should be a "
+     "primal 2-form"),
+    (['app.equations=["solve(u - K*codifferential(p) = -K*border(pb), d(u) = f + p)"]'],
+     "app.equations[0]: the right side f + p reads the unknown p; move the terms of the unknowns to the left side", ""),
     (['app.equations=["solve(u - K*codifferential(p) = -K*border(pb), d(u) = f, d(u) = 2*f)"]'],
      "app.equations[0]: the system has 3 equations but its left sides read 2 undetermined field(s)", "app.fields"),
     (['app.equations=["solve(u - K*codifferential(p) = -K*border(pb), d(u) = f*u)"]'], "app.equations[0]: f * u "
@@ -247,7 +273,7 @@ BAD = [
 ]
 
 
-@pytest.mark.parametrize("overrides, starts, contains", BAD, ids=["degrees", "count", "kinds", "kernel", "plots"])
+@pytest.mark.parametrize("overrides, starts, contains", BAD, ids=["degrees", "rhs", "count", "kinds", "kernel", "plots"])
 def test_bad_systems_are_one_line_naming_the_key_before_any_work(overrides, starts, contains):
     with pytest.raises(DecrunError) as refused:
         prepare(compose_config(["app=darcy", *overrides]))

@@ -20,6 +20,7 @@ and solve once, in order, into one dict of values that the equations and metrics
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -630,14 +631,18 @@ def _compile_system(equation: Equation, model: CompiledModel, new_solver: Callab
     if sorted(map(str, row_kinds)) != sorted(map(str, kinds)):
         rows = ", ".join(f"{to_text(lhs)} : {kind}" for (lhs, _), kind in zip(equation.pairs, row_kinds))
         wanted = ", ".join(f"{name} : {kind}" for name, kind in zip(unknowns, kinds))
-        missing = [str(kind) for kind in kinds if str(kind) not in map(str, row_kinds)]
+        missing = list((Counter(map(str, kinds)) - Counter(map(str, row_kinds))).elements())
         raise ModelError(f"{where}: the system's equations ({rows}) do not match its unknowns ({wanted}): each unknown "
-                         f"needs one equation of its kind, and no left side is a {missing[0] if missing else kinds[0]}; "
+                         f"needs one equation of its kind, and one more left side should be a {missing[0]}; "
                          "write that equation in its unknown's kind (e.g. d(u) = f for a top-form pressure)")
     sizes = [kind.size(K) for kind in kinds]
     offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     grid, rows = [], []
     for (lhs, rhs), row_kind in zip(equation.pairs, row_kinds):
+        if compiler.depends_on(rhs, set(unknowns)):
+            read = sorted(compiler.reads(rhs) & set(unknowns))
+            raise ModelError(f"{where}: the right side {to_text(rhs)} reads the unknown {read[0]}; move the terms of "
+                             "the unknowns to the left side")
         blocks, rest = compiler.split(lhs, set(unknowns))
         for sign, term in rest:
             if compiler.depends_on(term, set(unknowns)):

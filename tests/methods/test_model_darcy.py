@@ -200,6 +200,32 @@ def test_the_block_system_is_factorized_once():
     assert item.system.solver is solver and np.array_equal(first["p"], second["p"])
 
 
+def test_a_block_system_that_is_not_solved_is_refused_not_returned():
+    """A singular block matrix is refused when it is factorized; a solver whose answer does not
+    solve the system (here one that returns zeros) is refused by the backward-error check."""
+    from decrun.core.solvers import solver_factory
+    from decrun.methods.model.solve import BlockSystem
+
+    singular = BlockSystem(sp.csr_matrix(np.array([[1.0, 1.0], [1.0, 1.0]])), solver_factory("direct"),
+                           where="app.equations[0]", unknowns=("a", "b"))
+    with pytest.raises(ModelError, match=r"^app.equations\[0\]: the block system of a, b could not be factorized"):
+        singular.solve(np.array([1.0, 2.0]))
+
+    class Zeros:
+        name, needs_spd = "zeros", False
+
+        def factorize(self, matrix):
+            self.size = matrix.shape[0]
+
+        def solve(self, b):
+            return np.zeros(self.size)
+
+    wrong = BlockSystem(sp.csr_matrix(np.array([[0.0, 1.0], [1.0, 0.0]])), Zeros, where="app.equations[0]",
+                        unknowns=("a", "b"))
+    with pytest.raises(ModelError, match="is not one"):
+        wrong.solve(np.array([1.0, 2.0]))
+
+
 # ---------------------------------------------------------------------------------------------- convergence
 @pytest.mark.parametrize("meshes", [[["mesh=grid", f"mesh.nx={n}", f"mesh.ny={n}"] for n in (9, 17, 33)],
                                     [["mesh=box", f"mesh.cells={c}"] for c in (2, 4, 8)]], ids=["square", "box"])

@@ -136,6 +136,8 @@ class BlockSystem(LinearSystem):
 
     where: str = "app.equations"
     unknowns: tuple = ()
+    #: the largest |entry| of the matrix, for the residual check (read at the first solve)
+    largest: float | None = field(default=None, init=False, repr=False)
 
     def factorize(self) -> None:
         """Factorize once; refuse an SPD-only solver for a matrix that cannot be SPD."""
@@ -154,27 +156,30 @@ class BlockSystem(LinearSystem):
                 solver.factorize(matrix)
             except Exception as error:  # noqa: BLE001 - say which equation could not be factorized
                 raise ModelError(f"{self.where}: the block system of {', '.join(self.unknowns)} could not be "
-                                 f"factorized ({str(error).splitlines()[0]}); a pressure with no border value is "
-                                 "defined up to a constant: give natural border values (border(q)) or fix "
-                                 "values (fields.<name>.dirichlet)") from None
+                                 f"factorized ({str(error).splitlines()[0]}); is an unknown determined only up to a "
+                                 "constant? check the equations and their border values, or use `solver=direct`"
+                                 ) from None
             self.solver = solver
         super().factorize()
 
-
     def solve(self, b: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
-        """x with ``x[fixed] = fixed_values``; the residual of the free rows is checked, so a
-        nearly singular block matrix is refused rather than giving a quiet wrong answer."""
+        """x with ``x[fixed] = fixed_values``. The backward error of the free rows,
+        max|A x − b| / (max|A| max|x| + max|b|), is checked (≤ 1e-8), and x must be finite: a
+        solver that did not converge or a singular factorization is refused, not returned. (A
+        backward-stable solve of a nearly singular matrix passes this check: the unknowns that the
+        equations leave free are refused before, when the system is compiled.)"""
         x = super().solve(b, fixed_values)
         rhs = self.sign * np.asarray(b, dtype=np.float64)
         residual = (self.A_full @ x - rhs)[self.free]
-        if getattr(self, "_largest", None) is None:
-            self._largest = abs(self.A_full).max() if self.A_full.nnz else 0.0
-        size = self._largest * np.abs(x).max() + np.abs(rhs[self.free]).max(initial=0.0)
-        if size > 0 and np.abs(residual).max() > 1e-8 * size:
-            raise ModelError(f"{self.where}: the solution of the block system of {', '.join(self.unknowns)} leaves a "
-                             f"relative residual {np.abs(residual).max() / size:.2g}: the matrix is singular or too "
-                             "ill-conditioned for this mesh (an unknown no equation determines?); check the "
-                             "equations and their border values, or try `solver=direct`")
+        if self.largest is None:
+            self.largest = abs(self.A_full).max() if self.A_full.nnz else 0.0
+        size = self.largest * np.abs(x).max() + np.abs(rhs[self.free]).max(initial=0.0)
+        if not (np.all(np.isfinite(x)) and np.abs(residual).max(initial=0.0) <= 1e-8 * size):
+            error = np.abs(residual).max(initial=0.0) / size if size > 0 and np.isfinite(size) else float("nan")
+            raise ModelError(f"{self.where}: the solution of the block system of {', '.join(self.unknowns)} is not "
+                             f"one (backward error {error:.2g}, or values not finite): the solver did not converge "
+                             "or the matrix is singular; check the equations and their border values, or use "
+                             "`solver=direct`")
         return x
 
 

@@ -243,6 +243,40 @@ def test_pressure_and_flux_errors_fall_at_least_as_h_over_three_refinements(mesh
     assert np.all(orders(pressure) > floor) and np.all(orders(flux) > floor), (orders(pressure), orders(flux))
 
 
+def docs_table() -> dict[str, list[float]]:
+    """The convergence table of docs/models.md's Darcy section: mesh config → [h, pressure error,
+    relative, order, flux error, relative, order] (orders NaN on the first row)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "models.md").read_text(encoding="utf-8")
+    section = text[text.index("## Darcy flow (mixed Whitney forms)"):]
+    section = section[: section.index("\n## ", 10)]
+    rows = [line for line in section.splitlines() if line.startswith(("| square, ", "| box, "))]
+    names = [f"darcy/{domain}_{level}" for domain in ("square", "box") for level in (1, 2, 3)]
+    assert len(rows) == len(names), rows
+    table = {}
+    for name, row in zip(names, rows):
+        cells = [cell.strip() for cell in row.strip("|").split("|")]
+        table[name] = [float("nan") if cell == "–" else float(cell) for cell in cells[3:10]]
+    return table
+
+
+@pytest.mark.parametrize("mesh", ["darcy/square_1", "darcy/square_2", "darcy/square_3", "darcy/box_1",
+                                  "darcy/box_2", pytest.param("darcy/box_3", marks=pytest.mark.slow)])
+def test_the_documented_convergence_table_is_what_the_runs_give(mesh):
+    """Each row of docs/models.md's table (the sweep +experiment=darcy_convergence) against a run;
+    and its orders: at least O(h), as required (measured: about h² on the square)."""
+    done = run(f"mesh={mesh}")
+    h, pressure, pressure_rel, pressure_order, flux, flux_rel, flux_order = docs_table()[mesh]
+    metrics = done.result.metrics
+    assert done.dec.K.mean_edge_length == pytest.approx(h, abs=6e-5)
+    for documented, name in ((pressure, "pressure_l2_error"), (pressure_rel, "pressure_l2_error_rel"),
+                             (flux, "flux_l2_error"), (flux_rel, "flux_l2_error_rel")):
+        assert metrics[name] == pytest.approx(documented, rel=1e-3), name
+    if not np.isnan(pressure_order):
+        assert pressure_order > 1.5 and flux_order > 1.5
+
+
 # ---------------------------------------------------------------------------------------------- the command
 def test_darcy_on_the_tetrahedral_box_through_the_command(tmp_path):
     proc = decrun("app=darcy", "mesh=box", "mesh.cells=3", "progress=false", "hydra.run.dir=run", cwd=tmp_path)

@@ -17,10 +17,14 @@ The parts arrive already composed into this node by Hydra: a part is a config fi
 part an ordinary config — found on ``hydra.searchpath`` like any model (a user's own
 ``my_conf/app/parts/``), listed with a ``did you mean`` when it does not exist, shown by
 ``--cfg job`` and recorded with the run — and this adapter never opens a file. A part file
-puts its constants in the model's ``constants`` (one value per name, so
-``app.constants.A=1e-17`` overrides and ``-m`` sweeps a part's constant, no ``+``) and its
-fields, equations and metrics under ``parts.<its name>``, where each part keeps its own and a
-clash can name both.
+puts its fields, equations, metrics, requirements and its constants' defaults under
+``parts.<its name>``, where each part keeps its own and a clash can name both, and takes each
+default into the model's ``constants`` by an interpolation (``A: ${..parts.glen_law.constants.A}``:
+one value per name, so ``app.constants.A=1e-17`` overrides and ``-m`` sweeps a part's constant,
+no ``+``). Two parts' different defaults for one constant are refused unless the model sets it
+(:meth:`Model.check_node`, on the unresolved node where the interpolation names its part); the
+``require`` lists of the model and its parts are checked on the constants before any mesh work
+(:mod:`decrun.methods.model.require`).
 Everything about the language — parsing, types, operators, integrators — is
 :mod:`decrun.methods.model`; this adapter checks the model against the mesh before any work
 (types, initial values, the explicit stability limit), steps it through
@@ -44,6 +48,7 @@ from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.parts import PartSpec, compose_parts
+from decrun.methods.model.require import check_requirements, parse_requirement
 from decrun.methods.model.stepper import ModelStepper
 from decrun.methods.stepping import run_steps
 
@@ -96,6 +101,30 @@ class PartOptions:
     fields: Dict[str, FieldOptions] = field(default_factory=dict)
     equations: List[str] = field(default_factory=list)
     metrics: Dict[str, str] = field(default_factory=dict)
+    #: the part's defaults of the constants it reads; the model's ``constants`` take them over
+    #: (``A: ${..parts.glen_law.constants.A}`` in the part file, so ``app.constants.A=…`` overrides)
+    constants: Dict[str, float] = field(default_factory=dict)
+    #: what the part requires of the constants, e.g. ``"A > 0"`` (:mod:`decrun.methods.model.require`)
+    require: List[str] = field(default_factory=list)
+
+
+def _part_constants(parts: dict, set_by_model, key: str) -> tuple[dict[str, float], dict[str, str]]:
+    """The parts' default constants merged — ``(name → value, name → the part it came from)`` —
+    refusing a constant two parts give different defaults unless ``set_by_model(name)``: then
+    the model's value wins and neither default is used."""
+    defaults: dict[str, float] = {}
+    owners: dict[str, str] = {}
+    for name, part in parts.items():
+        constants = part.get("constants") if isinstance(part, dict) else getattr(part, "constants", None)
+        for constant, value in (constants or {}).items():
+            if constant in defaults and defaults[constant] != value and not set_by_model(constant):
+                raise ConfigError(f"{key}.parts: constant {constant} is {defaults[constant]!r} in part "
+                                  f"{owners[constant]} and {value!r} in part {name}; a constant has one default: "
+                                  f"set it in the model (the model's value wins), e.g. "
+                                  f"`{key}.constants.{constant}={defaults[constant]!r}`")
+            defaults.setdefault(constant, value)
+            owners.setdefault(constant, name)
+    return defaults, owners
 
 
 @dataclass
@@ -129,6 +158,32 @@ class Model(App):
     parts: Dict[str, PartOptions] = field(default_factory=dict)
     #: extra figures: name → a value in colour with a vector field's arrows (PlotOptions)
     plots: Dict[str, PlotOptions] = field(default_factory=dict)
+    #: what the model requires of its constants and dt, e.g. ``"Du > 0"``, checked before any
+    #: mesh work (:mod:`decrun.methods.model.require`)
+    require: List[str] = field(default_factory=list)
+
+    @classmethod
+    def check_node(cls, node, key: str) -> None:
+        """On the unresolved config node: a constant two parts give different defaults is
+        refused unless the model sets it — in its own file or on the command line, not through
+        a part's interpolation ``${..parts.<part>.constants.<name>}`` (Hydra merges the parts'
+        ``constants`` silently, last wins; here the provenance is still visible)."""
+        from omegaconf import DictConfig, OmegaConf
+
+        constants = node.get("constants") if isinstance(node, DictConfig) else None
+        parts = node.get("parts") if isinstance(node, DictConfig) else None
+        if not parts:
+            return
+
+        def set_by_model(name: str) -> bool:
+            return constants is not None and name in constants and not OmegaConf.is_interpolation(constants, name)
+
+        plain = {}
+        for name, part in parts.items():
+            given = part.get("constants") if isinstance(part, DictConfig) else None
+            plain[name] = {"constants": OmegaConf.to_container(given, resolve=True) if isinstance(given, DictConfig)
+                           else {}}
+        _part_constants(plain, set_by_model, key)
 
     def __post_init__(self):
         self.integrator = Integrator.of(self.integrator, "app.integrator")
@@ -154,6 +209,17 @@ class Model(App):
             for field_name, options in part.fields.items():
                 if isinstance(options, dict):
                     part.fields[field_name] = FieldOptions(**options)
+        defaults, owners = _part_constants(self.parts, lambda name: name in self.constants, "app")
+        for name, value in defaults.items():  # a Python caller's parts: their defaults become the model's
+            self.constants.setdefault(name, value)
+        requirements = [parse_requirement(text, f"app.require[{i}]") for i, text in enumerate(self.require)]
+        for name, part in self.parts.items():
+            requirements += [parse_requirement(text, f"app.parts.{name}.require[{i}]")
+                             for i, text in enumerate(part.require)]
+        for name, value in self.constants.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"app.constants.{name}: must be a finite number, got {value!r}")
+        check_requirements(requirements, {**self.constants, "dt": self.dt}, "app", owners, {"dt": "app.dt"})
         own = PartSpec(dict(self.fields), list(self.equations), dict(self.metrics))
         parts = {name: PartSpec(dict(part.fields), list(part.equations), dict(part.metrics))
                  for name, part in self.parts.items()}
@@ -303,15 +369,18 @@ class Model(App):
         if K.dim == 2:
             for name in shown:
                 figures[name] = Figure.of_kind("surface", values=np.asarray(env[name], dtype=np.float64),
-                                               title=f"{self.model}: {name} ({model.kinds[name]})", colorbar_label=name)
+                                               title=f"{self.model}: {name} ({model.kinds[name]})", colorbar_label=name,
+                                               cmap="auto")
         if model.evolved and K.dim == 2:
             first = model.evolved[0]
             if model.kinds[first].simplex_dimension(K.dim) in (0, K.dim):
+                # the whole range, coloured by sign: a model's field has no thin layers to wash out
                 figures[f"{first}_snapshots"] = Figure.of_kind("snapshots", name=first, count=int(self.snapshots),
-                                                               title=f"{self.model}: {first}", symmetric=False)
+                                                               title=f"{self.model}: {first}", cmap="auto",
+                                                               percentile=100.0)
                 if self.animation:
                     figures[f"{first}_animation"] = Figure.of_kind("animation", name=first, title=first,
-                                                                   symmetric=False)
+                                                                   cmap="auto", percentile=100.0)
             if self._composed.metrics:
                 figures["metrics"] = Figure.of_kind("recorded_series", names=list(self._composed.metrics),
                                                     title=self.model)

@@ -51,6 +51,12 @@ KERNELS: list = []
 
 _override: list[str] = []  # the modes :func:`use` set, innermost last
 
+#: called once per process, with the kernel's name, just before numba compiles a kernel its disk
+#: cache has no machine code for (the first run of an install, or after the source changed), so
+#: a caller can say why the first step waits; None: nothing is said (this layer prints nothing)
+compile_notice = None
+_noticed = False
+
 
 def check_mode(value: str, where: str = "app.kernels") -> str:
     """``value`` if it is one of :data:`MODES`, else a ConfigError naming ``where``."""
@@ -121,6 +127,7 @@ class _LazyKernel:
             if self.options.get("parallel"):
                 _threading_layer(numba)
             self.compiled = numba.njit(cache=True, **self.options)(self.function)
+            _announce_compile(self)
             for name, value in list(namespace.items()):
                 # a parallel kernel stays this object (its callers are Python's, through __call__'s lock)
                 if isinstance(value, _LazyKernel) and not value.options.get("parallel"):
@@ -168,6 +175,21 @@ class _LazyKernel:
             if cause is None:
                 raise
             raise cause from None
+
+
+def _announce_compile(kernel: _LazyKernel) -> None:
+    """:data:`compile_notice` (once per process) when ``kernel``'s disk cache holds no machine
+    code valid for its current source: numba is about to compile it on this call."""
+    global _noticed
+    if _noticed or compile_notice is None:
+        return
+    try:
+        cached = bool(kernel.compiled._cache._cache_file._load_index())  # numba's index: {} when absent or stale
+    except Exception:  # noqa: BLE001 — another numba's internals: say nothing rather than guess
+        return
+    if not cached:
+        _noticed = True
+        compile_notice(kernel.name)
 
 
 def _handler_exception(exc: SystemError) -> BaseException | None:

@@ -331,3 +331,53 @@ def test_import_decrun_changes_nothing_in_the_environment():
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == "unchanged"
 
+
+
+KERNEL_MODULE = """
+from decrun.core.jit import njit
+
+
+@njit
+def plus_one(x):
+    return x + 1
+"""
+
+
+def _load(path, name):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_kernel_that_must_be_compiled_is_announced_once_and_a_cached_one_is_not(tmp_path, monkeypatch):
+    """The first call of a kernel without machine code in numba's disk cache calls
+    ``jit.compile_notice`` with its name (once per process); the same kernel loaded again, now
+    cached beside its module, is not announced; without a notice nothing is said."""
+    path = tmp_path / "fresh_kernels.py"
+    path.write_text(KERNEL_MODULE)
+    said = []
+    monkeypatch.setattr(jit, "compile_notice", said.append)
+    monkeypatch.setattr(jit, "_noticed", False)
+    assert _load(path, "fresh_kernels").plus_one(1) == 2
+    assert said == ["fresh_kernels.plus_one"] and list((tmp_path / "__pycache__").glob("*.nbi"))
+    assert _load(path, "fresh_kernels").plus_one(2) == 3 and said == ["fresh_kernels.plus_one"]  # once
+    monkeypatch.setattr(jit, "_noticed", False)
+    assert _load(path, "fresh_kernels").plus_one(3) == 4 and said == ["fresh_kernels.plus_one"]  # cached
+    path.write_text(KERNEL_MODULE.replace("x + 1", "x + 10"))  # a changed source compiles again
+    assert _load(path, "fresh_kernels").plus_one(3) == 13 and said == ["fresh_kernels.plus_one"] * 2
+
+
+def test_a_run_says_in_its_log_that_it_compiles_once(caplog):
+    """The runner's notice (around every run's work): one log line saying that the kernels
+    compile, that it happens once, and how long it takes; restored after the run."""
+    from decrun.runner.run import compile_notice
+
+    before = jit.compile_notice
+    with caplog.at_level("INFO"), compile_notice():
+        jit.compile_notice("decrun.methods.fluid.compiled.backtrack_points")
+    assert jit.compile_notice is before
+    (line,) = [r.getMessage() for r in caplog.records if "compiling" in r.getMessage()]
+    assert "backtrack_points" in line and "once per install" in line and "10-150 s" in line

@@ -133,6 +133,13 @@ CASES = {
     "filled_holes_under_a_free_border": (["app=parametrization", "mesh=sphere_cap", "app.border=free",
                                           "app.holes=fill"], ["app.holes=auto"]),
     "parametrization_of_a_closed_mesh": (["app=parametrization", "mesh.noise=0"], ["mesh.hole_balls="]),
+    # a hole that removes nothing was silent (the parametrization ran on a closed mesh minus one cap)
+    # a run's result.h5 given to mesh=file got "unsupported file extension '.h5'" and a list of formats
+    "result_file_as_a_mesh_file": (["mesh=file", "mesh.path={result}", "app=spectrum"], ["mesh=result", "mesh.path="]),
+    "hole_ball_off_the_surface": (["app=parametrization", "mesh.noise=0", "mesh.subdiv=2",
+                                   "mesh.hole_balls=[[0,0,1,0.5],[0,0,3,0.5]]"], ["mesh.hole_balls="]),
+    "hole_box_off_the_surface": (["app=parametrization", "mesh=planar", "mesh.hole_boxes=[[3,3,4,4]]"],
+                                 ["mesh.hole_boxes="]),
     "up_axis_of_a_planar_mesh": (["mesh=planar", "mesh.up_axis=y", "app.steps=1"], ["mesh.up_axis=z"]),
     "file_mesh_at_1e-300": (["mesh=file", "mesh.path={tiny}"], ["mesh.normalize=true"]),
     "file_with_unreferenced_vertex": (["mesh=file", "mesh.path={unreferenced}", "app.steps=1"], ["mesh.repair=true"]),

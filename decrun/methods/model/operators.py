@@ -105,6 +105,9 @@ class Operator:
     kind: Callable[[list[Kind], int], Kind]
     evaluate: Callable  # (Discrete, kinds, *values) -> value
     linear: Optional[Callable] = None  # (Discrete, kind of the argument) -> Linear | None
+    #: (Discrete, kinds, first argument's value) -> the sparse matrix of the operator in its second
+    #: argument, for an operator linear in it once the first is fixed (lie of a static velocity)
+    fixed_first: Optional[Callable] = None
 
 
 def _one_form(args, n, name, allowed: Callable[[Kind], bool], takes: str) -> Kind:
@@ -293,6 +296,13 @@ def _lie_kind(args, n):
     if form.degree == 1 and n != 2:
         raise Mismatch("lie of a 1-form is defined on triangle meshes here (dimension 2)")
     return form
+
+
+def _lie_fixed_first(ops: "Discrete", kinds, field):
+    """The matrix of u ↦ L_X u on 0-forms for a fixed X (None on 1-forms: evaluated)."""
+    if kinds[1].degree != 0:
+        return None
+    return discrete.lie_0_matrix(ops.K, _as_vectors(ops, kinds[0], field))
 
 
 def _lie_evaluate(ops: "Discrete", kinds, field, form):
@@ -485,7 +495,7 @@ _register(Operator("interior", (2,), "vector (or 1-form), primal 1-form → dual
 _register(Operator("lie", (2,), "vector (or 1-form), primal 0- or 1-form → the same form",
                    "L_X u = X·∇u per top simplex, volume-averaged to the vertices (centred advection); on 1-forms "
                    "Cartan's L_X ω = i_X dω + d i_X ω",
-                   _lie_kind, _lie_evaluate))
+                   _lie_kind, _lie_evaluate, fixed_first=_lie_fixed_first))
 _register(Operator("norm", (1,), "vector → dual 0-form; form → number",
                    "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate))
 _register(Operator("integral", (1,), "0-form or n-form (primal or dual) → number",

@@ -73,6 +73,7 @@ class LinearSystem:
             keep[self.pinned] = False
             self.report.pieces = len(labels)
         self.free = np.flatnonzero(keep)
+        self.all_free = self.free.size == n  # no fixed value, nothing pinned: no condensation
         self.A_full = A
         self.A_free_fixed = A[self.free][:, self.fixed] if self.fixed.size else None
         self.solver = None  # factorized at the first solve, with the solver bound then
@@ -97,9 +98,15 @@ class LinearSystem:
             self.solver = solver
 
     def solve(self, b: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
-        """x (n,) with ``x[fixed] = fixed_values``; ``b`` (n,) the right-hand side."""
+        """x (n,) with ``x[fixed] = fixed_values``; ``b`` (n,) the right-hand side — or (n, m)
+        columns solved at once with ``fixed_values`` (k, m) (a system without a kernel)."""
         b = self.sign * np.asarray(b, dtype=np.float64)
-        x = np.zeros(self.A_full.shape[0])
+        if b.ndim == 2 and self.pieces is not None:
+            raise ValueError("LinearSystem.solve: several right-hand sides on a system with a kernel of constants")
+        if self.all_free:  # the plain solve, without copies in and out of the free rows
+            self.factorize()
+            return self.solver.solve(b)
+        x = np.zeros((self.A_full.shape[0],) + b.shape[1:])
         if self.pieces is not None:
             b = self._compatible(b)
         self.factorize()

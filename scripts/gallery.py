@@ -1,5 +1,6 @@
 """Regenerate the gallery: one figure (or a pair to compare) per thesis-figure experiment
-(conf/experiment/fig*.yaml), and one per shipped declarative model (conf/app/<model>.yaml).
+(conf/experiment/fig*.yaml) and per model experiment that has one (darcy_convergence), and one per
+shipped declarative model (conf/app/<model>.yaml).
 
     python scripts/gallery.py [--out docs] [--only fig5_8_t_hole model_halfar ...]
 
@@ -89,6 +90,12 @@ GALLERY = {
     "fig7_17_viscosity": ("Fig. 7.17 — the channel flow at 2800 faces without and with viscosity.", [
         (["app.viscosity=0.0"], "vorticity", ["stable", "enstrophy_final"]),
         (["app.viscosity=0.08"], "vorticity", ["stable", "enstrophy_final"]),
+    ]),
+    "darcy_convergence": ("Darcy flow in mixed form with Whitney forms (`app=darcy`): the pressure "
+                          "p = sin(πx) sin(πy) + x z in colour and the velocity u = −∇p (the Raviart–Thomas field "
+                          "of the discrete fluxes) as arrows, on the square and inside the tetrahedral box.", [
+        (["mesh=darcy/square_2"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual"]),
+        (["mesh=darcy/box_2"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual"]),
     ]),
 }
 
@@ -200,6 +207,12 @@ MODELS = {
     "model_halfar": ("`app=halfar` — the CISM v2.1 Halfar dome at 4 km after 200 years (semi-implicit): the "
                      "thickness error against Halfar's solution, largest at the margin.", [
         (["app=halfar"], "H_error", ["rms_error_m", "max_error_ice_m", "min_thickness_m", "grid_spacing_m"], None),
+    ]),
+    "model_darcy": ("`app=darcy` — Darcy flow in mixed form (flux u an `n-1` form, pressure p an `n` form, one "
+                    "block system) on the default square: the pressure in colour, the velocity (the Raviart–Thomas "
+                    "field of u) as arrows; the refinements on the square and the box are `darcy_convergence`.", [
+        (["app=darcy"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual", "n_vertices"],
+         None),
     ]),
 }
 

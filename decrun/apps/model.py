@@ -1,10 +1,12 @@
 """``app=<model>``: a declarative DEC model — the physics written in YAML.
 
 A model is a config of the ``app`` group whose ``_target_`` is :class:`Model`; its options are
-the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual3`` — an ``initial``
-value and optional ``dirichlet`` border values), ``constants``, ``equations`` (evolutions
-``dt(u) = …``, definitions ``v = …``, linear solves ``solve(lhs = rhs)``), an ``integrator`` with
-``dt`` and ``t_end`` (or ``steps``), ``record_every`` and ``metrics`` (numbers, by name).
+the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual3``, or ``n``,
+``n-1`` … relative to the mesh dimension — an ``initial`` value and optional ``dirichlet`` border
+values), ``constants``, ``equations`` (evolutions ``dt(u) = …``, definitions ``v = …``, linear
+solves ``solve(lhs = rhs)`` and systems ``solve(l1 = r1, l2 = r2)``), an ``integrator`` with
+``dt`` and ``t_end`` (or ``steps``), ``record_every``, ``metrics`` (numbers, by name) and
+``plots`` (:class:`PlotOptions`: a value in colour with a vector field's arrows).
 
 A model may be composed of ``parts`` (:class:`PartOptions`: fields, equations, metrics) that
 share fields by name; they are merged with the model's own declarations by
@@ -81,6 +83,16 @@ class FieldOptions:
 
 
 @dataclass
+class PlotOptions:
+    """``app.plots.<name>``: a figure ``<name>.png`` of the value ``color`` (a primal or dual
+    0-form: per vertex or per top simplex) in colour with the arrows of the vector field
+    ``arrows`` (e.g. ``flux_field(u)``, a definition) over it."""
+
+    color: str = ""
+    arrows: str = ""
+
+
+@dataclass
 class PartOptions:
     """``app.parts.<part>``: one part of a composed model (``conf/app/parts/<part>.yaml``; the
     module docstring): its ``fields`` (shared with the other parts by name), ``equations`` and
@@ -144,6 +156,8 @@ class Model(App):
     animation: bool = True
     #: the parts this model is composed of (name → PartOptions), merged with its own declarations
     parts: Dict[str, PartOptions] = field(default_factory=dict)
+    #: extra figures: name → a value in colour with a vector field's arrows (PlotOptions)
+    plots: Dict[str, PlotOptions] = field(default_factory=dict)
     #: what the model requires of its constants and dt, e.g. ``"Du > 0"``, checked before any
     #: mesh work (:mod:`decrun.methods.model.require`)
     require: List[str] = field(default_factory=list)
@@ -186,6 +200,9 @@ class Model(App):
         for name, options in self.fields.items():
             if isinstance(options, dict):  # Python callers
                 self.fields[name] = FieldOptions(**options)
+        for name, plot in self.plots.items():
+            if isinstance(plot, dict):  # Python callers
+                self.plots[name] = PlotOptions(**plot)
         for name, part in self.parts.items():
             if isinstance(part, dict):  # Python callers
                 part = self.parts[name] = PartOptions(**part)
@@ -248,6 +265,7 @@ class Model(App):
         coefficients frozen at the initial values)."""
         model = self.compiled(dec)
         model.check_compatibility()
+        self._check_plots(model)
         steps = self.total_steps()
         if not model.is_static:
             check_integrator(model, str(self.integrator), self.dt)
@@ -268,6 +286,24 @@ class Model(App):
                               f"2/λ_max for Euler, λ_max of {part}); use `app.dt={safe}` or "
                               f"`app.integrator={implicit}`")
         self._stability_limit = limit
+
+    def _check_plots(self, model) -> None:
+        """Every ``app.plots`` entry names a value to colour (a primal or dual 0-form) and a vector
+        field the model computes."""
+        for name, plot in self.plots.items():
+            for key, wanted in (("color", "a primal or dual 0-form (per vertex or per top simplex)"),
+                                ("arrows", "a vector field (e.g. a definition velocity = flux_field(u))")):
+                value = getattr(plot, key)
+                kind = model.kinds.get(value)
+                ok = kind is not None and (kind == VECTOR if key == "arrows" else
+                                           kind.is_form and kind.degree == 0)
+                if not ok:
+                    got = f"a {kind}" if kind is not None else "not a name of the model"
+                    names = sorted(n for n, k in model.kinds.items() if (k == VECTOR if key == "arrows" else
+                                   k.is_form and k.degree == 0) and n not in ("x", "y", "z"))
+                    hint = f"`app.plots.{name}.{key}={names[0]}`" if names else f"define {wanted} in app.equations"
+                    raise ConfigError(f"app.plots.{name}.{key}: {value!r} is {got}, but a plot's {key} is {wanted}; "
+                                      f"e.g. {hint}")
 
     #: the definitions (derived quantities) are fields too, their places known once compiled
     outputs_complete = False
@@ -348,4 +384,9 @@ class Model(App):
             if self._composed.metrics:
                 figures["metrics"] = Figure.of_kind("recorded_series", names=list(self._composed.metrics),
                                                     title=self.model)
+        for name, plot in self.plots.items():
+            figures[name] = Figure.of_kind("values_arrows", values=np.asarray(env[plot.color], dtype=np.float64),
+                                           vectors=np.asarray(env[plot.arrows], dtype=np.float64),
+                                           title=f"{self.model}: {plot.color}, arrows: {plot.arrows}",
+                                           colorbar_label=plot.color)
         return figures

@@ -125,6 +125,9 @@ APP_EXPECT = {  # the one claim of each app's default run
     and m["c_min"] < -0.9 and m["c_max"] > 0.9,
     # Klausmeier on the (too small for bands) default grid: it runs, the vegetation stays near n*
     "klausmeier": lambda m: m["stable"] and abs(m["n_mean"] - 1.3459) < 0.05,
+    # Darcy on the 16 × 16 square: d u = f to round-off, pressure and flux within 0.5 % (L2)
+    "darcy": lambda m: (m["divergence_residual"] < 1e-12 and m["pressure_l2_error_rel"] < 5e-3
+                        and m["flux_l2_error_rel"] < 5e-3),
 }
 
 
@@ -183,6 +186,9 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     "cahn_hilliard_coarsening": lambda m: m["stable"] and m["free_energy"] < 0.5 * 0.2517 and m["c_min"] < -0.9,
     # Klausmeier's bands on a slope: biomass peaks (n > 3) over bare soil, from 1 % noise
     "klausmeier_bands": lambda m: m["stable"] and m["n_max"] > 3 and m["n_std"] > 0.5,
+    # Darcy's convergence study, its single run the coarsest square (9 × 9): 1.4 % and 0.79 % off
+    "darcy_convergence": lambda m: (m["divergence_residual"] < 1e-12 and m["pressure_l2_error_rel"] < 0.02
+                                    and m["flux_l2_error_rel"] < 0.01),
 }
 
 

@@ -192,6 +192,10 @@ CASES = {
                                       ["mesh.vertices=mesh"]),
     "hodge_degree_two_on_a_surface": (["app=hodge", "mesh.subdiv=2", "mesh.noise=0", "app.degree=2"],
                                       ["app.degree=1"]),
+    # a model's saddle-point system (Darcy's mixed form) is indefinite: Cholesky cannot take it
+    "model_system_with_an_spd_solver": (["app=darcy", "solver=cholmod", "figures=false"], ["solver=direct"]),
+    "model_plot_arrows_not_a_vector_field": (["app=darcy", "app.plots.flow.arrows=pressure", "figures=false"],
+                                             ["app.plots.flow.arrows=velocity"]),
 }
 
 #: backticked overrides in the sources that no CLI run can reach, and why

@@ -166,6 +166,8 @@ class Compiler:
                 first = kinds[0] if kinds else NUMBER
                 if name in ("star", "inv_star") and first.is_form:
                     need(first.simplex_dimension(self.n), node)
+                elif name == "border":
+                    need(self.n - 1, node)
                 elif name == "codifferential":
                     need(first.degree, node)
                     need(first.degree - 1, node)

@@ -18,9 +18,9 @@ import scipy.sparse as sp
 
 from decrun.core.forms import barycentric_gradients
 
-__all__ = ["average_matrix", "cell_to_edge_matrix", "wedge_0k", "wedge_11", "sharp", "sharp_matrices", "flat_weights", "flat", "interior_1",
-           "vertex_average_matrix", "lie_0", "lie_0_matrix", "lie_1", "face_normals", "top_sign",
-           "gradients"]
+__all__ = ["average_matrix", "cell_to_edge_matrix", "wedge_0k", "wedge_11", "sharp", "sharp_matrices", "flat_weights",
+           "flat", "interior_1", "vertex_average_matrix", "lie_0", "lie_0_matrix", "lie_1", "face_normals", "top_sign",
+           "flux_field", "gradients"]
 
 
 def top_sign(K, k: int) -> np.ndarray | float:
@@ -119,6 +119,37 @@ def sharp_matrices(K) -> list[sp.csr_matrix]:
         return [sp.csr_matrix((weights[:, :, axis].ravel(), (rows, table.ravel())),
                               shape=(table.shape[0], K.num_simplices(1))) for axis in range(grad.shape[2])]
     return K.require(("model", "sharp_matrices"), compute)
+
+
+def flux_field(K, u: np.ndarray) -> np.ndarray:
+    """The vector field (n_n, d) whose flux form is the Whitney (n−1)-form of ``u`` (one value
+    per (n−1)-simplex: the flux through it), at the barycentre of each top simplex σ — the lowest
+    order Raviart–Thomas field X(x) = Σ_i o_i u_{f_i} (x − p_i) / (n |σ|) over the faces f_i of σ
+    (f_i opposite its vertex p_i, o_i = ±1 the incidence of f_i in σ's boundary, so o_i u_{f_i}
+    is the flux out of σ), whose flux through f_i is u_{f_i} and whose divergence is (d u)_σ/|σ|.
+    Constant fields are reproduced exactly. Orientation: σ as the complex orients it; on
+    tetrahedra a negatively oriented σ (det < 0) flips the sign, on triangles the oriented
+    triangle's normal is the surface's (as for ``{flux: […]}`` initial values)."""
+    n = K.dim
+    top = K.simplices(n)
+    corners = K.vertices[top]  # sorted rows: slot c of top_face_indices(n−1) omits local vertex n − c
+    volume = K.top_volumes
+    incidence = K.boundary(n).tocsc()  # (n_{n−1}, n_n), with the top simplices' orientation
+    faces = K.top_face_indices(n - 1)
+    centre = corners.mean(axis=1)
+    result = np.zeros((len(top), corners.shape[2]))
+    for slot in range(n + 1):  # n + 1 faces of each top simplex: a loop over slots, not simplices
+        opposite = n - slot
+        face = faces[:, slot]
+        sign = np.asarray(incidence[face, np.arange(len(top))]).ravel()
+        result += (sign * u[face])[:, None] * (centre - corners[:, opposite])
+    result /= (n * volume)[:, None]
+    if n == 3:
+        oriented = K.vertices[K.oriented_simplices()]
+        det = np.einsum("ij,ij->i", np.cross(oriented[:, 1] - oriented[:, 0], oriented[:, 2] - oriented[:, 0]),
+                        oriented[:, 3] - oriented[:, 0])
+        result *= np.sign(det)[:, None]
+    return result
 
 
 def flat_weights(K) -> tuple[np.ndarray, np.ndarray]:

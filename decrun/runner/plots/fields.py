@@ -8,7 +8,7 @@ import numpy as np
 from decrun.core.geometry import embed3, face_normals, is_planar, triangle_areas
 from decrun.runner.plots.common import new_figure, plot_surface
 
-__all__ = ["arrow_length", "draw_field", "draw_volume_field", "field_figure", "hodge_parts_figure"]
+__all__ = ["arrow_length", "draw_field", "draw_volume_field", "field_figure", "hodge_parts_figure", "values_and_arrows"]
 
 _VIEW = (25.0, -60.0)  # matplotlib elevation, azimuth (degrees)
 
@@ -241,3 +241,55 @@ def draw_volume_field(ax, K, tet_vectors: np.ndarray, *, max_arrows: int = 500, 
     ax.quiver(*(centers - 0.5 * direction).T, *direction.T, color="tab:orange", linewidth=0.6,
               arrow_length_ratio=0.3, zorder=4)
     ax.view_init(*view)
+
+
+def values_and_arrows(K, values: np.ndarray, vectors: np.ndarray, *, title: str | None = None,
+                      colorbar_label: str | None = None, max_arrows: int = 600, seed: int = 0, view=_VIEW):
+    """A scalar field in colour with a vector field's arrows over it (a model's ``plots``: Darcy's
+    pressure and velocity). ``values``: per vertex (n0,) or per top simplex (n_n,); ``vectors``
+    (n_n, d): one per top simplex, drawn at its barycentre with length ∝ |X| (the 95th percentile
+    of |X| is 0.9 mean edge lengths), at most ``max_arrows`` of them (300 inside a volume; a seeded
+    subset). Triangle
+    meshes: the surface coloured (from above when planar); tetrahedral meshes: the border
+    triangles, translucent, coloured by the value of the tetrahedron under each (or the vertex
+    values), with arrows inside."""
+    n = K.dim
+    vectors = np.asarray(vectors, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    planar = n == 2 and is_planar(K.vertices)
+    fig = new_figure(5.5, 5.0)
+    ax = fig.add_subplot(1, 1, 1, **({} if planar else {"projection": "3d"}))
+    if n == 3:
+        from decrun.runner.plots.spectrum import border_triangles
+
+        faces, owner = border_triangles(K)
+        shown = values[owner] if values.shape[0] == K.num_simplices(3) else values
+        mappable = plot_surface(ax, K.vertices, faces, shown, title=title, linewidth=0.05)
+        for collection in ax.collections:
+            collection.set_alpha(0.35)
+        centres = K.vertices[K.simplices(3)].mean(axis=1)
+    else:
+        faces = K.oriented_simplices()
+        mappable = plot_surface(ax, K.vertices if planar else embed3(K.vertices), faces, values, title=title,
+                                linewidth=0.05)
+        centres = (K.vertices if planar else embed3(K.vertices))[faces].mean(axis=1)
+    magnitude = np.linalg.norm(vectors, axis=1)
+    top = float(np.percentile(magnitude, 95)) if magnitude.size else 0.0
+    chosen = np.flatnonzero(magnitude > 0)
+    if n == 3:  # arrows inside a volume hide each other: fewer of them
+        max_arrows = min(max_arrows, 300)
+    if chosen.size > max_arrows:
+        chosen = np.sort(np.random.default_rng(seed).choice(chosen, max_arrows, replace=False))
+    if chosen.size and top > 0:
+        direction = vectors[chosen] / top * 0.9 * K.mean_edge_length
+        start = centres[chosen][:, : direction.shape[1]] - 0.5 * direction
+        if planar:
+            ax.quiver(start[:, 0], start[:, 1], direction[:, 0], direction[:, 1], angles="xy", scale_units="xy",
+                      scale=1.0, color="white", edgecolor="black", linewidth=0.3, width=0.004, headwidth=4, zorder=4)
+        else:
+            start3, direction3 = embed3(start), embed3(direction)
+            ax.quiver(*start3.T, *direction3.T, color="black", linewidth=0.6, arrow_length_ratio=0.3, zorder=4)
+            ax.view_init(*view)
+    if mappable is not None:
+        fig.colorbar(mappable, ax=ax, shrink=0.6, label=colorbar_label)
+    return fig

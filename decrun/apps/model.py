@@ -163,26 +163,27 @@ class Model(App):
     require: List[str] = field(default_factory=list)
 
     @classmethod
-    def check_node(cls, node, key: str) -> None:
-        """On the unresolved config node: a constant two parts give different defaults is
-        refused unless the model sets it — in its own file or on the command line, not through
-        a part's interpolation ``${..parts.<part>.constants.<name>}`` (Hydra merges the parts'
-        ``constants`` silently, last wins; here the provenance is still visible)."""
-        from omegaconf import DictConfig, OmegaConf
-
-        constants = node.get("constants") if isinstance(node, DictConfig) else None
-        parts = node.get("parts") if isinstance(node, DictConfig) else None
+    def check_node(cls, node: dict, key: str) -> None:
+        """On the unresolved config (plain containers, interpolations as their ``${…}`` text): a
+        constant two parts give different defaults is refused unless the model sets it — in its
+        own file or on the command line, not through a part's interpolation
+        ``${..parts.<part>.constants.<name>}`` (Hydra merges the parts' ``constants`` silently,
+        last wins; here the provenance is still visible)."""
+        constants = node.get("constants") if isinstance(node, dict) else None
+        parts = node.get("parts") if isinstance(node, dict) else None
         if not parts:
             return
 
+        def interpolated(value) -> bool:
+            return isinstance(value, str) and value.strip().startswith("${")
+
         def set_by_model(name: str) -> bool:
-            return constants is not None and name in constants and not OmegaConf.is_interpolation(constants, name)
+            return isinstance(constants, dict) and name in constants and not interpolated(constants[name])
 
         plain = {}
         for name, part in parts.items():
-            given = part.get("constants") if isinstance(part, DictConfig) else None
-            plain[name] = {"constants": OmegaConf.to_container(given, resolve=True) if isinstance(given, DictConfig)
-                           else {}}
+            given = part.get("constants") if isinstance(part, dict) else None
+            plain[name] = {"constants": dict(given) if isinstance(given, dict) else {}}
         _part_constants(plain, set_by_model, key)
 
     def __post_init__(self):

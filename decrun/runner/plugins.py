@@ -62,12 +62,14 @@ def target_class(node: Any, key: str, base: type) -> type:
 
 
 def check_node(cls: type, node: Any, key: str) -> None:
-    """The plugin class's checks of its unresolved config node (``cls.check_node(node, key)``,
+    """The plugin class's checks of its unresolved config node (``cls.check_node(values, key)``,
     if it has one): what resolution hides — which file or override a value came from, e.g.
-    whether a model set a constant or a part's interpolation did."""
+    whether a model set a constant or a part's interpolation did. ``values`` are plain Python
+    containers with the interpolations unresolved (their ``${…}`` text), so the plugin needs
+    no omegaconf."""
     check = getattr(cls, "check_node", None)
     if check is not None and isinstance(node, DictConfig):
-        check(node, key)
+        check(OmegaConf.to_container(node, resolve=False), key)
 
 
 def plain_values(node: Any) -> dict:

@@ -55,6 +55,7 @@ runner to call with which arrays — so apps stay free of matplotlib.
 
 from __future__ import annotations
 
+import re
 import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, ClassVar
@@ -73,9 +74,9 @@ __all__ = ["App", "Context", "Figure", "Result", "FieldOnEdges", "Output"]
 
 @dataclass
 class Figure:
-    """A figure to draw: ``draw`` is the dotted path of a function ``draw(K, **data) ->
-    matplotlib.figure.Figure`` (e.g. ``decrun.runner.plots.common.before_after``), ``data``
-    its arrays and options. The runner draws it (unless ``figures=false``) and saves
+    """A figure to draw: ``draw`` is a figure kind (``before_after``, ``snapshots`` …, see
+    :meth:`of_kind`) or the dotted path of a function ``draw(K, **data) ->
+    matplotlib.figure.Figure`` (a plugin's own drawing), ``data`` its arrays and options. The runner draws it (unless ``figures=false``) and saves
     ``<name>.png``; a function may instead write its own file (an animation) and return
     its path."""
 
@@ -85,7 +86,7 @@ class Figure:
     @classmethod
     def of_kind(cls, kind: str, **data) -> "Figure":
         """A figure named by its kind (``surface``, ``snapshots``, ``animation``, ``series`` …:
-        the table ``FIGURE_KINDS`` of :mod:`decrun.runner.plots`), so an app names no runner
+        the table ``FIGURE_KINDS`` of the runner's plots package), so an app names no runner
         module."""
         return cls(kind, data)
 
@@ -105,7 +106,7 @@ class Output:
     writes each field where it belongs.
 
     on : ``"0"`` … ``"3"`` one row per primal k-simplex (``"0"`` per vertex, ``"1"`` per
-        edge); ``"dual0"`` … ``"dual3"`` per dual k-cell, i.e. per primal (n−k)-simplex
+        edge; ``"n"``, ``"n-1"`` … relative to the mesh dimension n, as a model declares them); ``"dual0"`` … ``"dual3"`` per dual k-cell, i.e. per primal (n−k)-simplex
         (``"dual0"``: per top simplex — a face of a surface, a tetrahedron of a volume);
         ``"vertex_set"`` / ``"top_set"`` indices of vertices / top simplices (singularities,
         sources, strokes); ``"along:<name>"`` one row per entry of the index set ``<name>``;
@@ -127,6 +128,10 @@ class Output:
             return int(self.on)
         if self.on.startswith("dual") and self.on[4:].isdigit():
             return n - int(self.on[4:])
+        relative = re.fullmatch(r"(dual)?n(?:-([0-3]))?", self.on.replace(" ", ""))
+        if relative:  # a model's form relative to the mesh dimension: "n" (top), "n-1", "dualn-1" …
+            degree = n - int(relative.group(2) or 0)
+            return n - degree if relative.group(1) else degree
         return None
 
 

@@ -11,6 +11,7 @@ is ``loop``), so code and messages keep reading plain strings.
 from __future__ import annotations
 
 from enum import Enum
+from typing import Self
 
 from decrun.errors import ConfigError
 
@@ -32,7 +33,7 @@ class Choice(str, Enum):
         return [member.value for member in cls]
 
     @classmethod
-    def of(cls, value, key: str) -> "Choice":
+    def of(cls, value, key: str) -> Self:
         """``value`` as a member; ConfigError naming ``key`` and the choices otherwise."""
         try:
             return cls(value)

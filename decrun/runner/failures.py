@@ -119,6 +119,12 @@ class Stopped(SystemExit):
     ``decrun`` command exits with ``code`` as before; :func:`decrun.run` and :func:`decrun.sweep`,
     in the caller's process, raise ``message`` instead (:mod:`decrun.runner.api`)."""
 
+    #: the run failed on bad input (a config value, a mesh), not a full disk: its attempt leaves
+    #: nothing behind (set by :mod:`decrun.runner.run`)
+    refused: bool = False
+    #: the run directory :mod:`decrun.runner.run` removes once its lock is dropped, or None
+    leave_nothing: Path | None = None
+
     def __init__(self, message: str, code: int = 1):
         super().__init__(code)
         self.message = message

@@ -1,7 +1,9 @@
 """Lazy kernels: ``@njit`` makes a function a kernel compiled by ``numba.njit(cache=True,
 **options)`` on its first call (package docstring); a ``parallel=True`` kernel runs one
 parallel region at a time in the process, and its serial version in a child forked after
-parallel regions ran on GNU OpenMP (:mod:`.forks`)."""
+parallel regions ran on GNU OpenMP (:mod:`.forks`). A call marks numba started in the process
+(:func:`.switch.mark_started`); a kernel numba must compile is announced first
+(:func:`announce_compile`)."""
 
 from __future__ import annotations
 
@@ -10,9 +12,10 @@ from typing import Any, Callable
 
 from decrun.core.jit import forks
 from decrun.core.jit.signals import handler_exception
+from decrun.core.jit.switch import mark_started
 from decrun.core.jit.threads import threading_layer
 
-__all__ = ["njit", "prange", "KERNELS", "LazyKernel"]
+__all__ = ["njit", "prange", "KERNELS", "LazyKernel", "announce_compile"]
 
 #: ``for i in prange(n)`` in a kernel: numba's parallel loop once the kernel is compiled with
 #: ``parallel=True`` (the dispatcher swaps it in), the plain ``range`` everywhere else
@@ -21,6 +24,8 @@ prange = range
 #: every kernel made by :func:`njit`, in definition order (modules that were imported)
 KERNELS: list = []
 
+_noticed = False  # the package's compile_notice was called in this process (it is said once)
+
 
 class LazyKernel:
     """A Python function compiled with ``numba.njit(cache=True, **options)`` on its first call."""
@@ -28,7 +33,8 @@ class LazyKernel:
     def __init__(self, function: Callable, options: dict):
         self.function = function
         self.options = options
-        self.compiled = self.serial = None
+        self.compiled: Any = None  # numba dispatchers, made on the first call
+        self.serial: Any = None
         update_wrapper(self, function)
         KERNELS.append(self)
 
@@ -52,6 +58,7 @@ class LazyKernel:
             if self.options.get("parallel"):
                 threading_layer(numba)
             self.compiled = numba.njit(cache=True, **self.options)(self.function)
+            announce_compile(self)
             for name, value in list(namespace.items()):
                 # a parallel kernel stays this object (its callers are Python's, through __call__'s lock)
                 if isinstance(value, LazyKernel) and not value.options.get("parallel"):
@@ -91,13 +98,35 @@ class LazyKernel:
                 with forks.PARALLEL:  # one parallel region at a time in the process (see forks.PARALLEL)
                     result = self.dispatcher()(*args)
                 forks.state.parallel_ran = True
+                mark_started()
                 return result
-            return self.dispatcher()(*args)
+            result = self.dispatcher()(*args)
+            mark_started()
+            return result
         except SystemError as exc:
             cause = handler_exception(exc)
             if cause is None:
                 raise
             raise cause from None
+
+
+def announce_compile(kernel: LazyKernel) -> None:
+    """The package's :data:`decrun.core.jit.compile_notice` (once per process) when ``kernel``'s
+    disk cache holds no machine code valid for its current source: numba is about to compile it
+    on this call. The notice is read from the package, where callers set it."""
+    global _noticed
+    from decrun.core import jit  # the package (initialised by now): its compile_notice is the setting
+
+    notice = jit.compile_notice
+    if _noticed or notice is None:
+        return
+    try:
+        cached = bool(kernel.compiled._cache._cache_file._load_index())  # numba's index: {} when absent or stale
+    except Exception:  # noqa: BLE001 — another numba's internals: say nothing rather than guess
+        return
+    if not cached:
+        _noticed = True
+        notice(kernel.name)
 
 
 def njit(function: Callable | None = None, **options: Any) -> Any:

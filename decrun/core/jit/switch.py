@@ -1,6 +1,8 @@
 """The kernel switch: ``auto`` | ``numba`` | ``numpy``, from ``app.kernels`` (:func:`use`) or
 ``DECRUN_NUMBA`` (:func:`mode`), and whether a kernel runs for an input of a given size
-(:func:`enabled`; the package docstring says how the three words are read)."""
+(:func:`enabled`; the package docstring says how the three words are read). Under ``auto`` the
+answer also depends on the process: whether a kernel ran in it (:func:`started`, numba's
+one-time start paid) and how much numpy work ``auto`` kept from the kernels so far."""
 
 from __future__ import annotations
 
@@ -10,10 +12,23 @@ from typing import Iterator
 
 from decrun.errors import ConfigError
 
-__all__ = ["MIN_SIZE", "MODES", "check_mode", "mode", "use", "enabled"]
+__all__ = ["MIN_SIZE", "WARM_MIN_SIZE", "AMORTIZE_SIZE", "MODES", "check_mode", "mode", "use", "enabled",
+           "started", "mark_started"]
 
 #: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
-MIN_SIZE = 500_000
+#: in a process where numba has not started: a triangle mesh's largest input is its 3·m edge
+#: slots, and one build of its complex and operators saves numba's start from ~1M triangles on
+#: (``benchmarks/bench_operators.py``, docs/performance.md)
+MIN_SIZE = 3_000_000
+
+#: under ``auto``, once a kernel ran in this process, inputs from this many items on take the kernels
+WARM_MIN_SIZE = 10_000
+
+#: under ``auto``, the items of numpy work (inputs of at least :data:`WARM_MIN_SIZE` items) after
+#: which a process starts numba: a triangle mesh's complex and operators (d0, d1, ⋆0–⋆2) pass
+#: 15.5·m items through :func:`enabled`, so 20M items ≈ 1.3M triangles of builds, whose saving
+#: with the kernels is about what numba's start costs (docs/performance.md)
+AMORTIZE_SIZE = 20_000_000
 
 #: the switch's values
 MODES = ("auto", "numba", "numpy")
@@ -21,6 +36,8 @@ MODES = ("auto", "numba", "numpy")
 _ENV = {"": "auto", "auto": "auto", "numba": "numba", "1": "numba", "numpy": "numpy", "0": "numpy"}
 
 _override: list[str] = []  # the modes :func:`use` set, innermost last
+_started = False  # a kernel ran in this process: numba's one-time start is paid
+_numpy_items = 0  # items auto sent to the numpy twins (inputs of >= WARM_MIN_SIZE items) before the start
 
 
 def check_mode(value: str, where: str = "app.kernels") -> str:
@@ -55,8 +72,29 @@ def use(value: str) -> Iterator[None]:
 def enabled(size: int | None = None, min_size: int = MIN_SIZE, kernels: str = "auto") -> bool:
     """Whether to run the kernel for an input of ``size`` items (None: any size): ``kernels``
     (a caller's own setting) unless ``auto``, else :func:`mode`; under ``auto`` from ``min_size``
-    items on."""
+    items on, from ``min(min_size, WARM_MIN_SIZE)`` once a kernel ran in this process, and at
+    any size from :data:`WARM_MIN_SIZE` on once the numpy work refused so far reaches
+    :data:`AMORTIZE_SIZE` items."""
+    global _numpy_items
     setting = check_mode(kernels, "kernels") if kernels != "auto" else mode()
     if setting != "auto":
         return setting == "numba"
-    return size is None or size >= min_size
+    if size is None or size >= min_size:
+        return True
+    if _started:
+        return size >= WARM_MIN_SIZE
+    if size >= WARM_MIN_SIZE:
+        _numpy_items += size
+        return _numpy_items >= AMORTIZE_SIZE
+    return False
+
+
+def started() -> bool:
+    """Whether a kernel ran in this process (numba imported and started: later kernels are cheap)."""
+    return _started
+
+
+def mark_started() -> None:
+    """A kernel ran in this process (:class:`.kernels.LazyKernel` after each call): :func:`started`."""
+    global _started
+    _started = True

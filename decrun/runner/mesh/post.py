@@ -1,7 +1,8 @@
 """Post-processing steps of the mesh sources (``mesh.post``): one function per step.
 
-Each step is ``step(mesh, source) -> Mesh``, reads its options from the source
-(:class:`decrun.runner.mesh.source.MeshSource` fields) and returns the mesh unchanged (the same
+Each step is ``step(mesh, cfg) -> Mesh``, reads its options from the typed source ``cfg`` (a
+:class:`decrun.runner.mesh.source.MeshSource`: every option there, with its one default, already
+validated) and returns the mesh unchanged (the same
 object) unless its option enables it. ``mesh.post`` lists the names of these functions in
 the order they run; adding a step is adding a function here (and its option field to
 ``MeshSource``).
@@ -15,13 +16,14 @@ import numpy as np
 
 from decrun.core.connectivity import component_labels, drop_unreferenced
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
-from decrun.errors import MeshError
+from decrun.errors import ConfigError, MeshError
 from decrun.runner.mesh.base import (
     MAX_TRIANGLES,
     HoleCut,
     HolePieces,
     Mesh,
     Refine,
+    UpAxis,
     bounding_diagonal,
     from_meshset,
     require,
@@ -29,9 +31,10 @@ from decrun.runner.mesh.base import (
     require_triangles,
     to_meshset,
 )
+from decrun.runner.mesh.cut import ON_TOLERANCE, parse_regions, signed_distance
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
-from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
+from decrun.runner.mesh.repair import repair_mesh, up_axis_to_z
 
 __all__ = ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise"]
 
@@ -72,12 +75,11 @@ def up_axis(mesh: Mesh, cfg) -> Mesh:
 
 
 def resolved_up_axis(mesh: Mesh, cfg) -> str:
-    """``cfg.up_axis`` with ``auto`` resolved (the sample's up axis, else ``z``)."""
-    axis = str(getattr(cfg, "up_axis", "z"))
-    if axis == "auto":
-        axis = UP_AXIS.get(str(getattr(cfg, "sample", "")), "z") if mesh.meta.get("source") == "sample" else "z"
-    require(axis in ROTATION_TO_Z_UP, "up_axis", f"must be auto or one of {sorted(ROTATION_TO_Z_UP)}, got {axis!r}")
-    return axis
+    """``cfg.up_axis`` (an :class:`~decrun.runner.mesh.base.UpAxis`) as a key of
+    :data:`~decrun.runner.mesh.repair.ROTATION_TO_Z_UP`, ``auto`` resolved by the source
+    (:meth:`~decrun.runner.mesh.source.MeshSource.auto_up_axis`: a sample's own, else ``z``)."""
+    axis = UpAxis.of(cfg.up_axis, "mesh.up_axis").value
+    return cfg.auto_up_axis() if axis == UpAxis.auto.value else axis
 
 
 def holes(mesh: Mesh, cfg) -> Mesh:
@@ -90,11 +92,11 @@ def holes(mesh: Mesh, cfg) -> Mesh:
     sawtooth borders of the earlier experiments). Records ``meta['holes']`` (the cut's counts)
     and carries ``meta['clean_vertices']`` onto the cut mesh.
     """
-    balls = list(getattr(cfg, "hole_balls", None) or [])
-    boxes = list(getattr(cfg, "hole_boxes", None) or [])
+    balls, boxes = list(cfg.hole_balls), list(cfg.hole_boxes)
     if not balls and not boxes:
         return mesh
-    method = HoleCut.of(getattr(cfg, "hole_cut", HoleCut.split), "mesh.hole_cut")
+    method = cfg.hole_cut
+    require_each_region_cuts(mesh, balls, boxes, method)
     meta = dict(mesh.meta)
     if method == HoleCut.whole_triangles:
         vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes,
@@ -104,14 +106,14 @@ def holes(mesh: Mesh, cfg) -> Mesh:
         meta["holes"] = {"removed_faces": int(len(mesh.simplices) - len(faces))}
     else:
         vertices, faces, info = split_along_holes(mesh.vertices, mesh.simplices, balls, boxes,
-                                                  snap=float(getattr(cfg, "hole_snap", 0.25)), keep_all_pieces=True)
+                                                  snap=float(cfg.hole_snap), keep_all_pieces=True)
         if "clean_vertices" in meta:
             meta["clean_vertices"] = info["interpolation"] @ np.asarray(meta["clean_vertices"])
         meta["holes"] = {k: v for k, v in info.items() if np.isscalar(v)}
         meta["hole_border_vertices"] = int(np.sum(info["on_border"]))
     meta["holes_removed_faces"] = int(meta["holes"]["removed_faces"])
     cut = type(mesh)(vertices, faces, meta)
-    if HolePieces.of(getattr(cfg, "hole_pieces", HolePieces.largest), "mesh.hole_pieces") == HolePieces.all:
+    if cfg.hole_pieces == HolePieces.all:
         return cut
     kept = keep_largest_piece(cut, "holes", "edges", "mesh.hole_balls/hole_boxes: the cut",
                               "`mesh.hole_pieces=all` keeps every piece")
@@ -120,6 +122,52 @@ def holes(mesh: Mesh, cfg) -> Mesh:
         kept.meta["hole_border_vertices"] = int(np.sum(info["on_border"][used]))
     kept.meta["holes"]["dropped_piece_faces"] = kept.meta["holes_dropped_faces"]
     return kept
+
+
+def _compact(values) -> str:
+    """``[a,b,c]`` without spaces (an override in a hint is typed as one word), 6 digits."""
+    return "[" + ",".join(f"{float(v):.6g}" for v in values) + "]"
+
+
+def require_each_region_cuts(mesh: Mesh, balls: list, boxes: list, method: str) -> None:
+    """ConfigError naming ``mesh.hole_balls[k]`` / ``mesh.hole_boxes[k]`` for the first region
+    that would remove nothing from ``mesh`` on its own — no vertex strictly inside it (the
+    ``split`` cut keeps every triangle whose corners are outside or on its border) or, for
+    ``whole_triangles``, no triangle centroid inside — instead of a hole that silently is not
+    there. The hint is the same list with that region grown to reach the nearest vertex by
+    one mean edge length h̄ (the radius; a box's corners), so the region cuts at least it."""
+    V = np.asarray(mesh.vertices, dtype=np.float64)
+    dim = V.shape[1]
+    ball_rows, box_rows = parse_regions(balls, boxes, dim)
+    points = V[mesh.simplices].mean(axis=1) if method == HoleCut.whole_triangles else V
+    h = float(mean_edge_length(V, mesh.simplices))
+    tau = ON_TOLERANCE * h
+    empty = np.zeros((0, 2 * dim))
+    for k, ball in enumerate(ball_rows):
+        phi, _ = signed_distance(points, ball[None], empty)
+        if np.any(phi < -tau if method == HoleCut.split else phi <= 0):
+            continue
+        nearest = int(np.argmin(phi))
+        reach = float(np.linalg.norm(points[nearest] - ball[:dim])) + h
+        radius = float(f"{reach:.2g}") if float(f"{reach:.2g}") >= reach else float(f"{reach * 1.05:.2g}")
+        fixed = [list(map(float, b)) for b in ball_rows]
+        fixed[k][dim] = radius
+        what = "triangle centroid" if method == HoleCut.whole_triangles else "vertex"
+        raise ConfigError(f"mesh.hole_balls[{k}]: {_compact(ball)} removes nothing: no {what} of the mesh lies inside "
+                          f"it (the nearest is {phi[nearest] + ball[dim]:.3g} from its centre, radius "
+                          f"{ball[dim]:.3g}); move its centre onto the surface or grow it, e.g. "
+                          f"`mesh.hole_balls=[{','.join(_compact(b) for b in fixed)}]`")
+    for k, box in enumerate(box_rows):
+        phi, _ = signed_distance(points, np.zeros((0, dim + 1)), box[None])
+        if np.any(phi < -tau if method == HoleCut.split else phi <= 0):
+            continue
+        nearest = points[int(np.argmin(phi))]
+        lo, hi = np.minimum(box[:dim], nearest - h), np.maximum(box[dim:], nearest + h)
+        fixed = [list(map(float, b)) for b in box_rows]
+        fixed[k] = [float(v) for v in np.concatenate([lo, hi])]
+        raise ConfigError(f"mesh.hole_boxes[{k}]: {_compact(box)} removes nothing: nothing of the mesh lies inside it "
+                          f"(the nearest point is {float(phi.min()):.3g} outside); move it onto the surface or grow "
+                          f"it, e.g. `mesh.hole_boxes=[{','.join(_compact(b) for b in fixed)}]`")
 
 
 def keep_largest_piece(mesh: Mesh, step: str, through: str, what: str, fix: str) -> Mesh:
@@ -171,7 +219,7 @@ def largest_component(mesh: Mesh, cfg) -> Mesh:
     top simplices go to the run log and to ``meta`` (``largest_component_components``,
     ``largest_component_dropped_vertices``, ``largest_component_dropped_faces``;
     :func:`keep_largest_piece`)."""
-    if not getattr(cfg, "largest_component", False):
+    if not cfg.largest_component:
         return mesh
     kept = keep_largest_piece(mesh, "largest_component", "vertices", "mesh.largest_component: the mesh",
                               "`mesh.largest_component=false` keeps every piece")
@@ -184,7 +232,7 @@ def refine(mesh: Mesh, cfg) -> Mesh:
     ``refine_iterations`` times. Drops ``clean_vertices`` (the connectivity changed)."""
     import pymeshlab
 
-    if Refine.of(cfg.refine, "mesh.refine") == Refine.none:
+    if cfg.refine == Refine.none:
         return mesh
     require(1 <= cfg.refine_iterations <= 10, "refine_iterations", f"must be in 1..10, got {cfg.refine_iterations}")
     require_surface(mesh, f"mesh.refine={cfg.refine}", "mesh.refine=none")

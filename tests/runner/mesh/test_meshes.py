@@ -49,6 +49,31 @@ def test_torus_and_grid_geometry():
     np.testing.assert_allclose(np.ptp(g.vertices, axis=0), [2.0, 3.0, 0.0], atol=1e-6)
 
 
+@pytest.mark.parametrize("nx, ny, width, height", [(5, 4, 2.0, 3.0), (31, 51, 60000.0, 100000.0), (16, 26, 60000.0, 100000.0)])
+def test_the_grid_is_centred_on_the_origin_with_pymeshlabs_triangulation(nx, ny, width, height):
+    """The grid is a lattice of spacing width/(nx−1) × height/(ny−1) whose bounding box is centred
+    on the origin (with odd nx, ny a vertex is the origin: the Halfar benchmark's dome centre).
+    pymeshlab's create_grid(center=True), whose triangulation and vertex order it keeps, is off
+    centre by (−width/(2nx), height/(2ny))."""
+    import pymeshlab
+
+    g = mesh(source="grid", nx=nx, ny=ny, width=width, height=height)
+    V = g.vertices
+    np.testing.assert_array_equal(V.min(axis=0) + V.max(axis=0), 0.0)
+    xs, ys = np.unique(V[:, 0]), np.unique(V[:, 1])
+    np.testing.assert_allclose(xs, np.linspace(-width / 2, width / 2, nx), rtol=0, atol=1e-12 * width)
+    np.testing.assert_allclose(ys, np.linspace(-height / 2, height / 2, ny), rtol=0, atol=1e-12 * height)
+    if nx % 2 and ny % 2:
+        assert np.any(np.all(V == 0.0, axis=1))
+    ms = pymeshlab.MeshSet()
+    ms.create_grid(numvertx=nx, numverty=ny, absscalex=width, absscaley=height, center=True)
+    theirs = ms.current_mesh()
+    np.testing.assert_array_equal(g.faces, theirs.face_matrix())
+    offset = theirs.vertex_matrix() - V
+    np.testing.assert_allclose(offset, np.broadcast_to([-width / (2 * nx), height / (2 * ny), 0.0], V.shape),
+                               rtol=0, atol=1e-6 * max(width, height))
+
+
 def test_planar_domain_area_quality_and_holes():
     hole = [[0.3, 0.3], [0.6, 0.3], [0.6, 0.6], [0.3, 0.6]]
     m = mesh(source="planar", holes=[hole], min_angle_deg=28.0, max_area=0.004)
@@ -263,6 +288,23 @@ def test_samples_are_repaired_cleaned_and_turned_z_up_by_default_files_are_not(t
 def test_up_axis_on_a_planar_mesh_is_an_error_naming_the_fix():
     with pytest.raises(ConfigError, match="`mesh.up_axis=z`"):
         mesh(source="planar", up_axis="y")
+
+
+def test_up_axis_is_one_of_its_choices_checked_when_the_source_is_made_and_negative_axes_rotate():
+    """mesh.up_axis is a closed choice (UpAxis): an unknown axis is refused before any mesh is
+    built, naming every choice and the override; ``-y`` (no Python name) is the rotation of
+    up_axis_to_z, and ``auto`` on a source that is not a sample is ``z`` (nothing turned)."""
+    from decrun.runner.mesh.repair import up_axis_to_z
+
+    with pytest.raises(ConfigError, match=r"^mesh.up_axis: must be one of auto \| x \| y \| z \| -x \| -y \| -z, "
+                                          r"got 'w' \(e.g. mesh.up_axis=auto\)$"):
+        mesh(source="icosphere", subdiv=1, up_axis="w")
+    raw = mesh(source="icosphere", subdiv=1, up_axis="auto", noise=0.0)
+    assert "up_axis" not in raw.meta
+    turned = mesh(source="icosphere", subdiv=1, up_axis="-y", noise=0.0)
+    assert turned.meta["up_axis"] == "-y" and type(turned.meta["up_axis"]) is str
+    np.testing.assert_array_equal(turned.vertices, up_axis_to_z(raw.vertices, "-y"))
+    assert np.allclose(up_axis_to_z(np.array([[0.0, -1.0, 0.0]]), "-y"), [[0.0, 0.0, 1.0]])
 
 
 @pytest.mark.parametrize("name, sample", [("bunny", "bunny10k_textured"), ("cow", "cow")])

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from decrun.errors import DecrunError
+from decrun.runner.files import RunFiles
 
 __all__ = ["Quantity", "View", "plan_view", "edge_order", "show", "main"]
 
@@ -137,7 +138,7 @@ class View:
 def _run_file(path: Path) -> Path:
     """``result.h5`` of a run directory, or ``path`` itself when it names the file (or its journal)."""
     if path.is_dir():
-        return path / "result.h5"
+        return RunFiles(path).result
     if path.name.endswith(".partial"):
         return path.with_name(path.name[: -len(".partial")])
     return path

@@ -58,7 +58,8 @@ def main() -> None:
     dec = DEC(SimplicialComplex(mesh.vertices, mesh.faces))
     common = dict(dt=0.005, viscosity=0.02, inflow_velocity=(10.0, 0.0), obstacle_loops=mesh.obstacle_loops)
     cases = {"thesis (wshd07, trapezoid) [anchor]": dict(velocity="wshd07", circulation="trapezoid"),
-             "default (swept_bounded)": {}}
+             "default (swept_bounded)": {},
+             "default, intervals=per_point": dict(intervals="per_point")}
     for value in args.swept_cfl:
         cases[f"default, swept_cfl={value:g}"] = dict(swept_cfl=value)
     sims = {name: VorticityFluid(dec, DirectSolver, **common, **options) for name, options in cases.items()}

@@ -6,8 +6,9 @@ The channel: inflow 10 units/s, one circular obstacle, ν = 0.02, dt = 0.005. Th
 CFL number of any circumcenter (``swept_cfl`` edge lengths per interval); every point walks all k
 intervals. The benchmark also prints how many intervals each point would need by itself
 (ceil(CFL_p / swept_cfl)) — the mean against k is the walk a per-point interval count could save —
-and, with ``--swept-cfl``, runs the default scheme at other ``swept_cfl`` values (fewer intervals)
-to bound that saving from above.
+the default scheme with ``intervals="per_point"`` (each point walks only the intervals it needs),
+and, with ``--swept-cfl``, the default scheme at other ``swept_cfl`` values (fewer intervals for
+every point).
 
 The cases run interleaved (rounds of ``--steps`` steps each, in turn), so the machine's load
 affects them alike; the ratio to the anchor is the number to compare. CPU time of the process

@@ -151,12 +151,16 @@ for _faces in ("1400", "2800"):
         RUNS[f"fig7_15_{_faces}_{_dt.replace('.', '_')}"] = Run(
             ("+experiment=fig7_15_density_and_time_step", f"mesh.target_faces={_faces}", f"app.dt={_dt}"),
             {**_FLUID, **_SHADOW}, slow=(_faces, _dt) != ("1400", "0.005"))
-for _faces in ("1400", "2800"):
-    for _dt in ("0.0025", "0.005", "0.0075"):
-        RUNS[f"fig7_15_former_{_faces}_{_dt.replace('.', '_')}"] = Run(
-            ("+experiment=fig7_15_density_and_time_step", f"mesh.target_faces={_faces}", f"app.dt={_dt}",
-             "app.velocity=wshd07", "app.circulation=corrected_trapezoid"),
-            {**_FLUID, **_SHADOW}, slow=True)
+#: the channel of decrun's first scheme where it is chaotic (flagged) or borderline: what a chaotic
+#: run ends with is round-off amplified, so its numbers are held to 10 % (the growth to 30 %)
+_CHAOTIC = {"enstrophy": N("enstrophy_final", ".0f", rtol=0.1), "energy_ratio": N("energy_ratio", ".3f", rtol=0.1),
+            "stable": N("stable"), "faces": N("n_faces"), "steps": N("steps_done"),
+            "growth": N("perturbation_growth_per_s", ".1f", rtol=0.3, atol=2.0),
+            "growth_step": N("perturbation_growth_per_step", ".3f", rtol=0.3, atol=0.01)}
+for _faces, _dt in (("1400", "0.0075"), ("2800", "0.005"), ("2800", "0.0075")):
+    RUNS[f"fig7_15_former_{_faces}_{_dt.replace('.', '_')}"] = Run(
+        ("+experiment=fig7_15_density_and_time_step", f"mesh.target_faces={_faces}", f"app.dt={_dt}",
+         "app.velocity=wshd07", "app.circulation=corrected_trapezoid"), dict(_CHAOTIC), slow=True)
 for _nu in ("0.0", "0.005", "0.02", "0.08"):
     RUNS[f"fig7_17_{_nu.replace('.', '_')}"] = Run(
         ("+experiment=fig7_17_viscosity", f"app.viscosity={_nu}", "app.shadow=true"),

@@ -177,11 +177,12 @@ def _gallery():
     return module
 
 
-#: gallery entries whose runs take minutes (the fine fluid channels): checked with -m slow
+#: gallery entries whose runs take minutes (the finer fluid channels): checked with -m slow
 SLOW_GALLERY = {"fig7_15_density_and_time_step__1"}
 #: runs that compose the same config as another run of the table (tests/test_numbers.py checks
 #: that they do): their numbers are taken from that run's metrics, which is run once
-ALIASES = {"gallery_fig7_15_density_and_time_step__0": "fig7_15_1400_0_005"}
+ALIASES = {"gallery_fig7_15_density_and_time_step__0": "fig7_15_1400_0_005",
+           "gallery_fig7_15_density_and_time_step__1": "fig7_15_2800_0_005"}
 
 
 def gallery_runs() -> dict[str, Run]:

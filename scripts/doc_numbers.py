@@ -71,7 +71,7 @@ RUNS: dict[str, Run] = {
         "normal": N("normal_deviation_to_clean_deg", ".1f"),
         "dt": N("dt", ".4f"),
         "dt_critical": N("dt_critical_explicit", ".5f"),
-        "volume_drift": N("volume_drift_rel", ".0e", rtol=0.0, atol=1e-14),
+        "volume_drift": N("volume_drift_rel", ".1g", rtol=0.0, atol=1e-14),
     }),
     "smoothing_default_subdiv2": Run(("mesh.subdiv=2",), {"dt_critical": N("dt_critical_explicit", ".4f")}),
     "smoothing_torus": Run(("mesh=torus", "mesh.noise=0.2", "app.dt_factor=0.3", "app.steps=3"), {

@@ -70,7 +70,7 @@ def site(tmp_path_factory) -> Path:
     pytest.importorskip("mkdocs", reason='pip install -e ".[docs]"')
     out = tmp_path_factory.mktemp("site")
     done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(out)],
-                          cwd=ROOT, capture_output=True, text=True, timeout=900,
+                          cwd=ROOT, capture_output=True, text=True, timeout=1800,
                           env={**__import__("os").environ, "NO_MKDOCS_2_WARNING": "1", "PYTHONPATH": str(ROOT)})
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-5000:]
     return out

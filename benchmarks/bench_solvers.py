@@ -7,8 +7,12 @@ Systems on an icosphere (mixed-area ⋆0, circumcentric ⋆1; S = d0ᵀ ⋆1 d0,
 * ``poisson``: S + ε M, the shifted singular Poisson problem of the Hodge decomposition
   (:class:`decrun.core.solvers.SingularSolve`, ε = 1e-10 relative).
 
-Solvers: ``direct`` (SuperLU, COLAMD — its configured default), ``cholmod`` (CHOLMOD via the
-cholespy wheel), ``pardiso`` (MKL PARDISO via pypardiso, mtype 11 as configured). Each case
+Solvers: ``direct`` (SuperLU, COLAMD — its configured default), ``auto`` (the default: CHOLMOD
+through the fastest binding installed), ``cholmod:sksparse`` (scikit-sparse, CHOLMOD's
+supernodal factorization), ``cholmod:cholespy`` (the cholespy wheel, which fixes CHOLMOD's
+simplicial factorization), ``pardiso`` (MKL PARDISO via pypardiso, mtype 11 as configured), and
+the anchor ``scikit-sparse``: ``sksparse.cholmod.cholesky`` called directly, which decrun's
+``auto`` is measured against (the last column, factorization CPU seconds). Each case
 runs in its own process; factor and solve (one right-hand side) seconds are the best of
 ``--repeat`` (wall clock, and the factorization's CPU seconds over all threads: PARDISO and
 CHOLMOD may use several cores), and the relative residual checks the answer.
@@ -16,7 +20,7 @@ CHOLMOD may use several cores), and the relative residual checks the answer.
     python benchmarks/bench_solvers.py            # 164k and 655k vertices
     python benchmarks/bench_solvers.py --quick    # 10k and 41k vertices
 
-``--iterative`` instead runs the cases of issue 25 item 5 through the real CLI, each with
+``--iterative`` instead runs three slow-to-converge cases through the real CLI, each with
 ``solver=direct`` and ``solver=iterative`` in its own process, and prints the apps' solve
 seconds, their iterative/direct ratio (the goal: ≤ 10) and the largest difference of the
 result fields (relative to the largest field of the same shape) except those defined only
@@ -37,7 +41,7 @@ from harness import icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E4
 
 SIZES = {"quick": [5, 6], "full": [7, 8]}  # icosphere subdivisions: 10·4^s + 2 vertices
 SYSTEMS = ["smoothing", "diffusion", "poisson"]
-SOLVERS = ["direct", "cholmod", "pardiso"]
+SOLVERS = ["direct", "auto", "cholmod:sksparse", "cholmod:cholespy", "pardiso", "scikit-sparse"]
 
 
 def system(kind: str, size: int):
@@ -65,8 +69,10 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     A = system(kind, size)
     b = A @ np.random.default_rng(0).standard_normal(A.shape[0])
     factor = solve = factor_cpu = np.inf
+    name, _, backend = library.partition(":")
     for _ in range(repeat):
-        solver = make_solver(library)
+        solver = _Anchor() if library == "scikit-sparse" else \
+            make_solver(name, backend=backend) if backend else make_solver(name)
         start, start_cpu = time.perf_counter(), time.process_time()
         solver.factorize(A)
         factor, factor_cpu = min(factor, time.perf_counter() - start), min(factor_cpu, time.process_time() - start_cpu)
@@ -77,7 +83,21 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     return {"factor": factor, "factor_cpu": factor_cpu, "solve": solve, "residual": residual, "n": A.shape[0]}
 
 
-#: issue 25 item 5: the cases where solver=iterative was 100–200× slower than direct
+class _Anchor:
+    """scikit-sparse's CHOLMOD called directly (supernodal, its default ordering): the anchor."""
+
+    def factorize(self, A):
+        import scipy.sparse as sp
+        from sksparse.cholmod import cholesky
+
+        self.factor = cholesky(sp.csc_matrix(A), mode="supernodal")
+        return self
+
+    def solve(self, b):
+        return self.factor(b)
+
+
+#: the cases where solver=iterative was 100–200× slower than direct
 ITERATIVE_CASES = {
     "hodge torus circumcentric noisy": ["app=hodge", "mesh=torus", "mesh.noise=0.05", "operator=circumcentric"],
     "hodge bunny circumcentric": ["app=hodge", "mesh=bunny", "operator=circumcentric"],
@@ -131,21 +151,26 @@ def main(argv=None) -> int:
     args = parse_or_run_case(__doc__, run_case, argv)
     if args is None:
         return 0
-    print("| system | vertices | solver | factor s | factor CPU s | solve s | relative residual | factor vs direct |")
-    print("|---|---:|---|---:|---:|---:|---:|---:|")
+    import os
+
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print("| system | vertices | solver | factor s | factor CPU s | solve s | relative residual | factor vs direct |"
+          " factor CPU vs scikit-sparse |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
     for size in SIZES["quick" if args.quick else "full"]:
         for kind in SYSTEMS:
-            reference = None
+            rows = {}
             for library in SOLVERS:
                 try:
-                    row = spawn(__file__, library, kind, size, args.repeat)
+                    rows[library] = spawn(__file__, library, kind, size, args.repeat)
                 except Exception as exc:  # a solver that is not installed or fails: say so
-                    print(f"| {kind} | – | {library} | failed: {str(exc).splitlines()[0][:60]} | | | | |", flush=True)
-                    continue
-                reference = reference or row["factor"]
+                    print(f"| {kind} | – | {library} | failed: {str(exc).splitlines()[0][:60]} | | | | | |", flush=True)
+            reference, anchor = rows.get("direct"), rows.get("scikit-sparse")
+            for library, row in rows.items():
+                versus = f"{row['factor'] / reference['factor']:.2f}" if reference else "–"
+                cpu = f"{row['factor_cpu'] / anchor['factor_cpu']:.2f}" if anchor else "–"
                 print(f"| {kind} | {row['n']:,} | {library} | {row['factor']:.3f} | {row['factor_cpu']:.3f} |"
-                      f" {row['solve']:.4f} |"
-                      f" {row['residual']:.1e} | {row['factor'] / reference:.2f} |", flush=True)
+                      f" {row['solve']:.4f} | {row['residual']:.1e} | {versus} | {cpu} |", flush=True)
     return 0
 
 

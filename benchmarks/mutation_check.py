@@ -70,7 +70,7 @@ MUTATIONS = [
              [("np.add.at(s, np.asarray(vertices, dtype=np.int64), -np.asarray(outflow",
                "np.add.at(s, np.asarray(vertices, dtype=np.int64), np.asarray(outflow")],
              [["tests/apps/test_vector_field.py"], ["tests/runner/test_cli_signs.py", "-k", "reversed"], REG_VECTOR]),
-    Mutation("smoothing blow-up check removed", "decrun/apps/smoothing.py",
+    Mutation("smoothing blow-up check removed", "decrun/methods/mean_curvature_flow.py",
              [('if not reason and not self.now["roughness"] <= self.blowup_factor * first["roughness"]:',
                'if False:')],
              [["tests/apps/test_smoothing.py"], REG_SMOOTHING]),

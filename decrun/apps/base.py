@@ -68,9 +68,9 @@ __all__ = ["App", "Context", "Figure", "Result", "FieldOnEdges", "Output"]
 
 @dataclass
 class Figure:
-    """A figure to draw: ``draw`` is the dotted path of a function ``draw(K, **data) ->
-    matplotlib.figure.Figure`` (e.g. ``decrun.runner.plots.common.before_after``), ``data``
-    its arrays and options. The runner draws it (unless ``figures=false``) and saves
+    """A figure to draw: ``draw`` is a figure kind (``before_after``, ``snapshots`` …, see
+    :meth:`of_kind`) or the dotted path of a function ``draw(K, **data) ->
+    matplotlib.figure.Figure`` (a plugin's own drawing), ``data`` its arrays and options. The runner draws it (unless ``figures=false``) and saves
     ``<name>.png``; a function may instead write its own file (an animation) and return
     its path."""
 
@@ -80,7 +80,7 @@ class Figure:
     @classmethod
     def of_kind(cls, kind: str, **data) -> "Figure":
         """A figure named by its kind (``surface``, ``snapshots``, ``animation``, ``series`` …:
-        the table ``FIGURE_KINDS`` of :mod:`decrun.runner.plots`), so an app names no runner
+        the table ``FIGURE_KINDS`` of the runner's plots package), so an app names no runner
         module."""
         return cls(kind, data)
 

@@ -26,12 +26,9 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.errors import ConfigError
 from decrun.methods.fluid.metrics import fluid_metrics
-from decrun.methods.fluid.options import Circulation, Initial, Kernels, Velocity, Walls
+from decrun.methods.fluid.options import Circulation, FluidOptions, Initial, Kernels, Velocity, Walls
+from decrun.methods.fluid.stepper import FluidStepper
 from decrun.methods.stepping import run_steps
-
-SCALARS = ("time", "kinetic_energy", "enstrophy", "total_circulation", "max_abs_divergence", "vorticity_min",
-           "vorticity_max")
-
 
 @dataclass
 class Stir:
@@ -86,22 +83,14 @@ class Fluid(App):
         if not self.viscosity >= 0:
             raise ConfigError(f"app.viscosity: must be >= 0, got {self.viscosity}")
         self.initial = Initial.of(self.initial, "app.initial")  # also for Python callers (strings)
-        self.velocity = Velocity.of(self.velocity, "app.velocity")
-        self.circulation = Circulation.of(self.circulation, "app.circulation")
-        self.walls = Walls.of(self.walls, "app.walls")
-        if self.walls == "slip" and self.circulation not in ("swept_bounded", "swept_clamped", "swept"):
-            raise ConfigError(f"app.walls=slip needs a swept circulation (app.circulation={self.circulation} takes "
-                              "the wall velocity at the border points); use app.walls=no_slip")
-        if self.velocity == "least_squares" and self.circulation not in ("swept_bounded", "swept_clamped", "swept"):
-            raise ConfigError(f"app.circulation={self.circulation} with app.velocity=least_squares is unstable; "
-                              "use app.velocity=wshd07 (the thesis' pair: app.velocity=wshd07 "
-                              "app.circulation=trapezoid)")
+        scheme = self.scheme()  # each choice a member, the unstable pairs refused
+        self.velocity, self.circulation, self.walls, self.kernels = (scheme.velocity, scheme.circulation,
+                                                                     scheme.walls, scheme.kernels)
         if not self.shadow_perturbation > 0:
             raise ConfigError(f"app.shadow_perturbation: must be > 0, got {self.shadow_perturbation}")
         if self.shadow_window_steps < 2:
             raise ConfigError(f"app.shadow_window_steps: a growth rate is fitted over at least 2 steps, got "
                               f"{self.shadow_window_steps}; use e.g. app.shadow_window_steps=100 (the default)")
-        self.kernels = Kernels.of(self.kernels, "app.kernels")
         if self.record_every < 1:
             raise ConfigError(f"app.record_every: must be >= 1, got {self.record_every}")
         for i, stir in enumerate(self.stirs):
@@ -109,6 +98,11 @@ class Fluid(App):
                 raise ConfigError(f"app.stirs[{i}].points: a stroke needs at least two points")
             if not stir.stop > stir.start:
                 raise ConfigError(f"app.stirs[{i}].stop: must be after start ({stir.start})")
+
+    def scheme(self) -> FluidOptions:
+        """The scheme's choices as the method takes them (validated there, messages naming ``app.*``)."""
+        return FluidOptions(velocity=self.velocity, circulation=self.circulation, walls=self.walls,
+                            kernels=self.kernels, key="app")
 
     @property
     def total_steps(self) -> int:
@@ -159,19 +153,38 @@ class Fluid(App):
         ``time``, ``kinetic_energy``, ``enstrophy``, ``total_circulation``, ``max_abs_divergence``,
         ``vorticity_min``, ``vorticity_max``. Fields: the final ``vorticity``, ``psi``, ``flux``.
         """
+        K = ctx.complex
+        fluid, stepper, shadow = self._simulation(ctx)
+        first = stepper.last
+        report = run_steps(stepper, self.total_steps, progress=ctx.progress, record=ctx.record,
+                           record_every=self.record_every, checkpoint=ctx.checkpoint, desc="fluid")
+        metrics = fluid_metrics(first, stepper.last, max_divergence=stepper.max_divergence, seconds=report.seconds,
+                                step_seconds_max=report.step_seconds_max, obtuse_triangles=fluid.obtuse_triangles,
+                                closed=K.border_faces()[0].size == 0, reason=report.reason,
+                                chaos=shadow.metrics() if shadow is not None else None)
+        if report.resumed_from_step is not None:
+            metrics["resumed_from_step"] = report.resumed_from_step
+        if not fluid.closed:  # the wall condition app.walls resolved to (a closed surface has no wall)
+            metrics["walls"] = str(fluid.walls)
+        fields = {"vorticity": fluid.vorticity, "psi": fluid.psi, "flux": FieldOnEdges(fluid.flux)}
+        return Result(fields=fields, metrics=metrics, figures=self._figures(K))
+
+    def _simulation(self, ctx: Context):
+        """(fluid, stepper, shadow): the :class:`~decrun.methods.fluid.simulation.VorticityFluid`
+        from the options and the initial vorticity, the stirs' force fluxes, the shadow (None
+        without ``shadow``) and the :class:`~decrun.methods.fluid.stepper.FluidStepper` of them."""
         from decrun.methods.fluid import initial as initial_vorticity
         from decrun.methods.fluid.simulation import VorticityFluid
 
-        K, dec = ctx.complex, ctx.dec
+        dec = ctx.dec
         w0 = self._initial_vorticity(dec, initial_vorticity, ctx.meta)
         fluid = VorticityFluid(dec, ctx.new_solver, dt=self.dt, viscosity=self.viscosity,
                                inflow_velocity=list(self.inflow) or None, initial_vorticity=w0,
-                               velocity=str(self.velocity), circulation=str(self.circulation),
-                               kernels=str(self.kernels), walls=str(self.walls))
-        obtuse = int(getattr(fluid, "obtuse_triangles", 0))
-        if obtuse:
-            ctx.log(f"fluid: {obtuse} obtuse triangles — their circumcentric dual cells turn inside out (§7.3); "
-                    "use a mesh without obtuse triangles (e.g. mesh=channel, or mesh.noise=0 on the icosphere)")
+                               options=self.scheme())
+        if fluid.obtuse_triangles:
+            ctx.log(f"fluid: {fluid.obtuse_triangles} obtuse triangles — their circumcentric dual cells turn inside "
+                    "out (§7.3); use a mesh without obtuse triangles (e.g. mesh=channel, or mesh.noise=0 on the "
+                    "icosphere)")
         forces = [(stir, initial_vorticity.stroke_force(dec, np.asarray(stir.points, dtype=np.float64), stir.strength))
                   for stir in self.stirs]
         shadow = None
@@ -181,29 +194,19 @@ class Fluid(App):
             shadow = Shadow(fluid, self.shadow_perturbation, seed=self.seed + 1,
                             max_growth_per_step=self.shadow_max_growth_per_step,
                             window_steps=self.shadow_window_steps)
-        stepper = FluidStepper(fluid, forces, shadow)
-        first = stepper.last
-        report = run_steps(stepper, self.total_steps, progress=ctx.progress, record=ctx.record,
-                           record_every=self.record_every, checkpoint=ctx.checkpoint, desc="fluid")
-        metrics = fluid_metrics(first, stepper.last, max_divergence=stepper.max_divergence, seconds=report.seconds,
-                                step_seconds_max=report.step_seconds_max, obtuse_triangles=obtuse,
-                                closed=K.border_faces()[0].size == 0, reason=report.reason,
-                                chaos=shadow.metrics() if shadow is not None else None)
-        if report.resumed_from_step is not None:
-            metrics["resumed_from_step"] = report.resumed_from_step
-        if not fluid.closed:  # the wall condition app.walls resolved to (a closed surface has no wall)
-            metrics["walls"] = fluid.walls
-        fields = {"vorticity": fluid.vorticity, "psi": fluid.psi, "flux": FieldOnEdges(fluid.flux)}
+        return fluid, FluidStepper(fluid, forces, shadow), shadow
+
+    def _figures(self, K) -> dict:
+        """By kind: vorticity snapshots (and the animation), looking towards the strokes in 3-D."""
         title = f"vorticity, dt={self.dt:g}, ν={self.viscosity:g}"
         strokes = [np.asarray(stir.points, dtype=np.float64) for stir in self.stirs]
         towards = np.concatenate(strokes).mean(axis=0) if strokes and K.embedding_dim == 3 else None
         view = {"towards": None if towards is None or not np.linalg.norm(towards) > 0 else towards.tolist()}
-        figures = {"vorticity": Figure("decrun.runner.plots.snapshots.snapshot_grid",
-                                       dict(name="vorticity", count=int(self.snapshots), title=title, **view))}
+        figures = {"vorticity": Figure.of_kind("snapshots", name="vorticity", count=int(self.snapshots), title=title,
+                                               **view)}
         if self.animation:
-            figures["vorticity_animation"] = Figure("decrun.runner.plots.snapshots.animation",
-                                                    dict(name="vorticity", title="vorticity", **view))
-        return Result(fields=fields, metrics=metrics, figures=figures)
+            figures["vorticity_animation"] = Figure.of_kind("animation", name="vorticity", title="vorticity", **view)
+        return figures
 
     def _initial_vorticity(self, dec, initial_vorticity, meta=None) -> np.ndarray:
         if self.initial == "mesh_field":
@@ -217,56 +220,6 @@ class Fluid(App):
                                                         self.initial_strength, self.vortex_radius)
             return w
         return initial_vorticity.random_vorticity(dec, seed=self.seed, amplitude=self.initial_strength)
-
-
-class FluidStepper:
-    """:class:`decrun.methods.fluid.simulation.VorticityFluid` (and its shadow) as a
-    :class:`decrun.methods.stepping.Stepper`: a step applies the stirs active at the fluid's
-    time, steps the fluid and the shadow with the same force and keeps the largest
-    divergence so far; it blows up when the step produced non-finite values (the fluid then
-    keeps its last finite state, which is not recorded again) or the energy bound broke.
-    Recorded: ``vorticity`` (n0), ``flux`` (n1) and the scalars of :data:`SCALARS`."""
-
-    record_divergent_step = False
-    #: the last step's diagnostics (a step adds keys to the initial ones) and the shadow's
-    #: growth fit points (one more a step, up to its window)
-    state_variable = ("last", "shadow.window", "shadow.start")
-
-    def __init__(self, fluid, forces, shadow=None):
-        self.fluid, self.forces, self.shadow = fluid, forces, shadow
-        self.last = fluid.diagnostics()
-        self.max_divergence = float(self.last["max_abs_divergence"])
-
-    def values(self) -> dict:
-        return dict(vorticity=self.fluid.vorticity, flux=self.fluid.flux, **{k: self.last[k] for k in SCALARS})
-
-    def step(self, n: int) -> str:
-        fluid = self.fluid
-        active = [force for stir, force in self.forces if stir.start <= fluid.time < stir.stop]
-        force = np.sum(active, axis=0) if active else None
-        self.last = fluid.step(force)
-        if self.shadow is not None:
-            self.shadow.step(force)
-        self.max_divergence = max(self.max_divergence, self.last["max_abs_divergence"])
-        if "diverged_at_step" in self.last:
-            return f"step {n} produced non-finite values (or its solve failed); the state is that of step {n - 1}"
-        if not self.last["stable"]:
-            return f"the kinetic energy {self.last['kinetic_energy']:.3g} broke the blow-up bound at step {n}"
-        return ""
-
-    def state_dict(self) -> dict:
-        state = {"fluid": self.fluid.state_dict(), "max_divergence": self.max_divergence,
-                 "last": {key: value for key, value in self.last.items()}}
-        if self.shadow is not None:
-            state["shadow"] = self.shadow.state_dict()
-        return state
-
-    def load_state(self, state: dict) -> None:
-        self.fluid.load_state(state["fluid"])
-        if self.shadow is not None:
-            self.shadow.load_state(state["shadow"])
-        self.max_divergence = float(state["max_divergence"])
-        self.last = dict(state["last"])
 
 
 def vorticity_of_field(dec, field: dict) -> np.ndarray:

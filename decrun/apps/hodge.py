@@ -204,9 +204,10 @@ class Hodge(App):
             fields["alpha"] = parts.alpha
         if parts.beta is not None:
             fields["beta"] = parts.beta
-        figures = {"hodge_parts": Figure("decrun.runner.plots.fields.hodge_parts_figure", dict(
-            vectors=vectors, energy={name: metrics.get(f"energy_fraction_{name}", 0.0) for name in named},
-            max_arrows=int(self.figure_arrows)))}
+        figures = {"hodge_parts": Figure.of_kind(
+            "hodge_parts", vectors=vectors,
+            energy={name: metrics.get(f"energy_fraction_{name}", 0.0) for name in named},
+            max_arrows=int(self.figure_arrows))}
         return Result(fields=fields, metrics=metrics, figures=figures)
 
 

@@ -171,11 +171,10 @@ class Parametrization(App):
         title = f"border={self.border}, weights={self.weights}"
         warning = not_an_embedding(metrics)
         figures = {
-            "uv_layout": Figure("decrun.runner.plots.parametrization.uv_layout", dict(
-                uv=uv, faces=faces, angle_distortion_deg=face_angle_error_deg, flipped=flipped, title=title,
-                warning=warning)),
-            "checkerboard": Figure("decrun.runner.plots.parametrization.checkerboard", dict(
-                uv=uv, faces=faces, squares=int(self.checker_squares), title=title, warning=warning)),
+            "uv_layout": Figure.of_kind("uv_layout", uv=uv, faces=faces, angle_distortion_deg=face_angle_error_deg,
+                                        flipped=flipped, title=title, warning=warning),
+            "checkerboard": Figure.of_kind("checkerboard", uv=uv, faces=faces, squares=int(self.checker_squares),
+                                           title=title, warning=warning),
         }
         warnings = [f"{warning}; `app.border=circle` with `app.weights=mean_value` is one (Floater's map into a "
                     "convex border, holes filled: positive weights, an embedding by Tutte's theorem)"] if warning else []

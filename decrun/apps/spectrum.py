@@ -130,9 +130,9 @@ class Spectrum(App):
         shown = [i for i in range(len(values)) if abs(values[i]) >= 1e-8 / length**2][: int(self.figure_count)]
         figures = {}
         if shown and K.embedding_dim in (2, 3):
-            figures["eigenforms"] = Figure("decrun.runner.plots.spectrum.eigenforms_figure", dict(
-                values=[display_values(K, k, vectors[:, i]) for i in shown], titles=[titles[i] for i in shown],
-                degree=k))
+            figures["eigenforms"] = Figure.of_kind(
+                "eigenforms", values=[display_values(K, k, vectors[:, i]) for i in shown],
+                titles=[titles[i] for i in shown], degree=k)
         return Result(fields=fields, metrics=metrics, figures=figures)
 
 

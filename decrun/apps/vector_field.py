@@ -294,64 +294,15 @@ def _design(self, ctx: Context) -> Result:
     ``source_axis`` / ``source_axis_unique`` (:func:`sources_from_mesh`).
     """
     K, dec, cfg = ctx.complex, ctx.dec, self
-    mode = dec.boundary.name
     delta = dec.codifferential(1)
     constraints, geometry = build_constraints(K, dec, cfg, ctx.log)
-
-    seconds = 0.0
-    start = time.perf_counter()
-    with ctx.task("vector field: least squares (eq. 6.5-6.6)"):
-        pre = solve_design(dec, ctx.new_solver(), constraints, delta)
-    seconds += time.perf_counter() - start
-    solution = pre
-    stroke_vectors = np.zeros((0, 3))
-    if geometry["stroke_faces"].size:
-        faces = geometry["stroke_faces"]
-        if cfg.stroke_magnitude == "fixed":  # eq. 6.8: |v| = λ
-            magnitude = np.full(faces.size, float(cfg.stroke_length))
-        else:  # eq. 6.9: |v| = |ν_pre|
-            magnitude = np.linalg.norm(whitney_sharp(K, pre.omega, faces=faces), axis=1)
-        stroke_vectors = geometry["stroke_directions"] * magnitude[:, None]
-        edges, targets = stroke_edge_targets(K, faces, stroke_vectors)
-        constraints = constraints.with_strokes(edges, targets,
-                                               np.full(edges.size, float(cfg.stroke_weight) / K.mean_edge_length))
-        start = time.perf_counter()
-        with ctx.task("vector field: least squares with the strokes"):
-            solution = solve_design(dec, ctx.new_solver(), constraints, delta)
-        seconds += time.perf_counter() - start
+    pre, solution, constraints, stroke_vectors, seconds = _solve(cfg, ctx, delta, constraints, geometry)
     omega = solution.omega
-
     face_vectors = embed3(whitney_sharp(K, omega))
     singular = find_singularities(K, omega)
     clusters = cluster_singularities(K, singular, cfg.cluster_radius * K.mean_edge_length)
-    chi = int(K.euler_characteristic)
     closed = K.border_faces()[0].size == 0
-    metrics = design_residuals(dec, delta, constraints, omega)
-    metrics.update(
-        smoothness_energy=smoothness_energy(dec, delta, omega),
-        index_sum=int(singular.index_sum),
-        euler_characteristic=chi,
-        closed=bool(closed),
-        singularities=singular.count,
-        singularities_positive=int((singular.vertex_index > 0).sum() + (singular.face_index > 0).sum()),
-        singularities_negative=int((singular.vertex_index < 0).sum() + (singular.face_index < 0).sum()),
-        index_max_rounding=singular.max_rounding,
-        singularity_clusters=int(clusters.nonzero.sum()),
-        singularity_cluster_indices=clusters.summary(),
-        adjointness_defect=adjointness_defect(dec, delta),
-        boundary=mode,
-        sources=int(geometry["source_vertices"].size),
-        **geometry["source_metrics"],
-        vortices=int(geometry["vortex_faces"].size),
-        stroke_faces=int(geometry["stroke_faces"].size),
-        stroke_edges=int(constraints.stroke_edges.size),
-        normal_equation_residual=solution.normal_equation_residual,
-        refinement_steps=solution.refinement_steps,
-        solve_seconds=seconds,
-    )
-    if closed:  # Poincaré–Hopf applies to closed surfaces only
-        metrics["poincare_hopf_holds"] = bool(singular.index_sum == chi)
-    metrics.update(border_normal_flux(K, omega))
+    metrics = _design_metrics(dec, delta, constraints, solution, singular, clusters, geometry, seconds)
     fields = {
         "omega": FieldOnEdges(omega),
         "face_vectors": face_vectors,
@@ -368,20 +319,94 @@ def _design(self, ctx: Context) -> Result:
         "stroke_vectors": stroke_vectors,
     }
     if geometry["stroke_faces"].size:
-        before = embed3(whitney_sharp(K, pre.omega))
-        area = dec.primal_volumes(2)
-        metrics["field_change_relative"] = field_change_relative(before, face_vectors, area, np.ones(area.size, bool))
-        fields["omega_without_strokes"] = FieldOnEdges(pre.omega)
-        if cfg.region_normal:
-            n = np.asarray(cfg.region_normal, dtype=np.float64)
-            region = face_normals(K) @ (n / np.linalg.norm(n)) >= float(cfg.region_min_cos)
-            metrics["region_faces"] = int(region.sum())
-            if region.any():  # over no face there is no change to measure: absent
-                metrics["field_change_region_relative"] = field_change_relative(before, face_vectors, area, region)
-            fields["region_faces"] = np.flatnonzero(region)
-    title = f"{mode} border" if not closed else "closed surface"
-    figures = {"field": Figure("decrun.runner.plots.fields.field_figure", dict(
-        face_vectors=face_vectors, vertex_index=singular.vertex_index, face_index=singular.face_index,
-        stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})", max_arrows=int(cfg.figure_arrows),
-        cluster_positions=clusters.positions[clusters.nonzero], cluster_indices=clusters.indices[clusters.nonzero]))}
+        _stroke_change(cfg, dec, pre.omega, face_vectors, metrics, fields)
+    title = f"{dec.boundary.name} border" if not closed else "closed surface"
+    figures = {"field": Figure.of_kind(
+        "vector_field", face_vectors=face_vectors, vertex_index=singular.vertex_index,
+        face_index=singular.face_index, stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})",
+        max_arrows=int(cfg.figure_arrows), cluster_positions=clusters.positions[clusters.nonzero],
+        cluster_indices=clusters.indices[clusters.nonzero])}
     return Result(fields=fields, metrics=metrics, figures=figures)
+
+
+def _solve(cfg, ctx: Context, delta, constraints, geometry):
+    """(pre, solution, constraints, stroke_vectors, seconds): the least squares of eq. 6.5-6.6
+    without the strokes (``pre``) and, with strokes, again with their edge targets — the stroke
+    vectors v_t (n_s, 3) of |v| = ``stroke_length`` (eq. 6.8, ``fixed``) or |ν_pre| (eq. 6.9) —
+    weighted ``stroke_weight`` / h̄; the solves' wall time (s)."""
+    K, dec = ctx.complex, ctx.dec
+    start = time.perf_counter()
+    with ctx.task("vector field: least squares (eq. 6.5-6.6)"):
+        pre = solve_design(dec, ctx.new_solver(), constraints, delta)
+    seconds = time.perf_counter() - start
+    solution = pre
+    stroke_vectors = np.zeros((0, 3))
+    if geometry["stroke_faces"].size:
+        faces = geometry["stroke_faces"]
+        if cfg.stroke_magnitude == "fixed":  # eq. 6.8: |v| = λ
+            magnitude = np.full(faces.size, float(cfg.stroke_length))
+        else:  # eq. 6.9: |v| = |ν_pre|
+            magnitude = np.linalg.norm(whitney_sharp(K, pre.omega, faces=faces), axis=1)
+        stroke_vectors = geometry["stroke_directions"] * magnitude[:, None]
+        edges, targets = stroke_edge_targets(K, faces, stroke_vectors)
+        constraints = constraints.with_strokes(edges, targets,
+                                               np.full(edges.size, float(cfg.stroke_weight) / K.mean_edge_length))
+        start = time.perf_counter()
+        with ctx.task("vector field: least squares with the strokes"):
+            solution = solve_design(dec, ctx.new_solver(), constraints, delta)
+        seconds += time.perf_counter() - start
+    return pre, solution, constraints, stroke_vectors, seconds
+
+
+def _design_metrics(dec, delta, constraints, solution, singular, clusters, geometry, seconds: float) -> dict:
+    """The residuals, energy, singularity counts and border flux of the designed 1-form (the
+    metrics listed in :func:`_design`, less the strokes' field change)."""
+    K, omega = dec.K, solution.omega
+    chi = int(K.euler_characteristic)
+    closed = K.border_faces()[0].size == 0
+    metrics = design_residuals(dec, delta, constraints, omega)
+    metrics.update(
+        smoothness_energy=smoothness_energy(dec, delta, omega),
+        index_sum=int(singular.index_sum),
+        euler_characteristic=chi,
+        closed=bool(closed),
+        singularities=singular.count,
+        singularities_positive=int((singular.vertex_index > 0).sum() + (singular.face_index > 0).sum()),
+        singularities_negative=int((singular.vertex_index < 0).sum() + (singular.face_index < 0).sum()),
+        index_max_rounding=singular.max_rounding,
+        singularity_clusters=int(clusters.nonzero.sum()),
+        singularity_cluster_indices=clusters.summary(),
+        adjointness_defect=adjointness_defect(dec, delta),
+        boundary=dec.boundary.name,
+        sources=int(geometry["source_vertices"].size),
+        **geometry["source_metrics"],
+        vortices=int(geometry["vortex_faces"].size),
+        stroke_faces=int(geometry["stroke_faces"].size),
+        stroke_edges=int(constraints.stroke_edges.size),
+        normal_equation_residual=solution.normal_equation_residual,
+        refinement_steps=solution.refinement_steps,
+        solve_seconds=seconds,
+    )
+    if closed:  # Poincaré–Hopf applies to closed surfaces only
+        metrics["poincare_hopf_holds"] = bool(singular.index_sum == chi)
+    metrics.update(border_normal_flux(K, omega))
+    return metrics
+
+
+def _stroke_change(cfg, dec, omega_pre: np.ndarray, face_vectors: np.ndarray, metrics: dict, fields: dict) -> None:
+    """What the strokes changed: ``field_change_relative`` (area-weighted L2 of the face vectors'
+    change over the mesh) and, with ``region_normal``, over the faces whose normal is within
+    ``region_min_cos`` of it (``field_change_region_relative``, absent over no face); the
+    field without strokes and the region's faces."""
+    K = dec.K
+    before = embed3(whitney_sharp(K, omega_pre))
+    area = dec.primal_volumes(2)
+    metrics["field_change_relative"] = field_change_relative(before, face_vectors, area, np.ones(area.size, bool))
+    fields["omega_without_strokes"] = FieldOnEdges(omega_pre)
+    if cfg.region_normal:
+        n = np.asarray(cfg.region_normal, dtype=np.float64)
+        region = face_normals(K) @ (n / np.linalg.norm(n)) >= float(cfg.region_min_cos)
+        metrics["region_faces"] = int(region.sum())
+        if region.any():  # over no face there is no change to measure: absent
+            metrics["field_change_region_relative"] = field_change_relative(before, face_vectors, area, region)
+        fields["region_faces"] = np.flatnonzero(region)

@@ -34,6 +34,9 @@ with equality for the input mesh; it grows when the mesh folds, crumples or flat
 
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -42,7 +45,7 @@ from decrun.core.choices import Choice
 from decrun.core.geometry import triangle_areas
 
 __all__ = ["Scheme", "SCHEMES", "MeanCurvatureFlow", "surface_area", "enclosed_volume", "explicit_critical_dt",
-           "largest_eigenvalue", "resolution_dt"]
+           "largest_eigenvalue", "resolution_dt", "TimeStep", "choose_time_step", "SmoothingStepper"]
 
 
 class Scheme(Choice):
@@ -191,3 +194,136 @@ class MeanCurvatureFlow:
         """dt_crit = 2/λ_max of explicit Euler (:func:`explicit_critical_dt`; the generalized
         problem with the SPD Galerkin mass when ⋆0 is not diagonal)."""
         return explicit_critical_dt(self.S, self.M if self.M is not None else self.mass)
+
+
+@dataclass(frozen=True)
+class TimeStep:
+    """The time step of a smoothing run and the scales it was chosen from (length² units).
+
+    dt : the step; None when the chosen unit does not exist on this mesh (``reason`` says why)
+    unit : ``critical`` or ``resolution``, the unit ``factor`` multiplied (None: dt was given)
+    critical : 2/λ_max of explicit Euler (NaN when not computed or not defined)
+    resolution : 2h̄²/π² (:func:`resolution_dt`)
+    safe : Gershgorin's bound ≤ ``critical`` (:func:`gershgorin_safe_dt`), only computed when
+        the critical unit was asked for without the eigen-solve (else NaN)
+    nonpositive_star0 : vertices with ⋆0 ≤ 0 (where 2/λ_max does not exist)
+    seconds : the eigen-solve's wall time (s)
+    """
+
+    dt: float | None
+    unit: str | None
+    critical: float
+    resolution: float
+    safe: float = float("nan")
+    nonpositive_star0: int = 0
+    seconds: float = 0.0
+    reason: str = ""
+
+
+def choose_time_step(dec, scheme: str, *, dt: float | None = None, factor: float = 0.75, unit: str = "auto",
+                     critical: bool = True) -> TimeStep:
+    """The smoothing step: ``dt`` when given, else ``factor`` × the unit — ``critical`` 2/λ_max
+    (explicit Euler's stability limit, one eigen-solve kept by ``dec``), ``resolution`` 2h̄²/π²
+    (:func:`resolution_dt`), ``auto`` critical for the explicit and resolution for the implicit
+    scheme. With ``critical`` the eigen-solve runs also when not needed for dt (the metric
+    ``dt_over_critical``). Nothing is raised: a unit that does not exist (⋆0 ≤ 0, or the critical
+    step without the eigen-solve) leaves ``dt`` None and names why in ``reason``."""
+    if unit == "auto":
+        unit = "critical" if scheme == "explicit" else "resolution"
+    t0 = time.perf_counter()
+    dt_crit = float("nan")
+    if critical:  # 2/λ_max of S φ = λ ⋆0 φ, once per DEC
+        dt_crit = dec.require(("mcf_critical_dt",), lambda: MeanCurvatureFlow(dec, "explicit", 1.0).critical_dt())
+    seconds = time.perf_counter() - t0
+    dt_resolution = resolution_dt(dec.K.mean_edge_length)
+    M = dec.star_diagonal_or_none(0)
+    nonpositive = int(np.sum(M <= 0)) if M is not None else 0
+    common = dict(critical=dt_crit, resolution=dt_resolution, nonpositive_star0=nonpositive, seconds=seconds)
+    if dt is not None:
+        return TimeStep(float(dt), None, **common)
+    if unit == "resolution":
+        return TimeStep(factor * dt_resolution, unit, **common)
+    if not critical:
+        safe = gershgorin_safe_dt(dec.laplacian_symmetric(0), M)
+        return TimeStep(None, unit, safe=safe, reason="no critical step without the eigen-solve", **common)
+    if not (np.isfinite(dt_crit) and dt_crit > 0):
+        return TimeStep(None, unit, reason=f"⋆0 is not positive on {nonpositive} vertices", **common)
+    return TimeStep(factor * dt_crit, unit, **common)
+
+
+class SmoothingStepper:
+    """The mean curvature flow as a :class:`decrun.methods.stepping.Stepper`: one step is
+    ``flow.step`` then the rescale about ``centroid`` (``volume``: by ∛(V_0/V), ``area``: by
+    √(A_0/A), ``none``), then the measures ``area``, ``volume``, ``roughness``, ``distortion``
+    (NaN when the coordinates are not finite). It blows up when the coordinates are not
+    finite, the volume cannot be rescaled (V ≤ 0), the area is not finite or the roughness
+    exceeds ``blowup_factor`` × R_0; the diverging step is recorded (its measures NaN when
+    the coordinates are). ``vertices`` (n0, d) is the input; state: ``v`` (n0, d), ``last_finite`` (n0, d) and the measures so
+    far (``series``, for the figures and the final ratios: four floats per step)."""
+
+    record_divergent_step = True
+    #: the measures so far grow by one a step (and hold NaN volumes on open surfaces)
+    state_variable = ("series",)
+
+    def __init__(self, flow, vertices, faces, centroid, rescale: str, has_volume: bool, blowup_factor: float):
+        self.flow, self.faces, self.centroid = flow, faces, centroid
+        self.vertices = vertices  # the input (n0, d)
+        self.rescale, self.has_volume, self.blowup_factor = rescale, has_volume, float(blowup_factor)
+        self.first = self.measure(vertices)
+        self.now = dict(self.first)
+        self.series = {name: [value] for name, value in self.first.items()}
+        self.v = vertices.copy()
+        self.last_finite = self.v
+
+    def measure(self, v) -> dict:
+        """``area`` A(v), ``volume`` V(v) (NaN on open surfaces), ``roughness`` R(v) and
+        ``distortion`` ρ(v) of positions ``v`` (n0, d) (module docstring)."""
+        faces = self.faces
+        return {"area": surface_area(v, faces),
+                "volume": enclosed_volume(v, faces) if self.has_volume else float("nan"),
+                "roughness": self.flow.roughness(v, self.centroid), "distortion": self.flow.distortion(v, faces)}
+
+    def values(self) -> dict:
+        """The measures of the current state (recorded every step)."""
+        return self.now
+
+    def step(self, n: int) -> str:
+        """One flow step and the rescale; the reason it blew up, or ""."""
+        v = self.flow.step(self.v)
+        first, centroid = self.first, self.centroid
+        reason = "" if np.all(np.isfinite(v)) else "non-finite coordinates"
+        if not reason and self.rescale == "volume":
+            volume = enclosed_volume(v, self.faces)
+            if not volume > 0:  # flattened or turned inside out: cannot be rescaled
+                reason = f"enclosed volume {volume:.3g} ≤ 0 cannot be rescaled"
+            else:
+                v = centroid + np.cbrt(first["volume"] / volume) * (v - centroid)
+        elif not reason and self.rescale == "area":
+            area = surface_area(v, self.faces)
+            if area > 0:
+                v = centroid + np.sqrt(first["area"] / area) * (v - centroid)
+        finite = bool(np.all(np.isfinite(v)))
+        self.now = self.measure(v) if finite else {name: float("nan") for name in first}
+        for name, value in self.now.items():
+            self.series[name].append(value)
+        self.v = v
+        if finite:
+            self.last_finite = v
+        if not reason and not np.isfinite(self.now["area"]):
+            reason = "non-finite area"
+        if not reason and not self.now["roughness"] <= self.blowup_factor * first["roughness"]:
+            reason = f"roughness {self.now['roughness']:.3g} > app.blowup_factor × R_0"
+        return reason
+
+    def state_dict(self) -> dict:
+        """The state a checkpoint keeps: positions, last finite positions, the measures."""
+        return {"v": self.v, "last_finite": self.last_finite,
+                "now": {name: float(value) for name, value in self.now.items()},
+                "series": {name: np.asarray(values, dtype=np.float64) for name, values in self.series.items()}}
+
+    def load_state(self, state: dict) -> None:
+        """Resume from :meth:`state_dict`'s output."""
+        self.v = np.array(state["v"], dtype=np.float64)
+        self.last_finite = np.array(state["last_finite"], dtype=np.float64)
+        self.now = {name: float(state["now"][name]) for name in self.first}
+        self.series = {name: [float(x) for x in state["series"][name]] for name in self.first}

@@ -12,16 +12,22 @@ Two measures see only the noise:
 :func:`degeneration` names why a finished flow is no longer a usable surface (the shape
 collapsed into a needle or a sheet, or most triangles lost their angles) — a run that did not
 blow up is then still not ``stable``.
+
+:func:`smoothing_metrics` gathers the metrics of one ``app=smoothing`` run from the stepper's
+measures, the stepping driver's report and the time step.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 
 from decrun.core.geometry import corner_angles, embed3, triangle_areas
 from decrun.methods.mean_curvature_flow import enclosed_volume, surface_area
 
-__all__ = ["normal_deviation_deg", "aligned_rms_distance", "isoperimetric_quotient", "degeneration"]
+__all__ = ["normal_deviation_deg", "aligned_rms_distance", "isoperimetric_quotient", "degeneration",
+           "smoothing_metrics", "divergence_reason"]
 
 #: a smoothed surface is degenerate when its isoperimetric quotient 36πV²/A³ fell below this
 #: fraction of the input's (a sphere is 1; the bone's needle at dt = 0.05 is ~1e-11 of its input)
@@ -106,3 +112,99 @@ def degeneration(vertices: np.ndarray, result: np.ndarray, faces: np.ndarray, cl
     if after > SLIVER_FRACTION > before:
         reasons.append(f"{100 * after:.0f} % of the triangles have a corner below 1° (input: {100 * before:.0f} %)")
     return "; ".join(reasons)
+
+
+def divergence_reason(step: int, scheme: str, star0: np.ndarray | None) -> str:
+    """``diverged at step N``, with the cause and the override that avoids it when ⋆0 ≤ 0
+    (``star0`` (n0,), None for a Galerkin ⋆0) makes the implicit matrix M + dt S indefinite
+    (the circumcentric ⋆0 on scans)."""
+    reason = f"diverged at step {step}"
+    nonpositive = int(np.sum(star0 <= 0)) if star0 is not None else 0
+    if nonpositive and scheme == "implicit":
+        reason += (f" (⋆0 ≤ 0 on {nonpositive} vertices: M + dt S is indefinite; "
+                   "`operator=mixed_area` has a positive ⋆0)")
+    return reason
+
+
+def smoothing_metrics(stepper, report, *, time_step, scheme: str, rescale: str, cot_weights: np.ndarray,
+                      clean: np.ndarray | None = None, setup_seconds: float = 0.0) -> dict[str, Any]:
+    """Metrics of one smoothing run (a metric that does not apply is absent).
+
+    stepper : the :class:`~decrun.methods.mean_curvature_flow.SmoothingStepper` after the run
+        (``first`` and ``series`` of ``area``, ``volume``, ``roughness``, ``distortion``; the
+        input ``stepper.vertices`` and the result ``stepper.v``, both (n0, d))
+    report : the stepping driver's report (``diverged_at_step``, ``seconds``, …)
+    time_step : the :class:`~decrun.methods.mean_curvature_flow.TimeStep` the run used
+    scheme, rescale : ``implicit`` | ``explicit``; the resolved rescale
+    cot_weights : (n1,) −S_ij on the mesh edges (the cot weights ⋆1 / |e|·|⋆e|)
+    clean : (n0, d) the noise-free vertices, or None
+    setup_seconds : the set-up's wall time (s), the eigen-solve's added
+
+    ``stable`` = no step blew up and the result is not :func:`degeneration`'s;
+    ``area_ratio`` = A_end/A_0, ``roughness_ratio`` = R_end/R_0, ``volume_drift_rel`` =
+    |V_end − V_0|/|V_0| (closed surfaces), ``dt_over_critical`` = dt / (2/λ_max),
+    ``distance_to_clean_rms`` = sqrt(mean |v − c|²) / diag(c), ``normal_*_deg`` by
+    :func:`normal_deviation_deg`.
+    """
+    flow, faces, has_volume = stepper.flow, stepper.faces, stepper.has_volume
+    vertices, v = stepper.vertices, stepper.v
+    first, series = stepper.first, stepper.series
+    last = {name: values[-1] for name, values in series.items()}
+    diverged_at = report.diverged_at_step  # None: no step blew up
+    # a flow that did not blow up may still have collapsed the surface (a needle, a sheet)
+    degenerate = degeneration(vertices, v, faces, has_volume) if diverged_at is None else ""
+    stable = diverged_at is None and not degenerate
+    dt, dt_crit = time_step.dt, time_step.critical
+    metrics: dict[str, Any] = {"dt": dt, "rescale": rescale, "stable": stable}
+    if diverged_at is not None:
+        metrics["diverged_at_step"] = diverged_at
+    if not stable:
+        metrics["unstable_reason"] = divergence_reason(diverged_at, scheme, flow.M) if diverged_at is not None \
+            else f"degenerate: {degenerate}"
+    metrics.update({
+        "steps_done": len(series["area"]) - 1,
+        "area_ratio": last["area"] / first["area"],
+        "roughness_ratio": last["roughness"] / first["roughness"],
+        "distortion_final": last["distortion"],
+        "dt_critical_explicit": dt_crit,
+        "dt_resolution": time_step.resolution,
+        **({"dt_unit": time_step.unit} if time_step.unit is not None else {}),
+        "negative_star1_fraction": float(np.mean(cot_weights < 0)),
+    })
+    if np.isfinite(dt_crit) and dt_crit > 0:
+        metrics["dt_over_critical"] = dt / dt_crit
+    if flow.M is not None:
+        metrics["nonpositive_star0_vertices"] = int(np.sum(flow.M <= 0))
+    if stable and vertices.shape[1] == 3:
+        metrics["normal_change_deg"] = normal_deviation_deg(v, vertices, faces)
+    if has_volume:
+        metrics["volume_drift_rel"] = abs(last["volume"] - first["volume"]) / abs(first["volume"])
+    if clean is not None and np.shape(clean) == vertices.shape:
+        metrics.update(_distances_to_clean(vertices, v, faces, np.asarray(clean), stable))
+    metrics["setup_seconds"] = setup_seconds + time_step.seconds
+    metrics["solve_seconds"] = report.seconds
+    metrics["step_seconds_max"] = report.step_seconds_max
+    if report.resumed_from_step is not None:
+        metrics["resumed_from_step"] = report.resumed_from_step
+    return metrics
+
+
+def _distances_to_clean(vertices: np.ndarray, v: np.ndarray, faces: np.ndarray, clean: np.ndarray,
+                        stable: bool) -> dict[str, float]:
+    """RMS distance / bounding-box diagonal and normal deviation to the clean mesh, of the input
+    and (when stable: a diverged or degenerate run has no meaningful distance) of the result;
+    the normal deviations in 3-D only (planar meshes have one normal)."""
+    diagonal = float(np.linalg.norm(clean.max(axis=0) - clean.min(axis=0)))
+
+    def rms(x):
+        return float(np.sqrt(np.mean(np.sum((x - clean) ** 2, axis=1))) / diagonal)
+
+    metrics = {}
+    if stable:
+        metrics["distance_to_clean_rms"] = rms(v)
+    metrics["distance_to_clean_rms_initial"] = rms(vertices)
+    if vertices.shape[1] == 3:
+        if stable:
+            metrics["normal_deviation_to_clean_deg"] = normal_deviation_deg(v, clean, faces)
+        metrics["normal_deviation_to_clean_deg_initial"] = normal_deviation_deg(vertices, clean, faces)
+    return metrics

@@ -322,3 +322,35 @@ def test_an_indefinite_implicit_matrix_names_the_operator_that_fixes_it(decrun_c
     hinted = re.search(r"`(operator=\w+)`", m["unstable_reason"]).group(1)
     fixed = _cli_metrics(decrun_cli, tmp_path / "fixed", "mesh=bunny", hinted, "figures=false")
     assert fixed["stable"] is True
+
+
+def test_the_time_step_is_decided_once_by_the_method_and_refused_in_check_before_any_work(monkeypatch):
+    """choose_time_step: dt given is kept; the resolution unit is factor × 2h̄²/π²; the critical
+    unit factor × 2/λ_max of S φ = λ ⋆0 φ; without the eigen-solve the critical unit has no step
+    and offers Gershgorin's bound, which is ≤ 2/λ_max. The app refuses that in ``check`` (no
+    factorization has happened) and runs with the very dt the check decided."""
+    from decrun.methods import mean_curvature_flow as mcf
+
+    K, dec = setup()
+    S, M = dec.laplacian_symmetric(0), dec.star_diagonal(0)
+    critical = mcf.explicit_critical_dt(S, M)
+    assert mcf.choose_time_step(dec, "explicit", dt=1e-4).dt == 1e-4
+    step = mcf.choose_time_step(dec, "implicit", factor=0.5)
+    assert step.unit == "resolution" and step.dt == pytest.approx(0.5 * 2 * K.mean_edge_length ** 2 / np.pi ** 2)
+    step = mcf.choose_time_step(dec, "explicit", factor=0.5)
+    assert step.unit == "critical" and step.dt == pytest.approx(0.5 * critical, rel=1e-9)
+    none = mcf.choose_time_step(dec, "explicit", critical=False)
+    assert none.dt is None and np.isnan(none.critical) and 0 < none.safe <= critical
+
+    def no_factorization(*args, **kwargs):
+        raise AssertionError("the flow was built before the check refused")
+
+    monkeypatch.setattr("decrun.apps.smoothing.MeanCurvatureFlow", no_factorization)
+    app = Config(scheme="explicit", critical_dt=False, steps=1)
+    with pytest.raises(ConfigError, match=rf"^app.critical_dt=false .* `app.dt={none.safe:.3g}` "):
+        app.check(K, dec)
+    monkeypatch.undo()
+    fixed = Config(scheme="explicit", dt=float(f"{none.safe:.3g}"), critical_dt=False, steps=2)
+    fixed.check(K, dec)
+    result = fixed.run(Context(fixed, K, dec, new_solver="direct"))
+    assert result.metrics["dt"] == float(f"{none.safe:.3g}") and result.metrics["stable"]

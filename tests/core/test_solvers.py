@@ -222,3 +222,53 @@ def test_every_solver_solves_an_empty_system(name):
         solver.solve(np.ones(1))
     solver.factorize(sp.identity(2, format="csr"))  # the same solver takes a real system afterwards
     np.testing.assert_allclose(solver.solve(np.array([1.0, 2.0])), [1.0, 2.0], atol=1e-8)
+
+
+BACKENDS = [pytest.param(backend, marks=pytest.mark.skipif(
+    backend not in __import__("decrun.core.solvers.cholmod", fromlist=["x"]).installed_backends(),
+    reason=f"{backend} not installed")) for backend in ("sksparse", "cholespy")]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_each_cholmod_binding_solves_to_round_off_and_refuses_the_indefinite(backend, heat_matrix):
+    """scikit-sparse (supernodal) and cholespy (simplicial) factorize the same SPD matrix to the
+    same answer as SuperLU; both refuse an indefinite one naming solver=direct."""
+    rng = np.random.default_rng(5)
+    b = rng.standard_normal((heat_matrix.shape[0], 2))
+    solver = make_solver("cholmod", backend=backend).factorize(heat_matrix)
+    expected = make_solver("direct").factorize(heat_matrix).solve(b)
+    np.testing.assert_allclose(solver.solve(b), expected, rtol=1e-10, atol=1e-13)
+    with pytest.raises(SolverError, match="not positive definite.*use solver=direct"):
+        make_solver("cholmod", backend=backend).factorize(sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]])))
+
+
+def test_auto_binding_is_the_fastest_installed(monkeypatch):
+    from decrun.core.solvers import cholmod
+
+    installed = cholmod.installed_backends()
+    assert list(installed) == [b for b in cholmod.PREFERENCE if b in installed]
+    monkeypatch.setattr(cholmod, "installed_backends", lambda: (cholmod.CholmodBackend.cholespy,))
+    assert cholmod._backend("auto") == "cholespy"
+    with pytest.raises(ConfigError, match=r"solver.backend=sksparse: sksparse is not installed .*libsuitesparse-dev"
+                                          r".*; use solver.backend=cholespy$"):
+        make_solver("cholmod", backend="sksparse")
+    with pytest.raises(ConfigError, match="solver.backend"):
+        make_solver("cholmod", backend="umfpack")
+
+
+def test_missing_binding_hint_is_an_override_that_runs(tmp_path):
+    """Without scikit-sparse, solver.backend=sksparse is one line whose hint runs."""
+    import subprocess
+
+    from cli_processes import decrun, env
+
+    args = ["app=heat", "mesh.subdiv=1", "app.t_end=0.002", "solver=cholmod", "progress=false", "figures=false"]
+    code = ("import sys; sys.modules['sksparse'] = None; sys.modules['sksparse.cholmod'] = None; "
+            "from decrun.__main__ import console_main; sys.argv = ['decrun'] + sys.argv[1:]; console_main()")
+    done = subprocess.run([sys.executable, "-c", code, *args, "solver.backend=sksparse",
+                           f"hydra.run.dir={tmp_path / 'a'}"], cwd=tmp_path, env=env(), capture_output=True, text=True)
+    assert done.returncode == 1 and done.stderr.count("\n") == 1, done.stderr
+    hint = done.stderr.strip().rpartition("use ")[2]
+    assert hint == "solver.backend=cholespy"
+    done = decrun(*args, hint, f"hydra.run.dir={tmp_path / 'b'}", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr

@@ -223,7 +223,7 @@ def test_unknown_kernels_are_refused():
     from decrun.errors import ConfigError
 
     dec, options = case("lattice")
-    with pytest.raises(ConfigError, match="kernels must be one of"):
+    with pytest.raises(ConfigError, match=r"^kernels: must be one of auto \| numba \| numpy, got 'fortran'"):
         VorticityFluid(dec, DirectSolver, kernels="fortran", **options)
 
 

@@ -4,23 +4,48 @@ override that fixes it, before any work (no mesh loaded, no solve)."""
 from __future__ import annotations
 
 import importlib.util
+from pathlib import Path
 
 import numpy as np
 
 import pytest
+import yaml
 
 from decrun.errors import ConfigError
 from decrun.runner.config import compose_config
 from decrun.runner.run import run_experiment, validate
 
-APPS = ["smoothing", "parametrization", "hodge", "vector_field", "fluid", "heat", "poisson", "heat_geodesics"]
+CONF_APP = Path(__file__).resolve().parents[2] / "conf" / "app"
+
+
+def is_model(path: Path) -> bool:
+    """A declarative model's config (``defaults: [_model, …]``, or the Model class itself)."""
+    node = yaml.safe_load(path.read_text()) or {}
+    return "_model" in (node.get("defaults") or []) or node.get("_target_") == "decrun.apps.model.Model"
+
+
+#: the model app's representatives in the grid (its other shipped models: tests/apps/test_model_app.py)
+MODELS = ["heat", "poisson", "heat_geodesics"]
+#: every app config of conf/app/ that is not a model (so a new app is in the grid), then the models
+APPS = sorted(path.stem for path in CONF_APP.glob("*.yaml") if not path.stem.startswith("_") and not is_model(path)) \
+    + MODELS
 SOLVERS = ["auto", "cholmod", "direct", "cg", "amg", "iterative", "pardiso"]
 APP_MESH = {"parametrization": ["mesh=sphere_cap", "mesh.subdiv=2"], "hodge": ["mesh.subdiv=2", "mesh.noise=0.05"],
             "smoothing": ["mesh.subdiv=2"], "vector_field": ["mesh.subdiv=2"],
             "fluid": ["mesh.subdiv=2", "mesh.noise=0.0", "app.steps=5", "app.animation=false"],
             "heat": ["mesh.subdiv=2", "app.t_end=0.01"], "poisson": ["mesh.nx=9", "mesh.ny=9"],
-            "heat_geodesics": ["mesh.subdiv=2"]}
+            "heat_geodesics": ["mesh.subdiv=2"], "spectrum": ["mesh.subdiv=2"]}
 EXTRA = {"amg": "pyamg", "pardiso": "pypardiso"}
+
+
+def test_the_grid_holds_every_app_config_and_its_mesh():
+    """The grid's app list comes from conf/app/: the non-model apps all there (spectrum among
+    them), the model representatives real model configs, each with its small mesh."""
+    configs = {path.stem: path for path in CONF_APP.glob("*.yaml") if not path.stem.startswith("_")}
+    assert {"smoothing", "parametrization", "hodge", "vector_field", "fluid", "spectrum"} <= set(APPS)
+    assert all(is_model(configs[name]) for name in MODELS)
+    assert set(APPS) == {name for name, path in configs.items() if not is_model(path)} | set(MODELS)
+    assert set(APP_MESH) == set(APPS)
 
 
 @pytest.mark.parametrize("solver", SOLVERS)

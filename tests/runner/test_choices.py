@@ -30,6 +30,12 @@ CASES = [  # (overrides, the wrong one, the error line, the fix it names)
      "solver.method=smoothed_aggregation"),
     ([], "optimize.direction=up", "optimize.direction: must be one of minimize | maximize, got 'up'",
      "optimize.direction=minimize"),
+    (["solver=iterative"], "solver.method=lsqr", "solver.method: must be one of auto | cg | minres | gmres | bicgstab, "
+     "got 'lsqr'", "solver.method=auto"),
+    (["solver=iterative"], "solver.preconditioner=ssor",
+     "solver.preconditioner: must be one of auto | jacobi | ilu | none, got 'ssor'", "solver.preconditioner=auto"),
+    (["operator=mixed_area"], "operator.tetrahedra=circumcentric",
+     "operator.tetrahedra: must be one of barycentric | error, got 'circumcentric'", "operator.tetrahedra=barycentric"),
 ]
 
 

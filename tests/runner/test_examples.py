@@ -30,7 +30,9 @@ PLACEHOLDERS = {"/data/dragon.ply": str(sample_mesh_dir() / SAMPLE_MESHES["cow"]
 #: lines that show syntax, not a command to run
 SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]")
 #: examples of bad input: they must fail with this message
-EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key"}
+EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key",
+                   # docs/apps/writing.md: a refusal in check, naming the step that works
+                   "decrun app.scheme=explicit app.critical_dt=false": "leaves no critical step for app.dt_factor"}
 #: commands an example needs to have run first (in the same directory)
 PREREQUISITES = {
     "hydra.sweeper.resume=true": ["-m", "app.dt=0.001,0.002", "hydra.sweep.dir=outputs/sweeps/dt"],

@@ -264,6 +264,23 @@ def test_up_axis_on_a_planar_mesh_is_an_error_naming_the_fix():
         mesh(source="planar", up_axis="y")
 
 
+def test_up_axis_is_one_of_its_choices_checked_when_the_source_is_made_and_negative_axes_rotate():
+    """mesh.up_axis is a closed choice (UpAxis): an unknown axis is refused before any mesh is
+    built, naming every choice and the override; ``-y`` (no Python name) is the rotation of
+    up_axis_to_z, and ``auto`` on a source that is not a sample is ``z`` (nothing turned)."""
+    from decrun.runner.mesh.repair import up_axis_to_z
+
+    with pytest.raises(ConfigError, match=r"^mesh.up_axis: must be one of auto \| x \| y \| z \| -x \| -y \| -z, "
+                                          r"got 'w' \(e.g. mesh.up_axis=auto\)$"):
+        mesh(source="icosphere", subdiv=1, up_axis="w")
+    raw = mesh(source="icosphere", subdiv=1, up_axis="auto", noise=0.0)
+    assert "up_axis" not in raw.meta
+    turned = mesh(source="icosphere", subdiv=1, up_axis="-y", noise=0.0)
+    assert turned.meta["up_axis"] == "-y" and type(turned.meta["up_axis"]) is str
+    np.testing.assert_array_equal(turned.vertices, up_axis_to_z(raw.vertices, "-y"))
+    assert np.allclose(up_axis_to_z(np.array([[0.0, -1.0, 0.0]]), "-y"), [[0.0, 0.0, 1.0]])
+
+
 @pytest.mark.parametrize("name, sample", [("bunny", "bunny10k_textured"), ("cow", "cow")])
 def test_mesh_bunny_and_cow_are_upright_like_mesh_sample(name, sample, decrun_cli, tmp_path):
     """``mesh=bunny`` / ``mesh=cow`` turn the Y-up samples Z-up (up_axis: auto) as

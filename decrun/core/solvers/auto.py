@@ -1,8 +1,9 @@
 """``solver=auto`` (the default): Cholesky (CHOLMOD) for SPD matrices, SuperLU for the rest.
 
 Every system an application factorizes goes through one solver name. A symmetric matrix
-with a positive diagonal is factorized by Cholesky (:mod:`decrun.core.solvers.cholmod`, the
-fastest SPD factorization that installs from wheels: ``benchmarks/bench_solvers.py``); an
+with a positive diagonal is factorized by Cholesky (:mod:`decrun.core.solvers.cholmod`,
+through the fastest CHOLMOD binding installed: scikit-sparse's supernodal factorization where
+it is installed, else the cholespy wheel; ``benchmarks/bench_solvers.py``); an
 unsymmetric one, or a symmetric one CHOLMOD finds indefinite, by SuperLU (``solver=direct``).
 ``method`` tells which one the last ``factorize`` used.
 """
@@ -16,7 +17,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from decrun.core.solvers.base import Solver
-from decrun.core.solvers.cholmod import SYMMETRY_TOL, asymmetry, cholesky_factor, cholesky_solve
+from decrun.core.solvers.cholmod import SYMMETRY_TOL, asymmetry, cholesky_factor, cholesky_solve, installed_backends
 from decrun.errors import SolverError
 
 __all__ = ["AutoSolver"]
@@ -32,12 +33,8 @@ class AutoSolver(Solver):
     def __post_init__(self):
         super().__post_init__()
         self.method: str | None = None  # "cholmod" | "superlu" after factorize
-        try:
-            import cholespy  # noqa: F401
-
-            self._have_cholmod = True
-        except ImportError:  # a platform without the wheel: SuperLU for everything
-            self._have_cholmod = False
+        # a platform without any CHOLMOD binding: SuperLU for everything
+        self._have_cholmod = bool(installed_backends())
 
     def _prepare(self, A) -> None:
         self._factor = self._lu = None

@@ -1,24 +1,40 @@
-"""``solver=cholmod``: sparse Cholesky (SuiteSparse CHOLMOD via the ``cholespy`` wheel), SPD only.
+"""``solver=cholmod``: sparse Cholesky (SuiteSparse CHOLMOD), SPD only.
 
-A = L Lᵀ once (supernodal, fill-reducing ordering), two triangular solves per right-hand
-side. The matrix must be symmetric (checked: CHOLMOD reads one triangle only) and positive
-definite (CHOLMOD reports otherwise; the error names ``solver=direct``).
+A = L Lᵀ once (fill-reducing ordering), two triangular solves per right-hand side. The matrix
+must be symmetric (checked: CHOLMOD reads one triangle only) and positive definite (CHOLMOD
+reports otherwise; the error names ``solver=direct``).
+
+Two Python bindings of CHOLMOD, chosen by ``backend`` (``auto``: the first installed):
+
+``sksparse``  scikit-sparse: CHOLMOD's *supernodal* factorization (dense BLAS-3 blocks), the
+              faster one — about half the CPU of cholespy's on a 655k-vertex heat matrix
+              (``benchmarks/bench_solvers.py``). It builds against the system's SuiteSparse
+              (Debian 12: ``apt-get install libsuitesparse-dev``, then
+              ``pip install "scikit-sparse<0.5"``), so it is not a dependency.
+``cholespy``  the cholespy wheel (a dependency: installs everywhere). It compiles CHOLMOD with
+              the *simplicial* factorization and nested-dissection ordering fixed, hence its
+              larger cost on big matrices; the solves are as fast.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
+import importlib
 import os
 import sys
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.core.choices import Choice
 from decrun.core.solvers.base import Solver
-from decrun.errors import SolverError
+from decrun.errors import ConfigError, SolverError
 
-__all__ = ["CholmodSolver", "asymmetry", "quiet_stdout"]
+__all__ = ["CholmodSolver", "CholmodBackend", "asymmetry", "quiet_stdout", "installed_backends", "cholesky_factor",
+           "cholesky_solve"]
 
 SYMMETRY_TOL = 1e-12  # max |A − Aᵀ| relative to max |A| accepted as symmetric (round-off)
 
@@ -44,37 +60,104 @@ def quiet_stdout():
         os.close(saved)
 
 
+class CholmodBackend(Choice):
+    """The binding of CHOLMOD that factorizes (module docstring)."""
+
+    auto = "auto"
+    sksparse = "sksparse"
+    cholespy = "cholespy"
+
+
+#: the bindings in order of preference (the faster first)
+PREFERENCE = (CholmodBackend.sksparse, CholmodBackend.cholespy)
+
+
+@functools.lru_cache(maxsize=None)
+def installed_backends() -> tuple[CholmodBackend, ...]:
+    """The CHOLMOD bindings importable here, the faster first."""
+    found = []
+    for backend in PREFERENCE:
+        try:
+            importlib.import_module("sksparse.cholmod" if backend is CholmodBackend.sksparse else "cholespy")
+        except ImportError:
+            continue
+        found.append(backend)
+    return tuple(found)
+
+
+def _backend(backend: CholmodBackend | str) -> CholmodBackend:
+    """``backend`` resolved: ``auto`` → the fastest installed; a ConfigError naming the key and
+    the override that works when the one asked for is not installed."""
+    backend = CholmodBackend.of(backend, "solver.backend")
+    installed = installed_backends()
+    if backend is CholmodBackend.auto:
+        if not installed:
+            raise SolverError("solver=cholmod needs the package cholespy: install it with `pip install cholespy`, "
+                              "or run with solver=direct")
+        return installed[0]
+    if backend not in installed:
+        how = ("it builds against SuiteSparse: apt-get install libsuitesparse-dev && pip install 'scikit-sparse<0.5'"
+               if backend is CholmodBackend.sksparse else "pip install cholespy")
+        other = next((b for b in installed if b is not backend), None)
+        fix = f"solver.backend={other}" if other else "solver=direct"
+        raise ConfigError(f"solver.backend={backend}: {backend} is not installed ({how}); use {fix}")
+    return backend
+
+
 @dataclass
 class CholmodSolver(Solver):
-    """Cholesky factorization once in ``factorize``; each solve two triangular solves."""
+    """Cholesky factorization once in ``factorize``; each solve two triangular solves.
+
+    backend : which binding of CHOLMOD factorizes (module docstring); ``auto`` the fastest installed
+    """
 
     name = "cholmod"
     needs_spd = True
+    backend: CholmodBackend = CholmodBackend.auto
 
     def __post_init__(self):
         super().__post_init__()
-        try:
-            import cholespy  # noqa: F401
-        except ImportError:
-            raise SolverError("solver=cholmod needs the package cholespy: install it with `pip install cholespy`, "
-                              "or run with solver=direct") from None
+        self.backend = CholmodBackend.of(self.backend, "solver.backend")
+        _backend(self.backend)  # a binding that is not installed: the hint now, before any mesh work
 
     def _prepare(self, A) -> None:
-        self._factor = cholesky_factor(A, self.name)
+        self._factor = cholesky_factor(A, self.name, self.backend)
 
     def _solve_block(self, b: np.ndarray) -> np.ndarray:
         return cholesky_solve(self._factor, np.ascontiguousarray(b))
 
 
-def cholesky_factor(A: sp.csr_matrix, name: str):
-    """The cholespy factor of the symmetric positive definite CSR matrix ``A``; SolverError
-    (naming ``solver=direct``) when ``A`` is not symmetric or not positive definite."""
-    import cholespy
+class _Supernodal:
+    """A scikit-sparse factor with cholespy's ``solve(b, x)`` (x ← A⁻¹ b)."""
 
+    def __init__(self, factor):
+        self.factor = factor
+
+    def solve(self, b: np.ndarray, x: np.ndarray) -> None:
+        x[...] = self.factor(b)
+
+
+def cholesky_factor(A: sp.csr_matrix, name: str, backend: CholmodBackend | str = CholmodBackend.auto):
+    """The CHOLMOD factor of the symmetric positive definite CSR matrix ``A`` (an object with
+    ``solve(b, x)``), by ``backend`` (``auto``: the fastest installed); SolverError (naming
+    ``solver=direct``) when ``A`` is not symmetric or not positive definite."""
+    backend = _backend(backend)
     skew = asymmetry(A)
     if skew > SYMMETRY_TOL:
         raise SolverError(f"{name} solver: the {A.shape} matrix is not symmetric (max |A − Aᵀ| = {skew:.2g} × max |A|); "
                           "Cholesky needs a symmetric positive definite matrix: use solver=direct")
+    if backend is CholmodBackend.sksparse:
+        from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
+
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # CHOLMOD's warnings (e.g. not positive definite) are failures
+                return _Supernodal(cholesky(sp.csc_matrix(A), mode="supernodal"))
+        except (CholmodNotPositiveDefiniteError, Warning) as exc:
+            raise SolverError(f"{name} solver: cannot factorize the {A.shape} matrix: {str(exc).splitlines()[0]} "
+                              "(Cholesky needs a positive definite matrix: use solver=direct)") from None
+    import cholespy
+
     A = sp.csr_matrix(A)
     A.sort_indices()
     try:
@@ -87,7 +170,7 @@ def cholesky_factor(A: sp.csr_matrix, name: str):
 
 
 def cholesky_solve(factor, b: np.ndarray) -> np.ndarray:
-    """x with A x = b for a cholespy ``factor`` of A; b (n,) or (n, m) C-contiguous float64."""
+    """x with A x = b for a ``factor`` of A (:func:`cholesky_factor`); b (n,) or (n, m) C-contiguous float64."""
     x = np.empty_like(b)
     factor.solve(b, x)
     if not np.all(np.isfinite(x)):

@@ -42,13 +42,31 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from decrun.core.choices import Choice
 from decrun.core.solvers.base import Solver, backward_error, check_tolerance, norm_bound
 from decrun.errors import ConfigError, SolverError
 
-__all__ = ["KrylovSolver", "choose_method"]
+__all__ = ["KrylovSolver", "KrylovMethod", "KrylovPreconditioner", "choose_method"]
 
-METHODS = ("auto", "cg", "minres", "gmres", "bicgstab")
-PRECONDITIONERS = ("auto", "jacobi", "ilu", "none")
+class KrylovMethod(Choice):
+    """``solver.method`` of iterative: ``auto`` (chosen to fit the matrix, :func:`choose_method`)
+    or one Krylov method."""
+
+    auto = "auto"
+    cg = "cg"
+    minres = "minres"
+    gmres = "gmres"
+    bicgstab = "bicgstab"
+
+
+class KrylovPreconditioner(Choice):
+    """``solver.preconditioner`` of iterative: ``auto`` (Jacobi for cg/minres, ILU for
+    gmres/bicgstab), ``jacobi``, ``ilu`` or ``none``."""
+
+    auto = "auto"
+    jacobi = "jacobi"
+    ilu = "ilu"
+    none = "none"
 
 
 def is_symmetric(A: sp.csr_matrix, rtol: float = 1e-12) -> bool:
@@ -99,8 +117,8 @@ class KrylovSolver(Solver):
     name = "iterative"
     tol: float = 1e-14
     maxiter: Optional[int] = None
-    method: str = "auto"
-    preconditioner: str = "auto"
+    method: KrylovMethod = KrylovMethod.auto
+    preconditioner: KrylovPreconditioner = KrylovPreconditioner.auto
     restart: int = 50
     ilu_drop_tol: float = 1e-5
     ilu_fill_factor: float = 20.0
@@ -109,11 +127,8 @@ class KrylovSolver(Solver):
     def __post_init__(self):
         super().__post_init__()
         check_tolerance(self.tol, self.maxiter)
-        if self.method not in METHODS:
-            raise ConfigError(f"solver.method: choose one of {list(METHODS)}, got {self.method!r}")
-        if self.preconditioner not in PRECONDITIONERS:
-            raise ConfigError(f"solver.preconditioner: choose one of {list(PRECONDITIONERS)}, "
-                              f"got {self.preconditioner!r}")
+        self.method = KrylovMethod.of(self.method, "solver.method")  # also for Python callers (strings)
+        self.preconditioner = KrylovPreconditioner.of(self.preconditioner, "solver.preconditioner")
         if self.preconditioner == "ilu" and self.method in ("cg", "minres"):
             raise ConfigError(f"solver.preconditioner=ilu: solver.method={self.method} needs a symmetric positive "
                               "definite preconditioner; use `solver.preconditioner=jacobi`")
@@ -132,9 +147,9 @@ class KrylovSolver(Solver):
             plan = choose_method(A)
         else:
             default = "ilu" if self.method in ("gmres", "bicgstab") else "jacobi"
-            plan = [(self.method, default)]
+            plan = [(str(self.method), default)]
         if self.preconditioner != "auto":
-            plan = [(method, self.preconditioner) for method, _ in plan]
+            plan = [(method, str(self.preconditioner)) for method, _ in plan]
         self._plan = list(plan)
         self._built: dict = {}  # key → preconditioner, built on first use (one ILU for gmres and bicgstab)
         self._drop_tol = self.ilu_drop_tol  # tightened by _tighten_ilu when the ILU is too coarse

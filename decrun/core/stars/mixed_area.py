@@ -17,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from decrun.core.choices import Choice
 from decrun.core.geometry import corner_cotangents
 from decrun.core.stars.circumcentric import Circumcentric
 from decrun.errors import ConfigError
 
-__all__ = ["MixedArea", "mixed_area_star0"]
+__all__ = ["MixedArea", "Tetrahedra", "mixed_area_star0"]
 
 
 def mixed_area_star0(vertices: np.ndarray, triangles: np.ndarray, areas: np.ndarray) -> np.ndarray:
@@ -43,16 +44,23 @@ def mixed_area_star0(vertices: np.ndarray, triangles: np.ndarray, areas: np.ndar
     return np.bincount(triangles.ravel(), weights=contribution.ravel(), minlength=len(vertices))
 
 
+class Tetrahedra(Choice):
+    """``operator.tetrahedra`` of mixed_area: on tetrahedral meshes the ``barycentric`` ⋆0, or an
+    ``error`` (volumes refused)."""
+
+    barycentric = "barycentric"
+    error = "error"
+
+
 @dataclass
 class MixedArea(Circumcentric):
     """``operator=mixed_area``: ⋆0 = mixed area (> 0), other stars circumcentric."""
 
     name = "mixed_area"
-    tetrahedra: str = "barycentric"  # barycentric | error: ⋆0 on tetrahedral meshes
+    tetrahedra: Tetrahedra = Tetrahedra.barycentric  # barycentric | error: ⋆0 on tetrahedral meshes
 
     def __post_init__(self):
-        if self.tetrahedra not in ("barycentric", "error"):
-            raise ConfigError(f"operator.tetrahedra: must be barycentric or error, got {self.tetrahedra!r}")
+        self.tetrahedra = Tetrahedra.of(self.tetrahedra, "operator.tetrahedra")  # also for Python callers
 
     def check(self, K) -> None:
         if K.dim == 3 and self.tetrahedra == "barycentric":

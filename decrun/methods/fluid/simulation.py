@@ -71,25 +71,11 @@ from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
 from decrun.methods.fluid.interpolation import CellInterpolator, dot3, triangle_velocity_matrix
 from decrun.methods.fluid.limiter import EnergyEnstrophyBound, conservative_clamp, footprint_range
+from decrun.methods.fluid.options import SWEPT, Backtracking, Circulation, FluidOptions, Kernels, Velocity, Walls
 from decrun.methods.fluid.swept import SweptVorticity, rest_point_interpolation
-from decrun.methods.fluid.reconstruction import VELOCITY_RECONSTRUCTIONS, make_reconstruction
+from decrun.methods.fluid.reconstruction import make_reconstruction
 
-__all__ = ["VorticityFluid", "CIRCULATIONS", "KERNELS", "WALLS"]
-
-#: the circulation rules of step d for interior cells
-CIRCULATIONS = ("swept_bounded", "swept_clamped", "swept", "corrected_trapezoid", "trapezoid")
-#: the rules that backtrack in intervals and sum the swept vorticity (swept.py)
-SWEPT = ("swept_bounded", "swept_clamped", "swept")
-
-KERNELS = ("auto", "numba", "numpy")  # the switch of decrun.core.jit: compiled loops (compiled.py) or numpy twins
-#: the wall conditions (``walls=``; "auto" resolves by the viscosity, see VorticityFluid)
-WALLS = ("auto", "slip", "no_slip")
-
-
-def _one_of(name: str, value: str, allowed) -> None:
-    """ConfigError naming the option ``name`` when ``value`` is not one of ``allowed``."""
-    if value not in allowed:
-        raise ConfigError(f"fluid: {name} must be one of {list(allowed)}, got {value!r}")
+__all__ = ["VorticityFluid"]
 
 
 class VorticityFluid:
@@ -109,6 +95,9 @@ class VorticityFluid:
     penalty : μ of eq. 7.14 (default 1e6 · max ⋆1)
     blowup_factor : the run is reported unstable when the kinetic energy exceeds this
         factor times the largest legitimate energy (initial, harmonic, or after a forced step)
+    options : :class:`~decrun.methods.fluid.options.FluidOptions`, the scheme's choices below
+        (``integrator``, ``circulation``, ``velocity``, ``walls``, ``kernels``) validated once
+        there; or give those as keywords (strings or members; the defaults are FluidOptions')
     integrator, substeps, max_cfl, max_rounds : passed to the backtracking (backtrack.py):
         each point takes at least ``substeps`` substeps and enough that one substep moves it
         at most ``max_cfl`` mean edge lengths of its start triangle (None: no such bound).
@@ -133,50 +122,67 @@ class VorticityFluid:
     def __init__(self, dec: DEC, new_solver, *, dt: float, viscosity: float, inflow_velocity=None,
                  obstacle_loops=None, initial_vorticity=None, penalty: float | None = None,
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
-                 max_cfl: float | None = 1.0, integrator: str = "midpoint",
-                 circulation: str = "swept_bounded", velocity: str = "least_squares", swept_cfl: float = 1.0,
-                 kernels: str = "auto", walls: str = "auto"):
+                 max_cfl: float | None = 1.0, swept_cfl: float = 1.0, options: FluidOptions | None = None,
+                 integrator: Backtracking | None = None, circulation: Circulation | None = None,
+                 velocity: Velocity | None = None, kernels: Kernels | None = None, walls: Walls | None = None):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
             raise ConfigError(f"fluid: the viscosity must be >= 0, got {viscosity}")
-        _one_of("circulation", circulation, CIRCULATIONS)
-        _one_of("velocity", velocity, sorted(VELOCITY_RECONSTRUCTIONS))
-        if velocity == "least_squares" and circulation not in SWEPT:
-            raise ConfigError("fluid: velocity=least_squares is stable only with circulation=swept_bounded, swept_clamped or swept "
-                              "(its trapezoid circulation grew enstrophy x14 in 5 s on a sphere); use "
-                              "circulation=swept_bounded")
-        _one_of("kernels", kernels, KERNELS)
-        _one_of("walls", walls, WALLS)
-        if walls == "slip" and circulation not in SWEPT:
-            raise ConfigError("fluid: walls=slip needs a swept circulation (the trapezoid rules take their wall "
-                              "velocity at the fixed border points); use circulation=swept_bounded or walls=no_slip")
+        self._set_options(options, dict(integrator=integrator, circulation=circulation, velocity=velocity,
+                                        kernels=kernels, walls=walls), viscosity)
+        self.dec, self.K = dec, dec.K
+        self.dt, self.viscosity = float(dt), float(viscosity)
+        self.max_rounds, self.substeps, self.max_cfl = max_rounds, substeps, max_cfl
+        self.swept_cfl = float(swept_cfl)
+        self.blowup_factor = blowup_factor
+        self._geometry(obstacle_loops, inflow_velocity)
+        self._solvers(new_solver, inflow_velocity, penalty)
+        n0 = self.K.num_simplices(0)
+        w0 = np.zeros(n0) if initial_vorticity is None else np.array(initial_vorticity, dtype=np.float64)
+        if w0.shape != (n0,):
+            raise ConfigError(f"fluid: initial_vorticity must have one value per vertex ({n0},), got {w0.shape}")
+        self.vorticity = self._remove_mean(w0)
+        self.psi = self._recover(self.vorticity)
+        self.flux = self.d0 @ self.psi + self.harmonic
+        self.time, self.steps = 0.0, 0
+        self.diverged_at_step: int | None = None
+        self._energy_reference = max(self.kinetic_energy(), 0.5 * self.harmonic @ (self.star1 * self.harmonic), 1e-300)
+        if self.kernels == "numba":
+            self._load_kernels()
+
+    def _set_options(self, options: FluidOptions | None, choices: dict, viscosity: float) -> None:
+        """The scheme's choices (:class:`~decrun.methods.fluid.options.FluidOptions`, validated
+        there once: given, or made from the keyword choices) and what they resolve to here."""
+        choices = {name: value for name, value in choices.items() if value is not None}
+        if options is not None and choices:
+            raise TypeError(f"VorticityFluid: give options= or the choices {sorted(choices)} by keyword, not both")
+        self.options = options if options is not None else FluidOptions(**choices)
+        self.integrator, self.circulation_rule = self.options.integrator, self.options.circulation
         #: the wall condition: "slip" (the Euler condition, u·n = 0: walls make no vorticity) or
         #: "no_slip" (the border cells' trapezoid with the wall velocity, thesis §7.2.4); "auto" is
         #: slip at ν = 0 with a swept circulation, else no_slip
-        self.walls = walls if walls != "auto" else (
-            "slip" if float(viscosity) == 0.0 and circulation in SWEPT else "no_slip")
-        self.kernels = "numba" if jit.enabled(None, min_size=0, kernels=kernels) else "numpy"
+        self.walls = self.options.resolved_walls(viscosity)
+        self.kernels = "numba" if jit.enabled(None, min_size=0, kernels=str(self.options.kernels)) else "numpy"
         #: the compiled walk interpolates with the reconstruction's tables (compiled.py)
         self.compiled_walk = self.kernels == "numba"
-        K = dec.K
-        self.dec, self.K = dec, K
-        self.dt, self.viscosity = float(dt), float(viscosity)
-        self.max_rounds, self.substeps, self.integrator = max_rounds, substeps, integrator
-        self.max_cfl = max_cfl
-        self.circulation_rule = circulation
-        self.swept_cfl = float(swept_cfl)
-        self.blowup_factor = blowup_factor
+
+    def _geometry(self, obstacle_loops, inflow_velocity) -> None:
+        """The tables of the mesh the scheme reads every step: dual cells, the triangle walker, the
+        velocity reconstruction, the border layout and inflow, ⋆0, ⋆1, d0, the stiffness
+        d0ᵀ ⋆1 d0, the dual edges of the swept rule and the open (inflow) border."""
+        dec, K = self.dec, self.K
         self.cells = build_dual_cells(dec)
         self.face_normal = self.cells.face_normal
         self.walker = TriangleWalker(dec, self.face_normal)
         self.velocity_matrix = triangle_velocity_matrix(dec, self.face_normal)
+        velocity = self.options.velocity
         self.reconstruction = make_reconstruction(velocity, dec, self.cells, self.face_normal, self.walker)
         self.interpolator = getattr(self.reconstruction, "interpolator", None)
         if self.interpolator is None:
             self.interpolator = CellInterpolator(self.cells, K.simplices(2), K.vertices)
         #: what the compiled walk interpolates with (kernel_tables, velocity_compiled)
-        self._kernel_field = self.interpolator if velocity == "wshd07" else self.reconstruction
+        self._kernel_field = self.interpolator if velocity == Velocity.wshd07 else self.reconstruction
         #: mesh quality the method relies on (§7.3): obtuse triangles and non-convex flattened cells
         self.obtuse_triangles = obtuse_triangle_count(K.vertices, K.simplices(2))
         self.nonconvex_cells = int((~self.interpolator.convex).sum())
@@ -189,27 +195,38 @@ class VorticityFluid:
         self.d0 = K.incidence(1)
         self.d0T = K.boundary(1)
         self.stiffness = dec.laplacian_symmetric(0)  # d0ᵀ ⋆1 d0 (PSD)
-        self.harmonic = harmonic_flux(dec, self.face_normal, self.label, inflow_velocity, new_solver)
         self._build_dual_edges()
         self._open_border()
+        # velocities of the fixed border dual points: [d0 ψ part, full u]
+        m = self.cells.n_circumcenters
+        fixed_vertex = self.cells.point_vertex[m:]
+        self._fixed_velocity = np.zeros((fixed_vertex.size, 3, 2))
+        self._fixed_velocity[:, :, 1] = np.where((self.label[fixed_vertex] == 0)[:, None], self.inflow[None, :], 0.0)
+        edges = K.simplices(1)
+        self._edge_wall_velocity = np.where((self.label[edges[:, 0]] == 0)[:, None], self.inflow[None, :], 0.0)
+
+    def _solvers(self, new_solver, inflow_velocity, penalty: float | None) -> None:
+        """The factorized systems, each once: the harmonic flux of the inflow, the bound of
+        limiter.py, the implicit viscosity (⋆0 + ν dt d0ᵀ ⋆1 d0) and the stream function's
+        penalized Poisson matrix (eq. 7.14 × ⋆0, one vertex pinned)."""
+        K, circulation = self.K, self.circulation_rule
+        self.harmonic = harmonic_flux(self.dec, self.face_normal, self.label, inflow_velocity, new_solver)
         #: the bound of limiter.py: energy and enstrophy on closed surfaces and between slip walls,
         #: the energy alone at no-slip walls (their border cells make vorticity: an enstrophy bound
         #: there wrecked the cellular flow's steady state, drift 298 /s instead of 1.8e-3 /s on 594
         #: faces), none with inflow (energy flows in)
         self._bound = None
-        if circulation in ("swept_bounded", "swept_clamped") and not np.any(self.inflow):
+        if circulation in (Circulation.swept_bounded, Circulation.swept_clamped) and not np.any(self.inflow):
             self._bound = EnergyEnstrophyBound(self.star0, self.stiffness, self._recover, new_solver,
                                                alpha=float(np.mean(self.walker.size)) ** 2,
-                                               enstrophy=self.closed or self.walls == "slip")
+                                               enstrophy=self.closed or self.walls == Walls.slip)
         #: per step: cells the clamp changed, and the bound's branches (limiter.EnergyEnstrophyBound.apply)
         self.limited_cells, self.bound_action = 0, 0
         #: the local clamp runs for swept_clamped, and for swept_bounded where the global bound cannot
         #: (slip walls with inflow: without it the inviscid 12059-face channel diverged at step 19, with
         #: it max |w| stayed ≤ 106 over 100 steps)
-        self._clamps = circulation == "swept_clamped" or (
-            circulation == "swept_bounded" and self.walls == "slip" and np.any(self.inflow))
-
-        n0 = K.num_simplices(0)
+        self._clamps = circulation == Circulation.swept_clamped or (
+            circulation == Circulation.swept_bounded and self.walls == Walls.slip and np.any(self.inflow))
         if self.viscosity > 0:
             self._diffusion = new_solver()
             self._diffusion.factorize((sp.diags(self.star0) + self.viscosity * self.dt * self.stiffness).tocsr())
@@ -226,26 +243,6 @@ class VorticityFluid:
         A[self.pinned, self.pinned] = 1.0
         self._poisson = new_solver()
         self._poisson.factorize(A.tocsr())
-
-        # velocities of the fixed border dual points: [d0 ψ part, full u]
-        m = self.cells.n_circumcenters
-        fixed_vertex = self.cells.point_vertex[m:]
-        self._fixed_velocity = np.zeros((fixed_vertex.size, 3, 2))
-        self._fixed_velocity[:, :, 1] = np.where((self.label[fixed_vertex] == 0)[:, None], self.inflow[None, :], 0.0)
-        edges = K.simplices(1)
-        self._edge_wall_velocity = np.where((self.label[edges[:, 0]] == 0)[:, None], self.inflow[None, :], 0.0)
-
-        w0 = np.zeros(n0) if initial_vorticity is None else np.array(initial_vorticity, dtype=np.float64)
-        if w0.shape != (n0,):
-            raise ConfigError(f"fluid: initial_vorticity must have one value per vertex ({n0},), got {w0.shape}")
-        self.vorticity = self._remove_mean(w0)
-        self.psi = self._recover(self.vorticity)
-        self.flux = self.d0 @ self.psi + self.harmonic
-        self.time, self.steps = 0.0, 0
-        self.diverged_at_step: int | None = None
-        self._energy_reference = max(self.kinetic_energy(), 0.5 * self.harmonic @ (self.star1 * self.harmonic), 1e-300)
-        if self.kernels == "numba":
-            self._load_kernels()
 
     # ------------------------------------------------------------------ pieces
     def _load_kernels(self) -> None:

@@ -18,8 +18,23 @@ import numpy as np
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError, IndexOutOfRangeError, MeshError, NonFiniteCoordinateError
 
-__all__ = ["Mesh", "HoleCut", "HolePieces", "Refine", "Orient", "mesh_hash", "check_mesh", "check_size", "bounding_diagonal", "SIZE_RANGE", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
+__all__ = ["Mesh", "UpAxis", "HoleCut", "HolePieces", "Refine", "Orient", "mesh_hash", "check_mesh", "check_size", "bounding_diagonal", "SIZE_RANGE", "require", "require_triangles", "require_surface", "MAX_TRIANGLES",
            "from_meshset", "to_meshset", "pymeshlab_primitive"]
+
+
+class UpAxis(Choice):
+    """``mesh.up_axis``: the model's up axis, rotated to +z — ``x``, ``y``, ``z`` or the negative
+    axes ``-x``, ``-y``, ``-z``; ``auto`` a sample's own (else ``z``). The negative axes are not
+    Python names, so the config field stays a string checked by :meth:`Choice.of` when the
+    source is made (its members' names are ``minus_x`` …, their values what the config says)."""
+
+    auto = "auto"
+    x = "x"
+    y = "y"
+    z = "z"
+    minus_x = "-x"
+    minus_y = "-y"
+    minus_z = "-z"
 
 
 class HoleCut(Choice):

@@ -227,7 +227,11 @@ def _split_pinched(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray):
             np.concatenate([origin, origin[copies]]), int(extra.size))
 
 
-def cut_holes(vertices, faces, balls: Sequence = (), boxes: Sequence = (), *, snap: float = 0.25,
+#: the snap distance (× edge length) of ``mesh.hole_snap`` (module doc, step 3)
+SNAP = 0.25
+
+
+def cut_holes(vertices, faces, balls: Sequence = (), boxes: Sequence = (), *, snap: float = SNAP,
               keep_all_pieces: bool = False) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """Cut the union of ``balls`` and ``boxes`` out of a triangle mesh along their border.
 

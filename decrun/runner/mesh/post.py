@@ -1,7 +1,8 @@
 """Post-processing steps of the mesh sources (``mesh.post``): one function per step.
 
-Each step is ``step(mesh, source) -> Mesh``, reads its options from the source
-(:class:`decrun.runner.mesh.source.MeshSource` fields) and returns the mesh unchanged (the same
+Each step is ``step(mesh, cfg) -> Mesh``, reads its options from the typed source ``cfg`` (a
+:class:`decrun.runner.mesh.source.MeshSource`: every option there, with its one default, already
+validated) and returns the mesh unchanged (the same
 object) unless its option enables it. ``mesh.post`` lists the names of these functions in
 the order they run; adding a step is adding a function here (and its option field to
 ``MeshSource``).
@@ -16,11 +17,11 @@ import numpy as np
 from decrun.core.connectivity import component_labels, drop_unreferenced
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
 from decrun.errors import MeshError
-from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, HolePieces, Mesh, Refine, bounding_diagonal, from_meshset,
-                                     require, require_surface, require_triangles, to_meshset)
+from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, HolePieces, Mesh, Refine, UpAxis, bounding_diagonal,
+                                     from_meshset, require, require_surface, require_triangles, to_meshset)
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
-from decrun.runner.mesh.repair import ROTATION_TO_Z_UP, UP_AXIS, repair_mesh, up_axis_to_z
+from decrun.runner.mesh.repair import repair_mesh, up_axis_to_z
 
 __all__ = ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise"]
 
@@ -61,12 +62,11 @@ def up_axis(mesh: Mesh, cfg) -> Mesh:
 
 
 def resolved_up_axis(mesh: Mesh, cfg) -> str:
-    """``cfg.up_axis`` with ``auto`` resolved (the sample's up axis, else ``z``)."""
-    axis = str(getattr(cfg, "up_axis", "z"))
-    if axis == "auto":
-        axis = UP_AXIS.get(str(getattr(cfg, "sample", "")), "z") if mesh.meta.get("source") == "sample" else "z"
-    require(axis in ROTATION_TO_Z_UP, "up_axis", f"must be auto or one of {sorted(ROTATION_TO_Z_UP)}, got {axis!r}")
-    return axis
+    """``cfg.up_axis`` (an :class:`~decrun.runner.mesh.base.UpAxis`) as a key of
+    :data:`~decrun.runner.mesh.repair.ROTATION_TO_Z_UP`, ``auto`` resolved by the source
+    (:meth:`~decrun.runner.mesh.source.MeshSource.auto_up_axis`: a sample's own, else ``z``)."""
+    axis = UpAxis.of(cfg.up_axis, "mesh.up_axis").value
+    return cfg.auto_up_axis() if axis == UpAxis.auto.value else axis
 
 
 def holes(mesh: Mesh, cfg) -> Mesh:
@@ -79,11 +79,10 @@ def holes(mesh: Mesh, cfg) -> Mesh:
     sawtooth borders of the earlier experiments). Records ``meta['holes']`` (the cut's counts)
     and carries ``meta['clean_vertices']`` onto the cut mesh.
     """
-    balls = list(getattr(cfg, "hole_balls", None) or [])
-    boxes = list(getattr(cfg, "hole_boxes", None) or [])
+    balls, boxes = list(cfg.hole_balls), list(cfg.hole_boxes)
     if not balls and not boxes:
         return mesh
-    method = HoleCut.of(getattr(cfg, "hole_cut", HoleCut.split), "mesh.hole_cut")
+    method = cfg.hole_cut
     meta = dict(mesh.meta)
     if method == HoleCut.whole_triangles:
         vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes,
@@ -93,14 +92,14 @@ def holes(mesh: Mesh, cfg) -> Mesh:
         meta["holes"] = {"removed_faces": int(len(mesh.simplices) - len(faces))}
     else:
         vertices, faces, info = split_along_holes(mesh.vertices, mesh.simplices, balls, boxes,
-                                                  snap=float(getattr(cfg, "hole_snap", 0.25)), keep_all_pieces=True)
+                                                  snap=float(cfg.hole_snap), keep_all_pieces=True)
         if "clean_vertices" in meta:
             meta["clean_vertices"] = info["interpolation"] @ np.asarray(meta["clean_vertices"])
         meta["holes"] = {k: v for k, v in info.items() if np.isscalar(v)}
         meta["hole_border_vertices"] = int(np.sum(info["on_border"]))
     meta["holes_removed_faces"] = int(meta["holes"]["removed_faces"])
     cut = type(mesh)(vertices, faces, meta)
-    if HolePieces.of(getattr(cfg, "hole_pieces", HolePieces.largest), "mesh.hole_pieces") == HolePieces.all:
+    if cfg.hole_pieces == HolePieces.all:
         return cut
     kept = keep_largest_piece(cut, "holes", "edges", "mesh.hole_balls/hole_boxes: the cut",
                               "`mesh.hole_pieces=all` keeps every piece")
@@ -160,7 +159,7 @@ def largest_component(mesh: Mesh, cfg) -> Mesh:
     top simplices go to the run log and to ``meta`` (``largest_component_components``,
     ``largest_component_dropped_vertices``, ``largest_component_dropped_faces``;
     :func:`keep_largest_piece`)."""
-    if not getattr(cfg, "largest_component", False):
+    if not cfg.largest_component:
         return mesh
     kept = keep_largest_piece(mesh, "largest_component", "vertices", "mesh.largest_component: the mesh",
                               "`mesh.largest_component=false` keeps every piece")
@@ -173,7 +172,7 @@ def refine(mesh: Mesh, cfg) -> Mesh:
     ``refine_iterations`` times. Drops ``clean_vertices`` (the connectivity changed)."""
     import pymeshlab
 
-    if Refine.of(cfg.refine, "mesh.refine") == Refine.none:
+    if cfg.refine == Refine.none:
         return mesh
     require(1 <= cfg.refine_iterations <= 10, "refine_iterations", f"must be in 1..10, got {cfg.refine_iterations}")
     require_surface(mesh, f"mesh.refine={cfg.refine}", "mesh.refine=none")

@@ -46,7 +46,9 @@ import numpy as np
 from decrun.core.geometry import mean_edge_length
 from decrun.errors import ConfigError
 from decrun.runner.mesh import post as post_steps
-from decrun.runner.mesh.base import HoleCut, HolePieces, Mesh, Orient, Refine, check_mesh, check_size, mesh_hash, require
+from decrun.runner.mesh.cut import SNAP
+from decrun.runner.mesh.base import (HoleCut, HolePieces, Mesh, Orient, Refine, UpAxis, check_mesh, check_size, mesh_hash,
+                                     require)
 
 __all__ = ["MeshSource"]
 
@@ -69,7 +71,8 @@ class MeshSource:
     #: pymeshlab's repair filters (duplicates, non-manifold edges/vertices, unreferenced
     #: vertices, orientation), every change counted in meta['repair'] and the log
     repair: bool = False
-    #: the model's up axis, rotated to +z: x | y | z | -x | -y | -z | auto (a sample's own)
+    #: the model's up axis, rotated to +z: x | y | z | -x | -y | -z | auto (a sample's own);
+    #: an :class:`~decrun.runner.mesh.base.UpAxis` once made (a string field: ``-x`` is no enum name)
     up_axis: str = "z"
     clean: bool = False  # drop unreferenced vertices, keep the largest component
     #: keep only the connected component (top simplices joined through shared vertices) with
@@ -82,7 +85,7 @@ class MeshSource:
     #: split: triangles split along the region borders (smooth holes) | whole_triangles:
     #: remove triangles whose centroid is inside (sawtooth borders, the earlier cut)
     hole_cut: HoleCut = HoleCut.split
-    hole_snap: float = 0.25  # split: crossings this close (× edge length) to a vertex move it instead
+    hole_snap: float = SNAP  # split: crossings this close (× edge length) to a vertex move it instead
     #: after the cut: keep the largest piece (what is dropped is logged and recorded) | all
     hole_pieces: HolePieces = HolePieces.largest
     refine: Refine = Refine.none  # none | loop | midpoint | isotropic
@@ -102,8 +105,13 @@ class MeshSource:
         self.hole_pieces = HolePieces.of(self.hole_pieces, "mesh.hole_pieces")
         self.refine = Refine.of(self.refine, "mesh.refine")
         self.orient = Orient.of(self.orient, "mesh.orient")
+        self.up_axis = UpAxis.of(self.up_axis, "mesh.up_axis")
         require(0 <= self.hole_snap < 0.5, "hole_snap", f"must be in [0, 0.5), got {self.hole_snap}")
         require(self.noise >= 0, "noise", f"must be >= 0, got {self.noise}")
+
+    def auto_up_axis(self) -> str:
+        """What ``up_axis: auto`` means for this source: ``z`` (a sample knows its own)."""
+        return "z"
 
     def make(self) -> Mesh:  # pragma: no cover - abstract
         """The source's own mesh, before post-processing."""

@@ -16,5 +16,9 @@ FIGURE_KINDS = {
     "snapshots": "decrun.runner.plots.snapshots.snapshot_grid",
     "animation": "decrun.runner.plots.snapshots.animation",
     "vector_field": "decrun.runner.plots.fields.field_figure",
+    "hodge_parts": "decrun.runner.plots.fields.hodge_parts_figure",
+    "uv_layout": "decrun.runner.plots.parametrization.uv_layout",
+    "checkerboard": "decrun.runner.plots.parametrization.checkerboard",
+    "eigenforms": "decrun.runner.plots.spectrum.eigenforms_figure",
 }
 

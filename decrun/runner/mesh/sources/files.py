@@ -76,6 +76,12 @@ class Sample(MeshSource):
         require(self.sample in SAMPLE_MESHES, "sample",
                 f"unknown sample {self.sample!r}; choose one of {sorted(SAMPLE_MESHES)}")
 
+    def auto_up_axis(self) -> str:
+        """The sample's own up axis (:data:`decrun.runner.mesh.repair.UP_AXIS`), else ``z``."""
+        from decrun.runner.mesh.repair import UP_AXIS
+
+        return UP_AXIS.get(self.sample, "z")
+
     def make(self) -> Mesh:
         mesh = read_file(sample_mesh_dir() / SAMPLE_MESHES[self.sample], "mesh.sample", "sample")
         mesh.meta["label"] = self.sample

@@ -45,7 +45,8 @@ class Number:
 @dataclass(frozen=True)
 class Run:
     """A single run ``decrun <overrides>`` and the numbers taken from its metrics. ``slow``: the
-    check runs with ``pytest -m slow`` only (the large fluid channels: minutes each)."""
+    check runs with ``pytest -m slow`` only (for a run too heavy for the default suite; every run
+    of the table is light enough today: the fluid channels take 5–15 s of CPU each)."""
 
     overrides: tuple[str, ...]
     numbers: dict[str, Number] = field(default_factory=dict)
@@ -149,21 +150,22 @@ _SHADOW = {"growth": N("perturbation_growth_per_s", **GROWTH),
 for _faces, _dt in (("1400", "0.0025"), ("1400", "0.005"), ("1400", "0.0075"), ("2800", "0.005")):
     RUNS[f"fig7_15_{_faces}_{_dt.replace('.', '_')}"] = Run(
         ("+experiment=fig7_15_density_and_time_step", f"mesh.target_faces={_faces}", f"app.dt={_dt}"),
-        {**_FLUID, **_SHADOW}, slow=(_faces, _dt) != ("1400", "0.005"))
+        {**_FLUID, **_SHADOW})
 #: the channel of decrun's first scheme where it is chaotic (flagged) or borderline: what a chaotic
-#: run ends with is round-off amplified, so its numbers are held to 10 % (the growth to 30 %)
-_CHAOTIC = {"enstrophy": N("enstrophy_final", ".0f", rtol=0.1), "energy_ratio": N("energy_ratio", ".3f", rtol=0.1),
+#: run ends with is round-off amplified (the 2790-face run at dt = 0.0075 ended between 1251 and
+#: 1427 in four runs), so its numbers are held to 25 % (the energy to 10 %, the growth to 30 %)
+_CHAOTIC = {"enstrophy": N("enstrophy_final", ".0f", rtol=0.25), "energy_ratio": N("energy_ratio", ".3f", rtol=0.1),
             "stable": N("stable"), "faces": N("n_faces"), "steps": N("steps_done"),
             "growth": N("perturbation_growth_per_s", ".1f", rtol=0.3, atol=2.0),
             "growth_step": N("perturbation_growth_per_step", ".3f", rtol=0.3, atol=0.01)}
 for _faces, _dt in (("1400", "0.0075"), ("2800", "0.005"), ("2800", "0.0075")):
     RUNS[f"fig7_15_former_{_faces}_{_dt.replace('.', '_')}"] = Run(
         ("+experiment=fig7_15_density_and_time_step", f"mesh.target_faces={_faces}", f"app.dt={_dt}",
-         "app.velocity=wshd07", "app.circulation=corrected_trapezoid"), dict(_CHAOTIC), slow=True)
+         "app.velocity=wshd07", "app.circulation=corrected_trapezoid"), dict(_CHAOTIC))
 for _nu in ("0.0", "0.005", "0.02", "0.08"):
     RUNS[f"fig7_17_{_nu.replace('.', '_')}"] = Run(
         ("+experiment=fig7_17_viscosity", f"app.viscosity={_nu}", "app.shadow=true"),
-        {**_FLUID, **_SHADOW, "walls": N("walls")}, slow=True)
+        {**_FLUID, **_SHADOW, "walls": N("walls")})
 RUNS["fluid_noslip_inviscid_1400"] = Run(
     ("+experiment=fig7_15_density_and_time_step", "app.viscosity=0", "app.walls=no_slip"),
     {**_FLUID, **_SHADOW})
@@ -179,8 +181,8 @@ def _gallery():
 #: below this a gallery number is round-off (a volume drift, a divergence, an exact map's angle
 #: error): shown as computed, held only to being this small
 ROUND_OFF = 1e-9
-#: gallery entries whose runs take minutes (the finer fluid channels): checked with -m slow
-SLOW_GALLERY = {"fig7_15_density_and_time_step__1"}
+#: gallery entries whose runs are too heavy for the default suite (checked with -m slow): none
+SLOW_GALLERY: set[str] = set()
 #: runs that compose the same config as another run of the table (tests/test_numbers.py checks
 #: that they do): their numbers are taken from that run's metrics, which is run once
 ALIASES = {"gallery_fig7_15_density_and_time_step__0": "fig7_15_1400_0_005",
@@ -266,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="*", help="runs whose name starts with one of these (default: all)")
     parser.add_argument("--out", default=str(NUMBERS_FILE))
     parser.add_argument("--slow", choices=("with", "without", "only"), default="with",
-                        help="the runs marked slow (the large fluid channels): with (default), without, only")
+                        help="the runs marked slow: with (default), without, only")
     args = parser.parse_args(argv)
     out = Path(args.out)
     numbers = load(out)

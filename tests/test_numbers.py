@@ -3,9 +3,9 @@
 Every run of the script's table is rerun here (``decrun <overrides> figures=false``, the same
 composition and run as the command) and every number taken from it must equal the committed
 one within the tolerance the file states; a failure names the number, the page placeholder and
-the run. The fine fluid channels take minutes each and run with ``-m slow``; every other run —
-smoothing, parametrization, vector fields, Hodge, the coarse channel of Fig. 7.15, the gallery's
-— runs in the default suite, hence in CI. Also: the file holds exactly the numbers the script
+the run. Every run — smoothing, parametrization, vector fields, Hodge, the fluid channels of
+Figs. 7.15–7.17, the gallery's — is in the default suite, hence in CI (about 3 minutes of CPU in
+all; a run marked ``slow`` in the script would run with ``-m slow`` only). Also: the file holds exactly the numbers the script
 declares, every placeholder of a page is in it, and every command the gallery shows is one of
 the runs checked here.
 """

@@ -1,74 +1,148 @@
-"""Benchmark: building the DEC operator set, against libigl as the reference.
+"""Benchmark: building the DEC operator set, against libigl and the scipy floor, in one run.
 
-For each mesh, in a fresh subprocess (so peak memory is that case's alone):
+The work: ``SimplicialComplex(V, F)`` (with its validation) + ``d(0)``, ``d(1)``, ``⋆0..⋆2``
+(circumcentric). The anchor: libigl's ``cotmatrix`` + ``massmatrix(VORONOI)``. The floor:
+scipy building the same five operators as CSR from COO triplets holding the same nonzeros
+(what any sparse assembly of them pays at least).
 
-* decrun: ``SimplicialComplex(V, F)`` (with its validation) + ``d(0)``, ``d(1)``, ``⋆0..⋆2``
-  (circumcentric) — or, on tetrahedra, ``⋆0..⋆3``;
-* libigl (reference, triangles only): ``cotmatrix`` + ``massmatrix(VORONOI)``.
+Each mesh runs in a fresh subprocess. There, in this order:
 
-Reports wall time (best of ``--repeat``) and peak resident memory above the process's
-memory after loading the mesh, and the ratios decrun / libigl. Requires the ``bench``
-extra (``pip install -e .[bench]``); without libigl the reference columns are skipped
-with a message.
+* **fresh**: importing decrun's complex and operators (reported alone), then the first build in
+  the process, under ``auto`` (what a one-off ``decrun`` run pays), in CPU time;
+* **sweep worker**: builds under ``auto``, one after another, until ``auto`` starts numba
+  (the count is reported, its CPU time included in nothing else);
+* **warm**: ``--repeat`` interleaved rounds of libigl, the floor, decrun's numpy twins
+  (``DECRUN_NUMBA=0``) and decrun's kernels (numba started), each timed in CPU time
+  (``time.process_time``: the shared machine's load distorts wall time), best of the rounds.
 
-    python benchmarks/bench_operators.py            # full: up to 1.3M triangles, 1M tets
-    python benchmarks/bench_operators.py --quick    # small meshes, seconds
-    python benchmarks/bench_operators.py --jit      # numba's first-call cost: cold vs warm cache
+Ratios are decrun / libigl (and decrun / floor) from the same process. The machine's load
+average is printed before and after. ``--jit`` reports what a fresh process pays to start
+numba: importing it, and the first kernel calls (numba's typing registries, then each
+cached kernel's machine code), with an empty cache and with the cache it wrote.
+
+    python benchmarks/bench_operators.py            # 82k, 328k, 1.31M triangles
+    python benchmarks/bench_operators.py --quick    # 20k, 82k triangles, seconds
+    python benchmarks/bench_operators.py --jit      # numba's start in a fresh process
 """
 
 from __future__ import annotations
 
+import os
 import sys
+import time
 
-from harness import best_of, have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn, warm_up_kernels  # noqa: E402
+from harness import have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E402
 
-TRIANGLE_CASES = {"quick": [4, 5], "full": [5, 6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
-TET_CASES = {"quick": [8, 12], "full": [15, 25, 40, 55]}  # Kuhn cubes: 6·n³ tetrahedra
+TRIANGLE_CASES = {"quick": [5, 6], "full": [6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
+
+
+def _cpu(work) -> float:
+    start = time.process_time()
+    work()
+    return time.process_time() - start
+
+
+def _decrun_operators(vertices, faces):
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+
+    K = SimplicialComplex(vertices, faces)
+    dec = DEC(K)
+    return [dec.d(0), dec.d(1)] + [dec.star(k) for k in range(3)]
+
+
+def _floor_work(operators):
+    """The floor: the same nonzeros (COO triplets, computed beforehand) to CSR with scipy."""
+    import scipy.sparse as sp
+
+    triplets = []
+    for op in operators:
+        coo = op.tocoo()
+        triplets.append((coo.data.copy(), coo.row.copy(), coo.col.copy(), op.shape))
+
+    def work():
+        return [sp.coo_matrix((data, (row, col)), shape=shape).tocsr() for data, row, col, shape in triplets]
+
+    return work
 
 
 def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
-    """Runs inside the subprocess: one library on one mesh."""
-    vertices, simplices = icosphere_or_kuhn_cube(kind, size)
-    if library == "decrun":
-        from decrun.core.complex import SimplicialComplex
-        from decrun.core.dec import DEC
+    """Runs inside the subprocess: every column of one mesh (``library`` is ``all``)."""
+    import igl
+    import numpy as np
 
-        warm_up_kernels()  # numba's import and the kernel cache: once per process, reported by --jit
+    from decrun.core import jit
 
-        def work():
-            K = SimplicialComplex(vertices, simplices)
-            dec = DEC(K)
-            ops = [dec.d(0), dec.d(1)] + [dec.star(k) for k in range(K.dim + 1)]
-            return ops
-    else:
-        import igl
+    vertices, faces = icosphere_or_kuhn_cube(kind, size)
+    load_before = os.getloadavg()[0]
+    result = {"simplices": int(len(faces))}
 
-        def work():
-            return igl.cotmatrix(vertices, simplices), igl.massmatrix(vertices, simplices, igl.MASSMATRIX_TYPE_VORONOI)
+    def ours():
+        return _decrun_operators(vertices, faces)
 
-    seconds, peak_mb, _ = best_of(work, repeat)
-    return {"seconds": seconds, "peak_mb": peak_mb, "simplices": len(simplices)}
+    def reference():
+        return igl.cotmatrix(vertices, faces), igl.massmatrix(vertices, faces, igl.MASSMATRIX_TYPE_VORONOI)
+
+    reference()  # libigl's own first call (page faults of its code) stays out of its best
+
+    def imports():
+        import decrun.core.complex  # noqa: F401
+        import decrun.core.dec  # noqa: F401
+
+    result["import_s"] = _cpu(imports)  # decrun's modules with numpy and scipy's
+    result["fresh_auto_s"] = _cpu(ours)
+    result["fresh_auto_started_numba"] = jit.started()
+    builds = 1
+    while not jit.started() and builds < 400:
+        ours()
+        builds += 1
+    result["builds_until_kernels"] = builds if jit.started() else None
+    with jit.use("numba"):
+        operators = ours()  # the kernels that are not loaded yet, loaded
+    with jit.use("numpy"):
+        twins = ours()
+    for a, b in zip(operators, twins):  # the two paths agree (the tests hold them to it)
+        assert a.shape == b.shape and abs(a - b).max() <= 1e-12 * max(abs(b).max(), 1.0)
+    floor = _floor_work(operators)
+    best = {"igl": np.inf, "floor": np.inf, "numpy": np.inf, "kernels": np.inf}
+    for _ in range(repeat):
+        best["igl"] = min(best["igl"], _cpu(reference))
+        best["floor"] = min(best["floor"], _cpu(floor))
+        with jit.use("numpy"):
+            best["numpy"] = min(best["numpy"], _cpu(ours))
+        with jit.use("numba"):
+            best["kernels"] = min(best["kernels"], _cpu(ours))
+    with jit.use("auto"):
+        best["auto_warm"] = _cpu(ours)
+    result.update({f"{k}_s": float(v) for k, v in best.items()})
+    result["load"] = [load_before, os.getloadavg()[0]]
+    return result
 
 
 def jit_times() -> None:
-    """First-call cost of the kernels in fresh processes: an empty cache (compile) and then the
-    cache it wrote (load), besides numba's import alone."""
-    import os
+    """numba's start in fresh processes, in CPU time: its import, then the first build of a
+    small complex with every kernel on the operators' path (compile, or load from the cache);
+    decrun's own modules are imported before either is timed."""
     import subprocess
-    import sys
     import tempfile
 
-    code = ("import time, sys; sys.path.insert(0, %r); t = time.perf_counter(); import numba; "
-            "imported = time.perf_counter() - t; from harness import warm_up_kernels; "
-            "print(imported, warm_up_kernels())" % os.path.dirname(os.path.abspath(__file__)))
-    print("| numba cache | numba import s | kernels' first call s (incl. compile or load) |")
-    print("|---|---:|---:|")
+    code = ("import time, sys; import decrun.core.complex, decrun.core.dec; "
+            "from decrun.core.primitives import grid_triangles; "
+            "sys.path.insert(0, %r); from bench_operators import _decrun_operators; "
+            "V, F = grid_triangles(4, 4, jitter=0.2); t = time.process_time(); import numba; "
+            "imported = time.process_time() - t; t = time.process_time(); _decrun_operators(V, F); "
+            "first = time.process_time() - t; t = time.process_time(); _decrun_operators(V, F); "
+            "print(imported, first, time.process_time() - t)" % os.path.dirname(os.path.abspath(__file__)))
+    print(f"load average {os.getloadavg()[0]:.1f}")
+    print("| numba cache | numba import CPU s | first build CPU s (kernels compiled or loaded) | second build CPU s |")
+    print("|---|---:|---:|---:|")
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache, DECRUN_NUMBA="1")
-        for label in ("cold (empty)", "warm", "warm"):
+        for label in ("cold (empty)", "warm", "warm", "warm"):
             out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-            imported, first = (float(v) for v in out.stdout.split())
-            print(f"| {label} | {imported:.2f} | {first:.2f} |", flush=True)
+            imported, first, second = (float(v) for v in out.stdout.split())
+            print(f"| {label} | {imported:.3f} | {first:.3f} | {second:.4f} |", flush=True)
+    print(f"load average {os.getloadavg()[0]:.1f}")
 
 
 def main(argv=None) -> int:
@@ -78,26 +152,22 @@ def main(argv=None) -> int:
     args = parse_or_run_case(__doc__, run_case, argv)
     if args is None:
         return 0
-
-    have_igl = have_libigl()
-
+    if not have_libigl():
+        print("bench_operators.py measures against libigl: pip install -e .[bench]", file=sys.stderr)
+        return 1
     level = "quick" if args.quick else "full"
-    print("| mesh | simplices | decrun s | decrun peak MB | libigl s | libigl peak MB | time ratio | memory ratio |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    print(f"CPU ms, best of {args.repeat} interleaved rounds; ratios to libigl (and to the floor) from the same process")
+    print("| triangles | load | libigl | floor | numpy twins | kernels (warm) | numpy / libigl | kernels / libigl |"
+          " kernels / floor | fresh: import | fresh: first build, auto (ratio) | builds until auto starts numba |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for size in TRIANGLE_CASES[level]:
-        ours = spawn(__file__, "decrun", "icosphere", size, args.repeat)
-        row = f"| icosphere subdiv {size} | {ours['simplices']:,} | {ours['seconds']:.3f} | {ours['peak_mb']:.0f} |"
-        if have_igl:
-            ref = spawn(__file__, "igl", "icosphere", size, args.repeat)
-            row += (f" {ref['seconds']:.3f} | {ref['peak_mb']:.0f} | {ours['seconds'] / ref['seconds']:.2f} |"
-                    f" {ours['peak_mb'] / max(ref['peak_mb'], 1e-9):.2f} |")
-        else:
-            row += " – | – | – | – |"
-        print(row, flush=True)
-    for size in TET_CASES[level]:
-        ours = spawn(__file__, "decrun", "kuhn", size, 1 if size > 30 else args.repeat)
-        print(f"| Kuhn cube n={size} (tets, ⋆0–⋆3) | {ours['simplices']:,} | {ours['seconds']:.3f} |"
-              f" {ours['peak_mb']:.0f} | – | – | – | – |", flush=True)
+        r = spawn(__file__, "all", "icosphere", size, args.repeat)
+        igl_s = r["igl_s"]
+        print(f"| {r['simplices']:,} | {r['load'][0]:.0f}–{r['load'][1]:.0f} | {1e3 * igl_s:.1f} | {1e3 * r['floor_s']:.1f} |"
+              f" {1e3 * r['numpy_s']:.1f} | {1e3 * r['kernels_s']:.1f} | {r['numpy_s'] / igl_s:.2f} |"
+              f" {r['kernels_s'] / igl_s:.2f} | {r['kernels_s'] / r['floor_s']:.2f} |"
+              f" {1e3 * r['import_s']:.0f} | {1e3 * r['fresh_auto_s']:.1f} ({r['fresh_auto_s'] / igl_s:.2f}) |"
+              f" {r['builds_until_kernels']} |", flush=True)
     return 0
 
 

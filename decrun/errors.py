@@ -97,3 +97,18 @@ def shorten_words(text: str, head: int = 60, tail: int = 16) -> str:
         return f"{word[:head]}…({len(word)} characters)…{word[-tail:]}"
 
     return re.sub(rf"\S{{{LONG_WORD + 1},}}", cut, text) if len(text) > LONG_WORD else text
+
+
+def format_point(point, digits: int = 6) -> str:
+    """``[x, y, z]`` as a message or a hint quotes it: ``digits`` significant digits, after
+    rounding every coordinate at 1e-9 of the point's largest one, so a coordinate that is
+    round-off next to the others (``-1.299e-19`` beside ``1.05``) reads ``0`` — what a user
+    would type — and no zero carries a sign. Only the text is rounded, never the point the
+    run uses."""
+    import math
+
+    values = [float(v) for v in point]
+    scale = max((abs(v) for v in values if math.isfinite(v)), default=0.0)
+    decimals = 9 - math.floor(math.log10(scale)) if scale > 0 else 0
+    rounded = [round(v, decimals) + 0.0 if math.isfinite(v) else v for v in values]
+    return "[" + ", ".join(f"{v:.{digits}g}" for v in rounded) + "]"

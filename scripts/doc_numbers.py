@@ -11,8 +11,11 @@ booleans, integers and strings exactly). ``tests/test_numbers.py`` reruns every 
 naming the number, when a value moved beyond its tolerance; regenerate on purpose with this
 script and commit the file with the change that moved it.
 
-The gallery's runs (``scripts/gallery.py``, ``GALLERY``) are runs here too, named
-``gallery_<experiment>__<n>``, so the numbers under its figures are checked the same way.
+The gallery's runs (``scripts/gallery.py``: ``GALLERY``, the thesis figures, and ``MODELS``, the
+shipped models) are runs here too, named ``gallery_<section>__<n>``, so the numbers under its
+figures are checked the same way — a model entry's numbers derived from its fields (Klausmeier's
+band spacing, by the gallery's own ``band_spacing``) included: the run computes them from the
+same result as the figure.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,6 +55,9 @@ class Run:
     overrides: tuple[str, ...]
     numbers: dict[str, Number] = field(default_factory=dict)
     slow: bool = False
+    #: numbers derived from the finished run (``derived(run) -> dict``, e.g. the gallery's
+    #: ``band_spacing``), offered beside its metrics
+    derived: Callable | None = None
 
 
 def N(metric: str, fmt: str = ".3g", **kw) -> Number:
@@ -190,14 +197,17 @@ ALIASES = {"gallery_fig7_15_density_and_time_step__0": "fig7_15_1400_0_005",
 
 
 def gallery_runs() -> dict[str, Run]:
-    """The gallery's runs (scripts/gallery.py) as runs of this table: ``gallery_<experiment>__<n>``."""
+    """The gallery's runs (scripts/gallery.py) as runs of this table: ``gallery_<section>__<n>``,
+    each the command shown under its figure."""
+    gallery = _gallery()
     runs = {}
-    for experiment, (_, entries) in _gallery().GALLERY.items():
-        for n, (overrides, _, shown) in enumerate(entries):
-            name = f"{experiment}__{n}"
-            runs[f"gallery_{name}"] = Run((f"+experiment={experiment}", *overrides),
+    for section, _, entries, experiment in gallery.sections():
+        for n, entry in enumerate(entries):
+            overrides, shown = entry[0], entry[2]
+            name = f"{section}__{n}"
+            runs[f"gallery_{name}"] = Run(tuple(gallery.entry_overrides(experiment, overrides)),
                                           {metric: N(metric, atol=ROUND_OFF) for metric in shown},
-                                          slow=name in SLOW_GALLERY)
+                                          slow=name in SLOW_GALLERY, derived=gallery.derived_of(entry))
     return runs
 
 
@@ -206,11 +216,13 @@ def all_runs() -> dict[str, Run]:
 
 
 def run_metrics(run: Run) -> dict:
-    """The metrics of ``decrun <overrides> figures=false`` (the same composition and run as the command)."""
+    """The metrics of ``decrun <overrides> figures=false`` (the same composition and run as the
+    command), and the run's derived numbers."""
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment
 
-    return run_experiment(compose_config([*run.overrides, "figures=false"])).result.metrics
+    done = run_experiment(compose_config([*run.overrides, "figures=false"]))
+    return {**done.result.metrics, **(run.derived(done) if run.derived else {})}
 
 
 def _plain(value):

@@ -1,13 +1,18 @@
 """Regenerate the gallery: one figure (or a pair to compare) per thesis-figure experiment
-(conf/experiment/fig*.yaml).
+(conf/experiment/fig*.yaml) and per model experiment that has one (darcy_convergence), and one per
+shipped declarative model (conf/app/<model>.yaml).
 
-    python scripts/gallery.py [--out docs] [--only fig5_8_t_hole ...]
+    python scripts/gallery.py [--out docs] [--only fig5_8_t_hole model_halfar ...]
 
-Each entry runs single runs of ``+experiment=<name>`` with a few overrides through the same
-composition as ``decrun``, copies the named figure to ``<out>/gallery/<name>__<n>.png`` and
-writes ``<out>/gallery.md`` with the images, the overrides and the metrics they show (as
-placeholders the docs build fills from ``docs/numbers.json``: ``scripts/doc_numbers.py``).
-Takes about a minute on two cores.
+Each entry runs single runs of ``+experiment=<name>`` (a model entry: its own overrides) through
+the same composition as ``decrun``, copies the named figure to ``<out>/gallery/<name>__<n>.png``
+and writes ``<out>/gallery.md`` with the images, the command and the numbers under each — the
+run's metrics, and for a model entry the numbers derived from its fields (Klausmeier's band
+spacing) — as placeholders the docs build fills from ``docs/numbers.json`` (``scripts/doc_numbers.py``
+runs the same runs, derived numbers included; ``tests/test_numbers.py`` checks them), so none is
+typed and none is older than the code. The page holds no number of its own: it is written whole
+from the tables below every time; ``--only`` reruns the named sections' figures and leaves the
+others' images as they are. Takes a few minutes on two cores.
 """
 
 from __future__ import annotations
@@ -88,6 +93,129 @@ GALLERY = {
         (["app.viscosity=0.0"], "vorticity", ["stable", "enstrophy_final"]),
         (["app.viscosity=0.08"], "vorticity", ["stable", "enstrophy_final"]),
     ]),
+    "darcy_convergence": ("Darcy flow in mixed form with Whitney forms (`app=darcy`): the pressure "
+                          "p = sin(πx) sin(πy) + x z in colour and the velocity u = −∇p (the Raviart–Thomas field "
+                          "of the discrete fluxes) as arrows, on the square and inside the tetrahedral box.", [
+        (["mesh=darcy/square_2"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual"]),
+        (["mesh=darcy/box_2"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual"]),
+    ]),
+}
+
+
+def _bands(done):
+    """(xs, profile, peaks, inside): n averaged across the strip (over y, per x), the indices of
+    its peaks above 3 between the absorbing layers, and that region (|x| < L/2 − 60)."""
+    import numpy as np
+
+    vertices, n = done.complex.vertices, np.asarray(done.result.fields["n"])
+    xs, inverse = np.unique(np.round(vertices[:, 0], 9), return_inverse=True)
+    profile = np.bincount(inverse, weights=n) / np.bincount(inverse)
+    inside = np.abs(xs) < 0.5 * done.experiment.app.constants["L"] - 60
+    peaks = [i for i in range(1, len(xs) - 1) if inside[i] and profile[i] > 3
+             and profile[i] >= profile[i - 1] and profile[i] > profile[i + 1]]
+    return xs, profile, peaks, inside
+
+
+def band_profile(done, target: Path) -> None:
+    """Klausmeier's bands as a profile — the strip is 25 times longer than wide, too thin to
+    read as a picture: n averaged across the slope against x, its counted peaks marked, the
+    absorbing layers shaded."""
+    from decrun.runner.plots.common import new_figure
+
+    xs, profile, peaks, inside = _bands(done)
+    fig = new_figure(8.0, 3.0)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot(xs, profile, lw=1.0, label="n averaged across the slope")
+    ax.plot(xs[peaks], profile[peaks], "o", ms=4, label=f"the {len(peaks)} peaks counted")
+    for side in (-1, 1):
+        edge = side * xs[inside].max()
+        ax.axvspan(edge, side * abs(xs).max(), color="0.85", lw=0)
+    ax.set_xlabel("x (water flows towards −x; grey: absorbing layers, not counted)")
+    ax.set_ylabel("n (biomass)")
+    ax.set_xlim(xs.min(), xs.max())
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper right")
+    fig.savefig(target, dpi=110, bbox_inches="tight")
+
+
+def band_spacing(done) -> dict:
+    """Klausmeier's bands: the mean spacing of the peaks of :func:`_bands`, and 2π/k_max of the
+    linear dispersion relation (the largest Re λ(k) of [[−1 − n*² + iνk, −2m], [n*², m − k²]])."""
+    import numpy as np
+
+    xs, profile, peaks, inside = _bands(done)
+    c = done.experiment.app.constants
+    ns = (c["a"] + np.sqrt(c["a"] ** 2 - 4 * c["m"] ** 2)) / (2 * c["m"])
+    k = np.linspace(0.01, 1.0, 20000)
+    rate = [np.linalg.eigvals(np.array([[-1 - ns ** 2 + 1j * c["nu"] * q, -2 * c["m"]], [ns ** 2, c["m"] - q * q]]))
+            .real.max() for q in k]
+    spacing = (xs[peaks[-1]] - xs[peaks[0]]) / (len(peaks) - 1) if len(peaks) > 1 else float("nan")
+    return {"bands": len(peaks), "band_spacing": spacing, "fastest_growing_wavelength": 2 * np.pi / k[int(np.argmax(rate))]}
+
+
+#: model section → (caption, [(overrides, figure stem or a drawing function, numbers shown, derived numbers
+#: or None), ...]);
+#: each a single run of ``decrun <overrides>`` (``app.animation=false`` added: no GIF)
+MODELS = {
+    "model_heat": ("`app=heat` — the l = 2 harmonic x·y on the unit sphere decays as e^(−6t) "
+                   "(Crank–Nicolson); the error is against that exact solution.", [
+        (["+experiment=heat_sphere"], "u_snapshots", ["l2_error_rel", "mass", "n_vertices"], None),
+    ]),
+    "model_poisson": ("`app=poisson` — Δu = f on the unit square with the exact solution's border values.", [
+        (["app=poisson"], "u", ["l2_error_rel", "max_abs_error", "n_vertices"], None),
+    ]),
+    "model_wave": ("`app=wave` — the l = 2 mode through one period 2π/√6 (Störmer–Verlet): `projection` "
+                   "is its amplitude, back to 1, the modified energy conserved.", [
+        (["app=wave", "app.t_end=2.565"], "u_snapshots", ["projection", "energy_modified", "n_vertices"], None),
+    ]),
+    "model_heat_geodesics": ("`app=heat_geodesics` — geodesic distance on the unit sphere by the heat method, "
+                             "against the great-circle distance; the source (vertex 2199) faces the viewer.", [
+        (["+experiment=heat_geodesics_sphere", "mesh.subdiv=4", "app.constants.source=2199"], "distance",
+         ["mean_relative_error", "max_abs_error", "n_faces"], None),
+    ]),
+    "model_mcf": ("`app=mcf` — mean curvature flow of the noisy icosphere (implicit Euler): the Dirichlet "
+                  "energy of the coordinates over time.", [
+        (["app=mcf", "app.steps=40"], "metrics", ["dirichlet_energy", "n_vertices"], None),
+    ]),
+    "model_gray_scott_square": ("`+experiment=gray_scott_pearson` — Gray–Scott on Pearson's square: spots at "
+                                "(F, k) = (0.035, 0.065), stripes at (0.04, 0.06). `pattern` is 1 when "
+                                "v_std (the ⋆0-weighted standard deviation of v) exceeds 0.02.", [
+        (["+experiment=gray_scott_pearson"], "v_snapshots", ["v_std", "pattern"], None),
+        (["+experiment=gray_scott_pearson", "app.constants.F=0.04", "app.constants.k=0.06"], "v_snapshots",
+         ["v_std", "pattern"], None),
+    ]),
+    "model_gray_scott_sphere": ("`+experiment=gray_scott_sphere` — the same two regimes on the unit sphere "
+                                "(seeded at the six poles of the axes).", [
+        (["+experiment=gray_scott_sphere"], "v_snapshots", ["v_std", "pattern"], None),
+        (["+experiment=gray_scott_sphere", "app.constants.F=0.04", "app.constants.k=0.06"], "v_snapshots",
+         ["v_std", "pattern"], None),
+    ]),
+    "model_brusselator": ("`app=brusselator` — beyond the Hopf point B = 1 + A² the homogeneous state "
+                          "oscillates (B = 2.5, left; growth to the limit cycle), below it decays (B = 1.5, right).", [
+        (["app=brusselator"], "metrics", ["growth_rate_linear", "deviation_rms"], None),
+        (["app=brusselator", "app.constants.B=1.5"], "metrics",
+         ["growth_rate_linear", "growth_rate_measured", "deviation_rms"], None),
+    ]),
+    "model_klausmeier": ("`+experiment=klausmeier_bands` — vegetation bands on a slope (water flows towards "
+                         "−x; absorbing layers at both ends): the bands' mean spacing against the fastest-growing "
+                         "wavelength of the linear theory.", [
+        (["+experiment=klausmeier_bands"], band_profile, ["bands", "band_spacing", "fastest_growing_wavelength"],
+         band_spacing),
+    ]),
+    "model_cahn_hilliard": ("`+experiment=cahn_hilliard_coarsening` — phase separation and coarsening; the mass "
+                            "is conserved and the free energy falls.", [
+        (["+experiment=cahn_hilliard_coarsening"], "c_snapshots", ["mass", "free_energy", "c_min", "c_max"], None),
+    ]),
+    "model_halfar": ("`app=halfar` — the CISM v2.1 Halfar dome at 4 km after 200 years (semi-implicit): the "
+                     "thickness error against Halfar's solution, largest at the margin.", [
+        (["app=halfar"], "H_error", ["rms_error_m", "max_error_ice_m", "min_thickness_m", "grid_spacing_m"], None),
+    ]),
+    "model_darcy": ("`app=darcy` — Darcy flow in mixed form (flux u an `n-1` form, pressure p an `n` form, one "
+                    "block system) on the default square: the pressure in colour, the velocity (the Raviart–Thomas "
+                    "field of u) as arrows; the refinements on the square and the box are `darcy_convergence`.", [
+        (["app=darcy"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual", "n_vertices"],
+         None),
+    ]),
 }
 
 
@@ -103,64 +231,101 @@ PAGE_FIGURES = {
 }
 
 
-def run_entry(experiment: str | None, overrides: list[str], figure: str, scratch: Path, target: Path) -> dict:
+def sections() -> list[tuple[str, str, list, str | None]]:
+    """Every section of the page in order: (name, caption, entries, experiment) — the experiment
+    ``+experiment=<name>`` for a thesis figure, None for a model section (its entries' overrides
+    say what runs). An entry is (overrides, figure, numbers shown[, derived])."""
+    return ([(name, caption, entries, name) for name, (caption, entries) in GALLERY.items()]
+            + [(name, caption, entries, None) for name, (caption, entries) in MODELS.items()])
+
+
+def entry_overrides(experiment: str | None, overrides: list[str]) -> list[str]:
+    """The overrides of an entry's command ``decrun <these>`` (as shown under its figure)."""
+    return [*([f"+experiment={experiment}"] if experiment else []), *overrides]
+
+
+def derived_of(entry):
+    """An entry's derived-numbers function (``derived(run) -> dict``), or None."""
+    return entry[3] if len(entry) > 3 else None
+
+
+def run_entry(experiment: str | None, overrides: list[str], figure, scratch: Path, target: Path,
+              derived=None) -> dict:
     """One single run (of ``+experiment=<experiment>`` unless None); copies ``<figure>.png``
-    to ``target``; returns the metrics."""
+    to ``target`` (or draws it, when ``figure`` is a function of the run); returns the metrics
+    (and ``derived(run)``'s numbers)."""
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment, write
 
-    cfg = compose_config(([f"+experiment={experiment}"] if experiment else []) + list(overrides))
+    cfg = compose_config(entry_overrides(experiment, overrides))
     out = Path(tempfile.mkdtemp(dir=scratch))
     done = run_experiment(cfg, out=out)
     write(done)
     result = done.result
-    shutil.copyfile(out / f"{figure}.png", target)
-    return result.metrics
+    if callable(figure):  # drawn here from the run (a figure the app does not make)
+        figure(done, target)
+    else:
+        shutil.copyfile(out / f"{figure}.png", target)
+    return {**result.metrics, **(derived(done) if derived else {})}
+
+
+def _section(name: str, caption: str, entries, experiment: str | None) -> list[str]:
+    lines = [f"## {name}", "", caption, ""]
+    cells, notes = [], []
+    for n, (overrides, _, shown, *_) in enumerate(entries):
+        file = f"{name}__{n}.png"
+        cells.append(f"![{name} {' '.join(overrides)}](gallery/{file})")
+        notes.append(f"`{' '.join(['decrun', *entry_overrides(experiment, overrides)])}`: " + ", ".join(
+            f"{k} = {{{{ numbers.gallery_{name}__{n}.{k} }}}}" for k in shown))
+    lines += ["| " + " | ".join(cells) + " |", "|" + "---|" * len(cells), ""]
+    return lines + [f"- {note}" for note in notes] + [""]
+
+
+def page() -> str:
+    """The text of gallery.md, written from the tables alone (no run): the numbers under each
+    figure are placeholders, ``{{ numbers.gallery_<section>__<n>.<number> }}``, which the docs build
+    fills from ``docs/numbers.json`` (``scripts/doc_numbers.py`` runs the same runs, a model entry's
+    derived numbers included; ``tests/test_numbers.py`` checks them)."""
+    lines = ["# Gallery", "", "One figure (or a pair to compare) per experiment of `conf/experiment/` and per shipped "
+             "model of `conf/app/`, regenerated by `python scripts/gallery.py`. Each image is a single run of the "
+             "command under it; the numbers are that run's (`docs/numbers.json`, made by "
+             "`python scripts/doc_numbers.py --only gallery`).", ""]
+    for name, caption, entries, experiment in sections():
+        lines += _section(name, caption, entries, experiment)
+    return "\n".join(lines)
 
 
 def build(out: Path, only: list[str] | None = None) -> Path:
-    """Run the entries (those of ``only``, default all) into ``out/gallery/*.png`` and write
-    ``out/gallery.md`` (always every entry); returns the .md path.
-
-    The numbers under each figure are placeholders, ``{{ numbers.gallery_<experiment>__<n>.<metric> }}``,
-    which the docs build fills from ``docs/numbers.json`` (``scripts/doc_numbers.py`` runs the same
-    runs; ``tests/test_numbers.py`` checks them), so the page never shows a number older than the code."""
+    """Run the entries of the sections named in ``only`` (default: all, and the pages' figures)
+    into ``out/gallery/*.png`` and write ``out/gallery.md`` (always every section, from the tables:
+    the figures of the sections not named stay as they are); returns the .md path."""
     images = out / "gallery"
     images.mkdir(parents=True, exist_ok=True)
-    lines = ["# Gallery", "", "One figure (or a pair to compare) per experiment of `conf/experiment/`, "
-             "regenerated by `python scripts/gallery.py`. Each image is a single run of "
-             "`decrun +experiment=<name> <overrides>`; the numbers are that run's metrics "
-             "(`docs/numbers.json`, made by `python scripts/doc_numbers.py --only gallery`).", ""]
     with tempfile.TemporaryDirectory() as scratch:
-        for experiment, (caption, entries) in GALLERY.items():
-            lines += [f"## {experiment}", "", caption, ""]
-            cells, notes = [], []
-            for n, (overrides, figure, shown) in enumerate(entries):
-                name = f"{experiment}__{n}.png"
-                if not only or experiment in only:
-                    start = time.perf_counter()
-                    run_entry(experiment, overrides, figure, Path(scratch), images / name)
-                    print(f"gallery: {experiment} {' '.join(overrides)} ({time.perf_counter() - start:.1f} s)",
-                          file=sys.stderr)
-                command = " ".join(["decrun", f"+experiment={experiment}", *overrides])
-                cells.append(f"![{experiment} {' '.join(overrides)}](gallery/{name})")
-                notes.append(f"`{command}`: " + ", ".join(
-                    f"{k} = {{{{ numbers.gallery_{experiment}__{n}.{k} }}}}" for k in shown))
-            lines += ["| " + " | ".join(cells) + " |", "|" + "---|" * len(cells), ""]
-            lines += [f"- {note}" for note in notes] + [""]
+        for name, _, entries, experiment in sections():
+            if only and name not in only:
+                continue
+            for n, entry in enumerate(entries):
+                overrides, figure = entry[0], entry[1]
+                extra = ["app.animation=false"] if experiment is None else []  # a model's GIF is not shown
+                start = time.perf_counter()
+                run_entry(experiment, [*overrides, *extra], figure, Path(scratch), images / f"{name}__{n}.png",
+                          derived_of(entry))
+                print(f"gallery: {name} {' '.join(overrides)} ({time.perf_counter() - start:.1f} s)",
+                      file=sys.stderr)
         if not only:
             (out / "figures").mkdir(exist_ok=True)
             for name, (overrides, figure) in PAGE_FIGURES.items():
                 run_entry(None, overrides, figure, Path(scratch), out / "figures" / name)
     path = out / "gallery.md"
-    path.write_text("\n".join(lines))
+    path.write_text(page())
     return path
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs"))
-    parser.add_argument("--only", nargs="*", help="experiments to regenerate (default: all)")
+    parser.add_argument("--only", nargs="*", help="sections to regenerate, e.g. fig5_8_t_hole model_halfar (default: all)")
     args = parser.parse_args(argv)
     print(build(Path(args.out), args.only))
     return 0

@@ -55,6 +55,7 @@ runner to call with which arrays — so apps stay free of matplotlib.
 
 from __future__ import annotations
 
+import re
 import sys
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar
@@ -100,7 +101,7 @@ class Output:
     writes each field where it belongs.
 
     on : ``"0"`` … ``"3"`` one row per primal k-simplex (``"0"`` per vertex, ``"1"`` per
-        edge); ``"dual0"`` … ``"dual3"`` per dual k-cell, i.e. per primal (n−k)-simplex
+        edge; ``"n"``, ``"n-1"`` … relative to the mesh dimension n, as a model declares them); ``"dual0"`` … ``"dual3"`` per dual k-cell, i.e. per primal (n−k)-simplex
         (``"dual0"``: per top simplex — a face of a surface, a tetrahedron of a volume);
         ``"vertex_set"`` / ``"top_set"`` indices of vertices / top simplices (singularities,
         sources, strokes); ``"along:<name>"`` one row per entry of the index set ``<name>``;
@@ -122,6 +123,10 @@ class Output:
             return int(self.on)
         if self.on.startswith("dual") and self.on[4:].isdigit():
             return n - int(self.on[4:])
+        relative = re.fullmatch(r"(dual)?n(?:-([0-3]))?", self.on.replace(" ", ""))
+        if relative:  # a model's form relative to the mesh dimension: "n" (top), "n-1", "dualn-1" …
+            degree = n - int(relative.group(2) or 0)
+            return n - degree if relative.group(1) else degree
         return None
 
 

@@ -30,6 +30,11 @@ from decrun.methods.fluid.options import Circulation, FluidOptions, Initial, Ker
 from decrun.methods.fluid.stepper import FluidStepper
 from decrun.methods.stepping import run_steps
 
+#: a chained start whose vorticity is at most this fraction of the terms it is summed from
+#: (max |d1 ω| against max Σ|ω| around a triangle) is round-off: ω was a gradient (curl-free)
+ROUND_OFF = 1e-10
+
+
 @dataclass
 class Stir:
     """A stirring stroke: polyline ``points`` (projected to the surface) pushed with
@@ -154,6 +159,8 @@ class Fluid(App):
         ``vorticity_min``, ``vorticity_max``. Fields: the final ``vorticity``, ``psi``, ``flux``.
         """
         K = ctx.complex
+        # a chained field without curl starts the fluid from round-off: which ratios say nothing
+        round_off = self._round_off_start(ctx, ctx.dec, ctx.meta["field"]) if self.initial == "mesh_field" else ()
         fluid, stepper, shadow = self._simulation(ctx)
         first = stepper.last
         report = run_steps(stepper, self.total_steps, progress=ctx.progress, record=ctx.record,
@@ -161,13 +168,17 @@ class Fluid(App):
         metrics = fluid_metrics(first, stepper.last, max_divergence=stepper.max_divergence, seconds=report.seconds,
                                 step_seconds_max=report.step_seconds_max, obtuse_triangles=fluid.obtuse_triangles,
                                 closed=K.border_faces()[0].size == 0, reason=report.reason,
-                                chaos=shadow.metrics() if shadow is not None else None)
+                                chaos=shadow.metrics() if shadow is not None else None,
+                                max_growth_per_step=self.shadow_max_growth_per_step, round_off=round_off)
+        if self.initial == "mesh_field":
+            metrics["initial_vorticity_round_off"] = bool(round_off)
         if report.resumed_from_step is not None:
             metrics["resumed_from_step"] = report.resumed_from_step
         if not fluid.closed:  # the wall condition app.walls resolved to (a closed surface has no wall)
             metrics["walls"] = str(fluid.walls)
         fields = {"vorticity": fluid.vorticity, "psi": fluid.psi, "flux": FieldOnEdges(fluid.flux)}
-        return Result(fields=fields, metrics=metrics, figures=self._figures(K))
+        start = max(abs(first["vorticity_min"]), abs(first["vorticity_max"])) if round_off else None
+        return Result(fields=fields, metrics=metrics, figures=self._figures(K, start))
 
     def _simulation(self, ctx: Context):
         """(fluid, stepper, shadow): the :class:`~decrun.methods.fluid.simulation.VorticityFluid`
@@ -196,9 +207,12 @@ class Fluid(App):
                             window_steps=self.shadow_window_steps)
         return fluid, FluidStepper(fluid, forces, shadow), shadow
 
-    def _figures(self, K) -> dict:
-        """By kind: vorticity snapshots (and the animation), looking towards the strokes in 3-D."""
+    def _figures(self, K, round_off_start: float | None = None) -> dict:
+        """By kind: vorticity snapshots (and the animation), looking towards the strokes in 3-D;
+        ``round_off_start``: max |w0| of a start that is round-off, said in the title."""
         title = f"vorticity, dt={self.dt:g}, ν={self.viscosity:g}"
+        if round_off_start is not None:  # the colours show round-off, not vortices: say so on the figure
+            title += f" — round-off start (max |w0| = {round_off_start:.1e})"
         strokes = [np.asarray(stir.points, dtype=np.float64) for stir in self.stirs]
         towards = np.concatenate(strokes).mean(axis=0) if strokes and K.embedding_dim == 3 else None
         view = {"towards": None if towards is None or not np.linalg.norm(towards) > 0 else towards.tolist()}
@@ -207,6 +221,20 @@ class Fluid(App):
         if self.animation:
             figures["vorticity_animation"] = Figure.of_kind("animation", name="vorticity", title="vorticity", **view)
         return figures
+
+    def _round_off_start(self, ctx: Context, dec, field: dict) -> tuple[str, ...]:
+        """The diagnostics whose initial value is round-off for a chained start
+        (:func:`field_cancellation` ≤ :data:`ROUND_OFF`): the enstrophy, and the kinetic energy
+        too without inflow (with inflow the harmonic part carries it). Logged as one line."""
+        cancellation, size = field_cancellation(dec, field)
+        if cancellation > ROUND_OFF:
+            return ()
+        ctx.log(f"fluid: app.initial=mesh_field: the vorticity of mesh.field={field['name']} is round-off "
+                f"(max |w0| = {size:.1e}, {cancellation:.0e} of the terms it sums: the field is curl-free); the "
+                "fluid starts at rest up to round-off, so energy_ratio and enstrophy_ratio are left out "
+                "(initial_vorticity_round_off: true). A field with vorticity: e.g. app=vector_field "
+                "\"app.vortices=[{point: [0, 0, 1], curl: 1.0}, {point: [0, 0, -1], curl: -1.0}]\"")
+        return ("enstrophy",) if self.inflow else ("enstrophy", "kinetic_energy")
 
     def _initial_vorticity(self, dec, initial_vorticity, meta=None) -> np.ndarray:
         if self.initial == "mesh_field":
@@ -246,3 +274,21 @@ def vorticity_of_field(dec, field: dict) -> np.ndarray:
     n0 = K.num_simplices(0)
     area = np.bincount(faces.ravel(), weights=np.repeat(K.top_volumes, 3), minlength=n0)
     return np.bincount(faces.ravel(), weights=np.repeat(curl, 3), minlength=n0) / area
+
+
+def field_cancellation(dec, field: dict) -> tuple[float, float]:
+    """How much of a chained initial field survives as vorticity: ``(ratio, size)``.
+
+    For a circulation 1-form ω per edge the vorticity is made of the sums (d1 ω)_f of its
+    three edge values around each triangle; ``ratio`` = max_f |(d1 ω)_f| / max_f (|d1| |ω|)_f
+    (0 for an exact gradient, ~1e-16 when the sums cancel to round-off, O(1) for a field with
+    vortices) and ``size`` = max |w| of :func:`vorticity_of_field` (1/area units). A per-vertex
+    vorticity is taken as it is: ratio 1 unless it is exactly zero (0)."""
+    w = vorticity_of_field(dec, field)
+    size = float(np.abs(w).max()) if w.size else 0.0
+    if field["on"] != "edges":
+        return (1.0 if size > 0 else 0.0), size
+    values = np.asarray(field["values"], dtype=np.float64)
+    d1 = dec.d(1)
+    terms = float((abs(d1) @ np.abs(values)).max()) if values.size else 0.0
+    return (float(np.abs(d1 @ values).max()) / terms if terms > 0 else 0.0), size

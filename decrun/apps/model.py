@@ -1,10 +1,12 @@
 """``app=<model>``: a declarative DEC model — the physics written in YAML.
 
 A model is a config of the ``app`` group whose ``_target_`` is :class:`Model`; its options are
-the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual3`` — an ``initial``
-value and optional ``dirichlet`` border values), ``constants``, ``equations`` (evolutions
-``dt(u) = …``, definitions ``v = …``, linear solves ``solve(lhs = rhs)``), an ``integrator`` with
-``dt`` and ``t_end`` (or ``steps``), ``record_every`` and ``metrics`` (numbers, by name).
+the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual3``, or ``n``,
+``n-1`` … relative to the mesh dimension — an ``initial`` value and optional ``dirichlet`` border
+values), ``constants``, ``equations`` (evolutions ``dt(u) = …``, definitions ``v = …``, linear
+solves ``solve(lhs = rhs)`` and systems ``solve(l1 = r1, l2 = r2)``), an ``integrator`` with
+``dt`` and ``t_end`` (or ``steps``), ``record_every``, ``metrics`` (numbers, by name) and
+``plots`` (:class:`PlotOptions`: a value in colour with a vector field's arrows).
 
 A model may be composed of ``parts`` (:class:`PartOptions`: fields, equations, metrics) that
 share fields by name; they are merged with the model's own declarations by
@@ -15,10 +17,14 @@ The parts arrive already composed into this node by Hydra: a part is a config fi
 part an ordinary config — found on ``hydra.searchpath`` like any model (a user's own
 ``my_conf/app/parts/``), listed with a ``did you mean`` when it does not exist, shown by
 ``--cfg job`` and recorded with the run — and this adapter never opens a file. A part file
-puts its constants in the model's ``constants`` (one value per name, so
-``app.constants.A=1e-17`` overrides and ``-m`` sweeps a part's constant, no ``+``) and its
-fields, equations and metrics under ``parts.<its name>``, where each part keeps its own and a
-clash can name both.
+puts its fields, equations, metrics, requirements and its constants' defaults under
+``parts.<its name>``, where each part keeps its own and a clash can name both, and takes each
+default into the model's ``constants`` by an interpolation (``A: ${..parts.glen_law.constants.A}``:
+one value per name, so ``app.constants.A=1e-17`` overrides and ``-m`` sweeps a part's constant,
+no ``+``). Two parts' different defaults for one constant are refused unless the model sets it
+(:meth:`Model.check_node`, on the unresolved node where the interpolation names its part); the
+``require`` lists of the model and its parts are checked on the constants before any mesh work
+(:mod:`decrun.methods.model.require`).
 Everything about the language — parsing, types, operators, integrators — is
 :mod:`decrun.methods.model`; this adapter checks the model against the mesh before any work
 (types, initial values, the explicit stability limit), steps it through
@@ -42,6 +48,7 @@ from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.parts import PartSpec, compose_parts
+from decrun.methods.model.require import check_requirements, parse_requirement
 from decrun.methods.model.stepper import ModelStepper
 from decrun.methods.stepping import run_steps
 
@@ -76,6 +83,16 @@ class FieldOptions:
 
 
 @dataclass
+class PlotOptions:
+    """``app.plots.<name>``: a figure ``<name>.png`` of the value ``color`` (a primal or dual
+    0-form: per vertex or per top simplex) in colour with the arrows of the vector field
+    ``arrows`` (e.g. ``flux_field(u)``, a definition) over it."""
+
+    color: str = ""
+    arrows: str = ""
+
+
+@dataclass
 class PartOptions:
     """``app.parts.<part>``: one part of a composed model (``conf/app/parts/<part>.yaml``; the
     module docstring): its ``fields`` (shared with the other parts by name), ``equations`` and
@@ -84,6 +101,30 @@ class PartOptions:
     fields: Dict[str, FieldOptions] = field(default_factory=dict)
     equations: List[str] = field(default_factory=list)
     metrics: Dict[str, str] = field(default_factory=dict)
+    #: the part's defaults of the constants it reads; the model's ``constants`` take them over
+    #: (``A: ${..parts.glen_law.constants.A}`` in the part file, so ``app.constants.A=…`` overrides)
+    constants: Dict[str, float] = field(default_factory=dict)
+    #: what the part requires of the constants, e.g. ``"A > 0"`` (:mod:`decrun.methods.model.require`)
+    require: List[str] = field(default_factory=list)
+
+
+def _part_constants(parts: dict, set_by_model, key: str) -> tuple[dict[str, float], dict[str, str]]:
+    """The parts' default constants merged — ``(name → value, name → the part it came from)`` —
+    refusing a constant two parts give different defaults unless ``set_by_model(name)``: then
+    the model's value wins and neither default is used."""
+    defaults: dict[str, float] = {}
+    owners: dict[str, str] = {}
+    for name, part in parts.items():
+        constants = part.get("constants") if isinstance(part, dict) else getattr(part, "constants", None)
+        for constant, value in (constants or {}).items():
+            if constant in defaults and defaults[constant] != value and not set_by_model(constant):
+                raise ConfigError(f"{key}.parts: constant {constant} is {defaults[constant]!r} in part "
+                                  f"{owners[constant]} and {value!r} in part {name}; a constant has one default: "
+                                  f"set it in the model (the model's value wins), e.g. "
+                                  f"`{key}.constants.{constant}={defaults[constant]!r}`")
+            defaults.setdefault(constant, value)
+            owners.setdefault(constant, name)
+    return defaults, owners
 
 
 @dataclass
@@ -115,6 +156,35 @@ class Model(App):
     animation: bool = True
     #: the parts this model is composed of (name → PartOptions), merged with its own declarations
     parts: Dict[str, PartOptions] = field(default_factory=dict)
+    #: extra figures: name → a value in colour with a vector field's arrows (PlotOptions)
+    plots: Dict[str, PlotOptions] = field(default_factory=dict)
+    #: what the model requires of its constants and dt, e.g. ``"Du > 0"``, checked before any
+    #: mesh work (:mod:`decrun.methods.model.require`)
+    require: List[str] = field(default_factory=list)
+
+    @classmethod
+    def check_node(cls, node: dict, key: str) -> None:
+        """On the unresolved config (plain containers, interpolations as their ``${…}`` text): a
+        constant two parts give different defaults is refused unless the model sets it — in its
+        own file or on the command line, not through a part's interpolation
+        ``${..parts.<part>.constants.<name>}`` (Hydra merges the parts' ``constants`` silently,
+        last wins; here the provenance is still visible)."""
+        constants = node.get("constants") if isinstance(node, dict) else None
+        parts = node.get("parts") if isinstance(node, dict) else None
+        if not parts:
+            return
+
+        def interpolated(value) -> bool:
+            return isinstance(value, str) and value.strip().startswith("${")
+
+        def set_by_model(name: str) -> bool:
+            return isinstance(constants, dict) and name in constants and not interpolated(constants[name])
+
+        plain = {}
+        for name, part in parts.items():
+            given = part.get("constants") if isinstance(part, dict) else None
+            plain[name] = {"constants": dict(given) if isinstance(given, dict) else {}}
+        _part_constants(plain, set_by_model, key)
 
     def __post_init__(self):
         self.integrator = Integrator.of(self.integrator, "app.integrator")
@@ -131,12 +201,26 @@ class Model(App):
         for name, options in self.fields.items():
             if isinstance(options, dict):  # Python callers
                 self.fields[name] = FieldOptions(**options)
+        for name, plot in self.plots.items():
+            if isinstance(plot, dict):  # Python callers
+                self.plots[name] = PlotOptions(**plot)
         for name, part in self.parts.items():
             if isinstance(part, dict):  # Python callers
                 part = self.parts[name] = PartOptions(**part)
             for field_name, options in part.fields.items():
                 if isinstance(options, dict):
                     part.fields[field_name] = FieldOptions(**options)
+        defaults, owners = _part_constants(self.parts, lambda name: name in self.constants, "app")
+        for name, value in defaults.items():  # a Python caller's parts: their defaults become the model's
+            self.constants.setdefault(name, value)
+        requirements = [parse_requirement(text, f"app.require[{i}]") for i, text in enumerate(self.require)]
+        for name, part in self.parts.items():
+            requirements += [parse_requirement(text, f"app.parts.{name}.require[{i}]")
+                             for i, text in enumerate(part.require)]
+        for name, value in self.constants.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"app.constants.{name}: must be a finite number, got {value!r}")
+        check_requirements(requirements, {**self.constants, "dt": self.dt}, "app", owners, {"dt": "app.dt"})
         own = PartSpec(dict(self.fields), list(self.equations), dict(self.metrics))
         parts = {name: PartSpec(dict(part.fields), list(part.equations), dict(part.metrics))
                  for name, part in self.parts.items()}
@@ -182,6 +266,7 @@ class Model(App):
         coefficients frozen at the initial values)."""
         model = self.compiled(dec)
         model.check_compatibility()
+        self._check_plots(model)
         steps = self.total_steps()
         if not model.is_static:
             check_integrator(model, str(self.integrator), self.dt)
@@ -202,6 +287,24 @@ class Model(App):
                               f"2/λ_max for Euler, λ_max of {part}); use `app.dt={safe}` or "
                               f"`app.integrator={implicit}`")
         self._stability_limit = limit
+
+    def _check_plots(self, model) -> None:
+        """Every ``app.plots`` entry names a value to colour (a primal or dual 0-form) and a vector
+        field the model computes."""
+        for name, plot in self.plots.items():
+            for key, wanted in (("color", "a primal or dual 0-form (per vertex or per top simplex)"),
+                                ("arrows", "a vector field (e.g. a definition velocity = flux_field(u))")):
+                value = getattr(plot, key)
+                kind = model.kinds.get(value)
+                ok = kind is not None and (kind == VECTOR if key == "arrows" else
+                                           kind.is_form and kind.degree == 0)
+                if not ok:
+                    got = f"a {kind}" if kind is not None else "not a name of the model"
+                    names = sorted(n for n, k in model.kinds.items() if (k == VECTOR if key == "arrows" else
+                                   k.is_form and k.degree == 0) and n not in ("x", "y", "z"))
+                    hint = f"`app.plots.{name}.{key}={names[0]}`" if names else f"define {wanted} in app.equations"
+                    raise ConfigError(f"app.plots.{name}.{key}: {value!r} is {got}, but a plot's {key} is {wanted}; "
+                                      f"e.g. {hint}")
 
     #: the definitions (derived quantities) are fields too, their places known once compiled
     outputs_complete = False
@@ -267,16 +370,24 @@ class Model(App):
         if K.dim == 2:
             for name in shown:
                 figures[name] = Figure.of_kind("surface", values=np.asarray(env[name], dtype=np.float64),
-                                               title=f"{self.model}: {name} ({model.kinds[name]})", colorbar_label=name)
+                                               title=f"{self.model}: {name} ({model.kinds[name]})", colorbar_label=name,
+                                               cmap="auto")
         if model.evolved and K.dim == 2:
             first = model.evolved[0]
             if model.kinds[first].simplex_dimension(K.dim) in (0, K.dim):
+                # the whole range, coloured by sign: a model's field has no thin layers to wash out
                 figures[f"{first}_snapshots"] = Figure.of_kind("snapshots", name=first, count=int(self.snapshots),
-                                                               title=f"{self.model}: {first}", symmetric=False)
+                                                               title=f"{self.model}: {first}", cmap="auto",
+                                                               percentile=100.0)
                 if self.animation:
                     figures[f"{first}_animation"] = Figure.of_kind("animation", name=first, title=first,
-                                                                   symmetric=False)
+                                                                   cmap="auto", percentile=100.0)
             if self._composed.metrics:
                 figures["metrics"] = Figure.of_kind("recorded_series", names=list(self._composed.metrics),
                                                     title=self.model)
+        for name, plot in self.plots.items():
+            figures[name] = Figure.of_kind("values_arrows", values=np.asarray(env[plot.color], dtype=np.float64),
+                                           vectors=np.asarray(env[plot.arrows], dtype=np.float64),
+                                           title=f"{self.model}: {plot.color}, arrows: {plot.arrows}",
+                                           colorbar_label=plot.color)
         return figures

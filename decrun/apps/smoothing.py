@@ -28,7 +28,13 @@ import numpy as np
 from decrun.apps.base import App, Context, Figure, Output, Result
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
-from decrun.methods.mean_curvature_flow import MeanCurvatureFlow, Scheme, SmoothingStepper, choose_time_step
+from decrun.methods.mean_curvature_flow import (
+    MeanCurvatureFlow,
+    Scheme,
+    SmoothingStepper,
+    choose_time_step,
+    smallest_positive_eigenvalue,
+)
 from decrun.methods.smoothing_metrics import smoothing_metrics
 from decrun.methods.stepping import run_steps
 
@@ -188,5 +194,8 @@ class Smoothing(App):
                 faces=stepper.faces, share_axes=True, titles=("input", f"after {state}"),
                 suptitle=f"mean curvature flow (§1.3): {label}"),
             "smoothing_series": Figure.of_kind(
-                "series", series={name: np.array(stepper.series[name]) for name in shown}, title=label),
+                "series", series={name: np.array(stepper.series[name]) for name in shown}, title=label,
+                floors={"roughness": (smallest_positive_eigenvalue(stepper.flow.S, stepper.flow.mass)
+                                      / stepper.first["roughness"],
+                                      "roughness bound λ1/R0 (R ≥ λ1 > 0 of L: no smoothing takes it to 0)")}),
         }

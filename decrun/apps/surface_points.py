@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from decrun.core.geometry import embed3
-from decrun.errors import ConfigError
+from decrun.errors import ConfigError, format_point
 from decrun.methods.vector_design import nearest_faces
 
 __all__ = ["check_points_on_surface"]
@@ -32,5 +32,5 @@ def check_points_on_surface(K, points, key: str, tolerance: float) -> None:
         needed = float(np.ceil(distance[i] / h * 10) / 10 + 0.1)
         raise ConfigError(
             f"{where}: {points[i].tolist()} lies {distance[i]:.3g} from the surface (nearest surface point "
-            f"{np.round(projected[i], 6).tolist()}), more than app.point_tolerance={tolerance:g} mean edge lengths "
+            f"{format_point(projected[i])}), more than app.point_tolerance={tolerance:g} mean edge lengths "
             f"(h̄ = {h:.3g}); move the point onto the mesh, or accept the snap with app.point_tolerance={needed:g}")

@@ -43,7 +43,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.core.forms import whitney_sharp
 from decrun.core.geometry import embed3
-from decrun.errors import ConfigError
+from decrun.errors import ConfigError, format_point
 from decrun.methods.singularities import cluster_singularities, find_singularities
 from decrun.methods.vector_design import (
     DesignConstraints,
@@ -218,7 +218,7 @@ def sources_from_mesh(K, log=None) -> tuple[list[Source], dict]:
     the metrics that record it; ``log`` (a callable) is told which vertices were chosen."""
     pair = principal_extremes(K)
     points = embed3(K.vertices)[[pair.source, pair.sink]]
-    fmt = lambda p: "[" + ", ".join(f"{v:.6g}" for v in p) + "]"  # noqa: E731
+    fmt = format_point
     metrics = {"sources_from_mesh": True, "source_vertex": pair.source, "sink_vertex": pair.sink,
                "source_point": fmt(points[0]), "sink_point": fmt(points[1]), "source_axis": fmt(pair.axis),
                "source_axis_unique": pair.axis_unique}
@@ -281,7 +281,7 @@ def _design(self, ctx: Context) -> Result:
     are given).
 
     Metrics: ``curl_residual``, ``divergence_residual``, ``direction_residual`` (⋆2, ⋆0 and
-    W norms; each also ``*_relative`` to its target), ``smoothness_energy``
+    W norms; each also ``*_relative`` to its target when that is non-zero), ``smoothness_energy``
     (⟨dω,dω⟩ + ⟨δω,δω⟩), ``index_sum``, ``euler_characteristic``, ``poincare_hopf_holds``
     (closed meshes), ``singularities`` (count of singular vertices and faces) with
     ``singularities_positive`` / ``_negative``, ``singularity_clusters`` (sites within
@@ -325,7 +325,8 @@ def _design(self, ctx: Context) -> Result:
         "vector_field", face_vectors=face_vectors, vertex_index=singular.vertex_index,
         face_index=singular.face_index, stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})",
         max_arrows=int(cfg.figure_arrows), cluster_positions=clusters.positions[clusters.nonzero],
-        cluster_indices=clusters.indices[clusters.nonzero])}
+        cluster_indices=clusters.indices[clusters.nonzero], source_vertices=geometry["source_vertices"],
+        source_divergences=geometry["source_divergences"], vortex_faces=geometry["vortex_faces"])}
     return Result(fields=fields, metrics=metrics, figures=figures)
 
 

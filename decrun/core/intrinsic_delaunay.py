@@ -44,6 +44,8 @@ from decrun.errors import DegenerateSimplexError, MeshError, NonManifoldError, O
 
 __all__ = ["IntrinsicTriangulation", "IntrinsicOperators", "intrinsic_delaunay", "intrinsic_delaunay_operators"]
 
+#: under ``auto``, the flip rounds take their kernel from this many faces on (before numba started)
+FLIP_KERNEL_MIN_SIZE = 500_000
 _ROUND_OFF = 1e-12  # cot weights in [-_ROUND_OFF, 0) after flipping are round-off of a zero weight
 _NEXT = np.array([1, 2, 0])
 _PREV = np.array([2, 0, 1])
@@ -521,7 +523,8 @@ def intrinsic_delaunay(vertices, faces, mollify: float = 0.0, border: str = "tuf
         raise DegenerateSimplexError(
             f"triangles {bad[:8].tolist()} have zero area in their edge lengths (pass mollify > 0, e.g. 1e-5)")
 
-    flip_rounds = _flip_rounds_kernel if jit.enabled(faces.shape[0]) else flip_rounds_numpy
+    # the flip rounds' own threshold (rounds of numpy passes against one kernel pass)
+    flip_rounds = _flip_rounds_kernel if jit.enabled(faces.shape[0], min_size=FLIP_KERNEL_MIN_SIZE) else flip_rounds_numpy
     flips, rounds, finished = flip_rounds(faces, face_edges, sides, lengths, float(delaunay_tol), int(max_rounds))
     if not finished:
         raise RuntimeError(f"intrinsic Delaunay flipping did not finish in {max_rounds} rounds")

@@ -16,9 +16,14 @@ with. A caller takes the kernel when :func:`enabled` says so. **The switch** (:f
   ``numpy`` (or ``0``) never (to rule out a kernel when chasing a bug), ``auto`` or unset;
 * ``auto``: a kernel runs from its caller's ``min_size`` items on — by default
   :data:`MIN_SIZE`, where the time saved outweighs what a fresh process pays once to import
-  numba and load the cached kernels (~0.7 s on an idle 2-core machine;
+  numba and start it (its typing registries, then each cached kernel's machine code;
   ``benchmarks/bench_operators.py --jit``); the fluid's kernels run at any size (a run steps
-  hundreds of times).
+  hundreds of times). Once that price is paid — a kernel ran in this process — kernels
+  run from :data:`WARM_MIN_SIZE` items on (loading one more cached kernel is cheap).
+  A long-lived process (a sweep worker building one mesh after another) pays it when the numpy
+  work it did on inputs of at least :data:`WARM_MIN_SIZE` items adds up to
+  :data:`AMORTIZE_SIZE` items, about the time the start costs (rent until the rent paid equals
+  the price, then buy: never more than twice the better choice in hindsight).
 
 ``numpy`` never imports numba; ``numba`` runs every kernel on the path (``tests/core/test_jit.py``).
 """
@@ -32,14 +37,27 @@ from functools import update_wrapper
 
 from decrun.errors import ConfigError
 
-__all__ = ["njit", "enabled", "mode", "use", "check_mode", "threads", "prange", "MIN_SIZE", "MODES", "KERNELS"]
+__all__ = ["njit", "enabled", "started", "mode", "use", "check_mode", "threads", "prange", "MIN_SIZE", "WARM_MIN_SIZE",
+           "AMORTIZE_SIZE", "MODES", "KERNELS"]
 
 #: ``for i in prange(n)`` in a kernel: numba's parallel loop once the kernel is compiled with
 #: ``parallel=True`` (the dispatcher swaps it in), the plain ``range`` everywhere else
 prange = range
 
 #: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
-MIN_SIZE = 500_000
+#: in a process where numba has not started: a triangle mesh's largest input is its 3·m edge
+#: slots, and one build of its complex and operators saves numba's start from ~1M triangles on
+#: (``benchmarks/bench_operators.py``, docs/performance.md)
+MIN_SIZE = 3_000_000
+
+#: under ``auto``, once a kernel ran in this process, inputs from this many items on take the kernels
+WARM_MIN_SIZE = 10_000
+
+#: under ``auto``, the items of numpy work (inputs of at least :data:`WARM_MIN_SIZE` items) after
+#: which a process starts numba: a triangle mesh's complex and operators (d0, d1, ⋆0–⋆2) pass
+#: 15.5·m items through :func:`enabled`, so 20M items ≈ 1.3M triangles of builds, whose saving
+#: with the kernels is about what numba's start costs (docs/performance.md)
+AMORTIZE_SIZE = 20_000_000
 
 #: the switch's values
 MODES = ("auto", "numba", "numpy")
@@ -50,6 +68,14 @@ _ENV = {"": "auto", "auto": "auto", "numba": "numba", "1": "numba", "numpy": "nu
 KERNELS: list = []
 
 _override: list[str] = []  # the modes :func:`use` set, innermost last
+_started = False  # a kernel ran in this process: numba's one-time start is paid
+_numpy_items = 0  # items auto sent to the numpy twins (inputs of >= WARM_MIN_SIZE items) before the start
+
+#: called once per process, with the kernel's name, just before numba compiles a kernel its disk
+#: cache has no machine code for (the first run of an install, or after the source changed), so
+#: a caller can say why the first step waits; None: nothing is said (this layer prints nothing)
+compile_notice = None
+_noticed = False
 
 
 def check_mode(value: str, where: str = "app.kernels") -> str:
@@ -84,11 +110,26 @@ def use(value: str):
 def enabled(size: int | None = None, min_size: int = MIN_SIZE, kernels: str = "auto") -> bool:
     """Whether to run the kernel for an input of ``size`` items (None: any size): ``kernels``
     (a caller's own setting) unless ``auto``, else :func:`mode`; under ``auto`` from ``min_size``
-    items on."""
+    items on, from ``min(min_size, WARM_MIN_SIZE)`` once a kernel ran in this process, and at
+    any size from :data:`WARM_MIN_SIZE` on once the numpy work refused so far reaches
+    :data:`AMORTIZE_SIZE` items."""
+    global _numpy_items
     setting = check_mode(kernels, "kernels") if kernels != "auto" else mode()
     if setting != "auto":
         return setting == "numba"
-    return size is None or size >= min_size
+    if size is None or size >= min_size:
+        return True
+    if _started:
+        return size >= WARM_MIN_SIZE
+    if size >= WARM_MIN_SIZE:
+        _numpy_items += size
+        return _numpy_items >= AMORTIZE_SIZE
+    return False
+
+
+def started() -> bool:
+    """Whether a kernel ran in this process (numba imported and started: later kernels are cheap)."""
+    return _started
 
 
 class _LazyKernel:
@@ -121,6 +162,7 @@ class _LazyKernel:
             if self.options.get("parallel"):
                 _threading_layer(numba)
             self.compiled = numba.njit(cache=True, **self.options)(self.function)
+            _announce_compile(self)
             for name, value in list(namespace.items()):
                 # a parallel kernel stays this object (its callers are Python's, through __call__'s lock)
                 if isinstance(value, _LazyKernel) and not value.options.get("parallel"):
@@ -161,13 +203,36 @@ class _LazyKernel:
                     result = self.dispatcher()(*args)
                 global _parallel_ran
                 _parallel_ran = True
+                _mark_started()
                 return result
-            return self.dispatcher()(*args)
+            result = self.dispatcher()(*args)
+            _mark_started()
+            return result
         except SystemError as exc:
             cause = _handler_exception(exc)
             if cause is None:
                 raise
             raise cause from None
+
+
+def _announce_compile(kernel: _LazyKernel) -> None:
+    """:data:`compile_notice` (once per process) when ``kernel``'s disk cache holds no machine
+    code valid for its current source: numba is about to compile it on this call."""
+    global _noticed
+    if _noticed or compile_notice is None:
+        return
+    try:
+        cached = bool(kernel.compiled._cache._cache_file._load_index())  # numba's index: {} when absent or stale
+    except Exception:  # noqa: BLE001 — another numba's internals: say nothing rather than guess
+        return
+    if not cached:
+        _noticed = True
+        compile_notice(kernel.name)
+
+
+def _mark_started() -> None:
+    global _started
+    _started = True
 
 
 def _handler_exception(exc: SystemError) -> BaseException | None:

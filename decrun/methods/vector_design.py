@@ -411,8 +411,9 @@ def design_residuals(dec: DEC, delta: sp.spmatrix, constraints: DesignConstraint
 
     Returns a dict of floats:
     ``curl_residual`` ‖d w − r‖_⋆2, ``divergence_residual`` ‖δ w − s‖_⋆0,
-    ``direction_residual`` ‖Z w − c‖_W, and each ``*_relative`` = residual / ‖target‖
-    (the absolute residual when the target is zero).
+    ``direction_residual`` ‖Z w − c‖_W (absent without strokes), and each ``*_relative`` =
+    residual / ‖target‖ — absent when the target is zero (no vortices: curl target 0; no
+    sources: divergence target 0), where a ratio to it does not exist.
     """
     out = {}
     pieces = {
@@ -423,17 +424,16 @@ def design_residuals(dec: DEC, delta: sp.spmatrix, constraints: DesignConstraint
         r = np.sqrt(max(dec.inner(k, residual, residual), 0.0))
         t = np.sqrt(max(dec.inner(k, target, target), 0.0))
         out[f"{name}_residual"] = float(r)
-        out[f"{name}_residual_relative"] = float(r / t) if t > 0 else float(r)
+        if t > 0:
+            out[f"{name}_residual_relative"] = float(r / t)
     if constraints.stroke_edges.size:
         residual = omega[constraints.stroke_edges] - constraints.stroke_targets
         weights = constraints.stroke_weights
         r = np.sqrt((weights * residual**2).sum())
         t = np.sqrt((weights * constraints.stroke_targets**2).sum())
         out["direction_residual"] = float(r)
-        out["direction_residual_relative"] = float(r / t) if t > 0 else float(r)
-    else:
-        out["direction_residual"] = 0.0
-        out["direction_residual_relative"] = 0.0
+        if t > 0:
+            out["direction_residual_relative"] = float(r / t)
     return out
 
 

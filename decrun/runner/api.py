@@ -224,7 +224,9 @@ def _code(exc: SystemExit) -> int:
 
 
 def _absolute(path: Path | None) -> Path | None:
-    return None if path is None else path.absolute()
+    """``path`` made absolute; None when there is none, or none any more (a run refused as bad
+    input leaves no directory)."""
+    return None if path is None or not path.exists() else path.absolute()
 
 
 @contextmanager

@@ -75,8 +75,9 @@ def _hydra_task(cfg: DictConfig) -> int | float:
     from decrun.runner.run import run
 
     hydra_cfg = HydraConfig.get()
-    return run(cfg, Path(hydra_cfg.runtime.output_dir), multirun=_is_multirun(), verbose=_verbose(),
-               log_name=hydra_cfg.job.name)
+    out = Path(hydra_cfg.runtime.output_dir)
+    made = OutputGuard.made is not None and OutputGuard.made.absolute() == out.absolute()
+    return run(cfg, out, multirun=_is_multirun(), verbose=_verbose(), log_name=hydra_cfg.job.name, made=made)
 
 
 #: the plugins the sweeper's checks built, by node (a sweep's jobs share most of them)
@@ -102,13 +103,16 @@ class OutputGuard(Callback):
     before a single run — before Hydra creates its directory, saves ``.hydra/`` and opens
     the log — refuses a ``.hydra/`` file or log that resolves out of the run directory
     (:func:`decrun.runner.paths.inside`) and takes the run directory's lock
-    (:mod:`decrun.runner.locks`) until the run ends. After a sweep, once
+    (:mod:`decrun.runner.locks`) until the run ends; ``made`` says whether it made the
+    directory (a run refused as bad input removes it again). After a sweep, once
     :class:`SweepTable` has written the table, drops the sweep directory's lock (the
     ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written.
     ``run_dir``: the directory of the last single run this process started (for
     :func:`decrun.run`)."""
 
     run_dir: Path | None = None
+    #: the run directory when this process made it (it did not exist before the run), else None
+    made: Path | None = None
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
         try:
@@ -124,6 +128,7 @@ class OutputGuard(Callback):
     def _guard(self, config: DictConfig) -> None:
         out = Path(str(config.hydra.run.dir))
         OutputGuard.run_dir = out
+        OutputGuard.made = None if os.path.lexists(out) else out
         try:
             for name in hydra_files(config.hydra):
                 inside(out, out / name, fix="remove the link, or choose another run directory with hydra.run.dir=DIR")
@@ -136,7 +141,11 @@ class OutputGuard(Callback):
             stop(f"error: {exc}")  # Hydra turns a callback's exception into a warning: exit here
 
     def on_run_end(self, config: DictConfig, **kwargs) -> None:
-        release(Path(str(config.hydra.run.dir)))
+        run_dir = Path(str(config.hydra.run.dir))
+        try:
+            track(config, run_dir, sweep=False)
+        finally:
+            release(run_dir)
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         release(Path(str(config.hydra.sweep.dir)))
@@ -177,7 +186,7 @@ class SweepTable(Callback):
             planned=target.startswith("hydra_plugins.decrun_sweeper."))
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
-        from decrun.runner.sweep.tables import failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
+        from decrun.runner.sweep.tables import SAME_AS, failed_jobs, select, to_markdown, write_sweep_table  # lazy: pandas (start-up speed)
 
         if SweepTable._progress is not None:
             SweepTable._progress.stop()
@@ -194,6 +203,11 @@ class SweepTable(Callback):
         hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
         if hidden:
             print(f"decrun: {hidden} more columns in {SweepFiles.TABLE_MD} (`decrun-table --all {sweep_dir}`)")
+        if SAME_AS in table:
+            repeats = table[table[SAME_AS].notna()]
+            print(f"decrun: {len(repeats)} jobs repeat an earlier job's result exactly (column {SAME_AS}: "
+                  f"{', '.join(f'{j} = {s}' for j, s in zip(repeats['job'], repeats[SAME_AS]))}); the keys they differ "
+                  f"in do not change the result")
         failed_exports = f", {len(exports)} export failed" if len(exports) else ""
         print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok{failed_exports}) → "
               f"{SweepFiles(sweep_dir).table_csv}, {SweepFiles.TABLE_MD}")
@@ -201,6 +215,54 @@ class SweepTable(Callback):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
         for job, error in exports:
             print(f"decrun: job {job} export failed: {error}", file=sys.stderr)
+        track(config, sweep_dir, sweep=True)
+
+
+def track(config: DictConfig, where: Path, *, sweep: bool) -> None:
+    """Log the sweep (or single run) in ``where`` to ``config.tracker``
+    (:mod:`decrun.runner.tracking`) once its own files are written, and say so in one line;
+    nothing for ``tracker=none``. Whatever goes wrong is one warning line naming the command
+    that logs the files later (``decrun-track``): the run's files are never touched by it."""
+    if "tracker" not in config or config.tracker is None:
+        return
+    from decrun.runner.plugins import build
+    from decrun.runner.tracking import Tracker, track_run, track_sweep, warning_line
+
+    tracker = build(config.tracker, "tracker", Tracker)
+    try:
+        tracker.check()
+    except DecrunError:  # the run's own checks reported it already (Experiment), before any work
+        return
+    if not tracker.active():
+        return
+    try:
+        if sweep:
+            tracked = track_sweep(tracker, where)
+            print(f"decrun: tracker={tracker.name}: {len(tracked.runs)} jobs under run {tracked.sweep_run} "
+                  f"({tracked.sent} sent) in {tracker.store()}")
+        else:
+            run_id = track_run(tracker, where)
+            print(f"decrun: tracker={tracker.name}: run {run_id} in {tracker.store()}")
+    except Exception as exc:  # noqa: BLE001 — an unreachable or refusing tracker: one line, the files stay
+        print(warning_line(tracker, exc, where, track_command(where, config)), file=sys.stderr)
+
+
+def track_command(where: Path, config: DictConfig) -> str:
+    """``decrun-track <where> tracker=<name> tracker.<option>=<value> ...``: the command that
+    logs ``where`` with the tracker options of ``config``."""
+    import shlex
+
+    from decrun.runner.config import load_option
+
+    node = OmegaConf.to_container(config.tracker, resolve=False)
+    target = node.get("_target_", "")
+    choice = next((p.stem for p in (config_dir() / "tracker").glob("*.yaml")
+                   if load_option("tracker", p.stem).get("_target_") == target), None)
+    defaults = OmegaConf.to_container(load_option("tracker", choice), resolve=False) if choice else {}
+    words = ["decrun-track", str(where), f"tracker={choice}" if choice else f"tracker._target_={target}"]
+    words += [f"tracker.{k}={'null' if v is None else v}" for k, v in node.items()
+              if k != "_target_" and defaults.get(k, object()) != v]
+    return shlex.join(words)
 
 
 def fast_help() -> str:
@@ -538,11 +600,11 @@ def table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--csv", action="store_true", help="print CSV instead of markdown")
     parser.add_argument("--metrics", help="comma-separated metric columns to show (default: the apps' headline "
                                           "metrics in markdown, all in --csv)")
-    parser.add_argument("--all", action="store_true", help="show every metric column")
+    parser.add_argument("--all", action="store_true", help="show every column, constant ones included")
     parser.add_argument("--sort", help="comma-separated columns to sort the rows by")
     parser.add_argument("--descending", action="store_true", help="sort in descending order")
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
-                        help="drop columns with one value in every row (default: on for markdown, off for --csv)")
+                        help="drop columns with one value in every row (default: on for markdown, off for --csv and --all)")
     args = parser.parse_args(argv)
 
     def split(text: str | None) -> list[str] | None:
@@ -564,7 +626,7 @@ def table_main(argv: list[str] | None = None) -> int:
         table = stack(args.sweep_dirs)
         if len(args.sweep_dirs) == 1:
             table = table.drop(columns="sweep")
-        drop = (not args.csv) if args.drop_constant is None else args.drop_constant
+        drop = not (args.csv or args.all) if args.drop_constant is None else args.drop_constant
         shown = select(table, split(args.metrics), split(args.sort), args.descending, drop,
                        narrow=not (args.all or args.csv))
     except (FileNotFoundError, KeyError, DecrunError) as exc:
@@ -581,3 +643,53 @@ def table_main(argv: list[str] | None = None) -> int:
     for line in unsaved:
         print(line, file=sys.stderr)
     return 1 if len(failed_jobs(table)) else 0
+
+
+# ----------------------------------------------------------------------------------
+# decrun-track
+# ----------------------------------------------------------------------------------
+
+
+def track_main(argv: list[str] | None = None) -> int:
+    """Console script ``decrun-track DIR [tracker=mlflow tracker.uri=URI ...]``: log the sweep
+    (a directory with ``manifest.json`` or ``multirun.yaml``) or the single run in ``DIR`` to
+    the tracker the overrides compose (:mod:`decrun.runner.tracking`) — a sweep that ran
+    with ``tracker=none``, or whose tracker could not be reached. Runs it logged before go
+    into the same tracker runs (their ids are kept in the directories). Exit 2 on an error."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="decrun-track", description=track_main.__doc__)
+    parser.add_argument("dir", metavar="DIR", help="a sweep directory (outputs/sweeps/<stamp>) or a run directory")
+    parser.add_argument("overrides", nargs="*", help="tracker=mlflow and tracker.<option>=<value> overrides")
+    args = parser.parse_args(argv)
+    from decrun.runner.config import compose_config
+    from decrun.runner.plugins import build
+    from decrun.runner.sweep.tables import is_sweep_dir
+    from decrun.runner.tracking import Tracker, track_run, track_sweep
+
+    where = Path(args.dir)
+    try:
+        outside = [o for o in args.overrides if not o.startswith("tracker")]
+        if outside:
+            raise DecrunError(f"{outside[0]}: decrun-track takes only tracker overrides (tracker=mlflow "
+                              "tracker.uri=URI ...)")
+        if not where.is_dir():
+            raise DecrunError(f"{where}: no such directory; give a sweep or run directory")
+        tracker = build(compose_config(args.overrides).tracker, "tracker", Tracker)
+        tracker.check()
+        if not tracker.active():
+            raise DecrunError("tracker=none logs nothing; choose one, e.g. decrun-track DIR tracker=mlflow")
+        if is_sweep_dir(where):
+            tracked = track_sweep(tracker, where)
+            print(f"decrun-track: tracker={tracker.name}: {len(tracked.runs)} jobs under run {tracked.sweep_run} "
+                  f"({tracked.sent} sent) in {tracker.store()}")
+        else:
+            print(f"decrun-track: tracker={tracker.name}: run {track_run(tracker, where)} in {tracker.store()}")
+    except DecrunError as exc:
+        print(shorten_words(f"decrun-track: error: {exc}"), file=sys.stderr)
+        return 2
+    except Exception as exc:  # noqa: BLE001 — the tracker's own errors (unreachable server): one line
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        print(shorten_words(f"decrun-track: error: {type(exc).__name__}: {text}"), file=sys.stderr)
+        return 2
+    return 0

@@ -71,6 +71,7 @@ GROUPS = (
                                                                           "decrun.runner.chain.")),
     PluginGroup("export", "decrun.runner.results.export.Export", "export", ("decrun.runner.results.export.",),
                 optional=True),
+    PluginGroup("tracker", "decrun.runner.tracking.Tracker", "tracker", ("decrun.runner.tracking.",), optional=True),
 )
 #: the same by key
 GROUP = {group.key: group for group in GROUPS}
@@ -149,6 +150,8 @@ class DecrunConfig:
     solver: Any = MISSING
     #: files for other programs (VTU, XDMF time series, PLY, OBJ): decrun.runner.results.export
     export: Any = MISSING
+    #: an experiment tracker the sweep's jobs are logged to (MLflow): decrun.runner.tracking
+    tracker: Any = MISSING
     #: show progress bars (only when stderr is a terminal)
     progress: bool = True
     #: render the application's figures to PNG

@@ -28,7 +28,7 @@ class Experiment:
     """The plugins of one run, built and checked from ``cfg`` before any work.
 
     Attributes: ``mesh_source``, ``operator`` (Hodge-star variant), ``boundary``, ``app``,
-    ``solver``, ``export`` (None when ``cfg`` has no export node) — instances of the classes
+    ``solver``, ``export``, ``tracker`` (None when ``cfg`` has no such node) — instances of the classes
     named by the config's ``_target_`` keys, one per row of
     :data:`decrun.runner.config.GROUPS` (built in its order). The app then checks the
     solver against what the config alone says of its systems (before any mesh is loaded:
@@ -58,6 +58,8 @@ class Experiment:
         self.app.check_solver(self.solver)
         if self.export is not None:  # what the app writes against what the export needs: before any mesh
             self.export.check(self.app)
+        if self.tracker is not None:  # its package: refused before the first job, not at the sweep's end
+            self.tracker.check()
         self.checkpoint = root_options(cfg, "checkpoint", CheckpointConfig)
         self.optimize = root_options(cfg, "optimize", OptimizeConfig)
         for key in ("progress", "figures"):  # plain root values: resolved here, not first in the run

@@ -62,6 +62,8 @@ class RunFiles:
     FIGURE = "{name}.png"
     #: every figure, as a glob
     FIGURES = "*.png"
+    #: every animation (``<name>.gif``, :func:`decrun.runner.plots.snapshots`), as a glob
+    ANIMATIONS = "*.gif"
     #: ``export=vtu``: the mesh with every field (:class:`decrun.runner.results.export.Vtu`)
     VTU = "result.vtu"
     #: ``export=xdmf``: the recorded series over the mesh, with the heavy data in
@@ -74,6 +76,9 @@ class RunFiles:
     #: ``export=ply`` / ``export=obj``: the surface with one field as colours / the surface
     PLY = "result.ply"
     OBJ = "result.obj"
+    #: ``tracker=mlflow``: the id of the tracker's run of this job, per store, kept across a
+    #: resumed sweep's rerun (:mod:`decrun.runner.tracking`)
+    TRACKING = "tracking.json"
 
     #: what a sweep job's directory may hold that a rerun of the job must not inherit
     #: (besides the figures and the result's temporaries; :mod:`decrun.runner.sweep.sweeper`)
@@ -93,6 +98,7 @@ class RunFiles:
     xdmf_edges = _path("XDMF_EDGES", "export=xdmf's series on edges.")
     ply = _path("PLY", "export=ply's file.")
     obj = _path("OBJ", "export=obj's file.")
+    tracking = _path("TRACKING", "The tracker's run id of this run.")
 
     def figure(self, name: str) -> Path:
         """The figure ``<name>.png``."""
@@ -113,6 +119,8 @@ class SweepFiles:
     #: the table of the jobs' metrics, one row per job (:mod:`decrun.runner.sweep.tables`)
     TABLE_CSV = "metrics.csv"
     TABLE_MD = "metrics.md"
+    #: ``tracker=mlflow``: the id of the tracker's run of the whole sweep, per store
+    TRACKING = "tracking.json"
 
     def __init__(self, dir: str | os.PathLike):
         self.dir = Path(dir)
@@ -121,6 +129,7 @@ class SweepFiles:
     multirun = _path("MULTIRUN", "The sweep's multirun.yaml.")
     table_csv = _path("TABLE_CSV", "The sweep's metrics.csv.")
     table_md = _path("TABLE_MD", "The sweep's metrics.md.")
+    tracking = _path("TRACKING", "The tracker's run id of the sweep.")
 
     def __repr__(self) -> str:
         return f"SweepFiles({str(self.dir)!r})"

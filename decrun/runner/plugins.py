@@ -39,7 +39,7 @@ from decrun.core.choices import Choice, choice_error
 from decrun.errors import ConfigError
 from decrun.runner.config import GROUP, load_option
 
-__all__ = ["target_class", "build", "plain_values", "Rebuilt", "Recent"]
+__all__ = ["target_class", "check_node", "build", "plain_values", "Rebuilt", "Recent"]
 
 
 def target_class(node: Any, key: str, base: type) -> type:
@@ -59,6 +59,17 @@ def target_class(node: Any, key: str, base: type) -> type:
     if not (isinstance(cls, type) and issubclass(cls, base) and dataclasses.is_dataclass(cls)):
         raise ConfigError(f"{key}._target_={target!r} is not a {base.__name__} dataclass")
     return cls
+
+
+def check_node(cls: type, node: Any, key: str) -> None:
+    """The plugin class's checks of its unresolved config node (``cls.check_node(values, key)``,
+    if it has one): what resolution hides — which file or override a value came from, e.g.
+    whether a model set a constant or a part's interpolation did. ``values`` are plain Python
+    containers with the interpolations unresolved (their ``${…}`` text), so the plugin needs
+    no omegaconf."""
+    check = getattr(cls, "check_node", None)
+    if check is not None and isinstance(node, DictConfig):
+        check(OmegaConf.to_container(node, resolve=False), key)
 
 
 def plain_values(node: Any) -> dict:
@@ -141,6 +152,7 @@ def build(node: Any, key: str, base: type, typed: bool = False) -> Any:
     wrong type or a value the plugin's checks reject.
     """
     cls = target_class(node, key, base)
+    check_node(cls, node, key)
     values = _widen(cls, plain_values(node))
     schema = _schema(cls)
     try:
@@ -206,6 +218,7 @@ class Recent:
 
     def build(self, node: Any, key: str, base: type) -> Any:
         cls = target_class(node, key, base)
+        check_node(cls, node, key)
         seen = repr(_widen(cls, plain_values(node)))  # repr: 1, 1.0 and True differ
         last = self._last.pop(key, None)
         if last is not None and last[0] is cls and last[1] == seen:

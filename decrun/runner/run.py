@@ -28,7 +28,7 @@ from decrun.apps.base import Result
 from decrun.core import jit
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.errors import ConfigError, DecrunError, MeshError
+from decrun.errors import ConfigError, DecrunError, MeshError, TopologyError
 from decrun.runner.config import OptimizeConfig
 from decrun.runner.context import RunContext
 from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
@@ -193,8 +193,25 @@ def execute(run: Run) -> Run:
     Without ``run.files`` the recorded series end up in ``result.series``. A time-stepping
     app continues from ``run.files.checkpoint`` when it holds this config's state
     (``ctx.checkpoint``, :mod:`decrun.methods.stepping`)."""
-    with run.kernels():
+    with run.kernels(), compile_notice():
         return _execute(run)
+
+
+@contextmanager
+def compile_notice():
+    """While the block runs, a kernel numba must compile (its disk cache holds none for this
+    install or this source: :data:`decrun.core.jit.compile_notice`) is said once in the log:
+    the first step of a first run otherwise waits 10–150 s at "0 %" without a word."""
+    def say(name: str) -> None:
+        log.info("compiling decrun's numba kernels (%s first): once per install — numba caches the machine "
+                 "code beside the modules and later runs load it in a second; this first time takes 10-150 s",
+                 name)
+
+    before, jit.compile_notice = jit.compile_notice, say
+    try:
+        yield
+    finally:
+        jit.compile_notice = before
 
 
 def _execute(run: Run) -> Run:
@@ -260,23 +277,20 @@ def run_experiment(cfg: DictConfig, progress: Callable | None = None, out: Path 
 
 
 def write(run: Run, out: Path | None = None) -> list[Path]:
-    """Write the finished ``run`` into its directory (``out`` when the run has none): the
-    figures, ``result.h5`` (atomic; finishing the run's recorder when it has one),
-    ``metrics.json`` (the metrics and ``result_h5``: the size and sha256 of result.h5 and the
-    hash of its content, :func:`~decrun.runner.results.provenance.result_record`) and the
-    export's files."""
+    """Write the finished ``run`` into its directory (``out`` when the run has none):
+    ``result.h5`` (atomic; finishing the run's recorder when it has one) and ``metrics.json``
+    (the metrics and ``result_h5``: the size and sha256 of result.h5 and the hash of its
+    content, :func:`~decrun.runner.results.provenance.result_record`) first — the result is
+    complete before any figure is drawn, so an interrupt while drawing (SIGTERM, Ctrl-C) keeps
+    it (the interrupt carries ``result_complete``) — then the figures (each written under a
+    temporary name and renamed: none is left truncated), after removing the figures an earlier
+    run left in the directory (:func:`remove_earlier_figures`), then the export's files.
+    ``total_seconds`` is the run's time up to its result; ``figures_seconds`` is logged."""
     files = run.files if out is None else RunFiles(out)
     if files is None:
         raise ValueError("write(run): the run has no directory; give one (out=...)")
     cfg, result, mesh, timings = run.cfg, run.result, run.mesh, run.timings
-    written = []
-    t = time.perf_counter()
-    if cfg.get("figures", True) and result.figures:
-        from decrun.runner.plots.common import draw_figures  # lazy: matplotlib only when there are figures (start-up speed)
-
-        written += draw_figures(result.figures, files.dir, run.complex)
-    timings["figures_seconds"] = time.perf_counter() - t
-    timings["total_seconds"] = sum(v for k, v in timings.items() if k != "total_seconds")
+    timings["total_seconds"] = sum(v for k, v in timings.items() if k not in ("total_seconds", "figures_seconds"))
     result.metrics.setdefault("total_seconds", timings["total_seconds"])
     if run.recorder is not None:
         h5 = run.recorder.finish(result, timings)
@@ -288,7 +302,23 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     # and the hash of its content, equal for two runs of one config (docs/running.md: "Reproducible records")
     record = {**result.metrics, RESULT_RECORD: result_record(h5)}
     metrics = write_metrics_json(files.metrics, record)
-    remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
+    drawn = bool(cfg.get("figures", True) and result.figures)
+    written = []
+    t = time.perf_counter()
+    try:
+        remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
+        removed = remove_earlier_figures(files.dir, result.figures if drawn else {})
+        if removed:
+            log.info("removed the earlier run's figures %s (they do not show this result)", ", ".join(removed))
+        if drawn:
+            from decrun.runner.plots.common import draw_figures  # lazy: matplotlib only for figures (start-up speed)
+
+            written += draw_figures(result.figures, files.dir, run.complex)
+            log.info("figures: %s in %.1f s", ", ".join(p.name for p in written), time.perf_counter() - t)
+    except KeyboardInterrupt as exc:  # the result is complete: the caller keeps it (see _run)
+        exc.result_complete = [name for name in result.figures if drawn and not _drawn(files.dir, name)]
+        raise
+    timings["figures_seconds"] = time.perf_counter() - t
     export = run.experiment.export
     try:
         exported = export.write(files, result, mesh, run.complex, run.experiment.app) if export is not None else []
@@ -299,7 +329,32 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     return [h5, metrics, *written, *exported]
 
 
-def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = False, log_name: str = "") -> int | float:
+#: the endings of the figures a run draws (``<name>.png``; an animation's ``<name>.gif``)
+FIGURE_ENDINGS = (".png", ".gif")
+
+
+def _drawn(directory: Path, name: str) -> bool:
+    return any((Path(directory) / f"{name}{ending}").is_file() for ending in FIGURE_ENDINGS)
+
+
+def remove_earlier_figures(directory: Path, figures: dict) -> list[str]:
+    """Remove the figures (``*.png``, ``*.gif`` directly in the run directory, one with Hydra's
+    ``.hydra/``: nowhere else) that an earlier run in ``directory`` drew and this run, whose result was just written, does not draw
+    again under the same name (``figures``: this run's, empty when it draws none): they
+    would show another result beside this one. Returns the names removed, sorted."""
+    mine = {f"{name}{ending}" for name in figures for ending in FIGURE_ENDINGS}
+    removed = []
+    if not (Path(directory) / RunFiles.HYDRA).is_dir():  # not a run directory the command made: not ours
+        return removed
+    for path in sorted(Path(directory).iterdir()):
+        if path.suffix in FIGURE_ENDINGS and path.name not in mine and path.is_file() and not path.is_symlink():
+            path.unlink()
+            removed.append(path.name)
+    return removed
+
+
+def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = False, log_name: str = "",
+        made: bool = False) -> int | float:
     """One run (or one sweep job, ``multirun``) of ``cfg`` into the directory ``out``: the
     experiment (:func:`prepare`, :func:`execute`), its files (:func:`write`) and what it prints. Returns 0 (1 for a failed
     sweep job), or with ``optimize.metric`` set the objective
@@ -307,7 +362,8 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     run exits 1 (an interrupted one 130/143) after recording its status in ``out``; an
     interrupted sweep job re-raises the interrupt, for the sweeper to say which jobs finished.
     ``verbose`` logs the traceback of a DecrunError; ``log_name`` is the job's log file
-    (``<log_name>.log``, named in the closing line).
+    (``<log_name>.log``, named in the closing line). ``made``: the caller made ``out`` for
+    this run (it did not exist): a single run refused as bad input then removes it again.
 
     The run holds ``out``'s lock (:mod:`decrun.runner.locks`; a single run took it before
     Hydra made the directory) while it runs: when another process holds it, one line on
@@ -319,11 +375,40 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
         if multirun:
             return 1
         raise Stopped(f"error: {exc}") from exc
+    fresh = made and not multirun and _only_hydras_files(out, log_name)
     try:
         return _run(cfg, out, multirun=multirun, verbose=verbose, log_name=log_name)
+    except Stopped as exc:
+        if fresh and getattr(exc, "refused", False) and _only_hydras_files(out, log_name, RunFiles.METRICS):
+            exc.leave_nothing = out  # removed below, once the lock is dropped
+        raise
     finally:
         if taken:
             release(out)
+        _remove_failed_attempt(sys.exc_info()[1])
+
+
+def _only_hydras_files(out: Path, log_name: str, *more: str) -> bool:
+    """Whether ``out`` holds nothing but what Hydra and the lock put there before the task
+    (``.hydra/``, ``<log_name>.log``, the lock file) and ``more``: a directory this run made."""
+    try:
+        names = {p.name for p in out.iterdir()}
+    except OSError:
+        return False
+    return names <= {RunFiles.HYDRA, f"{log_name}.log", RunFiles.LOCK, *more}
+
+
+def _remove_failed_attempt(exc: BaseException | None) -> None:
+    """A single run refused as bad input (a ConfigError, MeshError or TopologyError: a value
+    typo, a missing file) in a directory made for it leaves no directory behind: the one line
+    said everything, and ``outputs/runs`` keeps only runs that ran. A sweep job keeps its
+    directory (the table's row needs its metrics.json); so does a run into a directory that
+    existed before, or one that failed otherwise (out of memory, a full disk)."""
+    import shutil
+
+    out = getattr(exc, "leave_nothing", None)
+    if out is not None:
+        shutil.rmtree(out, ignore_errors=True)
 
 
 def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name: str) -> int | float:
@@ -343,6 +428,12 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
         objective = optimize.objective(result.metrics) if optimize.metric else 0
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (failures.Terminated)
         cause = interrupt_cause(exc)
+        missing = getattr(exc, "result_complete", None)
+        if missing is not None and not multirun:  # while drawing the figures: the result and metrics stand
+            said = (f"decrun: interrupted ({cause}) while drawing the figures; the run is complete: "
+                    f"{RunFiles.RESULT} and {RunFiles.METRICS} in {out}; not drawn: {', '.join(missing) or 'none'}")
+            print(said, file=sys.stderr)
+            raise Stopped(said, exit_code(exc)) from exc
         note = set_aside_stale(out, earlier) + record_status(out, "interrupted", f"interrupted ({cause})", identity)
         said = f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}"
         print(said, file=sys.stderr)
@@ -372,7 +463,10 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
             log.error("error: %s%s", message, note)
         if multirun:
             return optimize.objective(None) if optimize is not None and optimize.metric else 1
-        raise Stopped(f"error: {message}{note}") from exc
+        stopped = Stopped(f"error: {message}{note}")
+        # bad input (a config value, a mesh): the attempt leaves nothing (see run); not a full disk
+        stopped.refused = isinstance(exc, (ConfigError, MeshError, TopologyError)) and find_os_error(exc) is None
+        raise stopped from exc
     metrics = result.metrics
     shown = ", ".join(f"{k}={_short(v)}" for k, v in metrics.items() if k not in ("status", "config_hash"))
     log.info("metrics: %s", shown)

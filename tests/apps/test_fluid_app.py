@@ -209,6 +209,8 @@ def test_a_chaotic_channel_is_flagged_at_any_run_length(run_app, steps):
     assert m["perturbation_growth_per_step"] > 0.5 and m["perturbation_window_steps"] == steps - 5
     assert m["perturbation_growth_per_s"] == pytest.approx(m["perturbation_growth_per_step"] / 0.0075)
     assert not m["perturbation_stable"] and not m["stable"]
+    # stable: false says why (it gave no unstable_reason when only the shadow said so)
+    assert m["walls"] == "no_slip" and m["unstable_reason"].startswith("chaotic: the shadow's perturbation grew at")
 
 
 def test_the_shadow_window_is_checked_and_the_override_that_fixes_it_runs(decrun_cli):

@@ -260,3 +260,20 @@ def test_klausmeier_bands_have_the_wavelength_of_the_fastest_growing_mode():
     spacing = (xs[peaks[-1]] - xs[peaks[0]]) / (len(peaks) - 1)
     k_max, _ = klausmeier_theory(0.94, 0.45, 20.0)
     assert spacing == pytest.approx(2 * np.pi / k_max, rel=0.10)
+
+
+def test_a_gray_scott_sweep_table_says_which_runs_formed_patterns(decrun_cli, tmp_path):
+    """A (F, k) sweep through the real CLI: its metrics.csv has, per run, v_std and `pattern`
+    (1 when v_std > 0.02, the threshold gray_scott.yaml states) — here only (0.035, 0.065) of
+    the four pairs grows spots; the others decay to the uniform (u, v) = (1, 0)."""
+    import pandas as pd
+
+    done = decrun_cli("-m", "app=gray_scott", "app.steps=1500", "app.constants.F=0.035,0.06",
+                      "app.constants.k=0.065,0.075", "figures=false", "hydra.sweep.dir=outputs/sweeps/fk")
+    assert done.returncode == 0, done.stderr
+    table = pd.read_csv(tmp_path / "outputs" / "sweeps" / "fk" / "metrics.csv")
+    assert len(table) == 4 and list(table["status"]) == ["ok"] * 4
+    assert ((table["v_std"] > 0.02).astype(float) == table["pattern"]).all()
+    formed = table[table["pattern"] == 1.0]
+    assert [(F, k) for F, k in zip(formed["app.constants.F"], formed["app.constants.k"])] == [(0.035, 0.065)]
+    assert (table[table["pattern"] == 0.0]["v_std"] < 1e-6).all()

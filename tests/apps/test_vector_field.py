@@ -63,6 +63,26 @@ def test_consistent_constraints_have_zero_residual_and_poincare_hopf_on_sphere(s
     assert np.all(u[near, 2] < 0)
 
 
+
+def test_relative_residuals_exist_only_against_a_nonzero_target(sphere):
+    """A residual relative to a zero target is no ratio: sources alone (curl target 0) give
+    ``curl_residual`` but no ``curl_residual_relative``; vortices alone the converse; no
+    strokes, no direction residual at all. An inconsistent curl (one vortex on a closed
+    surface, total curl must be 0) has a relative residual independent of the target size."""
+    dec, delta, constraints, solution = design(sphere, sources=[([0, 0, 1], 1.0), ([0, 0, -1], -1.0)])
+    residuals = vd.design_residuals(dec, delta, constraints, solution.omega)
+    assert "curl_residual" in residuals and "curl_residual_relative" not in residuals
+    assert residuals["divergence_residual_relative"] < 1e-10
+    assert not any(key.startswith("direction_residual") for key in residuals)
+    runs = []
+    for curl in (1.0, 1000.0):  # the relative residual does not scale with the target, the absolute does
+        dec, delta, constraints, solution = design(sphere, vortices=[([0, 0, 1], curl)])
+        runs.append(vd.design_residuals(dec, delta, constraints, solution.omega))
+        assert "divergence_residual_relative" not in runs[-1]
+        assert 1e-3 < runs[-1]["curl_residual_relative"] < 1  # cannot be met (0.027), spread over the sphere
+    assert runs[1]["curl_residual"] == pytest.approx(1000 * runs[0]["curl_residual"], rel=1e-9)
+    assert runs[1]["curl_residual_relative"] == pytest.approx(runs[0]["curl_residual_relative"], rel=1e-9)
+
 def test_vortex_is_a_face_singularity_with_index_one(sphere):
     """Curl +c on a face and −c on the antipodal face: consistent, circulation around the
     faces; the singularities sit inside those faces with index +1 (centers)."""
@@ -383,3 +403,18 @@ def test_a_mesh_of_several_pieces_is_refused_before_the_design_misses_its_source
     pieces = np.repeat([0, 1], len(V))
     divergence = dec.star(0) @ dec.codifferential(1) @ np.random.default_rng(0).standard_normal(two.num_simplices(1))
     np.testing.assert_allclose(np.bincount(pieces, weights=divergence), 0, atol=1e-10)  # per piece, any w
+
+
+def test_points_a_hint_quotes_carry_no_round_off_digits():
+    """The default pair on a noise-free torus sits at x = 8.6e-17 (round-off of cos 90°) and
+    the principal axis has z = -1e-17: the log line a user copies the points from says 0."""
+    from decrun.apps.vector_field import sources_from_mesh
+    from decrun.errors import format_point
+
+    torus = complex_of(source="torus", noise=0.0)
+    lines = []
+    _, metrics = sources_from_mesh(torus, log=lines.append)
+    assert metrics["source_point"] == "[0, 1.4, 0]" and metrics["source_axis"] == "[0, 1, 0]", metrics
+    assert "e-1" not in lines[0] and "-0," not in lines[0] and "[0, -1.4, 0]" in lines[0]
+    assert format_point([-0.290327, 1.04921, -1.299e-19]) == "[-0.290327, 1.04921, 0]"
+    assert format_point([1e-5, -2e-5, -1e-22]) == "[1e-05, -2e-05, 0]"  # small points keep their digits

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from decrun import errors
+from decrun.core import jit
 from decrun.core.complex import SimplicialComplex, checks
 from decrun.core.complex.construction import enumerate_faces
 from decrun.core.dec import DEC
@@ -21,6 +22,7 @@ from decrun.core.simplex_arrays import (
     FaceRows,
     group_rows,
     group_rows_numpy,
+    inversion_parity,
     sort_rows,
     sorted_rows_and_parity,
     vertex_volumes,
@@ -160,6 +162,7 @@ def test_fans_kernel_equals_both_numpy_twins(name):
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[n - 1], pairs, nv))
     if n == 2:
         _assert_same(compiled, checks.fans_per_vertex_surface(top, K.orientation, pairs, nv))
+        _assert_same(checks.single_fan_surface(top, K.orientation, pairs, nv), compiled == 1)
     pairs_numpy, _ = checks.facet_pairs_numpy(faces.facet_order, faces.facet_starts, top)
     _assert_same(tuple(pairs), tuple(pairs_numpy))
 
@@ -173,12 +176,47 @@ def test_bowtie_fans_counted_alike():
     assert compiled[0] == 2
     _assert_same(compiled, checks.fans_per_vertex_surface(top, orientation, pairs, 5))
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[1], pairs, 5))
+    _assert_same(checks.single_fan_surface(top, orientation, pairs, 5), compiled == 1)
+
+
+def _glued_at_vertex_zero(first, second):
+    """Two oriented triangle meshes (vertices, faces) with their vertex 0 made one vertex."""
+    (v1, f1), (v2, f2) = first, second
+    f2 = np.where(f2 == 0, 0, f2 + v1.shape[0] - 1)
+    return np.vstack([v1, v2[1:] + [5.0, 0.0, 0.0][:v2.shape[1]]]), np.vstack([f1, f2])
+
+
+def test_single_fan_walk_finds_every_kind_of_pinched_vertex():
+    """A vertex in a closed fan and a border fan, in two closed fans, in two border fans:
+    the one-orbit walk says what the fan counts say, on every vertex."""
+    from decrun.core.primitives import grid_triangles
+
+    sphere = icosphere(1)
+    disk = grid_triangles(3, 3)
+    disk = (np.column_stack([disk[0], np.zeros(len(disk[0]))]), disk[1])
+    cases = {"closed + border": _glued_at_vertex_zero(sphere, disk),
+             "closed + closed": _glued_at_vertex_zero(sphere, sphere),
+             "border + border": _glued_at_vertex_zero(disk, disk)}
+    for name, (vertices, faces) in cases.items():
+        top = sort_rows(faces)
+        parity = inversion_parity(faces)
+        built = enumerate_faces(top, vertices.shape[0])
+        pairs = checks.facet_pairs(built.facet_order, built.facet_starts, top, built.lists[1], True)
+        orientation = checks.orient(pairs, parity, "fix", 2)
+        counts = checks.fans_per_vertex_surface(top, orientation, pairs, vertices.shape[0])
+        assert counts[0] == 2 and (counts[1:] == 1).all(), name
+        _assert_same(checks.single_fan_surface(top, orientation, pairs, vertices.shape[0]), counts == 1)
+        with pytest.raises(errors.NonManifoldError, match="vertex 0: .* 2 separate fans"):
+            with jit.use("numpy"):
+                SimplicialComplex(vertices, faces, orient="fix")
 
 
 def test_small_inputs_take_numpy_and_large_ones_the_kernels(monkeypatch):
     from decrun.core import jit
 
     monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    monkeypatch.setattr(jit, "_started", False)  # a fresh process (no kernel ran, no numpy work tallied)
+    monkeypatch.setattr(jit, "_numpy_items", 0)
     assert not jit.enabled(jit.MIN_SIZE - 1) and jit.enabled(jit.MIN_SIZE)
     monkeypatch.setenv("DECRUN_NUMBA", "1")
     assert jit.enabled(1)

@@ -125,7 +125,11 @@ def test_errors_are_the_commands_lines(here):
     assert not (here / "bad" / "manifest.json").exists()
 
     with leaves_the_process_alone(), pytest.raises(decrun.RunError, match=r"^error: app.dt: must be > 0") as info:
-        decrun.run(["app=heat", "app.dt=-1", "figures=false"])  # a run that failed
+        decrun.run(["app=heat", "app.dt=-1", "figures=false"])  # refused as bad input: no directory left
+    assert info.value.dir is None and not list((here / "outputs" / "runs").iterdir())
+    (here / "mine").mkdir()
+    with leaves_the_process_alone(), pytest.raises(decrun.RunError, match=r"^error: app.dt: must be > 0") as info:
+        decrun.run(["app=heat", "app.dt=-1", "figures=false"], dir="mine")  # a directory that was there stays
     assert '"status": "failed"' in (info.value.dir / "metrics.json").read_text()
 
     with pytest.raises(ValueError, match="decrun.sweep"):

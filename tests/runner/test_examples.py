@@ -28,7 +28,9 @@ COMMAND = re.compile(r"^(?:\.venv/bin/)?(?:decrun(?:-table)?|python -m decrun)(?
 #: placeholders in examples → what the test substitutes
 PLACEHOLDERS = {"/data/dragon.ply": str(sample_mesh_dir() / SAMPLE_MESHES["cow"])}
 #: lines that show syntax, not a command to run
-SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]")
+SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]",
+          # docs/tracking.md's prose: a single run and a sweep of any options
+          "decrun ... tracker=mlflow", "decrun -m", "decrun -m ... hydra.searchpath=[file://my_conf] tracker=wandb")
 #: examples of bad input: they must fail with this message
 EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key",
                    # docs/apps/writing.md: a refusal in check, naming the step that works
@@ -48,6 +50,8 @@ PREREQUISITES_B = ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/B"]
 RUN_ELSEWHERE = {
     "docs/models.md": "tests/test_model_docs.py (the walk-through and the refusals, with their outputs)",
     "docs/gallery.md": "tests/test_numbers.py (every gallery command is a run of scripts/doc_numbers.py)",
+    # its sweeps write into one MLflow store in order (a resume, then decrun-track of the same sweep)
+    "docs/tracking.md": "tests/runner/test_tracker.py (test_the_docs_commands_run; the UI: test_tracker_ui.py)",
 }
 
 

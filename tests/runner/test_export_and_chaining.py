@@ -163,13 +163,33 @@ def test_a_smoothed_mesh_feeds_a_parametrization(decrun_cli, tmp_path):
 
 
 def test_a_designed_field_feeds_a_fluid(decrun_cli, tmp_path):
-    designed = run_dir(decrun_cli, tmp_path, "app=vector_field", "mesh.subdiv=2", "mesh.noise=0")
+    """A designed field with vortices starts the fluid with their vorticity (its ratios are
+    measured); a curl-free one (sources and sinks only: a gradient) has vorticity at round-off,
+    which is flagged, drawn with a word, and gives no ratios of round-off."""
+    designed = run_dir(decrun_cli, tmp_path, "app=vector_field", "mesh.subdiv=2", "mesh.noise=0",
+                       "app.vortices=[{point: [0, 0, 1], curl: 1.0}, {point: [0, 0, -1], curl: -1.0}]")
     out = run_dir(decrun_cli, tmp_path, "app=fluid", "app.initial=mesh_field", "mesh=result",
                   f"mesh.path={designed / 'result.h5'}", "mesh.field=omega", "app.steps=2", "app.animation=false")
     series = read_result(out / "result.h5").series
     omega = read_result(designed / "result.h5").fields["omega"]
-    assert np.abs(series["vorticity"][0]).max() > 0 and np.abs(omega).max() > 0
-    assert json.loads((out / "metrics.json").read_text())["stable"]
+    assert np.abs(series["vorticity"][0]).max() > 1 and np.abs(omega).max() > 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["stable"] and metrics["initial_vorticity_round_off"] is False
+    assert 0 < metrics["enstrophy_ratio"] <= 1 and 0 < metrics["energy_ratio"] <= 1
+
+    gradient = run_dir(decrun_cli, tmp_path, "app=vector_field", "mesh.subdiv=2", "mesh.noise=0")
+    before = set(tmp_path.glob("outputs/runs/*"))
+    done = decrun_cli("app=fluid", "app.initial=mesh_field", "mesh=result", f"mesh.path={gradient / 'result.h5'}",
+                      "mesh.field=omega", "app.steps=2", "app.animation=false", "app.snapshots=2")
+    assert done.returncode == 0, done.stderr
+    (out,) = set(tmp_path.glob("outputs/runs/*")) - before
+    assert "mesh.field=omega is round-off" in done.stderr and "energy_ratio and enstrophy_ratio are left out" \
+        in done.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["initial_vorticity_round_off"] is True
+    assert "energy_ratio" not in metrics and "enstrophy_ratio" not in metrics
+    assert np.abs(read_result(out / "result.h5").series["vorticity"][0]).max() < 1e-12
+    assert (out / "vorticity.png").is_file()
 
 
 def test_circulation_to_vorticity_converges_to_the_curl():

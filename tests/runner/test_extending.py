@@ -5,7 +5,9 @@ run by the real ``decrun`` command (the README's "Extending decrun" recipe)."""
 from __future__ import annotations
 
 import json
+import os
 
+import h5py
 import numpy as np
 
 PLUGIN = '''
@@ -178,3 +180,68 @@ def test_a_toy_time_stepping_app_runs_on_the_stepping_driver_through_the_cli(tmp
     assert list(series["step"]) == list(range(9))
     assert np.all(np.diff(series["energy"]) < 0)
     assert (tmp_path / "good" / "u.png").is_file()
+
+
+TRACKER = '''
+import json
+from dataclasses import dataclass
+
+from decrun.runner.tracking import Tracker
+
+
+@dataclass
+class JsonLinesTracker(Tracker):
+    """A toy second tracker: every run it is given as one JSON line of a file."""
+
+    name = "jsonl"
+    path: str = "runs.jsonl"
+
+    def store(self):
+        return f"jsonl:{self.path}"
+
+    def log_run(self, record, run_id):
+        with open(self.path) as f:
+            run_id = run_id or f"r{sum(1 for _ in f)}"
+        with open(self.path, "a") as f:
+            f.write(json.dumps({"id": run_id, "name": record.name, "parent": record.parent, "status": record.status,
+                                "params": record.params, "metrics": record.metrics, "tags": record.tags,
+                                "series": {k: [s.tolist(), v.tolist()] for k, (s, v) in record.series.items()},
+                                "artifacts": sorted(p.name for p in record.artifacts)}) + "\\n")
+        return run_id
+'''
+
+
+def test_a_toy_tracker_is_one_module_and_one_yaml(tmp_path, decrun_cli):
+    """A second tracker (``tracker=jsonl``) from a module outside decrun and one YAML file: a
+    sweep's jobs reach it nested under the sweep's run, with metrics.json's numbers and the
+    series; a resumed sweep whose jobs did not change sends it nothing."""
+    (tmp_path / "toy_tracker.py").write_text(TRACKER)
+    (tmp_path / "runs.jsonl").write_text("")
+    conf = tmp_path / "toy_conf" / "tracker"
+    conf.mkdir(parents=True)
+    (conf / "jsonl.yaml").write_text("_target_: toy_tracker.JsonLinesTracker\npath: runs.jsonl\n")
+    sweep = ["-m", f"hydra.searchpath=[file://{conf.parent}]", "tracker=jsonl", "app=heat", "mesh.subdiv=1",
+             "app.t_end=0.002", "app.dt=1e-3,2e-3", "figures=false", "hydra.sweep.dir=sweep"]
+    path = {"PYTHONPATH": os.pathsep.join(p for p in (str(tmp_path), os.environ.get("PYTHONPATH")) if p)}
+    proc = decrun_cli(*sweep, env=path)
+    assert proc.returncode == 0, proc.stderr
+    assert "decrun: tracker=jsonl: 2 jobs under run r0 (3 sent) in jsonl:runs.jsonl" in proc.stdout
+    lines = [json.loads(line) for line in (tmp_path / "runs.jsonl").read_text().splitlines()]
+    sweep_run, *jobs = lines
+    assert sweep_run["name"] == "sweep" and sweep_run["parent"] is None and sweep_run["params"] == {
+        "tracker": "jsonl", "app": "heat", "mesh.subdiv": "1", "app.t_end": "0.002", "app.dt": "1e-3,2e-3",
+        "figures": "false"}  # the sweep's overrides as typed (Hydra's own left out)
+    assert [job["name"] for job in jobs] == ["job 0", "job 1"] and {job["parent"] for job in jobs} == {"r0"}
+    for job in jobs:
+        metrics = json.loads((tmp_path / "sweep" / job["name"][4:] / "metrics.json").read_text())
+        numbers = {k: float(v) for k, v in metrics.items() if isinstance(v, (int, float))}
+        assert job["metrics"] == numbers and job["status"] == "ok" and job["tags"]["status"] == "ok"
+        steps, mass = job["series"]["series/mass"]
+        with h5py.File(tmp_path / "sweep" / job["name"][4:] / "result.h5", "r") as f:
+            assert steps == f["series/step"][()].tolist() and mass == f["series/mass"][()].tolist()
+        assert steps[-1] == metrics["steps_done"]
+        assert job["params"]["app.dt"] == str(metrics["dt"]) and job["params"]["tracker"] == "jsonl"
+        assert job["tags"]["decrun.config_hash"] == metrics["config_hash"]
+    resumed = decrun_cli(*sweep, "hydra.sweeper.resume=true", env=path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert "(0 sent)" in resumed.stdout and len((tmp_path / "runs.jsonl").read_text().splitlines()) == 3

@@ -133,6 +133,13 @@ CASES = {
     "filled_holes_under_a_free_border": (["app=parametrization", "mesh=sphere_cap", "app.border=free",
                                           "app.holes=fill"], ["app.holes=auto"]),
     "parametrization_of_a_closed_mesh": (["app=parametrization", "mesh.noise=0"], ["mesh.hole_balls="]),
+    # a hole that removes nothing was silent (the parametrization ran on a closed mesh minus one cap)
+    # a run's result.h5 given to mesh=file got "unsupported file extension '.h5'" and a list of formats
+    "result_file_as_a_mesh_file": (["mesh=file", "mesh.path={result}", "app=spectrum"], ["mesh=result", "mesh.path="]),
+    "hole_ball_off_the_surface": (["app=parametrization", "mesh.noise=0", "mesh.subdiv=2",
+                                   "mesh.hole_balls=[[0,0,1,0.5],[0,0,3,0.5]]"], ["mesh.hole_balls="]),
+    "hole_box_off_the_surface": (["app=parametrization", "mesh=planar", "mesh.hole_boxes=[[3,3,4,4]]"],
+                                 ["mesh.hole_boxes="]),
     "up_axis_of_a_planar_mesh": (["mesh=planar", "mesh.up_axis=y", "app.steps=1"], ["mesh.up_axis=z"]),
     "file_mesh_at_1e-300": (["mesh=file", "mesh.path={tiny}"], ["mesh.normalize=true"]),
     "file_with_unreferenced_vertex": (["mesh=file", "mesh.path={unreferenced}", "app.steps=1"], ["mesh.repair=true"]),
@@ -185,6 +192,10 @@ CASES = {
                                       ["mesh.vertices=mesh"]),
     "hodge_degree_two_on_a_surface": (["app=hodge", "mesh.subdiv=2", "mesh.noise=0", "app.degree=2"],
                                       ["app.degree=1"]),
+    # a model's saddle-point system (Darcy's mixed form) is indefinite: Cholesky cannot take it
+    "model_system_with_an_spd_solver": (["app=darcy", "solver=cholmod", "figures=false"], ["solver=direct"]),
+    "model_plot_arrows_not_a_vector_field": (["app=darcy", "app.plots.flow.arrows=pressure", "figures=false"],
+                                             ["app.plots.flow.arrows=velocity"]),
 }
 
 #: backticked overrides in the sources that no CLI run can reach, and why

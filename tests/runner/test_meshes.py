@@ -48,6 +48,31 @@ def test_torus_and_grid_geometry():
     np.testing.assert_allclose(np.ptp(g.vertices, axis=0), [2.0, 3.0, 0.0], atol=1e-6)
 
 
+@pytest.mark.parametrize("nx, ny, width, height", [(5, 4, 2.0, 3.0), (31, 51, 60000.0, 100000.0), (16, 26, 60000.0, 100000.0)])
+def test_the_grid_is_centred_on_the_origin_with_pymeshlabs_triangulation(nx, ny, width, height):
+    """The grid is a lattice of spacing width/(nx−1) × height/(ny−1) whose bounding box is centred
+    on the origin (with odd nx, ny a vertex is the origin: the Halfar benchmark's dome centre).
+    pymeshlab's create_grid(center=True), whose triangulation and vertex order it keeps, is off
+    centre by (−width/(2nx), height/(2ny))."""
+    import pymeshlab
+
+    g = mesh(source="grid", nx=nx, ny=ny, width=width, height=height)
+    V = g.vertices
+    np.testing.assert_array_equal(V.min(axis=0) + V.max(axis=0), 0.0)
+    xs, ys = np.unique(V[:, 0]), np.unique(V[:, 1])
+    np.testing.assert_allclose(xs, np.linspace(-width / 2, width / 2, nx), rtol=0, atol=1e-12 * width)
+    np.testing.assert_allclose(ys, np.linspace(-height / 2, height / 2, ny), rtol=0, atol=1e-12 * height)
+    if nx % 2 and ny % 2:
+        assert np.any(np.all(V == 0.0, axis=1))
+    ms = pymeshlab.MeshSet()
+    ms.create_grid(numvertx=nx, numverty=ny, absscalex=width, absscaley=height, center=True)
+    theirs = ms.current_mesh()
+    np.testing.assert_array_equal(g.faces, theirs.face_matrix())
+    offset = theirs.vertex_matrix() - V
+    np.testing.assert_allclose(offset, np.broadcast_to([-width / (2 * nx), height / (2 * ny), 0.0], V.shape),
+                               rtol=0, atol=1e-6 * max(width, height))
+
+
 def test_planar_domain_area_quality_and_holes():
     hole = [[0.3, 0.3], [0.6, 0.3], [0.6, 0.6], [0.3, 0.6]]
     m = mesh(source="planar", holes=[hole], min_angle_deg=28.0, max_area=0.004)

@@ -80,7 +80,7 @@ def _yaml_defaults():
 #: differs from the dataclass' empty model there by design; its other options come from
 #: conf/app/_model.yaml, which equals the dataclass defaults (compared here like any plugin)
 MODEL_DATA = {"model", "fields", "constants", "equations", "metrics", "integrator", "dt", "t_end", "steps",
-              "record_every", "snapshots", "animation", "seed", "parts"}
+              "record_every", "snapshots", "animation", "seed", "parts", "plots", "require"}
 
 
 def differences():

@@ -67,6 +67,12 @@ def test_every_planned_job_has_a_row_with_its_state(tmp_path):
     # the planned overrides are known also for the jobs that never wrote anything
     assert list(table["app.dt"]) == [0.1, 0.2, 0.3, 0.4]
     assert list(table["result"]) == ["0/result.h5", "", "2/result.h5.partial", ""]
+    # the path the table prints reads back, a killed job's journal included (and a job directory)
+    from decrun.runner.results import read_result
+
+    killed = read_result(sweep / table.loc[2, "result"])
+    assert not killed.complete and killed.steps_recorded == 5 and list(killed.series["energy"]) == [0, 1, 2, 3, 4]
+    assert read_result(sweep / "2").steps_recorded == 5 and read_result(sweep / table.loc[0, "result"]).complete
     # integers stay integers where a row lacks them
     assert str(table["iterations"].dtype) == "Int64"
     written = write_sweep_table(sweep)
@@ -109,7 +115,9 @@ def test_decrun_table_options_and_exit_codes(tmp_path, capsys):
     assert [line.split(",")[6] for line in csv[1:]] == ["1.0", "2.0", "3.0"]
     assert table_main([str(a), "--drop-constant", "--csv"]) == 0
     assert "mesh.subdiv" not in capsys.readouterr().out.splitlines()[0]
-    assert table_main([str(a), "--all"]) == 0  # markdown: constant columns dropped by default
+    assert table_main([str(a), "--all"]) == 0  # every column, the constant ones (mesh.subdiv, error, n) too
+    assert capsys.readouterr().out.splitlines()[0] == "| job | app.dt | mesh.subdiv | status | error | e | n | result |"
+    assert table_main([str(a), "--all", "--drop-constant"]) == 0  # unless asked
     assert capsys.readouterr().out.splitlines()[0] == "| job | app.dt | status | e | result |"
     assert table_main([str(a)]) == 0  # by default only the apps' headline metrics (e is none)
     assert capsys.readouterr().out.splitlines()[0] == "| job | app.dt | status | result |"
@@ -235,7 +243,7 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
 
 def test_a_real_sweep_table_is_narrow_by_default_and_keeps_asked_columns(decrun_cli, tmp_path):
     """A 2-job smoothing sweep through the CLI: the printed table shows the swept key and the
-    smoothing headline metrics (8 columns; 14 with ``--all``, constant ones dropped), and
+    smoothing headline metrics (8 columns; every column with ``--all``, constant ones too), and
     ``--metrics dt`` keeps dt although every job has the same."""
     import subprocess
     import sys
@@ -254,6 +262,7 @@ def test_a_real_sweep_table_is_narrow_by_default_and_keeps_asked_columns(decrun_
     narrow, wide = header(), header("--all")
     assert narrow[:3] == ["job", "app.steps", "status"] and "distance_to_clean_rms" in narrow
     assert "roughness_ratio" not in narrow and "roughness_ratio" in wide and len(wide) >= len(narrow) + 5
+    assert "figures" in wide and "n_vertices" in wide  # constant in this sweep, shown with --all
     assert "dt" not in narrow and header("--metrics", "dt") == ["job", "app.steps", "status", "dt", "result"]
 
 
@@ -343,3 +352,27 @@ def test_decrun_table_on_a_read_only_mount(tmp_path):
     assert "| job |" in proc.stdout and "Traceback" not in proc.stderr
     assert proc.stderr.strip().startswith(f"decrun-table: the table above could not be saved in {sweep}")
     assert "Read-only file system" in proc.stderr and not (sweep / "metrics.csv").exists()
+
+
+def test_jobs_that_repeat_an_earlier_result_exactly_are_marked_same_as(tmp_path, capsys):
+    """Two planned jobs that computed the same numbers (the same content hash: their configs
+    differ in a key that does not act) — the later one names the earlier in ``same_as``,
+    shown in the default table; a failed job or a different result is never marked."""
+    from decrun.runner.results.provenance import result_record
+
+    sweep = make_sweep(tmp_path / "s", {"0": {"status": "ok", "e": 1.0}, "1": {"status": "ok", "e": 2.0},
+                                        "2": {"status": "ok", "e": 1.0}, "3": {"status": "failed", "error": "x"},
+                                        "4": {"status": "ok", "e": 2.0}})
+    for job in ("0", "1", "2", "4"):  # what the runner records: the result's content hash too
+        path = sweep / job / "metrics.json"
+        metrics = json.loads(path.read_text())
+        path.write_text(json.dumps({**metrics, RESULT_RECORD: result_record(sweep / job / "result.h5")}))
+    table = sweep_table(sweep)
+    assert table["same_as"].isna().tolist() == [True, True, False, True, False]
+    assert table.loc[2, "same_as"] == 0 and table.loc[4, "same_as"] == 1
+    assert table_main([str(sweep)]) == 1  # job 3 failed
+    header, _, *rows = capsys.readouterr().out.splitlines()
+    assert "same_as" in header.split(" | ") and rows[2].split(" | ")[-2] == "0"
+    # no repeats: no column
+    lone = make_sweep(tmp_path / "t", {"0": {"status": "ok", "e": 1.0}})
+    assert "same_as" not in sweep_table(lone)

@@ -33,7 +33,7 @@ from decrun.errors import (
 )
 
 __all__ = ["FacetPairs", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
-           "fans_per_vertex", "fans_per_vertex_surface", "facet_pairs_numpy", "inconsistent_facets", "fans_per_vertex_general", "simplex_name", "plural",
+           "fans_per_vertex", "fans_per_vertex_surface", "single_fan_surface", "facet_pairs_numpy", "inconsistent_facets", "fans_per_vertex_general", "simplex_name", "plural",
            "name_indices"]
 
 MAX_LISTED = 8  # how many offending simplices an error message names
@@ -74,7 +74,7 @@ def checked_input(vertices, simplices, unreferenced: str):
     if not np.issubdtype(simplices.dtype, np.integer):
         if not np.all(np.equal(np.mod(simplices, 1), 0)):
             raise MeshError("simplices must hold integer vertex indices")
-    simplices = simplices.astype(np.int64)
+    simplices = simplices.astype(np.int64, copy=False)  # read only: sorted into new rows below
     n = simplices.shape[1] - 1
     if vertices.shape[1] < n:
         raise MeshError(f"a {n}-dimensional complex needs vertices in at least {n} dimensions, "
@@ -82,8 +82,8 @@ def checked_input(vertices, simplices, unreferenced: str):
     top_sorted, parity, smallest, largest, repeated = sorted_rows_and_parity(simplices)
     if smallest < 0 or largest >= vertices.shape[0] or repeated:
         _check_indices(vertices.shape[0], simplices, top_sorted, n)
-    bad = ~np.isfinite(vertices).all(axis=1)
-    if bad.any():
+    if not np.isfinite(vertices).all():  # one pass over the coordinates; the rows only to name them
+        bad = ~np.isfinite(vertices).all(axis=1)
         raise NonFiniteCoordinateError(f"{name_indices(np.flatnonzero(bad), 'vertex')} has NaN or infinite coordinates")
     original = np.arange(vertices.shape[0])
     used = np.zeros(vertices.shape[0], dtype=bool)
@@ -164,9 +164,11 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
                 f"{plural(simplex_name(n))} (e.g. {name_indices(owners, simplex_name(n))})"
             )
     if jit.enabled(order.shape[0]):
-        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top))
-        index_type = np.int32 if pairs[1].size and top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
-        pairs = FacetPairs(pairs[0], *(a.astype(index_type) for a in pairs[1:]))
+        index_type = np.int32 if top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
+        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, index_type))
+        if not pairs[1].size:  # no interior facet: int64, as the numpy twin's
+            pairs = (pairs[0], *(a.astype(np.int64) for a in pairs[1:]))
+        pairs = FacetPairs(*pairs)
     else:
         pairs, suspect = facet_pairs_numpy(order, starts, top)
     if suspect:
@@ -192,9 +194,9 @@ def facet_pairs_numpy(order: np.ndarray, starts: np.ndarray, top: np.ndarray) ->
 
 
 @jit.njit
-def _facet_pairs_kernel(order, starts, top):
-    """One pass over the facet groups: the pairs of :func:`facet_pairs_numpy` (int64) and the
-    duplicate suspicion."""
+def _facet_pairs_kernel(order, starts, top, index_like):
+    """One pass over the facet groups: the pairs of :func:`facet_pairs_numpy` (the facets int64,
+    the simplices and slots of ``index_like``'s type) and the duplicate suspicion."""
     width = top.shape[1]
     n = width - 1
     groups = starts.shape[0] - 1
@@ -203,10 +205,10 @@ def _facet_pairs_kernel(order, starts, top):
         if starts[g + 1] - starts[g] == 2:
             count += 1
     interior = np.empty(count, np.int64)
-    first = np.empty(count, np.int64)
-    second = np.empty(count, np.int64)
-    first_slot = np.empty(count, np.int64)
-    second_slot = np.empty(count, np.int64)
+    first = np.empty(count, index_like.dtype)
+    second = np.empty(count, index_like.dtype)
+    first_slot = np.empty(count, index_like.dtype)
+    second_slot = np.empty(count, index_like.dtype)
     suspect = False
     p = 0
     for g in range(groups):
@@ -312,6 +314,8 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
     n = top.shape[1] - 1
     if n < 2:
         return
+    if n == 2 and not jit.enabled(top.shape[0]) and single_fan_surface(top, orientation, pairs, n_vertices).all():
+        return  # the counts below are only needed to name the fans of a bad vertex
     fans = fans_per_vertex(top, facets, orientation, pairs, n_vertices)
     bad = np.flatnonzero(fans > 1)
     if bad.size:
@@ -381,30 +385,9 @@ def fans_per_vertex_surface(top, orientation, pairs: FacetPairs, n_vertices: int
     leaving it in t's orientation; fans are the orbits of this step (paths at border
     vertices, cycles inside). Orbits are counted by pointer jumping, O(m log valence).
     """
+    following, moving = _corner_steps(top, orientation, pairs)
     m = top.shape[0]
-    _, t0, t1, l0, l1 = pairs
-    # partner[3t + s]: the edge slot (3t' + s') across edge slot s of triangle t, or -1
-    partner = np.full(3 * m, -1, dtype=np.int32)
-    slot0 = (3 * t0 + l0).astype(np.int32)
-    slot1 = (3 * t1 + l1).astype(np.int32)
-    partner[slot0] = slot1
-    partner[slot1] = slot0
-    # Corner i of a sorted triangle leaves along the edge to its successor in the
-    # triangle's orientation. Edge slots are (0,1)->0, (0,2)->1, (1,2)->2.
-    positive = (orientation > 0)[:, None]
-    leaving_slot = np.where(positive, np.array([0, 2, 1], dtype=np.int32), np.array([1, 0, 2], dtype=np.int32))
-    smaller = np.where(positive, np.array([1, 1, 0], dtype=np.int32), np.array([1, 0, 0], dtype=np.int32))
     corner = np.arange(3 * m, dtype=np.int32)
-    across = partner[(corner - corner % 3) + leaving_slot.ravel()]
-    del partner, leaving_slot
-    # position of our vertex in the triangle across: it is the smaller (or larger) vertex of the
-    # shared edge there too; table[smaller][slot] gives that sorted position.
-    position_table = np.array([1, 2, 2, 0, 0, 1], dtype=np.int32)  # larger: 1,2,2 ; smaller: 0,0,1
-    moving = across >= 0
-    following = np.where(
-        moving, (across - across % 3) + position_table[3 * smaller.ravel() + across % 3], corner
-    ).astype(np.int32)
-    del across, smaller
     # a corner has a predecessor iff some other corner steps to it (path ends step to themselves)
     has_predecessor = np.zeros(3 * m, dtype=bool)
     has_predecessor[following[moving]] = True
@@ -418,6 +401,75 @@ def fans_per_vertex_surface(top, orientation, pairs: FacetPairs, n_vertices: int
         jump = jump[jump]
     root = ~has_predecessor | (label == corner)
     return np.bincount(vertex[root], minlength=n_vertices)
+
+
+def single_fan_surface(top, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
+    """(n0,) bool: whether the triangles around each vertex of an oriented edge-manifold surface
+    form one fan (``fans_per_vertex_surface(...) == 1``), by walking one orbit per vertex.
+
+    The orbit of the corner step (see :func:`fans_per_vertex_surface`) from one corner of
+    vertex v — a path start (a corner no other steps to) if v has one, else any — is v's only
+    fan iff it visits all valence(v) corners of v. All vertices walk at once, each step a
+    gather over the vertices still walking: O(m) in all, one pass over the corner steps.
+    """
+    following, moving = _corner_steps(top, orientation, pairs)
+    vertex = top.ravel()
+    valence = np.bincount(vertex, minlength=n_vertices)
+    has_predecessor = np.zeros(vertex.size, dtype=bool)
+    has_predecessor[following[moving]] = True
+    path_start = np.flatnonzero(~has_predecessor).astype(np.int32)
+    start = np.empty(n_vertices, dtype=np.int32)
+    start[vertex] = np.arange(vertex.size, dtype=np.int32)  # any corner of each vertex ...
+    start[vertex[path_start]] = path_start  # ... a path start where the vertex has one
+    single = np.bincount(vertex[path_start], minlength=n_vertices) <= 1  # two paths: two fans
+    walking = np.flatnonzero(single)
+    first = start[walking]
+    current = first
+    length = 1  # the corners every walk still going has visited
+    longest = int(valence.max())
+    while walking.size:
+        if length > longest:  # an orbit longer than any vertex's corners: not one fan of v (cannot
+            single[walking] = False  # happen on a consistently oriented edge-manifold surface)
+            break
+        step = following[current]
+        done = (step == current) | (step == first)  # a path end steps to itself; a cycle returns
+        if done.any():
+            ended = walking[done]
+            single[ended] = valence[ended] == length
+            going = ~done
+            walking, first, step = walking[going], first[going], step[going]
+        current = step
+        length += 1
+    return single
+
+
+# Corner i of a sorted triangle leaves along the edge to its successor in the triangle's
+# orientation (edge slots (0,1) -> 0, (0,2) -> 1, (1,2) -> 2): the corner leaving along slot l
+# is _LEAVING[o, l] (o = 0 positive, 1 negative). Its vertex is the smaller (or larger) vertex of
+# that edge, so in the triangle across, whose slot of the edge is l', it sits at sorted position
+# _ARRIVING[o, l, l'].
+_LEAVING = np.array([[0, 2, 1], [1, 0, 2]], dtype=np.int32)
+_SMALLER = np.array([[1, 1, 0], [1, 0, 0]], dtype=np.int32)  # [o, corner]: the smaller vertex of its leaving edge
+_POSITION = np.array([[1, 2, 2], [0, 0, 1]], dtype=np.int32)  # [larger 0 | smaller 1, slot]: its sorted position
+_ARRIVING = _POSITION[_SMALLER[np.arange(2)[:, None], _LEAVING]]  # (2, 3, 3) [o, l, l']
+
+
+def _corner_steps(top, orientation, pairs: FacetPairs) -> tuple[np.ndarray, np.ndarray]:
+    """(following (3m,) int32, moving (3m,) bool): the corner ``3t + i`` each corner steps to
+    across the edge leaving it in its triangle's orientation (itself at a border edge), and
+    whether it moves. One pass over the interior edges, both directions."""
+    m = top.shape[0]
+    _, t0, t1, l0, l1 = pairs
+    following = np.arange(3 * m, dtype=np.int32)
+    for a, b, la, lb in ((t0, t1, l0, l1), (t1, t0, l1, l0)):
+        negative = (orientation[a] < 0).astype(np.int32)
+        source = 3 * a.astype(np.int32)
+        source += _LEAVING[negative, la]
+        target = 3 * b.astype(np.int32)
+        target += _ARRIVING[negative, la, lb]
+        following[source] = target
+    moving = following != np.arange(3 * m, dtype=np.int32)
+    return following, moving
 
 
 def fans_per_vertex_general(top, facets, pairs: FacetPairs, n_vertices: int) -> np.ndarray:

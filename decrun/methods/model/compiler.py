@@ -166,6 +166,8 @@ class Compiler:
                 first = kinds[0] if kinds else NUMBER
                 if name in ("star", "inv_star") and first.is_form:
                     need(first.simplex_dimension(self.n), node)
+                elif name == "border":
+                    need(self.n - 1, node)
                 elif name == "codifferential":
                     need(first.degree, node)
                     need(first.degree - 1, node)
@@ -214,6 +216,24 @@ class Compiler:
         return self._compile(node, where)
 
     def _compile(self, node: Node, where: str) -> Callable[[dict], object]:
+        """The closure of ``node``; a static subtree (constants, coordinates, static definitions:
+        :meth:`is_static`) is evaluated once, at its first call, and its value reused — read-only,
+        so no step can change it — instead of being recomputed at every step and stage."""
+        closure = self._compile_node(node, where)
+        if isinstance(node, (Number, Name)) or not self.is_static(node):
+            return closure
+        cache: list = []
+
+        def once(env):
+            if not cache:
+                value = closure(env)
+                if isinstance(value, np.ndarray):
+                    value.setflags(write=False)
+                cache.append(value)
+            return cache[0]
+        return once
+
+    def _compile_node(self, node: Node, where: str) -> Callable[[dict], object]:
         if isinstance(node, Number):
             value = node.value
             return lambda env: value
@@ -230,6 +250,9 @@ class Compiler:
         if isinstance(node, Binary):
             if node.op == "^":
                 return self._compile(Call("wedge", (node.left, node.right)), where)
+            scaled = self._scaled_chain(node, where)
+            if scaled is not None:
+                return scaled
             left, right = self._compile(node.left, where), self._compile(node.right, where)
             lk, rk = self.kind(node.left, where), self.kind(node.right, where)
             return _arithmetic(node.op, left, right, lk, rk)
@@ -245,6 +268,17 @@ class Compiler:
                 (arg,) = args
                 return lambda env: apply(arg(env))
             evaluate = operator.evaluate
+            if operator.fixed_first is not None and self.is_static(node.args[0]):
+                matrix = []  # made at the first evaluation, from the static first argument's value
+                first, second = args
+
+                def applied(env):
+                    if not matrix:
+                        matrix.append(operator.fixed_first(ops, kinds, first(env)))
+                    if matrix[0] is None:
+                        return evaluate(ops, kinds, first(env), second(env))
+                    return matrix[0] @ second(env)
+                return applied
             if len(args) == 1:
                 (arg,) = args
                 return lambda env: evaluate(ops, kinds, arg(env))
@@ -269,6 +303,35 @@ class Compiler:
     def _linear_chain(self, node: Node):
         """``(name, apply)`` when ``node`` is one or more linear operators applied to one name
         (``laplacian(u)``, ``codifferential(d(u))``): ``apply`` is the folded matrix; else None."""
+        chain = self._chain_linear(node)
+        return None if chain is None else (chain[0], self.ops.matrix(chain[1]))
+
+    def _scaled_chain(self, node: Node, where: str):
+        """The closure of ``c * chain`` or ``chain * c`` — a static number times a
+        :meth:`_linear_chain` (``c**2 * laplacian(u)``, ``D*s*laplacian(c)``) — with c folded
+        into the chain's matrix at the first evaluation (one sparse product per evaluation, not
+        a product and a scaling); None for any other node."""
+        if not (isinstance(node, Binary) and node.op == "*"):
+            return None
+        for factor, other in ((node.left, node.right), (node.right, node.left)):
+            if not self.is_static(factor) or self.kind(factor, where) != NUMBER:
+                continue
+            chain = self._chain_linear(other)
+            if chain is None:
+                continue
+            name, linear = chain
+            value = self._compile(factor, where)
+            folded: list = []
+
+            def applied(env, name=name, linear=linear, value=value, folded=folded):
+                if not folded:
+                    folded.append(self.ops.matrix(linear.scaled(float(value(env)))))
+                return folded[0](env[name])
+            return applied
+        return None
+
+    def _chain_linear(self, node: Node):
+        """``(name, Linear)``: the operators of a :meth:`_linear_chain` composed, or None."""
         operators, inner = [], node
         while isinstance(inner, Call) and len(inner.args) == 1:
             name = ALIASES.get(inner.function, inner.function)
@@ -287,7 +350,7 @@ class Compiler:
             linear = step if linear is None else self.ops.compose(step, linear)
             if linear is None:
                 return None
-        return inner.name, self.ops.matrix(linear)
+        return inner.name, linear
 
     # ------------------------------------------------------------------ linear terms
     def terms(self, node: Node, sign: float = 1.0) -> list[tuple[float, Node]]:

@@ -18,9 +18,9 @@ import scipy.sparse as sp
 
 from decrun.core.forms import barycentric_gradients
 
-__all__ = ["average_matrix", "cell_to_edge_matrix", "wedge_0k", "wedge_11", "sharp", "flat_weights", "flat", "interior_1",
-           "vertex_average_matrix", "lie_0", "lie_1", "face_normals", "top_sign",
-           "gradients"]
+__all__ = ["average_matrix", "cell_to_edge_matrix", "wedge_0k", "wedge_11", "sharp", "sharp_matrices", "flat_weights",
+           "flat", "interior_1", "vertex_average_matrix", "lie_0", "lie_0_matrix", "lie_1", "face_normals", "top_sign",
+           "flux_field", "gradients"]
 
 
 def top_sign(K, k: int) -> np.ndarray | float:
@@ -102,13 +102,54 @@ def sharp(K, omega: np.ndarray) -> np.ndarray:
     simplex (eq. 6.7; equal to :func:`decrun.core.forms.whitney_sharp`):
     ω♯ = Σ_{edges ab} ω_ab (λ_a ∇λ_b − λ_b ∇λ_a) with every λ = 1/(n+1). For ω = d f it is the
     gradient of the piecewise-linear f, exactly."""
+    return np.stack([matrix @ omega for matrix in sharp_matrices(K)], axis=1)
+
+
+def sharp_matrices(K) -> list[sp.csr_matrix]:
+    """[(n_n, n1)] × d: component a of :func:`sharp` as one sparse matrix per axis,
+    ``(S_a ω)_σ = Σ_{edges ab of σ} ω_ab (∇λ_b − ∇λ_a)_a / (n+1)`` — made once per complex, so
+    ♯ costs d sparse products per evaluation (every step of a nonlinear diffusion)."""
+    def compute():
+        n = K.dim
+        grad = gradients(K)
+        table = K.top_face_indices(1)  # edge slots in combinations order over the sorted top tuple
+        pairs = list(combinations(range(n + 1), 2))  # (n+1 choose 2) slots, not simplices
+        weights = np.stack([grad[:, b] - grad[:, a] for a, b in pairs], axis=1) / (n + 1)  # (n_n, slots, d)
+        rows = np.repeat(np.arange(table.shape[0]), len(pairs))
+        return [sp.csr_matrix((weights[:, :, axis].ravel(), (rows, table.ravel())),
+                              shape=(table.shape[0], K.num_simplices(1))) for axis in range(grad.shape[2])]
+    return K.require(("model", "sharp_matrices"), compute)
+
+
+def flux_field(K, u: np.ndarray) -> np.ndarray:
+    """The vector field (n_n, d) whose flux form is the Whitney (n−1)-form of ``u`` (one value
+    per (n−1)-simplex: the flux through it), at the barycentre of each top simplex σ — the lowest
+    order Raviart–Thomas field X(x) = Σ_i o_i u_{f_i} (x − p_i) / (n |σ|) over the faces f_i of σ
+    (f_i opposite its vertex p_i, o_i = ±1 the incidence of f_i in σ's boundary, so o_i u_{f_i}
+    is the flux out of σ), whose flux through f_i is u_{f_i} and whose divergence is (d u)_σ/|σ|.
+    Constant fields are reproduced exactly. Orientation: σ as the complex orients it; on
+    tetrahedra a negatively oriented σ (det < 0) flips the sign, on triangles the oriented
+    triangle's normal is the surface's (as for ``{flux: […]}`` initial values)."""
     n = K.dim
-    grad = gradients(K)
-    table = K.top_face_indices(1)  # edge slots in combinations order over the sorted top tuple
-    result = np.zeros((table.shape[0], grad.shape[2]))
-    for slot, (a, b) in enumerate(combinations(range(n + 1), 2)):  # (n+1 choose 2) slots, not simplices
-        result += omega[table[:, slot], None] * (grad[:, b] - grad[:, a])
-    return result / (n + 1)
+    top = K.simplices(n)
+    corners = K.vertices[top]  # sorted rows: slot c of top_face_indices(n−1) omits local vertex n − c
+    volume = K.top_volumes
+    incidence = K.boundary(n).tocsc()  # (n_{n−1}, n_n), with the top simplices' orientation
+    faces = K.top_face_indices(n - 1)
+    centre = corners.mean(axis=1)
+    result = np.zeros((len(top), corners.shape[2]))
+    for slot in range(n + 1):  # n + 1 faces of each top simplex: a loop over slots, not simplices
+        opposite = n - slot
+        face = faces[:, slot]
+        sign = np.asarray(incidence[face, np.arange(len(top))]).ravel()
+        result += (sign * u[face])[:, None] * (centre - corners[:, opposite])
+    result /= (n * volume)[:, None]
+    if n == 3:
+        oriented = K.vertices[K.oriented_simplices()]
+        det = np.einsum("ij,ij->i", np.cross(oriented[:, 1] - oriented[:, 0], oriented[:, 2] - oriented[:, 0]),
+                        oriented[:, 3] - oriented[:, 0])
+        result *= np.sign(det)[:, None]
+    return result
 
 
 def flat_weights(K) -> tuple[np.ndarray, np.ndarray]:
@@ -182,6 +223,18 @@ def lie_0(K, vectors: np.ndarray, f: np.ndarray) -> np.ndarray:
     top = K.simplices(K.dim)
     grad_f = np.einsum("fv,fvd->fd", f[top], gradients(K))
     return vertex_average_matrix(K) @ np.einsum("fd,fd->f", grad_f, vectors)
+
+
+def lie_0_matrix(K, vectors: np.ndarray) -> sp.csr_matrix:
+    """(n0, n0) the matrix of f ↦ :func:`lie_0` (K, vectors, f) for a fixed field X (n_n, d):
+    A · diag-blocks, ``(L f)_v = Σ_σ A_vσ Σ_i (X_σ · ∇λ_i) f_{σ_i}`` with A the
+    :func:`vertex_average_matrix` — made once when X does not change during a run (a velocity
+    given by the coordinates), then one sparse product per evaluation."""
+    top = K.simplices(K.dim)
+    weights = np.einsum("fvd,fd->fv", gradients(K), vectors)  # X · ∇λ_i per top simplex and vertex slot
+    rows = np.repeat(np.arange(top.shape[0]), top.shape[1])
+    per_cell = sp.csr_matrix((weights.ravel(), (rows, top.ravel())), shape=(top.shape[0], K.num_simplices(0)))
+    return sp.csr_matrix(vertex_average_matrix(K) @ per_cell)
 
 
 def face_normals(K) -> np.ndarray:

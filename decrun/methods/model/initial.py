@@ -12,6 +12,12 @@ A value is given as
   ∫_e X·t ds by Gauss–Legendre quadrature exact for polynomials of degree ≤ 9 along the edge
   (so the 1-form of X = ∇φ is d of φ's 0-form to round-off); for a 2-form in R³ its flux through
   each triangle (:func:`decrun.core.forms.sample_flux`);
+- ``{flux: [X_1, …, X_d]}``, for a primal (n−1)-form on any mesh: the flux of the vector field X
+  through each (n−1)-simplex, ∫_σ i_X vol — through the faces of tetrahedra (as a 2-form's list),
+  across the edges of triangles ∫_e (N × X)·t ds with N the unit normal of the oriented triangles
+  at the edge (the circulation of X turned by 90° in the surface), so that d of it is the integral
+  of div X over each top simplex (Stokes) — the flux of a velocity, for one model on triangles and
+  tetrahedra (``app=darcy``);
 - ``vertex(i)``: the indicator of vertex i (0-forms);
 - ``result:<field>``: the field of a previous run, chained with ``mesh=result mesh.field=<field>``.
 """
@@ -19,6 +25,7 @@ A value is given as
 from __future__ import annotations
 
 import zlib
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -153,6 +160,8 @@ def sample(value, kind: Kind, dec, where: str, *, constants: dict[str, float], s
         return _chained(value.strip()[len("result:"):].strip(), kind, K, where, chained)
     if isinstance(value, (list, tuple)):
         return _vector(value, kind, dec, where, constants, rng)
+    if isinstance(value, Mapping):
+        return _flux(value, kind, dec, where, constants, rng)
     if isinstance(value, bool):
         raise ModelError(f"{where}: expected a number or an expression, got {value!r}")
     if isinstance(value, (int, float)):
@@ -197,6 +206,57 @@ def _vector(value, kind: Kind, dec, where: str, constants, rng) -> np.ndarray:
         flux = sample_flux(K, field, order=2)
         return flux * K.orientation if K.dim == 2 else flux
     raise ModelError(f"{where}: a {kind} is not sampled from a vector field; give a number or an expression")
+
+
+def _flux(value, kind: Kind, dec, where: str, constants, rng) -> np.ndarray:
+    """The (n−1)-form of ``{flux: [X_1, …, X_d]}``: ∫_σ i_X vol over each (n−1)-simplex σ (module
+    docstring), in the orientation of σ's sorted tuple, which the incidence ``d_{n−1}`` uses."""
+    K = dec.K
+    n, d = K.dim, K.embedding_dim
+    if set(value) != {"flux"}:
+        raise ModelError(f"{where}: a mapping gives a flux, {{flux: [X_1, …, X_{d}]}}; got the keys {sorted(value)}")
+    if kind.dual or kind.degree != n - 1 or n not in (2, 3):
+        raise ModelError(f"{where}: {{flux: […]}} samples a primal (n−1)-form (form: n-1) on triangles or tetrahedra, "
+                         f"not a {kind} on a mesh of dimension {n}")
+    items = list(value["flux"])
+    # on triangles in a plane the component along the normal has no flux across the edges, so a
+    # three-component field is read on planar (2-D) coordinates too: one model file for both
+    allowed = {d, 3} if n == 2 else {d}
+    if len(items) not in allowed:
+        raise ModelError(f"{where}.flux: a vector field has {' or '.join(map(str, sorted(allowed)))} components on "
+                         f"this mesh, got {len(items)}")
+    parts = [PointExpression(item, f"{where}.flux[{i}]", constants) for i, item in enumerate(items)]
+
+    def field(points):
+        return np.stack([part.at(points, rng) for part in parts], axis=1)
+
+    if n == 3:
+        return sample_flux(K, field, order=2)
+    corners = K.vertices[K.oriented_simplices()]
+    if d == 2:  # planar coordinates: N = ±e_z, N × X = (−N_z X_y, N_z X_x)
+        first, second = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+        sign = np.sign(first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0])
+        normals = np.zeros((len(sign), 3))
+        normals[:, 2] = sign
+    else:
+        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+    table = K.top_face_indices(1)
+    edge_normals = np.zeros((K.num_simplices(1), 3))
+    for slot in range(table.shape[1]):
+        np.add.at(edge_normals, table[:, slot], normals)
+    edge_normals /= np.linalg.norm(edge_normals, axis=1)[:, None]
+    nodes, weights = np.polynomial.legendre.leggauss(EDGE_QUADRATURE)
+    edges = K.simplices(1)
+    start, direction = K.vertices[edges[:, 0]], K.vertices[edges[:, 1]] - K.vertices[edges[:, 0]]
+    points = start[:, None, :] + 0.5 * (nodes + 1.0)[None, :, None] * direction[:, None, :]
+    values = field(points.reshape(-1, d)).reshape(len(edges), EDGE_QUADRATURE, len(items))
+    if len(items) == 2:
+        values = np.concatenate([values, np.zeros(values.shape[:2] + (1,))], axis=2)
+    if d == 2:
+        direction = np.concatenate([direction, np.zeros((len(edges), 1))], axis=1)
+    turned = np.cross(edge_normals[:, None, :], values)  # N × X at every quadrature point
+    return np.einsum("q,eqd,ed->e", 0.5 * weights, turned, direction)
 
 
 def _chained(field: str, kind: Kind, K, where: str, chained: dict | None) -> np.ndarray:

@@ -81,6 +81,20 @@ class Evolution:
                 self.blocks[(u, v)] = A
             self.rest_trees[u] = rest
             self.rest[u] = [(sign, compiler.compile(term, equation.where)) for sign, term in rest]
+        self._mass_diagonal = {}
+        for u, M in self.mass.items():
+            M = sp.csr_matrix(M)
+            M.sort_indices()
+            n = M.shape[0]
+            if M.nnz == n and np.array_equal(M.indptr, np.arange(n + 1)) and np.array_equal(M.indices, np.arange(n)):
+                self._mass_diagonal[u] = M.data.copy()
+
+    def apply_mass(self, u: str, value: np.ndarray) -> np.ndarray:
+        """M_u value — a product with the diagonal when M_u is diagonal (⋆0, the circumcentric ⋆k)."""
+        diagonal = self._mass_diagonal.get(u)
+        if diagonal is not None:
+            return diagonal * value
+        return self.mass[u] @ value
 
     def reads_evolved(self, u: str) -> list:
         """The explicit terms of dt(u) that read an evolved field (not allowed in implicit schemes)."""
@@ -88,9 +102,13 @@ class Evolution:
         return [term for sign, term in self.rest_trees[u] if compiler.depends_on(term, set(self.names))]
 
     def rest_value(self, u: str, env: dict) -> np.ndarray:
-        value = np.zeros(self.sizes[u])
+        """R_u at ``env``: the sum of the explicit terms of dt(u) (zeros when there are none)."""
+        value = None
         for sign, closure in self.rest[u]:
-            value = value + sign * closure(env)
+            term = closure(env) if sign == 1 else sign * closure(env)
+            value = term if value is None else value + term
+        if value is None or np.ndim(value) == 0:  # no term, or only numbers
+            return np.full(self.sizes[u], 0.0 if value is None else float(value))
         return value
 
     def matrix(self, alpha: float) -> sp.csr_matrix:
@@ -203,27 +221,41 @@ class Implicit:
         theta = 0.5 if scheme == "crank_nicolson" else 1.0
         self.theta = theta
         fixed, self.fixed_values = evolution.fixed()
-        self.system = LinearSystem(evolution.matrix(theta * self.dt), new_solver, fixed)
         self.fixed = fixed
+        self.groups = _uncoupled_groups(model, evolution, theta * self.dt, new_solver)
+        if self.groups is None:
+            self.system = LinearSystem(evolution.matrix(theta * self.dt), new_solver, fixed)
 
     def step(self, state: dict, t: float) -> dict:
         model, evolution, dt = self.model, self.evolution, self.dt
-        rhs = {u: evolution.mass[u] @ state[u] for u in evolution.names}
+        explicit = any(evolution.rest[u] for u in evolution.names)  # heat, mcf: no explicit term at all
         if self.scheme == "imex":
-            env = model.environment(state, t)
+            env = model.environment(state, t) if explicit else None
+            rhs = {u: evolution.apply_mass(u, state[u] + dt * evolution.rest_value(u, env) if evolution.rest[u]
+                                           else state[u]) for u in evolution.names}
+        elif self.scheme == "crank_nicolson":
+            rhs = {u: evolution.apply_mass(u, state[u]) for u in evolution.names}
+            applied = evolution.apply_blocks(state)
+            later = model.environment(state, t + dt) if explicit else None  # R reads no evolved field: only t
+            now = model.environment(state, t) if explicit else None
             for u in evolution.names:
-                rhs[u] = rhs[u] + dt * (evolution.mass[u] @ evolution.rest_value(u, env))
-        else:
-            later = model.environment(state, t + dt)  # R reads no evolved field: only t changes
-            if self.scheme == "crank_nicolson":
-                now = model.environment(state, t)
-                applied = evolution.apply_blocks(state)
-                for u in evolution.names:
+                rhs[u] = rhs[u] + 0.5 * dt * applied[u]
+                if evolution.rest[u]:
                     average = 0.5 * (evolution.rest_value(u, now) + evolution.rest_value(u, later))
-                    rhs[u] = rhs[u] + 0.5 * dt * applied[u] + dt * (evolution.mass[u] @ average)
-            else:
-                for u in evolution.names:
-                    rhs[u] = rhs[u] + dt * (evolution.mass[u] @ evolution.rest_value(u, later))
+                    rhs[u] = rhs[u] + dt * evolution.apply_mass(u, average)
+        else:
+            later = model.environment(state, t + dt) if explicit else None
+            rhs = {u: evolution.apply_mass(u, state[u] + dt * evolution.rest_value(u, later) if evolution.rest[u]
+                                           else state[u]) for u in evolution.names}
+        if self.groups is not None:
+            out = {}
+            for names, system, fixed_values in self.groups:
+                if len(names) == 1:
+                    out[names[0]] = system.solve(rhs[names[0]], fixed_values[:, 0])
+                    continue
+                columns = system.solve(np.stack([rhs[u] for u in names], axis=1), fixed_values)
+                out.update({u: columns[:, i] for i, u in enumerate(names)})
+            return out
         vector = self.system.solve(evolution.stack(rhs), self.fixed_values)
         return evolution.unstack(vector)
 
@@ -232,6 +264,30 @@ class Implicit:
 
     def load_state(self, state: dict) -> None:
         pass
+
+
+def _uncoupled_groups(model, evolution: Evolution, alpha: float, new_solver):
+    """When no evolved field's implicit part reads another (no block A_uv with u ≠ v): the
+    system M − α A is block-diagonal, so each field's block is solved on its own — and fields
+    with equal blocks and equal fixed rows (mcf's vx, vy, vz) share one factorization, their
+    right sides solved as columns of one (n, m) block. Returns [(names, LinearSystem, fixed
+    values (k, m))], or None for a coupled system (one factorization of the whole)."""
+    from decrun.core.solvers.base import fingerprint
+
+    if len(evolution.names) < 2 or any(u != v for u, v in evolution.blocks):
+        return None
+    groups: dict[tuple, list] = {}
+    for u in evolution.names:
+        block = evolution.blocks.get((u, u))
+        matrix = sp.csr_matrix(evolution.mass[u] - alpha * block if block is not None else evolution.mass[u])
+        border, values = model.fixed.get(u, (np.zeros(0, dtype=np.int64), np.zeros(0)))
+        border = np.asarray(border, dtype=np.int64)
+        key = (fingerprint(matrix), border.tobytes())
+        if key not in groups:
+            groups[key] = [[], LinearSystem(matrix, new_solver, border), []]
+        groups[key][0].append(u)
+        groups[key][2].append(np.asarray(values, dtype=np.float64))
+    return [(names, system, np.stack(values, axis=1)) for names, system, values in groups.values()]
 
 
 class SemiImplicit:

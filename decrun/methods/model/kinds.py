@@ -11,6 +11,7 @@ Every value a model computes has one :class:`Kind`, checked when the model loads
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from decrun.methods.model.language import ModelError
@@ -64,14 +65,27 @@ def dual(k: int) -> Kind:
 
 def form_kind(spec, where: str, n: int | None = None) -> Kind:
     """``fields.<name>.form`` → Kind: ``0 | 1 | 2 | 3`` (primal) or ``dual0 | dual1 | dual2 |
-    dual3``; with ``n`` (the mesh dimension) the degree is checked against it."""
+    dual3``, or a degree relative to the mesh dimension n — ``n`` (the top degree: a density,
+    one value per top simplex) and ``n-1`` … ``n-3`` (``n-1``: a flux through the (n−1)-simplices,
+    edges of triangles or faces of tetrahedra), primal or ``dualn``/``dualn-1`` — so one model
+    runs on triangle and tetrahedral meshes. With ``n`` (the mesh dimension) the degree is checked
+    against it; a relative degree needs it."""
     text = str(spec).strip().lower().replace(" ", "").replace("_", "")
     is_dual = text.startswith("dual")
     digits = text[4:] if is_dual else text
     if text.startswith("primal"):
         digits = text[6:]
+    relative = re.fullmatch(r"n(?:-([0-3]))?", digits)
+    if relative:
+        if n is None:
+            raise ModelError(f"{where}: the form {spec!r} is relative to the mesh dimension, which is not known here")
+        below = int(relative.group(1) or 0)
+        if below > n:
+            raise ModelError(f"{where}: a form of degree {spec} does not exist on a mesh of dimension {n}")
+        digits = str(n - below)
     if not (digits.isdigit() and 0 <= int(digits) <= 3):
-        raise ModelError(f"{where}: form must be 0 | 1 | 2 | 3 (primal) or dual0 | dual1 | dual2 | dual3, got {spec!r}")
+        raise ModelError(f"{where}: form must be 0 | 1 | 2 | 3 (primal), dual0 | dual1 | dual2 | dual3, or relative to "
+                         f"the mesh dimension n: n | n-1 | n-2 (dualn …), got {spec!r}")
     kind = Kind("form", int(digits), is_dual)
     if n is not None and kind.degree > n:
         raise ModelError(f"{where}: a {kind} does not exist on a mesh of dimension {n} (degrees 0..{n})")

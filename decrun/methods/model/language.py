@@ -22,6 +22,9 @@ Equations (one string each)::
     dt(u) = <expr>           evolution (first order in time)
     v = <expr>               definition, evaluated every step in dependency order
     solve(<expr> = <expr>)   a linear solve for the one unknown field of the left side
+    solve(<expr> = <expr>, <expr> = <expr>, …)
+                             linear equations solved together (one block system) for as many
+                             unknown fields of their left sides (a mixed, saddle-point problem)
 """
 
 from __future__ import annotations
@@ -253,9 +256,11 @@ def _convert(node: ast.AST, where: str, text: str, depth: int) -> Node:
 class Equation:
     """One equation of a model.
 
-    ``kind``: ``evolution`` (``dt(target) = rhs``), ``definition`` (``target = rhs``) or
+    ``kind``: ``evolution`` (``dt(target) = rhs``), ``definition`` (``target = rhs``),
     ``solve`` (``solve(lhs = rhs)``: ``target`` is set when the unknown is resolved, see
-    :mod:`decrun.methods.model.system`); ``where``: its config key; ``text``: as written."""
+    :mod:`decrun.methods.model.system`) or ``system`` (``solve(l1 = r1, l2 = r2, …)``: linear
+    equations solved together for as many unknowns, one block system; ``lhs``/``rhs`` are the
+    first pair); ``where``: its config key; ``text``: as written."""
 
     kind: str
     target: str
@@ -263,6 +268,10 @@ class Equation:
     rhs: Node
     where: str
     text: str
+    #: a ``system`` (``solve(l1 = r1, l2 = r2, …)``): its (left, right) pairs, and its unknowns once
+    #: resolved (``target`` is then the first)
+    pairs: tuple = ()
+    targets: tuple = ()
 
 
 def _split_top_level(text: str, where: str) -> tuple[str, str]:
@@ -284,6 +293,22 @@ def _split_top_level(text: str, where: str) -> tuple[str, str]:
     return text[: positions[0]], text[positions[0] + 1:]
 
 
+def _split_commas(text: str) -> list[str]:
+    """The members of ``l1 = r1, l2 = r2`` around the top-level commas (a call's own commas,
+    inside parentheses, stay)."""
+    depth, start, out = 0, 0, []
+    for i, char in enumerate(text):
+        if char in "([":
+            depth += 1
+        elif char in ")]":
+            depth -= 1
+        elif char == "," and depth == 0:
+            out.append(text[start:i])
+            start = i + 1
+    out.append(text[start:])
+    return out
+
+
 def parse_equation(text, where: str) -> Equation:
     """One equation string → :class:`Equation` (see the module docstring for the forms)."""
     if not isinstance(text, str):
@@ -293,9 +318,14 @@ def parse_equation(text, where: str) -> Equation:
     source = _normalize(text).strip()
     match = re.fullmatch(r"solve\s*\((.*)\)", source, flags=re.S)
     if match:
-        left, right = _split_top_level(match.group(1), where)
-        lhs, rhs = parse_expression(left, where), parse_expression(right, where)
-        return Equation("solve", "", lhs, rhs, where, text)
+        members = _split_commas(match.group(1))
+        pairs = []
+        for member in members:
+            left, right = _split_top_level(member, where)
+            pairs.append((parse_expression(left, where), parse_expression(right, where)))
+        if len(pairs) > 1:
+            return Equation("system", "", pairs[0][0], pairs[0][1], where, text, tuple(pairs))
+        return Equation("solve", "", pairs[0][0], pairs[0][1], where, text)
     left, right = _split_top_level(source, where)
     lhs, rhs = parse_expression(left, where), parse_expression(right, where)
     if isinstance(lhs, Call) and lhs.function == "dt":

@@ -105,6 +105,9 @@ class Operator:
     kind: Callable[[list[Kind], int], Kind]
     evaluate: Callable  # (Discrete, kinds, *values) -> value
     linear: Optional[Callable] = None  # (Discrete, kind of the argument) -> Linear | None
+    #: (Discrete, kinds, first argument's value) -> the sparse matrix of the operator in its second
+    #: argument, for an operator linear in it once the first is fixed (lie of a static velocity)
+    fixed_first: Optional[Callable] = None
 
 
 def _one_form(args, n, name, allowed: Callable[[Kind], bool], takes: str) -> Kind:
@@ -213,6 +216,12 @@ def _sharp_kind(args, n):
     return VECTOR
 
 
+def _flux_field_kind(args, n):
+    _one_form(args, n, "flux_field", lambda k: not k.dual and k.degree == n - 1,
+              f"a primal {n - 1}-form (a flux through the {n - 1}-simplices)")
+    return VECTOR
+
+
 def _flat_kind(args, n):
     (kind,) = args
     if kind != VECTOR:
@@ -243,6 +252,25 @@ def _cell_average_linear(ops: "Discrete", kind: Kind) -> Linear:
     return Linear(None, discrete.average_matrix(ops.K, ops.n))
 
 
+def _border_kind(args, n):
+    _one_form(args, n, "border", lambda k: not k.dual and k.degree == 0, "a primal 0-form (values at vertices)")
+    return primal(n - 1)
+
+
+def _border_linear(ops: "Discrete", kind: Kind) -> Linear:
+    """``border(q) = ⋆_{n−1}⁻¹ B q``: (B q)_σ = o_σ · (mean of q over the vertices of σ) on each
+    border (n−1)-simplex σ, 0 inside; o_σ = ±1 is σ's orientation against the outward one (its
+    incidence with its one top simplex, ``d_{n−1}ᵀ 1``: on an interior simplex the two top
+    simplices' incidences cancel). So ⟨border(q), v⟩ = vᵀ B q = Σ_σ o_σ q̄_σ v_σ ≈ ∫_∂Ω q tr v
+    for every (n−1)-form v — for a Whitney (n−1)-form the trace on σ is v_σ/|σ| times σ's volume
+    form, so ∫_σ q tr v = q̄_σ v_σ up to O(h²) — the boundary term of integrating by parts,
+    ⟨p, d v⟩ = ⟨δ p, v⟩ + ∫_∂Ω q tr v: where a natural border value q enters a weak form."""
+    n = ops.n
+    outward = ops.dec.d(n - 1).T @ np.ones(ops.K.num_simplices(n))
+    B = sp.diags(outward) @ discrete.average_matrix(ops.K, n - 1)
+    return Linear(n - 1, B.tocsr())
+
+
 def _velocity(kind: Kind) -> bool:
     """A velocity: a vector field, or a primal 1-form (a flux/circulation field, its ♯ taken)."""
     return kind == VECTOR or (kind.is_form and not kind.dual and kind.degree == 1)
@@ -268,6 +296,13 @@ def _lie_kind(args, n):
     if form.degree == 1 and n != 2:
         raise Mismatch("lie of a 1-form is defined on triangle meshes here (dimension 2)")
     return form
+
+
+def _lie_fixed_first(ops: "Discrete", kinds, field):
+    """The matrix of u ↦ L_X u on 0-forms for a fixed X (None on 1-forms: evaluated)."""
+    if kinds[1].degree != 0:
+        return None
+    return discrete.lie_0_matrix(ops.K, _as_vectors(ops, kinds[0], field))
 
 
 def _lie_evaluate(ops: "Discrete", kinds, field, form):
@@ -430,6 +465,11 @@ _register(Operator("sharp", (1,), "primal 1-form → vector",
                    "Whitney interpolation at each top simplex's barycentre (eq. 6.7); sharp(d(u)) is the "
                    "gradient of the piecewise-linear u",
                    _sharp_kind, lambda ops, kinds, x: discrete.sharp(ops.K, x)))
+_register(Operator("flux_field", (1,), "primal (n−1)-form → vector",
+                   "the Whitney (n−1)-form's vector field at each top simplex's barycentre, Σ_i o_i u_i (x − p_i) "
+                   "/ (n |σ|) (lowest-order Raviart–Thomas; o_i u_i the flux out through the face opposite p_i): "
+                   "the velocity whose fluxes are u, exact for constant fields",
+                   _flux_field_kind, lambda ops, kinds, x: discrete.flux_field(ops.K, x)))
 _register(Operator("flat", (1,), "vector → primal 1-form (triangles)",
                    "ω_e = Σ_{f∋e} (|⋆e∩f|/|⋆e|) X_f·e (Hirani's primal-primal ♭), so −δ X♭ is the cotan "
                    "divergence",
@@ -443,13 +483,19 @@ _register(Operator("cell_average", (1,), "primal 0-form → dual 0-form",
                    "barycentre)",
                    _cell_average_kind, lambda ops, kinds, x: _cell_average_linear(ops, kinds[0]).A @ x,
                    _cell_average_linear))
+_register(Operator("border", (1,), "primal 0-form → primal (n−1)-form",
+                   "⋆_{n−1}⁻¹ B q, (B q)_σ = o_σ q̄_σ on each border (n−1)-simplex σ (q̄_σ: the mean over its "
+                   "vertices; o_σ = ±1: its orientation against the outward one), 0 inside: ⟨border(q), v⟩ ≈ "
+                   "∫_∂Ω q tr v, the boundary term of integrating by parts — where natural border values enter a "
+                   "weak form (Darcy's pressure)",
+                   _border_kind, None, _border_linear))
 _register(Operator("interior", (2,), "vector (or 1-form), primal 1-form → dual 0-form",
                    "i_X ω = X · ω♯ in each top simplex (a 1-form velocity is taken through ♯)",
                    _interior_kind, lambda ops, kinds, X, w: discrete.interior_1(ops.K, _as_vectors(ops, kinds[0], X), w)))
 _register(Operator("lie", (2,), "vector (or 1-form), primal 0- or 1-form → the same form",
                    "L_X u = X·∇u per top simplex, volume-averaged to the vertices (centred advection); on 1-forms "
                    "Cartan's L_X ω = i_X dω + d i_X ω",
-                   _lie_kind, _lie_evaluate))
+                   _lie_kind, _lie_evaluate, fixed_first=_lie_fixed_first))
 _register(Operator("norm", (1,), "vector → dual 0-form; form → number",
                    "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate))
 _register(Operator("integral", (1,), "0-form or n-form (primal or dual) → number",

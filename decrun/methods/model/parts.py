@@ -11,10 +11,11 @@ and its own declarations merged (:func:`compose_parts`):
 - equations are concatenated in part order, the model's own last (definitions are ordered by
   what they read when the model compiles, so the order is only that of the evolved fields).
 
-Anything else is a :class:`ModelError` naming both parts. Constants are not a part's: they are
-the model's parameters, one value per name (``app.constants``, where the runner's
-configuration puts every part's constants), so a command-line override reaches them.
-No Hydra and no files here: the parts arrive as data.
+Anything else is a :class:`ModelError` naming both parts. Constants are the model's parameters,
+one value per name (``app.constants``, so a command-line override reaches them); a part gives
+defaults for the ones it reads, and two parts' different defaults for one constant are refused
+unless the model sets it (the model app, :mod:`decrun.apps.model`, which sees where each
+value came from). No Hydra and no files here: the parts arrive as data.
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ import scipy.sparse as sp
 
 from decrun.methods.model.language import ModelError
 
-__all__ = ["LinearSystem", "KernelReport", "COMPATIBILITY_LIMIT"]
+__all__ = ["LinearSystem", "BlockSystem", "KernelReport", "COMPATIBILITY_LIMIT"]
 
 #: largest |Σ b| / Σ |b| accepted on a singular system (the part removed from b); beyond it the
 #: problem has no solution and the model is refused
@@ -73,6 +73,7 @@ class LinearSystem:
             keep[self.pinned] = False
             self.report.pieces = len(labels)
         self.free = np.flatnonzero(keep)
+        self.all_free = self.free.size == n  # no fixed value, nothing pinned: no condensation
         self.A_full = A
         self.A_free_fixed = A[self.free][:, self.fixed] if self.fixed.size else None
         self.solver = None  # factorized at the first solve, with the solver bound then
@@ -97,9 +98,15 @@ class LinearSystem:
             self.solver = solver
 
     def solve(self, b: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
-        """x (n,) with ``x[fixed] = fixed_values``; ``b`` (n,) the right-hand side."""
+        """x (n,) with ``x[fixed] = fixed_values``; ``b`` (n,) the right-hand side — or (n, m)
+        columns solved at once with ``fixed_values`` (k, m) (a system without a kernel)."""
         b = self.sign * np.asarray(b, dtype=np.float64)
-        x = np.zeros(self.A_full.shape[0])
+        if b.ndim == 2 and self.pieces is not None:
+            raise ValueError("LinearSystem.solve: several right-hand sides on a system with a kernel of constants")
+        if self.all_free:  # the plain solve, without copies in and out of the free rows
+            self.factorize()
+            return self.solver.solve(b)
+        x = np.zeros((self.A_full.shape[0],) + b.shape[1:])
         if self.pieces is not None:
             b = self._compatible(b)
         self.factorize()
@@ -123,6 +130,64 @@ class LinearSystem:
             raise IncompatibleRightHandSide(float(relative.max()))
         totals = np.bincount(self.pieces, weights=self.mass)
         return b - (sums / totals)[self.pieces] * self.mass
+
+
+@dataclass
+class BlockSystem(LinearSystem):
+    """The block matrix of a system of equations in several unknowns (``solve(l1 = r1, l2 = r2)``):
+    a :class:`LinearSystem` (fixed values condensed out) whose matrix is in general indefinite —
+    a saddle point [[M, B], [C, 0]] has a zero block — so a solver that needs SPD matrices
+    (Cholesky, CG, AMG) is refused unless the matrix is symmetric with a positive diagonal; LU
+    (``solver=direct``, or ``auto``'s SuperLU) factorizes it once. ``where`` names the equation
+    and ``unknowns`` its unknowns in messages."""
+
+    where: str = "app.equations"
+    unknowns: tuple = ()
+    #: the largest |entry| of the matrix, for the residual check (read at the first solve)
+    largest: float | None = field(default=None, init=False, repr=False)
+
+    def factorize(self) -> None:
+        """Factorize once; refuse an SPD-only solver for a matrix that cannot be SPD."""
+        if self.solver is None and self.new_solver is not None:
+            solver = self.new_solver()
+            matrix = self.A_full[self.free][:, self.free].tocsr()
+            if getattr(solver, "needs_spd", False):
+                diagonal = matrix.diagonal()
+                if not _symmetric(matrix) or diagonal.size and diagonal.min() <= 0:
+                    why = "not symmetric" if not _symmetric(matrix) else \
+                        f"indefinite: {int((diagonal <= 0).sum())} of its diagonal entries are not positive"
+                    raise ModelError(f"{self.where}: solver={solver.name} needs a symmetric positive definite matrix, "
+                                     f"but the block system of {', '.join(self.unknowns)} is {why} (a saddle point); "
+                                     "use `solver=direct`")
+            try:
+                solver.factorize(matrix)
+            except Exception as error:  # noqa: BLE001 - say which equation could not be factorized
+                raise ModelError(f"{self.where}: the block system of {', '.join(self.unknowns)} could not be "
+                                 f"factorized ({str(error).splitlines()[0]}); is an unknown determined only up to a "
+                                 "constant? check the equations and their border values, or use `solver=direct`"
+                                 ) from None
+            self.solver = solver
+        super().factorize()
+
+    def solve(self, b: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
+        """x with ``x[fixed] = fixed_values``. The backward error of the free rows,
+        max|A x − b| / (max|A| max|x| + max|b|), is checked (≤ 1e-8), and x must be finite: a
+        solver that did not converge or a singular factorization is refused, not returned. (A
+        backward-stable solve of a nearly singular matrix passes this check: the unknowns that the
+        equations leave free are refused before, when the system is compiled.)"""
+        x = super().solve(b, fixed_values)
+        rhs = self.sign * np.asarray(b, dtype=np.float64)
+        residual = (self.A_full @ x - rhs)[self.free]
+        if self.largest is None:
+            self.largest = abs(self.A_full).max() if self.A_full.nnz else 0.0
+        size = self.largest * np.abs(x).max() + np.abs(rhs[self.free]).max(initial=0.0)
+        if not (np.all(np.isfinite(x)) and np.abs(residual).max(initial=0.0) <= 1e-8 * size):
+            error = np.abs(residual).max(initial=0.0) / size if size > 0 and np.isfinite(size) else float("nan")
+            raise ModelError(f"{self.where}: the solution of the block system of {', '.join(self.unknowns)} is not "
+                             f"one (backward error {error:.2g}, or values not finite): the solver did not converge "
+                             "or the matrix is singular; check the equations and their border values, or use "
+                             "`solver=direct`")
+        return x
 
 
 class UnsymmetricSystem(ModelError):

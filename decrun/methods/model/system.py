@@ -6,7 +6,8 @@ and returns a :class:`CompiledModel`:
 
 1. every equation is parsed (:mod:`~decrun.methods.model.language`) and classified — evolution
    ``dt(u) = …``, definition ``v = …``, solve ``solve(lhs = rhs)`` whose unknown is the one
-   declared field of its left side that nothing else computes;
+   declared field of its left side that nothing else computes, system ``solve(l1 = r1, l2 = r2,
+   …)`` with as many unknowns as equations (one block matrix, :func:`_compile_system`);
 2. definitions and solves are ordered by what they read (a cycle is refused, naming it) and
    typed in that order; every term is type-checked (:class:`~decrun.methods.model.compiler.Compiler`);
 3. each solve's left side is split into a constant sparse matrix (factorized once) and terms
@@ -19,6 +20,7 @@ and solve once, in order, into one dict of values that the equations and metrics
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -31,7 +33,7 @@ from decrun.methods.model.kinds import NUMBER, Kind, form_kind
 from decrun.methods.model.language import Binary, Equation, ModelError, Name, Node, names_in, parse_equation, \
     parse_expression, to_text
 from decrun.methods.model.operators import OPERATORS, Discrete, Linear
-from decrun.methods.model.solve import IncompatibleRightHandSide, LinearSystem, constant_kernel
+from decrun.methods.model.solve import BlockSystem, IncompatibleRightHandSide, LinearSystem, constant_kernel
 
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
 
@@ -125,7 +127,7 @@ class CompiledModel:
     equations: list[Equation]
     evolved: list[str]
     inputs: list[str]
-    order: list[tuple[str, Any]]  # ("definition", (name, closure)) | ("solve", Solve)
+    order: list[tuple[str, Any]]  # ("definition", (name, closure)) | ("solve", Solve) | ("system", SystemSolve)
     rhs: dict[str, Callable]
     metrics: dict[str, Callable]
     fixed: dict[str, tuple[np.ndarray, np.ndarray]]
@@ -147,6 +149,8 @@ class CompiledModel:
             if what == "definition":
                 name, closure = item
                 env[name] = closure(env)
+            elif what == "system":
+                env.update(item.solve(env))
             else:
                 env[item.unknown] = item.system.solve(item.rhs(env), item.fixed_values)
         return env
@@ -193,14 +197,16 @@ class CompiledModel:
     def bind(self, new_solver: Callable) -> None:
         """Factorize every solve's system with ``new_solver()`` (the run's configured solver)."""
         for what, item in self.order:
-            if what == "solve":
+            if what in ("solve", "system"):
                 item.system.bind(new_solver)
 
     def check_compatibility(self) -> None:
         """Before any work: a singular solve (kernel of constants) whose right side reads only
         inputs, constants and coordinates is checked for a solution now (its right side's mean
         must be round-off), so the refusal comes before the run, not at its first step."""
-        computed = {item.unknown if what == "solve" else item[0] for what, item in self.order}
+        computed = set()
+        for what, item in self.order:
+            computed |= set(item.unknowns) if what == "system" else {item.unknown if what == "solve" else item[0]}
         for what, item in self.order:
             if what != "solve" or item.system.pieces is None:
                 continue
@@ -234,6 +240,10 @@ class CompiledModel:
         lines = []
         for equation in self.equations:
             target = equation.target
+            if equation.kind == "system":
+                unknowns = ", ".join(f"{name} : {self.kinds[name]}" for name in equation.targets)
+                lines.append(f"system {unknowns} := {equation.text.strip()}")
+                continue
             lines.append(f"{equation.kind} {target} : {self.kinds[target]} := {equation.text.strip()}")
         return lines
 
@@ -285,6 +295,13 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
             definitions[equation.target] = equation
     # a solve's unknown: the declared field of its left side that no other equation computes
     for index, equation in enumerate(equations):
+        if equation.kind == "system":
+            equation = _system_unknowns(equation, spec, targets, evolved)
+            equations[index] = equation
+            for name in equation.targets:
+                claim(name, equation.where)
+            solves.append(equation)
+            continue
         if equation.kind != "solve":
             continue
         candidates = sorted(name for name in names_in(equation.lhs)
@@ -314,7 +331,10 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     ordered = _order(definitions, solves, set(spec.fields) | set(spec.constants), key)
     varying = set(evolved) | {"t"}
     inlinable = {name: eq.rhs for name, eq in definitions.items()}
-    solved = {eq.target: Binary("-", eq.lhs, eq.rhs) for eq in solves}
+    solved = {}
+    for eq in solves:
+        for target in eq.targets or (eq.target,):
+            solved[target] = _sides(eq)
     compiler = Compiler(ops, kinds, inlinable, varying, solved)
     for equation in ordered:  # type every definition in order (solve unknowns are declared)
         if equation.kind == "definition":
@@ -327,7 +347,8 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
         compiler.kinds.update(kinds)
     compiler.kinds.update(kinds)
     compiler.varying |= {name for name in targets if compiler.reads(Name(name)) & compiler.varying} | \
-        {eq.target for eq in solves if compiler.reads(Name(eq.target)) & compiler.varying}
+        {target for eq in solves for target in eq.targets or (eq.target,)
+         if compiler.reads(Name(target)) & compiler.varying}
 
     base = {"x": K.vertices[:, 0].copy(), "y": K.vertices[:, 1].copy() if K.embedding_dim > 1 else
             np.zeros(K.num_simplices(0)), "z": K.vertices[:, 2].copy() if K.embedding_dim > 2 else
@@ -347,6 +368,8 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     for equation in ordered:
         if equation.kind == "definition":
             model.order.append(("definition", (equation.target, compiler.compile(equation.rhs, equation.where))))
+        elif equation.kind == "system":
+            model.order.append(("system", _compile_system(equation, model, new_solver)))
         else:
             model.order.append(("solve", _compile_solve(equation, model, new_solver)))
     for equation in equations:
@@ -359,6 +382,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
                              f"{target_kind}")
         model.rhs[equation.target] = compiler.compile(equation.rhs, equation.where)
     trees = [(eq.where, eq.rhs) for eq in equations] + [(eq.where, eq.lhs) for eq in equations if eq.kind == "solve"]
+    trees += [(eq.where, side) for eq in equations if eq.kind == "system" for pair in eq.pairs for side in pair]
     for name, text in spec.metrics.items():
         where = f"{key}.metrics.{name}"
         tree = parse_expression(text, where)
@@ -405,9 +429,11 @@ def _check_names(spec: ModelSpec) -> None:
 def _order(definitions: dict[str, Equation], solves: list[Equation], known: set[str], key: str) -> list[Equation]:
     """Definitions and solves in an order where each reads only what comes before it (or
     fields, constants and built-ins); a cycle is a ModelError naming it."""
-    computed = {**definitions, **{eq.target: eq for eq in solves}}
+    computed = {**definitions, **{target: eq for eq in solves for target in eq.targets or (eq.target,)}}
 
     def needs(equation: Equation) -> set[str]:
+        if equation.kind == "system":  # a system reads its own unknowns
+            return {name for name in names_in(_sides(equation)) if name in computed and name not in equation.targets}
         reads = names_in(equation.rhs) | (names_in(equation.lhs) if equation.kind == "solve" else set())
         # a solve reads its own unknown; a definition that reads itself is a cycle of one
         return {name for name in reads if name in computed and (name != equation.target or equation.kind != "solve")}
@@ -425,7 +451,8 @@ def _order(definitions: dict[str, Equation], solves: list[Equation], known: set[
         for other in sorted(needs(computed[name])):
             visit(other, path + [name])
         state[name] = "done"
-        order.append(computed[name])
+        if computed[name] not in order:  # a system is computed once for all its unknowns
+            order.append(computed[name])
 
     for name in computed:  # in the order they were written, dependencies first
         visit(name, [])
@@ -529,6 +556,211 @@ def _compile_solve(equation: Equation, model: CompiledModel, new_solver: Callabl
     system.solve = checked
     system.solve_check = check_only
     return solve
+
+
+def _sides(equation: Equation) -> Node:
+    """One tree reading everything a solve or system reads (both sides of every equation):
+    what its unknowns are computed from, for the dependency order."""
+    pairs = equation.pairs or ((equation.lhs, equation.rhs),)
+    tree = None
+    for lhs, rhs in pairs:
+        term = Binary("-", lhs, rhs)
+        tree = term if tree is None else Binary("+", tree, term)
+    return tree
+
+
+def _system_unknowns(equation: Equation, spec: ModelSpec, targets: dict, evolved: list) -> Equation:
+    """The unknowns of ``solve(l1 = r1, l2 = r2, …)``: the declared fields its left sides read
+    that no other equation computes (those without an initial value when there are more), as
+    many as equations, in their declaration order."""
+    key, count = spec.key, len(equation.pairs)
+    read = set().union(*(names_in(lhs) for lhs, _ in equation.pairs))
+    candidates = [name for name in spec.fields if name in read and name not in targets and name not in evolved]
+    if len(candidates) > count:
+        without = [name for name in candidates if spec.fields[name].initial is None]
+        if len(without) == count:
+            candidates = without
+    if len(candidates) != count:
+        example = f"{key}.fields.p.form=0" if "p" not in spec.fields else f"{key}.fields.q.form=0"
+        raise ModelError(f"{equation.where}: the system has {count} equations but its left sides read "
+                         f"{len(candidates)} undetermined field(s) {candidates}; a system solves for one unknown per "
+                         f"equation (declare each unknown without an initial value under {key}.fields, e.g. "
+                         f"`+{example}`)")
+    return Equation("system", candidates[0], equation.lhs, equation.rhs, equation.where, equation.text,
+                    equation.pairs, tuple(candidates))
+
+
+@dataclass
+class SystemSolve:
+    """A compiled ``solve(l1 = r1, …)``: the block system of its unknowns (one
+    :class:`LinearSystem`, factorized once) and each row's weak right-hand side."""
+
+    equation: Equation
+    unknowns: tuple
+    system: LinearSystem
+    rows: list  # per equation: env ↦ its weak right-hand side
+    offsets: np.ndarray  # (m + 1,) where each unknown's values start in the stacked vector
+    fixed_values: np.ndarray | None
+
+    def solve(self, env: dict) -> dict[str, np.ndarray]:
+        """Every unknown's values at ``env`` (one solve of the block system)."""
+        x = self.system.solve(np.concatenate([row(env) for row in self.rows]), self.fixed_values)
+        return {name: x[self.offsets[i]:self.offsets[i + 1]] for i, name in enumerate(self.unknowns)}
+
+
+def _compile_system(equation: Equation, model: CompiledModel, new_solver: Callable) -> SystemSolve:
+    """The block system of ``solve(l1 = r1, …, lm = rm)`` in its m unknowns u_1 … u_m.
+
+    Row i is equation i in weak form: its left side split into Σ_j ⋆_k⁻¹ A_ij u_j (+ terms that
+    read no unknown, moved to the right), multiplied by the row's one ⋆_k (``u - codifferential(p)``
+    is ⋆_{n−1}⁻¹(⋆_{n−1} u − d_{n−1}ᵀ ⋆_n p): the row ⋆_{n−1} u − d_{n−1}ᵀ ⋆_n p = ⋆_{n−1} r), so a
+    Galerkin ⋆ is never inverted. Row i must have the kind of one unknown: the left sides' kinds
+    and the unknowns' kinds are the same multiset, so that the block matrix [A_ij] is square
+    (Σ sizes of the rows = Σ sizes of the unknowns). The matrix is assembled once (``sp.bmat``)
+    and factorized once; it is in general indefinite (a saddle point has a zero block), so a
+    solver that needs SPD matrices is refused."""
+    compiler, ops, K = model.compiler, model.ops, model.ops.K
+    where, unknowns = equation.where, equation.targets
+    kinds = [model.kinds[name] for name in unknowns]
+    row_kinds = []
+    for lhs, rhs in equation.pairs:
+        lhs_kind, rhs_kind = compiler.kind(lhs, where), compiler.kind(rhs, where)
+        if rhs_kind != lhs_kind and rhs_kind != NUMBER:
+            raise ModelError(f"{where}: {to_text(lhs)} is a {lhs_kind} but {to_text(rhs)} is a {rhs_kind}")
+        row_kinds.append(lhs_kind)
+    if sorted(map(str, row_kinds)) != sorted(map(str, kinds)):
+        rows = ", ".join(f"{to_text(lhs)} : {kind}" for (lhs, _), kind in zip(equation.pairs, row_kinds))
+        wanted = ", ".join(f"{name} : {kind}" for name, kind in zip(unknowns, kinds))
+        missing = list((Counter(map(str, kinds)) - Counter(map(str, row_kinds))).elements())
+        raise ModelError(f"{where}: the system's equations ({rows}) do not match its unknowns ({wanted}): each unknown "
+                         f"needs one equation of its kind, and one more left side should be a {missing[0]}; "
+                         "write that equation in its unknown's kind (e.g. d(u) = f for a top-form pressure)")
+    sizes = [kind.size(K) for kind in kinds]
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    grid, rows = [], []
+    for (lhs, rhs), row_kind in zip(equation.pairs, row_kinds):
+        if compiler.depends_on(rhs, set(unknowns)):
+            read = sorted(compiler.reads(rhs) & set(unknowns))
+            raise ModelError(f"{where}: the right side {to_text(rhs)} reads the unknown {read[0]}; move the terms of "
+                             "the unknowns to the left side")
+        blocks, rest = compiler.split(lhs, set(unknowns))
+        for sign, term in rest:
+            if compiler.depends_on(term, set(unknowns)):
+                raise ModelError(f"{where}: the term {to_text(term)} of {to_text(lhs)} is not linear in the unknowns "
+                                 f"{', '.join(unknowns)} with constant coefficients (a system is linear)")
+        if not blocks:
+            raise ModelError(f"{where}: the left side {to_text(lhs)} reads none of the unknowns {', '.join(unknowns)} "
+                             "linearly; every equation of a system is linear in its unknowns")
+        stars = sorted({block.inv for block in blocks.values() if block.inv is not None})
+        if len(stars) > 1:
+            raise ModelError(f"{where}: the terms of {to_text(lhs)} carry different inverse stars "
+                             f"(⋆_{stars[0]}⁻¹ and ⋆_{stars[1]}⁻¹): no one weak form; write the equation over one ⋆")
+        star = ops.dec.star(stars[0]) if stars else None
+        line = []
+        for name in unknowns:
+            block = blocks.get(name)
+            if block is None:
+                line.append(None)
+            elif block.inv is None and star is not None:
+                line.append(sp.csr_matrix(star @ block.A))
+            else:
+                line.append(block.A)
+        grid.append(line)
+        rows.append(_weak_row(compiler, rhs, rest, star, stars[0] if stars else None, row_kind.size(K), where))
+    for j, name in enumerate(unknowns):
+        if all(line[j] is None for line in grid):
+            raise ModelError(f"{where}: no equation of the system reads {name} linearly; it cannot be solved for")
+    # rows in the order of the unknowns whose kind they have (a square block matrix with its
+    # diagonal blocks on the unknowns)
+    order, free = [], list(range(len(grid)))
+    for kind in kinds:
+        match = next(i for i in free if str(row_kinds[i]) == str(kind))
+        free.remove(match)
+        order.append(match)
+    grid = [grid[i] for i in order]
+    rows = [rows[i] for i in order]
+    for i, line in enumerate(grid):  # bmat needs each row's height: an all-None row cannot occur
+        for j, block in enumerate(line):
+            if block is not None and block.shape != (sizes[i], sizes[j]):
+                raise ModelError(f"{where}: block ({i}, {j}) of the system has shape {block.shape}, expected "
+                                 f"{(sizes[i], sizes[j])}")
+    matrix = sp.bmat(grid, format="csr")
+    fixed, values = [], []
+    for j, name in enumerate(unknowns):
+        if name in model.fixed:
+            border, fixed_values = model.fixed[name]
+            fixed.append(border + offsets[j])
+            values.append(fixed_values)
+    fixed_index = np.concatenate(fixed).astype(np.int64) if fixed else np.zeros(0, dtype=np.int64)
+    system = BlockSystem(matrix, new_solver, fixed_index, where=where, unknowns=tuple(unknowns))
+    _refuse_constant_kernel(system, unknowns, kinds, offsets, K, where,
+                            [f"{model.spec.key}.fields.{name}.dirichlet" for name in unknowns if name in model.fixed])
+    return SystemSolve(equation, tuple(unknowns), system, rows, offsets,
+                       np.concatenate(values) if values else None)
+
+
+def _refuse_constant_kernel(system: BlockSystem, unknowns, kinds, offsets, K, where: str, fixed: list) -> None:
+    """Before any work: an unknown determined only up to a constant — the block matrix (its free
+    rows and columns) maps the constant of one unknown to zero, e.g. a pressure when every border
+    flux is fixed (``fields.u.dirichlet``) and no border value enters — is refused; a factorization
+    of a singular matrix would give a quiet wrong answer. The constant of a 0-form or dual 0-form
+    is 1 everywhere; of a top form, the integral of the density 1 over each top simplex."""
+    A = system.A_full[system.free][:, system.free]
+    scale = abs(A).max() if A.nnz else 0.0
+    for j, (name, kind) in enumerate(zip(unknowns, kinds)):
+        if kind.is_form and kind.degree == K.dim and not kind.dual:
+            constant = K.top_volumes
+        elif kind.is_form and kind.simplex_dimension(K.dim) in (0, K.dim):
+            constant = np.ones(kind.size(K))
+        else:
+            continue
+        full = np.zeros(system.A_full.shape[0])
+        full[offsets[j]:offsets[j + 1]] = constant
+        vector = full[system.free]
+        if scale and np.abs(A @ vector).max() <= 1e-10 * scale * np.abs(vector).max():
+            given = f"drop {' and '.join(fixed)} and " if fixed else ""
+            raise ModelError(f"{where}: the block system of {', '.join(unknowns)} is singular: {name} is determined "
+                             "only up to a constant (no border value fixes it, as when every border flux is given); "
+                             f"{given}let border values of {name} enter the weak form (a term border(q), as in "
+                             "app=darcy)")
+
+
+def _weak_row(compiler: Compiler, rhs: Node, rest: list, star, degree, size: int, where: str) -> Callable:
+    """env ↦ ⋆_k (rhs − the left side's terms without unknowns) of one row of a system, k =
+    ``degree`` (None: no ⋆). A term linear in a form with a constant ⋆_k⁻¹ A matrix
+    (``border(pb)``, ``codifferential(q)``) contributes A·value: the ⋆_k⁻¹ it carries is not
+    applied only to be multiplied back (for a Galerkin ⋆, a factorization saved)."""
+    terms = [(1.0, term) for term in [rhs]] + [(-sign, term) for sign, term in rest]
+    split = []
+    for sign, tree in terms:
+        names = {name for name in compiler.reads(tree) if name not in compiler.definitions and name in compiler.kinds
+                 and compiler.kinds[name].is_form}
+        blocks, others = compiler.split(tree, names) if names else ({}, compiler.terms(tree))
+        for name, block in blocks.items():
+            if block.inv == degree and degree is not None:
+                split.append(("weak", name, (sign * block.A).tocsr()))
+            elif block.inv is None:
+                split.append(("weak", name, (sign * (star @ block.A if star is not None else block.A)).tocsr()))
+            else:
+                apply = compiler.ops.matrix(block)
+                split.append(("strong", name, lambda x, apply=apply, sign=sign: sign * apply(x)))
+        for inner_sign, term in others:
+            closure = compiler.compile(term, where)
+            split.append(("value", None, (sign * inner_sign, closure)))
+
+    def weak(env):
+        strong = np.zeros(size)
+        total = np.zeros(size)
+        for what, name, item in split:
+            if what == "weak":
+                total += item @ env[name]
+            elif what == "strong":
+                strong += item(env[name])
+            else:
+                factor, closure = item
+                strong += factor * np.broadcast_to(np.asarray(closure(env), dtype=np.float64), (size,))
+        return total + (star @ strong if star is not None else strong)
+    return weak
 
 
 def _incompatible_message(where: str, equation: Equation, relative: float) -> str:

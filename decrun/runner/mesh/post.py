@@ -16,9 +16,10 @@ import numpy as np
 
 from decrun.core.connectivity import component_labels, drop_unreferenced
 from decrun.core.geometry import mean_edge_length, triangle_areas, vertex_normals
-from decrun.errors import MeshError
+from decrun.errors import ConfigError, MeshError
 from decrun.runner.mesh.base import (MAX_TRIANGLES, HoleCut, HolePieces, Mesh, Refine, UpAxis, bounding_diagonal,
                                      from_meshset, require, require_surface, require_triangles, to_meshset)
+from decrun.runner.mesh.cut import ON_TOLERANCE, parse_regions, signed_distance
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
 from decrun.runner.mesh.repair import repair_mesh, up_axis_to_z
@@ -83,6 +84,7 @@ def holes(mesh: Mesh, cfg) -> Mesh:
     if not balls and not boxes:
         return mesh
     method = cfg.hole_cut
+    require_each_region_cuts(mesh, balls, boxes, method)
     meta = dict(mesh.meta)
     if method == HoleCut.whole_triangles:
         vertices, faces, kept = remove_triangles_in_holes(mesh.vertices, mesh.simplices, balls, boxes,
@@ -108,6 +110,52 @@ def holes(mesh: Mesh, cfg) -> Mesh:
         kept.meta["hole_border_vertices"] = int(np.sum(info["on_border"][used]))
     kept.meta["holes"]["dropped_piece_faces"] = kept.meta["holes_dropped_faces"]
     return kept
+
+
+def _compact(values) -> str:
+    """``[a,b,c]`` without spaces (an override in a hint is typed as one word), 6 digits."""
+    return "[" + ",".join(f"{float(v):.6g}" for v in values) + "]"
+
+
+def require_each_region_cuts(mesh: Mesh, balls: list, boxes: list, method: str) -> None:
+    """ConfigError naming ``mesh.hole_balls[k]`` / ``mesh.hole_boxes[k]`` for the first region
+    that would remove nothing from ``mesh`` on its own — no vertex strictly inside it (the
+    ``split`` cut keeps every triangle whose corners are outside or on its border) or, for
+    ``whole_triangles``, no triangle centroid inside — instead of a hole that silently is not
+    there. The hint is the same list with that region grown to reach the nearest vertex by
+    one mean edge length h̄ (the radius; a box's corners), so the region cuts at least it."""
+    V = np.asarray(mesh.vertices, dtype=np.float64)
+    dim = V.shape[1]
+    ball_rows, box_rows = parse_regions(balls, boxes, dim)
+    points = V[mesh.simplices].mean(axis=1) if method == HoleCut.whole_triangles else V
+    h = float(mean_edge_length(V, mesh.simplices))
+    tau = ON_TOLERANCE * h
+    empty = np.zeros((0, 2 * dim))
+    for k, ball in enumerate(ball_rows):
+        phi, _ = signed_distance(points, ball[None], empty)
+        if np.any(phi < -tau if method == HoleCut.split else phi <= 0):
+            continue
+        nearest = int(np.argmin(phi))
+        reach = float(np.linalg.norm(points[nearest] - ball[:dim])) + h
+        radius = float(f"{reach:.2g}") if float(f"{reach:.2g}") >= reach else float(f"{reach * 1.05:.2g}")
+        fixed = [list(map(float, b)) for b in ball_rows]
+        fixed[k][dim] = radius
+        what = "triangle centroid" if method == HoleCut.whole_triangles else "vertex"
+        raise ConfigError(f"mesh.hole_balls[{k}]: {_compact(ball)} removes nothing: no {what} of the mesh lies inside "
+                          f"it (the nearest is {phi[nearest] + ball[dim]:.3g} from its centre, radius "
+                          f"{ball[dim]:.3g}); move its centre onto the surface or grow it, e.g. "
+                          f"`mesh.hole_balls=[{','.join(_compact(b) for b in fixed)}]`")
+    for k, box in enumerate(box_rows):
+        phi, _ = signed_distance(points, np.zeros((0, dim + 1)), box[None])
+        if np.any(phi < -tau if method == HoleCut.split else phi <= 0):
+            continue
+        nearest = points[int(np.argmin(phi))]
+        lo, hi = np.minimum(box[:dim], nearest - h), np.maximum(box[dim:], nearest + h)
+        fixed = [list(map(float, b)) for b in box_rows]
+        fixed[k] = [float(v) for v in np.concatenate([lo, hi])]
+        raise ConfigError(f"mesh.hole_boxes[{k}]: {_compact(box)} removes nothing: nothing of the mesh lies inside it "
+                          f"(the nearest point is {float(phi.min()):.3g} outside); move it onto the surface or grow "
+                          f"it, e.g. `mesh.hole_boxes=[{','.join(_compact(b) for b in fixed)}]`")
 
 
 def keep_largest_piece(mesh: Mesh, step: str, through: str, what: str, fix: str) -> Mesh:

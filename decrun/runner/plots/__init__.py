@@ -20,5 +20,6 @@ FIGURE_KINDS = {
     "uv_layout": "decrun.runner.plots.parametrization.uv_layout",
     "checkerboard": "decrun.runner.plots.parametrization.checkerboard",
     "eigenforms": "decrun.runner.plots.spectrum.eigenforms_figure",
+    "values_arrows": "decrun.runner.plots.fields.values_and_arrows",
 }
 

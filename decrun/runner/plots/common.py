@@ -183,10 +183,23 @@ def _share_limits(axes, vertex_sets) -> None:
 
 def surface_figure(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,
                    title: str | None = None, cmap: str = "viridis", colorbar_label: str | None = None) -> Figure:
-    """One mesh (3-D or planar), optionally coloured by per-vertex or per-face ``values``."""
+    """One mesh (3-D or planar), optionally coloured by per-vertex or per-face ``values``; a
+    planar mesh (also one given with z = 0) is drawn from above, not in perspective. With
+    ``cmap="auto"`` values of both signs (an error, a signed field) get the diverging RdBu_r
+    centred on 0 (white is 0), one-signed values viridis over their range."""
+    from decrun.core.geometry import is_planar
+
+    vmin = vmax = None
+    if cmap == "auto":
+        finite = np.asarray(values, dtype=np.float64) if values is not None else np.zeros(0)
+        finite = finite[np.isfinite(finite)]
+        cmap = "viridis"
+        if finite.size and finite.min() < 0 < finite.max():
+            cmap, vmax = "RdBu_r", float(np.abs(finite).max())
+            vmin = -vmax
     fig = new_figure(5.0, 5.0)
-    ax = fig.add_subplot(1, 1, 1, **({"projection": "3d"} if np.asarray(vertices).shape[1] == 3 else {}))
-    mappable = plot_surface(ax, vertices, faces, values, cmap=cmap, title=title)
+    ax = fig.add_subplot(1, 1, 1, **({} if is_planar(np.asarray(vertices)) else {"projection": "3d"}))
+    mappable = plot_surface(ax, vertices, faces, values, cmap=cmap, vmin=vmin, vmax=vmax, title=title)
     if mappable is not None:
         fig.colorbar(mappable, ax=ax, shrink=0.6, label=colorbar_label)
     return fig
@@ -201,16 +214,22 @@ def mesh_values(K, values: np.ndarray, *, title: str | None = None, cmap: str = 
 
 
 def plot_series(series: dict[str, np.ndarray], names: Iterable[str] | None = None, *,
-                xlabel: str = "step", relative: bool = True, title: str | None = None) -> Figure:
+                xlabel: str = "step", relative: bool = True, title: str | None = None,
+                floors: dict[str, tuple[float, str]] | None = None) -> Figure:
     """One figure with the per-step curves ``series[name]`` (divided by their first value
-    when ``relative``)."""
+    when ``relative``); ``floors`` maps a curve's name to ``(value, label)``: a bound the
+    curve cannot cross (on the same scale as it is drawn), dashed in its colour and named
+    with its value in the legend — a finite positive value only."""
     fig = new_figure(5.0, 3.2)
     ax = fig.add_subplot(1, 1, 1)
     for name in names or series:
         y = np.asarray(series[name], dtype=np.float64)
         if relative and y.size and np.isfinite(y[0]) and y[0] != 0:
             y = y / y[0]
-        ax.plot(np.arange(len(y)), y, label=name + (" / initial" if relative else ""))
+        line, = ax.plot(np.arange(len(y)), y, label=name + (" / initial" if relative else ""))
+        value, label = (floors or {}).get(name, (float("nan"), ""))
+        if np.isfinite(value) and value > 0:
+            ax.axhline(value, color=line.get_color(), linestyle="--", linewidth=1.0, label=f"{label} = {value:.3g}")
     ax.set_xlabel(xlabel)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -239,12 +258,24 @@ def recorded_series(recorded, names: Iterable[str], *, times_name: str = "time",
 
 
 def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
-    """Save ``fig`` as PNG through the Agg canvas (works without any display); refused
+    """Save ``fig`` as PNG through the Agg canvas (works without any display), under a
+    temporary name renamed onto ``path`` when complete; refused
     (:class:`~decrun.runner.paths.OutsideError`) when ``path`` is a symlink leaving its directory."""
+    import os
+
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
+    from decrun.runner.atomic import temporary_name
+
     FigureCanvasAgg(fig)
-    fig.savefig(check_file(path), dpi=dpi or fig.dpi)
+    path = check_file(path)
+    temporary = temporary_name(path)  # renamed when complete: an interrupt leaves no truncated PNG
+    try:
+        fig.savefig(temporary, dpi=dpi or fig.dpi, format="png")
+        os.replace(temporary, path)
+    finally:
+        if temporary.exists():
+            temporary.unlink()
 
 
 class RecordedSeries:

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from decrun.core.geometry import embed3, face_normals, is_planar
+from decrun.core.geometry import embed3, face_normals, is_planar, triangle_areas
 from decrun.runner.plots.common import new_figure, plot_surface
 
-__all__ = ["draw_field", "draw_volume_field", "field_figure", "hodge_parts_figure"]
+__all__ = ["arrow_length", "draw_field", "draw_volume_field", "field_figure", "hodge_parts_figure", "values_and_arrows"]
 
 _VIEW = (25.0, -60.0)  # matplotlib elevation, azimuth (degrees)
 
@@ -29,11 +29,20 @@ def _singular_points(K, vertex_index, face_index):
             np.concatenate([np.zeros(vertices.size, bool), np.ones(faces.size, bool)]))
 
 
+def arrow_length(mean_edge_length: float, shown_area: float, arrows: int) -> float:
+    """The length of every arrow (model units): 0.8 × the spacing of the arrows drawn — the
+    side √(A / N) of the area A each of the N arrows stands for on the side shown — and at
+    least 0.9 mean edge lengths. On a fine scanned mesh (the bunny: 70k triangles, 700
+    arrows) one edge length is a speck at figure size; the spacing is what the eye sees."""
+    spacing = float(np.sqrt(shown_area / arrows)) if arrows and shown_area > 0 else 0.0
+    return max(0.9 * float(mean_edge_length), 0.8 * spacing)
+
+
 def draw_field(ax, K, face_vectors: np.ndarray, vertex_index=None, face_index=None, *, max_arrows: int = 700,
                colour_by_magnitude: bool = True, title: str | None = None, seed: int = 0, view=_VIEW,
                vmax: float | None = None, min_magnitude: float = 0.0):
-    """Draw the mesh coloured by |u| with arrows (unit direction, fixed length) at face
-    barycenters, at most ``max_arrows`` of them (a seeded subset; on 3-D meshes only faces
+    """Draw the mesh coloured by |u| with arrows (unit direction, one length:
+    :func:`arrow_length`) at face barycenters, at most ``max_arrows`` of them (a seeded subset; on 3-D meshes only faces
     turned towards the viewer), and the singularities (``vertex_index`` (n0,), ``face_index``
     (n2,)): index +1 red, −1 blue, others black (vertices as circles, faces as squares).
     ``vmax``: the top of the grey scale (default 2 × the 95th percentile of |u|; pass one value
@@ -54,9 +63,10 @@ def draw_field(ax, K, face_vectors: np.ndarray, vertex_index=None, face_index=No
     if not planar:
         ax.view_init(*view)
         candidates = candidates[normals[candidates] @ _view_direction(*view) > 0.05]
+    shown_area = float(triangle_areas(x, faces[candidates]).sum()) if candidates.size else 0.0
     if candidates.size > max_arrows:
         candidates = np.sort(np.random.default_rng(seed).choice(candidates, max_arrows, replace=False))
-    length = 0.9 * K.mean_edge_length
+    length = arrow_length(K.mean_edge_length, shown_area, candidates.size)
     direction = face_vectors[candidates] / magnitude[candidates, None] * length
     start = barycenters[candidates] - 0.5 * direction
     if planar:
@@ -64,7 +74,7 @@ def draw_field(ax, K, face_vectors: np.ndarray, vertex_index=None, face_index=No
                   scale=1.0, color="tab:orange", width=0.003, headwidth=4)
     else:
         lift = 0.02 * length * normals[candidates]
-        ax.quiver(*(start + lift).T, *direction.T, color="tab:orange", linewidth=0.6, arrow_length_ratio=0.35,
+        ax.quiver(*(start + lift).T, *direction.T, color="tab:orange", linewidth=0.9, arrow_length_ratio=0.35,
                   zorder=4)
     if vertex_index is not None and face_index is not None:
         points, index, is_face = _singular_points(K, np.asarray(vertex_index), np.asarray(face_index))
@@ -83,30 +93,69 @@ def draw_field(ax, K, face_vectors: np.ndarray, vertex_index=None, face_index=No
 
 
 def field_figure(K, face_vectors, vertex_index=None, face_index=None, stroke_faces=None, *,
-                 title="designed field", max_arrows=700, cluster_positions=None, cluster_indices=None):
-    """The designed field with its singularities and the stroke faces (green dots): one
-    panel for planar meshes, two opposite views for surfaces in 3-D. Singularity clusters
+                 title="designed field", max_arrows=700, cluster_positions=None, cluster_indices=None,
+                 source_vertices=None, source_divergences=None, vortex_faces=None):
+    """The designed field with its singularities, the stroke faces (green dots), the sources
+    and sinks (``source_vertices`` with their ``source_divergences``: triangles up / down) and
+    the vortices (``vortex_faces``: stars): one panel for planar meshes, two opposite views
+    for surfaces in 3-D, and a legend naming every kind of mark drawn. Singularity clusters
     (``cluster_positions`` (C, 3), ``cluster_indices`` (C,)) are circled and labelled with
     their summed index."""
+    from matplotlib.lines import Line2D
+
     planar = is_planar(K.vertices)
     views = [None] if planar else [_VIEW, (-_VIEW[0], _VIEW[1] + 180.0)]
-    fig = new_figure(6.0 * len(views), 6.0)
+    fig = new_figure(6.0 * len(views), 6.4)
     mappable = None
     x = embed3(K.vertices)
+    faces = K.simplices(2)
+    marks = {}  # legend label -> handle, for the kinds of marks drawn
+    sources = np.asarray(source_vertices if source_vertices is not None else [], dtype=np.int64)
+    divergence = np.asarray(source_divergences if source_divergences is not None else [], dtype=np.float64)
+    vortices = np.asarray(vortex_faces if vortex_faces is not None else [], dtype=np.int64)
     for i, view in enumerate(views):
         ax = fig.add_subplot(1, len(views), i + 1, **({} if planar else {"projection": "3d", "computed_zorder": False}))
         label = title if i == 0 else "opposite side"
         mappable = draw_field(ax, K, face_vectors, vertex_index, face_index, max_arrows=max_arrows, title=label,
                               **({} if planar else {"view": view}))
+
+        def visible(points):
+            if planar or not len(points):
+                return np.ones(len(points), dtype=bool)
+            return (points - x.mean(axis=0)) @ _view_direction(*view) > 0
+
+        def mark(points, label_, **style):
+            points = points[visible(points)]
+            if len(points):
+                ax.plot(*(points[:, :2].T if planar else points.T), linestyle="None", zorder=6, **style)
+            marks.setdefault(label_, Line2D([], [], linestyle="None", **style))
+
         if stroke_faces is not None and len(stroke_faces):
-            centre = x[K.simplices(2)[np.asarray(stroke_faces)]].mean(axis=1)
-            if planar:
-                ax.plot(centre[:, 0], centre[:, 1], ".", color="tab:green", ms=3)
-            else:
-                centre = centre[(centre - x.mean(axis=0)) @ _view_direction(*view) > 0]
-                ax.plot(*centre.T, ".", color="tab:green", ms=3)
+            mark(x[faces[np.asarray(stroke_faces)]].mean(axis=1), "stroke faces", marker=".", color="tab:green",
+                 ms=4)
+        for sign, marker, name in ((1, "^", "source (divergence > 0)"), (-1, "v", "sink (divergence < 0)")):
+            chosen = sources[np.sign(divergence) == sign] if sources.size else sources
+            if chosen.size:
+                mark(x[chosen], name, marker=marker, color="darkviolet", ms=9, markeredgecolor="white")
+        if vortices.size:
+            mark(x[faces[vortices]].mean(axis=1), "vortex (prescribed curl)", marker="*", color="darkviolet", ms=12,
+                 markeredgecolor="white")
         if cluster_positions is not None and len(cluster_positions):
             _draw_clusters(ax, x, np.asarray(cluster_positions), np.asarray(cluster_indices), planar, view)
+    arrow = Line2D([], [], color="tab:orange", marker=r"$\rightarrow$", linestyle="None", ms=14)
+    handles = {"direction of u (arrows of one length)": arrow}
+    if vertex_index is not None and face_index is not None:
+        index = np.concatenate([np.asarray(vertex_index), np.asarray(face_index)])
+        for sign, colour, name in ((1, "red", "+1"), (-1, "blue", "−1")):
+            if np.any(index * sign > 0):
+                handles[f"singularity of index {name} (● vertex, ■ face)"] = Line2D(
+                    [], [], linestyle="None", marker="o", color=colour, ms=6)
+    if cluster_positions is not None and len(cluster_positions):
+        handles["cluster of singular sites (summed index)"] = Line2D([], [], linestyle="None", marker="o",
+                                                                    markerfacecolor="none", color="red", ms=11)
+    handles.update(marks)
+    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=min(3, len(handles)), fontsize=8,
+               frameon=False)
     if mappable is not None:
         fig.colorbar(mappable, ax=fig.axes, shrink=0.6, label="|u| (Whitney ♯ at barycenters)")
     return fig
@@ -192,3 +241,55 @@ def draw_volume_field(ax, K, tet_vectors: np.ndarray, *, max_arrows: int = 500, 
     ax.quiver(*(centers - 0.5 * direction).T, *direction.T, color="tab:orange", linewidth=0.6,
               arrow_length_ratio=0.3, zorder=4)
     ax.view_init(*view)
+
+
+def values_and_arrows(K, values: np.ndarray, vectors: np.ndarray, *, title: str | None = None,
+                      colorbar_label: str | None = None, max_arrows: int = 600, seed: int = 0, view=_VIEW):
+    """A scalar field in colour with a vector field's arrows over it (a model's ``plots``: Darcy's
+    pressure and velocity). ``values``: per vertex (n0,) or per top simplex (n_n,); ``vectors``
+    (n_n, d): one per top simplex, drawn at its barycentre with length ∝ |X| (the 95th percentile
+    of |X| is 0.9 mean edge lengths), at most ``max_arrows`` of them (300 inside a volume; a seeded
+    subset). Triangle
+    meshes: the surface coloured (from above when planar); tetrahedral meshes: the border
+    triangles, translucent, coloured by the value of the tetrahedron under each (or the vertex
+    values), with arrows inside."""
+    n = K.dim
+    vectors = np.asarray(vectors, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    planar = n == 2 and is_planar(K.vertices)
+    fig = new_figure(5.5, 5.0)
+    ax = fig.add_subplot(1, 1, 1, **({} if planar else {"projection": "3d"}))
+    if n == 3:
+        from decrun.runner.plots.spectrum import border_triangles
+
+        faces, owner = border_triangles(K)
+        shown = values[owner] if values.shape[0] == K.num_simplices(3) else values
+        mappable = plot_surface(ax, K.vertices, faces, shown, title=title, linewidth=0.05)
+        for collection in ax.collections:
+            collection.set_alpha(0.35)
+        centres = K.vertices[K.simplices(3)].mean(axis=1)
+    else:
+        faces = K.oriented_simplices()
+        mappable = plot_surface(ax, K.vertices if planar else embed3(K.vertices), faces, values, title=title,
+                                linewidth=0.05)
+        centres = (K.vertices if planar else embed3(K.vertices))[faces].mean(axis=1)
+    magnitude = np.linalg.norm(vectors, axis=1)
+    top = float(np.percentile(magnitude, 95)) if magnitude.size else 0.0
+    chosen = np.flatnonzero(magnitude > 0)
+    if n == 3:  # arrows inside a volume hide each other: fewer of them
+        max_arrows = min(max_arrows, 300)
+    if chosen.size > max_arrows:
+        chosen = np.sort(np.random.default_rng(seed).choice(chosen, max_arrows, replace=False))
+    if chosen.size and top > 0:
+        direction = vectors[chosen] / top * 0.9 * K.mean_edge_length
+        start = centres[chosen][:, : direction.shape[1]] - 0.5 * direction
+        if planar:
+            ax.quiver(start[:, 0], start[:, 1], direction[:, 0], direction[:, 1], angles="xy", scale_units="xy",
+                      scale=1.0, color="white", edgecolor="black", linewidth=0.3, width=0.004, headwidth=4, zorder=4)
+        else:
+            start3, direction3 = embed3(start), embed3(direction)
+            ax.quiver(*start3.T, *direction3.T, color="black", linewidth=0.6, arrow_length_ratio=0.3, zorder=4)
+            ax.view_init(*view)
+    if mappable is not None:
+        fig.colorbar(mappable, ax=ax, shrink=0.6, label=colorbar_label)
+    return fig

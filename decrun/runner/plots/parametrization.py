@@ -7,7 +7,7 @@ import numpy as np
 
 from decrun.runner.plots.common import new_figure, plot_surface
 
-__all__ = ["uv_layout", "checkerboard"]
+__all__ = ["uv_layout", "checkerboard", "view_direction", "edge_widths"]
 
 
 def _warn(fig, warning: str) -> None:
@@ -22,19 +22,41 @@ def _warn(fig, warning: str) -> None:
 
 def uv_layout(K, uv: np.ndarray, faces: np.ndarray, angle_distortion_deg: np.ndarray, flipped: np.ndarray, *,
               title: str = "", warning: str = "") -> "Figure":  # noqa: F821
-    """uv (n0, 2) triangles coloured by the mean angle distortion per triangle (degrees);
-    flipped triangles drawn on top in cyan; ``warning`` (a map that is not an embedding) in red."""
+    """uv (n0, 2) triangles coloured by the mean angle distortion per triangle (degrees), their
+    edges drawn where they are wide enough to see (:func:`edge_widths`); flipped triangles
+    drawn on top in cyan; ``warning`` (a map that is not an embedding) in red."""
     fig = new_figure(5.0, 5.0)
     ax = fig.add_subplot()
     mappable = plot_surface(ax, uv, faces, angle_distortion_deg, cmap="magma", vmin=0.0,
                             vmax=max(1.0, float(np.nanmax(angle_distortion_deg))), linewidth=0.15,
                             title=f"uv layout, {title}")
+    surface = ax.collections[-1]
+    seen = edge_widths(uv, faces, 4.0 * fig.dpi) > 0  # edges of sub-pixel triangles take their face colour
+    surface.set_edgecolors(np.where(seen[:, None], np.array([0.35, 0.35, 0.35, 1.0]), surface.get_facecolors()))
+    surface.set_linewidths(np.where(seen, 0.15, 0.3))
     flipped = np.asarray(flipped, dtype=bool)
     if flipped.any():
         plot_surface(ax, uv, faces[flipped], np.ones(int(flipped.sum())), cmap="cool", linewidth=0.3)
     fig.colorbar(mappable, ax=ax, shrink=0.7, label="angle distortion (deg, mean per triangle)")
     _warn(fig, warning)
     return fig
+
+
+def edge_widths(uv: np.ndarray, faces: np.ndarray, pixels: float, width: float = 0.15,
+                min_pixels: float = 10.0) -> np.ndarray:
+    """(m,) line widths of the triangles' edges in a uv layout drawn ``pixels`` wide: ``width``
+    where a triangle spans at least ``min_pixels`` (its size √(2·area) times pixels per uv
+    unit), 0 below. A free or conformal border squeezes part of a surface into a small region
+    of uv (the far side of a sphere with a hole into the centre): there the edges of
+    sub-pixel triangles drew over their colours and turned the region flat grey (their
+    edges take their face colour instead, closing the anti-aliasing seams)."""
+    uv = np.asarray(uv, dtype=np.float64)
+    p = uv[faces]
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    span = float(np.ptp(uv, axis=0).max()) if len(uv) else 0.0
+    size = np.sqrt(2.0 * area) * (pixels / span if span > 0 else 0.0)
+    return np.where(size >= min_pixels, width, 0.0)
 
 
 def checker_square_size(vertices: np.ndarray, uv: np.ndarray, faces: np.ndarray, squares: int) -> float:
@@ -65,7 +87,8 @@ def checkerboard(K, uv: np.ndarray, faces: np.ndarray, *, squares: int = 10, tit
                  warning: str = "") -> "Figure":  # noqa: F821
     """The mesh textured with a checkerboard in uv (squares sized by
     :func:`checker_square_size`), shaded by the light so the shape stays readable, seen
-    along its area-weighted mean normal (the open side faces away); ``warning`` in red."""
+    from :func:`view_direction` (an open patch from its convex side, a nearly closed
+    surface from its hole); ``warning`` in red."""
     side = checker_square_size(K.vertices, uv, faces, squares)
     centroid = uv[faces].mean(axis=1)
     checker = (np.floor(centroid[:, 0] / side) + np.floor(centroid[:, 1] / side)) % 2
@@ -74,11 +97,32 @@ def checkerboard(K, uv: np.ndarray, faces: np.ndarray, *, squares: int = 10, tit
     plot_surface(ax, K.vertices, faces, checker, cmap="checker", vmin=0.0, vmax=1.0, shade=True,
                  title=f"checkerboard (square {side:.3g} in uv), {title}")
     if K.vertices.shape[1] == 3:
-        p = K.vertices[faces]
-        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]).sum(axis=0)
-        if np.linalg.norm(normal) > 0:
-            normal = normal / np.linalg.norm(normal)
-            ax.view_init(elev=float(np.degrees(np.arcsin(np.clip(normal[2], -1, 1)))),
-                         azim=float(np.degrees(np.arctan2(normal[1], normal[0]))))
+        towards = view_direction(K.vertices, faces, K.border_vertices())
+        if towards is not None:
+            ax.view_init(elev=float(np.degrees(np.arcsin(np.clip(towards[2], -1, 1)))),
+                         azim=float(np.degrees(np.arctan2(towards[1], towards[0]))))
     _warn(fig, warning)
     return fig
+
+
+#: |Σ area-weighted normals| / area below which a surface is nearly closed (a sphere with a hole)
+NEARLY_CLOSED = 0.25
+
+
+def view_direction(vertices: np.ndarray, faces: np.ndarray, border: np.ndarray) -> np.ndarray | None:
+    """(3,) unit direction the camera looks from at a parametrized surface, or None.
+
+    An open patch (a cap, a half sphere) is seen along its area-weighted mean normal
+    N = Σ_t n_t |t| (its open side faces away). A nearly closed surface (|N| / Σ|t| <
+    :data:`NEARLY_CLOSED`: a sphere with a small hole, Fig. 5.8's T) has N ≈ minus the hole's
+    own normal — looking along it shows the side away from the hole, where the map is least
+    interesting — so it is seen from its border: along (border centroid − surface centroid),
+    the hole in front. ``border``: (n0,) bool, the border vertices."""
+    p = np.asarray(vertices, dtype=np.float64)[faces]
+    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    normal, area = cross.sum(axis=0), float(np.linalg.norm(cross, axis=1).sum())
+    border = np.asarray(border, dtype=bool)
+    if border.any() and np.linalg.norm(normal) < NEARLY_CLOSED * area:
+        normal = np.asarray(vertices)[border].mean(axis=0) - np.asarray(vertices)[np.unique(faces)].mean(axis=0)
+    length = float(np.linalg.norm(normal))
+    return normal / length if length > 0 else None

@@ -21,6 +21,10 @@ from decrun.errors import CorruptFileError
 from decrun.runner.results.checked import check_group, check_record, open_h5, parse_json, read_dataset
 from decrun.runner.results.journal import BLOCK_BYTES, Journal, journal_path, read_journal
 from decrun.runner.results.provenance import decrun_attrs, plain
+from decrun.runner.files import RunFiles
+
+#: what :func:`~decrun.runner.results.journal.journal_path` appends to a result's name
+JOURNAL_SUFFIX = RunFiles.JOURNAL[len(RunFiles.RESULT):]
 
 __all__ = ["RecordedResult", "read_result", "read_mesh", "check_result", "verify_result", "chained_status",
            "CHAINED_STATUS"]
@@ -55,12 +59,22 @@ def read_result(path: str | os.PathLike) -> RecordedResult:
     """The :class:`RecordedResult` stored for a run, whatever state it was left in: ``result.h5`` (complete, or
     marked incomplete by ``abort``/``recover_result``; also files of ``write_result``,
     which are complete) or, when absent, its journal ``result.h5.partial`` (incomplete,
-    the whole valid records). ``figures`` is empty (they are PNG files). Raises
+    the whole valid records); ``path`` may also be that journal (a sweep table's ``result``
+    of a killed job) or the run directory. ``figures`` is empty (they are PNG files). Raises
     ``FileNotFoundError`` when neither exists, and :class:`~decrun.errors.CorruptFileError`
     naming the file when it is not one decrun wrote, is damaged, or holds a dataset
     :func:`~decrun.runner.results.checked.check_dataset` refuses (external storage, a
     virtual dataset, a shape its stored bytes cannot hold) -- before reading any data."""
     path = Path(path)
+    if path.is_dir():  # a run or job directory
+        path = path / RunFiles.RESULT
+    if path.name.endswith(JOURNAL_SUFFIX):  # the journal itself, as a sweep table names a killed job's result
+        result = path.with_name(path.name[:-len(JOURNAL_SUFFIX)])
+        if path.is_file():
+            return _read_journal(read_journal(path))
+        if result.is_file():  # the job finished since: its journal became result.h5
+            return _read_h5(result)
+        raise FileNotFoundError(_errno.ENOENT, f"no result: neither {path} nor {result} exists", str(path))
     if path.exists():
         return _read_h5(path)
     partial = journal_path(path)

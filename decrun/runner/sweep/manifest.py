@@ -61,7 +61,7 @@ FORMAT = "decrun-sweep-1"
 #: states a resumed sweep does not rerun
 DONE = ("ok",)
 #: run options that do not change what a job computes (left out of its hash)
-UNHASHED = ("progress", "checkpoint")
+UNHASHED = ("progress", "checkpoint", "tracker")
 
 
 def job_dir_name(job: dict[str, Any]) -> str:

@@ -16,7 +16,10 @@ Columns: ``job``, the overridden keys as written (``app.dt``, ``boundary``), ``s
 named like a config root key or group, e.g. vector_field's ``metric.boundary``:
 :func:`metric_column`), ``result`` (the job's ``result.h5`` — or its journal
 ``result.h5.partial`` when it was killed — relative to the sweep directory; empty when
-there is none). Integer metrics stay integers when a row lacks them (pandas ``Int64``).
+there is none), and — only when some job repeats another's — ``same_as``: for a job whose
+result is exactly that of an earlier job (the same ``content_sha256``: every number equal),
+that job (a swept key that does not change the result, e.g. a stroke length under
+precomputed magnitudes). Integer metrics stay integers when a row lacks them (pandas ``Int64``).
 
 :func:`load_sweep` returns exactly the frame ``pandas.read_csv(<sweep>/metrics.csv)``
 gives; :func:`stack` puts several sweeps under each other with a ``sweep`` column.
@@ -41,7 +44,7 @@ from decrun.runner.results.checked import load_yaml
 from decrun.runner.sweep.manifest import MANIFEST, job_dir_name, job_state, read_manifest
 from decrun.runner.files import RunFiles, SweepFiles
 
-__all__ = ["sweep_table", "load_sweep", "stack", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
+__all__ = ["SAME_AS", "mark_duplicates", "sweep_table", "load_sweep", "stack", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
 
 LEADING = ("job", "status", "error")
@@ -170,8 +173,31 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
             if key not in metric_keys and key not in LEADING:
                 metric_keys.append(key)
         rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, where)})
-    columns = ["job", *override_keys, "status", "error", *metric_keys, "result"]
+    duplicates = mark_duplicates(rows)
+    columns = ["job", *override_keys, "status", "error", *metric_keys, *([SAME_AS] if duplicates else []), "result"]
     return _typed(pd.DataFrame(rows, columns=columns), rows)
+
+
+#: the column naming the earlier job whose result a job repeats exactly
+SAME_AS = "same_as"
+
+
+def mark_duplicates(rows: list[dict]) -> int:
+    """Set ``rows[i]["same_as"]`` to the job of the first earlier ``ok`` row with the same
+    ``content_sha256`` (the same numbers in every dataset and metric, wall times aside);
+    returns how many rows repeat another."""
+    first: dict[str, Any] = {}
+    count = 0
+    for row in rows:
+        content = row.get("content_sha256")
+        if row.get("status") != "ok" or not isinstance(content, str) or not content:
+            continue
+        if content in first:
+            row[SAME_AS] = first[content]
+            count += 1
+        else:
+            first[content] = row["job"]
+    return count
 
 
 def _planned(sweep_dir: Path) -> tuple[list[tuple[str, str, dict, str | None]], str]:
@@ -256,7 +282,7 @@ def select(table: pd.DataFrame, metrics: Sequence[str] | None = None, sort: Sequ
         table = table.drop(columns=[HEADLINE_COLUMN])
     if keep:
         status_at = list(table.columns).index("status")
-        fixed = list(table.columns[:status_at + 2]) + ["result"]
+        fixed = list(table.columns[:status_at + 2]) + [SAME_AS, "result"]
         table = table[[c for c in table.columns if c in fixed or c in keep or c in (sort or [])]]
     if sort:
         table = table.sort_values(list(sort), ascending=not descending, kind="stable", na_position="last")

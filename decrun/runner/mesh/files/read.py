@@ -104,6 +104,9 @@ def read_mesh_file(path, *, key: str = "mesh.path") -> MeshFile:
     if not path.is_file():
         raise MeshError(f"{where}: not a regular file")
     suffix = _suffix(path)
+    if suffix is None and _is_hdf5(path):  # a run's result.h5: its mesh is read by mesh=result
+        raise MeshError(f"{where}: an HDF5 file (a decrun run's result.h5?), not a mesh file; a run's mesh and "
+                        f"fields are read by `mesh=result` with `mesh.path={given}`")
     if suffix is None:
         raise MeshError(
             f"{where}: unsupported file extension {path.suffix or '(none)'!r}; "
@@ -127,6 +130,15 @@ def read_mesh_file(path, *, key: str = "mesh.path") -> MeshFile:
         path=given, key=key, format=rawmesh.format, vertices=vertices, cells=cells,
         cell_face=cell_face, face_line=rawmesh.face_line, counts=counts,
     )
+
+
+def _is_hdf5(path: Path) -> bool:
+    """Whether ``path`` starts with the HDF5 signature (a decrun ``result.h5``, whatever its name)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(8) == b"\x89HDF\r\n\x1a\n"
+    except OSError:
+        return False
 
 
 def _suffix(path: Path) -> str | None:

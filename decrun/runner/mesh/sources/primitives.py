@@ -1,4 +1,4 @@
-"""pymeshlab primitives: icosphere, torus, sphere cap, annulus, grid, cube."""
+"""Primitive mesh sources: icosphere, torus, sphere cap, annulus and cube from pymeshlab; the grid built here."""
 
 from __future__ import annotations
 
@@ -114,8 +114,23 @@ class Grid(MeshSource):
                           f"mesh.nx={fits} mesh.ny={fits} or fewer vertices per side")
 
     def make(self) -> Mesh:
-        return pymeshlab_primitive("create_grid", "grid", numvertx=int(self.nx), numverty=int(self.ny),
-                                   absscalex=float(self.width), absscaley=float(self.height), center=True)
+        """Vertex (i, j) at x = width/2 − i·width/(nx−1), y = −height/2 + j·height/(ny−1), index
+        j·nx + i, so the bounding box is centred on the origin exactly (with odd nx and ny the
+        middle vertex is the origin). Each quad (k, k+1, k+nx+1, k+nx), k = j·nx + i, is split
+        along its k–(k+nx+1) diagonal into (k+nx+1, k+1, k) and (k, k+nx, k+nx+1): pymeshlab's
+        ``create_grid`` triangulation and vertex order, built here because that filter's
+        ``center=True`` leaves the grid off centre by (−width/(2nx), height/(2ny)) and rounds
+        positions to single precision."""
+        nx, ny = int(self.nx), int(self.ny)
+        x = self.width / 2 - self.width * np.arange(nx) / (nx - 1)
+        y = -self.height / 2 + self.height * np.arange(ny) / (ny - 1)
+        X, Y = np.meshgrid(x, y)
+        vertices = np.column_stack([X.ravel(), Y.ravel(), np.zeros(nx * ny)])
+        k = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
+        faces = np.empty((2 * k.size, 3), dtype=np.int64)
+        faces[0::2] = np.column_stack([k + nx + 1, k + 1, k])
+        faces[1::2] = np.column_stack([k, k + nx, k + nx + 1])
+        return Mesh(vertices, faces, {"source": "grid", "label": "grid"})
 
 
 @dataclass

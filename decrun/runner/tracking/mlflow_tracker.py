@@ -1,0 +1,183 @@
+"""``tracker=mlflow``: a sweep as one MLflow run with one nested run per job, through
+MLflow's own client (``mlflow.tracking.MlflowClient``) — any store MLflow has: a tracking
+server (``http://host:5000``), a database (``sqlite:///path/mlflow.db``), a directory.
+
+What a run holds, when it is logged and how a resumed sweep updates its runs:
+:mod:`decrun.runner.tracking`. Here: the calls. A new run is ``create_run`` (its tags, and
+``mlflow.parentRunId`` for a job), then ``log_batch`` in MLflow's batch limits (params, the
+metrics at step 0, each series as a metric history at its steps), ``log_artifact`` per file,
+``set_terminated`` with ``FINISHED`` / ``FAILED`` / ``KILLED`` for ``ok`` / ``failed`` /
+``killed``. An existing run (a resumed sweep) gets the params it lacks, the new metric values,
+tags, artifacts and status. A param value longer than MLflow takes (6000 characters) is not
+cut: it goes to the tag ``param.<key>`` (up to 8000), and one longer still is named in the tag
+``decrun.params_in_config_yaml`` (the artifact ``config.yaml`` holds every value).
+
+The HTTP client is told not to retry (``MLFLOW_HTTP_REQUEST_MAX_RETRIES=0``) and to give up
+after ``timeout_seconds`` (``MLFLOW_HTTP_REQUEST_TIMEOUT``) unless those are set already, so an
+unreachable server is one warning line within seconds, not minutes of retries; MLflow's
+telemetry is off unless ``MLFLOW_DISABLE_TELEMETRY`` says otherwise.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from dataclasses import dataclass
+from typing import Any, ClassVar, Optional
+
+from decrun.runner.tracking import RunRecord, Tracker, require
+
+__all__ = ["MlflowTracker"]
+
+#: ``status`` tag → MLflow's run status
+RUN_STATUS = {"ok": "FINISHED", "failed": "FAILED", "killed": "KILLED"}
+#: MLflow's limits (mlflow.utils.validation)
+MAX_PARAMS_TAGS_PER_BATCH = 100
+MAX_ENTITIES_PER_BATCH = 1000
+MAX_PARAM_VALUE = 6000
+MAX_TAG_VALUE = 8000
+
+
+@dataclass
+class MlflowTracker(Tracker):
+    """``tracker=mlflow`` (module docstring). ``uri``: the tracking URI (None:
+    ``MLFLOW_TRACKING_URI``, else MLflow's default); ``experiment``: the MLflow experiment the
+    runs go to (made when absent); ``result_h5``: upload each job's result.h5 as an artifact
+    too; ``timeout_seconds``: how long one HTTP request to a tracking server may take."""
+
+    name: ClassVar[str] = "mlflow"
+    uri: Optional[str] = None
+    experiment: str = "decrun"
+    result_h5: bool = False
+    timeout_seconds: float = 10.0
+
+    def __post_init__(self):
+        from decrun.errors import ConfigError
+
+        if not self.timeout_seconds > 0:
+            raise ConfigError(f"tracker.timeout_seconds: must be > 0, got {self.timeout_seconds}; e.g. "
+                              "tracker.timeout_seconds=10")
+        if not str(self.experiment).strip():
+            raise ConfigError("tracker.experiment: empty; name the MLflow experiment, e.g. tracker.experiment=decrun")
+        self._client = None
+        self._experiment_id = None
+
+    def check(self) -> None:
+        require("mlflow", "mlflow", "'decrun[mlflow]'")
+
+    def store(self) -> str:
+        """The tracking URI (``uri``, ``MLFLOW_TRACKING_URI``, MLflow's default), a relative
+        ``sqlite:///`` path made absolute: the same database from any working directory."""
+        if self.uri:
+            uri = str(self.uri)
+        elif os.environ.get("MLFLOW_TRACKING_URI"):
+            uri = os.environ["MLFLOW_TRACKING_URI"]
+        elif self._client is not None:
+            uri = str(self._client.tracking_uri)
+        else:
+            from mlflow.tracking import get_tracking_uri
+
+            uri = str(get_tracking_uri())
+        prefix = "sqlite:///"
+        if uri.startswith(prefix) and not uri[len(prefix):].startswith("/") and uri[len(prefix):] != ":memory:":
+            uri = prefix + os.path.abspath(uri[len(prefix):])
+        return uri
+
+    def client(self):
+        """The ``MlflowClient`` of :meth:`store` and the id of :attr:`experiment` (made once)."""
+        if self._client is None:
+            os.environ.setdefault("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "0")
+            os.environ.setdefault("MLFLOW_HTTP_REQUEST_TIMEOUT", str(max(1, int(round(self.timeout_seconds)))))
+            os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+            from mlflow.tracking import MlflowClient
+
+            for name in ("mlflow", "alembic"):  # MLflow's INFO lines (a new sqlite store's tables) are not decrun's
+                if logging.getLogger(name).level in (logging.NOTSET, logging.INFO):
+                    logging.getLogger(name).setLevel(logging.WARNING)
+
+            client = MlflowClient(tracking_uri=self.store())
+            found = client.get_experiment_by_name(self.experiment)
+            if found is None:
+                try:
+                    experiment_id = client.create_experiment(self.experiment)
+                except Exception:  # noqa: BLE001 — made meanwhile by another process: take that one
+                    found = client.get_experiment_by_name(self.experiment)
+                    if found is None:
+                        raise
+                    experiment_id = found.experiment_id
+            else:
+                experiment_id = found.experiment_id
+            self._client, self._experiment_id = client, experiment_id
+        return self._client
+
+    def log_run(self, record: RunRecord, run_id: str | None) -> str:
+        from mlflow.entities import Metric, Param, RunTag
+
+        client = self.client()
+        existing = self._existing(run_id)
+        tags = dict(record.tags)
+        params, too_long = {}, []
+        for key, value in record.params.items():
+            if len(value) <= MAX_PARAM_VALUE:
+                params[key] = value
+            elif len(value) <= MAX_TAG_VALUE:
+                tags[f"param.{key}"] = value
+            else:
+                too_long.append(key)
+        if too_long:
+            tags["decrun.params_in_config_yaml"] = ", ".join(too_long)
+        if existing is None:
+            run_tags = {**tags, **({"mlflow.parentRunId": record.parent} if record.parent else {})}
+            run = client.create_run(self._experiment_id, run_name=record.name, tags=run_tags)
+            run_id, tags = run.info.run_id, {}
+        else:
+            logged = existing.data.params
+            changed = [k for k, v in params.items() if k in logged and logged[k] != v]
+            if changed:  # MLflow keeps a param's first value: the new one goes to a tag
+                tags.update({f"param.{k}": params[k] for k in changed})
+            params = {k: v for k, v in params.items() if k not in logged}
+        stamp = int(time.time() * 1000)
+        metrics = [Metric(k, v, stamp, 0) for k, v in record.metrics.items()]
+        for key, (steps, values) in record.series.items():
+            metrics += [Metric(key, float(v), stamp, int(s)) for s, v in zip(steps.tolist(), values.tolist())]
+        for batch in _batches([Param(k, v) for k, v in params.items()], [RunTag(k, str(v)) for k, v in tags.items()],
+                              metrics):
+            client.log_batch(run_id, **batch)
+        for path in record.artifacts:
+            client.log_artifact(run_id, str(path))
+        client.set_terminated(run_id, status=RUN_STATUS.get(record.status, "FAILED"))
+        return run_id
+
+    def _existing(self, run_id: str | None) -> Any:
+        """The run ``run_id`` when the store has it (not deleted), else None."""
+        if not run_id:
+            return None
+        from mlflow.exceptions import MlflowException
+
+        try:
+            run = self.client().get_run(run_id)
+        except MlflowException as exc:
+            if getattr(exc, "error_code", "") in ("RESOURCE_DOES_NOT_EXIST", "INVALID_PARAMETER_VALUE"):
+                return None
+            raise
+        return run if run.info.lifecycle_stage == "active" else None
+
+    def close(self) -> None:
+        self._client = None
+
+
+def _batches(params: list, tags: list, metrics: list) -> list[dict[str, list]]:
+    """``params``, ``tags`` and ``metrics`` cut into ``log_batch`` calls within MLflow's limits
+    (100 params, 100 tags, 1000 entities a call); at least one call when there is anything."""
+    out: list[dict[str, list]] = []
+    while params or tags or metrics or not out:
+        p, params = params[:MAX_PARAMS_TAGS_PER_BATCH], params[MAX_PARAMS_TAGS_PER_BATCH:]
+        t, tags = tags[:MAX_PARAMS_TAGS_PER_BATCH], tags[MAX_PARAMS_TAGS_PER_BATCH:]
+        room = MAX_ENTITIES_PER_BATCH - len(p) - len(t)
+        m, metrics = metrics[:room], metrics[room:]
+        out.append({"params": p, "tags": t, "metrics": m})
+        if not (params or tags or metrics):
+            break
+    return [b for b in out if b["params"] or b["tags"] or b["metrics"]]
+

@@ -25,7 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
 #: the config groups a run composes, in the order of conf/config.yaml
-GROUPS = ("mesh", "operator", "boundary", "app", "solver", "export")
+GROUPS = ("mesh", "operator", "boundary", "app", "solver", "export", "tracker")
 _FIELD = re.compile(r"^\s+(\w+)\s*:\s*[^=#]+?(?:=.*?)?(?:#\s*(.*))?$")
 
 
@@ -107,7 +107,10 @@ def _cell(value) -> str:
 
 
 def _text(comment: str) -> str:
-    return comment.replace("|", "\\|")
+    """A comment as a table cell: ``|`` escaped, and ``[``/``]`` outside code spans too — a comment's
+    ASCII matrix (conf/app/darcy.yaml's ``[u] [p]``) would read as a Markdown reference link."""
+    parts = comment.replace("|", "\\|").split("`")
+    return "`".join(part if n % 2 else part.replace("[", "\\[").replace("]", "\\]") for n, part in enumerate(parts))
 
 
 def _fields(cls: type) -> list[str]:

@@ -231,7 +231,7 @@ def test_int_lists_are_accepted_where_floats_are_expected():
     floats = mesh(source="icosphere", subdiv=2, hole_balls=[[1.0, 0.0, 0.0, 1.0]])
     np.testing.assert_array_equal(ints.vertices, floats.vertices)
     result = run_experiment(compose_config([
-        "app=vector_field", "mesh.subdiv=2", "mesh.hole_balls=[[1,0,0,1]]", "mesh.hole_boxes=[[-2,-2,-2,2,2,-1]]",
+        "app=vector_field", "mesh.subdiv=2", "mesh.hole_balls=[[1,0,0,1]]", "mesh.hole_boxes=[[-2,-2,-2,0,0,0]]",
         "app.sources=[{point: [0, 0, 1], divergence: 1}]", "app.region_normal=[0,0,1]",
         "app.strokes=[{points: [[0,1,0],[0,0,1]]}]"])).result
     assert result.metrics["status"] == "ok" and result.metrics["sources"] == 1

@@ -1,4 +1,4 @@
-"""Benchmark: the README's fluid claims, measured (issue 25 item 6).
+"""Benchmark: the fluid claims of docs/apps/fluid.md, measured.
 
 1. Wake antisymmetry: the Fig. 7.15 channel (inflow 10, ν = 0.02, dt = 0.005, 30 steps) at
    1455, 2790 and 5399 faces; |Σ_above + Σ_below| / (|Σ_above| + |Σ_below|) of ⋆0 w over the

@@ -1,4 +1,4 @@
-"""The spectrum table of the README: relative error of the first 10 eigenvalues of Δ_k against
+"""The spectrum table of docs/apps/spectrum.md: relative error of the first 10 eigenvalues of Δ_k against
 the analytic spectrum, per mesh, Hodge-star variant and degree k.
 
 Meshes: the unit icosphere (subdiv 3), the flat torus 2π × 2π (24 × 24 periodic grid in R⁴),

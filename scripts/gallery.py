@@ -8,14 +8,16 @@ Each entry runs single runs of ``+experiment=<name>`` (a model entry: its own ov
 the same composition as ``decrun``, copies the named figure to ``<out>/gallery/<name>__<n>.png``
 and writes ``<out>/gallery.md`` with the images, the command and the numbers under each — the
 run's metrics, and for a model entry the numbers derived from its fields (Klausmeier's band
-spacing) — all read from the run, none typed. ``--only`` regenerates the named sections and
-keeps the others of the existing ``gallery.md`` as they are. Takes a few minutes on two cores.
+spacing) — as placeholders the docs build fills from ``docs/numbers.json`` (``scripts/doc_numbers.py``
+runs the same runs, derived numbers included; ``tests/test_numbers.py`` checks them), so none is
+typed and none is older than the code. The page holds no number of its own: it is written whole
+from the tables below every time; ``--only`` reruns the named sections' figures and leaves the
+others' images as they are. Takes a few minutes on two cores.
 """
 
 from __future__ import annotations
 
 import argparse
-import re
 import shutil
 import sys
 import tempfile
@@ -67,7 +69,7 @@ GALLERY = {
     ]),
     "fig6_9_square": ("Fig. 6.9 — a source and a stroke in a square: `boundary=none` keeps the field "
                       "tangential to the border, `flux` lets it cross. With `flux` the constant fields are "
-                      "in the kernel and the minimum-norm solution is taken (README): without the stroke it "
+                      "in the kernel and the minimum-norm solution is taken (see the vector field page): without the stroke it "
                       "shows two saddles; with it a saddle next to the source (a cluster of index 0, left "
                       "unmarked).", [
         (["boundary=none"], "field", ["border_normal_flux_mean", "adjointness_defect"]),
@@ -76,16 +78,16 @@ GALLERY = {
     ]),
     "fig7_1_stirred_sphere": ("Fig. 7.1 / 7.18 — a viscous fluid on a clean icosphere (1280 triangles, none "
                               "obtuse), stirred by a stroke for half a second: vorticity over time.", [
-        ([], "vorticity", ["stable", "max_abs_divergence", "circulation_drift", "steps_per_second"]),
+        ([], "vorticity", ["stable", "max_abs_divergence", "circulation_drift"]),
     ]),
     "fig7_14_one_obstacle": ("Fig. 7.14 — flow past one obstacle in a channel meshed without obtuse triangles "
                              "(~1400 faces), inflow from the left: the obstacle sheds vorticity of both signs.", [
         ([], "vorticity", ["stable", "max_abs_divergence", "obtuse_triangles", "n_faces"]),
     ]),
-    "fig7_15_density_and_time_step": ("Fig. 7.15 — the same flow (inflow 10 units/s) on 1400 and 5300 faces: "
-                                      "interpolation diffusion smears the wake on the coarse mesh.", [
+    "fig7_15_density_and_time_step": ("Fig. 7.15 — the same flow (inflow 10 units/s, ν = 0.02) on 1400 and 2800 "
+                                      "target faces: the wake of the obstacle at t = 0.6 s.", [
         (["mesh.target_faces=1400"], "vorticity", ["stable", "enstrophy_final", "n_faces"]),
-        (["mesh.target_faces=5300"], "vorticity", ["stable", "enstrophy_final", "n_faces"]),
+        (["mesh.target_faces=2800"], "vorticity", ["stable", "enstrophy_final", "n_faces"]),
     ]),
     "fig7_17_viscosity": ("Fig. 7.17 — the channel flow at 2800 faces without and with viscosity.", [
         (["app.viscosity=0.0"], "vorticity", ["stable", "enstrophy_final"]),
@@ -217,8 +219,8 @@ MODELS = {
 }
 
 
-#: figures the README shows outside the gallery: docs/figures/<file> ← (overrides, figure stem)
-README_FIGURES = {
+#: figures the docs pages show outside the gallery: docs/figures/<file> ← (overrides, figure stem)
+PAGE_FIGURES = {
     "smoothing_default.png": ([], "smoothing"),
     "smoothing_bunny_default.png": (["mesh=bunny"], "smoothing"),
     "smoothing_bone_degenerate.png": (["mesh=sample", "mesh.sample=bone", "app.dt=0.05"], "smoothing"),
@@ -229,20 +231,33 @@ README_FIGURES = {
 }
 
 
-def _value(value) -> str:
-    if isinstance(value, float):
-        return f"{value:.3g}"
-    return str(value).lower() if isinstance(value, bool) else str(value)
+def sections() -> list[tuple[str, str, list, str | None]]:
+    """Every section of the page in order: (name, caption, entries, experiment) — the experiment
+    ``+experiment=<name>`` for a thesis figure, None for a model section (its entries' overrides
+    say what runs). An entry is (overrides, figure, numbers shown[, derived])."""
+    return ([(name, caption, entries, name) for name, (caption, entries) in GALLERY.items()]
+            + [(name, caption, entries, None) for name, (caption, entries) in MODELS.items()])
 
 
-def run_entry(experiment: str | None, overrides: list[str], figure: str, scratch: Path, target: Path,
+def entry_overrides(experiment: str | None, overrides: list[str]) -> list[str]:
+    """The overrides of an entry's command ``decrun <these>`` (as shown under its figure)."""
+    return [*([f"+experiment={experiment}"] if experiment else []), *overrides]
+
+
+def derived_of(entry):
+    """An entry's derived-numbers function (``derived(run) -> dict``), or None."""
+    return entry[3] if len(entry) > 3 else None
+
+
+def run_entry(experiment: str | None, overrides: list[str], figure, scratch: Path, target: Path,
               derived=None) -> dict:
     """One single run (of ``+experiment=<experiment>`` unless None); copies ``<figure>.png``
-    to ``target``; returns the metrics (and ``derived(run)``'s numbers)."""
+    to ``target`` (or draws it, when ``figure`` is a function of the run); returns the metrics
+    (and ``derived(run)``'s numbers)."""
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment, write
 
-    cfg = compose_config(([f"+experiment={experiment}"] if experiment else []) + list(overrides))
+    cfg = compose_config(entry_overrides(experiment, overrides))
     out = Path(tempfile.mkdtemp(dir=scratch))
     done = run_experiment(cfg, out=out)
     write(done)
@@ -254,68 +269,63 @@ def run_entry(experiment: str | None, overrides: list[str], figure: str, scratch
     return {**result.metrics, **(derived(done) if derived else {})}
 
 
-def _sections(text: str) -> dict[str, list[str]]:
-    """The ``## <name>`` sections of an existing gallery.md, by name (their lines)."""
-    sections, name = {}, None
-    for line in text.splitlines():
-        match = re.match(r"^## (\S+)$", line)
-        if match:
-            name = match.group(1)
-            sections[name] = []
-        if name is not None:
-            sections[name].append(line)
-    return sections
-
-
-def _section(name: str, caption: str, entries, images: Path, scratch: Path, experiment: str | None) -> list[str]:
+def _section(name: str, caption: str, entries, experiment: str | None) -> list[str]:
     lines = [f"## {name}", "", caption, ""]
     cells, notes = [], []
-    for n, entry in enumerate(entries):
-        overrides, figure, shown, derived = (*entry, None)[:4]
+    for n, (overrides, _, shown, *_) in enumerate(entries):
         file = f"{name}__{n}.png"
-        extra = ["app.animation=false"] if experiment is None else []
-        start = time.perf_counter()
-        metrics = run_entry(experiment, [*overrides, *extra], figure, scratch, images / file, derived)
-        print(f"gallery: {name} {' '.join(overrides)} ({time.perf_counter() - start:.1f} s)", file=sys.stderr)
-        command = " ".join(["decrun", *([f"+experiment={experiment}"] if experiment else []), *overrides])
         cells.append(f"![{name} {' '.join(overrides)}](gallery/{file})")
-        notes.append(f"`{command}`: " + ", ".join(f"{k} = {_value(metrics[k])}" for k in shown if k in metrics))
+        notes.append(f"`{' '.join(['decrun', *entry_overrides(experiment, overrides)])}`: " + ", ".join(
+            f"{k} = {{{{ numbers.gallery_{name}__{n}.{k} }}}}" for k in shown))
     lines += ["| " + " | ".join(cells) + " |", "|" + "---|" * len(cells), ""]
     return lines + [f"- {note}" for note in notes] + [""]
 
 
-def build(out: Path, only: list[str] | None = None) -> Path:
-    """Run the entries and write ``out/gallery.md`` and ``out/gallery/*.png``; returns the .md
-    path. With ``only``, those sections are rerun and the others kept from the existing file."""
-    images = out / "gallery"
-    images.mkdir(parents=True, exist_ok=True)
-    path = out / "gallery.md"
-    kept = _sections(path.read_text()) if only and path.exists() else {}
+def page() -> str:
+    """The text of gallery.md, written from the tables alone (no run): the numbers under each
+    figure are placeholders, ``{{ numbers.gallery_<section>__<n>.<number> }}``, which the docs build
+    fills from ``docs/numbers.json`` (``scripts/doc_numbers.py`` runs the same runs, a model entry's
+    derived numbers included; ``tests/test_numbers.py`` checks them)."""
     lines = ["# Gallery", "", "One figure (or a pair to compare) per experiment of `conf/experiment/` and per shipped "
              "model of `conf/app/`, regenerated by `python scripts/gallery.py`. Each image is a single run of the "
-             "command under it; the numbers are that run's.", ""]
-    sections = [(name, caption, entries, name) for name, (caption, entries) in GALLERY.items()]
-    sections += [(name, caption, entries, None) for name, (caption, entries) in MODELS.items()]
+             "command under it; the numbers are that run's (`docs/numbers.json`, made by "
+             "`python scripts/doc_numbers.py --only gallery`).", ""]
+    for name, caption, entries, experiment in sections():
+        lines += _section(name, caption, entries, experiment)
+    return "\n".join(lines)
+
+
+def build(out: Path, only: list[str] | None = None) -> Path:
+    """Run the entries of the sections named in ``only`` (default: all, and the pages' figures)
+    into ``out/gallery/*.png`` and write ``out/gallery.md`` (always every section, from the tables:
+    the figures of the sections not named stay as they are); returns the .md path."""
+    images = out / "gallery"
+    images.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as scratch:
-        for name, caption, entries, experiment in sections:
-            if lines[-1] != "":
-                lines.append("")
+        for name, _, entries, experiment in sections():
             if only and name not in only:
-                lines += kept.get(name, [])
                 continue
-            lines += _section(name, caption, entries, images, Path(scratch), experiment)
+            for n, entry in enumerate(entries):
+                overrides, figure = entry[0], entry[1]
+                extra = ["app.animation=false"] if experiment is None else []  # a model's GIF is not shown
+                start = time.perf_counter()
+                run_entry(experiment, [*overrides, *extra], figure, Path(scratch), images / f"{name}__{n}.png",
+                          derived_of(entry))
+                print(f"gallery: {name} {' '.join(overrides)} ({time.perf_counter() - start:.1f} s)",
+                      file=sys.stderr)
         if not only:
             (out / "figures").mkdir(exist_ok=True)
-            for name, (overrides, figure) in README_FIGURES.items():
+            for name, (overrides, figure) in PAGE_FIGURES.items():
                 run_entry(None, overrides, figure, Path(scratch), out / "figures" / name)
-    path.write_text("\n".join(lines))
+    path = out / "gallery.md"
+    path.write_text(page())
     return path
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs"))
-    parser.add_argument("--only", nargs="*", help="experiments to regenerate (default: all)")
+    parser.add_argument("--only", nargs="*", help="sections to regenerate, e.g. fig5_8_t_hole model_halfar (default: all)")
     args = parser.parse_args(argv)
     print(build(Path(args.out), args.only))
     return 0

@@ -1,4 +1,4 @@
-"""docs/models.md and the README's "Declarative models" section say what the code does:
+"""docs/models.md and the "Declarative models" section of docs/apps/index.md say what the code does:
 
 - the operator table in docs/models.md is the one ``reference_table()`` generates
   (``scripts/model_reference.py`` writes it);
@@ -6,7 +6,7 @@
   their first line names, its ``decrun``/``decrun-table`` commands and Python blocks run in a
   temporary directory in order, and each ``text`` block that follows one is its output (every
   line found in it; numbers within 2 %, ``…`` stands for anything);
-- the README's three example commands run.
+- that section's three example commands run.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "models.md"
-README = ROOT / "README.md"
+APPS_PAGE = ROOT / "docs" / "apps" / "index.md"
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 TABLE = "import sys; from decrun.runner.cli import table_main; sys.exit(table_main())"
@@ -182,9 +182,9 @@ def test_the_composed_model_example_runs_as_written(tmp_path):
     assert (tmp_path / "outputs" / "sweeps" / "decay" / "metrics.csv").is_file()
 
 
-def test_the_readme_section_links_the_docs_and_its_commands_run(tmp_path):
-    text = section(README.read_text(encoding="utf-8"), "Declarative models (`app=heat`, your own `app=<model>`)")
-    assert "docs/models.md" in text
+def test_the_applications_page_section_links_the_docs_and_its_commands_run(tmp_path):
+    text = section(APPS_PAGE.read_text(encoding="utf-8"), "Declarative models (`app=heat`, your own `app=<model>`)")
+    assert "(../models.md)" in text
     assert len(text.strip().splitlines()) <= 25
     bash = [body for language, body in blocks(text) if language == "bash"]
     assert len(bash) == 1

@@ -26,7 +26,7 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
 from decrun.apps.surface_points import check_points_on_surface
 from decrun.errors import ConfigError
 from decrun.methods.fluid.metrics import fluid_metrics
-from decrun.methods.fluid.options import Circulation, FluidOptions, Initial, Kernels, Velocity, Walls
+from decrun.methods.fluid.options import Circulation, FluidOptions, Initial, Intervals, Kernels, Velocity, Walls
 from decrun.methods.fluid.stepper import FluidStepper
 from decrun.methods.stepping import run_steps
 
@@ -73,6 +73,7 @@ class Fluid(App):
     velocity: Velocity = Velocity.least_squares  # least_squares | wshd07 (the thesis' interpolation, §7.2.3)
     circulation: Circulation = Circulation.swept_bounded  # swept_bounded | swept_clamped | swept | corrected_trapezoid | trapezoid
     walls: Walls = Walls.auto  # auto (slip at ν = 0, else no_slip) | slip | no_slip
+    intervals: Intervals = Intervals.uniform  # uniform | per_point: the swept rules' backtracking intervals
     shadow: bool = False  # also run a shadow with a 1e-10 perturbation: perturbation_growth_per_s (shadow.py)
     shadow_perturbation: float = 1e-10  # relative size of the shadow's perturbation
     shadow_max_growth_per_step: float = 0.1  # stable: false when the fitted growth per step exceeds this
@@ -95,6 +96,7 @@ class Fluid(App):
         scheme = self.scheme()  # each choice a member, the unstable pairs refused
         self.velocity, self.circulation, self.walls, self.kernels = (scheme.velocity, scheme.circulation,
                                                                      scheme.walls, scheme.kernels)
+        self.intervals = scheme.intervals
         if not self.shadow_perturbation > 0:
             raise ConfigError(f"app.shadow_perturbation: must be > 0, got {self.shadow_perturbation}")
         if self.shadow_window_steps < 2:
@@ -111,7 +113,7 @@ class Fluid(App):
     def scheme(self) -> FluidOptions:
         """The scheme's choices as the method takes them (validated there, messages naming ``app.*``)."""
         return FluidOptions(velocity=self.velocity, circulation=self.circulation, walls=self.walls,
-                            kernels=self.kernels, key="app")
+                            kernels=self.kernels, intervals=self.intervals, key="app")
 
     @property
     def total_steps(self) -> int:

@@ -16,7 +16,7 @@ naming the key; so does a NaN, an infinity or a number beyond ±1e150 anywhere i
 node, see :func:`check_numbers`) and returns the instance — the same object
 ``hydra.utils.instantiate(node)`` would build. Nothing is registered in Python: a plugin
 outside decrun is one module on the Python path plus one YAML file in a config directory
-added with ``hydra.searchpath`` (README, "Extending decrun").
+added with ``hydra.searchpath`` (docs/extending.md).
 
 Because Hydra only reads YAML here, composing a config (``decrun --help``, completion,
 every sweep job) imports no numerical code.

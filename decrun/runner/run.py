@@ -309,7 +309,7 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
                           edges=run.complex.simplices(1), config_yaml=OmegaConf.to_yaml(cfg, resolve=True),
                           mesh_hash=mesh.meta.get("hash", ""), timings=timings)
     # the size and sha256 of result.h5 as written (readers never take a truncated or altered one for it)
-    # and the hash of its content, equal for two runs of one config (README: "Reproducible records")
+    # and the hash of its content, equal for two runs of one config (docs/running.md: "Reproducible records")
     record = {**result.metrics, RESULT_RECORD: result_record(h5)}
     metrics = write_metrics_json(files.metrics, record)
     drawn = bool(cfg.get("figures", True) and result.figures)

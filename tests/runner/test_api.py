@@ -1,7 +1,7 @@
 """``decrun.run`` and ``decrun.sweep`` (decrun.runner.api): the command called from Python goes
 through the command's own composition, manifest, locks, resume and table; it can be called again
 and again in one process, which it leaves as it found it; its errors are the command's lines.
-Also the README's Python block and ``examples/first_sweep.ipynb`` (executed on a real kernel)."""
+Also the Python block of docs/running.md and ``examples/first_sweep.ipynb`` (executed on a real kernel)."""
 
 from __future__ import annotations
 
@@ -193,10 +193,10 @@ def test_import_decrun_stays_light_until_run_or_sweep_is_used():
     assert out.returncode == 0, out.stderr
 
 
-def test_the_readme_python_block_runs(tmp_path):
+def test_the_docs_python_block_runs(tmp_path):
     block = re.search(r"<!-- python-api -->\n```python\n(.*?)```\n<!-- /python-api -->",
-                      (ROOT / "README.md").read_text(), flags=re.S)
-    assert block, "README.md: the <!-- python-api --> block"
+                      (ROOT / "docs" / "running.md").read_text(), flags=re.S)
+    assert block, "docs/running.md: the <!-- python-api --> block"
     out = subprocess.run([sys.executable, "-c", block.group(1)], cwd=tmp_path, env=_env(), capture_output=True,
                          text=True, timeout=240)
     assert out.returncode == 0, out.stderr[-3000:]

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 
-__all__ = ["Initial", "Velocity", "Circulation", "Kernels", "Walls", "Backtracking", "SWEPT", "FluidOptions"]
+__all__ = ["Initial", "Velocity", "Circulation", "Kernels", "Walls", "Backtracking", "Intervals", "SWEPT",
+           "FluidOptions"]
 
 
 class Initial(Choice):
@@ -83,6 +84,18 @@ class Backtracking(Choice):
     per_triangle = "per_triangle"
 
 
+class Intervals(Choice):
+    """``app.intervals``: how the swept circulation rules split dt into backtracking intervals
+    (decrun/methods/fluid/simulation.py). ``uniform``: k equal intervals for every point, k set by
+    the largest CFL number of any point. ``per_point``: K intervals (the smallest 2^a or 3·2^a ≥ that
+    k); each point walks the fewest k_p of them that divide K and keep it within ``swept_cfl`` edge
+    lengths per interval, and its positions at the K boundaries in between are interpolated
+    linearly (a dual side's swept quads then follow the finer of its two ends)."""
+
+    uniform = "uniform"
+    per_point = "per_point"
+
+
 #: the circulation rules that backtrack in intervals and sum the swept vorticity (swept.py)
 SWEPT = (Circulation.swept_bounded, Circulation.swept_clamped, Circulation.swept)
 
@@ -103,11 +116,12 @@ class FluidOptions:
     walls: Walls = Walls.auto
     kernels: Kernels = Kernels.auto
     integrator: Backtracking = Backtracking.midpoint
+    intervals: Intervals = Intervals.uniform
     key: str = ""
 
     def __post_init__(self):
         for option, kind in (("velocity", Velocity), ("circulation", Circulation), ("walls", Walls),
-                             ("kernels", Kernels), ("integrator", Backtracking)):
+                             ("kernels", Kernels), ("integrator", Backtracking), ("intervals", Intervals)):
             object.__setattr__(self, option, kind.of(getattr(self, option), self.name(option)))
         walls, circulation, velocity = self.name("walls"), self.name("circulation"), self.name("velocity")
         if self.walls == Walls.slip and not self.swept:

@@ -71,7 +71,16 @@ from decrun.methods.fluid.dual_cells import build_dual_cells
 from decrun.methods.fluid.harmonic import border_layout, harmonic_flux
 from decrun.methods.fluid.interpolation import CellInterpolator, dot3, triangle_velocity_matrix
 from decrun.methods.fluid.limiter import EnergyEnstrophyBound, conservative_clamp, footprint_range
-from decrun.methods.fluid.options import SWEPT, Backtracking, Circulation, FluidOptions, Kernels, Velocity, Walls
+from decrun.methods.fluid.options import (
+    SWEPT,
+    Backtracking,
+    Circulation,
+    FluidOptions,
+    Intervals,
+    Kernels,
+    Velocity,
+    Walls,
+)
 from decrun.methods.fluid.reconstruction import make_reconstruction
 from decrun.methods.fluid.swept import SweptVorticity, rest_point_interpolation
 
@@ -124,13 +133,14 @@ class VorticityFluid:
                  blowup_factor: float = 100.0, max_rounds: int = 1000, substeps: int = 1,
                  max_cfl: float | None = 1.0, swept_cfl: float = 1.0, options: FluidOptions | None = None,
                  integrator: Backtracking | None = None, circulation: Circulation | None = None,
-                 velocity: Velocity | None = None, kernels: Kernels | None = None, walls: Walls | None = None):
+                 velocity: Velocity | None = None, kernels: Kernels | None = None, walls: Walls | None = None,
+                 intervals: Intervals | None = None):
         if not dt > 0:
             raise ConfigError(f"fluid: the time step dt must be > 0, got {dt}")
         if not viscosity >= 0:
             raise ConfigError(f"fluid: the viscosity must be >= 0, got {viscosity}")
         self._set_options(options, dict(integrator=integrator, circulation=circulation, velocity=velocity,
-                                        kernels=kernels, walls=walls), viscosity)
+                                        kernels=kernels, walls=walls, intervals=intervals), viscosity)
         self.dec, self.K = dec, dec.K
         self.dt, self.viscosity = float(dt), float(viscosity)
         self.max_rounds, self.substeps, self.max_cfl = max_rounds, substeps, max_cfl
@@ -360,6 +370,8 @@ class VorticityFluid:
         m = self.cells.n_circumcenters
         cfl = np.sqrt(dot3(start, start)) * self.dt / self.walker.size  # (|u| by dot3: 10× faster than norm(axis=1))
         k = max(1, int(np.ceil(cfl.max() / self.swept_cfl))) if cfl.size else 1
+        if self.options.intervals == "per_point" and k > 1:
+            return self._backtrack_sweeping_per_point(velocity, both, start, options, cfl, k)
         if self.compiled_walk:
             return self._backtrack_sweeping_compiled(both, start, k, options)
         top = self.K.simplices(2)
@@ -428,6 +440,96 @@ class VorticityFluid:
             value_before, value_after = value_after, value_before
         self._swept_change = change
         return BacktrackResult(before[:m].copy(), triangle, wall, rounds, unfinished, k * most, end_velocity)
+
+    def _backtrack_sweeping_per_point(self, velocity, both, start, options, cfl, k):
+        """Step c for ``intervals="per_point"``: K intervals of dt / K, K the smallest 2^a or 3·2^a
+        ≥ ``k``; point p walks only k_p of them, the smallest divisor of K ≥ CFL_p / ``swept_cfl``
+        (``cfl`` (m,) its CFL number at the start velocity), each of length dt / k_p, and its
+        position and vorticity at the K boundaries in between are interpolated linearly between
+        its walked ones (x = x0 + (x1 − x0) j / s at boundary j of its s = K / k_p). Every dual side
+        then sweeps its quads at the K boundaries: where both ends were interpolated the quads
+        split the straight quad of the coarse interval, where one end walked they follow its path.
+        The walks and the swept change are the twins' kernels (numba or numpy, the same bits);
+        the interpolation is shared numpy."""
+        from decrun.methods.fluid import compiled
+
+        m = self.cells.n_circumcenters
+        K = min(n for n in (2 ** a * f for a in range(k.bit_length() + 1) for f in (1, 3)) if n >= k)
+        divisors = np.array([d for d in range(1, K + 1) if K % d == 0])
+        need = np.maximum(1.0, np.ceil(cfl / self.swept_cfl))
+        count = divisors[np.minimum(np.searchsorted(divisors, need), divisors.size - 1)]  # (m,) k_p
+        order = np.argsort(count, kind="stable")  # the points by count: each count's walks on one slice
+        count, stride = count[order], (K // count)[order]
+        rank = np.empty(m, dtype=np.int64)
+        rank[order] = np.arange(m)
+        relabel = np.concatenate([rank, np.arange(m, self.cells.points.shape[0])])
+        sides = (relabel[self._swept.side_a], relabel[self._swept.side_b])
+        top = self.K.simplices(2)
+        before = np.array(self.cells.points, dtype=np.float64)
+        before[:m] = before[order]
+        value_before = self._rest_vorticity @ self.vorticity
+        value_before[:m] = value_before[order]
+        after, value_after = before.copy(), value_before.copy()  # two buffers in turn; the fixed points stay
+        anchor, anchor_value = before[:m].copy(), value_before[:m].copy()  # each point's last walked boundary
+        target, target_value = anchor.copy(), anchor_value.copy()  # and its next one
+        triangle = order.astype(np.int64)  # circumcenter i lies in triangle i
+        wall = np.full(m, -1, dtype=np.int64)
+        start = np.ascontiguousarray(start[order], dtype=np.float64)
+        change = np.zeros(self.K.num_simplices(0))
+        rounds = unfinished = most = 0
+        if self.compiled_walk:
+            walk, jump = self.walker.kernel_tables()
+            field = self._kernel_field.kernel_tables()
+            both = np.ascontiguousarray(both, dtype=np.float64)
+            end_velocity = np.zeros((m, 3, both.shape[2]))
+            vorticity = np.ascontiguousarray(self.vorticity, dtype=np.float64)
+            size = np.ascontiguousarray(self.walker.size, dtype=np.float64)
+            max_cfl = -1.0 if options["max_cfl"] is None else float(options["max_cfl"])
+            cap = max(64, int(options["substeps"]))
+            code = compiled.INTEGRATOR_CODE[options["integrator"]]
+        bounds = np.searchsorted(count, divisors, side="left").tolist() + [m]
+        levels = [(int(c), lo, hi) for c, lo, hi in zip(divisors, bounds[:-1], bounds[1:], strict=True) if hi > lo]
+        for interval in range(K):
+            for c, lo, hi in levels:
+                if interval % (K // c):
+                    continue
+                first, last = interval == 0, interval == K - K // c
+                anchor[lo:hi], anchor_value[lo:hi] = target[lo:hi], target_value[lo:hi]
+                if self.compiled_walk:  # in place on the slices
+                    r, left, steps = compiled.backtrack_points(
+                        walk, jump, field, both, target[lo:hi], triangle[lo:hi], wall[lo:hi], start[lo:hi],
+                        end_velocity[lo:hi], first, size, self.dt / c, int(options["substeps"]), max_cfl, cap, code,
+                        int(options["max_rounds"]), vorticity, target_value[lo:hi],
+                        0 if last else both.shape[2] - 1, jit.threads())
+                    rounds, unfinished = rounds + int(r.sum()), max(unfinished, int(left.max(initial=0)))
+                    most = max(most, c * steps)
+                else:
+                    free = lo + np.flatnonzero(wall[lo:hi] < 0)
+                    most = max(most, c)  # (the kernel's count when every point of the slice is clamped)
+                    if free.size:
+                        part = self._walk(anchor[free], triangle[free], self.dt / c, velocity, both,
+                                          start[free] if first else None, options)
+                        rounds, unfinished = rounds + part.rounds, max(unfinished, part.unfinished)
+                        most = max(most, c * part.substeps)
+                        target[free], triangle[free], wall[free] = part.position, part.triangle, part.wall_edge
+                    lam = self.walker.barycentric(triangle[lo:hi], target[lo:hi])
+                    target_value[lo:hi] = dot3(lam, self.vorticity[top[triangle[lo:hi]]])
+            fraction = (interval % stride + 1) / stride  # (m,) j / s, 1 at a walked boundary
+            walked = fraction == 1.0
+            after[:m] = np.where(walked[:, None], target, anchor + (target - anchor) * fraction[:, None])
+            value_after[:m] = np.where(walked, target_value, anchor_value + (target_value - anchor_value) * fraction)
+            change += self._swept.change(before, after, value_before, value_after, compiled=self.compiled_walk,
+                                         sides=sides)
+            before, after = after, before
+            value_before, value_after = value_after, value_before
+        self._swept_change = change
+        position, triangle_out, wall_out = np.empty((m, 3)), np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
+        position[order], triangle_out[order], wall_out[order] = target, triangle, wall
+        velocity_out = None
+        if self.compiled_walk:
+            velocity_out = np.empty_like(end_velocity)
+            velocity_out[order] = end_velocity
+        return BacktrackResult(position, triangle_out, wall_out, rounds, unfinished, most, velocity_out)
 
     def _build_dual_edges(self) -> None:
         """The dual cells' sides as unique dual edges (a, b), a < b, and the signed

@@ -64,13 +64,15 @@ class SweptVorticity:
         self.side_a, self.side_b = side_a, side_b
 
     def change(self, before: np.ndarray, after: np.ndarray, value_before: np.ndarray,
-               value_after: np.ndarray, compiled: bool = False) -> np.ndarray:
+               value_after: np.ndarray, compiled: bool = False, sides: tuple | None = None) -> np.ndarray:
         """(n0,) Γ(X(C)) − Γ(C) per cell, for the dual points ``before`` (P, 3), their
         backtracked positions ``after`` (P, 3) and the vorticity interpolated at both (P,).
+        ``sides``: (side_a, side_b) (S,) in place of the constructor's, for the same points
+        numbered otherwise (a permutation of the rows of ``before`` and ``after``).
 
         ``compiled``: by the numba twin (compiled.swept_change_add into zeros), the same arithmetic in the same
         order (3-vector dots as ``dot3``), the same bits."""
-        a, b = self.side_a, self.side_b
+        a, b = (self.side_a, self.side_b) if sides is None else sides
         if compiled:
             from decrun.core import jit
             from decrun.methods.fluid import compiled as kernels

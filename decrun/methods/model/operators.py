@@ -4,7 +4,7 @@
 typing rule (the degree and duality it takes and gives, checked when a model loads), its
 discrete definition with the thesis' equation, how it is evaluated, and — for the linear
 operators — its matrix as a :class:`Linear` ``⋆_j⁻¹ A``, from which implicit integrators and
-solves assemble their systems. The README's language reference is generated from this table
+solves assemble their systems. The language reference of docs/models.md is generated from this table
 (:func:`reference_table`), so the two cannot disagree.
 
 Operators act through :class:`Discrete`, which takes every matrix from
@@ -100,8 +100,8 @@ class Operator:
 
     name: str
     arity: tuple[int, ...]
-    takes: str  # the typing rule in words (README)
-    definition: str  # the discrete definition and the thesis' equation (README)
+    takes: str  # the typing rule in words (docs/models.md)
+    definition: str  # the discrete definition and the thesis' equation (docs/models.md)
     kind: Callable[[list[Kind], int], Kind]
     evaluate: Optional[Callable]  # (Discrete, kinds, *values) -> value; None: through its matrix (linear)
     linear: Optional[Callable] = None  # (Discrete, kind of the argument) -> Linear | None

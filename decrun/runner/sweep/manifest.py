@@ -203,7 +203,7 @@ def job_state(job_dir: Path, expected_hash: str | None = None) -> dict[str, Any]
             verify_result(RunFiles(job_dir).result, record)
         except CorruptFileError as exc:
             metrics.update(status="corrupt", error=str(exc))
-        else:  # what two runs of one config share (README: "Reproducible records"); older records have none
+        else:  # what two runs of one config share (docs/running.md: "Reproducible records"); older records have none
             if isinstance(record, dict) and isinstance(record.get(CONTENT), str):
                 metrics[CONTENT] = record[CONTENT]
     return metrics

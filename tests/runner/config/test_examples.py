@@ -1,6 +1,6 @@
-"""Every ``decrun`` example in README.md and in the comments of conf/ runs.
+"""Every ``decrun`` example in README.md, the docs pages (docs/**/*.md) and the comments of conf/ runs.
 
-The examples are extracted from the text (README code blocks and backticked spans, conf
+The examples are extracted from the text (code blocks and backticked spans of the pages, conf
 comment lines), not copied here, so an example that is edited or added is tested as it
 reads. Single runs go through the same composition as ``decrun`` (in process, fast);
 sweeps (``-m``) and ``decrun-table`` run the real commands and are marked slow.
@@ -28,16 +28,37 @@ COMMAND = re.compile(r"^(?:\.venv/bin/)?(?:decrun(?:-table)?|python -m decrun)(?
 #: placeholders in examples → what the test substitutes
 PLACEHOLDERS = {"/data/dragon.ply": str(sample_mesh_dir() / SAMPLE_MESHES["cow"])}
 #: lines that show syntax, not a command to run
-SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]")
+SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]",
+          # docs/tracking.md's prose: a single run and a sweep of any options
+          "decrun ... tracker=mlflow", "decrun -m", "decrun -m ... hydra.searchpath=[file://my_conf] tracker=wandb")
 #: examples of bad input: they must fail with this message
-EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key"}
+EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key",
+                   # docs/apps/writing.md: a refusal in check, naming the step that works
+                   "decrun app.scheme=explicit app.critical_dt=false": "leaves no critical step for app.dt_factor"}
 #: commands an example needs to have run first (in the same directory)
 PREREQUISITES = {
     "hydra.sweeper.resume=true": ["-m", "app.dt=0.001,0.002", "hydra.sweep.dir=outputs/sweeps/dt"],
     "outputs/sweeps/A outputs/sweeps/B": ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/A"],
     "outputs/runs --metrics content_sha256": ["mesh.subdiv=1", "figures=false"],  # a single run to compare
+    # the tutorial's table (docs/tutorial.md) reads the tutorial's sweep
+    "outputs/sweeps/first --metrics": ["-m", "app.scheme=explicit,implicit", "app.dt_unit=critical",
+                                       "app.dt_factor=0.5,1.5", "mesh.subdiv=2", "app.steps=40", "figures=false",
+                                       "hydra.sweep.dir=outputs/sweeps/first"],
 }
 PREREQUISITES_B = ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/B"]
+#: pages whose commands another test runs as written: page → that test
+RUN_ELSEWHERE = {
+    "docs/models.md": "tests/test_model_docs.py (the walk-through and the refusals, with their outputs)",
+    "docs/gallery.md": "tests/test_numbers.py (every gallery command is a run of scripts/doc_numbers.py)",
+    # its sweeps write into one MLflow store in order (a resume, then decrun-track of the same sweep)
+    "docs/tracking.md": "tests/runner/results/test_tracker.py (test_the_docs_commands_run; the UI: test_tracker_ui.py)",
+}
+
+
+def pages() -> list[Path]:
+    """README.md and every docs page whose commands this file runs."""
+    found = [ROOT / "README.md"] + sorted((ROOT / "docs").rglob("*.md"))
+    return [p for p in found if str(p.relative_to(ROOT)) not in RUN_ELSEWHERE]
 
 
 def _commands_in(text: str) -> list[str]:
@@ -54,11 +75,13 @@ def _commands_in(text: str) -> list[str]:
 
 
 def examples() -> list[tuple[str, str]]:
-    """(where, command) of every example in README.md and conf/**/*.yaml comments."""
-    readme = (ROOT / "README.md").read_text()
-    # the laptop-to-cluster block needs SLURM and a Ray cluster: tests/runner/sweep/test_laptop_to_cluster.py
-    readme = re.sub(r"<!-- laptop-to-cluster -->.*?<!-- /laptop-to-cluster -->", "", readme, flags=re.S)
-    found = [("README.md", c) for c in _commands_in(readme)]
+    """(where, command) of every example in README.md, the docs pages and conf/**/*.yaml comments."""
+    found = []
+    for page in pages():
+        text = page.read_text(encoding="utf-8")
+        # the laptop-to-cluster block needs SLURM and a Ray cluster: tests/runner/sweep/test_laptop_to_cluster.py
+        text = re.sub(r"<!-- laptop-to-cluster -->.*?<!-- /laptop-to-cluster -->", "", text, flags=re.S)
+        found += [(str(page.relative_to(ROOT)), c) for c in _commands_in(text)]
     for path in sorted((ROOT / "conf").rglob("*.yaml")):
         where = str(path.relative_to(ROOT))
         for line in path.read_text().splitlines():

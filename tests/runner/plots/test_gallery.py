@@ -1,7 +1,7 @@
 """The gallery (scripts/gallery.py → docs/gallery.md) shows every thesis-figure experiment
 (conf/experiment/fig*.yaml; the others — operator_variants, dt_crit_search — are tables), the
 model experiments that have a picture (darcy_convergence) and every shipped declarative model
-(conf/app/<model>.yaml), each with the numbers of its run."""
+(conf/app/<model>.yaml), each with the numbers of its run (placeholders of docs/numbers.json: tests/test_numbers.py)."""
 
 from __future__ import annotations
 
@@ -53,12 +53,22 @@ def test_every_shipped_model_has_a_gallery_section_with_its_numbers():
             assert all(f"{key} = " in note for key in shown), (name, note)  # every number, from the run
 
 
-def test_only_regenerates_the_named_sections_and_keeps_the_others(tmp_path):
-    (tmp_path / "gallery.md").write_text("# Gallery\n\n## fig6_8_saddle\n\nkept as it was\n\n## model_poisson\n\nold\n")
+def test_the_committed_page_is_the_one_the_tables_write():
+    """docs/gallery.md holds no number of its own: it is written whole from GALLERY and MODELS,
+    every number a placeholder of docs/numbers.json (tests/test_numbers.py reruns those runs)."""
+    assert (ROOT / "docs" / "gallery.md").read_text() == gallery_module().page(), \
+        "docs/gallery.md is not what scripts/gallery.py writes: run it (--only <section> reruns only those figures)"
+
+
+def test_only_reruns_the_named_sections_and_writes_every_section(tmp_path):
+    (tmp_path / "gallery.md").write_text("# Gallery\n\n## model_poisson\n\nold\n")
     text = gallery_module().build(tmp_path, ["model_poisson"]).read_text()
-    assert "## fig6_8_saddle\n\nkept as it was\n" in text
+    assert text == gallery_module().page()
     poisson = text.split("## model_poisson\n", 1)[1]
-    assert "old" not in poisson and "- `decrun app=poisson`: l2_error_rel = 0.00131," in poisson
+    assert "old" not in poisson
+    assert ("- `decrun app=poisson`: l2_error_rel = {{ numbers.gallery_model_poisson__0.l2_error_rel }},"
+            in poisson)
+    assert "## fig6_8_saddle\n" in text  # every section, its figure not rerun
     assert (tmp_path / "gallery" / "model_poisson__0.png").stat().st_size > 10_000
     assert not (tmp_path / "gallery" / "fig6_8_saddle__0.png").exists()  # not rerun
 

@@ -1,8 +1,8 @@
-"""README's "From laptop to cluster": every command of its block runs as written, and the
+"""docs/cluster.md's "From laptop to cluster": every command of its block runs as written, and the
 four sweeps (basic, joblib, submitit_slurm on the local SLURM, ray on a 2-node cluster)
 give the same table (wall times aside).
 
-The commands are read from README.md (between the ``laptop-to-cluster`` markers), so an
+The commands are read from docs/cluster.md (between the ``laptop-to-cluster`` markers), so an
 edited line is tested as it reads. ``sudo`` is dropped (the tests run as root, as CI does);
 ``scripts/slurm_local.sh start`` is checked with ``status`` and not rerun here, and ``stop``
 is not run (``.ci/run`` and the developer own the daemons): the SLURM sweep needs a running
@@ -26,15 +26,15 @@ from decrun.runner.sweep.tables import load_sweep
 
 ROOT = Path(__file__).resolve().parents[3]
 TIMES = ("setup_seconds", "solve_seconds", "total_seconds", "step_seconds_max")
-#: keep the README's jobs tiny here (the README's commands run the default experiment)
+#: keep the page's jobs tiny here (its commands run the default experiment)
 TINY = ["mesh.subdiv=2", "app.steps=3", "figures=false"]
 
 
 def section_commands() -> list[str]:
-    """The command lines of README's laptop-to-cluster block, comments cut."""
-    text = (ROOT / "README.md").read_text()
+    """The command lines of docs/cluster.md's laptop-to-cluster block, comments cut."""
+    text = (ROOT / "docs" / "cluster.md").read_text()
     block = re.search(r"<!-- laptop-to-cluster -->\n```bash\n(.*?)```\n<!-- /laptop-to-cluster -->", text, re.S)
-    assert block, "README.md has no laptop-to-cluster block"
+    assert block, "docs/cluster.md has no laptop-to-cluster block"
     return [line.split("  #", 1)[0].strip() for line in block.group(1).splitlines() if line.strip()]
 
 

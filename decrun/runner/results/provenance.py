@@ -26,7 +26,8 @@ from decrun.runner.atomic import write_text_atomic
 from decrun.runner.results.checked import CONTENT, check_dataset, file_record, open_h5, parse_json
 
 __all__ = ["FORMAT", "package_versions", "git_commit", "plain", "metrics_to_json", "write_metrics_json", "read_provenance",
-           "decrun_attrs", "is_wall_time", "NOT_CONTENT", "NOT_CONTENT_METRICS", "content_sha256", "result_record"]
+           "decrun_attrs", "is_wall_time", "NOT_CONTENT", "NOT_CONTENT_METRICS", "content_sha256", "result_record",
+           "SAME_AS", "mark_duplicates"]
 
 FORMAT = "decrun-result-1"
 
@@ -248,3 +249,25 @@ def result_record(path: str | os.PathLike) -> dict[str, Any]:
     altered file for it) and its ``content_sha256`` (:func:`content_sha256`: equal for two
     runs that computed the same result) — of a file this process has just written."""
     return {**file_record(path), CONTENT: content_sha256(path, checked=False)}
+
+
+#: the column naming the earlier job whose result a job repeats exactly
+SAME_AS = "same_as"
+
+
+def mark_duplicates(rows: list[dict]) -> int:
+    """Set ``rows[i]["same_as"]`` to the job of the first earlier ``ok`` row with the same
+    ``content_sha256`` (the same numbers in every dataset and metric, wall times aside);
+    returns how many rows repeat another."""
+    first: dict[str, Any] = {}
+    count = 0
+    for row in rows:
+        content = row.get("content_sha256")
+        if row.get("status") != "ok" or not isinstance(content, str) or not content:
+            continue
+        if content in first:
+            row[SAME_AS] = first[content]
+            count += 1
+        else:
+            first[content] = row["job"]
+    return count

@@ -42,6 +42,7 @@ from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
 from decrun.runner.files import RunFiles, SweepFiles
 from decrun.runner.results.checked import load_yaml
+from decrun.runner.results.provenance import SAME_AS, mark_duplicates
 from decrun.runner.sweep.manifest import MANIFEST, job_dir_name, job_state, read_manifest
 
 __all__ = ["SAME_AS", "mark_duplicates", "sweep_table", "load_sweep", "stack", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
@@ -176,28 +177,6 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
     duplicates = mark_duplicates(rows)
     columns = ["job", *override_keys, "status", "error", *metric_keys, *([SAME_AS] if duplicates else []), "result"]
     return _typed(pd.DataFrame(rows, columns=columns), rows)
-
-
-#: the column naming the earlier job whose result a job repeats exactly
-SAME_AS = "same_as"
-
-
-def mark_duplicates(rows: list[dict]) -> int:
-    """Set ``rows[i]["same_as"]`` to the job of the first earlier ``ok`` row with the same
-    ``content_sha256`` (the same numbers in every dataset and metric, wall times aside);
-    returns how many rows repeat another."""
-    first: dict[str, Any] = {}
-    count = 0
-    for row in rows:
-        content = row.get("content_sha256")
-        if row.get("status") != "ok" or not isinstance(content, str) or not content:
-            continue
-        if content in first:
-            row[SAME_AS] = first[content]
-            count += 1
-        else:
-            first[content] = row["job"]
-    return count
 
 
 def _planned(sweep_dir: Path) -> tuple[list[tuple[str, str, dict, str | None]], str]:

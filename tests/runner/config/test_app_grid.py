@@ -14,7 +14,7 @@ from decrun.errors import ConfigError
 from decrun.runner.config import compose_config
 from decrun.runner.run import run_experiment, validate
 
-CONF_APP = Path(__file__).resolve().parents[2] / "conf" / "app"
+CONF_APP = Path(__file__).resolve().parents[3] / "conf" / "app"
 
 
 def is_model(path: Path) -> bool:

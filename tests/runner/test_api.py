@@ -63,10 +63,10 @@ def leaves_the_process_alone():
     def state():
         return dict(os.environ), list(sys.argv), list(root.handlers), root.level, logging.raiseExceptions
 
-    before = state()
+    before, held = state(), set(_held)
     yield
     assert state() == before
-    assert not _held
+    assert set(_held) <= held, "the call left a directory locked"  # (in-process Hydra suites may hold earlier ones)
 
 
 def test_runs_and_sweeps_again_and_again_in_one_process_as_the_command(here):

@@ -46,6 +46,7 @@ import numpy as np
 
 from decrun.errors import DecrunError
 from decrun.runner.files import RunFiles
+from decrun.runner.results.export import working_directory
 
 __all__ = ["Quantity", "View", "plan_view", "edge_order", "show", "main"]
 
@@ -448,12 +449,8 @@ def _settings_directory():
     """Work in decrun's cache folder while polyscope runs (its window settings file lands there)."""
     where = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "decrun" / "polyscope"
     where.mkdir(parents=True, exist_ok=True)
-    before = os.getcwd()
-    os.chdir(where)
-    try:
+    with working_directory(where):
         yield
-    finally:
-        os.chdir(before)
 
 
 def _draw(ps, view: View, selected: Quantity | None, index: int, screenshot: Path | None,

@@ -397,7 +397,7 @@ class Xdmf(Export):
                 continue
             check_file(target), check_file(target.with_suffix(".h5"))
             # the writer puts its HDF5 file in the working directory (by stem): write from out/
-            with _working_directory(target.parent), meshio.xdmf.TimeSeriesWriter(target.name) as writer:
+            with working_directory(target.parent), meshio.xdmf.TimeSeriesWriter(target.name) as writer:
                 writer.write_points_cells(points, cells)
                 for t, frame in zip(times, frames, strict=True):
                     if pick == (2,):
@@ -434,7 +434,8 @@ def _one_frame(result, mesh, K, app) -> tuple[tuple[dict, dict, dict], list[str]
 
 
 @contextmanager
-def _working_directory(path: Path):
+def working_directory(path: Path):
+    """Work in ``path`` for the block (a writer that writes beside itself), then return."""
     previous = os.getcwd()
     os.chdir(path)
     try:

@@ -16,6 +16,46 @@ from decrun.core.threads import bound_openmp_spin  # noqa: E402
 bound_openmp_spin()
 
 
+def pytest_configure(config):
+    config.addinivalue_line("markers", "ray: starts or joins a Ray cluster (serialized across xdist workers, "
+                                       "with a Ray temp dir of its own: the ray_private fixture)")
+
+
+@pytest.fixture(autouse=True)
+def ray_private(request, tmp_path_factory, monkeypatch):
+    """For a test marked ``ray``: the Ray clusters of the run one at a time, each unseen by the others.
+
+    Two xdist workers that both start Ray collide: a ``ray.cluster_utils.Cluster`` writes its
+    address into ``<ray temp dir>/ray_current_cluster`` and a ``ray.init()`` without an address
+    (the ray launcher's default) elsewhere joins that cluster instead of starting its own; and
+    two clusters at once do not fit two cores. So the test holds an exclusive lock on a file
+    shared by the session's workers for its whole length, and ``RAY_TMPDIR`` points to a short
+    directory of its own (Ray's socket paths must stay under 108 bytes), inherited by the
+    processes it starts; ``RAY_ADDRESS`` is unset."""
+    if request.node.get_closest_marker("ray") is None:
+        yield None
+        return
+    import fcntl
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # the session's workers share it
+    with open(shared / "decrun-ray.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        private = Path(tempfile.mkdtemp(prefix="decrun-ray-"))
+        monkeypatch.setenv("RAY_TMPDIR", str(private))
+        monkeypatch.delenv("RAY_ADDRESS", raising=False)
+        try:
+            yield private
+        finally:
+            if "ray" in sys.modules and sys.modules["ray"].is_initialized():  # a launcher run in this process
+                sys.modules["ray"].shutdown()
+            shutil.rmtree(private, ignore_errors=True)
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
 @pytest.fixture
 def new_solver():
     """A factory of fresh direct solvers (what ``ctx.new_solver`` is in a default run)."""

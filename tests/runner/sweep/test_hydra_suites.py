@@ -45,7 +45,7 @@ LAUNCHERS = {
     "submitit_local": ("submitit_local", ["hydra.launcher.timeout_min=2"],
                        [_installed("hydra_submitit_launcher", "slurm")]),
     "ray": ("ray", [RAY_INIT, "+hydra.launcher.ray.init.num_cpus=2"],
-            [_installed("hydra_ray_launcher", "ray"), pytest.mark.slow]),
+            [_installed("hydra_ray_launcher", "ray"), pytest.mark.slow, pytest.mark.ray]),
 }
 #: the extra flags of each launcher's IntegrationTestSuite in its own test module
 INTEGRATION_FLAGS = {

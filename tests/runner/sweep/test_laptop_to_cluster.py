@@ -71,6 +71,7 @@ def ray_head(monkeypatch):
         cluster.shutdown()
 
 
+@pytest.mark.ray
 @pytest.mark.slow  # ~40 s: four sweeps and a Ray cluster (test_slurm and test_ray_cluster run by default)
 def test_every_command_of_the_section_runs_and_the_tables_agree(tmp_path, ray_head):
     from test_slurm import slurm_problem  # tests/runner is on sys.path (pytest rootdir-relative imports)

@@ -109,6 +109,7 @@ def closed_port() -> int:
 
 
 @pytest.mark.skipif(not has("hydra_ray_launcher"), reason="hydra-ray-launcher is not installed")
+@pytest.mark.ray
 def test_a_ray_address_that_refuses_is_given_up_at_once(tmp_path):
     address = f"127.0.0.1:{closed_port()}"
     proc, seconds = run([*TINY, "hydra/launcher=ray", f"hydra.launcher.ray.init.address={address}",
@@ -121,6 +122,7 @@ def test_a_ray_address_that_refuses_is_given_up_at_once(tmp_path):
 
 
 @pytest.mark.skipif(not has("hydra_ray_launcher"), reason="hydra-ray-launcher is not installed")
+@pytest.mark.ray
 def test_a_ray_address_that_never_answers_is_given_up_after_connect_timeout_and_the_fix_runs(tmp_path):
     """A socket that accepts connections and never speaks: Ray retries it for minutes."""
     with socket.socket() as silent:

@@ -20,8 +20,9 @@ import pytest
 
 from decrun.runner.sweep.tables import load_sweep
 
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is None,
-                                reason="hydra-ray-launcher is not installed (pip install 'decrun[ray]')")
+pytestmark = [pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is None,
+                                 reason="hydra-ray-launcher is not installed (pip install 'decrun[ray]')"),
+              pytest.mark.ray]
 
 TESTS = Path(__file__).resolve().parents[2]
 #: 4 jobs of ~2 s: explicit smoothing on 162 vertices, no eigen-solve
@@ -65,6 +66,8 @@ def cluster(monkeypatch):
 
 def test_a_sweep_spreads_over_the_nodes_and_a_lost_nodes_job_reruns_on_another(cluster, tmp_path):
     cluster, (first, second) = cluster
+    # its own Ray temp dir (tests/conftest.py's ray_private): no ray.init() of another test finds it
+    assert cluster.head_node.get_session_dir_path().startswith(os.environ["RAY_TMPDIR"] + os.sep)
     basic = subprocess.run([sys.executable, "-m", "decrun", *SWEEP, "hydra.sweep.dir=basic"], cwd=tmp_path, env=env(),
                            capture_output=True, text=True, timeout=300)
     assert basic.returncode == 0, basic.stderr[-3000:]

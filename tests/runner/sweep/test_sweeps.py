@@ -118,6 +118,7 @@ def test_submitit_local_launcher_gives_the_basic_launchers_table(tmp_path):
 
 @pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is None,
                     reason="hydra-ray-launcher is not installed (pip install 'decrun[ray]')")
+@pytest.mark.ray
 def test_ray_launcher_on_a_local_cluster_gives_the_basic_launchers_table(tmp_path):
     basic = _launcher_table(tmp_path, [], "basic")
     ray = _launcher_table(tmp_path, ["hydra/launcher=ray", "+hydra.launcher.ray.init.num_cpus=2",

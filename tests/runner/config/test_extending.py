@@ -6,9 +6,16 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
+
+ROOT = Path(__file__).resolve().parents[3]
 
 PLUGIN = '''
 from dataclasses import dataclass
@@ -245,3 +252,43 @@ def test_a_toy_tracker_is_one_module_and_one_yaml(tmp_path, decrun_cli):
     resumed = decrun_cli(*sweep, "hydra.sweeper.resume=true", env=path)
     assert resumed.returncode == 0, resumed.stderr
     assert "(0 sent)" in resumed.stdout and len((tmp_path / "runs.jsonl").read_text().splitlines()) == 3
+
+
+def page_recipe(text: str) -> tuple[dict[str, str], list[str]]:
+    """The files (path → text: every python or yaml block whose first line is ``# <path>``) and
+    the command lines (every bash block's non-comment lines) of docs/extending.md's plugin recipe."""
+    files, lines = {}, []
+    for language, body in re.findall(r"^```(\w+)\n(.*?)^```", text, flags=re.S | re.M):
+        if language in ("python", "yaml"):
+            first = body.splitlines()[0]
+            assert first.startswith("# "), f"docs/extending.md: a {language} block starts with '# <path>': {first!r}"
+            files[first[2:].strip()] = body
+        elif language == "bash":
+            lines += [line for line in body.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    return files, lines
+
+
+def test_the_extending_pages_plugin_runs_as_written(tmp_path):
+    """docs/extending.md: its module and YAML file written where their first lines say, and its
+    command line run by bash as written (``PYTHONPATH=.``, ``$PWD``, the quotes) in that
+    directory, with ``decrun`` this checkout's command: the run is ok and used the page's star."""
+    files, lines = page_recipe((ROOT / "docs" / "extending.md").read_text(encoding="utf-8"))
+    assert sorted(files) == ["my_conf/operator/uniform.yaml", "my_plugins.py"] and len(lines) == 1, (files, lines)
+    for name, body in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(body)
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    wrapper = bin_dir / "decrun"  # `decrun` = python -m decrun of this checkout, after the line's own PYTHONPATH
+    wrapper.write_text(f'#!/bin/sh\nPYTHONPATH="${{PYTHONPATH:+$PYTHONPATH:}}{ROOT}" exec {shlex.quote(sys.executable)} '
+                       '-m decrun "$@"\n')
+    wrapper.chmod(0o755)
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "PYTHONPATH")}
+    env.update(PATH=f"{bin_dir}{os.pathsep}{env.get('PATH', '')}", MPLBACKEND="Agg")
+    done = subprocess.run(["bash", "-c", lines[0]], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    (run,) = (tmp_path / "outputs" / "runs").iterdir()
+    assert json.loads((run / "metrics.json").read_text())["status"] == "ok"
+    with h5py.File(run / "result.h5", "r") as f:
+        config = f.attrs["config_yaml"]
+    assert "_target_: my_plugins.Uniform" in config and "weight: 1.0" in config, config

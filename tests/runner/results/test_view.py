@@ -184,3 +184,31 @@ def test_screenshots_of_two_fields_differ(runs, tmp_path, headless):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["omega.png", "vertex_index.png"]  # no imgui.ini here
     differ = np.abs(shots[0] - shots[1]).sum(axis=2) > 30
     assert differ.mean() > 0.05
+
+
+def test_the_viewer_pages_commands_run_as_written(tmp_path, headless):
+    """docs/viewer.md's commands in order in one directory (the install line aside: the view
+    extra is what ``headless`` needs): the run, the field list naming ``omega``, and the
+    screenshot, a picture of the mesh (not an empty frame)."""
+    import re
+    import shlex
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[3] / "docs" / "viewer.md").read_text(encoding="utf-8")
+    (block,) = re.findall(r"^```bash\n(.*?)^```", text, flags=re.S | re.M)
+    lines = [line for line in block.splitlines() if line.strip()]
+    assert lines[0] == 'pip install -e ".[view]"' and len(lines) == 4, lines
+    outputs = []
+    for line in lines[1:]:
+        words = shlex.split(line, comments=True)
+        if words[0] == "decrun":
+            done = decrun(*words[1:], cwd=tmp_path)
+        else:
+            assert words[0] == "decrun-view", line
+            done = _view(*words[1:], cwd=tmp_path)
+        assert done.returncode == 0, (line, done.stderr[-2000:])
+        outputs.append(done.stdout)
+    assert "omega\tone_form" in outputs[1]
+    shot = _image(tmp_path / "field.png")
+    mesh = shot.sum(axis=2) < 3 * 245
+    assert 0.05 < mesh.mean() < 0.95 and np.ptp(shot[mesh], axis=0).max() > 50  # a coloured surface

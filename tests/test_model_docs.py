@@ -20,6 +20,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "models.md"
 APPS_PAGE = ROOT / "docs" / "apps" / "index.md"
@@ -225,3 +227,137 @@ def test_every_shipped_model_is_in_the_docs():
     missing = [name for name in names if f"| `{name}`" not in rows]
     assert not missing, (f"conf/app/{missing[0]}.yaml is a model: give it a row in docs/models.md, 'Shipped models' "
                          "(its equations, exact answer and measured numbers)")
+
+
+#: the page's prose names the commands themselves (not an example to run)
+PROSE = ("decrun", "decrun-table")
+#: the sections whose commands the tests above run as a whole, in order, with their outputs
+WHOLE_SECTIONS = ("Your first model", "Composed models", "Bad input")
+#: sweeps of the page too heavy for the default suite (run with -m slow): the Halfar dome at 1 km
+#: (200 factorizations of a 6k-vertex system) and the Darcy refinements up to the finest box
+HEAVY_SWEEPS = ("decrun -m +experiment=cism_halfar", "decrun -m +experiment=darcy_convergence")
+
+
+def page_commands(text: str) -> list[tuple[str, str | None]]:
+    """(command, the error line it must end with, or None: it must succeed) of every command on
+    docs/models.md — bash lines, backticked spans and ``$ decrun …`` lines of text blocks (the
+    line after one is its output) — except those :data:`WHOLE_SECTIONS` run, and :data:`PROSE`."""
+    done = {shlex.join(shlex.split(line, comments=True))
+            for title in WHOLE_SECTIONS for language, body in blocks(section(text, title)) if language == "bash"
+            for line in body.splitlines() if shlex.split(line, comments=True)}
+    found: dict[str, str | None] = {}
+    for language, body in blocks(text):
+        lines = body.splitlines()
+        if language == "bash":
+            for line in lines:
+                if shlex.split(line, comments=True):
+                    found.setdefault(shlex.join(shlex.split(line, comments=True)), None)
+        elif language == "text":
+            for line, after in zip(lines, lines[1:] + [""], strict=True):
+                if line.startswith("$ decrun"):
+                    found[shlex.join(shlex.split(line[2:]))] = after if after.startswith("error:") else None
+    prose = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+    for span in re.findall(r"(?<!`)`([^`\n]+)`(?!`)", prose):
+        if re.match(r"decrun(-table)?(\s|$)", span) and span not in PROSE:
+            found.setdefault(shlex.join(shlex.split(span)), None)
+    return [(command, error) for command, error in found.items() if command not in done]
+
+
+PAGE_COMMANDS = page_commands(PAGE.read_text(encoding="utf-8"))
+
+
+def test_the_page_commands_are_found():
+    """Every command of the page outside the walk-throughs is seen (a broken extraction would test nothing)."""
+    commands_ = dict(PAGE_COMMANDS)
+    assert "decrun app=poisson" in commands_ and "decrun -m +experiment=cism_halfar" in commands_
+    assert commands_["decrun app=halfar app.constants.n=0.5"].startswith("error: app.constants.n=0.5")
+    assert len(commands_) >= 8 and not [c for c in commands_ if not c.startswith("decrun")]
+
+
+@pytest.mark.parametrize("command, error", [
+    pytest.param(command, error, id=command,
+                 marks=[pytest.mark.slow] if command in HEAVY_SWEEPS else [])
+    for command, error in PAGE_COMMANDS])
+def test_every_other_command_of_the_page_runs(command, error, tmp_path):
+    """The real command in a scratch directory (the walk-through's files written first when it
+    uses them): a refusal ends with the line the page shows; a run or a sweep succeeds, every job ok."""
+    words = shlex.split(command)
+    if "hydra.searchpath=[file://my_conf]" in words:  # the walk-through's model: its YAML block
+        (model,) = [body for language, body in blocks(section(PAGE.read_text(encoding="utf-8"), "Your first model"))
+                    if language == "yaml"]
+        path = tmp_path / model.splitlines()[0][2:].strip()
+        path.parent.mkdir(parents=True)
+        path.write_text(model)
+    argv = [sys.executable, "-m", "decrun", *words[1:]] if words[0] == "decrun" else \
+        [sys.executable, "-c", TABLE, *words[1:]]
+    output = run(argv, tmp_path, fails=error is not None)
+    if error is not None:
+        assert output.strip().splitlines()[-1] == error, output[-3000:]
+    elif "-m" in words:
+        assert re.search(r"\(0 (failed|not ok)\)", output), output[-2000:]
+    else:
+        assert len(list((tmp_path / "outputs" / "runs").glob("*/result.h5"))) == 1, output[-2000:]
+
+
+def _uncommented(line: str) -> str:
+    """A YAML line without its trailing comment and outer spaces (no ``#`` inside quotes here)."""
+    return line.split(" #", 1)[0].strip() if not line.lstrip().startswith("#") else ""
+
+
+def excerpt_blocks(text: str) -> list[str]:
+    """The page's YAML blocks that show part of a shipped model (not a file of the walk-throughs,
+    which start with ``# <path>``)."""
+    return [body for language, body in blocks(text) if language == "yaml" and not body.startswith("# ")]
+
+
+def test_the_yaml_excerpts_are_lines_of_a_shipped_model():
+    """Each excerpt's lines (comments aside) are lines of one conf/app/<model>.yaml, in order."""
+    excerpts = excerpt_blocks(PAGE.read_text(encoding="utf-8"))
+    assert len(excerpts) >= 2
+    configs = {path.stem: [_uncommented(line) for line in path.read_text(encoding="utf-8").splitlines()]
+               for path in sorted((ROOT / "conf" / "app").glob("*.yaml"))}
+    for body in excerpts:
+        wanted = [_uncommented(line) for line in body.splitlines() if _uncommented(line)]
+        holders = [name for name, lines in configs.items()
+                   if all(line in lines for line in wanted)
+                   and [lines.index(line) for line in wanted] == sorted(lines.index(line) for line in wanted)]
+        assert holders, f"docs/models.md: this YAML is not (part of) a shipped model in conf/app:\n{body}"
+
+
+def _bad_input_lines(text: str) -> dict[str, str]:
+    """The Bad input section's command → the last line it ends with (its test compares them)."""
+    steps = blocks(section(text, "Bad input"))
+    commands_ = [shlex.join(shlex.split(line, comments=True)) for line in steps[0][1].splitlines()
+                 if shlex.split(line, comments=True)]
+    return dict(zip(commands_, steps[1][1].strip().splitlines(), strict=True))
+
+
+def command_output_blocks(text: str) -> list[str]:
+    """The page's text blocks outside the walk-throughs that show a command's output: a
+    transcript (``$ decrun …`` lines, each followed by its error line) or error lines a Bad input
+    command ends with."""
+    bad = set(_bad_input_lines(text).values())
+    found = []
+    for language, body in blocks(text):
+        lines = body.strip().splitlines()
+        if language != "text" or not lines:
+            continue
+        transcript = lines[0].startswith("$ decrun") and all(line.startswith(("$ decrun", "error:")) for line in lines)
+        if transcript or all(line in bad for line in lines):
+            found.append(body)
+    return found
+
+
+def test_the_transcripts_are_what_the_commands_print():
+    """Each ``$ decrun …`` line's next line is the error its command ends with, as run by
+    test_every_other_command_of_the_page_runs or the Bad input test."""
+    text = PAGE.read_text(encoding="utf-8")
+    expected = {**_bad_input_lines(text), **{c: e for c, e in PAGE_COMMANDS if e is not None}}
+    pairs = 0
+    for body in command_output_blocks(text):
+        lines = body.strip().splitlines()
+        for line, after in zip(lines, lines[1:], strict=False):
+            if line.startswith("$ decrun"):
+                assert expected.get(shlex.join(shlex.split(line[2:]))) == after, (line, after)
+                pairs += 1
+    assert pairs >= 2

@@ -291,7 +291,8 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     (the metrics and ``result_h5``: the size and sha256 of result.h5 and the hash of its
     content, :func:`~decrun.runner.results.provenance.result_record`) first — the result is
     complete before any figure is drawn, so an interrupt while drawing (SIGTERM, Ctrl-C) keeps
-    it (the interrupt carries ``result_complete``) — then the figures (each written under a
+    it (the interrupt carries ``result_complete``, and metrics.json, still ``status: ok``, gains
+    :data:`FIGURES_INTERRUPTED` and :data:`FIGURES_NOT_DRAWN`) — then the figures (each written under a
     temporary name and renamed: none is left truncated), after removing the figures an earlier
     run left in the directory (:func:`remove_earlier_figures`), then the export's files.
     ``total_seconds`` is the run's time up to its result; ``figures_seconds`` is logged."""
@@ -326,8 +327,11 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
             written += draw_figures(result.figures, files.dir, run.complex)
             log.info("figures: %s in %.1f s", ", ".join(p.name for p in written), time.perf_counter() - t)
     except KeyboardInterrupt as exc:  # the result is complete: the caller keeps it (see _run)
-        exc.result_complete = [  # type: ignore[attr-defined]  # read by _run
-            name for name in result.figures if drawn and not _drawn(files.dir, name)]
+        not_drawn = [name for name in result.figures if drawn and not _drawn(files.dir, name)]
+        exc.result_complete = not_drawn  # type: ignore[attr-defined]  # read by _run
+        # the record says what is true: the run is ok (a sweep's resume keeps it), its figures were cut short
+        write_metrics_json(files.metrics, {**record, FIGURES_INTERRUPTED: f"interrupted ({interrupt_cause(exc)})",
+                                           FIGURES_NOT_DRAWN: not_drawn})
         raise
     timings["figures_seconds"] = time.perf_counter() - t
     export = run.experiment.export
@@ -342,6 +346,10 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
 
 #: the endings of the figures a run draws (``<name>.png``; an animation's ``<name>.gif``)
 FIGURE_ENDINGS = (".png", ".gif")
+#: keys :func:`write` adds to a complete run's metrics.json (``status`` stays ``ok``) when an
+#: interrupt stops its figures: the cause (``interrupted (SIGTERM)``) and the figures not drawn
+FIGURES_INTERRUPTED = "figures_interrupted"
+FIGURES_NOT_DRAWN = "figures_not_drawn"
 
 
 def _drawn(directory: Path, name: str) -> bool:
@@ -440,10 +448,12 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (failures.Terminated)
         cause = interrupt_cause(exc)
         missing = getattr(exc, "result_complete", None)
-        if missing is not None and not multirun:  # while drawing the figures: the result and metrics stand
+        if missing is not None:  # while drawing the figures: the result and metrics stand (status ok)
             said = (f"decrun: interrupted ({cause}) while drawing the figures; the run is complete: "
                     f"{RunFiles.RESULT} and {RunFiles.METRICS} in {out}; not drawn: {', '.join(missing) or 'none'}")
             print(said, file=sys.stderr)
+            if multirun:  # a finished job for the sweeper (decrun.runner.sweep.stops): resume keeps it
+                raise
             raise Stopped(said, exit_code(exc)) from exc
         note = set_aside_stale(out, earlier) + record_status(out, "interrupted", f"interrupted ({cause})", identity)
         said = f"decrun: interrupted ({cause}); what was recorded is in {out}/{note}"

@@ -340,7 +340,7 @@ def runner_of(page: str, language: str, body: str, line: str | None, known: dict
     found from what those tests read: None when no rule applies (then :data:`NOT_RUN` must)."""
     examples, models, elsewhere = known["examples"], known["models"], known["elsewhere"]
     if language == "bash" and line is not None:
-        command = line.split("  #", 1)[0].strip()
+        command = known["without_comment"](line)
         words = shlex.split(line, comments=True)
         if page == "docs/models.md":
             return "tests/test_model_docs.py" if shlex.join(words) in models else None
@@ -377,6 +377,7 @@ def _known() -> dict:
     cluster = (DOCS / "cluster.md").read_text(encoding="utf-8")
     laptop = re.search(r"<!-- laptop-to-cluster -->\n```bash\n(.*?)```", cluster, re.S).group(1)
     return {"examples": {c for _, c in examples.EXAMPLES}, "syntax": set(examples.SYNTAX),
+            "without_comment": examples.without_comment,
             "models": walked | {c for c, _ in models.PAGE_COMMANDS},
             "model_blocks": model_blocks,
             "elsewhere": {page: test for page, test in examples.RUN_ELSEWHERE.items() if page != "docs/models.md"},

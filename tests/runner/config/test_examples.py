@@ -3,7 +3,8 @@
 The examples are extracted from the text (code blocks and backticked spans of the pages, conf
 comment lines), not copied here, so an example that is edited or added is tested as it
 reads. Single runs go through the same composition as ``decrun`` (in process, fast);
-sweeps (``-m``) and ``decrun-table`` run the real commands and are marked slow.
+sweeps (``-m``) and ``decrun-table`` run the real commands, those of the default app in the
+default suite and the rest marked slow (:func:`cheap`).
 
 Placeholders are replaced by real values (:data:`PLACEHOLDERS`); a line that only shows
 syntax (``decrun -v ...``) is not an example and is listed in :data:`SYNTAX`.
@@ -30,7 +31,8 @@ PLACEHOLDERS = {"/data/dragon.ply": str(sample_mesh_dir() / SAMPLE_MESHES["cow"]
 #: lines that show syntax, not a command to run
 SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]",
           # docs/tracking.md's prose: a single run and a sweep of any options
-          "decrun ... tracker=mlflow", "decrun -m", "decrun -m ... hydra.searchpath=[file://my_conf] tracker=wandb")
+          "decrun ... tracker=mlflow", "decrun -m", "decrun -m ... hydra.searchpath=[file://my_conf] tracker=wandb",
+          "decrun -m key=a,b ...")
 #: examples of bad input: they must fail with this message
 EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key",
                    # docs/apps/writing.md: a refusal in check, naming the step that works
@@ -48,7 +50,8 @@ PREREQUISITES = {
 PREREQUISITES_B = ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/B"]
 #: pages whose commands another test runs as written: page → that test
 RUN_ELSEWHERE = {
-    "docs/models.md": "tests/test_model_docs.py (the walk-through and the refusals, with their outputs)",
+    "docs/models.md": "tests/test_model_docs.py (the walk-throughs and the refusals with their outputs; every other "
+                      "command: test_every_other_command_of_the_page_runs)",
     "docs/gallery.md": "tests/test_numbers.py (every gallery command is a run of scripts/doc_numbers.py)",
     # its sweeps write into one MLflow store in order (a resume, then decrun-track of the same sweep)
     "docs/tracking.md": "tests/runner/results/test_tracker.py (test_the_docs_commands_run; the UI: test_tracker_ui.py)",
@@ -61,11 +64,35 @@ def pages() -> list[Path]:
     return [p for p in found if str(p.relative_to(ROOT)) not in RUN_ELSEWHERE]
 
 
+def without_comment(line: str) -> str:
+    """``line`` up to its shell comment (an unquoted ``#`` after a space: ``# Hydra's …`` is
+    not a quote to close), stripped."""
+    quote = None
+    for i, char in enumerate(line):
+        if quote:
+            quote = None if char == quote else quote
+        elif char in "'\"":
+            quote = char
+        elif char == "#" and (i == 0 or line[i - 1].isspace()):
+            return line[:i].strip()
+    return line.strip()
+
+
+def refusals_in(text: str) -> dict[str, re.Pattern]:
+    """The examples a page shows refused, ``(`decrun …` → `error: …`)``: command → a pattern of
+    the documented line (``…`` stands for anything, a line break in the span for a space)."""
+    found = {}
+    for command, error in re.findall(r"`(decrun[^`]*)` → `(error: [^`]*)`", text):
+        parts = [re.escape(" ".join(part.split())) for part in error.split("…")]
+        found[command] = re.compile(".*?".join(parts).replace(r"\ ", r"\s+"), re.S)
+    return found
+
+
 def _commands_in(text: str) -> list[str]:
     found = []
     for block in re.findall(r"```bash\n(.*?)```", text, flags=re.S):
         for line in block.splitlines():
-            command = line.split("  #", 1)[0].strip()
+            command = without_comment(line)
             if COMMAND.match(command) and "pip install" not in command:
                 found.append(command)
     for span in re.findall(r"(?<!`)`([^`\n]+)`(?!`)", text):
@@ -101,8 +128,17 @@ def examples() -> list[tuple[str, str]]:
 
 
 EXAMPLES = examples()
+#: sweeps a page shows refused before anything runs: command → the documented line's pattern
+REFUSED = {command: pattern for page in pages() for command, pattern in refusals_in(page.read_text()).items()}
 SINGLE = [(w, c) for w, c in EXAMPLES if " -m " not in f"{c} " and not c.startswith("decrun-table")]
 SWEEPS = [(w, c) for w, c in EXAMPLES if (w, c) not in SINGLE]
+
+
+def cheap(command: str) -> bool:
+    """A sweep of the default app, or a table of one: a few jobs of seconds each, run in the
+    default suite. A thesis experiment, another app, launcher or sweeper: ``-m slow``."""
+    return not any(word.startswith(("+experiment=", "app=", "hydra/launcher=", "hydra/sweeper="))
+                   for word in command.split())
 
 
 def arguments(command: str, tmp_path: Path) -> list[str]:
@@ -148,10 +184,12 @@ def test_single_run_example_runs(where, command, tmp_path, decrun_cli):
     assert (out / "result.h5").is_file() and any(p.suffix == ".png" for p in written)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("where, command", SWEEPS, ids=[c for _, c in SWEEPS])
+@pytest.mark.parametrize("where, command", [
+    pytest.param(w, c, id=c, marks=[] if cheap(c) else [pytest.mark.slow]) for w, c in SWEEPS])
 def test_sweep_example_runs(where, command, tmp_path):
-    """The real command in a scratch directory; ``decrun-table`` runs on a sweep made first."""
+    """The real command in a scratch directory; ``decrun-table`` runs on a sweep made first; a
+    sweep the page shows refused ends with its documented line. Cheap ones (:func:`cheap`) run
+    in the default suite."""
     args = arguments(command, tmp_path)
     env_python = [sys.executable, "-m", "decrun"]
     if any(a.startswith("hydra/launcher=slurm") for a in args):
@@ -182,6 +220,10 @@ def test_sweep_example_runs(where, command, tmp_path):
     if any(a.startswith("hydra/launcher=joblib") for a in args):
         pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
     done = subprocess.run([*env_python, *args], cwd=tmp_path, capture_output=True, text=True, timeout=1800)
+    if command in REFUSED:  # refused as the page says, before any job ran
+        assert done.returncode == 1 and REFUSED[command].search(" ".join(done.stderr.split())), done.stderr[-2000:]
+        assert not (tmp_path / "outputs").exists() or not list((tmp_path / "outputs").rglob("result.h5"))
+        return
     if "+experiment=operator_variants" in args:  # refusals are part of that table, each with its reason
         import pandas as pd
 

@@ -233,9 +233,13 @@ def test_every_shipped_model_is_in_the_docs():
 PROSE = ("decrun", "decrun-table")
 #: the sections whose commands the tests above run as a whole, in order, with their outputs
 WHOLE_SECTIONS = ("Your first model", "Composed models", "Bad input")
-#: sweeps of the page too heavy for the default suite (run with -m slow): the Halfar dome at 1 km
-#: (200 factorizations of a 6k-vertex system) and the Darcy refinements up to the finest box
-HEAVY_SWEEPS = ("decrun -m +experiment=cism_halfar", "decrun -m +experiment=darcy_convergence")
+
+
+def heavy(command: str) -> bool:
+    """The page's sweeps are too heavy for the default suite (run with -m slow): 3 to 9 jobs of
+    models up to 10k vertices (heat to mesh.subdiv=5, the Halfar dome at 1 km: 200
+    factorizations of a 6k-vertex system, the Darcy refinements up to the finest box)."""
+    return "-m" in shlex.split(command)
 
 
 def page_commands(text: str) -> list[tuple[str, str | None]]:
@@ -276,7 +280,7 @@ def test_the_page_commands_are_found():
 
 @pytest.mark.parametrize("command, error", [
     pytest.param(command, error, id=command,
-                 marks=[pytest.mark.slow] if command in HEAVY_SWEEPS else [])
+                 marks=[pytest.mark.slow] if heavy(command) else [])
     for command, error in PAGE_COMMANDS])
 def test_every_other_command_of_the_page_runs(command, error, tmp_path):
     """The real command in a scratch directory (the walk-through's files written first when it

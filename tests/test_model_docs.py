@@ -6,7 +6,10 @@
   their first line names, its ``decrun``/``decrun-table`` commands and Python blocks run in a
   temporary directory in order, and each ``text`` block that follows one is its output (every
   line found in it; numbers within 2 %, ``…`` stands for anything);
-- that section's three example commands run.
+- that section's three example commands run;
+- every other command of docs/models.md (the opening block, backticked spans, ``$ decrun …``
+  transcripts) runs: a refusal ends with the line the page shows, a run or sweep succeeds (the
+  sweeps with -m slow); its YAML excerpts are lines of a shipped model's config.
 """
 
 from __future__ import annotations

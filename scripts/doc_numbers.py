@@ -6,7 +6,9 @@
 A page writes ``{{ numbers.<run>.<name> }}`` where it shows a number; the docs build
 (``scripts/mkdocs_hooks.py``) puts in the value from ``docs/numbers.json``, formatted as its
 entry says, and fails on a name the file does not hold. Each entry records the overrides of its
-run (``decrun <overrides>``), the metric, the value and its tolerance (``rtol``, ``atol``;
+run (``decrun <overrides>``) — or, for a number no single run gives (the spectrum table, the
+operator-variants sweep, a mesh statistic), the function of this script that computes it (a
+``Source``: ``source``) — the metric, the value and its tolerance (``rtol``, ``atol``;
 booleans, integers and strings exactly). ``tests/test_numbers.py`` reruns every run and fails,
 naming the number, when a value moved beyond its tolerance; regenerate on purpose with this
 script and commit the file with the change that moved it.

@@ -33,7 +33,7 @@ PAGES = ["index.md", "tutorial.md", "core.md", "volumes.md", "export.md", "sweep
 ALLOWED: dict[str, dict[str, str]] = {
     "tutorial.md": {
         "Python ≥ 3.10": "a requirement",
-        "icosphere with 162\nvertices": "the default mesh's size (icosphere subdiv 2: 10·4²+2 vertices)",
+        "icosphere with 162\nvertices": "the command's mesh (icosphere, mesh.subdiv=2: 10·4²+2 vertices)",
         "at 1.5 times": "the sweep's parameter (shown in its command)",
         "at 1.5 × the critical step": "the sweep's parameter",
     },

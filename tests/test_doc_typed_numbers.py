@@ -87,7 +87,9 @@ ALLOWED: dict[str, dict[str, str]] = {
     },
 }
 
-NUMBER = re.compile(r"(?<![\w.⋆_^/\\-])\d+(?:[  ]\d{3})*(?:[.,]\d+)*(?:e[−+-]?\d+)?(?![\w-])")
+#: a number: digits with thousands groups ("19 901", "40,962"), decimals, an exponent, a k/M suffix
+#: ("28k"); not a subscript or index (d0, ⋆1, Δ_2, x^2), a version or a path
+NUMBER = re.compile(r"(?<![\w.⋆_^/\\-])\d+(?:[  ]\d{3})*(?:[.,]\d+)*(?:e[−+-]?\d+)?(?:[kM](?!\w))?(?!\w)")
 REFERENCE = re.compile(r"(?:§|\beqs?\.|\bFigs?\.|\bch\.|\bTheorem|\bTable)\s*\d+(?:\.\d+)*"
                        r"(?:\s*(?:[–,/-]|and)\s*\d+(?:\.\d+)*)*")
 
@@ -147,14 +149,17 @@ def test_every_allowed_phrase_is_on_its_page(page):
 
 def test_a_typed_measurement_is_found_and_a_placeholder_is_not():
     """The issue's examples: Fig. 6.9's 0.258 typed into the vector-field table, the 9722 of an
-    enstrophy and Fig. 5.5's "20°" — each found; the same cells as placeholders, references
-    and code are not."""
+    enstrophy and Fig. 5.5's "20°" — each found, with a mesh size written "82k" or "12059-face";
+    the same cells as placeholders, references, subscripts and code are not; an allowed phrase
+    (one that breaks a line too) covers its numbers."""
     page = (ROOT / "docs" / "apps" / "vector_field.md").read_text(encoding="utf-8")
     allowed = ALLOWED["apps/vector_field.md"]
     assert typed_numbers(page, allowed) == []
     typed = page.replace("{{ numbers.fig6_9_none_nostroke.flux }}", "0.258", 1)
     assert [f.split(" in ")[0].split(": ")[1] for f in typed_numbers(typed, allowed)] == ["0.258"]
     text = ("The enstrophy ends at 9722 (Fig. 7.17, eq. 7.14, §6.4.4); the angle is 20° "
-            "(`app.dt=0.0075`, {{ numbers.x.y }}).\n```bash\ndecrun app.viscosity=0.08\n```\n")
-    assert [f.split(" in ")[0].split(": ")[1] for f in typed_numbers(text, {})] == ["9722", "20"]
-    assert typed_numbers(text, {"ends at 9722": "x", "is 20°": "y"}) == []
+            "(`app.dt=0.0075`, {{ numbers.x.y }}) on the 82k-vertex scan,\na 12059-face channel, "
+            "Δ2 of the 1-forms.\n```bash\ndecrun app.viscosity=0.08\n```\n")
+    assert [f.split(" in ")[0].split(": ")[1] for f in typed_numbers(text, {})] == ["9722", "20", "82k", "12059"]
+    assert [f.split(":")[0] for f in typed_numbers(text, {})] == ["line 1"] * 3 + ["line 2"]
+    assert typed_numbers(text, {"ends at 9722": "x", "is 20°": "y", "the 82k-vertex scan, a 12059-face": "z"}) == []

@@ -356,6 +356,40 @@ def default_star_agreement() -> dict:
     return {"relative_difference": abs(default - circumcentric) / abs(default)}
 
 
+def model_convergence() -> dict:
+    """The convergence tables of the models page (``benchmarks/model_convergence.py``): heat on
+    the unit sphere for l = 1, 2, 3, Poisson on the square and the disk, the heat method and the
+    wave's frequency, as ``<table>_<row>_<column>`` (row 0 the coarsest; columns ``vertices`` or
+    ``faces``, ``h``, ``error``, ``max_error``, ``order``, and the wave's ``omega`` and ``drift``)."""
+    return _module("benchmarks/model_convergence.py").numbers()
+
+
+def _convergence_numbers() -> dict[str, Number]:
+    columns = {"vertices": {}, "faces": {}, "h": dict(fmt=".4f"), "error": dict(fmt=".3e"), "max_error": dict(fmt=".2e"),
+               "order": dict(fmt=".2f"), "omega": dict(fmt=".6f", rtol=1e-7),
+               "drift": dict(fmt=".1e", rtol=0.0, atol=1e-13)}
+    shape = {"heat_l1": ("vertices", "h", "error"), "heat_l2": ("vertices", "h", "error"),
+             "heat_l3": ("vertices", "h", "error"), "poisson_square": ("vertices", "h", "error", "max_error"),
+             "poisson_disk": ("vertices", "h", "error", "max_error"), "geodesics": ("faces", "h", "error", "max_error"),
+             "wave": ("vertices", "h", "omega", "error", "drift")}
+    numbers = {}
+    for table, names in shape.items():
+        for row in range(3 if table == "wave" else 4):
+            for column in (*names, "order") if row else names:
+                key = f"{table}_{row}_{column}"
+                numbers[key] = N(key, **columns[column])
+    # the same numbers shorter, as the shipped-models table and the prose quote them
+    for key in ("heat_l1_3_error", "heat_l2_3_error", "heat_l3_3_error", "poisson_square_3_error",
+                "poisson_disk_3_error", "wave_2_error"):
+        numbers[f"{key}_short"] = N(key, ".1e")
+    for key in ("poisson_square_3_order", "wave_2_order", "geodesics_1_order", "geodesics_3_order"):
+        numbers[f"{key}_short"] = N(key, ".1f")
+    numbers["wave_2_drift_short"] = N("wave_2_drift", ".0e", rtol=0.0, atol=1e-13)
+    for key in ("geodesics_2_error", "geodesics_3_error"):
+        numbers[f"{key}_percent"] = N(key, scale=100.0, fmt=".2f")
+    return numbers
+
+
 #: a round-off cell of the spectrum table: shown as computed, held only to being this small
 SPECTRUM_ROUND_OFF = {("torus", "circumcentric", 1), ("torus", "barycentric", 1)}
 #: the cells the spectrum page shows: mesh → degrees
@@ -399,6 +433,11 @@ RUNS["spectrum_negative_stars"] = Source(spectrum_negative_stars, {
 RUNS["parametrization_height_field"] = Source(height_field_parametrization, {
     "default": N("default", ".2f"), "harmonic": N("harmonic", ".2f"), "free": N("free", ".2f")})
 RUNS["operator_variants"] = Source(operator_variants, _variant_numbers())
+RUNS["model_convergence"] = Source(model_convergence, _convergence_numbers())
+for _spacing in ("4km", "2km", "1km"):  # the CISM v2.1 Halfar dome on the models page
+    RUNS[f"halfar_{_spacing}"] = Run(("+experiment=cism_halfar", f"mesh=cism_halfar/{_spacing}"), {
+        "rms": N("rms_error_m", ".2f"), "max": N("max_error_m", ".1f"), "min_thickness": N("min_thickness_m", ".1e"),
+        "vertices": N("n_vertices")})
 RUNS["operator_default_agreement"] = Source(default_star_agreement, {
     "relative_difference": N("relative_difference", ".0e", rtol=0.2)})
 

@@ -68,6 +68,7 @@ class Run:
         return {"overrides": list(self.overrides)}
 
     def describe(self) -> str:
+        """The run as a failure message names it: its command."""
         return f"`decrun {' '.join(self.overrides)}`"
 
 
@@ -84,9 +85,11 @@ class Source:
 
     @property
     def provenance(self) -> dict:
+        """What made the numbers, as numbers.json records it: the function's name."""
         return {"source": f"scripts/doc_numbers.py:{self.function.__name__}"}
 
     def describe(self) -> str:
+        """The source as a failure message names it."""
         return f"`{self.function.__name__}()` of scripts/doc_numbers.py"
 
 

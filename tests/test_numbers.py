@@ -74,6 +74,22 @@ def test_drift_names_what_moved_and_accepts_what_did_not():
     assert doc_numbers.render({**entry, "value": 0.0130, "format": ".2f", "scale": 100.0}) == "1.30"
 
 
+def test_a_source_is_recorded_and_checked_like_a_run():
+    """A Source's entries name its function instead of overrides; its strings (a refusal's
+    reason in the spectrum table) are held exactly, its numbers to their tolerance."""
+    def cells():
+        return {"cube": "zero ⋆", "sphere": 0.016422}
+
+    source = doc_numbers.Source(cells, {"cube": doc_numbers.N("cube"), "sphere": doc_numbers.N("sphere", ".2e")})
+    made = doc_numbers.entries("demo", source, doc_numbers.run_metrics(source))
+    assert made["demo.sphere"]["source"] == "scripts/doc_numbers.py:cells" and "overrides" not in made["demo.sphere"]
+    assert doc_numbers.render(made["demo.sphere"]) == "1.64e-02" and doc_numbers.render(made["demo.cube"]) == "zero ⋆"
+    assert doc_numbers.drift(made["demo.cube"], "⋆ < 0") == "'⋆ < 0' instead of 'zero ⋆'"
+    assert doc_numbers.drift(made["demo.sphere"], 0.0164225) is None and doc_numbers.drift(made["demo.sphere"], 0.0144)
+    with pytest.raises(KeyError, match=r"`cells\(\)` of scripts/doc_numbers.py has no metric 'ball'"):
+        doc_numbers.entries("demo", doc_numbers.Source(cells, {"ball": doc_numbers.N("ball")}), cells())
+
+
 #: run → the runs whose numbers its metrics also give (itself and its aliases)
 GROUPS: dict[str, list[str]] = {}
 for _name in RUNS:

@@ -433,6 +433,11 @@ RUNS["parametrization_height_field"] = Source(height_field_parametrization, {
     "default": N("default", ".2f"), "harmonic": N("harmonic", ".2f"), "free": N("free", ".2f")})
 RUNS["operator_variants"] = Source(operator_variants, _variant_numbers())
 RUNS["model_convergence"] = Source(model_convergence, _convergence_numbers())
+RUNS["model_poisson_sphere"] = Run(("+experiment=poisson_sphere",), {
+    "error": N("l2_error_rel", scale=100.0, fmt=".2f"), "vertices": N("n_vertices")})
+for _b in ("1.8", "2.2"):  # the Brusselator's growth rate on either side of the Hopf point B = 2
+    RUNS[f"model_brusselator_{_b.replace('.', '_')}"] = Run(("+experiment=brusselator_hopf", f"app.constants.B={_b}"), {
+        "growth": N("growth_rate_measured", ".10f", rtol=1e-8)})
 for _spacing in ("4km", "2km", "1km"):  # the CISM v2.1 Halfar dome on the models page
     RUNS[f"halfar_{_spacing}"] = Run(("+experiment=cism_halfar", f"mesh=cism_halfar/{_spacing}"), {
         "rms": N("rms_error_m", ".2f"), "max": N("max_error_m", ".1f"), "min_thickness": N("min_thickness_m", ".1e"),

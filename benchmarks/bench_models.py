@@ -187,16 +187,13 @@ def compile_cost(subdiv: int, repeat: int) -> None:
 
 # ---------------------------------------------------------------------------------------------- part 3
 def run(overrides: list[str]):
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from model_convergence import run as run_
 
-    done = run_experiment(compose_config(["figures=false", "progress=false", *overrides]))
-    return done, float(done.complex.mean_edge_length)
+    return run_(overrides)
 
 
-def orders(errors: list[float], hs: list[float]) -> list[str]:
-    return ["–"] + [f"{math.log(errors[i] / errors[i + 1]) / math.log(hs[i] / hs[i + 1]):.2f}"
-                    for i in range(len(errors) - 1)]
+def _order(value) -> str:
+    return "–" if value is None else f"{value:.2f}"
 
 
 def table(title: str, header: str, rows: list[str]) -> None:
@@ -209,82 +206,31 @@ def table(title: str, header: str, rows: list[str]) -> None:
 
 
 def convergence(subdivs: list[int]) -> None:
-    harmonics = {1: "z", 2: "x*y", 3: "x*y*z"}
-    for l, initial in harmonics.items():
-        decay = l * (l + 1)
-        exact = f"exp(-{decay}*k*t)*{initial}"
-        errors, hs, rows = [], [], []
-        for s in subdivs:
-            done, h = run(["+experiment=heat_sphere", f"mesh.subdiv={s}", "app.dt=0.0001", "app.record_every=1000",
-                           f"app.fields.u.initial='{initial}'",
-                           f"app.metrics={{l2_error_rel: 'norm(u - {exact})/norm({exact})'}}"])
-            errors.append(done.result.metrics["l2_error_rel"])
-            hs.append(h)
-            rows.append((s, done.result.metrics["n_vertices"], h))
-        table(f"Heat on the unit sphere, l = {l} (u0 = {initial}, exact e^(−{decay}t) u0; crank_nicolson, dt = 1e-4, "
-              "t = 0.1)", "| subdiv | vertices | h | relative L2 error | order |",
-              [f"| {s} | {n:,} | {h:.4f} | {e:.3e} | {o} |" for (s, n, h), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
+    """The tables of ``model_convergence.tables`` (docs/models.md's convergence section), printed."""
+    from model_convergence import HARMONICS, tables
 
-    errors, hs, rows = [], [], []
-    for nx in (9, 17, 33, 65):
-        done, h = run(["app=poisson", f"mesh.nx={nx}", f"mesh.ny={nx}"])
-        errors.append(done.result.metrics["l2_error_rel"])
-        hs.append(1.0 / (nx - 1))
-        rows.append((nx, done.result.metrics["n_vertices"], h, done.result.metrics["max_abs_error"]))
+    got = tables(tuple(subdivs))
+    for l, initial in HARMONICS.items():
+        table(f"Heat on the unit sphere, l = {l} (u0 = {initial}, exact e^(−{l * (l + 1)}t) u0; crank_nicolson, "
+              "dt = 1e-4, t = 0.1)", "| subdiv | vertices | h | relative L2 error | order |",
+              [f"| {r['subdiv']} | {r['vertices']:,} | {r['h']:.4f} | {r['error']:.3e} | {_order(r['order'])} |"
+               for r in got[f"heat_l{l}"]])
     table("Poisson on the unit square (mesh=grid; u = sin(πx)cos(πy) + x², border values)",
           "| nx = ny | vertices | h (mean edge) | relative L2 error | max abs error | order |",
-          [f"| {nx} | {n:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
-           for (nx, n, h, m), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
-
-    angles = np.linspace(0.0, 2 * np.pi, 96, endpoint=False)
-    outer = "[" + ",".join(f"[{math.cos(a):.12f},{math.sin(a):.12f}]" for a in angles) + "]"
-    errors, hs, rows = [], [], []
-    for area in (0.01, 0.0025, 0.000625, 0.00015625):
-        done, h = run(["app=poisson", "mesh=planar", f"mesh.outer={outer}", "mesh.holes=[]", f"mesh.max_area={area}"])
-        errors.append(done.result.metrics["l2_error_rel"])
-        hs.append(h)
-        rows.append((area, done.result.metrics["n_vertices"], h, done.result.metrics["max_abs_error"]))
+          [f"| {r['nx']} | {r['vertices']:,} | {r['h']:.4f} | {r['error']:.3e} | {r['max_error']:.2e} | "
+           f"{_order(r['order'])} |" for r in got["poisson_square"]])
     table("Poisson on the unit disk (mesh=planar, a 96-gon, min angle 25°; same u, border values)",
           "| max_area | vertices | h | relative L2 error | max abs error | order |",
-          [f"| {a:g} | {n:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
-           for (a, n, h, m), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
-
-    errors, hs, rows = [], [], []
-    for s in (3, 4, 5, 6):
-        done, h = run(["+experiment=heat_geodesics_sphere", f"mesh.subdiv={s}"])
-        errors.append(done.result.metrics["mean_relative_error"])
-        hs.append(h)
-        rows.append((s, done.result.metrics["n_faces"], h, done.result.metrics["max_abs_error"]))
+          [f"| {r['max_area']:g} | {r['vertices']:,} | {r['h']:.4f} | {r['error']:.3e} | {r['max_error']:.2e} | "
+           f"{_order(r['order'])} |" for r in got["poisson_disk"]])
     table("The heat method on the unit sphere (exact: arccos(p·s); t = h², operator=mixed_area)",
           "| subdiv | faces | h | mean relative error | max abs error | order |",
-          [f"| {s} | {f:,} | {h:.4f} | {e:.3e} | {m:.2e} | {o} |"
-           for (s, f, h, m), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
-
-    from scipy.optimize import minimize_scalar
-
-    errors, hs, rows = [], [], []
-    for s in subdivs[:3]:  # every recorded step holds u and v: 10 periods at subdiv 6 would be 0.3 GB per record_every
-        done, h = run(["app=wave", f"mesh.subdiv={s}", "app.record_every=5"])
-        series = done.result.series
-        time_, projection = np.asarray(series["time"]), np.asarray(series["projection"])
-        energy = np.asarray(series["energy_modified"])
-
-        def misfit(omega, time_=time_, projection=projection):
-            basis = np.stack([np.cos(omega * time_), np.sin(omega * time_)], axis=1)
-            coefficients = np.linalg.lstsq(basis, projection, rcond=None)[0]
-            return float(np.sum((basis @ coefficients - projection) ** 2))
-
-        omega = minimize_scalar(misfit, bounds=(0.95 * math.sqrt(6), 1.05 * math.sqrt(6)), method="bounded",
-                                options={"xatol": 1e-12}).x
-        error = abs(omega - math.sqrt(6)) / math.sqrt(6)
-        drift = float(np.abs(energy - energy[0]).max() / abs(energy[0]))
-        errors.append(error)
-        hs.append(h)
-        rows.append((s, done.result.metrics["n_vertices"], h, omega, drift))
+          [f"| {r['subdiv']} | {r['faces']:,} | {r['h']:.4f} | {r['error']:.3e} | {r['max_error']:.2e} | "
+           f"{_order(r['order'])} |" for r in got["geodesics"]])
     table("The wave's l = 2 mode on the unit sphere (symplectic, dt = 0.005, 10 periods): frequency against √6",
           "| subdiv | vertices | h | ω fitted | \\|ω − √6\\| / √6 | order | modified-energy drift (relative) |",
-          [f"| {s} | {n:,} | {h:.4f} | {w:.6f} | {e:.3e} | {o} | {d:.1e} |"
-           for (s, n, h, w, d), e, o in zip(rows, errors, orders(errors, hs), strict=True)])
+          [f"| {r['subdiv']} | {r['vertices']:,} | {r['h']:.4f} | {r['omega']:.6f} | {r['error']:.3e} | "
+           f"{_order(r['order'])} | {r['drift']:.1e} |" for r in got["wave"]])
     print(f"\n{load()}")
 
 

@@ -30,6 +30,7 @@ VARIANTS = ["circumcentric", "barycentric", "mixed_area", "whitney", "whitney_lu
 
 
 def meshes():
+    """(key, label, vertices, simplices, degrees) of the five meshes of the table."""
     import pymeshlab
 
     from decrun.runner.mesh.sources.volumes import tetrahedralize_surface
@@ -39,24 +40,27 @@ def meshes():
     sphere = ms.current_mesh()
     V = sphere.vertex_matrix()
     V = V / np.linalg.norm(V, axis=1, keepdims=True)
-    yield "sphere (642 vertices)", V, sphere.face_matrix().astype(np.int64), (0, 1, 2)
-    yield "flat torus (576 vertices)", *flat_torus(24), (0, 1, 2)
-    yield "square (289 vertices, jittered)", *grid_triangles(16, jitter=0.2), (0, 1, 2)
-    yield "cube (343 vertices, Kuhn)", *kuhn_cube(6), (0, 1, 2, 3)
+    yield "sphere", "sphere (642 vertices)", V, sphere.face_matrix().astype(np.int64), (0, 1, 2)
+    yield "torus", "flat torus (576 vertices)", *flat_torus(24), (0, 1, 2)
+    yield "square", "square (289 vertices, jittered)", *grid_triangles(16, jitter=0.2), (0, 1, 2)
+    yield "cube", "cube (343 vertices, Kuhn)", *kuhn_cube(6), (0, 1, 2, 3)
     ms = pymeshlab.MeshSet()
     ms.create_sphere(radius=1.0, subdiv=2)
     surface = ms.current_mesh()
     SV = surface.vertex_matrix()
     SV = SV / np.linalg.norm(SV, axis=1, keepdims=True)
     nodes, tets, _ = tetrahedralize_surface(SV, surface.face_matrix(), max_volume=0.002, keep_surface=True)
-    yield f"ball ({len(nodes)} vertices, TetGen)", nodes, tets, (0,)
+    yield "ball", f"ball ({len(nodes)} vertices, TetGen)", nodes, tets, (0,)
 
 
 def star(name):
     return Whitney(lumped=True) if name == "whitney_lumped" else name
 
 
-def cell(K, variant, k):
+def measure(K, variant, k):
+    """``(error, positive)``: ``eigenvalue_relative_error_max`` of the first 10 eigenvalues of Δ_k
+    with this variant's stars and whether ⋆_k is positive (False: the Arnoldi solve); or the
+    reason the cell has no number (a string: ``zero ⋆``, ``⋆ < 0``, ``n/a``, ``R³ only``)."""
     try:
         dec = DEC(K, star=star(variant))
         degrees = dec.star_variant.form_degrees
@@ -70,8 +74,33 @@ def cell(K, variant, k):
         return "R³ only"
     domain = detect_domain(K)
     errors = spectrum_errors(pairs.values, analytic_spectrum(domain, k, 10))
-    mark = "" if _positive(dec, k) else " †"
-    return f"{errors['eigenvalue_relative_error_max']:.2e}{mark}"
+    return float(errors["eigenvalue_relative_error_max"]), _positive(dec, k)
+
+
+def cell(K, variant, k):
+    got = measure(K, variant, k)
+    return got if isinstance(got, str) else f"{got[0]:.2e}" + ("" if got[1] else " †")
+
+
+def table() -> dict:
+    """Every cell of the table: ``{"<mesh>_<variant>_d<k>": error or reason}`` (``<mesh>``:
+    sphere, torus, square, cube, ball), ``<...>_positive`` (⋆_k > 0) beside every error, and
+    ``ball_vertices`` (TetGen's vertex count)."""
+    out = {}
+    for key, _, V, T, degrees in meshes():
+        K = SimplicialComplex(V, T, orient="fix")
+        if key == "ball":
+            out["ball_vertices"] = int(len(V))
+        for variant in VARIANTS:
+            if variant == "intrinsic_delaunay" and K.dim == 3:  # triangle meshes only
+                continue
+            for k in degrees:
+                got = measure(K, variant, k)
+                if isinstance(got, str):
+                    out[f"{key}_{variant}_d{k}"] = got
+                else:
+                    out[f"{key}_{variant}_d{k}"], out[f"{key}_{variant}_d{k}_positive"] = got
+    return out
 
 
 def _positive(dec, k):
@@ -82,7 +111,7 @@ def _positive(dec, k):
 def main() -> None:
     print("| mesh | operator | Δ0 | Δ1 | Δ2 | Δ3 |")
     print("|---|---|---|---|---|---|")
-    for name, V, T, degrees in meshes():
+    for _, name, V, T, degrees in meshes():
         K = SimplicialComplex(V, T, orient="fix")
         for variant in VARIANTS:
             if variant == "intrinsic_delaunay" and K.dim == 3:  # triangle meshes only

@@ -6,7 +6,9 @@
 A page writes ``{{ numbers.<run>.<name> }}`` where it shows a number; the docs build
 (``scripts/mkdocs_hooks.py``) puts in the value from ``docs/numbers.json``, formatted as its
 entry says, and fails on a name the file does not hold. Each entry records the overrides of its
-run (``decrun <overrides>``), the metric, the value and its tolerance (``rtol``, ``atol``;
+run (``decrun <overrides>``) — or, for a number no single run gives (the spectrum table, the
+operator-variants sweep, a mesh statistic), the function of this script that computes it (a
+``Source``: ``source``) — the metric, the value and its tolerance (``rtol``, ``atol``;
 booleans, integers and strings exactly). ``tests/test_numbers.py`` reruns every run and fails,
 naming the number, when a value moved beyond its tolerance; regenerate on purpose with this
 script and commit the file with the change that moved it.
@@ -60,6 +62,37 @@ class Run:
     derived: Callable | None = None
 
 
+    @property
+    def provenance(self) -> dict:
+        """What made the numbers, as numbers.json records it."""
+        return {"overrides": list(self.overrides)}
+
+    def describe(self) -> str:
+        """The run as a failure message names it: its command."""
+        return f"`decrun {' '.join(self.overrides)}`"
+
+
+@dataclass(frozen=True)
+class Source:
+    """Numbers that come from a computation which is not a decrun run (an eigenvalue error of an
+    operator variant, a mesh statistic): ``function() -> dict`` of named values, from which the
+    ``numbers`` are taken by name (``Number.metric``) and checked like a run's metrics. ``slow`` as
+    for :class:`Run`."""
+
+    function: Callable[[], dict]
+    numbers: dict[str, Number] = field(default_factory=dict)
+    slow: bool = False
+
+    @property
+    def provenance(self) -> dict:
+        """What made the numbers, as numbers.json records it: the function's name."""
+        return {"source": f"scripts/doc_numbers.py:{self.function.__name__}"}
+
+    def describe(self) -> str:
+        """The source as a failure message names it."""
+        return f"`{self.function.__name__}()` of scripts/doc_numbers.py"
+
+
 def N(metric: str, fmt: str = ".3g", **kw) -> Number:
     return Number(metric, fmt, **kw)
 
@@ -70,7 +103,15 @@ PERCENT = dict(scale=100.0, fmt=".2f")
 GROWTH = dict(fmt=".1f", rtol=0.0, atol=0.5)
 GROWTH_STEP = dict(fmt=".3f", rtol=0.0, atol=0.005)
 
-RUNS: dict[str, Run] = {
+
+def resolution_over_critical(done) -> dict:
+    """``resolution_over_critical``: the resolution step 2h̄²/π² over explicit Euler's critical
+    step 2/λ_max of a smoothing run (``dt_resolution / dt_critical_explicit``)."""
+    metrics = done.result.metrics
+    return {"resolution_over_critical": metrics["dt_resolution"] / metrics["dt_critical_explicit"]}
+
+
+RUNS: dict[str, Run | Source] = {
     # ------------------------------------------------------------------ smoothing
     "smoothing_default": Run((), {
         "distance_initial": N("distance_to_clean_rms_initial", **PERCENT),
@@ -80,20 +121,29 @@ RUNS: dict[str, Run] = {
         "dt": N("dt", ".4f"),
         "dt_critical": N("dt_critical_explicit", ".5f"),
         "volume_drift": N("volume_drift_rel", ".1g", rtol=0.0, atol=1e-14),
-    }),
+        "resolution_over_critical": N("resolution_over_critical", ".1f"),
+    }, derived=resolution_over_critical),
     "smoothing_default_subdiv2": Run(("mesh.subdiv=2",), {"dt_critical": N("dt_critical_explicit", ".4f")}),
     "smoothing_torus": Run(("mesh=torus", "mesh.noise=0.2", "app.dt_factor=0.3", "app.steps=3"), {
         "normal_initial": N("normal_deviation_to_clean_deg_initial", ".0f"),
         "normal": N("normal_deviation_to_clean_deg", ".0f"),
     }),
-    "smoothing_bunny": Run(("mesh=bunny",), {"normal_change": N("normal_change_deg", ".1f")}),
+    "smoothing_bunny": Run(("mesh=bunny",), {"normal_change": N("normal_change_deg", ".1f"),
+                                             "negative_star1": N("negative_star1_fraction", scale=100.0, fmt=".0f"),
+                                             "resolution_over_critical": N("resolution_over_critical", ".0f")},
+                           derived=resolution_over_critical),
     "smoothing_bunny_critical": Run(("mesh=bunny", "app.dt_unit=critical"),
                                     {"normal_change": N("normal_change_deg", ".2f")}),
-    "smoothing_cow": Run(("mesh=cow",), {"normal_change": N("normal_change_deg", ".1f")}),
+    "smoothing_cow": Run(("mesh=cow",), {"normal_change": N("normal_change_deg", ".1f"),
+                                         "resolution_over_critical": N("resolution_over_critical", ".0f")},
+                         derived=resolution_over_critical),
     "smoothing_cow_critical": Run(("mesh=cow", "app.dt_unit=critical"),
                                   {"normal_change": N("normal_change_deg", ".1f")}),
+    "smoothing_bone": Run(("mesh=sample", "mesh.sample=bone", "app.dt=0.05"), {
+        "dt_over_critical": N("dt_over_critical", ".0f"), "area_ratio": N("area_ratio", ".0f", rtol=0.01)}),
     "fig1_2_implicit_075": Run(("+experiment=fig1_2_smoothing", "app.scheme=implicit"), {
         "distance": N("distance_to_clean_rms", **PERCENT),
+        "vertices": N("n_vertices"),
     }),
     # ------------------------------------------------------------------ parametrization
     "fig5_5_conformal": Run(("+experiment=fig5_5_flat_hole",), {
@@ -105,6 +155,14 @@ RUNS: dict[str, Run] = {
     "fig5_5_circle": Run(("+experiment=fig5_5_flat_hole", "app.border=circle"), {
         "angle": N("angle_distortion_mean_deg", ".2f")}),
 }
+
+RUNS["parametrization_bunny"] = Run(("app=parametrization", "mesh=bunny"), {
+    "flips": N("flipped_triangles"), "crossings": N("border_self_intersections"), "borders": N("border_loops")})
+RUNS["parametrization_bunny_floater"] = Run(
+    ("app=parametrization", "mesh=bunny", "app.border=circle", "app.weights=mean_value"), {"flips": N("flipped_triangles")})
+RUNS["parametrization_bunny_floater_holes_conformal"] = Run(
+    ("app=parametrization", "mesh=bunny", "app.border=circle", "app.weights=mean_value", "app.holes=conformal"),
+    {"flips": N("flipped_triangles")})
 
 #: Fig. 5.8's table: (border, weights, reflex rows)
 FIG5_8 = [("circle", "dec", None), ("circle", "uniform", None), ("circle", "mean_value", None),
@@ -121,6 +179,7 @@ for _border, _weights, _rows in FIG5_8:
             "crossings": N("border_self_intersections"),
             "embedding": N("is_embedding"),
         })
+RUNS["fig5_8_circle_dec"].numbers["faces"] = N("n_faces")
 
 # ---------------------------------------------------------------------- vector fields
 for _boundary in ("none", "flux"):
@@ -131,6 +190,7 @@ for _boundary in ("none", "flux"):
             "defect": N("adjointness_defect", ".2g", rtol=0.0, atol=1e-6),
             "clusters": N("singularity_cluster_indices"),
         })
+RUNS["fig6_9_none_nostroke"].numbers["vertices"] = N("n_vertices")
 RUNS["fig6_7_precomputed"] = Run(("+experiment=fig6_7_cube", "app.stroke_magnitude=precomputed"), {
     "change": N("field_change_region_relative", ".2g")})
 for _length in ("0.2", "1.0", "5.0"):
@@ -148,6 +208,243 @@ RUNS["hodge_torus"] = Run(("app=hodge", "mesh=torus", "mesh.noise=0.05"), dict(_
 RUNS["hodge_torus_mixed"] = Run(("app=hodge", "mesh=torus", "mesh.noise=0.05", "app.analytic=mixed"), dict(_HODGE))
 RUNS["hodge_torus_mixed_mixed_area"] = Run(("app=hodge", "mesh=torus", "mesh.noise=0.05", "app.analytic=mixed",
                                             "operator=mixed_area"), dict(_HODGE))
+
+# ---------------------------------------------------------------------- non-fluid pages: computations
+# Numbers of the spectrum, core, parametrization and smoothing pages that no single decrun run
+# gives: each a function returning a dict of named values (a Source), checked like a run's metrics.
+
+
+def _module(relative: str):
+    """A script of this repository (``benchmarks/…``, ``scripts/…``) loaded as a module."""
+    path = ROOT / relative
+    spec = importlib.util.spec_from_file_location(f"decrun_docs_{path.stem}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _dec_of(overrides: tuple[str, ...]):
+    """The operators ``decrun <overrides>`` builds (its mesh source, complex and operator), unchecked
+    against the app: for numbers about a run the app refuses."""
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.runner.config import compose_config
+    from decrun.runner.experiment import validate
+
+    experiment = validate(compose_config([*overrides, "figures=false"]))
+    mesh = experiment.mesh_source.load()
+    complex_ = SimplicialComplex(mesh.vertices, mesh.simplices, orient=experiment.mesh_source.orient)
+    return DEC(complex_, star=experiment.operator, boundary=experiment.boundary)
+
+
+def spectrum_table() -> dict:
+    """The spectrum page's table (``benchmarks/spectrum_table.py``): ``<mesh>_<variant>_d<k>`` the
+    largest relative error of the first 10 nonzero eigenvalues of Δ_k against the analytic
+    spectrum, or why the variant is refused there (``zero ⋆``, ``⋆ < 0``, ``n/a``, ``R³ only``)."""
+    return _module("benchmarks/spectrum_table.py").table()
+
+
+def spectrum_negative_stars() -> dict:
+    """Why the spectrum app refuses cot stars on jittered meshes. The unit square as a 16 × 16
+    grid with interior jitter 0.2: ``square_negative_star1`` of ``square_edges`` cot ⋆1 entries
+    are negative, and the pencil ⋆2Δ2 = ⋆2 d1 ⋆1⁻¹ d1ᵀ ⋆2 against ⋆2 has exactly
+    ``square_delta2_negative`` negative eigenvalues (Sylvester's law of inertia). The box of
+    ``mesh=box mesh.jitter=0.2 mesh.cells=10``: its mixed_area mass ⋆1 is negative beyond
+    round-off on ``box_negative_star1`` of ``box_edges`` edges (an indefinite pencil for Δ1; the
+    counts the app's refusal names)."""
+    import numpy as np
+    import scipy.linalg as la
+
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.core.primitives import grid_triangles
+    from decrun.methods.spectrum import _negative_entries  # the count the app's refusal names
+
+    square = DEC(SimplicialComplex(*grid_triangles(16, jitter=0.2), orient="fix"), star="mixed_area")
+    star1 = square.star_diagonal(1)
+    A, M = (np.asarray(x.toarray() if hasattr(x, "toarray") else x) for x in
+            (square.laplacian_symmetric(2), square.star(2)))
+    values = la.eigh(0.5 * (A + A.T), M, eigvals_only=True)
+    box = _dec_of(("app=spectrum", "mesh=box", "mesh.jitter=0.2", "mesh.cells=10", "app.degree=1"))
+    return {"square_negative_star1": int(_negative_entries(square, 1).size), "square_edges": int(star1.size),
+            "square_delta2_negative": int(np.sum(values < -1e-6 * np.abs(values).max())),
+            "box_negative_star1": int(_negative_entries(box, 1).size), "box_edges": int(box.K.num_simplices(1))}
+
+
+def height_field_parametrization() -> dict:
+    """The parametrization app on the smooth open height field z = 0.15 sin(π(x+½)) sin(π(y+½))
+    over the 30 × 30 grid on [−½, ½]² (mixed_area stars): ``angle_distortion_mean_deg`` (°) of the
+    default (conformal border, Cauchy–Riemann rows at reflex vertices) as ``default``, with the
+    thesis' harmonic rows as ``harmonic`` and with the free border as ``free``."""
+    import numpy as np
+
+    from decrun.apps.base import Context
+    from decrun.apps.parametrization import Parametrization
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.runner.plugins import option
+
+    grid = option("mesh", "grid", nx=30, ny=30).load()
+    V = grid.vertices.copy()
+    V[:, 2] = 0.15 * np.sin(np.pi * (V[:, 0] + 0.5)) * np.sin(np.pi * (V[:, 1] + 0.5))
+    K = SimplicialComplex(V, grid.simplices)
+    out = {}
+    for name, app in (("default", Parametrization()), ("harmonic", Parametrization(reflex_rows="harmonic")),
+                      ("free", Parametrization(border="free"))):
+        app.check_pieces(K)
+        dec = DEC(K, star="mixed_area")
+        app.check_operators(dec)
+        app.check(K, dec)
+        out[name] = float(app.run(Context(app, K, dec, new_solver="direct")).metrics["angle_distortion_mean_deg"])
+    return out
+
+
+#: ``decrun -m +experiment=operator_variants``: its variants, meshes and apps
+VARIANT_SWEEP = {"operator": ("mixed_area", "circumcentric", "barycentric", "whitney", "intrinsic_delaunay"),
+                 "mesh": ("icosphere", "torus", "grid_holes", "bunny", "cow"), "app": ("smoothing", "hodge")}
+
+
+def operator_variants() -> dict:
+    """The jobs of ``decrun -m +experiment=operator_variants``, run one by one as the sweep runs
+    them, summed up per variant: ``<variant>_smoothing_stable`` and ``<variant>_hodge_matches``
+    (jobs with ``stable`` / ``harmonic_dimension_matches_betti``), ``<variant>_<app>_refused``
+    (the meshes whose job was refused before any work, comma-separated; ``none``), for each
+    diverged smoothing job ``<variant>_<mesh>_nonpositive_star0`` and ``_diverged_at_step``,
+    for whitney ``whitney_<mesh>_harmonic_dimension`` and ``whitney_orthogonality_max`` (the
+    largest pairwise ⋆1 inner product of the parts over its meshes). A job that ends with
+    anything but a result or a refusal (decrun's typed errors) raises: no job crashes."""
+    from decrun.errors import DecrunError
+
+    out: dict = {}
+    for variant in VARIANT_SWEEP["operator"]:
+        refused: dict[str, list[str]] = {app: [] for app in VARIANT_SWEEP["app"]}
+        stable = matches = 0
+        orthogonality = 0.0
+        for mesh in VARIANT_SWEEP["mesh"]:
+            for app in VARIANT_SWEEP["app"]:
+                overrides = ("+experiment=operator_variants", f"operator={variant}", f"mesh={mesh}", f"app={app}")
+                try:
+                    metrics = run_metrics(Run(overrides))
+                except DecrunError:
+                    refused[app].append(mesh)
+                    continue
+                if app == "smoothing":
+                    stable += bool(metrics["stable"])
+                    if not metrics["stable"]:
+                        out[f"{variant}_{mesh}_nonpositive_star0"] = int(metrics["nonpositive_star0_vertices"])
+                        out[f"{variant}_{mesh}_diverged_at_step"] = int(metrics["diverged_at_step"])
+                else:
+                    matches += bool(metrics["harmonic_dimension_matches_betti"])
+                    orthogonality = max(orthogonality, float(metrics["orthogonality_max"]))
+                    if variant == "whitney":
+                        out[f"whitney_{mesh}_harmonic_dimension"] = int(metrics["harmonic_dimension"])
+        out[f"{variant}_smoothing_stable"], out[f"{variant}_hodge_matches"] = stable, matches
+        for app, meshes in refused.items():
+            out[f"{variant}_{app}_refused"] = ", ".join(meshes) or "none"
+        if variant == "whitney":
+            out["whitney_orthogonality_max"] = orthogonality
+    return out
+
+
+def default_star_agreement() -> dict:
+    """``relative_difference``: |r_mixed − r_circ| / r_mixed of ``distance_to_clean_rms`` of the
+    default smoothing run (``decrun``) and the same run with ``operator=circumcentric`` — the
+    default star equals the circumcentric one wherever no triangle is obtuse."""
+    default = run_metrics(Run(()))["distance_to_clean_rms"]
+    circumcentric = run_metrics(Run(("operator=circumcentric",)))["distance_to_clean_rms"]
+    return {"relative_difference": abs(default - circumcentric) / abs(default)}
+
+
+def model_convergence() -> dict:
+    """The convergence tables of the models page (``benchmarks/model_convergence.py``): heat on
+    the unit sphere for l = 1, 2, 3, Poisson on the square and the disk, the heat method and the
+    wave's frequency, as ``<table>_<row>_<column>`` (row 0 the coarsest; columns ``vertices`` or
+    ``faces``, ``h``, ``error``, ``max_error``, ``order``, and the wave's ``omega`` and ``drift``)."""
+    return _module("benchmarks/model_convergence.py").numbers()
+
+
+def _convergence_numbers() -> dict[str, Number]:
+    columns = {"vertices": {}, "faces": {}, "h": dict(fmt=".4f"), "error": dict(fmt=".3e"), "max_error": dict(fmt=".2e"),
+               "order": dict(fmt=".2f"), "omega": dict(fmt=".6f", rtol=1e-7),
+               "drift": dict(fmt=".1e", rtol=0.0, atol=1e-13)}
+    shape = {"heat_l1": ("vertices", "h", "error"), "heat_l2": ("vertices", "h", "error"),
+             "heat_l3": ("vertices", "h", "error"), "poisson_square": ("vertices", "h", "error", "max_error"),
+             "poisson_disk": ("vertices", "h", "error", "max_error"), "geodesics": ("faces", "h", "error", "max_error"),
+             "wave": ("vertices", "h", "omega", "error", "drift")}
+    numbers = {}
+    for table, names in shape.items():
+        for row in range(3 if table == "wave" else 4):
+            for column in (*names, "order") if row else names:
+                key = f"{table}_{row}_{column}"
+                numbers[key] = N(key, **columns[column])
+    # the same numbers shorter, as the shipped-models table and the prose quote them
+    for key in ("heat_l1_3_error", "heat_l2_3_error", "heat_l3_3_error", "poisson_square_3_error",
+                "poisson_disk_3_error", "wave_2_error"):
+        numbers[f"{key}_short"] = N(key, ".1e")
+    for key in ("poisson_square_3_order", "wave_2_order", "geodesics_1_order", "geodesics_3_order"):
+        numbers[f"{key}_short"] = N(key, ".1f")
+    numbers["wave_2_drift_short"] = N("wave_2_drift", ".0e", rtol=0.0, atol=1e-13)
+    for key in ("geodesics_2_error", "geodesics_3_error"):
+        numbers[f"{key}_percent"] = N(key, scale=100.0, fmt=".2f")
+    return numbers
+
+
+#: a round-off cell of the spectrum table: shown as computed, held only to being this small
+SPECTRUM_ROUND_OFF = {("torus", "circumcentric", 1), ("torus", "barycentric", 1)}
+#: the cells the spectrum page shows: mesh → degrees
+SPECTRUM_SHOWN = {"sphere": (0, 1), "torus": (0, 1), "square": (1, 2), "cube": (0, 1, 2, 3), "ball": (0,)}
+SPECTRUM_VARIANTS = ("circumcentric", "barycentric", "mixed_area", "whitney", "whitney_lumped", "intrinsic_delaunay")
+
+
+def _spectrum_numbers() -> dict[str, Number]:
+    numbers = {"ball_vertices": N("ball_vertices")}
+    for mesh, degrees in SPECTRUM_SHOWN.items():
+        for variant in SPECTRUM_VARIANTS:
+            if variant == "intrinsic_delaunay" and mesh in ("cube", "ball"):  # triangle meshes only
+                continue
+            for k in degrees:
+                key = f"{mesh}_{variant}_d{k}"
+                numbers[key] = (N(key, ".0e", rtol=0.0, atol=1e-12) if (mesh, variant, k) in SPECTRUM_ROUND_OFF
+                                else N(key, ".2e"))
+    for mesh, variant, k in sorted(SPECTRUM_ROUND_OFF):
+        numbers[f"{mesh}_{variant}_d{k}_positive"] = N(f"{mesh}_{variant}_d{k}_positive")
+    return numbers
+
+
+def _variant_numbers() -> dict[str, Number]:
+    numbers = {"whitney_orthogonality_max": N("whitney_orthogonality_max", ".1e", rtol=0.0, atol=1e-13)}
+    for variant in VARIANT_SWEEP["operator"]:
+        for key in ("smoothing_stable", "hodge_matches", "smoothing_refused", "hodge_refused"):
+            numbers[f"{variant}_{key}"] = N(f"{variant}_{key}")
+    for mesh in ("bunny", "cow"):
+        for key in ("nonpositive_star0", "diverged_at_step"):
+            numbers[f"circumcentric_{mesh}_{key}"] = N(f"circumcentric_{mesh}_{key}")
+    for mesh in VARIANT_SWEEP["mesh"]:
+        numbers[f"whitney_{mesh}_harmonic_dimension"] = N(f"whitney_{mesh}_harmonic_dimension")
+    return numbers
+
+
+RUNS["spectrum_table"] = Source(spectrum_table, _spectrum_numbers())
+RUNS["spectrum_negative_stars"] = Source(spectrum_negative_stars, {
+    key: N(key) for key in ("square_negative_star1", "square_edges", "square_delta2_negative",
+                            "box_negative_star1", "box_edges")})
+RUNS["parametrization_height_field"] = Source(height_field_parametrization, {
+    "default": N("default", ".2f"), "harmonic": N("harmonic", ".2f"), "free": N("free", ".2f")})
+RUNS["operator_variants"] = Source(operator_variants, _variant_numbers())
+RUNS["model_convergence"] = Source(model_convergence, _convergence_numbers())
+RUNS["model_poisson_sphere"] = Run(("+experiment=poisson_sphere",), {
+    "error": N("l2_error_rel", scale=100.0, fmt=".2f"), "vertices": N("n_vertices")})
+for _b in ("1.8", "2.2"):  # the Brusselator's growth rate on either side of the Hopf point B = 2
+    RUNS[f"model_brusselator_{_b.replace('.', '_')}"] = Run(("+experiment=brusselator_hopf", f"app.constants.B={_b}"), {
+        "growth": N("growth_rate_measured", ".10f", rtol=1e-8)})
+for _spacing in ("4km", "2km", "1km"):  # the CISM v2.1 Halfar dome on the models page
+    RUNS[f"halfar_{_spacing}"] = Run(("+experiment=cism_halfar", f"mesh=cism_halfar/{_spacing}"), {
+        "rms": N("rms_error_m", ".2f"), "max": N("max_error_m", ".1f"), "min_thickness": N("min_thickness_m", ".1e"),
+        "vertices": N("n_vertices")})
+RUNS["operator_default_agreement"] = Source(default_star_agreement, {
+    "relative_difference": N("relative_difference", ".0e", rtol=0.2)})
+
 
 # ---------------------------------------------------------------------- fluids
 _FLUID = {"enstrophy": N("enstrophy_final", ".0f"), "energy_ratio": N("energy_ratio", ".3f"),
@@ -211,13 +508,15 @@ def gallery_runs() -> dict[str, Run]:
     return runs
 
 
-def all_runs() -> dict[str, Run]:
+def all_runs() -> dict[str, Run | Source]:
     return {**RUNS, **gallery_runs()}
 
 
-def run_metrics(run: Run) -> dict:
+def run_metrics(run: Run | Source) -> dict:
     """The metrics of ``decrun <overrides> figures=false`` (the same composition and run as the
-    command), and the run's derived numbers."""
+    command), and the run's derived numbers; a :class:`Source`'s function's dict."""
+    if isinstance(run, Source):
+        return run.function()
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment
 
@@ -231,13 +530,13 @@ def _plain(value):
     return value
 
 
-def entries(name: str, run: Run, metrics: dict) -> dict[str, dict]:
+def entries(name: str, run: Run | Source, metrics: dict) -> dict[str, dict]:
     """The numbers.json entries of one run from its metrics."""
     out = {}
     for key, number in run.numbers.items():
         if number.metric not in metrics:
-            raise KeyError(f"{name}: the run `decrun {' '.join(run.overrides)}` has no metric {number.metric!r}")
-        out[f"{name}.{key}"] = {"overrides": list(run.overrides), "metric": number.metric,
+            raise KeyError(f"{name}: {run.describe()} has no metric {number.metric!r}")
+        out[f"{name}.{key}"] = {**run.provenance, "metric": number.metric,
                                 "value": _plain(metrics[number.metric]), "format": number.fmt,
                                 "scale": number.scale, "rtol": number.rtol, "atol": number.atol}
     return out

@@ -3,9 +3,13 @@
 Every run of the script's table is rerun here (``decrun <overrides> figures=false``, the same
 composition and run as the command) and every number taken from it must equal the committed
 one within the tolerance the file states; a failure names the number, the page placeholder and
-the run. Every run — smoothing, parametrization, vector fields, Hodge, the fluid channels of
-Figs. 7.15–7.17, the gallery's — is in the default suite, hence in CI (about 3 minutes of CPU in
-all; a run marked ``slow`` in the script would run with ``-m slow`` only). Also: the file holds exactly the numbers the script
+the run. Numbers no single run gives (the spectrum table, the operator-variants sweep, mesh
+statistics, the models' convergence tables) come from a function of the script (a ``Source``)
+and are checked the same way. Every run and source — smoothing, parametrization, vector fields,
+Hodge, spectra, the operator variants, the models' convergence and the Halfar dome, the fluid
+channels of Figs. 7.15–7.17, the gallery's — is in the default suite, hence in CI (about 5 minutes
+of CPU in all, the models' convergence tables 80 s of it; one marked ``slow`` in the script would
+run with ``-m slow`` only). Also: the file holds exactly the numbers the script
 declares, every placeholder of a page is in it, and every command the gallery shows is one of
 the runs checked here.
 """
@@ -42,7 +46,8 @@ def test_the_file_holds_exactly_the_declared_numbers():
     assert not extra, f"docs/numbers.json holds numbers no run declares: {extra[:5]}"
     for name, entry in NUMBERS.items():
         run = RUNS[name.rsplit(".", 1)[0]]
-        assert entry["overrides"] == list(run.overrides), f"{name}: made by another run than scripts/doc_numbers.py says"
+        made_by = {key: entry.get(key) for key in run.provenance}
+        assert made_by == run.provenance, f"{name}: made by another run than scripts/doc_numbers.py says"
 
 
 def test_every_placeholder_of_the_pages_is_a_number():
@@ -55,7 +60,7 @@ def test_every_placeholder_of_the_pages_is_a_number():
 def test_every_gallery_command_is_a_checked_run():
     text = (ROOT / "docs" / "gallery.md").read_text(encoding="utf-8")
     shown = re.findall(r"^- `decrun ([^`]*)`", text, flags=re.M)
-    runs = {" ".join(run.overrides) for run in RUNS.values()}
+    runs = {" ".join(run.overrides) for run in RUNS.values() if isinstance(run, doc_numbers.Run)}
     assert shown and all(command in runs for command in shown), [c for c in shown if c not in runs]
 
 
@@ -67,6 +72,22 @@ def test_drift_names_what_moved_and_accepts_what_did_not():
     assert doc_numbers.drift({**entry, "value": 211}, 212) == "212 instead of 211"
     assert doc_numbers.render({**entry, "value": 0.25653, "format": ".4g"}) == "0.2565"
     assert doc_numbers.render({**entry, "value": 0.0130, "format": ".2f", "scale": 100.0}) == "1.30"
+
+
+def test_a_source_is_recorded_and_checked_like_a_run():
+    """A Source's entries name its function instead of overrides; its strings (a refusal's
+    reason in the spectrum table) are held exactly, its numbers to their tolerance."""
+    def cells():
+        return {"cube": "zero ⋆", "sphere": 0.016422}
+
+    source = doc_numbers.Source(cells, {"cube": doc_numbers.N("cube"), "sphere": doc_numbers.N("sphere", ".2e")})
+    made = doc_numbers.entries("demo", source, doc_numbers.run_metrics(source))
+    assert made["demo.sphere"]["source"] == "scripts/doc_numbers.py:cells" and "overrides" not in made["demo.sphere"]
+    assert doc_numbers.render(made["demo.sphere"]) == "1.64e-02" and doc_numbers.render(made["demo.cube"]) == "zero ⋆"
+    assert doc_numbers.drift(made["demo.cube"], "⋆ < 0") == "'⋆ < 0' instead of 'zero ⋆'"
+    assert doc_numbers.drift(made["demo.sphere"], 0.0164225) is None and doc_numbers.drift(made["demo.sphere"], 0.0144)
+    with pytest.raises(KeyError, match=r"`cells\(\)` of scripts/doc_numbers.py has no metric 'ball'"):
+        doc_numbers.entries("demo", doc_numbers.Source(cells, {"ball": doc_numbers.N("ball")}), cells())
 
 
 #: run → the runs whose numbers its metrics also give (itself and its aliases)
@@ -96,7 +117,6 @@ def test_a_rerun_gives_the_committed_numbers(name):
             entry = NUMBERS[f"{member}.{key}"]
             why = doc_numbers.drift(entry, metrics.get(number.metric))
             if why:
-                moved.append(f"{{{{ numbers.{member}.{key} }}}} ({number.metric} of "
-                             f"`decrun {' '.join(run.overrides)}`): {why}")
+                moved.append(f"{{{{ numbers.{member}.{key} }}}} ({number.metric} of {run.describe()}): {why}")
     assert not moved, ("numbers shown in the docs moved beyond their tolerance — if on purpose, run "
                        f"python scripts/doc_numbers.py --only {name}:\n  " + "\n  ".join(moved))

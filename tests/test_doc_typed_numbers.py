@@ -1,0 +1,165 @@
+"""No measured number is typed into the non-fluid docs pages: they come from docs/numbers.json.
+
+A page shows a measured number as ``{{ numbers.<run>.<name> }}`` (scripts/doc_numbers.py makes it,
+tests/test_numbers.py reruns it). This test reads the prose of every page below — what is left
+after code blocks, inline code, placeholders, images, link targets, HTML comments and references
+(§5.2, eq. 5.9, Fig. 6.9, Figs. 7.15–7.17, ch. 5, Theorem 5) are taken out — and fails on every
+number of two or more digits, with a decimal point or an exponent that no phrase of the page's
+allow-list covers. Single digits are not checked (form degrees, "2×", "step 2": too many to list,
+and a page's small counts are placeholders anyway); a measured one is still a placeholder.
+
+The allow-list holds what is not measured: theory (2h̄²/π², l(l+1)), config values the page
+documents (defaults, the mesh a table was made on, an experiment's parameters), thresholds and
+constants of the code, years of citations — each phrase with why. A phrase that no longer
+occurs on its page fails too, so the list cannot outlive the text it allows.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: the pages checked (the fluid page, docs/apps/fluid.md, has its own guard; the benchmark
+#: timings of docs/performance.md and docs/measurements.md state command, commit and machine)
+PAGES = ["index.md", "tutorial.md", "core.md", "volumes.md", "export.md", "sweeps.md", "outputs-and-sweeps.md",
+         "apps/smoothing.md", "apps/parametrization.md", "apps/vector_field.md", "apps/hodge.md",
+         "apps/spectrum.md", "apps/writing.md", "gallery.md"]
+
+#: page → phrases whose numbers are not measurements (phrase: why)
+ALLOWED: dict[str, dict[str, str]] = {
+    "tutorial.md": {
+        "Python ≥ 3.10": "a requirement",
+        "icosphere with 162\nvertices": "the command's mesh (icosphere, mesh.subdiv=2: 10·4²+2 vertices)",
+        "at 1.5 times": "the sweep's parameter (shown in its command)",
+        "at 1.5 × the critical step": "the sweep's parameter",
+    },
+    "core.md": {
+        "Meyer et al. 2003": "citation", "Sharp &\nCrane 2020": "citation",
+        "to 1e-10 in the tests": "the tolerance of a test",
+        "25×25 grid": "the experiment's mesh (config)", "50 jobs": "the sweep's size: 5 variants × 5 meshes × 2 apps",
+        "| 15 ms |": "timing (machine-dependent; not regenerated)",
+        "| 13 ms |": "timing (machine-dependent; not regenerated)",
+        "| 38 ms |": "timing (machine-dependent; not regenerated)",
+    },
+    "volumes.md": {
+        "(4e6) tetrahedra": "the config default `mesh.max_tets`", "about 1.8 × volume / max_volume": "TetGen's estimate",
+    },
+    "outputs-and-sweeps.md": {
+        "rounded at 1e-9": "a constant of the code", "at least 0.9 edge lengths": "a constant of the code",
+        "smaller than 10 pixels": "a constant of the code", "(10–150 s)": "timing (machine-dependent)",
+        "at most 60 frames, 10 per second": "constants of the code",
+        "on a 300-step run (1280 faces)": "timing: the run it was measured on (machine-dependent)",
+        "1.25× the compute time instead of 3.9×": "timing (machine-dependent)",
+    },
+    "apps/smoothing.md": {
+        "(0.75)": "the config default `app.dt_factor`", "differ > 20×": "a constant of the code",
+        "normal noise 0.5, 10 steps": "the experiment's config", "% at 0.75×": "the config default",
+        "(subdiv 3, 642 vertices, noise 0.3): 10 implicit steps": "the default config (10·4³+2 vertices)",
+        "dt = 0.75 ×": "the config default",
+    },
+    "apps/parametrization.md": {
+        "[0,1]²": "the target square", "Floater 2003": "citation", "(12 jobs)": "the sweep's size (3 borders × 4 weights)",
+        "z = 0.15 sin(π(x+½))": "the test surface", "30 × 30 grid": "the test surface",
+        "embeds with < 1°": "a bound the table above shows",
+    },
+    "apps/vector_field.md": {"at (0.3, 0.6)": "the experiment's source (config)", "λ = 0.2 / 1 / 5": "the sweep's values"},
+    "apps/hodge.md": {"energy share ≤ 1e-16": "a threshold of the code"},
+    "apps/spectrum.md": {
+        "σ = −0.01/h̄²": "a constant of the code", "below 1e-8 (or 100 ×": "the convergence threshold of the code",
+        "M-orthonormal to 1e-6": "a threshold of the code", "first 10 eigenvalues": "the table's definition",
+        "unit icosphere 642 vertices": "the mesh (subdiv 3: 10·4³+2 vertices)",
+        "24×24 grid": "the mesh (config)", "16×16, jittered": "the mesh (config)",
+    },
+    "apps/writing.md": {"longer than 60 lines": "a rule of the code base"},
+    "gallery.md": {
+        "(1280 triangles, none obtuse)": "the mesh (icosphere subdiv 3: 20·4³ faces)",
+        "(~1400 faces)": "the config's target face count",
+        "(inflow 10 units/s, ν = 0.02) on 1400 and 2800 target faces": "the experiment's config",
+        "at t = 0.6 s": "the experiment's end time (config)", "at 2800 faces": "the config's target face count",
+        "(vertex 2199)": "the config's source vertex",
+        "(F, k) = (0.035, 0.065), stripes at (0.04, 0.06)": "the models' constants (config)",
+        "exceeds 0.02": "the metric's threshold (config)", "(B = 2.5,": "the model's constant (config)",
+        "(B = 1.5,": "the override shown", "after 200 years": "the experiment's end time (config)",
+    },
+}
+
+#: a number: digits with thousands groups ("19 901", "40,962"), decimals, an exponent, a k/M suffix
+#: ("28k"); not a subscript or index (d0, ⋆1, Δ_2, x^2), a version or a path
+NUMBER = re.compile(r"(?<![\w.⋆_^/\\-])\d+(?:[  ]\d{3})*(?:[.,]\d+)*(?:e[−+-]?\d+)?(?:[kM](?!\w))?(?!\w)")
+REFERENCE = re.compile(r"(?:§|\beqs?\.|\bFigs?\.|\bch\.|\bTheorem|\bTable)\s*\d+(?:\.\d+)*"
+                       r"(?:\s*(?:[–,/-]|and)\s*\d+(?:\.\d+)*)*")
+
+
+def _blank(match: re.Match) -> str:
+    return re.sub(r"[^\n]", " ", match.group(0))
+
+
+def prose(text: str) -> str:
+    """``text`` with what is not prose blanked out (same length, same lines): fenced code blocks,
+    inline code, ``{{ … }}`` placeholders, images, link targets, HTML comments, references."""
+    text = re.sub(r"^(\s*)(```|~~~).*?^\s*\2", _blank, text, flags=re.M | re.S)
+    for pattern in (r"`[^`\n]*(?:\n[^`\n]+)?`", r"\{\{[^}]*\}\}", r"!\[[^\]]*\]\([^)]*\)", r"\]\([^)]*\)"):
+        text = re.sub(pattern, _blank, text)
+    text = re.sub(r"<!--.*?-->", _blank, text, flags=re.S)
+    return REFERENCE.sub(_blank, text)
+
+
+def typed_numbers(text: str, allowed: dict[str, str]) -> list[str]:
+    """The numbers of ``text``'s prose that no allowed phrase covers, each as ``line N: number
+    in «context»``."""
+    body = prose(text)
+    covered = [range(m.start(), m.end()) for phrase in allowed
+               for m in re.finditer(re.escape(_normal(phrase)), _normal(body))]
+    found = []
+    for match in NUMBER.finditer(body):
+        if re.fullmatch(r"\d", match.group(0)):
+            continue
+        if any(match.start() in span and match.end() - 1 in span for span in covered):
+            continue
+        line = body.count("\n", 0, match.start()) + 1
+        context = " ".join(body[max(0, match.start() - 40):match.end() + 20].split())
+        found.append(f"line {line}: {match.group(0)} in «{context}»")
+    return found
+
+
+def _normal(text: str) -> str:
+    """Whitespace runs as single characters of the same count (so a phrase may break lines)."""
+    return re.sub(r"\s", " ", text)
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_no_measured_number_is_typed_into_the_page(page):
+    found = typed_numbers((ROOT / "docs" / page).read_text(encoding="utf-8"), ALLOWED.get(page, {}))
+    assert not found, (f"docs/{page}: numbers typed by hand — make each a placeholder "
+                       "{{ numbers.<run>.<name> }} (scripts/doc_numbers.py: a Run or a Source), or, if it is "
+                       "theory or a config value, add its phrase to ALLOWED in tests/test_doc_typed_numbers.py:\n  "
+                       + "\n  ".join(found))
+
+
+@pytest.mark.parametrize("page", sorted(ALLOWED))
+def test_every_allowed_phrase_is_on_its_page(page):
+    body = _normal(prose((ROOT / "docs" / page).read_text(encoding="utf-8")))
+    stale = [phrase for phrase in ALLOWED[page] if _normal(phrase) not in body]
+    assert page in PAGES and not stale, f"docs/{page}: allowed phrases no longer on the page: {stale}"
+
+
+def test_a_typed_measurement_is_found_and_a_placeholder_is_not():
+    """The issue's examples: Fig. 6.9's 0.258 typed into the vector-field table, the 9722 of an
+    enstrophy and Fig. 5.5's "20°" — each found, with a mesh size written "82k" or "12059-face";
+    the same cells as placeholders, references, subscripts and code are not; an allowed phrase
+    (one that breaks a line too) covers its numbers."""
+    page = (ROOT / "docs" / "apps" / "vector_field.md").read_text(encoding="utf-8")
+    allowed = ALLOWED["apps/vector_field.md"]
+    assert typed_numbers(page, allowed) == []
+    typed = page.replace("{{ numbers.fig6_9_none_nostroke.flux }}", "0.258", 1)
+    assert [f.split(" in ")[0].split(": ")[1] for f in typed_numbers(typed, allowed)] == ["0.258"]
+    text = ("The enstrophy ends at 9722 (Fig. 7.17, eq. 7.14, §6.4.4); the angle is 20° "
+            "(`app.dt=0.0075`, {{ numbers.x.y }}) on the 82k-vertex scan,\na 12059-face channel, "
+            "Δ2 of the 1-forms.\n```bash\ndecrun app.viscosity=0.08\n```\n")
+    assert [f.split(" in ")[0].split(": ")[1] for f in typed_numbers(text, {})] == ["9722", "20", "82k", "12059"]
+    assert [f.split(":")[0] for f in typed_numbers(text, {})] == ["line 1"] * 3 + ["line 2"]
+    assert typed_numbers(text, {"ends at 9722": "x", "is 20°": "y", "the 82k-vertex scan, a 12059-face": "z"}) == []

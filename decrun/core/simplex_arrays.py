@@ -429,13 +429,13 @@ class _CornerCoordinates:
 
     def __init__(self, vertices: np.ndarray, simplices: np.ndarray):
         self.columns = np.ascontiguousarray(vertices.T)  # (d, n0): contiguous per axis
-        self.simplices = simplices
+        self.corners = [np.ascontiguousarray(simplices[:, i]) for i in range(simplices.shape[1])]  # read d times each
 
     def __len__(self) -> int:
-        return self.simplices.shape[1]
+        return len(self.corners)
 
     def __getitem__(self, i: int):
-        return _CornerColumn(self.columns, self.simplices[:, i])
+        return _CornerColumn(self.columns, self.corners[i])
 
 
 class _CornerColumn:

@@ -186,8 +186,10 @@ def triangle_dual_volumes_numpy(K) -> dict[int, np.ndarray]:
     cot = dots  # cot θ_i = -(e_j · e_k) / (2A), computed in place
     cot *= -0.5 / area
     # dual edge piece ½ cot θ_i |e_i|; edge slots (0,1), (0,2), (1,2) are opposite corners 2, 1, 0
-    dual_edge = np.sqrt(sq[::-1].T)  # (m, 3) in slot order
-    dual_edge *= 0.5 * cot[::-1].T
+    dual_edge = np.empty((m, 3))  # in slot order, written column by column (no strided temporaries)
+    for slot in range(3):
+        np.sqrt(sq[2 - slot], out=dual_edge[:, slot])
+        dual_edge[:, slot] *= 0.5 * cot[2 - slot]
     dual1 = np.bincount(K.top_face_indices(1).ravel(), weights=dual_edge.ravel(), minlength=K.num_simplices(1))
     del dual_edge
     weighted = sq * cot  # |e_i|² cot θ_i

@@ -45,7 +45,7 @@ def group_rows(rows: np.ndarray):
     if not isinstance(rows, FaceRows):
         rows = FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
     bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
-    if rows.shape[0] and bits * rows.shape[1] <= 62 and jit.enabled(rows.shape[0]):
+    if rows.shape[0] and bits * rows.shape[1] <= 62 and _group_packed_kernel.runs(rows.shape[0]):
         return _group_packed_kernel(np.ascontiguousarray(rows.top, dtype=np.int64), rows.column_table(), bits)
     return group_rows_numpy(rows)
 
@@ -247,7 +247,7 @@ def sorted_rows_and_parity(rows: np.ndarray):
     """(sorted rows (m, c) int64, inversion parity (m,) int8, smallest entry, largest entry,
     whether a sorted row repeats an entry) in one pass: the compiled
     :func:`_sorted_rows_kernel`, or its numpy twins :func:`sort_rows` and :func:`inversion_parity`."""
-    if jit.enabled(rows.shape[0]):
+    if _sorted_rows_kernel.runs(rows.shape[0]):
         return _sorted_rows_kernel(np.ascontiguousarray(rows, dtype=np.int64))
     rows = np.asarray(rows, dtype=np.int64)
     if rows.shape[1] == 3 and rows.shape[0]:  # triangles: a min/max network on the three columns
@@ -376,7 +376,7 @@ def vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     twin is :func:`vertex_volumes_numpy`; the rest :func:`simplex_volumes`.
     """
     if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
-        if jit.enabled(simplices.shape[0]):
+        if _small_volumes_kernel.runs(simplices.shape[0]):
             return _small_volumes_kernel(np.ascontiguousarray(vertices.T, dtype=np.float64),
                                          np.ascontiguousarray(simplices, dtype=np.int64))
         return vertex_volumes_numpy(vertices, simplices)

@@ -163,7 +163,7 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
                 f"non-manifold: {name_indices(over, simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
                 f"{plural(simplex_name(n))} (e.g. {name_indices(owners, simplex_name(n))})"
             )
-    if jit.enabled(order.shape[0]):
+    if _facet_pairs_kernel.runs(order.shape[0]):
         index_type = np.int32 if top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
         pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, index_type))
         if not pairs[1].size:  # no interior facet: int64, as the numpy twin's
@@ -255,7 +255,7 @@ def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int) -> np.ndarr
     """
     _, t0, t1, l0, l1 = pairs
     m = parity.shape[0]
-    if jit.enabled(t0.shape[0]) and _consistent_kernel(t0, t1, l0, l1, parity):
+    if _consistent_kernel.runs(t0.shape[0]) and _consistent_kernel(t0, t1, l0, l1, parity):
         return parity
     bad = inconsistent_facets(pairs, parity)
     if not bad.any():
@@ -327,7 +327,7 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
     n = top.shape[1] - 1
     if n < 2:
         return
-    if n == 2 and not jit.enabled(top.shape[0]) and single_fan_surface(top, orientation, pairs, n_vertices).all():
+    if n == 2 and not _fans_kernel.runs(top.shape[0]) and single_fan_surface(top, orientation, pairs, n_vertices).all():
         return  # the counts below are only needed to name the fans of a bad vertex
     fans = fans_per_vertex(top, facets, orientation, pairs, n_vertices)
     bad = np.flatnonzero(fans > 1)
@@ -342,7 +342,7 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
 def fans_per_vertex(top, facets, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
     """(n0,) int64 number of fans (top simplices connected across shared facets) around each
     vertex: the compiled :func:`_fans_kernel`, or its numpy twins when ``DECRUN_NUMBA=0``."""
-    if jit.enabled(top.shape[0]):
+    if _fans_kernel.runs(top.shape[0]):
         return _fans_kernel(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
                             pairs.second_slot, n_vertices)
     if top.shape[1] == 3:
@@ -482,11 +482,11 @@ def _corner_steps(top, orientation, pairs: FacetPairs) -> tuple[np.ndarray, np.n
     negative = (orientation < 0).view(np.int8)
     following = np.arange(3 * m, dtype=index_type)
     for a, b, la, lb in ((t0, t1, l0, l1), (t1, t0, l1, l0)):
-        slot_a = 3 * a.astype(index_type, copy=False)
+        slot_a: np.ndarray = 3 * a.astype(index_type, copy=False)
         slot_a += la
-        slot_b = 3 * b.astype(index_type, copy=False)
+        slot_b: np.ndarray = 3 * b.astype(index_type, copy=False)
         slot_b += lb
-        o = negative[a].astype(index_type)
+        o: np.ndarray = negative[a].astype(index_type)
         o *= 3
         o += la  # 3o + l
         slot_a += _LEAVING_OFFSET[o]

@@ -228,7 +228,7 @@ class SimplicialComplex(Cached):
         def compute():
             nj = self._lists[j].shape[0]
             index_type = np.int32 if max((j + 1) * nj, self._lists[j - 1].shape[0]) < 2**31 - 1 else np.int64
-            if jit.enabled(nj):
+            if _incidence_kernel.runs(nj):
                 data, indices = np.empty(nj * (j + 1)), np.empty(nj * (j + 1), dtype=index_type)
                 orientation = self._orientation if j == self.dim else self._orientation[:0]
                 _incidence_kernel(self._facet_table(j), orientation, data, indices)

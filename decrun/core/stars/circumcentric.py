@@ -117,7 +117,7 @@ def triangle_dual_volumes(K) -> dict[int, np.ndarray]:
     Voronoi area — signed, so obtuse triangles are exact. The compiled
     :func:`_triangle_dual_kernel`; :func:`triangle_dual_volumes_numpy` is its twin.
     """
-    if not jit.enabled(K.num_simplices(2)):
+    if not _triangle_dual_kernel.runs(K.num_simplices(2)):
         return triangle_dual_volumes_numpy(K)
     top = K.simplices(2)
     dual0, dual1 = _triangle_dual_kernel(np.ascontiguousarray(K.vertices.T), top, K.top_volumes,

@@ -19,7 +19,7 @@ Each mesh runs in fresh subprocesses:
   (``time.process_time``: the shared machine's load distorts wall time), best of the rounds.
 
 Ratios are decrun / libigl (and decrun / floor) from the same process; the fresh ratio is decrun's
-first build over libigl's first call, each in its own fresh process. The machine's load
+first build over libigl's first call, each the best of ``--repeat`` fresh processes. The machine's load
 average is printed before and after. ``--jit`` reports what a fresh process pays to start
 numba: importing it, and the first kernel calls (numba's typing registries, then each
 cached kernel's machine code), with an empty cache and with the cache it wrote.
@@ -177,16 +177,22 @@ def main(argv=None) -> int:
     if not have_libigl():
         print("bench_operators.py measures against libigl: pip install -e .[bench]", file=sys.stderr)
         return 1
+    import numpy as np
+
     level = "quick" if args.quick else "full"
     print(f"CPU ms, best of {args.repeat} interleaved rounds; ratios to libigl (and to the floor) from the same process;"
-          " fresh: first calls, each in a process of its own")
+          f" fresh: first calls, each in a process of its own, best of {args.repeat} processes")
     print("| triangles | load | libigl | floor | numpy twins | extension | numba kernels | numpy / libigl |"
           " extension / libigl | numba / libigl | extension / floor | fresh: import | fresh: first build, auto |"
           " fresh: libigl's first call | fresh ratio | no extension: builds until auto starts numba |")
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for size in TRIANGLE_CASES[level]:
-        fresh = spawn(__file__, "fresh", "icosphere", size, args.repeat)
-        igl_fresh = spawn(__file__, "igl-fresh", "icosphere", size, args.repeat)
+        fresh, igl_fresh = {"fresh_auto_s": np.inf}, {"igl_fresh_s": np.inf}
+        for _ in range(args.repeat):  # the best of --repeat fresh processes each, interleaved
+            ours = spawn(__file__, "fresh", "icosphere", size, args.repeat)
+            fresh = ours if ours["fresh_auto_s"] < fresh["fresh_auto_s"] else fresh
+            theirs = spawn(__file__, "igl-fresh", "icosphere", size, args.repeat)
+            igl_fresh = theirs if theirs["igl_fresh_s"] < igl_fresh["igl_fresh_s"] else igl_fresh
         r = spawn(__file__, "all", "icosphere", size, args.repeat)
         igl_s, ext_s = r["igl_s"], r["extension_s"]
         extension = (f" {1e3 * ext_s:.1f} |", f" {ext_s / igl_s:.2f} |", f" {ext_s / r['floor_s']:.2f} |") \

@@ -19,9 +19,10 @@ ctypedef fused index_t:
     int64_t
 
 
-def sorted_rows(const int64_t[:, ::1] rows):
+def sorted_rows(const int64_t[:, :] rows):
     """Twin of ``simplex_arrays._sorted_rows_kernel``: insertion sort of each row, its shift
-    count the row's inversion count; (sorted rows, parity int8, smallest, largest, repeated)."""
+    count the row's inversion count; (sorted rows, parity int8, smallest, largest, repeated).
+    ``rows`` in any layout (a mesh's Fortran-ordered faces are not copied first)."""
     cdef Py_ssize_t m = rows.shape[0], c = rows.shape[1], t, a, b
     ordered_array = np.empty((m, c), np.int64)
     parity_array = np.empty(m, np.int8)
@@ -71,29 +72,24 @@ def sorted_rows(const int64_t[:, ::1] rows):
     return ordered_array, parity_array, smallest, largest, bool(repeated)
 
 
-def group_packed(const int64_t[:, ::1] top, const int64_t[:, ::1] columns, int bits):
+def group_packed(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits):
     """Twin of ``simplex_arrays._group_packed_kernel``: the rows ``top[t, columns[s]]`` grouped
     by a stable counting sort on their leading entry and a stable sort of each bucket by the
-    packed key; (unique, inverse, order, starts)."""
+    packed key; (unique, inverse, order, starts). ``top`` in any layout."""
     cdef Py_ssize_t m = top.shape[0], slots = columns.shape[0], width = columns.shape[1]
     cdef Py_ssize_t total = m * slots, t, s, q, i, v, a, b, low, high, groups, g
     cdef int64_t k, lead, largest = 0, item, item_key, packed
     cdef int shift = bits * (width - 1)
-    key_array = np.empty(total, np.int64)
-    cdef int64_t[::1] key = key_array
-    for t in range(m):
+    for t in range(m):  # the keys' leading entries: the buckets (no array of keys is kept)
         for s in range(slots):
-            k = 0
-            for q in range(width):
-                k = (k << bits) | top[t, columns[s, q]]
-            key[t * slots + s] = k
             lead = top[t, columns[s, 0]]
             if lead > largest:
                 largest = lead
     count_array = np.zeros(largest + 2, np.int64)
     cdef int64_t[::1] count = count_array
-    for i in range(total):
-        count[(key[i] >> shift) + 1] += 1
+    for t in range(m):
+        for s in range(slots):
+            count[top[t, columns[s, 0]] + 1] += 1
     for v in range(largest + 1):
         count[v + 1] += count[v]
     position_array = count_array[:largest + 1].copy()
@@ -102,11 +98,16 @@ def group_packed(const int64_t[:, ::1] top, const int64_t[:, ::1] columns, int b
     sorted_array = np.empty(total, np.int64)
     cdef int64_t[::1] order = order_array
     cdef int64_t[::1] sorted_key = sorted_array
-    for i in range(total):
-        lead = key[i] >> shift
-        order[position[lead]] = i
-        sorted_key[position[lead]] = key[i]
-        position[lead] += 1
+    for t in range(m):  # each row's packed key, scattered into its bucket in row order (stable)
+        for s in range(slots):
+            k = 0
+            for q in range(width):
+                k = (k << bits) | top[t, columns[s, q]]
+            lead = k >> shift
+            i = t * slots + s
+            order[position[lead]] = i
+            sorted_key[position[lead]] = k
+            position[lead] += 1
     for v in range(largest + 1):
         low, high = count[v], count[v + 1]
         if high - low <= 1:

@@ -248,7 +248,7 @@ def sorted_rows_and_parity(rows: np.ndarray):
     whether a sorted row repeats an entry) in one pass: the compiled
     :func:`_sorted_rows_kernel`, or its numpy twins :func:`sort_rows` and :func:`inversion_parity`."""
     if _sorted_rows_kernel.runs(rows.shape[0]):
-        return _sorted_rows_kernel(np.ascontiguousarray(rows, dtype=np.int64))
+        return _sorted_rows_kernel(np.asarray(rows, dtype=np.int64))  # any layout: not copied
     rows = np.asarray(rows, dtype=np.int64)
     if rows.shape[1] == 3 and rows.shape[0]:  # triangles: a min/max network on the three columns
         a, b, c = rows[:, 0], rows[:, 1], rows[:, 2]

@@ -5,17 +5,21 @@ The work: ``SimplicialComplex(V, F)`` (with its validation) + ``d(0)``, ``d(1)``
 scipy building the same five operators as CSR from COO triplets holding the same nonzeros
 (what any sparse assembly of them pays at least).
 
-Each mesh runs in a fresh subprocess. There, in this order:
+Each mesh runs in fresh subprocesses:
 
-* **fresh**: importing decrun's complex and operators (reported alone), then the first build in
-  the process, under ``auto`` (what a one-off ``decrun`` run pays), in CPU time;
-* **sweep worker**: builds under ``auto``, one after another, until ``auto`` starts numba
-  (the count is reported, its CPU time included in nothing else);
-* **warm**: ``--repeat`` interleaved rounds of libigl, the floor, decrun's numpy twins
-  (``DECRUN_NUMBA=0``) and decrun's kernels (numba started), each timed in CPU time
+* **fresh** (two processes of their own, nothing else run in them before): importing decrun's
+  complex and operators (reported alone), then the first build in the process under ``auto``
+  (what a one-off ``decrun`` run pays), in CPU time; and, in the other, libigl's first call;
+* **sweep worker** (a third process): builds under ``auto`` with the compiled extension set
+  aside (an install without a C compiler), one after another, until ``auto`` starts numba (the
+  count is reported; with the extension, ``auto`` runs its twins and never starts numba here);
+* **warm** (the same process): ``--repeat`` interleaved rounds of libigl, the floor, decrun's
+  numpy twins (``numpy``), decrun's compiled extension (``auto``, when the install built it)
+  and decrun's numba kernels (``numba``, started), each timed in CPU time
   (``time.process_time``: the shared machine's load distorts wall time), best of the rounds.
 
-Ratios are decrun / libigl (and decrun / floor) from the same process. The machine's load
+Ratios are decrun / libigl (and decrun / floor) from the same process; the fresh ratio is decrun's
+first build over libigl's first call, each the best of ``--repeat`` fresh processes. The machine's load
 average is printed before and after. ``--jit`` reports what a fresh process pays to start
 numba: importing it, and the first kernel calls (numba's typing registries, then each
 cached kernel's machine code), with an empty cache and with the cache it wrote.
@@ -66,36 +70,53 @@ def _floor_work(operators):
     return work
 
 
-def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
-    """Runs inside the subprocess: every column of one mesh (``library`` is ``all``)."""
+def _reference(vertices, faces):
     import igl
+
+    return igl.cotmatrix(vertices, faces), igl.massmatrix(vertices, faces, igl.MASSMATRIX_TYPE_VORONOI)
+
+
+def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
+    """Runs inside the subprocess: ``fresh`` (decrun's import and first build, nothing else),
+    ``igl-fresh`` (libigl's first call, nothing else) or ``all`` (the other columns)."""
+    vertices, faces = icosphere_or_kuhn_cube(kind, size)
+    if library == "igl-fresh":
+        import igl  # noqa: F401  (its import is not its call)
+
+        return {"igl_fresh_s": _cpu(lambda: _reference(vertices, faces))}
+    if library == "fresh":
+        def imports():
+            import decrun.core.complex  # noqa: F401
+            import decrun.core.dec  # noqa: F401
+
+        result = {"import_s": _cpu(imports)}  # decrun's modules with numpy and scipy's
+        result["fresh_auto_s"] = _cpu(lambda: _decrun_operators(vertices, faces))
+        from decrun.core import jit
+
+        result["fresh_auto_started_numba"] = jit.started()
+        return result
     import numpy as np
 
     from decrun.core import jit
+    from decrun.core.jit import kernels
 
-    vertices, faces = icosphere_or_kuhn_cube(kind, size)
     load_before = os.getloadavg()[0]
-    result = {"simplices": int(len(faces))}
+    result = {"simplices": int(len(faces)), "extension": bool(kernels.extension_twins())}
 
     def ours():
         return _decrun_operators(vertices, faces)
 
     def reference():
-        return igl.cotmatrix(vertices, faces), igl.massmatrix(vertices, faces, igl.MASSMATRIX_TYPE_VORONOI)
+        return _reference(vertices, faces)
 
     reference()  # libigl's own first call (page faults of its code) stays out of its best
-
-    def imports():
-        import decrun.core.complex  # noqa: F401
-        import decrun.core.dec  # noqa: F401
-
-    result["import_s"] = _cpu(imports)  # decrun's modules with numpy and scipy's
-    result["fresh_auto_s"] = _cpu(ours)
-    result["fresh_auto_started_numba"] = jit.started()
-    builds = 1
+    twins = kernels._twins
+    kernels._twins = {}  # the sweep worker of an install without the extension: numpy until auto starts numba
+    builds = 0
     while not jit.started() and builds < 400:
         ours()
         builds += 1
+    kernels._twins = twins
     result["builds_until_kernels"] = builds if jit.started() else None
     with jit.use("numba"):
         operators = ours()  # the kernels that are not loaded yet, loaded
@@ -104,16 +125,17 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     for a, b in zip(operators, twins, strict=True):  # the two paths agree (the tests hold them to it)
         assert a.shape == b.shape and abs(a - b).max() <= 1e-12 * max(abs(b).max(), 1.0)
     floor = _floor_work(operators)
-    best = {"igl": np.inf, "floor": np.inf, "numpy": np.inf, "kernels": np.inf}
+    best = {"igl": np.inf, "floor": np.inf, "numpy": np.inf, "extension": np.inf, "kernels": np.inf}
     for _ in range(repeat):
         best["igl"] = min(best["igl"], _cpu(reference))
         best["floor"] = min(best["floor"], _cpu(floor))
         with jit.use("numpy"):
             best["numpy"] = min(best["numpy"], _cpu(ours))
+        if result["extension"]:
+            with jit.use("auto"):
+                best["extension"] = min(best["extension"], _cpu(ours))
         with jit.use("numba"):
             best["kernels"] = min(best["kernels"], _cpu(ours))
-    with jit.use("auto"):
-        best["auto_warm"] = _cpu(ours)
     result.update({f"{k}_s": float(v) for k, v in best.items()})
     result["load"] = [load_before, os.getloadavg()[0]]
     return result
@@ -155,19 +177,31 @@ def main(argv=None) -> int:
     if not have_libigl():
         print("bench_operators.py measures against libigl: pip install -e .[bench]", file=sys.stderr)
         return 1
+    import numpy as np
+
     level = "quick" if args.quick else "full"
-    print(f"CPU ms, best of {args.repeat} interleaved rounds; ratios to libigl (and to the floor) from the same process")
-    print("| triangles | load | libigl | floor | numpy twins | kernels (warm) | numpy / libigl | kernels / libigl |"
-          " kernels / floor | fresh: import | fresh: first build, auto (ratio) | builds until auto starts numba |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print(f"CPU ms, best of {args.repeat} interleaved rounds; ratios to libigl (and to the floor) from the same process;"
+          f" fresh: first calls, each in a process of its own, best of {args.repeat} processes")
+    print("| triangles | load | libigl | floor | numpy twins | extension | numba kernels | numpy / libigl |"
+          " extension / libigl | numba / libigl | extension / floor | fresh: import | fresh: first build, auto |"
+          " fresh: libigl's first call | fresh ratio | no extension: builds until auto starts numba |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for size in TRIANGLE_CASES[level]:
+        fresh, igl_fresh = {"fresh_auto_s": np.inf}, {"igl_fresh_s": np.inf}
+        for _ in range(args.repeat):  # the best of --repeat fresh processes each, interleaved
+            ours = spawn(__file__, "fresh", "icosphere", size, args.repeat)
+            fresh = ours if ours["fresh_auto_s"] < fresh["fresh_auto_s"] else fresh
+            theirs = spawn(__file__, "igl-fresh", "icosphere", size, args.repeat)
+            igl_fresh = theirs if theirs["igl_fresh_s"] < igl_fresh["igl_fresh_s"] else igl_fresh
         r = spawn(__file__, "all", "icosphere", size, args.repeat)
-        igl_s = r["igl_s"]
+        igl_s, ext_s = r["igl_s"], r["extension_s"]
+        extension = (f" {1e3 * ext_s:.1f} |", f" {ext_s / igl_s:.2f} |", f" {ext_s / r['floor_s']:.2f} |") \
+            if r["extension"] else (" (not built) |", " - |", " - |")
         print(f"| {r['simplices']:,} | {r['load'][0]:.0f}–{r['load'][1]:.0f} | {1e3 * igl_s:.1f} | {1e3 * r['floor_s']:.1f} |"
-              f" {1e3 * r['numpy_s']:.1f} | {1e3 * r['kernels_s']:.1f} | {r['numpy_s'] / igl_s:.2f} |"
-              f" {r['kernels_s'] / igl_s:.2f} | {r['kernels_s'] / r['floor_s']:.2f} |"
-              f" {1e3 * r['import_s']:.0f} | {1e3 * r['fresh_auto_s']:.1f} ({r['fresh_auto_s'] / igl_s:.2f}) |"
-              f" {r['builds_until_kernels']} |", flush=True)
+              f" {1e3 * r['numpy_s']:.1f} |{extension[0]} {1e3 * r['kernels_s']:.1f} | {r['numpy_s'] / igl_s:.2f} |"
+              f"{extension[1]} {r['kernels_s'] / igl_s:.2f} |{extension[2]}"
+              f" {1e3 * fresh['import_s']:.0f} | {1e3 * fresh['fresh_auto_s']:.1f} | {1e3 * igl_fresh['igl_fresh_s']:.1f} |"
+              f" {fresh['fresh_auto_s'] / igl_fresh['igl_fresh_s']:.2f} | {r['builds_until_kernels']} |", flush=True)
     return 0
 
 

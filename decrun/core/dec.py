@@ -98,6 +98,8 @@ class DEC(Cached):
         self._check_form_degree(k)
         if k == self.n:
             return self.K.top_volumes
+        if k == 0:
+            return self.require(("primal", 0), lambda: np.ones(self.K.num_simplices(0)))
         return self.require(("primal", k), lambda: vertex_volumes(self.K.vertices, self.K.simplices(k)))
 
     def circumcenters(self, k: int | None = None) -> np.ndarray:

@@ -45,7 +45,7 @@ def group_rows(rows: np.ndarray):
     if not isinstance(rows, FaceRows):
         rows = FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
     bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
-    if rows.shape[0] and bits * rows.shape[1] <= 62 and jit.enabled(rows.shape[0]):
+    if rows.shape[0] and bits * rows.shape[1] <= 62 and _group_packed_kernel.runs(rows.shape[0]):
         return _group_packed_kernel(np.ascontiguousarray(rows.top, dtype=np.int64), rows.column_table(), bits)
     return group_rows_numpy(rows)
 
@@ -61,15 +61,24 @@ def group_rows_numpy(rows: "FaceRows"):
     bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
     if bits * c <= 62:
         # Pack each row into one int64 key (edges and triangles of meshes up to ~2M vertices).
-        key = rows.packed(bits)
-        order = np.argsort(key, kind="stable")
-        sorted_key = key[order]
-        del key
+        position_bits = max(1, (m - 1).bit_length())
+        if bits * c + position_bits <= 63:
+            # The row's position in the low bits makes every key distinct: sorting the keys by
+            # value (no indirection) gives the stable order, read back from the low bits.
+            key = rows.packed(bits, position_bits)
+            key.sort(kind="stable")
+            order = key & ((1 << position_bits) - 1)
+            key >>= position_bits
+        else:
+            key = rows.packed(bits)
+            order = np.argsort(key, kind="stable")
+            key = key[order]
         new = np.empty(m, dtype=bool)
         new[0] = True
-        np.not_equal(sorted_key[1:], sorted_key[:-1], out=new[1:])
-        unique_key = sorted_key[new]
-        del sorted_key
+        np.not_equal(key[1:], key[:-1], out=new[1:])
+        starts = np.flatnonzero(new)
+        unique_key = key[starts]
+        del key
         unique = np.empty((unique_key.size, c), dtype=np.int64)
         mask = (1 << bits) - 1
         for col in range(c - 1, -1, -1):
@@ -84,13 +93,13 @@ def group_rows_numpy(rows: "FaceRows"):
         new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
         unique = sorted_rows[new]
         del sorted_rows
+        starts = np.flatnonzero(new)
     group = np.cumsum(new, dtype=np.int64)
     group -= 1
     inverse = np.empty(m, dtype=np.int64)
     inverse[order] = group
     del group
-    starts = np.append(np.flatnonzero(new), m)
-    return unique, inverse, order, starts
+    return unique, inverse, order, np.append(starts, m)
 
 
 _SMALL_BUCKET = 32  # buckets up to this size are insertion-sorted, larger ones merge-sorted
@@ -201,12 +210,22 @@ class FaceRows:
             return self.top[:, index]
         return self.top[:, [c[index] for c in self.cols]].ravel()
 
-    def packed(self, bits: int) -> np.ndarray:
-        key = self.column(0).astype(np.int64)
-        for col in range(1, self.shape[1]):
-            key <<= bits
-            key |= self.column(col)
-        return key
+    def packed(self, bits: int, position_bits: int = 0) -> np.ndarray:
+        """(m·C,) int64 keys: each row's entries, ``bits`` bits each (the first most significant),
+        then, with ``position_bits``, the row's position ``0..m·C-1`` in the lowest bits."""
+        count, width = self.shape
+        cols = [tuple(range(width))] if self.cols is None else self.cols
+        key = np.empty((self.top.shape[0], len(cols)), dtype=np.int64)  # row t·C + s is key[t, s]
+        for s, local in enumerate(cols):
+            out = key[:, s]
+            np.copyto(out, self.top[:, local[0]])
+            for q in local[1:]:
+                out <<= bits
+                out |= self.top[:, q]
+            if position_bits:
+                out <<= position_bits
+                out |= np.arange(s, count, len(cols), dtype=np.int64)
+        return key.reshape(count)
 
     def materialize(self) -> np.ndarray:
         if self.cols is None:
@@ -228,9 +247,22 @@ def sorted_rows_and_parity(rows: np.ndarray):
     """(sorted rows (m, c) int64, inversion parity (m,) int8, smallest entry, largest entry,
     whether a sorted row repeats an entry) in one pass: the compiled
     :func:`_sorted_rows_kernel`, or its numpy twins :func:`sort_rows` and :func:`inversion_parity`."""
-    rows = np.ascontiguousarray(rows, dtype=np.int64)
-    if jit.enabled(rows.shape[0]):
-        return _sorted_rows_kernel(rows)
+    if _sorted_rows_kernel.runs(rows.shape[0]):
+        return _sorted_rows_kernel(np.asarray(rows, dtype=np.int64))  # any layout: not copied
+    rows = np.asarray(rows, dtype=np.int64)
+    if rows.shape[1] == 3 and rows.shape[0]:  # triangles: a min/max network on the three columns
+        a, b, c = rows[:, 0], rows[:, 1], rows[:, 2]
+        low, high = np.minimum(a, b), np.maximum(a, b)
+        middle = np.minimum(high, c)
+        np.maximum(high, c, out=high)
+        np.maximum(low, middle, out=middle)
+        np.minimum(low, c, out=low)
+        repeated = bool(np.any(low == middle) or np.any(middle == high))
+        inversions = (a > b).view(np.int8) + (a > c).view(np.int8)
+        inversions += (b > c).view(np.int8)
+        inversions &= 1
+        parity = 1 - 2 * inversions  # int8: +1 even, -1 odd
+        return (np.stack([low, middle, high], axis=1), parity, int(low.min()), int(high.max()), repeated)
     ordered = sort_rows(rows)
     repeated = bool((ordered[:, 1:] == ordered[:, :-1]).any())
     return ordered, inversion_parity(rows), int(ordered[:, 0].min()), int(ordered[:, -1].max()), repeated
@@ -344,7 +376,7 @@ def vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     twin is :func:`vertex_volumes_numpy`; the rest :func:`simplex_volumes`.
     """
     if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
-        if jit.enabled(simplices.shape[0]):
+        if _small_volumes_kernel.runs(simplices.shape[0]):
             return _small_volumes_kernel(np.ascontiguousarray(vertices.T, dtype=np.float64),
                                          np.ascontiguousarray(simplices, dtype=np.int64))
         return vertex_volumes_numpy(vertices, simplices)
@@ -397,13 +429,13 @@ class _CornerCoordinates:
 
     def __init__(self, vertices: np.ndarray, simplices: np.ndarray):
         self.columns = np.ascontiguousarray(vertices.T)  # (d, n0): contiguous per axis
-        self.simplices = simplices
+        self.corners = [np.ascontiguousarray(simplices[:, i]) for i in range(simplices.shape[1])]  # read d times each
 
     def __len__(self) -> int:
-        return self.simplices.shape[1]
+        return len(self.corners)
 
     def __getitem__(self, i: int):
-        return _CornerColumn(self.columns, self.simplices[:, i])
+        return _CornerColumn(self.columns, self.corners[i])
 
 
 class _CornerColumn:

@@ -163,7 +163,7 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
                 f"non-manifold: {name_indices(over, simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
                 f"{plural(simplex_name(n))} (e.g. {name_indices(owners, simplex_name(n))})"
             )
-    if jit.enabled(order.shape[0]):
+    if _facet_pairs_kernel.runs(order.shape[0]):
         index_type = np.int32 if top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
         pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, index_type))
         if not pairs[1].size:  # no interior facet: int64, as the numpy twin's
@@ -180,16 +180,27 @@ def facet_pairs_numpy(order: np.ndarray, starts: np.ndarray, top: np.ndarray) ->
     """The numpy twin of :func:`_facet_pairs_kernel`: (pairs of the facets in exactly two top
     simplices, whether two of them have the same vertex opposite a shared facet — duplicates)."""
     n = top.shape[1] - 1
+    width = n + 1
     counts = np.diff(starts)
-    interior = np.flatnonzero(counts == 2)
-    first, second = order[starts[interior]], order[starts[interior] + 1]
-    index_type = np.int32 if first.size and max(first.max(), second.max()) < 2**31 - 1 else np.int64
-    first, second = first.astype(index_type), second.astype(index_type)
-    width = index_type(n + 1)
-    pairs = FacetPairs(interior, first // width, second // width, first % width, second % width)
-    # Two simplices sharing a facet are duplicates iff their vertices opposite it agree
-    # (facet column c of combinations(range(n+1), n) omits sorted vertex n - c).
-    suspect = bool(np.any(top[pairs.first, n - pairs.first_slot] == top[pairs.second, n - pairs.second_slot]))
+    if order.size and counts.min() == 2 and counts.max() == 2:  # closed: every facet in two simplices
+        interior = np.arange(counts.size)
+        at = starts[:-1]
+    else:
+        interior = np.flatnonzero(counts == 2)
+        at = starts[interior]
+    index_type = np.int32 if interior.size and top.shape[0] < 2**31 // width - 1 else np.int64  # as the kernel's
+    first, second = order[at].astype(index_type), order[at + 1].astype(index_type)
+    first_slot, second_slot = first % width, second % width
+    # Two simplices sharing a facet are duplicates iff their vertices opposite it agree: facet
+    # column c of combinations(range(n+1), n) omits sorted vertex n - c, which is entry
+    # (n+1)·t + n - c = slot + n - 2c of the flattened rows.
+    flat = top.ravel()
+    opposite_first = first + n
+    opposite_first -= 2 * first_slot
+    opposite_second = second + n
+    opposite_second -= 2 * second_slot
+    suspect = bool(np.any(flat[opposite_first] == flat[opposite_second]))
+    pairs = FacetPairs(interior, first // width, second // width, first_slot, second_slot)
     return pairs, suspect
 
 
@@ -244,7 +255,7 @@ def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int) -> np.ndarr
     """
     _, t0, t1, l0, l1 = pairs
     m = parity.shape[0]
-    if jit.enabled(t0.shape[0]) and _consistent_kernel(t0, t1, l0, l1, parity):
+    if _consistent_kernel.runs(t0.shape[0]) and _consistent_kernel(t0, t1, l0, l1, parity):
         return parity
     bad = inconsistent_facets(pairs, parity)
     if not bad.any():
@@ -284,10 +295,12 @@ def inconsistent_facets(pairs: FacetPairs, parity: np.ndarray) -> np.ndarray:
     """(p,) bool: the interior facets both of whose top simplices induce the same orientation
     on them (the numpy twin of :func:`_consistent_kernel`)."""
     _, t0, t1, l0, l1 = pairs
-    # Entry of δ_n for the facet in each simplex: (-1)^l * orientation. Consistent iff opposite.
-    s0 = np.where(l0 % 2 == 0, 1, -1) * parity[t0]
-    s1 = np.where(l1 % 2 == 0, 1, -1) * parity[t1]
-    return s0 == s1
+    # Entry of δ_n for the facet in each simplex: (-1)^l * orientation. Consistent iff opposite:
+    # (-1)^l0 p0 == (-1)^l1 p1 exactly when p0 == p1 and l0 + l1 is even, or p0 != p1 and it is odd.
+    odd = np.bitwise_xor(l0, l1)
+    odd &= 1
+    same = parity[t0] == parity[t1]
+    return same != odd.astype(bool)
 
 
 @jit.njit
@@ -314,7 +327,7 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
     n = top.shape[1] - 1
     if n < 2:
         return
-    if n == 2 and not jit.enabled(top.shape[0]) and single_fan_surface(top, orientation, pairs, n_vertices).all():
+    if n == 2 and not _fans_kernel.runs(top.shape[0]) and single_fan_surface(top, orientation, pairs, n_vertices).all():
         return  # the counts below are only needed to name the fans of a bad vertex
     fans = fans_per_vertex(top, facets, orientation, pairs, n_vertices)
     bad = np.flatnonzero(fans > 1)
@@ -329,7 +342,7 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
 def fans_per_vertex(top, facets, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
     """(n0,) int64 number of fans (top simplices connected across shared facets) around each
     vertex: the compiled :func:`_fans_kernel`, or its numpy twins when ``DECRUN_NUMBA=0``."""
-    if jit.enabled(top.shape[0]):
+    if _fans_kernel.runs(top.shape[0]):
         return _fans_kernel(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
                             pairs.second_slot, n_vertices)
     if top.shape[1] == 3:
@@ -454,21 +467,34 @@ _POSITION = np.array([[1, 2, 2], [0, 0, 1]], dtype=np.int32)  # [larger 0 | smal
 _ARRIVING = _POSITION[_SMALLER[np.arange(2)[:, None], _LEAVING]]  # (2, 3, 3) [o, l, l']
 
 
+_LEAVING_OFFSET = (_LEAVING - np.arange(3, dtype=np.int32)).ravel()  # [3o + l]: corner - slot
+_ARRIVING_OFFSET = (_ARRIVING - np.arange(3, dtype=np.int32)).ravel()  # [9o + 3l + l']: corner - slot'
+
+
 def _corner_steps(top, orientation, pairs: FacetPairs) -> tuple[np.ndarray, np.ndarray]:
     """(following (3m,) int32, moving (3m,) bool): the corner ``3t + i`` each corner steps to
     across the edge leaving it in its triangle's orientation (itself at a border edge), and
-    whether it moves. One pass over the interior edges, both directions."""
+    whether it moves. One pass over the interior edges, both directions; a corner is its edge
+    slot ``3t + l`` plus a table entry (the tables above, flattened)."""
     m = top.shape[0]
     _, t0, t1, l0, l1 = pairs
-    following = np.arange(3 * m, dtype=np.int32)
+    index_type = np.int32 if 3 * m < 2**31 - 1 else np.int64
+    negative = (orientation < 0).view(np.int8)
+    following = np.arange(3 * m, dtype=index_type)
     for a, b, la, lb in ((t0, t1, l0, l1), (t1, t0, l1, l0)):
-        negative = (orientation[a] < 0).astype(np.int32)
-        source = 3 * a.astype(np.int32)
-        source += _LEAVING[negative, la]
-        target = 3 * b.astype(np.int32)
-        target += _ARRIVING[negative, la, lb]
-        following[source] = target
-    moving = following != np.arange(3 * m, dtype=np.int32)
+        slot_a: np.ndarray = 3 * a.astype(index_type, copy=False)
+        slot_a += la
+        slot_b: np.ndarray = 3 * b.astype(index_type, copy=False)
+        slot_b += lb
+        o: np.ndarray = negative[a].astype(index_type)
+        o *= 3
+        o += la  # 3o + l
+        slot_a += _LEAVING_OFFSET[o]
+        o *= 3
+        o += lb  # 9o + 3l + l'
+        slot_b += _ARRIVING_OFFSET[o]
+        following[slot_a] = slot_b
+    moving = following != np.arange(3 * m, dtype=index_type)
     return following, moving
 
 

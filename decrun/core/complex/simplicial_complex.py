@@ -38,7 +38,12 @@ __all__ = ["SimplicialComplex"]
 def incidence_entries_numpy(faces: np.ndarray, signs: np.ndarray, index_type) -> tuple[np.ndarray, np.ndarray]:
     """(data, indices) of δ_jᵀ in CSR order from the (n_j, j+1) faces and signs (the numpy twin
     of :func:`_incidence_kernel`)."""
-    return signs.ravel().astype(np.float64), faces.ravel().astype(index_type)
+    data = np.empty(faces.shape)
+    indices = np.empty(faces.shape, dtype=index_type)  # holds every face index (the caller chose it)
+    for l in range(faces.shape[1]):  # column by column: ``faces`` and ``signs`` are often strided views
+        indices[:, l] = faces[:, l]
+        data[:, l] = signs[:, l]
+    return data.reshape(-1), indices.reshape(-1)
 
 
 @jit.njit
@@ -158,7 +163,10 @@ class SimplicialComplex(Cached):
         faces = self._facet_table(j)
         alternating = np.array([1 if l % 2 == 0 else -1 for l in range(j + 1)], dtype=np.int8)
         if j == self.dim:
-            signs = alternating[None, :] * self._orientation[:, None]
+            signs = np.empty(faces.shape, dtype=np.int8)
+            negated = -self._orientation
+            for l in range(j + 1):  # column by column (a broadcast product is slower)
+                signs[:, l] = self._orientation if l % 2 == 0 else negated
         else:
             signs = np.broadcast_to(alternating, faces.shape)
         return faces, signs
@@ -220,7 +228,7 @@ class SimplicialComplex(Cached):
         def compute():
             nj = self._lists[j].shape[0]
             index_type = np.int32 if max((j + 1) * nj, self._lists[j - 1].shape[0]) < 2**31 - 1 else np.int64
-            if jit.enabled(nj):
+            if _incidence_kernel.runs(nj):
                 data, indices = np.empty(nj * (j + 1)), np.empty(nj * (j + 1), dtype=index_type)
                 orientation = self._orientation if j == self.dim else self._orientation[:0]
                 _incidence_kernel(self._facet_table(j), orientation, data, indices)

@@ -27,6 +27,13 @@ with. A caller takes the kernel when :func:`enabled` says so. **The switch** (:f
 
 ``numpy`` never imports numba; ``numba`` runs every kernel on the path (``tests/core/test_jit.py``).
 
+**The compiled extension.** The kernels of the complex and its operators (row sorting and
+grouping, facet pairs, orientation, vertex fans, volumes, dual volumes, incidence) also have
+twins in ``decrun.core._kernels``, a Cython extension the install builds where a C compiler is
+found (optional: without one it is left out). Under ``auto`` such a kernel runs as its twin at
+every size (:meth:`.kernels.LazyKernel.runs`): machine code that loads with its module, so a
+fresh process gets it without numba's start; ``numba`` and ``numpy`` keep their meaning.
+
 A kernel numba must compile (its disk cache holds no machine code for it) calls
 :data:`compile_notice` first, once per process, so a caller can say why the first step waits.
 

@@ -12,10 +12,10 @@ from typing import Any, Callable
 
 from decrun.core.jit import forks
 from decrun.core.jit.signals import handler_exception
-from decrun.core.jit.switch import mark_started
+from decrun.core.jit.switch import enabled, mark_started, mode
 from decrun.core.jit.threads import threading_layer
 
-__all__ = ["njit", "prange", "KERNELS", "LazyKernel", "announce_compile"]
+__all__ = ["njit", "prange", "KERNELS", "LazyKernel", "announce_compile", "extension_twins"]
 
 #: ``for i in prange(n)`` in a kernel: numba's parallel loop once the kernel is compiled with
 #: ``parallel=True`` (the dispatcher swaps it in), the plain ``range`` everywhere else
@@ -42,11 +42,26 @@ class LazyKernel:
     def name(self) -> str:
         return f"{self.function.__module__}.{self.function.__name__}"
 
+    def twin(self) -> Callable | None:
+        """This kernel's twin in the compiled extension ``decrun.core._kernels`` (built by the
+        install: same arguments, same results bit for bit), or None when the extension is not
+        built or holds no twin of it."""
+        return extension_twins().get(self.name)
+
+    def runs(self, size: int | None = None) -> bool:
+        """Whether a call for an input of ``size`` items runs as machine code (else the caller
+        takes the numpy twin): under ``auto`` at every size when the extension twin is built
+        (it loads with its module, without numba's start), else :func:`.switch.enabled`."""
+        if self.twin() is not None and mode() == "auto":
+            return True
+        return enabled(size)
+
     def dispatcher(self):
         """The numba dispatcher (created once; it compiles per argument types when called).
 
         Kernels called from this one must be numba functions when it is compiled: every
-        lazy kernel among the module's globals is replaced by its dispatcher first — but a
+        lazy kernel among the module's globals this one names is replaced by its dispatcher
+        (the others stay lazy kernels, which pick numba or the extension per call) — but a
         ``parallel=True`` kernel, which only Python calls (through :meth:`__call__` and its lock;
         numba cannot nest its parallel regions anyway)."""
         if self.compiled is None:
@@ -59,7 +74,8 @@ class LazyKernel:
                 threading_layer(numba)
             self.compiled = numba.njit(cache=True, **self.options)(self.function)
             announce_compile(self)
-            for name, value in list(namespace.items()):
+            for name in _global_names(self.function.__code__):
+                value = namespace.get(name)
                 # a parallel kernel stays this object (its callers are Python's, through __call__'s lock)
                 if isinstance(value, LazyKernel) and not value.options.get("parallel"):
                     namespace[name] = value.dispatcher()
@@ -91,6 +107,9 @@ class LazyKernel:
         return self.serial
 
     def __call__(self, *args: Any) -> Any:
+        twin = self.twin()
+        if twin is not None and mode() == "auto":  # the extension: numba is not started for it
+            return twin(*args)
         try:
             if self.options.get("parallel"):
                 if forks.state.child_of_openmp:
@@ -108,6 +127,32 @@ class LazyKernel:
             if cause is None:
                 raise
             raise cause from None
+
+
+def _global_names(code) -> set:
+    """The global names a function's code (and the code nested in it) refers to."""
+    names = set(code.co_names)
+    for constant in code.co_consts:
+        if hasattr(constant, "co_names"):
+            names |= _global_names(constant)
+    return names
+
+
+_twins: dict | None = None  # the extension's TWINS once looked for ({} when it is not built)
+
+
+def extension_twins() -> dict:
+    """{numba kernel's dotted name: its twin} from the compiled extension ``decrun.core._kernels``,
+    imported once; empty when the install built no extension (no C compiler)."""
+    global _twins
+    if _twins is None:
+        try:
+            from decrun.core import _kernels  # type: ignore[attr-defined]
+        except ImportError:
+            _twins = {}
+        else:
+            _twins = dict(_kernels.TWINS)
+    return _twins
 
 
 def announce_compile(kernel: LazyKernel) -> None:

@@ -117,7 +117,7 @@ def triangle_dual_volumes(K) -> dict[int, np.ndarray]:
     Voronoi area — signed, so obtuse triangles are exact. The compiled
     :func:`_triangle_dual_kernel`; :func:`triangle_dual_volumes_numpy` is its twin.
     """
-    if not jit.enabled(K.num_simplices(2)):
+    if not _triangle_dual_kernel.runs(K.num_simplices(2)):
         return triangle_dual_volumes_numpy(K)
     top = K.simplices(2)
     dual0, dual1 = _triangle_dual_kernel(np.ascontiguousarray(K.vertices.T), top, K.top_volumes,
@@ -186,8 +186,10 @@ def triangle_dual_volumes_numpy(K) -> dict[int, np.ndarray]:
     cot = dots  # cot θ_i = -(e_j · e_k) / (2A), computed in place
     cot *= -0.5 / area
     # dual edge piece ½ cot θ_i |e_i|; edge slots (0,1), (0,2), (1,2) are opposite corners 2, 1, 0
-    dual_edge = np.sqrt(sq[::-1].T)  # (m, 3) in slot order
-    dual_edge *= 0.5 * cot[::-1].T
+    dual_edge = np.empty((m, 3))  # in slot order, written column by column (no strided temporaries)
+    for slot in range(3):
+        np.sqrt(sq[2 - slot], out=dual_edge[:, slot])
+        dual_edge[:, slot] *= 0.5 * cot[2 - slot]
     dual1 = np.bincount(K.top_face_indices(1).ravel(), weights=dual_edge.ravel(), minlength=K.num_simplices(1))
     del dual_edge
     weighted = sq * cot  # |e_i|² cot θ_i

@@ -1,0 +1,348 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""The complex's and the operators' kernels as a compiled extension, built by the install.
+
+Each function here is the twin of one numba kernel (:data:`TWINS` maps the kernel's dotted name
+to it) with the same arguments, results and arithmetic in the same order, so it equals the
+kernel's numpy twin bit for bit. Under ``auto`` a kernel runs as this twin when the extension is
+built (:meth:`decrun.core.jit.kernels.LazyKernel.runs`): machine code that loads with the module,
+in milliseconds, without numba's start. The extension is optional: an install without a C
+compiler leaves it out, and the numba kernels and numpy twins do the work as before.
+"""
+
+import numpy as np
+
+from libc.math cimport sqrt, fabs
+from libc.stdint cimport int8_t, int32_t, int64_t
+
+ctypedef fused index_t:
+    int32_t
+    int64_t
+
+
+def sorted_rows(const int64_t[:, :] rows):
+    """Twin of ``simplex_arrays._sorted_rows_kernel``: insertion sort of each row, its shift
+    count the row's inversion count; (sorted rows, parity int8, smallest, largest, repeated).
+    ``rows`` in any layout (a mesh's Fortran-ordered faces are not copied first)."""
+    cdef Py_ssize_t m = rows.shape[0], c = rows.shape[1], t, a, b
+    ordered_array = np.empty((m, c), np.int64)
+    parity_array = np.empty(m, np.int8)
+    cdef int64_t[:, ::1] ordered = ordered_array
+    cdef int8_t[::1] parity = parity_array
+    cdef int64_t smallest = rows[0, 0], largest = rows[0, 0], value
+    cdef Py_ssize_t shifts
+    cdef bint repeated = False
+    cdef int64_t x, y, z, low, middle, high
+    if c == 3:  # triangles: the same sorted rows and inversion parities without the shifting loop
+        for t in range(m):
+            x, y, z = rows[t, 0], rows[t, 1], rows[t, 2]
+            shifts = (x > y) + (x > z) + (y > z)
+            low = x if x < y else y
+            high = y if x < y else x
+            middle = z if z < high else high
+            high = z if z > high else high
+            middle = middle if middle > low else low
+            low = z if z < low else low
+            ordered[t, 0], ordered[t, 1], ordered[t, 2] = low, middle, high
+            parity[t] = 1 if shifts % 2 == 0 else -1
+            if low < smallest:
+                smallest = low
+            if high > largest:
+                largest = high
+            if low == middle or middle == high:
+                repeated = True
+        return ordered_array, parity_array, smallest, largest, bool(repeated)
+    for t in range(m):
+        shifts = 0
+        for a in range(c):
+            value = rows[t, a]
+            b = a - 1
+            while b >= 0 and ordered[t, b] > value:
+                ordered[t, b + 1] = ordered[t, b]
+                b -= 1
+                shifts += 1
+            ordered[t, b + 1] = value
+        parity[t] = 1 if shifts % 2 == 0 else -1
+        if ordered[t, 0] < smallest:
+            smallest = ordered[t, 0]
+        if ordered[t, c - 1] > largest:
+            largest = ordered[t, c - 1]
+        for a in range(1, c):
+            if ordered[t, a] == ordered[t, a - 1]:
+                repeated = True
+    return ordered_array, parity_array, smallest, largest, bool(repeated)
+
+
+def group_packed(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits):
+    """Twin of ``simplex_arrays._group_packed_kernel``: the rows ``top[t, columns[s]]`` grouped
+    by a stable counting sort on their leading entry and a stable sort of each bucket by the
+    packed key; (unique, inverse, order, starts). ``top`` in any layout."""
+    cdef Py_ssize_t m = top.shape[0], slots = columns.shape[0], width = columns.shape[1]
+    cdef Py_ssize_t total = m * slots, t, s, q, i, v, a, b, low, high, groups, g
+    cdef int64_t k, lead, largest = 0, item, item_key, packed
+    cdef int shift = bits * (width - 1)
+    for t in range(m):  # the keys' leading entries: the buckets (no array of keys is kept)
+        for s in range(slots):
+            lead = top[t, columns[s, 0]]
+            if lead > largest:
+                largest = lead
+    count_array = np.zeros(largest + 2, np.int64)
+    cdef int64_t[::1] count = count_array
+    for t in range(m):
+        for s in range(slots):
+            count[top[t, columns[s, 0]] + 1] += 1
+    for v in range(largest + 1):
+        count[v + 1] += count[v]
+    position_array = count_array[:largest + 1].copy()
+    cdef int64_t[::1] position = position_array
+    order_array = np.empty(total, np.int64)
+    sorted_array = np.empty(total, np.int64)
+    cdef int64_t[::1] order = order_array
+    cdef int64_t[::1] sorted_key = sorted_array
+    for t in range(m):  # each row's packed key, scattered into its bucket in row order (stable)
+        for s in range(slots):
+            k = 0
+            for q in range(width):
+                k = (k << bits) | top[t, columns[s, q]]
+            lead = k >> shift
+            i = t * slots + s
+            order[position[lead]] = i
+            sorted_key[position[lead]] = k
+            position[lead] += 1
+    for v in range(largest + 1):
+        low, high = count[v], count[v + 1]
+        if high - low <= 1:
+            continue
+        if high - low <= 32:  # simplex_arrays._SMALL_BUCKET: stable insertion sort by key
+            for a in range(low + 1, high):
+                item = order[a]
+                item_key = sorted_key[a]
+                b = a - 1
+                while b >= low and sorted_key[b] > item_key:
+                    order[b + 1] = order[b]
+                    sorted_key[b + 1] = sorted_key[b]
+                    b -= 1
+                order[b + 1] = item
+                sorted_key[b + 1] = item_key
+        else:
+            rank = np.argsort(sorted_array[low:high], kind="mergesort")
+            order_array[low:high] = order_array[low:high][rank]
+            sorted_array[low:high] = sorted_array[low:high][rank]
+    groups = 0
+    for a in range(total):
+        if a == 0 or sorted_key[a] != sorted_key[a - 1]:
+            groups += 1
+    unique_array = np.empty((groups, width), np.int64)
+    inverse_array = np.empty(total, np.int64)
+    starts_array = np.empty(groups + 1, np.int64)
+    cdef int64_t[:, ::1] unique = unique_array
+    cdef int64_t[::1] inverse = inverse_array
+    cdef int64_t[::1] starts = starts_array
+    cdef int64_t mask = (<int64_t> 1 << bits) - 1
+    g = -1
+    for a in range(total):
+        k = sorted_key[a]
+        if a == 0 or k != sorted_key[a - 1]:
+            g += 1
+            starts[g] = a
+            packed = k
+            for q in range(width - 1, -1, -1):
+                unique[g, q] = packed & mask
+                packed >>= bits
+        inverse[order[a]] = g
+    starts[groups] = total
+    return unique_array, inverse_array, order_array, starts_array
+
+
+def _facet_pairs_fill(const int64_t[::1] order, const int64_t[::1] starts, const int64_t[:, :] top,
+                      int64_t[::1] interior, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
+                      index_t[::1] second_slot):
+    cdef Py_ssize_t width = top.shape[1], n = width - 1, groups = starts.shape[0] - 1, g, p = 0
+    cdef int64_t a, b, ta, tb
+    cdef bint suspect = False
+    for g in range(groups):
+        if starts[g + 1] - starts[g] != 2:
+            continue
+        a, b = order[starts[g]], order[starts[g] + 1]
+        if width == 3:  # triangles: a division by a constant (a multiplication)
+            ta, tb = a // 3, b // 3
+        else:
+            ta, tb = a // width, b // width
+        interior[p] = g
+        first[p], first_slot[p] = ta, a - ta * width
+        second[p], second_slot[p] = tb, b - tb * width
+        if top[ta, n - (a - ta * width)] == top[tb, n - (b - tb * width)]:
+            suspect = True
+        p += 1
+    return bool(suspect)
+
+
+def facet_pairs(order, starts, top, index_like):
+    """Twin of ``complex.checks._facet_pairs_kernel``: the facets in exactly two top simplices
+    (int64), their simplices and slots (``index_like``'s type), and the duplicate suspicion."""
+    cdef const int64_t[::1] starts_view = starts
+    cdef Py_ssize_t g, count = 0
+    for g in range(starts_view.shape[0] - 1):
+        if starts_view[g + 1] - starts_view[g] == 2:
+            count += 1
+    interior = np.empty(count, np.int64)
+    first, second, first_slot, second_slot = (np.empty(count, index_like.dtype) for _ in range(4))
+    suspect = _facet_pairs_fill(order, starts, top, interior, first, second, first_slot, second_slot)
+    return (interior, first, second, first_slot, second_slot), suspect
+
+
+def consistent(index_t[::1] first, index_t[::1] second, index_t[::1] first_slot, index_t[::1] second_slot,
+               const int8_t[::1] parity):
+    """Twin of ``complex.checks._consistent_kernel``: True when no interior facet is inconsistent."""
+    cdef Py_ssize_t p
+    cdef int s0, s1
+    for p in range(first.shape[0]):
+        s0 = parity[first[p]] if first_slot[p] % 2 == 0 else -parity[first[p]]
+        s1 = parity[second[p]] if second_slot[p] % 2 == 0 else -parity[second[p]]
+        if s0 == s1:
+            return False
+    return True
+
+
+def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
+         index_t[::1] second_slot, Py_ssize_t n_vertices):
+    """Twin of ``complex.checks._fans_kernel``: union–find over the corners ``(n+1)·t + i``; the
+    fans of a vertex are its corners' distinct roots. (n0,) int64."""
+    cdef Py_ssize_t m = top.shape[0], width = top.shape[1], n = width - 1, p, i0, i1, r, corner
+    cdef int64_t t0, t1, skip0, skip1, a, b
+    parent_array = np.arange(m * width, dtype=np.int64)
+    cdef int64_t[::1] parent = parent_array
+    for p in range(first.shape[0]):
+        t0, t1 = first[p], second[p]
+        skip0, skip1 = n - first_slot[p], n - second_slot[p]
+        i0 = 0
+        i1 = 0
+        for r in range(n):
+            if i0 == skip0:
+                i0 += 1
+            if i1 == skip1:
+                i1 += 1
+            a = t0 * width + i0
+            while parent[a] != a:
+                parent[a] = parent[parent[a]]
+                a = parent[a]
+            b = t1 * width + i1
+            while parent[b] != b:
+                parent[b] = parent[parent[b]]
+                b = parent[b]
+            if a < b:
+                parent[b] = a
+            elif b < a:
+                parent[a] = b
+            i0 += 1
+            i1 += 1
+    fans_array = np.zeros(n_vertices, np.int64)
+    cdef int64_t[::1] result = fans_array
+    cdef Py_ssize_t t, i
+    for t in range(m):
+        for i in range(width):
+            corner = t * width + i
+            if parent[corner] == corner:
+                result[top[t, i]] += 1
+    return fans_array
+
+
+def small_volumes(const double[:, ::1] columns, const int64_t[:, ::1] simplices):
+    """Twin of ``simplex_arrays._small_volumes_kernel``: lengths of edges / areas of triangles
+    from the (d, n0) coordinates, d = 2 or 3. (m,) float64."""
+    cdef Py_ssize_t m = simplices.shape[0], corners = simplices.shape[1], d = columns.shape[0], t, axis
+    cdef int64_t p, q, r
+    cdef double total, diff, u0, u1, u2, v0, v1, v2, component
+    out_array = np.empty(m)
+    cdef double[::1] out = out_array
+    for t in range(m):
+        p = simplices[t, 0]
+        q = simplices[t, 1]
+        if corners == 2:
+            total = 0.0
+            for axis in range(d):
+                diff = columns[axis, q] - columns[axis, p]
+                total = total + diff * diff
+            out[t] = sqrt(total)
+            continue
+        r = simplices[t, 2]
+        if d == 2:
+            u0, u1 = columns[0, q] - columns[0, p], columns[1, q] - columns[1, p]
+            v0, v1 = columns[0, r] - columns[0, p], columns[1, r] - columns[1, p]
+            out[t] = 0.5 * fabs(u0 * v1 - u1 * v0)
+            continue
+        u0, u1, u2 = columns[0, q] - columns[0, p], columns[1, q] - columns[1, p], columns[2, q] - columns[2, p]
+        v0, v1, v2 = columns[0, r] - columns[0, p], columns[1, r] - columns[1, p], columns[2, r] - columns[2, p]
+        total = 0.0
+        component = u1 * v2 - u2 * v1
+        total += component * component
+        component = u2 * v0 - u0 * v2
+        total += component * component
+        component = u0 * v1 - u1 * v0
+        total += component * component
+        out[t] = sqrt(total) * 0.5
+    return out_array
+
+
+def triangle_dual(const double[:, ::1] columns, const int64_t[:, :] top, const double[::1] area,
+                  const int64_t[:, :] triangle_edges, Py_ssize_t n_edges, Py_ssize_t n_vertices):
+    """Twin of ``stars.circumcentric._triangle_dual_kernel``: (dual0 (n0,), dual1 (n1,))."""
+    dual0_array = np.zeros(n_vertices)
+    dual1_array = np.zeros(n_edges)
+    cdef double[::1] dual0 = dual0_array
+    cdef double[::1] dual1 = dual1_array
+    cdef Py_ssize_t d = columns.shape[0], t, axis
+    cdef int64_t a, b, c
+    cdef double sq0, sq1, sq2, dot0, dot1, dot2, x0, x1, x2, e0, e1, e2, factor, cot0, cot1, cot2, w0, w1, w2
+    for t in range(top.shape[0]):
+        a, b, c = top[t, 0], top[t, 1], top[t, 2]
+        sq0 = sq1 = sq2 = 0.0
+        dot0 = dot1 = dot2 = 0.0
+        for axis in range(d):
+            x0, x1, x2 = columns[axis, a], columns[axis, b], columns[axis, c]
+            e0 = x2 - x1
+            e1 = x0 - x2
+            e2 = x1 - x0
+            sq0 += e0 * e0
+            sq1 += e1 * e1
+            sq2 += e2 * e2
+            dot0 += e1 * e2
+            dot1 += e2 * e0
+            dot2 += e0 * e1
+        factor = -0.5 / area[t]
+        cot0, cot1, cot2 = dot0 * factor, dot1 * factor, dot2 * factor
+        dual1[triangle_edges[t, 0]] += sqrt(sq2) * (0.5 * cot2)
+        dual1[triangle_edges[t, 1]] += sqrt(sq1) * (0.5 * cot1)
+        dual1[triangle_edges[t, 2]] += sqrt(sq0) * (0.5 * cot0)
+        w0, w1, w2 = sq0 * cot0, sq1 * cot1, sq2 * cot2
+        dual0[a] += (w2 + w1) * 0.125
+        dual0[b] += (w0 + w2) * 0.125
+        dual0[c] += (w1 + w0) * 0.125
+    return dual0_array, dual1_array
+
+
+def incidence(const int64_t[:, :] faces, const int8_t[::1] orientation, double[::1] data, index_t[::1] indices):
+    """Twin of ``complex.simplicial_complex._incidence_kernel``: δ_jᵀ's CSR entries, row by row."""
+    cdef Py_ssize_t width = faces.shape[1], s, l
+    cdef bint oriented = orientation.shape[0] > 0
+    cdef double sign
+    for s in range(faces.shape[0]):
+        sign = 1.0
+        if oriented:
+            sign = 1.0 if orientation[s] > 0 else -1.0
+        for l in range(width):
+            indices[s * width + l] = faces[s, l]
+            data[s * width + l] = sign if l % 2 == 0 else -sign
+    return data.base, indices.base
+
+
+#: the numba kernel (dotted name) each function here is the twin of
+TWINS = {
+    "decrun.core.simplex_arrays._sorted_rows_kernel": sorted_rows,
+    "decrun.core.simplex_arrays._group_packed_kernel": group_packed,
+    "decrun.core.simplex_arrays._small_volumes_kernel": small_volumes,
+    "decrun.core.complex.checks._facet_pairs_kernel": facet_pairs,
+    "decrun.core.complex.checks._consistent_kernel": consistent,
+    "decrun.core.complex.checks._fans_kernel": fans,
+    "decrun.core.stars.circumcentric._triangle_dual_kernel": triangle_dual,
+    "decrun.core.complex.simplicial_complex._incidence_kernel": incidence,
+}

@@ -1,0 +1,149 @@
+"""The compiled extension ``decrun.core._kernels``: its twins of the numba kernels equal the numpy
+twins bit for bit, ``auto`` runs them at every size, and a fresh process builds a complex and its
+operators through them without starting numba.
+
+The extension is optional (an install without a C compiler leaves it out): these tests skip
+without it, except under ``CI=true``, where the install must have built it.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from decrun.core import jit
+from decrun.core.complex import SimplicialComplex
+from decrun.core.jit import kernels
+from decrun.core.simplex_arrays import FaceRows, group_rows, group_rows_numpy, sort_rows, sorted_rows_and_parity
+from tests.core.test_kernels import MESHES, REJECTED, _assert_same, _everything
+
+BUILT = bool(kernels.extension_twins())
+needs_extension = pytest.mark.skipif(not BUILT, reason="the compiled extension is not built (no C compiler at install)")
+
+
+def test_the_install_built_the_extension_where_ci_requires_it():
+    if os.environ.get("CI") == "true":
+        assert BUILT, "decrun.core._kernels is not built: pip install -e . needs a C compiler and Python's headers"
+    elif not BUILT:
+        pytest.skip("the compiled extension is not built (no C compiler at install)")
+
+
+@needs_extension
+def test_every_twin_takes_its_kernels_arguments():
+    import decrun.core.dec  # noqa: F401  (imports every module whose kernels have twins)
+
+    lazy = {kernel.name: kernel for kernel in jit.KERNELS}
+    twins = kernels.extension_twins()
+    assert len(twins) == 8
+    for name, twin in twins.items():
+        assert name in lazy, f"{name} is no kernel"
+        assert list(inspect.signature(twin).parameters) == list(inspect.signature(lazy[name].function).parameters)
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """{kernel name: calls of its twin}, the twins wrapped to count (auto, DECRUN_NUMBA unset)."""
+    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    calls: dict = {}
+
+    def wrap(name, twin):
+        def counting(*args):
+            calls[name] = calls.get(name, 0) + 1
+            return twin(*args)
+        return counting
+
+    monkeypatch.setattr(kernels, "_twins", {name: wrap(name, twin) for name, twin in kernels.extension_twins().items()})
+    return calls
+
+
+@needs_extension
+@pytest.mark.parametrize("name", MESHES)
+def test_the_extension_equals_the_numpy_twins(name, counted):
+    vertices, simplices = MESHES[name]()
+    with jit.use("auto"):
+        compiled = _everything(vertices, simplices)
+    assert counted, "auto ran no twin"
+    with jit.use("numpy"):
+        reference = _everything(vertices, simplices)
+    _assert_same(compiled, reference)
+
+
+@needs_extension
+def test_auto_runs_every_twin_on_a_triangle_mesh_at_any_size(counted):
+    vertices, simplices = MESHES["annulus"]()  # a few hundred triangles: far below numba's MIN_SIZE
+    with jit.use("auto"):
+        _everything(vertices, simplices)
+    assert set(counted) == set(kernels.extension_twins())  # all eight
+
+
+@needs_extension
+@pytest.mark.parametrize("name", REJECTED)
+def test_rejected_inputs_fail_the_same_way_with_the_extension(name, counted):
+    from decrun import errors
+
+    vertices, simplices = REJECTED[name]
+
+    def attempt(mode):
+        with jit.use(mode):
+            try:
+                SimplicialComplex(vertices, np.array(simplices))
+            except errors.MeshError as exc:
+                return type(exc).__name__, str(exc)
+        return None
+
+    compiled = attempt("auto")
+    assert compiled is not None and compiled == attempt("numpy")
+
+
+@needs_extension
+def test_group_rows_and_row_sorting_twins_on_wide_buckets_and_repeats(counted):
+    rng = np.random.default_rng(3)
+    fan = np.stack([np.zeros(300, dtype=np.int64), rng.integers(1, 50, 300), rng.integers(50, 90, 300)], axis=1)
+    rows = np.vstack([fan, rng.integers(0, 90, (2000, 3)), fan[:40]])  # a merge-sorted bucket, duplicates
+    for table in (rows, FaceRows(sort_rows(rows), [(0, 1), (0, 2), (1, 2)])):
+        _assert_same(group_rows(table), group_rows_numpy(table))
+    wide = rng.integers(0, 6, (3000, 4))  # repeated entries and every permutation
+    with jit.use("auto"):
+        compiled = sorted_rows_and_parity(wide)
+    with jit.use("numpy"):
+        _assert_same(compiled, sorted_rows_and_parity(wide))
+    assert counted["decrun.core.simplex_arrays._group_packed_kernel"] == 2
+    assert counted["decrun.core.simplex_arrays._sorted_rows_kernel"] == 1
+
+
+def test_without_the_extension_auto_keeps_numbas_size_rule(monkeypatch):
+    from decrun.core.complex import checks
+
+    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
+    monkeypatch.setattr(kernels, "_twins", {})
+    monkeypatch.setattr(jit.switch, "_started", False)
+    monkeypatch.setattr(jit.switch, "_numpy_items", 0)
+    assert not checks._fans_kernel.runs(jit.MIN_SIZE - 1) and checks._fans_kernel.runs(jit.MIN_SIZE)
+
+
+@needs_extension
+def test_numba_and_numpy_modes_do_not_run_the_twins(counted):
+    vertices, simplices = MESHES["icosphere"]()
+    for mode in ("numba", "numpy"):
+        with jit.use(mode):
+            _everything(vertices, simplices)
+    assert not counted
+
+
+@needs_extension
+def test_a_fresh_process_builds_the_operators_without_starting_numba():
+    code = ("import sys; from decrun.core.complex import SimplicialComplex; from decrun.core.dec import DEC; "
+            "from decrun.core import jit; from tests.meshes_for_tests import icosphere; V, F = icosphere(4); "
+            "dec = DEC(SimplicialComplex(V, F)); ops = [dec.d(0), dec.d(1)] + [dec.star(k) for k in range(3)]; "
+            "print(float(dec.star(0).diagonal().sum()), 'numba' in sys.modules, jit.started())")
+    env = {k: v for k, v in os.environ.items() if k != "DECRUN_NUMBA"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env,
+                         cwd=os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+    area, imported, started = out.stdout.split()
+    assert abs(float(area) - 4 * np.pi) < 0.01 * 4 * np.pi  # ⋆0 sums to the sphere's area
+    assert (imported, started) == ("False", "False")

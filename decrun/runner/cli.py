@@ -200,9 +200,11 @@ class SweepTable(Callback):
         sweep_dir = Path(str(config.hydra.sweep.dir))
         table = write_sweep_table(sweep_dir, sweep=True)
         bad = failed_jobs(table)
-        # jobs that ran (status ok, metrics kept) but whose export failed after the run
-        exports = ([(job, error) for job, error in zip(table["job"], table["export_error"].fillna("").astype(str), strict=True)
-                    if error] if "export_error" in table else [])
+        # jobs that ran (status ok, metrics kept) but whose export or figures failed after the run
+        exports = [(job, f"{what} failed: {error}") for column, what in (("export_error", "export"),
+                                                                          ("figures_error", "figures"))
+                   if column in table
+                   for job, error in zip(table["job"], table[column].fillna("").astype(str), strict=True) if error]
         SweepTable.failed = len(bad) + len(exports)
         shown = select(table, drop_constant=True, narrow=True)
         print(to_markdown(shown), end="")
@@ -214,13 +216,14 @@ class SweepTable(Callback):
             print(f"decrun: {len(repeats)} jobs repeat an earlier job's result exactly (column {SAME_AS}: "
                   f"{', '.join(f'{j} = {s}' for j, s in zip(repeats['job'], repeats[SAME_AS], strict=True))}); the keys they differ "
                   f"in do not change the result")
-        failed_exports = f", {len(exports)} export failed" if len(exports) else ""
+        failed_exports = "".join(f", {n} {what} failed" for what in ("export", "figures")
+                                 if (n := sum(error.startswith(what) for _, error in exports)))
         print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok{failed_exports}) → "
               f"{SweepFiles(sweep_dir).table_csv}, {SweepFiles.TABLE_MD}")
         for row in bad.itertuples(index=False):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
         for job, error in exports:
-            print(f"decrun: job {job} export failed: {error}", file=sys.stderr)
+            print(f"decrun: job {job} {error}", file=sys.stderr)
         track(config, sweep_dir, sweep=True)
 
 

@@ -58,3 +58,44 @@ def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path):
     assert [m for m in unused if m in modules] == []
     drawn = imported_modules("app.steps=2", cwd=tmp_path)
     assert {"matplotlib", "decrun.runner.plots.common"} <= drawn and "pandas" not in drawn
+
+
+def test_a_single_run_composes_its_config_once(tmp_path, monkeypatch):
+    """``decrun`` composes a single run's config once (Hydra's command line composes it a
+    second time only to read ``hydra.mode``) and records the same Hydra overrides
+    (``hydra.mode=RUN`` among them) as Hydra's way; a bad value still gets its one line."""
+    from hydra._internal.hydra import Hydra
+    from omegaconf import OmegaConf
+
+    from decrun.runner import cli
+
+    modes = []
+    compose = Hydra.compose_config
+
+    def counted(self, config_name, overrides, run_mode, **kwargs):
+        modes.append(str(run_mode))
+        return compose(self, config_name, overrides, run_mode, **kwargs)
+
+    monkeypatch.setattr(Hydra, "compose_config", counted)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", ["decrun", "figures=false", "app.steps=2", "hydra.run.dir=one"])
+    cli.main()
+    assert modes == ["RunMode.RUN"]
+    hydra_yaml = OmegaConf.load(tmp_path / "one" / ".hydra" / "hydra.yaml").hydra
+    assert list(hydra_yaml.overrides.hydra) == ["hydra.run.dir=one", "hydra.mode=RUN"] and hydra_yaml.mode == "RUN"
+    assert json.loads((tmp_path / "one" / "metrics.json").read_text())["steps_done"] == 2
+
+
+def test_a_config_that_sets_hydra_mode_multirun_still_sweeps(tmp_path):
+    """A user's config with ``hydra.mode: MULTIRUN`` makes ``decrun`` (no ``-m``) a sweep, as
+    Hydra's command line does; a sweep override without ``-m`` or such a config stays refused
+    with Hydra's message."""
+    experiment = tmp_path / "conf" / "experiment"
+    experiment.mkdir(parents=True)
+    (experiment / "two.yaml").write_text("# @package _global_\nhydra:\n  mode: MULTIRUN\n  sweep:\n    dir: swept\n"
+                                         "app:\n  steps: 2\nfigures: false\n")
+    done = decrun("--config-dir", str(tmp_path / "conf"), "+experiment=two", "app.dt=0.001,0.002", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert sorted(json.loads((tmp_path / "swept" / job / "metrics.json").read_text())["dt"] for job in "01") == [0.001, 0.002]
+    refused = decrun("app.dt=0.001,0.002", cwd=tmp_path)
+    assert refused.returncode == 1 and "Ambiguous value for argument 'app.dt=0.001,0.002'" in refused.stderr

@@ -49,12 +49,12 @@ def imported_modules(*args: str, cwd) -> set[str]:
 
 def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path):
     """``decrun figures=false`` never imports matplotlib or pandas (the figures' and the sweep
-    table's), nor decrun's sweeper, launchers or tracking; with figures matplotlib loads — the
-    check sees the imports that happen."""
+    table's), nor decrun's sweeper, its sweep planning or tracking; with figures matplotlib
+    loads — the check sees the imports that happen."""
     modules = imported_modules("figures=false", "app.steps=2", cwd=tmp_path)
     assert "decrun.runner.run" in modules and "h5py" in modules  # the log is read right
     unused = ["matplotlib", "pandas", "decrun.runner.plots.common", "decrun.runner.sweep.sweeper",
-              "decrun.runner.launchers", "decrun.runner.tracking", "decrun.runner.sweep.tables"]
+              "decrun.runner.sweep.fast", "decrun.runner.tracking", "decrun.runner.sweep.tables"]
     assert [m for m in unused if m in modules] == []
     drawn = imported_modules("app.steps=2", cwd=tmp_path)
     assert {"matplotlib", "decrun.runner.plots.common"} <= drawn and "pandas" not in drawn

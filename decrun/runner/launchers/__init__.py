@@ -34,11 +34,11 @@ import threading
 import time
 from typing import Any, Callable, Iterator, Optional, Sequence, cast
 
-from decrun.runner.sweep.conf import CONNECT_TIMEOUT  # the sweeper option's default
-
 __all__ = ["CONNECT_TIMEOUT", "is_launcher", "SLURM", "RAY", "JOBLIB", "Fix", "preflight", "launch_failure", "timed_out", "launcher_choice", "command_with",
            "ray_address", "NO_TIME_LIMIT", "connect_ray_as_is"]
 
+#: seconds to give up on a cluster that does not answer (``hydra.sweeper.connect_timeout``)
+CONNECT_TIMEOUT = 20.0
 #: the SLURM commands submitit needs on the submitting machine
 SLURM_COMMANDS = ("srun", "sbatch")
 

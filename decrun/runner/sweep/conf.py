@@ -1,19 +1,18 @@
 """The options of the ``decrun`` sweeper (``hydra.sweeper.*``: :class:`DecrunSweeperConf`),
 apart from the sweeper itself (:mod:`decrun.runner.sweep.sweeper`): Hydra's plugin scan, which
 runs at every start of the command — a single run too — registers them through
-:mod:`hydra_plugins.decrun_sweeper` without importing the sweep machinery."""
+:mod:`hydra_plugins.decrun_sweeper` without importing the sweep machinery (the launchers'
+module it reads a default from imports only the standard library)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Dict, Optional
 
+from decrun.runner.launchers import CONNECT_TIMEOUT
 from decrun.runner.sweep.grid import MAX_JOBS
 
-__all__ = ["DecrunSweeperConf", "CONNECT_TIMEOUT", "MAX_JOBS"]
-
-#: seconds to give up on a cluster that does not answer (``hydra.sweeper.connect_timeout``)
-CONNECT_TIMEOUT = 20.0
+__all__ = ["DecrunSweeperConf"]
 
 
 @dataclass

@@ -294,7 +294,9 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     complete before any figure is drawn, so an interrupt while drawing (SIGTERM, Ctrl-C) keeps
     it (the interrupt carries ``result_complete``) — then the figures (each written under a
     temporary name and renamed: none is left truncated), after removing the figures an earlier
-    run left in the directory (:func:`remove_earlier_figures`), then the export's files.
+    run left in the directory (:func:`remove_earlier_figures`), then the export's files. A
+    figure that cannot be drawn or saved loses neither: metrics.json gets
+    :data:`FIGURES_ERROR` added, the export still runs, then :class:`FiguresFailed` is raised.
     ``total_seconds`` is the run's time up to its result; ``figures_seconds`` is logged."""
     files = run.files if out is None else RunFiles(out)
     if files is None:

@@ -99,3 +99,16 @@ def test_a_config_that_sets_hydra_mode_multirun_still_sweeps(tmp_path):
     assert sorted(json.loads((tmp_path / "swept" / job / "metrics.json").read_text())["dt"] for job in "01") == [0.001, 0.002]
     refused = decrun("app.dt=0.001,0.002", cwd=tmp_path)
     assert refused.returncode == 1 and "Ambiguous value for argument 'app.dt=0.001,0.002'" in refused.stderr
+
+
+def test_a_single_run_ends_with_its_log_and_output_complete(tmp_path):
+    """The command ends a single run's process without the interpreter's teardown: what it
+    printed to a pipe and its log file are complete (the log's last line is the metrics), and
+    a refused run still exits 1 with its one line."""
+    done = decrun("figures=false", "app.steps=2", "hydra.run.dir=run", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == "decrun: wrote run/ (result.h5, metrics.json, decrun.log)"
+    log_lines = (tmp_path / "run" / "decrun.log").read_text().splitlines()
+    assert "metrics: " in log_lines[-1] and "steps_done=2" in log_lines[-1]
+    refused = decrun("app.steps=-1", cwd=tmp_path)
+    assert refused.returncode == 1 and refused.stderr.startswith("error: app.steps"), refused.stderr

@@ -1,4 +1,5 @@
-"""``python -m decrun`` = the ``decrun`` command (:func:`console_main`, its console script)."""
+"""``python -m decrun`` = the ``decrun`` command (:func:`command`, its console script; :func:`console_main`
+in a process that goes on)."""
 
 import sys
 
@@ -23,5 +24,41 @@ def console_main() -> None:
     main()
 
 
+def command() -> None:
+    """The ``decrun`` command as a process (its console script and ``python -m decrun``):
+    :func:`console_main`, then a single run's process ends with its exit code without the
+    interpreter's teardown of every module and object (matplotlib, scipy, Hydra...), which
+    costs a small run about a tenth of its time and changes nothing it wrote: the exit
+    handlers run first (logging closes the log file; temporary files go), then stdout and
+    stderr are flushed. After a sweep (its launcher's worker processes and threads are shut
+    down by the interpreter's exit), with another non-daemon thread still running, or with an
+    exception escaping, the interpreter exits the usual way. In a process that goes on
+    afterwards call :func:`console_main`."""
+    import atexit
+    import os
+    import threading
+
+    try:
+        console_main()
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    if not isinstance(code, int):  # sys.exit(None) is 0, sys.exit("text") prints it and is 1
+        if code is not None:
+            print(code, file=sys.stderr)
+        code = 0 if code is None else 1
+    cli = sys.modules.get("decrun.runner.cli")
+    swept = cli is not None and cli.SweepTable.sweep_dir is not None
+    if swept or any(t.is_alive() and not t.daemon for t in threading.enumerate() if t is not threading.main_thread()):
+        sys.exit(code)
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nothing more can reach it
+            pass
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    console_main()
+    command()

@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, cast
 
@@ -27,7 +28,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from hydra.types import RunMode
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
@@ -200,9 +201,11 @@ class SweepTable(Callback):
         sweep_dir = Path(str(config.hydra.sweep.dir))
         table = write_sweep_table(sweep_dir, sweep=True)
         bad = failed_jobs(table)
-        # jobs that ran (status ok, metrics kept) but whose export failed after the run
-        exports = ([(job, error) for job, error in zip(table["job"], table["export_error"].fillna("").astype(str), strict=True)
-                    if error] if "export_error" in table else [])
+        # jobs that ran (status ok, metrics kept) but whose export or figures failed after the run
+        exports = [(job, f"{what} failed: {error}") for column, what in (("export_error", "export"),
+                                                                          ("figures_error", "figures"))
+                   if column in table
+                   for job, error in zip(table["job"], table[column].fillna("").astype(str), strict=True) if error]
         SweepTable.failed = len(bad) + len(exports)
         shown = select(table, drop_constant=True, narrow=True)
         print(to_markdown(shown), end="")
@@ -214,13 +217,14 @@ class SweepTable(Callback):
             print(f"decrun: {len(repeats)} jobs repeat an earlier job's result exactly (column {SAME_AS}: "
                   f"{', '.join(f'{j} = {s}' for j, s in zip(repeats['job'], repeats[SAME_AS], strict=True))}); the keys they differ "
                   f"in do not change the result")
-        failed_exports = f", {len(exports)} export failed" if len(exports) else ""
+        failed_exports = "".join(f", {n} {what} failed" for what in ("export", "figures")
+                                 if (n := sum(error.startswith(what) for _, error in exports)))
         print(f"decrun: sweep of {len(table)} jobs ({len(bad)} not ok{failed_exports}) → "
               f"{SweepFiles(sweep_dir).table_csv}, {SweepFiles.TABLE_MD}")
         for row in bad.itertuples(index=False):
             print(f"decrun: job {row.job} {row.status}: {row.error}", file=sys.stderr)
         for job, error in exports:
-            print(f"decrun: job {job} export failed: {error}", file=sys.stderr)
+            print(f"decrun: job {job} {error}", file=sys.stderr)
         track(config, sweep_dir, sweep=True)
 
 
@@ -326,7 +330,11 @@ def main() -> None:
     # directory, saving .hydra/, Ctrl-C while composing); let them reach _report instead
     os.environ["HYDRA_FULL_ERROR"] = "1"
     try:
-        _hydra_main()
+        try:
+            with _composed_once(args):
+                _hydra_main()
+        except _ComposeAgain:  # a config that asks for another mode, or an error: Hydra's own way says it
+            _hydra_main()
     except Exception as exc:
         sys.exit(_report(exc))
     except KeyboardInterrupt as exc:
@@ -337,6 +345,51 @@ def main() -> None:
         sys.exit(exit_code(exc))
     if SweepTable.failed:
         sys.exit(1)
+
+
+class _ComposeAgain(Exception):
+    """The single composition of :func:`_composed_once` did not give a run's config."""
+
+
+@contextmanager
+def _composed_once(args: list[str]):
+    """While the block runs, a single run (no ``-m``/``--multirun``, no ``hydra.mode``
+    override) composes its config once. Hydra's command line composes it twice: first (in
+    MULTIRUN mode) only to read ``hydra.mode``, which no decrun config sets, then for the run.
+    Here the first is skipped (``Hydra.get_mode`` answers RUN) and the run's composition
+    records ``hydra.mode=RUN`` among its Hydra overrides as Hydra's way does; when that
+    composition fails or finds ``hydra.mode`` set to MULTIRUN by a config, it raises
+    :class:`_ComposeAgain` before anything ran, and the caller runs the command Hydra's way
+    (which then reports the error, or sweeps)."""
+    if any(a in ("-m", "--multirun") or a.lstrip("+").startswith("hydra.mode=") for a in args):
+        yield
+        return
+    from hydra._internal.hydra import Hydra
+
+    get_mode, compose_config = Hydra.get_mode, Hydra.compose_config
+
+    def run_mode(self, config_name, overrides):
+        return RunMode.RUN
+
+    def compose_for_run(self, config_name, overrides, run_mode, **kwargs):
+        if run_mode != RunMode.RUN:
+            return compose_config(self, config_name, overrides, run_mode, **kwargs)
+        try:
+            cfg = compose_config(self, config_name, overrides, run_mode, **kwargs)
+        except Exception as exc:
+            raise _ComposeAgain() from exc
+        if cfg.hydra.mode is not None:  # a config chose the mode: Hydra's way decides
+            raise _ComposeAgain()
+        with open_dict(cfg), read_write(cfg):  # what Hydra's way records: hydra.mode=RUN, an override
+            cfg.hydra.mode = RunMode.RUN
+            cfg.hydra.overrides.hydra.append("hydra.mode=RUN")
+        return cfg
+
+    Hydra.get_mode, Hydra.compose_config = run_mode, compose_for_run
+    try:
+        yield
+    finally:
+        Hydra.get_mode, Hydra.compose_config = get_mode, compose_config
 
 
 def _interrupted_where(exc: KeyboardInterrupt) -> str:

@@ -61,7 +61,8 @@ from decrun.runner.results.reading import CHAINED_STATUS
 from decrun.runner.results.recorder import ResultRecorder
 from decrun.runner.sweep.manifest import config_hash
 
-__all__ = ["Experiment", "Run", "validate", "prepare", "execute", "write", "run_experiment", "run"]
+__all__ = ["Experiment", "Run", "validate", "prepare", "execute", "write", "run_experiment", "run", "FiguresFailed",
+           "FIGURES_ERROR"]
 
 log = logging.getLogger("decrun")
 
@@ -294,7 +295,9 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     it (the interrupt carries ``result_complete``, and metrics.json, still ``status: ok``, gains
     :data:`FIGURES_INTERRUPTED` and :data:`FIGURES_NOT_DRAWN`) — then the figures (each written under a
     temporary name and renamed: none is left truncated), after removing the figures an earlier
-    run left in the directory (:func:`remove_earlier_figures`), then the export's files.
+    run left in the directory (:func:`remove_earlier_figures`), then the export's files. A
+    figure that cannot be drawn or saved loses neither: metrics.json gets
+    :data:`FIGURES_ERROR` added, the export still runs, then :class:`FiguresFailed` is raised.
     ``total_seconds`` is the run's time up to its result; ``figures_seconds`` is logged."""
     files = run.files if out is None else RunFiles(out)
     if files is None:
@@ -315,6 +318,7 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     metrics = write_metrics_json(files.metrics, record)
     drawn = bool(cfg.get("figures", True) and result.figures)
     written = []
+    figures_failed = None
     t = time.perf_counter()
     try:
         remove_checkpoint(files.checkpoint)  # the run is complete: nothing to continue (nor a killed write's .tmp)
@@ -322,10 +326,17 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         if removed:
             log.info("removed the earlier run's figures %s (they do not show this result)", ", ".join(removed))
         if drawn:
-            from decrun.runner.plots.common import draw_figures  # lazy: matplotlib only for figures (start-up speed)
+            try:
+                # lazy: matplotlib only for figures (start-up speed)
+                from decrun.runner.plots.common import draw_figures
 
-            written += draw_figures(result.figures, files.dir, run.complex)
-            log.info("figures: %s in %.1f s", ", ".join(p.name for p in written), time.perf_counter() - t)
+                written += draw_figures(result.figures, files.dir, run.complex)
+            except Exception as exc:  # the result and metrics stand; the error is added to them (below)
+                figures_failed = FiguresFailed(_figures_message(exc), exc)
+                record = {**record, FIGURES_ERROR: shorten_words(str(figures_failed))}
+                write_metrics_json(files.metrics, record)
+            else:
+                log.info("figures: %s in %.1f s", ", ".join(p.name for p in written), time.perf_counter() - t)
     except KeyboardInterrupt as exc:  # the result is complete: the caller keeps it (see _run)
         not_drawn = [name for name in result.figures if drawn and not _drawn(files.dir, name)]
         exc.result_complete = not_drawn  # type: ignore[attr-defined]  # read by _run
@@ -341,7 +352,33 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         message = str(exc) if isinstance(exc, DecrunError) else f"{type(exc).__name__}: {exc}"
         write_metrics_json(files.metrics, {**record, "export_error": shorten_words(message)})
         raise ExportFailed(message, exc) from exc
+    if figures_failed is not None:
+        raise figures_failed from figures_failed.cause
     return [h5, metrics, *written, *exported]
+
+
+#: the metric a run whose figures failed carries (its message), beside its own metrics
+FIGURES_ERROR = "figures_error"
+
+
+class FiguresFailed(DecrunError):
+    """Drawing or saving a figure failed after a finished run: result.h5 and metrics.json
+    stand, with :data:`FIGURES_ERROR` added to the metrics (``cause``: the error)."""
+
+    def __init__(self, message: str, cause: BaseException | None = None):
+        super().__init__(message)
+        self.cause = cause
+
+
+def _figures_message(exc: BaseException) -> str:
+    """``figures: <what failed>; figures=false runs without them``: the one line for a figure
+    that could not be drawn or saved (an OS error as :func:`os_error_message` says it)."""
+    os_error = None if isinstance(exc, DecrunError) else find_os_error(exc)
+    if os_error is not None and os_error.filename2 is not None:  # os.replace onto the figure: name the figure
+        os_error = OSError(os_error.errno, os_error.strerror, os_error.filename2)
+    cause = (str(exc) if isinstance(exc, DecrunError) else os_error_message(os_error) if os_error is not None
+             else f"{type(exc).__name__}: {exc}")
+    return f"figures: {cause}; figures=false runs without them"
 
 
 #: the endings of the figures a run draws (``<name>.png``; an animation's ``<name>.gif``)
@@ -461,7 +498,7 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
         if multirun:  # the sweeper says which jobs finished (decrun.runner.sweep.stops)
             raise
         raise Stopped(said, exit_code(exc)) from exc
-    except ExportFailed as exc:  # after a finished run: result.h5 and the metrics stay (plus export_error)
+    except (ExportFailed, FiguresFailed) as exc:  # after a finished run: result.h5 and the metrics stay (+ the error)
         said = (f"error: {exc} (the run finished: {RunFiles.RESULT} and {RunFiles.METRICS} in {out} keep its result "
                 "and metrics)")
         log.error("%s", said)

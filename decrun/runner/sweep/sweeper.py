@@ -28,7 +28,6 @@ import os
 import shutil
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence, cast
 
@@ -57,6 +56,7 @@ from decrun.runner.launchers import (
 from decrun.runner.locks import LOCK_NAME
 from decrun.runner.paths import hydra_files
 from decrun.runner.sweep.checks import CHECKS, WARM
+from decrun.runner.sweep.conf import DecrunSweeperConf
 from decrun.runner.sweep.fast import SpeedLayer
 from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
 from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
@@ -93,33 +93,12 @@ def refuse(exc: SweepError) -> None:
     sys.exit(1)
 
 
-@dataclass
-class DecrunSweeperConf:
-    _target_: str = "hydra_plugins.decrun_sweeper.DecrunSweeper"
-    #: jobs per launcher call (null: all at once, as Hydra's basic sweeper)
-    max_batch_size: Optional[int] = None
-    #: sweep parameters from the config, e.g. {app.dt: "0.1,0.2"} (as Hydra's basic sweeper)
-    params: Optional[Dict[str, str]] = field(default=None)
-    #: rerun the jobs of an existing hydra.sweep.dir that are not ok
-    resume: bool = False
-    #: the speed layer (decrun.runner.sweep.fast): jobs derived from their group's composition,
-    #: the launcher's loader deriving them too, memoized checks, joblib workers warmed while
-    #: planning; false: every job composed by Hydra's public API (the same jobs, ~180x slower
-    #: to plan: benchmarks/bench_sweeps.py --only planning)
-    fast: bool = True
-    #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.launchers)
-    connect_timeout: float = CONNECT_TIMEOUT
-    #: the most jobs a sweep may plan (each is composed, checked and hashed before the first starts);
-    #: a larger grid is refused at once, naming this key
-    max_jobs: int = MAX_JOBS
-
-
 class ManifestSweeper(Sweeper):
     """The manifest, the checks and resume (module docstring) on Hydra's grid: the jobs
     and their order are those of Hydra's basic sweeper (``hydra.sweeper.params`` first,
     then the command line's overrides; :func:`~decrun.runner.sweep.grid.grid`), launched
     ``max_batch_size`` at a time. :mod:`hydra_plugins.decrun_sweeper` registers it with
-    Hydra (``class DecrunSweeper(ManifestSweeper)``)."""
+    Hydra (``DecrunSweeper``, which makes one when Hydra builds the sweeper)."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None,
                  resume: bool = False, fast: bool = True, connect_timeout: float = CONNECT_TIMEOUT,

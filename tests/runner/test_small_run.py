@@ -1,0 +1,114 @@
+"""A small run through the real ``decrun`` command: its figures never cost it its result, and
+it pays only for the imports it uses."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+from cli_processes import decrun, env
+
+
+def test_a_figure_that_cannot_be_saved_keeps_the_result_and_metrics(tmp_path):
+    """A figure that fails after the run (here: a directory is where smoothing.png goes) leaves
+    result.h5 complete and metrics.json with every metric plus ``figures_error``; the command
+    says so in one line naming ``figures`` and exits 1; the hint ``figures=false`` then runs."""
+    import h5py
+
+    run_dir = tmp_path / "run"
+    (run_dir / "smoothing.png").mkdir(parents=True)
+    done = decrun("app.steps=3", f"hydra.run.dir={run_dir}", cwd=tmp_path)
+    assert done.returncode == 1, done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert len(lines) == 1 and "figures:" in lines[0] and "figures=false" in lines[0], done.stderr
+    assert "smoothing.png: Is a directory" in lines[0] and "keep its result and metrics" in lines[0]
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert metrics["status"] == "ok" and metrics["steps_done"] == 3 and metrics["stable"] is True
+    assert metrics["figures_error"].startswith("figures: cannot write") and "result_h5" in metrics
+    with h5py.File(run_dir / "result.h5", "r") as f:
+        assert bool(f.attrs["complete"]) and f.attrs["status"] == "ok"
+        assert len(f["fields"]) > 0
+
+    fixed = decrun("app.steps=3", f"hydra.run.dir={run_dir}", "figures=false", cwd=tmp_path)
+    assert fixed.returncode == 0, fixed.stderr
+    again = json.loads((run_dir / "metrics.json").read_text())
+    assert "figures_error" not in again and again["status"] == "ok"
+    # the same computation: the result's content hash is the one the failed-figures run recorded
+    assert again["result_h5"]["content_sha256"] == metrics["result_h5"]["content_sha256"]
+
+
+def imported_modules(*args: str, cwd) -> set[str]:
+    """The modules ``python -X importtime -m decrun *args`` imported (its import log on stderr)."""
+    done = subprocess.run([sys.executable, "-X", "importtime", "-m", "decrun", *args], cwd=cwd, env=env(),
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return {m.group(1) for m in re.finditer(r"^import time:\s+\d+ \|\s+\d+ \|\s*(\S+)$", done.stderr, re.M)}
+
+
+def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path):
+    """``decrun figures=false`` never imports matplotlib or pandas (the figures' and the sweep
+    table's), nor decrun's sweeper, its sweep planning or tracking; with figures matplotlib
+    loads — the check sees the imports that happen."""
+    modules = imported_modules("figures=false", "app.steps=2", cwd=tmp_path)
+    assert "decrun.runner.run" in modules and "h5py" in modules  # the log is read right
+    unused = ["matplotlib", "pandas", "decrun.runner.plots.common", "decrun.runner.sweep.sweeper",
+              "decrun.runner.sweep.fast", "decrun.runner.tracking", "decrun.runner.sweep.tables"]
+    assert [m for m in unused if m in modules] == []
+    drawn = imported_modules("app.steps=2", cwd=tmp_path)
+    assert {"matplotlib", "decrun.runner.plots.common"} <= drawn and "pandas" not in drawn
+
+
+def test_a_single_run_composes_its_config_once(tmp_path, monkeypatch):
+    """``decrun`` composes a single run's config once (Hydra's command line composes it a
+    second time only to read ``hydra.mode``) and records the same Hydra overrides
+    (``hydra.mode=RUN`` among them) as Hydra's way; a bad value still gets its one line."""
+    from hydra._internal.hydra import Hydra
+    from omegaconf import OmegaConf
+
+    from decrun.runner import cli
+
+    modes = []
+    compose = Hydra.compose_config
+
+    def counted(self, config_name, overrides, run_mode, **kwargs):
+        modes.append(str(run_mode))
+        return compose(self, config_name, overrides, run_mode, **kwargs)
+
+    monkeypatch.setattr(Hydra, "compose_config", counted)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", ["decrun", "figures=false", "app.steps=2", "hydra.run.dir=one"])
+    cli.main()
+    assert modes == ["RunMode.RUN"]
+    hydra_yaml = OmegaConf.load(tmp_path / "one" / ".hydra" / "hydra.yaml").hydra
+    assert list(hydra_yaml.overrides.hydra) == ["hydra.run.dir=one", "hydra.mode=RUN"] and hydra_yaml.mode == "RUN"
+    assert json.loads((tmp_path / "one" / "metrics.json").read_text())["steps_done"] == 2
+
+
+def test_a_config_that_sets_hydra_mode_multirun_still_sweeps(tmp_path):
+    """A user's config with ``hydra.mode: MULTIRUN`` makes ``decrun`` (no ``-m``) a sweep, as
+    Hydra's command line does; a sweep override without ``-m`` or such a config stays refused
+    with Hydra's message."""
+    experiment = tmp_path / "conf" / "experiment"
+    experiment.mkdir(parents=True)
+    (experiment / "two.yaml").write_text("# @package _global_\nhydra:\n  mode: MULTIRUN\n  sweep:\n    dir: swept\n"
+                                         "app:\n  steps: 2\nfigures: false\n")
+    done = decrun("--config-dir", str(tmp_path / "conf"), "+experiment=two", "app.dt=0.001,0.002", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert sorted(json.loads((tmp_path / "swept" / job / "metrics.json").read_text())["dt"] for job in "01") == [0.001, 0.002]
+    refused = decrun("app.dt=0.001,0.002", cwd=tmp_path)
+    assert refused.returncode == 1 and "Ambiguous value for argument 'app.dt=0.001,0.002'" in refused.stderr
+
+
+def test_a_single_run_ends_with_its_log_and_output_complete(tmp_path):
+    """The command ends a single run's process without the interpreter's teardown: what it
+    printed to a pipe and its log file are complete (the log's last line is the metrics), and
+    a refused run still exits 1 with its one line."""
+    done = decrun("figures=false", "app.steps=2", "hydra.run.dir=run", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == "decrun: wrote run/ (result.h5, metrics.json, decrun.log)"
+    log_lines = (tmp_path / "run" / "decrun.log").read_text().splitlines()
+    assert "metrics: " in log_lines[-1] and "steps_done=2" in log_lines[-1]
+    refused = decrun("app.steps=-1", cwd=tmp_path)
+    assert refused.returncode == 1 and refused.stderr.startswith("error: app.steps"), refused.stderr

@@ -445,7 +445,8 @@ def _name_too_long(exc: OSError) -> str | None:
 def typo_message(exc: Exception) -> str | None:
     """For an option of a plugin group Hydra refuses to override (``app.stpes=3``: not in
     the group's config), the decrun message of its ``+`` form — the group's options and the
-    closest one — instead of Hydra's advice to append it. None for any other error."""
+    closest one — instead of Hydra's advice to append it; also for a plugin whose config
+    directory the command adds with ``hydra.searchpath``. None for any other error."""
     import re
 
     from omegaconf.errors import ConfigAttributeError, ConfigKeyError
@@ -462,6 +463,9 @@ def typo_message(exc: Exception) -> str | None:
     for arg in sys.argv[1:]:
         name, sep, value = arg.partition("=")
         bare = name.lstrip("+~")
+        if sep and bare == "hydra.searchpath":  # where a plugin's config directory is
+            overrides.append(arg)
+            continue
         if not sep or bare.startswith(("hydra.", "hydra/")):
             continue
         if bare == key:
@@ -547,9 +551,20 @@ def group_typo_message(exc: Exception) -> str | None:
     options = sorted(option for option in (exc.options or []) if not option.startswith("_"))
     if not options:
         return None
-    close = difflib.get_close_matches(name, options, n=1)
+    close = difflib.get_close_matches(name, options, n=1) or _same_stem(name, options)
     hint = f"; did you mean `{group}={close[0]}`?" if close else ""
     return f"error: {group}={name}: no such option{hint} (the options: {' | '.join(options)})"
+
+
+def _same_stem(name: str, options: list[str], least: int = 4) -> list[str]:
+    """The option sharing the longest start with ``name``, of at least ``least`` characters
+    (``cholesky`` → ``cholmod``), as a one-item list; empty when none shares that much. For
+    names a spelling distance misses because they are another word of the same stem."""
+    import os.path
+
+    shared = {option: len(os.path.commonprefix([name.lower(), option.lower()])) for option in options}
+    best = max(shared, key=lambda option: shared[option], default=None)
+    return [best] if best is not None and shared[best] >= least else []
 
 
 def root_value_message(exc: Exception) -> str | None:

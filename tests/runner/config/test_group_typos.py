@@ -13,7 +13,7 @@ TYPOS = [  # (override, the suggestion, a word of the option list)
     ("app=smooth", "app=smoothing", "heat"),
     ("operator=whitny", "operator=whitney", "mixed_area"),
     ("export=vtk", "export=vtu", "xdmf"),
-    ("solver=cholesky", None, "cholmod"),
+    ("solver=cholesky", "solver=cholmod", "direct"),
     ("hydra/launcher=nonexistent", None, "basic"),
 ]
 
@@ -30,8 +30,9 @@ def test_a_group_typo_is_one_line_with_the_options(tmp_path, override, suggestio
         assert f"did you mean `{suggestion}`?" in lines[0]
 
 
-def test_the_suggested_option_runs(tmp_path):
-    proc = decrun("mesh=icosahedron", "figures=false", cwd=tmp_path, timeout=120)
+@pytest.mark.parametrize("typo", ["mesh=icosahedron", "solver=cholesky"])
+def test_the_suggested_option_runs(tmp_path, typo):
+    proc = decrun(typo, "figures=false", cwd=tmp_path, timeout=120)
     suggestion = proc.stderr.split("did you mean `")[1].split("`")[0]
     fixed = decrun(suggestion, "figures=false", "app.steps=1", cwd=tmp_path, timeout=300)
     assert fixed.returncode == 0, fixed.stderr

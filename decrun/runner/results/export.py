@@ -537,7 +537,9 @@ class Ply(Export):
         rgb = np.round(255 * rgba[:, :3]).astype(np.uint8)
         point_data = {"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2], name.replace(":", "_"): value}
         path = check_file(files.ply)
-        meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), [("triangle", _triangles(mesh, K))],
+        # PLY's vertex indices are 32-bit (meshio casts 64-bit ones itself, with a warning on stderr)
+        triangles = _triangles(mesh, K).astype(np.int32)
+        meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), [("triangle", triangles)],
                                             point_data=point_data), binary=True)
         base, _, column = name.partition(":")
         left = [other if other != base else f"{base} (but column {column})" for other in result.fields

@@ -441,7 +441,10 @@ def test_xdmf_of_a_smoothing_is_the_final_state_on_its_cells_and_says_what_it_ca
 
 
 def test_ply_and_obj_say_in_one_line_what_they_leave_out(decrun_cli, tmp_path):
-    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "app.steps=1", "export=ply", "export.field=displacement")
+    args = ("app=smoothing", "app.steps=1", "export=ply", "export.field=displacement", "figures=false")
+    proc = decrun_cli(*args)
+    assert proc.returncode == 0 and "Warning" not in proc.stderr, proc.stderr  # no writer's stray cast warning
+    (out,) = tmp_path.glob("outputs/runs/*")
     (line,) = export_log(out, "ply")
     assert line.endswith("result.ply (the triangles, colours of displacement) cannot hold vertices_initial, "
                          "vertices_final; they are in result.h5 (export=vtu holds every field)"), line  # faces: the cells

@@ -208,10 +208,12 @@ class SweepTable(Callback):
         print(to_markdown(shown), end="")
         hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
         if hidden:
-            print(f"decrun: {hidden} more columns in {SweepFiles.TABLE_MD} (`decrun-table --all {sweep_dir}`)")
+            print(f"decrun: {hidden} more column{'s' if hidden > 1 else ''} in {SweepFiles.TABLE_MD} "
+                  f"(`decrun-table --all {sweep_dir}`)")
         if SAME_AS in table:
             repeats = table[table[SAME_AS].notna()]
-            print(f"decrun: {len(repeats)} jobs repeat an earlier job's result exactly (column {SAME_AS}: "
+            repeat = "jobs repeat" if len(repeats) > 1 else "job repeats"
+            print(f"decrun: {len(repeats)} {repeat} an earlier job's result exactly (column {SAME_AS}: "
                   f"{', '.join(f'{j} = {s}' for j, s in zip(repeats['job'], repeats[SAME_AS], strict=True))}); the keys they differ "
                   f"in do not change the result")
         failed_exports = f", {len(exports)} export failed" if len(exports) else ""

@@ -505,3 +505,20 @@ def test_a_sweep_says_which_jobs_exports_failed_and_keeps_their_rows(decrun_cli,
     assert list(rows["status"]) == ["ok", "ok"] and rows["mass"].notna().all() and rows["export_error"].notna().all()
     done = decrun_cli(*args, "export.field=auto")
     assert done.returncode == 0 and "export failed" not in done.stdout, done.stderr
+
+
+def test_a_rerun_leaves_no_export_file_of_the_earlier_run(decrun_cli, tmp_path):
+    """A rerun into a finished run's directory removes the export files the earlier run wrote
+    (they hold the earlier result) before its own export writes: a 3-step result keeps no
+    10-step result.vtu beside it, with export=none too."""
+    args = ("app=smoothing", "mesh.subdiv=1", "figures=false", "hydra.run.dir=run")
+    assert decrun_cli(*args, "app.steps=10", "export=vtu").returncode == 0
+    run = tmp_path / "run"
+    again = decrun_cli(*args, "app.steps=3", "export=ply", "export.field=displacement")
+    assert again.returncode == 0, again.stderr
+    assert not (run / "result.vtu").exists() and (run / "result.ply").is_file()
+    assert "removed the earlier run's export files result.vtu (they do not hold this result)" in again.stderr
+    np.testing.assert_allclose(meshio.read(run / "result.ply").point_data["displacement"],
+                               read_result(run / "result.h5").fields["displacement"])
+    assert decrun_cli(*args, "app.steps=2").returncode == 0
+    assert not (run / "result.ply").exists() and (run / "result.h5").is_file()

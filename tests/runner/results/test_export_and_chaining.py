@@ -438,6 +438,31 @@ def test_xdmf_of_a_smoothing_is_the_final_state_on_its_cells_and_says_what_it_ca
     (line,) = [line for line in export_log(out, "xdmf") if "cannot hold" in line]
     assert line.endswith("series.xdmf cannot hold series area, series distortion, series roughness, series volume; "
                          "they are in result.h5"), line
+    (line,) = [line for line in export_log(out, "xdmf") if "one step" in line]
+    assert line.endswith("`app.record_vertices=true` records the positions at every step"), line
+
+
+def test_xdmf_of_a_smoothing_with_recorded_vertices_holds_every_step(decrun_cli, tmp_path):
+    """With app.record_vertices=true the flow is a time series: step n's positions, the input
+    at step 0 and the smoothed mesh at the end, on the input's triangles (the cells)."""
+    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "mesh.subdiv=2", "app.steps=3", "app.record_vertices=true",
+                  "export=xdmf")
+    stored = read_result(out / "result.h5")
+    positions = stored.series["vertices"]
+    assert positions.shape == (4, len(stored.mesh["vertices"]), 3)
+    np.testing.assert_array_equal(positions[0], stored.fields["vertices_initial"])
+    np.testing.assert_array_equal(positions[-1], stored.fields["vertices_final"])
+    assert np.abs(positions[1] - positions[0]).max() > 0  # the mesh moves step by step
+    with meshio.xdmf.TimeSeriesReader(out / "series.xdmf") as reader:
+        _, cells = reader.read_points_cells()
+        assert reader.num_steps == 4 and [block.type for block in cells] == ["triangle"]
+        np.testing.assert_array_equal(cells[0].data, stored.mesh["simplices"])
+        for i in range(4):
+            t, point_data, cell_data = reader.read_data(i)
+            assert t == stored.series["step"][i] == i and cell_data == {}
+            np.testing.assert_array_equal(point_data["vertices"], positions[i])
+    (line,) = [line for line in export_log(out, "xdmf") if "cannot hold" in line]
+    assert "faces" not in line, line  # the connectivity is the cells
 
 
 def test_ply_and_obj_say_in_one_line_what_they_leave_out(decrun_cli, tmp_path):

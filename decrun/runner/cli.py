@@ -396,7 +396,7 @@ def error_message(exc: Exception) -> str | None:
     from omegaconf.errors import OmegaConfBaseException
 
     message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc) or \
-        part_missing_message(exc) or group_typo_message(exc) or root_value_message(exc)
+        part_missing_message(exc) or group_typo_message(exc) or root_value_message(exc) or append_message(exc)
     if not message and not isinstance(exc, DecrunError):  # hydra.run.dir=${oc.env:UNSET}: Hydra's own keys
         from decrun.runner.hints import resolution_message
 
@@ -554,8 +554,29 @@ def group_typo_message(exc: Exception) -> str | None:
     if not options:
         return None
     close = difflib.get_close_matches(name, options, n=1) or _same_stem(name, options)
-    hint = f"; did you mean `{group}={close[0]}`?" if close else ""
-    return f"error: {group}={name}: no such option{hint} (the options: {' | '.join(options)})"
+    # as the command line gave it: a group outside the defaults list is added with + (+experiment=...)
+    plus = next((arg[:len(arg) - len(arg.lstrip("+"))] for arg in sys.argv[1:]
+                 if arg.lstrip("+") == f"{group}={name}"), "")
+    hint = f"; did you mean `{plus}{group}={close[0]}`?" if close else ""
+    return f"error: {plus}{group}={name}: no such option{hint} (the options: {' | '.join(options)})"
+
+
+def append_message(exc: Exception) -> str | None:
+    """For a group outside the config's defaults list chosen without ``+``
+    (``experiment=fig5_8_t_hole``): one line with the ``+`` form Hydra advises, instead of
+    its two. None for any other error."""
+    import re
+
+    from hydra.errors import ConfigCompositionException
+
+    if not isinstance(exc, ConfigCompositionException):
+        return None
+    match = re.match(r"Could not override '([^']+)'\. No match in the defaults list\.\s+"
+                     r"To append to your default list use (\S+)", str(exc))
+    if match is None:
+        return None
+    key, fix = match.groups()
+    return f"error: {fix.lstrip('+')}: {key} is not in the config's defaults list, it is added with +; use `{fix}`"
 
 
 def _same_stem(name: str, options: list[str], least: int = 4) -> list[str]:

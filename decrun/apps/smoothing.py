@@ -84,6 +84,9 @@ class Smoothing(App):
     rescale: Rescale = Rescale.auto
     blowup_factor: float = 10.0  # a step diverges when the roughness R exceeds this × R_0
     critical_dt: bool = True  # compute the explicit stability limit 2/λ_max (one eigsh)
+    #: also record the positions (n0, d) at every step (the series ``vertices``): export=xdmf
+    #: then holds the flow as a time series; off by default (n0·d floats a step on disk)
+    record_vertices: bool = False
 
     def __post_init__(self):
         self.scheme = Scheme.of(self.scheme, "app.scheme")  # also for Python callers (strings)
@@ -151,7 +154,8 @@ class Smoothing(App):
         ``normal_deviation_to_clean_deg`` (+ ``_initial``), ``negative_star1_fraction``,
         ``setup_seconds``, ``solve_seconds``.
         Series (recorded per step, the initial state as step 0): ``area``, ``volume``,
-        ``roughness``, ``distortion``.
+        ``roughness``, ``distortion``; with ``record_vertices`` the positions ``vertices``
+        (n0, d).
         Fields: ``vertices_initial``, ``vertices_final`` (n0, d), ``faces`` (n2, 3),
         ``displacement`` (n0,).
         """
@@ -170,7 +174,7 @@ class Smoothing(App):
                                      ctx.new_solver() if self.scheme == "implicit" else None)
         setup_seconds = time.perf_counter() - t0
         stepper = SmoothingStepper(flow, vertices, faces, flow.centroid(vertices), rescale, has_volume,
-                                   self.blowup_factor)
+                                   self.blowup_factor, record_vertices=self.record_vertices)
         report = run_steps(stepper, int(self.steps), progress=ctx.progress, record=ctx.record,
                            checkpoint=ctx.checkpoint, desc=f"smoothing ({self.scheme})", check_finite=False)
         edges = K.simplices(1)

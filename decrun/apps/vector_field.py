@@ -323,7 +323,7 @@ def _design(self, ctx: Context) -> Result:
     }
     if geometry["stroke_faces"].size:
         _stroke_change(cfg, dec, pre.omega, face_vectors, metrics, fields)
-    title = f"{dec.boundary.name} border" if not closed else "closed surface"
+    title = f"with border, boundary={dec.boundary.name}" if not closed else "closed surface"
     figures = {"field": Figure.of_kind(
         "vector_field", face_vectors=face_vectors, vertex_index=singular.vertex_index,
         face_index=singular.face_index, stroke_faces=geometry["stroke_faces"], title=f"designed field ({title})",

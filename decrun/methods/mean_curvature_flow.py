@@ -287,14 +287,17 @@ class SmoothingStepper:
     finite, the volume cannot be rescaled (V ≤ 0), the area is not finite or the roughness
     exceeds ``blowup_factor`` × R_0; the diverging step is recorded (its measures NaN when
     the coordinates are). ``vertices`` (n0, d) is the input; state: ``v`` (n0, d), ``last_finite`` (n0, d) and the measures so
-    far (``series``, for the figures and the final ratios: four floats per step)."""
+    far (``series``, for the figures and the final ratios: four floats per step).
+    ``record_vertices``: the recorded values also hold the positions ``vertices`` (n0, d)."""
 
     record_divergent_step = True
     #: the measures so far grow by one a step (and hold NaN volumes on open surfaces)
     state_variable = ("series",)
 
-    def __init__(self, flow, vertices, faces, centroid, rescale: str, has_volume: bool, blowup_factor: float):
+    def __init__(self, flow, vertices, faces, centroid, rescale: str, has_volume: bool, blowup_factor: float,
+                 record_vertices: bool = False):
         self.flow, self.faces, self.centroid = flow, faces, centroid
+        self.record_vertices = bool(record_vertices)
         self.vertices = vertices  # the input (n0, d)
         self.rescale, self.has_volume, self.blowup_factor = rescale, has_volume, float(blowup_factor)
         self.first = self.measure(vertices)
@@ -312,8 +315,9 @@ class SmoothingStepper:
                 "roughness": self.flow.roughness(v, self.centroid), "distortion": self.flow.distortion(v, faces)}
 
     def values(self) -> dict:
-        """The measures of the current state (recorded every step)."""
-        return self.now
+        """The measures of the current state (recorded every step), and its positions
+        ``vertices`` (n0, d) with ``record_vertices``."""
+        return {**self.now, "vertices": self.v} if self.record_vertices else self.now
 
     def step(self, n: int) -> str:
         """One flow step and the rescale; the reason it blew up, or ""."""

@@ -211,10 +211,12 @@ class SweepTable(Callback):
         print(to_markdown(shown), end="")
         hidden = len(select(table, drop_constant=True).columns) - len(shown.columns)
         if hidden:
-            print(f"decrun: {hidden} more columns in {SweepFiles.TABLE_MD} (`decrun-table --all {sweep_dir}`)")
+            print(f"decrun: {hidden} more column{'s' if hidden > 1 else ''} in {SweepFiles.TABLE_MD} "
+                  f"(`decrun-table --all {sweep_dir}`)")
         if SAME_AS in table:
             repeats = table[table[SAME_AS].notna()]
-            print(f"decrun: {len(repeats)} jobs repeat an earlier job's result exactly (column {SAME_AS}: "
+            repeat = "jobs repeat" if len(repeats) > 1 else "job repeats"
+            print(f"decrun: {len(repeats)} {repeat} an earlier job's result exactly (column {SAME_AS}: "
                   f"{', '.join(f'{j} = {s}' for j, s in zip(repeats['job'], repeats[SAME_AS], strict=True))}); the keys they differ "
                   f"in do not change the result")
         failed_exports = "".join(f", {n} {what} failed" for what in ("export", "figures")
@@ -447,7 +449,7 @@ def error_message(exc: Exception) -> str | None:
     from omegaconf.errors import OmegaConfBaseException
 
     message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc) or \
-        part_missing_message(exc) or group_typo_message(exc) or root_value_message(exc)
+        part_missing_message(exc) or group_typo_message(exc) or root_value_message(exc) or append_message(exc)
     if not message and not isinstance(exc, DecrunError):  # hydra.run.dir=${oc.env:UNSET}: Hydra's own keys
         from decrun.runner.hints import resolution_message
 
@@ -498,7 +500,8 @@ def _name_too_long(exc: OSError) -> str | None:
 def typo_message(exc: Exception) -> str | None:
     """For an option of a plugin group Hydra refuses to override (``app.stpes=3``: not in
     the group's config), the decrun message of its ``+`` form — the group's options and the
-    closest one — instead of Hydra's advice to append it. None for any other error."""
+    closest one — instead of Hydra's advice to append it; also for a plugin whose config
+    directory the command adds with ``hydra.searchpath``. None for any other error."""
     import re
 
     from omegaconf.errors import ConfigAttributeError, ConfigKeyError
@@ -515,6 +518,9 @@ def typo_message(exc: Exception) -> str | None:
     for arg in sys.argv[1:]:
         name, sep, value = arg.partition("=")
         bare = name.lstrip("+~")
+        if sep and bare == "hydra.searchpath":  # where a plugin's config directory is
+            overrides.append(arg)
+            continue
         if not sep or bare.startswith(("hydra.", "hydra/")):
             continue
         if bare == key:
@@ -600,9 +606,41 @@ def group_typo_message(exc: Exception) -> str | None:
     options = sorted(option for option in (exc.options or []) if not option.startswith("_"))
     if not options:
         return None
-    close = difflib.get_close_matches(name, options, n=1)
-    hint = f"; did you mean `{group}={close[0]}`?" if close else ""
-    return f"error: {group}={name}: no such option{hint} (the options: {' | '.join(options)})"
+    close = difflib.get_close_matches(name, options, n=1) or _same_stem(name, options)
+    # as the command line gave it: a group outside the defaults list is added with + (+experiment=...)
+    plus = next((arg[:len(arg) - len(arg.lstrip("+"))] for arg in sys.argv[1:]
+                 if arg.lstrip("+") == f"{group}={name}"), "")
+    hint = f"; did you mean `{plus}{group}={close[0]}`?" if close else ""
+    return f"error: {plus}{group}={name}: no such option{hint} (the options: {' | '.join(options)})"
+
+
+def append_message(exc: Exception) -> str | None:
+    """For a group outside the config's defaults list chosen without ``+``
+    (``experiment=fig5_8_t_hole``): one line with the ``+`` form Hydra advises, instead of
+    its two. None for any other error."""
+    import re
+
+    from hydra.errors import ConfigCompositionException
+
+    if not isinstance(exc, ConfigCompositionException):
+        return None
+    match = re.match(r"Could not override '([^']+)'\. No match in the defaults list\.\s+"
+                     r"To append to your default list use (\S+)", str(exc))
+    if match is None:
+        return None
+    key, fix = match.groups()
+    return f"error: {fix.lstrip('+')}: {key} is not in the config's defaults list, it is added with +; use `{fix}`"
+
+
+def _same_stem(name: str, options: list[str], least: int = 4) -> list[str]:
+    """The option sharing the longest start with ``name``, of at least ``least`` characters
+    (``cholesky`` → ``cholmod``), as a one-item list; empty when none shares that much. For
+    names a spelling distance misses because they are another word of the same stem."""
+    import os.path
+
+    shared = {option: len(os.path.commonprefix([name.lower(), option.lower()])) for option in options}
+    best = max(shared, key=lambda option: shared[option], default=None)
+    return [best] if best is not None and shared[best] >= least else []
 
 
 def root_value_message(exc: Exception) -> str | None:

@@ -295,9 +295,10 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
     it (the interrupt carries ``result_complete``, and metrics.json, still ``status: ok``, gains
     :data:`FIGURES_INTERRUPTED` and :data:`FIGURES_NOT_DRAWN`) — then the figures (each written under a
     temporary name and renamed: none is left truncated), after removing the figures an earlier
-    run left in the directory (:func:`remove_earlier_figures`), then the export's files. A
-    figure that cannot be drawn or saved loses neither: metrics.json gets
-    :data:`FIGURES_ERROR` added, the export still runs, then :class:`FiguresFailed` is raised.
+    run left in the directory (:func:`remove_earlier_figures`), then the export's files (after
+    removing an earlier run's, :func:`remove_earlier_exports`). A figure that cannot be drawn or
+    saved loses neither: metrics.json gets :data:`FIGURES_ERROR` added, the export still runs,
+    then :class:`FiguresFailed` is raised.
     ``total_seconds`` is the run's time up to its result; ``figures_seconds`` is logged."""
     files = run.files if out is None else RunFiles(out)
     if files is None:
@@ -325,6 +326,9 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         removed = remove_earlier_figures(files.dir, result.figures if drawn else {})
         if removed:
             log.info("removed the earlier run's figures %s (they do not show this result)", ", ".join(removed))
+        removed = remove_earlier_exports(files.dir)
+        if removed:
+            log.info("removed the earlier run's export files %s (they do not hold this result)", ", ".join(removed))
         if drawn:
             try:
                 # lazy: matplotlib only for figures (start-up speed)
@@ -406,6 +410,27 @@ def remove_earlier_figures(directory: Path, figures: dict) -> list[str]:
         if path.suffix in FIGURE_ENDINGS and path.name not in mine and path.is_file() and not path.is_symlink():
             path.unlink()
             removed.append(path.name)
+    return removed
+
+
+#: the files an export writes (:mod:`decrun.runner.results.export`), any format
+EXPORT_FILES = (RunFiles.VTU, RunFiles.XDMF, RunFiles.XDMF_DATA, RunFiles.XDMF_EDGES, RunFiles.XDMF_EDGES_DATA,
+                RunFiles.PLY, RunFiles.OBJ)
+
+
+def remove_earlier_exports(directory: Path) -> list[str]:
+    """Remove the export files (:data:`EXPORT_FILES`) an earlier run left in the run directory
+    ``directory`` (one with Hydra's ``.hydra/``), before this run's export writes its own: a
+    ``result.vtu`` of another result beside this one would be read as this one's. Returns the
+    names removed, in :data:`EXPORT_FILES` order."""
+    removed: list[str] = []
+    if not (Path(directory) / RunFiles.HYDRA).is_dir():  # not a run directory the command made: not ours
+        return removed
+    for name in EXPORT_FILES:
+        path = Path(directory) / name
+        if path.is_file() and not path.is_symlink():
+            path.unlink()
+            removed.append(name)
     return removed
 
 

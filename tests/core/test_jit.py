@@ -407,6 +407,39 @@ def test_a_kernel_that_must_be_compiled_is_announced_once_and_a_cached_one_is_no
     assert _load(path, "fresh_kernels").plus_one(3) == 13 and said == ["fresh_kernels.plus_one"] * 2
 
 
+HELPER_MODULE = """
+from decrun.core.jit import njit
+
+
+@njit
+def minus_one(x):
+    return x - 1
+
+
+@njit
+def plus_two(x):
+    return x + 2
+"""
+
+
+def test_a_kernel_the_run_does_not_call_is_not_announced(tmp_path, monkeypatch):
+    """Calling one kernel makes numba dispatchers for its module's other kernels too (so that
+    kernels can call each other); one never called has no machine code in the disk cache, and
+    nothing compiles it. Only a kernel called from Python is announced: on the first run, not
+    on every later one, whose kernels load from the cache (a notice there would promise a wait
+    of 10-150 s that never comes)."""
+    path = tmp_path / "two_kernels.py"
+    path.write_text(HELPER_MODULE)
+    said = []
+    monkeypatch.setattr(jit, "compile_notice", said.append)
+    monkeypatch.setattr(kernels, "_noticed", False)
+    assert _load(path, "two_kernels").plus_two(1) == 3
+    assert said == ["two_kernels.plus_two"]
+    monkeypatch.setattr(kernels, "_noticed", False)
+    assert _load(path, "two_kernels").plus_two(2) == 4
+    assert said == ["two_kernels.plus_two"]  # loaded from the cache; minus_one never ran: nothing said
+
+
 def test_a_run_says_in_its_log_that_it_compiles_once(caplog):
     """The runner's notice (around every run's work): one log line saying that the kernels
     compile, that it happens once, and how long it takes; restored after the run."""

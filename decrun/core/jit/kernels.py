@@ -35,6 +35,7 @@ class LazyKernel:
         self.options = options
         self.compiled: Any = None  # numba dispatchers, made on the first call
         self.serial: Any = None
+        self.called = False  # called from Python in this process (the compile notice is checked then)
         update_wrapper(self, function)
         KERNELS.append(self)
 
@@ -73,7 +74,6 @@ class LazyKernel:
             if self.options.get("parallel"):
                 threading_layer(numba)
             self.compiled = numba.njit(cache=True, **self.options)(self.function)
-            announce_compile(self)
             for name in _global_names(self.function.__code__):
                 value = namespace.get(name)
                 # a parallel kernel stays this object (its callers are Python's, through __call__'s lock)
@@ -106,6 +106,16 @@ class LazyKernel:
             self.serial = numba.njit(cache=True, **options)(copy)
         return self.serial
 
+    def entry(self):
+        """The dispatcher for a call from Python; on the first one, :func:`announce_compile`.
+        Only such calls are checked: a kernel that only other kernels call is compiled into
+        them (and cached with them), its own disk cache stays empty even when nothing compiles."""
+        dispatcher = self.dispatcher()
+        if not self.called:
+            self.called = True
+            announce_compile(self)
+        return dispatcher
+
     def __call__(self, *args: Any) -> Any:
         twin = self.twin()
         if twin is not None and mode() == "auto":  # the extension: numba is not started for it
@@ -115,11 +125,11 @@ class LazyKernel:
                 if forks.state.child_of_openmp:
                     return self.serial_dispatcher()(*args)
                 with forks.PARALLEL:  # one parallel region at a time in the process (see forks.PARALLEL)
-                    result = self.dispatcher()(*args)
+                    result = self.entry()(*args)
                 forks.state.parallel_ran = True
                 mark_started()
                 return result
-            result = self.dispatcher()(*args)
+            result = self.entry()(*args)
             mark_started()
             return result
         except SystemError as exc:

@@ -218,7 +218,8 @@ def plot_series(series: dict[str, np.ndarray], names: Iterable[str] | None = Non
     """One figure with the per-step curves ``series[name]`` (divided by their first value
     when ``relative``); ``floors`` maps a curve's name to ``(value, label)``: a bound the
     curve cannot cross (on the same scale as it is drawn), dashed in its colour and named
-    with its value in the legend — a finite positive value only."""
+    with its value in the legend — a finite positive value only. The legend sits under the
+    axes, never over a curve (the figure grows by a line per entry)."""
     fig = new_figure(5.0, 3.2)
     ax = fig.add_subplot(1, 1, 1)
     for name in names or series:
@@ -231,7 +232,9 @@ def plot_series(series: dict[str, np.ndarray], names: Iterable[str] | None = Non
             ax.axhline(value, color=line.get_color(), linestyle="--", linewidth=1.0, label=f"{label} = {value:.3g}")
     ax.set_xlabel(xlabel)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    handles, labels = ax.get_legend_handles_labels()
+    fig.set_size_inches(5.0, 3.2 + 0.17 * len(labels))
+    fig.legend(handles, labels, fontsize=8, loc="outside lower center", frameon=False)
     if title:
         ax.set_title(title, fontsize=9)
     return fig

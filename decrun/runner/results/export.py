@@ -376,12 +376,16 @@ class Xdmf(Export):
             times = np.asarray(clock, dtype=np.float64)
             frames = [({k: _plain(v[i]) for k, v in point.items()}, {k: _plain(v[i]) for k, v in cell.items()},
                        {k: _plain(v[i]) for k, v in edge.items()}) for i in range(steps)]
-            left = [name for name in result.fields if name not in series]
+            cells = _cells(result, mesh, app)  # the connectivity is the cells: held
+            left = [name for name in result.fields if name not in series and name not in cells]
         else:
             frame, left = _one_frame(result, mesh, K, app)
             times = np.asarray(clock[-1:] if len(clock) else [0.0], dtype=np.float64)
+            # an app that records its mesh per step on request (app=smoothing) names the option
+            ask = "; `app.record_vertices=true` records the positions at every step" \
+                if getattr(app, "record_vertices", None) is False else ""
             log.info("export=xdmf: the run recorded no series over the mesh; series.xdmf holds its fields as one "
-                     "step at the end of the run (t = %g)", times[0])
+                     "step at the end of the run (t = %g)%s", times[0], ask)
             frames = [frame]
         left += [f"series {k}" for k in series if k not in point and k not in cell and k not in edge
                  and k not in ("step", "time")]
@@ -537,7 +541,9 @@ class Ply(Export):
         rgb = np.round(255 * rgba[:, :3]).astype(np.uint8)
         point_data = {"red": rgb[:, 0], "green": rgb[:, 1], "blue": rgb[:, 2], name.replace(":", "_"): value}
         path = check_file(files.ply)
-        meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), [("triangle", _triangles(mesh, K))],
+        # PLY's vertex indices are 32-bit (meshio casts 64-bit ones itself, with a warning on stderr)
+        triangles = _triangles(mesh, K).astype(np.int32)
+        meshio.write(str(path), meshio.Mesh(_points(mesh.vertices), [("triangle", triangles)],
                                             point_data=point_data), binary=True)
         base, _, column = name.partition(":")
         left = [other if other != base else f"{base} (but column {column})" for other in result.fields

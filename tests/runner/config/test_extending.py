@@ -82,6 +82,29 @@ def test_a_toy_star_and_a_toy_app_run_through_the_cli(tmp_path, decrun_cli):
     assert bad.returncode == 1 and "app.scael: unknown option of app=euler; it has ['scale']" in bad.stderr
 
 
+
+def test_a_misspelt_plugin_option_without_plus_is_one_line_and_its_fix_runs(tmp_path, decrun_cli):
+    """``operator.wieght=3`` on a star from ``hydra.searchpath`` (no ``+``): decrun's one line
+    with the star's options and the closest one, not Hydra's advice to append ``+operator.wieght``;
+    the suggested key runs (⋆0 = 3 on each of the 42 vertices)."""
+    (tmp_path / "toy_plugins.py").write_text(PLUGIN)
+    conf = tmp_path / "toy_conf"
+    (conf / "operator").mkdir(parents=True)
+    (conf / "operator" / "uniform.yaml").write_text("_target_: toy_plugins.UniformStar\nweight: 2.0\n")
+    (conf / "app").mkdir()
+    (conf / "app" / "euler.yaml").write_text("_target_: toy_plugins.EulerApp\nscale: 1.0\n")
+    common = (f"hydra.searchpath=[file://{conf}]", "operator=uniform", "app=euler", "mesh.subdiv=1", "figures=false")
+    path = {"PYTHONPATH": os.pathsep.join(filter(None, [str(tmp_path), os.environ.get("PYTHONPATH")]))}
+    bad = decrun_cli(*common, "operator.wieght=3", env=path)
+    assert bad.returncode == 1
+    assert bad.stderr.strip().splitlines() == [
+        "error: operator.wieght: unknown option of operator=uniform; it has ['weight']; did you mean operator.weight?"]
+    assert not (tmp_path / "outputs" / "runs").is_dir() or not any((tmp_path / "outputs" / "runs").iterdir())
+    fixed = decrun_cli(*common, "operator.weight=3", env=path)
+    assert fixed.returncode == 0, fixed.stderr
+    run = next((tmp_path / "outputs" / "runs").iterdir())
+    assert json.loads((run / "metrics.json").read_text())["star0_sum"] == 3.0 * 42
+
 def test_plugin_yaml_without_target_or_with_a_wrong_class_is_a_clear_error(tmp_path, decrun_cli):
     conf = tmp_path / "bad_conf" / "operator"
     conf.mkdir(parents=True)

@@ -164,6 +164,11 @@ def test_the_roughness_floor_is_the_smallest_nonzero_eigenvalue_and_the_series_d
         x = dec.K.vertices - np.asarray(M @ dec.K.vertices).sum(axis=0) / M.sum()  # M-orthogonal to constants
         assert np.einsum("ij,ij->", x, S @ x) / np.einsum("ij,ij->", x, M @ x) >= floor * (1 - 1e-9)
     fig = plot_series({"roughness": np.array([4.0, 3.0, 2.2])}, floors={"roughness": (0.5, "bound")})
-    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert labels == ["roughness / initial", "bound = 0.5"]
+    (legend,) = fig.legends
+    assert [t.get_text() for t in legend.get_texts()] == ["roughness / initial", "bound = 0.5"]
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)  # the legend lies under the axes: it hides no part of a curve
+    assert legend.get_window_extent(renderer).y1 <= fig.axes[0].get_window_extent(renderer).y0
     assert [line.get_ydata()[0] for line in fig.axes[0].lines][1] == 0.5

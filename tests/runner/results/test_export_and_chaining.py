@@ -438,10 +438,38 @@ def test_xdmf_of_a_smoothing_is_the_final_state_on_its_cells_and_says_what_it_ca
     (line,) = [line for line in export_log(out, "xdmf") if "cannot hold" in line]
     assert line.endswith("series.xdmf cannot hold series area, series distortion, series roughness, series volume; "
                          "they are in result.h5"), line
+    (line,) = [line for line in export_log(out, "xdmf") if "one step" in line]
+    assert line.endswith("`app.record_vertices=true` records the positions at every step"), line
+
+
+def test_xdmf_of_a_smoothing_with_recorded_vertices_holds_every_step(decrun_cli, tmp_path):
+    """With app.record_vertices=true the flow is a time series: step n's positions, the input
+    at step 0 and the smoothed mesh at the end, on the input's triangles (the cells)."""
+    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "mesh.subdiv=2", "app.steps=3", "app.record_vertices=true",
+                  "export=xdmf")
+    stored = read_result(out / "result.h5")
+    positions = stored.series["vertices"]
+    assert positions.shape == (4, len(stored.mesh["vertices"]), 3)
+    np.testing.assert_array_equal(positions[0], stored.fields["vertices_initial"])
+    np.testing.assert_array_equal(positions[-1], stored.fields["vertices_final"])
+    assert np.abs(positions[1] - positions[0]).max() > 0  # the mesh moves step by step
+    with meshio.xdmf.TimeSeriesReader(out / "series.xdmf") as reader:
+        _, cells = reader.read_points_cells()
+        assert reader.num_steps == 4 and [block.type for block in cells] == ["triangle"]
+        np.testing.assert_array_equal(cells[0].data, stored.mesh["simplices"])
+        for i in range(4):
+            t, point_data, cell_data = reader.read_data(i)
+            assert t == stored.series["step"][i] == i and cell_data == {}
+            np.testing.assert_array_equal(point_data["vertices"], positions[i])
+    (line,) = [line for line in export_log(out, "xdmf") if "cannot hold" in line]
+    assert "faces" not in line, line  # the connectivity is the cells
 
 
 def test_ply_and_obj_say_in_one_line_what_they_leave_out(decrun_cli, tmp_path):
-    out = run_dir(decrun_cli, tmp_path, "app=smoothing", "app.steps=1", "export=ply", "export.field=displacement")
+    args = ("app=smoothing", "app.steps=1", "export=ply", "export.field=displacement", "figures=false")
+    proc = decrun_cli(*args)
+    assert proc.returncode == 0 and "Warning" not in proc.stderr, proc.stderr  # no writer's stray cast warning
+    (out,) = tmp_path.glob("outputs/runs/*")
     (line,) = export_log(out, "ply")
     assert line.endswith("result.ply (the triangles, colours of displacement) cannot hold vertices_initial, "
                          "vertices_final; they are in result.h5 (export=vtu holds every field)"), line  # faces: the cells
@@ -502,3 +530,20 @@ def test_a_sweep_says_which_jobs_exports_failed_and_keeps_their_rows(decrun_cli,
     assert list(rows["status"]) == ["ok", "ok"] and rows["mass"].notna().all() and rows["export_error"].notna().all()
     done = decrun_cli(*args, "export.field=auto")
     assert done.returncode == 0 and "export failed" not in done.stdout, done.stderr
+
+
+def test_a_rerun_leaves_no_export_file_of_the_earlier_run(decrun_cli, tmp_path):
+    """A rerun into a finished run's directory removes the export files the earlier run wrote
+    (they hold the earlier result) before its own export writes: a 3-step result keeps no
+    10-step result.vtu beside it, with export=none too."""
+    args = ("app=smoothing", "mesh.subdiv=1", "figures=false", "hydra.run.dir=run")
+    assert decrun_cli(*args, "app.steps=10", "export=vtu").returncode == 0
+    run = tmp_path / "run"
+    again = decrun_cli(*args, "app.steps=3", "export=ply", "export.field=displacement")
+    assert again.returncode == 0, again.stderr
+    assert not (run / "result.vtu").exists() and (run / "result.ply").is_file()
+    assert "removed the earlier run's export files result.vtu (they do not hold this result)" in again.stderr
+    np.testing.assert_allclose(meshio.read(run / "result.ply").point_data["displacement"],
+                               read_result(run / "result.h5").fields["displacement"])
+    assert decrun_cli(*args, "app.steps=2").returncode == 0
+    assert not (run / "result.ply").exists() and (run / "result.h5").is_file()

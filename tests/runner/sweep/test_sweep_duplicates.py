@@ -27,6 +27,9 @@ def test_fig6_7_sweeps_each_result_once_and_a_padded_sweep_is_marked(decrun_cli,
                         "app.stroke_magnitude=precomputed", "app.stroke_length=0.2,1.0,5.0")
     assert table["same_as"].isna().tolist() == [True, False, False] and list(table["same_as"][1:]) == [0, 0]
     assert "2 jobs repeat an earlier job's result exactly (column same_as: 1 = 0, 2 = 0)" in done.stdout
+    done, _ = sweep(decrun_cli, tmp_path, "one", "+experiment=fig6_7_cube", coarse,
+                    "app.stroke_magnitude=precomputed", "app.stroke_length=0.2,1.0")
+    assert "decrun: 1 job repeats an earlier job's result exactly (column same_as: 1 = 0)" in done.stdout
     # the λ sweep of the experiment's comment: three results
     _, table = sweep(decrun_cli, tmp_path, "lambda", "+experiment=fig6_7_cube", coarse,
                      "app.stroke_magnitude=fixed", "app.stroke_length=0.2,1.0,5.0")

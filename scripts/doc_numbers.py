@@ -210,7 +210,7 @@ RUNS["hodge_torus_mixed_mixed_area"] = Run(("app=hodge", "mesh=torus", "mesh.noi
                                             "operator=mixed_area"), dict(_HODGE))
 
 # ---------------------------------------------------------------------- non-fluid pages: computations
-# Numbers of the spectrum, core, parametrization and smoothing pages that no single decrun run
+# Numbers of the spectrum, core, parametrization, smoothing and models pages that no single decrun run
 # gives: each a function returning a dict of named values (a Source), checked like a run's metrics.
 
 

@@ -13,6 +13,8 @@ entries (a semi-definite mass: the Arnoldi solve); ``n/a`` where the variant has
 ``R³ only`` where the variant's geometry needs vertices in R³ (the torus lives in R⁴).
 
     python benchmarks/spectrum_table.py
+
+``scripts/doc_numbers.py`` takes the page's cells from :func:`table` (checked by tests/test_numbers.py).
 """
 
 from __future__ import annotations

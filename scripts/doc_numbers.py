@@ -210,7 +210,7 @@ RUNS["hodge_torus_mixed_mixed_area"] = Run(("app=hodge", "mesh=torus", "mesh.noi
                                             "operator=mixed_area"), dict(_HODGE))
 
 # ---------------------------------------------------------------------- non-fluid pages: computations
-# Numbers of the spectrum, core, parametrization and smoothing pages that no single decrun run
+# Numbers of the spectrum, core, parametrization, smoothing and models pages that no single decrun run
 # gives: each a function returning a dict of named values (a Source), checked like a run's metrics.
 
 
@@ -390,6 +390,26 @@ def _convergence_numbers() -> dict[str, Number]:
     return numbers
 
 
+#: the Halfar dome's offsets within a cell (fractions of the grid spacing Δx): the models page's table
+HALFAR_OFFSETS = {"0_0": (0.0, 0.0), "q_0": (0.25, 0.0), "h_0": (0.5, 0.0), "q_q": (0.25, 0.25), "h_h": (0.5, 0.5),
+                  "q_h": (0.25, 0.5)}
+HALFAR_SPACINGS = {"4km": 4000.0, "2km": 2000.0, "1km": 1000.0}
+
+
+def halfar_offsets() -> dict:
+    """The CISM v2.1 Halfar dome (``+experiment=cism_halfar``) with its centre moved within a cell:
+    ``<spacing>_<offset>`` the RMS error over the ice (m) with ``app.constants.xc, yc`` = the offset's
+    fractions of the spacing Δx (``q`` ¼, ``h`` ½), and ``<spacing>_mean`` the mean over the six offsets."""
+    out = {}
+    for spacing, dx in HALFAR_SPACINGS.items():
+        for name, (fx, fy) in HALFAR_OFFSETS.items():
+            metrics = run_metrics(Run(("+experiment=cism_halfar", f"mesh=cism_halfar/{spacing}",
+                                       f"app.constants.xc={fx * dx}", f"app.constants.yc={fy * dx}")))
+            out[f"{spacing}_{name}"] = float(metrics["rms_error_m"])
+        out[f"{spacing}_mean"] = sum(out[f"{spacing}_{name}"] for name in HALFAR_OFFSETS) / len(HALFAR_OFFSETS)
+    return out
+
+
 #: a round-off cell of the spectrum table: shown as computed, held only to being this small
 SPECTRUM_ROUND_OFF = {("torus", "circumcentric", 1), ("torus", "barycentric", 1)}
 #: the cells the spectrum page shows: mesh → degrees
@@ -433,6 +453,8 @@ RUNS["parametrization_height_field"] = Source(height_field_parametrization, {
     "default": N("default", ".2f"), "harmonic": N("harmonic", ".2f"), "free": N("free", ".2f")})
 RUNS["operator_variants"] = Source(operator_variants, _variant_numbers())
 RUNS["model_convergence"] = Source(model_convergence, _convergence_numbers())
+RUNS["halfar_offsets"] = Source(halfar_offsets, {
+    f"{spacing}_{name}": N(f"{spacing}_{name}", ".2f") for spacing in HALFAR_SPACINGS for name in (*HALFAR_OFFSETS, "mean")})
 RUNS["model_poisson_sphere"] = Run(("+experiment=poisson_sphere",), {
     "error": N("l2_error_rel", scale=100.0, fmt=".2f"), "vertices": N("n_vertices")})
 for _b in ("1.8", "2.2"):  # the Brusselator's growth rate on either side of the Hopf point B = 2

@@ -376,8 +376,8 @@ class Xdmf(Export):
             times = np.asarray(clock, dtype=np.float64)
             frames = [({k: _plain(v[i]) for k, v in point.items()}, {k: _plain(v[i]) for k, v in cell.items()},
                        {k: _plain(v[i]) for k, v in edge.items()}) for i in range(steps)]
-            cells = _cells(result, mesh, app)  # the connectivity is the cells: held
-            left = [name for name in result.fields if name not in series and name not in cells]
+            connectivity = _cells(result, mesh, app)  # the connectivity is the cells: held
+            left = [name for name in result.fields if name not in series and name not in connectivity]
         else:
             frame, left = _one_frame(result, mesh, K, app)
             times = np.asarray(clock[-1:] if len(clock) else [0.0], dtype=np.float64)

@@ -2,7 +2,9 @@
 ``DECRUN_NUMBA`` (:func:`mode`), and whether a kernel runs for an input of a given size
 (:func:`enabled`; the package docstring says how the three words are read). Under ``auto`` the
 answer also depends on the process: whether a kernel ran in it (:func:`started`, numba's
-one-time start paid) and how much numpy work ``auto`` kept from the kernels so far."""
+one-time start paid) and how much numpy work ``auto`` kept from the kernels so far. A kernel
+whose twin the compiled extension holds runs that twin under ``auto`` at every size instead
+(:meth:`.kernels.LazyKernel.runs`): these thresholds apply without the extension."""
 
 from __future__ import annotations
 
@@ -16,19 +18,20 @@ __all__ = ["MIN_SIZE", "WARM_MIN_SIZE", "AMORTIZE_SIZE", "MODES", "check_mode", 
            "started", "mark_started"]
 
 #: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
-#: in a process where numba has not started: a triangle mesh's largest input is its 3·m edge
-#: slots, and one build of its complex and operators saves numba's start from ~1M triangles on
-#: (``benchmarks/bench_operators.py``, docs/performance.md)
-MIN_SIZE = 3_000_000
+#: in a process where numba has not started (and the kernel has no twin in the compiled extension):
+#: a triangle mesh's largest input is its 3·m edge slots, and one build of its complex and
+#: operators with the numba kernels saves numba's ~0.4 s start from ~1.3M triangles on (0.2–0.3 µs
+#: per triangle against the numpy twins; ``benchmarks/bench_operators.py``, docs/performance.md)
+MIN_SIZE = 4_000_000
 
 #: under ``auto``, once a kernel ran in this process, inputs from this many items on take the kernels
 WARM_MIN_SIZE = 10_000
 
 #: under ``auto``, the items of numpy work (inputs of at least :data:`WARM_MIN_SIZE` items) after
 #: which a process starts numba: a triangle mesh's complex and operators (d0, d1, ⋆0–⋆2) pass
-#: 15.5·m items through :func:`enabled`, so 20M items ≈ 1.3M triangles of builds, whose saving
-#: with the kernels is about what numba's start costs (docs/performance.md)
-AMORTIZE_SIZE = 20_000_000
+#: 15.5·m items through :func:`enabled`, so 25M items ≈ 1.6M triangles of builds, whose saving
+#: with the kernels (~0.25 µs per triangle) is about what numba's start costs (docs/performance.md)
+AMORTIZE_SIZE = 25_000_000
 
 #: the switch's values
 MODES = ("auto", "numba", "numpy")

@@ -4,7 +4,8 @@
 
 Runs ``decrun figures=false`` and ``decrun`` (the default experiment: smoothing on the
 642-vertex icosphere; ``-- OVERRIDES`` replaces these two by one command with those
-overrides) ``--repeat`` times each, in fresh processes, for this checkout and — with
+overrides) ``--repeat`` times each (after one unmeasured run that writes the bytecode
+caches), in fresh processes, for this checkout and — with
 ``--reference``, e.g. an older commit made with ``git worktree add`` — for another checkout
 in the same run, alternating between them, and prints for the fastest run of each (by
 wall time) the wall and CPU seconds of each stage and the share of the app's compute; the
@@ -150,10 +151,13 @@ def child(argv: list[str], report: Path, spawned: float) -> None:
     runpy.run_module("decrun", run_name="__main__", alter_sys=True)  # as python -m decrun
 
 
-def measure(checkout: Path, args: list[str], cwd: Path) -> dict[str, list[float]]:
-    """One fresh process of ``decrun <args>`` from ``checkout``: {stage: [wall s, cpu s]}, ``total``."""
-    env = dict(os.environ, PYTHONPATH=str(checkout), MPLBACKEND="Agg")
-    env.pop("HYDRA_FULL_ERROR", None)
+def measure(checkout: Path, args: list[str], cwd: Path, pycache: Path) -> dict[str, list[float]]:
+    """One fresh process of ``decrun <args>`` from ``checkout``: {stage: [wall s, cpu s]}, ``total``.
+    Its bytecode is cached under ``pycache`` (``PYTHONPYCACHEPREFIX``: as an installed package
+    has it, whatever ``PYTHONDONTWRITEBYTECODE`` says and without writing into the checkout)."""
+    env = dict(os.environ, PYTHONPATH=str(checkout), MPLBACKEND="Agg", PYTHONPYCACHEPREFIX=str(pycache))
+    for name in ("HYDRA_FULL_ERROR", "PYTHONDONTWRITEBYTECODE"):
+        env.pop(name, None)
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as handle:
         report = Path(handle.name)
     try:
@@ -232,11 +236,15 @@ def main() -> None:
     print(f"load average before: {load()}")
     runs: dict[str, list[dict]] = {}
     with tempfile.TemporaryDirectory() as tmp:
+        for command in commands:  # a first run of each writes the bytecode caches: not measured
+            for label, checkout in checkouts.items():
+                measure(checkout, command, Path(tmp), Path(tmp) / f"pycache-{label}")
         for _ in range(args.repeat):
             for command in commands:
                 for label, checkout in checkouts.items():
                     name = f"{label}: decrun {' '.join(command)}".rstrip()
-                    runs.setdefault(name, []).append(measure(checkout, command, Path(tmp)))
+                    runs.setdefault(name, []).append(measure(checkout, command, Path(tmp),
+                                                             Path(tmp) / f"pycache-{label}"))
     print(f"load average after: {load()}")
     best = {name: min(samples, key=lambda r: r["total"][0]) for name, samples in runs.items()}
     print(table(best))

@@ -38,15 +38,17 @@ def command() -> None:
     import os
     import threading
 
+    status: str | int | None = 0
     try:
         console_main()
-        code = 0
     except SystemExit as exc:
-        code = exc.code
-    if not isinstance(code, int):  # sys.exit(None) is 0, sys.exit("text") prints it and is 1
-        if code is not None:
-            print(code, file=sys.stderr)
-        code = 0 if code is None else 1
+        status = exc.code
+    if isinstance(status, int):
+        code = status
+    else:  # sys.exit(None) is 0, sys.exit("text") prints it and is 1
+        if status is not None:
+            print(status, file=sys.stderr)
+        code = 0 if status is None else 1
     cli = sys.modules.get("decrun.runner.cli")
     swept = cli is not None and cli.SweepTable.sweep_dir is not None
     if swept or any(t.is_alive() and not t.daemon for t in threading.enumerate() if t is not threading.main_thread()):

@@ -387,11 +387,13 @@ def _composed_once(args: list[str]):
             cfg.hydra.overrides.hydra.append("hydra.mode=RUN")
         return cfg
 
-    Hydra.get_mode, Hydra.compose_config = run_mode, compose_for_run
+    setattr(Hydra, "get_mode", run_mode)  # noqa: B010 — assigning a method, which mypy refuses
+    setattr(Hydra, "compose_config", compose_for_run)  # noqa: B010
     try:
         yield
     finally:
-        Hydra.get_mode, Hydra.compose_config = get_mode, compose_config
+        setattr(Hydra, "get_mode", get_mode)  # noqa: B010
+        setattr(Hydra, "compose_config", compose_config)  # noqa: B010
 
 
 def _interrupted_where(exc: KeyboardInterrupt) -> str:

@@ -166,42 +166,55 @@ def read_series(job_dir: Path) -> tuple[dict[str, tuple[Any, Any]], dict[str, st
     """The recorded series of a run directory: ``name → (steps, values)`` for each series with
     one number per step (from ``result.h5``'s ``series`` group, read through the checked
     readers of :mod:`decrun.runner.results.checked`; a killed job's from its journal), the
-    result's root attributes, and the names of the series that are not one number per step
-    (arrays per step: they stay in result.h5, and the run's tag ``decrun.series_not_logged``
-    names them)."""
+    result's root attributes a record uses (:data:`RECORD_ATTRS`; a journal's all), and the
+    names of the series that are not one number per step (arrays per step: they stay in
+    result.h5, unread, and the run's tag ``decrun.series_not_logged`` names them)."""
     import numpy as np
 
     from decrun.runner.files import RunFiles
-    from decrun.runner.results.checked import check_group, open_h5, read_dataset
+    from decrun.runner.results.checked import check_group, open_h5
     from decrun.runner.results.provenance import decrun_attrs
 
     path = RunFiles(job_dir).result
     if path.is_file():
         with open_h5(path) as f:
-            attrs = decrun_attrs(f, path)
+            attrs = decrun_attrs(f, path, RECORD_ATTRS)
             group = f.get("series")
-            arrays = {}
+            arrays, skipped = {}, []
             if group is not None:
-                check_group(group, path)
-                arrays = {name: read_dataset(group[name], path) for name in group}
+                check_group(group, path)  # every member checked (check_dataset): read as it is below
+                for name, member in group.items():  # an array per step is named, not read: it can be the bulk
+                    if _one_per_step(member):
+                        arrays[name] = member[()]
+                    else:
+                        skipped.append(name)
     elif RunFiles(job_dir).journal.is_file():
         from decrun.runner.results.reading import read_result
 
         stored = read_result(path)
-        attrs, arrays = stored.provenance, stored.series
+        attrs, skipped = stored.provenance, []
+        arrays = {name: np.asarray(values) for name, values in stored.series.items()}
     else:
         return {}, {}, []
     steps = np.asarray(arrays.get("step", np.arange(max((len(a) for a in arrays.values()), default=0))))
-    series, skipped = {}, []
+    series = {}
     for name, values in arrays.items():
-        values = np.asarray(values)
         if name == "step":
             continue
-        if values.ndim == 1 and len(values) == len(steps) and values.dtype.kind in "biuf":
-            series[name] = (steps.astype(np.int64), values.astype(np.float64))
+        if _one_per_step(values) and len(values) == len(steps):
+            series[name] = (steps.astype(np.int64), np.asarray(values, dtype=np.float64))
         else:
             skipped.append(name)
     return series, attrs, skipped
+
+
+#: the root attributes of result.h5 a run's record uses (:func:`job_record`)
+RECORD_ATTRS = ("config_yaml", "git_commit")
+
+
+def _one_per_step(values: Any) -> bool:
+    """Whether an array (or an h5py dataset, from its metadata) is one number per step."""
+    return len(values.shape) == 1 and values.dtype.kind in "biuf"
 
 
 def _config(job_dir: Path, attrs: dict) -> dict:

@@ -207,6 +207,23 @@ def test_flatten_gives_every_leaf_its_dotted_key():
         "optimize.metric": "None", "export": "{}"}
 
 
+def test_config_sections_a_sweeps_jobs_share_are_flattened_once_and_equal_a_full_parse():
+    import yaml
+
+    from decrun.runner.tracking import _params
+
+    a = "app:\n  dt: 0.001\n  fields: {u: {form: 0}}\nmesh:\n  subdiv: 1\n  hole_balls:\n  - [0, 0, 1, 0.5]\nhydra:\n  x: 1\n"
+    b = a.replace("dt: 0.001", "dt: 0.002")
+    c = "app: &base\n  dt: 0.001\nmesh: *base\n"  # an alias: its meaning lies outside its own text
+    d = c.replace("dt: 0.001", "dt: 0.003")
+    shared: dict = {}
+    for text in (a, b, c, d):
+        full = flatten({k: v for k, v in yaml.safe_load(text).items() if k != "hydra"})
+        assert _params(Path("job"), {"config_yaml": text}, shared) == full
+    assert sorted(key for key, _ in shared) == ["app", "app", "mesh"]  # a's mesh served b; c, d never cached
+    assert _params(Path("job"), {"config_yaml": d}, shared)["mesh.dt"] == "0.003"
+
+
 def test_the_tracker_is_not_part_of_the_config_hash():
     from decrun.runner.config import compose_config
     from decrun.runner.sweep.manifest import config_hash

@@ -69,6 +69,7 @@ class Calls:
         self.depth = 0
 
     def wrap(self, owner, name: str, label: str) -> None:
+        """Replace ``owner.name`` by the same call, timed under ``label``."""
         function = getattr(owner, name)
 
         def timed_call(*args, **kwargs):
@@ -86,6 +87,7 @@ class Calls:
         setattr(owner, name, timed_call)
 
     def install(self, client) -> None:
+        """Time the calls ``client`` makes for a run, and the file copies of local artifact repositories."""
         from mlflow.store.artifact.local_artifact_repo import LocalArtifactRepository
 
         for name in ("create_run", "log_batch", "set_terminated", "get_run", "log_artifact"):

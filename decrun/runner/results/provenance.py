@@ -111,11 +111,15 @@ def write_metrics_json(path: str | os.PathLike, metrics: dict[str, Any]) -> Path
     return write_text_atomic(path, metrics_to_json(metrics) + "\n")
 
 
-def decrun_attrs(f, path: Path) -> dict[str, Any]:
+def decrun_attrs(f, path: Path, keys: tuple[str, ...] | None = None) -> dict[str, Any]:
     """The root attributes of an open ``result.h5`` as plain values, or
     :class:`~decrun.errors.CorruptFileError` naming ``path`` when it is not a file decrun
-    wrote (no ``format`` attribute ``decrun-result-1``, no ``metrics_json``)."""
-    attrs = {key: plain(f.attrs[key]) for key in f.attrs}
+    wrote (no ``format`` attribute ``decrun-result-1``, no ``metrics_json``). ``keys``: only
+    those attributes (where present) besides the two checked ones, for a reader that needs a
+    few of the file's two dozen."""
+    names = list(f.attrs) if keys is None else [k for k in dict.fromkeys(("format", "metrics_json", *keys))
+                                                if k in f.attrs]
+    attrs = {key: plain(f.attrs[key]) for key in names}
     missing = "format" if attrs.get("format") != FORMAT else None if isinstance(attrs.get("metrics_json"), str) \
         else "metrics_json"
     if missing:

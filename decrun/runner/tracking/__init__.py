@@ -41,6 +41,7 @@ import hashlib
 import json
 import logging
 import os
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, cast
@@ -166,76 +167,140 @@ def read_series(job_dir: Path) -> tuple[dict[str, tuple[Any, Any]], dict[str, st
     """The recorded series of a run directory: ``name → (steps, values)`` for each series with
     one number per step (from ``result.h5``'s ``series`` group, read through the checked
     readers of :mod:`decrun.runner.results.checked`; a killed job's from its journal), the
-    result's root attributes, and the names of the series that are not one number per step
-    (arrays per step: they stay in result.h5, and the run's tag ``decrun.series_not_logged``
-    names them)."""
+    result's root attributes a record uses (:data:`RECORD_ATTRS`; a journal's all), and the
+    names of the series that are not one number per step (arrays per step: they stay in
+    result.h5, unread, and the run's tag ``decrun.series_not_logged`` names them)."""
     import numpy as np
 
     from decrun.runner.files import RunFiles
-    from decrun.runner.results.checked import check_group, open_h5, read_dataset
+    from decrun.runner.results.checked import check_group, open_h5
     from decrun.runner.results.provenance import decrun_attrs
 
     path = RunFiles(job_dir).result
     if path.is_file():
         with open_h5(path) as f:
-            attrs = decrun_attrs(f, path)
+            attrs = decrun_attrs(f, path, RECORD_ATTRS)
             group = f.get("series")
-            arrays = {}
+            arrays, skipped = {}, []
             if group is not None:
-                check_group(group, path)
-                arrays = {name: read_dataset(group[name], path) for name in group}
+                check_group(group, path)  # every member checked (check_dataset): read as it is below
+                for name, member in group.items():  # an array per step is named, not read: it can be the bulk
+                    if _one_per_step(member):
+                        arrays[name] = member[()]
+                    else:
+                        skipped.append(name)
     elif RunFiles(job_dir).journal.is_file():
         from decrun.runner.results.reading import read_result
 
         stored = read_result(path)
-        attrs, arrays = stored.provenance, stored.series
+        attrs, skipped = stored.provenance, []
+        arrays = {name: np.asarray(values) for name, values in stored.series.items()}
     else:
         return {}, {}, []
     steps = np.asarray(arrays.get("step", np.arange(max((len(a) for a in arrays.values()), default=0))))
-    series, skipped = {}, []
+    series = {}
     for name, values in arrays.items():
-        values = np.asarray(values)
         if name == "step":
             continue
-        if values.ndim == 1 and len(values) == len(steps) and values.dtype.kind in "biuf":
-            series[name] = (steps.astype(np.int64), values.astype(np.float64))
+        if _one_per_step(values) and len(values) == len(steps):
+            series[name] = (steps.astype(np.int64), np.asarray(values, dtype=np.float64))
         else:
             skipped.append(name)
     return series, attrs, skipped
 
 
-def _config(job_dir: Path, attrs: dict) -> dict:
-    """The job's resolved config: the YAML stored in result.h5, else ``.hydra/config.yaml``
-    resolved here (an interpolation that does not resolve here stays as written)."""
+#: the root attributes of result.h5 a run's record uses (:func:`job_record`)
+RECORD_ATTRS = ("config_yaml", "git_commit")
+
+
+def _one_per_step(values: Any) -> bool:
+    """Whether an array (or an h5py dataset, from its metadata) is one number per step."""
+    return len(values.shape) == 1 and values.dtype.kind in "biuf"
+
+
+def _params(job_dir: Path, attrs: dict, shared: dict | None = None) -> dict[str, str]:
+    """The job's resolved config as flattened params (:func:`flatten`, ``hydra`` left out):
+    from the YAML stored in result.h5, else ``.hydra/config.yaml`` resolved here (an
+    interpolation that does not resolve here stays as written).
+
+    ``shared``: a dict kept across the jobs of one sweep, whose configs differ in a few
+    sections: a top-level section whose YAML text an earlier job had is taken flattened from
+    there instead of being built again (a section with an anchor or alias, whose meaning can
+    lie outside its text, or a text that is not ASCII is always built)."""
+    import yaml
     from omegaconf import OmegaConf
 
     from decrun.runner.files import RunFiles
 
     text = attrs.get("config_yaml")
     if isinstance(text, str) and text:
-        loaded = _yaml(text, f"{job_dir}/{RunFiles.RESULT}: attribute config_yaml")
-        return loaded if isinstance(loaded, dict) else {}
+        where = f"{job_dir}/{RunFiles.RESULT}: attribute config_yaml"
+        shared = {} if shared is None else shared
+        params: dict[str, str] = {}
+        with _composed(text, where) as (loader, root):
+            if not isinstance(root, yaml.MappingNode):
+                return {}
+            for key_node, node in root.value:
+                key = loader.construct_object(key_node, deep=True)
+                if key == "hydra":
+                    continue
+                section = text[node.start_mark.index:node.end_mark.index] if text.isascii() else ""
+                cacheable = section and "&" not in section and "*" not in section
+                flat = shared.get((key, section)) if cacheable else None
+                if flat is None:
+                    flat = flatten(loader.construct_object(node, deep=True), f"{key}.")
+                    if cacheable:
+                        shared[(key, section)] = flat
+                params.update(flat)
+        return params
     path = job_dir / RunFiles.HYDRA / "config.yaml"
     if not path.is_file():
         return {}
     cfg = OmegaConf.load(path)
     try:
-        return cast(dict, OmegaConf.to_container(cfg, resolve=True))  # a config.yaml is a mapping
+        config = cast(dict, OmegaConf.to_container(cfg, resolve=True))  # a config.yaml is a mapping
     except Exception:  # noqa: BLE001 — e.g. ${oc.env:X} unset in this process: the text as written
-        return cast(dict, OmegaConf.to_container(cfg, resolve=False))
+        config = cast(dict, OmegaConf.to_container(cfg, resolve=False))
+    return flatten({k: v for k, v in config.items() if k != "hydra"}) if config else {}
+
+
+@contextmanager
+def _composed(text: str, where: str):
+    """``(loader, root node)`` of the YAML ``text``: libyaml's parse into nodes, none of them
+    built into Python objects yet (``loader.construct_object(node, deep=True)`` builds one, as
+    ``yaml.safe_load`` would); CorruptFileError naming ``where``."""
+    import yaml
+
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)(text)
+    try:
+        yield loader, loader.get_single_node()
+    except (yaml.YAMLError, RecursionError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CorruptFileError(f"{where}: not YAML decrun reads ({first})") from None
+    finally:
+        loader.dispose()
 
 
 def _choices(job_dir: Path) -> dict[str, str]:
     """The option chosen in each of the job's config groups (``.hydra/hydra.yaml``'s
     ``runtime.choices``, Hydra's own groups left out)."""
+    import yaml
+
     from decrun.runner.files import RunFiles
 
     path = job_dir / RunFiles.HYDRA / "hydra.yaml"
     if not path.is_file():
         return {}
-    hydra = (_yaml(path.read_text(), str(path)) or {}).get("hydra") or {}
-    choices = (hydra.get("runtime") or {}).get("choices") or {}
-    return {str(k): str(v) for k, v in choices.items() if not str(k).startswith("hydra/")}
+    with _composed(path.read_text(), str(path)) as (loader, node):  # 4 KB, of which only the choices are built
+        for key in ("hydra", "runtime", "choices"):
+            found = [v for k, v in node.value if isinstance(k, yaml.ScalarNode) and k.value == key] \
+                if isinstance(node, yaml.MappingNode) else []
+            if not found:
+                return {}
+            node = found[-1]  # as yaml.safe_load: a repeated key's last value
+        choices = loader.construct_object(node, deep=True)
+    return {str(k): str(v) for k, v in (choices if isinstance(choices, dict) else {}).items()
+            if not str(k).startswith("hydra/")}
 
 
 def _overrides(job_dir: Path) -> list[str]:
@@ -259,12 +324,13 @@ def _yaml(text: str, where: str) -> Any:
 
 
 def job_record(job_dir: Path, name: str, state: dict[str, Any], *, result_h5: bool = False,
-               parent: str | None = None) -> RunRecord:
+               parent: str | None = None, shared: dict | None = None) -> RunRecord:
     """The :class:`RunRecord` of one run directory: ``name`` is the job's (the run is named
     ``job <name>`` under a ``parent``) or the single run's. ``state``: its status, error and metrics
     as the sweep's table has them (:func:`decrun.runner.sweep.manifest.job_state`); the
     numbers among the metrics become metrics (booleans 0/1), the other values tags
-    ``metric.<name>``."""
+    ``metric.<name>``. ``shared``: one dict for the jobs of a sweep, the config sections
+    they share flattened once (:func:`_params`)."""
     from decrun.runner.files import RunFiles
     from decrun.runner.results.provenance import git_commit
 
@@ -280,8 +346,7 @@ def job_record(job_dir: Path, name: str, state: dict[str, Any], *, result_h5: bo
     written = read_metrics(job_dir) or {}
     if isinstance(written.get("config_hash"), str):  # job_state keeps it out of the metrics
         state = {**state, "config_hash": written["config_hash"]}
-    config = _config(job_dir, attrs)
-    params = flatten({k: v for k, v in config.items() if k != "hydra"}) if config else {}
+    params = _params(job_dir, attrs, shared)
     params.update(_choices(job_dir))
     overrides = _overrides(job_dir)
     tags = {"status": STATUS.get(status, "failed"), "decrun.status": status, "decrun.job": name,
@@ -393,12 +458,13 @@ def track_sweep(tracker: Tracker, sweep_dir: str | os.PathLike) -> Tracked:
                                                            for _, _, s in states))},
                              tags={"status": status, "decrun.sweep_dir": str(sweep_dir.resolve()),
                                    "decrun.overrides": " ".join(common)})
+    shared: dict = {}
     try:
         tracked.sweep_run, sent = _log(tracker, sweep_record, SweepFiles(sweep_dir).dir / SweepFiles.TRACKING)
         tracked.sent += sent
         for name, where, state in states:
             record = job_record(where, name, state, result_h5=bool(getattr(tracker, "result_h5", False)),
-                                parent=tracked.sweep_run)
+                                parent=tracked.sweep_run, shared=shared)
             tracked.runs[name], sent = _log(tracker, record, RunFiles(where).tracking)
             tracked.sent += sent
     finally:

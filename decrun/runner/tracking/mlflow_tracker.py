@@ -5,7 +5,9 @@ server (``http://host:5000``), a database (``sqlite:///path/mlflow.db``), a dire
 What a run holds, when it is logged and how a resumed sweep updates its runs:
 :mod:`decrun.runner.tracking`. Here: the calls. A new run is ``create_run`` (its tags, and
 ``mlflow.parentRunId`` for a job), then ``log_batch`` in MLflow's batch limits (params, the
-metrics at step 0, each series as a metric history at its steps), ``log_artifact`` per file,
+metrics at step 0, each series as a metric history at its steps), ``log_artifact`` per file
+(into the run's local artifact directory through MLflow's artifact repository of the
+``artifact_uri`` the run came with — the client would look the run up once more for it),
 ``set_terminated`` with ``FINISHED`` / ``FAILED`` / ``KILLED`` for ``ok`` / ``failed`` /
 ``killed``. An existing run (a resumed sweep) gets the params it lacks, the new metric values,
 tags, artifacts and status. A param value longer than MLflow takes (6000 characters) is not
@@ -130,9 +132,9 @@ class MlflowTracker(Tracker):
         if existing is None:
             run_tags = {**tags, **({"mlflow.parentRunId": record.parent} if record.parent else {})}
             run = client.create_run(self._experiment_id, run_name=record.name, tags=run_tags)
-            run_id, tags = run.info.run_id, {}
+            run_id, artifact_uri, tags = run.info.run_id, run.info.artifact_uri, {}
         else:
-            run_id, logged = existing.info.run_id, existing.data.params
+            run_id, artifact_uri, logged = existing.info.run_id, existing.info.artifact_uri, existing.data.params
             changed = [k for k, v in params.items() if k in logged and logged[k] != v]
             if changed:  # MLflow keeps a param's first value: the new one goes to a tag
                 tags.update({f"param.{k}": params[k] for k in changed})
@@ -145,8 +147,12 @@ class MlflowTracker(Tracker):
         for batch in _batches([Param(k, v) for k, v in params.items()], [RunTag(k, str(v)) for k, v in tags.items()],
                               metrics):
             client.log_batch(run_id, **batch)
+        repository = _local_artifacts(artifact_uri)
         for path in record.artifacts:
-            client.log_artifact(run_id, str(path))
+            if repository is not None:
+                repository.log_artifact(str(path))
+            else:
+                client.log_artifact(run_id, str(path))
         client.set_terminated(run_id, status=RUN_STATUS.get(record.status, "FAILED"))
         return run_id
 
@@ -166,6 +172,21 @@ class MlflowTracker(Tracker):
 
     def close(self) -> None:
         self._client = None
+
+
+def _local_artifacts(artifact_uri: str | None) -> Any:
+    """MLflow's artifact repository of a run whose artifacts live in a local directory
+    (``file:`` URI or a plain path): the repository ``MlflowClient.log_artifact`` would use,
+    made from the URI ``create_run`` / ``get_run`` returned instead of looking the run up
+    again for it. None for any other store (a server, a cloud bucket): those go through
+    ``MlflowClient.log_artifact``."""
+    from urllib.parse import urlparse
+
+    if not artifact_uri or urlparse(artifact_uri).scheme not in ("", "file"):
+        return None
+    from mlflow.store.artifact.artifact_repository_registry import get_artifact_repository
+
+    return get_artifact_repository(artifact_uri)
 
 
 def _batches(params: list, tags: list, metrics: list) -> list[dict[str, list]]:

@@ -207,6 +207,23 @@ def test_flatten_gives_every_leaf_its_dotted_key():
         "optimize.metric": "None", "export": "{}"}
 
 
+def test_config_sections_a_sweeps_jobs_share_are_flattened_once_and_equal_a_full_parse():
+    import yaml
+
+    from decrun.runner.tracking import _params
+
+    a = "app:\n  dt: 0.001\n  fields: {u: {form: 0}}\nmesh:\n  subdiv: 1\n  hole_balls:\n  - [0, 0, 1, 0.5]\nhydra:\n  x: 1\n"
+    b = a.replace("dt: 0.001", "dt: 0.002")
+    c = "app: &base\n  dt: 0.001\nmesh: *base\n"  # an alias: its meaning lies outside its own text
+    d = c.replace("dt: 0.001", "dt: 0.003")
+    shared: dict = {}
+    for text in (a, b, c, d):
+        full = flatten({k: v for k, v in yaml.safe_load(text).items() if k != "hydra"})
+        assert _params(Path("job"), {"config_yaml": text}, shared) == full
+    assert sorted(key for key, _ in shared) == ["app", "app", "mesh"]  # a's mesh served b; c, d never cached
+    assert _params(Path("job"), {"config_yaml": d}, shared)["mesh.dt"] == "0.003"
+
+
 def test_the_tracker_is_not_part_of_the_config_hash():
     from decrun.runner.config import compose_config
     from decrun.runner.sweep.manifest import config_hash
@@ -255,3 +272,24 @@ def test_jobs_of_another_launcher_are_logged_from_the_sweeps_end(tmp_path):
         metrics = json.loads((tmp_path / "sweep" / job / "metrics.json").read_text())
         assert runs[job].data.metrics["dirichlet_energy"] == metrics["dirichlet_energy"]
         assert runs[job].data.tags["mlflow.parentRunId"] == runs[None].info.run_id
+
+
+#: 2 tiny jobs for the launcher tests: every job's runs are made at the sweep's end by the command's own process
+LAUNCHED = ["app=heat", "mesh.subdiv=1", "app.t_end=0.002", "app.dt=1e-3,2e-3", "figures=false", "tracker=mlflow"]
+
+
+@pytest.mark.slow
+def test_jobs_run_by_the_ray_launcher_are_logged_from_the_sweeps_end(tmp_path):
+    """hydra/launcher=ray on a local Ray: the jobs run in Ray workers, which never reach the
+    store; the runs read back equal the sweep's files."""
+    pytest.importorskip("hydra_plugins.hydra_ray_launcher", reason="needs hydra-ray-launcher (pip install 'decrun[ray]')")
+    from tracked_sweeps import check_tracked_sweep
+
+    uri = f"sqlite:///{tmp_path / 'ray.db'}"
+    proc = decrun("-m", "hydra/launcher=ray", "+hydra.launcher.ray.init.num_cpus=2",
+                  "+hydra.launcher.ray.init.include_dashboard=false",
+                  "+hydra.launcher.ray.init.object_store_memory=78643200", *LAUNCHED, f"tracker.uri={uri}",
+                  "hydra.sweep.dir=sweep", cwd=tmp_path, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "warning" not in proc.stderr, proc.stderr[-3000:]
+    check_tracked_sweep(tmp_path / "sweep", uri, proc.stdout)

@@ -195,3 +195,19 @@ def test_a_preempted_fluid_job_is_requeued_and_continues_from_its_checkpoint(slu
             assert sorted(a[group]) == sorted(b[group])
             for name in a[group]:
                 assert np.array_equal(a[group][name][()], b[group][name][()]), f"{group}/{name}"
+
+
+def test_a_tracked_slurm_sweep_is_logged_from_the_sweeps_end(slurm, tmp_path):
+    """tracker=mlflow on submitit_slurm: the jobs run as SLURM jobs, which never reach the
+    store; the command that submitted them logs them once the table is written, and the runs
+    read back equal the sweep's files."""
+    pytest.importorskip("mlflow", reason="tracker=mlflow needs the mlflow extra: pip install 'decrun[mlflow]'")
+    from tracked_sweeps import check_tracked_sweep
+
+    uri = f"sqlite:///{tmp_path / 'slurm.db'}"
+    proc = decrun("-m", "app.dt=0.001,0.002", "app.steps=3", *CHEAP, *SLURM, "tracker=mlflow", f"tracker.uri={uri}",
+                  "hydra.sweep.dir=slurm", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "warning: tracker" not in proc.stderr, proc.stderr[-3000:]
+    assert len(list((tmp_path / "slurm" / ".submitit").glob("*/*_log.out"))) == 2  # the jobs ran on SLURM
+    check_tracked_sweep(tmp_path / "slurm", uri, proc.stdout)

@@ -129,7 +129,8 @@ def _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, ou
 def _p1(triangles, bary, planar, point_velocity, f, t, x0, x1, x2, face_normal, out):
     """Least-squares reconstruction (reconstruction.LeastSquaresVelocity.velocity): the P1
     (barycentric) interpolation of the vertex velocities of field f at x in t (into out, 3),
-    projected into the plane of t. ``bary`` (m, 12): ∇λ (9), centroid (3) per triangle."""
+    projected into the plane of t. ``triangles`` (m, ≥ 3) the corners first; ``bary`` (m, ≥ 12):
+    ∇λ (9), centroid (3) per triangle first (the walker's tri_int and tri_real rows)."""
     r0, r1, r2 = x0 - bary[t, 9], x1 - bary[t, 10], x2 - bary[t, 11]
     l0 = 1.0 / 3.0 + (bary[t, 0] * r0 + bary[t, 1] * r1 + bary[t, 2] * r2)
     l1 = 1.0 / 3.0 + (bary[t, 3] * r0 + bary[t, 4] * r1 + bary[t, 5] * r2)

@@ -191,8 +191,8 @@ class LeastSquaresVelocity:
         (m, ≥ 3: the corners first), per triangle ∇λ (9) and centroid (3) (m, ≥ 12: those first),
         an empty corner table, planar and the scheme code 1 (compiled._p1). The first two are the
         walker's own rows (TriangleWalker.kernel_tables: tri_int, tri_real, which begin so): the
-        walk reads one row per triangle for both, not a copy beside it (a quarter of the walk's
-        time on the 12k-face channel was fetching the copy)."""
+        walk, bound by memory more than by arithmetic, reads one row per triangle for both
+        instead of a copy beside it."""
         if getattr(self, "_kernel_tables", None) is None:
             walk, _ = self.walker.kernel_tables()
             self._kernel_tables = (walk[2], walk[1], np.zeros((0, 1), dtype=np.int64), bool(self.planar), 1)

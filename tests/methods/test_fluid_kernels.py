@@ -138,6 +138,56 @@ def test_backtracking_kernel_equals_numpy(name, integrator, max_cfl):
         assert result.substeps > 1
 
 
+@pytest.mark.parametrize("name", ["channel", "lattice", "obtuse"])
+@pytest.mark.parametrize("max_cfl", [1.0, 0.3, None])
+def test_the_specialised_planar_least_squares_walk_equals_numpy(name, max_cfl):
+    """The default scheme's walk on planar meshes (midpoint, least-squares P1 velocity) runs a
+    specialised block (compiled._backtrack_block_planar_p1): the same bits as the numpy twin with
+    CFL substeps (max_cfl 0.3: several per point, the later ones from a fresh velocity), walls met
+    and clamped."""
+    reference, sim = pair(name, velocity="least_squares", circulation="swept_bounded", max_cfl=max_cfl)
+    walk, jump = sim.walker.kernel_tables()
+    field = sim._kernel_field.kernel_tables()
+    assert walk[4] and field[3] and field[4] == 1 and jump[0].shape[0] > 0  # the specialised block's case
+    both = sim._point_velocities()
+    m = sim.cells.n_circumcenters
+    start = sim._circumcenter_velocity(np.ascontiguousarray(both[..., 1:2]))
+    expected = reference.walker.backtrack(sim.cells.points[:m], np.arange(m), sim.dt, lambda tri, p: (
+        reference.reconstruction.velocity(tri, p, np.ascontiguousarray(both[..., 1:2]))[:, :, 0]),
+        start_velocity=start, max_cfl=max_cfl)
+    result = sim.walker.backtrack_compiled(sim.cells.points[:m], np.arange(m), sim.dt, sim._kernel_field, both,
+                                           start_velocity=start, max_cfl=max_cfl)
+    assert_same_points(expected, result)
+    np.testing.assert_array_equal(result.velocity, reference.reconstruction.velocity(result.triangle,
+                                                                                      result.position, both))
+    assert (result.wall_edge >= 0).sum() > 0  # clamped at walls
+    if max_cfl == 0.3:
+        assert result.substeps > 1
+
+
+def test_the_specialised_walk_from_vertices_and_edges_equals_numpy():
+    """The specialised planar least-squares walk from points exactly on vertices, on edges and at
+    circumcenters, aimed exactly at vertices and long enough to cross many triangles and reach
+    the walls: the bits of the numpy twin."""
+    reference, sim = pair("channel", velocity="least_squares", circulation="swept_bounded")
+    rng = np.random.default_rng(7)
+    t, x = special_points(sim, rng)
+    walker = sim.walker
+    target = walker.x[walker.top[t][np.arange(t.size), rng.integers(0, 3, t.size)]]
+    direction = target - x
+    direction[np.linalg.norm(direction, axis=1) < 1e-12] = (1.0, 0.25, 0.0)
+    both = sim._point_velocities()
+    full = np.ascontiguousarray(both[..., 1:2])
+    for time in (0.01, 0.2):
+        args = dict(integrator="midpoint", start_velocity=-direction / 0.05, max_cfl=None)
+        expected = reference.walker.backtrack(x, t, time, lambda tri, p: reference.reconstruction.velocity(
+            tri, p, full)[:, :, 0], **args)
+        result = walker.backtrack_compiled(x, t, time, sim._kernel_field, both, **args)
+        assert_same_points(expected, result)
+    moved = np.linalg.norm(result.position - x, axis=1) / walker.size[t]
+    assert (moved > 5).sum() > 100  # paths beyond the two rings the specialised block locates in
+    assert (result.wall_edge >= 0).sum() > 0
+
 @pytest.mark.parametrize("walls", ["no_slip", "slip"])
 def test_swept_intervals_kernel_equals_numpy(walls):
     """The default scheme's step c in several intervals (compiled: between intervals the end

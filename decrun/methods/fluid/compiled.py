@@ -17,7 +17,11 @@ Each kernel has a numpy twin that stays the tested reference (``VorticityFluid(k
   place, so the swept scheme's intervals (VorticityFluid._backtrack_sweeping) call it once each,
   starting from the previous interval's end velocities and interpolating the vorticity at the
   new end points; blocks of points run on numba's threads (``jit.threads()``), the same bits on
-  any number of threads;
+  any number of threads. The default scheme's walk on a planar mesh (midpoint, least-squares P1
+  velocity) runs a specialised block (:func:`_backtrack_block_planar_p1`): the same arithmetic
+  in the same order with the point's position and directions in registers and the common jump
+  (a path that cannot reach the border and ends within two rings of its triangle) inline, where
+  the general block passes them through arrays and out-of-line helpers of a hundred arguments;
 * :func:`swept_change_add` — the swept-vorticity change of :meth:`SweptVorticity.change`;
 * :func:`circulation_sums` — the trapezoid circulation of :meth:`VorticityFluid.circulation`
   (:func:`circulation_rows`: of some cells).
@@ -40,7 +44,8 @@ __all__ = ["velocity_points", "backtrack_points", "circulation_sums", "circulati
 
 INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
 
-INLINE = "never"  # numba-level inlining ("always") measured 1.7× slower loops and a 3× longer cold compile
+INLINE = "never"  # numba-level inlining of every helper ("always"): loops ~15 % faster on the 12k channel
+# but a 2.7× longer cold compile (38 s instead of 14 s); the specialised walk inlines its few helpers (_hot)
 
 # Table layouts (built by TriangleWalker.kernel_tables and CellInterpolator.kernel_tables): one
 # row per triangle / vertex holds everything a point there reads, so a point touches a few cache
@@ -53,6 +58,9 @@ _kernel = jit.njit(error_model="numpy")  # x / 0 gives inf or nan, as in numpy
 # The helpers allocate nothing and keep no array: without the runtime's reference counts (_nrt=False)
 # they do not incref/decref every array argument on each call, which made the walk 2.4× slower.
 _helper = jit.njit(error_model="numpy", inline=INLINE, _nrt=False)
+# The few small helpers of the specialised walk (_backtrack_block_planar_p1) are inlined at numba's
+# level: they return scalars, so the point's state stays in registers between them.
+_hot = jit.njit(error_model="numpy", inline="always", _nrt=False)
 # The loops over points (the backtracking, most of a step, and the interpolation): ``prange`` over
 # one block of points per thread (``chunks``, from ``jit.threads()``), each block a plain compiled
 # loop (the _..._block kernels: as the body of a numba parfor the same loops ran up to 2× slower),
@@ -121,7 +129,8 @@ def _combine(cell_real, ids, planar, point_velocity, f, v, t, face_normal, w, ou
 def _p1(triangles, bary, planar, point_velocity, f, t, x0, x1, x2, face_normal, out):
     """Least-squares reconstruction (reconstruction.LeastSquaresVelocity.velocity): the P1
     (barycentric) interpolation of the vertex velocities of field f at x in t (into out, 3),
-    projected into the plane of t. ``bary`` (m, 12): ∇λ (9), centroid (3) per triangle."""
+    projected into the plane of t. ``triangles`` (m, ≥ 3) the corners first; ``bary`` (m, ≥ 12):
+    ∇λ (9), centroid (3) per triangle first (the walker's tri_int and tri_real rows)."""
     r0, r1, r2 = x0 - bary[t, 9], x1 - bary[t, 10], x2 - bary[t, 11]
     l0 = 1.0 / 3.0 + (bary[t, 0] * r0 + bary[t, 1] * r1 + bary[t, 2] * r2)
     l1 = 1.0 / 3.0 + (bary[t, 3] * r0 + bary[t, 4] * r1 + bary[t, 5] * r2)
@@ -498,6 +507,130 @@ def _backtrack_block(vertices, tri_real, tri_int, face_normal, planar, affine, b
     return steps
 
 
+@_hot
+def _p1_planar(triangles, bary, point_velocity, f, t, x0, x1, x2):
+    """:func:`_p1` on a planar mesh (no projection), as three scalars: the same arithmetic."""
+    r0, r1, r2 = x0 - bary[t, 9], x1 - bary[t, 10], x2 - bary[t, 11]
+    l0 = 1.0 / 3.0 + (bary[t, 0] * r0 + bary[t, 1] * r1 + bary[t, 2] * r2)
+    l1 = 1.0 / 3.0 + (bary[t, 3] * r0 + bary[t, 4] * r1 + bary[t, 5] * r2)
+    l2 = 1.0 / 3.0 + (bary[t, 6] * r0 + bary[t, 7] * r1 + bary[t, 8] * r2)
+    c0, c1, c2 = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+    return ((l0 * point_velocity[c0, 0, f] + l1 * point_velocity[c1, 0, f]) + l2 * point_velocity[c2, 0, f],
+            (l0 * point_velocity[c0, 1, f] + l1 * point_velocity[c1, 1, f]) + l2 * point_velocity[c2, 1, f],
+            (l0 * point_velocity[c0, 2, f] + l1 * point_velocity[c1, 2, f]) + l2 * point_velocity[c2, 2, f])
+
+
+@_hot
+def _jump_near(tri_real, tri_int, near, t, x0, x1, x2, d0, d1, d2, time):
+    """The common case of :func:`_jump`: a straight path that cannot reach the border (the same
+    bound) and ends in triangle t, its neighbours or theirs (:func:`_locate_near`): that triangle,
+    else -1 (the caller then walks the point by :func:`_walk`, which decides alike)."""
+    bound = -np.inf
+    for c in range(3):
+        g0 = tri_real[t, TRI_CORNER + 3 * c] - x0
+        g1 = tri_real[t, TRI_CORNER + 3 * c + 1] - x1
+        g2 = tri_real[t, TRI_CORNER + 3 * c + 2] - x2
+        bound = max(bound, tri_real[t, TRI_CLEARANCE + c] - np.sqrt(g0 * g0 + g1 * g1 + g2 * g2))
+    if not time * time * (d0 * d0 + d1 * d1 + d2 * d2) < bound * abs(bound):
+        return -1
+    return _locate_near(near, tri_int, t, x0 + time * d0, x1 + time * d1)
+
+
+@_kernel
+def _backtrack_block_planar_p1(vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real,
+                               border_buckets, grid, grid_shape, near, triangles, bary, point_velocity, position,
+                               triangle, wall, start_velocity, end_velocity, first, size, dt, substeps, max_cfl, cap,
+                               max_rounds, vorticity, value, first_field, first_point, last_point, rounds, unfinished):
+    """:func:`_backtrack_block` for the midpoint integrator with the least-squares (P1) velocity on
+    a planar mesh: the same arithmetic in the same order, the point's state in registers and the
+    common jump inline; a point whose path may reach the border or ends beyond the two rings
+    around its triangle walks by :func:`_walk`, as there."""
+    interpolate = value.shape[0] > 0
+    F = point_velocity.shape[2]
+    state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
+    xa, da = np.empty(3), np.empty(3)
+    steps = 1
+    for p in range(first_point, last_point):
+        t = triangle[p]
+        x0, x1, x2 = position[p, 0], position[p, 1], position[p, 2]
+        if wall[p] < 0:
+            if first:
+                b0, b1, b2 = start_velocity[p, 0], start_velocity[p, 1], start_velocity[p, 2]
+            else:
+                b0, b1, b2 = end_velocity[p, 0, 1], end_velocity[p, 1, 1], end_velocity[p, 2, 1]
+            count = substeps
+            if max_cfl > 0:  # _substep_count
+                ratio = np.ceil(np.sqrt((b0 * b0 + b1 * b1) + b2 * b2) * dt / size[t] / max_cfl)
+                if ratio > -9.2e18 and ratio < 9.2e18:
+                    count = min(max(int(ratio), substeps), cap)
+            steps = max(steps, count)
+            tau = dt / count
+            hit = -1
+            for substep in range(count):
+                if substep == 0:
+                    e0, e1, e2 = -b0, -b1, -b2
+                else:
+                    v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
+                    e0, e1, e2 = -v0, -v1, -v2
+                # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint
+                half = 0.5 * tau
+                r, left = 0, False
+                if half > 0:
+                    c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, half)
+                    if c >= 0:
+                        x0, x1, x2 = x0 + half * e0, x1 + half * e1, x2 + half * e2
+                        t = c
+                    else:
+                        xa[0], xa[1], xa[2] = x0, x1, x2
+                        da[0], da[1], da[2] = e0, e1, e2
+                        t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                                border_buckets, grid, grid_shape, near, xa, t, da, half, max_rounds,
+                                                state, lam, rate)
+                        x0, x1, x2 = xa[0], xa[1], xa[2]
+                rounds[substep, 0] = max(rounds[substep, 0], r)
+                b0, b1, b2 = e0, e1, e2
+                v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
+                if hit >= 0:
+                    e0, e1, e2 = 0.0, 0.0, 0.0
+                else:
+                    e0, e1, e2 = -v0 - 0.5 * b0, -v1 - 0.5 * b1, -v2 - 0.5 * b2
+                hit2, r, left = -1, 0, False
+                if tau > 0:
+                    c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, tau)
+                    if c >= 0:
+                        x0, x1, x2 = x0 + tau * e0, x1 + tau * e1, x2 + tau * e2
+                        t = c
+                    else:
+                        xa[0], xa[1], xa[2] = x0, x1, x2
+                        da[0], da[1], da[2] = e0, e1, e2
+                        t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                                 border_buckets, grid, grid_shape, near, xa, t, da, tau, max_rounds,
+                                                 state, lam, rate)
+                        x0, x1, x2 = xa[0], xa[1], xa[2]
+                if hit < 0:
+                    hit = hit2
+                rounds[substep, 1] = max(rounds[substep, 1], r)
+                if left:
+                    unfinished[substep] += 1
+                if hit >= 0:
+                    break
+            position[p, 0], position[p, 1], position[p, 2] = x0, x1, x2
+            triangle[p], wall[p] = t, hit
+            for f in range(0 if hit >= 0 else first_field, F):  # the end point's velocities (all at a wall)
+                v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, f, t, x0, x1, x2)
+                end_velocity[p, 0, f], end_velocity[p, 1, f], end_velocity[p, 2, f] = v0, v1, v2
+        if interpolate:
+            r0 = x0 - tri_real[t, TRI_CENTROID]
+            r1 = x1 - tri_real[t, TRI_CENTROID + 1]
+            r2 = x2 - tri_real[t, TRI_CENTROID + 2]
+            l0 = 1.0 / 3.0 + (tri_real[t, 0] * r0 + tri_real[t, 1] * r1 + tri_real[t, 2] * r2)
+            l1 = 1.0 / 3.0 + (tri_real[t, 3] * r0 + tri_real[t, 4] * r1 + tri_real[t, 5] * r2)
+            l2 = 1.0 / 3.0 + (tri_real[t, 6] * r0 + tri_real[t, 7] * r1 + tri_real[t, 8] * r2)
+            value[p] = (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
+                + l2 * vorticity[tri_int[t, TRI_TOP + 2]]
+    return steps
+
+
 @_parallel_kernel
 def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall, start_velocity, end_velocity, first,
                      size, dt, substeps, max_cfl, cap, integrator, max_rounds, vorticity, value, first_field, chunks):
@@ -535,7 +668,15 @@ def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall
     chunk_rounds = np.zeros((chunks, cap, 2), dtype=np.int64)
     chunk_unfinished = np.zeros((chunks, cap), dtype=np.int64)
     chunk_steps = np.ones(chunks, dtype=np.int64)
+    fast = planar and field_planar and scheme == 1 and integrator == 1 and affine.shape[0] > 0
     for c in prange(chunks):
+        if fast:  # the default scheme's walk on a planar mesh (midpoint, least squares): specialised
+            chunk_steps[c] = _backtrack_block_planar_p1(
+                vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real, border_buckets, grid,
+                grid_shape, near, triangles, cell_real, point_velocity, position, triangle, wall, start_velocity,
+                end_velocity, first, size, dt, substeps, max_cfl, cap, max_rounds, vorticity, value, first_field,
+                c * P // chunks, (c + 1) * P // chunks, chunk_rounds[c], chunk_unfinished[c])
+            continue
         chunk_steps[c] = _backtrack_block(vertices, tri_real, tri_int, face_normal, planar, affine, buckets,
                                           border_real, border_buckets, grid, grid_shape, near, triangles, cell_real,
                                           ids, field_planar, scheme, point_velocity, position, triangle, wall,

@@ -188,14 +188,14 @@ class LeastSquaresVelocity:
 
     def kernel_tables(self) -> tuple:
         """The tables the numba kernels (compiled.py) read for this reconstruction: triangles
-        (m, 3), per triangle ∇λ (9) and centroid (3) (m, 12), an empty corner table, planar and
-        the scheme code 1 (compiled._p1)."""
+        (m, ≥ 3: the corners first), per triangle ∇λ (9) and centroid (3) (m, ≥ 12: those first),
+        an empty corner table, planar and the scheme code 1 (compiled._p1). The first two are the
+        walker's own rows (TriangleWalker.kernel_tables: tri_int, tri_real, which begin so): the
+        walk, bound by memory more than by arithmetic, reads one row per triangle for both
+        instead of a copy beside it."""
         if getattr(self, "_kernel_tables", None) is None:
-            m = self.top.shape[0]
-            bary = np.concatenate([self.walker.gradient.reshape(m, 9), self.walker.centroid], axis=1)
-            self._kernel_tables = (np.ascontiguousarray(self.top, dtype=np.int64),
-                                   np.ascontiguousarray(bary, dtype=np.float64), np.zeros((0, 1), dtype=np.int64),
-                                   bool(self.planar), 1)
+            walk, _ = self.walker.kernel_tables()
+            self._kernel_tables = (walk[2], walk[1], np.zeros((0, 1), dtype=np.int64), bool(self.planar), 1)
         return self._kernel_tables
 
     def velocity_compiled(self, triangle: np.ndarray, x: np.ndarray, point_velocity: np.ndarray,

@@ -112,3 +112,23 @@ def test_a_single_run_ends_with_its_log_and_output_complete(tmp_path):
     assert "metrics: " in log_lines[-1] and "steps_done=2" in log_lines[-1]
     refused = decrun("app.steps=-1", cwd=tmp_path)
     assert refused.returncode == 1 and refused.stderr.startswith("error: app.steps"), refused.stderr
+
+
+def test_a_sweep_lists_a_job_whose_figures_failed(tmp_path, capsys, monkeypatch):
+    """The sweep's closing lines count a job whose figures failed after its run (its metrics
+    kept, ``figures_error`` among them) beside failed exports, and the sweep exits 1."""
+    from omegaconf import OmegaConf
+
+    from decrun.runner.cli import SweepTable
+
+    done = decrun("-m", "app.steps=2,3", "figures=false", "hydra.sweep.dir=swept", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    metrics_path = tmp_path / "swept" / "1" / "metrics.json"
+    metrics = json.loads(metrics_path.read_text())
+    metrics["figures_error"] = "figures: cannot write swept/1/smoothing.png: Is a directory; figures=false runs without them"
+    metrics_path.write_text(json.dumps(metrics))
+    monkeypatch.setattr(SweepTable, "failed", 0)  # restored after the test
+    SweepTable().on_multirun_end(OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path / "swept")}}}))
+    out, err = capsys.readouterr()
+    assert "(0 not ok, 1 figures failed)" in out and SweepTable.failed == 1
+    assert "decrun: job 1 figures failed: figures: cannot write swept/1/smoothing.png" in err

@@ -203,14 +203,16 @@ def consistent(index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
     return True
 
 
-def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
-         index_t[::1] second_slot, Py_ssize_t n_vertices):
-    """Twin of ``complex.checks._fans_kernel``: union–find over the corners ``(n+1)·t + i``; the
-    fans of a vertex are its corners' distinct roots. (n0,) int64."""
-    cdef Py_ssize_t m = top.shape[0], width = top.shape[1], n = width - 1, p, i0, i1, r, corner
-    cdef int64_t t0, t1, skip0, skip1, a, b
-    parent_array = np.arange(m * width, dtype=np.int64)
-    cdef int64_t[::1] parent = parent_array
+ctypedef fused corner_t:
+    int32_t
+    int64_t
+
+
+cdef void _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
+                      index_t[::1] second_slot, corner_t[::1] parent, int64_t[::1] result) noexcept:
+    cdef Py_ssize_t m = top.shape[0], width = top.shape[1], n = width - 1, p, i0, i1, r, t, i, corner
+    cdef int64_t t0, t1, skip0, skip1
+    cdef corner_t a, b
     for p in range(first.shape[0]):
         t0, t1 = first[p], second[p]
         skip0, skip1 = n - first_slot[p], n - second_slot[p]
@@ -221,11 +223,11 @@ def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, ind
                 i0 += 1
             if i1 == skip1:
                 i1 += 1
-            a = t0 * width + i0
+            a = <corner_t> (t0 * width + i0)
             while parent[a] != a:
                 parent[a] = parent[parent[a]]
                 a = parent[a]
-            b = t1 * width + i1
+            b = <corner_t> (t1 * width + i1)
             while parent[b] != b:
                 parent[b] = parent[parent[b]]
                 b = parent[b]
@@ -235,14 +237,26 @@ def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, ind
                 parent[a] = b
             i0 += 1
             i1 += 1
-    fans_array = np.zeros(n_vertices, np.int64)
-    cdef int64_t[::1] result = fans_array
-    cdef Py_ssize_t t, i
     for t in range(m):
         for i in range(width):
             corner = t * width + i
             if parent[corner] == corner:
                 result[top[t, i]] += 1
+
+
+def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
+         index_t[::1] second_slot, Py_ssize_t n_vertices):
+    """Twin of ``complex.checks._fans_kernel``: union–find over the corners ``(n+1)·t + i``; the
+    fans of a vertex are its corners' distinct roots. (n0,) int64. The corners' parents are
+    int32 where they fit (half the memory a fresh process must fault in)."""
+    cdef Py_ssize_t corners = top.shape[0] * top.shape[1]
+    fans_array = np.zeros(n_vertices, np.int64)
+    if corners < 2**31 - 1:
+        _unite_fans[index_t, int32_t](top, first, second, first_slot, second_slot,
+                                      np.arange(corners, dtype=np.int32), fans_array)
+    else:
+        _unite_fans[index_t, int64_t](top, first, second, first_slot, second_slot,
+                                      np.arange(corners, dtype=np.int64), fans_array)
     return fans_array
 
 

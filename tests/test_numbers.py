@@ -74,6 +74,17 @@ def test_drift_names_what_moved_and_accepts_what_did_not():
     assert doc_numbers.render({**entry, "value": 0.0130, "format": ".2f", "scale": 100.0}) == "1.30"
 
 
+def test_a_source_entry_names_its_function_and_is_checked_like_a_run():
+    source = doc_numbers.Source("scripts/fluid_numbers.py:wake", {"asym": doc_numbers.N("asymmetry_1400", rtol=0.1)})
+    entry = doc_numbers.entries("s", source, {"asymmetry_1400": 0.005})["s.asym"]
+    assert entry["source"] == "scripts/fluid_numbers.py:wake" and "overrides" not in entry
+    assert doc_numbers.made_by(source) == {"source": "scripts/fluid_numbers.py:wake"}
+    assert doc_numbers.drift(entry, 0.0054) is None and "0.006 instead of 0.005" in doc_numbers.drift(entry, 0.006)
+    with pytest.raises(KeyError, match="scripts/fluid_numbers.py:wake has no metric 'asymmetry_1400'"):
+        doc_numbers.entries("s", source, {})
+    assert doc_numbers.source_function("scripts/fluid_numbers.py:wake").__name__ == "wake"
+
+
 #: run → the runs whose numbers its metrics also give (itself and its aliases)
 GROUPS: dict[str, list[str]] = {}
 for _name in RUNS:

@@ -79,6 +79,7 @@ class Source:
 
     @property
     def made_by(self) -> dict:
+        """What the entries of its numbers record instead of a run's overrides."""
         return {"source": self.function}
 
 

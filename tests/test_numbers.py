@@ -6,8 +6,8 @@ it must equal the committed one within the tolerance the file states; a failure 
 number, the page placeholder and the run. Every run — smoothing, parametrization, vector fields,
 Hodge, the fluid channels of Figs. 7.15–7.17 up to 12059 faces, the gallery's — and the light
 sources (the fluid's drift table, channel meshes, vortex pair, wake, energy checks) are in the
-default suite; what the script marks ``slow`` (Fig. 7.17's inviscid run at 12059 faces, the
-fluid's 200-step inviscid channels and 1000-step unforced runs) runs with ``-m slow``, which .ci/run runs after the default suite, so
+default suite; the sources the script marks ``slow`` (the fluid's 200-step inviscid channels and
+1000-step unforced runs) run with ``-m slow``, which .ci/run runs after the default suite, so
 CI checks every number. Also: the file holds exactly the numbers the script
 declares, every placeholder of a page is in it, and every command the gallery shows is one of
 the runs checked here.

@@ -13,6 +13,11 @@ booleans, integers and strings exactly). ``tests/test_numbers.py`` reruns every 
 naming the number, when a value moved beyond its tolerance; regenerate on purpose with this
 script and commit the file with the change that moved it.
 
+A number that is no run's metric — a benchmark's measurement, a mesh statistic — comes from a
+``Source``: a function ``"<file>:<name>"`` returning a dict of numbers (the fluid page's are in
+``scripts/fluid_numbers.py``); its entry records ``source`` instead of ``overrides`` and is checked
+the same way.
+
 The gallery's runs (``scripts/gallery.py``: ``GALLERY``, the thesis figures, and ``MODELS``, the
 shipped models) are runs here too, named ``gallery_<section>__<n>``, so the numbers under its
 figures are checked the same way — a model entry's numbers derived from its fields (Klausmeier's
@@ -51,8 +56,9 @@ class Number:
 @dataclass(frozen=True)
 class Run:
     """A single run ``decrun <overrides>`` and the numbers taken from its metrics. ``slow``: the
-    check runs with ``pytest -m slow`` only (for a run too heavy for the default suite; every run
-    of the table is light enough today: the fluid channels take 5–15 s of CPU each)."""
+    check runs with ``pytest -m slow`` only (for a run too heavy for the default suite; .ci/run runs
+    those of tests/test_numbers.py too). Every run of the table is light enough for the default
+    suite: the fluid channels take 5–50 s each (12059 faces the most)."""
 
     overrides: tuple[str, ...]
     numbers: dict[str, Number] = field(default_factory=dict)
@@ -75,22 +81,34 @@ class Run:
 @dataclass(frozen=True)
 class Source:
     """Numbers that come from a computation which is not a decrun run (an eigenvalue error of an
-    operator variant, a mesh statistic): ``function() -> dict`` of named values, from which the
-    ``numbers`` are taken by name (``Number.metric``) and checked like a run's metrics. ``slow`` as
-    for :class:`Run`."""
+    operator variant, a benchmark's measurement, a mesh statistic): ``function`` is a function
+    of this script, or ``"<path from the repository root>:<name>"`` of a function in another
+    file, taking no arguments and returning a flat dict of named values, from which the
+    ``numbers`` are taken by name (``Number.metric``) and checked like a run's metrics. ``slow``
+    as for :class:`Run`."""
 
-    function: Callable[[], dict]
+    function: Callable[[], dict] | str
     numbers: dict[str, Number] = field(default_factory=dict)
     slow: bool = False
 
     @property
     def provenance(self) -> dict:
         """What made the numbers, as numbers.json records it: the function's name."""
+        if isinstance(self.function, str):
+            return {"source": self.function}
         return {"source": f"scripts/doc_numbers.py:{self.function.__name__}"}
 
     def describe(self) -> str:
         """The source as a failure message names it."""
+        if isinstance(self.function, str):
+            return self.function
         return f"`{self.function.__name__}()` of scripts/doc_numbers.py"
+
+
+def made_by(run: Run | Source) -> dict:
+    """How a number's entry in ``docs/numbers.json`` says where it came from: the run's overrides
+    or the source function."""
+    return run.provenance
 
 
 def N(metric: str, fmt: str = ".3g", **kw) -> Number:
@@ -472,11 +490,22 @@ RUNS["operator_default_agreement"] = Source(default_star_agreement, {
 _FLUID = {"enstrophy": N("enstrophy_final", ".0f"), "energy_ratio": N("energy_ratio", ".3f"),
           "stable": N("stable"), "faces": N("n_faces"), "steps": N("steps_done")}
 _SHADOW = {"growth": N("perturbation_growth_per_s", **GROWTH),
-           "growth_step": N("perturbation_growth_per_step", **GROWTH_STEP)}
-for _faces, _dt in (("1400", "0.0025"), ("1400", "0.005"), ("1400", "0.0075"), ("2800", "0.005")):
+           "growth_step": N("perturbation_growth_per_step", **GROWTH_STEP),
+           "window": N("perturbation_window_steps")}
+#: where a channel's enstrophy is at the end (scripts/fluid_numbers.py: enstrophy_regions), as a
+#: percentage to 0.1 percentage points
+_REGIONS = {k: N(f"enstrophy_{k}", ".1f", scale=100.0, rtol=0.0, atol=0.001) for k in ("inflow", "walls", "outflow")}
+
+
+def _enstrophy_regions(done) -> dict:
+    return source_function("scripts/fluid_numbers.py:enstrophy_regions")(done)
+
+
+for _faces, _dt in (("1400", "0.0025"), ("1400", "0.005"), ("1400", "0.0075"), ("2800", "0.005"),
+                    ("5300", "0.005"), ("12000", "0.005")):
     RUNS[f"fig7_15_{_faces}_{_dt.replace('.', '_')}"] = Run(
         ("+experiment=fig7_15_density_and_time_step", f"mesh.target_faces={_faces}", f"app.dt={_dt}"),
-        {**_FLUID, **_SHADOW})
+        {**_FLUID, **_SHADOW, **_REGIONS}, derived=_enstrophy_regions)
 #: the channel of decrun's first scheme where it is chaotic (flagged) or borderline: what a chaotic
 #: run ends with is round-off amplified (the 2790-face run at dt = 0.0075 ended between 1251 and
 #: 1427 in four runs), so its numbers are held to 25 % (the energy to 10 %, the growth to 30 %)
@@ -488,13 +517,83 @@ for _faces, _dt in (("1400", "0.0075"), ("2800", "0.005"), ("2800", "0.0075")):
     RUNS[f"fig7_15_former_{_faces}_{_dt.replace('.', '_')}"] = Run(
         ("+experiment=fig7_15_density_and_time_step", f"mesh.target_faces={_faces}", f"app.dt={_dt}",
          "app.velocity=wshd07", "app.circulation=corrected_trapezoid"), dict(_CHAOTIC))
+#: Fig. 7.17 on the thesis' mesh (12059 faces): 20–50 s a run (the numbers test on the shared 2-core
+#: machine at load ≈ 5; with Fig. 7.15's 5399- and 12059-face rows about 3.4 minutes in all)
 for _nu in ("0.0", "0.005", "0.02", "0.08"):
     RUNS[f"fig7_17_{_nu.replace('.', '_')}"] = Run(
-        ("+experiment=fig7_17_viscosity", f"app.viscosity={_nu}", "app.shadow=true"),
+        ("+experiment=fig7_17_viscosity", "mesh.target_faces=12000", f"app.viscosity={_nu}", "app.shadow=true"),
         {**_FLUID, **_SHADOW, "walls": N("walls")})
 RUNS["fluid_noslip_inviscid_1400"] = Run(
     ("+experiment=fig7_15_density_and_time_step", "app.viscosity=0", "app.walls=no_slip"),
-    {**_FLUID, **_SHADOW})
+    {**_FLUID, **_SHADOW, **_REGIONS}, derived=_enstrophy_regions)
+
+# ---------------------------------------------------------------------- fluid sources
+# the fluid page's numbers that are no run's metrics (scripts/fluid_numbers.py: the benchmarks'
+# functions with the page's parameters). Tolerances: one step from a steady state is round-off
+# only (0.1 %); a count of steps whose rise passed 1e-12 may flip a step or two near that
+# threshold over 1000 steps; a rise below 1e-12 is round-off, held to being that small; a ratio
+# after 1000 unforced steps (an ν = 0 flow, round-off amplified) to 2 %, 5 % with no-slip walls.
+# Slow (about a minute each on a quiet machine, several on a loaded one: the 200-step inviscid
+# channels and the 1000-step unforced runs): checked
+# by ``pytest -m slow tests/test_numbers.py``, which .ci/run runs after the default suite.
+_FN = "scripts/fluid_numbers.py:"
+_ORDER = dict(fmt="+.2f", rtol=0.0, atol=0.01)
+_drift = {}
+for _case, _levels in (("rigid_rotation", (2, 3, 4, 5, 6)), ("degree_2", (2, 3, 4, 5, 6)),
+                       ("cellular_regular", (8, 16, 32, 64)), ("cellular_jittered", (8, 16, 32, 64))):
+    for _i, _level in enumerate(_levels):
+        _drift[f"{_case}_{_level}_faces"] = N(f"{_case}_{_level}_faces")
+        for _scheme in ("thesis", "corrected", "wshd07_swept", "default"):
+            _drift[f"{_case}_{_level}_{_scheme}"] = N(f"{_case}_{_level}_{_scheme}")
+            if _i:
+                _drift[f"{_case}_{_level}_{_scheme}_order"] = N(f"{_case}_{_level}_{_scheme}_order", **_ORDER)
+_drift["cellular_regular_64_floor"] = N("cellular_regular_64_floor", ".2g")
+_drift["jittered_obtuse_min"] = N("cellular_jittered_obtuse_min")
+_drift["jittered_obtuse_max"] = N("cellular_jittered_obtuse_max")
+RUNS["fluid_drift"] = Source(_FN + "drift", _drift)
+RUNS["fluid_channel_meshes"] = Source(_FN + "channel_meshes", {
+    **{f"raw_{t}_{k}": N(f"raw_{t}_{k}") for t in (1400, 2800, 5300, 12000) for k in ("obtuse", "faces")},
+    "smoothed_obtuse": N("smoothed_obtuse"), "max_angle": N("smoothed_max_angle_deg", ".1f", rtol=0.0, atol=0.05)})
+RUNS["fluid_cellular_walls"] = Source(_FN + "cellular_walls", {
+    **{f"{w}_{c}": N(f"{w}_{c}", ".3g" if w == "slip" else ".0f") for w in ("slip", "no_slip") for c in (8, 16, 32)},
+    **{f"faces_{c}": N(f"faces_{c}") for c in (8, 16, 32)}})
+RUNS["fluid_vortex_pair"] = Source(_FN + "vortex_pair", {
+    k: N(k, ".3f") for k in ("centroid_60", "centroid_90", "core_60", "core_90")}
+    | {"lowest": N("lowest", ".2f"), "highest": N("highest", ".2f")})
+_ASYMMETRY = dict(fmt=".1f", scale=100.0, rtol=0.0, atol=0.001)
+RUNS["fluid_wake"] = Source(_FN + "wake", {
+    **{f"asymmetry_{t}": N(f"asymmetry_{t}", **_ASYMMETRY) for t in (1400, 2800, 5300)},
+    **{f"faces_{t}": N(f"faces_{t}") for t in (1400, 2800, 5300)}})
+RUNS["fluid_inviscid_channel"] = Source(_FN + "inviscid_channel", {
+    **{f"slip_{t}_{k}": N(f"slip_{t}_{k}", ".2g", rtol=0.01) for t in (1400, 5300) for k in ("enstrophy", "max_w")},
+    **{f"slip_{t}_{k}": N(f"slip_{t}_{k}") for t in (1400, 5300) for k in ("faces", "stable")},
+    **{f"no_slip_{t}_{k}": N(f"no_slip_{t}_{k}") for t in (5300, 12000) for k in ("faces", "diverged")},
+    "potential_energy": N("potential_energy", ".4g", rtol=1e-4)}, slow=True)
+_ROUND_OFF_RISE = dict(fmt=".1e", rtol=0.0, atol=1e-12)
+_unforced = {}
+for _mesh, _schemes in (("sphere_3", ("default", "swept")), ("sphere_4", ("default", "swept")),
+                        ("square_32", ("default", "no_slip", "swept_no_slip")), ("square_64", ("default", "no_slip"))):
+    _unforced[f"{_mesh}_faces"] = N(f"{_mesh}_faces")
+    for _scheme in _schemes:
+        _k, _bounded = f"{_mesh}_{_scheme}", _scheme == "default"
+        _unforced[f"{_k}_steps"] = N(f"{_k}_steps")
+        for _what in ("energy", "enstrophy"):
+            # the bound's zero rises are exact; the other counts may move a step or two
+            _unforced[f"{_k}_{_what}_up"] = N(f"{_k}_{_what}_up", ".0f", rtol=0.0, atol=0.0 if _bounded else 3.0)
+            # the largest rise of a quantity that never rises is round-off (the bounded energy; the
+            # enstrophy between walls at rest with slip walls, the energy with no-slip ones) or a fall
+            _round_off = _what == "energy" and _scheme != "swept" and _scheme != "swept_no_slip" or (
+                _bounded and _mesh.startswith("square"))
+            _unforced[f"{_k}_{_what}_rise"] = (N(f"{_k}_{_what}_rise", **_ROUND_OFF_RISE) if _round_off
+                                               else N(f"{_k}_{_what}_rise", ".2g", rtol=0.05))
+            _unforced[f"{_k}_{_what}_ratio"] = N(f"{_k}_{_what}_ratio", ".3g" if _bounded else ".2g",
+                                                 rtol=0.02 if _scheme in ("default", "swept") else 0.05)
+RUNS["fluid_unforced"] = Source(_FN + "unforced", _unforced, slow=True)
+RUNS["fluid_energy_checks"] = Source(_FN + "energy_checks", {
+    "inflow_steps": N("inflow_steps"), "inflow_up": N("inflow_up", ".0f", rtol=0.0, atol=2.0),
+    "inflow_ratio": N("inflow_ratio", ".3g"), "corrected_up": N("corrected_up", ".0f", rtol=0.0, atol=2.0),
+    "corrected_rise": N("corrected_rise", ".2g", rtol=0.02),
+    "trapezoid_energy_ratio": N("trapezoid_energy_ratio", ".3g")})
 
 
 def _gallery():
@@ -534,11 +633,22 @@ def all_runs() -> dict[str, Run | Source]:
     return {**RUNS, **gallery_runs()}
 
 
+def source_function(function: str) -> Callable[[], dict]:
+    """The function ``"<path>:<name>"`` of a ``Source`` (the file loaded as a module)."""
+    path, name = function.split(":")
+    spec = importlib.util.spec_from_file_location(f"decrun_source_{Path(path).stem}", ROOT / path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while the class is made
+    spec.loader.exec_module(module)
+    return getattr(module, name)
+
+
 def run_metrics(run: Run | Source) -> dict:
     """The metrics of ``decrun <overrides> figures=false`` (the same composition and run as the
-    command), and the run's derived numbers; a :class:`Source`'s function's dict."""
+    command), and the run's derived numbers; for a ``Source``, what its function returns."""
     if isinstance(run, Source):
-        return run.function()
+        function = source_function(run.function) if isinstance(run.function, str) else run.function
+        return function()
     from decrun.runner.config import compose_config
     from decrun.runner.run import run_experiment
 
@@ -553,7 +663,7 @@ def _plain(value):
 
 
 def entries(name: str, run: Run | Source, metrics: dict) -> dict[str, dict]:
-    """The numbers.json entries of one run from its metrics."""
+    """The numbers.json entries of one run (or source) from its metrics."""
     out = {}
     for key, number in run.numbers.items():
         if number.metric not in metrics:

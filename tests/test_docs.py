@@ -287,6 +287,9 @@ NOT_RUN = {
     # benchmarks: minutes on a quiet machine; the pages state each number's command, commit and machine
     ("docs/performance.md", "python benchmarks/bench_operators.py --repeat 5   # 82k, 328k, 1.31M triangles"):
         "not run: a benchmark (minutes of a quiet machine); the page states its numbers' command, commit and machine",
+    ("docs/performance.md",
+     "python benchmarks/bench_small_run.py --repeat 5 --reference /path/to/a/checkout/of/the/commit/before"):
+        "not run: a benchmark (fresh processes of two checkouts, best of 5); the page states its numbers' commit and machine",
     ("docs/robustness.md", ".venv/bin/python benchmarks/mutation_check.py            # all (~20 min on 2 busy cores)"):
         "not run: ~20 min; tests/test_mutation_check.py checks every planted bug still matches the code",
     ("docs/robustness.md", '.venv/bin/python benchmarks/mutation_check.py -k flux    # those whose name contains "flux"'):

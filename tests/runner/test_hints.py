@@ -210,6 +210,8 @@ UNREACHABLE = {
                             "tests/runner/mesh/test_mesh_cut.py runs it and counts the pieces kept",
     "mesh.clean=false": "a log line's hint (mesh.clean dropped pieces): tests/runner/mesh/test_mesh_cut.py runs it",
     "mesh.largest_component=false": "a log line's hint of the step the user asked for; it is the default",
+    "app.record_vertices=true": "a log line's hint (export=xdmf wrote one step of a smoothing run): "
+                                "tests/runner/results/test_export_and_chaining.py runs it and reads every step back",
     "mesh.field=''": "a chained field with NaN: tests/runner/results/test_export_and_chaining.py runs this fix",
     "app.initial=random": "see mesh.field=''",
 }

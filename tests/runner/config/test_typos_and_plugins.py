@@ -15,8 +15,8 @@ SMALL = ["app.steps=1", "figures=false", "hydra.run.dir=run"]
 
 
 @pytest.mark.parametrize("typo, fix, options", [
-    (["app.stpes=3"], "app.steps", "'dt', 'dt_factor', 'dt_unit', 'rescale', 'scheme', 'steps'"),
-    (["+app.stpes=3"], "app.steps", "'dt', 'dt_factor', 'dt_unit', 'rescale', 'scheme', 'steps'"),
+    (["app.stpes=3"], "app.steps", "'dt', 'dt_factor', 'dt_unit', 'record_vertices', 'rescale', 'scheme', 'steps'"),
+    (["+app.stpes=3"], "app.steps", "'dt', 'dt_factor', 'dt_unit', 'record_vertices', 'rescale', 'scheme', 'steps'"),
     (["mesh=torus", "mesh.major_radus=2"], "mesh.major_radius", "'major_radius', 'major_segments'"),
     (["solver=cg", "solver.tool=1e-8"], "solver.tol", "'tol'"),
     (["-m", "app.stpes=3,4"], "app.steps", "'steps'"),

@@ -486,6 +486,88 @@ RUNS["operator_default_agreement"] = Source(default_star_agreement, {
     "relative_difference": N("relative_difference", ".0e", rtol=0.2)})
 
 
+
+# ---------------------------------------------------------------------- models page: Darcy, Halfar, walk-through
+#: the Darcy convergence sweep's meshes (``+experiment=darcy_convergence``), as the models page's rows
+DARCY_MESHES = ("square_1", "square_2", "square_3", "box_1", "box_2", "box_3")
+
+
+def darcy_convergence() -> dict:
+    """The Darcy table of the models page: each mesh of ``decrun -m +experiment=darcy_convergence``
+    (``darcy/<mesh>``) run alone, ``<mesh>_<column>``: ``simplices`` (top simplices), ``unknowns``
+    (fluxes + pressures), ``h`` (mean edge length), the errors ``pressure``, ``pressure_rel``,
+    ``flux``, ``flux_rel`` (⋆_n and Whitney ⋆_{n−1} norms), ``residual`` = max |d u − f|, and for
+    the refinements ``pressure_order``, ``flux_order`` = log(e_i/e_{i+1}) / log(h_i/h_{i+1}) of the
+    relative errors. ``planar_<star>_<pressure|flux>``: the relative errors on the unit square meshed
+    by ``triangle`` (``planar_faces`` triangles) with Whitney's and the circumcentric ⋆;
+    ``grid_circumcentric_<…>`` the same on ``darcy/square_2``, where the circumcentric ⋆1 vanishes
+    on the diagonal edges (the flux norm only a seminorm)."""
+    import numpy as np
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    def run(*overrides):
+        return run_experiment(compose_config(["+experiment=darcy_convergence", *overrides, "figures=false"]))
+
+    out = {}
+    for mesh in DARCY_MESHES:
+        done = run(f"mesh=darcy/{mesh}")
+        metrics = done.result.metrics
+        out.update({f"{mesh}_simplices": len(done.result.fields["p"]),
+                    f"{mesh}_unknowns": done.dec.K.num_simplices(done.dec.K.dim - 1) + len(done.result.fields["p"]),
+                    f"{mesh}_h": float(done.dec.K.mean_edge_length),
+                    f"{mesh}_pressure": metrics["pressure_l2_error"],
+                    f"{mesh}_pressure_rel": metrics["pressure_l2_error_rel"],
+                    f"{mesh}_flux": metrics["flux_l2_error"], f"{mesh}_flux_rel": metrics["flux_l2_error_rel"],
+                    f"{mesh}_residual": metrics["divergence_residual"]})
+    for domain in ("square", "box"):
+        for level in (2, 3):
+            a, b = f"{domain}_{level - 1}", f"{domain}_{level}"
+            for what in ("pressure", "flux"):
+                out[f"{b}_{what}_order"] = float(np.log(out[f"{a}_{what}_rel"] / out[f"{b}_{what}_rel"])
+                                                 / np.log(out[f"{a}_h"] / out[f"{b}_h"]))
+    planar = ("mesh=planar", "mesh.holes=[]", "mesh.max_area=0.002")
+    for star in ("whitney", "circumcentric"):
+        metrics = (done := run(*planar, f"operator={star}")).result.metrics
+        out[f"planar_{star}_pressure"] = metrics["pressure_l2_error_rel"]
+        out[f"planar_{star}_flux"] = metrics["flux_l2_error_rel"]
+    out["planar_faces"] = len(done.result.fields["p"])
+    metrics = run("mesh=darcy/square_2", "operator=circumcentric").result.metrics
+    out["grid_circumcentric_pressure"] = metrics["pressure_l2_error_rel"]
+    out["grid_circumcentric_flux"] = metrics["flux_l2_error"]
+    return out
+
+
+def _darcy_numbers() -> dict[str, Number]:
+    numbers = {}
+    for mesh in DARCY_MESHES:
+        numbers.update({f"{mesh}_simplices": N(f"{mesh}_simplices"), f"{mesh}_unknowns": N(f"{mesh}_unknowns"),
+                        f"{mesh}_h": N(f"{mesh}_h", ".4f"),
+                        f"{mesh}_residual": N(f"{mesh}_residual", ".1e", rtol=0.0, atol=1e-13)})
+        for what in ("pressure", "pressure_rel", "flux", "flux_rel"):
+            numbers[f"{mesh}_{what}"] = N(f"{mesh}_{what}", ".3e")
+        if not mesh.endswith("_1"):
+            for what in ("pressure", "flux"):
+                numbers[f"{mesh}_{what}_order"] = N(f"{mesh}_{what}_order", ".2f")
+    for key in ("square_3_pressure_rel", "square_3_flux_rel", "box_3_pressure_rel", "box_3_flux_rel"):
+        numbers[f"{key}_short"] = N(key, ".1e")
+    for key in ("square_3_pressure_order", "box_3_pressure_order", "box_3_flux_order"):
+        numbers[f"{key}_short"] = N(key, ".2f" if key.startswith("box") else ".1f")
+    for key in ("box_2_pressure_order", "box_2_flux_order", "square_3_flux_order"):
+        numbers[f"{key}_short"] = N(key, ".2g")
+    numbers["box_3_residual_short"] = N("box_3_residual", ".0e", rtol=0.0, atol=1e-13)
+    numbers["planar_faces"] = N("planar_faces")
+    for star in ("whitney", "circumcentric"):
+        numbers[f"planar_{star}_pressure"] = N(f"planar_{star}_pressure", ".2g")
+        numbers[f"planar_{star}_flux"] = N(f"planar_{star}_flux", ".3g")
+    numbers["grid_circumcentric_pressure"] = N("grid_circumcentric_pressure", scale=100.0, fmt=".0f")
+    numbers["grid_circumcentric_flux"] = N("grid_circumcentric_flux", ".0e", rtol=0.5)
+    return numbers
+
+
+RUNS["model_darcy"] = Source(darcy_convergence, _darcy_numbers())
+
 # ---------------------------------------------------------------------- fluids
 _FLUID = {"enstrophy": N("enstrophy_final", ".0f"), "energy_ratio": N("energy_ratio", ".3f"),
           "stable": N("stable"), "faces": N("n_faces"), "steps": N("steps_done")}

@@ -486,7 +486,8 @@ def halfar_front(done) -> dict:
     R0⁴ / (Γ H0⁷), Γ = 2A(ρg)ⁿ/(n+2); with Δx the grid spacing, ``front_share`` is the share of
     Σ (H − H_exact)² over the ice (H_exact > 0) on vertices within 2Δx of that front,
     ``interior_rms_m`` the RMS error (m) over the other ice vertices, and ``volume_drift_rel``
-    max_t |V(t) − V(0)| / V(0) of the volume V = Σ ⋆0 H (m³)."""
+    max_t |V(t) − V(0)| / V(0) of the volume V = Σ ⋆0 H (m³), ``error_ice_min_m`` and
+    ``error_ice_max_m`` the extremes of H − H_exact (m) over the ice."""
     import numpy as np
 
     c = done.cfg.app.constants
@@ -500,7 +501,9 @@ def halfar_front(done) -> dict:
     ice = np.asarray(fields["H_exact"]) > 0
     near = np.abs(r - front) <= 2 * metrics["grid_spacing_m"]
     volume = np.asarray(done.result.series["volume_m3"], dtype=float)
+    on_ice = np.asarray(fields["H_error"])[ice]
     return {"front_share": float(error2[ice & near].sum() / error2[ice].sum()),
+            "error_ice_min_m": float(on_ice.min()), "error_ice_max_m": float(on_ice.max()),
             "interior_rms_m": float(np.sqrt(error2[ice & ~near].mean())),
             "volume_drift_rel": float(np.max(np.abs(volume - volume[0])) / volume[0])}
 
@@ -511,6 +514,81 @@ for _spacing in ("4km", "2km", "1km"):  # the CISM v2.1 Halfar dome on the model
         "vertices": N("n_vertices"), "front_share": N("front_share", scale=100.0, fmt=".1f"),
         "interior_rms": N("interior_rms_m", ".2f"), "volume_drift": N("volume_drift_rel", ".1e", rtol=0.0, atol=1e-14)},
         derived=halfar_front)
+RUNS["halfar_2km"].numbers.update(error_ice_min=N("error_ice_min_m", ".0f"), error_ice_max=N("error_ice_max_m", ".0f"))
+#: the 2 km dome where mesh=grid had put it before it was centred: pymeshlab's create_grid(center=True)
+#: shifted the grid by (−width/(2 nx), height/(2 ny)), nx × ny = 31 × 51 vertices of 60 km × 100 km
+RUNS["halfar_2km_uncentred"] = Run(("+experiment=cism_halfar", "mesh=cism_halfar/2km",
+                                    "app.constants.xc=967.741935483871", "app.constants.yc=-980.392156862745"),
+                                   {"rms": N("rms_error_m", ".2f")})
+
+
+def cahn_hilliard_numbers() -> dict:
+    """The Cahn–Hilliard row of the models page. ``mass_drift``: max_t |m(t) − m(0)| / |m(0)| of
+    the mass m = Σ ⋆0 c over the default run (``decrun app=cahn_hilliard``: 1000 stabilized imex
+    steps); ``domains_<t>``: the number of domains of ``+experiment=cahn_hilliard_coarsening`` at
+    t = 0.1 and 0.5 — connected regions (through the mesh's edges) of the vertices where c > 0, plus
+    those where c < 0."""
+    import numpy as np
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    default = run_experiment(compose_config(["app=cahn_hilliard", "figures=false"]))
+    mass = np.asarray(default.result.series["mass"], dtype=float)
+    out = {"mass_drift": float(np.max(np.abs(mass - mass[0])) / abs(mass[0]))}
+    done = run_experiment(compose_config(["+experiment=cahn_hilliard_coarsening", "figures=false"]))
+    edges = np.asarray(done.dec.K.simplices(1))
+    n = len(done.dec.K.vertices)
+    times, states = np.asarray(done.result.series["time"]), np.asarray(done.result.series["c"])
+    for name, time in (("0_1", 0.1), ("0_5", 0.5)):
+        (index,) = np.flatnonzero(np.isclose(times, time))
+        count = 0
+        for phase in (states[index] > 0, states[index] < 0):
+            keep = phase[edges[:, 0]] & phase[edges[:, 1]]
+            graph = sp.coo_matrix((np.ones(keep.sum()), (edges[keep, 0], edges[keep, 1])), shape=(n, n))
+            labels = connected_components(graph, directed=False)[1]
+            count += len(np.unique(labels[phase]))
+        out[f"domains_{name}"] = count
+    return out
+
+
+RUNS["model_cahn_hilliard"] = Source(cahn_hilliard_numbers, {
+    "mass_drift": N("mass_drift", ".1e", rtol=0.0, atol=1e-12), "domains_0_1": N("domains_0_1"),
+    "domains_0_5": N("domains_0_5")})
+
+
+def model_walkthrough() -> dict:
+    """The models page's first model (its YAML block, ``my_conf/app/mymodel.yaml``) run as the page
+    runs it, and on ``mesh.subdiv=5``: ``amplitude_error_<subdiv>`` = |amplitude − exact| / exact
+    at t_end (the part of u along x y against e^{−(6k + a)t}), and the default mesh's ``vertices``."""
+    import re
+    import tempfile
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    page = (ROOT / "docs" / "models.md").read_text(encoding="utf-8")
+    (model,) = re.findall(r"```yaml\n(# my_conf/app/mymodel\.yaml\n.*?)```", page, flags=re.S)
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "app").mkdir()
+        (Path(tmp) / "app" / "mymodel.yaml").write_text(model, encoding="utf-8")
+        for subdiv in (None, 5):
+            overrides = ["app=mymodel", f"hydra.searchpath=[file://{tmp}]", "figures=false"]
+            done = run_experiment(compose_config(overrides + ([f"mesh.subdiv={subdiv}"] if subdiv else [])))
+            metrics = done.result.metrics
+            out[f"amplitude_error_{subdiv or 'default'}"] = abs(metrics["amplitude"] - metrics["exact"]) / metrics["exact"]
+            if subdiv is None:
+                out["vertices"] = metrics["n_vertices"]
+    return out
+
+
+RUNS["model_walkthrough"] = Source(model_walkthrough, {
+    "amplitude_error": N("amplitude_error_default", scale=100.0, fmt=".1f"),
+    "amplitude_error_subdiv5": N("amplitude_error_5", scale=100.0, fmt=".2f", rtol=0.01),
+    "vertices": N("vertices")})
 RUNS["operator_default_agreement"] = Source(default_star_agreement, {
     "relative_difference": N("relative_difference", ".0e", rtol=0.2)})
 

@@ -542,8 +542,8 @@ def cahn_hilliard_numbers() -> dict:
     edges = np.asarray(done.dec.K.simplices(1))
     n = len(done.dec.K.vertices)
     times, states = np.asarray(done.result.series["time"]), np.asarray(done.result.series["c"])
-    for name, time in (("0_1", 0.1), ("0_5", 0.5)):
-        (index,) = np.flatnonzero(np.isclose(times, time))
+    for name, when in (("0_1", 0.1), ("0_5", 0.5)):
+        (index,) = np.flatnonzero(np.isclose(times, when))
         count = 0
         for phase in (states[index] > 0, states[index] < 0):
             keep = phase[edges[:, 0]] & phase[edges[:, 1]]

@@ -478,13 +478,202 @@ RUNS["model_poisson_sphere"] = Run(("+experiment=poisson_sphere",), {
 for _b in ("1.8", "2.2"):  # the Brusselator's growth rate on either side of the Hopf point B = 2
     RUNS[f"model_brusselator_{_b.replace('.', '_')}"] = Run(("+experiment=brusselator_hopf", f"app.constants.B={_b}"), {
         "growth": N("growth_rate_measured", ".10f", rtol=1e-8)})
+
+
+def halfar_front(done) -> dict:
+    """Where the Halfar dome's error is (a run of ``+experiment=cism_halfar``, the dome at ``xc, yc``):
+    the exact front at the final time is r = R0 s^{−1/18}, s = t0/(t + t0), t0 = (1/18) (7/4)³
+    R0⁴ / (Γ H0⁷), Γ = 2A(ρg)ⁿ/(n+2); with Δx the grid spacing, ``front_share`` is the share of
+    Σ (H − H_exact)² over the ice (H_exact > 0) on vertices within 2Δx of that front,
+    ``interior_rms_m`` the RMS error (m) over the other ice vertices, and ``volume_drift_rel``
+    max_t |V(t) − V(0)| / V(0) of the volume V = Σ ⋆0 H (m³), ``error_ice_min_m`` and
+    ``error_ice_max_m`` the extremes of H − H_exact (m) over the ice."""
+    import numpy as np
+
+    c = done.cfg.app.constants
+    gamma = 2 * c.A * (c.rho * c.g) ** c.n / (c.n + 2)
+    t0 = (1 / 18) / gamma * (7 / 4) ** 3 * c.R0 ** 4 / c.H0 ** 7
+    metrics, fields = done.result.metrics, done.result.fields
+    front = c.R0 * (t0 / (metrics["t_final"] + t0)) ** (-1 / 18)
+    x = np.asarray(done.dec.K.vertices)
+    r = np.hypot(x[:, 0] - c.xc, x[:, 1] - c.yc)
+    error2 = (np.asarray(fields["H"]) - np.asarray(fields["H_exact"])) ** 2
+    ice = np.asarray(fields["H_exact"]) > 0
+    near = np.abs(r - front) <= 2 * metrics["grid_spacing_m"]
+    volume = np.asarray(done.result.series["volume_m3"], dtype=float)
+    on_ice = np.asarray(fields["H_error"])[ice]
+    return {"front_share": float(error2[ice & near].sum() / error2[ice].sum()),
+            "error_ice_min_m": float(on_ice.min()), "error_ice_max_m": float(on_ice.max()),
+            "interior_rms_m": float(np.sqrt(error2[ice & ~near].mean())),
+            "volume_drift_rel": float(np.max(np.abs(volume - volume[0])) / volume[0])}
+
+
 for _spacing in ("4km", "2km", "1km"):  # the CISM v2.1 Halfar dome on the models page
     RUNS[f"halfar_{_spacing}"] = Run(("+experiment=cism_halfar", f"mesh=cism_halfar/{_spacing}"), {
         "rms": N("rms_error_m", ".2f"), "max": N("max_error_m", ".1f"), "min_thickness": N("min_thickness_m", ".1e"),
-        "vertices": N("n_vertices")})
+        "vertices": N("n_vertices"), "front_share": N("front_share", scale=100.0, fmt=".1f"),
+        "interior_rms": N("interior_rms_m", ".2f"), "volume_drift": N("volume_drift_rel", ".1e", rtol=0.0, atol=1e-14)},
+        derived=halfar_front)
+RUNS["halfar_2km"].numbers.update(error_ice_min=N("error_ice_min_m", ".0f"), error_ice_max=N("error_ice_max_m", ".0f"))
+#: the 2 km dome where mesh=grid had put it before it was centred: pymeshlab's create_grid(center=True)
+#: shifted the grid by (−width/(2 nx), height/(2 ny)), nx × ny = 31 × 51 vertices of 60 km × 100 km
+RUNS["halfar_2km_uncentred"] = Run(("+experiment=cism_halfar", "mesh=cism_halfar/2km",
+                                    "app.constants.xc=967.741935483871", "app.constants.yc=-980.392156862745"),
+                                   {"rms": N("rms_error_m", ".2f")})
+
+
+def cahn_hilliard_numbers() -> dict:
+    """The Cahn–Hilliard row of the models page. ``mass_drift``: max_t |m(t) − m(0)| / |m(0)| of
+    the mass m = Σ ⋆0 c over the default run (``decrun app=cahn_hilliard``: 1000 stabilized imex
+    steps); ``domains_<t>``: the number of domains of ``+experiment=cahn_hilliard_coarsening`` at
+    t = 0.1 and 0.5 — connected regions (through the mesh's edges) of the vertices where c > 0, plus
+    those where c < 0."""
+    import numpy as np
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    default = run_experiment(compose_config(["app=cahn_hilliard", "figures=false"]))
+    mass = np.asarray(default.result.series["mass"], dtype=float)
+    out = {"mass_drift": float(np.max(np.abs(mass - mass[0])) / abs(mass[0]))}
+    done = run_experiment(compose_config(["+experiment=cahn_hilliard_coarsening", "figures=false"]))
+    edges = np.asarray(done.dec.K.simplices(1))
+    n = len(done.dec.K.vertices)
+    times, states = np.asarray(done.result.series["time"]), np.asarray(done.result.series["c"])
+    for name, when in (("0_1", 0.1), ("0_5", 0.5)):
+        (index,) = np.flatnonzero(np.isclose(times, when))
+        count = 0
+        for phase in (states[index] > 0, states[index] < 0):
+            keep = phase[edges[:, 0]] & phase[edges[:, 1]]
+            graph = sp.coo_matrix((np.ones(keep.sum()), (edges[keep, 0], edges[keep, 1])), shape=(n, n))
+            labels = connected_components(graph, directed=False)[1]
+            count += len(np.unique(labels[phase]))
+        out[f"domains_{name}"] = count
+    return out
+
+
+RUNS["model_cahn_hilliard"] = Source(cahn_hilliard_numbers, {
+    "mass_drift": N("mass_drift", ".1e", rtol=0.0, atol=1e-12), "domains_0_1": N("domains_0_1"),
+    "domains_0_5": N("domains_0_5")})
+
+
+def model_walkthrough() -> dict:
+    """The models page's first model (its YAML block, ``my_conf/app/mymodel.yaml``) run as the page
+    runs it, and on ``mesh.subdiv=5``: ``amplitude_error_<subdiv>`` = |amplitude − exact| / exact
+    at t_end (the part of u along x y against e^{−(6k + a)t}), and the default mesh's ``vertices``."""
+    import re
+    import tempfile
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    page = (ROOT / "docs" / "models.md").read_text(encoding="utf-8")
+    (model,) = re.findall(r"```yaml\n(# my_conf/app/mymodel\.yaml\n.*?)```", page, flags=re.S)
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "app").mkdir()
+        (Path(tmp) / "app" / "mymodel.yaml").write_text(model, encoding="utf-8")
+        for subdiv in (None, 5):
+            overrides = ["app=mymodel", f"hydra.searchpath=[file://{tmp}]", "figures=false"]
+            done = run_experiment(compose_config(overrides + ([f"mesh.subdiv={subdiv}"] if subdiv else [])))
+            metrics = done.result.metrics
+            out[f"amplitude_error_{subdiv or 'default'}"] = abs(metrics["amplitude"] - metrics["exact"]) / metrics["exact"]
+            if subdiv is None:
+                out["vertices"] = metrics["n_vertices"]
+    return out
+
+
+RUNS["model_walkthrough"] = Source(model_walkthrough, {
+    "amplitude_error": N("amplitude_error_default", scale=100.0, fmt=".1f"),
+    "amplitude_error_subdiv5": N("amplitude_error_5", scale=100.0, fmt=".2f", rtol=0.01),
+    "vertices": N("vertices")})
 RUNS["operator_default_agreement"] = Source(default_star_agreement, {
     "relative_difference": N("relative_difference", ".0e", rtol=0.2)})
 
+
+
+# ---------------------------------------------------------------------- models page: Darcy, Halfar, walk-through
+#: the Darcy convergence sweep's meshes (``+experiment=darcy_convergence``), as the models page's rows
+DARCY_MESHES = ("square_1", "square_2", "square_3", "box_1", "box_2", "box_3")
+
+
+def darcy_convergence() -> dict:
+    """The Darcy table of the models page: each mesh of ``decrun -m +experiment=darcy_convergence``
+    (``darcy/<mesh>``) run alone, ``<mesh>_<column>``: ``simplices`` (top simplices), ``unknowns``
+    (fluxes + pressures), ``h`` (mean edge length), the errors ``pressure``, ``pressure_rel``,
+    ``flux``, ``flux_rel`` (⋆_n and Whitney ⋆_{n−1} norms), ``residual`` = max |d u − f|, and for
+    the refinements ``pressure_order``, ``flux_order`` = log(e_i/e_{i+1}) / log(h_i/h_{i+1}) of the
+    relative errors. ``planar_<star>_<pressure|flux>``: the relative errors on the unit square meshed
+    by ``triangle`` (``planar_faces`` triangles) with Whitney's and the circumcentric ⋆;
+    ``grid_circumcentric_<…>`` the same on ``darcy/square_2``, where the circumcentric ⋆1 vanishes
+    on the diagonal edges (the flux norm only a seminorm)."""
+    import numpy as np
+
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    def run(*overrides):
+        return run_experiment(compose_config(["+experiment=darcy_convergence", *overrides, "figures=false"]))
+
+    out = {}
+    for mesh in DARCY_MESHES:
+        done = run(f"mesh=darcy/{mesh}")
+        metrics = done.result.metrics
+        out.update({f"{mesh}_simplices": len(done.result.fields["p"]),
+                    f"{mesh}_unknowns": done.dec.K.num_simplices(done.dec.K.dim - 1) + len(done.result.fields["p"]),
+                    f"{mesh}_h": float(done.dec.K.mean_edge_length),
+                    f"{mesh}_pressure": metrics["pressure_l2_error"],
+                    f"{mesh}_pressure_rel": metrics["pressure_l2_error_rel"],
+                    f"{mesh}_flux": metrics["flux_l2_error"], f"{mesh}_flux_rel": metrics["flux_l2_error_rel"],
+                    f"{mesh}_residual": metrics["divergence_residual"]})
+    for domain in ("square", "box"):
+        for level in (2, 3):
+            a, b = f"{domain}_{level - 1}", f"{domain}_{level}"
+            for what in ("pressure", "flux"):
+                out[f"{b}_{what}_order"] = float(np.log(out[f"{a}_{what}_rel"] / out[f"{b}_{what}_rel"])
+                                                 / np.log(out[f"{a}_h"] / out[f"{b}_h"]))
+    planar = ("mesh=planar", "mesh.holes=[]", "mesh.max_area=0.002")
+    for star in ("whitney", "circumcentric"):
+        metrics = (done := run(*planar, f"operator={star}")).result.metrics
+        out[f"planar_{star}_pressure"] = metrics["pressure_l2_error_rel"]
+        out[f"planar_{star}_flux"] = metrics["flux_l2_error_rel"]
+    out["planar_faces"] = len(done.result.fields["p"])
+    metrics = run("mesh=darcy/square_2", "operator=circumcentric").result.metrics
+    out["grid_circumcentric_pressure"] = metrics["pressure_l2_error_rel"]
+    out["grid_circumcentric_flux"] = metrics["flux_l2_error"]
+    return out
+
+
+def _darcy_numbers() -> dict[str, Number]:
+    numbers = {}
+    for mesh in DARCY_MESHES:
+        numbers.update({f"{mesh}_simplices": N(f"{mesh}_simplices"), f"{mesh}_unknowns": N(f"{mesh}_unknowns"),
+                        f"{mesh}_h": N(f"{mesh}_h", ".4f"),
+                        f"{mesh}_residual": N(f"{mesh}_residual", ".1e", rtol=0.0, atol=1e-13)})
+        for what in ("pressure", "pressure_rel", "flux", "flux_rel"):
+            numbers[f"{mesh}_{what}"] = N(f"{mesh}_{what}", ".3e")
+        if not mesh.endswith("_1"):
+            for what in ("pressure", "flux"):
+                numbers[f"{mesh}_{what}_order"] = N(f"{mesh}_{what}_order", ".2f")
+    for key in ("square_3_pressure_rel", "square_3_flux_rel", "box_3_pressure_rel", "box_3_flux_rel"):
+        numbers[f"{key}_short"] = N(key, ".1e")
+    for key in ("square_3_pressure_order", "box_3_pressure_order", "box_3_flux_order"):
+        numbers[f"{key}_short"] = N(key, ".2f" if key.startswith("box") else ".1f")
+    for key in ("box_2_pressure_order", "box_2_flux_order", "square_3_flux_order"):
+        numbers[f"{key}_short"] = N(key, ".2g")
+    numbers["box_3_residual_short"] = N("box_3_residual", ".0e", rtol=0.0, atol=1e-13)
+    numbers["planar_faces"] = N("planar_faces")
+    for star in ("whitney", "circumcentric"):
+        numbers[f"planar_{star}_pressure"] = N(f"planar_{star}_pressure", ".2g")
+        numbers[f"planar_{star}_flux"] = N(f"planar_{star}_flux", ".3g")
+    numbers["grid_circumcentric_pressure"] = N("grid_circumcentric_pressure", scale=100.0, fmt=".0f")
+    numbers["grid_circumcentric_flux"] = N("grid_circumcentric_flux", ".0e", rtol=0.5)
+    return numbers
+
+
+RUNS["model_darcy"] = Source(darcy_convergence, _darcy_numbers())
 
 # ---------------------------------------------------------------------- fluids
 _FLUID = {"enstrophy": N("enstrophy_final", ".0f"), "energy_ratio": N("energy_ratio", ".3f"),

@@ -271,13 +271,13 @@ def interval_rules() -> dict:
     12059-face channel (``big_faces``, ``big_points`` circumcenters) at the start velocities: the
     largest interval count k = max_p ceil(CFL_p / swept_cfl) (``big_k``), how many points need 3
     (``big_need_3``) and ``big_K``, the smallest 2^a or 3·2^a ≥ k the per_point rule walks."""
+    from bench_fluid_channel import interval_counts
+
     from decrun.complex import SimplicialComplex
     from decrun.core.channel_mesh import channel_mesh
     from decrun.core.solvers.direct import DirectSolver
     from decrun.dec import DEC
     from decrun.methods.fluid.simulation import VorticityFluid
-
-    from bench_fluid_channel import interval_counts
 
     def channel(target):
         mesh = channel_mesh(target_faces=target)

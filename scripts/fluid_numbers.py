@@ -260,3 +260,47 @@ def enstrophy_regions(done) -> dict:
     return {"enstrophy_inflow": float(density[x < 0.3].sum() / total),
             "enstrophy_walls": float(density[(y < 0.05) | (y > 0.95)].sum() / total),
             "enstrophy_outflow": float(density[x > 1.9].sum() / total)}
+
+
+def interval_rules() -> dict:
+    """How ``app.intervals`` splits dt on the Fig. 7.15 channel (inflow 10, ν = 0.02, dt = 0.005).
+
+    On the 1455-face channel, 10 steps against the uniform rule at ``swept_cfl = 0.25`` as the
+    reference: ``deviation_per_point`` and ``deviation_uniform``, the ⋆0-weighted relative
+    vorticity deviation sqrt(Σ⋆0(w − w_ref)² / Σ⋆0 w_ref²) of each rule (``faces``). On the
+    12059-face channel (``big_faces``, ``big_points`` circumcenters) at the start velocities: the
+    largest interval count k = max_p ceil(CFL_p / swept_cfl) (``big_k``), how many points need 3
+    (``big_need_3``) and ``big_K``, the smallest 2^a or 3·2^a ≥ k the per_point rule walks."""
+    from bench_fluid_channel import interval_counts
+
+    from decrun.complex import SimplicialComplex
+    from decrun.core.channel_mesh import channel_mesh
+    from decrun.core.solvers.direct import DirectSolver
+    from decrun.dec import DEC
+    from decrun.methods.fluid.simulation import VorticityFluid
+
+    def channel(target):
+        mesh = channel_mesh(target_faces=target)
+        dec = DEC(SimplicialComplex(mesh.vertices, mesh.faces))
+        return dec, dict(dt=0.005, viscosity=0.02, inflow_velocity=[10.0, 0.0], obstacle_loops=mesh.obstacle_loops)
+
+    dec, common = channel(1400)
+    reference = VorticityFluid(dec, DirectSolver, swept_cfl=0.25, **common)
+    uniform = VorticityFluid(dec, DirectSolver, intervals="uniform", **common)
+    per_point = VorticityFluid(dec, DirectSolver, intervals="per_point", **common)
+    for _ in range(10):
+        reference.step(), uniform.step(), per_point.step()
+    star, w = reference.star0, reference.vorticity
+
+    def deviation(sim):
+        return float(np.sqrt(star @ (sim.vorticity - w) ** 2 / (star @ w**2)))
+
+    out = {"faces": dec.K.num_simplices(2), "deviation_per_point": deviation(per_point),
+           "deviation_uniform": deviation(uniform)}
+    dec, common = channel(12000)
+    counts = interval_counts(VorticityFluid(dec, DirectSolver, **common))
+    k = int(counts.max())
+    out.update(big_faces=dec.K.num_simplices(2), big_points=int(counts.size), big_k=k,
+               big_need_3=int((counts == 3).sum()),
+               big_K=min(n for n in (2**a * f for a in range(k.bit_length() + 1) for f in (1, 3)) if n >= k))
+    return out

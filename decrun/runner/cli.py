@@ -78,8 +78,9 @@ def _hydra_task(cfg: DictConfig) -> int | float:
 
     hydra_cfg = HydraConfig.get()
     out = Path(hydra_cfg.runtime.output_dir)
-    made = OutputGuard.made is not None and OutputGuard.made.absolute() == out.absolute()
-    return run(cfg, out, multirun=_is_multirun(), verbose=_verbose(), log_name=hydra_cfg.job.name, made=made)
+    made = OutputGuard.made if OutputGuard.made is not None and OutputGuard.made[0].absolute() == out.absolute() else None
+    return run(cfg, out, multirun=_is_multirun(), verbose=_verbose(), log_name=hydra_cfg.job.name,
+               made=made[1] if made is not None else None)
 
 
 def _check_job(cfg: DictConfig, memo: dict | None = None, delta: Any = None) -> None:
@@ -110,8 +111,10 @@ class OutputGuard(Callback):
     :func:`decrun.run`)."""
 
     run_dir: Path | None = None
-    #: the run directory when this process made it (it did not exist before the run), else None
-    made: Path | None = None
+    #: when this process made the run directory (it did not exist before the run): the run
+    #: directory and the outermost directory made with it (``outputs`` of a first
+    #: ``outputs/runs/<stamp>``; the run directory itself when its parent existed), else None
+    made: tuple[Path, Path] | None = None
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
         try:
@@ -127,7 +130,7 @@ class OutputGuard(Callback):
     def _guard(self, config: DictConfig) -> None:
         out = Path(str(config.hydra.run.dir))
         OutputGuard.run_dir = out
-        OutputGuard.made = None if os.path.lexists(out) else out
+        OutputGuard.made = None if os.path.lexists(out) else (out, _outermost_missing(out.absolute()))
         try:
             for name in hydra_files(config.hydra):
                 inside(out, out / name, fix="remove the link, or choose another run directory with hydra.run.dir=DIR")
@@ -148,6 +151,17 @@ class OutputGuard(Callback):
 
     def on_multirun_end(self, config: DictConfig, **kwargs) -> None:
         release(Path(str(config.hydra.sweep.dir)))
+
+
+def _outermost_missing(path: Path) -> Path:
+    """The outermost of ``path`` and its parents that does not exist (``path`` must not):
+    the first directory ``path.mkdir(parents=True)`` makes."""
+    outermost = path
+    for parent in path.parents:
+        if os.path.lexists(parent):
+            break
+        outermost = parent
+    return outermost
 
 
 class SweepTable(Callback):

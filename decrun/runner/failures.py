@@ -122,8 +122,9 @@ class Stopped(SystemExit):
     #: the run failed on bad input (a config value, a mesh), not a full disk: its attempt leaves
     #: nothing behind (set by :mod:`decrun.runner.run`)
     refused: bool = False
-    #: the run directory :mod:`decrun.runner.run` removes once its lock is dropped, or None
-    leave_nothing: Path | None = None
+    #: the run directory :mod:`decrun.runner.run` removes once its lock is dropped, and the
+    #: outermost of its parents made with it (removed while empty), or None
+    leave_nothing: tuple[Path, Path] | None = None
 
     def __init__(self, message: str, code: int = 1):
         super().__init__(code)

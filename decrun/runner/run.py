@@ -435,7 +435,7 @@ def remove_earlier_exports(directory: Path) -> list[str]:
 
 
 def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = False, log_name: str = "",
-        made: bool = False) -> int | float:
+        made: Path | None = None) -> int | float:
     """One run (or one sweep job, ``multirun``) of ``cfg`` into the directory ``out``: the
     experiment (:func:`prepare`, :func:`execute`), its files (:func:`write`) and what it prints. Returns 0 (1 for a failed
     sweep job), or with ``optimize.metric`` set the objective
@@ -444,7 +444,9 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     interrupted sweep job re-raises the interrupt, for the sweeper to say which jobs finished.
     ``verbose`` logs the traceback of a DecrunError; ``log_name`` is the job's log file
     (``<log_name>.log``, named in the closing line). ``made``: the caller made ``out`` for
-    this run (it did not exist): a single run refused as bad input then removes it again.
+    this run (it did not exist), and with it the parents up to ``made`` (``out`` itself, or
+    e.g. ``outputs`` of a first ``outputs/runs/<stamp>``): a single run refused as bad input
+    then removes ``out`` again, and those parents while they are empty.
 
     The run holds ``out``'s lock (:mod:`decrun.runner.locks`; a single run took it before
     Hydra made the directory) while it runs: when another process holds it, one line on
@@ -456,12 +458,12 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
         if multirun:
             return 1
         raise Stopped(f"error: {exc}") from exc
-    fresh = made and not multirun and _only_hydras_files(out, log_name)
+    fresh = made is not None and not multirun and _only_hydras_files(out, log_name)
     try:
         return _run(cfg, out, multirun=multirun, verbose=verbose, log_name=log_name)
     except Stopped as exc:
         if fresh and getattr(exc, "refused", False) and _only_hydras_files(out, log_name, RunFiles.METRICS):
-            exc.leave_nothing = out  # removed below, once the lock is dropped
+            exc.leave_nothing = (out, made)  # removed below, once the lock is dropped
         raise
     finally:
         if taken:
@@ -484,12 +486,25 @@ def _remove_failed_attempt(exc: BaseException | None) -> None:
     typo, a missing file) in a directory made for it leaves no directory behind: the one line
     said everything, and ``outputs/runs`` keeps only runs that ran. A sweep job keeps its
     directory (the table's row needs its metrics.json); so does a run into a directory that
-    existed before, or one that failed otherwise (out of memory, a full disk)."""
+    existed before, or one that failed otherwise (out of memory, a full disk). The parents
+    made with the run directory (``outputs/runs`` in a fresh folder, up to ``made`` of
+    :func:`run`) go too while they are empty; one that holds anything, or existed before, stays."""
     import shutil
 
-    out = getattr(exc, "leave_nothing", None)
-    if out is not None:
-        shutil.rmtree(out, ignore_errors=True)
+    left = getattr(exc, "leave_nothing", None)
+    if left is None:
+        return
+    out, outermost = Path(left[0]).absolute(), Path(left[1]).absolute()
+    shutil.rmtree(out, ignore_errors=True)
+    if out.exists() or outermost not in out.parents:
+        return
+    for parent in out.parents:
+        try:
+            parent.rmdir()  # only an empty directory: another run's, or a file put there meanwhile, stops it
+        except OSError:
+            return
+        if parent == outermost:
+            return
 
 
 def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name: str) -> int | float:

@@ -295,12 +295,16 @@ def test_locks_are_reentrant_in_a_process_and_refuse_a_symlinked_lock_file(tmp_p
 
 def test_a_refused_attempt_leaves_no_run_directory_behind(tmp_path):
     """A value typo or a missing file is one line and no ``outputs/runs/<stamp>/`` (it held
-    only .hydra/, the log and a failed metrics.json); a directory that existed before keeps
-    the failed status (a sweep job's keeps it for its row: not a single run)."""
+    only .hydra/, the log and a failed metrics.json), nor the ``outputs/runs`` made for it in
+    a fresh folder; a parent that existed before stays, and a directory that existed before
+    keeps the failed status (a sweep job's keeps it for its row: not a single run)."""
     for args in (["app=fluid", "app.initial=spin"], ["mesh=file", "mesh.path=nope.obj"], ["app.dt=-1", *QUICK]):
         done = decrun(*args, cwd=tmp_path)
         assert done.returncode == 1 and done.stderr.startswith("error: "), done.stderr
-    assert list((tmp_path / "outputs" / "runs").iterdir()) == []
+        assert sorted(p.name for p in tmp_path.iterdir()) == [], args  # no outputs/, no outputs/runs/
+    (tmp_path / "kept").mkdir()
+    assert decrun("app.dt=-1", *QUICK, "hydra.run.dir=kept/a/b", cwd=tmp_path).returncode == 1
+    assert list((tmp_path / "kept").iterdir()) == []  # a/b made for the run: gone; kept/ was there before
     (tmp_path / "mine").mkdir()
     assert decrun("app.dt=-1", *QUICK, "hydra.run.dir=mine", cwd=tmp_path).returncode == 1
     assert json.loads((tmp_path / "mine" / "metrics.json").read_text())["status"] == "failed"

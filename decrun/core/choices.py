@@ -15,7 +15,7 @@ from typing import Self
 
 from decrun.errors import ConfigError
 
-__all__ = ["Choice", "choice_error"]
+__all__ = ["Choice", "choice_error", "closest", "value_hint"]
 
 
 class Choice(str, Enum):
@@ -41,7 +41,29 @@ class Choice(str, Enum):
             raise choice_error(key, value, cls) from None
 
 
-def choice_error(key: str, value, choices: type[Choice]) -> ConfigError:
-    """``<key>: must be one of a | b | c, got 'x' (e.g. <key>=a)`` — the CLI override that fixes it."""
-    names = choices.names()
-    return ConfigError(f"{key}: must be one of {' | '.join(names)}, got {str(value)!r} (e.g. {key}={names[0]})")
+def closest(value, names) -> str | None:
+    """The one of ``names`` closest in spelling to ``value`` — ``difflib.get_close_matches``
+    (cutoff 0.6), the rule the key typos' did-you-mean uses — compared without case
+    (``Fix`` → ``fix``); None when none is that close."""
+    import difflib
+
+    lowered = {str(name).lower(): str(name) for name in names}
+    found = difflib.get_close_matches(str(value).lower(), list(lowered), n=1)
+    return lowered[found[0]] if found else None
+
+
+def value_hint(key: str, value, names) -> str:
+    """The override that fixes ``<key>=<value>`` for a key whose values are ``names``:
+    ``did you mean <key>=<closest>?`` (:func:`closest`), else ``e.g. <key>=<first name>``
+    beside the listed values."""
+    names = [str(name) for name in names]
+    near = closest(value, names)
+    return f"did you mean {key}={near}?" if near is not None else f"e.g. {key}={names[0]}"
+
+
+def choice_error(key: str, value, choices) -> ConfigError:
+    """``<key>: must be one of a | b | c, got 'x' (did you mean <key>=b?)`` — the closest
+    choice as the CLI override that fixes it (:func:`value_hint`; ``(e.g. <key>=a)`` when no
+    choice is close). ``choices``: a :class:`Choice` enum or the names themselves."""
+    names = choices.names() if isinstance(choices, type) and issubclass(choices, Choice) else [str(c) for c in choices]
+    return ConfigError(f"{key}: must be one of {' | '.join(names)}, got {str(value)!r} ({value_hint(key, value, names)})")

@@ -15,6 +15,7 @@ import importlib
 import pkgutil
 from typing import Any
 
+from decrun.core.choices import closest
 from decrun.errors import ConfigError
 
 __all__ = ["resolve", "builtin_names"]
@@ -55,8 +56,11 @@ def resolve(value: Any, base: type, package: str, key: str) -> Any:
         try:
             module = importlib.import_module(f"{package}.{value}")
         except ModuleNotFoundError:
-            choices = " | ".join(f"{key}={name}" for name in builtin_names(package, base))
-            raise ConfigError(f"{key}={value}: unknown {base.__name__}; choose one of {choices}") from None
+            names = builtin_names(package, base)
+            choices = " | ".join(f"{key}={name}" for name in names)
+            near = closest(value, names)
+            hint = f"; did you mean {key}={near}?" if near is not None else ""
+            raise ConfigError(f"{key}={value}: unknown {base.__name__}; choose one of {choices}{hint}") from None
         found = [c for c in vars(module).values() if isinstance(c, type) and issubclass(c, base)
                  and c is not base and getattr(c, "name", None) == value]
         if len(found) != 1:

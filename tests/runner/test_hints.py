@@ -178,7 +178,7 @@ CASES = {
                                       ["app.analytic=frame", "app.input=random", "app.analytic=gradient"]),
     "hodge_frame_has_no_vector": (["app=hodge", "mesh.subdiv=1", "app.vector=[1.0,0.0,0.0]"],
                                   ["app.analytic=gradient"]),
-    "export_unknown_colormap": (["mesh.subdiv=1", "app=smoothing", "app.steps=1", "export=ply", "export.colormap=nope"],
+    "export_unknown_colormap": (["mesh.subdiv=1", "app=smoothing", "app.steps=1", "export=ply", "export.colormap=no_such_map"],
                                 ["export.colormap=viridis"]),
     # an export the app's declared fields cannot feed: refused with the config, before the mesh
     "export_obj_without_uv": (["mesh.subdiv=1", "app=spectrum", "export=obj"], ["export=vtu"]),

@@ -12,6 +12,7 @@ import os
 from contextlib import contextmanager
 from typing import Iterator
 
+from decrun.core.choices import choice_error
 from decrun.errors import ConfigError
 
 __all__ = ["MIN_SIZE", "WARM_MIN_SIZE", "AMORTIZE_SIZE", "MODES", "check_mode", "mode", "use", "enabled",
@@ -46,7 +47,7 @@ _numpy_items = 0  # items auto sent to the numpy twins (inputs of >= WARM_MIN_SI
 def check_mode(value: str, where: str = "app.kernels") -> str:
     """``value`` if it is one of :data:`MODES`, else a ConfigError naming ``where``."""
     if value not in MODES:
-        raise ConfigError(f"{where}: must be one of {list(MODES)}, got {value!r}; use {where}=auto")
+        raise choice_error(where, value, MODES)
     return value
 
 

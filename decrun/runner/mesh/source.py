@@ -43,6 +43,7 @@ from typing import ClassVar, List
 
 import numpy as np
 
+from decrun.core.choices import closest
 from decrun.core.geometry import mean_edge_length
 from decrun.errors import ConfigError
 from decrun.runner.mesh import post as post_steps
@@ -110,7 +111,10 @@ class MeshSource:
     def __post_init__(self):
         for step in self.post:
             if step not in post_steps.__all__:
-                raise ConfigError(f"mesh.post: unknown step {step!r}; choose from {sorted(post_steps.__all__)}")
+                near = closest(step, post_steps.__all__)
+                fixed = f"[{','.join(near if s == step else s for s in self.post)}]" if near is not None else None
+                hint = f"; did you mean mesh.post={fixed}?" if fixed is not None else ""
+                raise ConfigError(f"mesh.post: unknown step {step!r}; choose from {sorted(post_steps.__all__)}{hint}")
         self.hole_cut = HoleCut.of(self.hole_cut, "mesh.hole_cut")  # also for Python callers (strings)
         self.hole_pieces = HolePieces.of(self.hole_pieces, "mesh.hole_pieces")
         self.refine = Refine.of(self.refine, "mesh.refine")

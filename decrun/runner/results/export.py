@@ -48,6 +48,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from decrun.core.choices import closest
 from decrun.errors import ConfigError, DecrunError
 from decrun.runner.files import RunFiles
 from decrun.runner.paths import check_file
@@ -476,7 +477,9 @@ class Ply(Export):
         from matplotlib import colormaps
 
         if self.colormap not in colormaps:
-            raise ConfigError(f"export.colormap: unknown colormap {self.colormap!r}; use `export.colormap=viridis`")
+            near = closest(self.colormap, sorted(colormaps))
+            fix = f"did you mean `export.colormap={near}`?" if near is not None else "use `export.colormap=viridis`"
+            raise ConfigError(f"export.colormap: unknown colormap {self.colormap!r}; {fix}")
 
     def check(self, app) -> None:
         outputs = app.outputs()

@@ -1,6 +1,7 @@
 """Options whose values are a closed set are ``Enum`` fields (:class:`decrun.core.choices.Choice`):
 a value outside the set stops ``decrun`` before anything runs with one line naming the key,
-every choice and an override that fixes it, and that override runs; Python callers get the
+every choice and an override that fixes it — the choice closest in spelling to the wrong value
+(``difflib``, as for a mistyped key), else the first — and that override runs; Python callers get the
 same check; a member is the plain string it names."""
 
 from __future__ import annotations
@@ -15,16 +16,16 @@ from decrun.runner.mesh.base import Refine
 
 FAST = ["app.steps=1", "figures=false", "progress=false"]
 
-CASES = [  # (overrides, the wrong one, the error line, the fix it names)
+CASES = [  # (overrides, the wrong one, the error line, the fix it names: the closest value, else the first)
     ([], "mesh.refine=magic", "mesh.refine: must be one of none | loop | midpoint | isotropic, got 'magic'",
      "mesh.refine=none"),
     ([], "mesh.hole_cut=round", "mesh.hole_cut: must be one of split | whole_triangles, got 'round'",
      "mesh.hole_cut=split"),
-    ([], "mesh.orient=Fix", "mesh.orient: must be one of check | fix, got 'Fix'", "mesh.orient=check"),
+    ([], "mesh.orient=Fix", "mesh.orient: must be one of check | fix, got 'Fix'", "did you mean mesh.orient=fix?"),
     (["solver=cg"], "solver.preconditioner=ilu", "solver.preconditioner: must be one of jacobi | none, got 'ilu'",
      "solver.preconditioner=jacobi"),
     (["solver=amg"], "solver.accel=minres", "solver.accel: must be one of cg | gmres | bicgstab | none, got 'minres'",
-     "solver.accel=cg"),
+     "did you mean solver.accel=gmres?"),
     (["solver=amg"], "solver.method=classic",
      "solver.method: must be one of smoothed_aggregation | ruge_stuben, got 'classic'",
      "solver.method=smoothed_aggregation"),
@@ -35,8 +36,21 @@ CASES = [  # (overrides, the wrong one, the error line, the fix it names)
     (["solver=iterative"], "solver.preconditioner=ssor",
      "solver.preconditioner: must be one of auto | jacobi | ilu | none, got 'ssor'", "solver.preconditioner=auto"),
     (["operator=mixed_area"], "operator.tetrahedra=circumcentric",
-     "operator.tetrahedra: must be one of barycentric | error, got 'circumcentric'", "operator.tetrahedra=barycentric"),
+     "operator.tetrahedra: must be one of barycentric | error, got 'circumcentric'",
+     "did you mean operator.tetrahedra=barycentric?"),
+    (["app=fluid"], "app.walls=noslip", "app.walls: must be one of auto | slip | no_slip, got 'noslip'",
+     "did you mean app.walls=no_slip?"),
+    (["app=fluid"], "app.walls=free", "app.walls: must be one of auto | slip | no_slip, got 'free'", "app.walls=auto"),
 ]
+
+
+def _hint(fix: str) -> str:
+    """The parenthesis of the error line: a did-you-mean as it stands, a plain override as ``e.g.``."""
+    return fix if fix.startswith("did you mean ") else f"e.g. {fix}"
+
+
+def _override(fix: str) -> str:
+    return fix.removeprefix("did you mean ").removesuffix("?")
 
 
 @pytest.mark.parametrize("base, wrong, line, fix", CASES, ids=[case[1] for case in CASES])
@@ -45,8 +59,8 @@ def test_a_value_outside_the_choices_is_one_line_naming_them_and_the_fix_runs(de
         pytest.importorskip("pyamg")
     bad = decrun_cli(*base, wrong, *FAST)
     assert bad.returncode == 1
-    assert bad.stderr.strip().splitlines() == [f"error: {line} (e.g. {fix})"]
-    good = decrun_cli(*base, fix, *FAST)
+    assert bad.stderr.strip().splitlines() == [f"error: {line} ({_hint(fix)})"]
+    good = decrun_cli(*base, _override(fix), *FAST)
     assert good.returncode == 0, good.stderr[-2000:]
 
 
@@ -110,3 +124,49 @@ def test_python_callers_get_the_same_check_and_members_are_their_strings():
     with pytest.raises(ConfigError, match=r"^app.scheme: must be one of implicit \| explicit, got 'backward'"):
         Smoothing(scheme="backward")
     assert Parametrization(border="circle").border is Border.circle and Border.circle == "circle"
+
+
+#: the other closed sets a value is checked against (not Choice fields): (overrides, the wrong one,
+#: the start of the error line, the override it suggests)
+OTHER_CASES = [
+    (["app=smoothing", "export=ply"], "export.colormap=viridsi", "export.colormap: unknown colormap 'viridsi'",
+     "export.colormap=viridis"),
+    (["mesh.post=[clean,normalise]"], None, "mesh.post: unknown step 'normalise'", "mesh.post=[clean,normalize]"),
+]
+
+
+@pytest.mark.parametrize("base, wrong, start, fix", OTHER_CASES, ids=[case[-1] for case in OTHER_CASES])
+def test_other_closed_sets_suggest_the_closest_value_and_it_runs(decrun_cli, base, wrong, start, fix):
+    """The colormaps of an export and the post steps of a mesh name the value closest in
+    spelling as the override that fixes the run, and that override runs."""
+    bad = decrun_cli(*base, *([wrong] if wrong else []), *FAST)
+    assert bad.returncode == 1
+    (line,) = bad.stderr.strip().splitlines()
+    assert line.startswith(f"error: {start}") and line.endswith(f"did you mean `{fix}`?"
+                                                                if "colormap" in fix else f"did you mean {fix}?"), line
+    good = decrun_cli(*[b for b in base if not b.startswith(fix.split("=")[0] + "=")], fix, *FAST)
+    assert good.returncode == 0, good.stderr[-2000:]
+
+
+def test_python_callers_get_the_closest_value_too():
+    """The kernels switch, a plugin name and a sample mesh name suggest the closest value; the
+    suggestion is accepted; a value close to none names the first (or lists them all)."""
+    from decrun.core.choices import closest
+    from decrun.core.jit.switch import check_mode
+    from decrun.runner.mesh.sources.files import Sample
+
+    with pytest.raises(ConfigError) as info:
+        check_mode("numbaa")
+    assert str(info.value) == "app.kernels: must be one of auto | numba | numpy, got 'numbaa' (did you mean app.kernels=numba?)"
+    assert check_mode("numba") == "numba"
+    with pytest.raises(ConfigError, match=r"^solver=directt: unknown Solver; choose one of solver=amg \| .*; "
+                                          r"did you mean solver=direct\?$"):
+        make_solver("directt")
+    assert make_solver("direct").name == "direct"
+    with pytest.raises(ConfigError, match=r"^solver=gauss: unknown Solver; choose one of solver=amg \| [^;]*$"):
+        make_solver("gauss")
+    with pytest.raises(ConfigError, match=r"^mesh.sample: must be one of airplane \| .*, got 'bunyn' "
+                                          r"\(did you mean mesh.sample=bunny\?\)$"):
+        Sample(sample="bunyn")
+    assert Sample(sample="bunny").sample == "bunny"
+    assert closest("NO_SLIP", ["auto", "slip", "no_slip"]) == "no_slip" and closest("free", ["auto", "slip"]) is None

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from decrun.core.choices import choice_error
 from decrun.runner.mesh.base import Mesh, require
 from decrun.runner.mesh.files.read import read_mesh_file
 from decrun.runner.mesh.source import MeshSource
@@ -73,8 +74,8 @@ class Sample(MeshSource):
 
     def __post_init__(self):
         super().__post_init__()
-        require(self.sample in SAMPLE_MESHES, "sample",
-                f"unknown sample {self.sample!r}; choose one of {sorted(SAMPLE_MESHES)}")
+        if self.sample not in SAMPLE_MESHES:
+            raise choice_error("mesh.sample", self.sample, sorted(SAMPLE_MESHES))
 
     def auto_up_axis(self) -> str:
         """The sample's own up axis (:data:`decrun.runner.mesh.repair.UP_AXIS`), else ``z``."""

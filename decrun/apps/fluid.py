@@ -158,17 +158,22 @@ class Fluid(App):
         ``perturbation_mean_growth_per_step`` (L_n / n over the run, the former rate),
         ``perturbation_largest_step_growth``, ``perturbation_stable``;
         ``energy_ratio`` (final / initial kinetic energy, when the initial one is > 0),
-        ``enstrophy_ratio``, ``max_abs_divergence`` (over the run), ``circulation_drift``
+        ``enstrophy_ratio``; for ``initial=mesh_field`` ``initial_vorticity_max_abs`` (max |w0| of
+        the start, mean removed, 1/s: the number the round-off log line and the figure title
+        say) and ``initial_vorticity_round_off``; ``max_abs_divergence`` (over the run), ``circulation_drift``
         (|Σ⋆0 w| at the end, closed surfaces), ``steps_per_second``, ``obtuse_triangles``.
         Series (every ``record_every`` steps): ``vorticity`` (n0), ``flux`` (n1) and the scalars
         ``time``, ``kinetic_energy``, ``enstrophy``, ``total_circulation``, ``max_abs_divergence``,
         ``vorticity_min``, ``vorticity_max``. Fields: the final ``vorticity``, ``psi``, ``flux``.
         """
         K = ctx.complex
-        # a chained field without curl starts the fluid from round-off: which ratios say nothing
-        round_off = self._round_off_start(ctx, ctx.dec, ctx.meta["field"]) if self.initial == "mesh_field" else ()
         fluid, stepper, shadow = self._simulation(ctx)
         first = stepper.last
+        # the vorticity the fluid starts from (after its mean is removed): the one number the log and title say
+        start = max(abs(first["vorticity_min"]), abs(first["vorticity_max"]))
+        # a chained field without curl starts the fluid from round-off: which ratios say nothing
+        round_off = self._round_off_start(ctx, ctx.dec, ctx.meta["field"], start) if self.initial == "mesh_field" \
+            else ()
         report = run_steps(stepper, self.total_steps, progress=ctx.progress, record=ctx.record,
                            record_every=self.record_every, checkpoint=ctx.checkpoint, desc="fluid")
         metrics = fluid_metrics(first, stepper.last, max_divergence=stepper.max_divergence, seconds=report.seconds,
@@ -178,13 +183,13 @@ class Fluid(App):
                                 max_growth_per_step=self.shadow_max_growth_per_step, round_off=round_off)
         if self.initial == "mesh_field":
             metrics["initial_vorticity_round_off"] = bool(round_off)
+            metrics["initial_vorticity_max_abs"] = start
         if report.resumed_from_step is not None:
             metrics["resumed_from_step"] = report.resumed_from_step
         if not fluid.closed:  # the wall condition app.walls resolved to (a closed surface has no wall)
             metrics["walls"] = str(fluid.walls)
         fields = {"vorticity": fluid.vorticity, "psi": fluid.psi, "flux": FieldOnEdges(fluid.flux)}
-        start = max(abs(first["vorticity_min"]), abs(first["vorticity_max"])) if round_off else None
-        return Result(fields=fields, metrics=metrics, figures=self._figures(K, start))
+        return Result(fields=fields, metrics=metrics, figures=self._figures(K, start if round_off else None))
 
     def _simulation(self, ctx: Context):
         """(fluid, stepper, shadow): the :class:`~decrun.methods.fluid.simulation.VorticityFluid`
@@ -228,11 +233,12 @@ class Fluid(App):
             figures["vorticity_animation"] = Figure.of_kind("animation", name="vorticity", title="vorticity", **view)
         return figures
 
-    def _round_off_start(self, ctx: Context, dec, field: dict) -> tuple[str, ...]:
+    def _round_off_start(self, ctx: Context, dec, field: dict, size: float) -> tuple[str, ...]:
         """The diagnostics whose initial value is round-off for a chained start
         (:func:`field_cancellation` ≤ :data:`ROUND_OFF`): the enstrophy, and the kinetic energy
-        too without inflow (with inflow the harmonic part carries it). Logged as one line."""
-        cancellation, size = field_cancellation(dec, field)
+        too without inflow (with inflow the harmonic part carries it). Logged as one line with
+        ``size``, max |w0| of the fluid's start (the metric ``initial_vorticity_max_abs``, 1/s)."""
+        cancellation = field_cancellation(dec, field)
         if cancellation > ROUND_OFF:
             return ()
         ctx.log(f"fluid: app.initial=mesh_field: the vorticity of mesh.field={field['name']} is round-off "
@@ -282,19 +288,17 @@ def vorticity_of_field(dec: DEC, field: dict) -> np.ndarray:
     return np.bincount(faces.ravel(), weights=np.repeat(curl, 3), minlength=n0) / area
 
 
-def field_cancellation(dec, field: dict) -> tuple[float, float]:
-    """How much of a chained initial field survives as vorticity: ``(ratio, size)``.
+def field_cancellation(dec, field: dict) -> float:
+    """How much of a chained initial field survives as vorticity, a ratio in [0, 1].
 
     For a circulation 1-form ω per edge the vorticity is made of the sums (d1 ω)_f of its
-    three edge values around each triangle; ``ratio`` = max_f |(d1 ω)_f| / max_f (|d1| |ω|)_f
+    three edge values around each triangle; the ratio is max_f |(d1 ω)_f| / max_f (|d1| |ω|)_f
     (0 for an exact gradient, ~1e-16 when the sums cancel to round-off, O(1) for a field with
-    vortices) and ``size`` = max |w| of :func:`vorticity_of_field` (1/area units). A per-vertex
-    vorticity is taken as it is: ratio 1 unless it is exactly zero (0)."""
-    w = vorticity_of_field(dec, field)
-    size = float(np.abs(w).max()) if w.size else 0.0
-    if field["on"] != "edges":
-        return (1.0 if size > 0 else 0.0), size
+    vortices). A per-vertex vorticity is taken as it is: 1 unless it is exactly zero (0). The
+    field is checked by :func:`vorticity_of_field` (which the fluid's start went through)."""
     values = np.asarray(field["values"], dtype=np.float64)
+    if field["on"] != "edges":
+        return 1.0 if values.size and np.abs(values).max() > 0 else 0.0
     d1 = dec.d(1)
     terms = float((abs(d1) @ np.abs(values)).max()) if values.size else 0.0
-    return (float(np.abs(d1 @ values).max()) / terms if terms > 0 else 0.0), size
+    return float(np.abs(d1 @ values).max()) / terms if terms > 0 else 0.0

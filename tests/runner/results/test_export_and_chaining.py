@@ -4,6 +4,7 @@ and ``mesh=result`` chaining, through the real CLI."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import meshio
@@ -188,8 +189,22 @@ def test_a_designed_field_feeds_a_fluid(decrun_cli, tmp_path):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["initial_vorticity_round_off"] is True
     assert "energy_ratio" not in metrics and "enstrophy_ratio" not in metrics
-    assert np.abs(read_result(out / "result.h5").series["vorticity"][0]).max() < 1e-12
+    start = np.abs(read_result(out / "result.h5").series["vorticity"][0]).max()
+    assert start < 1e-12
     assert (out / "vorticity.png").is_file()
+    # one max |w0|: the metric is the start the fluid ran from (drawn in the figure), and the
+    # log line and the figure's title say that number
+    assert metrics["initial_vorticity_max_abs"] == start
+    (said,) = re.findall(r"max \|w0\| = ([^,)]+)", done.stderr)
+    assert said == f"{start:.1e}"
+    from decrun.runner.config import compose_config
+    from decrun.runner.run import run_experiment
+
+    result = run_experiment(compose_config(["app=fluid", "app.initial=mesh_field", "mesh=result",
+                                            f"mesh.path={gradient / 'result.h5'}", "mesh.field=omega", "app.steps=2",
+                                            "app.animation=false", "app.snapshots=2"])).result
+    assert result.metrics["initial_vorticity_max_abs"] == start
+    assert result.figures["vorticity"].data["title"].endswith(f"round-off start (max |w0| = {said})")
 
 
 def test_circulation_to_vorticity_converges_to_the_curl():

@@ -8,7 +8,9 @@ its ``metrics.csv``, the table ``decrun-table --csv`` prints
 
 How: each call runs the ``decrun`` command's own Hydra application in this process —
 :data:`decrun.runner.cli._hydra_main`, the ``@hydra.main`` function the console script calls,
-with the overrides (and ``-m``) as its command line. So a call composes, checks, plans, locks,
+with the overrides (and ``-m``) as its command line, through :func:`decrun.runner.cli.hydra_command`
+as the console script does (a single run composes its config once, not a second time only to read
+``hydra.mode``). So a call composes, checks, plans, locks,
 writes ``manifest.json``, launches, resumes and tabulates exactly as the command does: the same
 config search path and callbacks (:class:`~decrun.runner.cli.OutputGuard`,
 :class:`~decrun.runner.cli.SweepTable`), the ``decrun`` sweeper and any launcher, because it *is*
@@ -193,7 +195,7 @@ def _command(args: list[str], where) -> None:
     cli.SweepTable.failed = 0
     with _as_command(args), released_after():
         try:
-            cli._hydra_main()
+            cli.hydra_command(args)  # a single run composes once, as the command's
         except Stopped as exc:
             if isinstance(exc.__cause__, KeyboardInterrupt):  # a single run, recorded as interrupted
                 raise exc.__cause__ from None

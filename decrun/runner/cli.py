@@ -346,11 +346,7 @@ def main() -> None:
     # directory, saving .hydra/, Ctrl-C while composing); let them reach _report instead
     os.environ["HYDRA_FULL_ERROR"] = "1"
     try:
-        try:
-            with _composed_once(args):
-                _hydra_main()
-        except _ComposeAgain:  # a config that asks for another mode, or an error: Hydra's own way says it
-            _hydra_main()
+        hydra_command(args)
     except Exception as exc:
         sys.exit(_report(exc))
     except KeyboardInterrupt as exc:
@@ -361,6 +357,18 @@ def main() -> None:
         sys.exit(exit_code(exc))
     if SweepTable.failed:
         sys.exit(1)
+
+
+def hydra_command(args: list[str]) -> None:
+    """The ``decrun`` command's Hydra app for the command line ``args`` (``sys.argv[1:]``, set
+    by the caller): a single run composes its config once (:func:`_composed_once`); a sweep, a
+    config that sets ``hydra.mode`` or a composition error goes Hydra's own way. What the app
+    raises, Hydra's exit included, reaches the caller (:func:`main`, :func:`decrun.run`)."""
+    try:
+        with _composed_once(args):
+            _hydra_main()
+    except _ComposeAgain:  # a config that asks for another mode, or an error: Hydra's own way says it
+        _hydra_main()
 
 
 class _ComposeAgain(Exception):

@@ -31,14 +31,30 @@ def ray_private(request, tmp_path_factory, monkeypatch):
     two clusters at once do not fit two cores. So the test holds an exclusive lock on a file
     shared by the session's workers for its whole length, and ``RAY_TMPDIR`` points to a short
     directory of its own (Ray's socket paths must stay under 108 bytes), inherited by the
-    processes it starts; ``RAY_ADDRESS`` is unset."""
-    if request.node.get_closest_marker("ray") is None:
-        yield None
-        return
-    import fcntl
+    processes it starts; ``RAY_ADDRESS`` is unset.
+
+    A test without the mark gets a ``RAY_TMPDIR`` of its own too, a sentinel: Ray writes its
+    session there the moment it starts (in this process or in a child, which inherits the
+    variable), so a test that starts Ray without the mark fails, naming the mark it needs,
+    instead of racing the marked ones for the cores and the cluster address."""
     import shutil
     import tempfile
     from pathlib import Path
+
+    if request.node.get_closest_marker("ray") is None:
+        sentinel = Path(tempfile.mkdtemp(prefix="decrun-noray-"))
+        monkeypatch.setenv("RAY_TMPDIR", str(sentinel))
+        try:
+            yield None
+        finally:
+            started = sorted(p.name for p in sentinel.iterdir())
+            shutil.rmtree(sentinel, ignore_errors=True)
+        if started:
+            pytest.fail(f"{request.node.nodeid} started Ray (it wrote {started} into RAY_TMPDIR) without the ray mark: "
+                        "add @pytest.mark.ray, which serializes the Ray tests and gives each its own temp dir",
+                        pytrace=False)
+        return
+    import fcntl
 
     base = tmp_path_factory.getbasetemp()
     shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # the session's workers share it

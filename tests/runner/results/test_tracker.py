@@ -278,6 +278,7 @@ def test_jobs_of_another_launcher_are_logged_from_the_sweeps_end(tmp_path):
 LAUNCHED = ["app=heat", "mesh.subdiv=1", "app.t_end=0.002", "app.dt=1e-3,2e-3", "figures=false", "tracker=mlflow"]
 
 
+@pytest.mark.ray
 @pytest.mark.slow
 def test_jobs_run_by_the_ray_launcher_are_logged_from_the_sweeps_end(tmp_path):
     """hydra/launcher=ray on a local Ray: the jobs run in Ray workers, which never reach the

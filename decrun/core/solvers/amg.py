@@ -13,6 +13,10 @@ from decrun.errors import SolverError
 
 __all__ = ["AMGSolver"]
 
+#: numpy's global seed while pyamg builds a hierarchy (its setup draws random start vectors)
+SETUP_SEED = 0
+
+
 class AMGMethod(Choice):
     """``solver.method`` of amg: pyamg's hierarchy builders."""
 
@@ -38,7 +42,9 @@ class AMGSolver(Solver):
     (:class:`decrun.core.solvers.SingularSolve`'s refinement rounds) whose right-hand side has
     a component along the kernel has a solution ~ 1/shift larger than b, and a residual
     relative to ‖b‖ alone that no iteration reaches (such a solve failed after 500 iterations;
-    the refinement around it checks the true residual)."""
+    the refinement around it checks the true residual). The hierarchy is built under
+    :data:`SETUP_SEED` (numpy's global random state, which pyamg's setup draws from, is restored after):
+    a run's solves do not depend on what drew random numbers before it."""
 
     name = "amg"
     needs_spd = True
@@ -68,12 +74,19 @@ class AMGSolver(Solver):
                  "ruge_stuben": pyamg.ruge_stuben_solver}[self.method]
         self._A = A
         self._norm_A = norm_bound(A)
+        # pyamg's setup estimates spectral radii (the prolongation smoother's weight) by Arnoldi
+        # from np.random's global state: the same hierarchy for the same A only under a fixed
+        # seed, set here and the caller's random state given back
+        state = np.random.get_state()
+        np.random.seed(SETUP_SEED)
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # pyamg warns "Indefinite preconditioner": make it our error
             try:
                 self._ml = build(A)
             except Warning as exc:
                 raise SolverError(f"amg solver: {exc} (the matrix is not positive definite)") from None
+            finally:
+                np.random.set_state(state)
 
     def _solve_one(self, b):
         import warnings

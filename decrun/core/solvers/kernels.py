@@ -2,8 +2,9 @@
 
 * :class:`SingularSolve` — A x = b for a symmetric positive *semi*-definite A with b ∈ im A
   (Poisson problems on closed meshes, least squares with a kernel): factorize A + εW once,
-  then iterative refinement x ← x + (A + εW)⁻¹ (b − A x), and project the kernel out of x:
-  the result is the solution W-orthogonal to ker A, the same for every solver.
+  then iterative refinement x ← x + (A + εW)⁻¹ P (b − A x) (P: the projection onto im A
+  along the kernel A's zero row sums give away, :func:`constant_kernel`), and project the
+  kernel out of x: the result is the solution W-orthogonal to ker A, the same for every solver.
 * :func:`condense` / :func:`solve_with_fixed` — A x = b with some entries of x given
   (Dirichlet values, pinned vertices), by eliminating them (scikit-fem's ``condense``).
 """
@@ -13,7 +14,34 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["SingularSolve", "condense", "solve_with_fixed"]
+__all__ = ["SingularSolve", "condense", "constant_kernel", "solve_with_fixed"]
+
+
+def constant_kernel(A, rtol: float = 1e-12) -> np.ndarray:
+    """(n, h) the indicators of the connected components C of A's graph (i ~ j when A_ij ≠ 0)
+    whose rows sum to zero, |Σ_j A_ij| ≤ ``rtol`` max|A| on every row of C: then A 1_C = 0, so
+    1_C ∈ ker A. The known part of ker A: the constants of the 0-form Laplacian d0ᵀ ⋆1 d0 on
+    each piece of a mesh (ker d0), and the consistently oriented top forms of the coexact
+    system d_{n-1} ⋆⁻¹ d_{n-1}ᵀ on each closed piece (ker d_{n-1}ᵀ, Hⁿ), the kernels of the
+    thesis' Hodge decomposition (§6.3). Columns are 0/1, one per such component; (n, 0)
+    when none (a Dirichlet border, or a kernel that is not constant)."""
+    from scipy.sparse.csgraph import connected_components
+
+    A = sp.csr_matrix(A)
+    n = A.shape[0]
+    if n == 0 or A.nnz == 0:
+        return np.zeros((n, 0))
+    count, label = connected_components(A, directed=False)
+    scale = float(np.abs(A.data).max())
+    off = np.abs(np.asarray(A.sum(axis=1)).ravel()) > rtol * scale
+    closed = np.ones(count, dtype=bool)
+    closed[label[off]] = False
+    keep = np.flatnonzero(closed)
+    Z = np.zeros((n, keep.size))
+    where = np.searchsorted(keep, label)
+    inside = closed[label]
+    Z[np.flatnonzero(inside), where[inside]] = 1.0
+    return Z
 
 
 class SingularSolve:
@@ -28,6 +56,15 @@ class SingularSolve:
     itself. So the kernel is computed once (:meth:`kernel_basis`) and projected out of every
     solution, x ← x − Z Zᵀ W x; the solvers then agree to ≤ 1e-9.
 
+    The part of ker A that A's zero row sums give away (:func:`constant_kernel`, the
+    constants of a closed mesh's Laplacian) is removed from every right-hand side the solver
+    sees, r ← r − Z_c (Z_cᵀ Z_c)⁻¹ Z_cᵀ r (im A = (ker A)^⊥ for symmetric A), and from every
+    solution, also with ``project=False`` (it costs no solve). Without it a right-hand side
+    with a kernel part of round-off — a refinement residual, whose round-off is no longer
+    small beside it — asks (A + εW)⁻¹ for a part ~ 1/ε along the kernel, which an iterative
+    solver (amg) does not reach and may diverge on. A b with a kernel part beyond round-off
+    is solved in the least-squares sense, A x = P b; :attr:`kernel_part` says how much of the
+    last b that was, ‖(I − P) b‖ / ‖b‖.
     Parameters
     ----------
     A : (n, n) sparse symmetric PSD
@@ -36,7 +73,7 @@ class SingularSolve:
     shift : ε relative to mean|diag A| / mean W
     tol, max_steps : refinement stops when ‖b − A x‖ ≤ tol ‖b‖ or after max_steps
     project : False skips the kernel (and its solves) for a caller that only uses A x — the
-        Hodge parts d α, δ β — and accepts x up to ker A
+        Hodge parts d α, δ β — and accepts x up to ker A (but for the constant kernel)
     """
 
     def __init__(self, A, solver, weight: np.ndarray | None = None, shift: float = 1e-10,
@@ -52,15 +89,35 @@ class SingularSolve:
         self.project = project
         self._kernel: np.ndarray | None = None
         self.steps = 0  # refinement steps of the last solve
+        #: ‖(I − P) b‖ / ‖b‖ of the last b (per column for b of shape (n, s)): its part along the constant kernel
+        self.kernel_part: np.ndarray | float = 0.0
+        constant = constant_kernel(self.A)
+        sizes = constant.sum(axis=0)
+        self._range_basis = constant / np.sqrt(sizes)  # Euclidean-orthonormal: P r = r − Q Qᵀ r
+        self._constant_w = constant / np.sqrt(constant.T @ weight)  # W-orthonormal: x − Z Zᵀ W x
+
+    def _to_range(self, r: np.ndarray) -> np.ndarray:
+        """``r`` without its part along the constant kernel: P r, P the projection onto im A."""
+        Q = self._range_basis
+        return r - Q @ (Q.T @ r) if Q.shape[1] else r
+
+    def _without_constants(self, x: np.ndarray) -> np.ndarray:
+        """``x`` without its W-part along the constant kernel (W-orthogonal to it)."""
+        Z = self._constant_w
+        if not Z.shape[1]:
+            return x
+        return x - Z @ (Z.T @ (self.weight.reshape((-1,) + (1,) * (x.ndim - 1)) * x))
 
     def _refine(self, b: np.ndarray) -> np.ndarray:
+        """x with A x = P b to ``tol``: refinement with every residual projected onto im A."""
+        b = self._to_range(b)
         x = np.zeros_like(b)
         norm_b = float(np.linalg.norm(b)) or 1.0
         residual = b.copy()
         self.steps = 0
         while self.steps < self.max_steps and np.linalg.norm(residual) > self.tol * norm_b:
-            x = x + np.asarray(self.solver.solve(residual), dtype=np.float64)
-            residual = b - self.A @ x
+            x = self._without_constants(x + np.asarray(self.solver.solve(residual), dtype=np.float64))
+            residual = self._to_range(b - self.A @ x)
             self.steps += 1
         return x
 
@@ -92,6 +149,10 @@ class SingularSolve:
     def solve(self, b: np.ndarray) -> np.ndarray:
         """x with A x = b (the solution W-orthogonal to ker A); b (n,) or (n, s)."""
         b = np.asarray(b, dtype=np.float64)
+        norms = np.atleast_1d(np.linalg.norm(b, axis=0))
+        removed = np.atleast_1d(np.linalg.norm(b - self._to_range(b), axis=0))
+        part = np.where(norms > 0, removed / np.where(norms > 0, norms, 1.0), 0.0)
+        self.kernel_part = float(part[0]) if b.ndim == 1 else part
         if not self.project:
             return self._refine(b)
         Z = self.kernel_basis()

@@ -23,6 +23,7 @@ import re
 from pathlib import Path
 
 import pytest
+from page_prose import numbers_in, prose
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -242,33 +243,25 @@ REFERENCE = re.compile(r"(?:§|\beqs?\.|\bFigs?\.|\bch\.|\bTheorem|\bTable)\s*\d
                        r"(?:\s*(?:[–,/-]|and)\s*\d+(?:\.\d+)*)*")
 
 
-def _blank(match: re.Match) -> str:
-    return re.sub(r"[^\n]", " ", match.group(0))
-
-
-def prose(text: str) -> str:
-    """``text`` with what is not prose blanked out (same length, same lines): fenced code blocks,
-    inline code, ``{{ … }}`` placeholders, images, link targets, HTML comments, references."""
-    text = re.sub(r"^(\s*)(```|~~~).*?^\s*\2", _blank, text, flags=re.M | re.S)
-    for pattern in (r"`[^`\n]*(?:\n[^`\n]+)?`", r"\{\{[^}]*\}\}", r"!\[[^\]]*\]\([^)]*\)", r"\]\([^)]*\)"):
-        text = re.sub(pattern, _blank, text)
-    text = re.sub(r"<!--.*?-->", _blank, text, flags=re.S)
-    return REFERENCE.sub(_blank, text)
+def page_prose(text: str) -> str:
+    """``text`` with what is not prose blanked out (same length, same lines): what
+    tests/page_prose.py blanks (code, placeholders, images, link targets, HTML comments) and
+    references."""
+    return prose(text, REFERENCE)
 
 
 def typed_numbers(text: str, allowed: dict[str, str]) -> list[str]:
     """The numbers of ``text``'s prose that no allowed phrase covers, each as ``line N: number
     in «context»``."""
-    body = prose(text)
+    body = page_prose(text)
     covered = [range(m.start(), m.end()) for phrase in allowed
                for m in re.finditer(re.escape(_normal(phrase)), _normal(body))]
     found = []
-    for match in NUMBER.finditer(body):
+    for line, match in numbers_in(body, NUMBER):
         if re.fullmatch(r"\d", match.group(0)):
             continue
         if any(match.start() in span and match.end() - 1 in span for span in covered):
             continue
-        line = body.count("\n", 0, match.start()) + 1
         context = " ".join(body[max(0, match.start() - 40):match.end() + 20].split())
         found.append(f"line {line}: {match.group(0)} in «{context}»")
     return found
@@ -295,7 +288,7 @@ def test_no_measured_number_is_typed_into_the_page(page):
 
 @pytest.mark.parametrize("page", sorted(ALLOWED))
 def test_every_allowed_phrase_is_on_its_page(page):
-    body = _normal(prose(page_text(page)))
+    body = _normal(page_prose(page_text(page)))
     stale = [phrase for phrase in ALLOWED[page] if _normal(phrase) not in body]
     assert page in PAGES and not stale, f"{page}: allowed phrases no longer on the page: {stale}"
 

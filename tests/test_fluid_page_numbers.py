@@ -3,7 +3,8 @@
 The prose of ``docs/apps/fluid.md`` and of the gallery's fluid sections (``## fig7_…``) is
 scanned for numbers that look measured — a decimal (``0.147``, ``1.8e3``), an integer of three or
 more digits (``1455``, ``12,059``), a percentage (``8 %``) or a factor (``×0.77``, ``0.95×``) —
-outside ``{{ numbers.… }}`` placeholders, code blocks and inline code (commands, config keys).
+outside ``{{ numbers.… }}`` placeholders, code blocks, inline code (commands, config keys) and
+link targets (:data:`NOT_PROSE`, blanked by tests/page_prose.py as for the site-wide guard).
 Small integers (a step count of two digits, "8, 16, 32 cells") are not flagged: too many are
 parameters; the page makes its measured ones placeholders all the same.
 What remains must be in ``ALLOWED``: a constant the page documents (a config default, a
@@ -16,6 +17,8 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+
+from page_prose import LINK_TARGET, numbers_in, prose
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -55,29 +58,29 @@ ALLOWED: dict[str, str] = {
     "7.2.5": "§7.2.5", "6.4.4": "§6.4.4", "90.0": "a right angle (the bound the smoothing aims at)",
 }
 
-PLACEHOLDER = re.compile(r"\{\{\s*numbers\.[\w.]+\s*\}\}")
-FENCE = re.compile(r"^```.*?^```", flags=re.M | re.S)
-INLINE_CODE = re.compile(r"`[^`\n]*`")
-LINK_TARGET = re.compile(r"\]\([^)]*\)")
+#: what is not prose here: code blocks, one-line inline code, link targets and number placeholders
+NOT_PROSE = (re.compile(r"^```.*?^```", flags=re.M | re.S), re.compile(r"`[^`\n]*`"), LINK_TARGET,
+             re.compile(r"\{\{\s*numbers\.[\w.]+\s*\}\}"))
 #: a number that looks measured: a decimal or scientific number, an integer of 3+ digits (with
 #: or without thousands separators), and any number with % after it or × before/after it
 NUMBER = re.compile(r"(?<![\w.§])(\d+(?:,\d{3})+|\d+(?:\.\d+)+(?:e[+-]?\d+)?|\d+e[+-]?\d+|\d{3,})(?![\w])")
 MARKED = re.compile(r"×\s?(\d+(?:\.\d+)?)|(?<![\w.])(\d+(?:\.\d+)?)\s?[%×]")
 
 
-def prose(markdown: str) -> str:
-    """``markdown`` without code blocks, inline code, link targets and number placeholders."""
-    for pattern in (FENCE, INLINE_CODE, LINK_TARGET, PLACEHOLDER):
-        markdown = pattern.sub(" ", markdown)
-    return markdown
-
-
 def typed_numbers(markdown: str) -> list[tuple[int, str]]:
     """(line, token) of every number in the prose that looks measured and is not allowed."""
+    body = prose(markdown, not_prose=NOT_PROSE)
+    lines = body.splitlines()
+    numbers: dict[int, list[str]] = {}
+    for n, m in numbers_in(body, NUMBER):
+        numbers.setdefault(n, []).append(m.group(1))
+    marked: dict[int, list[re.Match]] = {}
+    for n, m in numbers_in(body, MARKED):
+        marked.setdefault(n, []).append(m)
     found = []
-    for n, line in enumerate(prose(markdown).splitlines(), 1):
-        tokens = [m.group(1) for m in NUMBER.finditer(line)]
-        for m in MARKED.finditer(line):
+    for n in sorted(numbers.keys() | marked.keys()):
+        tokens, line = numbers.get(n, []), lines[n - 1]
+        for m in marked.get(n, []):
             number = m.group(1) or m.group(2)
             if re.search(re.escape(number) + r"\s?%", line):  # a percentage: judged as one
                 tokens = [t for t in tokens if t != number] + [f"{number} %"]
@@ -116,5 +119,6 @@ def test_the_guard_finds_a_typed_measurement():
                          ("4.2e3 /s", "4.2e3")):
         found = typed_numbers(f"It measured {typed}.\n")
         assert found == [(1, token)], (typed, found)
-    # code and commands are not prose
+    # code and commands are not prose; a number after a code block is reported on its page line
     assert typed_numbers("run `decrun mesh.target_faces=5399`\n```bash\ndecrun app.dt=0.1234\n```\n") == []
+    assert typed_numbers("```bash\ndecrun app.dt=0.1234\n```\nIt measured 0.00271 /s.\n") == [(4, "0.00271")]

@@ -462,7 +462,8 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     try:
         return _run(cfg, out, multirun=multirun, verbose=verbose, log_name=log_name)
     except Stopped as exc:
-        if fresh and getattr(exc, "refused", False) and _only_hydras_files(out, log_name, RunFiles.METRICS):
+        if fresh and made is not None and getattr(exc, "refused", False) and \
+                _only_hydras_files(out, log_name, RunFiles.METRICS):
             exc.leave_nothing = (out, made)  # removed below, once the lock is dropped
         raise
     finally:

@@ -5,7 +5,7 @@
 Runs ``decrun figures=false`` and ``decrun`` (the default experiment: smoothing on the
 642-vertex icosphere; ``-- OVERRIDES`` replaces these two by one command with those
 overrides) ``--repeat`` times each (after one unmeasured run that writes the bytecode
-caches), in fresh processes, for this checkout and — with
+caches and the mesh cache, as a user's first run does), in fresh processes, for this checkout and — with
 ``--reference``, e.g. an older commit made with ``git worktree add`` — for another checkout
 in the same run, alternating between them, and prints for the fastest run of each (by
 wall time) the wall and CPU seconds of each stage and the share of the app's compute; the
@@ -154,8 +154,10 @@ def child(argv: list[str], report: Path, spawned: float) -> None:
 def measure(checkout: Path, args: list[str], cwd: Path, pycache: Path) -> dict[str, list[float]]:
     """One fresh process of ``decrun <args>`` from ``checkout``: {stage: [wall s, cpu s]}, ``total``.
     Its bytecode is cached under ``pycache`` (``PYTHONPYCACHEPREFIX``: as an installed package
-    has it, whatever ``PYTHONDONTWRITEBYTECODE`` says and without writing into the checkout)."""
-    env = dict(os.environ, PYTHONPATH=str(checkout), MPLBACKEND="Agg", PYTHONPYCACHEPREFIX=str(pycache))
+    has it, whatever ``PYTHONDONTWRITEBYTECODE`` says and without writing into the checkout), its
+    meshes in a mesh cache beside it (``DECRUN_MESH_CACHE``: as a user's second run has them)."""
+    env = dict(os.environ, PYTHONPATH=str(checkout), MPLBACKEND="Agg", PYTHONPYCACHEPREFIX=str(pycache),
+               DECRUN_MESH_CACHE=str(pycache.parent / f"meshes-{pycache.name}"))
     for name in ("HYDRA_FULL_ERROR", "PYTHONDONTWRITEBYTECODE"):
         env.pop(name, None)
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as handle:

@@ -240,7 +240,7 @@ def refine(mesh: Mesh, cfg) -> Mesh:
     require_surface(mesh, f"mesh.refine={cfg.refine}", "mesh.refine=none")
     dim = mesh.vertices.shape[1]
     m, iterations = len(mesh.simplices), int(cfg.refine_iterations)
-    target = None  # isotropic: the target edge length
+    target = 0.0  # isotropic only: the target edge length
     if cfg.refine in ("loop", "midpoint"):  # each iteration splits a triangle into 4
         fits = max(0, int(np.floor(np.log(MAX_TRIANGLES / m) / np.log(4))))
         require_triangles(m * 4.0 ** iterations, "mesh.refine_iterations",
@@ -272,7 +272,7 @@ def refine(mesh: Mesh, cfg) -> Mesh:
         return (*from_meshset(ms, f"mesh.refine={cfg.refine}"), {})
 
     params = {"input": content_hash(mesh.vertices, mesh.simplices), "refine": str(cfg.refine),
-              "iterations": iterations, "target": None if target is None else float(target)}
+              "iterations": iterations, "target": float(target)}
     vertices, faces, _ = cached_mesh("refine", params, __file__, build)
     meta = {k: v for k, v in mesh.meta.items() if k != "clean_vertices"}
     return Mesh(vertices[:, :dim], faces, meta)

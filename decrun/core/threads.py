@@ -47,9 +47,9 @@ def bound_blas_spin() -> None:
 
     OpenBLAS starts its worker threads when it loads (with numpy, and again with scipy, which
     bundles its own), and an idle worker spins 2**28 cycles (its default, about 0.1 s) before it
-    sleeps: at ``import numpy, scipy`` that is 0.1 s of CPU per library that nothing asked for,
-    taken from the other processes on a busy machine (the small run's imports used more CPU than
-    wall time). 2**20 cycles still keeps the workers awake between BLAS calls that follow each
+    sleeps: at ``import numpy, scipy`` the two workers spun 0.07-0.09 s of CPU between them that
+    nothing asked for, taken from the other processes on a busy machine (the small run's imports
+    used more CPU than wall time). 2**20 cycles still keeps the workers awake between BLAS calls that follow each
     other within a fraction of a millisecond. Only the wait changes: the number of threads and
     every result stay the same. OpenBLAS reads the variable when it loads, so the command sets
     it before numpy is imported; a process that loaded OpenBLAS before keeps its setting."""

@@ -384,9 +384,9 @@ print(os.environ.get("OPENBLAS_THREAD_TIMEOUT"), len(os.listdir("/proc/self/task
 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads the threads' CPU time from /proc")
 def test_the_decrun_command_bounds_openblas_spinning_unless_the_environment_says():
-    """OpenBLAS's workers, started when numpy and scipy load, spin about 0.1 s of CPU each before
-    they sleep (its default OPENBLAS_THREAD_TIMEOUT=28); the ``decrun`` command sets 20 before numpy
-    loads, and the workers (the same number) then use less than a clock tick between them; a value
+    """OpenBLAS's workers, started when numpy and scipy load, spin before they sleep (its default
+    OPENBLAS_THREAD_TIMEOUT=28: 0.07-0.09 s of CPU between the two here); the ``decrun`` command
+    sets 20 before numpy loads, and the workers (the same number) then use less than a clock tick between them; a value
     in the environment is kept, and with OpenBLAS's default the workers spin."""
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
     results = {}

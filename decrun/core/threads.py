@@ -41,7 +41,6 @@ def bound_openmp_spin() -> None:
         os.environ["GOMP_SPINCOUNT"] = OPENMP_SPIN
 
 
-
 def bound_blas_spin() -> None:
     """``OPENBLAS_THREAD_TIMEOUT=20`` unless the environment sets it.
 
@@ -49,10 +48,11 @@ def bound_blas_spin() -> None:
     bundles its own), and an idle worker spins 2**28 cycles (its default, about 0.1 s) before it
     sleeps: at ``import numpy, scipy`` the two workers spun 0.07-0.09 s of CPU between them that
     nothing asked for, taken from the other processes on a busy machine (the small run's imports
-    used more CPU than wall time). 2**20 cycles still keeps the workers awake between BLAS calls that follow each
-    other within a fraction of a millisecond. Only the wait changes: the number of threads and
-    every result stay the same. OpenBLAS reads the variable when it loads, so the command sets
-    it before numpy is imported; a process that loaded OpenBLAS before keeps its setting."""
+    used more CPU than wall time). 2**20 cycles still keeps the workers awake between BLAS calls
+    that follow each other within a fraction of a millisecond. Only the wait changes: the number
+    of threads and every result stay the same. OpenBLAS reads the variable when it loads, so the
+    command sets it before numpy is imported; a process that loaded OpenBLAS before keeps its
+    setting."""
     if "OPENBLAS_THREAD_TIMEOUT" not in os.environ:
         os.environ["OPENBLAS_THREAD_TIMEOUT"] = BLAS_SPIN
 

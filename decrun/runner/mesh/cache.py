@@ -152,7 +152,7 @@ def cached_mesh(generator: str, params: dict[str, Any], code: str | os.PathLike,
     faces = np.ascontiguousarray(faces, dtype=np.int64)
     try:
         _write(path, spec, vertices, faces, extra)
-    except OSError as exc:
+    except (OSError, TypeError, ValueError) as exc:  # a full or read-only disk; an extra JSON cannot hold
         log.warning("mesh cache: cannot write %s (%s); the run goes on without it (%s=off turns the cache off)",
                     path, exc, CACHE_ENV)
     return vertices, faces, extra

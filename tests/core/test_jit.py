@@ -400,7 +400,7 @@ def test_the_decrun_command_bounds_openblas_spinning_unless_the_environment_says
     if default_workers == 0:
         pytest.skip("OpenBLAS starts no worker threads on a single core")
     assert (value, kept) == ("20", "28") and workers == default_workers
-    assert cpu <= 0.01 and spun >= 0.03, results
+    assert cpu <= 0.01 and spun >= 0.02, results  # one clock tick; two at least even on a loaded machine
 
 
 def test_import_decrun_changes_nothing_in_the_environment():

@@ -12,8 +12,9 @@ Layers (each imports only the ones below it; ``tests/test_layers.py`` enforces i
 Python or a notebook (:mod:`decrun.runner.api`): a :class:`~decrun.runner.api.Run`, a sweep's
 table. They, ``decrun.SimplicialComplex`` and ``decrun.DEC`` are imported lazily, so
 ``import decrun`` (and ``decrun --help``) stays fast. ``import decrun`` changes nothing in ``os.environ``: the
-``decrun`` command bounds GNU OpenMP's spinning (:func:`decrun.core.threads.bound_openmp_spin`)
-before anything loads libgomp, and a program of your own may call it first too.
+``decrun`` command bounds GNU OpenMP's and OpenBLAS's spinning (:func:`decrun.core.threads.bound_openmp_spin`,
+:func:`decrun.core.threads.bound_blas_spin`) before anything loads libgomp or OpenBLAS, and a program of your own
+may call them first too.
 """
 
 from decrun.errors import (  # noqa: F401

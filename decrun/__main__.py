@@ -12,9 +12,10 @@ def console_main() -> None:
     the first instant, also while the command imports Hydra and numpy (~0.5 s), then
     :func:`decrun.runner.cli.main`."""
     install_sigterm()
-    from decrun.core.threads import bound_openmp_spin
+    from decrun.core.threads import bound_blas_spin, bound_openmp_spin
 
     bound_openmp_spin()  # before pymeshlab loads libgomp (decrun.core.threads); the command's, not import decrun's
+    bound_blas_spin()  # before numpy and scipy load OpenBLAS
     try:
         from decrun.runner.cli import main  # lazy: after the signal handler (reports a Ctrl-C during the imports)
     except KeyboardInterrupt as exc:

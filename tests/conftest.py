@@ -10,10 +10,20 @@ import sys
 import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
-# as the decrun command does (decrun/__main__.py): bound GNU OpenMP's spinning before libgomp loads
-from decrun.core.threads import bound_openmp_spin  # noqa: E402
+# as the decrun command does (decrun/__main__.py): bound GNU OpenMP's and OpenBLAS's spinning before they load
+from decrun.core.threads import bound_blas_spin, bound_openmp_spin  # noqa: E402
 
 bound_openmp_spin()
+bound_blas_spin()
+# the mesh cache (decrun.runner.mesh.cache) of this session, shared by its xdist workers and the
+# decrun commands they start (they inherit the variable), removed at the end; never the user's
+if "DECRUN_MESH_CACHE" not in os.environ:
+    import atexit
+    import shutil
+    import tempfile
+
+    os.environ["DECRUN_MESH_CACHE"] = tempfile.mkdtemp(prefix="decrun-mesh-cache-")
+    atexit.register(shutil.rmtree, os.environ["DECRUN_MESH_CACHE"], True)
 
 
 def pytest_configure(config):

@@ -288,7 +288,7 @@ NOT_RUN = {
     ("docs/performance.md", "python benchmarks/bench_operators.py --repeat 5   # 82k, 328k, 1.31M triangles"):
         "not run: a benchmark (minutes of a quiet machine); the page states its numbers' command, commit and machine",
     ("docs/performance.md",
-     "python benchmarks/bench_small_run.py --repeat 5 --reference /path/to/a/checkout/of/the/commit/before"):
+     "python benchmarks/bench_small_run.py --repeat 9 --best cpu --reference /path/to/a/checkout/of/the/commit/before"):
         "not run: a benchmark (fresh processes of two checkouts, best of 5); the page states its numbers' commit and machine",
     ("docs/robustness.md", ".venv/bin/python benchmarks/mutation_check.py            # all (~20 min on 2 busy cores)"):
         "not run: ~20 min; tests/test_mutation_check.py checks every planted bug still matches the code",

@@ -13,6 +13,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -358,6 +359,48 @@ def test_the_decrun_command_bounds_openmp_spinning_unless_the_environment_says(e
     out = subprocess.run([sys.executable, "-c", SPIN_PROBE], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == expected
+
+
+BLAS_PROBE = """
+import os, sys, time
+sys.argv = ["decrun", "--help"]
+import decrun.__main__ as entry
+assert "numpy" not in sys.modules  # OpenBLAS reads the variable when numpy loads it
+try:
+    entry.console_main()  # the decrun command: --help prints and returns
+except SystemExit:
+    pass
+import numpy, scipy.linalg  # noqa: E401,F401  numpy's and scipy's OpenBLAS start their workers here
+time.sleep(0.3)
+ticks = os.sysconf("SC_CLK_TCK")
+cpu = 0.0
+for task in os.listdir("/proc/self/task"):
+    if task != str(os.getpid()):  # the workers: every thread but the main one
+        fields = open(f"/proc/self/task/{task}/stat").read().rsplit(")", 1)[1].split()
+        cpu += (int(fields[11]) + int(fields[12])) / ticks
+print(os.environ.get("OPENBLAS_THREAD_TIMEOUT"), len(os.listdir("/proc/self/task")) - 1, cpu)
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads the threads' CPU time from /proc")
+def test_the_decrun_command_bounds_openblas_spinning_unless_the_environment_says():
+    """OpenBLAS's workers, started when numpy and scipy load, spin before they sleep (its default
+    OPENBLAS_THREAD_TIMEOUT=28: 0.07-0.09 s of CPU between the two here); the ``decrun`` command
+    sets 20 before numpy loads, and the workers (the same number) then use less than a clock tick between them; a value
+    in the environment is kept, and with OpenBLAS's default the workers spin."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    results = {}
+    for name, extra in (("bounded", {}), ("default", {"OPENBLAS_THREAD_TIMEOUT": "28"})):
+        out = subprocess.run([sys.executable, "-c", BLAS_PROBE], env=env | extra, capture_output=True, text=True,
+                             timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        value, workers, cpu = out.stdout.split()[-3:]
+        results[name] = (value, int(workers), float(cpu))
+    (value, workers, cpu), (kept, default_workers, spun) = results["bounded"], results["default"]
+    if default_workers == 0:
+        pytest.skip("OpenBLAS starts no worker threads on a single core")
+    assert (value, kept) == ("20", "28") and workers == default_workers
+    assert cpu <= 0.01 and spun >= 0.02, results  # one clock tick; two at least even on a loaded machine
 
 
 def test_import_decrun_changes_nothing_in_the_environment():

@@ -50,7 +50,8 @@ def imported_modules(*args: str, cwd) -> set[str]:
 def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path):
     """``decrun figures=false`` never imports matplotlib or pandas (the figures' and the sweep
     table's), nor decrun's sweeper, its sweep planning or tracking; with figures matplotlib
-    loads — the check sees the imports that happen."""
+    loads — the check sees the imports that happen; the second run reads its mesh from the mesh
+    cache and imports no pymeshlab."""
     modules = imported_modules("figures=false", "app.steps=2", cwd=tmp_path)
     assert "decrun.runner.run" in modules and "h5py" in modules  # the log is read right
     unused = ["matplotlib", "pandas", "decrun.runner.plots.common", "decrun.runner.sweep.sweeper",
@@ -58,6 +59,8 @@ def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path):
     assert [m for m in unused if m in modules] == []
     drawn = imported_modules("app.steps=2", cwd=tmp_path)
     assert {"matplotlib", "decrun.runner.plots.common"} <= drawn and "pandas" not in drawn
+    # the icosphere the first run made comes from the mesh cache: pymeshlab is not imported again
+    assert "decrun.runner.mesh.cache" in drawn and "pymeshlab" not in drawn
 
 
 def test_a_single_run_composes_its_config_once(tmp_path, monkeypatch):

@@ -1,9 +1,10 @@
 """Meshes for the runner: the :class:`Mesh` record (:mod:`.base`), the :class:`MeshSource`
 base (:mod:`.source`), the sources of the ``mesh`` group (:mod:`.sources`), the ``mesh.post``
 steps (:mod:`.post`) with the hole cuts (:mod:`.cut`, :mod:`.holes`) and pymeshlab's repair
-(:mod:`.repair`), and the file readers (:mod:`.files`).
+(:mod:`.repair`), the file readers (:mod:`.files`) and the cache of the meshes pymeshlab
+makes (:mod:`.cache`).
 
-Layers (tests/test_layers.py): ``sources > source > post > cut | holes | repair > base | files``.
+Layers (tests/test_layers.py): ``sources > source > post > cut | holes | repair > base | files > cache``.
 """
 
 from decrun.runner.mesh.base import (

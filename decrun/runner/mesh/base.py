@@ -144,12 +144,20 @@ def to_meshset(vertices: np.ndarray, simplices: np.ndarray):
 
 
 def pymeshlab_primitive(filter_name: str, label: str, **params) -> Mesh:
-    """A mesh made by a pymeshlab ``create_*`` filter."""
-    import pymeshlab
+    """A mesh made by a pymeshlab ``create_*`` filter with ``params`` (ints and floats): vertices
+    ``(n, 3) float64`` and triangles ``(m, 3) int64`` in pymeshlab's order, kept in the mesh cache
+    (:func:`decrun.runner.mesh.cache.cached_mesh`), so a later run with the same filter,
+    parameters and pymeshlab version reads them back without importing pymeshlab."""
+    from decrun.runner.mesh.cache import cached_mesh
 
-    ms = pymeshlab.MeshSet()
-    getattr(ms, filter_name)(**params)
-    vertices, faces = from_meshset(ms, f"mesh={label}")
+    def build() -> tuple[np.ndarray, np.ndarray, dict]:
+        import pymeshlab
+
+        ms = pymeshlab.MeshSet()
+        getattr(ms, filter_name)(**params)
+        return (*from_meshset(ms, f"mesh={label}"), {})
+
+    vertices, faces, _ = cached_mesh(f"pymeshlab.{filter_name}", params, __file__, build)
     return Mesh(vertices, faces, {"source": label, "label": label})
 
 

@@ -31,16 +31,18 @@ from decrun.runner.mesh.base import (
     require_triangles,
     to_meshset,
 )
+from decrun.runner.mesh.cache import cached_mesh, content_hash
 from decrun.runner.mesh.cut import ON_TOLERANCE, parse_regions, signed_distance
 from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
-from decrun.runner.mesh.repair import repair_mesh, up_axis_to_z
+from decrun.runner.mesh.repair import cached_repair, up_axis_to_z
 
 __all__ = ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise"]
 
 
 def repair(mesh: Mesh, cfg) -> Mesh:
-    """``repair``: pymeshlab's cleaning filters (:func:`decrun.runner.mesh.repair.repair_mesh`):
+    """``repair``: pymeshlab's cleaning filters (:func:`decrun.runner.mesh.repair.repair_mesh`,
+    through the mesh cache: :func:`decrun.runner.mesh.repair.cached_repair`):
     duplicate vertices and faces, zero-area and degenerate faces, non-manifold edges and
     vertices (bowties split), unreferenced vertices, coherent orientation. Every count goes
     to ``meta['repair']`` and the run log; triangle meshes only."""
@@ -50,7 +52,7 @@ def repair(mesh: Mesh, cfg) -> Mesh:
             "use `mesh.repair=false`")
     if "clean_vertices" in mesh.meta:  # repair runs before noise in the default order
         raise MeshError("mesh.repair: runs on the noise-free mesh; list repair before noise in mesh.post")
-    vertices, faces, report = repair_mesh(mesh.vertices, mesh.simplices)
+    vertices, faces, report = cached_repair(mesh.vertices, mesh.simplices)
     changed = {k: v for k, v in report.items() if isinstance(v, (int, np.integer)) and not isinstance(v, bool)
                and v and k not in ("vertices_in", "faces_in", "vertices_out", "faces_out", "rounds")}
     import logging
@@ -229,15 +231,16 @@ def largest_component(mesh: Mesh, cfg) -> Mesh:
 
 def refine(mesh: Mesh, cfg) -> Mesh:
     """``refine``: ``loop`` / ``midpoint`` subdivision or ``isotropic`` remeshing (pymeshlab),
-    ``refine_iterations`` times. Drops ``clean_vertices`` (the connectivity changed)."""
-    import pymeshlab
-
+    ``refine_iterations`` times. Drops ``clean_vertices`` (the connectivity changed). The refined
+    mesh is kept in the mesh cache (:func:`decrun.runner.mesh.cache.cached_mesh`, keyed by the
+    input mesh, the method, the iterations and the target edge)."""
     if cfg.refine == Refine.none:
         return mesh
     require(1 <= cfg.refine_iterations <= 10, "refine_iterations", f"must be in 1..10, got {cfg.refine_iterations}")
     require_surface(mesh, f"mesh.refine={cfg.refine}", "mesh.refine=none")
     dim = mesh.vertices.shape[1]
     m, iterations = len(mesh.simplices), int(cfg.refine_iterations)
+    target = 0.0  # isotropic only: the target edge length
     if cfg.refine in ("loop", "midpoint"):  # each iteration splits a triangle into 4
         fits = max(0, int(np.floor(np.log(MAX_TRIANGLES / m) / np.log(4))))
         require_triangles(m * 4.0 ** iterations, "mesh.refine_iterations",
@@ -249,19 +252,28 @@ def refine(mesh: Mesh, cfg) -> Mesh:
         equilateral = np.sqrt(3) / 4 * target**2
         shortest = np.sqrt(area / (MAX_TRIANGLES * np.sqrt(3) / 4))  # the target that makes MAX_TRIANGLES
         require_triangles(area / equilateral, "mesh.refine_target_edge", f"mesh.refine_target_edge={1.1 * shortest:.2g}")
-    ms = to_meshset(mesh.vertices, mesh.simplices)
-    try:
-        if cfg.refine == "loop":
-            ms.meshing_surface_subdivision_loop(iterations=iterations, threshold=pymeshlab.PercentageValue(0.0))
-        elif cfg.refine == "midpoint":
-            ms.meshing_surface_subdivision_midpoint(iterations=iterations, threshold=pymeshlab.PercentageValue(0.0))
-        else:
-            ms.meshing_isotropic_explicit_remeshing(iterations=iterations, targetlen=pymeshlab.PureValue(float(target)))
-    except pymeshlab.PyMeshLabException as exc:
-        reason = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
-        raise MeshError(f"mesh.refine={cfg.refine}: pymeshlab refused the mesh ({reason}); repair the mesh "
-                        f"or use mesh.refine=none") from None
-    vertices, faces = from_meshset(ms, f"mesh.refine={cfg.refine}")
+
+    def build() -> tuple[np.ndarray, np.ndarray, dict]:
+        import pymeshlab
+
+        ms = to_meshset(mesh.vertices, mesh.simplices)
+        try:
+            if cfg.refine == "loop":
+                ms.meshing_surface_subdivision_loop(iterations=iterations, threshold=pymeshlab.PercentageValue(0.0))
+            elif cfg.refine == "midpoint":
+                ms.meshing_surface_subdivision_midpoint(iterations=iterations, threshold=pymeshlab.PercentageValue(0.0))
+            else:
+                ms.meshing_isotropic_explicit_remeshing(iterations=iterations,
+                                                        targetlen=pymeshlab.PureValue(float(target)))
+        except pymeshlab.PyMeshLabException as exc:
+            reason = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+            raise MeshError(f"mesh.refine={cfg.refine}: pymeshlab refused the mesh ({reason}); repair the mesh "
+                            f"or use mesh.refine=none") from None
+        return (*from_meshset(ms, f"mesh.refine={cfg.refine}"), {})
+
+    params = {"input": content_hash(mesh.vertices, mesh.simplices), "refine": str(cfg.refine),
+              "iterations": iterations, "target": float(target)}
+    vertices, faces, _ = cached_mesh("refine", params, __file__, build)
     meta = {k: v for k, v in mesh.meta.items() if k != "clean_vertices"}
     return Mesh(vertices[:, :dim], faces, meta)
 

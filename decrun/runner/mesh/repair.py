@@ -39,7 +39,7 @@ import numpy as np
 
 from decrun.core.geometry import triangle_areas
 
-__all__ = ["repair_mesh", "up_axis_to_z", "UP_AXIS", "ROTATION_TO_Z_UP"]
+__all__ = ["cached_repair", "repair_mesh", "up_axis_to_z", "UP_AXIS", "ROTATION_TO_Z_UP"]
 
 #: Up axis of each pymeshlab sample (``decrun.runner.mesh.sources.files.SAMPLE_MESHES`` names), judged by
 #: rendering each sample (after :func:`repair_mesh`) with matplotlib, z drawn upwards, before
@@ -226,3 +226,18 @@ def repair_mesh(vertices, faces, *, max_rounds: int = 5,
         report["orientable"] = orientable
     report["vertices_out"], report["faces_out"] = len(v), len(f)
     return v[:, :dim].copy(), f, report
+
+
+def cached_repair(vertices, faces) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """:func:`repair_mesh` (its default rounds and tolerance) through the mesh cache
+    (:func:`decrun.runner.mesh.cache.cached_mesh`, keyed by the input's vertices and faces):
+    the same vertices ``(n', d) float64``, faces ``(m', 3) int64`` and report, bit for bit, and
+    a later run repairing the same mesh reads them back without importing pymeshlab."""
+    from decrun.runner.mesh.cache import cached_mesh, content_hash
+
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    if vertices.ndim != 2 or vertices.shape[1] not in (2, 3) or faces.ndim != 2 or faces.shape[1] != 3:
+        return repair_mesh(vertices, faces)  # its own error
+    return cached_mesh("repair_mesh", {"input": content_hash(vertices, faces)}, __file__,
+                       lambda: repair_mesh(vertices, faces))

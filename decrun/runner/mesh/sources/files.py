@@ -26,10 +26,15 @@ SAMPLE_MESHES = {
 
 
 def sample_mesh_dir() -> Path:
-    """Directory of the sample meshes shipped inside the installed pymeshlab package."""
-    import pymeshlab
+    """Directory of the sample meshes shipped inside the installed pymeshlab package, found
+    without importing pymeshlab (its import loads MeshLab's libraries; reading a sample needs
+    none of them)."""
+    from importlib.util import find_spec
 
-    return Path(pymeshlab.__file__).resolve().parent / "tests" / "sample_meshes"
+    spec = find_spec("pymeshlab")
+    if spec is None or not spec.submodule_search_locations:
+        raise ModuleNotFoundError("mesh.sample: the pymeshlab package is not installed (pip install pymeshlab)")
+    return Path(spec.submodule_search_locations[0]).resolve() / "tests" / "sample_meshes"
 
 
 def read_file(path: Path, key: str, label: str) -> Mesh:

@@ -426,6 +426,24 @@ class VorticityFluid:
         swept, D = self._swept, self._swept.incidence
         chunks = jit.threads()
         rounds = unfinished = most = 0
+        if self._sweeps_at_once(walk, jump, field, options["integrator"]):
+            path = np.empty((k + 1,) + before.shape)  # every point after every interval: each point walks
+            path[0, :m] = before[:m]  # its k intervals in turn (compiled.sweep_points), then the swept
+            path[:, m:] = before[m:]  # change of each interval is added as below, the same bits
+            values = np.empty((k + 1, value_before.size))
+            values[0, :m] = value_before[:m]
+            values[:, m:] = value_before[m:]
+            r, left, steps = compiled.sweep_points(walk, jump, both, path, triangle, wall, start, end_velocity, size,
+                                                   self.dt / k, substeps, max_cfl, cap, int(options["max_rounds"]),
+                                                   vorticity, values, chunks)
+            for interval in range(k):
+                rounds = rounds + int(r[interval].sum())
+                compiled.swept_change_add(change, path[interval], path[interval + 1], values[interval],
+                                          values[interval + 1], swept.side_a, swept.side_b, swept.normal, D.indptr,
+                                          D.indices, D.data, chunks)
+            self._swept_change = change
+            return BacktrackResult(path[k, :m].copy(), triangle, wall, rounds, int(left.max(initial=0)),
+                                   k * int(steps.max()), end_velocity)
         for interval in range(k):
             after[:m] = before[:m]
             r, left, steps = compiled.backtrack_points(
@@ -440,6 +458,13 @@ class VorticityFluid:
             value_before, value_after = value_after, value_before
         self._swept_change = change
         return BacktrackResult(before[:m].copy(), triangle, wall, rounds, unfinished, k * most, end_velocity)
+
+    def _sweeps_at_once(self, walk, jump, field, integrator) -> bool:
+        """Whether compiled.sweep_points walks the intervals: the midpoint integrator with the
+        least-squares velocity on a planar mesh with the jump tables, the velocity reading the
+        walker's own rows (the case of compiled._backtrack_block_planar_p1)."""
+        return (integrator == "midpoint" and walk[4] and field[3] and field[4] == 1 and jump[0].shape[0] > 0
+                and field[0] is walk[2] and field[1] is walk[1])
 
     def _backtrack_sweeping_per_point(self, velocity, both, start, options, cfl, k):
         """Step c for ``intervals="per_point"``: K intervals of dt / K, K the smallest 2^a or 3·2^a

@@ -203,9 +203,11 @@ def test_swept_intervals_kernel_equals_numpy(walls):
 @pytest.mark.parametrize("walls", ["no_slip", "slip"])
 def test_the_default_walks_its_intervals_point_by_point_with_the_same_bits(walls):
     """On a planar mesh the default scheme walks every point through all its swept intervals in
-    one kernel call (compiled.sweep_points); one kernel call per interval over all points
-    (compiled.backtrack_points, the path of curved meshes) gives the same end points, counts,
-    end velocities and swept change, bit for bit, over steps that clamp points at walls."""
+    one kernel call (compiled.sweep_points) and adds the swept change of all intervals side by
+    side (compiled.swept_change_path); one kernel call per interval over all points
+    (compiled.backtrack_points and swept_change_add, the path of curved meshes) gives the same end
+    points, counts, end velocities and swept change, bit for bit, over steps that clamp points at
+    walls."""
     dec, base = case("channel")
     options = {**base, "velocity": "least_squares", "circulation": "swept_bounded", "walls": walls, "dt": 0.05}
     at_once, by_interval = (VorticityFluid(dec, DirectSolver, kernels="numba", **options) for _ in range(2))

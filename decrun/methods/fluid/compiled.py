@@ -40,7 +40,7 @@ import numpy as np
 from decrun.core import jit
 
 __all__ = ["velocity_points", "backtrack_points", "sweep_points", "circulation_sums", "circulation_rows",
-           "swept_change_add", "INTEGRATOR_CODE"]
+           "swept_change_add", "swept_change_path", "INTEGRATOR_CODE"]
 
 INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
 
@@ -688,14 +688,14 @@ def _sweep_block_planar_p1(vertices, tri_real, tri_int, planar, affine, buckets,
     """:func:`sweep_points` for the points first_point..last_point − 1 (one thread's block): each
     point through all k intervals in turn, as k calls of :func:`_backtrack_block_planar_p1`
     (``shared``) would, with its triangle rows still in cache from the interval before."""
-    k = path.shape[0] - 1
+    k = path.shape[1] - 1
     F = point_velocity.shape[2]
     scratch = (np.empty(4), np.empty(3), np.empty(3), np.empty(3), np.empty(3))  # state, lam, rate, xa, da
     jump = (affine, buckets, border_real, border_buckets, grid, grid_shape, near)
     limits = (substeps, max_cfl, cap, max_rounds)
     for p in range(first_point, last_point):
         t, hit = triangle[p], wall[p]
-        x0, x1, x2 = path[0, p, 0], path[0, p, 1], path[0, p, 2]
+        x0, x1, x2 = path[p, 0, 0], path[p, 0, 1], path[p, 0, 2]
         b0, b1, b2 = start_velocity[p, 0], start_velocity[p, 1], start_velocity[p, 2]
         for i in range(k):
             if hit < 0:
@@ -705,11 +705,11 @@ def _sweep_block_planar_p1(vertices, tri_real, tri_int, planar, affine, buckets,
                     i * cap, scratch)
                 steps[i] = max(steps[i], count)
                 b0, b1, b2 = end_velocity[p, 0, 1], end_velocity[p, 1, 1], end_velocity[p, 2, 1]
-                values[i + 1, p] = (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
+                values[p, i + 1] = (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
                     + l2 * vorticity[tri_int[t, TRI_TOP + 2]]
             else:
-                values[i + 1, p] = _vorticity_at(tri_real, tri_int, vorticity, t, x0, x1, x2)
-            path[i + 1, p, 0], path[i + 1, p, 1], path[i + 1, p, 2] = x0, x1, x2
+                values[p, i + 1] = _vorticity_at(tri_real, tri_int, vorticity, t, x0, x1, x2)
+            path[p, i + 1, 0], path[p, i + 1, 1], path[p, i + 1, 2] = x0, x1, x2
         triangle[p], wall[p] = t, hit
 
 
@@ -723,19 +723,19 @@ def sweep_points(walk, jump, point_velocity, path, triangle, wall, start_velocit
     velocities of field F − 1 only before the last interval, of all fields after it), each point
     walked through its k intervals in turn, blocks of points in parallel.
 
-    path : (k + 1, ≥ P, 3) path[i, :P] where the P points are after interval i − 1 (path[0] the start
-        points, in ``triangle`` (P,), ``wall`` (P,) −1, both updated to the last interval's), the
-        rows from P on not read nor written
+    path : (≥ P, k + 1, 3) path[:P, i] where the P points are after interval i − 1 (path[:P, 0] the
+        start points, in ``triangle`` (P,), ``wall`` (P,) −1, both updated to the last interval's),
+        the rows from P on not read nor written (each point's path in one piece of memory)
     start_velocity (P, 3) : the velocity the first interval starts with; end_velocity (P, 3, F):
         written, the end velocities of the last interval (the earlier ones, of field F − 1, are
         each the next interval's start)
-    vorticity (n0,), values (k + 1, ≥ P) : values[i + 1, :P] written, the P1 vorticity at path[i + 1]
+    vorticity (n0,), values (≥ P, k + 1) : values[:P, i + 1] written, the P1 vorticity at path[:P, i + 1]
 
     Returns rounds (k, cap, 2), unfinished (k, cap) and steps (k,): :func:`backtrack_points`'
     three results of each interval."""
     vertices, tri_real, tri_int, face_normal, planar = walk
     affine, buckets, border_real, border_buckets, grid, grid_shape, near = jump
-    k, P = path.shape[0] - 1, triangle.shape[0]
+    k, P = path.shape[1] - 1, triangle.shape[0]
     chunk_rounds = np.zeros((chunks, k * cap, 2), dtype=np.int64)
     chunk_unfinished = np.zeros((chunks, k * cap), dtype=np.int64)
     chunk_steps = np.ones((chunks, k), dtype=np.int64)
@@ -898,21 +898,44 @@ def circulation_rows(position, fixed_points, velocity, fixed_velocity, edge_a, e
 
 
 # ---------------------------------------------------------------- swept vorticity (swept.py)
+@_hot
+def _side_total(a0, a1, a2, b0, b1, b2, p0, p1, p2, q0, q1, q2, n0, n1, n2, wa0, wb0, wa1, wb1):
+    """The swept integral of one side a → b moving to a' → b' (a, b, a' = p, b' = q, normal n,
+    vorticity w at the four): signed areas of (a, b, b') and (a, b', a') times the mean vorticity
+    at their corners (:meth:`SweptVorticity.change`'s arithmetic)."""
+    u0, u1, u2 = b0 - a0, b1 - a1, b2 - a2
+    v0, v1, v2 = q0 - a0, q1 - a1, q2 - a2
+    r0, r1, r2 = p0 - a0, p1 - a1, p2 - a2
+    c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    first_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+    c0, c1, c2 = v1 * r2 - v2 * r1, v2 * r0 - v0 * r2, v0 * r1 - v1 * r0
+    second_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+    return first_area * (wa0 + wb0 + wb1) / 3.0 + second_area * (wa0 + wb1 + wa1) / 3.0
+
+
 @_kernel
 def _swept_side_totals(before, after, value_before, value_after, side_a, side_b, normal, total, first, last):
     """total[s] for the sides first..last − 1 (:func:`swept_change_add`, one thread's block)."""
     for s in range(first, last):
         a, b = side_a[s], side_b[s]
-        u0, u1, u2 = before[b, 0] - before[a, 0], before[b, 1] - before[a, 1], before[b, 2] - before[a, 2]
-        v0, v1, v2 = after[b, 0] - before[a, 0], after[b, 1] - before[a, 1], after[b, 2] - before[a, 2]
-        q0, q1, q2 = after[a, 0] - before[a, 0], after[a, 1] - before[a, 1], after[a, 2] - before[a, 2]
+        total[s] = _side_total(before[a, 0], before[a, 1], before[a, 2], before[b, 0], before[b, 1], before[b, 2],
+                               after[a, 0], after[a, 1], after[a, 2], after[b, 0], after[b, 1], after[b, 2],
+                               normal[s, 0], normal[s, 1], normal[s, 2], value_before[a], value_before[b],
+                               value_after[a], value_after[b])
+
+
+@_kernel
+def _swept_path_totals(path, values, side_a, side_b, normal, total, first, last):
+    """total[s, i] of interval i (path[:, i] → path[:, i + 1]) for the sides first..last − 1
+    (:func:`swept_change_path`, one thread's block)."""
+    for s in range(first, last):
+        a, b = side_a[s], side_b[s]
         n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
-        c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-        first_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
-        c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
-        second_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
-        wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
-        total[s] = first_area * (wa0 + wb0 + wb1) / 3.0 + second_area * (wa0 + wb1 + wa1) / 3.0
+        for i in range(total.shape[1]):
+            total[s, i] = _side_total(path[a, i, 0], path[a, i, 1], path[a, i, 2], path[b, i, 0], path[b, i, 1],
+                                      path[b, i, 2], path[a, i + 1, 0], path[a, i + 1, 1], path[a, i + 1, 2],
+                                      path[b, i + 1, 0], path[b, i + 1, 1], path[b, i + 1, 2], n0, n1, n2,
+                                      values[a, i], values[b, i], values[a, i + 1], values[b, i + 1])
 
 
 @_kernel
@@ -941,3 +964,29 @@ def swept_change_add(change, before, after, value_before, value_after, side_a, s
                            c * S // chunks, (c + 1) * S // chunks)
     for c in prange(chunks):
         _add_rows(change, total, indptr, indices, data, c * n // chunks, (c + 1) * n // chunks)
+
+
+@_kernel
+def _add_path_rows(change, total, indptr, indices, data, first, last):
+    """change[i] += −Σ_j data[j] total[indices[j], l] for l = 0..k − 1 in turn, for the rows
+    first..last − 1 (CSR order): each interval's sum added as :func:`_add_rows` adds it."""
+    for i in range(first, last):
+        for interval in range(total.shape[1]):
+            acc = 0.0
+            for j in range(indptr[i], indptr[i + 1]):
+                acc += data[j] * total[indices[j], interval]
+            change[i] += -acc
+
+
+@_parallel_kernel
+def swept_change_path(change, path, values, side_a, side_b, normal, indptr, indices, data, chunks):
+    """``change`` (n0,) += the swept change of every interval of ``path`` (P, k + 1, 3) (every dual
+    point's positions, values (P, k + 1) the vorticity there), in place: the same bits as
+    :func:`swept_change_add` of path[:, i] → path[:, i + 1] for i = 0..k − 1 in turn, each side's
+    and each row's data read once for all intervals (sides and then cells in ``chunks`` blocks)."""
+    S, n, k = side_a.shape[0], indptr.shape[0] - 1, path.shape[1] - 1
+    total = np.empty((S, k))
+    for c in prange(chunks):
+        _swept_path_totals(path, values, side_a, side_b, normal, total, c * S // chunks, (c + 1) * S // chunks)
+    for c in prange(chunks):
+        _add_path_rows(change, total, indptr, indices, data, c * n // chunks, (c + 1) * n // chunks)

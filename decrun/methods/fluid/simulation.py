@@ -278,6 +278,15 @@ class VorticityFluid:
             compiled.swept_change_add(np.zeros(self.K.num_simplices(0)), points, points, rest, rest,
                                       self._swept.side_a, self._swept.side_b, self._swept.normal, D.indptr,
                                       D.indices, D.data, jit.threads())
+            walk, jump = self.walker.kernel_tables()
+            if self._sweeps_at_once(walk, jump, self._kernel_field.kernel_tables(), self.integrator):
+                path, values = np.repeat(points[:, None, :], 2, axis=1), np.zeros((rest.size, 2))
+                compiled.sweep_points(walk, jump, self._point_velocities(), path, np.zeros(0, dtype=np.int64),
+                                      np.zeros(0, dtype=np.int64), none, np.zeros((0, 3, 2)), self.walker.size,
+                                      self.dt, 1, 1.0, 64, 1, np.zeros(self.K.num_simplices(0)), values, 1)
+                compiled.swept_change_path(np.zeros(self.K.num_simplices(0)), path, values, self._swept.side_a,
+                                           self._swept.side_b, self._swept.normal, D.indptr, D.indices, D.data,
+                                           jit.threads())
 
     def _remove_mean(self, w: np.ndarray) -> np.ndarray:
         if not self.closed:
@@ -427,22 +436,23 @@ class VorticityFluid:
         chunks = jit.threads()
         rounds = unfinished = most = 0
         if self._sweeps_at_once(walk, jump, field, options["integrator"]):
-            path = np.empty((k + 1,) + before.shape)  # every point after every interval: each point walks
-            path[0, :m] = before[:m]  # its k intervals in turn (compiled.sweep_points), then the swept
-            path[:, m:] = before[m:]  # change of each interval is added as below, the same bits
-            values = np.empty((k + 1, value_before.size))
-            values[0, :m] = value_before[:m]
-            values[:, m:] = value_before[m:]
+            # every point's k + 1 positions (the fixed ones the rest points) and vorticity values: each
+            # point walks its k intervals in turn (compiled.sweep_points), then each side adds its
+            # swept change of every interval (compiled.swept_change_path), the same bits as below
+            path = np.empty((before.shape[0], k + 1, 3))
+            path[:m, 0] = before[:m]
+            path[m:] = before[m:, None, :]
+            values = np.empty((value_before.size, k + 1))
+            values[:m, 0] = value_before[:m]
+            values[m:] = value_before[m:, None]
             r, left, steps = compiled.sweep_points(walk, jump, both, path, triangle, wall, start, end_velocity, size,
                                                    self.dt / k, substeps, max_cfl, cap, int(options["max_rounds"]),
                                                    vorticity, values, chunks)
-            for interval in range(k):
-                rounds = rounds + int(r[interval].sum())
-                compiled.swept_change_add(change, path[interval], path[interval + 1], values[interval],
-                                          values[interval + 1], swept.side_a, swept.side_b, swept.normal, D.indptr,
-                                          D.indices, D.data, chunks)
+            rounds = sum(int(r[interval].sum()) for interval in range(k))
+            compiled.swept_change_path(change, path, values, swept.side_a, swept.side_b, swept.normal, D.indptr,
+                                       D.indices, D.data, chunks)
             self._swept_change = change
-            return BacktrackResult(path[k, :m].copy(), triangle, wall, rounds, int(left.max(initial=0)),
+            return BacktrackResult(path[:m, k].copy(), triangle, wall, rounds, int(left.max(initial=0)),
                                    k * int(steps.max()), end_velocity)
         for interval in range(k):
             after[:m] = before[:m]

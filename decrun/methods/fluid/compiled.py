@@ -536,126 +536,19 @@ def _jump_near(tri_real, tri_int, near, t, x0, x1, x2, d0, d1, d2, time):
     return _locate_near(near, tri_int, t, x0 + time * d0, x1 + time * d1)
 
 
-@_hot
-def _planar_p1_interval(vertices, tri_real, tri_int, planar, jump, triangles, bary, point_velocity, end_velocity, p,
-                        t, x, b, size, dt, limits, first_field, rounds, unfinished, base, scratch):
-    """One backtrack of the moving point p (at x (3-tuple) in t, start velocity b (3-tuple)) over
-    ``dt`` for
-    :func:`_backtrack_block_planar_p1` and :func:`_sweep_block_planar_p1`: its midpoint substeps
-    (count from the start velocity as :func:`_substep_count`), the end velocities of the fields
-    first_field..F − 1 (all when it reached a wall) into end_velocity[p], the rounds and
-    unfinished walks of substep s into rounds[base + s] and unfinished[base + s]. Returns (t,
-    wall edge or -1, x0, x1, x2, substep count, λ0, λ1, λ2): λ the end point's barycentric
-    coordinates in t as :func:`_p1_planar` computes them (with the walker's rows, the vorticity's
-    too). ``jump``: the jump tables (backtrack_points), ``limits``: (substeps, max_cfl, cap,
-    max_rounds), ``scratch``: (state, lam, rate, xa, da) (the arguments in tuples: a call of more
-    than 30 is not inlined)."""
-    affine, buckets, border_real, border_buckets, grid, grid_shape, near = jump
-    substeps, max_cfl, cap, max_rounds = limits
-    state, lam, rate, xa, da = scratch
-    x0, x1, x2 = x
-    b0, b1, b2 = b
-    F = point_velocity.shape[2]
-    count = substeps
-    if max_cfl > 0:  # _substep_count
-        ratio = np.ceil(np.sqrt((b0 * b0 + b1 * b1) + b2 * b2) * dt / size[t] / max_cfl)
-        if ratio > -9.2e18 and ratio < 9.2e18:
-            count = min(max(int(ratio), substeps), cap)
-    tau = dt / count
-    hit = -1
-    for substep in range(count):
-        if substep == 0:
-            e0, e1, e2 = -b0, -b1, -b2
-        else:
-            v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
-            e0, e1, e2 = -v0, -v1, -v2
-        # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint
-        half = 0.5 * tau
-        r, left = 0, False
-        if half > 0:
-            c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, half)
-            if c >= 0:
-                x0, x1, x2 = x0 + half * e0, x1 + half * e1, x2 + half * e2
-                t = c
-            else:
-                xa[0], xa[1], xa[2] = x0, x1, x2
-                da[0], da[1], da[2] = e0, e1, e2
-                t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
-                                        border_buckets, grid, grid_shape, near, xa, t, da, half, max_rounds,
-                                        state, lam, rate)
-                x0, x1, x2 = xa[0], xa[1], xa[2]
-        rounds[base + substep, 0] = max(rounds[base + substep, 0], r)
-        b0, b1, b2 = e0, e1, e2
-        v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
-        if hit >= 0:
-            e0, e1, e2 = 0.0, 0.0, 0.0
-        else:
-            e0, e1, e2 = -v0 - 0.5 * b0, -v1 - 0.5 * b1, -v2 - 0.5 * b2
-        hit2, r, left = -1, 0, False
-        if tau > 0:
-            c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, tau)
-            if c >= 0:
-                x0, x1, x2 = x0 + tau * e0, x1 + tau * e1, x2 + tau * e2
-                t = c
-            else:
-                xa[0], xa[1], xa[2] = x0, x1, x2
-                da[0], da[1], da[2] = e0, e1, e2
-                t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
-                                         border_buckets, grid, grid_shape, near, xa, t, da, tau, max_rounds,
-                                         state, lam, rate)
-                x0, x1, x2 = xa[0], xa[1], xa[2]
-        if hit < 0:
-            hit = hit2
-        rounds[base + substep, 1] = max(rounds[base + substep, 1], r)
-        if left:
-            unfinished[base + substep] += 1
-        if hit >= 0:
-            break
-    # the end point's velocities (all at a wall): _p1_planar's arithmetic, its λ computed once
-    r0, r1, r2 = x0 - bary[t, 9], x1 - bary[t, 10], x2 - bary[t, 11]
-    l0 = 1.0 / 3.0 + (bary[t, 0] * r0 + bary[t, 1] * r1 + bary[t, 2] * r2)
-    l1 = 1.0 / 3.0 + (bary[t, 3] * r0 + bary[t, 4] * r1 + bary[t, 5] * r2)
-    l2 = 1.0 / 3.0 + (bary[t, 6] * r0 + bary[t, 7] * r1 + bary[t, 8] * r2)
-    c0, c1, c2 = triangles[t, 0], triangles[t, 1], triangles[t, 2]
-    for f in range(0 if hit >= 0 else first_field, F):
-        end_velocity[p, 0, f] = (l0 * point_velocity[c0, 0, f] + l1 * point_velocity[c1, 0, f]) \
-            + l2 * point_velocity[c2, 0, f]
-        end_velocity[p, 1, f] = (l0 * point_velocity[c0, 1, f] + l1 * point_velocity[c1, 1, f]) \
-            + l2 * point_velocity[c2, 1, f]
-        end_velocity[p, 2, f] = (l0 * point_velocity[c0, 2, f] + l1 * point_velocity[c1, 2, f]) \
-            + l2 * point_velocity[c2, 2, f]
-    return t, hit, x0, x1, x2, count, l0, l1, l2
-
-
-@_hot
-def _vorticity_at(tri_real, tri_int, vorticity, t, x0, x1, x2):
-    """The P1 vorticity (λ0 w0 + λ1 w1) + λ2 w2 at x in t (the numpy twin's dot3 of λ and the corner values)."""
-    r0 = x0 - tri_real[t, TRI_CENTROID]
-    r1 = x1 - tri_real[t, TRI_CENTROID + 1]
-    r2 = x2 - tri_real[t, TRI_CENTROID + 2]
-    l0 = 1.0 / 3.0 + (tri_real[t, 0] * r0 + tri_real[t, 1] * r1 + tri_real[t, 2] * r2)
-    l1 = 1.0 / 3.0 + (tri_real[t, 3] * r0 + tri_real[t, 4] * r1 + tri_real[t, 5] * r2)
-    l2 = 1.0 / 3.0 + (tri_real[t, 6] * r0 + tri_real[t, 7] * r1 + tri_real[t, 8] * r2)
-    return (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
-        + l2 * vorticity[tri_int[t, TRI_TOP + 2]]
-
-
 @_kernel
 def _backtrack_block_planar_p1(vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real,
                                border_buckets, grid, grid_shape, near, triangles, bary, point_velocity, position,
                                triangle, wall, start_velocity, end_velocity, first, size, dt, substeps, max_cfl, cap,
-                               max_rounds, vorticity, value, first_field, first_point, last_point, rounds, unfinished,
-                               shared):
+                               max_rounds, vorticity, value, first_field, first_point, last_point, rounds, unfinished):
     """:func:`_backtrack_block` for the midpoint integrator with the least-squares (P1) velocity on
     a planar mesh: the same arithmetic in the same order, the point's state in registers and the
     common jump inline; a point whose path may reach the border or ends beyond the two rings
-    around its triangle walks by :func:`_walk`, as there. ``shared``: ``bary`` and ``triangles``
-    are the walker's ``tri_real`` and ``tri_int`` (kernel_tables), so the end point's λ of the
-    velocity also give its vorticity."""
+    around its triangle walks by :func:`_walk`, as there."""
     interpolate = value.shape[0] > 0
-    scratch = (np.empty(4), np.empty(3), np.empty(3), np.empty(3), np.empty(3))  # state, lam, rate, xa, da
-    jump = (affine, buckets, border_real, border_buckets, grid, grid_shape, near)
-    limits = (substeps, max_cfl, cap, max_rounds)
+    F = point_velocity.shape[2]
+    state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
+    xa, da = np.empty(3), np.empty(3)
     steps = 1
     for p in range(first_point, last_point):
         t = triangle[p]
@@ -665,18 +558,76 @@ def _backtrack_block_planar_p1(vertices, tri_real, tri_int, face_normal, planar,
                 b0, b1, b2 = start_velocity[p, 0], start_velocity[p, 1], start_velocity[p, 2]
             else:
                 b0, b1, b2 = end_velocity[p, 0, 1], end_velocity[p, 1, 1], end_velocity[p, 2, 1]
-            t, hit, x0, x1, x2, count, l0, l1, l2 = _planar_p1_interval(
-                vertices, tri_real, tri_int, planar, jump, triangles, bary, point_velocity, end_velocity, p, t,
-                (x0, x1, x2), (b0, b1, b2), size, dt, limits, first_field, rounds, unfinished, 0, scratch)
+            count = substeps
+            if max_cfl > 0:  # _substep_count
+                ratio = np.ceil(np.sqrt((b0 * b0 + b1 * b1) + b2 * b2) * dt / size[t] / max_cfl)
+                if ratio > -9.2e18 and ratio < 9.2e18:
+                    count = min(max(int(ratio), substeps), cap)
             steps = max(steps, count)
+            tau = dt / count
+            hit = -1
+            for substep in range(count):
+                if substep == 0:
+                    e0, e1, e2 = -b0, -b1, -b2
+                else:
+                    v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
+                    e0, e1, e2 = -v0, -v1, -v2
+                # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint
+                half = 0.5 * tau
+                r, left = 0, False
+                if half > 0:
+                    c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, half)
+                    if c >= 0:
+                        x0, x1, x2 = x0 + half * e0, x1 + half * e1, x2 + half * e2
+                        t = c
+                    else:
+                        xa[0], xa[1], xa[2] = x0, x1, x2
+                        da[0], da[1], da[2] = e0, e1, e2
+                        t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                                border_buckets, grid, grid_shape, near, xa, t, da, half, max_rounds,
+                                                state, lam, rate)
+                        x0, x1, x2 = xa[0], xa[1], xa[2]
+                rounds[substep, 0] = max(rounds[substep, 0], r)
+                b0, b1, b2 = e0, e1, e2
+                v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
+                if hit >= 0:
+                    e0, e1, e2 = 0.0, 0.0, 0.0
+                else:
+                    e0, e1, e2 = -v0 - 0.5 * b0, -v1 - 0.5 * b1, -v2 - 0.5 * b2
+                hit2, r, left = -1, 0, False
+                if tau > 0:
+                    c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, tau)
+                    if c >= 0:
+                        x0, x1, x2 = x0 + tau * e0, x1 + tau * e1, x2 + tau * e2
+                        t = c
+                    else:
+                        xa[0], xa[1], xa[2] = x0, x1, x2
+                        da[0], da[1], da[2] = e0, e1, e2
+                        t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets, border_real,
+                                                 border_buckets, grid, grid_shape, near, xa, t, da, tau, max_rounds,
+                                                 state, lam, rate)
+                        x0, x1, x2 = xa[0], xa[1], xa[2]
+                if hit < 0:
+                    hit = hit2
+                rounds[substep, 1] = max(rounds[substep, 1], r)
+                if left:
+                    unfinished[substep] += 1
+                if hit >= 0:
+                    break
             position[p, 0], position[p, 1], position[p, 2] = x0, x1, x2
             triangle[p], wall[p] = t, hit
-            if interpolate and shared:
-                value[p] = (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
-                    + l2 * vorticity[tri_int[t, TRI_TOP + 2]]
-                continue
+            for f in range(0 if hit >= 0 else first_field, F):  # the end point's velocities (all at a wall)
+                v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, f, t, x0, x1, x2)
+                end_velocity[p, 0, f], end_velocity[p, 1, f], end_velocity[p, 2, f] = v0, v1, v2
         if interpolate:
-            value[p] = _vorticity_at(tri_real, tri_int, vorticity, t, x0, x1, x2)
+            r0 = x0 - tri_real[t, TRI_CENTROID]
+            r1 = x1 - tri_real[t, TRI_CENTROID + 1]
+            r2 = x2 - tri_real[t, TRI_CENTROID + 2]
+            l0 = 1.0 / 3.0 + (tri_real[t, 0] * r0 + tri_real[t, 1] * r1 + tri_real[t, 2] * r2)
+            l1 = 1.0 / 3.0 + (tri_real[t, 3] * r0 + tri_real[t, 4] * r1 + tri_real[t, 5] * r2)
+            l2 = 1.0 / 3.0 + (tri_real[t, 6] * r0 + tri_real[t, 7] * r1 + tri_real[t, 8] * r2)
+            value[p] = (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
+                + l2 * vorticity[tri_int[t, TRI_TOP + 2]]
     return steps
 
 
@@ -686,30 +637,95 @@ def _sweep_block_planar_p1(vertices, tri_real, tri_int, planar, affine, buckets,
                            dt, substeps, max_cfl, cap, max_rounds, vorticity, values, first_point, last_point,
                            rounds, unfinished, steps):
     """:func:`sweep_points` for the points first_point..last_point − 1 (one thread's block): each
-    point through all k intervals in turn, as k calls of :func:`_backtrack_block_planar_p1`
-    (``shared``) would, with its triangle rows still in cache from the interval before."""
+    point through all k intervals in turn, each interval the body of
+    :func:`_backtrack_block_planar_p1` (with ``bary``, ``triangles`` the walker's ``tri_real``,
+    ``tri_int``), its triangle rows still in cache from the interval before. The body is written
+    out here as there: as one function inlined into both (numba's inline="always") the block ran
+    1.25× slower."""
     k = path.shape[1] - 1
     F = point_velocity.shape[2]
-    scratch = (np.empty(4), np.empty(3), np.empty(3), np.empty(3), np.empty(3))  # state, lam, rate, xa, da
-    jump = (affine, buckets, border_real, border_buckets, grid, grid_shape, near)
-    limits = (substeps, max_cfl, cap, max_rounds)
+    state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
+    xa, da = np.empty(3), np.empty(3)
+    triangles, bary = tri_int, tri_real
     for p in range(first_point, last_point):
         t, hit = triangle[p], wall[p]
         x0, x1, x2 = path[p, 0, 0], path[p, 0, 1], path[p, 0, 2]
-        b0, b1, b2 = start_velocity[p, 0], start_velocity[p, 1], start_velocity[p, 2]
         for i in range(k):
+            base = i * cap
             if hit < 0:
-                t, hit, x0, x1, x2, count, l0, l1, l2 = _planar_p1_interval(
-                    vertices, tri_real, tri_int, planar, jump, tri_int, tri_real, point_velocity, end_velocity, p, t,
-                    (x0, x1, x2), (b0, b1, b2), size, dt, limits, 0 if i == k - 1 else F - 1, rounds, unfinished,
-                    i * cap, scratch)
+                if i == 0:
+                    b0, b1, b2 = start_velocity[p, 0], start_velocity[p, 1], start_velocity[p, 2]
+                else:
+                    b0, b1, b2 = end_velocity[p, 0, 1], end_velocity[p, 1, 1], end_velocity[p, 2, 1]
+                count = substeps
+                if max_cfl > 0:  # _substep_count
+                    ratio = np.ceil(np.sqrt((b0 * b0 + b1 * b1) + b2 * b2) * dt / size[t] / max_cfl)
+                    if ratio > -9.2e18 and ratio < 9.2e18:
+                        count = min(max(int(ratio), substeps), cap)
                 steps[i] = max(steps[i], count)
-                b0, b1, b2 = end_velocity[p, 0, 1], end_velocity[p, 1, 1], end_velocity[p, 2, 1]
-                values[p, i + 1] = (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
-                    + l2 * vorticity[tri_int[t, TRI_TOP + 2]]
-            else:
-                values[p, i + 1] = _vorticity_at(tri_real, tri_int, vorticity, t, x0, x1, x2)
+                tau = dt / count
+                for substep in range(count):
+                    if substep == 0:
+                        e0, e1, e2 = -b0, -b1, -b2
+                    else:
+                        v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
+                        e0, e1, e2 = -v0, -v1, -v2
+                    # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint
+                    half = 0.5 * tau
+                    r, left = 0, False
+                    if half > 0:
+                        c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, half)
+                        if c >= 0:
+                            x0, x1, x2 = x0 + half * e0, x1 + half * e1, x2 + half * e2
+                            t = c
+                        else:
+                            xa[0], xa[1], xa[2] = x0, x1, x2
+                            da[0], da[1], da[2] = e0, e1, e2
+                            t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets,
+                                                    border_real, border_buckets, grid, grid_shape, near, xa, t, da,
+                                                    half, max_rounds, state, lam, rate)
+                            x0, x1, x2 = xa[0], xa[1], xa[2]
+                    rounds[base + substep, 0] = max(rounds[base + substep, 0], r)
+                    b0, b1, b2 = e0, e1, e2
+                    v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
+                    if hit >= 0:
+                        e0, e1, e2 = 0.0, 0.0, 0.0
+                    else:
+                        e0, e1, e2 = -v0 - 0.5 * b0, -v1 - 0.5 * b1, -v2 - 0.5 * b2
+                    hit2, r, left = -1, 0, False
+                    if tau > 0:
+                        c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, tau)
+                        if c >= 0:
+                            x0, x1, x2 = x0 + tau * e0, x1 + tau * e1, x2 + tau * e2
+                            t = c
+                        else:
+                            xa[0], xa[1], xa[2] = x0, x1, x2
+                            da[0], da[1], da[2] = e0, e1, e2
+                            t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets,
+                                                     border_real, border_buckets, grid, grid_shape, near, xa, t, da,
+                                                     tau, max_rounds, state, lam, rate)
+                            x0, x1, x2 = xa[0], xa[1], xa[2]
+                    if hit < 0:
+                        hit = hit2
+                    rounds[base + substep, 1] = max(rounds[base + substep, 1], r)
+                    if left:
+                        unfinished[base + substep] += 1
+                    if hit >= 0:
+                        break
+                # the end point's velocities: field F − 1 (the next interval's start), all at the
+                # last interval and at a wall
+                for f in range(0 if hit >= 0 or i == k - 1 else F - 1, F):
+                    v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, f, t, x0, x1, x2)
+                    end_velocity[p, 0, f], end_velocity[p, 1, f], end_velocity[p, 2, f] = v0, v1, v2
             path[p, i + 1, 0], path[p, i + 1, 1], path[p, i + 1, 2] = x0, x1, x2
+            r0 = x0 - tri_real[t, TRI_CENTROID]
+            r1 = x1 - tri_real[t, TRI_CENTROID + 1]
+            r2 = x2 - tri_real[t, TRI_CENTROID + 2]
+            l0 = 1.0 / 3.0 + (tri_real[t, 0] * r0 + tri_real[t, 1] * r1 + tri_real[t, 2] * r2)
+            l1 = 1.0 / 3.0 + (tri_real[t, 3] * r0 + tri_real[t, 4] * r1 + tri_real[t, 5] * r2)
+            l2 = 1.0 / 3.0 + (tri_real[t, 6] * r0 + tri_real[t, 7] * r1 + tri_real[t, 8] * r2)
+            values[p, i + 1] = (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
+                + l2 * vorticity[tri_int[t, TRI_TOP + 2]]
         triangle[p], wall[p] = t, hit
 
 
@@ -758,13 +774,6 @@ def sweep_points(walk, jump, point_velocity, path, triangle, wall, start_velocit
     return rounds, unfinished, steps
 
 
-@_helper
-def _same(a, b):
-    """a and b are the same array (data, shape, strides)."""
-    return (a.ctypes.data == b.ctypes.data and a.shape[0] == b.shape[0] and a.shape[1] == b.shape[1]
-            and a.strides[0] == b.strides[0] and a.strides[1] == b.strides[1])
-
-
 @_parallel_kernel
 def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall, start_velocity, end_velocity, first,
                      size, dt, substeps, max_cfl, cap, integrator, max_rounds, vorticity, value, first_field, chunks):
@@ -803,14 +812,13 @@ def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall
     chunk_unfinished = np.zeros((chunks, cap), dtype=np.int64)
     chunk_steps = np.ones(chunks, dtype=np.int64)
     fast = planar and field_planar and scheme == 1 and integrator == 1 and affine.shape[0] > 0
-    shared = _same(cell_real, tri_real) and _same(triangles, tri_int)
     for c in prange(chunks):
         if fast:  # the default scheme's walk on a planar mesh (midpoint, least squares): specialised
             chunk_steps[c] = _backtrack_block_planar_p1(
                 vertices, tri_real, tri_int, face_normal, planar, affine, buckets, border_real, border_buckets, grid,
                 grid_shape, near, triangles, cell_real, point_velocity, position, triangle, wall, start_velocity,
                 end_velocity, first, size, dt, substeps, max_cfl, cap, max_rounds, vorticity, value, first_field,
-                c * P // chunks, (c + 1) * P // chunks, chunk_rounds[c], chunk_unfinished[c], shared)
+                c * P // chunks, (c + 1) * P // chunks, chunk_rounds[c], chunk_unfinished[c])
             continue
         chunk_steps[c] = _backtrack_block(vertices, tri_real, tri_int, face_normal, planar, affine, buckets,
                                           border_real, border_buckets, grid, grid_shape, near, triangles, cell_real,

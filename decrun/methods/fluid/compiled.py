@@ -906,44 +906,41 @@ def circulation_rows(position, fixed_points, velocity, fixed_velocity, edge_a, e
 
 
 # ---------------------------------------------------------------- swept vorticity (swept.py)
-@_hot
-def _side_total(a0, a1, a2, b0, b1, b2, p0, p1, p2, q0, q1, q2, n0, n1, n2, wa0, wb0, wa1, wb1):
-    """The swept integral of one side a → b moving to a' → b' (a, b, a' = p, b' = q, normal n,
-    vorticity w at the four): signed areas of (a, b, b') and (a, b', a') times the mean vorticity
-    at their corners (:meth:`SweptVorticity.change`'s arithmetic)."""
-    u0, u1, u2 = b0 - a0, b1 - a1, b2 - a2
-    v0, v1, v2 = q0 - a0, q1 - a1, q2 - a2
-    r0, r1, r2 = p0 - a0, p1 - a1, p2 - a2
-    c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
-    first_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
-    c0, c1, c2 = v1 * r2 - v2 * r1, v2 * r0 - v0 * r2, v0 * r1 - v1 * r0
-    second_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
-    return first_area * (wa0 + wb0 + wb1) / 3.0 + second_area * (wa0 + wb1 + wa1) / 3.0
-
-
 @_kernel
 def _swept_side_totals(before, after, value_before, value_after, side_a, side_b, normal, total, first, last):
     """total[s] for the sides first..last − 1 (:func:`swept_change_add`, one thread's block)."""
     for s in range(first, last):
         a, b = side_a[s], side_b[s]
-        total[s] = _side_total(before[a, 0], before[a, 1], before[a, 2], before[b, 0], before[b, 1], before[b, 2],
-                               after[a, 0], after[a, 1], after[a, 2], after[b, 0], after[b, 1], after[b, 2],
-                               normal[s, 0], normal[s, 1], normal[s, 2], value_before[a], value_before[b],
-                               value_after[a], value_after[b])
+        u0, u1, u2 = before[b, 0] - before[a, 0], before[b, 1] - before[a, 1], before[b, 2] - before[a, 2]
+        v0, v1, v2 = after[b, 0] - before[a, 0], after[b, 1] - before[a, 1], after[b, 2] - before[a, 2]
+        q0, q1, q2 = after[a, 0] - before[a, 0], after[a, 1] - before[a, 1], after[a, 2] - before[a, 2]
+        n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
+        c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        first_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+        c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
+        second_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+        wa0, wb0, wa1, wb1 = value_before[a], value_before[b], value_after[a], value_after[b]
+        total[s] = first_area * (wa0 + wb0 + wb1) / 3.0 + second_area * (wa0 + wb1 + wa1) / 3.0
 
 
 @_kernel
 def _swept_path_totals(path, values, side_a, side_b, normal, total, first, last):
     """total[s, i] of interval i (path[:, i] → path[:, i + 1]) for the sides first..last − 1
-    (:func:`swept_change_path`, one thread's block)."""
+    (:func:`swept_change_path`, one thread's block): :func:`_swept_side_totals`' arithmetic."""
     for s in range(first, last):
         a, b = side_a[s], side_b[s]
         n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
         for i in range(total.shape[1]):
-            total[s, i] = _side_total(path[a, i, 0], path[a, i, 1], path[a, i, 2], path[b, i, 0], path[b, i, 1],
-                                      path[b, i, 2], path[a, i + 1, 0], path[a, i + 1, 1], path[a, i + 1, 2],
-                                      path[b, i + 1, 0], path[b, i + 1, 1], path[b, i + 1, 2], n0, n1, n2,
-                                      values[a, i], values[b, i], values[a, i + 1], values[b, i + 1])
+            a0, a1, a2 = path[a, i, 0], path[a, i, 1], path[a, i, 2]
+            u0, u1, u2 = path[b, i, 0] - a0, path[b, i, 1] - a1, path[b, i, 2] - a2
+            v0, v1, v2 = path[b, i + 1, 0] - a0, path[b, i + 1, 1] - a1, path[b, i + 1, 2] - a2
+            q0, q1, q2 = path[a, i + 1, 0] - a0, path[a, i + 1, 1] - a1, path[a, i + 1, 2] - a2
+            c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+            first_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+            c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
+            second_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+            wa0, wb0, wa1, wb1 = values[a, i], values[b, i], values[a, i + 1], values[b, i + 1]
+            total[s, i] = first_area * (wa0 + wb0 + wb1) / 3.0 + second_area * (wa0 + wb1 + wa1) / 3.0
 
 
 @_kernel

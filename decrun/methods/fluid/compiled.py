@@ -22,7 +22,11 @@ Each kernel has a numpy twin that stays the tested reference (``VorticityFluid(k
   in the same order with the point's position and directions in registers and the common jump
   (a path that cannot reach the border and ends within two rings of its triangle) inline, where
   the general block passes them through arrays and out-of-line helpers of a hundred arguments;
+* :func:`sweep_points` — the default scheme's k intervals on a planar mesh at once, each point
+  through all of them in turn (its triangle rows still in cache), the same bits as k calls of
+  :func:`backtrack_points`, keeping every point's position and vorticity after every interval;
 * :func:`swept_change_add` — the swept-vorticity change of :meth:`SweptVorticity.change`;
+  :func:`swept_change_path` that of every interval of such a path, side by side;
 * :func:`circulation_sums` — the trapezoid circulation of :meth:`VorticityFluid.circulation`
   (:func:`circulation_rows`: of some cells).
 

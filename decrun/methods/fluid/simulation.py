@@ -411,7 +411,10 @@ class VorticityFluid:
         """:meth:`_backtrack_sweeping` by the numba kernels, the same bits: per interval one
         ``compiled.backtrack_points`` (walk, end velocities — the next interval's start velocities —
         and the vorticity at the new end points, blocks of points in parallel) and one
-        ``compiled.swept_change_add``, on two point buffers used in turn."""
+        ``compiled.swept_change_add``, on two point buffers used in turn; in the default scheme's
+        case on a planar mesh (:meth:`_sweeps_at_once`) one ``compiled.sweep_points`` (every point
+        through all k intervals in turn, its path of k + 1 positions and vorticity values kept)
+        and one ``compiled.swept_change_path`` (every interval's change, added in the same order)."""
         from decrun.methods.fluid import compiled
 
         m = self.cells.n_circumcenters

@@ -8,7 +8,10 @@ intervals. The benchmark also prints how many intervals each point would need by
 (ceil(CFL_p / swept_cfl)) — the mean against k is the walk a per-point interval count could save —
 the default scheme with ``intervals="per_point"`` (each point walks only the intervals it needs),
 and, with ``--swept-cfl``, the default scheme at other ``swept_cfl`` values (fewer intervals for
-every point).
+every point). ``--by-interval`` adds the default scheme walked one kernel call per interval over
+all points (compiled.backtrack_points and swept_change_add, as on curved meshes and as every mesh
+did before the point-by-point sweep): the same bits, so its ratio to the default is what walking
+point by point gains, measured in the same run.
 
 The cases run interleaved (rounds of ``--steps`` steps each, in turn), so the machine's load
 affects them alike; the ratio to the anchor is the number to compare: over all rounds and the
@@ -18,6 +21,7 @@ steps (k follows the flow: the start state needs more than the later steps).
 
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 python benchmarks/bench_fluid_channel.py
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 python benchmarks/bench_fluid_channel.py --swept-cfl 2.7 8
+    OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 python benchmarks/bench_fluid_channel.py --by-interval --rounds 8
 """
 
 from __future__ import annotations
@@ -55,6 +59,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds")
     parser.add_argument("--steps", type=int, default=10, help="steps per case and round")
     parser.add_argument("--swept-cfl", type=float, nargs="*", default=[], help="also the default at these swept_cfl")
+    parser.add_argument("--by-interval", action="store_true",
+                        help="also the default walked one kernel call per interval (the same bits)")
     args = parser.parse_args()
     print("load average before:", os.getloadavg(), "cores:", os.cpu_count(), flush=True)
     mesh = channel_mesh(target_faces=args.faces)
@@ -65,7 +71,12 @@ def main() -> None:
              "default, intervals=per_point": dict(intervals="per_point")}
     for value in args.swept_cfl:
         cases[f"default, swept_cfl={value:g}"] = dict(swept_cfl=value)
+    by_interval = "default, one kernel call per interval"
+    if args.by_interval:
+        cases[by_interval] = {}
     sims = {name: VorticityFluid(dec, DirectSolver, **common, **options) for name, options in cases.items()}
+    if args.by_interval:  # the per-interval kernels: what the default walked on every mesh before
+        sims[by_interval]._sweeps_at_once = lambda *tables: False
     for sim in sims.values():
         for _ in range(3):  # warm-up: the flow leaves the start state, the kernels are loaded
             sim.step()

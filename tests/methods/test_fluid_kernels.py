@@ -200,6 +200,30 @@ def test_swept_intervals_kernel_equals_numpy(walls):
     assert result.substeps >= 3 and (result.wall_edge >= 0).sum() > 0  # several intervals; walls met
 
 
+@pytest.mark.parametrize("walls", ["no_slip", "slip"])
+def test_the_default_walks_its_intervals_point_by_point_with_the_same_bits(walls):
+    """On a planar mesh the default scheme walks every point through all its swept intervals in
+    one kernel call (compiled.sweep_points) and adds the swept change of all intervals side by
+    side (compiled.swept_change_path); one kernel call per interval over all points
+    (compiled.backtrack_points and swept_change_add, the path of curved meshes) gives the same end
+    points, counts, end velocities and swept change, bit for bit, over steps that clamp points at
+    walls."""
+    dec, base = case("channel")
+    options = {**base, "velocity": "least_squares", "circulation": "swept_bounded", "walls": walls, "dt": 0.05}
+    at_once, by_interval = (VorticityFluid(dec, DirectSolver, kernels="numba", **options) for _ in range(2))
+    by_interval._sweeps_at_once = lambda *args: False
+    assert at_once._sweeps_at_once(*at_once.walker.kernel_tables(), at_once._kernel_field.kernel_tables(), "midpoint")
+    for _ in range(3):
+        expected, v_expected = by_interval.backtrack()
+        result, v = at_once.backtrack()
+        assert_same_points(expected, result)
+        np.testing.assert_array_equal(v, v_expected)
+        np.testing.assert_array_equal(at_once._swept_change, by_interval._swept_change)
+        assert result.substeps >= 3 and (result.wall_edge >= 0).sum() > 0  # several intervals; walls met
+        assert by_interval.step() == at_once.step()  # every diagnostic, bitwise
+    np.testing.assert_array_equal(at_once.vorticity, by_interval.vorticity)
+
+
 @pytest.mark.parametrize("name", ["channel", "lattice"])
 def test_walking_kernel_equals_numpy_without_the_planar_jump(name):
     """Planar meshes jump; with the jump switched off both walk triangle by triangle."""

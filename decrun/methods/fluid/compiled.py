@@ -22,7 +22,11 @@ Each kernel has a numpy twin that stays the tested reference (``VorticityFluid(k
   in the same order with the point's position and directions in registers and the common jump
   (a path that cannot reach the border and ends within two rings of its triangle) inline, where
   the general block passes them through arrays and out-of-line helpers of a hundred arguments;
+* :func:`sweep_points` — the default scheme's k intervals on a planar mesh at once, each point
+  through all of them in turn (its triangle rows still in cache), the same bits as k calls of
+  :func:`backtrack_points`, keeping every point's position and vorticity after every interval;
 * :func:`swept_change_add` — the swept-vorticity change of :meth:`SweptVorticity.change`;
+  :func:`swept_change_path` that of every interval of such a path, side by side;
 * :func:`circulation_sums` — the trapezoid circulation of :meth:`VorticityFluid.circulation`
   (:func:`circulation_rows`: of some cells).
 
@@ -39,8 +43,8 @@ import numpy as np
 
 from decrun.core import jit
 
-__all__ = ["velocity_points", "backtrack_points", "circulation_sums", "circulation_rows", "swept_change_add",
-           "INTEGRATOR_CODE"]
+__all__ = ["velocity_points", "backtrack_points", "sweep_points", "circulation_sums", "circulation_rows",
+           "swept_change_add", "swept_change_path", "INTEGRATOR_CODE"]
 
 INTEGRATOR_CODE = {"euler": 0, "midpoint": 1, "per_triangle": 2}
 
@@ -631,6 +635,149 @@ def _backtrack_block_planar_p1(vertices, tri_real, tri_int, face_normal, planar,
     return steps
 
 
+@_kernel
+def _sweep_block_planar_p1(vertices, tri_real, tri_int, planar, affine, buckets, border_real, border_buckets, grid,
+                           grid_shape, near, point_velocity, path, triangle, wall, start_velocity, end_velocity, size,
+                           dt, substeps, max_cfl, cap, max_rounds, vorticity, values, first_point, last_point,
+                           rounds, unfinished, steps):
+    """:func:`sweep_points` for the points first_point..last_point − 1 (one thread's block): each
+    point through all k intervals in turn, each interval the body of
+    :func:`_backtrack_block_planar_p1` (with ``bary``, ``triangles`` the walker's ``tri_real``,
+    ``tri_int``), its triangle rows still in cache from the interval before. The body is written
+    out here as there: as one function inlined into both (numba's inline="always") the block ran
+    1.25× slower."""
+    k = path.shape[1] - 1
+    F = point_velocity.shape[2]
+    state, lam, rate = np.empty(4), np.empty(3), np.empty(3)
+    xa, da = np.empty(3), np.empty(3)
+    triangles, bary = tri_int, tri_real
+    for p in range(first_point, last_point):
+        t, hit = triangle[p], wall[p]
+        x0, x1, x2 = path[p, 0, 0], path[p, 0, 1], path[p, 0, 2]
+        for i in range(k):
+            base = i * cap
+            if hit < 0:
+                if i == 0:
+                    b0, b1, b2 = start_velocity[p, 0], start_velocity[p, 1], start_velocity[p, 2]
+                else:
+                    b0, b1, b2 = end_velocity[p, 0, 1], end_velocity[p, 1, 1], end_velocity[p, 2, 1]
+                count = substeps
+                if max_cfl > 0:  # _substep_count
+                    ratio = np.ceil(np.sqrt((b0 * b0 + b1 * b1) + b2 * b2) * dt / size[t] / max_cfl)
+                    if ratio > -9.2e18 and ratio < 9.2e18:
+                        count = min(max(int(ratio), substeps), cap)
+                steps[i] = max(steps[i], count)
+                tau = dt / count
+                for substep in range(count):
+                    if substep == 0:
+                        e0, e1, e2 = -b0, -b1, -b2
+                    else:
+                        v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
+                        e0, e1, e2 = -v0, -v1, -v2
+                    # x + τ d2 = x_m + τ (d2 − d1 / 2): continue from the midpoint
+                    half = 0.5 * tau
+                    r, left = 0, False
+                    if half > 0:
+                        c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, half)
+                        if c >= 0:
+                            x0, x1, x2 = x0 + half * e0, x1 + half * e1, x2 + half * e2
+                            t = c
+                        else:
+                            xa[0], xa[1], xa[2] = x0, x1, x2
+                            da[0], da[1], da[2] = e0, e1, e2
+                            t, hit, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets,
+                                                    border_real, border_buckets, grid, grid_shape, near, xa, t, da,
+                                                    half, max_rounds, state, lam, rate)
+                            x0, x1, x2 = xa[0], xa[1], xa[2]
+                    rounds[base + substep, 0] = max(rounds[base + substep, 0], r)
+                    b0, b1, b2 = e0, e1, e2
+                    v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, 1, t, x0, x1, x2)
+                    if hit >= 0:
+                        e0, e1, e2 = 0.0, 0.0, 0.0
+                    else:
+                        e0, e1, e2 = -v0 - 0.5 * b0, -v1 - 0.5 * b1, -v2 - 0.5 * b2
+                    hit2, r, left = -1, 0, False
+                    if tau > 0:
+                        c = _jump_near(tri_real, tri_int, near, t, x0, x1, x2, e0, e1, e2, tau)
+                        if c >= 0:
+                            x0, x1, x2 = x0 + tau * e0, x1 + tau * e1, x2 + tau * e2
+                            t = c
+                        else:
+                            xa[0], xa[1], xa[2] = x0, x1, x2
+                            da[0], da[1], da[2] = e0, e1, e2
+                            t, hit2, r, left = _walk(vertices, tri_real, tri_int, planar, affine, buckets,
+                                                     border_real, border_buckets, grid, grid_shape, near, xa, t, da,
+                                                     tau, max_rounds, state, lam, rate)
+                            x0, x1, x2 = xa[0], xa[1], xa[2]
+                    if hit < 0:
+                        hit = hit2
+                    rounds[base + substep, 1] = max(rounds[base + substep, 1], r)
+                    if left:
+                        unfinished[base + substep] += 1
+                    if hit >= 0:
+                        break
+                # the end point's velocities: field F − 1 (the next interval's start), all at the
+                # last interval and at a wall
+                for f in range(0 if hit >= 0 or i == k - 1 else F - 1, F):
+                    v0, v1, v2 = _p1_planar(triangles, bary, point_velocity, f, t, x0, x1, x2)
+                    end_velocity[p, 0, f], end_velocity[p, 1, f], end_velocity[p, 2, f] = v0, v1, v2
+            path[p, i + 1, 0], path[p, i + 1, 1], path[p, i + 1, 2] = x0, x1, x2
+            r0 = x0 - tri_real[t, TRI_CENTROID]
+            r1 = x1 - tri_real[t, TRI_CENTROID + 1]
+            r2 = x2 - tri_real[t, TRI_CENTROID + 2]
+            l0 = 1.0 / 3.0 + (tri_real[t, 0] * r0 + tri_real[t, 1] * r1 + tri_real[t, 2] * r2)
+            l1 = 1.0 / 3.0 + (tri_real[t, 3] * r0 + tri_real[t, 4] * r1 + tri_real[t, 5] * r2)
+            l2 = 1.0 / 3.0 + (tri_real[t, 6] * r0 + tri_real[t, 7] * r1 + tri_real[t, 8] * r2)
+            values[p, i + 1] = (l0 * vorticity[tri_int[t, TRI_TOP]] + l1 * vorticity[tri_int[t, TRI_TOP + 1]]) \
+                + l2 * vorticity[tri_int[t, TRI_TOP + 2]]
+        triangle[p], wall[p] = t, hit
+
+
+@_parallel_kernel
+def sweep_points(walk, jump, point_velocity, path, triangle, wall, start_velocity, end_velocity, size, dt, substeps,
+                 max_cfl, cap, max_rounds, vorticity, values, chunks):
+    """The k intervals of the swept scheme's walk (VorticityFluid._backtrack_sweeping) at once, for
+    the midpoint integrator with the least-squares (P1) velocity on a planar mesh, whose tables are
+    the walker's (``LeastSquaresVelocity.kernel_tables``): the same bits as k calls of
+    :func:`backtrack_points` (interval i over ``dt`` = dt_step / k, ``first`` for i = 0, the end
+    velocities of field F − 1 only before the last interval, of all fields after it), each point
+    walked through its k intervals in turn, blocks of points in parallel.
+
+    path : (≥ P, k + 1, 3) path[:P, i] where the P points are after interval i − 1 (path[:P, 0] the
+        start points, in ``triangle`` (P,), ``wall`` (P,) −1, both updated to the last interval's),
+        the rows from P on not read nor written (each point's path in one piece of memory)
+    start_velocity (P, 3) : the velocity the first interval starts with; end_velocity (P, 3, F):
+        written, the end velocities of the last interval (the earlier ones, of field F − 1, are
+        each the next interval's start)
+    vorticity (n0,), values (≥ P, k + 1) : values[:P, i + 1] written, the P1 vorticity at path[:P, i + 1]
+
+    Returns rounds (k, cap, 2), unfinished (k, cap) and steps (k,): :func:`backtrack_points`'
+    three results of each interval."""
+    vertices, tri_real, tri_int, face_normal, planar = walk
+    affine, buckets, border_real, border_buckets, grid, grid_shape, near = jump
+    k, P = path.shape[1] - 1, triangle.shape[0]
+    chunk_rounds = np.zeros((chunks, k * cap, 2), dtype=np.int64)
+    chunk_unfinished = np.zeros((chunks, k * cap), dtype=np.int64)
+    chunk_steps = np.ones((chunks, k), dtype=np.int64)
+    for c in prange(chunks):
+        _sweep_block_planar_p1(vertices, tri_real, tri_int, planar, affine, buckets, border_real, border_buckets,
+                               grid, grid_shape, near, point_velocity, path, triangle, wall, start_velocity,
+                               end_velocity, size, dt, substeps, max_cfl, cap, max_rounds, vorticity, values,
+                               c * P // chunks, (c + 1) * P // chunks, chunk_rounds[c], chunk_unfinished[c],
+                               chunk_steps[c])
+    rounds = np.zeros((k, cap, 2), dtype=np.int64)
+    unfinished = np.zeros((k, cap), dtype=np.int64)
+    steps = np.ones(k, dtype=np.int64)
+    for c in range(chunks):
+        for i in range(k):
+            steps[i] = max(steps[i], chunk_steps[c, i])
+            for s in range(cap):
+                rounds[i, s, 0] = max(rounds[i, s, 0], chunk_rounds[c, i * cap + s, 0])
+                rounds[i, s, 1] = max(rounds[i, s, 1], chunk_rounds[c, i * cap + s, 1])
+                unfinished[i, s] += chunk_unfinished[c, i * cap + s]
+    return rounds, unfinished, steps
+
+
 @_parallel_kernel
 def backtrack_points(walk, jump, field, point_velocity, position, triangle, wall, start_velocity, end_velocity, first,
                      size, dt, substeps, max_cfl, cap, integrator, max_rounds, vorticity, value, first_field, chunks):
@@ -781,6 +928,26 @@ def _swept_side_totals(before, after, value_before, value_after, side_a, side_b,
 
 
 @_kernel
+def _swept_path_totals(path, values, side_a, side_b, normal, total, first, last):
+    """total[s, i] of interval i (path[:, i] → path[:, i + 1]) for the sides first..last − 1
+    (:func:`swept_change_path`, one thread's block): :func:`_swept_side_totals`' arithmetic."""
+    for s in range(first, last):
+        a, b = side_a[s], side_b[s]
+        n0, n1, n2 = normal[s, 0], normal[s, 1], normal[s, 2]
+        for i in range(total.shape[1]):
+            a0, a1, a2 = path[a, i, 0], path[a, i, 1], path[a, i, 2]
+            u0, u1, u2 = path[b, i, 0] - a0, path[b, i, 1] - a1, path[b, i, 2] - a2
+            v0, v1, v2 = path[b, i + 1, 0] - a0, path[b, i + 1, 1] - a1, path[b, i + 1, 2] - a2
+            q0, q1, q2 = path[a, i + 1, 0] - a0, path[a, i + 1, 1] - a1, path[a, i + 1, 2] - a2
+            c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+            first_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+            c0, c1, c2 = v1 * q2 - v2 * q1, v2 * q0 - v0 * q2, v0 * q1 - v1 * q0
+            second_area = 0.5 * ((c0 * n0 + c1 * n1) + c2 * n2)
+            wa0, wb0, wa1, wb1 = values[a, i], values[b, i], values[a, i + 1], values[b, i + 1]
+            total[s, i] = first_area * (wa0 + wb0 + wb1) / 3.0 + second_area * (wa0 + wb1 + wa1) / 3.0
+
+
+@_kernel
 def _add_rows(change, total, indptr, indices, data, first, last):
     """change[i] += −Σ_j data[j] total[indices[j]] for the rows first..last − 1 (CSR order)."""
     for i in range(first, last):
@@ -806,3 +973,29 @@ def swept_change_add(change, before, after, value_before, value_after, side_a, s
                            c * S // chunks, (c + 1) * S // chunks)
     for c in prange(chunks):
         _add_rows(change, total, indptr, indices, data, c * n // chunks, (c + 1) * n // chunks)
+
+
+@_kernel
+def _add_path_rows(change, total, indptr, indices, data, first, last):
+    """change[i] += −Σ_j data[j] total[indices[j], l] for l = 0..k − 1 in turn, for the rows
+    first..last − 1 (CSR order): each interval's sum added as :func:`_add_rows` adds it."""
+    for i in range(first, last):
+        for interval in range(total.shape[1]):
+            acc = 0.0
+            for j in range(indptr[i], indptr[i + 1]):
+                acc += data[j] * total[indices[j], interval]
+            change[i] += -acc
+
+
+@_parallel_kernel
+def swept_change_path(change, path, values, side_a, side_b, normal, indptr, indices, data, chunks):
+    """``change`` (n0,) += the swept change of every interval of ``path`` (P, k + 1, 3) (every dual
+    point's positions, values (P, k + 1) the vorticity there), in place: the same bits as
+    :func:`swept_change_add` of path[:, i] → path[:, i + 1] for i = 0..k − 1 in turn, each side's
+    and each row's data read once for all intervals (sides and then cells in ``chunks`` blocks)."""
+    S, n, k = side_a.shape[0], indptr.shape[0] - 1, path.shape[1] - 1
+    total = np.empty((S, k))
+    for c in prange(chunks):
+        _swept_path_totals(path, values, side_a, side_b, normal, total, c * S // chunks, (c + 1) * S // chunks)
+    for c in prange(chunks):
+        _add_path_rows(change, total, indptr, indices, data, c * n // chunks, (c + 1) * n // chunks)

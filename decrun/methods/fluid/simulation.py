@@ -278,6 +278,15 @@ class VorticityFluid:
             compiled.swept_change_add(np.zeros(self.K.num_simplices(0)), points, points, rest, rest,
                                       self._swept.side_a, self._swept.side_b, self._swept.normal, D.indptr,
                                       D.indices, D.data, jit.threads())
+            walk, jump = self.walker.kernel_tables()
+            if self._sweeps_at_once(walk, jump, self._kernel_field.kernel_tables(), self.integrator):
+                path, values = np.repeat(points[:, None, :], 2, axis=1), np.zeros((rest.size, 2))
+                compiled.sweep_points(walk, jump, self._point_velocities(), path, np.zeros(0, dtype=np.int64),
+                                      np.zeros(0, dtype=np.int64), none, np.zeros((0, 3, 2)), self.walker.size,
+                                      self.dt, 1, 1.0, 64, 1, np.zeros(self.K.num_simplices(0)), values, 1)
+                compiled.swept_change_path(np.zeros(self.K.num_simplices(0)), path, values, self._swept.side_a,
+                                           self._swept.side_b, self._swept.normal, D.indptr, D.indices, D.data,
+                                           jit.threads())
 
     def _remove_mean(self, w: np.ndarray) -> np.ndarray:
         if not self.closed:
@@ -402,7 +411,10 @@ class VorticityFluid:
         """:meth:`_backtrack_sweeping` by the numba kernels, the same bits: per interval one
         ``compiled.backtrack_points`` (walk, end velocities — the next interval's start velocities —
         and the vorticity at the new end points, blocks of points in parallel) and one
-        ``compiled.swept_change_add``, on two point buffers used in turn."""
+        ``compiled.swept_change_add``, on two point buffers used in turn; in the default scheme's
+        case on a planar mesh (:meth:`_sweeps_at_once`) one ``compiled.sweep_points`` (every point
+        through all k intervals in turn, its path of k + 1 positions and vorticity values kept)
+        and one ``compiled.swept_change_path`` (every interval's change, added in the same order)."""
         from decrun.methods.fluid import compiled
 
         m = self.cells.n_circumcenters
@@ -426,6 +438,25 @@ class VorticityFluid:
         swept, D = self._swept, self._swept.incidence
         chunks = jit.threads()
         rounds = unfinished = most = 0
+        if self._sweeps_at_once(walk, jump, field, options["integrator"]):
+            # every point's k + 1 positions (the fixed ones the rest points) and vorticity values: each
+            # point walks its k intervals in turn (compiled.sweep_points), then each side adds its
+            # swept change of every interval (compiled.swept_change_path), the same bits as below
+            path = np.empty((before.shape[0], k + 1, 3))
+            path[:m, 0] = before[:m]
+            path[m:] = before[m:, None, :]
+            values = np.empty((value_before.size, k + 1))
+            values[:m, 0] = value_before[:m]
+            values[m:] = value_before[m:, None]
+            r, left, steps = compiled.sweep_points(walk, jump, both, path, triangle, wall, start, end_velocity, size,
+                                                   self.dt / k, substeps, max_cfl, cap, int(options["max_rounds"]),
+                                                   vorticity, values, chunks)
+            rounds = sum(int(r[interval].sum()) for interval in range(k))
+            compiled.swept_change_path(change, path, values, swept.side_a, swept.side_b, swept.normal, D.indptr,
+                                       D.indices, D.data, chunks)
+            self._swept_change = change
+            return BacktrackResult(path[:m, k].copy(), triangle, wall, rounds, int(left.max(initial=0)),
+                                   k * int(steps.max()), end_velocity)
         for interval in range(k):
             after[:m] = before[:m]
             r, left, steps = compiled.backtrack_points(
@@ -440,6 +471,13 @@ class VorticityFluid:
             value_before, value_after = value_after, value_before
         self._swept_change = change
         return BacktrackResult(before[:m].copy(), triangle, wall, rounds, unfinished, k * most, end_velocity)
+
+    def _sweeps_at_once(self, walk, jump, field, integrator) -> bool:
+        """Whether compiled.sweep_points walks the intervals: the midpoint integrator with the
+        least-squares velocity on a planar mesh with the jump tables, the velocity reading the
+        walker's own rows (the case of compiled._backtrack_block_planar_p1)."""
+        return (integrator == "midpoint" and walk[4] and field[3] and field[4] == 1 and jump[0].shape[0] > 0
+                and field[0] is walk[2] and field[1] is walk[1])
 
     def _backtrack_sweeping_per_point(self, velocity, both, start, options, cfl, k):
         """Step c for ``intervals="per_point"``: K intervals of dt / K, K the smallest 2^a or 3·2^a

@@ -20,7 +20,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+# the variants' resolver and the default adaptation load with DEC, not on the first DEC built
+from decrun.core import plugins as _plugins  # noqa: F401
 from decrun.core.boundary import BoundaryAdaptation, boundary_adaptation
+from decrun.core.boundary import none as _default_boundary  # noqa: F401
 from decrun.core.cache import Cached
 from decrun.core.complex import SimplicialComplex
 from decrun.core.pages import small_pages

@@ -2,18 +2,18 @@
 
 On Linux numpy advises the kernel to back every array of 4 MiB or more with 2 MiB transparent
 huge pages (``madvise(MADV_HUGEPAGE)``, numpy's default). A process touches most of a mesh's
-complex and operators for the first time when it builds them, so the build pays the first touch
-of that memory: zeroed pages, one fault each. Measured on this project's machine (a virtual
-machine, 2 cores), huge pages made that first touch cost anywhere from a fifth to twice what
-4 KiB pages cost, varying from one process to the next (0.13–1.5 ms per MiB against a steady
-~0.5 ms), so a fresh process's build at 1.3M triangles took 0.23–0.66 s where it takes a steady
-~0.3 s in 4 KiB pages. C++ libraries that allocate with ``malloc`` (libigl's Eigen) never ask
-for huge pages.
+complex and operators for the first time when it builds them (a fresh process, or a sweep worker
+whose previous mesh's memory went back to the system), so the build pays the first touch of that
+memory: zeroed pages, one fault each. On this project's machine (a virtual machine) the first
+touch of huge pages cost several times more in some processes than in others, while 4 KiB pages
+cost the same in every process; C++ libraries that allocate with ``malloc`` (libigl's Eigen)
+never ask for huge pages either.
 
 :func:`small_pages` sets numpy's advice aside while the complex and its operators are built,
 and restores the setting it found (nested and concurrent blocks share one setting: the first
-to enter sets it aside, the last to leave restores it). Nothing else changes: the arrays,
-their values and the computation are the same.
+to enter sets it aside, the last to leave restores it; another thread allocating meanwhile
+gets 4 KiB pages too). Nothing else changes: the arrays, their values and the computation are
+the same.
 """
 
 from __future__ import annotations
@@ -43,7 +43,8 @@ def _switch() -> Callable[[bool], bool] | None:
 
 
 def huge_page_advice() -> bool | None:
-    """Whether numpy now advises huge pages for its large arrays (None: numpy has no such switch)."""
+    """Whether numpy now advises huge pages for its large arrays (None: numpy has no such switch);
+    read by setting it and putting it back, numpy's only way to read it."""
     switch = _switch()
     if switch is None:
         return None

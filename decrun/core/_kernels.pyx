@@ -72,42 +72,92 @@ def sorted_rows(const int64_t[:, :] rows):
     return ordered_array, parity_array, smallest, largest, bool(repeated)
 
 
-def group_packed(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits):
-    """Twin of ``simplex_arrays._group_packed_kernel``: the rows ``top[t, columns[s]]`` grouped
-    by a stable counting sort on their leading entry and a stable sort of each bucket by the
-    packed key; (unique, inverse, order, starts). ``top`` in any layout."""
-    cdef Py_ssize_t m = top.shape[0], slots = columns.shape[0], width = columns.shape[1]
-    cdef Py_ssize_t total = m * slots, t, s, q, i, v, a, b, low, high, groups, g
-    cdef int64_t k, lead, largest = 0, item, item_key, packed
-    cdef int shift = bits * (width - 1)
-    for t in range(m):  # the keys' leading entries: the buckets (no array of keys is kept)
-        for s in range(slots):
-            lead = top[t, columns[s, 0]]
-            if lead > largest:
-                largest = lead
+cdef bint _triangle_edges(const int64_t[:, :] top, const int64_t[:, ::1] columns):
+    """Whether the rows are the edge slots (0,1), (0,2), (1,2) of C-contiguous triangles."""
+    return (top.shape[1] == 3 and columns.shape[0] == 3 and columns.shape[1] == 2 and top.strides[1] == 8
+            and top.strides[0] == 24 and columns[0, 0] == 0 and columns[0, 1] == 1 and columns[1, 0] == 0
+            and columns[1, 1] == 2 and columns[2, 0] == 1 and columns[2, 1] == 2)
+
+
+cdef int64_t _bucket_triangle_edges(const int64_t[:, ::1] top, int bits, int64_t[::1] order,
+                                    int64_t[::1] sorted_key, object counts):
+    """The counting sort of :func:`group_packed` for the edge slots of triangles, its loops
+    unrolled over the three slots: the same buckets, keys and stable order; the bucket bounds
+    are written to ``counts[0]`` (a list); returns the largest leading entry."""
+    cdef Py_ssize_t m = top.shape[0], t, v
+    cdef int64_t x, y, z, largest = 0
+    for t in range(m):  # leading entries: x (slots 0, 1) and y (slot 2)
+        x, y = top[t, 0], top[t, 1]
+        if x > largest:
+            largest = x
+        if y > largest:
+            largest = y
     count_array = np.zeros(largest + 2, np.int64)
     cdef int64_t[::1] count = count_array
     for t in range(m):
-        for s in range(slots):
-            count[top[t, columns[s, 0]] + 1] += 1
+        count[top[t, 0] + 1] += 2
+        count[top[t, 1] + 1] += 1
     for v in range(largest + 1):
         count[v + 1] += count[v]
     position_array = count_array[:largest + 1].copy()
     cdef int64_t[::1] position = position_array
+    cdef int64_t p
+    for t in range(m):
+        x, y, z = top[t, 0], top[t, 1], top[t, 2]
+        p = position[x]
+        order[p], sorted_key[p] = 3 * t, (x << bits) | y
+        order[p + 1], sorted_key[p + 1] = 3 * t + 1, (x << bits) | z
+        position[x] = p + 2
+        p = position[y]
+        order[p], sorted_key[p] = 3 * t + 2, (y << bits) | z
+        position[y] = p + 1
+    counts.append(count_array)
+    return largest
+
+
+def group_packed(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits):
+    """Twin of ``simplex_arrays._group_packed_kernel``: the rows ``top[t, columns[s]]`` grouped
+    by a stable counting sort on their leading entry and a stable sort of each bucket by the
+    packed key; (unique, inverse, order, starts). ``top`` in any layout; a triangle mesh's edge
+    slots take loops unrolled over the three slots (the same arithmetic and order)."""
+    cdef Py_ssize_t m = top.shape[0], slots = columns.shape[0], width = columns.shape[1]
+    cdef Py_ssize_t total = m * slots, t, s, q, i, v, a, b, low, high, groups, g
+    cdef int64_t k, lead, largest = 0, item, item_key, packed
+    cdef int shift = bits * (width - 1)
     order_array = np.empty(total, np.int64)
     sorted_array = np.empty(total, np.int64)
     cdef int64_t[::1] order = order_array
     cdef int64_t[::1] sorted_key = sorted_array
-    for t in range(m):  # each row's packed key, scattered into its bucket in row order (stable)
-        for s in range(slots):
-            k = 0
-            for q in range(width):
-                k = (k << bits) | top[t, columns[s, q]]
-            lead = k >> shift
-            i = t * slots + s
-            order[position[lead]] = i
-            sorted_key[position[lead]] = k
-            position[lead] += 1
+    cdef int64_t[::1] count, position
+    cdef const int64_t[:, ::1] rows
+    if _triangle_edges(top, columns):
+        counts = []
+        rows = np.asarray(top)
+        largest = _bucket_triangle_edges(rows, bits, order, sorted_key, counts)
+        count = counts[0]
+    else:
+        for t in range(m):  # the keys' leading entries: the buckets (no array of keys is kept)
+            for s in range(slots):
+                lead = top[t, columns[s, 0]]
+                if lead > largest:
+                    largest = lead
+        count = np.zeros(largest + 2, np.int64)
+        for t in range(m):
+            for s in range(slots):
+                count[top[t, columns[s, 0]] + 1] += 1
+        for v in range(largest + 1):
+            count[v + 1] += count[v]
+        position = np.array(count[:largest + 1])
+        for t in range(m):  # each row's packed key, scattered into its bucket in row order (stable)
+            for s in range(slots):
+                k = 0
+                for q in range(width):
+                    k = (k << bits) | top[t, columns[s, q]]
+                lead = k >> shift
+                i = t * slots + s
+                order[position[lead]] = i
+                sorted_key[position[lead]] = k
+                position[lead] += 1
     for v in range(largest + 1):
         low, high = count[v], count[v + 1]
         if high - low <= 1:

@@ -20,9 +20,13 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+# the variants' resolver and the default adaptation load with DEC, not on the first DEC built
+from decrun.core import plugins as _plugins  # noqa: F401
 from decrun.core.boundary import BoundaryAdaptation, boundary_adaptation
+from decrun.core.boundary import none as _default_boundary  # noqa: F401
 from decrun.core.cache import Cached
 from decrun.core.complex import SimplicialComplex
+from decrun.core.pages import small_pages
 from decrun.core.simplex_arrays import vertex_volumes
 from decrun.core.stars import HodgeStar, star_variant
 from decrun.core.stars.circumcentric import circumcenter_barycentric, circumcentric_dual_volumes
@@ -33,14 +37,17 @@ __all__ = ["DEC", "circumcenter_barycentric", "diagonal_matrix"]
 
 def diagonal_matrix(diagonal: np.ndarray) -> sp.csr_matrix:
     """(n, n) CSR with ``diagonal`` on its diagonal — ``sp.diags(diagonal).tocsr()`` (which
-    leaves zero entries out), built directly when no entry is zero."""
+    leaves zero entries out), built directly when no entry is zero: the matrix holds the float64
+    ``diagonal`` itself as its data (no copy; the caller hands over an array it does not change)
+    and one ``0..n`` array as both its row pointers and, without its last entry, its column
+    indices."""
     diagonal = np.asarray(diagonal, dtype=np.float64)
     if not diagonal.all():
         return sp.diags(diagonal).tocsr()
     n = diagonal.shape[0]
     index_type = np.int32 if n < 2**31 - 1 else np.int64
-    return sp.csr_matrix((diagonal.copy(), np.arange(n, dtype=index_type), np.arange(n + 1, dtype=index_type)),
-                         shape=(n, n))
+    pointers = np.arange(n + 1, dtype=index_type)
+    return sp.csr_matrix((diagonal, pointers[:n], pointers), shape=(n, n), copy=False)
 
 
 class DEC(Cached):
@@ -76,11 +83,18 @@ class DEC(Cached):
             raise ConfigError(f"operator={self.star_variant.name} provides ⋆_k on the mesh's own simplices only for "
                               f"k in {list(degrees)}, not k = {k}")
 
+    @staticmethod
+    def _built(compute):
+        """``compute()`` with its new arrays in 4 KiB pages (:func:`decrun.core.pages.small_pages`):
+        d and ⋆ are built once and touched for the first time while they are."""
+        with small_pages():
+            return compute()
+
     # ---------------------------------------------------------------- derivatives
     def d(self, k: int) -> sp.csr_matrix:
         """Exterior derivative on primal k-forms, d_k = δ_{k+1}ᵀ (§4.5.1): (n_{k+1}, n_k)."""
         self._check_form_degree(k, 0, self.n - 1)
-        return self.require(("d", k), lambda: self.K.incidence(k + 1))
+        return self.require(("d", k), lambda: self._built(lambda: self.K.incidence(k + 1)))
 
     def d_dual(self, j: int) -> sp.csr_matrix:
         """Exterior derivative on dual j-forms (eq. 4.13): d^dual_{n-k} = (-1)^k δ_k.
@@ -155,7 +169,7 @@ class DEC(Cached):
             diagonal = self.star_diagonal_or_none(k)
             return diagonal_matrix(diagonal) if diagonal is not None else self.star_variant.matrix(self, k).tocsr()
 
-        return self.require(("star", k), compute)
+        return self.require(("star", k), lambda: self._built(compute))
 
     def star_inv(self, k: int) -> sp.csr_matrix:
         """⋆_k⁻¹ as a sparse diagonal matrix (diagonal variants only). Zero dual volumes

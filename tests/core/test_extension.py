@@ -121,6 +121,22 @@ def test_group_rows_and_row_sorting_twins_on_wide_buckets_and_repeats(counted):
     assert counted["decrun.core.simplex_arrays._sorted_rows_kernel"] == 1
 
 
+@needs_extension
+def test_the_triangle_edge_grouping_equals_the_general_loops():
+    """The extension groups a triangle mesh's edge slots with loops unrolled over the three slots
+    (C-contiguous rows); other layouts take its general loops: both equal the numpy twin, also
+    for rows that are not sorted (the leading entry is then not the smallest)."""
+    from decrun.core import _kernels  # type: ignore[attr-defined]
+
+    rng = np.random.default_rng(5)
+    rows = np.vstack([rng.integers(0, 70, (2500, 3)), np.zeros((40, 3), dtype=np.int64) + [0, 1, 2]])
+    columns = np.array([(0, 1), (0, 2), (1, 2)], dtype=np.int64)
+    bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
+    for top in (rows, sort_rows(rows), np.asfortranarray(sort_rows(rows)), np.asfortranarray(rows)):
+        reference = group_rows_numpy(FaceRows(np.ascontiguousarray(top), [(0, 1), (0, 2), (1, 2)]))
+        _assert_same(_kernels.group_packed(top, columns, bits), reference)
+
+
 def test_without_the_extension_auto_keeps_numbas_size_rule(monkeypatch):
     from decrun.core.complex import checks
 

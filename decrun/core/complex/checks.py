@@ -151,9 +151,18 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
     ``(n+1)·t + c``); raises on duplicate top simplices and, with ``check_manifold``, on facets
     in more than two top simplices."""
     n = top.shape[1] - 1
-    counts = np.diff(starts)
-    over = np.flatnonzero(counts > 2)
-    if over.size:
+    if _facet_pairs_kernel.runs(order.shape[0]):
+        index_type = np.int32 if top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
+        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, index_type))
+        if not pairs[1].size:  # no interior facet: int64, as the numpy twin's
+            pairs = (pairs[0], *(a.astype(np.int64) for a in pairs[1:]))
+        pairs = FacetPairs(*pairs)
+    else:
+        pairs, suspect = facet_pairs_numpy(order, starts, top)
+    # The facets in more than two simplices, without a pass over the groups: with p pairs, g groups
+    # and s slots, s - g - p is the sum of (size - 1) over the groups of three or more, zero iff none.
+    if order.shape[0] - (starts.shape[0] - 1) - pairs.first.shape[0] > 0:
+        over = np.flatnonzero(np.diff(starts) > 2)
         _check_duplicates(top)
         if check_manifold:
             facet_slots = order[np.concatenate([np.arange(starts[g], starts[g + 1]) for g in over[:3]])]
@@ -163,14 +172,6 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
                 f"non-manifold: {name_indices(over, simplex_name(n - 1))} (vertices {tuples}...) lie in more than two "
                 f"{plural(simplex_name(n))} (e.g. {name_indices(owners, simplex_name(n))})"
             )
-    if _facet_pairs_kernel.runs(order.shape[0]):
-        index_type = np.int32 if top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
-        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, index_type))
-        if not pairs[1].size:  # no interior facet: int64, as the numpy twin's
-            pairs = (pairs[0], *(a.astype(np.int64) for a in pairs[1:]))
-        pairs = FacetPairs(*pairs)
-    else:
-        pairs, suspect = facet_pairs_numpy(order, starts, top)
     if suspect:
         _check_duplicates(top)
     return pairs

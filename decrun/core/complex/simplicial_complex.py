@@ -34,6 +34,10 @@ from decrun.core.simplex_arrays import unique_rows
 
 __all__ = ["SimplicialComplex"]
 
+# the compiled extension (when built) loads with this module, as a C++ library's bindings load when
+# it is imported: the first complex built in a process does not pay for the extension's loading
+jit.kernels.extension_twins()
+
 
 def incidence_entries_numpy(faces: np.ndarray, signs: np.ndarray, index_type) -> tuple[np.ndarray, np.ndarray]:
     """(data, indices) of δ_jᵀ in CSR order from the (n_j, j+1) faces and signs (the numpy twin

@@ -140,12 +140,19 @@ class DEC(Cached):
         return self.star_variant.is_diagonal(self.K, k)
 
     def star_diagonal_or_none(self, k: int) -> np.ndarray | None:
-        """(n_k,) diagonal of ⋆_k, or None for a non-diagonal variant."""
+        """(n_k,) diagonal of ⋆_k, or None for a non-diagonal variant. The array is cached and
+        read-only: ``star(k)`` holds it as its data, so writing into it would change both."""
         self._check_form_degree(k)
         self._check_variant_degree(k)
         if not self.star_is_diagonal(k):
             return None
-        return self.require(("star_diagonal", k), lambda: self.star_variant.diagonal(self, k))
+
+        def compute():
+            diagonal = np.asarray(self.star_variant.diagonal(self, k), dtype=np.float64)
+            diagonal.setflags(write=False)
+            return diagonal
+
+        return self.require(("star_diagonal", k), compute)
 
     def star_diagonal(self, k: int) -> np.ndarray:
         """(n_k,) diagonal of ⋆_k = |⋆σ| / |σ| (§4.5.4) for the selected variant.

@@ -117,3 +117,20 @@ def test_star_matrix_data_is_the_cached_diagonal():
         star = dec.star(k)
         assert np.shares_memory(star.data, dec.star_diagonal(k))
         np.testing.assert_array_equal(star.diagonal(), dec.dual_volumes(k) / dec.primal_volumes(k))
+
+
+def test_the_shared_diagonal_is_read_only_so_no_caller_changes_the_other():
+    """``star(k)`` and ``star_diagonal(k)`` are one array: writing into either must fail loudly
+    rather than change the other (and every later use of the cached operator)."""
+    V, F = grid_triangles(5, 4, jitter=0.2)
+    dec = DEC(SimplicialComplex(V, F))
+    for k in range(3):
+        diagonal = dec.star_diagonal(k)
+        before = diagonal.copy()
+        with pytest.raises(ValueError, match="read-only"):
+            diagonal[0] = 7.0
+        with pytest.raises(ValueError, match="read-only"):
+            dec.star(k).data[0] = 7.0
+        np.testing.assert_array_equal(dec.star_diagonal(k), before)
+        scaled = 2.0 * dec.star(k)  # arithmetic makes new matrices, as before
+        np.testing.assert_array_equal(scaled.diagonal(), 2.0 * before)

@@ -29,7 +29,7 @@ import numpy as np
 from decrun.errors import CorruptFileError
 from decrun.runner.files import RunFiles
 
-__all__ = ["parse_json", "load_json", "load_yaml", "open_h5", "check_group", "check_dataset", "read_dataset", "file_record",
+__all__ = ["parse_json", "load_json", "load_yaml", "open_h5", "check_group", "checked_members", "check_dataset", "read_dataset", "file_record",
            "check_record", "MAX_DEFLATE_RATIO", "RESULT_RECORD", "CONTENT"]
 
 #: the key of metrics.json recording its result.h5 (:func:`file_record`)
@@ -122,6 +122,15 @@ def check_group(group, path: Path) -> None:
     """Refuse a group of ``path`` with a member that is not an ordinary (hard-linked)
     group or dataset: an external link (a path to another file), a soft link, or a
     dataset :func:`check_dataset` refuses. Recursive; reads metadata only."""
+    for _ in checked_members(group, path):
+        pass
+
+
+def checked_members(group, path: Path) -> Iterator[tuple[str, Any]]:
+    """``(name, member)`` of each member of a group of ``path``, each checked as
+    :func:`check_group` checks it (a subgroup recursively) before it is yielded: a reader
+    that reads some members as it checks them opens each once. :class:`CorruptFileError`
+    at the first refused member."""
     import h5py
 
     for name in group:
@@ -135,6 +144,7 @@ def check_group(group, path: Path) -> None:
             check_group(member, path)
         else:
             check_dataset(member, path)
+        yield name, member
 
 
 def check_dataset(dataset, path: Path) -> int:

@@ -18,7 +18,9 @@ cut: it goes to the tag ``param.<key>`` (up to 8000), and one longer still is na
 The HTTP client is told not to retry (``MLFLOW_HTTP_REQUEST_MAX_RETRIES=0``) and to give up
 after ``timeout_seconds`` (``MLFLOW_HTTP_REQUEST_TIMEOUT``) unless those are set already, so an
 unreachable server is one warning line within seconds, not minutes of retries; MLflow's
-telemetry is off unless ``MLFLOW_DISABLE_TELEMETRY`` says otherwise.
+telemetry is off unless ``MLFLOW_DISABLE_TELEMETRY`` says otherwise, and so is its printing of
+each run's URL (``MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT``), for which ``set_terminated`` on a
+server would fetch the whole run once more.
 """
 
 from __future__ import annotations
@@ -96,6 +98,8 @@ class MlflowTracker(Tracker):
             os.environ.setdefault("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "0")
             os.environ.setdefault("MLFLOW_HTTP_REQUEST_TIMEOUT", str(max(1, int(round(self.timeout_seconds)))))
             os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+            # set_terminated on a server fetches the whole run again to print its URL: once a job
+            os.environ.setdefault("MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT", "true")
             from mlflow.tracking import MlflowClient
 
             for name in ("mlflow", "alembic"):  # MLflow's INFO lines (a new sqlite store's tables) are not decrun's

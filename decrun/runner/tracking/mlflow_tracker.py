@@ -210,7 +210,9 @@ def _staged(paths: list) -> Iterator[str]:
             target = os.path.join(directory, name)
             try:
                 os.link(path, target)
-            except OSError:  # another filesystem, or links not allowed there
+            except FileNotFoundError:  # a file gone since the record was read: the upload's error
+                raise
+            except OSError:  # another filesystem, or hard links not allowed there
                 os.symlink(path.resolve(), target)
         yield directory
 

@@ -325,6 +325,9 @@ def test_a_runs_files_go_up_in_one_log_artifacts_of_links_to_exactly_them(tmp_pa
                 for f in repository.list_artifacts()}
         assert sent == {"config.yaml": b"app: {dt: 0.001}\n", "u.png": b"\x89PNG two"}
     assert later.read_bytes() == b"\x89PNG two" and later.stat().st_nlink == 1  # the originals as they were
+    monkeypatch.undo()
+    with pytest.raises(FileNotFoundError), _staged([tmp_path / "job" / "gone.png"]):
+        pass  # a file gone since its record was read is an error, not a dangling link sent on
 
 
 def test_a_result_checked_twice_in_a_process_is_read_once_and_any_change_is_read_again(tmp_path, monkeypatch):

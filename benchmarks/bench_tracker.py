@@ -20,7 +20,9 @@ whose cores are shared, wall time mostly measures the others' work (and sqlite's
    for the first time), split into each MLflow call (``create_run``, ``log_batch``,
    ``set_terminated``, the artifact upload) and decrun's part (reading the job's records,
    ``tracking.json``: the rest). Every repeat is printed, then the median (the headline) and the
-   min; then the unchanged sweep again (a resume: nothing is sent).
+   min, and the rest's ratio to MLflow's three calls (the same work in every version of decrun:
+   a ratio that the machine's load changes less than the milliseconds); then the unchanged sweep
+   again (a resume: nothing is sent).
 
     python benchmarks/bench_tracker.py                          # 8 jobs, 5 repeats
     python benchmarks/bench_tracker.py --jobs 16 --repeats 5
@@ -169,6 +171,11 @@ def measure(work: Path, n: int, repeats: int) -> None:
         count = calls.count.get(label)
         print(f"  {label:26s} median {statistics.median(values) * 1e3:5.1f} ms CPU a job"
               + (f" ({count / runs:.0f} a job)" if count else ""))
+    mlflow_calls = ("create_run", "log_batch", "set_terminated")
+    ratios = [(sum(split.values()) - sum(split.get(c, 0.0) for c in mlflow_calls))
+              / max(sum(split.get(c, 0.0) for c in mlflow_calls), 1e-12) for split in parts]
+    print(f"  the rest (files, decrun) over MLflow's three calls: median {statistics.median(ratios):.2f} "
+          "(the calls are MLflow's own work: a reference within each repeat that the load scales alike)")
     again, resume_wall, resume_cpu = timed(lambda: track_sweep(warm, swept))
     assert again.sent == 0, again
     print(f"resume, nothing changed: {resume_cpu / runs * 1e3:.1f} ms CPU a job (nothing sent)")

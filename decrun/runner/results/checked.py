@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import time
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
@@ -29,7 +30,7 @@ import numpy as np
 from decrun.errors import CorruptFileError
 from decrun.runner.files import RunFiles
 
-__all__ = ["parse_json", "load_json", "load_yaml", "open_h5", "check_group", "check_dataset", "read_dataset", "file_record",
+__all__ = ["parse_json", "load_json", "load_yaml", "open_h5", "check_group", "checked_members", "check_dataset", "read_dataset", "file_record",
            "check_record", "MAX_DEFLATE_RATIO", "RESULT_RECORD", "CONTENT"]
 
 #: the key of metrics.json recording its result.h5 (:func:`file_record`)
@@ -122,6 +123,15 @@ def check_group(group, path: Path) -> None:
     """Refuse a group of ``path`` with a member that is not an ordinary (hard-linked)
     group or dataset: an external link (a path to another file), a soft link, or a
     dataset :func:`check_dataset` refuses. Recursive; reads metadata only."""
+    for _ in checked_members(group, path):
+        pass
+
+
+def checked_members(group, path: Path) -> Iterator[tuple[str, Any]]:
+    """``(name, member)`` of each member of a group of ``path``, each checked as
+    :func:`check_group` checks it (a subgroup recursively) before it is yielded: a reader
+    that reads some members as it checks them opens each once. :class:`CorruptFileError`
+    at the first refused member."""
     import h5py
 
     for name in group:
@@ -135,6 +145,7 @@ def check_group(group, path: Path) -> None:
             check_group(member, path)
         else:
             check_dataset(member, path)
+        yield name, member
 
 
 def check_dataset(dataset, path: Path) -> int:
@@ -201,5 +212,32 @@ def check_record(path: str | os.PathLike, record: Any) -> None:
     if size != record["bytes"]:
         raise CorruptFileError(f"{path}: {size} bytes, metrics.json records {record['bytes']} (truncated or "
                                "altered)")
-    if file_record(path)["sha256"] != record["sha256"]:
+    if _sha256_once(path) != record["sha256"]:
         raise CorruptFileError(f"{path}: its sha256 differs from the one metrics.json records (altered)")
+
+
+#: sha256 of the files :func:`check_record` hashed in this process, under what ``os.stat`` says of them
+_HASHED: dict[tuple, str] = {}
+#: a file is remembered only when its last change was this long before it was hashed (ns)
+SETTLED_NS = 2_000_000_000
+
+
+def _sha256_once(path: Path) -> str:
+    """The sha256 of the file ``path``, read once per process while the file is unchanged: a
+    sweep's table checks each job's result.h5 and its tracker then reads the same jobs.
+
+    Remembered under its path, device, inode, size, modification and change times — a write,
+    a truncation, a file renamed onto it or a ``touch`` back to the old modification time all
+    set a new change time, which no process can set back — and only for a file whose last
+    change was :data:`SETTLED_NS` before it was hashed, so that a change after it cannot fall
+    in the same tick of the filesystem's clock and leave both times as they were."""
+    before = os.stat(path)
+    key = (os.path.abspath(path), before.st_dev, before.st_ino, before.st_size, before.st_mtime_ns,
+           before.st_ctime_ns)
+    if key in _HASHED:
+        return _HASHED[key]
+    started = time.time_ns()
+    digest = file_record(path)["sha256"]
+    if max(before.st_mtime_ns, before.st_ctime_ns) < started - SETTLED_NS:
+        _HASHED[key] = digest
+    return digest

@@ -117,9 +117,10 @@ def decrun_attrs(f, path: Path, keys: tuple[str, ...] | None = None) -> dict[str
     wrote (no ``format`` attribute ``decrun-result-1``, no ``metrics_json``). ``keys``: only
     those attributes (where present) besides the two checked ones, for a reader that needs a
     few of the file's two dozen."""
-    names = list(f.attrs) if keys is None else [k for k in dict.fromkeys(("format", "metrics_json", *keys))
-                                                if k in f.attrs]
-    attrs = {key: plain(f.attrs[key]) for key in names}
+    stored = f.attrs  # h5py builds a new manager at each ``f.attrs``: once here
+    names = list(stored) if keys is None else [k for k in dict.fromkeys(("format", "metrics_json", *keys))
+                                               if k in stored]
+    attrs = {key: plain(stored[key]) for key in names}
     missing = "format" if attrs.get("format") != FORMAT else None if isinstance(attrs.get("metrics_json"), str) \
         else "metrics_json"
     if missing:

@@ -173,7 +173,7 @@ def read_series(job_dir: Path) -> tuple[dict[str, tuple[Any, Any]], dict[str, st
     import numpy as np
 
     from decrun.runner.files import RunFiles
-    from decrun.runner.results.checked import check_group, open_h5
+    from decrun.runner.results.checked import checked_members, open_h5
     from decrun.runner.results.provenance import decrun_attrs
 
     path = RunFiles(job_dir).result
@@ -182,12 +182,11 @@ def read_series(job_dir: Path) -> tuple[dict[str, tuple[Any, Any]], dict[str, st
             attrs = decrun_attrs(f, path, RECORD_ATTRS)
             group = f.get("series")
             arrays, skipped = {}, []
-            if group is not None:
-                check_group(group, path)  # every member checked (check_dataset): read as it is below
-                for name, member in group.items():  # an array per step is named, not read: it can be the bulk
+            if group is not None:  # every member checked (check_dataset) before it is read
+                for name, member in checked_members(group, path):
                     if _one_per_step(member):
                         arrays[name] = member[()]
-                    else:
+                    else:  # an array per step is named, not read: it can be the bulk
                         skipped.append(name)
     elif RunFiles(job_dir).journal.is_file():
         from decrun.runner.results.reading import read_result

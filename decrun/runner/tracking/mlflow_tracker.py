@@ -5,9 +5,10 @@ server (``http://host:5000``), a database (``sqlite:///path/mlflow.db``), a dire
 What a run holds, when it is logged and how a resumed sweep updates its runs:
 :mod:`decrun.runner.tracking`. Here: the calls. A new run is ``create_run`` (its tags, and
 ``mlflow.parentRunId`` for a job), then ``log_batch`` in MLflow's batch limits (params, the
-metrics at step 0, each series as a metric history at its steps), ``log_artifact`` per file
-(into the run's local artifact directory through MLflow's artifact repository of the
-``artifact_uri`` the run came with — the client would look the run up once more for it),
+metrics at step 0, each series as a metric history at its steps), one ``log_artifacts`` of a
+temporary directory holding hard links to exactly the run's files (:func:`_staged`; into the
+run's local artifact directory through MLflow's artifact repository of the ``artifact_uri`` the
+run came with — the client would look the run up once more for it),
 ``set_terminated`` with ``FINISHED`` / ``FAILED`` / ``KILLED`` for ``ok`` / ``failed`` /
 ``killed``. An existing run (a resumed sweep) gets the params it lacks, the new metric values,
 tags, artifacts and status. A param value longer than MLflow takes (6000 characters) is not
@@ -17,16 +18,21 @@ cut: it goes to the tag ``param.<key>`` (up to 8000), and one longer still is na
 The HTTP client is told not to retry (``MLFLOW_HTTP_REQUEST_MAX_RETRIES=0``) and to give up
 after ``timeout_seconds`` (``MLFLOW_HTTP_REQUEST_TIMEOUT``) unless those are set already, so an
 unreachable server is one warning line within seconds, not minutes of retries; MLflow's
-telemetry is off unless ``MLFLOW_DISABLE_TELEMETRY`` says otherwise.
+telemetry is off unless ``MLFLOW_DISABLE_TELEMETRY`` says otherwise, and so is its printing of
+each run's URL (``MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT``), for which ``set_terminated`` on a
+server would fetch the whole run once more.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import tempfile
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, ClassVar, Optional
+from pathlib import Path
+from typing import Any, ClassVar, Iterator, Optional
 
 from decrun.runner.tracking import RunRecord, Tracker, require
 
@@ -92,6 +98,8 @@ class MlflowTracker(Tracker):
             os.environ.setdefault("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "0")
             os.environ.setdefault("MLFLOW_HTTP_REQUEST_TIMEOUT", str(max(1, int(round(self.timeout_seconds)))))
             os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+            # set_terminated on a server fetches the whole run again to print its URL: once a job
+            os.environ.setdefault("MLFLOW_SUPPRESS_PRINTING_URL_TO_STDOUT", "true")
             from mlflow.tracking import MlflowClient
 
             for name in ("mlflow", "alembic"):  # MLflow's INFO lines (a new sqlite store's tables) are not decrun's
@@ -147,12 +155,13 @@ class MlflowTracker(Tracker):
         for batch in _batches([Param(k, v) for k, v in params.items()], [RunTag(k, str(v)) for k, v in tags.items()],
                               metrics):
             client.log_batch(run_id, **batch)
-        repository = _local_artifacts(artifact_uri)
-        for path in record.artifacts:
-            if repository is not None:
-                repository.log_artifact(str(path))
-            else:
-                client.log_artifact(run_id, str(path))
+        if record.artifacts:
+            with _staged(record.artifacts) as staged:
+                repository = _local_artifacts(artifact_uri)
+                if repository is not None:
+                    repository.log_artifacts(staged)
+                else:
+                    client.log_artifacts(run_id, staged)
         client.set_terminated(run_id, status=RUN_STATUS.get(record.status, "FAILED"))
         return run_id
 
@@ -187,6 +196,25 @@ def _local_artifacts(artifact_uri: str | None) -> Any:
     from mlflow.store.artifact.artifact_repository_registry import get_artifact_repository
 
     return get_artifact_repository(artifact_uri)
+
+
+@contextmanager
+def _staged(paths: list) -> Iterator[str]:
+    """A temporary directory holding exactly ``paths`` under their names (of two paths with
+    one name the later, as one upload per file would leave it), each a hard link to the file
+    (a symbolic link where the directory is on another filesystem): one ``log_artifacts``
+    call uploads them all — MLflow's path checks and the run's directory done once, not once
+    per file — and staging them copies nothing. Removed afterwards."""
+    with tempfile.TemporaryDirectory(prefix="decrun-artifacts-") as directory:
+        for name, path in {Path(p).name: Path(p) for p in paths}.items():
+            target = os.path.join(directory, name)
+            try:
+                os.link(path, target)
+            except FileNotFoundError:  # a file gone since the record was read: the upload's error
+                raise
+            except OSError:  # another filesystem, or hard links not allowed there
+                os.symlink(path.resolve(), target)
+        yield directory
 
 
 def _batches(params: list, tags: list, metrics: list) -> list[dict[str, list]]:

@@ -294,3 +294,70 @@ def test_jobs_run_by_the_ray_launcher_are_logged_from_the_sweeps_end(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "warning" not in proc.stderr, proc.stderr[-3000:]
     check_tracked_sweep(tmp_path / "sweep", uri, proc.stdout)
+
+
+def test_a_runs_files_go_up_in_one_log_artifacts_of_links_to_exactly_them(tmp_path, monkeypatch):
+    import os
+
+    from mlflow.store.artifact.local_artifact_repo import LocalArtifactRepository
+
+    from decrun.runner.tracking.mlflow_tracker import _staged
+
+    (tmp_path / "job" / ".hydra").mkdir(parents=True)
+    files = {"u.png": b"\x89PNG one", ".hydra/config.yaml": b"app: {dt: 0.001}\n", "other.png": b"left out"}
+    for name, data in files.items():
+        (tmp_path / "job" / name).write_bytes(data)
+    later = tmp_path / "later" / "u.png"  # a second file of a name: the later one is sent, as per file
+    later.parent.mkdir()
+    later.write_bytes(b"\x89PNG two")
+    paths = [tmp_path / "job" / "u.png", tmp_path / "job" / ".hydra" / "config.yaml", later]
+    for fallback in (False, True):
+        if fallback:  # another filesystem: os.link refuses, a symbolic link stands in
+            monkeypatch.setattr(os, "link", lambda *a, **k: (_ for _ in ()).throw(OSError(18, "cross-device")))
+        with _staged(paths) as staged:
+            assert sorted(os.listdir(staged)) == ["config.yaml", "u.png"]
+            assert os.path.islink(os.path.join(staged, "u.png")) == fallback
+            if not fallback:  # a hard link: the file itself, nothing copied
+                assert os.stat(os.path.join(staged, "u.png")).st_ino == later.stat().st_ino
+            repository = LocalArtifactRepository(str(tmp_path / f"artifacts{int(fallback)}"))
+            repository.log_artifacts(staged)
+        assert not os.path.exists(staged)
+        sent = {f.path: (tmp_path / f"artifacts{int(fallback)}" / f.path).read_bytes()
+                for f in repository.list_artifacts()}
+        assert sent == {"config.yaml": b"app: {dt: 0.001}\n", "u.png": b"\x89PNG two"}
+    assert later.read_bytes() == b"\x89PNG two" and later.stat().st_nlink == 1  # the originals as they were
+    monkeypatch.undo()
+    with pytest.raises(FileNotFoundError), _staged([tmp_path / "job" / "gone.png"]):
+        pass  # a file gone since its record was read is an error, not a dangling link sent on
+
+
+def test_a_result_checked_twice_in_a_process_is_read_once_and_any_change_is_read_again(tmp_path, monkeypatch):
+    import os
+    import time
+
+    from decrun.errors import CorruptFileError
+    from decrun.runner.results import checked
+
+    path = tmp_path / "result.h5"
+    path.write_bytes(bytes(range(256)) * 64)
+    record = checked.file_record(path)
+    reads = []
+    real = checked.file_record
+    monkeypatch.setattr(checked, "file_record", lambda p: reads.append(p) or real(p))
+    checked.check_record(path, record)
+    checked.check_record(path, record)
+    assert len(reads) == 2  # just written: not remembered (a change could fall in the same clock tick)
+    monkeypatch.setattr(checked, "SETTLED_NS", 0)
+    checked.check_record(path, record)
+    checked.check_record(path, record)
+    checked.check_record(path, record)
+    assert len(reads) == 3  # the table's check, then the tracker's: one read
+    old = path.stat()
+    time.sleep(0.02)
+    with open(path, "r+b") as f:  # the same size, the old modification time put back: the change time moves
+        f.write(b"altered")
+    os.utime(path, ns=(old.st_atime_ns, old.st_mtime_ns))
+    assert path.stat().st_size == old.st_size and path.stat().st_mtime_ns == old.st_mtime_ns
+    with pytest.raises(CorruptFileError, match="sha256 differs"):
+        checked.check_record(path, record)
+    assert len(reads) == 4

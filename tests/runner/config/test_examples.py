@@ -181,7 +181,9 @@ def test_single_run_example_runs(where, command, tmp_path, decrun_cli):
     written = write(done)  # the figures too
     result = done.result
     assert result.metrics.get("status") == "ok", (where, command, result.metrics)
-    assert (out / "result.h5").is_file() and any(p.suffix == ".png" for p in written)
+    assert (out / "result.h5").is_file()
+    drawn = any(p.suffix == ".png" for p in written)
+    assert drawn == ("figures=false" not in args), (where, command, written)  # figures unless turned off
 
 
 @pytest.mark.parametrize("where, command", [

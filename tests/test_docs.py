@@ -154,7 +154,14 @@ def test_the_readme_fits_on_a_page_and_keeps_the_set_up_commands():
     assert main.endswith(".venv/bin/decrun") and "pip install -e ." in main
     test = re.search(r"<!-- test-command -->\n```bash\n(.*?)\n```", text, re.S).group(1)
     assert test.endswith(".venv/bin/python -m pytest -n auto --maxprocesses=4")
-    assert "measurements.md" in text  # quiet-machine numbers only through the measurements page
+    assert "measurements.md" in text  # every benchmark's record, beside the Speed section's summary
+    speed = text.split("## Speed", 1)[1].split("\n## ", 1)[0]  # quiet-machine numbers: commit, command each
+    assert re.search(r"at commit [0-9a-f]{7}", speed) and "load average" in speed
+    rows = [line for line in speed.splitlines() if line.startswith("| ") and "benchmarks/" in line]
+    assert len(rows) >= 5
+    for row in rows:
+        script = re.search(r"benchmarks/(\w+)\.py", row).group(0)
+        assert (ROOT / script).is_file(), f"README.md's Speed section names {script}, which does not exist"
     for link in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", text):
         if not link.startswith("http"):
             assert (ROOT / link).exists(), f"README.md links {link}, which does not exist"

@@ -220,21 +220,14 @@ def test_the_first_sweep_notebook_runs_and_plots_its_table(tmp_path):
     assert len(sweeps) == 1 and pd.read_csv(sweeps[0] / "metrics.csv")["status"].tolist() == ["ok"] * 4
 
 
-def test_a_single_run_composes_its_config_once_as_the_command(here, monkeypatch):
+def test_a_single_run_composes_its_config_once_as_the_command(here, composition_modes):
     """``decrun.run`` composes a single run's config once, as the command does
     (tests/runner/test_small_run.py), and records the same Hydra overrides; a bad value is
     still the command's line."""
     from hydra._internal.hydra import Hydra
     from omegaconf import OmegaConf
 
-    modes = []
-    compose = Hydra.compose_config
-
-    def counted(self, config_name, overrides, run_mode, **kwargs):
-        modes.append(str(run_mode))
-        return compose(self, config_name, overrides, run_mode, **kwargs)
-
-    monkeypatch.setattr(Hydra, "compose_config", counted)
+    modes = composition_modes
     with leaves_the_process_alone():
         run = decrun.run([*HEAT, "app.steps=2"], dir="one")
     assert modes == ["RunMode.RUN"] and run.status == "ok"
@@ -243,4 +236,4 @@ def test_a_single_run_composes_its_config_once_as_the_command(here, monkeypatch)
     modes.clear()
     with pytest.raises(decrun.RunError, match=r"^error: app.scheme: must be one of"):
         decrun.run([*HEAT, "app=smoothing", "app.scheme=backward"])
-    assert Hydra.compose_config is counted  # the single-run patch is undone after an error too
+    assert Hydra.compose_config is modes.counted  # the single-run patch is undone after an error too

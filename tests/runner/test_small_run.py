@@ -63,23 +63,15 @@ def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path):
     assert "decrun.runner.mesh.cache" in drawn and "pymeshlab" not in drawn
 
 
-def test_a_single_run_composes_its_config_once(tmp_path, monkeypatch):
+def test_a_single_run_composes_its_config_once(tmp_path, monkeypatch, composition_modes):
     """``decrun`` composes a single run's config once (Hydra's command line composes it a
     second time only to read ``hydra.mode``) and records the same Hydra overrides
     (``hydra.mode=RUN`` among them) as Hydra's way; a bad value still gets its one line."""
-    from hydra._internal.hydra import Hydra
     from omegaconf import OmegaConf
 
     from decrun.runner import cli
 
-    modes = []
-    compose = Hydra.compose_config
-
-    def counted(self, config_name, overrides, run_mode, **kwargs):
-        modes.append(str(run_mode))
-        return compose(self, config_name, overrides, run_mode, **kwargs)
-
-    monkeypatch.setattr(Hydra, "compose_config", counted)
+    modes = composition_modes
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(sys, "argv", ["decrun", "figures=false", "app.steps=2", "hydra.run.dir=one"])
     cli.main()

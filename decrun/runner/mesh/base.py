@@ -9,7 +9,6 @@ after the source and after each post step; ``require*`` raise the ConfigError na
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -84,14 +83,11 @@ class Mesh:
 
 
 def mesh_hash(vertices: np.ndarray, simplices: np.ndarray) -> str:
-    """sha256 hex digest of the shapes, the little-endian float64 vertices and int64 simplices."""
-    h = hashlib.sha256()
-    v = np.ascontiguousarray(vertices, dtype="<f8")
-    s = np.ascontiguousarray(simplices, dtype="<i8")
-    h.update(repr((v.shape, s.shape)).encode())
-    h.update(v.tobytes())
-    h.update(s.tobytes())
-    return h.hexdigest()
+    """sha256 hex digest of the shapes, the little-endian float64 vertices and int64 simplices:
+    the mesh cache's :func:`~decrun.runner.mesh.cache.content_hash`, one definition for both."""
+    from decrun.runner.mesh.cache import content_hash
+
+    return content_hash(vertices, simplices)
 
 
 #: the most triangles a source or post step may produce: 4·10⁶ triangles are ~2 GB of

@@ -51,7 +51,7 @@ log = logging.getLogger("decrun")
 
 def content_hash(vertices: np.ndarray, faces: np.ndarray) -> str:
     """sha256 hex digest of the shapes and the little-endian float64 vertices and int64 faces
-    (the bytes :func:`decrun.runner.mesh.base.mesh_hash` hashes; this module sits below it)."""
+    (or simplices of any size); :func:`decrun.runner.mesh.base.mesh_hash` is this function."""
     h = hashlib.sha256()
     v = np.ascontiguousarray(vertices, dtype="<f8")
     f = np.ascontiguousarray(faces, dtype="<i8")

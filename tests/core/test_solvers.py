@@ -307,7 +307,7 @@ def test_a_singular_solve_with_amg_survives_a_constant_part_and_any_hierarchy(se
     rng = np.random.default_rng(setup_seed)
     for A in _hodge_systems():
         n = A.shape[0]
-        (ones,) = constant_kernel(A).T
+        (ones,) = constant_kernel(A).toarray().T
         assert np.array_equal(ones, np.ones(n)) and np.abs(A @ ones).max() < 1e-12 * abs(A).max()
         consistent = A @ rng.standard_normal((n, 4))
         b = consistent + 1e3 * rng.standard_normal(4)  # a constant of ~1e3 in each column
@@ -339,3 +339,27 @@ def test_the_amg_hierarchy_is_the_same_whatever_the_random_state_and_leaves_it_a
         assert np.random.rand() == expected  # the caller's random state, as it was
         answers.append(solver.solve(b))
     assert all(np.array_equal(answers[0], other) for other in answers[1:])
+
+
+def test_the_constant_kernel_of_many_pieces_is_sparse_and_projected_per_piece():
+    """A Laplacian of 3000 separate paths has 3000 constants in its kernel: ``constant_kernel``
+    is a sparse indicator (one nonzero a row, not n × 3000 dense), and ``SingularSolve`` removes
+    each piece's mean from b and from x."""
+    from decrun.core.solvers import SingularSolve, constant_kernel
+
+    pieces, length = 3000, 4
+    path = sp.diags([-np.ones(length - 1), np.r_[1.0, 2 * np.ones(length - 2), 1.0], -np.ones(length - 1)],
+                    [-1, 0, 1])
+    A = sp.block_diag([path] * pieces, format="csr")
+    n = A.shape[0]
+    Z = constant_kernel(A)
+    assert sp.issparse(Z) and Z.shape == (n, pieces) and Z.nnz == n
+    np.testing.assert_array_equal(np.asarray(Z.sum(axis=0)).ravel(), np.full(pieces, length))
+    rng = np.random.default_rng(1)
+    consistent = A @ rng.standard_normal(n)
+    b = consistent + np.repeat(rng.standard_normal(pieces), length)  # a constant on each piece
+    solve = SingularSolve(A, make_solver("direct"), project=False)
+    x = solve.solve(b)
+    np.testing.assert_allclose(A @ x, consistent, atol=1e-9)
+    np.testing.assert_allclose(x.reshape(pieces, length).mean(axis=1), 0.0, atol=1e-12)  # W = I
+    assert solve.kernel_part > 0.1

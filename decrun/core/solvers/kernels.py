@@ -24,24 +24,24 @@ def constant_kernel(A, rtol: float = 1e-12) -> np.ndarray:
     each piece of a mesh (ker d0), and the consistently oriented top forms of the coexact
     system d_{n-1} ⋆⁻¹ d_{n-1}ᵀ on each closed piece (ker d_{n-1}ᵀ, Hⁿ), the kernels of the
     thesis' Hodge decomposition (§6.3). Columns are 0/1, one per such component; (n, 0)
-    when none (a Dirichlet border, or a kernel that is not constant)."""
+    when none (a Dirichlet border, or a kernel that is not constant). Sparse (CSC, n nonzeros
+    at most): a mesh of many pieces has as many columns."""
     from scipy.sparse.csgraph import connected_components
 
     A = sp.csr_matrix(A)
     n = A.shape[0]
     if n == 0 or A.nnz == 0:
-        return np.zeros((n, 0))
+        return sp.csc_matrix((n, 0))
     count, label = connected_components(A, directed=False)
     scale = float(np.abs(A.data).max())
     off = np.abs(np.asarray(A.sum(axis=1)).ravel()) > rtol * scale
     closed = np.ones(count, dtype=bool)
     closed[label[off]] = False
     keep = np.flatnonzero(closed)
-    Z = np.zeros((n, keep.size))
     where = np.searchsorted(keep, label)
     inside = closed[label]
-    Z[np.flatnonzero(inside), where[inside]] = 1.0
-    return Z
+    rows = np.flatnonzero(inside)
+    return sp.csc_matrix((np.ones(rows.size), (rows, where[inside])), shape=(n, keep.size))
 
 
 class SingularSolve:
@@ -92,9 +92,10 @@ class SingularSolve:
         #: ‖(I − P) b‖ / ‖b‖ of the last b (per column for b of shape (n, s)): its part along the constant kernel
         self.kernel_part: np.ndarray | float = 0.0
         constant = constant_kernel(self.A)
-        sizes = constant.sum(axis=0)
-        self._range_basis = constant / np.sqrt(sizes)  # Euclidean-orthonormal: P r = r − Q Qᵀ r
-        self._constant_w = constant / np.sqrt(constant.T @ weight)  # W-orthonormal: x − Z Zᵀ W x
+        sizes = np.asarray(constant.sum(axis=0)).ravel()
+        # Euclidean-orthonormal: P r = r − Q Qᵀ r; W-orthonormal: x − Z Zᵀ W x (both sparse, n × h)
+        self._range_basis = (constant @ sp.diags(1.0 / np.sqrt(sizes))).tocsc()
+        self._constant_w = (constant @ sp.diags(1.0 / np.sqrt(constant.T @ weight))).tocsc()
 
     def _to_range(self, r: np.ndarray) -> np.ndarray:
         """``r`` without its part along the constant kernel: P r, P the projection onto im A."""

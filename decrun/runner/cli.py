@@ -78,9 +78,9 @@ def _hydra_task(cfg: DictConfig) -> int | float:
 
     hydra_cfg = HydraConfig.get()
     out = Path(hydra_cfg.runtime.output_dir)
-    made = OutputGuard.made if OutputGuard.made is not None and OutputGuard.made[0].absolute() == out.absolute() else None
-    return run(cfg, out, multirun=_is_multirun(), verbose=_verbose(), log_name=hydra_cfg.job.name,
-               made=made[1] if made is not None else None)
+    made = OutputGuard.made  # (run directory, outermost directory made with it), when this process made it
+    outermost = made[1] if made is not None and made[0].absolute() == out.absolute() else None
+    return run(cfg, out, multirun=_is_multirun(), verbose=_verbose(), log_name=hydra_cfg.job.name, made=outermost)
 
 
 def _check_job(cfg: DictConfig, memo: dict | None = None, delta: Any = None) -> None:

@@ -85,7 +85,12 @@ def _spec(generator: str, params: dict[str, Any], code: str | os.PathLike) -> st
 
 def entry_path(directory: Path, generator: str, params: dict[str, Any], code: str | os.PathLike) -> Path:
     """``<directory>/<sha256 of the key's text>.npz``: where :func:`cached_mesh` keeps that mesh."""
-    return directory / f"{hashlib.sha256(_spec(generator, params, code).encode()).hexdigest()}.npz"
+    return _entry(directory, _spec(generator, params, code))
+
+
+def _entry(directory: Path, spec: str) -> Path:
+    """The entry of the key's text ``spec`` in ``directory`` (:func:`entry_path`)."""
+    return directory / f"{hashlib.sha256(spec.encode()).hexdigest()}.npz"
 
 
 def _read(path: Path, spec: str) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
@@ -141,7 +146,7 @@ def cached_mesh(generator: str, params: dict[str, Any], code: str | os.PathLike,
     if directory is None:
         return build()
     spec = _spec(generator, params, code)
-    path = directory / f"{hashlib.sha256(spec.encode()).hexdigest()}.npz"
+    path = _entry(directory, spec)
     if path.exists():
         try:
             return _read(path, spec)

@@ -240,6 +240,127 @@ def facet_pairs(order, starts, top, index_like):
     return (interior, first, second, first_slot, second_slot), suspect
 
 
+cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
+    """:func:`facet_groups` for the edge slots of C-contiguous sorted triangles (int32 pairs):
+    the counting sort of :func:`group_packed` whose buckets hold, for each slot, its second
+    vertex and the vertex opposite it packed in one int64 (``second << 32 | opposite``): a
+    bucket is sorted by the second vertex alone (the packed key's order within a bucket), and
+    the pairs and their duplicate suspicion are read off the sorted buckets, without another
+    pass over the groups or a look-up of the triangles."""
+    cdef Py_ssize_t m = top.shape[0], total = 3 * m, t, v, a, b, low, high, groups = 0, pairs = 0, g, p
+    cdef int64_t x, y, z, at, item, item_load, item_second, ta, tb, oa, ob, largest = 0
+    cdef int64_t low_half = 0xffffffff
+    for t in range(m):  # the largest leading entry (x leads slots 0 and 1, y slot 2)
+        x, y = top[t, 0], top[t, 1]
+        if x > largest:
+            largest = x
+        if y > largest:
+            largest = y
+    order_array = np.empty(total, np.int64)
+    payload_array = np.empty(total, np.int64)
+    cdef int64_t[::1] order = order_array
+    cdef int64_t[::1] payload = payload_array
+    count_array = np.zeros(largest + 2, np.int64)
+    cdef int64_t[::1] count = count_array
+    for t in range(m):
+        count[top[t, 0] + 1] += 2
+        count[top[t, 1] + 1] += 1
+    for v in range(largest + 1):
+        count[v + 1] += count[v]
+    position_array = count_array[:largest + 1].copy()
+    cdef int64_t[::1] position = position_array
+    for t in range(m):  # slots (0,1), (0,2) into x's bucket, (1,2) into y's, in triangle order
+        x, y, z = top[t, 0], top[t, 1], top[t, 2]
+        at = position[x]
+        order[at], payload[at] = 3 * t, (y << 32) | z
+        order[at + 1], payload[at + 1] = 3 * t + 1, (z << 32) | y
+        position[x] = at + 2
+        at = position[y]
+        order[at], payload[at] = 3 * t + 2, (z << 32) | x
+        position[y] = at + 1
+    for v in range(largest + 1):
+        low, high = count[v], count[v + 1]
+        if 1 < high - low <= 32:  # simplex_arrays._SMALL_BUCKET: stable insertion sort
+            for a in range(low + 1, high):
+                item = order[a]
+                item_load = payload[a]
+                item_second = item_load >> 32
+                b = a - 1
+                while b >= low and (payload[b] >> 32) > item_second:
+                    order[b + 1] = order[b]
+                    payload[b + 1] = payload[b]
+                    b -= 1
+                order[b + 1] = item
+                payload[b + 1] = item_load
+        elif high - low > 32:
+            rank = np.argsort(payload_array[low:high] >> 32, kind="mergesort")
+            order_array[low:high] = order_array[low:high][rank]
+            payload_array[low:high] = payload_array[low:high][rank]
+        a = low
+        while a < high:  # the bucket's groups, and those of two slots (the pairs)
+            b = a + 1
+            while b < high and (payload[b] >> 32) == (payload[a] >> 32):
+                b += 1
+            groups += 1
+            if b - a == 2:
+                pairs += 1
+            a = b
+    unique_array = np.empty((groups, 2), np.int64)
+    inverse_array = np.empty(total, np.int64)
+    starts_array = np.empty(groups + 1, np.int64)
+    interior_array = np.empty(pairs, np.int64)
+    first_array, second_array, first_slot_array, second_slot_array = (np.empty(pairs, np.int32) for _ in range(4))
+    cdef int64_t[:, ::1] unique = unique_array
+    cdef int64_t[::1] inverse = inverse_array
+    cdef int64_t[::1] starts = starts_array
+    cdef int64_t[::1] interior = interior_array
+    cdef int32_t[::1] first = first_array
+    cdef int32_t[::1] second = second_array
+    cdef int32_t[::1] first_slot = first_slot_array
+    cdef int32_t[::1] second_slot = second_slot_array
+    cdef bint suspect = False
+    g = 0
+    p = 0
+    for v in range(largest + 1):
+        low, high = count[v], count[v + 1]
+        a = low
+        while a < high:
+            y = payload[a] >> 32
+            starts[g] = a
+            unique[g, 0] = v
+            unique[g, 1] = y
+            inverse[order[a]] = g
+            b = a + 1
+            while b < high and (payload[b] >> 32) == y:
+                inverse[order[b]] = g
+                b += 1
+            if b - a == 2:
+                oa, ob = order[a], order[a + 1]
+                ta, tb = oa // 3, ob // 3
+                interior[p] = g
+                first[p], first_slot[p] = <int32_t> ta, <int32_t> (oa - 3 * ta)
+                second[p], second_slot[p] = <int32_t> tb, <int32_t> (ob - 3 * tb)
+                if (payload[a] & low_half) == (payload[a + 1] & low_half):  # the same opposite vertex
+                    suspect = True
+                p += 1
+            g += 1
+            a = b
+    starts[groups] = total
+    return ((unique_array, inverse_array, order_array, starts_array),
+            (interior_array, first_array, second_array, first_slot_array, second_slot_array), bool(suspect))
+
+
+def facet_groups(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits, index_like):
+    """Twin of ``complex.checks._facet_groups_kernel``: :func:`group_packed`'s grouping of the facet
+    slots, then :func:`facet_pairs` on it: ((unique, inverse, order, starts), pairs, suspect). The
+    edge slots of C-contiguous triangles with int32 pairs take one fused counting sort."""
+    if _triangle_edges(top, columns) and bits <= 31 and index_like.dtype == np.int32 and top.shape[0] > 0:
+        return _triangle_edge_groups(np.asarray(top), bits)
+    groups = group_packed(top, columns, bits)
+    pairs, suspect = facet_pairs(groups[2], groups[3], np.ascontiguousarray(top), index_like)
+    return groups, pairs, suspect
+
+
 def consistent(index_t[::1] first, index_t[::1] second, index_t[::1] first_slot, index_t[::1] second_slot,
                const int8_t[::1] parity):
     """Twin of ``complex.checks._consistent_kernel``: True when no interior facet is inconsistent."""
@@ -405,6 +526,7 @@ TWINS = {
     "decrun.core.simplex_arrays._group_packed_kernel": group_packed,
     "decrun.core.simplex_arrays._small_volumes_kernel": small_volumes,
     "decrun.core.complex.checks._facet_pairs_kernel": facet_pairs,
+    "decrun.core.complex.checks._facet_groups_kernel": facet_groups,
     "decrun.core.complex.checks._consistent_kernel": consistent,
     "decrun.core.complex.checks._fans_kernel": fans,
     "decrun.core.stars.circumcentric._triangle_dual_kernel": triangle_dual,

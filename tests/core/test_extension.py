@@ -44,7 +44,7 @@ def test_every_twin_takes_its_kernels_arguments():
 
     lazy = {kernel.name: kernel for kernel in jit.KERNELS}
     twins = kernels.extension_twins()
-    assert len(twins) == 8
+    assert len(twins) == 9
     for name, twin in twins.items():
         assert name in lazy, f"{name} is no kernel"
         assert list(inspect.signature(twin).parameters) == list(inspect.signature(lazy[name].function).parameters)
@@ -80,10 +80,16 @@ def test_the_extension_equals_the_numpy_twins(name, counted):
 
 @needs_extension
 def test_auto_runs_every_twin_on_a_triangle_mesh_at_any_size(counted):
+    """A triangle mesh's edges are grouped and paired by the fused facet twin (the grouping and
+    pairing twins run inside it); a tetrahedral mesh's edges take the grouping twin itself."""
+    fused_into = {"decrun.core.simplex_arrays._group_packed_kernel", "decrun.core.complex.checks._facet_pairs_kernel"}
     vertices, simplices = MESHES["annulus"]()  # a few hundred triangles: far below numba's MIN_SIZE
     with jit.use("auto"):
         _everything(vertices, simplices)
-    assert set(counted) == set(kernels.extension_twins())  # all eight
+    assert set(counted) == set(kernels.extension_twins()) - fused_into
+    with jit.use("auto"):
+        _everything(*MESHES["kuhn cube"]())
+    assert "decrun.core.simplex_arrays._group_packed_kernel" in counted
 
 
 @needs_extension
@@ -135,6 +141,37 @@ def test_the_triangle_edge_grouping_equals_the_general_loops():
     for top in (rows, sort_rows(rows), np.asfortranarray(sort_rows(rows)), np.asfortranarray(rows)):
         reference = group_rows_numpy(FaceRows(np.ascontiguousarray(top), [(0, 1), (0, 2), (1, 2)]))
         _assert_same(_kernels.group_packed(top, columns, bits), reference)
+
+
+@needs_extension
+def test_the_fused_triangle_edge_groups_and_pairs_equal_the_numpy_twins():
+    """The fused twin of a triangle mesh's edge grouping and facet pairing (one counting sort,
+    the pairs and their duplicate suspicion read off the sorted buckets) equals the numpy twins
+    — on wide (merge-sorted) buckets, edges in one, two and three triangles, duplicates, rows
+    that are not sorted, Fortran layout (the general loops) — and so does its general path."""
+    from decrun.core import _kernels  # type: ignore[attr-defined]
+    from decrun.core.complex import checks
+
+    rng = np.random.default_rng(11)
+    fan = np.stack([np.zeros(300, dtype=np.int64), rng.integers(1, 50, 300), rng.integers(50, 90, 300)], axis=1)
+    sphere = np.asarray(MESHES["icosphere"]()[1], dtype=np.int64) + 90
+    rows = np.vstack([fan, rng.integers(0, 90, (2000, 3)), fan[:40], sphere])
+    columns = np.array([(0, 1), (0, 2), (1, 2)], dtype=np.int64)
+    cases = [(sort_rows(rows), np.int32), (rows, np.int32), (np.asfortranarray(sort_rows(rows)), np.int32),
+             (sort_rows(rows), np.int64), (sort_rows(sphere), np.int32), (sort_rows(np.vstack([sphere, [[2, 0, 1], [0, 1, 2]]])), np.int32)]
+    suspicions = []
+    for top, index_type in cases:
+        bits = max(1, int(np.ceil(np.log2(top.max() + 2))))
+        groups, pairs, suspect = _kernels.facet_groups(top, columns, bits, np.zeros(0, index_type))
+        contiguous = np.ascontiguousarray(top)
+        _assert_same(groups, group_rows_numpy(FaceRows(contiguous, [(0, 1), (0, 2), (1, 2)])))
+        reference, reference_suspect = checks.facet_pairs_numpy(groups[2], groups[3], contiguous)
+        _assert_same(tuple(a.astype(index_type) for a in pairs[1:]), tuple(a.astype(index_type) for a in reference[1:]))
+        _assert_same(pairs[0], reference.facet)
+        assert [a.dtype for a in pairs[1:]] == [np.dtype(index_type)] * 4
+        assert suspect == reference_suspect
+        suspicions.append(suspect)
+    assert suspicions[-2:] == [False, True]  # a closed sphere has no duplicate; a triangle twice (beside it) is suspected
 
 
 def test_without_the_extension_auto_keeps_numbas_size_rule(monkeypatch):

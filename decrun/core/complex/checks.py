@@ -18,7 +18,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from decrun.core import jit
-from decrun.core.simplex_arrays import sorted_rows_and_parity, unique_rows, vertex_volumes
+from decrun.core.simplex_arrays import FaceRows, group_rows, sorted_rows_and_parity, unique_rows, vertex_volumes
+from decrun.core.simplex_arrays import _group_packed_kernel as _group_kernel_for_facets
 from decrun.errors import (
     DegenerateSimplexError,
     DuplicateSimplexError,
@@ -32,7 +33,7 @@ from decrun.errors import (
     UnreferencedVertexError,
 )
 
-__all__ = ["FacetPairs", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
+__all__ = ["FacetPairs", "group_facets", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
            "fans_per_vertex", "fans_per_vertex_surface", "single_fan_surface", "facet_pairs_numpy", "inconsistent_facets", "fans_per_vertex_general", "simplex_name", "plural",
            "name_indices"]
 
@@ -145,18 +146,53 @@ class FacetPairs(NamedTuple):
     second_slot: np.ndarray
 
 
+def _pair_index_type(top: np.ndarray):
+    """The integer type of the pairs' simplices and slots: int32 where every facet slot fits."""
+    return np.int32 if top.shape[0] < 2**31 // top.shape[1] - 1 else np.int64
+
+
+def _compiled_pairs(pairs: tuple) -> FacetPairs:
+    if not pairs[1].size:  # no interior facet: int64, as the numpy twin's
+        pairs = (pairs[0], *(a.astype(np.int64) for a in pairs[1:]))
+    return FacetPairs(*pairs)
+
+
+def group_facets(top: np.ndarray, local) -> tuple[tuple, tuple[FacetPairs, bool] | None]:
+    """The (n-1)-face slots ``top[t, local[s]]`` of the (m, n+1) sorted top simplices grouped
+    (:func:`decrun.core.simplex_arrays.group_rows`: unique, inverse, order, starts) and, where the
+    compiled :func:`_facet_groups_kernel` runs, the facet pairs with their duplicate suspicion
+    (:func:`facet_pairs`' ``found``) from the same call; else ``None`` for them (the grouping alone)."""
+    rows = FaceRows(top, local)
+    bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
+    if rows.shape[0] and bits * rows.shape[1] <= 62 and _facet_groups_kernel.runs(rows.shape[0]):
+        groups, pairs, suspect = _facet_groups_kernel(np.ascontiguousarray(top, dtype=np.int64), rows.column_table(),
+                                                      bits, np.zeros(0, _pair_index_type(top)))
+        return groups, (_compiled_pairs(pairs), suspect)
+    return group_rows(rows), None
+
+
+@jit.njit
+def _facet_groups_kernel(top, columns, bits, index_like):
+    """:func:`decrun.core.simplex_arrays.group_rows`' kernel on the facet slots, then
+    :func:`_facet_pairs_kernel` on its groups: ((unique, inverse, order, starts), pairs, suspect).
+    One call, so that the extension's twin can do both in one counting sort."""
+    unique, inverse, order, starts = _group_kernel_for_facets(top, columns, bits)
+    pairs, suspect = _pairs_for_groups(order, starts, top, index_like)
+    return (unique, inverse, order, starts), pairs, suspect
+
+
 def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: np.ndarray,
-                check_manifold: bool) -> FacetPairs:
+                check_manifold: bool, found: tuple[FacetPairs, bool] | None = None) -> FacetPairs:
     """The facet pairs from the facet groups (``order``/``starts`` of the grouped facet slots
     ``(n+1)·t + c``); raises on duplicate top simplices and, with ``check_manifold``, on facets
-    in more than two top simplices."""
+    in more than two top simplices. ``found``: the pairs and duplicate suspicion
+    :func:`group_facets` already computed from these groups."""
     n = top.shape[1] - 1
-    if _facet_pairs_kernel.runs(order.shape[0]):
-        index_type = np.int32 if top.shape[0] < 2**31 // (n + 1) - 1 else np.int64
-        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, index_type))
-        if not pairs[1].size:  # no interior facet: int64, as the numpy twin's
-            pairs = (pairs[0], *(a.astype(np.int64) for a in pairs[1:]))
-        pairs = FacetPairs(*pairs)
+    if found is not None:
+        pairs, suspect = found
+    elif _facet_pairs_kernel.runs(order.shape[0]):
+        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, _pair_index_type(top)))
+        pairs = _compiled_pairs(pairs)
     else:
         pairs, suspect = facet_pairs_numpy(order, starts, top)
     # The facets in more than two simplices, without a pass over the groups: with p pairs, g groups
@@ -234,6 +270,9 @@ def _facet_pairs_kernel(order, starts, top, index_like):
             suspect = True
         p += 1
     return (interior, first, second, first_slot, second_slot), suspect
+
+
+_pairs_for_groups = _facet_pairs_kernel  # the name _facet_groups_kernel calls (numba swaps it for the dispatcher)
 
 
 def _check_duplicates(top: np.ndarray) -> None:

@@ -431,10 +431,10 @@ def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, ind
     return fans_array
 
 
-def small_volumes(const double[:, ::1] columns, const int64_t[:, ::1] simplices):
+def small_volumes(const double[:, ::1] points, const int64_t[:, ::1] simplices):
     """Twin of ``simplex_arrays._small_volumes_kernel``: lengths of edges / areas of triangles
-    from the (d, n0) coordinates, d = 2 or 3. (m,) float64."""
-    cdef Py_ssize_t m = simplices.shape[0], corners = simplices.shape[1], d = columns.shape[0], t, axis
+    from the (n0, d) coordinates, d = 2 or 3 (a vertex's coordinates in one cache line). (m,) float64."""
+    cdef Py_ssize_t m = simplices.shape[0], corners = simplices.shape[1], d = points.shape[1], t, axis
     cdef int64_t p, q, r
     cdef double total, diff, u0, u1, u2, v0, v1, v2, component
     out_array = np.empty(m)
@@ -445,18 +445,18 @@ def small_volumes(const double[:, ::1] columns, const int64_t[:, ::1] simplices)
         if corners == 2:
             total = 0.0
             for axis in range(d):
-                diff = columns[axis, q] - columns[axis, p]
+                diff = points[q, axis] - points[p, axis]
                 total = total + diff * diff
             out[t] = sqrt(total)
             continue
         r = simplices[t, 2]
         if d == 2:
-            u0, u1 = columns[0, q] - columns[0, p], columns[1, q] - columns[1, p]
-            v0, v1 = columns[0, r] - columns[0, p], columns[1, r] - columns[1, p]
+            u0, u1 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1]
+            v0, v1 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1]
             out[t] = 0.5 * fabs(u0 * v1 - u1 * v0)
             continue
-        u0, u1, u2 = columns[0, q] - columns[0, p], columns[1, q] - columns[1, p], columns[2, q] - columns[2, p]
-        v0, v1, v2 = columns[0, r] - columns[0, p], columns[1, r] - columns[1, p], columns[2, r] - columns[2, p]
+        u0, u1, u2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
+        v0, v1, v2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
         total = 0.0
         component = u1 * v2 - u2 * v1
         total += component * component
@@ -468,14 +468,15 @@ def small_volumes(const double[:, ::1] columns, const int64_t[:, ::1] simplices)
     return out_array
 
 
-def triangle_dual(const double[:, ::1] columns, const int64_t[:, :] top, const double[::1] area,
+def triangle_dual(const double[:, ::1] points, const int64_t[:, :] top, const double[::1] area,
                   const int64_t[:, :] triangle_edges, Py_ssize_t n_edges, Py_ssize_t n_vertices):
-    """Twin of ``stars.circumcentric._triangle_dual_kernel``: (dual0 (n0,), dual1 (n1,))."""
+    """Twin of ``stars.circumcentric._triangle_dual_kernel``: (dual0 (n0,), dual1 (n1,)) from the
+    (n0, d) coordinates."""
     dual0_array = np.zeros(n_vertices)
     dual1_array = np.zeros(n_edges)
     cdef double[::1] dual0 = dual0_array
     cdef double[::1] dual1 = dual1_array
-    cdef Py_ssize_t d = columns.shape[0], t, axis
+    cdef Py_ssize_t d = points.shape[1], t, axis
     cdef int64_t a, b, c
     cdef double sq0, sq1, sq2, dot0, dot1, dot2, x0, x1, x2, e0, e1, e2, factor, cot0, cot1, cot2, w0, w1, w2
     for t in range(top.shape[0]):
@@ -483,7 +484,7 @@ def triangle_dual(const double[:, ::1] columns, const int64_t[:, :] top, const d
         sq0 = sq1 = sq2 = 0.0
         dot0 = dot1 = dot2 = 0.0
         for axis in range(d):
-            x0, x1, x2 = columns[axis, a], columns[axis, b], columns[axis, c]
+            x0, x1, x2 = points[a, axis], points[b, axis], points[c, axis]
             e0 = x2 - x1
             e1 = x0 - x2
             e2 = x1 - x0

@@ -377,7 +377,7 @@ def vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     """
     if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
         if _small_volumes_kernel.runs(simplices.shape[0]):
-            return _small_volumes_kernel(np.ascontiguousarray(vertices.T, dtype=np.float64),
+            return _small_volumes_kernel(np.ascontiguousarray(vertices, dtype=np.float64),
                                          np.ascontiguousarray(simplices, dtype=np.int64))
         return vertex_volumes_numpy(vertices, simplices)
     return simplex_volumes(vertices[simplices])
@@ -389,11 +389,12 @@ def vertex_volumes_numpy(vertices: np.ndarray, simplices: np.ndarray) -> np.ndar
 
 
 @jit.njit
-def _small_volumes_kernel(columns, simplices):
+def _small_volumes_kernel(points, simplices):
     """Lengths of edges / areas of triangles with the arithmetic of :func:`_small_simplex_volumes`
-    in the same order (bit-for-bit equal): ``columns`` (d, n0) coordinates, ``simplices`` (m, 2|3)."""
+    in the same order (bit-for-bit equal): ``points`` (n0, d) coordinates (a vertex's in one cache
+    line: the simplices gather them at random), ``simplices`` (m, 2|3)."""
     m, corners = simplices.shape
-    d = columns.shape[0]
+    d = points.shape[1]
     out = np.empty(m)
     for t in range(m):
         p = simplices[t, 0]
@@ -401,18 +402,18 @@ def _small_volumes_kernel(columns, simplices):
         if corners == 2:
             total = 0.0
             for axis in range(d):
-                diff = columns[axis, q] - columns[axis, p]
+                diff = points[q, axis] - points[p, axis]
                 total = total + diff * diff
             out[t] = np.sqrt(total)
             continue
         r = simplices[t, 2]
         if d == 2:
-            u0, u1 = columns[0, q] - columns[0, p], columns[1, q] - columns[1, p]
-            v0, v1 = columns[0, r] - columns[0, p], columns[1, r] - columns[1, p]
+            u0, u1 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1]
+            v0, v1 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1]
             out[t] = 0.5 * abs(u0 * v1 - u1 * v0)
             continue
-        u0, u1, u2 = columns[0, q] - columns[0, p], columns[1, q] - columns[1, p], columns[2, q] - columns[2, p]
-        v0, v1, v2 = columns[0, r] - columns[0, p], columns[1, r] - columns[1, p], columns[2, r] - columns[2, p]
+        u0, u1, u2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
+        v0, v1, v2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
         total = 0.0
         component = u1 * v2 - u2 * v1
         total += component * component

@@ -120,24 +120,25 @@ def triangle_dual_volumes(K) -> dict[int, np.ndarray]:
     if not _triangle_dual_kernel.runs(K.num_simplices(2)):
         return triangle_dual_volumes_numpy(K)
     top = K.simplices(2)
-    dual0, dual1 = _triangle_dual_kernel(np.ascontiguousarray(K.vertices.T), top, K.top_volumes,
+    dual0, dual1 = _triangle_dual_kernel(np.ascontiguousarray(K.vertices, dtype=np.float64), top, K.top_volumes,
                                          K.top_face_indices(1), K.num_simplices(1), K.num_simplices(0))
     return {0: dual0, 1: dual1, 2: np.ones(top.shape[0])}
 
 
 @jit.njit
-def _triangle_dual_kernel(columns, top, area, triangle_edges, n_edges, n_vertices):
+def _triangle_dual_kernel(points, top, area, triangle_edges, n_edges, n_vertices):
     """One pass over the triangles with the arithmetic of :func:`triangle_dual_volumes_numpy`
-    in the same order (so the results agree bit for bit): (dual0 (n0,), dual1 (n1,))."""
+    in the same order (so the results agree bit for bit) from the (n0, d) coordinates ``points`` (a
+    vertex's in one cache line: the triangles gather them at random): (dual0 (n0,), dual1 (n1,))."""
     dual0 = np.zeros(n_vertices)
     dual1 = np.zeros(n_edges)
-    d = columns.shape[0]
+    d = points.shape[1]
     for t in range(top.shape[0]):
         a, b, c = top[t, 0], top[t, 1], top[t, 2]
         sq0 = sq1 = sq2 = 0.0
         dot0 = dot1 = dot2 = 0.0
         for axis in range(d):
-            x0, x1, x2 = columns[axis, a], columns[axis, b], columns[axis, c]
+            x0, x1, x2 = points[a, axis], points[b, axis], points[c, axis]
             e0 = x2 - x1
             e1 = x0 - x2
             e2 = x1 - x0

@@ -227,7 +227,7 @@ def _facet_pairs_fill(const int64_t[::1] order, const int64_t[::1] starts, const
 
 
 def facet_pairs(order, starts, top, index_like):
-    """Twin of ``complex.checks._facet_pairs_kernel``: the facets in exactly two top simplices
+    """Twin of ``simplex_arrays._facet_pairs_kernel``: the facets in exactly two top simplices
     (int64), their simplices and slots (``index_like``'s type), and the duplicate suspicion."""
     cdef const int64_t[::1] starts_view = starts
     cdef Py_ssize_t g, count = 0
@@ -351,7 +351,7 @@ cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
 
 
 def facet_groups(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits, index_like):
-    """Twin of ``complex.checks._facet_groups_kernel``: :func:`group_packed`'s grouping of the facet
+    """Twin of ``simplex_arrays._facet_groups_kernel``: :func:`group_packed`'s grouping of the facet
     slots, then :func:`facet_pairs` on it: ((unique, inverse, order, starts), pairs, suspect). The
     edge slots of C-contiguous triangles with int32 pairs take one fused counting sort."""
     if _triangle_edges(top, columns) and bits <= 31 and index_like.dtype == np.int32 and top.shape[0] > 0:
@@ -470,15 +470,17 @@ def small_volumes(const double[:, ::1] points, const int64_t[:, ::1] simplices):
 
 def triangle_dual(const double[:, ::1] points, const int64_t[:, :] top, const double[::1] area,
                   const int64_t[:, :] triangle_edges, Py_ssize_t n_edges, Py_ssize_t n_vertices):
-    """Twin of ``stars.circumcentric._triangle_dual_kernel``: (dual0 (n0,), dual1 (n1,)) from the
-    (n0, d) coordinates."""
+    """Twin of ``stars.circumcentric._triangle_dual_kernel``: (dual0 (n0,), dual1 (n1,), edge lengths
+    (n1,)) from the (n0, d) coordinates."""
     dual0_array = np.zeros(n_vertices)
     dual1_array = np.zeros(n_edges)
+    length_array = np.empty(n_edges)  # every edge is a triangle's: each written (with the same value)
     cdef double[::1] dual0 = dual0_array
     cdef double[::1] dual1 = dual1_array
+    cdef double[::1] length = length_array
     cdef Py_ssize_t d = points.shape[1], t, axis
     cdef int64_t a, b, c
-    cdef double sq0, sq1, sq2, dot0, dot1, dot2, x0, x1, x2, e0, e1, e2, factor, cot0, cot1, cot2, w0, w1, w2
+    cdef double sq0, sq1, sq2, dot0, dot1, dot2, x0, x1, x2, e0, e1, e2, factor, cot0, cot1, cot2, w0, w1, w2, l0, l1, l2
     for t in range(top.shape[0]):
         a, b, c = top[t, 0], top[t, 1], top[t, 2]
         sq0 = sq1 = sq2 = 0.0
@@ -496,14 +498,18 @@ def triangle_dual(const double[:, ::1] points, const int64_t[:, :] top, const do
             dot2 += e0 * e1
         factor = -0.5 / area[t]
         cot0, cot1, cot2 = dot0 * factor, dot1 * factor, dot2 * factor
-        dual1[triangle_edges[t, 0]] += sqrt(sq2) * (0.5 * cot2)
-        dual1[triangle_edges[t, 1]] += sqrt(sq1) * (0.5 * cot1)
-        dual1[triangle_edges[t, 2]] += sqrt(sq0) * (0.5 * cot0)
+        l0, l1, l2 = sqrt(sq0), sqrt(sq1), sqrt(sq2)
+        dual1[triangle_edges[t, 0]] += l2 * (0.5 * cot2)
+        dual1[triangle_edges[t, 1]] += l1 * (0.5 * cot1)
+        dual1[triangle_edges[t, 2]] += l0 * (0.5 * cot0)
+        length[triangle_edges[t, 0]] = l2
+        length[triangle_edges[t, 1]] = l1
+        length[triangle_edges[t, 2]] = l0
         w0, w1, w2 = sq0 * cot0, sq1 * cot1, sq2 * cot2
         dual0[a] += (w2 + w1) * 0.125
         dual0[b] += (w0 + w2) * 0.125
         dual0[c] += (w1 + w0) * 0.125
-    return dual0_array, dual1_array
+    return dual0_array, dual1_array, length_array
 
 
 def incidence(const int64_t[:, :] faces, const int8_t[::1] orientation, double[::1] data, index_t[::1] indices):
@@ -526,8 +532,8 @@ TWINS = {
     "decrun.core.simplex_arrays._sorted_rows_kernel": sorted_rows,
     "decrun.core.simplex_arrays._group_packed_kernel": group_packed,
     "decrun.core.simplex_arrays._small_volumes_kernel": small_volumes,
-    "decrun.core.complex.checks._facet_pairs_kernel": facet_pairs,
-    "decrun.core.complex.checks._facet_groups_kernel": facet_groups,
+    "decrun.core.simplex_arrays._facet_pairs_kernel": facet_pairs,
+    "decrun.core.simplex_arrays._facet_groups_kernel": facet_groups,
     "decrun.core.complex.checks._consistent_kernel": consistent,
     "decrun.core.complex.checks._fans_kernel": fans,
     "decrun.core.stars.circumcentric._triangle_dual_kernel": triangle_dual,

@@ -114,6 +114,8 @@ class DEC(Cached):
             return self.K.top_volumes
         if k == 0:
             return self.require(("primal", 0), lambda: np.ones(self.K.num_simplices(0)))
+        if k == 1:  # the complex's own (cached; a triangle mesh's circumcentric dual volumes find them on the way)
+            return self.K.edge_lengths()
         return self.require(("primal", k), lambda: vertex_volumes(self.K.vertices, self.K.simplices(k)))
 
     def circumcenters(self, k: int | None = None) -> np.ndarray:

@@ -185,6 +185,56 @@ def _group_packed_kernel(top, columns, bits):
     return unique, inverse, order, starts
 
 
+@jit.njit
+def _facet_pairs_kernel(order, starts, top, index_like):
+    """One pass over the facet groups (``order``/``starts`` of the grouped facet slots
+    ``(n+1)·t + c`` of the (m, n+1) sorted ``top``): the pairs of
+    :func:`decrun.core.complex.checks.facet_pairs_numpy` (the facets in exactly two top simplices,
+    int64; their simplices and slots of ``index_like``'s type) and the duplicate suspicion (two of
+    them with the same vertex opposite their shared facet)."""
+    width = top.shape[1]
+    n = width - 1
+    groups = starts.shape[0] - 1
+    count = 0
+    for g in range(groups):
+        if starts[g + 1] - starts[g] == 2:
+            count += 1
+    interior = np.empty(count, np.int64)
+    first = np.empty(count, index_like.dtype)
+    second = np.empty(count, index_like.dtype)
+    first_slot = np.empty(count, index_like.dtype)
+    second_slot = np.empty(count, index_like.dtype)
+    suspect = False
+    p = 0
+    for g in range(groups):
+        if starts[g + 1] - starts[g] != 2:
+            continue
+        a, b = order[starts[g]], order[starts[g] + 1]
+        interior[p] = g
+        first[p], first_slot[p] = a // width, a % width
+        second[p], second_slot[p] = b // width, b % width
+        if top[first[p], n - first_slot[p]] == top[second[p], n - second_slot[p]]:
+            suspect = True
+        p += 1
+    return (interior, first, second, first_slot, second_slot), suspect
+
+
+@jit.njit
+def _facet_groups_kernel(top, columns, bits, index_like):
+    """:func:`_group_packed_kernel` on the facet slots, then :func:`_facet_pairs_kernel` on its
+    groups: ((unique, inverse, order, starts), pairs, suspect).
+    One call, so that the extension's twin can do both in one counting sort."""
+    unique, inverse, order, starts = _group_kernel_for_facets(top, columns, bits)
+    pairs, suspect = _pairs_for_groups(order, starts, top, index_like)
+    return (unique, inverse, order, starts), pairs, suspect
+
+
+# the names _facet_groups_kernel calls: numba swaps them for the dispatchers when it compiles it,
+# while the kernels' own names stay lazy kernels (the callers above and in complex.checks ask them)
+_group_kernel_for_facets = _group_packed_kernel
+_pairs_for_groups = _facet_pairs_kernel
+
+
 class FaceRows:
     """The rows ``top[:, cols]`` flattened to (m·C, len(cols[0])) without building them,
     unless asked: packed integer keys are computed column by column."""

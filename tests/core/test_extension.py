@@ -82,7 +82,7 @@ def test_the_extension_equals_the_numpy_twins(name, counted):
 def test_auto_runs_every_twin_on_a_triangle_mesh_at_any_size(counted):
     """A triangle mesh's edges are grouped and paired by the fused facet twin (the grouping and
     pairing twins run inside it); a tetrahedral mesh's edges take the grouping twin itself."""
-    fused_into = {"decrun.core.simplex_arrays._group_packed_kernel", "decrun.core.complex.checks._facet_pairs_kernel"}
+    fused_into = {"decrun.core.simplex_arrays._group_packed_kernel", "decrun.core.simplex_arrays._facet_pairs_kernel"}
     vertices, simplices = MESHES["annulus"]()  # a few hundred triangles: far below numba's MIN_SIZE
     with jit.use("auto"):
         _everything(vertices, simplices)

@@ -158,6 +158,42 @@ def test_volume_kernel(dimension, monkeypatch):
         _assert_same(vertex_volumes(vertices, simplices), vertex_volumes_numpy(vertices, simplices))
 
 
+@pytest.mark.parametrize("name", ["icosphere", "planar with holes", "random planar (obtuse)"])
+def test_edge_lengths_found_by_the_dual_volume_kernel_equal_the_numpy_twins(name, monkeypatch):
+    """⋆1 asked first: the triangle dual-volume kernel hands the complex its edge lengths (the
+    volume kernel does not run for the edges), and they equal vertex_volumes' numpy twin bit for bit."""
+    from decrun.core import simplex_arrays
+
+    vertices, simplices = MESHES[name]()
+
+    def stars_first():
+        K = SimplicialComplex(vertices, simplices, orient="fix")
+        dec = DEC(K)
+        star1 = dec.star(1).diagonal().copy()
+        return star1, K.edge_lengths(), dec.primal_volumes(1)
+
+    edge_calls = []
+
+    class Counting:  # the volume kernel, its calls' corner counts recorded
+        def __init__(self, kernel):
+            self.kernel = kernel
+
+        def runs(self, size):
+            return self.kernel.runs(size)
+
+        def __call__(self, points, corners):
+            edge_calls.append(corners.shape[1])
+            return self.kernel(points, corners)
+
+    monkeypatch.setattr(simplex_arrays, "_small_volumes_kernel", Counting(simplex_arrays._small_volumes_kernel))
+    compiled, reference = _both(monkeypatch, stars_first)
+    assert edge_calls == [3]  # the triangles' areas only: the kernel path measured no edge on its own
+    _assert_same(compiled, reference)
+    K = SimplicialComplex(vertices, simplices, orient="fix")
+    _assert_same(compiled[1], vertex_volumes_numpy(K.vertices, K.simplices(1)))
+    assert compiled[2] is not None and np.array_equal(compiled[1], compiled[2])
+
+
 @pytest.mark.parametrize("name", ["icosphere", "planar with holes", "spiral strip", "random tets", "kuhn cube"])
 def test_fans_kernel_equals_both_numpy_twins(name):
     vertices, simplices = MESHES[name]()

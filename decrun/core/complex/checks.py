@@ -18,8 +18,15 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from decrun.core import jit
-from decrun.core.simplex_arrays import FaceRows, group_rows, sorted_rows_and_parity, unique_rows, vertex_volumes
-from decrun.core.simplex_arrays import _group_packed_kernel as _group_kernel_for_facets
+from decrun.core.simplex_arrays import (
+    FaceRows,
+    _facet_groups_kernel,
+    _facet_pairs_kernel,
+    group_rows,
+    sorted_rows_and_parity,
+    unique_rows,
+    vertex_volumes,
+)
 from decrun.errors import (
     DegenerateSimplexError,
     DuplicateSimplexError,
@@ -171,16 +178,6 @@ def group_facets(top: np.ndarray, local) -> tuple[tuple, tuple[FacetPairs, bool]
     return group_rows(rows), None
 
 
-@jit.njit
-def _facet_groups_kernel(top, columns, bits, index_like):
-    """:func:`decrun.core.simplex_arrays.group_rows`' kernel on the facet slots, then
-    :func:`_facet_pairs_kernel` on its groups: ((unique, inverse, order, starts), pairs, suspect).
-    One call, so that the extension's twin can do both in one counting sort."""
-    unique, inverse, order, starts = _group_kernel_for_facets(top, columns, bits)
-    pairs, suspect = _pairs_for_groups(order, starts, top, index_like)
-    return (unique, inverse, order, starts), pairs, suspect
-
-
 def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: np.ndarray,
                 check_manifold: bool, found: tuple[FacetPairs, bool] | None = None) -> FacetPairs:
     """The facet pairs from the facet groups (``order``/``starts`` of the grouped facet slots
@@ -239,40 +236,6 @@ def facet_pairs_numpy(order: np.ndarray, starts: np.ndarray, top: np.ndarray) ->
     suspect = bool(np.any(flat[opposite_first] == flat[opposite_second]))
     pairs = FacetPairs(interior, first // width, second // width, first_slot, second_slot)
     return pairs, suspect
-
-
-@jit.njit
-def _facet_pairs_kernel(order, starts, top, index_like):
-    """One pass over the facet groups: the pairs of :func:`facet_pairs_numpy` (the facets int64,
-    the simplices and slots of ``index_like``'s type) and the duplicate suspicion."""
-    width = top.shape[1]
-    n = width - 1
-    groups = starts.shape[0] - 1
-    count = 0
-    for g in range(groups):
-        if starts[g + 1] - starts[g] == 2:
-            count += 1
-    interior = np.empty(count, np.int64)
-    first = np.empty(count, index_like.dtype)
-    second = np.empty(count, index_like.dtype)
-    first_slot = np.empty(count, index_like.dtype)
-    second_slot = np.empty(count, index_like.dtype)
-    suspect = False
-    p = 0
-    for g in range(groups):
-        if starts[g + 1] - starts[g] != 2:
-            continue
-        a, b = order[starts[g]], order[starts[g] + 1]
-        interior[p] = g
-        first[p], first_slot[p] = a // width, a % width
-        second[p], second_slot[p] = b // width, b % width
-        if top[first[p], n - first_slot[p]] == top[second[p], n - second_slot[p]]:
-            suspect = True
-        p += 1
-    return (interior, first, second, first_slot, second_slot), suspect
-
-
-_pairs_for_groups = _facet_pairs_kernel  # the name _facet_groups_kernel calls (numba swaps it for the dispatcher)
 
 
 def _check_duplicates(top: np.ndarray) -> None:

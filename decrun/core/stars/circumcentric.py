@@ -120,8 +120,11 @@ def triangle_dual_volumes(K) -> dict[int, np.ndarray]:
     if not _triangle_dual_kernel.runs(K.num_simplices(2)):
         return triangle_dual_volumes_numpy(K)
     top = K.simplices(2)
-    dual0, dual1 = _triangle_dual_kernel(np.ascontiguousarray(K.vertices, dtype=np.float64), top, K.top_volumes,
-                                         K.top_face_indices(1), K.num_simplices(1), K.num_simplices(0))
+    dual0, dual1, lengths = _triangle_dual_kernel(np.ascontiguousarray(K.vertices, dtype=np.float64), top,
+                                                  K.top_volumes, K.top_face_indices(1), K.num_simplices(1),
+                                                  K.num_simplices(0))
+    if K.embedding_dim in (2, 3):  # where K.edge_lengths() has these bits (vertex_volumes' loops)
+        K.require("edge_lengths", lambda: lengths)  # ⋆1's divisor, found on the way
     return {0: dual0, 1: dual1, 2: np.ones(top.shape[0])}
 
 
@@ -129,9 +132,11 @@ def triangle_dual_volumes(K) -> dict[int, np.ndarray]:
 def _triangle_dual_kernel(points, top, area, triangle_edges, n_edges, n_vertices):
     """One pass over the triangles with the arithmetic of :func:`triangle_dual_volumes_numpy`
     in the same order (so the results agree bit for bit) from the (n0, d) coordinates ``points`` (a
-    vertex's in one cache line: the triangles gather them at random): (dual0 (n0,), dual1 (n1,))."""
+    vertex's in one cache line: the triangles gather them at random): (dual0 (n0,), dual1 (n1,), the
+    edge lengths (n1,) — |e_i| = sqrt(sq_i), the bits of :func:`decrun.core.simplex_arrays.vertex_volumes`)."""
     dual0 = np.zeros(n_vertices)
     dual1 = np.zeros(n_edges)
+    lengths = np.empty(n_edges)  # every edge is a triangle's: each written (with the same value)
     d = points.shape[1]
     for t in range(top.shape[0]):
         a, b, c = top[t, 0], top[t, 1], top[t, 2]
@@ -151,14 +156,18 @@ def _triangle_dual_kernel(points, top, area, triangle_edges, n_edges, n_vertices
         factor = -0.5 / area[t]
         cot0, cot1, cot2 = dot0 * factor, dot1 * factor, dot2 * factor
         # edge slots (0,1), (0,2), (1,2) are opposite corners 2, 1, 0
-        dual1[triangle_edges[t, 0]] += np.sqrt(sq2) * (0.5 * cot2)
-        dual1[triangle_edges[t, 1]] += np.sqrt(sq1) * (0.5 * cot1)
-        dual1[triangle_edges[t, 2]] += np.sqrt(sq0) * (0.5 * cot0)
+        l0, l1, l2 = np.sqrt(sq0), np.sqrt(sq1), np.sqrt(sq2)
+        dual1[triangle_edges[t, 0]] += l2 * (0.5 * cot2)
+        dual1[triangle_edges[t, 1]] += l1 * (0.5 * cot1)
+        dual1[triangle_edges[t, 2]] += l0 * (0.5 * cot0)
+        lengths[triangle_edges[t, 0]] = l2
+        lengths[triangle_edges[t, 1]] = l1
+        lengths[triangle_edges[t, 2]] = l0
         w0, w1, w2 = sq0 * cot0, sq1 * cot1, sq2 * cot2
         dual0[a] += (w2 + w1) * 0.125
         dual0[b] += (w0 + w2) * 0.125
         dual0[c] += (w1 + w0) * 0.125
-    return dual0, dual1
+    return dual0, dual1, lengths
 
 
 def triangle_dual_volumes_numpy(K) -> dict[int, np.ndarray]:

@@ -131,8 +131,8 @@ def check_degenerate(vertices: np.ndarray, top: np.ndarray, tol: float) -> np.nd
     """(m,) unsigned volumes of the top simplices; raises when one is below ``tol`` × the mean."""
     n = top.shape[1] - 1
     volumes = vertex_volumes(vertices, top)
-    bad = volumes <= tol * volumes.mean()
-    if bad.any():
+    if volumes.min() <= tol * volumes.mean():  # a reduction; the mask only to name the offenders
+        bad = volumes <= tol * volumes.mean()
         raise DegenerateSimplexError(
             f"{name_indices(np.flatnonzero(bad), simplex_name(n))} {'has' if bad.sum() == 1 else 'have'} zero volume "
             f"(below {tol:g} × the mean {simplex_name(n)} volume {volumes.mean():.3g})"
@@ -164,13 +164,15 @@ def _compiled_pairs(pairs: tuple) -> FacetPairs:
     return FacetPairs(*pairs)
 
 
-def group_facets(top: np.ndarray, local) -> tuple[tuple, tuple[FacetPairs, bool] | None]:
+def group_facets(top: np.ndarray, local, n_vertices: int) -> tuple[tuple, tuple[FacetPairs, bool] | None]:
     """The (n-1)-face slots ``top[t, local[s]]`` of the (m, n+1) sorted top simplices grouped
     (:func:`decrun.core.simplex_arrays.group_rows`: unique, inverse, order, starts) and, where the
     compiled :func:`_facet_groups_kernel` runs, the facet pairs with their duplicate suspicion
-    (:func:`facet_pairs`' ``found``) from the same call; else ``None`` for them (the grouping alone)."""
+    (:func:`facet_pairs`' ``found``) from the same call; else ``None`` for them (the grouping alone).
+    ``top``'s entries are vertex indices below ``n_vertices`` (the checked input): the packed keys'
+    width follows from it, without a pass over ``top`` for its largest entry."""
     rows = FaceRows(top, local)
-    bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
+    bits = max(1, int(np.ceil(np.log2(max(n_vertices - 1, 0) + 2))))
     if rows.shape[0] and bits * rows.shape[1] <= 62 and _facet_groups_kernel.runs(rows.shape[0]):
         groups, pairs, suspect = _facet_groups_kernel(np.ascontiguousarray(top, dtype=np.int64), rows.column_table(),
                                                       bits, np.zeros(0, _pair_index_type(top)))

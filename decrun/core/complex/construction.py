@@ -60,7 +60,7 @@ def enumerate_faces(top_sorted: np.ndarray, n_vertices: int) -> Faces:
     facet_order = facet_starts = found = None
     for j in range(1, n):
         if j == n - 1:  # the facets: grouped and paired in one call where the kernel runs
-            (unique, inverse, order, starts), found = checks.group_facets(top_sorted, local[j])
+            (unique, inverse, order, starts), found = checks.group_facets(top_sorted, local[j], n_vertices)
             facet_order, facet_starts = order, starts
         else:
             unique, inverse, order, starts = group_rows(FaceRows(top_sorted, local[j]))

@@ -431,9 +431,10 @@ def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, ind
     return fans_array
 
 
-def small_volumes(const double[:, ::1] points, const int64_t[:, ::1] simplices):
+def small_volumes(const double[:, :] points, const int64_t[:, ::1] simplices):
     """Twin of ``simplex_arrays._small_volumes_kernel``: lengths of edges / areas of triangles
-    from the (n0, d) coordinates, d = 2 or 3 (a vertex's coordinates in one cache line). (m,) float64."""
+    from the (n0, d) coordinates, d = 2 or 3, in any layout (not copied; C order keeps a vertex's
+    coordinates in one cache line). (m,) float64."""
     cdef Py_ssize_t m = simplices.shape[0], corners = simplices.shape[1], d = points.shape[1], t, axis
     cdef int64_t p, q, r
     cdef double total, diff, u0, u1, u2, v0, v1, v2, component
@@ -468,10 +469,10 @@ def small_volumes(const double[:, ::1] points, const int64_t[:, ::1] simplices):
     return out_array
 
 
-def triangle_dual(const double[:, ::1] points, const int64_t[:, :] top, const double[::1] area,
+def triangle_dual(const double[:, :] points, const int64_t[:, :] top, const double[::1] area,
                   const int64_t[:, :] triangle_edges, Py_ssize_t n_edges, Py_ssize_t n_vertices):
     """Twin of ``stars.circumcentric._triangle_dual_kernel``: (dual0 (n0,), dual1 (n1,), edge lengths
-    (n1,)) from the (n0, d) coordinates."""
+    (n1,)) from the (n0, d) coordinates in any layout (not copied)."""
     dual0_array = np.zeros(n_vertices)
     dual1_array = np.zeros(n_edges)
     length_array = np.empty(n_edges)  # every edge is a triangle's: each written (with the same value)

@@ -427,7 +427,7 @@ def vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     """
     if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
         if _small_volumes_kernel.runs(simplices.shape[0]):
-            return _small_volumes_kernel(np.ascontiguousarray(vertices, dtype=np.float64),
+            return _small_volumes_kernel(np.asarray(vertices, dtype=np.float64),  # any layout: not copied
                                          np.ascontiguousarray(simplices, dtype=np.int64))
         return vertex_volumes_numpy(vertices, simplices)
     return simplex_volumes(vertices[simplices])
@@ -441,8 +441,8 @@ def vertex_volumes_numpy(vertices: np.ndarray, simplices: np.ndarray) -> np.ndar
 @jit.njit
 def _small_volumes_kernel(points, simplices):
     """Lengths of edges / areas of triangles with the arithmetic of :func:`_small_simplex_volumes`
-    in the same order (bit-for-bit equal): ``points`` (n0, d) coordinates (a vertex's in one cache
-    line: the simplices gather them at random), ``simplices`` (m, 2|3)."""
+    in the same order (bit-for-bit equal): ``points`` (n0, d) coordinates in any layout (C order keeps
+    a vertex's in one cache line for the simplices' random gathers), ``simplices`` (m, 2|3)."""
     m, corners = simplices.shape
     d = points.shape[1]
     out = np.empty(m)

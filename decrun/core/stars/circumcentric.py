@@ -120,7 +120,7 @@ def triangle_dual_volumes(K) -> dict[int, np.ndarray]:
     if not _triangle_dual_kernel.runs(K.num_simplices(2)):
         return triangle_dual_volumes_numpy(K)
     top = K.simplices(2)
-    dual0, dual1, lengths = _triangle_dual_kernel(np.ascontiguousarray(K.vertices, dtype=np.float64), top,
+    dual0, dual1, lengths = _triangle_dual_kernel(np.asarray(K.vertices, dtype=np.float64), top,
                                                   K.top_volumes, K.top_face_indices(1), K.num_simplices(1),
                                                   K.num_simplices(0))
     if K.embedding_dim in (2, 3):  # where K.edge_lengths() has these bits (vertex_volumes' loops)
@@ -131,8 +131,8 @@ def triangle_dual_volumes(K) -> dict[int, np.ndarray]:
 @jit.njit
 def _triangle_dual_kernel(points, top, area, triangle_edges, n_edges, n_vertices):
     """One pass over the triangles with the arithmetic of :func:`triangle_dual_volumes_numpy`
-    in the same order (so the results agree bit for bit) from the (n0, d) coordinates ``points`` (a
-    vertex's in one cache line: the triangles gather them at random): (dual0 (n0,), dual1 (n1,), the
+    in the same order (so the results agree bit for bit) from the (n0, d) coordinates ``points`` in any
+    layout (C order keeps a vertex's in one cache line for the triangles' random gathers): (dual0 (n0,), dual1 (n1,), the
     edge lengths (n1,) — |e_i| = sqrt(sq_i), the bits of :func:`decrun.core.simplex_arrays.vertex_volumes`)."""
     dual0 = np.zeros(n_vertices)
     dual1 = np.zeros(n_edges)

@@ -12,22 +12,25 @@ compiler leaves it out, and the numba kernels and numpy twins do the work as bef
 import numpy as np
 
 from libc.math cimport sqrt, fabs
-from libc.stdint cimport int8_t, int32_t, int64_t
+from libc.stdint cimport int8_t, int32_t, int64_t, uint8_t
 
 ctypedef fused index_t:
     int32_t
     int64_t
 
 
-def sorted_rows(const int64_t[:, :] rows):
+def sorted_rows(const int64_t[:, :] rows, Py_ssize_t n_vertices):
     """Twin of ``simplex_arrays._sorted_rows_kernel``: insertion sort of each row, its shift
-    count the row's inversion count; (sorted rows, parity int8, smallest, largest, repeated).
+    count the row's inversion count; (sorted rows, parity int8, smallest, largest, repeated,
+    used (n_vertices,) bool: the entries of the rows within 0..n_vertices-1).
     ``rows`` in any layout (a mesh's Fortran-ordered faces are not copied first)."""
     cdef Py_ssize_t m = rows.shape[0], c = rows.shape[1], t, a, b
     ordered_array = np.empty((m, c), np.int64)
     parity_array = np.empty(m, np.int8)
+    used_array = np.zeros(max(n_vertices, 0), np.bool_)
     cdef int64_t[:, ::1] ordered = ordered_array
     cdef int8_t[::1] parity = parity_array
+    cdef uint8_t[::1] used = used_array.view(np.uint8)
     cdef int64_t smallest = rows[0, 0], largest = rows[0, 0], value
     cdef Py_ssize_t shifts
     cdef bint repeated = False
@@ -50,7 +53,18 @@ def sorted_rows(const int64_t[:, :] rows):
                 largest = high
             if low == middle or middle == high:
                 repeated = True
-        return ordered_array, parity_array, smallest, largest, bool(repeated)
+            if low >= 0 and high < n_vertices:
+                used[low] = 1
+                used[middle] = 1
+                used[high] = 1
+            else:  # an entry out of range (the input check names it): the others are marked
+                if low >= 0 and low < n_vertices:
+                    used[low] = 1
+                if middle >= 0 and middle < n_vertices:
+                    used[middle] = 1
+                if high >= 0 and high < n_vertices:
+                    used[high] = 1
+        return ordered_array, parity_array, smallest, largest, bool(repeated), used_array
     for t in range(m):
         shifts = 0
         for a in range(c):
@@ -69,7 +83,10 @@ def sorted_rows(const int64_t[:, :] rows):
         for a in range(1, c):
             if ordered[t, a] == ordered[t, a - 1]:
                 repeated = True
-    return ordered_array, parity_array, smallest, largest, bool(repeated)
+        for a in range(c):
+            if ordered[t, a] >= 0 and ordered[t, a] < n_vertices:
+                used[ordered[t, a]] = 1
+    return ordered_array, parity_array, smallest, largest, bool(repeated), used_array
 
 
 cdef bint _triangle_edges(const int64_t[:, :] top, const int64_t[:, ::1] columns):

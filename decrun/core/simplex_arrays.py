@@ -293,12 +293,13 @@ def sort_rows(rows: np.ndarray) -> np.ndarray:
     return np.sort(rows, axis=1)
 
 
-def sorted_rows_and_parity(rows: np.ndarray):
+def sorted_rows_and_parity(rows: np.ndarray, n_vertices: int = 0):
     """(sorted rows (m, c) int64, inversion parity (m,) int8, smallest entry, largest entry,
-    whether a sorted row repeats an entry) in one pass: the compiled
-    :func:`_sorted_rows_kernel`, or its numpy twins :func:`sort_rows` and :func:`inversion_parity`."""
+    whether a sorted row repeats an entry, used (n_vertices,) bool: which of 0..n_vertices-1 the
+    rows hold) in one pass: the compiled :func:`_sorted_rows_kernel`, or its numpy twins
+    :func:`sort_rows` and :func:`inversion_parity`."""
     if _sorted_rows_kernel.runs(rows.shape[0]):
-        return _sorted_rows_kernel(np.asarray(rows, dtype=np.int64))  # any layout: not copied
+        return _sorted_rows_kernel(np.asarray(rows, dtype=np.int64), n_vertices)  # any layout: not copied
     rows = np.asarray(rows, dtype=np.int64)
     if rows.shape[1] == 3 and rows.shape[0]:  # triangles: a min/max network on the three columns
         a, b, c = rows[:, 0], rows[:, 1], rows[:, 2]
@@ -312,18 +313,34 @@ def sorted_rows_and_parity(rows: np.ndarray):
         inversions += (b > c).view(np.int8)
         inversions &= 1
         parity = 1 - 2 * inversions  # int8: +1 even, -1 odd
-        return (np.stack([low, middle, high], axis=1), parity, int(low.min()), int(high.max()), repeated)
+        ordered = np.stack([low, middle, high], axis=1)
+        smallest, largest = int(low.min()), int(high.max())
+        return ordered, parity, smallest, largest, repeated, _used(ordered, smallest, largest, n_vertices)
     ordered = sort_rows(rows)
     repeated = bool((ordered[:, 1:] == ordered[:, :-1]).any())
-    return ordered, inversion_parity(rows), int(ordered[:, 0].min()), int(ordered[:, -1].max()), repeated
+    smallest, largest = int(ordered[:, 0].min()), int(ordered[:, -1].max())
+    return ordered, inversion_parity(rows), smallest, largest, repeated, _used(ordered, smallest, largest, n_vertices)
+
+
+def _used(ordered: np.ndarray, smallest: int, largest: int, n_vertices: int) -> np.ndarray:
+    """(n_vertices,) bool: the entries of ``ordered`` within 0..n_vertices-1 (the numpy twin of
+    :func:`_sorted_rows_kernel`'s last result)."""
+    used = np.zeros(max(n_vertices, 0), dtype=bool)
+    entries = ordered.ravel()
+    if smallest < 0 or largest >= n_vertices:  # entries out of range (the input check names them)
+        entries = entries[(entries >= 0) & (entries < n_vertices)]
+    used[entries] = True
+    return used
 
 
 @jit.njit
-def _sorted_rows_kernel(rows):
-    """Insertion sort of each row; its shift count is the row's inversion count (§2.3.3)."""
+def _sorted_rows_kernel(rows, n_vertices):
+    """Insertion sort of each row; its shift count is the row's inversion count (§2.3.3); and
+    which of the vertices 0..n_vertices-1 the rows hold, marked as the sorted entries are written."""
     m, c = rows.shape
     ordered = np.empty((m, c), np.int64)
     parity = np.empty(m, np.int8)
+    used = np.zeros(max(n_vertices, 0), np.bool_)
     smallest = rows[0, 0]
     largest = rows[0, 0]
     repeated = False
@@ -345,7 +362,10 @@ def _sorted_rows_kernel(rows):
         for a in range(1, c):
             if ordered[t, a] == ordered[t, a - 1]:
                 repeated = True
-    return ordered, parity, smallest, largest, repeated
+        for a in range(c):
+            if 0 <= ordered[t, a] < n_vertices:
+                used[ordered[t, a]] = True
+    return ordered, parity, smallest, largest, repeated, used
 
 
 def inversion_parity(tuples: np.ndarray) -> np.ndarray:

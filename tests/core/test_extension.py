@@ -120,9 +120,10 @@ def test_group_rows_and_row_sorting_twins_on_wide_buckets_and_repeats(counted):
         _assert_same(group_rows(table), group_rows_numpy(table))
     wide = rng.integers(0, 6, (3000, 4))  # repeated entries and every permutation
     with jit.use("auto"):
-        compiled = sorted_rows_and_parity(wide)
+        compiled = sorted_rows_and_parity(wide, 8)  # two vertices unused
     with jit.use("numpy"):
-        _assert_same(compiled, sorted_rows_and_parity(wide))
+        _assert_same(compiled, sorted_rows_and_parity(wide, 8))
+    assert compiled[5].tolist() == [True] * 6 + [False] * 2
     assert counted["decrun.core.simplex_arrays._group_packed_kernel"] == 2
     assert counted["decrun.core.simplex_arrays._sorted_rows_kernel"] == 1
 

@@ -143,9 +143,14 @@ def test_group_rows_kernel_on_wide_buckets_and_duplicates(monkeypatch):
 
 
 def test_sorted_rows_and_parity_kernel(monkeypatch):
-    rows = np.random.default_rng(4).integers(0, 6, (3000, 4))  # repeats and every permutation
-    compiled, reference = _both(monkeypatch, lambda: sorted_rows_and_parity(rows))
-    _assert_same(compiled, reference)
+    rng = np.random.default_rng(4)
+    rows = rng.integers(0, 6, (3000, 4))  # repeats and every permutation
+    triangles = rng.integers(-2, 12, (500, 3))  # entries out of range on both sides
+    for table, n_vertices in ((rows, 6), (rows, 9), (triangles, 10), (triangles[triangles.min(axis=1) >= 0], 12)):
+        compiled, reference = _both(monkeypatch, lambda t=table, n=n_vertices: sorted_rows_and_parity(t, n))
+        _assert_same(compiled, reference)
+        inside = table[(table >= 0) & (table < n_vertices)]
+        assert np.array_equal(np.flatnonzero(compiled[5]), np.unique(inside))  # the used vertices
 
 
 @pytest.mark.parametrize("dimension", [2, 3])

@@ -87,16 +87,14 @@ def checked_input(vertices, simplices, unreferenced: str):
     if vertices.shape[1] < n:
         raise MeshError(f"a {n}-dimensional complex needs vertices in at least {n} dimensions, "
                         f"got {vertices.shape[1]}")
-    top_sorted, parity, smallest, largest, repeated = sorted_rows_and_parity(simplices)
+    top_sorted, parity, smallest, largest, repeated, used = sorted_rows_and_parity(simplices, vertices.shape[0])
     if smallest < 0 or largest >= vertices.shape[0] or repeated:
         _check_indices(vertices.shape[0], simplices, top_sorted, n)
     if not np.isfinite(vertices).all():  # one pass over the coordinates; the rows only to name them
         bad = ~np.isfinite(vertices).all(axis=1)
         raise NonFiniteCoordinateError(f"{name_indices(np.flatnonzero(bad), 'vertex')} has NaN or infinite coordinates")
     original = np.arange(vertices.shape[0])
-    used = np.zeros(vertices.shape[0], dtype=bool)
-    used[top_sorted.ravel()] = True
-    if not used.all():
+    if not used.all():  # ``used``: marked while the rows were sorted
         unused = np.flatnonzero(~used)
         if unreferenced == "error":
             raise UnreferencedVertexError(

@@ -221,5 +221,11 @@ class Circumcentric(HodgeStar):
     name = "circumcentric"
 
     def diagonal(self, dec, k: int) -> np.ndarray:
-        """⋆_k = |⋆σ| / |σ| (§4.5.4), (n_k,)."""
+        """⋆_k = |⋆σ| / |σ| (§4.5.4), (n_k,). A vertex's volume is 1 and a top simplex's dual is a
+        point (volume 1): ⋆0 is a copy of the dual volumes and ⋆n the reciprocals of the volumes
+        (the bits of the divisions, without their arrays of ones)."""
+        if k == 0:
+            return dec.dual_volumes(0).copy()
+        if k == dec.n:
+            return 1.0 / dec.primal_volumes(k)
         return dec.dual_volumes(k) / dec.primal_volumes(k)

@@ -267,21 +267,22 @@ cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
     cdef Py_ssize_t m = top.shape[0], total = 3 * m, t, v, a, b, low, high, groups = 0, pairs = 0, g, p
     cdef int64_t x, y, z, at, item, item_load, item_second, ta, tb, oa, ob, largest = 0
     cdef int64_t low_half = 0xffffffff
-    for t in range(m):  # the largest leading entry (x leads slots 0 and 1, y slot 2)
-        x, y = top[t, 0], top[t, 1]
-        if x > largest:
-            largest = x
-        if y > largest:
-            largest = y
     order_array = np.empty(total, np.int64)
     payload_array = np.empty(total, np.int64)
     cdef int64_t[::1] order = order_array
     cdef int64_t[::1] payload = payload_array
-    count_array = np.zeros(largest + 2, np.int64)
+    # the entries are below 2**bits - 1 (bits fits the largest): the buckets' counts in an array of
+    # that bound, the largest leading entry found while counting (no pass of its own)
+    count_array = np.zeros((1 << bits) + 1, np.int64)
     cdef int64_t[::1] count = count_array
     for t in range(m):
-        count[top[t, 0] + 1] += 2
-        count[top[t, 1] + 1] += 1
+        x, y = top[t, 0], top[t, 1]  # x leads slots 0 and 1, y slot 2
+        count[x + 1] += 2
+        count[y + 1] += 1
+        if x > largest:
+            largest = x
+        if y > largest:
+            largest = y
     for v in range(largest + 1):
         count[v + 1] += count[v]
     position_array = count_array[:largest + 1].copy()
@@ -370,8 +371,10 @@ cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
 def facet_groups(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits, index_like):
     """Twin of ``simplex_arrays._facet_groups_kernel``: :func:`group_packed`'s grouping of the facet
     slots, then :func:`facet_pairs` on it: ((unique, inverse, order, starts), pairs, suspect). The
-    edge slots of C-contiguous triangles with int32 pairs take one fused counting sort."""
-    if _triangle_edges(top, columns) and bits <= 31 and index_like.dtype == np.int32 and top.shape[0] > 0:
+    edge slots of C-contiguous triangles with int32 pairs take one fused counting sort (where the
+    vertex indices are not much sparser than the slots: its buckets' counts span 2**bits)."""
+    if (_triangle_edges(top, columns) and bits <= 31 and index_like.dtype == np.int32 and top.shape[0] > 0
+            and (1 << bits) <= 6 * top.shape[0] + 2):  # the bucket counts' bound: at most twice the slots
         return _triangle_edge_groups(np.asarray(top), bits)
     groups = group_packed(top, columns, bits)
     pairs, suspect = facet_pairs(groups[2], groups[3], np.ascontiguousarray(top), index_like)

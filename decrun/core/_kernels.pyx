@@ -399,10 +399,12 @@ ctypedef fused corner_t:
     int64_t
 
 
-cdef void _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
-                      index_t[::1] second_slot, corner_t[::1] parent, int64_t[::1] result) noexcept:
+cdef int64_t _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
+                         index_t[::1] second_slot, corner_t[::1] parent, int64_t[::1] result, bint per_vertex) noexcept:
+    """The union–find of ``checks._united_corners``, then each vertex's roots counted into
+    ``result`` (``per_vertex``) or all the roots returned (``checks._fan_roots_kernel``)."""
     cdef Py_ssize_t m = top.shape[0], width = top.shape[1], n = width - 1, p, i0, i1, r, t, i, corner
-    cdef int64_t t0, t1, skip0, skip1
+    cdef int64_t t0, t1, skip0, skip1, roots = 0
     cdef corner_t a, b
     for p in range(first.shape[0]):
         t0, t1 = first[p], second[p]
@@ -428,11 +430,17 @@ cdef void _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1
                 parent[a] = b
             i0 += 1
             i1 += 1
+    if not per_vertex:
+        for corner in range(m * width):
+            if parent[corner] == corner:
+                roots += 1
+        return roots
     for t in range(m):
         for i in range(width):
             corner = t * width + i
             if parent[corner] == corner:
                 result[top[t, i]] += 1
+    return 0
 
 
 def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
@@ -444,11 +452,24 @@ def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, ind
     fans_array = np.zeros(n_vertices, np.int64)
     if corners < 2**31 - 1:
         _unite_fans[index_t, int32_t](top, first, second, first_slot, second_slot,
-                                      np.arange(corners, dtype=np.int32), fans_array)
+                                      np.arange(corners, dtype=np.int32), fans_array, True)
     else:
         _unite_fans[index_t, int64_t](top, first, second, first_slot, second_slot,
-                                      np.arange(corners, dtype=np.int64), fans_array)
+                                      np.arange(corners, dtype=np.int64), fans_array, True)
     return fans_array
+
+
+def fan_roots(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
+              index_t[::1] second_slot):
+    """Twin of ``complex.checks._fan_roots_kernel``: the roots of :func:`fans`' union–find, counted
+    without reading which vertex each is (int)."""
+    cdef Py_ssize_t corners = top.shape[0] * top.shape[1]
+    cdef int64_t[::1] unused = np.zeros(0, np.int64)
+    if corners < 2**31 - 1:
+        return _unite_fans[index_t, int32_t](top, first, second, first_slot, second_slot,
+                                             np.arange(corners, dtype=np.int32), unused, False)
+    return _unite_fans[index_t, int64_t](top, first, second, first_slot, second_slot,
+                                         np.arange(corners, dtype=np.int64), unused, False)
 
 
 def small_volumes(const double[:, :] points, const int64_t[:, ::1] simplices):
@@ -557,6 +578,7 @@ TWINS = {
     "decrun.core.simplex_arrays._facet_groups_kernel": facet_groups,
     "decrun.core.complex.checks._consistent_kernel": consistent,
     "decrun.core.complex.checks._fans_kernel": fans,
+    "decrun.core.complex.checks._fan_roots_kernel": fan_roots,
     "decrun.core.stars.circumcentric._triangle_dual_kernel": triangle_dual,
     "decrun.core.complex.simplicial_complex._incidence_kernel": incidence,
 }

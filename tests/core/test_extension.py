@@ -20,6 +20,7 @@ from decrun.core import jit
 from decrun.core.complex import SimplicialComplex
 from decrun.core.jit import kernels
 from decrun.core.simplex_arrays import FaceRows, group_rows, group_rows_numpy, sort_rows, sorted_rows_and_parity
+from decrun.errors import NonManifoldError
 from tests.core.test_kernels import MESHES, REJECTED, _assert_same, _everything
 
 BUILT = bool(kernels.extension_twins())
@@ -44,7 +45,7 @@ def test_every_twin_takes_its_kernels_arguments():
 
     lazy = {kernel.name: kernel for kernel in jit.KERNELS}
     twins = kernels.extension_twins()
-    assert len(twins) == 9
+    assert len(twins) == 10
     for name, twin in twins.items():
         assert name in lazy, f"{name} is no kernel"
         assert list(inspect.signature(twin).parameters) == list(inspect.signature(lazy[name].function).parameters)
@@ -81,12 +82,17 @@ def test_the_extension_equals_the_numpy_twins(name, counted):
 @needs_extension
 def test_auto_runs_every_twin_on_a_triangle_mesh_at_any_size(counted):
     """A triangle mesh's edges are grouped and paired by the fused facet twin (the grouping and
-    pairing twins run inside it); a tetrahedral mesh's edges take the grouping twin itself."""
+    pairing twins run inside it); a tetrahedral mesh's edges take the grouping twin itself. The
+    fans are counted per vertex only where the fans around all vertices outnumber them (a pinched
+    vertex to name)."""
     fused_into = {"decrun.core.simplex_arrays._group_packed_kernel", "decrun.core.simplex_arrays._facet_pairs_kernel"}
     vertices, simplices = MESHES["annulus"]()  # a few hundred triangles: far below numba's MIN_SIZE
     with jit.use("auto"):
         _everything(vertices, simplices)
-    assert set(counted) == set(kernels.extension_twins()) - fused_into
+    assert set(counted) == set(kernels.extension_twins()) - fused_into - {"decrun.core.complex.checks._fans_kernel"}
+    with jit.use("auto"), pytest.raises(NonManifoldError, match="vertex 0"):
+        SimplicialComplex(*REJECTED["bowtie"])
+    assert counted["decrun.core.complex.checks._fans_kernel"] == 1
     with jit.use("auto"):
         _everything(*MESHES["kuhn cube"]())
     assert "decrun.core.simplex_arrays._group_packed_kernel" in counted

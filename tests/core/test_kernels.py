@@ -208,6 +208,7 @@ def test_fans_kernel_equals_both_numpy_twins(name):
     pairs = checks.facet_pairs(faces.facet_order, faces.facet_starts, top, faces.lists[n - 1], True)
     compiled = checks._fans_kernel(top, *pairs[1:], nv)
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[n - 1], pairs, nv))
+    assert checks._fan_roots_kernel(top, *pairs[1:]) == compiled.sum() == nv  # one fan each
     if n == 2:
         _assert_same(compiled, checks.fans_per_vertex_surface(top, K.orientation, pairs, nv))
         _assert_same(checks.single_fan_surface(top, K.orientation, pairs, nv), compiled == 1)
@@ -222,6 +223,7 @@ def test_bowtie_fans_counted_alike():
     orientation = np.ones(2, dtype=np.int8)
     compiled = checks._fans_kernel(top, *pairs[1:], 5)
     assert compiled[0] == 2
+    assert checks._fan_roots_kernel(top, *pairs[1:]) == 6  # more roots than vertices: the counts name vertex 0
     _assert_same(compiled, checks.fans_per_vertex_surface(top, orientation, pairs, 5))
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[1], pairs, 5))
     _assert_same(checks.single_fan_surface(top, orientation, pairs, 5), compiled == 1)

@@ -325,13 +325,17 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
     A vertex whose incident top simplices fall into more than one group connected across
     shared facets (a bowtie / wheel) has no ball or half-ball neighbourhood. For n = 2
     (with manifold edges) this test is exact; for n = 3 it finds pinched vertices but
-    not every exotic link. Runs after :func:`orient` (the orientation is consistent).
+    not every exotic link. Runs after :func:`orient` (the orientation is consistent), on the
+    checked input: every vertex below ``n_vertices`` is used.
     """
     n = top.shape[1] - 1
     if n < 2:
         return
     if n == 2 and not _fans_kernel.runs(top.shape[0]) and single_fan_surface(top, orientation, pairs, n_vertices).all():
         return  # the counts below are only needed to name the fans of a bad vertex
+    if _fan_roots_kernel.runs(top.shape[0]) and _fan_roots_kernel(
+            np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot, pairs.second_slot) == n_vertices:
+        return  # every vertex is used (the checked input) and has a fan: as many fans as vertices is one each
     fans = fans_per_vertex(top, facets, orientation, pairs, n_vertices)
     bad = np.flatnonzero(fans > 1)
     if bad.size:
@@ -354,12 +358,10 @@ def fans_per_vertex(top, facets, orientation, pairs: FacetPairs, n_vertices: int
 
 
 @jit.njit
-def _fans_kernel(top, first, second, first_slot, second_slot, n_vertices):
-    """Compiled twin of :func:`fans_per_vertex_surface` / :func:`fans_per_vertex_general`.
-
-    Union–find over the corners ``(n+1)·t + i``: across every interior facet the corners of
-    its n shared vertices are joined; the fans of a vertex are its corners' distinct roots.
-    """
+def _united_corners(top, first, second, first_slot, second_slot):
+    """Union–find over the corners ``(n+1)·t + i`` of the (m, n+1) sorted ``top``: across every
+    interior facet the corners of its n shared vertices are joined. (m·(n+1),) parents; a corner
+    is a root iff its parent is itself (the kernels below count them)."""
     m, width = top.shape
     n = width - 1
     parent = np.arange(m * width)
@@ -387,11 +389,32 @@ def _fans_kernel(top, first, second, first_slot, second_slot, n_vertices):
                 parent[a] = b
             i0 += 1
             i1 += 1
+    return parent
+
+
+@jit.njit
+def _fans_kernel(top, first, second, first_slot, second_slot, n_vertices):
+    """Compiled twin of :func:`fans_per_vertex_surface` / :func:`fans_per_vertex_general`:
+    the fans of a vertex are its corners' distinct roots (:func:`_united_corners`)."""
+    m, width = top.shape
+    parent = _united_corners(top, first, second, first_slot, second_slot)
     fans = np.zeros(n_vertices, np.int64)
     for corner in range(m * width):
         if parent[corner] == corner:
             fans[top[corner // width, corner % width]] += 1
     return fans
+
+
+@jit.njit
+def _fan_roots_kernel(top, first, second, first_slot, second_slot):
+    """The fans around all the vertices together: the roots of :func:`_united_corners` (the sum of
+    :func:`_fans_kernel`'s counts, without reading which vertex each root is)."""
+    parent = _united_corners(top, first, second, first_slot, second_slot)
+    roots = 0
+    for corner in range(parent.shape[0]):
+        if parent[corner] == corner:
+            roots += 1
+    return roots
 
 
 def fans_per_vertex_surface(top, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:

@@ -400,14 +400,24 @@ ctypedef fused corner_t:
 
 
 cdef int64_t _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
-                         index_t[::1] second_slot, corner_t[::1] parent, int64_t[::1] result, bint per_vertex) noexcept:
+                         index_t[::1] second_slot, corner_t[::1] parent, int64_t[::1] result, bint per_vertex,
+                         const int8_t[::1] parity, bint* consistent) noexcept:
     """The union–find of ``checks._united_corners``, then each vertex's roots counted into
-    ``result`` (``per_vertex``) or all the roots returned (``checks._fan_roots_kernel``)."""
+    ``result`` (``per_vertex``) or all the roots returned (``checks._fan_roots_kernel``); with a
+    ``parity`` (not empty), ``consistent[0]`` cleared where a pair is inconsistent
+    (``checks._consistent_kernel``'s test, in the same walk over the pairs)."""
     cdef Py_ssize_t m = top.shape[0], width = top.shape[1], n = width - 1, p, i0, i1, r, t, i, corner
     cdef int64_t t0, t1, skip0, skip1, roots = 0
     cdef corner_t a, b
+    cdef bint oriented = parity.shape[0] > 0
+    cdef int s0, s1
     for p in range(first.shape[0]):
         t0, t1 = first[p], second[p]
+        if oriented:
+            s0 = parity[t0] if first_slot[p] % 2 == 0 else -parity[t0]
+            s1 = parity[t1] if second_slot[p] % 2 == 0 else -parity[t1]
+            if s0 == s1:
+                consistent[0] = False
         skip0, skip1 = n - first_slot[p], n - second_slot[p]
         i0 = 0
         i1 = 0
@@ -449,27 +459,34 @@ def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, ind
     fans of a vertex are its corners' distinct roots. (n0,) int64. The corners' parents are
     int32 where they fit (half the memory a fresh process must fault in)."""
     cdef Py_ssize_t corners = top.shape[0] * top.shape[1]
+    cdef bint unasked = True
+    cdef const int8_t[::1] no_parity = np.zeros(0, np.int8)
     fans_array = np.zeros(n_vertices, np.int64)
     if corners < 2**31 - 1:
         _unite_fans[index_t, int32_t](top, first, second, first_slot, second_slot,
-                                      np.arange(corners, dtype=np.int32), fans_array, True)
+                                      np.arange(corners, dtype=np.int32), fans_array, True, no_parity, &unasked)
     else:
         _unite_fans[index_t, int64_t](top, first, second, first_slot, second_slot,
-                                      np.arange(corners, dtype=np.int64), fans_array, True)
+                                      np.arange(corners, dtype=np.int64), fans_array, True, no_parity, &unasked)
     return fans_array
 
 
 def fan_roots(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
-              index_t[::1] second_slot):
-    """Twin of ``complex.checks._fan_roots_kernel``: the roots of :func:`fans`' union–find, counted
-    without reading which vertex each is (int)."""
+              index_t[::1] second_slot, const int8_t[::1] parity):
+    """Twin of ``complex.checks._fan_roots_kernel``: (the roots of :func:`fans`' union–find, counted
+    without reading which vertex each is; :func:`consistent`'s answer for ``parity``), in one walk
+    over the pairs."""
     cdef Py_ssize_t corners = top.shape[0] * top.shape[1]
     cdef int64_t[::1] unused = np.zeros(0, np.int64)
+    cdef int64_t roots
+    cdef bint consistent = True
     if corners < 2**31 - 1:
-        return _unite_fans[index_t, int32_t](top, first, second, first_slot, second_slot,
-                                             np.arange(corners, dtype=np.int32), unused, False)
-    return _unite_fans[index_t, int64_t](top, first, second, first_slot, second_slot,
-                                         np.arange(corners, dtype=np.int64), unused, False)
+        roots = _unite_fans[index_t, int32_t](top, first, second, first_slot, second_slot,
+                                              np.arange(corners, dtype=np.int32), unused, False, parity, &consistent)
+    else:
+        roots = _unite_fans[index_t, int64_t](top, first, second, first_slot, second_slot,
+                                              np.arange(corners, dtype=np.int64), unused, False, parity, &consistent)
+    return roots, bool(consistent)
 
 
 def small_volumes(const double[:, :] points, const int64_t[:, ::1] simplices):

@@ -84,12 +84,17 @@ def test_auto_runs_every_twin_on_a_triangle_mesh_at_any_size(counted):
     """A triangle mesh's edges are grouped and paired by the fused facet twin (the grouping and
     pairing twins run inside it); a tetrahedral mesh's edges take the grouping twin itself. The
     fans are counted per vertex only where the fans around all vertices outnumber them (a pinched
-    vertex to name)."""
+    vertex to name); the fan roots' twin tests the orientation too, so the orientation's own twin
+    runs where the stars are not checked (a curve)."""
     fused_into = {"decrun.core.simplex_arrays._group_packed_kernel", "decrun.core.simplex_arrays._facet_pairs_kernel"}
     vertices, simplices = MESHES["annulus"]()  # a few hundred triangles: far below numba's MIN_SIZE
     with jit.use("auto"):
         _everything(vertices, simplices)
-    assert set(counted) == set(kernels.extension_twins()) - fused_into - {"decrun.core.complex.checks._fans_kernel"}
+    answered_elsewhere = {"decrun.core.complex.checks._fans_kernel", "decrun.core.complex.checks._consistent_kernel"}
+    assert set(counted) == set(kernels.extension_twins()) - fused_into - answered_elsewhere
+    with jit.use("auto"):
+        _everything(*MESHES["polyline"]())
+    assert "decrun.core.complex.checks._consistent_kernel" in counted
     with jit.use("auto"), pytest.raises(NonManifoldError, match="vertex 0"):
         SimplicialComplex(*REJECTED["bowtie"])
     assert counted["decrun.core.complex.checks._fans_kernel"] == 1

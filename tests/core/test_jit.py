@@ -116,9 +116,10 @@ OFF_PATH_KERNELS = {"decrun.methods.fluid.compiled.circulation_sums", "decrun.co
 
 
 #: kernels a triangle mesh runs inside another kernel's machine code only: the facet kernel groups and
-#: pairs the edges with them, the fan kernels unite the corners with the helper
+#: pairs the edges with them, the fan kernels unite the corners with the helper, and the fan roots'
+#: kernel tests the orientation with the consistency kernel
 INSIDE_OTHERS = {"decrun.core.simplex_arrays._group_packed_kernel", "decrun.core.simplex_arrays._facet_pairs_kernel",
-                 "decrun.core.complex.checks._united_corners"}
+                 "decrun.core.complex.checks._united_corners", "decrun.core.complex.checks._consistent_kernel"}
 
 
 def helper(name: str) -> bool:

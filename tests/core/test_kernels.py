@@ -208,7 +208,12 @@ def test_fans_kernel_equals_both_numpy_twins(name):
     pairs = checks.facet_pairs(faces.facet_order, faces.facet_starts, top, faces.lists[n - 1], True)
     compiled = checks._fans_kernel(top, *pairs[1:], nv)
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[n - 1], pairs, nv))
-    assert checks._fan_roots_kernel(top, *pairs[1:]) == compiled.sum() == nv  # one fan each
+    roots, consistent = checks._fan_roots_kernel(top, *pairs[1:], K.orientation)
+    assert roots == compiled.sum() == nv and consistent  # one fan each, oriented ("fix")
+    flipped = K.orientation.copy()
+    flipped[pairs.first[0]] *= -1  # one simplex against its neighbours
+    assert checks._fan_roots_kernel(top, *pairs[1:], flipped) == (nv, False)
+    assert checks._consistent_kernel(*pairs[1:], flipped) is False
     if n == 2:
         _assert_same(compiled, checks.fans_per_vertex_surface(top, K.orientation, pairs, nv))
         _assert_same(checks.single_fan_surface(top, K.orientation, pairs, nv), compiled == 1)
@@ -223,7 +228,7 @@ def test_bowtie_fans_counted_alike():
     orientation = np.ones(2, dtype=np.int8)
     compiled = checks._fans_kernel(top, *pairs[1:], 5)
     assert compiled[0] == 2
-    assert checks._fan_roots_kernel(top, *pairs[1:]) == 6  # more roots than vertices: the counts name vertex 0
+    assert checks._fan_roots_kernel(top, *pairs[1:], orientation) == (6, True)  # more roots than vertices: name vertex 0
     _assert_same(compiled, checks.fans_per_vertex_surface(top, orientation, pairs, 5))
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[1], pairs, 5))
     _assert_same(checks.single_fan_surface(top, orientation, pairs, 5), compiled == 1)

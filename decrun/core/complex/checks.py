@@ -40,7 +40,7 @@ from decrun.errors import (
     UnreferencedVertexError,
 )
 
-__all__ = ["FacetPairs", "group_facets", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
+__all__ = ["FacetPairs", "group_facets", "fan_roots_and_consistency", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
            "fans_per_vertex", "fans_per_vertex_surface", "single_fan_surface", "facet_pairs_numpy", "inconsistent_facets", "fans_per_vertex_general", "simplex_name", "plural",
            "name_indices"]
 
@@ -247,18 +247,21 @@ def _check_duplicates(top: np.ndarray) -> None:
         raise DuplicateSimplexError(f"{name_indices(dup, simplex_name(n))} repeat the same vertices")
 
 
-def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int) -> np.ndarray:
+def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int, consistent: bool | None = None) -> np.ndarray:
     """(m,) int8 consistent orientation of the n-dimensional top simplices, by the δ_n column
     test (§2.3.4).
 
     ``parity`` is the orientation of the input tuples; ``mode="check"`` returns it when it is
     consistent and raises :class:`OrientationError` otherwise; ``"fix"`` re-orients each
     connected component, keeping the orientation most of its simplices had. Non-orientable
-    input raises :class:`NonOrientableError` either way.
+    input raises :class:`NonOrientableError` either way. ``consistent``: the answer of
+    :func:`fan_roots_and_consistency` for these pairs and ``parity``, when it was asked.
     """
     _, t0, t1, l0, l1 = pairs
     m = parity.shape[0]
-    if _consistent_kernel.runs(t0.shape[0]) and _consistent_kernel(t0, t1, l0, l1, parity):
+    if consistent is None and _consistent_kernel.runs(t0.shape[0]):
+        consistent = _consistent_kernel(t0, t1, l0, l1, parity)
+    if consistent:
         return parity
     bad = inconsistent_facets(pairs, parity)
     if not bad.any():
@@ -317,24 +320,41 @@ def _consistent_kernel(first, second, first_slot, second_slot, parity):
     return True
 
 
+_consistency_of_pairs = _consistent_kernel  # the name _fan_roots_kernel calls (numba swaps it for the dispatcher)
+
+
 # ---------------------------------------------------------------- vertex stars
+def fan_roots_and_consistency(top: np.ndarray, pairs: FacetPairs, parity: np.ndarray) -> tuple[int, bool] | None:
+    """(the fans around all vertices together, whether ``parity`` orients the pairs consistently)
+    from one call of the compiled :func:`_fan_roots_kernel` — what :func:`check_vertex_stars` and
+    :func:`orient` ask of the facet pairs — or None where it does not run (they ask the numpy twins)."""
+    if not _fan_roots_kernel.runs(top.shape[0]):
+        return None
+    roots, consistent = _fan_roots_kernel(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
+                                          pairs.second_slot, parity)
+    return int(roots), bool(consistent)
+
+
 def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndarray, pairs: FacetPairs,
-                       n_vertices: int) -> None:
+                       n_vertices: int, roots: int | None = None) -> None:
     """Each vertex star must be one fan of top simplices glued along facets (Fig. 2.11–2.12).
 
     A vertex whose incident top simplices fall into more than one group connected across
     shared facets (a bowtie / wheel) has no ball or half-ball neighbourhood. For n = 2
     (with manifold edges) this test is exact; for n = 3 it finds pinched vertices but
     not every exotic link. Runs after :func:`orient` (the orientation is consistent), on the
-    checked input: every vertex below ``n_vertices`` is used.
+    checked input: every vertex below ``n_vertices`` is used. ``roots``: the fans around all
+    vertices together, when :func:`fan_roots_and_consistency` counted them.
     """
     n = top.shape[1] - 1
     if n < 2:
         return
     if n == 2 and not _fans_kernel.runs(top.shape[0]) and single_fan_surface(top, orientation, pairs, n_vertices).all():
         return  # the counts below are only needed to name the fans of a bad vertex
-    if _fan_roots_kernel.runs(top.shape[0]) and _fan_roots_kernel(
-            np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot, pairs.second_slot) == n_vertices:
+    if roots is None:
+        found = fan_roots_and_consistency(top, pairs, orientation)
+        roots = None if found is None else found[0]
+    if roots == n_vertices:
         return  # every vertex is used (the checked input) and has a fan: as many fans as vertices is one each
     fans = fans_per_vertex(top, facets, orientation, pairs, n_vertices)
     bad = np.flatnonzero(fans > 1)
@@ -406,15 +426,17 @@ def _fans_kernel(top, first, second, first_slot, second_slot, n_vertices):
 
 
 @jit.njit
-def _fan_roots_kernel(top, first, second, first_slot, second_slot):
-    """The fans around all the vertices together: the roots of :func:`_united_corners` (the sum of
-    :func:`_fans_kernel`'s counts, without reading which vertex each root is)."""
+def _fan_roots_kernel(top, first, second, first_slot, second_slot, parity):
+    """(the fans around all the vertices together: the roots of :func:`_united_corners`, the sum of
+    :func:`_fans_kernel`'s counts without reading which vertex each root is; whether ``parity``
+    orients every interior facet consistently, :func:`_consistent_kernel`'s answer): the two
+    passes over the facet pairs a build makes, in one call (the extension's twin walks them once)."""
     parent = _united_corners(top, first, second, first_slot, second_slot)
     roots = 0
     for corner in range(parent.shape[0]):
         if parent[corner] == corner:
             roots += 1
-    return roots
+    return roots, _consistency_of_pairs(first, second, first_slot, second_slot, parity)
 
 
 def fans_per_vertex_surface(top, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:

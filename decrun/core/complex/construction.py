@@ -90,7 +90,10 @@ def _build(vertices, simplices, orient, unreferenced, check_manifold, degenerate
     volumes = checks.check_degenerate(vertices, top_sorted, degenerate_tol)
     pairs = checks.facet_pairs(faces.facet_order, faces.facet_starts, top_sorted, faces.lists[n - 1], check_manifold,
                                faces.facet_pairs)
-    orientation = checks.orient(pairs, parity, orient, n)
+    # the fans around all vertices and the orientation's consistency in one pass over the pairs
+    found = checks.fan_roots_and_consistency(top_sorted, pairs, parity) if check_manifold and n >= 2 else None
+    orientation = checks.orient(pairs, parity, orient, n, None if found is None else found[1])
     if check_manifold:
-        checks.check_vertex_stars(top_sorted, faces.lists[n - 1], orientation, pairs, vertices.shape[0])
+        checks.check_vertex_stars(top_sorted, faces.lists[n - 1], orientation, pairs, vertices.shape[0],
+                                  None if found is None else found[0])
     return Built(vertices, original, faces, orientation, volumes)

@@ -407,7 +407,7 @@ cdef int64_t _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[
     ``parity`` (not empty), ``consistent[0]`` cleared where a pair is inconsistent
     (``checks._consistent_kernel``'s test, in the same walk over the pairs)."""
     cdef Py_ssize_t m = top.shape[0], width = top.shape[1], n = width - 1, p, i0, i1, r, t, i, corner
-    cdef int64_t t0, t1, skip0, skip1, roots = 0
+    cdef int64_t t0, t1, skip0, skip1, merges = 0
     cdef corner_t a, b
     cdef bint oriented = parity.shape[0] > 0
     cdef int s0, s1
@@ -436,15 +436,14 @@ cdef int64_t _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[
                 b = parent[b]
             if a < b:
                 parent[b] = a
+                merges += 1
             elif b < a:
                 parent[a] = b
+                merges += 1
             i0 += 1
             i1 += 1
-    if not per_vertex:
-        for corner in range(m * width):
-            if parent[corner] == corner:
-                roots += 1
-        return roots
+    if not per_vertex:  # each merge of two roots left one root fewer: no pass over the corners
+        return m * width - merges
     for t in range(m):
         for i in range(width):
             corner = t * width + i

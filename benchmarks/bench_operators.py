@@ -29,9 +29,16 @@ average is printed before and after. ``--jit`` reports what a fresh process pays
 numba: importing it, and the first kernel calls (numba's typing registries, then each
 cached kernel's machine code), with an empty cache and with the cache it wrote.
 
+``--keep-freed-memory`` runs every process with glibc's ``mallopt`` keeping the memory a build
+frees for the next one (``M_MMAP_THRESHOLD`` and ``M_TRIM_THRESHOLD`` at 1 GiB): no warm round,
+of the floor or of decrun, pays the first touch of memory the previous round gave back to the
+system, so their ratio is the work's (decrun does not set this itself: it is the process's
+policy, not a library's).
+
     python benchmarks/bench_operators.py            # 82k, 328k, 1.31M triangles
     python benchmarks/bench_operators.py --quick    # 20k, 82k triangles, seconds
     python benchmarks/bench_operators.py --jit      # numba's start in a fresh process
+    python benchmarks/bench_operators.py --keep-freed-memory   # warm rounds without first touches
 """
 
 from __future__ import annotations
@@ -43,6 +50,24 @@ import time
 from harness import have_libigl, icosphere_or_kuhn_cube, parse_or_run_case, spawn  # noqa: E402
 
 TRIANGLE_CASES = {"quick": [5, 6], "full": [6, 7, 8]}  # icosphere subdivisions: 20·4^s triangles
+
+
+KEEP_FREED_MEMORY = "BENCH_OPERATORS_KEEP_FREED_MEMORY"  # set by --keep-freed-memory for the case processes
+
+
+def _keep_freed_memory() -> bool:
+    """glibc's ``mallopt``: allocations up to 1 GiB from the heap, and freed heap memory kept up to
+    1 GiB (instead of given back, to be touched anew by the next round). False where it is no glibc."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    m_trim_threshold, m_mmap_threshold = -1, -3  # glibc's malloc.h
+    return bool(mallopt(m_mmap_threshold, 1 << 30)) and bool(mallopt(m_trim_threshold, 1 << 30))
 
 
 def _cpu(work) -> float:
@@ -84,6 +109,7 @@ def _reference(vertices, faces):
 def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     """Runs inside the subprocess: ``fresh`` (decrun's import and first build, nothing else),
     ``igl-fresh`` (libigl's first call, nothing else) or ``all`` (the other columns)."""
+    kept = os.environ.get(KEEP_FREED_MEMORY) == "1" and _keep_freed_memory()
     vertices, faces = icosphere_or_kuhn_cube(kind, size)
     if library == "igl-fresh":
         import igl  # noqa: F401  (its import is not its call)
@@ -106,7 +132,7 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     from decrun.core.jit import kernels
 
     load_before = os.getloadavg()[0]
-    result = {"simplices": int(len(faces)), "extension": bool(kernels.extension_twins())}
+    result = {"simplices": int(len(faces)), "extension": bool(kernels.extension_twins()), "kept": kept}
 
     def ours():
         return _decrun_operators(vertices, faces)
@@ -188,6 +214,9 @@ def main(argv=None) -> int:
     if argv is None and "--jit" in sys.argv:
         jit_times()
         return 0
+    if argv is None and "--keep-freed-memory" in sys.argv:
+        sys.argv.remove("--keep-freed-memory")
+        os.environ[KEEP_FREED_MEMORY] = "1"  # the case processes inherit it
     args = parse_or_run_case(__doc__, run_case, argv)
     if args is None:
         return 0
@@ -198,7 +227,8 @@ def main(argv=None) -> int:
 
     level = "quick" if args.quick else "full"
     print(f"CPU ms, best of {args.repeat} interleaved rounds; ratios to libigl (and to the floor) from the same process;"
-          f" fresh: first calls, each in a process of its own, best of {args.repeat} processes")
+          f" fresh: first calls, each in a process of its own, best of {args.repeat} processes"
+          + ("; freed memory kept (mallopt)" if os.environ.get(KEEP_FREED_MEMORY) == "1" else ""))
     print("| triangles | load | libigl | floor | numpy twins | extension | numba kernels | numpy / libigl |"
           " extension / libigl | numba / libigl | extension / floor | fresh: import | fresh: first build, auto |"
           " fresh: libigl's first call | fresh ratio | no extension: builds until auto starts numba |"
@@ -215,6 +245,8 @@ def main(argv=None) -> int:
             theirs = spawn(__file__, "igl-fresh", "icosphere", size, args.repeat)
             igl_fresh = theirs if theirs["igl_fresh_s"] < igl_fresh["igl_fresh_s"] else igl_fresh
         r = spawn(__file__, "all", "icosphere", size, args.repeat)
+        if os.environ.get(KEEP_FREED_MEMORY) == "1" and not r["kept"]:
+            print("--keep-freed-memory: this C library has no glibc mallopt; the rounds ran without it", file=sys.stderr)
         igl_s, ext_s = r["igl_s"], r["extension_s"]
         extension = (f" {1e3 * ext_s:.1f} |", f" {ext_s / igl_s:.2f} |", f" {ext_s / r['floor_s']:.2f} |") \
             if r["extension"] else (" (not built) |", " - |", " - |")

@@ -263,7 +263,9 @@ cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
     vertex and the vertex opposite it packed in one int64 (``second << 32 | opposite``): a
     bucket is sorted by the second vertex alone (the packed key's order within a bucket), and
     the pairs and their duplicate suspicion are read off the sorted buckets, without another
-    pass over the groups or a look-up of the triangles."""
+    pass over the groups or a look-up of the triangles; each slot's edge (``inverse``) is then
+    looked up in triangle order among its leading vertex's edges (reads instead of writes
+    scattered over ``inverse``)."""
     cdef Py_ssize_t m = top.shape[0], total = 3 * m, t, v, a, b, low, high, groups = 0, pairs = 0, g, p
     cdef int64_t x, y, z, at, item, item_load, item_second, ta, tb, oa, ob, largest = 0
     cdef int64_t low_half = 0xffffffff
@@ -337,20 +339,21 @@ cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
     cdef int32_t[::1] first_slot = first_slot_array
     cdef int32_t[::1] second_slot = second_slot_array
     cdef bint suspect = False
+    first_group_array = np.empty(largest + 1, np.int64)  # the first group (edge) of each bucket
+    cdef int64_t[::1] first_group = first_group_array
     g = 0
     p = 0
     for v in range(largest + 1):
         low, high = count[v], count[v + 1]
+        first_group[v] = g
         a = low
         while a < high:
             y = payload[a] >> 32
             starts[g] = a
             unique[g, 0] = v
             unique[g, 1] = y
-            inverse[order[a]] = g
             b = a + 1
             while b < high and (payload[b] >> 32) == y:
-                inverse[order[b]] = g
                 b += 1
             if b - a == 2:
                 oa, ob = order[a], order[a + 1]
@@ -364,6 +367,20 @@ cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
             g += 1
             a = b
     starts[groups] = total
+    for t in range(m):  # each slot's edge, found in its leading vertex's few edges (read, where the
+        x, y, z = top[t, 0], top[t, 1], top[t, 2]  # sorted order would scatter writes across inverse)
+        g = first_group[x]
+        while unique[g, 1] != y:
+            g += 1
+        inverse[3 * t] = g
+        g = first_group[x]
+        while unique[g, 1] != z:
+            g += 1
+        inverse[3 * t + 1] = g
+        g = first_group[y]
+        while unique[g, 1] != z:
+            g += 1
+        inverse[3 * t + 2] = g
     return ((unique_array, inverse_array, order_array, starts_array),
             (interior_array, first_array, second_array, first_slot_array, second_slot_array), bool(suspect))
 

@@ -9,13 +9,17 @@ from decrun.runner.interrupts import ignore_interrupts
 
 def console_main() -> None:
     """The ``decrun`` console script: SIGTERM handled and Ctrl-C reported in one line from
-    the first instant, also while the command imports Hydra and numpy (~0.5 s), then
-    :func:`decrun.runner.cli.main`."""
+    the first instant, also while the command imports Hydra and numpy (~0.5 s); a single run
+    that may draw figures forks its figure process (:mod:`decrun.runner.figure_process`: it
+    imports matplotlib meanwhile); then :func:`decrun.runner.cli.main`."""
     install_sigterm()
     from decrun.core.threads import bound_blas_spin, bound_openmp_spin
+    from decrun.runner import figure_process
 
     bound_openmp_spin()  # before pymeshlab loads libgomp (decrun.core.threads); the command's, not import decrun's
     bound_blas_spin()  # before numpy and scipy load OpenBLAS
+    if figure_process.wanted(sys.argv[1:]):
+        figure_process.start()  # before numpy: no thread is running to be copied
     try:
         from decrun.runner.cli import main  # lazy: after the signal handler (reports a Ctrl-C during the imports)
     except KeyboardInterrupt as exc:

@@ -289,3 +289,38 @@ def test_a_killed_figure_process_loses_the_figures_not_the_result(tmp_path):
     assert "figures=false" in line
     record = json.loads(metrics.read_text())
     assert record["status"] == "ok" and record["steps_done"] == 60 and "figures_error" in record
+
+
+FORK_PROBE = """
+import sys, threading
+from decrun.runner import figure_process
+seen = []
+fork = figure_process.FigureProcess.fork
+def probe():
+    seen.append(("numpy" in sys.modules, "hydra" in sys.modules, threading.active_count()))
+    return fork()
+figure_process.FigureProcess.fork = staticmethod(probe)
+sys.argv = ["decrun", "app.steps=1", "hydra.run.dir=probe"]
+from decrun.__main__ import console_main
+try:
+    console_main()
+finally:
+    open("seen.txt", "w").write(repr(seen))
+"""
+
+
+def test_the_command_forks_its_figure_process_before_numpy_hydra_or_any_thread(tmp_path):
+    """Forked at the command's first instant: nothing that starts threads (numpy's OpenBLAS) or
+    holds state (Hydra) is loaded yet, and only the main thread runs."""
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("one core: the command starts no figure process")
+    import subprocess
+    import sys
+
+    from cli_processes import env
+
+    done = subprocess.run([sys.executable, "-c", FORK_PROBE], cwd=tmp_path, env=env(), capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert (tmp_path / "seen.txt").read_text() == "[(False, False, 1)]"
+    assert (tmp_path / "probe" / "smoothing.png").is_file()

@@ -132,7 +132,12 @@ def draw(figures: dict, out_dir, K) -> list[Path] | None:
         return None
     if K is not None and K.num_simplices(K.dim) > MAX_TOP_SIMPLICES:
         return None
-    return process.draw(figures, Path(out_dir).absolute(), K)
+    where = Path(out_dir).absolute()  # the figure process may be elsewhere (hydra.job.chdir)
+    written = process.draw(figures, where, K)
+    if written is None:
+        return None
+    # the paths as the run names its directory, as drawing in its own process gives them
+    return [Path(out_dir) / path.relative_to(where) if path.is_relative_to(where) else path for path in written]
 
 
 def _drawn_here(draw: str) -> bool:

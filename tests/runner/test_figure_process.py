@@ -14,6 +14,7 @@ import signal
 import threading
 import time
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -130,8 +131,12 @@ def test_it_draws_in_the_figures_order_each_share_in_a_process_of_its_own(tmp_pa
     assert [p.name for p in written] == ["first.png", "second.png", "third.png"]
     pids = {p.stem: p.read_text() for p in written}
     assert pids["first"] == pids["third"] != pids["second"] and str(os.getpid()) not in pids.values()
-    # it serves the next job too
-    assert [p.name for p in process.draw(_figures("again"), tmp_path, None)] == ["again.png"]
+    # it serves the next job too; through draw(), a run directory named relatively gives its paths so
+    monkeypatch.setattr(figure_process, "_current", process)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "run").mkdir()
+    assert figure_process.draw(_figures("again"), Path("run"), None) == [Path("run") / "again.png"]
+    assert (tmp_path / "run" / "again.png").is_file()
 
 
 def test_a_failing_figure_is_the_same_error_with_its_cause(tmp_path, monkeypatch, forked):

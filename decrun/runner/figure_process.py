@@ -64,6 +64,9 @@ _HEADER = struct.Struct("<Q")
 
 _current: "FigureProcess | None" = None
 
+#: in the figure process: its two pipes to the run (jobs, answers)
+_PIPES: list[int] = []
+
 
 class FigureProcessLost(DecrunError, RuntimeError):
     """The figure process ended without answering (killed, or it crashed)."""
@@ -223,7 +226,11 @@ class FigureProcess:
         except Exception:  # an object of the descriptions that does not pickle: the run draws them
             return None
         try:
-            send(self.jobs, (list(sys.path), os.getcwd(), payload))
+            try:
+                send(self.jobs, (list(sys.path), os.getcwd(), payload))
+            except OSError:  # it ended before the job (it was killed): nothing was drawn, the run draws
+                self.stop()
+                return None
             answer = receive(self.answers)
         except KeyboardInterrupt:  # the run is interrupted: the figure process stops, and nothing is left half-written
             self.stop()
@@ -319,6 +326,7 @@ def _serve(jobs: int, answers: int):
     pipe; never returns (``os._exit``). Its standard streams go to /dev/null (the run reports
     what it says); Ctrl-C is the run's to handle, SIGTERM stops it."""
     code = 0
+    _PIPES[:] = [jobs, answers]
     try:
         _quiet()
         ready = _prepare()
@@ -400,8 +408,9 @@ def _answer(figures: dict, out_dir: Path, K) -> tuple:
         for share in shares[1:]:
             read, write = os.pipe()
             pid = os.fork()
-            if pid == 0:
-                os.close(read)
+            if pid == 0:  # a figure's process: it answers on its own pipe only (the run's pipes close with
+                for fd in (read, *_PIPES):  # the figure process alone, so the run sees it end)
+                    os.close(fd)
                 try:
                     send(write, _draw_share(share, figures, out_dir, K))
                     code = 0

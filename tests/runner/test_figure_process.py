@@ -229,6 +229,14 @@ def test_a_figure_process_that_dies_is_reported_not_waited_for(tmp_path, monkeyp
     assert _gone(process.pid)
 
 
+def test_a_figure_process_gone_before_the_job_leaves_the_drawing_to_the_run(tmp_path, forked):
+    process = forked()
+    os.kill(process.pid, signal.SIGKILL)
+    os.waitpid(process.pid, 0)
+    assert process.draw(_figures("any"), tmp_path, None) is None and not process.alive
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_plugins_drawing_function_or_a_large_mesh_is_drawn_by_the_run(tmp_path, monkeypatch, forked):
     """draw() answers None (the run draws) for a drawing function outside decrun's plots (it may
     rely on the run's process) and for a mesh above MAX_TOP_SIMPLICES, without sending a job."""

@@ -25,7 +25,8 @@ core, ``figures=false`` on the command line, a platform without ``fork``, the en
 variable ``DECRUN_FIGURE_PROCESS=off``), when a figure is a
 plugin's own drawing function (it may rely on state of the run's process), when the mesh has
 more than :data:`MAX_TOP_SIMPLICES` top simplices (drawing takes seconds there and the import is
-a small share of it, while the complex would be copied), when the figure process could not
+a small share of it, while figures drawn at once each hold their own matplotlib objects: one at a
+time keeps the memory of one), when the figure process could not
 import matplotlib, or when the figure descriptions cannot be pickled.
 
 Messages between the processes are pickles behind their length (:func:`send`, :func:`receive`).

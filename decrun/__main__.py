@@ -3,6 +3,7 @@ in a process that goes on)."""
 
 import sys
 
+from decrun.errors import DecrunError
 from decrun.runner.failures import exit_code, install_sigterm, interrupt_cause
 from decrun.runner.interrupts import ignore_interrupts
 
@@ -18,8 +19,12 @@ def console_main() -> None:
 
     bound_openmp_spin()  # before pymeshlab loads libgomp (decrun.core.threads); the command's, not import decrun's
     bound_blas_spin()  # before numpy and scipy load OpenBLAS
-    if figure_process.wanted(sys.argv[1:]):
-        figure_process.start()  # before numpy: no thread is running to be copied
+    try:
+        if figure_process.wanted(sys.argv[1:]):
+            figure_process.start()  # before numpy: no thread is running to be copied
+    except DecrunError as exc:  # DECRUN_FIGURE_PROCESS set to what it cannot be
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(1)
     try:
         from decrun.runner.cli import main  # lazy: after the signal handler (reports a Ctrl-C during the imports)
     except KeyboardInterrupt as exc:

@@ -21,8 +21,8 @@ while the figures are drawn stops the figure process and waits for it, so no tem
 left and the figures on disk are exactly the ones drawn.
 
 The run draws its figures itself when there is no figure process (the Python API, a sweep, one
-core, ``figures=false`` on the command line, a platform without ``fork``, the environment
-variable ``DECRUN_FIGURE_PROCESS=off``), when a figure is a
+core, a machine without a core to spare, ``figures=false`` on the command line, a platform
+without ``fork``, ``DECRUN_FIGURE_PROCESS=off``: :func:`wanted`), when a figure is a
 plugin's own drawing function (it may rely on state of the run's process), when the mesh has
 more than :data:`MAX_TOP_SIMPLICES` top simplices (drawing takes seconds there and the import is
 a small share of it, while figures drawn at once each hold their own matplotlib objects: one at a
@@ -42,9 +42,9 @@ import struct
 import sys
 from pathlib import Path
 
-from decrun.errors import DecrunError
+from decrun.errors import ConfigError, DecrunError
 
-__all__ = ["FigureProcess", "start", "current", "dismiss", "draw", "wanted", "send", "receive", "MAX_TOP_SIMPLICES",
+__all__ = ["FigureProcess", "start", "current", "dismiss", "draw", "wanted", "setting", "send", "receive", "MAX_TOP_SIMPLICES",
            "ENVIRONMENT", "FigureProcessLost"]
 
 #: the environment variable that turns the figure process off (``DECRUN_FIGURE_PROCESS=off``)
@@ -77,17 +77,32 @@ def wanted(args: list[str]) -> bool:
     """Whether the command line ``args`` (``sys.argv[1:]``) is a single run that may draw
     figures, on a machine where a second process helps: a POSIX ``fork``, at least two cores
     this process may run on, no ``-m``/``--multirun``, no ``hydra.mode`` override, no help or
-    config printing, no ``figures=false``, and the environment does not set
-    ``DECRUN_FIGURE_PROCESS=off`` (the run then draws its figures itself)."""
-    if os.environ.get(ENVIRONMENT, "").strip().lower() in ("off", "0", "false", "no"):
-        return False
-    if not hasattr(os, "fork") or _cores() < 2:
+    config printing, no ``figures=false``; and by :func:`setting`: ``on``, or ``auto`` (the
+    default) with a core to spare — the load average of the last minute below the cores
+    less half a core (on a busy machine a second process only competes with the run: it then
+    draws its figures itself, as does ``off``). ConfigError for a setting that is none of these."""
+    choice = setting()
+    if choice == "off" or not hasattr(os, "fork") or _cores() < 2:
         return False
     for arg in args:
         key, _, value = arg.lstrip("+~").partition("=")
         if arg in _NO_FIGURES or key == "hydra.mode" or (key == "figures" and value.strip().lower() in ("false", "")):
             return False
-    return True
+    return choice == "on" or os.getloadavg()[0] < _cores() - 0.5
+
+
+#: the values of DECRUN_FIGURE_PROCESS and what each means
+_SETTINGS = {"auto": "auto", "": "auto", "on": "on", "1": "on", "true": "on", "yes": "on",
+             "off": "off", "0": "off", "false": "off", "no": "off"}
+
+
+def setting() -> str:
+    """``DECRUN_FIGURE_PROCESS``: ``auto`` (unset), ``on`` (``1``) or ``off`` (``0``);
+    ConfigError, naming the fix, for any other value."""
+    value = os.environ.get(ENVIRONMENT, "").strip().lower()
+    if value not in _SETTINGS:
+        raise ConfigError(f"{ENVIRONMENT}={value!r}: must be one of auto, on, off (or 1, 0); use {ENVIRONMENT}=auto")
+    return _SETTINGS[value]
 
 
 def _cores() -> int:

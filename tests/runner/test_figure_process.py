@@ -41,12 +41,33 @@ from cli_processes import decrun, start
     (["--info"], False),
 ])
 def test_a_figure_process_is_wanted_only_for_a_single_run_that_may_draw(args, expected, monkeypatch):
-    if len(os.sched_getaffinity(0)) < 2:
+    """``on``: for every single run that may draw; ``auto`` (unset): the same with a core to
+    spare (the last minute's load average below the cores less half a core); ``off``: never."""
+    cores = len(os.sched_getaffinity(0))
+    if cores < 2:
         pytest.skip("one core: the command draws in its own process")
-    monkeypatch.delenv("DECRUN_FIGURE_PROCESS", raising=False)
+    monkeypatch.setenv("DECRUN_FIGURE_PROCESS", "on")
+    monkeypatch.setattr(os, "getloadavg", lambda: (cores + 5.0, 0.0, 0.0))
     assert wanted(args) is expected
-    monkeypatch.setenv("DECRUN_FIGURE_PROCESS", "off")
+    monkeypatch.delenv("DECRUN_FIGURE_PROCESS")
+    assert wanted(args) is False  # auto on a busy machine
+    monkeypatch.setattr(os, "getloadavg", lambda: (cores - 0.51, 9.0, 9.0))
+    assert wanted(args) is expected  # auto with a core to spare
+    monkeypatch.setattr(os, "getloadavg", lambda: (cores - 0.5, 0.0, 0.0))
     assert wanted(args) is False
+    monkeypatch.setenv("DECRUN_FIGURE_PROCESS", "off")
+    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    assert wanted(args) is False
+
+
+def test_a_setting_that_is_none_of_auto_on_off_is_one_line_naming_the_fix(tmp_path, monkeypatch):
+    monkeypatch.setenv("DECRUN_FIGURE_PROCESS", "sometimes")
+    refused = decrun("app.steps=1", "figures=false", cwd=tmp_path)
+    assert refused.returncode == 1 and refused.stderr.strip() == (
+        "error: DECRUN_FIGURE_PROCESS='sometimes': must be one of auto, on, off (or 1, 0); use DECRUN_FIGURE_PROCESS=auto")
+    assert not (tmp_path / "outputs").exists()
+    monkeypatch.setenv("DECRUN_FIGURE_PROCESS", "auto")
+    assert decrun("app.steps=1", "figures=false", cwd=tmp_path).returncode == 0
 
 
 def test_with_the_figure_process_off_the_run_draws_its_figures_itself(tmp_path):
@@ -261,6 +282,7 @@ def test_the_command_draws_the_same_figures_as_a_run_in_one_process(tmp_path, mo
     write byte-identical PNGs of the same result."""
     import decrun as api
 
+    monkeypatch.setenv("DECRUN_FIGURE_PROCESS", "on")
     done = decrun("app.steps=3", "hydra.run.dir=forked", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     monkeypatch.chdir(tmp_path)
@@ -282,10 +304,11 @@ def _children(pid: int) -> list[int]:
 
 @pytest.mark.skipif(not os.path.exists(f"/proc/{os.getpid()}/task/{os.getpid()}/children"),
                     reason="needs /proc/<pid>/task/<pid>/children to find the figure process")
-def test_a_killed_figure_process_loses_the_figures_not_the_result(tmp_path):
+def test_a_killed_figure_process_loses_the_figures_not_the_result(tmp_path, monkeypatch):
     """The figure process killed while it draws (the fluid's animation takes a while): the run
     keeps result.h5 and metrics.json (with ``figures_error``), says so in one line naming
     ``figures=false``, and exits 1."""
+    monkeypatch.setenv("DECRUN_FIGURE_PROCESS", "on")
     proc = start("app=fluid", "app.steps=60", "app.record_every=1", "hydra.run.dir=run", cwd=tmp_path)
     metrics = tmp_path / "run" / "metrics.json"
     deadline = time.monotonic() + 240
@@ -332,8 +355,8 @@ def test_the_command_forks_its_figure_process_before_numpy_hydra_or_any_thread(t
 
     from cli_processes import env
 
-    done = subprocess.run([sys.executable, "-c", FORK_PROBE], cwd=tmp_path, env=env(), capture_output=True, text=True,
-                          timeout=300)
+    done = subprocess.run([sys.executable, "-c", FORK_PROBE], cwd=tmp_path, env={**env(), "DECRUN_FIGURE_PROCESS": "on"},
+                          capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert (tmp_path / "seen.txt").read_text() == "[(False, False, 1)]"
     assert (tmp_path / "probe" / "smoothing.png").is_file()

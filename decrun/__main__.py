@@ -3,19 +3,28 @@ in a process that goes on)."""
 
 import sys
 
+from decrun.errors import DecrunError
 from decrun.runner.failures import exit_code, install_sigterm, interrupt_cause
 from decrun.runner.interrupts import ignore_interrupts
 
 
 def console_main() -> None:
     """The ``decrun`` console script: SIGTERM handled and Ctrl-C reported in one line from
-    the first instant, also while the command imports Hydra and numpy (~0.5 s), then
-    :func:`decrun.runner.cli.main`."""
+    the first instant, also while the command imports Hydra and numpy (~0.5 s); a single run
+    that may draw figures forks its figure process (:mod:`decrun.runner.figure_process`: it
+    imports matplotlib meanwhile); then :func:`decrun.runner.cli.main`."""
     install_sigterm()
     from decrun.core.threads import bound_blas_spin, bound_openmp_spin
+    from decrun.runner import figure_process
 
     bound_openmp_spin()  # before pymeshlab loads libgomp (decrun.core.threads); the command's, not import decrun's
     bound_blas_spin()  # before numpy and scipy load OpenBLAS
+    try:
+        if figure_process.wanted(sys.argv[1:]):
+            figure_process.start()  # before numpy: no thread is running to be copied
+    except DecrunError as exc:  # DECRUN_FIGURE_PROCESS set to what it cannot be
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(1)
     try:
         from decrun.runner.cli import main  # lazy: after the signal handler (reports a Ctrl-C during the imports)
     except KeyboardInterrupt as exc:

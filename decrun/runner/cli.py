@@ -77,6 +77,10 @@ def _hydra_task(cfg: DictConfig) -> int | float:
     from decrun.runner.run import run
 
     hydra_cfg = HydraConfig.get()
+    if _is_multirun() or not cfg.get("figures", True):  # a sweep's jobs draw their own figures
+        from decrun.runner import figure_process
+
+        figure_process.dismiss()
     out = Path(hydra_cfg.runtime.output_dir)
     made = OutputGuard.made  # (run directory, outermost directory made with it), when this process made it
     outermost = made[1] if made is not None and made[0].absolute() == out.absolute() else None

@@ -35,7 +35,7 @@ def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return unique, inverse
 
 
-def group_rows(rows: np.ndarray):
+def group_rows(rows: "np.ndarray | FaceRows"):
     """Group equal rows: (unique, inverse, order, starts).
 
     ``order`` is a stable lexicographic sort of the rows, ``starts`` the position in

@@ -207,6 +207,7 @@ class FigureProcess:
     def __init__(self, pid: int, jobs: int, answers: int):
         self.pid, self.jobs, self.answers, self.owner = pid, jobs, answers, os.getpid()
         self.alive = True
+        self.ended: str | None = None  # how it ended, once stop() has reaped it
 
     @classmethod
     def fork(cls) -> "FigureProcess | None":
@@ -268,21 +269,18 @@ class FigureProcess:
         and wait until it is gone (SIGKILL after 10 s); how it ended."""
         import time
 
-        self.alive = False
-        for fd in (self.jobs, self.answers):
-            _close(fd)
-        try:
-            os.kill(self.pid, signal.SIGTERM)
-        except ProcessLookupError:
-            pass
+        if self.ended is not None:
+            return self.ended
+        self._terminate()
         deadline = time.monotonic() + 10.0
         while True:
             try:
                 pid, status = os.waitpid(self.pid, os.WNOHANG)
             except ChildProcessError:
-                return "ended"
+                pid, status = self.pid, None
             if pid:
-                return _ended(status)
+                self.ended = "ended" if status is None else _ended(status)
+                return self.ended
             if time.monotonic() > deadline:
                 os.kill(self.pid, signal.SIGKILL)
                 deadline = float("inf")
@@ -291,6 +289,11 @@ class FigureProcess:
     def close(self) -> None:
         """End it without waiting: its job pipe closes (an idle figure process exits) and it
         gets SIGTERM (one still importing exits too)."""
+        self._terminate()
+
+    def _terminate(self) -> None:
+        """No more jobs: the pipes closed and SIGTERM sent, once (a closed descriptor's number or
+        a reaped pid may belong to another file or process later)."""
         if not self.alive:
             return
         self.alive = False

@@ -248,6 +248,8 @@ def test_a_figure_process_that_dies_is_reported_not_waited_for(tmp_path, monkeyp
     with pytest.raises(FigureProcessLost, match=r"ended without an answer \(exit code 3\)"):
         process.draw(_figures("dies"), tmp_path, None)
     assert _gone(process.pid)
+    # reaped once: stopping or closing again signals no process and closes no descriptor
+    assert process.stop() == "exit code 3" and process.close() is None and process.ended == "exit code 3"
 
 
 def test_a_figure_process_gone_before_the_job_leaves_the_drawing_to_the_run(tmp_path, forked):

@@ -37,6 +37,7 @@ from decrun.runner.failures import (
     Stopped,
     exit_code,
     file_identity,
+    find_in_chain,
     find_memory_error,
     find_os_error,
     interrupt_cause,
@@ -342,6 +343,9 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
                     made = draw_figures(result.figures, files.dir, run.complex)
                 written += made
             except Exception as exc:  # the result and metrics stand; the error is added to them (below)
+                interrupt = find_in_chain(exc, KeyboardInterrupt)
+                if interrupt is not None:  # Ctrl-C/SIGTERM inside an extension's import: its ImportError wraps it
+                    raise interrupt from None
                 figures_failed = FiguresFailed(_figures_message(exc), exc)
                 record = {**record, FIGURES_ERROR: shorten_words(str(figures_failed))}
                 write_metrics_json(files.metrics, record)

@@ -129,3 +129,29 @@ def test_a_sweep_lists_a_job_whose_figures_failed(tmp_path, capsys, monkeypatch)
     out, err = capsys.readouterr()
     assert "(0 not ok, 1 figures failed)" in out and SweepTable.failed == 1
     assert "decrun: job 1 figures failed: figures: cannot write swept/1/smoothing.png" in err
+
+
+def test_an_interrupt_wrapped_in_an_extensions_import_error_is_an_interrupt(tmp_path, monkeypatch):
+    """SIGTERM while matplotlib's C extensions initialize reaches the run as their
+    ``ImportError: initialization failed`` with the interrupt as its cause: the run treats it
+    as the interrupt (metrics.json says the figures were interrupted, status ok), never as a
+    figure that failed."""
+    import pytest
+
+    import decrun as api
+    from decrun.runner.failures import Terminated
+    from decrun.runner.plots import common
+
+    def importing(*args, **kwargs):
+        try:
+            raise Terminated("SIGTERM")
+        except Terminated as cause:
+            raise ImportError("initialization failed") from cause
+
+    monkeypatch.setattr(common, "draw_figures", importing)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(KeyboardInterrupt):
+        api.run(["app.steps=2"], dir=tmp_path / "run")
+    record = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert record["status"] == "ok" and record["figures_interrupted"] == "interrupted (SIGTERM)", record
+    assert "figures_error" not in record and sorted(record["figures_not_drawn"]) == ["smoothing", "smoothing_series"]

@@ -440,19 +440,17 @@ def _answer(figures: dict, out_dir: Path, K) -> tuple:
                 os._exit(code)
             os.close(write)
             children.append((pid, read, share))
-        answers = {tuple(shares[0]): _draw_share(shares[0], figures, out_dir, K)}  # this process's share
+        answers = [_draw_share(shares[0], figures, out_dir, K)]  # this process's share, then the others'
         for pid, read, share in children:
             try:
-                answers[tuple(share)] = receive(read)
-            except EOFError:
-                _, status = os.waitpid(pid, 0)
-                lost = FigureProcessLost(f"drawing {', '.join(share)} ended ({_ended(status)})")
-                answers[tuple(share)] = ("failed", [lost], [], share[0])
-                pid = 0
+                answer = receive(read)
+            except EOFError:  # it ended without answering: how is known once it is reaped
+                answer = None
             finally:
                 os.close(read)
-            if pid:
-                os.waitpid(pid, 0)
+            _, status = os.waitpid(pid, 0)
+            lost = FigureProcessLost(f"drawing {', '.join(share)} ended ({_ended(status)})")
+            answers.append(answer or ("failed", [lost], [], share[0]))
         children = []
     finally:
         for pid, _, _ in children:  # interrupted: stop the figures' processes and wait for them
@@ -464,15 +462,15 @@ def _answer(figures: dict, out_dir: Path, K) -> tuple:
     return _merge(names, shares, answers)
 
 
-def _merge(names: list[str], shares: list[list[str]], answers: dict) -> tuple:
-    """One answer from the shares': the written paths in the figures' order, or the error of the
-    first figure (in that order) that failed; the notes of all."""
-    notes = [note for share in shares for note in answers[tuple(share)][2]]
-    failed = [(names.index(answers[tuple(share)][3]), answers[tuple(share)][1]) for share in shares
-              if answers[tuple(share)][0] == "failed"]
+def _merge(names: list[str], shares: list[list[str]], answers: list[tuple]) -> tuple:
+    """One answer from the shares' (``answers[i]`` is ``shares[i]``'s): the written paths in the
+    figures' order, or the error of the first figure (in that order) that failed; the notes of all."""
+    notes = [note for answer in answers for note in answer[2]]
+    failed = [(names.index(answer[3]), answer[1]) for answer in answers if answer[0] == "failed"]
     if failed:
         return ("failed", min(failed, key=lambda pair: pair[0])[1], notes)
-    by_name = {name: path for share in shares for name, path in zip(share, answers[tuple(share)][1], strict=True)}
+    by_name = {name: path for share, answer in zip(shares, answers, strict=True)
+               for name, path in zip(share, answer[1], strict=True)}
     return ("written", [by_name[name] for name in names], notes)
 
 

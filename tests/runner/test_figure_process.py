@@ -265,6 +265,26 @@ def test_a_figure_process_that_dies_is_reported_not_waited_for(tmp_path, monkeyp
     assert process.stop() == "exit code 3" and process.close() is None and process.ended == "exit code 3"
 
 
+def test_a_figures_process_that_dies_is_that_figures_error(tmp_path, monkeypatch, forked):
+    """With two cores the second figure is drawn by a process of its own: when it dies the
+    answer names it and how it ended; the first figure is drawn."""
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("one core: one process draws them all")
+
+    def draw_figures(figures, out_dir, K=None, series=None):
+        [name] = figures
+        if name == "second":
+            os._exit(3)
+        (out_dir / f"{name}.png").write_text("drawn")
+        return [out_dir / f"{name}.png"]
+
+    monkeypatch.setattr(common, "draw_figures", draw_figures)
+    process = forked()
+    with pytest.raises(FigureProcessLost, match=r"^drawing second ended \(exit code 3\)$"):
+        process.draw(_figures("first", "second"), tmp_path, None)
+    assert (tmp_path / "first.png").read_text() == "drawn" and process.alive
+
+
 def test_a_figure_process_gone_before_the_job_leaves_the_drawing_to_the_run(tmp_path, forked):
     process = forked()
     os.kill(process.pid, signal.SIGKILL)

@@ -19,7 +19,6 @@ shared read-only: every job gets its own :class:`~decrun.runner.mesh.Mesh` recor
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from collections import OrderedDict
@@ -27,6 +26,8 @@ from dataclasses import replace
 from typing import Any, Callable
 
 from omegaconf import DictConfig, OmegaConf
+
+from decrun.core.digest import Digest
 
 __all__ = ["mesh_and_dec", "clear", "SIZE", "stats"]
 
@@ -40,14 +41,13 @@ def node_key(*nodes: Any) -> str:
     """sha256 of the resolved values of config nodes, as sorted JSON (plus a mesh file's size and
     mtime): equal values, equal keys (a YAML dump of each node, the former text, took ~1.5 ms a
     node — three per sweep job)."""
-    h = hashlib.sha256()
+    h = Digest()
     for node in nodes:
-        text = _resolved_text(node) if OmegaConf.is_config(node) else repr(node)
-        h.update(text.encode())
+        h.text(_resolved_text(node) if OmegaConf.is_config(node) else repr(node))
         path = node.get("path") if isinstance(node, DictConfig) else None
         if isinstance(path, str) and os.path.isfile(path):
             st = os.stat(path)
-            h.update(f"{st.st_size}:{st.st_mtime_ns}".encode())
+            h.text(f"{st.st_size}:{st.st_mtime_ns}")
     return h.hexdigest()
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -11,17 +10,17 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from decrun.core.digest import Digest
 from decrun.errors import SolverError
 
 __all__ = ["Solver", "fingerprint", "norm_bound", "backward_error"]
 
 
 def fingerprint(A: sp.csr_matrix) -> str:
-    """sha1 of the shape, sparsity pattern and values of a CSR matrix."""
-    h = hashlib.sha1()
-    h.update(repr(A.shape).encode())
+    """sha256 of the shape, sparsity pattern and values of a CSR matrix (:mod:`decrun.core.digest`)."""
+    h = Digest().text(repr(A.shape))
     for array in (A.indptr, A.indices, A.data):
-        h.update(np.ascontiguousarray(array).tobytes())
+        h.array(array, header=False)
     return h.hexdigest()
 
 

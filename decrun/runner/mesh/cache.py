@@ -26,7 +26,6 @@ reported in the log and the run goes on with the mesh it made.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -35,6 +34,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+
+from decrun.core.digest import Digest, file_record, text_sha256
 
 __all__ = ["CACHE_ENV", "cache_dir", "cached_mesh", "entry_path", "content_hash"]
 
@@ -52,13 +53,9 @@ log = logging.getLogger("decrun")
 def content_hash(vertices: np.ndarray, faces: np.ndarray) -> str:
     """sha256 hex digest of the shapes and the little-endian float64 vertices and int64 faces
     (or simplices of any size); :func:`decrun.runner.mesh.base.mesh_hash` is this function."""
-    h = hashlib.sha256()
     v = np.ascontiguousarray(vertices, dtype="<f8")
     f = np.ascontiguousarray(faces, dtype="<i8")
-    h.update(repr((v.shape, f.shape)).encode())
-    h.update(v.tobytes())
-    h.update(f.tobytes())
-    return h.hexdigest()
+    return Digest().text(repr((v.shape, f.shape))).array(v, header=False).array(f, header=False).hexdigest()
 
 
 class _Unusable(Exception):
@@ -80,7 +77,7 @@ def _spec(generator: str, params: dict[str, Any], code: str | os.PathLike) -> st
 
     return json.dumps({"format": FORMAT, "generator": generator, "params": params,
                        "pymeshlab": version("pymeshlab"),
-                       "code": hashlib.sha256(Path(code).read_bytes()).hexdigest()}, sort_keys=True)
+                       "code": file_record(code)["sha256"]}, sort_keys=True)
 
 
 def entry_path(directory: Path, generator: str, params: dict[str, Any], code: str | os.PathLike) -> Path:
@@ -90,7 +87,7 @@ def entry_path(directory: Path, generator: str, params: dict[str, Any], code: st
 
 def _entry(directory: Path, spec: str) -> Path:
     """The entry of the key's text ``spec`` in ``directory`` (:func:`entry_path`)."""
-    return directory / f"{hashlib.sha256(spec.encode()).hexdigest()}.npz"
+    return directory / f"{text_sha256(spec)}.npz"
 
 
 def _read(path: Path, spec: str) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:

@@ -30,7 +30,6 @@ left (:func:`remove_checkpoint`); a disk too full to write it is an ``OSError`` 
 from __future__ import annotations
 
 import errno as _errno
-import hashlib
 import os
 import time
 from pathlib import Path
@@ -38,6 +37,7 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
+from decrun.core.digest import Digest
 from decrun.errors import CorruptFileError
 from decrun.runner.atomic import QuietFile, atomic_path, check_free_space
 from decrun.runner.files import RunFiles
@@ -74,10 +74,9 @@ def _leaves(state: dict, prefix: str = ""):
 
 
 def _digest(leaves) -> str:
-    h = hashlib.sha256()
+    h = Digest()
     for path, kind, array in leaves:
-        h.update(f"{path}\0{kind}\0{array.dtype.str}\0{array.shape}\0".encode())
-        h.update(array.tobytes())
+        h.text(f"{path}\0{kind}\0{array.dtype.str}\0{array.shape}\0").array(array, header=False)
     return h.hexdigest()
 
 

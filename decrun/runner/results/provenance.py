@@ -10,7 +10,6 @@ on :mod:`decrun.runner.results.journal`, never on each other.
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import os
 import re
@@ -21,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from decrun.core.digest import Digest
 from decrun.errors import CorruptFileError
 from decrun.runner.atomic import write_text_atomic
 from decrun.runner.results.checked import CONTENT, check_dataset, file_record, open_h5, parse_json
@@ -196,7 +196,7 @@ def _hash_attrs(digest, where: str, attrs) -> None:
         if where == "/" and key == "metrics_json":
             metrics = parse_json(value, f"attribute {key}")
             value = json.dumps({k: v for k, v in metrics.items() if not _not_content_metric(k)}, sort_keys=True)
-        digest.update(f"attr {where} {key}=".encode() + _canonical(value) + b"\n")
+        digest.bytes(f"attr {where} {key}=".encode() + _canonical(value) + b"\n")
 
 
 def _hash_group(digest, group, path: Path, checked: bool) -> None:
@@ -212,21 +212,21 @@ def _hash_group(digest, group, path: Path, checked: bool) -> None:
         member = group[name]
         where = member.name
         if isinstance(member, h5py.Group):
-            digest.update(f"group {where}\n".encode())
+            digest.text(f"group {where}\n")
             _hash_attrs(digest, where, member.attrs)
             _hash_group(digest, member, path, checked)
             continue
         if checked:
             check_dataset(member, path)
         shape, dtype = member.shape, member.dtype
-        digest.update(f"dataset {where} {dtype.str} {shape}\n".encode())
+        digest.text(f"dataset {where} {dtype.str} {shape}\n")
         if not shape or 0 in shape:
-            digest.update(np.ascontiguousarray(member[()]).tobytes())
+            digest.array(member[()], header=False)
         else:
             row = max(1, int(np.prod(shape[1:], dtype=np.int64)) * dtype.itemsize)
             step = max(1, _BLOCK_BYTES // row)
             for start in range(0, shape[0], step):
-                digest.update(np.ascontiguousarray(member[start:start + step]).tobytes())
+                digest.array(member[start:start + step], header=False)
         _hash_attrs(digest, where, member.attrs)
 
 
@@ -241,7 +241,7 @@ def content_sha256(path: str | os.PathLike, *, checked: bool = True) -> str:
     per-dataset checks, for a file this process has just written (the runner: ~half the cost
     on a small result)."""
     path = Path(path)
-    digest = hashlib.sha256(b"decrun content 1\n")
+    digest = Digest(b"decrun content 1\n")
     with open_h5(path) as f:
         _hash_attrs(digest, "/", decrun_attrs(f, path))
         _hash_group(digest, f, path, checked)

@@ -37,7 +37,6 @@ decrun).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -46,6 +45,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, cast
 
+from decrun.core.digest import Digest
 from decrun.errors import ConfigError, CorruptFileError
 
 __all__ = ["Tracker", "NoTracker", "RunRecord", "STATUS", "track_sweep", "track_run",
@@ -81,22 +81,12 @@ class RunRecord:
     def fingerprint(self) -> str:
         """16 hex digits of sha256 over everything logged (params, metrics, series, tags, the
         artifacts' names and sizes): equal when a resumed sweep finds the job as it was."""
-        h = hashlib.sha256()
-        h.update(json.dumps([self.name, self.status, self.params, self.metrics, self.tags, self.parent],
-                            sort_keys=True, default=str).encode())
+        h = Digest().json([self.name, self.status, self.params, self.metrics, self.tags, self.parent])
         for name, (steps, values) in sorted(self.series.items()):
-            h.update(name.encode())
-            h.update(bytes(memoryview(_contiguous(steps))))
-            h.update(bytes(memoryview(_contiguous(values))))
+            h.text(name).array(steps, header=False).array(values, header=False)
         for path in self.artifacts:
-            h.update(f"{path.name}:{path.stat().st_size}:{path.stat().st_mtime_ns}".encode())
-        return h.hexdigest()[:16]
-
-
-def _contiguous(array):
-    import numpy as np
-
-    return np.ascontiguousarray(array)
+            h.text(f"{path.name}:{path.stat().st_size}:{path.stat().st_mtime_ns}")
+        return h.hexdigest(16)
 
 
 @dataclass

@@ -1,17 +1,17 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""The complex's and the operators' kernels as a compiled extension, built by the install.
+"""The core's kernels compiled: the complex's and the operators' kernels and the intrinsic
+Delaunay flip rounds, as an extension built by the install.
 
-Each function here is the twin of one numba kernel (:data:`TWINS` maps the kernel's dotted name
-to it) with the same arguments, results and arithmetic in the same order, so it equals the
-kernel's numpy twin bit for bit. Under ``auto`` a kernel runs as this twin when the extension is
-built (:meth:`decrun.core.jit.kernels.LazyKernel.runs`): machine code that loads with the module,
-in milliseconds, without numba's start. The extension is optional: an install without a C
-compiler leaves it out, and the numba kernels and numpy twins do the work as before.
+Each function here is the compiled twin of a numpy function beside its caller, with the same
+arithmetic in the same order, so the two agree bit for bit (``tests/core/test_extension.py``).
+Callers take it through :func:`decrun.core.extension.kernels` (unless the switch says ``numpy``):
+machine code that loads with the module, in milliseconds. The extension is optional: an install
+without a C compiler leaves it out, and the numpy twins do the work.
 """
 
 import numpy as np
 
-from libc.math cimport sqrt, fabs
+from libc.math cimport INFINITY, fabs, sqrt
 from libc.stdint cimport int8_t, int32_t, int64_t, uint8_t
 
 ctypedef fused index_t:
@@ -20,7 +20,7 @@ ctypedef fused index_t:
 
 
 def sorted_rows(const int64_t[:, :] rows, Py_ssize_t n_vertices):
-    """Twin of ``simplex_arrays._sorted_rows_kernel``: insertion sort of each row, its shift
+    """Twin of the numpy path of ``simplex_arrays.sorted_rows``: insertion sort of each row, its shift
     count the row's inversion count; (sorted rows, parity int8, smallest, largest, repeated,
     used (n_vertices,) bool: the entries of the rows within 0..n_vertices-1).
     ``rows`` in any layout (a mesh's Fortran-ordered faces are not copied first)."""
@@ -133,7 +133,7 @@ cdef int64_t _bucket_triangle_edges(const int64_t[:, ::1] top, int bits, int64_t
 
 
 def group_packed(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits):
-    """Twin of ``simplex_arrays._group_packed_kernel``: the rows ``top[t, columns[s]]`` grouped
+    """Twin of ``simplex_arrays.group_rows_numpy``: the rows ``top[t, columns[s]]`` grouped
     by a stable counting sort on their leading entry and a stable sort of each bucket by the
     packed key; (unique, inverse, order, starts). ``top`` in any layout; a triangle mesh's edge
     slots take loops unrolled over the three slots (the same arithmetic and order)."""
@@ -244,7 +244,7 @@ def _facet_pairs_fill(const int64_t[::1] order, const int64_t[::1] starts, const
 
 
 def facet_pairs(order, starts, top, index_like):
-    """Twin of ``simplex_arrays._facet_pairs_kernel``: the facets in exactly two top simplices
+    """Twin of ``complex.checks.facet_pairs_numpy``: the facets in exactly two top simplices
     (int64), their simplices and slots (``index_like``'s type), and the duplicate suspicion."""
     cdef const int64_t[::1] starts_view = starts
     cdef Py_ssize_t g, count = 0
@@ -386,7 +386,7 @@ cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
 
 
 def facet_groups(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits, index_like):
-    """Twin of ``simplex_arrays._facet_groups_kernel``: :func:`group_packed`'s grouping of the facet
+    """Twin of ``complex.checks.group_facets``' numpy path: :func:`group_packed`'s grouping of the facet
     slots, then :func:`facet_pairs` on it: ((unique, inverse, order, starts), pairs, suspect). The
     edge slots of C-contiguous triangles with int32 pairs take one fused counting sort (where the
     vertex indices are not much sparser than the slots: its buckets' counts span 2**bits)."""
@@ -400,7 +400,7 @@ def facet_groups(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bit
 
 def consistent(index_t[::1] first, index_t[::1] second, index_t[::1] first_slot, index_t[::1] second_slot,
                const int8_t[::1] parity):
-    """Twin of ``complex.checks._consistent_kernel``: True when no interior facet is inconsistent."""
+    """Twin of ``complex.checks.inconsistent_facets`` (none): True when no interior facet is inconsistent."""
     cdef Py_ssize_t p
     cdef int s0, s1
     for p in range(first.shape[0]):
@@ -419,10 +419,10 @@ ctypedef fused corner_t:
 cdef int64_t _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
                          index_t[::1] second_slot, corner_t[::1] parent, int64_t[::1] result, bint per_vertex,
                          const int8_t[::1] parity, bint* consistent) noexcept:
-    """The union–find of ``checks._united_corners``, then each vertex's roots counted into
-    ``result`` (``per_vertex``) or all the roots returned (``checks._fan_roots_kernel``); with a
+    """A union–find of the corners, then each vertex's roots counted into
+    ``result`` (``per_vertex``) or all the roots returned (:func:`fan_roots`); with a
     ``parity`` (not empty), ``consistent[0]`` cleared where a pair is inconsistent
-    (``checks._consistent_kernel``'s test, in the same walk over the pairs)."""
+    (:func:`consistent`'s test, in the same walk over the pairs)."""
     cdef Py_ssize_t m = top.shape[0], width = top.shape[1], n = width - 1, p, i0, i1, r, t, i, corner
     cdef int64_t t0, t1, skip0, skip1, merges = 0
     cdef corner_t a, b
@@ -471,7 +471,7 @@ cdef int64_t _unite_fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[
 
 def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
          index_t[::1] second_slot, Py_ssize_t n_vertices):
-    """Twin of ``complex.checks._fans_kernel``: union–find over the corners ``(n+1)·t + i``; the
+    """Twin of ``complex.checks.fans_per_vertex``' numpy path: union–find over the corners ``(n+1)·t + i``; the
     fans of a vertex are its corners' distinct roots. (n0,) int64. The corners' parents are
     int32 where they fit (half the memory a fresh process must fault in)."""
     cdef Py_ssize_t corners = top.shape[0] * top.shape[1]
@@ -489,7 +489,7 @@ def fans(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, ind
 
 def fan_roots(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second, index_t[::1] first_slot,
               index_t[::1] second_slot, const int8_t[::1] parity):
-    """Twin of ``complex.checks._fan_roots_kernel``: (the roots of :func:`fans`' union–find, counted
+    """Compiled ``complex.checks.fan_roots_and_consistency``: (the roots of :func:`fans`' union–find, counted
     without reading which vertex each is; :func:`consistent`'s answer for ``parity``), in one walk
     over the pairs."""
     cdef Py_ssize_t corners = top.shape[0] * top.shape[1]
@@ -506,7 +506,7 @@ def fan_roots(const int64_t[:, ::1] top, index_t[::1] first, index_t[::1] second
 
 
 def small_volumes(const double[:, :] points, const int64_t[:, ::1] simplices):
-    """Twin of ``simplex_arrays._small_volumes_kernel``: lengths of edges / areas of triangles
+    """Twin of ``simplex_arrays.vertex_volumes_numpy``: lengths of edges / areas of triangles
     from the (n0, d) coordinates, d = 2 or 3, in any layout (not copied; C order keeps a vertex's
     coordinates in one cache line). (m,) float64."""
     cdef Py_ssize_t m = simplices.shape[0], corners = simplices.shape[1], d = points.shape[1], t, axis
@@ -545,7 +545,7 @@ def small_volumes(const double[:, :] points, const int64_t[:, ::1] simplices):
 
 def triangle_dual(const double[:, :] points, const int64_t[:, :] top, const double[::1] area,
                   const int64_t[:, :] triangle_edges, Py_ssize_t n_edges, Py_ssize_t n_vertices):
-    """Twin of ``stars.circumcentric._triangle_dual_kernel``: (dual0 (n0,), dual1 (n1,), edge lengths
+    """Twin of ``stars.circumcentric.triangle_dual_volumes_numpy``: (dual0 (n0,), dual1 (n1,), edge lengths
     (n1,)) from the (n0, d) coordinates in any layout (not copied)."""
     dual0_array = np.zeros(n_vertices)
     dual1_array = np.zeros(n_edges)
@@ -588,7 +588,7 @@ def triangle_dual(const double[:, :] points, const int64_t[:, :] top, const doub
 
 
 def incidence(const int64_t[:, :] faces, const int8_t[::1] orientation, double[::1] data, index_t[::1] indices):
-    """Twin of ``complex.simplicial_complex._incidence_kernel``: δ_jᵀ's CSR entries, row by row."""
+    """Twin of ``complex.simplicial_complex.incidence_entries_numpy``: δ_jᵀ's CSR entries, row by row."""
     cdef Py_ssize_t width = faces.shape[1], s, l
     cdef bint oriented = orientation.shape[0] > 0
     cdef double sign
@@ -602,16 +602,168 @@ def incidence(const int64_t[:, :] faces, const int8_t[::1] orientation, double[:
     return data.base, indices.base
 
 
-#: the numba kernel (dotted name) each function here is the twin of
-TWINS = {
-    "decrun.core.simplex_arrays._sorted_rows_kernel": sorted_rows,
-    "decrun.core.simplex_arrays._group_packed_kernel": group_packed,
-    "decrun.core.simplex_arrays._small_volumes_kernel": small_volumes,
-    "decrun.core.simplex_arrays._facet_pairs_kernel": facet_pairs,
-    "decrun.core.simplex_arrays._facet_groups_kernel": facet_groups,
-    "decrun.core.complex.checks._consistent_kernel": consistent,
-    "decrun.core.complex.checks._fans_kernel": fans,
-    "decrun.core.complex.checks._fan_roots_kernel": fan_roots,
-    "decrun.core.stars.circumcentric._triangle_dual_kernel": triangle_dual,
-    "decrun.core.complex.simplicial_complex._incidence_kernel": incidence,
-}
+cdef inline double _smaller(double a, double b) noexcept nogil:
+    """Python's ``min(a, b)``: ``a`` unless ``b < a``."""
+    return b if b < a else a
+
+
+cdef inline double _larger(double a, double b) noexcept nogil:
+    """Python's ``max(a, b)``: ``a`` unless ``b > a``."""
+    return b if b > a else a
+
+
+cdef inline double _heron_scalar(double x, double y, double z) noexcept nogil:
+    """``intrinsic_delaunay._heron`` for one triangle, the same operations in the same order."""
+    cdef double low_xy = _smaller(x, y), high_xy = _larger(x, y)
+    cdef double a = _larger(high_xy, z), c = _smaller(low_xy, z)
+    cdef double b = _larger(low_xy, _smaller(high_xy, z))
+    cdef double product = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c))
+    return 0.25 * sqrt(_larger(product, 0.0))
+
+
+cdef double _edge_weight(int64_t e, const int64_t[:, :] sides, const int64_t[:, :] face_edges,
+                         const double[:] lengths) noexcept nogil:
+    """``intrinsic_delaunay._edge_weights`` of one interior edge: ½(cot α + cot β)."""
+    cdef double total = 0.0, l0, l1, l2, s0, s1, s2, opposite
+    cdef int64_t side, face, corner
+    cdef int column
+    for column in range(2):
+        side = sides[e, column]
+        face, corner = side // 3, side % 3
+        l0, l1, l2 = lengths[face_edges[face, 0]], lengths[face_edges[face, 1]], lengths[face_edges[face, 2]]
+        s0, s1, s2 = l0 * l0, l1 * l1, l2 * l2
+        opposite = s0 if corner == 0 else (s1 if corner == 1 else s2)
+        total += (s0 + s1 + s2 - 2.0 * opposite) / (8.0 * _heron_scalar(l0, l1, l2))
+    return total
+
+
+cdef Py_ssize_t _choose(const int64_t[::1] candidate, const double[::1] weight, Py_ssize_t n_candidates,
+                        const int64_t[:, :] sides, double[::1] best_weight, int64_t[::1] best_edge,
+                        uint8_t[::1] chosen) noexcept nogil:
+    """The independent set of a round: a candidate edge is chosen when it holds the smallest
+    (weight, edge id) in both its triangles; returns how many were chosen."""
+    cdef Py_ssize_t i, count = 0
+    cdef int64_t e, f, f0, f1
+    cdef double w
+    cdef int k
+    for i in range(n_candidates):
+        e, w = candidate[i], weight[i]
+        for k in range(2):
+            f = sides[e, k] // 3
+            if w < best_weight[f] or (w == best_weight[f] and e < best_edge[f]):
+                best_weight[f], best_edge[f] = w, e
+    for i in range(n_candidates):
+        e = candidate[i]
+        f0, f1 = sides[e, 0] // 3, sides[e, 1] // 3
+        chosen[i] = best_edge[f0] == e and best_edge[f1] == e and f0 != f1
+        count += chosen[i]
+    for i in range(n_candidates):
+        e = candidate[i]
+        for k in range(2):
+            f = sides[e, k] // 3
+            best_weight[f], best_edge[f] = INFINITY, -1
+    return count
+
+
+cdef void _flip_edge(int64_t e, int64_t[:, :] faces, int64_t[:, :] face_edges, int64_t[:, :] sides,
+                     double[:] lengths, int64_t[5] touched) noexcept nogil:
+    """Flip the interior edge ``e`` (``intrinsic_delaunay._flip`` for one edge) and write the
+    five edges of its quad to ``touched``."""
+    cdef int64_t h1 = sides[e, 0], h2 = sides[e, 1]
+    cdef int64_t f = h1 // 3, a = h1 % 3, g = h2 // 3, b = h2 % 3
+    cdef int64_t x = faces[f, a], p = faces[f, ((a + 1) % 3)], q = faces[f, ((a + 2) % 3)], y = faces[g, b]
+    cdef int64_t e_xq = face_edges[f, ((a + 1) % 3)], e_xp = face_edges[f, ((a + 2) % 3)]
+    cdef int64_t e_py = face_edges[g, ((b + 1) % 3)], e_yq = face_edges[g, ((b + 2) % 3)]
+    cdef double l_pq = lengths[e], l_xp = lengths[e_xp], l_xq = lengths[e_xq], l_py = lengths[e_py], l_yq = lengths[e_yq]
+    cdef double area_f = _heron_scalar(l_pq, l_xq, l_xp), area_g = _heron_scalar(l_pq, l_yq, l_py)
+    cdef double cos_f = (l_xp * l_xp + l_pq * l_pq - l_xq * l_xq) / (2 * l_xp * l_pq)
+    cdef double cos_g = (l_py * l_py + l_pq * l_pq - l_yq * l_yq) / (2 * l_py * l_pq)
+    cdef double sin_f = 2 * area_f / (l_xp * l_pq), sin_g = 2 * area_g / (l_py * l_pq)
+    cdef double cos_sum = cos_f * cos_g - sin_f * sin_g
+    cdef double new_length = sqrt(_larger(l_xp * l_xp + l_py * l_py - 2 * l_xp * l_py * cos_sum, 0.0))
+    cdef int64_t outer[4]
+    cdef int64_t old_side[4]
+    cdef int64_t new_side[4]
+    cdef int64_t column[4]
+    cdef int k
+    outer[0], old_side[0], new_side[0] = e_py, 3 * g + ((b + 1) % 3), 3 * f + 0
+    outer[1], old_side[1], new_side[1] = e_xp, 3 * f + ((a + 2) % 3), 3 * f + 2
+    outer[2], old_side[2], new_side[2] = e_xq, 3 * f + ((a + 1) % 3), 3 * g + 0
+    outer[3], old_side[3], new_side[3] = e_yq, 3 * g + ((b + 2) % 3), 3 * g + 2
+    for k in range(4):  # read every column before writing any (as the vectorized flip)
+        column[k] = 0 if sides[outer[k], 0] == old_side[k] else 1
+    faces[f, 0], faces[f, 1], faces[f, 2] = x, p, y
+    faces[g, 0], faces[g, 1], faces[g, 2] = y, q, x
+    face_edges[f, 0], face_edges[f, 1], face_edges[f, 2] = e_py, e, e_xp
+    face_edges[g, 0], face_edges[g, 1], face_edges[g, 2] = e_xq, e, e_yq
+    for k in range(4):
+        sides[outer[k], column[k]] = new_side[k]
+    sides[e, 0] = 3 * f + 1
+    sides[e, 1] = 3 * g + 1
+    lengths[e] = new_length
+    touched[0], touched[1], touched[2], touched[3], touched[4] = e, e_xp, e_xq, e_py, e_yq
+
+
+def flip_rounds(int64_t[:, :] faces, int64_t[:, :] face_edges, int64_t[:, :] sides, double[:] lengths,
+                double delaunay_tol, Py_ssize_t max_rounds):
+    """Compiled twin of ``intrinsic_delaunay.flip_rounds_numpy``: the same rounds, the same
+    independent sets (smallest (weight, edge id) in both triangles), the same flips in the same
+    order, so the triangulation and the lengths agree bit for bit. Updates the arrays in place;
+    returns (flips, rounds, finished)."""
+    cdef Py_ssize_t n_edges = sides.shape[0], n_faces = faces.shape[0], e, i, n_check = 0, n_candidates, n_marked
+    check_array = np.empty(n_edges, np.int64)
+    candidate_array = np.empty(n_edges, np.int64)
+    weight_array = np.empty(n_edges)
+    chosen_array = np.zeros(n_edges, np.uint8)
+    best_weight_array = np.full(n_faces, np.inf)
+    best_edge_array = np.full(n_faces, -1, np.int64)
+    mark_array = np.zeros(n_edges, np.uint8)
+    marked_array = np.empty(n_edges, np.int64)
+    cdef int64_t[::1] check = check_array, candidate = candidate_array, best_edge = best_edge_array
+    cdef int64_t[::1] marked = marked_array
+    cdef double[::1] weight = weight_array, best_weight = best_weight_array
+    cdef uint8_t[::1] chosen = chosen_array, mark = mark_array
+    cdef int64_t touched[5]
+    cdef int64_t t
+    cdef double w
+    cdef Py_ssize_t flips = 0, rounds = 0
+    cdef int k
+    for e in range(n_edges):
+        if sides[e, 1] >= 0:
+            check[n_check] = e
+            n_check += 1
+    while n_check > 0:
+        if rounds >= max_rounds:
+            return flips, rounds, False
+        n_candidates = 0
+        for i in range(n_check):
+            w = _edge_weight(check[i], sides, face_edges, lengths)
+            if w < -delaunay_tol:
+                candidate[n_candidates] = check[i]
+                weight[n_candidates] = w
+                n_candidates += 1
+        if n_candidates == 0:
+            break
+        rounds += 1
+        flips += _choose(candidate, weight, n_candidates, sides, best_weight, best_edge, chosen)
+        n_marked = 0
+        for i in range(n_candidates):
+            if not chosen[i]:  # checked again next round
+                t = candidate[i]
+                if not mark[t]:
+                    mark[t] = True
+                    marked[n_marked] = t
+                    n_marked += 1
+                continue
+            _flip_edge(candidate[i], faces, face_edges, sides, lengths, touched)
+            for k in range(5):  # the quad's interior edges are checked next round
+                t = touched[k]
+                if sides[t, 1] >= 0 and not mark[t]:
+                    mark[t] = True
+                    marked[n_marked] = t
+                    n_marked += 1
+        check_array[:n_marked] = np.sort(marked_array[:n_marked])
+        n_check = n_marked
+        for i in range(n_marked):
+            mark[marked[i]] = False
+    return flips, rounds, True

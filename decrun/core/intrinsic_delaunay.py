@@ -19,8 +19,8 @@ meshes*) add two things, both implemented here:
   ``border="fixed"`` instead keeps border edges (the classical intrinsic Delaunay
   triangulation of a surface with boundary), where ½ cot α < 0 can remain on a border.
 
-Flips happen in **rounds** (a numba kernel, :func:`_flip_rounds_kernel`, beside its numpy
-twin :func:`flip_rounds_numpy`): every round computes the weights of the edges that
+Flips happen in **rounds** (the compiled ``flip_rounds`` of :mod:`decrun.core.extension`, beside its
+numpy twin :func:`flip_rounds_numpy`): every round computes the weights of the edges that
 may have changed, picks non-Delaunay edges of which no two share a triangle (each one is a
 local minimum of the weight among the non-Delaunay edges of its two triangles), and flips
 all of them at once. The triangulation is a Δ-complex (intrinsic triangulations may have
@@ -39,13 +39,11 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.core import jit
+from decrun.core import extension
 from decrun.errors import DegenerateSimplexError, MeshError, NonManifoldError, OrientationError, UnreferencedVertexError
 
 __all__ = ["IntrinsicTriangulation", "IntrinsicOperators", "intrinsic_delaunay", "intrinsic_delaunay_operators"]
 
-#: under ``auto``, the flip rounds take their kernel from this many faces on (before numba started)
-FLIP_KERNEL_MIN_SIZE = 500_000
 _ROUND_OFF = 1e-12  # cot weights in [-_ROUND_OFF, 0) after flipping are round-off of a zero weight
 _NEXT = np.array([1, 2, 0])
 _PREV = np.array([2, 0, 1])
@@ -316,7 +314,7 @@ def _flip(edges, faces, face_edges, sides, lengths) -> np.ndarray:
 
 def flip_rounds_numpy(faces, face_edges, sides, lengths, delaunay_tol: float, max_rounds: int):
     """Flip rounds until every interior edge has weight ≥ −``delaunay_tol`` (in place): the
-    numpy twin of :func:`_flip_rounds_kernel`. Returns (flips, rounds, finished)."""
+    numpy twin of the compiled ``flip_rounds``. Returns (flips, rounds, finished)."""
     check = np.flatnonzero(sides[:, 1] >= 0)
     flips = rounds = 0
     while check.size:
@@ -336,136 +334,6 @@ def flip_rounds_numpy(faces, face_edges, sides, lengths, delaunay_tol: float, ma
         mark[touched] = True
         mark[candidates[~chosen]] = True
         check = np.flatnonzero(mark)
-    return flips, rounds, True
-
-
-@jit.njit
-def _heron_scalar(x, y, z):
-    """:func:`_heron` for one triangle, the same operations in the same order."""
-    low_xy, high_xy = min(x, y), max(x, y)
-    a = max(high_xy, z)
-    c = min(low_xy, z)
-    b = max(low_xy, min(high_xy, z))
-    product = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c))
-    return 0.25 * np.sqrt(max(product, 0.0))
-
-
-@jit.njit
-def _edge_weight_scalar(e, sides, face_edges, lengths):
-    """:func:`_edge_weights` of one interior edge."""
-    total = 0.0
-    for column in range(2):
-        side = sides[e, column]
-        face, corner = side // 3, side % 3
-        l0, l1, l2 = lengths[face_edges[face, 0]], lengths[face_edges[face, 1]], lengths[face_edges[face, 2]]
-        s0, s1, s2 = l0 * l0, l1 * l1, l2 * l2
-        opposite = s0 if corner == 0 else (s1 if corner == 1 else s2)
-        total += (s0 + s1 + s2 - 2.0 * opposite) / (8.0 * _heron_scalar(l0, l1, l2))
-    return total
-
-
-@jit.njit
-def _flip_rounds_kernel(faces, face_edges, sides, lengths, delaunay_tol, max_rounds):
-    """Compiled twin of :func:`flip_rounds_numpy`: the same rounds, the same independent sets
-    (smallest (weight, edge id) in both triangles), the same flips in the same order, so the
-    triangulation and the lengths agree bit for bit. Returns (flips, rounds, finished)."""
-    following = np.array([1, 2, 0])
-    preceding = np.array([2, 0, 1])
-    n_edges, n_faces = sides.shape[0], faces.shape[0]
-    check = np.empty(n_edges, np.int64)
-    n_check = 0
-    for e in range(n_edges):
-        if sides[e, 1] >= 0:
-            check[n_check] = e
-            n_check += 1
-    candidate = np.empty(n_edges, np.int64)
-    weight = np.empty(n_edges)
-    chosen = np.zeros(n_edges, np.bool_)
-    best_weight = np.full(n_faces, np.inf)
-    best_edge = np.full(n_faces, -1, np.int64)
-    mark = np.zeros(n_edges, np.bool_)
-    marked = np.empty(n_edges, np.int64)
-    outer = np.empty(4, np.int64)
-    old_side = np.empty(4, np.int64)
-    new_side = np.empty(4, np.int64)
-    column = np.empty(4, np.int64)
-    flips = rounds = 0
-    while n_check > 0:
-        if rounds >= max_rounds:
-            return flips, rounds, False
-        n_candidates = 0
-        for i in range(n_check):
-            w = _edge_weight_scalar(check[i], sides, face_edges, lengths)
-            if w < -delaunay_tol:
-                candidate[n_candidates] = check[i]
-                weight[n_candidates] = w
-                n_candidates += 1
-        if n_candidates == 0:
-            break
-        rounds += 1
-        for i in range(n_candidates):  # the smallest (weight, edge) of each triangle
-            e, w = candidate[i], weight[i]
-            for f in (sides[e, 0] // 3, sides[e, 1] // 3):
-                if w < best_weight[f] or (w == best_weight[f] and e < best_edge[f]):
-                    best_weight[f], best_edge[f] = w, e
-        for i in range(n_candidates):
-            e = candidate[i]
-            f0, f1 = sides[e, 0] // 3, sides[e, 1] // 3
-            chosen[i] = best_edge[f0] == e and best_edge[f1] == e and f0 != f1
-        for i in range(n_candidates):
-            e = candidate[i]
-            for f in (sides[e, 0] // 3, sides[e, 1] // 3):
-                best_weight[f], best_edge[f] = np.inf, -1
-        n_marked = 0
-        for i in range(n_candidates):
-            e = candidate[i]
-            if not chosen[i]:
-                if not mark[e]:
-                    mark[e] = True
-                    marked[n_marked] = e
-                    n_marked += 1
-                continue
-            flips += 1
-            h1, h2 = sides[e, 0], sides[e, 1]
-            f, a = h1 // 3, h1 % 3
-            g, b = h2 // 3, h2 % 3
-            x, p, q = faces[f, a], faces[f, following[a]], faces[f, preceding[a]]
-            y = faces[g, b]
-            e_xq, e_xp = face_edges[f, following[a]], face_edges[f, preceding[a]]
-            e_py, e_yq = face_edges[g, following[b]], face_edges[g, preceding[b]]
-            l_pq, l_xp, l_xq, l_py, l_yq = lengths[e], lengths[e_xp], lengths[e_xq], lengths[e_py], lengths[e_yq]
-            area_f = _heron_scalar(l_pq, l_xq, l_xp)
-            area_g = _heron_scalar(l_pq, l_yq, l_py)
-            cos_f = (l_xp * l_xp + l_pq * l_pq - l_xq * l_xq) / (2 * l_xp * l_pq)
-            cos_g = (l_py * l_py + l_pq * l_pq - l_yq * l_yq) / (2 * l_py * l_pq)
-            sin_f = 2 * area_f / (l_xp * l_pq)
-            sin_g = 2 * area_g / (l_py * l_pq)
-            cos_sum = cos_f * cos_g - sin_f * sin_g
-            new_length = np.sqrt(max(l_xp * l_xp + l_py * l_py - 2 * l_xp * l_py * cos_sum, 0.0))
-            outer[0], old_side[0], new_side[0] = e_py, 3 * g + following[b], 3 * f + 0
-            outer[1], old_side[1], new_side[1] = e_xp, 3 * f + preceding[a], 3 * f + 2
-            outer[2], old_side[2], new_side[2] = e_xq, 3 * f + following[a], 3 * g + 0
-            outer[3], old_side[3], new_side[3] = e_yq, 3 * g + preceding[b], 3 * g + 2
-            for k in range(4):  # read every column before writing any (as the vectorized flip)
-                column[k] = 0 if sides[outer[k], 0] == old_side[k] else 1
-            faces[f, 0], faces[f, 1], faces[f, 2] = x, p, y
-            faces[g, 0], faces[g, 1], faces[g, 2] = y, q, x
-            face_edges[f, 0], face_edges[f, 1], face_edges[f, 2] = e_py, e, e_xp
-            face_edges[g, 0], face_edges[g, 1], face_edges[g, 2] = e_xq, e, e_yq
-            for k in range(4):
-                sides[outer[k], column[k]] = new_side[k]
-            sides[e, 0] = 3 * f + 1
-            sides[e, 1] = 3 * g + 1
-            lengths[e] = new_length
-            for t in (e, e_xp, e_xq, e_py, e_yq):
-                if sides[t, 1] >= 0 and not mark[t]:
-                    mark[t] = True
-                    marked[n_marked] = t
-                    n_marked += 1
-        check[:n_marked] = np.sort(marked[:n_marked])
-        n_check = n_marked
-        for i in range(n_marked):
-            mark[marked[i]] = False
     return flips, rounds, True
 
 
@@ -523,8 +391,8 @@ def intrinsic_delaunay(vertices, faces, mollify: float = 0.0, border: str = "tuf
         raise DegenerateSimplexError(
             f"triangles {bad[:8].tolist()} have zero area in their edge lengths (pass mollify > 0, e.g. 1e-5)")
 
-    # the flip rounds' own threshold (rounds of numpy passes against one kernel pass)
-    flip_rounds = _flip_rounds_kernel if jit.enabled(faces.shape[0], min_size=FLIP_KERNEL_MIN_SIZE) else flip_rounds_numpy
+    compiled = extension.kernels()
+    flip_rounds = compiled.flip_rounds if compiled is not None else flip_rounds_numpy
     flips, rounds, finished = flip_rounds(faces, face_edges, sides, lengths, float(delaunay_tol), int(max_rounds))
     if not finished:
         raise RuntimeError(f"intrinsic Delaunay flipping did not finish in {max_rounds} rounds")

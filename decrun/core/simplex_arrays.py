@@ -12,7 +12,7 @@ from math import factorial
 
 import numpy as np
 
-from decrun.core import jit
+from decrun.core import extension
 
 __all__ = ["unique_rows", "group_rows", "group_rows_numpy", "FaceRows", "sort_rows", "inversion_parity", "simplex_volumes", "vertex_volumes",
            "vertex_volumes_numpy",
@@ -45,8 +45,8 @@ def group_rows(rows: "np.ndarray | FaceRows"):
     if not isinstance(rows, FaceRows):
         rows = FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
     bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
-    if rows.shape[0] and bits * rows.shape[1] <= 62 and _group_packed_kernel.runs(rows.shape[0]):
-        return _group_packed_kernel(np.ascontiguousarray(rows.top, dtype=np.int64), rows.column_table(), bits)
+    if rows.shape[0] and bits * rows.shape[1] <= 62 and (compiled := extension.kernels()) is not None:
+        return compiled.group_packed(np.ascontiguousarray(rows.top, dtype=np.int64), rows.column_table(), bits)
     return group_rows_numpy(rows)
 
 
@@ -103,136 +103,6 @@ def group_rows_numpy(rows: "FaceRows"):
 
 
 _SMALL_BUCKET = 32  # buckets up to this size are insertion-sorted, larger ones merge-sorted
-
-
-@jit.njit
-def _group_packed_kernel(top, columns, bits):
-    """Compiled twin of :func:`group_rows_numpy` for rows ``top[t, columns[s]]`` (t major).
-
-    The rows' packed keys are ordered by a stable counting sort on the leading entry (a
-    vertex index, bounded by the vertex count) and a stable sort of each bucket by the
-    key: the same ``order`` as numpy's stable argsort, in O(rows) for meshes.
-    """
-    m = top.shape[0]
-    slots, width = columns.shape
-    total = m * slots
-    key = np.empty(total, np.int64)
-    largest = 0
-    for t in range(m):
-        for s in range(slots):
-            k = np.int64(0)
-            for q in range(width):
-                k = (k << bits) | top[t, columns[s, q]]
-            key[t * slots + s] = k
-            lead = top[t, columns[s, 0]]
-            if lead > largest:
-                largest = lead
-    shift = bits * (width - 1)
-    count = np.zeros(largest + 2, np.int64)
-    for i in range(total):
-        count[(key[i] >> shift) + 1] += 1
-    for v in range(largest + 1):
-        count[v + 1] += count[v]
-    position = count[:-1].copy()
-    order = np.empty(total, np.int64)
-    sorted_key = np.empty(total, np.int64)  # keys in ``order``: the bucket sorts read them contiguously
-    for i in range(total):
-        lead = key[i] >> shift
-        order[position[lead]] = i
-        sorted_key[position[lead]] = key[i]
-        position[lead] += 1
-    for v in range(largest + 1):
-        low, high = count[v], count[v + 1]
-        if high - low <= 1:
-            continue
-        if high - low <= _SMALL_BUCKET:
-            for a in range(low + 1, high):  # stable insertion sort by key
-                item = order[a]
-                item_key = sorted_key[a]
-                b = a - 1
-                while b >= low and sorted_key[b] > item_key:
-                    order[b + 1] = order[b]
-                    sorted_key[b + 1] = sorted_key[b]
-                    b -= 1
-                order[b + 1] = item
-                sorted_key[b + 1] = item_key
-        else:
-            rank = np.argsort(sorted_key[low:high], kind="mergesort")
-            bucket = order[low:high][rank]
-            bucket_key = sorted_key[low:high][rank]
-            order[low:high] = bucket
-            sorted_key[low:high] = bucket_key
-    groups = 0
-    for a in range(total):
-        if a == 0 or sorted_key[a] != sorted_key[a - 1]:
-            groups += 1
-    unique = np.empty((groups, width), np.int64)
-    inverse = np.empty(total, np.int64)
-    starts = np.empty(groups + 1, np.int64)
-    g = -1
-    mask = (np.int64(1) << bits) - 1
-    for a in range(total):
-        k = sorted_key[a]
-        if a == 0 or k != sorted_key[a - 1]:
-            g += 1
-            starts[g] = a
-            packed = k
-            for q in range(width - 1, -1, -1):
-                unique[g, q] = packed & mask
-                packed >>= bits
-        inverse[order[a]] = g
-    starts[groups] = total
-    return unique, inverse, order, starts
-
-
-@jit.njit
-def _facet_pairs_kernel(order, starts, top, index_like):
-    """One pass over the facet groups (``order``/``starts`` of the grouped facet slots
-    ``(n+1)·t + c`` of the (m, n+1) sorted ``top``): the pairs of
-    :func:`decrun.core.complex.checks.facet_pairs_numpy` (the facets in exactly two top simplices,
-    int64; their simplices and slots of ``index_like``'s type) and the duplicate suspicion (two of
-    them with the same vertex opposite their shared facet)."""
-    width = top.shape[1]
-    n = width - 1
-    groups = starts.shape[0] - 1
-    count = 0
-    for g in range(groups):
-        if starts[g + 1] - starts[g] == 2:
-            count += 1
-    interior = np.empty(count, np.int64)
-    first = np.empty(count, index_like.dtype)
-    second = np.empty(count, index_like.dtype)
-    first_slot = np.empty(count, index_like.dtype)
-    second_slot = np.empty(count, index_like.dtype)
-    suspect = False
-    p = 0
-    for g in range(groups):
-        if starts[g + 1] - starts[g] != 2:
-            continue
-        a, b = order[starts[g]], order[starts[g] + 1]
-        interior[p] = g
-        first[p], first_slot[p] = a // width, a % width
-        second[p], second_slot[p] = b // width, b % width
-        if top[first[p], n - first_slot[p]] == top[second[p], n - second_slot[p]]:
-            suspect = True
-        p += 1
-    return (interior, first, second, first_slot, second_slot), suspect
-
-
-@jit.njit
-def _facet_groups_kernel(top, columns, bits, index_like):
-    """:func:`_group_packed_kernel` on the facet slots, then :func:`_facet_pairs_kernel` on its
-    groups: ((unique, inverse, order, starts), pairs, suspect).
-    One call, so that the extension's twin can do both in one counting sort."""
-    unique, inverse, order, starts = _group_kernel_for_facets(top, columns, bits)
-    pairs, suspect = _pairs_for_groups(order, starts, top, index_like)
-    return (unique, inverse, order, starts), pairs, suspect
-
-
-# the names _facet_groups_kernel calls: numba swaps them for the dispatchers when it compiles it,
-# while the kernels' own names stay lazy kernels (the callers above and in complex.checks ask them)
-_group_kernel_for_facets = _group_packed_kernel
-_pairs_for_groups = _facet_pairs_kernel
 
 
 class FaceRows:
@@ -296,10 +166,10 @@ def sort_rows(rows: np.ndarray) -> np.ndarray:
 def sorted_rows_and_parity(rows: np.ndarray, n_vertices: int = 0):
     """(sorted rows (m, c) int64, inversion parity (m,) int8, smallest entry, largest entry,
     whether a sorted row repeats an entry, used (n_vertices,) bool: which of 0..n_vertices-1 the
-    rows hold) in one pass: the compiled :func:`_sorted_rows_kernel`, or its numpy twins
+    rows hold) in one pass: the compiled ``sorted_rows`` (:mod:`decrun.core.extension`), or its numpy twins
     :func:`sort_rows` and :func:`inversion_parity`."""
-    if _sorted_rows_kernel.runs(rows.shape[0]):
-        return _sorted_rows_kernel(np.asarray(rows, dtype=np.int64), n_vertices)  # any layout: not copied
+    if (compiled := extension.kernels()) is not None:
+        return compiled.sorted_rows(np.asarray(rows, dtype=np.int64), n_vertices)  # any layout: not copied
     rows = np.asarray(rows, dtype=np.int64)
     if rows.shape[1] == 3 and rows.shape[0]:  # triangles: a min/max network on the three columns
         a, b, c = rows[:, 0], rows[:, 1], rows[:, 2]
@@ -324,48 +194,13 @@ def sorted_rows_and_parity(rows: np.ndarray, n_vertices: int = 0):
 
 def _used(ordered: np.ndarray, smallest: int, largest: int, n_vertices: int) -> np.ndarray:
     """(n_vertices,) bool: the entries of ``ordered`` within 0..n_vertices-1 (the numpy twin of
-    :func:`_sorted_rows_kernel`'s last result)."""
+    the compiled ``sorted_rows``' last result)."""
     used = np.zeros(max(n_vertices, 0), dtype=bool)
     entries = ordered.ravel()
     if smallest < 0 or largest >= n_vertices:  # entries out of range (the input check names them)
         entries = entries[(entries >= 0) & (entries < n_vertices)]
     used[entries] = True
     return used
-
-
-@jit.njit
-def _sorted_rows_kernel(rows, n_vertices):
-    """Insertion sort of each row; its shift count is the row's inversion count (§2.3.3); and
-    which of the vertices 0..n_vertices-1 the rows hold, marked as the sorted entries are written."""
-    m, c = rows.shape
-    ordered = np.empty((m, c), np.int64)
-    parity = np.empty(m, np.int8)
-    used = np.zeros(max(n_vertices, 0), np.bool_)
-    smallest = rows[0, 0]
-    largest = rows[0, 0]
-    repeated = False
-    for t in range(m):
-        shifts = 0
-        for a in range(c):
-            value = rows[t, a]
-            b = a - 1
-            while b >= 0 and ordered[t, b] > value:
-                ordered[t, b + 1] = ordered[t, b]
-                b -= 1
-                shifts += 1
-            ordered[t, b + 1] = value
-        parity[t] = 1 if shifts % 2 == 0 else -1
-        if ordered[t, 0] < smallest:
-            smallest = ordered[t, 0]
-        if ordered[t, c - 1] > largest:
-            largest = ordered[t, c - 1]
-        for a in range(1, c):
-            if ordered[t, a] == ordered[t, a - 1]:
-                repeated = True
-        for a in range(c):
-            if 0 <= ordered[t, a] < n_vertices:
-                used[ordered[t, a]] = True
-    return ordered, parity, smallest, largest, repeated, used
 
 
 def inversion_parity(tuples: np.ndarray) -> np.ndarray:
@@ -442,12 +277,12 @@ def _small_simplex_volumes(corners: list) -> np.ndarray:
 def vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     """(m,) volumes of the simplices (m, j+1) of vertex indices into ``vertices`` (n0, d).
 
-    Edges and triangles in 2-D/3-D take the compiled :func:`_small_volumes_kernel`, whose
+    Edges and triangles in 2-D/3-D take the compiled ``small_volumes``, whose
     twin is :func:`vertex_volumes_numpy`; the rest :func:`simplex_volumes`.
     """
     if simplices.shape[1] in (2, 3) and vertices.shape[1] in (2, 3):
-        if _small_volumes_kernel.runs(simplices.shape[0]):
-            return _small_volumes_kernel(np.asarray(vertices, dtype=np.float64),  # any layout: not copied
+        if (compiled := extension.kernels()) is not None:
+            return compiled.small_volumes(np.asarray(vertices, dtype=np.float64),  # any layout: not copied
                                          np.ascontiguousarray(simplices, dtype=np.int64))
         return vertex_volumes_numpy(vertices, simplices)
     return simplex_volumes(vertices[simplices])
@@ -456,43 +291,6 @@ def vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
 def vertex_volumes_numpy(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     """The numpy twin of :func:`vertex_volumes` for edges and triangles in 2-D/3-D."""
     return _small_simplex_volumes(_CornerCoordinates(vertices, simplices))
-
-
-@jit.njit
-def _small_volumes_kernel(points, simplices):
-    """Lengths of edges / areas of triangles with the arithmetic of :func:`_small_simplex_volumes`
-    in the same order (bit-for-bit equal): ``points`` (n0, d) coordinates in any layout (C order keeps
-    a vertex's in one cache line for the simplices' random gathers), ``simplices`` (m, 2|3)."""
-    m, corners = simplices.shape
-    d = points.shape[1]
-    out = np.empty(m)
-    for t in range(m):
-        p = simplices[t, 0]
-        q = simplices[t, 1]
-        if corners == 2:
-            total = 0.0
-            for axis in range(d):
-                diff = points[q, axis] - points[p, axis]
-                total = total + diff * diff
-            out[t] = np.sqrt(total)
-            continue
-        r = simplices[t, 2]
-        if d == 2:
-            u0, u1 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1]
-            v0, v1 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1]
-            out[t] = 0.5 * abs(u0 * v1 - u1 * v0)
-            continue
-        u0, u1, u2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
-        v0, v1, v2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
-        total = 0.0
-        component = u1 * v2 - u2 * v1
-        total += component * component
-        component = u2 * v0 - u0 * v2
-        total += component * component
-        component = u0 * v1 - u1 * v0
-        total += component * component
-        out[t] = np.sqrt(total) * 0.5
-    return out
 
 
 class _CornerCoordinates:

@@ -1,6 +1,7 @@
-"""The compiled extension ``decrun.core._kernels``: its twins of the numba kernels equal the numpy
-twins bit for bit, ``auto`` runs them at every size, and a fresh process builds a complex and its
-operators through them without starting numba.
+"""The compiled extension ``decrun.core._kernels`` (:mod:`decrun.core.extension`): the complex and
+its operators built through it equal the numpy twins' bit for bit, ``auto`` and ``numba`` run it at
+every size, ``numpy`` never, and a fresh process builds a complex and its operators through it
+without importing numba.
 
 The extension is optional (an install without a C compiler leaves it out): these tests skip
 without it, except under ``CI=true``, where the install must have built it.
@@ -8,7 +9,6 @@ without it, except under ``CI=true``, where the install must have built it.
 
 from __future__ import annotations
 
-import inspect
 import os
 import subprocess
 import sys
@@ -16,14 +16,13 @@ import sys
 import numpy as np
 import pytest
 
-from decrun.core import jit
+from decrun.core import extension, jit
 from decrun.core.complex import SimplicialComplex
-from decrun.core.jit import kernels
 from decrun.core.simplex_arrays import FaceRows, group_rows, group_rows_numpy, sort_rows, sorted_rows_and_parity
 from decrun.errors import NonManifoldError
 from tests.core.test_kernels import MESHES, REJECTED, _assert_same, _everything
 
-BUILT = bool(kernels.extension_twins())
+BUILT = extension.built() is not None
 needs_extension = pytest.mark.skipif(not BUILT, reason="the compiled extension is not built (no C compiler at install)")
 
 
@@ -39,31 +38,24 @@ def test_the_install_built_the_extension_where_ci_requires_it():
     assert _kernels.__file__.endswith(tuple(EXTENSION_SUFFIXES))  # machine code, not a Python module
 
 
-@needs_extension
-def test_every_twin_takes_its_kernels_arguments():
-    import decrun.core.dec  # noqa: F401  (imports every module whose kernels have twins)
-
-    lazy = {kernel.name: kernel for kernel in jit.KERNELS}
-    twins = kernels.extension_twins()
-    assert len(twins) == 10
-    for name, twin in twins.items():
-        assert name in lazy, f"{name} is no kernel"
-        assert list(inspect.signature(twin).parameters) == list(inspect.signature(lazy[name].function).parameters)
-
-
 @pytest.fixture
 def counted(monkeypatch):
-    """{kernel name: calls of its twin}, the twins wrapped to count (auto, DECRUN_NUMBA unset)."""
+    """{kernel name: calls}, the extension's kernels wrapped to count (auto, DECRUN_NUMBA unset)."""
     monkeypatch.delenv("DECRUN_NUMBA", raising=False)
     calls: dict = {}
+    module = extension.built()
 
-    def wrap(name, twin):
-        def counting(*args):
-            calls[name] = calls.get(name, 0) + 1
-            return twin(*args)
-        return counting
+    class Counting:
+        def __getattr__(self, name):
+            kernel = getattr(module, name)
 
-    monkeypatch.setattr(kernels, "_twins", {name: wrap(name, twin) for name, twin in kernels.extension_twins().items()})
+            def counting(*args):
+                calls[name] = calls.get(name, 0) + 1
+                return kernel(*args)
+            return counting
+
+    monkeypatch.setattr(extension, "_module", Counting() if module is not None else None)
+    monkeypatch.setattr(extension, "_searched", True)
     return calls
 
 
@@ -86,21 +78,19 @@ def test_auto_runs_every_twin_on_a_triangle_mesh_at_any_size(counted):
     fans are counted per vertex only where the fans around all vertices outnumber them (a pinched
     vertex to name); the fan roots' twin tests the orientation too, so the orientation's own twin
     runs where the stars are not checked (a curve)."""
-    fused_into = {"decrun.core.simplex_arrays._group_packed_kernel", "decrun.core.simplex_arrays._facet_pairs_kernel"}
-    vertices, simplices = MESHES["annulus"]()  # a few hundred triangles: far below numba's MIN_SIZE
+    vertices, simplices = MESHES["annulus"]()  # a few hundred triangles
     with jit.use("auto"):
         _everything(vertices, simplices)
-    answered_elsewhere = {"decrun.core.complex.checks._fans_kernel", "decrun.core.complex.checks._consistent_kernel"}
-    assert set(counted) == set(kernels.extension_twins()) - fused_into - answered_elsewhere
+    assert set(counted) == {"sorted_rows", "facet_groups", "fan_roots", "small_volumes", "triangle_dual", "incidence"}
     with jit.use("auto"):
         _everything(*MESHES["polyline"]())
-    assert "decrun.core.complex.checks._consistent_kernel" in counted
+    assert "consistent" in counted
     with jit.use("auto"), pytest.raises(NonManifoldError, match="vertex 0"):
         SimplicialComplex(*REJECTED["bowtie"])
-    assert counted["decrun.core.complex.checks._fans_kernel"] == 1
+    assert counted["fans"] == 1
     with jit.use("auto"):
         _everything(*MESHES["kuhn cube"]())
-    assert "decrun.core.simplex_arrays._group_packed_kernel" in counted
+    assert "group_packed" in counted
 
 
 @needs_extension
@@ -135,8 +125,8 @@ def test_group_rows_and_row_sorting_twins_on_wide_buckets_and_repeats(counted):
     with jit.use("numpy"):
         _assert_same(compiled, sorted_rows_and_parity(wide, 8))
     assert compiled[5].tolist() == [True] * 6 + [False] * 2
-    assert counted["decrun.core.simplex_arrays._group_packed_kernel"] == 2
-    assert counted["decrun.core.simplex_arrays._sorted_rows_kernel"] == 1
+    assert counted["group_packed"] == 2
+    assert counted["sorted_rows"] == 1
 
 
 @needs_extension
@@ -187,23 +177,27 @@ def test_the_fused_triangle_edge_groups_and_pairs_equal_the_numpy_twins():
     assert suspicions[-3:-1] == [False, True]  # a closed sphere has no duplicate; a triangle twice (beside it) is suspected
 
 
-def test_without_the_extension_auto_keeps_numbas_size_rule(monkeypatch):
-    from decrun.core.complex import checks
-
-    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
-    monkeypatch.setattr(kernels, "_twins", {})
-    monkeypatch.setattr(jit.switch, "_started", False)
-    monkeypatch.setattr(jit.switch, "_numpy_items", 0)
-    assert not checks._fans_kernel.runs(jit.MIN_SIZE - 1) and checks._fans_kernel.runs(jit.MIN_SIZE)
+def test_without_the_extension_the_numpy_twins_build_the_same(monkeypatch):
+    """An install without a C compiler: every switch value builds with the numpy twins, numba unused."""
+    vertices, simplices = MESHES["annulus"]()
+    with jit.use("numpy"):
+        reference = _everything(vertices, simplices)
+    monkeypatch.setattr(extension, "_searched", True)
+    monkeypatch.setattr(extension, "_module", None)
+    for mode in ("auto", "numba"):
+        with jit.use(mode):
+            _assert_same(_everything(vertices, simplices), reference)
 
 
 @needs_extension
-def test_numba_and_numpy_modes_do_not_run_the_twins(counted):
+def test_numpy_mode_does_not_run_the_extension_and_numba_mode_does(counted):
     vertices, simplices = MESHES["icosphere"]()
-    for mode in ("numba", "numpy"):
-        with jit.use(mode):
-            _everything(vertices, simplices)
+    with jit.use("numpy"):
+        _everything(vertices, simplices)
     assert not counted
+    with jit.use("numba"):
+        _everything(vertices, simplices)
+    assert counted
 
 
 @needs_extension

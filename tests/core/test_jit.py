@@ -1,9 +1,9 @@
 """The one kernel switch (decrun/core/jit/): ``app.kernels`` and ``DECRUN_NUMBA`` reach every
-compiled kernel, the fluid's and the core's.
+compiled kernel, the fluid's numba kernels and the core's compiled extension.
 
-``numpy`` never imports numba (so no kernel can run); ``numba`` runs every kernel on the path of
-a fluid run through the CLI (each kernel's numba dispatcher holds a compiled or cache-loaded
-signature); both runs give the same numbers.
+``numpy`` never imports numba (so no kernel can run); ``numba`` runs every numba kernel on the path
+of a fluid run through the CLI (each kernel's numba dispatcher holds a compiled or cache-loaded
+signature); both runs give the same numbers. The core has no numba kernel.
 """
 
 from __future__ import annotations
@@ -18,63 +18,26 @@ from pathlib import Path
 import pytest
 
 from decrun.core import jit
-from decrun.core.jit import kernels, switch
+from decrun.core.jit import kernels
 from decrun.errors import ConfigError
 
 
-def test_the_switch_app_kernels_over_decrun_numba_over_sizes(monkeypatch):
+def test_the_switch_app_kernels_over_decrun_numba(monkeypatch):
     monkeypatch.delenv("DECRUN_NUMBA", raising=False)
-    assert jit.mode() == "auto"
-    assert not jit.enabled(10) and jit.enabled(jit.MIN_SIZE) and jit.enabled(10, min_size=0)
+    assert jit.mode() == "auto" and jit.enabled()
     for value, expected in [("1", "numba"), ("numba", "numba"), ("0", "numpy"), ("numpy", "numpy"),
                             ("auto", "auto"), ("", "auto")]:
         monkeypatch.setenv("DECRUN_NUMBA", value)
         assert jit.mode() == expected
     monkeypatch.setenv("DECRUN_NUMBA", "numba")
-    assert jit.enabled(1) and not jit.enabled(1, kernels="numpy")  # a caller's own setting wins
+    assert jit.enabled() and not jit.enabled("numpy")  # a caller's own setting wins
     with jit.use("numpy"):
-        assert jit.mode() == "numpy" and not jit.enabled(10**9, min_size=0)
+        assert jit.mode() == "numpy" and not jit.enabled()
         with jit.use("auto"):  # auto defers to the enclosing setting
             assert jit.mode() == "numpy"
     with jit.use("auto"):  # ... and to DECRUN_NUMBA
         assert jit.mode() == "numba"
     assert jit.mode() == "numba"
-
-
-def test_auto_takes_the_kernels_below_min_size_once_numba_started_or_its_start_is_amortized(monkeypatch):
-    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
-    monkeypatch.setattr(switch, "_started", False)
-    monkeypatch.setattr(switch, "_numpy_items", 0)
-    middle = jit.WARM_MIN_SIZE * 5  # below MIN_SIZE: a fresh process keeps to numpy
-    assert middle < jit.MIN_SIZE and not jit.enabled(middle)
-    # rent until the rent paid reaches the price: the refused numpy work adds up to AMORTIZE_SIZE
-    calls = 2  # the one above and the one that returns True
-    while not jit.enabled(middle):
-        calls += 1
-    assert calls * middle >= jit.AMORTIZE_SIZE > (calls - 1) * middle  # the call that reaches it takes the kernels
-    assert jit.enabled(middle)
-    assert not jit.enabled(jit.WARM_MIN_SIZE - 1)  # tiny inputs stay numpy: their tally is never counted
-    monkeypatch.setattr(switch, "_numpy_items", 0)
-    jit.enabled(jit.WARM_MIN_SIZE - 1)
-    assert switch._numpy_items == 0
-    monkeypatch.setattr(switch, "_started", True)
-    assert jit.enabled(jit.WARM_MIN_SIZE) and not jit.enabled(jit.WARM_MIN_SIZE - 1)
-    assert jit.enabled(5, min_size=0)  # a caller's smaller min_size still holds
-    with jit.use("numpy"):  # the switch still wins
-        assert not jit.enabled(jit.MIN_SIZE)
-
-
-def test_a_process_is_started_by_its_first_kernel_call_and_then_takes_kernels_from_warm_min_size():
-    """In a fresh process: auto keeps a 50k-item input on numpy; one complex built with the kernels
-    (a small one, app.kernels=numba) starts numba, and from then on auto takes them."""
-    code = ("from decrun.core import jit; from decrun.core.complex import SimplicialComplex; "
-            "from decrun.core.primitives import grid_triangles; size = 5 * jit.WARM_MIN_SIZE; "
-            "before = (jit.started(), jit.enabled(size)); V, F = grid_triangles(3, 3)\n"
-            "with jit.use('numba'): SimplicialComplex(V, F)\n"
-            "print(before, (jit.started(), jit.enabled(size), jit.enabled(jit.WARM_MIN_SIZE - 1)))")
-    env = {k: v for k, v in os.environ.items() if k != "DECRUN_NUMBA"}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
-    assert out.stdout.split("\n")[0] == "(False, False) (True, True, False)"
 
 
 def test_bad_switch_values_are_refused_with_the_fix(monkeypatch):
@@ -107,26 +70,16 @@ print(json.dumps({"numba": "numba" in sys.modules, "used": sorted(k.name for k i
 RUN = ("app=fluid", "mesh=channel", "mesh.target_faces=300", "app.inflow=[1.0,0.0]", "app.steps=3",
        "app.animation=false", "figures=false", "progress=false")
 
-#: kernels a fluid run on a planar channel does not reach (another star, other dimensions)
-OFF_PATH = {"decrun.core.intrinsic_delaunay"}
 #: the default (swept) rule sums the circulation of its border cells only (circulation_rows); every
-#: cell's (circulation_sums) is the trapezoid rules' (tests/methods/test_fluid_kernels.py); the fans
-#: are counted per vertex only to name a pinched vertex (a good mesh's fans are counted all together)
-OFF_PATH_KERNELS = {"decrun.methods.fluid.compiled.circulation_sums", "decrun.core.complex.checks._fans_kernel"}
-
-
-#: kernels a triangle mesh runs inside another kernel's machine code only: the facet kernel groups and
-#: pairs the edges with them, the fan kernels unite the corners with the helper, and the fan roots'
-#: kernel tests the orientation with the consistency kernel
-INSIDE_OTHERS = {"decrun.core.simplex_arrays._group_packed_kernel", "decrun.core.simplex_arrays._facet_pairs_kernel",
-                 "decrun.core.complex.checks._united_corners", "decrun.core.complex.checks._consistent_kernel"}
+#: cell's (circulation_sums) is the trapezoid rules' (tests/methods/test_fluid_kernels.py)
+OFF_PATH_KERNELS = {"decrun.methods.fluid.compiled.circulation_sums"}
 
 
 def helper(name: str) -> bool:
-    """The fluid's ``_helper`` kernels (and :data:`INSIDE_OTHERS`) run inside the entry kernels' machine
-    code (loaded from the cache with them), so they hold no signature of their own."""
+    """The fluid's ``_helper`` kernels run inside the entry kernels' machine code (loaded from the
+    cache with them), so they hold no signature of their own."""
     module, function = name.rsplit(".", 1)
-    return (module == "decrun.methods.fluid.compiled" and function.startswith("_")) or name in INSIDE_OTHERS
+    return module == "decrun.methods.fluid.compiled" and function.startswith("_")
 
 
 def probe(tmp_path, *args, env=None):
@@ -143,11 +96,10 @@ def test_numpy_runs_no_kernel_numba_runs_all_and_they_agree(tmp_path):
     numpy = probe(tmp_path, "app.kernels=numpy")
     assert not numpy["numba"] and numpy["used"] == []  # numba never imported: no kernel ran
     numba = probe(tmp_path, "app.kernels=numba")
-    on_path = [name for name in numba["all"] if name.rsplit(".", 1)[0] not in OFF_PATH and not helper(name)
-               and name not in OFF_PATH_KERNELS]
+    on_path = [name for name in numba["all"] if not helper(name) and name not in OFF_PATH_KERNELS]
     assert numba["numba"] and [n for n in numba["used"] if not helper(n)] == on_path  # every kernel on the path ran
     assert any(name.startswith("decrun.methods.fluid.compiled.") for name in on_path)
-    assert any(name.startswith("decrun.core.") for name in on_path)  # the core's too (complex, stars)
+    assert not any(name.startswith("decrun.core.") for name in numba["all"])  # the core's are the extension's
     env = probe(tmp_path, "app.kernels=auto", env={"DECRUN_NUMBA": "0"})  # the environment reaches the fluid too
     assert not env["numba"] and env["used"] == []
     for key in ("kinetic_energy_final", "enstrophy_final", "max_abs_divergence", "stable"):

@@ -1,4 +1,6 @@
-"""Every numba kernel equals its numpy twin (``DECRUN_NUMBA=0``), bit for bit.
+"""Every kernel of the compiled extension (:mod:`decrun.core.extension`) equals its numpy twin
+(``DECRUN_NUMBA=0``), bit for bit, kernel by kernel (the whole complex and its operators:
+``tests/core/test_extension.py``).
 
 The kernels repeat the twins' arithmetic in the same order, so floats are compared with
 ``array_equal``, not a tolerance. Meshes: closed and bordered surfaces, planar (2-D) and
@@ -14,7 +16,7 @@ import numpy as np
 import pytest
 
 from decrun import errors
-from decrun.core import jit
+from decrun.core import extension, jit
 from decrun.core.complex import SimplicialComplex, checks
 from decrun.core.complex.construction import enumerate_faces
 from decrun.core.dec import DEC
@@ -57,9 +59,13 @@ MESHES = {
 }
 
 
+needs_extension = pytest.mark.skipif(extension.built() is None,
+                                     reason="the compiled extension is not built (no C compiler at install)")
+
+
 def _both(monkeypatch, build):
-    """(result with kernels, result with the numpy twins)."""
-    monkeypatch.setenv("DECRUN_NUMBA", "1")  # the kernels even on these small meshes
+    """(result with the compiled kernels, result with the numpy twins)."""
+    monkeypatch.setenv("DECRUN_NUMBA", "1")
     compiled = build()
     monkeypatch.setenv("DECRUN_NUMBA", "0")
     reference = build()
@@ -97,13 +103,6 @@ def _everything(vertices, simplices):
     return out
 
 
-@pytest.mark.parametrize("name", MESHES)
-def test_complex_and_operators_equal_the_numpy_twins(name, monkeypatch):
-    vertices, simplices = MESHES[name]()
-    compiled, reference = _both(monkeypatch, lambda: _everything(vertices, simplices))
-    _assert_same(compiled, reference)
-
-
 REJECTED = {
     "index out of range": (np.eye(3), [[0, 1, 2], [0, 2, 7]]),
     "repeated vertex": (np.eye(3), [[0, 1, 2], [0, 2, 2]]),
@@ -117,21 +116,7 @@ REJECTED = {
 }
 
 
-@pytest.mark.parametrize("name", REJECTED)
-def test_rejected_inputs_fail_the_same_way(name, monkeypatch):
-    vertices, simplices = REJECTED[name]
-
-    def attempt():
-        try:
-            SimplicialComplex(vertices, np.array(simplices))
-        except errors.MeshError as exc:
-            return type(exc).__name__, str(exc)
-        return None
-
-    compiled, reference = _both(monkeypatch, attempt)
-    assert compiled is not None and compiled == reference
-
-
+@needs_extension
 def test_group_rows_kernel_on_wide_buckets_and_duplicates(monkeypatch):
     rng = np.random.default_rng(3)
     # a fan: vertex 0 leads 300 rows (the merge-sorted bucket), plus many duplicates
@@ -142,6 +127,7 @@ def test_group_rows_kernel_on_wide_buckets_and_duplicates(monkeypatch):
         _assert_same(group_rows(table), group_rows_numpy(table))
 
 
+@needs_extension
 def test_sorted_rows_and_parity_kernel(monkeypatch):
     rng = np.random.default_rng(4)
     rows = rng.integers(0, 6, (3000, 4))  # repeats and every permutation
@@ -153,6 +139,7 @@ def test_sorted_rows_and_parity_kernel(monkeypatch):
         assert np.array_equal(np.flatnonzero(compiled[5]), np.unique(inside))  # the used vertices
 
 
+@needs_extension
 @pytest.mark.parametrize("dimension", [2, 3])
 def test_volume_kernel(dimension, monkeypatch):
     monkeypatch.setenv("DECRUN_NUMBA", "1")
@@ -163,6 +150,7 @@ def test_volume_kernel(dimension, monkeypatch):
         _assert_same(vertex_volumes(vertices, simplices), vertex_volumes_numpy(vertices, simplices))
 
 
+@needs_extension
 @pytest.mark.parametrize("name", ["icosphere", "planar with holes", "random planar (obtuse)"])
 def test_edge_lengths_found_by_the_dual_volume_kernel_equal_the_numpy_twins(name, monkeypatch):
     """⋆1 asked first: the triangle dual-volume kernel hands the complex its edge lengths (the
@@ -179,18 +167,18 @@ def test_edge_lengths_found_by_the_dual_volume_kernel_equal_the_numpy_twins(name
 
     edge_calls = []
 
-    class Counting:  # the volume kernel, its calls' corner counts recorded
-        def __init__(self, kernel):
-            self.kernel = kernel
+    compiled_module = extension.built()
 
-        def runs(self, size):
-            return self.kernel.runs(size)
+    class Counting:  # the extension, the volume kernel's calls' corner counts recorded
+        def __getattr__(self, name):
+            return getattr(compiled_module, name)
 
-        def __call__(self, points, corners):
+        def small_volumes(self, points, corners):
             edge_calls.append(corners.shape[1])
-            return self.kernel(points, corners)
+            return compiled_module.small_volumes(points, corners)
 
-    monkeypatch.setattr(simplex_arrays, "_small_volumes_kernel", Counting(simplex_arrays._small_volumes_kernel))
+    monkeypatch.setattr(simplex_arrays.extension, "kernels",
+                        lambda: Counting() if jit.mode() != "numpy" else None)
     compiled, reference = _both(monkeypatch, stars_first)
     assert edge_calls == [3]  # the triangles' areas only: the kernel path measured no edge on its own
     _assert_same(compiled, reference)
@@ -199,6 +187,7 @@ def test_edge_lengths_found_by_the_dual_volume_kernel_equal_the_numpy_twins(name
     assert compiled[2] is not None and np.array_equal(compiled[1], compiled[2])
 
 
+@needs_extension
 @pytest.mark.parametrize("name", ["icosphere", "planar with holes", "spiral strip", "random tets", "kuhn cube"])
 def test_fans_kernel_equals_both_numpy_twins(name):
     vertices, simplices = MESHES[name]()
@@ -206,14 +195,15 @@ def test_fans_kernel_equals_both_numpy_twins(name):
     top, n, nv = K.simplices(K.dim), K.dim, K.num_simplices(0)
     faces = enumerate_faces(top, nv)
     pairs = checks.facet_pairs(faces.facet_order, faces.facet_starts, top, faces.lists[n - 1], True)
-    compiled = checks._fans_kernel(top, *pairs[1:], nv)
+    compiled_module = extension.built()
+    compiled = compiled_module.fans(top, *pairs[1:], nv)
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[n - 1], pairs, nv))
-    roots, consistent = checks._fan_roots_kernel(top, *pairs[1:], K.orientation)
+    roots, consistent = compiled_module.fan_roots(top, *pairs[1:], K.orientation)
     assert roots == compiled.sum() == nv and consistent  # one fan each, oriented ("fix")
     flipped = K.orientation.copy()
     flipped[pairs.first[0]] *= -1  # one simplex against its neighbours
-    assert checks._fan_roots_kernel(top, *pairs[1:], flipped) == (nv, False)
-    assert checks._consistent_kernel(*pairs[1:], flipped) is False
+    assert compiled_module.fan_roots(top, *pairs[1:], flipped) == (nv, False)
+    assert compiled_module.consistent(*pairs[1:], flipped) is False
     if n == 2:
         _assert_same(compiled, checks.fans_per_vertex_surface(top, K.orientation, pairs, nv))
         _assert_same(checks.single_fan_surface(top, K.orientation, pairs, nv), compiled == 1)
@@ -221,14 +211,15 @@ def test_fans_kernel_equals_both_numpy_twins(name):
     _assert_same(tuple(pairs), tuple(pairs_numpy))
 
 
+@needs_extension
 def test_bowtie_fans_counted_alike():
     top = sort_rows(np.array([[0, 1, 2], [0, 3, 4]]))
     faces = enumerate_faces(top, 5)
     pairs = checks.facet_pairs(faces.facet_order, faces.facet_starts, top, faces.lists[1], True)
     orientation = np.ones(2, dtype=np.int8)
-    compiled = checks._fans_kernel(top, *pairs[1:], 5)
+    compiled = extension.built().fans(top, *pairs[1:], 5)
     assert compiled[0] == 2
-    assert checks._fan_roots_kernel(top, *pairs[1:], orientation) == (6, True)  # more roots than vertices: name vertex 0
+    assert extension.built().fan_roots(top, *pairs[1:], orientation) == (6, True)  # more roots than vertices: name vertex 0
     _assert_same(compiled, checks.fans_per_vertex_surface(top, orientation, pairs, 5))
     _assert_same(compiled, checks.fans_per_vertex_general(top, faces.lists[1], pairs, 5))
     _assert_same(checks.single_fan_surface(top, orientation, pairs, 5), compiled == 1)
@@ -266,19 +257,6 @@ def test_single_fan_walk_finds_every_kind_of_pinched_vertex():
                 SimplicialComplex(vertices, faces, orient="fix")
 
 
-def test_small_inputs_take_numpy_and_large_ones_the_kernels(monkeypatch):
-    from decrun.core.jit import switch
-
-    monkeypatch.delenv("DECRUN_NUMBA", raising=False)
-    monkeypatch.setattr(switch, "_started", False)  # a fresh process (no kernel ran, no numpy work tallied)
-    monkeypatch.setattr(switch, "_numpy_items", 0)
-    assert not jit.enabled(jit.MIN_SIZE - 1) and jit.enabled(jit.MIN_SIZE)
-    monkeypatch.setenv("DECRUN_NUMBA", "1")
-    assert jit.enabled(1)
-    monkeypatch.setenv("DECRUN_NUMBA", "0")
-    assert not jit.enabled(10**9)
-
-
 def test_config_composition_does_not_import_numba():
     code = ("import sys, contextlib, io; from decrun.__main__ import console_main\n"
             "sys.argv = ['decrun', '--cfg', 'job']; shown = io.StringIO()\n"
@@ -299,6 +277,7 @@ FLIP_CASES = {
 }
 
 
+@needs_extension
 @pytest.mark.parametrize("name", FLIP_CASES)
 def test_flip_rounds_kernel_equals_the_numpy_rounds(name, monkeypatch):
     from decrun.core.intrinsic_delaunay import intrinsic_delaunay

@@ -17,11 +17,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from decrun.core import jit
+from decrun.core import extension
 from decrun.core.simplex_arrays import (
     FaceRows,
-    _facet_groups_kernel,
-    _facet_pairs_kernel,
     group_rows,
     sorted_rows_and_parity,
     unique_rows,
@@ -165,14 +163,14 @@ def _compiled_pairs(pairs: tuple) -> FacetPairs:
 def group_facets(top: np.ndarray, local, n_vertices: int) -> tuple[tuple, tuple[FacetPairs, bool] | None]:
     """The (n-1)-face slots ``top[t, local[s]]`` of the (m, n+1) sorted top simplices grouped
     (:func:`decrun.core.simplex_arrays.group_rows`: unique, inverse, order, starts) and, where the
-    compiled :func:`_facet_groups_kernel` runs, the facet pairs with their duplicate suspicion
+    compiled ``facet_groups`` runs, the facet pairs with their duplicate suspicion
     (:func:`facet_pairs`' ``found``) from the same call; else ``None`` for them (the grouping alone).
     ``top``'s entries are vertex indices below ``n_vertices`` (the checked input): the packed keys'
     width follows from it, without a pass over ``top`` for its largest entry."""
     rows = FaceRows(top, local)
     bits = max(1, int(np.ceil(np.log2(max(n_vertices - 1, 0) + 2))))
-    if rows.shape[0] and bits * rows.shape[1] <= 62 and _facet_groups_kernel.runs(rows.shape[0]):
-        groups, pairs, suspect = _facet_groups_kernel(np.ascontiguousarray(top, dtype=np.int64), rows.column_table(),
+    if rows.shape[0] and bits * rows.shape[1] <= 62 and (compiled := extension.kernels()) is not None:
+        groups, pairs, suspect = compiled.facet_groups(np.ascontiguousarray(top, dtype=np.int64), rows.column_table(),
                                                       bits, np.zeros(0, _pair_index_type(top)))
         return groups, (_compiled_pairs(pairs), suspect)
     return group_rows(rows), None
@@ -187,8 +185,8 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
     n = top.shape[1] - 1
     if found is not None:
         pairs, suspect = found
-    elif _facet_pairs_kernel.runs(order.shape[0]):
-        pairs, suspect = _facet_pairs_kernel(order, starts, np.ascontiguousarray(top), np.zeros(0, _pair_index_type(top)))
+    elif (compiled := extension.kernels()) is not None:
+        pairs, suspect = compiled.facet_pairs(order, starts, np.ascontiguousarray(top), np.zeros(0, _pair_index_type(top)))
         pairs = _compiled_pairs(pairs)
     else:
         pairs, suspect = facet_pairs_numpy(order, starts, top)
@@ -211,7 +209,7 @@ def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: 
 
 
 def facet_pairs_numpy(order: np.ndarray, starts: np.ndarray, top: np.ndarray) -> tuple[FacetPairs, bool]:
-    """The numpy twin of :func:`_facet_pairs_kernel`: (pairs of the facets in exactly two top
+    """The numpy twin of the compiled ``facet_pairs``: (pairs of the facets in exactly two top
     simplices, whether two of them have the same vertex opposite a shared facet — duplicates)."""
     n = top.shape[1] - 1
     width = n + 1
@@ -259,8 +257,8 @@ def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int, consistent:
     """
     _, t0, t1, l0, l1 = pairs
     m = parity.shape[0]
-    if consistent is None and _consistent_kernel.runs(t0.shape[0]):
-        consistent = _consistent_kernel(t0, t1, l0, l1, parity)
+    if consistent is None and (compiled := extension.kernels()) is not None:
+        consistent = compiled.consistent(t0, t1, l0, l1, parity)
     if consistent:
         return parity
     bad = inconsistent_facets(pairs, parity)
@@ -299,7 +297,7 @@ def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int, consistent:
 
 def inconsistent_facets(pairs: FacetPairs, parity: np.ndarray) -> np.ndarray:
     """(p,) bool: the interior facets both of whose top simplices induce the same orientation
-    on them (the numpy twin of :func:`_consistent_kernel`)."""
+    on them (the numpy twin of the compiled ``consistent``)."""
     _, t0, t1, l0, l1 = pairs
     # Entry of δ_n for the facet in each simplex: (-1)^l * orientation. Consistent iff opposite:
     # (-1)^l0 p0 == (-1)^l1 p1 exactly when p0 == p1 and l0 + l1 is even, or p0 != p1 and it is odd.
@@ -309,28 +307,17 @@ def inconsistent_facets(pairs: FacetPairs, parity: np.ndarray) -> np.ndarray:
     return same != odd.astype(bool)
 
 
-@jit.njit
-def _consistent_kernel(first, second, first_slot, second_slot, parity):
-    """True when no interior facet is inconsistent (see :func:`inconsistent_facets`)."""
-    for p in range(first.shape[0]):
-        s0 = parity[first[p]] if first_slot[p] % 2 == 0 else -parity[first[p]]
-        s1 = parity[second[p]] if second_slot[p] % 2 == 0 else -parity[second[p]]
-        if s0 == s1:
-            return False
-    return True
-
-
-_consistency_of_pairs = _consistent_kernel  # the name _fan_roots_kernel calls (numba swaps it for the dispatcher)
 
 
 # ---------------------------------------------------------------- vertex stars
 def fan_roots_and_consistency(top: np.ndarray, pairs: FacetPairs, parity: np.ndarray) -> tuple[int, bool] | None:
     """(the fans around all vertices together, whether ``parity`` orients the pairs consistently)
-    from one call of the compiled :func:`_fan_roots_kernel` — what :func:`check_vertex_stars` and
+    from one call of the compiled ``fan_roots`` — what :func:`check_vertex_stars` and
     :func:`orient` ask of the facet pairs — or None where it does not run (they ask the numpy twins)."""
-    if not _fan_roots_kernel.runs(top.shape[0]):
+    compiled = extension.kernels()
+    if compiled is None:
         return None
-    roots, consistent = _fan_roots_kernel(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
+    roots, consistent = compiled.fan_roots(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
                                           pairs.second_slot, parity)
     return int(roots), bool(consistent)
 
@@ -349,7 +336,7 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
     n = top.shape[1] - 1
     if n < 2:
         return
-    if n == 2 and not _fans_kernel.runs(top.shape[0]) and single_fan_surface(top, orientation, pairs, n_vertices).all():
+    if n == 2 and extension.kernels() is None and single_fan_surface(top, orientation, pairs, n_vertices).all():
         return  # the counts below are only needed to name the fans of a bad vertex
     if roots is None:
         found = fan_roots_and_consistency(top, pairs, orientation)
@@ -368,75 +355,13 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
 
 def fans_per_vertex(top, facets, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
     """(n0,) int64 number of fans (top simplices connected across shared facets) around each
-    vertex: the compiled :func:`_fans_kernel`, or its numpy twins when ``DECRUN_NUMBA=0``."""
-    if _fans_kernel.runs(top.shape[0]):
-        return _fans_kernel(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
+    vertex: the compiled ``fans``, or its numpy twins (no extension, or ``DECRUN_NUMBA=0``)."""
+    if (compiled := extension.kernels()) is not None:
+        return compiled.fans(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
                             pairs.second_slot, n_vertices)
     if top.shape[1] == 3:
         return fans_per_vertex_surface(top, orientation, pairs, n_vertices)
     return fans_per_vertex_general(top, facets, pairs, n_vertices)
-
-
-@jit.njit
-def _united_corners(top, first, second, first_slot, second_slot):
-    """Union–find over the corners ``(n+1)·t + i`` of the (m, n+1) sorted ``top``: across every
-    interior facet the corners of its n shared vertices are joined. (m·(n+1),) parents; a corner
-    is a root iff its parent is itself (the kernels below count them)."""
-    m, width = top.shape
-    n = width - 1
-    parent = np.arange(m * width)
-    for p in range(first.shape[0]):
-        t0, t1 = first[p], second[p]
-        skip0, skip1 = n - first_slot[p], n - second_slot[p]  # the vertex opposite the facet
-        i0 = 0
-        i1 = 0
-        for _ in range(n):  # the shared vertices, in sorted order in both simplices
-            if i0 == skip0:
-                i0 += 1
-            if i1 == skip1:
-                i1 += 1
-            a = t0 * width + i0
-            while parent[a] != a:
-                parent[a] = parent[parent[a]]
-                a = parent[a]
-            b = t1 * width + i1
-            while parent[b] != b:
-                parent[b] = parent[parent[b]]
-                b = parent[b]
-            if a < b:
-                parent[b] = a
-            elif b < a:
-                parent[a] = b
-            i0 += 1
-            i1 += 1
-    return parent
-
-
-@jit.njit
-def _fans_kernel(top, first, second, first_slot, second_slot, n_vertices):
-    """Compiled twin of :func:`fans_per_vertex_surface` / :func:`fans_per_vertex_general`:
-    the fans of a vertex are its corners' distinct roots (:func:`_united_corners`)."""
-    m, width = top.shape
-    parent = _united_corners(top, first, second, first_slot, second_slot)
-    fans = np.zeros(n_vertices, np.int64)
-    for corner in range(m * width):
-        if parent[corner] == corner:
-            fans[top[corner // width, corner % width]] += 1
-    return fans
-
-
-@jit.njit
-def _fan_roots_kernel(top, first, second, first_slot, second_slot, parity):
-    """(the fans around all the vertices together: the roots of :func:`_united_corners`, the sum of
-    :func:`_fans_kernel`'s counts without reading which vertex each root is; whether ``parity``
-    orients every interior facet consistently, :func:`_consistent_kernel`'s answer): the two
-    passes over the facet pairs a build makes, in one call (the extension's twin walks them once)."""
-    parent = _united_corners(top, first, second, first_slot, second_slot)
-    roots = 0
-    for corner in range(parent.shape[0]):
-        if parent[corner] == corner:
-            roots += 1
-    return roots, _consistency_of_pairs(first, second, first_slot, second_slot, parity)
 
 
 def fans_per_vertex_surface(top, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:

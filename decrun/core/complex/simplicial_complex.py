@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike
 
-from decrun.core import jit
+from decrun.core import extension
 from decrun.core.cache import Cached
 from decrun.core.complex import topology
 from decrun.core.complex.checks import plural, simplex_name
@@ -36,34 +36,18 @@ __all__ = ["SimplicialComplex"]
 
 # the compiled extension (when built) loads with this module, as a C++ library's bindings load when
 # it is imported: the first complex built in a process does not pay for the extension's loading
-jit.kernels.extension_twins()
+extension.built()
 
 
 def incidence_entries_numpy(faces: np.ndarray, signs: np.ndarray, index_type) -> tuple[np.ndarray, np.ndarray]:
     """(data, indices) of δ_jᵀ in CSR order from the (n_j, j+1) faces and signs (the numpy twin
-    of :func:`_incidence_kernel`)."""
+    of the compiled ``incidence``)."""
     data = np.empty(faces.shape)
     indices = np.empty(faces.shape, dtype=index_type)  # holds every face index (the caller chose it)
     for l in range(faces.shape[1]):  # column by column: ``faces`` and ``signs`` are often strided views
         indices[:, l] = faces[:, l]
         data[:, l] = signs[:, l]
     return data.reshape(-1), indices.reshape(-1)
-
-
-@jit.njit
-def _incidence_kernel(faces, orientation, data, indices):
-    """Fill ``data``/``indices`` of δ_jᵀ row by row: entry l of simplex s is face ``faces[s, l]``
-    with sign ``(-1)**l``, times ``orientation[s]`` when ``orientation`` is not empty (j = n)."""
-    width = faces.shape[1]
-    oriented = orientation.shape[0] > 0
-    for s in range(faces.shape[0]):
-        sign = 1.0
-        if oriented:
-            sign = 1.0 if orientation[s] > 0 else -1.0
-        for l in range(width):
-            indices[s * width + l] = faces[s, l]
-            data[s * width + l] = sign if l % 2 == 0 else -sign
-    return data, indices
 
 
 class SimplicialComplex(Cached):
@@ -232,10 +216,10 @@ class SimplicialComplex(Cached):
         def compute():
             nj = self._lists[j].shape[0]
             index_type = np.int32 if max((j + 1) * nj, self._lists[j - 1].shape[0]) < 2**31 - 1 else np.int64
-            if _incidence_kernel.runs(nj):
+            if (compiled := extension.kernels()) is not None:
                 data, indices = np.empty(nj * (j + 1)), np.empty(nj * (j + 1), dtype=index_type)
                 orientation = self._orientation if j == self.dim else self._orientation[:0]
-                _incidence_kernel(self._facet_table(j), orientation, data, indices)
+                compiled.incidence(self._facet_table(j), orientation, data, indices)
             else:
                 data, indices = incidence_entries_numpy(*self._faces_and_signs(j), index_type)
             return sp.csr_matrix((data, indices, np.arange(0, (j + 1) * nj + 1, j + 1, dtype=index_type)),

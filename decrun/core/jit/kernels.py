@@ -2,8 +2,8 @@
 **options)`` on its first call (package docstring); a ``parallel=True`` kernel runs one
 parallel region at a time in the process, and its serial version in a child forked after
 parallel regions ran on GNU OpenMP (:mod:`.forks`). A call marks numba started in the process
-(:func:`.switch.mark_started`); a kernel numba must compile is announced first
-(:func:`announce_compile`)."""
+(:func:`.switch.mark_started`); a kernel numba must compile is announced as it starts compiling
+(:func:`listen_for_compiles`, on numba's public event API ``numba.core.event``)."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ from typing import Any, Callable
 
 from decrun.core.jit import forks
 from decrun.core.jit.signals import handler_exception
-from decrun.core.jit.switch import enabled, mark_started, mode
+from decrun.core.jit.switch import mark_started
 from decrun.core.jit.threads import threading_layer
 
-__all__ = ["njit", "prange", "KERNELS", "LazyKernel", "announce_compile", "extension_twins"]
+__all__ = ["njit", "prange", "KERNELS", "LazyKernel", "listen_for_compiles"]
 
 #: ``for i in prange(n)`` in a kernel: numba's parallel loop once the kernel is compiled with
 #: ``parallel=True`` (the dispatcher swaps it in), the plain ``range`` everywhere else
@@ -25,6 +25,8 @@ prange = range
 KERNELS: list = []
 
 _noticed = False  # the package's compile_notice was called in this process (it is said once)
+_compiling: dict[int, "LazyKernel"] = {}  # id of each dispatcher made here: its kernel (what a compile event names)
+_listening = False  # the compile listener is registered with numba
 
 
 class LazyKernel:
@@ -35,7 +37,6 @@ class LazyKernel:
         self.options = options
         self.compiled: Any = None  # numba dispatchers, made on the first call
         self.serial: Any = None
-        self.called = False  # called from Python in this process (the compile notice is checked then)
         update_wrapper(self, function)
         KERNELS.append(self)
 
@@ -43,26 +44,12 @@ class LazyKernel:
     def name(self) -> str:
         return f"{self.function.__module__}.{self.function.__name__}"
 
-    def twin(self) -> Callable | None:
-        """This kernel's twin in the compiled extension ``decrun.core._kernels`` (built by the
-        install: same arguments, same results bit for bit), or None when the extension is not
-        built or holds no twin of it."""
-        return extension_twins().get(self.name)
-
-    def runs(self, size: int | None = None) -> bool:
-        """Whether a call for an input of ``size`` items runs as machine code (else the caller
-        takes the numpy twin): under ``auto`` at every size when the extension twin is built
-        (it loads with its module, without numba's start), else :func:`.switch.enabled`."""
-        if self.twin() is not None and mode() == "auto":
-            return True
-        return enabled(size)
-
     def dispatcher(self):
         """The numba dispatcher (created once; it compiles per argument types when called).
 
         Kernels called from this one must be numba functions when it is compiled: every
         lazy kernel among the module's globals this one names is replaced by its dispatcher
-        (the others stay lazy kernels, which pick numba or the extension per call) — but a
+        (the others stay lazy kernels) — but a
         ``parallel=True`` kernel, which only Python calls (through :meth:`__call__` and its lock;
         numba cannot nest its parallel regions anyway)."""
         if self.compiled is None:
@@ -73,7 +60,9 @@ class LazyKernel:
                 namespace["prange"] = numba.prange
             if self.options.get("parallel"):
                 threading_layer(numba)
+            listen_for_compiles(numba)
             self.compiled = numba.njit(cache=True, **self.options)(self.function)
+            _compiling[id(self.compiled)] = self
             for name in _global_names(self.function.__code__):
                 value = namespace.get(name)
                 # a parallel kernel stays this object (its callers are Python's, through __call__'s lock)
@@ -104,32 +93,20 @@ class LazyKernel:
             copy.__qualname__, copy.__module__, copy.__doc__ = f"{f.__qualname__}_serial", f.__module__, f.__doc__
             options = {k: v for k, v in self.options.items() if k != "parallel"}
             self.serial = numba.njit(cache=True, **options)(copy)
+            _compiling[id(self.serial)] = self
         return self.serial
 
-    def entry(self):
-        """The dispatcher for a call from Python; on the first one, :func:`announce_compile`.
-        Only such calls are checked: a kernel that only other kernels call is compiled into
-        them (and cached with them), its own disk cache stays empty even when nothing compiles."""
-        dispatcher = self.dispatcher()
-        if not self.called:
-            self.called = True
-            announce_compile(self)
-        return dispatcher
-
     def __call__(self, *args: Any) -> Any:
-        twin = self.twin()
-        if twin is not None and mode() == "auto":  # the extension: numba is not started for it
-            return twin(*args)
         try:
             if self.options.get("parallel"):
                 if forks.state.child_of_openmp:
                     return self.serial_dispatcher()(*args)
                 with forks.PARALLEL:  # one parallel region at a time in the process (see forks.PARALLEL)
-                    result = self.entry()(*args)
+                    result = self.dispatcher()(*args)
                 forks.state.parallel_ran = True
                 mark_started()
                 return result
-            result = self.entry()(*args)
+            result = self.dispatcher()(*args)
             mark_started()
             return result
         except SystemError as exc:
@@ -148,40 +125,42 @@ def _global_names(code) -> set:
     return names
 
 
-_twins: dict | None = None  # the extension's TWINS once looked for ({} when it is not built)
+def listen_for_compiles(numba) -> None:
+    """Register (once per process) a listener for numba's ``numba:compile`` event (its public
+    event API, ``numba.core.event``), which numba broadcasts when a dispatcher starts compiling:
+    its disk cache held no machine code valid for the kernel's current source (the first run of an
+    install, or after the source changed). The first such event for one of these kernels calls
+    the package's :data:`decrun.core.jit.compile_notice` with the kernel's name, once per process.
+    A kernel loaded from the cache, or never called, compiles nothing and is not announced."""
+    global _listening
+    if _listening:
+        return
+    from numba.core import event
 
+    class CompileNotice(event.Listener):
+        def on_start(self, started) -> None:
+            kernel = _compiling.get(id(started.data.get("dispatcher"))) if isinstance(started.data, dict) else None
+            if kernel is not None:
+                announce_compile(kernel)
 
-def extension_twins() -> dict:
-    """{numba kernel's dotted name: its twin} from the compiled extension ``decrun.core._kernels``,
-    imported once; empty when the install built no extension (no C compiler)."""
-    global _twins
-    if _twins is None:
-        try:
-            from decrun.core import _kernels  # type: ignore[attr-defined]
-        except ImportError:
-            _twins = {}
-        else:
-            _twins = dict(_kernels.TWINS)
-    return _twins
+        def on_end(self, ended) -> None:
+            pass
+
+    event.register("numba:compile", CompileNotice())
+    _listening = True
 
 
 def announce_compile(kernel: LazyKernel) -> None:
-    """The package's :data:`decrun.core.jit.compile_notice` (once per process) when ``kernel``'s
-    disk cache holds no machine code valid for its current source: numba is about to compile it
-    on this call. The notice is read from the package, where callers set it."""
+    """The package's :data:`decrun.core.jit.compile_notice` with ``kernel``'s name, once per
+    process (numba is compiling it). The notice is read from the package, where callers set it."""
     global _noticed
     from decrun.core import jit  # the package (initialised by now): its compile_notice is the setting
 
     notice = jit.compile_notice
     if _noticed or notice is None:
         return
-    try:
-        cached = bool(kernel.compiled._cache._cache_file._load_index())  # numba's index: {} when absent or stale
-    except Exception:  # noqa: BLE001 — another numba's internals: say nothing rather than guess
-        return
-    if not cached:
-        _noticed = True
-        notice(kernel.name)
+    _noticed = True
+    notice(kernel.name)
 
 
 def njit(function: Callable | None = None, **options: Any) -> Any:

@@ -1,10 +1,6 @@
 """The kernel switch: ``auto`` | ``numba`` | ``numpy``, from ``app.kernels`` (:func:`use`) or
-``DECRUN_NUMBA`` (:func:`mode`), and whether a kernel runs for an input of a given size
-(:func:`enabled`; the package docstring says how the three words are read). Under ``auto`` the
-answer also depends on the process: whether a kernel ran in it (:func:`started`, numba's
-one-time start paid) and how much numpy work ``auto`` kept from the kernels so far. A kernel
-whose twin the compiled extension holds runs that twin under ``auto`` at every size instead
-(:meth:`.kernels.LazyKernel.runs`): these thresholds apply without the extension."""
+``DECRUN_NUMBA`` (:func:`mode`), and whether a numba kernel runs (:func:`enabled`; the package
+docstring says how the three words are read), and whether one ran in this process (:func:`started`)."""
 
 from __future__ import annotations
 
@@ -15,7 +11,7 @@ from typing import Iterator
 from decrun.core.choices import choice_error
 from decrun.errors import ConfigError
 
-__all__ = ["MIN_SIZE", "WARM_MIN_SIZE", "AMORTIZE_SIZE", "MODES", "check_mode", "mode", "use", "enabled",
+__all__ = ["MODES", "check_mode", "mode", "use", "enabled",
            "started", "mark_started"]
 
 #: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
@@ -41,7 +37,6 @@ _ENV = {"": "auto", "auto": "auto", "numba": "numba", "1": "numba", "numpy": "nu
 
 _override: list[str] = []  # the modes :func:`use` set, innermost last
 _started = False  # a kernel ran in this process: numba's one-time start is paid
-_numpy_items = 0  # items auto sent to the numpy twins (inputs of >= WARM_MIN_SIZE items) before the start
 
 
 def check_mode(value: str, where: str = "app.kernels") -> str:
@@ -73,24 +68,11 @@ def use(value: str) -> Iterator[None]:
         _override.pop()
 
 
-def enabled(size: int | None = None, min_size: int = MIN_SIZE, kernels: str = "auto") -> bool:
-    """Whether to run the kernel for an input of ``size`` items (None: any size): ``kernels``
-    (a caller's own setting) unless ``auto``, else :func:`mode`; under ``auto`` from ``min_size``
-    items on, from ``min(min_size, WARM_MIN_SIZE)`` once a kernel ran in this process, and at
-    any size from :data:`WARM_MIN_SIZE` on once the numpy work refused so far reaches
-    :data:`AMORTIZE_SIZE` items."""
-    global _numpy_items
+def enabled(kernels: str = "auto") -> bool:
+    """Whether to run the numba kernels: ``kernels`` (a caller's own setting) unless ``auto``,
+    else :func:`mode`; ``auto`` runs them."""
     setting = check_mode(kernels, "kernels") if kernels != "auto" else mode()
-    if setting != "auto":
-        return setting == "numba"
-    if size is None or size >= min_size:
-        return True
-    if _started:
-        return size >= WARM_MIN_SIZE
-    if size >= WARM_MIN_SIZE:
-        _numpy_items += size
-        return _numpy_items >= AMORTIZE_SIZE
-    return False
+    return setting != "numpy"
 
 
 def started() -> bool:

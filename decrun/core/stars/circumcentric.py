@@ -16,7 +16,7 @@ from math import factorial
 
 import numpy as np
 
-from decrun.core import jit
+from decrun.core import extension
 from decrun.core.simplex_arrays import simplex_volumes
 from decrun.core.stars import HodgeStar
 
@@ -115,59 +115,18 @@ def triangle_dual_volumes(K) -> dict[int, np.ndarray]:
     In a triangle with angle θ_i at corner i, the dual edge piece of the opposite edge
     is ½ cot θ_i |e_i| and corner i gets (|e_ij|² cot θ_k + |e_ik|² cot θ_j) / 8 of
     Voronoi area — signed, so obtuse triangles are exact. The compiled
-    :func:`_triangle_dual_kernel`; :func:`triangle_dual_volumes_numpy` is its twin.
+    ``triangle_dual`` (:mod:`decrun.core.extension`); :func:`triangle_dual_volumes_numpy` is its twin.
     """
-    if not _triangle_dual_kernel.runs(K.num_simplices(2)):
+    compiled = extension.kernels()
+    if compiled is None:
         return triangle_dual_volumes_numpy(K)
     top = K.simplices(2)
-    dual0, dual1, lengths = _triangle_dual_kernel(np.asarray(K.vertices, dtype=np.float64), top,
+    dual0, dual1, lengths = compiled.triangle_dual(np.asarray(K.vertices, dtype=np.float64), top,
                                                   K.top_volumes, K.top_face_indices(1), K.num_simplices(1),
                                                   K.num_simplices(0))
     if K.embedding_dim in (2, 3):  # where K.edge_lengths() has these bits (vertex_volumes' loops)
         K.require("edge_lengths", lambda: lengths)  # ⋆1's divisor, found on the way
     return {0: dual0, 1: dual1, 2: np.ones(top.shape[0])}
-
-
-@jit.njit
-def _triangle_dual_kernel(points, top, area, triangle_edges, n_edges, n_vertices):
-    """One pass over the triangles with the arithmetic of :func:`triangle_dual_volumes_numpy`
-    in the same order (so the results agree bit for bit) from the (n0, d) coordinates ``points`` in any
-    layout (C order keeps a vertex's in one cache line for the triangles' random gathers): (dual0 (n0,), dual1 (n1,), the
-    edge lengths (n1,) — |e_i| = sqrt(sq_i), the bits of :func:`decrun.core.simplex_arrays.vertex_volumes`)."""
-    dual0 = np.zeros(n_vertices)
-    dual1 = np.zeros(n_edges)
-    lengths = np.empty(n_edges)  # every edge is a triangle's: each written (with the same value)
-    d = points.shape[1]
-    for t in range(top.shape[0]):
-        a, b, c = top[t, 0], top[t, 1], top[t, 2]
-        sq0 = sq1 = sq2 = 0.0
-        dot0 = dot1 = dot2 = 0.0
-        for axis in range(d):
-            x0, x1, x2 = points[a, axis], points[b, axis], points[c, axis]
-            e0 = x2 - x1
-            e1 = x0 - x2
-            e2 = x1 - x0
-            sq0 += e0 * e0
-            sq1 += e1 * e1
-            sq2 += e2 * e2
-            dot0 += e1 * e2
-            dot1 += e2 * e0
-            dot2 += e0 * e1
-        factor = -0.5 / area[t]
-        cot0, cot1, cot2 = dot0 * factor, dot1 * factor, dot2 * factor
-        # edge slots (0,1), (0,2), (1,2) are opposite corners 2, 1, 0
-        l0, l1, l2 = np.sqrt(sq0), np.sqrt(sq1), np.sqrt(sq2)
-        dual1[triangle_edges[t, 0]] += l2 * (0.5 * cot2)
-        dual1[triangle_edges[t, 1]] += l1 * (0.5 * cot1)
-        dual1[triangle_edges[t, 2]] += l0 * (0.5 * cot0)
-        lengths[triangle_edges[t, 0]] = l2
-        lengths[triangle_edges[t, 1]] = l1
-        lengths[triangle_edges[t, 2]] = l0
-        w0, w1, w2 = sq0 * cot0, sq1 * cot1, sq2 * cot2
-        dual0[a] += (w2 + w1) * 0.125
-        dual0[b] += (w0 + w2) * 0.125
-        dual0[c] += (w1 + w0) * 0.125
-    return dual0, dual1, lengths
 
 
 def triangle_dual_volumes_numpy(K) -> dict[int, np.ndarray]:

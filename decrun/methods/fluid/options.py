@@ -52,10 +52,10 @@ class Circulation(Choice):
 
 class Kernels(Choice):
     """``app.kernels``: the one kernel switch of decrun.core.jit for the whole run (mesh,
-    complex, operators and the fluid): ``auto`` (``DECRUN_NUMBA`` if set, else the fluid's loops
-    compiled and the core's on large inputs, or once numba started: ``decrun.core.jit.enabled``), ``numba`` (every compiled kernel,
-    decrun/methods/fluid/compiled.py and the core's) or ``numpy`` (their reference twins; numba
-    is not imported); the same run, bit for bit."""
+    complex, operators and the fluid): ``auto`` (``DECRUN_NUMBA`` if set, else compiled) or ``numba``
+    (every compiled kernel: the fluid's numba kernels, decrun/methods/fluid/compiled.py, and the core's
+    compiled extension, decrun.core.extension) or ``numpy`` (their reference twins; numba is not
+    imported); the same run, bit for bit."""
 
     auto = "auto"
     numba = "numba"

@@ -173,7 +173,7 @@ class VorticityFluid:
         #: "no_slip" (the border cells' trapezoid with the wall velocity, thesis §7.2.4); "auto" is
         #: slip at ν = 0 with a swept circulation, else no_slip
         self.walls = self.options.resolved_walls(viscosity)
-        self.kernels = "numba" if jit.enabled(None, min_size=0, kernels=str(self.options.kernels)) else "numpy"
+        self.kernels = "numba" if jit.enabled(str(self.options.kernels)) else "numpy"
         #: the compiled walk interpolates with the reconstruction's tables (compiled.py)
         self.compiled_walk = self.kernels == "numba"
 

@@ -11,9 +11,19 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
-__all__ = ["edge_table", "edge_owners", "component_labels", "largest_component", "drop_unreferenced", "simplex_pieces"]
+__all__ = ["graph_components", "edge_table", "edge_owners", "component_labels", "largest_component", "drop_unreferenced", "simplex_pieces"]
+
+
+def graph_components(graph: sp.spmatrix) -> tuple[int, np.ndarray]:
+    """(count, (n,) int32 labels) of the connected components of the undirected graph whose
+    adjacency is ``graph`` (n, n): scipy's ``connected_components``, imported on the first call —
+    ``scipy.sparse.csgraph`` loads ``scipy.sparse.linalg`` and ``scipy.linalg`` (~0.1 s of CPU),
+    which importing decrun and building a valid complex and its operators never need."""
+    from scipy.sparse.csgraph import connected_components
+
+    count, labels = connected_components(graph, directed=False)
+    return int(count), labels
 
 
 def edge_table(faces: np.ndarray, n_vertices: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -64,7 +74,7 @@ def component_labels(faces: np.ndarray, n_vertices: int | None = None, through: 
     else:
         raise ValueError(f"through must be 'edges' or 'vertices', not {through!r}")
     incidence = sp.csr_matrix((np.ones(columns.size), (np.repeat(np.arange(m), columns.shape[1]), columns.ravel())))
-    return connected_components(incidence @ incidence.T, directed=False)[1]
+    return graph_components(incidence @ incidence.T)[1]
 
 
 def largest_component(faces: np.ndarray, n_vertices: int | None = None, through: str = "edges") -> np.ndarray:

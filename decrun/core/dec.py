@@ -15,10 +15,10 @@ applies ⋆_k⁻¹ by a factorization made once, and the operators that contain 
 from __future__ import annotations
 
 import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 # the variants' resolver and the default adaptation load with DEC, not on the first DEC built
 from decrun.core import plugins as _plugins  # noqa: F401
@@ -31,6 +31,11 @@ from decrun.core.simplex_arrays import vertex_volumes
 from decrun.core.stars import HodgeStar, star_variant
 from decrun.core.stars.circumcentric import circumcenter_barycentric, circumcentric_dual_volumes
 from decrun.errors import ConfigError
+
+if TYPE_CHECKING:
+    from scipy.sparse.linalg import LinearOperator
+# scipy.sparse.linalg (and scipy.linalg under it, ~0.1 s of CPU) is imported where a non-diagonal
+# star is solved: building a complex and its diagonal operators does not load it
 
 __all__ = ["DEC", "circumcenter_barycentric", "diagonal_matrix"]
 
@@ -207,13 +212,13 @@ class DEC(Cached):
         diagonal = self.star_diagonal_or_none(k)
         if diagonal is not None:
             return b / diagonal.reshape((-1,) + (1,) * (b.ndim - 1))
-        factor = self.require(("star_factor", k), lambda: spla.factorized(self.star(k).tocsc()))
+        factor = self.require(("star_factor", k), lambda: _linalg().factorized(self.star(k).tocsc()))
         if b.ndim == 1:
             return factor(b)
         return np.column_stack([factor(b[:, j]) for j in range(b.shape[1])])
 
     # ---------------------------------------------------------------- codifferential, Laplacians
-    def codifferential(self, k: int) -> sp.csr_matrix | spla.LinearOperator:
+    def codifferential(self, k: int) -> sp.csr_matrix | LinearOperator:
         """δ_k = (−1)^k ⋆_{k-1}⁻¹ d^dual_{n-k} ⋆_k = ⋆_{k-1}⁻¹ d_{k-1}ᵀ ⋆_k (§4.5.6, eq. 4.13,
         4.14): maps k-forms to (k-1)-forms, (n_{k-1}, n_k).
 
@@ -232,11 +237,11 @@ class DEC(Cached):
             weak = ((-1) ** k * self.d_dual(self.n - k) @ self.star(k)).tocsr()
             if self.star_is_diagonal(k - 1):
                 return (self.star_inv(k - 1) @ weak).tocsr()
-            return spla.LinearOperator(weak.shape, matvec=lambda x: self.star_solve(k - 1, weak @ x), dtype=np.float64)
+            return _linalg().LinearOperator(weak.shape, matvec=lambda x: self.star_solve(k - 1, weak @ x), dtype=np.float64)
 
         return self.require(("codifferential", k), compute)
 
-    def laplacian(self, k: int) -> sp.csr_matrix | spla.LinearOperator:
+    def laplacian(self, k: int) -> sp.csr_matrix | LinearOperator:
         """Laplace–de Rham operator Δ_k = d δ + δ d on k-forms, (n_k, n_k).
 
         Positive semi-definite and self-adjoint under the ⋆ inner product. For k = 0 it is
@@ -257,12 +262,12 @@ class DEC(Cached):
                     result = result + self.codifferential(k + 1) @ self.d(k)
                 return result.tocsr()
             symmetric = self.laplacian_symmetric(k)
-            return spla.LinearOperator(symmetric.shape, matvec=lambda x: self.star_solve(k, symmetric @ x),
+            return _linalg().LinearOperator(symmetric.shape, matvec=lambda x: self.star_solve(k, symmetric @ x),
                                        dtype=np.float64)
 
         return self.require(("laplacian", k), compute)
 
-    def laplacian_symmetric(self, k: int) -> sp.csr_matrix | spla.LinearOperator:
+    def laplacian_symmetric(self, k: int) -> sp.csr_matrix | LinearOperator:
         """⋆_k Δ_k, the symmetric positive semi-definite (weak) form of the Laplacian, (n_k, n_k).
 
         ⋆_k Δ_k = ⋆_k d δ + d_kᵀ ⋆_{k+1} d_k; for k = 0 this is the cot "stiffness" matrix
@@ -281,7 +286,7 @@ class DEC(Cached):
             if self.star_is_diagonal(k - 1):
                 return (star_d @ self.star_inv(k - 1) @ star_d.T + up).tocsr()
             up = up.tocsr()
-            return spla.LinearOperator((size, size), dtype=np.float64,
+            return _linalg().LinearOperator((size, size), dtype=np.float64,
                                        matvec=lambda x: star_d @ self.star_solve(k - 1, star_d.T @ x) + up @ x)
 
         return self.require(("laplacian_symmetric", k), compute)
@@ -303,3 +308,10 @@ class DEC(Cached):
 
     def __repr__(self) -> str:
         return f"DEC({self.K!r}, star={self.star_variant.describe()!r}, boundary={self.boundary.name!r})"
+
+
+def _linalg():
+    """scipy.sparse.linalg, imported on first use (see the imports)."""
+    import scipy.sparse.linalg
+
+    return scipy.sparse.linalg

@@ -15,9 +15,9 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from decrun.core import extension
+from decrun.core.connectivity import graph_components
 from decrun.core.simplex_arrays import (
     FaceRows,
     group_rows,
@@ -269,7 +269,7 @@ def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int, consistent:
     rows = np.concatenate([t0[same], t0[same] + m, t0[bad], t0[bad] + m])
     cols = np.concatenate([t1[same], t1[same] + m, t1[bad] + m, t1[bad]])
     graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(2 * m, 2 * m))
-    _, label = connected_components(graph, directed=False)
+    _, label = graph_components(graph)
     contradiction = np.flatnonzero(label[:m] == label[m:])
     if contradiction.size:
         raise NonOrientableError(
@@ -284,7 +284,7 @@ def orient(pairs: FacetPairs, parity: np.ndarray, mode: str, n: int, consistent:
             f"(§2.3.4)", python_hint="pass orient='fix' to re-orient each connected component"
         )
     # Choose per original component the coloring where most simplices keep their orientation.
-    _, component = connected_components(sp.coo_matrix((np.ones(t0.size), (t0, t1)), shape=(m, m)), directed=False)
+    _, component = graph_components(sp.coo_matrix((np.ones(t0.size), (t0, t1)), shape=(m, m)))
     root = np.full(component.max() + 1, m, dtype=np.int64)
     np.minimum.at(root, component, np.arange(m))
     keep = label[:m] == label[root[component]]  # same colour as the root keeping orientation
@@ -484,6 +484,6 @@ def fans_per_vertex_general(top, facets, pairs: FacetPairs, n_vertices: int) -> 
         cols.append(t1 * width + np.argmax(top[t1] == v[:, None], axis=1))
     rows, cols = np.concatenate(rows), np.concatenate(cols)
     graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(m * width, m * width))
-    _, label = connected_components(graph, directed=False)
+    _, label = graph_components(graph)
     grouped = unique_rows(np.stack([top.ravel(), label], axis=1))[0]
     return np.bincount(grouped[:, 0], minlength=n_vertices)

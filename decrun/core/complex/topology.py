@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components as graph_components
 
+from decrun.core.connectivity import graph_components
 from decrun.errors import MeshError, NonManifoldError
 
 __all__ = ["euler_characteristic", "connected_components", "border_faces", "border_vertices", "border_simplices",
@@ -30,7 +30,7 @@ def connected_components(K) -> tuple[int, np.ndarray]:
     nv = K.vertices.shape[0]
     rows = np.repeat(np.arange(m), n + 1)
     graph = sp.coo_matrix((np.ones(rows.size), (rows, top.ravel() + m)), shape=(m + nv, m + nv))
-    _, label = graph_components(graph, directed=False)
+    _, label = graph_components(graph)
     _, top_label = np.unique(label[:m], return_inverse=True)  # labels 0..c-1 over top simplices
     return int(top_label.max()) + 1, top_label.astype(np.int64)
 
@@ -94,7 +94,7 @@ def border_loops(K) -> list[np.ndarray]:
     successor[start] = end
     # Walk all loops at once: each step moves every loop one vertex along its successor.
     graph = sp.coo_matrix((np.ones(start.size), (start, end)), shape=(nv, nv))
-    _, label = graph_components(graph, directed=False)
+    _, label = graph_components(graph)
     border_label = label[start]
     components = np.unique(border_label)
     root_of = np.full(label.max() + 1, nv, dtype=np.int64)

@@ -1,8 +1,9 @@
-"""The optional compiled extension ``decrun.core._kernels`` (Cython): the complex's and the
-operators' kernels as machine code that loads with the module. Everything else is declared in
-pyproject.toml. An install without Cython or a C compiler leaves the extension out (the numba
-kernels and numpy twins do the same work); ``tests/core/test_extension.py`` fails under
-``CI=true`` when it is missing."""
+"""The compiled extension ``decrun.core._kernels`` (Cython): the core's kernels (the complex's,
+the operators' and the intrinsic Delaunay flips) as machine code that loads with the module, their
+one compiled implementation (:mod:`decrun.core.extension`). Everything else is declared in
+pyproject.toml. An install without Cython or a C compiler leaves the extension out (the numpy
+twins do the same work, slower); ``tests/core/test_extension.py`` fails under ``CI=true`` when it
+is missing."""
 
 import sys
 

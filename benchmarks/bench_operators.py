@@ -10,12 +10,12 @@ Each mesh runs in fresh subprocesses:
 * **fresh** (two processes of their own, nothing else run in them before): importing decrun's
   complex and operators (reported alone), then the first build in the process under ``auto``
   (what a one-off ``decrun`` run pays), in CPU time; and, in the other, libigl's first call;
-* **sweep worker** (a third process): builds under ``auto`` with the compiled extension set
-  aside (an install without a C compiler), one after another, until ``auto`` starts numba (the
-  count is reported; with the extension, ``auto`` runs its twins and never starts numba here);
+* **whole process** (``--whole``): a fresh Python process that loads the mesh (``.npz``), imports
+  decrun and builds once, against one that imports libigl and calls it once: each process's
+  CPU time from start to exit (interpreter, numpy, scipy and all), interleaved, best and median;
 * **warm** (the same process): ``--repeat`` interleaved rounds of libigl, the floor, decrun's
-  numpy twins (``numpy``), decrun's compiled extension (``auto``, when the install built it)
-  and decrun's numba kernels (``numba``, started), each timed in CPU time
+  numpy twins (``numpy``) and decrun's compiled extension (``auto``, when the install built it),
+  each timed in CPU time
   (``time.process_time``: the shared machine's load distorts wall time), best of the rounds;
   and, interleaved with them, decrun's extension with numpy's huge-page advice kept (decrun
   builds in 4 KiB pages, :mod:`decrun.core.pages`): the best and the worst of its rounds, and
@@ -25,9 +25,7 @@ Each mesh runs in fresh subprocesses:
 Ratios are decrun / libigl (and decrun / floor) from the same process; the fresh ratio is decrun's
 first build over libigl's first call, each the best of ``--repeat`` fresh processes (and decrun's worst
 process over libigl's best). The machine's load
-average is printed before and after. ``--jit`` reports what a fresh process pays to start
-numba: importing it, and the first kernel calls (numba's typing registries, then each
-cached kernel's machine code), with an empty cache and with the cache it wrote.
+average is printed before and after.
 
 ``--keep-freed-memory`` runs every process with glibc's ``mallopt`` keeping the memory a build
 frees for the next one (``M_MMAP_THRESHOLD`` and ``M_TRIM_THRESHOLD`` at 1 GiB): no warm round,
@@ -37,7 +35,7 @@ policy, not a library's).
 
     python benchmarks/bench_operators.py            # 82k, 328k, 1.31M triangles
     python benchmarks/bench_operators.py --quick    # 20k, 82k triangles, seconds
-    python benchmarks/bench_operators.py --jit      # numba's start in a fresh process
+    python benchmarks/bench_operators.py --whole    # whole processes: decrun's against libigl's, 82k and 328k
     python benchmarks/bench_operators.py --keep-freed-memory   # warm rounds without first touches
 """
 
@@ -122,17 +120,14 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
 
         result = {"import_s": _cpu(imports)}  # decrun's modules with numpy and scipy's
         result["fresh_auto_s"] = _cpu(lambda: _decrun_operators(vertices, faces))
-        from decrun.core import jit
-
-        result["fresh_auto_started_numba"] = jit.started()
+        result["fresh_imported_numba"] = "numba" in sys.modules
         return result
     import numpy as np
 
-    from decrun.core import jit
-    from decrun.core.jit import kernels
+    from decrun.core import extension, jit
 
     load_before = os.getloadavg()[0]
-    result = {"simplices": int(len(faces)), "extension": bool(kernels.extension_twins()), "kept": kept}
+    result = {"simplices": int(len(faces)), "extension": extension.built() is not None, "kept": kept}
 
     def ours():
         return _decrun_operators(vertices, faces)
@@ -141,16 +136,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
         return _reference(vertices, faces)
 
     reference()  # libigl's own first call (page faults of its code) stays out of its best
-    twins = kernels._twins
-    kernels._twins = {}  # the sweep worker of an install without the extension: numpy until auto starts numba
-    builds = 0
-    while not jit.started() and builds < 400:
-        ours()
-        builds += 1
-    kernels._twins = twins
-    result["builds_until_kernels"] = builds if jit.started() else None
-    with jit.use("numba"):
-        operators = ours()  # the kernels that are not loaded yet, loaded
+    with jit.use("auto"):
+        operators = ours()
     with jit.use("numpy"):
         twins = ours()
     for a, b in zip(operators, twins, strict=True):  # the two paths agree (the tests hold them to it)
@@ -158,8 +145,7 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     floor = _floor_work(operators)
     from decrun.core import pages
 
-    best = {"igl": np.inf, "floor": np.inf, "numpy": np.inf, "extension": np.inf, "kernels": np.inf,
-            "huge": np.inf}
+    best = {"igl": np.inf, "floor": np.inf, "numpy": np.inf, "extension": np.inf, "huge": np.inf}
     worst = {"extension": 0.0, "huge": 0.0}
     for _ in range(repeat):
         best["igl"] = min(best["igl"], _cpu(reference))
@@ -176,43 +162,63 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
                 finally:
                     pages._switch = switch
                 best["huge"], worst["huge"] = min(best["huge"], spent), max(worst["huge"], spent)
-        with jit.use("numba"):
-            best["kernels"] = min(best["kernels"], _cpu(ours))
     result.update({f"{k}_s": float(v) for k, v in best.items()})
     result.update({f"{k}_worst_s": float(v) for k, v in worst.items()})
     result["load"] = [load_before, os.getloadavg()[0]]
     return result
 
 
-def jit_times() -> None:
-    """numba's start in fresh processes, in CPU time: its import, then the first build of a
-    small complex with every kernel on the operators' path (compile, or load from the cache);
-    decrun's own modules are imported before either is timed."""
+WHOLE_SETUP = "import numpy as np; m = np.load(%r); V, F = m['V'], m['F']"
+WHOLE = {
+    "decrun": "; import decrun; from decrun.core.complex import SimplicialComplex; from decrun.core.dec import DEC; "
+              "dec = DEC(SimplicialComplex(V, F)); [dec.d(0), dec.d(1)] + [dec.star(k) for k in range(3)]",
+    "libigl": "; import igl; igl.cotmatrix(V, F); igl.massmatrix(V, F, igl.MASSMATRIX_TYPE_VORONOI)",
+    "mesh load only": "",
+}
+
+
+def whole_processes(repeat: int) -> None:
+    """Whole fresh processes, in CPU time (user + system, from start to exit): load an icosphere
+    (.npz, so that no mesh library is imported), then decrun's import and one build, or libigl's
+    import and one call; interleaved, ``repeat`` times each; best and median."""
+    import resource
+    import statistics
     import subprocess
     import tempfile
 
-    code = ("import time, sys; import decrun.core.complex, decrun.core.dec; "
-            "from decrun.core.primitives import grid_triangles; "
-            "sys.path.insert(0, %r); from bench_operators import _decrun_operators; "
-            "V, F = grid_triangles(4, 4, jitter=0.2); t = time.process_time(); import numba; "
-            "imported = time.process_time() - t; t = time.process_time(); _decrun_operators(V, F); "
-            "first = time.process_time() - t; t = time.process_time(); _decrun_operators(V, F); "
-            "print(imported, first, time.process_time() - t)" % os.path.dirname(os.path.abspath(__file__)))
+    import numpy as np
+
     print(f"load average {os.getloadavg()[0]:.1f}")
-    print("| numba cache | numba import CPU s | first build CPU s (kernels compiled or loaded) | second build CPU s |")
-    print("|---|---:|---:|---:|")
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache, DECRUN_NUMBA="1")
-        for label in ("cold (empty)", "warm", "warm", "warm"):
-            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-            imported, first, second = (float(v) for v in out.stdout.split())
-            print(f"| {label} | {imported:.3f} | {first:.3f} | {second:.4f} |", flush=True)
+    print("| triangles | decrun best / median s | libigl best / median s | mesh load only s | decrun / libigl, best | "
+          "decrun / libigl, median |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for size in (6, 7):
+        vertices, faces = icosphere_or_kuhn_cube("icosphere", size)
+        with tempfile.TemporaryDirectory() as directory:
+            path = os.path.join(directory, "mesh.npz")
+            np.savez(path, V=vertices, F=faces)
+            spent: dict[str, list[float]] = {name: [] for name in WHOLE}
+            for _ in range(repeat):
+                for name, code in WHOLE.items():
+                    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    subprocess.run([sys.executable, "-c", WHOLE_SETUP % path + code], check=True, cwd=directory)
+                    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    spent[name].append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+        best = {name: min(times) for name, times in spent.items()}
+        median = {name: statistics.median(times) for name, times in spent.items()}
+        print(f"| {len(faces):,} | {best['decrun']:.3f} / {median['decrun']:.3f} | {best['libigl']:.3f} / "
+              f"{median['libigl']:.3f} | {best['mesh load only']:.3f} | {best['decrun'] / best['libigl']:.2f} | "
+              f"{median['decrun'] / median['libigl']:.2f} |", flush=True)
     print(f"load average {os.getloadavg()[0]:.1f}")
 
 
 def main(argv=None) -> int:
-    if argv is None and "--jit" in sys.argv:
-        jit_times()
+    if argv is None and "--whole" in sys.argv:
+        sys.argv.remove("--whole")
+        repeat = int(sys.argv[sys.argv.index("--repeat") + 1]) if "--repeat" in sys.argv else 7
+        if not have_libigl():
+            return 1
+        whole_processes(repeat)
         return 0
     if argv is None and "--keep-freed-memory" in sys.argv:
         sys.argv.remove("--keep-freed-memory")
@@ -229,12 +235,12 @@ def main(argv=None) -> int:
     print(f"CPU ms, best of {args.repeat} interleaved rounds; ratios to libigl (and to the floor) from the same process;"
           f" fresh: first calls, each in a process of its own, best of {args.repeat} processes"
           + ("; freed memory kept (mallopt)" if os.environ.get(KEEP_FREED_MEMORY) == "1" else ""))
-    print("| triangles | load | libigl | floor | numpy twins | extension | numba kernels | numpy / libigl |"
-          " extension / libigl | numba / libigl | extension / floor | fresh: import | fresh: first build, auto |"
-          " fresh: libigl's first call | fresh ratio | no extension: builds until auto starts numba |"
+    print("| triangles | load | libigl | floor | numpy twins | extension | numpy / libigl |"
+          " extension / libigl | extension / floor | fresh: import | fresh: first build, auto |"
+          " fresh: libigl's first call | fresh ratio |"
           " extension, worst round | extension in huge pages, best–worst round | fresh: worst process's first build |"
           " fresh: worst / libigl's best |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for size in TRIANGLE_CASES[level]:
         fresh, igl_fresh = {"fresh_auto_s": np.inf}, {"igl_fresh_s": np.inf}
         fresh_worst = 0.0
@@ -253,10 +259,10 @@ def main(argv=None) -> int:
         huge = (f" {1e3 * r['extension_worst_s']:.1f} | {1e3 * r['huge_s']:.1f}–{1e3 * r['huge_worst_s']:.1f} |"
                 if r["extension"] else " - | - |")
         print(f"| {r['simplices']:,} | {r['load'][0]:.0f}–{r['load'][1]:.0f} | {1e3 * igl_s:.1f} | {1e3 * r['floor_s']:.1f} |"
-              f" {1e3 * r['numpy_s']:.1f} |{extension[0]} {1e3 * r['kernels_s']:.1f} | {r['numpy_s'] / igl_s:.2f} |"
-              f"{extension[1]} {r['kernels_s'] / igl_s:.2f} |{extension[2]}"
+              f" {1e3 * r['numpy_s']:.1f} |{extension[0]} {r['numpy_s'] / igl_s:.2f} |"
+              f"{extension[1]}{extension[2]}"
               f" {1e3 * fresh['import_s']:.0f} | {1e3 * fresh['fresh_auto_s']:.1f} | {1e3 * igl_fresh['igl_fresh_s']:.1f} |"
-              f" {fresh['fresh_auto_s'] / igl_fresh['igl_fresh_s']:.2f} | {r['builds_until_kernels']} |{huge}"
+              f" {fresh['fresh_auto_s'] / igl_fresh['igl_fresh_s']:.2f} |{huge}"
               f" {1e3 * fresh_worst:.1f} | {fresh_worst / igl_fresh['igl_fresh_s']:.2f} |", flush=True)
     return 0
 

@@ -19,8 +19,8 @@ __all__ = ["warm_up_kernels", "status_bytes", "reset_peak_rss", "peak_rss_bytes"
 
 
 def warm_up_kernels() -> float:
-    """Load decrun's numba kernels (compiled once per install, then read from the cache) on a
-    tiny mesh, so a case measures the work and not numba's import; returns the seconds taken
+    """Run decrun's compiled kernels (the extension, :mod:`decrun.core.extension`) once on a tiny
+    mesh, so a case measures the work and not the first call's loading; returns the seconds taken
     (the first-call cost a fresh process pays once)."""
     import time
 
@@ -30,7 +30,7 @@ def warm_up_kernels() -> float:
     from decrun.core.primitives import grid_triangles, kuhn_cube
 
     saved = os.environ.get("DECRUN_NUMBA")
-    os.environ["DECRUN_NUMBA"] = "1"  # the kernels even on this tiny mesh
+    os.environ["DECRUN_NUMBA"] = "1"  # the compiled kernels
     try:
         start = time.perf_counter()
         vertices, faces = grid_triangles(4, 4, jitter=0.2)

@@ -28,6 +28,14 @@ def test_ruff_finds_nothing():
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
+def test_no_function_of_the_core_is_above_mccabe_20():
+    """ruff's C901 at complexity 20 over decrun/core (the lowest layer)."""
+    proc = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise",
+                           "--select", "C901", "--config", "lint.mccabe.max-complexity=20", "decrun/core"],
+                          cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
 def test_ruff_finds_a_planted_unused_import_and_a_missing_all_name(tmp_path):
     shutil.copy(REPO / "pyproject.toml", tmp_path / "pyproject.toml")
     (tmp_path / "mod.py").write_text('import os\n\n__all__ = ["missing"]\n')

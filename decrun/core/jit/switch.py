@@ -14,22 +14,6 @@ from decrun.errors import ConfigError
 __all__ = ["MODES", "check_mode", "mode", "use", "enabled",
            "started", "mark_started"]
 
-#: inputs from this many items (simplices, faces, rows) on take the compiled kernels under ``auto``
-#: in a process where numba has not started (and the kernel has no twin in the compiled extension):
-#: a triangle mesh's largest input is its 3·m edge slots, and one build of its complex and
-#: operators with the numba kernels saves numba's ~0.4 s start from ~1.3M triangles on (0.2–0.3 µs
-#: per triangle against the numpy twins; ``benchmarks/bench_operators.py``, docs/performance.md)
-MIN_SIZE = 4_000_000
-
-#: under ``auto``, once a kernel ran in this process, inputs from this many items on take the kernels
-WARM_MIN_SIZE = 10_000
-
-#: under ``auto``, the items of numpy work (inputs of at least :data:`WARM_MIN_SIZE` items) after
-#: which a process starts numba: a triangle mesh's complex and operators (d0, d1, ⋆0–⋆2) pass
-#: 15.5·m items through :func:`enabled`, so 25M items ≈ 1.6M triangles of builds, whose saving
-#: with the kernels (~0.25 µs per triangle) is about what numba's start costs (docs/performance.md)
-AMORTIZE_SIZE = 25_000_000
-
 #: the switch's values
 MODES = ("auto", "numba", "numpy")
 

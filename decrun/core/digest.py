@@ -79,7 +79,7 @@ class Digest:
         values = np.asarray(array, dtype=dtype, order="C")
         if header:
             self.text(f"{values.dtype.str} {values.shape} ")
-        self._sha.update(memoryview(values.reshape(-1)).cast("B"))  # (a view: no copy)
+        self._sha.update(values.reshape(-1).view(np.uint8).data)  # (a view: no copy)
         return self
 
     def hexdigest(self, digits: int | None = None) -> str:

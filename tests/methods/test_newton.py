@@ -143,3 +143,15 @@ def test_a_singular_jacobian_and_a_non_finite_residual_are_refused():
             np.errstate(invalid="ignore"):
         newton(np.log, lambda x: sp.diags(1 / x, format="csr"), -np.ones(3), new_solver=DirectSolver,
                where=WHERE, fix=FIX)
+
+
+def test_a_tolerance_below_round_off_stops_at_the_root_to_working_precision():
+    """rtol = atol = 0 cannot be met in floating point: Newton stops when its step can no longer
+    change x (or the full step is below √ε with no decrease of ‖F‖ left) — converged, not refused."""
+    residual, jacobian, exact, _ = cubic_problem(16)
+    reference = newton(residual, jacobian, np.zeros_like(exact), new_solver=DirectSolver, where=WHERE, fix=FIX)
+    exactly = newton(residual, jacobian, np.zeros_like(exact), new_solver=DirectSolver, where=WHERE, fix=FIX,
+                     rtol=0.0, atol=0.0)
+    assert exactly.iterations <= reference.iterations + 2
+    np.testing.assert_allclose(exactly.x, reference.x, rtol=1e-13, atol=1e-14)
+    assert exactly.residual_norms[-1] < 1e-13 * exactly.residual_norms[0]

@@ -12,7 +12,10 @@ converges quadratically. It stops when
 - ‖F(x_k)‖ ≤ atol + rtol ‖F(x_0)‖, or
 - the Newton step is below round-off, ‖Δ‖ ≤ 8 ε ‖x_k‖: x_k is then the root to working precision
   (no representable change of x lowers ‖F‖), which a residual whose entries are large (a stiff
-  operator times dt) may need.
+  operator times dt) may need; or
+- no damping decreases ‖F‖ (it is at the round-off of evaluating F) while the full step is tiny,
+  ‖Δ‖ ≤ √ε ‖x_k‖, with a Jacobian factorized at x_k: x_k + Δ is then the root to working precision
+  (Newton's error after the step is O(‖Δ‖²)).
 
 ``simplified=True`` is the simplified (chord) Newton method: J is factorized at x_0 and reused,
 and refactorized at the current iterate only when a step with the old factorization contracts
@@ -46,6 +49,8 @@ SMALLEST_DAMPING = 2.0 ** -16
 CHORD_CONTRACTION = 0.5
 #: a Newton step with ‖Δ‖ ≤ ROUND_OFF ‖x‖ cannot change x any more
 ROUND_OFF = 8 * np.finfo(np.float64).eps
+#: a full Newton step with ‖Δ‖ ≤ HALF_PRECISION ‖x‖ leaves an error O(‖Δ‖²), below round-off
+HALF_PRECISION = np.sqrt(np.finfo(np.float64).eps)
 
 
 @dataclass
@@ -157,6 +162,11 @@ def newton(residual: Callable[[np.ndarray], np.ndarray], jacobian: Callable[[np.
         if x_new is None and linearization.at is not x:
             refactorize = True  # simplified Newton: the old Jacobian's direction failed; refactorize here, retry
             continue
+        if x_new is None and _norm(step) <= HALF_PRECISION * _norm(x):
+            x = x + step  # ‖F‖ is at the round-off of its evaluation; the full step's error is O(‖Δ‖²)
+            norms.append(_norm(np.asarray(residual(x), dtype=np.float64)))
+            evaluations += 1
+            break
         if x_new is None:
             raise failure("no decrease of ‖F‖ along the Newton direction")
         norms.append(norm)

@@ -155,3 +155,13 @@ def test_a_tolerance_below_round_off_stops_at_the_root_to_working_precision():
     assert exactly.iterations <= reference.iterations + 2
     np.testing.assert_allclose(exactly.x, reference.x, rtol=1e-13, atol=1e-14)
     assert exactly.residual_norms[-1] < 1e-13 * exactly.residual_norms[0]
+
+
+def test_a_step_tolerance_stops_after_a_small_newton_step_with_an_error_of_its_square():
+    residual, jacobian, exact, _ = cubic_problem(16)
+    reference = newton(residual, jacobian, np.zeros_like(exact), new_solver=DirectSolver, where=WHERE, fix=FIX)
+    result = newton(residual, jacobian, np.zeros_like(exact), new_solver=DirectSolver, where=WHERE, fix=FIX,
+                    rtol=0.0, atol=0.0, step_tolerance=1e-2)
+    assert result.stopped_by == "step" and reference.stopped_by == "residual"
+    assert result.iterations < reference.iterations
+    assert np.linalg.norm(result.x - reference.x) < 1e-2 ** 2  # the last step ‖Δ‖ ≤ 1e-2 leaves O(‖Δ‖²)

@@ -46,7 +46,7 @@ from decrun.methods.model.runge_kutta import (
     Needs,
     tableau_entry,
 )
-from decrun.methods.model.tableaux import TABLEAUX
+from decrun.methods.model.tableaux import TABLEAUX, Tableau
 
 from meshes_for_tests import jittered_lattice
 
@@ -153,6 +153,21 @@ def test_a_linear_problem_is_factorized_once_per_time_step_size():
     assert [solver.factorizations for solver in imex.systems.values()] == [1]  # γ = 0.4358…: stages 2, 3, 4
 
 
+@pytest.mark.parametrize("name", ["implicit_euler", "crank_nicolson", "gauss_legendre", "radau_iia"])
+def test_a_stiff_linear_problem_steps_to_its_steady_state(name):
+    """ε = 10⁴, dt = 0.5: dt ε λ_max ≈ 10⁷. Near the steady state f's terms cancel, so its relative
+    round-off is large; Newton's step test in the units of the state still stops (one iteration a
+    step, one factorization). Σ⋆0 y is conserved; an L-stable method lands on the ⋆0 mean."""
+    problem = Logistic(epsilon=1e4, reaction=0.0)
+    y, stepper = integrate(ENTRIES[name], problem, 0.5, 6)
+    mean = problem.weights @ problem.initial / problem.weights.sum()
+    assert stepper.factorizations == 1 and stepper.newton_iterations <= 2 * 6
+    total = problem.weights @ problem.initial
+    assert abs(problem.weights @ y - total) < 1e-10 * total  # 1ᵀS = 0 to round-off, times dt ε = 5000
+    if name in ("implicit_euler", "radau_iia"):
+        assert np.max(abs(y - mean)) < 1e-10
+
+
 @pytest.mark.parametrize("name", list(TABLEAUX))
 def test_a_checkpoint_resumes_bit_for_bit(name):
     """N steps equal k steps, state_dict → load_state into a fresh stepper, N − k steps."""
@@ -209,6 +224,16 @@ def test_stage_equations_without_a_solution_are_refused_and_half_the_step_solves
     assert stepper.last_newton.iterations <= 6
 
 
+def test_a_step_that_blows_up_is_a_floating_point_error_naming_the_stage():
+    """Explicit stages of a growth rate 20 with dt = 0.5 (dt·20 = 10) overflow: a blow-up for the
+    caller (the model's stepper records it as unstable), never a NaN handed to a solver."""
+    problem = Logistic("consistent", reaction=20.0)
+    for name in ("ssprk3", "ark_imex"):
+        with pytest.raises(FloatingPointError, match=rf"^integrator={name}: non-finite values in (stage \d|the "
+                                                     r"update) of the step from t = \d"), np.errstate(all="ignore"):
+            integrate(ENTRIES[name], problem, 0.5, 20)
+
+
 def test_the_families_refuse_a_tableau_of_another_family():
     problem = Logistic()
     with pytest.raises(ValueError, match="tableau radau_iia is not explicit"):
@@ -217,3 +242,7 @@ def test_the_families_refuse_a_tableau_of_another_family():
         ImplicitRungeKutta(TABLEAUX["ark_imex"], problem, 0.1, DirectSolver)
     with pytest.raises(ValueError, match="tableau rk4 is not an additive pair"):
         AdditiveRungeKutta(TABLEAUX["rk4"], problem, 0.1, DirectSolver)
+    singular = Tableau("singular", np.array([[0.0, 0.0], [0.5, 0.5]]), np.array([0.25, 0.75]), np.array([0.0, 1.0]),
+                       order=1)
+    with pytest.raises(ValueError, match="tableau singular: A is singular and bᵀ is not its last row"):
+        ImplicitRungeKutta(singular, problem, 0.1, DirectSolver)

@@ -9,13 +9,15 @@ One iteration from x_k::
 steps are taken as soon as they decrease ‖F‖, so near the root the iteration is Newton's own and
 converges quadratically. It stops when
 
-- ‖F(x_k)‖ ≤ atol + rtol ‖F(x_0)‖, or
-- the Newton step is below round-off, ‖Δ‖ ≤ 8 ε ‖x_k‖: x_k is then the root to working precision
-  (no representable change of x lowers ‖F‖), which a residual whose entries are large (a stiff
-  operator times dt) may need; or
-- no damping decreases ‖F‖ (it is at the round-off of evaluating F) while the full step is tiny,
-  ‖Δ‖ ≤ √ε ‖x_k‖, with a Jacobian factorized at x_k: x_k + Δ is then the root to working precision
-  (Newton's error after the step is O(‖Δ‖²)).
+- ‖F(x_k)‖ ≤ atol + rtol ‖F(x_0)‖ (``stopped_by="residual"``), or
+- a full Newton step with ‖Δ‖ ≤ ``step_tolerance`` was taken (``"step"``): near the root Newton's
+  error after the step is O(‖Δ‖²), far below ‖Δ‖. This is the test for a caller whose F cannot be
+  evaluated to a relative accuracy ``rtol`` — a stiff operator times dt whose terms cancel near a
+  steady state — and who knows the scale of x (a time stepper: the state's), or
+- the Newton step is below round-off, ‖Δ‖ ≤ 8 ε ‖x_k‖ (``"round-off"``): no representable change of
+  x lowers ‖F‖; or no damping decreases ‖F‖ (it is at the round-off of evaluating F) while the
+  full step is tiny, ‖Δ‖ ≤ √ε ‖x_k‖, with J factorized at x_k: x_k + Δ is then the root to
+  working precision (its error O(‖Δ‖²) ≤ ε).
 
 ``simplified=True`` is the simplified (chord) Newton method: J is factorized at x_0 and reused,
 and refactorized at the current iterate only when a step with the old factorization contracts
@@ -56,13 +58,15 @@ HALF_PRECISION = np.sqrt(np.finfo(np.float64).eps)
 @dataclass
 class NewtonResult:
     """The root ``x`` (n,), the ``iterations`` taken and ‖F(x_k)‖ for k = 0..iterations
-    (``residual_norms``); ``factorizations`` of the Jacobian and ``residual_evaluations``."""
+    (``residual_norms``); ``factorizations`` of the Jacobian, ``residual_evaluations`` and which
+    test stopped the iteration (``stopped_by``: ``residual`` | ``step`` | ``round-off``)."""
 
     x: np.ndarray
     iterations: int
     residual_norms: list[float] = field(default_factory=list)
     factorizations: int = 0
     residual_evaluations: int = 0
+    stopped_by: str = "residual"
 
 
 class NewtonDivergence(ModelError):
@@ -130,18 +134,20 @@ def _line_search(residual: Callable, x: np.ndarray, step: np.ndarray, norm: floa
 
 def newton(residual: Callable[[np.ndarray], np.ndarray], jacobian: Callable[[np.ndarray], sp.csr_matrix],
            x0: np.ndarray, *, new_solver: Callable, where: str, fix: str, rtol: float = 1e-10, atol: float = 1e-12,
-           max_iterations: int = 25, simplified: bool = False, line_search: bool = True) -> NewtonResult:
+           max_iterations: int = 25, simplified: bool = False, line_search: bool = True,
+           step_tolerance: float = 0.0) -> NewtonResult:
     """Solve F(x) = 0 from ``x0`` (n,) by damped Newton (module docstring).
 
     ``residual(x) -> (n,)`` is F, ``jacobian(x) -> csr (n, n)`` its exact derivative ∂F/∂x;
     ``new_solver()`` returns a fresh :mod:`decrun.core.solvers` solver (J is factorized every
     iteration, or once and reused when ``simplified``). ``line_search=False`` takes full steps
-    (plain Newton). Raises :class:`NewtonDivergence` naming ``where`` and ``fix``.
+    (plain Newton); ``step_tolerance`` (in the units of x) stops after a step that small.
+    Raises :class:`NewtonDivergence` naming ``where`` and ``fix``.
     """
     x = np.array(x0, dtype=np.float64)
     F = np.asarray(residual(x), dtype=np.float64)
     norms = [_norm(F)]
-    evaluations = 1
+    result = NewtonResult(x=x, iterations=0, residual_norms=norms, residual_evaluations=1)
 
     def failure(reason: str) -> NewtonDivergence:
         return NewtonDivergence.of(where, fix, reason, norms)
@@ -155,24 +161,32 @@ def newton(residual: Callable[[np.ndarray], np.ndarray], jacobian: Callable[[np.
         if len(norms) > max_iterations:
             raise failure(f"‖F‖ not below {tolerance:.3e} in {max_iterations} iterations")
         step = linearization.direction(x, F, refactorize, failure)
-        if _norm(step) <= ROUND_OFF * _norm(x):
-            break  # x is the root to working precision
+        size = _norm(step)
+        if size <= ROUND_OFF * _norm(x):
+            result.stopped_by = "round-off"
+            break
+        small = size <= step_tolerance or size <= HALF_PRECISION * _norm(x)
         x_new, F_new, norm, used = _line_search(residual, x, step, norms[-1], line_search)
-        evaluations += used
+        result.residual_evaluations += used
         if x_new is None and linearization.at is not x:
             refactorize = True  # simplified Newton: the old Jacobian's direction failed; refactorize here, retry
             continue
-        if x_new is None and _norm(step) <= HALF_PRECISION * _norm(x):
-            x = x + step  # ‖F‖ is at the round-off of its evaluation; the full step's error is O(‖Δ‖²)
-            norms.append(_norm(np.asarray(residual(x), dtype=np.float64)))
-            evaluations += 1
-            break
-        if x_new is None:
+        if x_new is None and not small:
             raise failure("no decrease of ‖F‖ along the Newton direction")
+        if x_new is None:  # ‖F‖ is at the round-off of its evaluation: the full step's error is O(‖Δ‖²)
+            x_new = x + step
+            F_new = np.asarray(residual(x_new), dtype=np.float64)
+            norm = _norm(F_new)
+            result.residual_evaluations += 1
+            result.stopped_by = "step" if size <= step_tolerance else "round-off"
         norms.append(norm)
         if not np.isfinite(norm):
             raise failure("the residual is not finite")
         x, F = x_new, F_new
+        if size <= step_tolerance:
+            result.stopped_by = "step"
+        if result.stopped_by != "residual":
+            break
         refactorize = not simplified or norm > CHORD_CONTRACTION * norms[-2]
-    return NewtonResult(x=x, iterations=len(norms) - 1, residual_norms=norms,
-                        factorizations=linearization.factorizations, residual_evaluations=evaluations)
+    result.x, result.iterations, result.factorizations = x, len(norms) - 1, linearization.factorizations
+    return result

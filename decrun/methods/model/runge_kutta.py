@@ -8,28 +8,36 @@ The compiled model presents its evolution as a :class:`Problem` over one stacked
       M K_i = f(y + dt Σ_{j<i} a_ij K_j, t + c_i dt),   y⁺ = y + dt Σ_i b_i K_i
 
   M is factorized once (a diagonal M is divided by, the identity skipped).
-- :class:`ImplicitRungeKutta` (any A: Gauss, Radau IIA, implicit Euler, Crank–Nicolson; needs the
-  exact Jacobian J = ∂f/∂y): the s·n stage equations in the stage derivatives K (s, n)::
+- :class:`ImplicitRungeKutta` (any A stiffly accurate or invertible: Gauss, Radau IIA, implicit
+  Euler, Crank–Nicolson; needs the exact Jacobian J = ∂f/∂y): the s·n stage equations in the
+  stage increments Z_i = Y_i − y (s, n)::
 
-      G_i(K) = M K_i − f(Y_i, t + c_i dt) = 0,   Y_i = y + dt Σ_j a_ij K_j
+      R(Z) = (I⊗M) Z − dt (A⊗I) F(y + Z) = 0,   F_i = f(Y_i, t + c_i dt)
+      y⁺ = y + Σ_i d_i Z_i,   dᵀ = bᵀA⁻¹   (y⁺ = Y_s when bᵀ is the last row of A)
 
-  solved by :func:`~decrun.methods.model.newton.newton` from K = 0 with the exact Jacobian
-  ∂G/∂K = I⊗M − dt blockdiag(J(Y_1), …, J(Y_s)) (A⊗I) (= I⊗M − dt A⊗J for a linear f). One
-  solver serves every step: a matrix equal to the last one it factorized is not factorized
-  again, so a linear problem factorizes I⊗M − dt A⊗J once per dt.
+  solved by :func:`~decrun.methods.model.newton.newton` from Z = 0 with the exact Jacobian
+  ∂R/∂Z = I⊗M − dt (A⊗I) blockdiag(J(Y_1), …, J(Y_s)) (= I⊗M − dt A⊗J for a linear f). The
+  increments are in the units of the state, so Newton's step test reads ‖ΔZ‖ against ‖y‖: it
+  holds near a steady state, where f's terms cancel and its relative round-off is large, and
+  y⁺ of a stiffly accurate method is a stage value, never dt·f of one. One solver serves every
+  step: a matrix equal to the last one it factorized is not factorized again, so a linear
+  problem factorizes I⊗M − dt A⊗J once per dt.
 - :class:`AdditiveRungeKutta` (an IMEX pair; needs the split f = L y + g, L constant): stage by
-  stage, L implicit and g explicit::
+  stage, L implicit (A, b: a_ij, b_i) and g explicit (explicit_A, explicit_b: e_ij, e_i)::
 
-      (M − dt a_ii L) Y_i = M y + dt Σ_{j<i} (â_ij g(Y_j, t + c_j dt) + a_ij L Y_j)
-      M y⁺ = M y + dt Σ_i (b̂_i g(Y_i, t + c_i dt) + b_i L Y_i)
+      (M − dt a_ii L) Y_i = M y + dt Σ_{j<i} (e_ij g(Y_j, t + c_j dt) + a_ij L Y_j)
+      M y⁺ = M y + dt Σ_i (e_i g(Y_i, t + c_i dt) + b_i L Y_i)
 
-  (â, b̂ the explicit tableau), one factorization of M − dt γ L per distinct diagonal γ, made
-  once and reused by every step.
+  one factorization of M − dt γ L per distinct diagonal γ = a_ii, made once and reused by
+  every step.
 
 Each is made as ``make(problem, dt, new_solver)`` and has ``step(y, t) -> y⁺``, ``state_dict()``
 and ``load_state(state)``: the state holds the counters (the steps read nothing else), so a run
-resumed from a checkpoint repeats the uninterrupted run's steps bit for bit. :data:`INTEGRATORS`
-registers them by name (:class:`IntegratorEntry`).
+resumed from a checkpoint repeats the uninterrupted run's steps bit for bit. A step whose
+explicit stages blow up (NaN, ±inf) raises :class:`FloatingPointError` naming the stage and t (a
+blow-up, for the caller to record); stage equations that Newton cannot solve raise a
+:class:`~decrun.methods.model.newton.NewtonDivergence`. :data:`INTEGRATORS` registers the
+steppers by name (:class:`IntegratorEntry`).
 """
 
 from __future__ import annotations
@@ -158,7 +166,7 @@ class ExplicitRungeKutta(_Counters):
         K = np.zeros((self.tableau.stages, len(y)))
         for i in range(self.tableau.stages):
             stage = y + dt * (A[i, :i] @ K[:i]) if i else y
-            K[i] = self.mass.solve(self.problem.f(stage, t + c[i] * dt))
+            K[i] = self.mass.solve(_finite(self.problem.f(stage, t + c[i] * dt), self.tableau, i, t))
         self.rhs_evaluations += self.tableau.stages
         return y + dt * (b @ K)
 
@@ -167,18 +175,21 @@ class ImplicitRungeKutta(_Counters):
     """A fully implicit tableau on M y' = f(y, t): the stage equations by Newton (module docstring).
 
     ``where`` names the equations in a :class:`~decrun.methods.model.newton.NewtonDivergence`
-    and ``fix`` the override that helps (default: halve ``app.dt``); ``rtol``, ``atol`` and
-    ``max_iterations`` are Newton's; ``simplified`` reuses one Jacobian factorization while
-    Newton contracts fast (:func:`~decrun.methods.model.newton.newton`)."""
+    and ``fix`` the override that helps (default: halve ``app.dt``); ``rtol`` is Newton's
+    tolerance relative to the first residual and, on its steps, to the state (‖ΔZ‖ ≤ rtol √s ‖y‖);
+    ``max_iterations`` is Newton's; ``simplified`` reuses one Jacobian factorization while Newton
+    contracts fast (:func:`~decrun.methods.model.newton.newton`). The tableau must be stiffly
+    accurate (bᵀ the last row of A) or have an invertible A."""
 
     counters = ("rhs_evaluations", "newton_iterations")
 
     def __init__(self, tableau: Tableau, problem: Problem, dt: float, new_solver: Callable, *,
-                 where: str = "app.equations", fix: str | None = None, rtol: float = 1e-12, atol: float = 0.0,
+                 where: str = "app.equations", fix: str | None = None, rtol: float = 1e-12,
                  max_iterations: int = 25, simplified: bool = False):
         if tableau.additive:
             raise ValueError(f"tableau {tableau.name} is an additive pair: use AdditiveRungeKutta")
         self.tableau, self.problem, self.dt = tableau, problem, float(dt)
+        self.output = _output_weights(tableau)
         s, n = tableau.stages, problem.size
         mass = sp.identity(n, format="csr") if problem.mass is None else sp.csr_matrix(problem.mass)
         self.stage_mass = sp.kron(sp.identity(s), mass, format="csr")  # I⊗M
@@ -186,7 +197,8 @@ class ImplicitRungeKutta(_Counters):
         self.solver = new_solver()  # reused: an unchanged matrix is not factorized again
         self.where = where
         self.fix = fix if fix is not None else f"halve the time step (app.dt={self.dt / 2:g})"
-        self.newton = partial(newton, rtol=rtol, atol=atol, max_iterations=max_iterations, simplified=simplified)
+        self.rtol = rtol
+        self.newton = partial(newton, rtol=rtol, atol=0.0, max_iterations=max_iterations, simplified=simplified)
         self.rhs_evaluations = self.newton_iterations = 0
         self.last_newton: NewtonResult | None = None
 
@@ -195,31 +207,39 @@ class ImplicitRungeKutta(_Counters):
         """The Jacobians factorized by this process (a linear problem's: one)."""
         return self.solver.factorizations
 
-    def _stages(self, y: np.ndarray, K: np.ndarray) -> np.ndarray:
-        """Y = y + dt A K, (s, n) from K (s·n,)."""
-        return y[None, :] + self.dt * (self.tableau.A @ K.reshape(self.tableau.stages, -1))
-
     def step(self, y: np.ndarray, t: float) -> np.ndarray:
-        """y⁺ = y + dt Σ b_i K_i with the stage equations G(K) = 0 solved by Newton, (n,)."""
-        s, n, dt, c = self.tableau.stages, len(y), self.dt, self.tableau.c
-        times = t + c * dt
+        """y⁺ = y + Σ d_i Z_i with the stage equations R(Z) = 0 solved by Newton from Z = 0, (n,)."""
+        s, n, dt = self.tableau.stages, len(y), self.dt
+        times = t + self.tableau.c * dt
 
-        def residual(K: np.ndarray) -> np.ndarray:
-            Y = self._stages(y, K)
+        def residual(Z: np.ndarray) -> np.ndarray:
+            Y = y[None, :] + Z.reshape(s, n)
             self.rhs_evaluations += s
             forces = np.concatenate([self.problem.f(Y[i], times[i]) for i in range(s)])
-            return self.stage_mass @ K - forces
+            return self.stage_mass @ Z - dt * (self.coupling @ forces)
 
-        def jacobian(K: np.ndarray) -> sp.csr_matrix:
-            Y = self._stages(y, K)
+        def jacobian(Z: np.ndarray) -> sp.csr_matrix:
+            Y = y[None, :] + Z.reshape(s, n)
             blocks = sp.block_diag([self.problem.jacobian(Y[i], times[i]) for i in range(s)], format="csr")
-            return (self.stage_mass - dt * (blocks @ self.coupling)).tocsr()
+            return (self.stage_mass - dt * (self.coupling @ blocks)).tocsr()
 
         result = self.newton(residual, jacobian, np.zeros(s * n), new_solver=lambda: self.solver, where=self.where,
-                             fix=self.fix)
+                             fix=self.fix, step_tolerance=self.rtol * np.sqrt(s) * float(np.linalg.norm(y)))
         self.last_newton = result
         self.newton_iterations += result.iterations
-        return y + dt * (self.tableau.b @ result.x.reshape(s, n))
+        return y + self.output @ result.x.reshape(s, n)
+
+
+def _output_weights(tableau: Tableau) -> np.ndarray:
+    """d (s,) with y⁺ = y + Σ d_i Z_i: dᵀ = bᵀA⁻¹, which is e_s for a stiffly accurate tableau
+    (bᵀ the last row of A: y⁺ is the last stage, exactly)."""
+    if np.array_equal(tableau.b, tableau.A[-1]):
+        return np.eye(tableau.stages)[-1]
+    try:
+        return np.linalg.solve(tableau.A.T, tableau.b)
+    except np.linalg.LinAlgError as exc:
+        raise ValueError(f"tableau {tableau.name}: A is singular and bᵀ is not its last row: the step cannot be "
+                         "written in the stage increments") from exc
 
 
 class AdditiveRungeKutta(_Counters):
@@ -259,11 +279,21 @@ class AdditiveRungeKutta(_Counters):
                 stage = y
             else:
                 rhs = mass_y + dt * (explicit[i, :i] @ explicit_forces[:i] + implicit[i, :i] @ linear_forces[:i])
-                stage = self._solve(float(implicit[i, i]), rhs)
+                stage = self._solve(float(implicit[i, i]), _finite(rhs, tableau, i, t))
             explicit_forces[i] = self.problem.nonstiff(stage, t + c[i] * dt)
             linear_forces[i] = self.stiff @ stage
         self.rhs_evaluations += s
-        return self.mass.solve(mass_y + dt * (self.explicit_b @ explicit_forces + tableau.b @ linear_forces))
+        update = mass_y + dt * (self.explicit_b @ explicit_forces + tableau.b @ linear_forces)
+        return self.mass.solve(_finite(update, tableau, s, t))
+
+
+def _finite(values: np.ndarray, tableau: Tableau, stage: int, t: float) -> np.ndarray:
+    """``values``, or a FloatingPointError (the step blew up: the stepper's caller records where)
+    before a solver is handed a NaN or ±inf."""
+    if not np.all(np.isfinite(values)):
+        what = f"stage {stage + 1}" if stage < tableau.stages else "the update"
+        raise FloatingPointError(f"integrator={tableau.name}: non-finite values in {what} of the step from t = {t:g}")
+    return values
 
 
 def tableau_entry(tableau: Tableau) -> IntegratorEntry:

@@ -11,7 +11,8 @@ converges quadratically. It stops when
 
 - ‖F(x_k)‖ ≤ atol + rtol ‖F(x_0)‖ (``stopped_by="residual"``), or
 - a full Newton step with ‖Δ‖ ≤ ``step_tolerance`` was taken (``"step"``): near the root Newton's
-  error after the step is O(‖Δ‖²), far below ‖Δ‖. This is the test for a caller whose F cannot be
+  error after the step is O(‖Δ‖²), far below ‖Δ‖ (simplified Newton's, converging linearly with
+  a contraction ≲ ½, is below ‖Δ‖). This is the test for a caller whose F cannot be
   evaluated to a relative accuracy ``rtol`` — a stiff operator times dt whose terms cancel near a
   steady state — and who knows the scale of x (a time stepper: the state's), or
 - the Newton step is below round-off, ‖Δ‖ ≤ 8 ε ‖x_k‖ (``"round-off"``): no representable change of
@@ -165,28 +166,29 @@ def newton(residual: Callable[[np.ndarray], np.ndarray], jacobian: Callable[[np.
         if size <= ROUND_OFF * _norm(x):
             result.stopped_by = "round-off"
             break
-        small = size <= step_tolerance or size <= HALF_PRECISION * _norm(x)
-        x_new, F_new, norm, used = _line_search(residual, x, step, norms[-1], line_search)
-        result.residual_evaluations += used
-        if x_new is None and linearization.at is not x:
-            refactorize = True  # simplified Newton: the old Jacobian's direction failed; refactorize here, retry
-            continue
-        if x_new is None and not small:
-            raise failure("no decrease of ‖F‖ along the Newton direction")
-        if x_new is None:  # ‖F‖ is at the round-off of its evaluation: the full step's error is O(‖Δ‖²)
-            x_new = x + step
+        if size <= step_tolerance:  # the root is within ≈ ‖Δ‖ of x: the full step leaves O(‖Δ‖²)
+            x_new, F_new, result.stopped_by = x + step, None, "step"
+        else:
+            x_new, F_new, norm, used = _line_search(residual, x, step, norms[-1], line_search)
+            result.residual_evaluations += used
+            if x_new is None and linearization.at is not x:
+                refactorize = True  # simplified Newton: the old Jacobian's direction failed; refactorize here, retry
+                continue
+            if x_new is None and size > HALF_PRECISION * _norm(x):
+                raise failure("no decrease of ‖F‖ along the Newton direction")
+            if x_new is None:  # ‖F‖ is at the round-off of its evaluation: the full step's error is O(‖Δ‖²) ≤ ε
+                x_new, result.stopped_by = x + step, "round-off"
+            else:
+                norms.append(norm)
+        if F_new is None:  # a full step taken without the line search: its residual, for the record
             F_new = np.asarray(residual(x_new), dtype=np.float64)
-            norm = _norm(F_new)
             result.residual_evaluations += 1
-            result.stopped_by = "step" if size <= step_tolerance else "round-off"
-        norms.append(norm)
-        if not np.isfinite(norm):
-            raise failure("the residual is not finite")
+            norms.append(_norm(F_new))
         x, F = x_new, F_new
-        if size <= step_tolerance:
-            result.stopped_by = "step"
+        if not np.isfinite(norms[-1]):
+            raise failure("the residual is not finite")
         if result.stopped_by != "residual":
             break
-        refactorize = not simplified or norm > CHORD_CONTRACTION * norms[-2]
+        refactorize = not simplified or norms[-1] > CHORD_CONTRACTION * norms[-2]
     result.x, result.iterations, result.factorizations = x, len(norms) - 1, linearization.factorizations
     return result

@@ -77,7 +77,8 @@ class Problem(Protocol):
 
 
 class Stepper(Protocol):
-    """One step of fixed length dt, and the state a later step reads."""
+    """One step of fixed length dt, and the state a later step reads (an integrator's: the model's
+    :class:`decrun.methods.stepping.Stepper` wraps it)."""
 
     def step(self, y: np.ndarray, t: float) -> np.ndarray:
         """y(t + dt) from y(t), (n,)."""
@@ -100,8 +101,11 @@ class Needs(Choice):
 
 @dataclass(frozen=True)
 class IntegratorEntry:
-    """An integrator by ``name``: ``factory(problem, dt, new_solver) -> Stepper``, what it ``needs``
-    from the problem, its ``order`` and its ``tableau`` (None for one that is not a Runge–Kutta method)."""
+    """An integrator by ``name``: ``factory(problem, dt, new_solver, **options) -> Stepper``, what it
+    ``needs`` from the problem, its ``order`` and its ``tableau`` (None for one that is not a
+    Runge–Kutta method). The options by family: ``needs=jacobian`` (:class:`ImplicitRungeKutta`)
+    ``where``, ``fix``, ``rtol``, ``max_iterations``, ``simplified``; ``needs=stiff_split``
+    (:class:`AdditiveRungeKutta`) ``key``; ``needs=explicit`` none."""
 
     name: str
     factory: Callable[..., Stepper]
@@ -223,7 +227,8 @@ class ImplicitRungeKutta(_Counters):
             blocks = sp.block_diag([self.problem.jacobian(Y[i], times[i]) for i in range(s)], format="csr")
             return (self.stage_mass - dt * (self.coupling @ blocks)).tocsr()
 
-        result = self.newton(residual, jacobian, np.zeros(s * n), new_solver=lambda: self.solver, where=self.where,
+        where = f"{self.where} (integrator={self.tableau.name}, the step from t = {t:g})"
+        result = self.newton(residual, jacobian, np.zeros(s * n), new_solver=lambda: self.solver, where=where,
                              fix=self.fix, step_tolerance=self.rtol * np.sqrt(s) * float(np.linalg.norm(y)))
         self.last_newton = result
         self.newton_iterations += result.iterations

@@ -34,6 +34,7 @@ import pytest
 import scipy.sparse as sp
 
 from decrun.complex import SimplicialComplex
+from decrun.core.solvers import solver_factory
 from decrun.core.solvers.direct import DirectSolver
 from decrun.dec import DEC
 from decrun.methods.model.language import ModelError
@@ -244,6 +245,23 @@ def test_a_step_that_blows_up_is_a_floating_point_error_naming_the_stage():
         with pytest.raises(FloatingPointError, match=rf"^integrator={name}: non-finite values in (stage \d|the "
                                                      r"update) of the step from t = \d"), np.errstate(all="ignore"):
             integrate(ENTRIES[name], problem, 0.5, 20)
+
+
+def test_a_solver_for_symmetric_systems_only_is_refused_for_the_stage_system():
+    """I⊗M − dt A⊗J is unsymmetric for s > 1 (A is): cg cannot solve it; one stage (implicit Euler,
+    M − dt J symmetric for diffusion) can, and the named override solves the stages."""
+    problem = Logistic()
+    with pytest.raises(ModelError) as info:
+        INTEGRATORS["radau_iia"].factory(problem, 0.1, solver_factory("cg"))
+    assert str(info.value) == ("solver=cg: integrator=radau_iia solves the unsymmetric stage system I⊗M − dt A⊗J of "
+                               "its 3 stages; use `solver=direct` (or `solver=iterative`, `solver=pardiso`)")
+    by_direct, _ = integrate(None, problem, 0.1, 3,
+                             stepper=INTEGRATORS["radau_iia"].factory(problem, 0.1, solver_factory("direct")))
+    by_default, _ = integrate(INTEGRATORS["radau_iia"], problem, 0.1, 3)
+    np.testing.assert_array_equal(by_direct, by_default)
+    by_cg, _ = integrate(None, problem, 0.1, 3, stepper=ENTRIES["implicit_euler"].factory(problem, 0.1,
+                                                                                         solver_factory("cg")))
+    np.testing.assert_allclose(by_cg, integrate(ENTRIES["implicit_euler"], problem, 0.1, 3)[0], rtol=1e-6)
 
 
 def test_the_families_refuse_a_tableau_of_another_family():

@@ -199,6 +199,10 @@ class ImplicitRungeKutta(_Counters):
         self.stage_mass = sp.kron(sp.identity(s), mass, format="csr")  # I⊗M
         self.coupling = sp.kron(sp.csr_matrix(tableau.A), sp.identity(n), format="csr")  # A⊗I
         self.solver = new_solver()  # reused: an unchanged matrix is not factorized again
+        if s > 1 and getattr(self.solver, "needs_spd", False):
+            raise ModelError(f"solver={self.solver.name}: integrator={tableau.name} solves the unsymmetric stage "
+                             f"system I⊗M − dt A⊗J of its {s} stages; use `solver=direct` (or `solver=iterative`, "
+                             "`solver=pardiso`)")
         self.where = where
         self.fix = fix if fix is not None else f"halve the time step (app.dt={self.dt / 2:g})"
         self.rtol = rtol

@@ -146,7 +146,8 @@ ARS232 = Tableau(
 
 
 def _ark324() -> Tableau:
-    """ARK3(2)4L[2]SA of Kennedy & Carpenter (2003), Table 1 of the paper's appendix (its rationals)."""
+    """ARK3(2)4L[2]SA of Kennedy & Carpenter (2003, Appl. Numer. Math. 44), with its published rationals
+    (the explicit and implicit parts share b and c; b_hat is the embedded order-2 method)."""
     F = Fraction
     gamma = F(1767732205903, 4055673282236)
     b: list[Fraction | int] = [F(1471266399579, 7840856788654), F(-4482444167858, 7529755066697),

@@ -230,7 +230,8 @@ class CompiledModel:
         lines = []
         for name, report in self.solve_reports().items():
             lines.append(f"{name}: the system is singular (constants on each of {report.pieces} piece(s)); the mean "
-                         f"of {name} is fixed to 0 and {report.removed:.2g} of the right side (its mean) was removed")
+                         f"of {name} is fixed to 0 and the right side's mean {report.mean:.6g} (a part {report.removed:.2g} of "
+                         "it, relative) was subtracted")
         return lines
 
     def metric_values(self, env: dict) -> dict[str, float]:

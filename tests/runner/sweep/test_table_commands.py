@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from test_tables import write_job  # noqa: E402
 
 from decrun.runner.results import read_result
 from decrun.runner.sweep.compare import compare_runs
@@ -20,7 +21,6 @@ from decrun.runner.sweep.plot import draw_metric
 from decrun.runner.sweep.tables import stack
 
 from cli_processes import decrun, env
-from test_tables import write_job  # noqa: E402
 
 TABLE = str(Path(sys.executable).parent / "decrun-table")
 FAST = ["figures=false", "progress=false"]

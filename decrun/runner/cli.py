@@ -740,7 +740,7 @@ def table_main(argv: list[str] | None = None) -> int:
     from decrun.runner.sweep.table_commands import compare_command, plot_command
 
     if args.compare:
-        return compare_command(*args.compare, csv=args.csv)
+        return compare_command(args.compare[0], args.compare[1], csv=args.csv)
     if args.plot:
         return plot_command(args.sweep_dirs, args.plot, args.x, args.output)
     if not args.sweep_dirs:

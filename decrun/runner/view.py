@@ -408,9 +408,9 @@ def _add(ps, view: View, structure, quantity: Quantity, step: int, enabled: bool
         ps.register_point_cloud(name, values, enabled=True)
 
 
-def value_range(values: np.ndarray) -> tuple[float, float]:
+def value_range(values: np.ndarray | None) -> tuple[float, float]:
     """(min, max) of the finite values — the colour map's range (a constant field: ± 0.5 around it)."""
-    finite = np.asarray(values, dtype=np.float64)
+    finite = np.asarray(values if values is not None else [], dtype=np.float64)
     finite = finite[np.isfinite(finite)]
     if not finite.size:
         return (0.0, 1.0)

@@ -10,6 +10,7 @@ a run or job directory, its ``result.h5``, or a killed job's ``result.h5.partial
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -31,7 +32,7 @@ def compare_runs(run_a: str | os.PathLike, run_b: str | os.PathLike) -> pd.DataF
     from decrun.runner.results import read_result
 
     a, b = read_result(run_a).fields, read_result(run_b).fields
-    rows = []
+    rows: list[dict[str, Any]] = []
     for name in sorted(set(a) | set(b)):
         if name not in b or name not in a:
             only = "A" if name in a else "B"

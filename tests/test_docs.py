@@ -27,6 +27,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -228,6 +229,13 @@ def test_the_tutorial_runs_in_order(tmp_path):
                           env=env)
     assert done.returncode == 0, done.stderr[-3000:]
     assert (tmp_path / "first_figure.png").stat().st_size > 10_000
+    import matplotlib.image
+
+    image = matplotlib.image.imread(tmp_path / "first_figure.png")[..., :3]
+    ink = (image < 0.6).any(axis=2)  # text and lines on the white figure
+    rows, cols = np.nonzero(ink)
+    height, width = image.shape[:2]  # the x-label inside, not cut at the bottom (it was: ink in the last row)
+    assert rows.max() < height - 2 and rows.min() > 1 and cols.min() > 1 and cols.max() < width - 2
 
 
 def test_the_cluster_page_shows_the_shipped_launcher_config(site):

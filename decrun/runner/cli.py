@@ -711,7 +711,8 @@ def _choices_of(cause: BaseException | None) -> type[Choice] | None:
 
 
 def table_main(argv: list[str] | None = None) -> int:
-    """Console script ``decrun-table SWEEP [SWEEP ...]``: rebuild each sweep's ``metrics.csv``
+    """Console script ``decrun-table SWEEP [SWEEP ...]`` (also ``--plot METRIC --x KEY`` and
+    ``--compare RUN_A RUN_B``): rebuild each sweep's ``metrics.csv``
     / ``metrics.md`` (only in directories a sweep wrote) and print the table — several
     sweeps stacked with a ``sweep`` column; one line on stderr for each ``corrupt`` job,
     naming the file, and for each sweep directory the table could not be saved in (read-only:
@@ -722,7 +723,7 @@ def table_main(argv: list[str] | None = None) -> int:
     from decrun.runner.sweep.tables import failed_jobs, is_sweep_dir, select, stack, to_markdown, write_sweep_table
 
     parser = argparse.ArgumentParser(prog="decrun-table", description=table_main.__doc__)
-    parser.add_argument("sweep_dirs", nargs="+", metavar="SWEEP", help="a sweep directory, e.g. outputs/sweeps/<stamp>")
+    parser.add_argument("sweep_dirs", nargs="*", metavar="SWEEP", help="a sweep directory, e.g. outputs/sweeps/<stamp>")
     parser.add_argument("--csv", action="store_true", help="print CSV instead of markdown")
     parser.add_argument("--metrics", help="comma-separated metric columns to show (default: the apps' headline "
                                           "metrics in markdown, all in --csv)")
@@ -731,7 +732,19 @@ def table_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--descending", action="store_true", help="sort in descending order")
     parser.add_argument("--drop-constant", action=argparse.BooleanOptionalAction, default=None,
                         help="drop columns with one value in every row (default: on for markdown, off for --csv and --all)")
+    parser.add_argument("--plot", metavar="METRIC", help="draw METRIC against --x KEY as a PNG (decrun.runner.sweep.plot)")
+    parser.add_argument("--x", metavar="KEY", help="the swept key on the x axis of --plot")
+    parser.add_argument("-o", "--output", metavar="FILE", help="the PNG of --plot (default: in the first sweep)")
+    parser.add_argument("--compare", nargs=2, metavar=("RUN_A", "RUN_B"), help="max and L2 difference of every field")
     args = parser.parse_args(argv)
+    from decrun.runner.sweep.table_commands import compare_command, plot_command
+
+    if args.compare:
+        return compare_command(args.compare[0], args.compare[1], csv=args.csv)
+    if args.plot:
+        return plot_command(args.sweep_dirs, args.plot, args.x, args.output)
+    if not args.sweep_dirs:
+        parser.error("give a sweep directory (or --compare RUN_A RUN_B)")
 
     def split(text: str | None) -> list[str] | None:
         return [k.strip() for k in text.split(",") if k.strip()] if text else None

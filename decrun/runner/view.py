@@ -26,7 +26,9 @@ a 2-form on the triangles of a volume, eigenvalues — is named in one line, nev
 silently. The placement (:func:`plan_view`) needs no polyscope; only :func:`show` imports it, so
 ``decrun-view`` without the ``view`` extra is one line saying how to install it.
 
-``--screenshot FILE.png`` renders headless (EGL) with no window and exits.
+``--screenshot FILE.png`` renders headless (EGL) with no window and exits; a scalar field's
+screenshot has its colour bar beside the picture (:func:`with_colour_bar`: the field's name,
+its range, viridis as the picture uses it).
 """
 
 from __future__ import annotations
@@ -62,6 +64,10 @@ KINDS = ("vertex_scalar", "cell_scalar", "vertex_vector", "cell_vector", "one_fo
 #: arrows long and thick enough to read on a whole mesh (polyscope's lengths are relative to the
 #: scene's size; the longest arrow is ``length``)
 ARROWS = {"length": 0.04, "radius": 0.002}
+#: the colour map of scalar quantities (set explicitly, so the screenshot's colour bar is the picture's)
+SCALAR_MAP = "viridis"
+#: width of the colour bar's strip beside a screenshot (pixels)
+COLOUR_BAR_STRIP = 150
 
 
 class ViewError(DecrunError):
@@ -365,9 +371,11 @@ def _add(ps, view: View, structure, quantity: Quantity, step: int, enabled: bool
     kind, name = quantity.kind, quantity.name
     volume = view.dimension == 3
     if kind == "vertex_scalar":
-        structure.add_scalar_quantity(name, values, defined_on="vertices", enabled=enabled)
+        structure.add_scalar_quantity(name, values, defined_on="vertices", enabled=enabled, cmap=SCALAR_MAP,
+                                      vminmax=value_range(values))
     elif kind == "cell_scalar":
-        structure.add_scalar_quantity(name, values, defined_on="cells" if volume else "faces", enabled=enabled)
+        structure.add_scalar_quantity(name, values, defined_on="cells" if volume else "faces", enabled=enabled,
+                                      cmap=SCALAR_MAP, vminmax=value_range(values))
     elif kind == "vertex_vector":
         structure.add_vector_quantity(name, values, defined_on="vertices", enabled=enabled, **ARROWS)
     elif kind == "cell_vector":
@@ -398,6 +406,39 @@ def _add(ps, view: View, structure, quantity: Quantity, step: int, enabled: bool
                 cloud.add_vector_quantity(name, values, enabled=True)
     elif kind == "points":
         ps.register_point_cloud(name, values, enabled=True)
+
+
+def value_range(values: np.ndarray | None) -> tuple[float, float]:
+    """(min, max) of the finite values — the colour map's range (a constant field: ± 0.5 around it)."""
+    finite = np.asarray(values if values is not None else [], dtype=np.float64)
+    finite = finite[np.isfinite(finite)]
+    if not finite.size:
+        return (0.0, 1.0)
+    low, high = float(finite.min()), float(finite.max())
+    return (low, high) if high > low else (low - 0.5, high + 0.5)
+
+
+def with_colour_bar(image: np.ndarray, name: str, low: float, high: float, path: Path) -> None:
+    """Write ``image`` (h, w, 3|4 uint8, a screenshot) to the PNG ``path`` with a vertical colour
+    bar of :data:`SCALAR_MAP` from ``low`` to ``high``, labelled ``name``, in a strip of
+    :data:`COLOUR_BAR_STRIP` pixels on its right (never over the picture)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+
+    height, width = image.shape[:2]
+    total = width + COLOUR_BAR_STRIP
+    figure = Figure(figsize=(total / 100, height / 100), dpi=100, facecolor="white")
+    FigureCanvasAgg(figure)
+    picture = figure.add_axes((0, 0, width / total, 1))
+    picture.imshow(image, interpolation="nearest")
+    picture.set_axis_off()
+    bar = figure.add_axes(((width + 12) / total, 0.15, 18 / total, 0.7))
+    figure.colorbar(ScalarMappable(norm=Normalize(low, high), cmap=SCALAR_MAP), cax=bar)
+    bar.set_title(name, fontsize=9, loc="left")
+    bar.tick_params(labelsize=8)
+    figure.savefig(path, dpi=100, facecolor="white")
 
 
 def left_out_line(left_out: dict[str, str]) -> str:
@@ -469,7 +510,11 @@ def _draw(ps, view: View, selected: Quantity | None, index: int, screenshot: Pat
         _add(ps, view, structure, quantity, index, quantity is selected, setup)
     _camera(ps, view)
     if screenshot is not None:
-        ps.screenshot(str(screenshot), transparent_bg=False)
+        if selected is not None and selected.kind in ("vertex_scalar", "cell_scalar"):
+            low, high = value_range(selected.at(index))
+            with_colour_bar(ps.screenshot_to_buffer(transparent_bg=False), selected.name, low, high, screenshot)
+        else:  # arrows, a one-form, a parametrization: no colour scale to read
+            ps.screenshot(str(screenshot), transparent_bg=False)
         return
     _slider(ps, view, structure, index, selected, setup)
     ps.show()

@@ -255,6 +255,44 @@ def test_poisson_on_the_closed_sphere_fixes_the_mean_and_meets_xy_at_second_orde
     assert min(orders(errors)) >= 1.8, errors
 
 
+def absolute_integral_on_sphere(c: float) -> float:
+    """∫_{S²} |c − 6xy| dA on the unit sphere, exactly up to quadrature round-off: with
+    6xy = A sin 2φ, A = 3 sin²θ, the ring integral ∫_0^{2π} |c − A sin 2φ| dφ is
+    4cα + 4√(A² − c²) (α = arcsin(c/A)) for A > c and 2πc otherwise."""
+    from scipy.integrate import quad
+
+    def ring(theta):
+        amplitude = 3 * math.sin(theta) ** 2
+        if amplitude <= c:
+            return 2 * math.pi * c * math.sin(theta)
+        return (4 * c * math.asin(c / amplitude) + 4 * math.sqrt(amplitude**2 - c**2)) * math.sin(theta)
+
+    return quad(ring, 0, math.pi, epsabs=1e-13, epsrel=1e-13, limit=200)[0]
+
+
+def test_a_small_real_mean_on_the_closed_sphere_is_removed_and_logged_exactly(tmp_path):
+    """Δu = −6xy + 0.02 through the real command: the compatible part −6xy has the exact answer
+    u = xy (zero mean), the mean 0.02 has none and is subtracted. The metric and the log line
+    say the subtracted mean (0.02 to round-off: the icosphere is symmetric under x → −x) and its
+    relative part 0.02·4π / ∫|f| (0.015706; measured 0.015759, 0.015714 at subdiv 3, 4: the mesh's O(h²)).
+    Errors to xy: 5.78e-3, 1.44e-3 (subdiv 3, 4) — second order, as with a zero-mean side."""
+    c, errors = 0.02, []
+    relative = c * 4 * math.pi / absolute_integral_on_sphere(c)
+    for subdiv in (3, 4):
+        out = tmp_path / f"s{subdiv}"
+        proc = decrun(*SPHERE_POISSON, f"mesh.subdiv={subdiv}", f"app.equations=['solve(laplacian(u) = -6*x*y + {c})']",
+                      "app.metrics.l2_error_rel='norm(u - x*y)/norm(x*y)'", "app.metrics.max_abs_error='integral(u)'",
+                      *FAST, f"hydra.run.dir={out}", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        metrics = json.loads((out / "metrics.json").read_text())
+        assert metrics["u_rhs_mean"] == pytest.approx(c, rel=1e-10)
+        assert metrics["u_rhs_mean_removed"] == pytest.approx(relative, rel=5e-3)  # the mesh's O(h²)
+        assert "the right side's mean 0.02 " in proc.stdout + proc.stderr
+        assert abs(metrics["max_abs_error"]) < 1e-12  # ∫u: the fixed mean
+        errors.append(metrics["l2_error_rel"])
+    assert errors[1] < 2e-3 and min(orders(errors)) >= 1.8, errors
+
+
 def test_a_right_side_with_nonzero_mean_on_a_closed_surface_is_refused_with_one_line(tmp_path):
     proc = decrun(*SPHERE_POISSON, "app.equations=['solve(laplacian(u) = z + 1)']", *FAST,
                   f"hydra.run.dir={tmp_path / 'r'}", cwd=tmp_path)

@@ -237,3 +237,35 @@ def test_a_single_run_composes_its_config_once_as_the_command(here, composition_
     with pytest.raises(decrun.RunError, match=r"^error: app.scheme: must be one of"):
         decrun.run([*HEAT, "app=smoothing", "app.scheme=backward"])
     assert Hydra.compose_config is modes.counted  # the single-run patch is undone after an error too
+
+
+def _slug(heading: str) -> str:
+    """A markdown heading's anchor as mkdocs (Python-Markdown's toc) makes it."""
+    import re
+
+    text = re.sub(r"[^\w\s-]", "", heading.strip().lower())
+    return re.sub(r"[\s]+", "-", text).strip("-")
+
+
+def test_every_section_the_notebook_cites_exists():
+    """Issue 48: the notebook cited "README, *Sweeps from Python*", a section that does not exist.
+    Every markdown link of its text resolves to a file and, with an anchor, to a heading there;
+    every "(README, *Section*)" names a heading of README.md."""
+    import re
+
+    notebook = json.loads((ROOT / "examples" / "first_sweep.ipynb").read_text(encoding="utf-8"))
+    text = "\n".join("".join(cell["source"]) for cell in notebook["cells"] if cell["cell_type"] == "markdown")
+    links = re.findall(r"\]\(([^)\s]+)\)", text)
+    assert links, "the notebook links its sources"
+    for link in links:
+        if link.startswith("http"):
+            continue
+        target, _, anchor = link.partition("#")
+        page = (ROOT / "examples" / target).resolve()
+        assert page.is_file(), link
+        if anchor:
+            headings = re.findall(r"^#+\s+(.*)$", page.read_text(encoding="utf-8"), flags=re.M)
+            assert anchor in {_slug(h) for h in headings}, (link, headings)
+    readme = {h.strip() for h in re.findall(r"^#+\s+(.*)$", (ROOT / "README.md").read_text(encoding="utf-8"), re.M)}
+    for section in re.findall(r"README, \*([^*]+)\*", text):
+        assert section in readme, f"README has no section {section!r}"

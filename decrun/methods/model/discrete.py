@@ -20,7 +20,7 @@ from decrun.core.forms import barycentric_gradients
 
 __all__ = ["average_matrix", "cell_to_edge_matrix", "wedge_0k", "wedge_11", "sharp", "sharp_matrices", "flat_weights",
            "flat", "interior_1", "vertex_average_matrix", "lie_0", "lie_0_matrix", "lie_1", "face_normals", "top_sign",
-           "flux_field", "gradients"]
+           "flux_field", "gradients", "normalize"]
 
 
 def top_sign(K, k: int) -> np.ndarray | float:
@@ -193,6 +193,14 @@ def flat(K, vectors: np.ndarray) -> np.ndarray:
     scale = np.abs(weights).max() if weights.size else 1.0
     degenerate = np.abs(total) <= 1e-12 * scale
     return np.where(degenerate, plain, weighted / np.where(degenerate, 1.0, total))
+
+
+def normalize(vectors: np.ndarray) -> np.ndarray:
+    """X/|X| (n_n, d) row by row, and exactly 0 where X = 0 (its direction is undefined there:
+    the heat method takes X = 0 where ∇u = 0). A nonzero X, however small, keeps its direction."""
+    length = np.sqrt(np.einsum("fd,fd->f", vectors, vectors))
+    zero = length == 0
+    return np.where(zero[:, None], 0.0, vectors / np.where(zero, 1.0, length)[:, None])
 
 
 def interior_1(K, vectors: np.ndarray, omega: np.ndarray) -> np.ndarray:

@@ -19,8 +19,9 @@ def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, 
     ``dt_stability_limit`` and ``dt_over_stability_limit`` (explicit integrators with a
     diffusion block), ``accepted_steps`` and ``rhs_evaluations`` (adaptive integrators), ``factorizations``
     (semi_implicit: one per step), and per
-    singular solve ``<unknown>_kernel_pieces`` and ``<unknown>_rhs_mean_removed`` (the part of
-    the right side along the kernel that was removed, relative)."""
+    singular solve ``<unknown>_kernel_pieces``, ``<unknown>_rhs_mean_removed`` (the part of
+    the right side along the kernel that was removed, relative) and ``<unknown>_rhs_mean`` (the
+    mean that was subtracted, in the right side's units)."""
     with np.errstate(all="ignore"):
         declared = model.metric_values(env)
     metrics: dict[str, Any] = dict(declared)
@@ -50,4 +51,5 @@ def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, 
     for name, kernel in model.solve_reports().items():
         metrics[f"{name}_kernel_pieces"] = int(kernel.pieces)
         metrics[f"{name}_rhs_mean_removed"] = float(kernel.removed)
+        metrics[f"{name}_rhs_mean"] = float(kernel.mean)
     return metrics

@@ -49,10 +49,32 @@ class Discrete:
 
     def __init__(self, dec):
         self.dec, self.K, self.n = dec, dec.K, dec.n
+        calculus = getattr(dec.star_variant, "calculus", None)
+        #: operator=intrinsic_delaunay: d0, ⋆1, ♯, ♭ of the intrinsic triangulation
+        #: (:class:`decrun.core.intrinsic_calculus.IntrinsicCalculus`), where primal 1-forms and
+        #: vectors then live; None for the variants on the mesh's own simplices
+        self.intrinsic = calculus(dec) if calculus is not None else None
 
     def diagonal(self, k: int) -> np.ndarray | None:
         """(n_k,) diagonal of ⋆_k, or None (Galerkin ⋆)."""
+        if self.intrinsic is not None and k == 1:
+            return self.intrinsic.star1
         return self.dec.star_diagonal_or_none(k)
+
+    def mean_edge_length(self) -> float:
+        """The built-in ``h``: the mean edge length of the triangulation the operators live on
+        (the intrinsic one under ``intrinsic``: the heat method's t = m h² is its spacing)."""
+        if self.intrinsic is not None:
+            return float(self.intrinsic.T.edge_lengths.mean())
+        return float(self.K.mean_edge_length)
+
+    def sharp(self, omega: np.ndarray) -> np.ndarray:
+        """ω♯ per top simplex (of the intrinsic triangulation under ``intrinsic``)."""
+        return discrete.sharp(self.K, omega) if self.intrinsic is None else self.intrinsic.sharp(omega)
+
+    def flat(self, vectors: np.ndarray) -> np.ndarray:
+        """X♭ on the edges (of the intrinsic triangulation under ``intrinsic``)."""
+        return discrete.flat(self.K, vectors) if self.intrinsic is None else self.intrinsic.flat(vectors)
 
     def star_inverse_apply(self, k: int, x):
         """⋆_k⁻¹ x (a division for diagonal stars, a factorized solve otherwise)."""
@@ -124,6 +146,8 @@ def _d_kind(args, n):
 
 
 def _d_linear(ops: Discrete, kind: Kind) -> Linear:
+    if ops.intrinsic is not None and not kind.dual and kind.degree == 0:
+        return Linear(None, ops.intrinsic.d0)
     return Linear(None, ops.dec.d_dual(kind.degree) if kind.dual else ops.dec.d(kind.degree))
 
 
@@ -161,6 +185,8 @@ def _codifferential_kind(args, n):
 
 def _codifferential_linear(ops: Discrete, kind: Kind) -> Linear | None:
     k, dec = kind.degree, ops.dec
+    if ops.intrinsic is not None and k == 1:
+        return Linear(0, ops.intrinsic.codifferential_weak())
     if dec.boundary.codifferential(dec, k) is not None:  # boundary=flux: the adapted matrix (§6.4.4)
         matrix = dec.codifferential(k)
         return Linear(None, matrix) if sp.issparse(matrix) else None
@@ -348,6 +374,13 @@ def _norm_evaluate(ops: Discrete, kinds, x):
     return float(np.sqrt(max(inner_product(ops, kinds[0], x, x), 0.0)))
 
 
+def _normalize_kind(args, n):
+    (kind,) = args
+    if kind != VECTOR:
+        raise Mismatch(f"normalize takes a vector field (e.g. sharp(d(u))), got a {kind}")
+    return VECTOR
+
+
 def _integral_kind(args, n):
     (kind,) = args
     if kind.is_form and (kind.degree == 0 or kind.degree == n):
@@ -448,7 +481,8 @@ _register(Operator("inv_star", (1,), "dual k → primal n−k",
                    _inv_star_kind, None, _inv_star_linear))
 _register(Operator("codifferential", (1,), "primal k → primal k−1 (k ≥ 1)",
                    "δ_k = ⋆_{k−1}⁻¹ d_{k−1}ᵀ ⋆_k (eq. 4.14); boundary=flux replaces δ_1 (§6.4.4)",
-                   _codifferential_kind, lambda ops, kinds, x: ops.dec.codifferential(kinds[0].degree) @ x,
+                   _codifferential_kind, lambda ops, kinds, x: ops.matrix(_codifferential_linear(ops, kinds[0]))(x)
+                   if ops.intrinsic is not None else ops.dec.codifferential(kinds[0].degree) @ x,
                    _codifferential_linear))
 _register(Operator("laplacian", (1,), "primal k → primal k",
                    "Laplace–Beltrami sign: −(dδ + δd); on 0-forms −⋆0⁻¹ d0ᵀ ⋆1 d0 (the variant's stiffness), "
@@ -464,7 +498,7 @@ _register(Operator("wedge", (2,), "primal j, primal k → primal j+k (0∧k, k�
 _register(Operator("sharp", (1,), "primal 1-form → vector",
                    "Whitney interpolation at each top simplex's barycentre (eq. 6.7); sharp(d(u)) is the "
                    "gradient of the piecewise-linear u",
-                   _sharp_kind, lambda ops, kinds, x: discrete.sharp(ops.K, x)))
+                   _sharp_kind, lambda ops, kinds, x: ops.sharp(x)))
 _register(Operator("flux_field", (1,), "primal (n−1)-form → vector",
                    "the Whitney (n−1)-form's vector field at each top simplex's barycentre, Σ_i o_i u_i (x − p_i) "
                    "/ (n |σ|) (lowest-order Raviart–Thomas; o_i u_i the flux out through the face opposite p_i): "
@@ -473,7 +507,7 @@ _register(Operator("flux_field", (1,), "primal (n−1)-form → vector",
 _register(Operator("flat", (1,), "vector → primal 1-form (triangles)",
                    "ω_e = Σ_{f∋e} (|⋆e∩f|/|⋆e|) X_f·e (Hirani's primal-primal ♭), so −δ X♭ is the cotan "
                    "divergence",
-                   _flat_kind, lambda ops, kinds, x: discrete.flat(ops.K, x)))
+                   _flat_kind, lambda ops, kinds, x: ops.flat(x)))
 _register(Operator("average", (1,), "primal 0-form → primal 1-form; dual 0-form → primal 1-form",
                    "(u_a + u_b)/2 on each edge ab (a coefficient per edge); of a dual 0-form g (one value per "
                    "top simplex): Σ_{σ∋e} g_σ / #{σ∋e}, the mean over the top simplices at the edge",
@@ -498,6 +532,10 @@ _register(Operator("lie", (2,), "vector (or 1-form), primal 0- or 1-form → the
                    _lie_kind, _lie_evaluate, fixed_first=_lie_fixed_first))
 _register(Operator("norm", (1,), "vector → dual 0-form; form → number",
                    "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate))
+_register(Operator("normalize", (1,), "vector → vector",
+                   "X/|X| per top simplex, and 0 where X = 0 (where the direction is undefined: the heat method's "
+                   "X = −∇u/|∇u| where ∇u = 0, as Crane et al. define it)", _normalize_kind,
+                   lambda ops, kinds, x: discrete.normalize(x)))
 _register(Operator("integral", (1,), "0-form or n-form (primal or dual) → number",
                    "Σ ⋆0 u for a primal 0-form (the configured ⋆0); Σ u for an n-form", _integral_kind,
                    lambda ops, kinds, x: integral(ops, kinds[0], x)))

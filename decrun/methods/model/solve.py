@@ -36,10 +36,13 @@ COMPATIBILITY_LIMIT = 0.05
 @dataclass
 class KernelReport:
     """What a singular system's handling did: ``pieces`` pinned (one per connected piece) and
-    the largest relative part of b removed (``removed``: |Σ_c b| / Σ_c |b|)."""
+    the largest relative part of b removed (``removed``: |Σ_c b| / Σ_c |b|) and, on that piece,
+    the right side's mean that was subtracted (``mean``: Σ_c b / Σ_c ⋆0, in the units of the right
+    side as written — for ``solve(laplacian(u) = f)`` the ⋆0-weighted mean of f)."""
 
     pieces: int = 0
     removed: float = 0.0
+    mean: float = 0.0
 
 
 @dataclass
@@ -125,10 +128,13 @@ class LinearSystem:
         sums = np.bincount(self.pieces, weights=b)
         sizes = np.bincount(self.pieces, weights=np.abs(b))
         relative = np.abs(sums) / np.where(sizes > 0, sizes, 1.0)
-        self.report.removed = max(self.report.removed, float(relative.max(initial=0.0)))
+        totals = np.bincount(self.pieces, weights=self.mass)
+        worst = int(np.argmax(relative))
+        if relative[worst] >= self.report.removed:
+            self.report.removed = float(relative[worst])
+            self.report.mean = float(self.sign * sums[worst] / totals[worst])  # b here is sign × the given b
         if relative.max(initial=0.0) > COMPATIBILITY_LIMIT:
             raise IncompatibleRightHandSide(float(relative.max()))
-        totals = np.bincount(self.pieces, weights=self.mass)
         return b - (sums / totals)[self.pieces] * self.mass
 
 

@@ -29,6 +29,7 @@ import scipy.sparse as sp
 
 from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.initial import sample
+from decrun.methods.model.intrinsic import check_intrinsic
 from decrun.methods.model.kinds import NUMBER, Kind, form_kind
 from decrun.methods.model.language import (
     Binary,
@@ -230,7 +231,8 @@ class CompiledModel:
         lines = []
         for name, report in self.solve_reports().items():
             lines.append(f"{name}: the system is singular (constants on each of {report.pieces} piece(s)); the mean "
-                         f"of {name} is fixed to 0 and {report.removed:.2g} of the right side (its mean) was removed")
+                         f"of {name} is fixed to 0 and the right side's mean {report.mean:.6g} (a part {report.removed:.2g} of "
+                         "it, relative) was subtracted")
         return lines
 
     def metric_values(self, env: dict) -> dict[str, float]:
@@ -361,7 +363,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
 
     base = {"x": K.vertices[:, 0].copy(), "y": K.vertices[:, 1].copy() if K.embedding_dim > 1 else
             np.zeros(K.num_simplices(0)), "z": K.vertices[:, 2].copy() if K.embedding_dim > 2 else
-            np.zeros(K.num_simplices(0)), "h": float(K.mean_edge_length), "pi": float(np.pi), "t": 0.0,
+            np.zeros(K.num_simplices(0)), "h": ops.mean_edge_length(), "pi": float(np.pi), "t": 0.0,
             "dt": float(spec.dt)}
     base.update({name: float(value) for name, value in spec.constants.items()})
     initial_values = {}
@@ -401,6 +403,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
                              "norm(...), max(...) or inner(..., ...)")
         model.metrics[name] = compiler.compile(tree, where)
         trees.append((where, tree))
+    check_intrinsic(compiler, dec, trees)
     _check_stars(compiler, dec, trees)
     return model
 
@@ -410,6 +413,8 @@ def _check_stars(compiler: Compiler, dec, trees) -> None:
     degrees = dec.star_variant.form_degrees
     if degrees is None:
         return
+    if hasattr(dec.star_variant, "calculus"):  # ⋆1 of its intrinsic triangulation (check_intrinsic)
+        degrees = (*degrees, 1)
     for where, tree in trees:
         for k, term in compiler.star_degrees(tree, where).items():
             if k not in degrees:

@@ -39,6 +39,21 @@ def _face_values(values: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.n
     raise ValueError(f"values must have one entry per vertex ({n_vertices}) or per face ({len(faces)}), got {values.shape}")
 
 
+#: above this many triangles, edge lines in the default colour are not drawn (they would cover the faces)
+EDGE_LINES_MAX_FACES = 2000
+#: width of a triangle's edge in its own colour: covers the seam between two neighbours (points)
+SEAM_WIDTH = 0.3
+
+
+def _edges(n_faces: int, edgecolor: str | None, linewidth: float, default: str) -> tuple[str, float]:
+    """(edge colour, width) of :func:`plot_surface`: the edge lines asked for, or — no lines
+    (``linewidth`` 0, or more than :data:`EDGE_LINES_MAX_FACES` faces in the default colour) —
+    each face's own colour at :data:`SEAM_WIDTH`."""
+    if linewidth > 0 and (edgecolor is not None or n_faces <= EDGE_LINES_MAX_FACES):
+        return edgecolor or default, linewidth
+    return "face", SEAM_WIDTH
+
+
 def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray | None = None, *,
                  cmap: str = "viridis", vmin: float | None = None, vmax: float | None = None,
                  edgecolor: str | None = None, linewidth: float = 0.1, title: str | None = None,
@@ -49,8 +64,11 @@ def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
     a 2-D axes is drawn from above (x, y). ``values`` (per vertex, averaged to faces, or per
     face) colour the triangles with ``cmap`` (``"checker"``: two contrasting colours);
     without values the surface is grey with Lambert shading from the direction ``light``,
-    and with ``shade`` the value colours are shaded too (3-D axes). Returns the
-    ScalarMappable (for a colorbar) or None.
+    and with ``shade`` the value colours are shaded too (3-D axes). Edge lines are drawn
+    (``linewidth`` > 0) when ``edgecolor`` is given or the mesh has at most
+    :data:`EDGE_LINES_MAX_FACES` triangles; otherwise each triangle's edge takes its own colour
+    (:func:`_edges`) and 2-D faces are drawn without anti-aliasing, which closes the seams between
+    neighbours — without it a fine grid shows a moiré of light lines. Returns the ScalarMappable (for a colorbar) or None.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
@@ -80,7 +98,9 @@ def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
             lambert = 0.35 + 0.65 * np.abs(normal @ direction)
             base = np.tile([0.75, 0.78, 0.85], (len(faces), 1)) if values is None else colours[:, :3]
             colours = np.column_stack([lambert[:, None] * base, np.ones(len(faces))])
-        collection = Poly3DCollection(triangles, facecolors=colours, edgecolors=edgecolor or "none", linewidths=linewidth)
+        edges, widths = _edges(len(faces), edgecolor, linewidth, "none")
+        own = colours if edges == "face" else edges  # "face" fails in 3-D before the axes draw (matplotlib)
+        collection = Poly3DCollection(triangles, facecolors=colours, edgecolors=own, linewidths=widths)
         ax.add_collection3d(collection)
         finite = v3[np.isfinite(v3).all(axis=1)]
         if len(finite):
@@ -97,7 +117,9 @@ def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
         triangles = vertices[:, :2][faces]
         if values is None:
             colours = (0.8, 0.82, 0.88, 1.0)
-        collection = PolyCollection(triangles, facecolors=colours, edgecolors=edgecolor or "0.35", linewidths=linewidth)
+        edges, widths = _edges(len(faces), edgecolor, linewidth, "0.35")
+        collection = PolyCollection(triangles, facecolors=colours, edgecolors=edges, linewidths=widths,
+                                    antialiaseds=edges != "face")  # no half-covered pixels along the seams
         ax.add_collection(collection)
         ax.autoscale_view()
         ax.set_aspect("equal")

@@ -45,7 +45,7 @@ from decrun.runner.results.checked import load_yaml
 from decrun.runner.results.provenance import SAME_AS, mark_duplicates
 from decrun.runner.sweep.manifest import MANIFEST, job_dir_name, job_state, read_manifest
 
-__all__ = ["SAME_AS", "mark_duplicates", "sweep_table", "load_sweep", "stack", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
+__all__ = ["SAME_AS", "mark_duplicates", "sweep_table", "load_sweep", "stack", "swept_keys", "select", "headline_metrics", "to_markdown", "write_sweep_table", "failed_jobs",
            "is_sweep_dir"]
 
 LEADING = ("job", "status", "error")
@@ -218,11 +218,19 @@ def load_sweep(sweep_dir: str | os.PathLike) -> pd.DataFrame:
 
 def stack(sweep_dirs: Sequence[str | os.PathLike]) -> pd.DataFrame:
     """Several sweeps under each other: a first column ``sweep`` (the directory as given),
-    the union of their columns (empty where a sweep lacks one)."""
+    the union of their columns (empty where a sweep lacks one) — every sweep's swept keys before
+``status``, so a row of any of them can be told apart by its keys."""
     tables = [sweep_table(d).assign(sweep=str(d)) for d in sweep_dirs]
     table = pd.concat(tables, ignore_index=True) if len(tables) > 1 else tables[0]
-    leading = ["sweep", "job"]
-    return table[leading + [c for c in table.columns if c not in leading]]
+    keys = list(dict.fromkeys(key for t in tables for key in swept_keys(t)))
+    rest = [c for c in table.columns if c not in ("sweep", "job", *keys)]  # status, error, metrics, …, result
+    return table[["sweep", "job", *keys, *rest]]
+
+
+def swept_keys(table: pd.DataFrame) -> list[str]:
+    """The override columns of a sweep table (between ``job``/``sweep`` and ``status``), in order."""
+    columns = list(table.columns)
+    return [c for c in columns[:columns.index("status")] if c not in ("sweep", "job")]
 
 
 #: a metric naming, comma-separated, further metrics of its run that a table shows by default
@@ -246,8 +254,8 @@ def headline_metrics() -> tuple[str, ...]:
 
 def select(table: pd.DataFrame, metrics: Sequence[str] | None = None, sort: Sequence[str] | None = None,
            descending: bool = False, drop_constant: bool = False, narrow: bool = False) -> pd.DataFrame:
-    """A view for reading: only the metric columns ``metrics`` (the ``sweep``/``job``/
-    override/``status``/``error``/``result`` columns stay) — with ``narrow`` and no
+    """A view for reading: only the metric columns ``metrics``, in the order given (the
+    ``sweep``/``job``/override/``status``/``error``/``result`` columns stay) — with ``narrow`` and no
     ``metrics``, the apps' :func:`headline_metrics` — rows sorted by ``sort``, constant
     columns dropped (except ``sweep``, ``job``, ``status`` and the ``metrics`` asked for). An
     unknown column is a ``KeyError`` naming the columns there are."""
@@ -261,8 +269,12 @@ def select(table: pd.DataFrame, metrics: Sequence[str] | None = None, sort: Sequ
         table = table.drop(columns=[HEADLINE_COLUMN])
     if keep:
         status_at = list(table.columns).index("status")
-        fixed = list(table.columns[:status_at + 2]) + [SAME_AS, "result"]
-        table = table[[c for c in table.columns if c in fixed or c in keep or c in (sort or [])]]
+        leading = list(table.columns[:status_at + 2])
+        wanted = [*keep, *(sort or [])] if metrics else [c for c in table.columns if c in keep or c in (sort or [])]
+        chosen = list(dict.fromkeys(c for c in wanted  # metrics asked for: in the order asked
+                                    if c in table.columns and c not in leading and c not in (SAME_AS, "result")))
+        trailing = [c for c in (SAME_AS, "result") if c in table.columns and c not in chosen]
+        table = table[leading + chosen + trailing]
     if sort:
         table = table.sort_values(list(sort), ascending=not descending, kind="stable", na_position="last")
     if drop_constant and len(table) > 1:

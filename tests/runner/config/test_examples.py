@@ -32,7 +32,10 @@ PLACEHOLDERS = {"/data/dragon.ply": str(sample_mesh_dir() / SAMPLE_MESHES["cow"]
 SYNTAX = ("decrun -v ...", "python -m decrun ...", "decrun-table", "decrun-table A [B …]",
           # docs/tracking.md's prose: a single run and a sweep of any options
           "decrun ... tracker=mlflow", "decrun -m", "decrun -m ... hydra.searchpath=[file://my_conf] tracker=wandb",
-          "decrun -m key=a,b ...")
+          "decrun -m key=a,b ...",
+          # docs/running.md, docs/outputs-and-sweeps.md: the forms of --plot and --compare (examples next to them run)
+          "decrun-table SWEEP --plot METRIC --x KEY", "decrun-table A [B …] --plot METRIC --x KEY [-o FILE]",
+          "decrun-table --compare RUN_A RUN_B")
 #: examples of bad input: they must fail with this message
 EXPECTED_ERRORS = {"decrun +foo=1": "unknown root key",
                    # docs/apps/writing.md: a refusal in check, naming the step that works
@@ -42,6 +45,7 @@ PREREQUISITES = {
     "hydra.sweeper.resume=true": ["-m", "app.dt=0.001,0.002", "hydra.sweep.dir=outputs/sweeps/dt"],
     "outputs/sweeps/A outputs/sweeps/B": ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/A"],
     "outputs/runs --metrics content_sha256": ["mesh.subdiv=1", "figures=false"],  # a single run to compare
+    "--compare outputs/sweeps/A/0": ["-m", "app.steps=1,2", "hydra.sweep.dir=outputs/sweeps/A"],
     # the tutorial's table (docs/tutorial.md) reads the tutorial's sweep
     "outputs/sweeps/first --metrics": ["-m", "app.scheme=explicit,implicit", "app.dt_unit=critical",
                                        "app.dt_factor=0.5,1.5", "mesh.subdiv=2", "app.steps=40", "figures=false",
@@ -207,7 +211,7 @@ def test_sweep_example_runs(where, command, tmp_path):
         done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
                                "sys.exit(table_main(sys.argv[1:]))", *args], cwd=tmp_path, capture_output=True,
                               text=True)
-        assert done.returncode == 0 and "| " in done.stdout, done.stderr
+        assert done.returncode == 0 and ("| " in done.stdout or "--plot" in args and "wrote" in done.stdout), done.stderr
         return
     if command.startswith("decrun-table"):
         sweep = subprocess.run([*env_python, "-m", "app.steps=1,2"], cwd=tmp_path, capture_output=True, text=True)

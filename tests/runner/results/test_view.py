@@ -167,10 +167,37 @@ def test_screenshot_puts_the_extreme_colours_at_the_extreme_vertices(runs, tmp_p
         shot = tmp_path / f"{name}.png"
         done = _view(str(runs[name]), "--field", "u", "--screenshot", shot.name, "--size", "400x400", cwd=tmp_path)
         assert done.returncode == 0, done.stderr
-        yellow, purple, top, bottom = _extremes(_image(shot))
+        yellow, purple, top, bottom = _extremes(_image(shot)[:, :400])  # the picture, not its colour bar
         span = bottom - top
         high, low = (yellow, purple) if top_is_yellow else (purple, yellow)
         assert high - top < 0.2 * span and bottom - low < 0.2 * span, (name, yellow, purple, top, bottom)
+
+
+def test_a_scalar_screenshot_has_its_colour_bar_beside_the_picture(runs, tmp_path, headless):
+    """u = z on the unit sphere: the picture keeps its size, a strip on its right holds a vertical
+    viridis bar (yellow at the top, purple at the bottom, the colours of the picture's extremes) and
+    nothing of the picture; a 1-form's screenshot (arrows, no colour scale) has no strip."""
+    shot = tmp_path / "u.png"
+    done = _view(str(runs["height"]), "--field", "u", "--screenshot", shot.name, "--size", "400x400", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    image = _image(shot)
+    from decrun.runner.view import COLOUR_BAR_STRIP
+
+    assert image.shape[:2] == (400, 400 + COLOUR_BAR_STRIP)
+    strip = image[:, 400:]
+    coloured = (np.ptp(strip, axis=2) > 60)  # saturated pixels: the bar (ticks and labels are grey)
+    rows, cols = np.nonzero(coloured)
+    assert rows.max() - rows.min() > 0.6 * 400 and cols.max() - cols.min() < 40  # one tall, thin bar
+    column = strip[:, int(np.median(cols))]
+    top, bottom = column[rows.min() + 2], column[rows.max() - 2]
+    from matplotlib import colormaps
+
+    viridis = (np.array(colormaps["viridis"]([1.0, 0.0]))[:, :3] * 255).astype(np.int64)
+    assert np.abs(top - viridis[0]).max() < 12 and np.abs(bottom - viridis[1]).max() < 12, (top, bottom)
+    one_form = tmp_path / "omega.png"
+    done = _view(str(runs["vector_field"]), "--field", "omega", "--screenshot", one_form.name, "--size", "400x300",
+                 cwd=tmp_path)
+    assert done.returncode == 0 and _image(one_form).shape[:2] == (300, 400), done.stderr
 
 
 def test_screenshots_of_two_fields_differ(runs, tmp_path, headless):
@@ -180,7 +207,7 @@ def test_screenshots_of_two_fields_differ(runs, tmp_path, headless):
         done = _view(str(runs["vector_field"]), "--field", field, "--screenshot", str(shot), "--size", "400x300",
                      cwd=tmp_path)
         assert done.returncode == 0, done.stderr
-        shots.append(_image(shot))
+        shots.append(_image(shot)[:, :400])  # the pictures (a scalar's has its colour bar beside it)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["omega.png", "vertex_index.png"]  # no imgui.ini here
     differ = np.abs(shots[0] - shots[1]).sum(axis=2) > 30
     assert differ.mean() > 0.05

@@ -7,7 +7,7 @@ and Galewsky et al. (2004) on an icosphere of radius a:
 - Galewsky: the jet's relative vorticity ζ = −(1/(a cos θ)) ∂(u cos θ)/∂θ, per triangle
   (at the circumcentres), contours every 2e-5 s⁻¹ from −1e-4 to 1e-4 over 0°–90°N.
 
-    python scripts/sphere_maps.py [--out docs/figures] [--subdiv 5]
+    python scripts/sphere_maps.py [--out docs/gallery] [--subdiv 5]
 
 writes ``sphere_tc5_surface.png`` and ``sphere_galewsky_vorticity.png`` (shown in docs/gallery.md)
 and, with ``--all``, ``sphere_tc2_alpha45.png``. The formulas are those of ``../shared``'s
@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     from decrun.runner.plots.common import save_figure
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs" / "figures"))
+    parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs" / "gallery"))
     parser.add_argument("--subdiv", type=int, default=5)
     parser.add_argument("--all", action="store_true", help="also the TC2 map (not shown in the docs)")
     args = parser.parse_args(argv)
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     for name, fig in figures(sphere(args.subdiv)).items():
         if args.all or name != "sphere_tc2_alpha45.png":
-            save_figure(fig, out / name, dpi=90)
+            save_figure(fig, out / name, dpi=110)
             print(out / name)
     return 0
 

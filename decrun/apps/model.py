@@ -383,8 +383,9 @@ class Model(App):
         for name, plot in self.plots.items():
             if not plot.color:  # a map or an error map (decrun.apps.model_plots)
                 time = None if model.is_static else float(env.get("t", 0.0))
-                kind, data = plot_figure(plot, model.kinds, env, model.ops.dec, self.model, time)
-                figures[name] = Figure.of_kind(kind, **data)
+                data = plot_figure(plot, model.kinds, env, model.ops.dec, self.model, time)
+                figures[name] = Figure.of_kind("error_map", **data) if plot.error_map else \
+                    Figure.of_kind("sphere_map", **data)
                 continue
             figures[name] = Figure.of_kind("values_arrows", values=np.asarray(env[plot.color], dtype=np.float64),
                                            vectors=np.asarray(env[plot.arrows], dtype=np.float64),

@@ -214,9 +214,9 @@ def pointwise(dec, kind, values: np.ndarray) -> np.ndarray:
     return values
 
 
-def plot_figure(plot: PlotOptions, kinds: dict, env: dict, dec, title: str, time: float | None) -> tuple[str, dict]:
-    """``(figure kind, data)`` of a map or error map (``Figure.of_kind(*…)``); ``time`` the
-    model's time (None for a static model)."""
+def plot_figure(plot: PlotOptions, kinds: dict, env: dict, dec, title: str, time: float | None) -> dict:
+    """The data of a map's figure (kind ``sphere_map``) or an error map's (kind ``error_map``);
+    ``time`` the model's time (None for a static model)."""
     what = _what(plot, "app.plots")
     shown = plot.map or plot.error_map
     options: dict[str, Any] = dict(name=shown, unit=plot.unit, time=time, time_unit=plot.time_unit,
@@ -227,8 +227,8 @@ def plot_figure(plot: PlotOptions, kinds: dict, env: dict, dec, title: str, time
     if what == "map":
         if plot.outline:
             options.update(outline=pointwise(dec, kinds[plot.outline], env[plot.outline]), outline_name=plot.outline)
-        return "sphere_map", dict(values=values, title=f"{title}: {shown}", **options)
+        return dict(values=values, title=f"{title}: {shown}", **options)
     on_vertices = kinds[shown].simplex_dimension(dec.K.dim) == 0
     areas = np.asarray(dec.dual_volumes(0) if on_vertices else dec.primal_volumes(dec.K.dim), dtype=np.float64)
-    return "error_map", dict(values=values, reference=pointwise(dec, kinds[plot.reference], env[plot.reference]),
+    return dict(values=values, reference=pointwise(dec, kinds[plot.reference], env[plot.reference]),
                              areas=areas, reference_name=plot.reference, **options)

@@ -43,6 +43,7 @@ def contour_levels(values: np.ndarray, signed: bool, levels: Sequence[float] | N
     lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 0.0)
     if signed:
         lo, hi = -max(abs(lo), abs(hi)), max(abs(lo), abs(hi))
+    result: np.ndarray
     if levels is not None:
         result = np.asarray(levels, dtype=np.float64)
     elif value_range is not None:
@@ -59,7 +60,7 @@ def contour_levels(values: np.ndarray, signed: bool, levels: Sequence[float] | N
         if hi <= lo:  # a constant field: one band around its value
             spread = max(abs(lo), 1.0) * 1e-3 if lo != 0 or not signed else 1.0
             lo, hi = lo - spread, hi + spread
-        result = MaxNLocator(nbins=12, symmetric=signed).tick_values(lo, hi)  # round values covering [lo, hi]
+        result = np.asarray(MaxNLocator(nbins=12, symmetric=signed).tick_values(lo, hi), dtype=np.float64)  # covers [lo, hi]
     if len(result) > MAX_LEVELS + 1 or len(result) < 2:
         raise ValueError(f"{len(result)} contour levels; a map needs 2 … {MAX_LEVELS + 1}")
     return result
@@ -221,7 +222,7 @@ def _outline_levels(values: np.ndarray, name: str, unit: str) -> tuple[np.ndarra
     """About four round levels strictly inside the range of ``values`` and the line saying so."""
     finite = values[np.isfinite(values)]
     lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 0.0)
-    levels = MaxNLocator(nbins=4).tick_values(lo, hi) if hi > lo else np.zeros(0)
+    levels = np.asarray(MaxNLocator(nbins=4).tick_values(lo, hi) if hi > lo else [], dtype=np.float64)
     levels = levels[(levels > lo) & (levels < hi)]
     listed = ", ".join(f"{v:g}" for v in levels)
     return levels, (f"dashed: {name} = {listed}" + (f" {unit}" if unit else "")) if levels.size else \

@@ -281,6 +281,22 @@ def _section(name: str, caption: str, entries, experiment: str | None) -> list[s
     return lines + [f"- {note}" for note in notes] + [""]
 
 
+#: the longitude–latitude maps of the shallow-water test cases' initial states, drawn from their
+#: formulas by scripts/sphere_maps.py (not runs: the shallow-water model is issue 49's)
+SPHERE_MAPS = ("sphere_tc5_surface.png", "sphere_galewsky_vorticity.png")
+
+
+def _sphere_section() -> list[str]:
+    cells = [f"![{name[:-4]}](gallery/{name})" for name in SPHERE_MAPS]
+    return ["## Sphere maps", "", "Longitude–latitude maps as the shallow-water papers draw them (a model asks for one "
+            "with `plots: {map: h}` or `{error_map: h, reference: h_exact}`, docs/models.md, \"Outputs\"): "
+            "Williamson's test case 5, the free surface h + b with the mountain dashed, and Galewsky's jet, its "
+            "relative vorticity per triangle (contours every 2e-5 s⁻¹ from −1e-4 to 1e-4, 0°–90°N), both at day 0 "
+            "on an icosphere of subdiv 5 and the Earth's radius, drawn from the formulas by "
+            "`python scripts/sphere_maps.py`.", "",
+            "| " + " | ".join(cells) + " |", "|" + "---|" * len(cells), ""]
+
+
 def page() -> str:
     """The text of gallery.md, written from the tables alone (no run): the numbers under each
     figure are placeholders, ``{{ numbers.gallery_<section>__<n>.<number> }}``, which the docs build
@@ -292,6 +308,7 @@ def page() -> str:
              "`python scripts/doc_numbers.py --only gallery`).", ""]
     for name, caption, entries, experiment in sections():
         lines += _section(name, caption, entries, experiment)
+    lines += _sphere_section()
     return "\n".join(lines)
 
 
@@ -313,6 +330,13 @@ def build(out: Path, only: list[str] | None = None) -> Path:
                           derived_of(entry))
                 print(f"gallery: {name} {' '.join(overrides)} ({time.perf_counter() - start:.1f} s)",
                       file=sys.stderr)
+        if not only or "sphere_maps" in only:
+            import importlib.util
+
+            spec = importlib.util.spec_from_file_location("sphere_maps", Path(__file__).with_name("sphere_maps.py"))
+            module = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+            module.main(["--out", str(images)])
         if not only:
             (out / "figures").mkdir(exist_ok=True)
             for name, (overrides, figure) in PAGE_FIGURES.items():
@@ -325,7 +349,8 @@ def build(out: Path, only: list[str] | None = None) -> Path:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs"))
-    parser.add_argument("--only", nargs="*", help="sections to regenerate, e.g. fig5_8_t_hole model_halfar (default: all)")
+    parser.add_argument("--only", nargs="*", help="sections to regenerate, e.g. fig5_8_t_hole model_halfar sphere_maps "
+                        "(default: all)")
     args = parser.parse_args(argv)
     print(build(Path(args.out), args.only))
     return 0

@@ -6,7 +6,8 @@ the model: ``fields`` (each with its ``form`` — ``0..3`` primal, ``dual0..dual
 values), ``constants``, ``equations`` (evolutions ``dt(u) = …``, definitions ``v = …``, linear
 solves ``solve(lhs = rhs)`` and systems ``solve(l1 = r1, l2 = r2)``), an ``integrator`` with
 ``dt`` and ``t_end`` (or ``steps``), ``record_every``, ``metrics`` (numbers, by name) and
-``plots`` (:class:`PlotOptions`: a value in colour with a vector field's arrows).
+``plots`` (:class:`~decrun.apps.model_plots.PlotOptions`: a value in colour with a vector
+field's arrows, a longitude–latitude map, an error map).
 
 A model may be composed of ``parts`` (:class:`PartOptions`: fields, equations, metrics) that
 share fields by name; they are merged with the model's own declarations by
@@ -41,6 +42,7 @@ from typing import Any, Dict, List, Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
+from decrun.apps.model_plots import PlotOptions, check_plot_names, check_plot_options, plot_figure
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
@@ -80,16 +82,6 @@ class FieldOptions:
     form: str = "0"
     initial: Any = None
     dirichlet: Any = None
-
-
-@dataclass
-class PlotOptions:
-    """``app.plots.<name>``: a figure ``<name>.png`` of the value ``color`` (a primal or dual
-    0-form: per vertex or per top simplex) in colour with the arrows of the vector field
-    ``arrows`` (e.g. ``flux_field(u)``, a definition) over it."""
-
-    color: str = ""
-    arrows: str = ""
 
 
 @dataclass
@@ -156,7 +148,7 @@ class Model(App):
     animation: bool = True
     #: the parts this model is composed of (name → PartOptions), merged with its own declarations
     parts: Dict[str, PartOptions] = field(default_factory=dict)
-    #: extra figures: name → a value in colour with a vector field's arrows (PlotOptions)
+    #: extra figures: name → a value in colour with a vector field's arrows, a map or an error map (PlotOptions)
     plots: Dict[str, PlotOptions] = field(default_factory=dict)
     #: what the model requires of its constants and dt, e.g. ``"Du > 0"``, checked before any
     #: mesh work (:mod:`decrun.methods.model.require`)
@@ -203,7 +195,8 @@ class Model(App):
                 self.fields[name] = FieldOptions(**options)
         for name, plot in self.plots.items():
             if isinstance(plot, dict):  # Python callers
-                self.plots[name] = PlotOptions(**plot)
+                self.plots[name] = plot = PlotOptions(**plot)
+            check_plot_options(name, plot)
         for name, part in self.parts.items():
             if isinstance(part, dict):  # Python callers
                 part = self.parts[name] = PartOptions(**part)
@@ -292,6 +285,8 @@ class Model(App):
         """Every ``app.plots`` entry names a value to colour (a primal or dual 0-form) and a vector
         field the model computes."""
         for name, plot in self.plots.items():
+            if check_plot_names(name, plot, model.kinds, model.ops.K):  # a map: checked there
+                continue
             for key, wanted in (("color", "a primal or dual 0-form (per vertex or per top simplex)"),
                                 ("arrows", "a vector field (e.g. a definition velocity = flux_field(u))")):
                 value = getattr(plot, key)
@@ -386,6 +381,12 @@ class Model(App):
                 figures["metrics"] = Figure.of_kind("recorded_series", names=list(self._composed.metrics),
                                                     title=self.model)
         for name, plot in self.plots.items():
+            if not plot.color:  # a map or an error map (decrun.apps.model_plots)
+                time = None if model.is_static else float(env.get("t", 0.0))
+                data = plot_figure(plot, model.kinds, env, model.ops.dec, self.model, time)
+                figures[name] = Figure.of_kind("error_map", **data) if plot.error_map else \
+                    Figure.of_kind("sphere_map", **data)
+                continue
             figures[name] = Figure.of_kind("values_arrows", values=np.asarray(env[plot.color], dtype=np.float64),
                                            vectors=np.asarray(env[plot.arrows], dtype=np.float64),
                                            title=f"{self.model}: {plot.color}, arrows: {plot.arrows}",

@@ -162,6 +162,13 @@ def build(node: Any, key: str, base: type, typed: bool = False) -> Any:
         return (plugin, merged) if typed else plugin
     except ConfigKeyError as exc:
         name = exc.key if getattr(exc, "key", None) else str(exc).split("'")[1] if "'" in str(exc) else "?"
+        owner, full = getattr(exc, "object_type", None), str(getattr(exc, "full_key", None) or "")
+        if owner is not cls and dataclasses.is_dataclass(owner) and "." in full:  # a nested option's (app.plots.m.x)
+            known = sorted(f.name for f in dataclasses.fields(owner))
+            parent = f"{key}.{full.rpartition('.')[0]}"
+            close = difflib.get_close_matches(str(name), known, n=1)
+            raise ConfigError(f"{key}.{full}: unknown option of {parent}; it has {known}"
+                              + (f"; did you mean {parent}.{close[0]}?" if close else "")) from None
         known = sorted(f.name for f in dataclasses.fields(cls))
         close = difflib.get_close_matches(str(name), known, n=1)
         raise ConfigError(f"{key}.{name}: unknown option of {key}={cls.name or cls.__name__}; it has {known}"

@@ -5,6 +5,8 @@ the mesh) and the arrays the app computed, and returns a ``matplotlib.figure.Fig
 - :mod:`.common` — surfaces, before/after panels, per-step series, saving
 - :mod:`.fields` — tangent vector fields with singularities, Hodge parts
 - :mod:`.parametrization` — uv layouts and checkerboard textures
+- :mod:`.sphere` — longitude–latitude maps of fields on a sphere (and error maps), resampled by
+  :mod:`.lonlat`
 """
 
 #: figure kinds → drawing functions (``Figure.of_kind``): apps name a kind, never a runner module
@@ -21,5 +23,7 @@ FIGURE_KINDS = {
     "checkerboard": "decrun.runner.plots.parametrization.checkerboard",
     "eigenforms": "decrun.runner.plots.spectrum.eigenforms_figure",
     "values_arrows": "decrun.runner.plots.fields.values_and_arrows",
+    "sphere_map": "decrun.runner.plots.sphere.sphere_map",
+    "error_map": "decrun.runner.plots.sphere.error_map",
 }
 

@@ -157,8 +157,8 @@ def border_quadrature(K, faces: BorderFaces | None = None) -> BorderQuadrature:
                             faces.vertices[:, order[:, 0]].ravel(), np.repeat(np.arange(b), 6))
 
 
-def border_load(K, quadrature: BorderQuadrature, values: np.ndarray) -> np.ndarray:
-    """(n0,) b_i = ∫_{Γ_i} g, from ``values`` (q,) = g at ``quadrature.points`` (zero inside).
+def border_load(K, quadrature: BorderQuadrature, values: np.ndarray | float) -> np.ndarray:
+    """(n0,) b_i = ∫_{Γ_i} g, from ``values`` (q,) = g at ``quadrature.points``, or one number (zero inside).
 
     The Neumann term of ⋆0 Δu = −S u + b (module doc): add it to the right side of a
     ⋆0-weighted equation, b = +Σ weight·g with g the *outward* normal derivative."""

@@ -330,3 +330,17 @@ def test_condensation_solves_the_full_system_with_fixed_values():
     u = condensation.expand(spla.spsolve(condensation.matrix(A).tocsc(), condensation.right_side(A, b, values)), values)
     assert np.allclose(u[fixed], values)
     assert np.allclose((A @ u - b)[~fixed], 0, atol=1e-12)
+
+
+def test_the_barycentric_share_of_a_border_triangle_breaks_green_identity_on_tetrahedra():
+    """Why Γ_i is the circumcentric share: with |T|/3 per vertex instead, S u ≠ b for linear u
+    on random (Delaunay) tetrahedra, whose border triangles are not the dual cells' faces."""
+    K = IDENTITY_MESHES["random tetrahedra"]()
+    gradient = np.array([0.3, -1.2, 0.7])
+    faces = bc.border_faces(K)
+    corners = K.vertices[faces.vertices]
+    area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1) / 2
+    flux = bc.outward_normals(K, faces) @ gradient
+    barycentric = np.bincount(faces.vertices.ravel(), np.repeat(area * flux / 3, 3), minlength=K.num_simplices(0))
+    residual = DEC(K).laplacian_symmetric(0) @ (K.vertices @ gradient) - barycentric
+    assert np.abs(residual).max() > 1e-3 * np.abs(barycentric).max()

@@ -31,7 +31,8 @@ the quadrilateral i, mid(ij), cc(ijk), mid(ik) (the dual faces of ij and ik pass
 triangle's circumcentre cc), so |Γ_i| is the circumcentric (signed) share of i in its border
 triangles, ⅛ Σ (|ij|² cot θ_k + |ik|² cot θ_j) — ⋆0 of the border surface. Being the
 boundary of the same dual cells that give ⋆0 and ⋆1, this choice makes Green's identity
-exact for linear u: S u = b with g = ∂u/∂n (tested). Σ_i |Γ_i| is the border's length/area.
+exact for linear u: S u = b with g = ∂u/∂n (tested; the barycentric share |T|/3 is not, on
+tetrahedra whose circumcentres leave them). Σ_i |Γ_i| is the border's length/area.
 
 **boundary=flux (§6.4.4) and #48 item 4.** Under ``boundary=flux`` δ_1 is replaced by
 ⋆0⁻¹ (d0ᵀ ⋆1 − M_border F) where F d0 u is the outward flux through each border edge of the
@@ -177,7 +178,9 @@ def robin_matrix(K, quadrature: BorderQuadrature, alpha: np.ndarray) -> sp.csr_m
     """R (n0, n0) = diag(∫_{Γ_i} α), ``alpha`` (q,) at the quadrature points.
 
     Robin ∂u/∂n + α u = value turns ⋆0 Δu = −S u + b into −(S + R) u + ∫_{Γ_i} value: R joins
-    the stiffness (SPD for α ≥ 0, so a Robin border with α > 0 fixes the constant)."""
+    the stiffness. With α > 0 and |Γ_i| ≥ 0 it is positive semi-definite and fixes the constant;
+    in 3-D an obtuse border triangle gives a negative share, and |Γ_i| itself may be negative
+    at a vertex surrounded by such triangles (signed circumcentric duals, like ⋆0 and ⋆1)."""
     return sp.diags(border_load(K, quadrature, alpha)).tocsr()
 
 

@@ -13,7 +13,8 @@ module    adaptation
 ========  ===================================================================
 
 The helpers :func:`border_edge_frames` and :func:`signed_edges` describe the border edges
-of a triangle mesh for adaptations and methods alike.
+of a triangle mesh for adaptations and methods alike. :mod:`decrun.core.boundary.conditions`
+(not an adaptation) holds the Dirichlet, Neumann and Robin border conditions of 0-forms.
 """
 
 from __future__ import annotations

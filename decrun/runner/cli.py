@@ -20,7 +20,6 @@ from __future__ import annotations
 import logging
 import os
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, cast
 
@@ -28,7 +27,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.experimental.callback import Callback
 from hydra.types import RunMode
-from omegaconf import DictConfig, OmegaConf, open_dict, read_write
+from omegaconf import DictConfig, OmegaConf
 
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
@@ -77,10 +76,6 @@ def _hydra_task(cfg: DictConfig) -> int | float:
     from decrun.runner.run import run
 
     hydra_cfg = HydraConfig.get()
-    if _is_multirun() or not cfg.get("figures", True):  # a sweep's jobs draw their own figures
-        from decrun.runner import figure_process
-
-        figure_process.dismiss()
     out = Path(hydra_cfg.runtime.output_dir)
     made = OutputGuard.made  # (run directory, outermost directory made with it), when this process made it
     outermost = made[1] if made is not None and made[0].absolute() == out.absolute() else None
@@ -365,61 +360,9 @@ def main() -> None:
 
 def hydra_command(args: list[str]) -> None:
     """The ``decrun`` command's Hydra app for the command line ``args`` (``sys.argv[1:]``, set
-    by the caller): a single run composes its config once (:func:`_composed_once`); a sweep, a
-    config that sets ``hydra.mode`` or a composition error goes Hydra's own way. What the app
-    raises, Hydra's exit included, reaches the caller (:func:`main`, :func:`decrun.run`)."""
-    try:
-        with _composed_once(args):
-            _hydra_main()
-    except _ComposeAgain:  # a config that asks for another mode, or an error: Hydra's own way says it
-        _hydra_main()
-
-
-class _ComposeAgain(Exception):
-    """The single composition of :func:`_composed_once` did not give a run's config."""
-
-
-@contextmanager
-def _composed_once(args: list[str]):
-    """While the block runs, a single run (no ``-m``/``--multirun``, no ``hydra.mode``
-    override) composes its config once. Hydra's command line composes it twice: first (in
-    MULTIRUN mode) only to read ``hydra.mode``, which no decrun config sets, then for the run.
-    Here the first is skipped (``Hydra.get_mode`` answers RUN) and the run's composition
-    records ``hydra.mode=RUN`` among its Hydra overrides as Hydra's way does; when that
-    composition fails or finds ``hydra.mode`` set to MULTIRUN by a config, it raises
-    :class:`_ComposeAgain` before anything ran, and the caller runs the command Hydra's way
-    (which then reports the error, or sweeps)."""
-    if any(a in ("-m", "--multirun") or a.lstrip("+").startswith("hydra.mode=") for a in args):
-        yield
-        return
-    from hydra._internal.hydra import Hydra
-
-    get_mode, compose_config = Hydra.get_mode, Hydra.compose_config
-
-    def run_mode(self, config_name, overrides):
-        return RunMode.RUN
-
-    def compose_for_run(self, config_name, overrides, run_mode, **kwargs):
-        if run_mode != RunMode.RUN:
-            return compose_config(self, config_name, overrides, run_mode, **kwargs)
-        try:
-            cfg = compose_config(self, config_name, overrides, run_mode, **kwargs)
-        except Exception as exc:
-            raise _ComposeAgain() from exc
-        if cfg.hydra.mode is not None:  # a config chose the mode: Hydra's way decides
-            raise _ComposeAgain()
-        with open_dict(cfg), read_write(cfg):  # what Hydra's way records: hydra.mode=RUN, an override
-            cfg.hydra.mode = RunMode.RUN
-            cfg.hydra.overrides.hydra.append("hydra.mode=RUN")
-        return cfg
-
-    setattr(Hydra, "get_mode", run_mode)  # noqa: B010 — assigning a method, which mypy refuses
-    setattr(Hydra, "compose_config", compose_for_run)  # noqa: B010
-    try:
-        yield
-    finally:
-        setattr(Hydra, "get_mode", get_mode)  # noqa: B010
-        setattr(Hydra, "compose_config", compose_config)  # noqa: B010
+    by the caller), run Hydra's own way. What the app raises, Hydra's exit included, reaches
+    the caller (:func:`main`, :func:`decrun.run`)."""
+    _hydra_main()
 
 
 def _interrupted_where(exc: KeyboardInterrupt) -> str:

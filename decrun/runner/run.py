@@ -29,7 +29,6 @@ from decrun.core import jit
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.errors import ConfigError, DecrunError, MeshError, TopologyError
-from decrun.runner import figure_process
 from decrun.runner.config import OptimizeConfig
 from decrun.runner.context import RunContext
 from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
@@ -331,17 +330,12 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         removed = remove_earlier_exports(files.dir)
         if removed:
             log.info("removed the earlier run's export files %s (they do not hold this result)", ", ".join(removed))
-        if not drawn:
-            figure_process.dismiss()  # the command's figure process, if any, has nothing to draw
-        else:
+        if drawn:
             try:
-                made = figure_process.draw(result.figures, files.dir, run.complex)
-                if made is None:  # no figure process for these figures: drawn here
-                    # lazy: matplotlib only for figures (start-up speed)
-                    from decrun.runner.plots.common import draw_figures
+                # lazy: matplotlib only for figures (start-up speed)
+                from decrun.runner.plots.common import draw_figures
 
-                    made = draw_figures(result.figures, files.dir, run.complex)
-                written += made
+                written += draw_figures(result.figures, files.dir, run.complex)
             except Exception as exc:  # the result and metrics stand; the error is added to them (below)
                 interrupt = find_in_chain(exc, KeyboardInterrupt)
                 if interrupt is not None:  # Ctrl-C/SIGTERM inside an extension's import: its ImportError wraps it

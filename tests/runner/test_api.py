@@ -218,22 +218,3 @@ def test_the_first_sweep_notebook_runs_and_plots_its_table(tmp_path):
     assert any("image/png" in o.get("data", {}) for o in outputs), "the plot"
     sweeps = list((tmp_path / "outputs" / "sweeps").iterdir())
     assert len(sweeps) == 1 and pd.read_csv(sweeps[0] / "metrics.csv")["status"].tolist() == ["ok"] * 4
-
-
-def test_a_single_run_composes_its_config_once_as_the_command(here, composition_modes):
-    """``decrun.run`` composes a single run's config once, as the command does
-    (tests/runner/test_small_run.py), and records the same Hydra overrides; a bad value is
-    still the command's line."""
-    from hydra._internal.hydra import Hydra
-    from omegaconf import OmegaConf
-
-    modes = composition_modes
-    with leaves_the_process_alone():
-        run = decrun.run([*HEAT, "app.steps=2"], dir="one")
-    assert modes == ["RunMode.RUN"] and run.status == "ok"
-    hydra_yaml = OmegaConf.load(here / "one" / ".hydra" / "hydra.yaml").hydra
-    assert list(hydra_yaml.overrides.hydra)[-1] == "hydra.mode=RUN" and hydra_yaml.mode == "RUN"
-    modes.clear()
-    with pytest.raises(decrun.RunError, match=r"^error: app.scheme: must be one of"):
-        decrun.run([*HEAT, "app=smoothing", "app.scheme=backward"])
-    assert Hydra.compose_config is modes.counted  # the single-run patch is undone after an error too

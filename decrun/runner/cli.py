@@ -329,6 +329,11 @@ def main() -> None:
     if args in (["--help"], ["-h"]):
         print(fast_help(), end="")
         return
+    if "--version" in args:  # decrun's version, not Hydra's (Hydra's argument parser prints its own)
+        import decrun
+
+        print(f"decrun {decrun.__version__}")
+        return
     if any(a.startswith("query=") for a in args) and any(a in ("-sc", "--shell-completion") for a in args):
         _completion()
         return

@@ -297,3 +297,15 @@ def test_help_and_completion_list_options_not_schema_pieces(tmp_path):
     assert not [w for w in words if "_post" in w or "base_" in w]
     script = decrun("-sc", "install=bash", cwd=tmp_path).stdout
     assert "complete -o nospace" in script and "\n" in script  # the install script is printed verbatim
+
+
+def test_version_is_decruns_own(tmp_path):
+    """`decrun --version` prints decrun's version (the package's), not Hydra's, and exits 0,
+    also after overrides; nothing is run or written."""
+    import decrun as package
+
+    for args in (["--version"], ["app=heat", "--version"]):
+        done = decrun(*args, cwd=tmp_path)
+        assert done.returncode == 0, done.stderr
+        assert done.stdout == f"decrun {package.__version__}\n" and "Hydra" not in done.stdout, done.stdout
+    assert list(tmp_path.iterdir()) == []

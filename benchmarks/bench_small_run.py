@@ -22,9 +22,9 @@ file, run with ``--child``) that times, without changing what runs:
   (each plugin module: decrun's sweeper and every installed launcher/sweeper plugin);
 * ``composition``: Hydra's ``compose_config`` (Hydra composes twice per command: once to
   read ``hydra.mode``, once for the run);
-* ``build``: :func:`decrun.runner.run.prepare` (plugins checked, mesh, complex, operators);
-* ``app``: :func:`decrun.runner.run.execute` (the app's compute, its records streamed);
-* ``write``: :func:`decrun.runner.run.write` without the figures (result.h5, metrics.json);
+* ``build``: :func:`decrun.runner.job.run.prepare` (plugins checked, mesh, complex, operators);
+* ``app``: :func:`decrun.runner.job.run.execute` (the app's compute, its records streamed);
+* ``write``: :func:`decrun.runner.job.run.write` without the figures (result.h5, metrics.json);
 * ``figure imports``: the imports only the figures need (matplotlib, decrun's plots);
 * ``figures``: drawing and saving the figures;
 * ``other``: the rest of the command (Hydra's job set-up: run directory, ``.hydra/``,
@@ -100,9 +100,9 @@ def child(argv: list[str], report: Path, spawned: float) -> None:
     # (module, attribute path, stage): wrapped as soon as the module is imported
     targets = [("hydra.core.plugins", "Plugins._scan_all_plugins", "plugin scan"),
                ("hydra._internal.hydra", "Hydra.compose_config", "composition"),
-               ("decrun.runner.run", "prepare", "build"),
-               ("decrun.runner.run", "execute", "app"),
-               ("decrun.runner.run", "write", "write"),
+               ("decrun.runner.job.run", "prepare", "build"),
+               ("decrun.runner.job.run", "execute", "app"),
+               ("decrun.runner.job.run", "write", "write"),
                ("decrun.runner.plots.common", "draw_figures", "figures")]
 
     def patch() -> None:

@@ -7,13 +7,13 @@ its ``metrics.csv``, the table ``decrun-table --csv`` prints
 (:func:`decrun.runner.sweep.tables.load_sweep`).
 
 How: each call runs the ``decrun`` command's own Hydra application in this process —
-:data:`decrun.runner.cli._hydra_main`, the ``@hydra.main`` function the console script calls,
-with the overrides (and ``-m``) as its command line, through :func:`decrun.runner.cli.hydra_command`
+:data:`decrun.runner.command.task._hydra_main`, the ``@hydra.main`` function the console script calls,
+with the overrides (and ``-m``) as its command line, through :func:`decrun.runner.command.task.hydra_command`
 as the console script does (a single run composes its config once, not a second time only to read
 ``hydra.mode``). So a call composes, checks, plans, locks,
 writes ``manifest.json``, launches, resumes and tabulates exactly as the command does: the same
-config search path and callbacks (:class:`~decrun.runner.cli.OutputGuard`,
-:class:`~decrun.runner.cli.SweepTable`), the ``decrun`` sweeper and any launcher, because it *is*
+config search path and callbacks (:class:`~decrun.runner.command.task.OutputGuard`,
+:class:`~decrun.runner.command.task.SweepTable`), the ``decrun`` sweeper and any launcher, because it *is*
 that code path. The alternatives re-implement part of it: Hydra's compose API runs no sweeper,
 launcher or callback (it cannot run a multirun, hydra#2673), and calling the sweeper with a
 composed config means rebuilding Hydra's ``multirun`` from its internals (its
@@ -86,7 +86,7 @@ class Run:
     @property
     def result_path(self) -> Path:
         """The run's ``result.h5``."""
-        from decrun.runner.files import RunFiles
+        from decrun.runner.io.files import RunFiles
 
         return RunFiles(self.dir).result
 
@@ -106,8 +106,8 @@ def run(overrides: str | Sequence[str] = (), *, dir: str | os.PathLike | None = 
     split as a shell would); ``dir``: the run directory (``hydra.run.dir``); ``root``: the run goes
     to ``<root>/runs/<stamp>/`` (default: ``outputs/runs/<stamp>/`` in the working directory).
     Raises :class:`RunError` with the command's message when the run cannot start or fails."""
-    from decrun.runner.cli import OutputGuard
-    from decrun.runner.files import RunFiles
+    from decrun.runner.command.task import OutputGuard
+    from decrun.runner.io.files import RunFiles
     from decrun.runner.results.checked import load_json
 
     args = _overrides(overrides, "run") + _directory("run", dir, root, overrides)
@@ -130,7 +130,7 @@ def sweep(overrides: str | Sequence[str] = (), *, launcher: str | None = None, r
     job; ``status`` and ``error`` say which jobs failed), with the sweep directory (absolute) in
     ``table.attrs["sweep_dir"]``. Raises :class:`RunError` with the command's message when the
     sweep cannot start or its launcher stops it."""
-    from decrun.runner.cli import SweepTable
+    from decrun.runner.command.task import SweepTable
     from decrun.runner.sweep.tables import load_sweep
 
     args = ["-m", *_overrides(overrides, "sweep")]
@@ -188,9 +188,9 @@ def _command(args: list[str], where) -> None:
     """Run the ``decrun`` command's Hydra app with the command line ``args`` in this process;
     raise what the command would exit with (module docstring). ``where()``: the directory
     chosen so far, for the error."""
-    from decrun.runner import cli
-    from decrun.runner.failures import Stopped, interrupt_cause
-    from decrun.runner.locks import released_after
+    from decrun.runner.command import task as cli
+    from decrun.runner.io.locks import released_after
+    from decrun.runner.job.failures import Stopped, interrupt_cause
 
     cli.SweepTable.failed = 0
     with _as_command(args), released_after():

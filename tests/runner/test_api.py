@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 
 import decrun
-from decrun.runner.locks import _held
+from decrun.runner.io.locks import _held
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAT = ["app=heat", "mesh.subdiv=1", "figures=false"]
@@ -40,7 +40,7 @@ def _command(*args, cwd) -> subprocess.CompletedProcess:
 
 def _table_csv(sweep_dir: Path, cwd: Path) -> pd.DataFrame:
     """What ``decrun-table --csv`` prints for ``sweep_dir``, read by pandas."""
-    out = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+    out = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.task import table_main; "
                           "sys.exit(table_main(sys.argv[1:]))", "--csv", str(sweep_dir)], cwd=cwd, env=_env(),
                          capture_output=True, text=True, timeout=240)
     assert out.returncode == 0, out.stderr
@@ -142,7 +142,7 @@ def test_errors_are_the_commands_lines(here):
 
 def test_a_directory_another_process_uses_is_refused_and_left_alone(here):
     (here / "busy").mkdir()
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from decrun.runner.locks import acquire; "
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from decrun.runner.io.locks import acquire; "
                                "acquire('busy', 'run'); print('held', flush=True); time.sleep(60)"],
                               cwd=here, env=_env(), stdout=subprocess.PIPE, text=True)
     try:
@@ -167,7 +167,7 @@ def test_an_interrupted_run_is_a_keyboard_interrupt_and_recorded(tmp_path):
               "try:\n"
               "    decrun.run(['app=heat', 'app.t_end=1e6', 'figures=false', 'hydra.run.dir=long'])\n"
               "except KeyboardInterrupt:\n"
-              "    from decrun.runner.locks import _held\n"
+              "    from decrun.runner.io.locks import _held\n"
               "    print('interrupted', not _held)\n")
     out = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, env=_env(), capture_output=True, text=True,
                          timeout=120)

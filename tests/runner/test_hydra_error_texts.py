@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 
 import decrun
-from decrun.runner import cli, failures, hints
+from decrun.runner.command import task as cli
+from decrun.runner.job import failures, hints
 
 UNSET = "DECRUN_TEST_SURELY_UNSET"
 SMALL = ["app=heat", "mesh.subdiv=1", "figures=false"]

@@ -54,7 +54,7 @@ def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path):
     matplotlib and draws them itself, still without pandas; the second run reads its mesh from
     the mesh cache and imports no pymeshlab."""
     modules = imported_modules("figures=false", "app.steps=2", cwd=tmp_path)
-    assert "decrun.runner.run" in modules and "h5py" in modules  # the log is read right
+    assert "decrun.runner.job.run" in modules and "h5py" in modules  # the log is read right
     unused = ["matplotlib", "pandas", "decrun.runner.plots.common", "decrun.runner.sweep.sweeper",
               "decrun.runner.sweep.fast", "decrun.runner.tracking", "decrun.runner.sweep.tables"]
     assert [m for m in unused if m in modules] == []
@@ -134,7 +134,7 @@ def test_a_sweep_lists_a_job_whose_figures_failed(tmp_path, capsys, monkeypatch)
     kept, ``figures_error`` among them) beside failed exports, and the sweep exits 1."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.cli import SweepTable
+    from decrun.runner.command.task import SweepTable
 
     done = decrun("-m", "app.steps=2,3", "figures=false", "hydra.sweep.dir=swept", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
@@ -157,7 +157,7 @@ def test_an_interrupt_wrapped_in_an_extensions_import_error_is_an_interrupt(tmp_
     import pytest
 
     import decrun as api
-    from decrun.runner.failures import Terminated
+    from decrun.runner.job.failures import Terminated
     from decrun.runner.plots import common
 
     def importing(*args, **kwargs):

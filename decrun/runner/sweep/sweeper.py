@@ -38,9 +38,16 @@ from hydra.plugins.sweeper import Sweeper
 from omegaconf import OmegaConf, open_dict, read_write
 
 from decrun.errors import ConfigError, CorruptFileError, DecrunError
-from decrun.runner.atomic import write_text_atomic
-from decrun.runner.files import RunFiles, SweepFiles
-from decrun.runner.launchers import (
+from decrun.runner.io.atomic import write_text_atomic
+from decrun.runner.io.files import RunFiles, SweepFiles
+from decrun.runner.io.locks import LOCK_NAME
+from decrun.runner.io.paths import hydra_files
+from decrun.runner.sweep.checks import CHECKS, WARM
+from decrun.runner.sweep.conf import DecrunSweeperConf
+from decrun.runner.sweep.fast import SpeedLayer
+from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
+from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
+from decrun.runner.sweep.launchers import (
     CONNECT_TIMEOUT,
     NO_TIME_LIMIT,
     RAY,
@@ -53,13 +60,6 @@ from decrun.runner.launchers import (
     preflight,
     timed_out,
 )
-from decrun.runner.locks import LOCK_NAME
-from decrun.runner.paths import hydra_files
-from decrun.runner.sweep.checks import CHECKS, WARM
-from decrun.runner.sweep.conf import DecrunSweeperConf
-from decrun.runner.sweep.fast import SpeedLayer
-from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
-from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.manifest import (
     DONE,
     FORMAT,
@@ -297,14 +297,14 @@ class ManifestSweeper(Sweeper):
     def _launch(self, overrides: list[list[str]], first: int) -> Sequence[Any]:
         """The launcher's results for one batch. With submitit's SLURM launcher, job states
         come from squeue when accounting is off, and a job that ended without a result
-        (``scancel``, time limit: :mod:`decrun.runner.launchers.slurm`) does not end the sweep:
+        (``scancel``, time limit: :mod:`decrun.runner.sweep.launchers.slurm`) does not end the sweep:
         its other jobs are waited for, the table's row of that job says ``killed`` or
         ``missing``, and ``hydra.sweeper.resume=true`` reruns it."""
         if is_launcher(self.launcher, *RAY):
             connect_ray_as_is(self.launcher)
         if not is_launcher(self.launcher, *SLURM):
             return self.launcher.launch(overrides, initial_job_idx=first)
-        from decrun.runner.launchers import slurm  # lazy: submitit
+        from decrun.runner.sweep.launchers import slurm  # lazy: submitit
 
         slurm.use_queue_states()
         try:

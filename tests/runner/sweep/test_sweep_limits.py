@@ -114,7 +114,7 @@ def test_planning_shows_its_progress_on_a_terminal_and_ctrl_c_while_planning_say
 
 HOOKED = textwrap.dedent("""
     import os, signal, sys, time
-    import decrun.runner.cli as cli
+    import decrun.runner.command.task as cli
 
     def interrupted():
         raise KeyboardInterrupt

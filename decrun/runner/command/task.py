@@ -7,7 +7,7 @@ writes ``metrics.csv`` / ``metrics.md`` at the sweep root (one row per job, also
 jobs that failed); it exits non-zero when a job failed.
 
 This module is the thin Hydra layer: the task hands the composed config and the run
-directory to :func:`decrun.runner.run.run` (the data flow of one run is there).
+directory to :func:`decrun.runner.job.run.run` (the data flow of one run is there).
 
 Errors: a :class:`decrun.errors.DecrunError` (bad input) prints one line
 ``error: <message>`` and exits 1 with no ``result.h5``; ``-v``/``--verbose`` or
@@ -31,8 +31,12 @@ from omegaconf import DictConfig, OmegaConf
 
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import DecrunError
-from decrun.runner.config import config_dir, load_option, register_configs
-from decrun.runner.failures import (
+from decrun.runner.io.files import SweepFiles
+from decrun.runner.io.interrupts import ignore_interrupts
+from decrun.runner.io.locks import LockedError, acquire, release
+from decrun.runner.io.paths import OutsideError, hydra_files, inside
+from decrun.runner.job.config import config_dir, load_option, register_configs
+from decrun.runner.job.failures import (
     config_error_message,
     exit_code,
     find_memory_error,
@@ -46,11 +50,7 @@ from decrun.runner.failures import (
     shorten_words,
     stop,
 )
-from decrun.runner.files import SweepFiles
-from decrun.runner.interrupts import ignore_interrupts
-from decrun.runner.locks import LockedError, acquire, release
-from decrun.runner.paths import OutsideError, hydra_files, inside
-from decrun.runner.progress import SweepProgress, sweep_size, terminal
+from decrun.runner.job.progress import SweepProgress, sweep_size, terminal
 from decrun.runner.sweep.checks import register_check
 
 register_configs()
@@ -71,9 +71,9 @@ def _verbose() -> bool:
 
 
 def _hydra_task(cfg: DictConfig) -> int | float:
-    """The Hydra task: :func:`decrun.runner.run.run` in the directory Hydra made."""
+    """The Hydra task: :func:`decrun.runner.job.run.run` in the directory Hydra made."""
     # lazy: the numerical stack loads only once a run starts, not for --help or a bad override (start-up speed)
-    from decrun.runner.run import run
+    from decrun.runner.job.run import run
 
     hydra_cfg = HydraConfig.get()
     out = Path(hydra_cfg.runtime.output_dir)
@@ -83,10 +83,10 @@ def _hydra_task(cfg: DictConfig) -> int | float:
 
 
 def _check_job(cfg: DictConfig, memo: dict | None = None, delta: Any = None) -> None:
-    """The sweeper's check of each planned job: :func:`decrun.runner.experiment.validate`;
+    """The sweeper's check of each planned job: :func:`decrun.runner.job.experiment.validate`;
     with the sweeper's ``memo`` each distinct plugin node is built once per sweep, and with
     a ``delta`` only a derived job's changed leaves are checked anew."""
-    from decrun.runner.experiment import validate  # lazy: the numerical stack (start-up speed)
+    from decrun.runner.job.experiment import validate  # lazy: the numerical stack (start-up speed)
 
     validate(cfg, memo=memo, delta=delta)
 
@@ -94,15 +94,15 @@ def _check_job(cfg: DictConfig, memo: dict | None = None, delta: Any = None) -> 
 _hydra_main = hydra.main(version_base="1.3", config_path=str(config_dir()), config_name="config")(_hydra_task)
 # every job of a sweep is type-checked before the first starts; joblib's workers import the
 # numerical stack while the sweep is planned
-register_check(_hydra_task, _check_job, warm=("decrun.runner.run", "decrun.runner.results.recorder"))
+register_check(_hydra_task, _check_job, warm=("decrun.runner.job.run", "decrun.runner.results.recorder"))
 
 
 class OutputGuard(Callback):
     """Hydra callback (``hydra.callbacks.output_guard`` in conf/config.yaml, listed first):
     before a single run — before Hydra creates its directory, saves ``.hydra/`` and opens
     the log — refuses a ``.hydra/`` file or log that resolves out of the run directory
-    (:func:`decrun.runner.paths.inside`) and takes the run directory's lock
-    (:mod:`decrun.runner.locks`) until the run ends; ``made`` says whether it made the
+    (:func:`decrun.runner.io.paths.inside`) and takes the run directory's lock
+    (:mod:`decrun.runner.io.locks`) until the run ends; ``made`` says whether it made the
     directory (a run refused as bad input removes it again). After a sweep, once
     :class:`SweepTable` has written the table, drops the sweep directory's lock (the
     ``decrun`` sweeper takes it). A refusal is one line and exit 1, nothing written.
@@ -119,7 +119,7 @@ class OutputGuard(Callback):
         try:
             self._guard(config)
         except Exception as exc:  # hydra.run.dir=${oc.env:UNSET}: one line naming the key, not Hydra's warning
-            from decrun.runner.hints import resolution_message
+            from decrun.runner.job.hints import resolution_message
 
             unresolved = None if isinstance(exc, DecrunError) else resolution_message(exc)
             if unresolved is None:
@@ -250,7 +250,7 @@ def track(config: DictConfig, where: Path, *, sweep: bool) -> None:
     that logs the files later (``decrun-track``): the run's files are never touched by it."""
     if "tracker" not in config or config.tracker is None:
         return
-    from decrun.runner.plugins import build
+    from decrun.runner.job.plugins import build
     from decrun.runner.tracking import Tracker, track_run, track_sweep, warning_line
 
     tracker = build(config.tracker, "tracker", Tracker)
@@ -277,7 +277,7 @@ def track_command(where: Path, config: DictConfig) -> str:
     logs ``where`` with the tracker options of ``config``."""
     import shlex
 
-    from decrun.runner.config import load_option
+    from decrun.runner.job.config import load_option
 
     node = cast(dict, OmegaConf.to_container(config.tracker, resolve=False))
     target = node.get("_target_", "")
@@ -375,7 +375,7 @@ def _interrupted_where(exc: KeyboardInterrupt) -> str:
     for a sweep interrupted while its jobs ran (the sweeper's
     :class:`~decrun.runner.sweep.stops.Stock` on ``exc.sweep_stock``) which jobs finished
     and which were interrupted — the latter marked ``interrupted`` in their metrics.json
-    (:func:`~decrun.runner.failures.record_status`) — and the command that resumes the rest."""
+    (:func:`~decrun.runner.job.failures.record_status`) — and the command that resumes the rest."""
     stock = getattr(exc, "sweep_stock", None)
     if stock is None:
         return getattr(exc, "sweep_where", None) or "before the run started"
@@ -427,7 +427,7 @@ def error_message(exc: Exception) -> str | None:
     message = config_error_message(exc, sys.argv[1:]) or typo_message(exc) or missing_plugin_message(exc) or \
         part_missing_message(exc) or group_typo_message(exc) or root_value_message(exc) or append_message(exc)
     if not message and not isinstance(exc, DecrunError):  # hydra.run.dir=${oc.env:UNSET}: Hydra's own keys
-        from decrun.runner.hints import resolution_message
+        from decrun.runner.job.hints import resolution_message
 
         unresolved = resolution_message(exc)
         message = f"error: {unresolved}" if unresolved else None
@@ -453,7 +453,7 @@ def error_message(exc: Exception) -> str | None:
 
 
 def _say(message: str) -> None:
-    """One line on stderr, its over-long words cut (:func:`~decrun.runner.failures.shorten_words`)."""
+    """One line on stderr, its over-long words cut (:func:`~decrun.runner.job.failures.shorten_words`)."""
     print(shorten_words(message), file=sys.stderr)
 
 
@@ -482,7 +482,7 @@ def typo_message(exc: Exception) -> str | None:
 
     from omegaconf.errors import ConfigAttributeError, ConfigKeyError
 
-    from decrun.runner.config import PLUGIN_GROUPS
+    from decrun.runner.job.config import PLUGIN_GROUPS
 
     match = re.match(r"Could not override '([^']+)'", str(exc))
     if match is None or not isinstance(exc.__cause__, (ConfigAttributeError, ConfigKeyError)):
@@ -503,8 +503,8 @@ def typo_message(exc: Exception) -> str | None:
             overrides.append(f"+{key}={value.split(',')[0]}")  # a sweep: its first value
         elif "." not in bare:
             overrides.append(f"{name}={value.split(',')[0]}")
-    from decrun.runner.config import compose_config
-    from decrun.runner.experiment import validate  # lazy: the numerical stack (start-up speed)
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.experiment import validate  # lazy: the numerical stack (start-up speed)
 
     try:
         validate(compose_config(overrides))
@@ -517,12 +517,12 @@ def typo_message(exc: Exception) -> str | None:
 
 def missing_plugin_message(exc: Exception) -> str | None:
     """For a Hydra launcher or sweeper whose plugin is not installed (``hydra/launcher=ray``
-    without the extra), the pip line that installs it (:data:`decrun.runner.hints.PLUGIN_EXTRAS`)."""
+    without the extra), the pip line that installs it (:data:`decrun.runner.job.hints.PLUGIN_EXTRAS`)."""
     import re
 
     from hydra.errors import MissingConfigException
 
-    from decrun.runner.hints import PLUGIN_EXTRAS
+    from decrun.runner.job.hints import PLUGIN_EXTRAS
 
     if not isinstance(exc, MissingConfigException):
         return None
@@ -736,8 +736,8 @@ def track_main(argv: list[str] | None = None) -> int:
     parser.add_argument("dir", metavar="DIR", help="a sweep directory (outputs/sweeps/<stamp>) or a run directory")
     parser.add_argument("overrides", nargs="*", help="tracker=mlflow and tracker.<option>=<value> overrides")
     args = parser.parse_args(argv)
-    from decrun.runner.config import compose_config
-    from decrun.runner.plugins import build
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.plugins import build
     from decrun.runner.sweep.tables import is_sweep_dir
     from decrun.runner.tracking import Tracker, track_run, track_sweep
 

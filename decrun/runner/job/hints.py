@@ -100,7 +100,7 @@ def _option_defaults(cfg, group: str) -> dict:
     (:func:`plugin_name`), or {} when there is no such file."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.config import load_option
+    from decrun.runner.job.config import load_option
 
     name = plugin_name(cfg, group)
     try:
@@ -213,7 +213,7 @@ def default_override(cfg, key: str) -> str | None:
     line; None when the key has no default (an option the command added with ``+``)."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.config import PLUGIN_GROUPS, DecrunConfig
+    from decrun.runner.job.config import PLUGIN_GROUPS, DecrunConfig
 
     root, _, rest = key.partition(".")
     try:

@@ -30,7 +30,7 @@ def lint_imports(cwd: Path, pythonpath: Path) -> subprocess.CompletedProcess:
 def test_the_layer_contracts_are_kept():
     proc = lint_imports(REPO, REPO)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "8 kept, 0 broken" in proc.stdout
+    assert "9 kept, 0 broken" in proc.stdout
 
 
 @pytest.mark.parametrize("module, planted, contract", [

@@ -40,7 +40,7 @@ def _command(*args, cwd) -> subprocess.CompletedProcess:
 
 def _table_csv(sweep_dir: Path, cwd: Path) -> pd.DataFrame:
     """What ``decrun-table --csv`` prints for ``sweep_dir``, read by pandas."""
-    out = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.task import table_main; "
+    out = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.table import table_main; "
                           "sys.exit(table_main(sys.argv[1:]))", "--csv", str(sweep_dir)], cwd=cwd, env=_env(),
                          capture_output=True, text=True, timeout=240)
     assert out.returncode == 0, out.stderr

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from decrun.runner.command.task import table_main
+from decrun.runner.command.table import table_main
 from decrun.runner.job.config import compose_config, config_dir, unique_stamp
 from decrun.runner.results import read_provenance, read_result
 from decrun.runner.results.checked import RESULT_RECORD, file_record

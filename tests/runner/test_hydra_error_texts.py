@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 import decrun
-from decrun.runner.command import task as cli
+from decrun.runner.command import errors
 from decrun.runner.job import failures, hints
 
 UNSET = "DECRUN_TEST_SURELY_UNSET"
@@ -45,7 +45,7 @@ def test_a_misspelt_plugin_option(here, monkeypatch):
     """Hydra: ``Could not override 'app.stpes'`` with a ConfigAttributeError/ConfigKeyError cause."""
     line, raw = refused([*SMALL, "app.stpes=3"], monkeypatch)
     assert str(raw).startswith("Could not override 'app.stpes'")
-    assert cli.typo_message(raw) == line
+    assert errors.typo_message(raw) == line
     assert line.startswith("error: app.stpes: unknown option of app=model") and "did you mean app.steps?" in line
 
 
@@ -54,7 +54,7 @@ def test_a_launcher_whose_plugin_is_not_installed(here, monkeypatch):
     monkeypatch.setitem(hints.PLUGIN_EXTRAS, "hydra/launcher",
                         {**hints.PLUGIN_EXTRAS["hydra/launcher"], "absent": ("hydra-absent-launcher", "absent")})
     line, raw = refused([*SMALL, "hydra/launcher=absent"], monkeypatch)
-    assert cli.missing_plugin_message(raw) == line
+    assert errors.missing_plugin_message(raw) == line
     assert line == 'error: hydra/launcher=absent: hydra-absent-launcher is not installed; pip install "decrun[absent]"'
 
 
@@ -62,7 +62,7 @@ def test_a_models_part_that_no_config_directory_has(here, monkeypatch):
     """Hydra: ``In 'app/halfar': Could not find 'app/parts/glen_lw'`` with the search path's
     ``path=file://…`` lines."""
     line, raw = refused(["app=halfar", "app/parts@app=[halfar_dynamics,glen_lw]", "figures=false"], monkeypatch)
-    assert cli.part_missing_message(raw) == line
+    assert errors.part_missing_message(raw) == line
     assert line == ("error: app=halfar: no part glen_lw (app/parts/glen_lw.yaml is in no config directory of the "
                     "search path); did you mean glen_law? (the parts: glen_law | halfar_dynamics)")
 
@@ -70,7 +70,7 @@ def test_a_models_part_that_no_config_directory_has(here, monkeypatch):
 def test_a_group_option_that_does_not_exist(here, monkeypatch):
     """Hydra: ``Could not find 'app/smooth'`` with the group's options on the exception."""
     line, raw = refused(["app=smooth", "figures=false"], monkeypatch)
-    assert cli.group_typo_message(raw) == line
+    assert errors.group_typo_message(raw) == line
     assert line.startswith("error: app=smooth: no such option; did you mean `app=smoothing`? (the options: ")
     assert " | heat | " in line and "_model" not in line
 
@@ -79,7 +79,7 @@ def test_a_group_outside_the_defaults_list_without_a_plus(here, monkeypatch):
     """Hydra: ``Could not override 'experiment'. No match in the defaults list. To append to
     your default list use +experiment=…``."""
     line, raw = refused(["experiment=fig5_8_t_hole"], monkeypatch)
-    assert cli.append_message(raw) == line
+    assert errors.append_message(raw) == line
     assert line == ("error: experiment=fig5_8_t_hole: experiment is not in the config's defaults list, it is added "
                     "with +; use `+experiment=fig5_8_t_hole`")
 
@@ -88,7 +88,7 @@ def test_a_root_option_that_is_no_boolean(here, monkeypatch):
     """Hydra: ``Error merging override progress=maybe`` caused by OmegaConf's ``Value 'maybe'
     is not a valid bool``."""
     line, raw = refused([*SMALL, "progress=maybe"], monkeypatch)
-    assert cli.root_value_message(raw) == line
+    assert errors.root_value_message(raw) == line
     assert line == "error: progress=maybe: not a boolean; use `progress=true` or `progress=false`"
 
 

@@ -134,7 +134,7 @@ def test_a_sweep_lists_a_job_whose_figures_failed(tmp_path, capsys, monkeypatch)
     kept, ``figures_error`` among them) beside failed exports, and the sweep exits 1."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.command.task import SweepTable
+    from decrun.runner.command.callbacks import SweepTable
 
     done = decrun("-m", "app.steps=2,3", "figures=false", "hydra.sweep.dir=swept", cwd=tmp_path)
     assert done.returncode == 0, done.stderr

@@ -6,7 +6,7 @@ Who holds what:
 * a sweep directory — the submitting process of a ``decrun`` sweep, from the moment its
   jobs are planned (before the manifest is read or written, before a resume clears
   anything) until its table is written (:mod:`decrun.runner.sweep.sweeper`,
-  :class:`decrun.runner.command.task.OutputGuard`);
+  :class:`decrun.runner.command.callbacks.OutputGuard`);
 * a run directory — the process recording the run: a single run from before Hydra
   creates the directory (``on_run_start``) to its end; each sweep job in whatever process
   runs it (the basic launcher's, a joblib / submitit / ray worker) while it runs

@@ -182,7 +182,9 @@ def _raw_value(cfg, key: str):
         if not OmegaConf.is_config(node):
             return None
         container = OmegaConf.to_container(node, resolve=False)  # interpolations kept as their text
-        return container[int(leaf)] if isinstance(container, list) else container.get(leaf)
+        if isinstance(container, list):
+            return container[int(leaf)]
+        return container.get(leaf) if isinstance(container, dict) else None
     except Exception:  # noqa: BLE001 — a key path OmegaConf cannot walk (list indices): no value to show
         return None
 

@@ -20,7 +20,7 @@ NEW_SWEEP = "start a new sweep with hydra.sweep.dir=DIR"
 
 def lock_sweep(sweep_dir: Path, error: type[Exception]) -> None:
     """Create ``sweep_dir`` if need be and take its lock for this process (kept until the
-    sweep's table is written: :class:`decrun.runner.command.task.OutputGuard` drops it). Another
+    sweep's table is written: :class:`decrun.runner.command.callbacks.OutputGuard` drops it). Another
     process's lock → ``error`` (a SweepError) naming its pid."""
     sweep_dir.mkdir(parents=True, exist_ok=True)
     try:

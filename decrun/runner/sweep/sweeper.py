@@ -222,11 +222,11 @@ class ManifestSweeper(Sweeper):
         try:
             with self.speed.warming(self.launcher, self.warm):
                 jobs = self.plan(arguments)
-        except KeyboardInterrupt as exc:  # the decrun command says where (cli.main)
+        except KeyboardInterrupt as exc:  # the decrun command says where (decrun.runner.command.task.main)
             done, total = self.planned
             where = (f"while the sweep was planned ({done:,} of {total:,} jobs checked); nothing was written"
                      if total else "while the sweep was planned; nothing was written")
-            exc.sweep_where = where  # type: ignore[attr-defined]  # read by cli.main
+            exc.sweep_where = where  # type: ignore[attr-defined]  # read by command.task.main
             raise
         lock_sweep(sweep_dir, SweepError)  # before the manifest is read: one sweeping process per directory
         manifest, todo = self._start(sweep_dir, jobs, arguments)
@@ -240,9 +240,9 @@ class ManifestSweeper(Sweeper):
         for start, stop in _batches([int(j["job"]) for j in todo], self.max_batch_size):
             try:
                 results = self._launch(launched[start:stop], int(todo[start]["job"]))
-            except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (cli.main)
+            except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (decrun.runner.command.task.main)
                 ignore_interrupts()  # a second Ctrl-C while the jobs are counted is ignored (the sweep is ending)
-                exc.sweep_stock = take_stock(sweep_dir, todo)  # type: ignore[attr-defined]  # read by cli.main
+                exc.sweep_stock = take_stock(sweep_dir, todo)  # type: ignore[attr-defined]  # read by command.task.main
                 raise
             except Exception as exc:
                 if worker_died(exc):

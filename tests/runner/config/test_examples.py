@@ -204,7 +204,7 @@ def test_sweep_example_runs(where, command, tmp_path):
                 done = subprocess.run([*env_python, *prerequisite], cwd=tmp_path, capture_output=True, text=True)
                 assert done.returncode == 0, done.stderr[-2000:]
     if command.startswith("decrun-table") and "<stamp>" not in command:
-        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.task import table_main; "
+        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.table import table_main; "
                                "sys.exit(table_main(sys.argv[1:]))", *args], cwd=tmp_path, capture_output=True,
                               text=True)
         assert done.returncode == 0 and "| " in done.stdout, done.stderr
@@ -214,7 +214,7 @@ def test_sweep_example_runs(where, command, tmp_path):
         assert sweep.returncode == 0, sweep.stderr
         stamp = next((tmp_path / "outputs" / "sweeps").iterdir()).name
         args = [a.replace("<stamp>", stamp) for a in args]
-        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.task import table_main; "
+        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.table import table_main; "
                                "sys.exit(table_main(sys.argv[1:]))", *args], cwd=tmp_path, capture_output=True,
                               text=True)
         assert done.returncode == 0 and "| job |" in done.stdout, done.stderr

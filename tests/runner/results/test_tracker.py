@@ -43,8 +43,8 @@ def _runs(uri: str, experiment: str = "decrun") -> list:
 
 
 def track_command(*args: str, cwd) -> subprocess.CompletedProcess:
-    """The console script ``decrun-track`` (:func:`decrun.runner.command.task.track_main`) as a child process."""
-    code = "import sys; from decrun.runner.command.task import track_main; sys.exit(track_main())"
+    """The console script ``decrun-track`` (:func:`decrun.runner.command.table.track_main`) as a child process."""
+    code = "import sys; from decrun.runner.command.table import track_main; sys.exit(track_main())"
     return subprocess.run([sys.executable, "-c", code, *args], cwd=cwd, env=env(), capture_output=True, text=True,
                           timeout=300)
 

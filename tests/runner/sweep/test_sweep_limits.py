@@ -119,14 +119,14 @@ HOOKED = textwrap.dedent("""
     def interrupted():
         raise KeyboardInterrupt
 
-    where = cli._interrupted_where
+    where = cli.interrupted_where
 
     def second_ctrl_c(exc):  # Ctrl-C again while the first one is handled
         os.kill(os.getpid(), signal.SIGINT)
         time.sleep(0.2)
         return where(exc)
 
-    cli._hydra_main, cli._interrupted_where = interrupted, second_ctrl_c
+    cli._hydra_main, cli.interrupted_where = interrupted, second_ctrl_c
     sys.argv = ["decrun", "-m", "app.dt=0.1,0.2"]
     from decrun.__main__ import console_main
     console_main()

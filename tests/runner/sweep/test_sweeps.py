@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from decrun.runner.command.task import table_main
+from decrun.runner.command.table import table_main
 from decrun.runner.sweep.tables import load_sweep
 
 from cli_processes import comparable, decrun, env

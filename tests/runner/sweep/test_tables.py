@@ -13,7 +13,7 @@ import pytest
 
 from decrun.apps.base import Result
 from decrun.errors import ConfigError
-from decrun.runner.command.task import table_main
+from decrun.runner.command.table import table_main
 from decrun.runner.job.config import OptimizeConfig
 from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.recorder import ResultRecorder, write_result
@@ -183,7 +183,7 @@ def test_other_sweepers_refuse_a_non_empty_sweep_dir(tmp_path, capsys):
     refuses to mix a new sweep into an old directory, in one line."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.command.task import SweepTable
+    from decrun.runner.command.callbacks import SweepTable
 
     old = tmp_path / "old"
     (old / "0").mkdir(parents=True)
@@ -340,7 +340,7 @@ def test_decrun_table_on_a_read_only_mount(tmp_path):
     if shutil.which("unshare") is None:
         pytest.skip("no unshare")
     sweep = make_sweep(tmp_path / "s", {"0": {"status": "ok", "e": 1.0}})
-    table = f"import sys; from decrun.runner.command.task import table_main; sys.exit(table_main([{str(sweep)!r}]))"
+    table = f"import sys; from decrun.runner.command.table import table_main; sys.exit(table_main([{str(sweep)!r}]))"
     script = (f"mount --bind {sweep} {sweep} && mount -o remount,ro,bind {sweep} || exit 77; "
               f"{sys.executable} -c {table!r}")
     proc = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True, text=True, timeout=120)

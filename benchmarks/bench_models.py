@@ -142,7 +142,7 @@ def compile_cost(subdiv: int, repeat: int) -> None:
     from decrun.core.dec import DEC
     from decrun.core.solvers import solver_factory
     from decrun.methods.model.integrators import make_integrator
-    from decrun.runner.config import config_dir
+    from decrun.runner.job.config import config_dir
 
     vertices, faces = icosphere_or_kuhn_cube("icosphere", subdiv)
     vertices = vertices / np.linalg.norm(vertices, axis=1, keepdims=True)

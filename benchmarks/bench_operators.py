@@ -17,10 +17,7 @@ Each mesh runs in fresh subprocesses:
   numpy twins (``numpy``) and decrun's compiled extension (``auto``, when the install built it),
   each timed in CPU time
   (``time.process_time``: the shared machine's load distorts wall time), best of the rounds;
-  and, interleaved with them, decrun's extension with numpy's huge-page advice kept (decrun
-  builds in 4 KiB pages, :mod:`decrun.core.pages`): the best and the worst of its rounds, and
-  the worst of the extension's own rounds (a build touches its memory anew each time, and
-  huge pages' first touch varies from round to round where the 4 KiB pages' does not).
+  and the worst of the extension's own rounds (a build touches its memory anew each time).
 
 Ratios are decrun / libigl (and decrun / floor) from the same process; the fresh ratio is decrun's
 first build over libigl's first call, each the best of ``--repeat`` fresh processes (and decrun's worst
@@ -143,10 +140,8 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
     for a, b in zip(operators, twins, strict=True):  # the two paths agree (the tests hold them to it)
         assert a.shape == b.shape and abs(a - b).max() <= 1e-12 * max(abs(b).max(), 1.0)
     floor = _floor_work(operators)
-    from decrun.core import pages
-
-    best = {"igl": np.inf, "floor": np.inf, "numpy": np.inf, "extension": np.inf, "huge": np.inf}
-    worst = {"extension": 0.0, "huge": 0.0}
+    best = {"igl": np.inf, "floor": np.inf, "numpy": np.inf, "extension": np.inf}
+    worst = {"extension": 0.0}
     for _ in range(repeat):
         best["igl"] = min(best["igl"], _cpu(reference))
         best["floor"] = min(best["floor"], _cpu(floor))
@@ -156,12 +151,6 @@ def run_case(library: str, kind: str, size: int, repeat: int) -> dict:
             with jit.use("auto"):
                 spent = _cpu(ours)
                 best["extension"], worst["extension"] = min(best["extension"], spent), max(worst["extension"], spent)
-                switch, pages._switch = pages._switch, lambda: None  # numpy's huge-page advice kept
-                try:
-                    spent = _cpu(ours)
-                finally:
-                    pages._switch = switch
-                best["huge"], worst["huge"] = min(best["huge"], spent), max(worst["huge"], spent)
     result.update({f"{k}_s": float(v) for k, v in best.items()})
     result.update({f"{k}_worst_s": float(v) for k, v in worst.items()})
     result["load"] = [load_before, os.getloadavg()[0]]
@@ -238,9 +227,9 @@ def main(argv=None) -> int:
     print("| triangles | load | libigl | floor | numpy twins | extension | numpy / libigl |"
           " extension / libigl | extension / floor | fresh: import | fresh: first build, auto |"
           " fresh: libigl's first call | fresh ratio |"
-          " extension, worst round | extension in huge pages, best–worst round | fresh: worst process's first build |"
+          " extension, worst round | fresh: worst process's first build |"
           " fresh: worst / libigl's best |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for size in TRIANGLE_CASES[level]:
         fresh, igl_fresh = {"fresh_auto_s": np.inf}, {"igl_fresh_s": np.inf}
         fresh_worst = 0.0
@@ -256,13 +245,12 @@ def main(argv=None) -> int:
         igl_s, ext_s = r["igl_s"], r["extension_s"]
         extension = (f" {1e3 * ext_s:.1f} |", f" {ext_s / igl_s:.2f} |", f" {ext_s / r['floor_s']:.2f} |") \
             if r["extension"] else (" (not built) |", " - |", " - |")
-        huge = (f" {1e3 * r['extension_worst_s']:.1f} | {1e3 * r['huge_s']:.1f}–{1e3 * r['huge_worst_s']:.1f} |"
-                if r["extension"] else " - | - |")
+        worst_round = f" {1e3 * r['extension_worst_s']:.1f} |" if r["extension"] else " - |"
         print(f"| {r['simplices']:,} | {r['load'][0]:.0f}–{r['load'][1]:.0f} | {1e3 * igl_s:.1f} | {1e3 * r['floor_s']:.1f} |"
               f" {1e3 * r['numpy_s']:.1f} |{extension[0]} {r['numpy_s'] / igl_s:.2f} |"
               f"{extension[1]}{extension[2]}"
               f" {1e3 * fresh['import_s']:.0f} | {1e3 * fresh['fresh_auto_s']:.1f} | {1e3 * igl_fresh['igl_fresh_s']:.1f} |"
-              f" {fresh['fresh_auto_s'] / igl_fresh['igl_fresh_s']:.2f} |{huge}"
+              f" {fresh['fresh_auto_s'] / igl_fresh['igl_fresh_s']:.2f} |{worst_round}"
               f" {1e3 * fresh_worst:.1f} | {fresh_worst / igl_fresh['igl_fresh_s']:.2f} |", flush=True)
     return 0
 

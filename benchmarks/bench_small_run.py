@@ -22,23 +22,18 @@ file, run with ``--child``) that times, without changing what runs:
   (each plugin module: decrun's sweeper and every installed launcher/sweeper plugin);
 * ``composition``: Hydra's ``compose_config`` (Hydra composes twice per command: once to
   read ``hydra.mode``, once for the run);
-* ``build``: :func:`decrun.runner.run.prepare` (plugins checked, mesh, complex, operators);
-* ``app``: :func:`decrun.runner.run.execute` (the app's compute, its records streamed);
-* ``write``: :func:`decrun.runner.run.write` without the figures (result.h5, metrics.json);
+* ``build``: :func:`decrun.runner.job.run.prepare` (plugins checked, mesh, complex, operators);
+* ``app``: :func:`decrun.runner.job.run.execute` (the app's compute, its records streamed);
+* ``write``: :func:`decrun.runner.job.run.write` without the figures (result.h5, metrics.json);
 * ``figure imports``: the imports only the figures need (matplotlib, decrun's plots);
-* ``figures``: drawing and saving the figures (with a figure process: waiting for it to draw
-  them; its own CPU time, importing matplotlib beside the run and drawing, is the row
-  ``figure process``, not in the total);
+* ``figures``: drawing and saving the figures;
 * ``other``: the rest of the command (Hydra's job set-up: run directory, ``.hydra/``,
   logging, callbacks; the lock; the closing lines);
-* ``exit``: the interpreter's shutdown, after the exit handlers;
-* ``figure process``: the CPU time of the figure process (:mod:`decrun.runner.figure_process`),
-  which imports matplotlib beside the run and draws the figures, with the processes it forks
-  for figures (its wall time overlaps the stages above: shown as —).
+* ``exit``: the interpreter's shutdown, after the exit handlers.
 
 Each stage's time excludes the stages nested in it (an import inside ``build`` counts as
 ``imports``), so the stages add up to the command's wall and CPU time as the parent sees them
-(the CPU time including the figure process's).
+(the CPU time including any child process's, e.g. git's for the provenance).
 """
 
 from __future__ import annotations
@@ -105,11 +100,10 @@ def child(argv: list[str], report: Path, spawned: float) -> None:
     # (module, attribute path, stage): wrapped as soon as the module is imported
     targets = [("hydra.core.plugins", "Plugins._scan_all_plugins", "plugin scan"),
                ("hydra._internal.hydra", "Hydra.compose_config", "composition"),
-               ("decrun.runner.run", "prepare", "build"),
-               ("decrun.runner.run", "execute", "app"),
-               ("decrun.runner.run", "write", "write"),
-               ("decrun.runner.plots.common", "draw_figures", "figures"),
-               ("decrun.runner.figure_process", "draw", "figures")]
+               ("decrun.runner.job.run", "prepare", "build"),
+               ("decrun.runner.job.run", "execute", "app"),
+               ("decrun.runner.job.run", "write", "write"),
+               ("decrun.runner.plots.common", "draw_figures", "figures")]
 
     def patch() -> None:
         for module, path, stage in targets:
@@ -147,16 +141,7 @@ def child(argv: list[str], report: Path, spawned: float) -> None:
         children = resource.getrusage(resource.RUSAGE_CHILDREN)  # e.g. git for the provenance: "other"
         stages.totals["other"][1] += children.ru_utime + children.ru_stime
         end_wall, end_cpu = time.time(), time.process_time() + children.ru_utime + children.ru_stime
-        # the figure process (dismissed by now: it exits) with the processes it forked for figures
-        while True:
-            try:
-                os.waitpid(-1, 0)
-            except ChildProcessError:
-                break
-        reaped = resource.getrusage(resource.RUSAGE_CHILDREN)
-        figure_cpu = reaped.ru_utime + reaped.ru_stime - children.ru_utime - children.ru_stime
-        report.write_text(json.dumps({"stages": stages.totals, "end_wall": end_wall, "end_cpu": end_cpu,
-                                      "figure_process_cpu": figure_cpu}))
+        report.write_text(json.dumps({"stages": stages.totals, "end_wall": end_wall, "end_cpu": end_cpu}))
 
     atexit.register(write_report)
     builtins.__import__ = timed_import
@@ -193,8 +178,7 @@ def measure(checkout: Path, args: list[str], cwd: Path, pycache: Path) -> dict[s
         report.unlink(missing_ok=True)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     stages = data["stages"]
-    stages["exit"] = [end - data["end_wall"], cpu - data["end_cpu"] - data["figure_process_cpu"]]
-    stages["figure process"] = [float("nan"), data["figure_process_cpu"]]
+    stages["exit"] = [end - data["end_wall"], cpu - data["end_cpu"]]
     stages["total"] = [end - spawned, cpu]
     return stages
 
@@ -204,7 +188,7 @@ def table(results: dict[str, dict[str, list[float]]]) -> str:
     labels = list(results)
     lines = ["| stage | " + " | ".join(f"{label}: wall s (CPU s)" for label in labels) + " |",
              "|---|" + "---:|" * len(labels)]
-    for stage in [*STAGES, "figure process", "total"]:
+    for stage in [*STAGES, "total"]:
         cells = [f"{results[label][stage][0]:.3f} ({results[label][stage][1]:.3f})".replace("nan", "—")
                  for label in labels]
         lines.append(f"| {stage} | " + " | ".join(cells) + " |")

@@ -143,8 +143,8 @@ def profile() -> None:
     import hydra.core.hydra_config as hydra_config
     import hydra.core.utils as hydra_utils
 
-    import decrun.runner.cli as cli
-    import decrun.runner.run as run
+    import decrun.runner.command.task as cli
+    import decrun.runner.job.run as run
     import decrun.runner.sweep.fast.planning as planning_module
     import decrun.runner.sweep.sweeper as sweeper
 

@@ -184,7 +184,7 @@ def measure(work: Path, n: int, repeats: int) -> None:
 
 def forget(sweep_dir: Path) -> None:
     """Remove the ``tracking.json`` of ``sweep_dir`` and its jobs: the next logging is a first one."""
-    from decrun.runner.files import RunFiles, SweepFiles
+    from decrun.runner.io.files import RunFiles, SweepFiles
 
     for path in [SweepFiles(sweep_dir).dir / SweepFiles.TRACKING,
                  *(RunFiles(p).tracking for p in sweep_dir.iterdir() if p.is_dir())]:

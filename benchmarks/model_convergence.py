@@ -28,8 +28,8 @@ DISK_MAX_AREA = (0.01, 0.0025, 0.000625, 0.00015625)
 
 def run(overrides: list[str]):
     """``(done, h)``: the finished run of ``decrun <overrides> figures=false`` and its mean edge length."""
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     done = run_experiment(compose_config(["figures=false", "progress=false", *overrides]))
     return done, float(done.complex.mean_edge_length)

@@ -230,8 +230,8 @@ def model_and_twin(name: str, overrides: list[str], library: str = "auto"):
     from decrun.core.solvers import solver_factory
     from decrun.methods.model.integrators import make_integrator
     from decrun.methods.model.stepper import ModelStepper
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import prepare
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import prepare
 
     run = prepare(compose_config([f"app={name}", f"solver={library}", "figures=false", "progress=false",
                                   "app.stability_check=false", *overrides]))

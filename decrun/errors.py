@@ -10,7 +10,7 @@ class DecrunError(Exception):
 
     ``python_hint`` is the fix for Python callers (``orient='fix'``), appended in brackets to
     the message; the runner replaces it with the CLI override that fixes the same problem
-    (:func:`decrun.runner.hints.cli_message`), so a command-line user never reads about
+    (:func:`decrun.runner.job.hints.cli_message`), so a command-line user never reads about
     keyword arguments.
     """
 

@@ -88,7 +88,7 @@ def field_comments(cls: type) -> dict[str, str]:
 
 
 def _compose(group: str, option: str):
-    from decrun.runner.config import compose_config
+    from decrun.runner.job.config import compose_config
 
     return compose_config([f"{group}={option}"])[group]
 
@@ -175,7 +175,7 @@ def _own_default(path: Path, key: str) -> bool:
 
 def root_section() -> list[str]:
     """The plain root keys (``progress``, ``figures``, ``checkpoint.*``, ``optimize.*``)."""
-    from decrun.runner.config import DecrunConfig, compose_config
+    from decrun.runner.job.config import DecrunConfig, compose_config
 
     cfg = compose_config([])
     comments = field_comments(DecrunConfig)

@@ -247,8 +247,8 @@ def _dec_of(overrides: tuple[str, ...]):
     against the app: for numbers about a run the app refuses."""
     from decrun.core.complex import SimplicialComplex
     from decrun.core.dec import DEC
-    from decrun.runner.config import compose_config
-    from decrun.runner.experiment import validate
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.experiment import validate
 
     experiment = validate(compose_config([*overrides, "figures=false"]))
     mesh = experiment.mesh_source.load()
@@ -301,7 +301,7 @@ def height_field_parametrization() -> dict:
     from decrun.apps.parametrization import Parametrization
     from decrun.core.complex import SimplicialComplex
     from decrun.core.dec import DEC
-    from decrun.runner.plugins import option
+    from decrun.runner.job.plugins import option
 
     grid = option("mesh", "grid", nx=30, ny=30).load()
     V = grid.vertices.copy()
@@ -441,8 +441,8 @@ def _solver_difference(overrides: list[str], solver: str, fields: tuple[str, ...
     with ω, not with itself); ``alpha``, ``beta`` (defined up to constants) left out."""
     import numpy as np
 
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     def run(name):
         result = run_experiment(compose_config([*overrides, f"solver={name}", "figures=false"])).result
@@ -486,8 +486,8 @@ def dt_crit_search() -> dict:
 
     import yaml
 
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     with tempfile.TemporaryDirectory() as tmp:
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
@@ -621,8 +621,8 @@ def cahn_hilliard_numbers() -> dict:
     import scipy.sparse as sp
     from scipy.sparse.csgraph import connected_components
 
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     default = run_experiment(compose_config(["app=cahn_hilliard", "figures=false"]))
     mass = np.asarray(default.result.series["mass"], dtype=float)
@@ -655,8 +655,8 @@ def model_walkthrough() -> dict:
     import re
     import tempfile
 
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     page = (ROOT / "docs" / "models.md").read_text(encoding="utf-8")
     (model,) = re.findall(r"```yaml\n(# my_conf/app/mymodel\.yaml\n.*?)```", page, flags=re.S)
@@ -700,8 +700,8 @@ def darcy_convergence() -> dict:
     on the diagonal edges (the flux norm only a seminorm)."""
     import numpy as np
 
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     def run(*overrides):
         return run_experiment(compose_config(["+experiment=darcy_convergence", *overrides, "figures=false"]))
@@ -936,8 +936,8 @@ def run_metrics(run: Run | Source) -> dict:
     if isinstance(run, Source):
         function = source_function(run.function) if isinstance(run.function, str) else run.function
         return function()
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     done = run_experiment(compose_config([*run.overrides, "figures=false"]))
     return {**done.result.metrics, **(run.derived(done) if run.derived else {})}

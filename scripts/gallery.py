@@ -254,8 +254,8 @@ def run_entry(experiment: str | None, overrides: list[str], figure, scratch: Pat
     """One single run (of ``+experiment=<experiment>`` unless None); copies ``<figure>.png``
     to ``target`` (or draws it, when ``figure`` is a function of the run); returns the metrics
     (and ``derived(run)``'s numbers)."""
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment, write
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment, write
 
     cfg = compose_config(entry_overrides(experiment, overrides))
     out = Path(tempfile.mkdtemp(dir=scratch))

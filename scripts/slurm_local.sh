@@ -10,7 +10,7 @@
 #
 # Idempotent: `start` on a running SLURM only checks it. Needs root (the daemons run as
 # root: SlurmUser=root). Accounting is off (accounting_storage/none): there is no sacct;
-# decrun reads job states from squeue/scontrol instead (decrun/runner/launchers/slurm.py).
+# decrun reads job states from squeue/scontrol instead (decrun/runner/sweep/launchers/slurm.py).
 # KillWait=5: `scancel` sends SIGTERM, then SIGKILL 5 s later.
 set -euo pipefail
 

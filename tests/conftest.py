@@ -150,28 +150,3 @@ def tmpfs(tmp_path):
 def tiny_disk(tmpfs):
     """A 1 MiB tmpfs (:func:`tmpfs`)."""
     return tmpfs("1m")
-
-
-
-class Compositions(list):
-    """The run modes (``"RunMode.RUN"`` …) of the Hydra compositions made while a test runs;
-    ``counted`` is the ``Hydra.compose_config`` that records them."""
-
-    counted = None
-
-
-@pytest.fixture
-def composition_modes(monkeypatch) -> Compositions:
-    """Count Hydra's compositions (``Hydra.compose_config``, patched for the test)."""
-    from hydra._internal.hydra import Hydra
-
-    modes = Compositions()
-    compose = Hydra.compose_config
-
-    def counted(self, config_name, overrides, run_mode, **kwargs):
-        modes.append(str(run_mode))
-        return compose(self, config_name, overrides, run_mode, **kwargs)
-
-    modes.counted = counted
-    monkeypatch.setattr(Hydra, "compose_config", counted)
-    return modes

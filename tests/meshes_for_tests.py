@@ -9,9 +9,9 @@ import triangle
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.primitives import grid_triangles, kuhn_cube  # noqa: F401
-from decrun.runner.config import config_dir
+from decrun.runner.job.config import config_dir
+from decrun.runner.job.plugins import build
 from decrun.runner.mesh import MeshSource
-from decrun.runner.plugins import build
 
 
 def mesh(source: str = "icosphere", **options):

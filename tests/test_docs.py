@@ -212,7 +212,7 @@ def test_the_tutorial_runs_in_order(tmp_path):
             if words[0] == "decrun":
                 argv = [sys.executable, "-m", "decrun", *words[1:]]
             elif words[0] == "decrun-table":
-                argv = [sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+                argv = [sys.executable, "-c", "import sys; from decrun.runner.command.table import table_main; "
                         "sys.exit(table_main(sys.argv[1:]))", *words[1:]]
             else:
                 raise AssertionError(f"docs/tutorial.md: a command this test does not know: {line}")

@@ -1,7 +1,8 @@
 """The linter finds nothing: ``ruff check`` (the rules of ``[tool.ruff]`` in pyproject.toml:
 unused imports, undefined names and ``__all__`` entries, redefinitions, pycodestyle errors)
 over the package, the tests, the benchmarks, the scripts and the Hydra plugin; and it does
-find a planted unused import."""
+find a planted unused import. No function of the runner, the apps or the Hydra plugin is above
+McCabe complexity 20 (ruff's C901), and that check finds a planted one."""
 
 from __future__ import annotations
 
@@ -42,3 +43,25 @@ def test_ruff_finds_a_planted_unused_import_and_a_missing_all_name(tmp_path):
     proc = ruff(tmp_path, "mod.py")
     assert proc.returncode == 1
     assert "F401" in proc.stdout and "F822" in proc.stdout
+
+
+#: the packages held to McCabe complexity ≤ 20 (ruff's C901); decrun/core and decrun/methods join
+#: once their last functions above it are split
+COMPLEXITY_PATHS = ["decrun/runner", "decrun/apps", "hydra_plugins"]
+
+
+def test_no_function_is_above_mccabe_20():
+    proc = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise",
+                           "--select", "C901", "--config", "lint.mccabe.max-complexity=20", *COMPLEXITY_PATHS],
+                          cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_the_complexity_check_finds_a_planted_branchy_function(tmp_path):
+    shutil.copy(REPO / "pyproject.toml", tmp_path / "pyproject.toml")
+    branches = "".join(f"    if x == {i}:\n        return {i}\n" for i in range(21))
+    (tmp_path / "mod.py").write_text(f"def branchy(x):\n{branches}    return -1\n")
+    proc = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise",
+                           "--select", "C901", "--config", "lint.mccabe.max-complexity=20", "mod.py"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1 and "C901 `branchy` is too complex (22 > 20)" in proc.stdout, proc.stdout

@@ -30,7 +30,7 @@ PAGE = ROOT / "docs" / "models.md"
 APPS_PAGE = ROOT / "docs" / "apps" / "index.md"
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
-TABLE = "import sys; from decrun.runner.cli import table_main; sys.exit(table_main())"
+TABLE = "import sys; from decrun.runner.command.table import table_main; sys.exit(table_main())"
 
 
 def reference_script():

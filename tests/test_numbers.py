@@ -113,7 +113,7 @@ CASES = [pytest.param(name, marks=[pytest.mark.slow] if RUNS[name].slow else [],
 def test_an_alias_composes_the_config_of_its_run():
     from omegaconf import OmegaConf
 
-    from decrun.runner.config import compose_config
+    from decrun.runner.job.config import compose_config
 
     for alias, source in doc_numbers.ALIASES.items():
         a, b = (OmegaConf.to_yaml(compose_config([*RUNS[n].overrides, "figures=false"])) for n in (alias, source))

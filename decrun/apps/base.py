@@ -209,7 +209,7 @@ class App:
     def validate(self, K: SimplicialComplex, solver: Solver, operators: Callable[[], Any]) -> Any:
         """Every check of this app against the run's mesh, operators and solver, before any
         work, each once and in this order; returns the operators. The runner calls it once
-        per run (:func:`decrun.runner.run.prepare`); apps override the checks below, not this.
+        per run (:func:`decrun.runner.job.run.prepare`); apps override the checks below, not this.
 
         1. :meth:`check_dimension` on ``K``, before the operators are built (``operators()``,
            the ``DEC``): a Hodge-star variant may not exist in another dimension either, and

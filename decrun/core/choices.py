@@ -2,7 +2,7 @@
 ``Direction``): a plugin field typed with a :class:`Choice` accepts exactly its members.
 
 OmegaConf checks such a field when the runner builds the plugin
-(:func:`decrun.runner.plugins.build`); :meth:`Choice.of` checks it for Python callers
+(:func:`decrun.runner.job.plugins.build`); :meth:`Choice.of` checks it for Python callers
 (``CGSolver(preconditioner="none")``), and both name the key and every choice. A member's
 name is its value and it *is* that string (``Refine.loop == "loop"``, ``f"{Refine.loop}"``
 is ``loop``), so code and messages keep reading plain strings.

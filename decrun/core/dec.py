@@ -26,7 +26,6 @@ from decrun.core.boundary import BoundaryAdaptation, boundary_adaptation
 from decrun.core.boundary import none as _default_boundary  # noqa: F401
 from decrun.core.cache import Cached
 from decrun.core.complex import SimplicialComplex
-from decrun.core.pages import small_pages
 from decrun.core.simplex_arrays import vertex_volumes
 from decrun.core.stars import HodgeStar, star_variant
 from decrun.core.stars.circumcentric import circumcenter_barycentric, circumcentric_dual_volumes
@@ -88,18 +87,11 @@ class DEC(Cached):
             raise ConfigError(f"operator={self.star_variant.name} provides ⋆_k on the mesh's own simplices only for "
                               f"k in {list(degrees)}, not k = {k}")
 
-    @staticmethod
-    def _built(compute):
-        """``compute()`` with its new arrays in 4 KiB pages (:func:`decrun.core.pages.small_pages`):
-        d and ⋆ are built once and touched for the first time while they are."""
-        with small_pages():
-            return compute()
-
     # ---------------------------------------------------------------- derivatives
     def d(self, k: int) -> sp.csr_matrix:
         """Exterior derivative on primal k-forms, d_k = δ_{k+1}ᵀ (§4.5.1): (n_{k+1}, n_k)."""
         self._check_form_degree(k, 0, self.n - 1)
-        return self.require(("d", k), lambda: self._built(lambda: self.K.incidence(k + 1)))
+        return self.require(("d", k), lambda: self.K.incidence(k + 1))
 
     def d_dual(self, j: int) -> sp.csr_matrix:
         """Exterior derivative on dual j-forms (eq. 4.13): d^dual_{n-k} = (-1)^k δ_k.
@@ -183,7 +175,7 @@ class DEC(Cached):
             diagonal = self.star_diagonal_or_none(k)
             return diagonal_matrix(diagonal) if diagonal is not None else self.star_variant.matrix(self, k).tocsr()
 
-        return self.require(("star", k), lambda: self._built(compute))
+        return self.require(("star", k), compute)
 
     def star_inv(self, k: int) -> sp.csr_matrix:
         """⋆_k⁻¹ as a sparse diagonal matrix (diagonal variants only). Zero dual volumes

@@ -2,7 +2,7 @@
 
 Every pluggable kind of decrun is a **dataclass whose fields are its options**. The runner
 builds one from a config node naming it with ``_target_`` (Hydra's convention, see
-:mod:`decrun.runner.plugins`); Python code may also pass an instance, or — for the
+:mod:`decrun.runner.job.plugins`); Python code may also pass an instance, or — for the
 built-in plugins of the core — a short name, resolved here by module: the variant named
 ``x`` of kind ``decrun.core.stars`` is the class in module ``decrun.core.stars.x`` whose
 ``name`` is ``"x"``. A plugin outside decrun is passed as an instance or as a dotted path

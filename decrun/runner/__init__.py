@@ -1,5 +1,5 @@
 """The runner: the only layer that imports hydra, pymeshlab, h5py and matplotlib.
 
-``cli`` (the command) > ``run`` (one run) > ``context``, ``failures``, ``hints``, ``plugins``,
-``progress``, ``config`` > ``sweep`` | ``plots`` > ``results`` | ``mesh`` (docs/architecture.md;
-the contracts in pyproject.toml)."""
+``api`` > ``command`` (the command line) | ``view`` > ``job`` (one run) > ``tracking`` >
+``sweep`` | ``plots`` > ``results`` | ``mesh`` > ``io`` (docs/architecture.md; the contracts in
+pyproject.toml)."""

@@ -7,13 +7,13 @@ its ``metrics.csv``, the table ``decrun-table --csv`` prints
 (:func:`decrun.runner.sweep.tables.load_sweep`).
 
 How: each call runs the ``decrun`` command's own Hydra application in this process —
-:data:`decrun.runner.cli._hydra_main`, the ``@hydra.main`` function the console script calls,
-with the overrides (and ``-m``) as its command line, through :func:`decrun.runner.cli.hydra_command`
+:data:`decrun.runner.command.task._hydra_main`, the ``@hydra.main`` function the console script calls,
+with the overrides (and ``-m``) as its command line, through :func:`decrun.runner.command.task.hydra_command`
 as the console script does (a single run composes its config once, not a second time only to read
 ``hydra.mode``). So a call composes, checks, plans, locks,
 writes ``manifest.json``, launches, resumes and tabulates exactly as the command does: the same
-config search path and callbacks (:class:`~decrun.runner.cli.OutputGuard`,
-:class:`~decrun.runner.cli.SweepTable`), the ``decrun`` sweeper and any launcher, because it *is*
+config search path and callbacks (:class:`~decrun.runner.command.callbacks.OutputGuard`,
+:class:`~decrun.runner.command.callbacks.SweepTable`), the ``decrun`` sweeper and any launcher, because it *is*
 that code path. The alternatives re-implement part of it: Hydra's compose API runs no sweeper,
 launcher or callback (it cannot run a multirun, hydra#2673), and calling the sweeper with a
 composed config means rebuilding Hydra's ``multirun`` from its internals (its
@@ -86,7 +86,7 @@ class Run:
     @property
     def result_path(self) -> Path:
         """The run's ``result.h5``."""
-        from decrun.runner.files import RunFiles
+        from decrun.runner.io.files import RunFiles
 
         return RunFiles(self.dir).result
 
@@ -106,8 +106,8 @@ def run(overrides: str | Sequence[str] = (), *, dir: str | os.PathLike | None = 
     split as a shell would); ``dir``: the run directory (``hydra.run.dir``); ``root``: the run goes
     to ``<root>/runs/<stamp>/`` (default: ``outputs/runs/<stamp>/`` in the working directory).
     Raises :class:`RunError` with the command's message when the run cannot start or fails."""
-    from decrun.runner.cli import OutputGuard
-    from decrun.runner.files import RunFiles
+    from decrun.runner.command.callbacks import OutputGuard
+    from decrun.runner.io.files import RunFiles
     from decrun.runner.results.checked import load_json
 
     args = _overrides(overrides, "run") + _directory("run", dir, root, overrides)
@@ -130,7 +130,7 @@ def sweep(overrides: str | Sequence[str] = (), *, launcher: str | None = None, r
     job; ``status`` and ``error`` say which jobs failed), with the sweep directory (absolute) in
     ``table.attrs["sweep_dir"]``. Raises :class:`RunError` with the command's message when the
     sweep cannot start or its launcher stops it."""
-    from decrun.runner.cli import SweepTable
+    from decrun.runner.command.callbacks import SweepTable
     from decrun.runner.sweep.tables import load_sweep
 
     args = ["-m", *_overrides(overrides, "sweep")]
@@ -188,14 +188,14 @@ def _command(args: list[str], where) -> None:
     """Run the ``decrun`` command's Hydra app with the command line ``args`` in this process;
     raise what the command would exit with (module docstring). ``where()``: the directory
     chosen so far, for the error."""
-    from decrun.runner import cli
-    from decrun.runner.failures import Stopped, interrupt_cause
-    from decrun.runner.locks import released_after
+    from decrun.runner.command import callbacks, errors, task
+    from decrun.runner.io.locks import released_after
+    from decrun.runner.job.failures import Stopped, interrupt_cause
 
-    cli.SweepTable.failed = 0
+    callbacks.SweepTable.failed = 0
     with _as_command(args), released_after():
         try:
-            cli.hydra_command(args)  # a single run composes once, as the command's
+            task.hydra_command(args)  # Hydra's command line, as the command's
         except Stopped as exc:
             if isinstance(exc.__cause__, KeyboardInterrupt):  # a single run, recorded as interrupted
                 raise exc.__cause__ from None
@@ -205,10 +205,10 @@ def _command(args: list[str], where) -> None:
                 return
             raise RunError(f"decrun {shlex.join(args)}: exit {exc.code}", _code(exc), _absolute(where())) from exc
         except KeyboardInterrupt as exc:  # a sweep: its running jobs marked interrupted, as the command does
-            print(f"decrun: interrupted ({interrupt_cause(exc)}) {cli._interrupted_where(exc)}", file=sys.stderr)
+            print(f"decrun: interrupted ({interrupt_cause(exc)}) {task.interrupted_where(exc)}", file=sys.stderr)
             raise
         except Exception as exc:
-            message = cli.error_message(exc)
+            message = errors.error_message(exc)
             if message is None:  # a bug: its traceback
                 raise
             raise RunError(message, 1, _absolute(where())) from exc
@@ -239,7 +239,7 @@ def _as_command(args: list[str]) -> Iterator[None]:
     root = logging.getLogger()
     saved_handlers, saved_level = list(root.handlers), root.level
     sys.argv = ["decrun", *args]
-    os.environ["HYDRA_FULL_ERROR"] = "1"  # errors reach decrun's messages (cli.main does the same)
+    os.environ["HYDRA_FULL_ERROR"] = "1"  # errors reach decrun's messages (the command's main does the same)
     logging.raiseExceptions = False
     try:
         yield

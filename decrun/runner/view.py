@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from decrun.errors import DecrunError
-from decrun.runner.files import RunFiles
+from decrun.runner.io.files import RunFiles
 from decrun.runner.results.export import working_directory
 
 __all__ = ["Quantity", "View", "plan_view", "edge_order", "show", "main"]
@@ -161,7 +161,7 @@ def _app(result) -> Any:
         from omegaconf import OmegaConf
 
         from decrun.apps.base import App
-        from decrun.runner.plugins import build
+        from decrun.runner.job.plugins import build
 
         return build(OmegaConf.create(str(text)).app, "app", App)
     except Exception as exc:  # an app that cannot be rebuilt here: placed by shapes instead

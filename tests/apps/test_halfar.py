@@ -143,8 +143,8 @@ def metrics_spacing(run) -> float:
 
 
 def run_halfar(*overrides):
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     run = run_experiment(compose_config(["app=halfar", "figures=false", *overrides]))
     vertices = run.complex.vertices

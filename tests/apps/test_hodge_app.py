@@ -127,7 +127,7 @@ def test_app_orthogonality_and_harmonic_dimension(options, betti, run_app):
 
 def test_app_reads_a_previous_result(tmp_path, sphere):
     """input=result decomposes the 1-form stored by an earlier run on the same mesh."""
-    from decrun.runner.context import RunContext
+    from decrun.runner.job.context import RunContext
 
     omega = sample_vector_field(sphere, np.array([0.0, 0.0, 1.0]))
     path = write_result(tmp_path / "result.h5", Result(fields={"omega": FieldOnEdges(omega)}),

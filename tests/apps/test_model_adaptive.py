@@ -10,8 +10,8 @@ import scipy.sparse as sp
 
 from decrun.core.solvers import solver_factory
 from decrun.methods.model.integrators import make_integrator
-from decrun.runner.config import compose_config
-from decrun.runner.run import prepare, run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import prepare, run_experiment
 
 
 def prepared(overrides):

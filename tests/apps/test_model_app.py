@@ -23,10 +23,10 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import expm_multiply, spsolve
 
 from decrun.errors import DecrunError
-from decrun.runner.config import compose_config
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import prepare, run_experiment
 from decrun.runner.results import read_result
 from decrun.runner.results.checkpoint import CHECKPOINT
-from decrun.runner.run import prepare, run_experiment
 
 from cli_processes import decrun, result_contents, start
 
@@ -34,7 +34,7 @@ FAST = ["figures=false", "progress=false"]
 
 
 def run(*overrides: str):
-    """The finished in-process run (:class:`decrun.runner.run.Run`) of ``overrides``."""
+    """The finished in-process run (:class:`decrun.runner.job.run.Run`) of ``overrides``."""
     return run_experiment(compose_config([*overrides, "figures=false"]))
 
 

@@ -14,10 +14,10 @@ from omegaconf import OmegaConf
 from decrun import DEC, SimplicialComplex
 from decrun.apps.model import Model
 from decrun.errors import ConfigError
-from decrun.runner.config import compose_config, load_option
+from decrun.runner.job.config import compose_config, load_option
+from decrun.runner.job.plugins import option
+from decrun.runner.job.run import run_experiment
 from decrun.runner.mesh.sources.primitives import Grid
-from decrun.runner.plugins import option
-from decrun.runner.run import run_experiment
 
 #: conf/app/halfar.yaml's equations before it was split into parts (the one-file model)
 ONE_FILE_EQUATIONS = [

@@ -9,9 +9,9 @@ import pytest
 
 from decrun.apps.parametrization import Parametrization
 from decrun.core.complex import SimplicialComplex
-from decrun.runner.config import compose_config
-from decrun.runner.plugins import option
-from decrun.runner.run import run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.plugins import option
+from decrun.runner.job.run import run_experiment
 
 
 def height_field(nx: int = 30) -> SimplicialComplex:

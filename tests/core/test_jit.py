@@ -446,7 +446,7 @@ def test_a_kernel_the_run_does_not_call_is_not_announced(tmp_path, monkeypatch):
 def test_a_run_says_in_its_log_that_it_compiles_once(caplog):
     """The runner's notice (around every run's work): one log line saying that the kernels
     compile, that it happens once, and how long it takes; restored after the run."""
-    from decrun.runner.run import compile_notice
+    from decrun.runner.job.run import compile_notice
 
     before = jit.compile_notice
     with caplog.at_level("INFO"), compile_notice():

@@ -305,7 +305,7 @@ def test_unknown_kernels_are_refused():
 
 def test_numba_is_imported_only_when_a_fluid_runs():
     """Composing configs and importing the fluid's modules stays numba-free (decrun --help fast)."""
-    code = ("import sys, decrun.apps.fluid, decrun.methods.fluid.simulation, decrun.runner.cli; "
+    code = ("import sys, decrun.apps.fluid, decrun.methods.fluid.simulation, decrun.runner.command.task; "
             "print('numba' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

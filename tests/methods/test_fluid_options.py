@@ -35,8 +35,8 @@ def test_choices_become_members_and_the_unstable_pairs_are_refused_with_the_call
 
 
 def test_the_app_refuses_a_slip_wall_with_a_trapezoid_rule_and_the_override_runs():
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     base = ["app=fluid", "mesh.subdiv=1", "mesh.noise=0", "app.steps=2", "app.animation=false", "figures=false",
             "app.velocity=wshd07", "app.circulation=trapezoid"]

@@ -23,9 +23,9 @@ import scipy.sparse as sp
 from decrun.errors import DecrunError
 from decrun.methods.model.kinds import form_kind
 from decrun.methods.model.language import ModelError, parse_equation
-from decrun.runner.config import compose_config
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import prepare, run_experiment
 from decrun.runner.results import read_result
-from decrun.runner.run import prepare, run_experiment
 
 from cli_processes import decrun
 

@@ -25,7 +25,7 @@ from decrun.methods.model.compiler import NOT_LINEAR, Compiler
 from decrun.methods.model.kinds import NUMBER, primal
 from decrun.methods.model.language import MAX_EXPRESSION_LENGTH, parse_equation, parse_expression, to_text
 from decrun.methods.model.operators import Discrete
-from decrun.runner.plugins import option
+from decrun.runner.job.plugins import option
 
 
 @lru_cache(maxsize=None)

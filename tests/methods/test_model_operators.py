@@ -23,7 +23,7 @@ from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.kinds import NUMBER, VECTOR, dual, primal
 from decrun.methods.model.language import parse_expression
 from decrun.methods.model.operators import Discrete
-from decrun.runner.plugins import option
+from decrun.runner.job.plugins import option
 
 from meshes_for_tests import jittered_lattice, kuhn_cube, remeshed_torus
 

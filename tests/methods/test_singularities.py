@@ -6,8 +6,8 @@ import numpy as np
 
 from decrun.core.complex import SimplicialComplex
 from decrun.methods.singularities import Singularities, cluster_singularities
-from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment
 
 from meshes_for_tests import icosphere
 

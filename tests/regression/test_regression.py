@@ -24,8 +24,8 @@ import pytest
 import yaml
 
 from decrun.errors import DecrunError
-from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment
 
 HERE = Path(__file__).parent
 

@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 
 import decrun
-from decrun.runner.locks import _held
+from decrun.runner.io.locks import _held
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAT = ["app=heat", "mesh.subdiv=1", "figures=false"]
@@ -40,7 +40,7 @@ def _command(*args, cwd) -> subprocess.CompletedProcess:
 
 def _table_csv(sweep_dir: Path, cwd: Path) -> pd.DataFrame:
     """What ``decrun-table --csv`` prints for ``sweep_dir``, read by pandas."""
-    out = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+    out = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.table import table_main; "
                           "sys.exit(table_main(sys.argv[1:]))", "--csv", str(sweep_dir)], cwd=cwd, env=_env(),
                          capture_output=True, text=True, timeout=240)
     assert out.returncode == 0, out.stderr
@@ -142,7 +142,7 @@ def test_errors_are_the_commands_lines(here):
 
 def test_a_directory_another_process_uses_is_refused_and_left_alone(here):
     (here / "busy").mkdir()
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from decrun.runner.locks import acquire; "
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from decrun.runner.io.locks import acquire; "
                                "acquire('busy', 'run'); print('held', flush=True); time.sleep(60)"],
                               cwd=here, env=_env(), stdout=subprocess.PIPE, text=True)
     try:
@@ -167,7 +167,7 @@ def test_an_interrupted_run_is_a_keyboard_interrupt_and_recorded(tmp_path):
               "try:\n"
               "    decrun.run(['app=heat', 'app.t_end=1e6', 'figures=false', 'hydra.run.dir=long'])\n"
               "except KeyboardInterrupt:\n"
-              "    from decrun.runner.locks import _held\n"
+              "    from decrun.runner.io.locks import _held\n"
               "    print('interrupted', not _held)\n")
     out = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, env=_env(), capture_output=True, text=True,
                          timeout=120)
@@ -218,25 +218,6 @@ def test_the_first_sweep_notebook_runs_and_plots_its_table(tmp_path):
     assert any("image/png" in o.get("data", {}) for o in outputs), "the plot"
     sweeps = list((tmp_path / "outputs" / "sweeps").iterdir())
     assert len(sweeps) == 1 and pd.read_csv(sweeps[0] / "metrics.csv")["status"].tolist() == ["ok"] * 4
-
-
-def test_a_single_run_composes_its_config_once_as_the_command(here, composition_modes):
-    """``decrun.run`` composes a single run's config once, as the command does
-    (tests/runner/test_small_run.py), and records the same Hydra overrides; a bad value is
-    still the command's line."""
-    from hydra._internal.hydra import Hydra
-    from omegaconf import OmegaConf
-
-    modes = composition_modes
-    with leaves_the_process_alone():
-        run = decrun.run([*HEAT, "app.steps=2"], dir="one")
-    assert modes == ["RunMode.RUN"] and run.status == "ok"
-    hydra_yaml = OmegaConf.load(here / "one" / ".hydra" / "hydra.yaml").hydra
-    assert list(hydra_yaml.overrides.hydra)[-1] == "hydra.mode=RUN" and hydra_yaml.mode == "RUN"
-    modes.clear()
-    with pytest.raises(decrun.RunError, match=r"^error: app.scheme: must be one of"):
-        decrun.run([*HEAT, "app=smoothing", "app.scheme=backward"])
-    assert Hydra.compose_config is modes.counted  # the single-run patch is undone after an error too
 
 
 def _slug(heading: str) -> str:

@@ -25,9 +25,9 @@ import pytest
 import scipy.sparse as sp
 
 from decrun.errors import DecrunError, SolverError
-from decrun.runner.config import compose_config
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment
 from decrun.runner.mesh import MAX_TRIANGLES
-from decrun.runner.run import run_experiment
 
 OCTAHEDRON = ("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
               "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n")
@@ -204,7 +204,7 @@ def test_the_proposed_overrides_fix_it(tmp_path):
 
 def test_max_area_in_scientific_notation_is_used_as_given(tmp_path):
     """triangle read ``a5e-05`` as area 5 then the switch ``e``: 2 triangles for a unit square."""
-    from decrun.runner.plugins import option
+    from decrun.runner.job.plugins import option
 
     mesh = option("mesh", "planar", holes=[], max_area=5e-05).load()
     assert 1.4 / 5e-05 < len(mesh.simplices) < 1.8 / 5e-05
@@ -251,7 +251,7 @@ def test_solvers_refuse_non_finite_matrices():
 
 
 def test_an_os_error_message_names_the_path_and_the_override(tmp_path):
-    from decrun.runner.failures import os_error_message
+    from decrun.runner.job.failures import os_error_message
 
     forbidden = PermissionError(13, "Permission denied", str(tmp_path / "runs"))
     assert os_error_message(forbidden) == (f"cannot write {tmp_path / 'runs'}: Permission denied; choose another output "
@@ -390,9 +390,9 @@ def test_a_post_step_that_breaks_the_mesh_is_named(monkeypatch):
     """A step that produced non-finite coordinates is reported by name, not as a strange
     error far away (e.g. "app.rescale=volume needs a closed surface")."""
     from decrun.errors import NonFiniteCoordinateError
+    from decrun.runner.job.plugins import option
     from decrun.runner.mesh import Mesh
     from decrun.runner.mesh import post as post_steps
-    from decrun.runner.plugins import option
 
     def broken(mesh, cfg):
         vertices = mesh.vertices.copy()

@@ -13,8 +13,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from decrun.runner.cli import table_main
-from decrun.runner.config import compose_config, config_dir, unique_stamp
+from decrun.runner.command.table import table_main
+from decrun.runner.job.config import compose_config, config_dir, unique_stamp
 from decrun.runner.results import read_provenance, read_result
 from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.provenance import content_sha256
@@ -176,8 +176,8 @@ def test_every_plugin_yaml_names_a_class_of_its_kind():
     group's kind, and its keys are options of that class (declared once, in the class)."""
     import dataclasses
 
-    from decrun.runner.config import GROUPS
-    from decrun.runner.plugins import option, target_class
+    from decrun.runner.job.config import GROUPS
+    from decrun.runner.job.plugins import option, target_class
 
     assert {path.name for path in config_dir().iterdir() if path.is_dir()} - {"hydra", "experiment"} \
         == {group.key for group in GROUPS}  # the table lists every group directory of conf/
@@ -297,3 +297,15 @@ def test_help_and_completion_list_options_not_schema_pieces(tmp_path):
     assert not [w for w in words if "_post" in w or "base_" in w]
     script = decrun("-sc", "install=bash", cwd=tmp_path).stdout
     assert "complete -o nospace" in script and "\n" in script  # the install script is printed verbatim
+
+
+def test_version_is_decruns_own(tmp_path):
+    """`decrun --version` prints decrun's version (the package's), not Hydra's, and exits 0,
+    also after overrides; nothing is run or written."""
+    import decrun as package
+
+    for args in (["--version"], ["app=heat", "--version"]):
+        done = decrun(*args, cwd=tmp_path)
+        assert done.returncode == 0, done.stderr
+        assert done.stdout == f"decrun {package.__version__}\n" and "Hydra" not in done.stdout, done.stdout
+    assert list(tmp_path.iterdir()) == []

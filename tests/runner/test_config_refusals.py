@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 from test_bad_input import assert_one_clear_line, decrun
 
-from decrun.runner.failures import MAX_NESTING, nesting_depth, override_nesting_error
+from decrun.runner.job.failures import MAX_NESTING, nesting_depth, override_nesting_error
 
 
 @pytest.mark.parametrize("value, depth", [("1", 0), ("[[0,0,1,0.5]]", 2), ("{a:{b:[1]}}", 3), ("'[[[['", 0),
@@ -118,8 +118,8 @@ def test_an_interpolation_that_does_not_resolve_is_one_line_naming_the_key(tmp_p
         return
     fix = _fix(line)
     assert len(fix) == (0 if "drop the override" in line else 1), line  # e.g. `app.dt=null` (the default)
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     kept = [override] if fix else []  # "drop the override": the command without it
     done = run_experiment(compose_config(["mesh.subdiv=1", "figures=false", *kept, *fix]))
@@ -145,8 +145,8 @@ def test_target_on_a_plain_root_node_is_refused_naming_it(tmp_path, root, multir
 
 def test_an_unknown_option_of_a_plain_root_node_names_the_closest():
     from decrun.errors import ConfigError
-    from decrun.runner.config import compose_config
-    from decrun.runner.experiment import validate
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.experiment import validate
 
     with pytest.raises(ConfigError, match=r"^checkpoint\.stesp: unknown option of checkpoint.*"
                                           r"did you mean checkpoint\.steps\?"):
@@ -162,7 +162,7 @@ LONG = "x" * 120_000
 
 
 def test_shorten_words_cuts_only_long_words():
-    from decrun.runner.failures import LONG_WORD, shorten_words
+    from decrun.runner.job.failures import LONG_WORD, shorten_words
 
     assert shorten_words("app.dt: must be > 0, got -1") == "app.dt: must be > 0, got -1"
     assert shorten_words("a " + "y" * LONG_WORD) == "a " + "y" * LONG_WORD

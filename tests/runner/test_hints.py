@@ -15,8 +15,8 @@ import pytest
 
 from decrun.core.primitives import kuhn_cube
 from decrun.errors import DecrunError
-from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment
 
 SOURCES = Path(__file__).resolve().parents[2] / "decrun"
 #: `key=value` in single backticks (not the ``double`` ones of docstrings)
@@ -70,7 +70,7 @@ def _two_pieces(tmp: Path) -> str:
 
 def _result_file(tmp: Path) -> str:
     """A finished run's result.h5 (a small spectrum run) for mesh=result."""
-    from decrun.runner.run import write
+    from decrun.runner.job.run import write
 
     write(run_experiment(compose_config(["mesh.subdiv=1", "app=spectrum", "figures=false"])), tmp)
     return str(tmp / "result.h5")
@@ -78,7 +78,7 @@ def _result_file(tmp: Path) -> str:
 
 def _model_result_file(tmp: Path) -> str:
     """A finished heat-method run's result.h5 (fields delta, u, phi, X, distance) for chaining."""
-    from decrun.runner.run import write
+    from decrun.runner.job.run import write
 
     (tmp / "model").mkdir(exist_ok=True)
     write(run_experiment(compose_config(["app=heat_geodesics", "mesh.subdiv=1", "figures=false"])), tmp / "model")

@@ -12,9 +12,9 @@ import sys
 import pytest
 from test_bad_input import assert_one_clear_line, decrun
 
-from decrun.runner.config import compose_config
-from decrun.runner.failures import find_memory_error, memory_error_text
-from decrun.runner.hints import memory_hint
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.failures import find_memory_error, memory_error_text
+from decrun.runner.job.hints import memory_hint
 
 
 def _fix(line: str) -> list[str]:

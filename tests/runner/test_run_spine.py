@@ -12,7 +12,7 @@ import pytest
 
 from decrun.apps.base import App
 from decrun.errors import ConfigError, TopologyError
-from decrun.runner.files import RunFiles, SweepFiles
+from decrun.runner.io.files import RunFiles, SweepFiles
 
 PACKAGE = Path(__file__).resolve().parents[2] / "decrun"
 
@@ -34,7 +34,7 @@ def _docstrings(tree: ast.AST) -> set[int]:
 
 def test_no_module_spells_a_run_directory_file_name_but_files_py():
     """A string that is exactly one of the names (``"result.h5"``, ``"metrics.json"``,
-    ``"*.png"`` ...) appears in no module of decrun but decrun/runner/files.py: code takes the
+    ``"*.png"`` ...) appears in no module of decrun but decrun/runner/io/files.py: code takes the
     name from RunFiles / SweepFiles (messages that merely mention a file are not code paths)."""
     names = _names()
     assert {"result.h5", "metrics.json", "manifest.json", ".decrun.lock", "*.png"} <= names
@@ -101,8 +101,8 @@ def test_app_validate_checks_each_once_in_order_and_builds_the_operators_after_t
 def test_one_run_record_through_prepare_execute_write(tmp_path):
     """prepare → execute → write: the Run carries mesh, complex, dec, recorder, result and
     timings; write puts exactly the RunFiles names into the directory."""
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import execute, prepare, write
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import execute, prepare, write
 
     run = prepare(compose_config(["mesh.subdiv=1", "app.steps=2", "figures=false"]), out=tmp_path)
     assert run.complex.num_simplices(2) == len(run.mesh.simplices) and run.dec.K is run.complex
@@ -119,8 +119,8 @@ def test_an_error_of_the_app_names_its_key_once():
     """An app error raised by the core (no config key in its message) gets ``app=<name>`` in
     front once, through Run.naming_errors (the check of the solver against an unsymmetric
     app is the config's own, before any mesh: it names the solver)."""
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     with pytest.raises(ConfigError) as info:
         run_experiment(compose_config(["app=parametrization", "mesh=sphere_cap", "solver=cg"]))

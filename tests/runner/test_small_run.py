@@ -4,6 +4,7 @@ it pays only for the imports it uses."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -47,40 +48,57 @@ def imported_modules(*args: str, cwd) -> set[str]:
     return {m.group(1) for m in re.finditer(r"^import time:\s+\d+ \|\s+\d+ \|\s*(\S+)$", done.stderr, re.M)}
 
 
-def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path, monkeypatch):
+def test_a_single_run_imports_neither_figures_nor_sweep_machinery(tmp_path):
     """``decrun figures=false`` never imports matplotlib or pandas (the figures' and the sweep
-    table's), nor decrun's sweeper, its sweep planning or tracking; with figures the run's own
-    process still imports no matplotlib (its figure process draws them: the figures are there);
-    the second run reads its mesh from the mesh cache and imports no pymeshlab."""
+    table's), nor decrun's sweeper, its sweep planning or tracking; with figures the run imports
+    matplotlib and draws them itself, still without pandas; the second run reads its mesh from
+    the mesh cache and imports no pymeshlab."""
     modules = imported_modules("figures=false", "app.steps=2", cwd=tmp_path)
-    assert "decrun.runner.run" in modules and "h5py" in modules  # the log is read right
+    assert "decrun.runner.job.run" in modules and "h5py" in modules  # the log is read right
     unused = ["matplotlib", "pandas", "decrun.runner.plots.common", "decrun.runner.sweep.sweeper",
               "decrun.runner.sweep.fast", "decrun.runner.tracking", "decrun.runner.sweep.tables"]
     assert [m for m in unused if m in modules] == []
-    monkeypatch.setenv("DECRUN_FIGURE_PROCESS", "on")  # the figure process even on a busy machine
     drawn = imported_modules("app.steps=2", "hydra.run.dir=drawn", cwd=tmp_path)
-    assert "decrun.runner.figure_process" in drawn and "matplotlib" not in drawn and "pandas" not in drawn
+    assert "matplotlib" in drawn and "decrun.runner.plots.common" in drawn and "pandas" not in drawn
     assert sorted(p.name for p in (tmp_path / "drawn").glob("*.png")) == ["smoothing.png", "smoothing_series.png"]
     # the icosphere the first run made comes from the mesh cache: pymeshlab is not imported again
     assert "decrun.runner.mesh.cache" in drawn and "pymeshlab" not in drawn
 
 
-def test_a_single_run_composes_its_config_once(tmp_path, monkeypatch, composition_modes):
-    """``decrun`` composes a single run's config once (Hydra's command line composes it a
-    second time only to read ``hydra.mode``) and records the same Hydra overrides
-    (``hydra.mode=RUN`` among them) as Hydra's way; a bad value still gets its one line."""
-    from omegaconf import OmegaConf
+def test_a_figure_that_fails_while_its_file_is_written_leaves_no_partial_file(tmp_path):
+    """The fluid's animation failing while its GIF is written (here: the disk is full after the
+    first bytes) leaves neither a partial ``vorticity_animation.gif`` nor its temporary file;
+    result.h5 is complete and metrics.json names the failure (``figures_error``), and the
+    command's one line names ``figures=false``, whose run then succeeds."""
+    plugin = tmp_path / "full_disk"
+    plugin.mkdir()
+    (plugin / "sitecustomize.py").write_text(
+        "import errno, os\n"
+        "from PIL import Image\n"
+        "def save(self, fp, *args, **kwargs):\n"
+        "    if '.gif' not in str(fp):\n"
+        "        return SAVE(self, fp, *args, **kwargs)\n"
+        "    with open(fp, 'wb') as handle:\n"
+        "        handle.write(b'GIF89a partial')\n"
+        "    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))\n"
+        "SAVE, Image.Image.save = Image.Image.save, save\n")
+    child = {**env(), "PYTHONPATH": os.pathsep.join([str(plugin), env().get("PYTHONPATH", "")])}
+    args = ["app=fluid", "app.steps=4", "app.record_every=1", "hydra.run.dir=run"]
+    done = subprocess.run([sys.executable, "-m", "decrun", *args], cwd=tmp_path, env=child, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 1, done.stderr
+    [line] = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert "figures" in line and "No space left on device" in line and "figures=false" in line, line
+    left = sorted(p.name for p in (tmp_path / "run").iterdir())
+    assert "vorticity_animation.gif" not in left and not [name for name in left if ".tmp-" in name], left
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["status"] == "ok" and metrics["steps_done"] == 4 and "No space left" in metrics["figures_error"]
+    from decrun.runner.results import read_result
 
-    from decrun.runner import cli
-
-    modes = composition_modes
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(sys, "argv", ["decrun", "figures=false", "app.steps=2", "hydra.run.dir=one"])
-    cli.main()
-    assert modes == ["RunMode.RUN"]
-    hydra_yaml = OmegaConf.load(tmp_path / "one" / ".hydra" / "hydra.yaml").hydra
-    assert list(hydra_yaml.overrides.hydra) == ["hydra.run.dir=one", "hydra.mode=RUN"] and hydra_yaml.mode == "RUN"
-    assert json.loads((tmp_path / "one" / "metrics.json").read_text())["steps_done"] == 2
+    assert read_result(tmp_path / "run" / "result.h5").complete
+    fixed = subprocess.run([sys.executable, "-m", "decrun", *args, "figures=false"], cwd=tmp_path, env=child,
+                           capture_output=True, text=True, timeout=300)
+    assert fixed.returncode == 0, fixed.stderr
 
 
 def test_a_config_that_sets_hydra_mode_multirun_still_sweeps(tmp_path):
@@ -116,7 +134,7 @@ def test_a_sweep_lists_a_job_whose_figures_failed(tmp_path, capsys, monkeypatch)
     kept, ``figures_error`` among them) beside failed exports, and the sweep exits 1."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.cli import SweepTable
+    from decrun.runner.command.callbacks import SweepTable
 
     done = decrun("-m", "app.steps=2,3", "figures=false", "hydra.sweep.dir=swept", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
@@ -139,7 +157,7 @@ def test_an_interrupt_wrapped_in_an_extensions_import_error_is_an_interrupt(tmp_
     import pytest
 
     import decrun as api
-    from decrun.runner.failures import Terminated
+    from decrun.runner.job.failures import Terminated
     from decrun.runner.plots import common
 
     def importing(*args, **kwargs):

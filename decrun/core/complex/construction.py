@@ -15,7 +15,6 @@ from typing import NamedTuple
 import numpy as np
 
 from decrun.core.complex import checks
-from decrun.core.pages import small_pages
 from decrun.core.simplex_arrays import FaceRows, group_rows
 
 __all__ = ["Built", "build", "enumerate_faces"]
@@ -77,10 +76,8 @@ def enumerate_faces(top_sorted: np.ndarray, n_vertices: int) -> Faces:
 def build(vertices, simplices, *, orient: str, unreferenced: str, check_manifold: bool,
           degenerate_tol: float) -> Built:
     """Validate the input and build the face lists, orientation and top volumes (see
-    :class:`~decrun.core.complex.SimplicialComplex` for the parameters and errors); the arrays
-    in 4 KiB pages (:func:`decrun.core.pages.small_pages`)."""
-    with small_pages():
-        return _build(vertices, simplices, orient, unreferenced, check_manifold, degenerate_tol)
+    :class:`~decrun.core.complex.SimplicialComplex` for the parameters and errors)."""
+    return _build(vertices, simplices, orient, unreferenced, check_manifold, degenerate_tol)
 
 
 def _build(vertices, simplices, orient, unreferenced, check_manifold, degenerate_tol) -> Built:

@@ -10,7 +10,7 @@ def handler_exception(exc: SystemError) -> BaseException | None:
 
     A kernel that returns a new array runs one Python function at its end (numba unpickles the
     ndarray class to box the array), where Python runs pending signal handlers; an exception they
-    raise — Ctrl-C's KeyboardInterrupt, SIGTERM's (:mod:`decrun.runner.failures`), submitit's
+    raise — Ctrl-C's KeyboardInterrupt, SIGTERM's (:mod:`decrun.runner.job.failures`), submitit's
     SystemExit after a USR2 checkpoint — reached the caller as "SystemError: CPUDispatcher(...)
     returned a result with an exception set", with the handler's exception as its cause. The
     handler's exception is what the call should raise: the kernel's result is dropped with it."""

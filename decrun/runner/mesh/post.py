@@ -179,7 +179,7 @@ def keep_largest_piece(mesh: Mesh, step: str, through: str, what: str, fix: str)
 
     Nothing is dropped unreported: ``meta`` gets ``<step>_components``,
     ``<step>_dropped_vertices`` and ``<step>_dropped_faces`` (the run's metrics,
-    :func:`decrun.runner.run.execute`), and when anything was dropped one log line says
+    :func:`decrun.runner.job.run.execute`), and when anything was dropped one log line says
     ``<what> left N pieces; kept …, dropped …; <fix>``. ``meta['clean_vertices']`` follows
     the kept vertices; ``meta['_used']`` is the (n,) bool mask of the kept input vertices."""
     S = np.asarray(mesh.simplices, dtype=np.int64)

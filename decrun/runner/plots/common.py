@@ -18,7 +18,7 @@ from matplotlib import colormaps
 from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 
-from decrun.runner.paths import check_file
+from decrun.runner.io.paths import check_file
 from decrun.runner.results import read_result
 
 #: two contrasting colours for checkerboard textures (0 → dark blue, 1 → light sand)
@@ -284,12 +284,12 @@ def recorded_series(recorded, names: Iterable[str], *, times_name: str = "time",
 def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
     """Save ``fig`` as PNG through the Agg canvas (works without any display), under a
     temporary name renamed onto ``path`` when complete; refused
-    (:class:`~decrun.runner.paths.OutsideError`) when ``path`` is a symlink leaving its directory."""
+    (:class:`~decrun.runner.io.paths.OutsideError`) when ``path`` is a symlink leaving its directory."""
     import os
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from decrun.runner.atomic import temporary_name
+    from decrun.runner.io.atomic import temporary_name
 
     FigureCanvasAgg(fig)
     path = check_file(path)
@@ -326,7 +326,7 @@ def draw_figures(figures: dict, out_dir, K=None, series: dict | None = None) -> 
     import inspect
     from pathlib import Path
 
-    from decrun.runner.files import RunFiles
+    from decrun.runner.io.files import RunFiles
 
     files = RunFiles(out_dir)
     recorded = RecordedSeries(files.result, series)

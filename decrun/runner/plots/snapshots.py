@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from decrun.core.geometry import is_planar
-from decrun.runner.paths import check_file
+from decrun.runner.io.paths import check_file
 from decrun.runner.plots.common import new_figure, plot_surface
 
 __all__ = ["snapshot_grid", "animation", "colour_scale"]
@@ -136,7 +136,7 @@ def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str
     from matplotlib.colors import Normalize
     from PIL import Image
 
-    from decrun.runner.atomic import temporary_name
+    from decrun.runner.io.atomic import temporary_name
     from decrun.runner.plots.common import CHECKER
 
     frames = np.asarray(recorded[name])

@@ -28,7 +28,7 @@ import numpy as np
 
 from decrun.core import digest
 from decrun.errors import CorruptFileError
-from decrun.runner.files import RunFiles
+from decrun.runner.io.files import RunFiles
 
 __all__ = ["parse_json", "load_json", "load_yaml", "open_h5", "check_group", "checked_members", "check_dataset", "read_dataset", "file_record",
            "check_record", "MAX_DEFLATE_RATIO", "RESULT_RECORD", "CONTENT"]

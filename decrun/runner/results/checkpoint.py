@@ -4,7 +4,7 @@
 run steps (:func:`decrun.methods.stepping.run_steps`) it writes, every ``checkpoint.steps``
 steps and/or every ``checkpoint.seconds`` seconds, the stepper's whole state (nested dicts of
 numpy arrays and scalars) as HDF5 groups and datasets, atomically
-(:func:`decrun.runner.atomic.atomic_path`: the old checkpoint or the whole new one), with
+(:func:`decrun.runner.io.atomic.atomic_path`: the old checkpoint or the whole new one), with
 root attributes::
 
     format "decrun-checkpoint-1", step (int), config_hash (16 hex, the run's
@@ -39,8 +39,8 @@ import numpy as np
 
 from decrun.core.digest import Digest
 from decrun.errors import CorruptFileError
-from decrun.runner.atomic import QuietFile, atomic_path, check_free_space
-from decrun.runner.files import RunFiles
+from decrun.runner.io.atomic import QuietFile, atomic_path, check_free_space
+from decrun.runner.io.files import RunFiles
 from decrun.runner.results.checked import check_group, open_h5, read_dataset
 
 __all__ = ["CHECKPOINT", "RunCheckpoint", "write_checkpoint", "read_checkpoint", "remove_checkpoint"]
@@ -92,7 +92,7 @@ def write_checkpoint(path: str | Path, step: int, state: dict, attrs: dict[str, 
     this function's).
 
     A disk too full for it (checked before HDF5 starts, or met while HDF5 writes: kept from
-    HDF5 by :class:`~decrun.runner.atomic.QuietFile`) is an ``OSError`` naming ``path``
+    HDF5 by :class:`~decrun.runner.io.atomic.QuietFile`) is an ``OSError`` naming ``path``
     (``filename``), raised after HDF5 closed the file; the temporary file is removed and
     the previous checkpoint is kept."""
     import h5py

@@ -50,8 +50,8 @@ import numpy as np
 
 from decrun.core.choices import closest
 from decrun.errors import ConfigError, DecrunError
-from decrun.runner.files import RunFiles
-from decrun.runner.paths import check_file
+from decrun.runner.io.files import RunFiles
+from decrun.runner.io.paths import check_file
 
 __all__ = ["Export", "NoExport", "Vtu", "Xdmf", "Ply", "Obj", "ExportFailed", "classify_fields", "place_fields"]
 

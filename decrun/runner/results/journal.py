@@ -46,7 +46,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from decrun.errors import CorruptFileError
-from decrun.runner.atomic import atomic_path
+from decrun.runner.io.atomic import atomic_path
 from decrun.runner.results.checked import parse_json
 
 MAGIC = b"DECRUNJ1"

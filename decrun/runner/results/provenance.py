@@ -22,7 +22,7 @@ import numpy as np
 
 from decrun.core.digest import Digest
 from decrun.errors import CorruptFileError
-from decrun.runner.atomic import write_text_atomic
+from decrun.runner.io.atomic import write_text_atomic
 from decrun.runner.results.checked import CONTENT, check_dataset, file_record, open_h5, parse_json
 
 __all__ = ["FORMAT", "package_versions", "git_commit", "plain", "metrics_to_json", "write_metrics_json", "read_provenance",

@@ -18,7 +18,7 @@ import numpy as np
 
 from decrun.apps.base import Result
 from decrun.errors import CorruptFileError
-from decrun.runner.files import RunFiles
+from decrun.runner.io.files import RunFiles
 from decrun.runner.results.checked import check_group, check_record, open_h5, parse_json, read_dataset
 from decrun.runner.results.journal import BLOCK_BYTES, Journal, journal_path, read_journal
 from decrun.runner.results.provenance import decrun_attrs, plain

@@ -94,9 +94,9 @@ import numpy as np
 
 from decrun.apps.base import FieldOnEdges, Result
 from decrun.errors import DecrunError
-from decrun.runner.atomic import QuietFile as _QuietFile
-from decrun.runner.atomic import atomic_path
-from decrun.runner.atomic import check_free_space as _check_free_space
+from decrun.runner.io.atomic import QuietFile as _QuietFile
+from decrun.runner.io.atomic import atomic_path
+from decrun.runner.io.atomic import check_free_space as _check_free_space
 from decrun.runner.results.journal import BLOCK_BYTES, Column, Journal, JournalWriter, journal_path, read_journal
 from decrun.runner.results.provenance import FORMAT, git_commit, metrics_to_json, package_versions, plain
 

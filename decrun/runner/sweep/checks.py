@@ -1,6 +1,6 @@
 """What the ``decrun`` sweeper knows of a Hydra task beyond Hydra's contract, registered per
 task function: the check it runs on every planned job before the first starts (decrun's
-task registers the type checks of :func:`decrun.runner.experiment.validate`; other Hydra apps get
+task registers the type checks of :func:`decrun.runner.job.experiment.validate`; other Hydra apps get
 none) and the modules a joblib worker imports while the sweep is planned (a worker's first
 import of decrun's stack is ~1.5 s; the workers are reused for the jobs that follow).
 Imports nothing: the ``decrun`` command registers its task at start-up."""

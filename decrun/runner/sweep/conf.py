@@ -9,8 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Dict, Optional
 
-from decrun.runner.launchers import CONNECT_TIMEOUT
 from decrun.runner.sweep.grid import MAX_JOBS
+from decrun.runner.sweep.launchers import CONNECT_TIMEOUT
 
 __all__ = ["DecrunSweeperConf"]
 
@@ -29,7 +29,7 @@ class DecrunSweeperConf:
     #: planning; false: every job composed by Hydra's public API (the same jobs, ~180x slower
     #: to plan: benchmarks/bench_sweeps.py --only planning)
     fast: bool = True
-    #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.launchers)
+    #: seconds to give up on a cluster that does not answer (a Ray address; decrun.runner.sweep.launchers)
     connect_timeout: float = CONNECT_TIMEOUT
     #: the most jobs a sweep may plan (each is composed, checked and hashed before the first starts);
     #: a larger grid is refused at once, naming this key

@@ -1,7 +1,7 @@
 """What the ``decrun`` sweeper checks and holds before it touches a sweep directory:
-the sweep directory's lock (:mod:`decrun.runner.locks`), and on resume that every job
+the sweep directory's lock (:mod:`decrun.runner.io.locks`), and on resume that every job
 directory the manifest names — and the ``.hydra/`` files and log Hydra will write into it
-(:func:`decrun.runner.paths.hydra_files`) — resolves inside the sweep directory, before
+(:func:`decrun.runner.io.paths.hydra_files`) — resolves inside the sweep directory, before
 a job directory is cleared or launched (Hydra follows a symlinked job directory)."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import os
 from pathlib import Path
 from typing import Any, Sequence
 
-from decrun.runner.locks import LockedError, acquire
-from decrun.runner.paths import OutsideError, check_file, inside
+from decrun.runner.io.locks import LockedError, acquire
+from decrun.runner.io.paths import OutsideError, check_file, inside
 
 __all__ = ["NEW_SWEEP", "lock_sweep", "check_job_dirs"]
 
@@ -20,7 +20,7 @@ NEW_SWEEP = "start a new sweep with hydra.sweep.dir=DIR"
 
 def lock_sweep(sweep_dir: Path, error: type[Exception]) -> None:
     """Create ``sweep_dir`` if need be and take its lock for this process (kept until the
-    sweep's table is written: :class:`decrun.runner.cli.OutputGuard` drops it). Another
+    sweep's table is written: :class:`decrun.runner.command.callbacks.OutputGuard` drops it). Another
     process's lock → ``error`` (a SweepError) naming its pid."""
     sweep_dir.mkdir(parents=True, exist_ok=True)
     try:

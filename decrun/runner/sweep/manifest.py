@@ -47,12 +47,12 @@ from omegaconf import DictConfig, OmegaConf
 
 from decrun.core.digest import Digest
 from decrun.errors import CorruptFileError
-from decrun.runner.atomic import write_text_atomic
-from decrun.runner.files import RunFiles, SweepFiles
+from decrun.runner.io.atomic import write_text_atomic
+from decrun.runner.io.files import RunFiles, SweepFiles
+from decrun.runner.io.yaml_text import PythonDumper as _Dumper
 from decrun.runner.results.checked import CONTENT, RESULT_RECORD, load_json
 from decrun.runner.results.journal import journal_path, read_journal
 from decrun.runner.results.reading import verify_result
-from decrun.runner.yaml_text import PythonDumper as _Dumper
 
 __all__ = ["MANIFEST", "config_hash", "read_manifest", "write_manifest", "job_state", "job_dir_name", "DONE"]
 

@@ -12,7 +12,7 @@ Two ways a sweep stops while its jobs run (:class:`~decrun.runner.sweep.sweeper.
   :func:`resume_command`, after writing the table;
 * **the sweep is interrupted** (Ctrl-C, SIGTERM): :func:`take_stock` says which jobs
   finished and which were running, for the ``decrun`` command's message
-  (:func:`decrun.runner.cli.main`).
+  (:func:`decrun.runner.command.task.main`).
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from decrun.runner.files import RunFiles
-from decrun.runner.interrupts import ignore_interrupts
+from decrun.runner.io.files import RunFiles
+from decrun.runner.io.interrupts import ignore_interrupts
 from decrun.runner.sweep.manifest import job_dir_name, job_state
 
 __all__ = ["Stock", "take_stock", "worker_died", "mark_killed", "resume_command", "job_list", "ignore_interrupts"]

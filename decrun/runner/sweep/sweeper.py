@@ -38,9 +38,16 @@ from hydra.plugins.sweeper import Sweeper
 from omegaconf import OmegaConf, open_dict, read_write
 
 from decrun.errors import ConfigError, CorruptFileError, DecrunError
-from decrun.runner.atomic import write_text_atomic
-from decrun.runner.files import RunFiles, SweepFiles
-from decrun.runner.launchers import (
+from decrun.runner.io.atomic import write_text_atomic
+from decrun.runner.io.files import RunFiles, SweepFiles
+from decrun.runner.io.locks import LOCK_NAME
+from decrun.runner.io.paths import hydra_files
+from decrun.runner.sweep.checks import CHECKS, WARM
+from decrun.runner.sweep.conf import DecrunSweeperConf
+from decrun.runner.sweep.fast import SpeedLayer
+from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
+from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
+from decrun.runner.sweep.launchers import (
     CONNECT_TIMEOUT,
     NO_TIME_LIMIT,
     RAY,
@@ -53,13 +60,6 @@ from decrun.runner.launchers import (
     preflight,
     timed_out,
 )
-from decrun.runner.locks import LOCK_NAME
-from decrun.runner.paths import hydra_files
-from decrun.runner.sweep.checks import CHECKS, WARM
-from decrun.runner.sweep.conf import DecrunSweeperConf
-from decrun.runner.sweep.fast import SpeedLayer
-from decrun.runner.sweep.grid import MAX_JOBS, grid, grid_size
-from decrun.runner.sweep.guard import check_job_dirs, lock_sweep
 from decrun.runner.sweep.manifest import (
     DONE,
     FORMAT,
@@ -222,11 +222,11 @@ class ManifestSweeper(Sweeper):
         try:
             with self.speed.warming(self.launcher, self.warm):
                 jobs = self.plan(arguments)
-        except KeyboardInterrupt as exc:  # the decrun command says where (cli.main)
+        except KeyboardInterrupt as exc:  # the decrun command says where (decrun.runner.command.task.main)
             done, total = self.planned
             where = (f"while the sweep was planned ({done:,} of {total:,} jobs checked); nothing was written"
                      if total else "while the sweep was planned; nothing was written")
-            exc.sweep_where = where  # type: ignore[attr-defined]  # read by cli.main
+            exc.sweep_where = where  # type: ignore[attr-defined]  # read by command.task.main
             raise
         lock_sweep(sweep_dir, SweepError)  # before the manifest is read: one sweeping process per directory
         manifest, todo = self._start(sweep_dir, jobs, arguments)
@@ -240,9 +240,9 @@ class ManifestSweeper(Sweeper):
         for start, stop in _batches([int(j["job"]) for j in todo], self.max_batch_size):
             try:
                 results = self._launch(launched[start:stop], int(todo[start]["job"]))
-            except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (cli.main)
+            except KeyboardInterrupt as exc:  # the decrun command says which jobs finished (decrun.runner.command.task.main)
                 ignore_interrupts()  # a second Ctrl-C while the jobs are counted is ignored (the sweep is ending)
-                exc.sweep_stock = take_stock(sweep_dir, todo)  # type: ignore[attr-defined]  # read by cli.main
+                exc.sweep_stock = take_stock(sweep_dir, todo)  # type: ignore[attr-defined]  # read by command.task.main
                 raise
             except Exception as exc:
                 if worker_died(exc):
@@ -297,14 +297,14 @@ class ManifestSweeper(Sweeper):
     def _launch(self, overrides: list[list[str]], first: int) -> Sequence[Any]:
         """The launcher's results for one batch. With submitit's SLURM launcher, job states
         come from squeue when accounting is off, and a job that ended without a result
-        (``scancel``, time limit: :mod:`decrun.runner.launchers.slurm`) does not end the sweep:
+        (``scancel``, time limit: :mod:`decrun.runner.sweep.launchers.slurm`) does not end the sweep:
         its other jobs are waited for, the table's row of that job says ``killed`` or
         ``missing``, and ``hydra.sweeper.resume=true`` reruns it."""
         if is_launcher(self.launcher, *RAY):
             connect_ray_as_is(self.launcher)
         if not is_launcher(self.launcher, *SLURM):
             return self.launcher.launch(overrides, initial_job_idx=first)
-        from decrun.runner.launchers import slurm  # lazy: submitit
+        from decrun.runner.sweep.launchers import slurm  # lazy: submitit
 
         slurm.use_queue_states()
         try:

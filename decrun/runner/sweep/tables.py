@@ -39,8 +39,8 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.errors import HydraException
 
 from decrun.errors import CorruptFileError
-from decrun.runner.atomic import write_text_atomic
-from decrun.runner.files import RunFiles, SweepFiles
+from decrun.runner.io.atomic import write_text_atomic
+from decrun.runner.io.files import RunFiles, SweepFiles
 from decrun.runner.results.checked import load_yaml
 from decrun.runner.results.provenance import SAME_AS, mark_duplicates
 from decrun.runner.sweep.manifest import MANIFEST, job_dir_name, job_state, read_manifest

@@ -162,7 +162,7 @@ def read_series(job_dir: Path) -> tuple[dict[str, tuple[Any, Any]], dict[str, st
     result.h5, unread, and the run's tag ``decrun.series_not_logged`` names them)."""
     import numpy as np
 
-    from decrun.runner.files import RunFiles
+    from decrun.runner.io.files import RunFiles
     from decrun.runner.results.checked import checked_members, open_h5
     from decrun.runner.results.provenance import decrun_attrs
 
@@ -219,7 +219,7 @@ def _params(job_dir: Path, attrs: dict, shared: dict | None = None) -> dict[str,
     import yaml
     from omegaconf import OmegaConf
 
-    from decrun.runner.files import RunFiles
+    from decrun.runner.io.files import RunFiles
 
     text = attrs.get("config_yaml")
     if isinstance(text, str) and text:
@@ -275,7 +275,7 @@ def _choices(job_dir: Path) -> dict[str, str]:
     ``runtime.choices``, Hydra's own groups left out)."""
     import yaml
 
-    from decrun.runner.files import RunFiles
+    from decrun.runner.io.files import RunFiles
 
     path = job_dir / RunFiles.HYDRA / "hydra.yaml"
     if not path.is_file():
@@ -293,7 +293,7 @@ def _choices(job_dir: Path) -> dict[str, str]:
 
 
 def _overrides(job_dir: Path) -> list[str]:
-    from decrun.runner.files import RunFiles
+    from decrun.runner.io.files import RunFiles
 
     path = job_dir / RunFiles.HYDRA / "overrides.yaml"
     items = _yaml(path.read_text(), str(path)) if path.is_file() else []
@@ -320,7 +320,7 @@ def job_record(job_dir: Path, name: str, state: dict[str, Any], *, result_h5: bo
     numbers among the metrics become metrics (booleans 0/1), the other values tags
     ``metric.<name>``. ``shared``: one dict for the jobs of a sweep, the config sections
     they share flattened once (:func:`_params`)."""
-    from decrun.runner.files import RunFiles
+    from decrun.runner.io.files import RunFiles
     from decrun.runner.results.provenance import git_commit
 
     job_dir = Path(job_dir)
@@ -385,7 +385,7 @@ def read_state(path: Path) -> dict[str, dict]:
 
 
 def _write_state(path: Path, store: str, run_id: str, fingerprint: str) -> None:
-    from decrun.runner.atomic import write_text_atomic
+    from decrun.runner.io.atomic import write_text_atomic
 
     state = read_state(path)
     state[store] = {"run_id": run_id, "fingerprint": fingerprint}
@@ -422,7 +422,7 @@ def track_sweep(tracker: Tracker, sweep_dir: str | os.PathLike) -> Tracked:
     The jobs are the manifest's (every planned one, as rows of ``metrics.csv``), or the job
     directories of a sweep without one. The sweep's run has status ``ok`` when every job is,
     ``killed`` when one was killed, else ``failed``; its params are the sweep's own overrides."""
-    from decrun.runner.files import RunFiles, SweepFiles
+    from decrun.runner.io.files import RunFiles, SweepFiles
     from decrun.runner.sweep.manifest import job_dir_name, job_state, read_manifest
 
     sweep_dir = Path(sweep_dir)
@@ -464,7 +464,7 @@ def track_sweep(tracker: Tracker, sweep_dir: str | os.PathLike) -> Tracked:
 def track_run(tracker: Tracker, run_dir: str | os.PathLike) -> str:
     """Log the single run in ``run_dir`` (not a sweep: no parent run); its run id ("" for
     ``tracker=none``)."""
-    from decrun.runner.files import RunFiles
+    from decrun.runner.io.files import RunFiles
     from decrun.runner.sweep.manifest import job_state
 
     run_dir = Path(run_dir)

@@ -11,8 +11,8 @@ import pytest
 import yaml
 
 from decrun.errors import ConfigError
-from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment, validate
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment, validate
 
 CONF_APP = Path(__file__).resolve().parents[3] / "conf" / "app"
 

@@ -11,7 +11,7 @@ import pytest
 from decrun.core.choices import Choice
 from decrun.core.solvers import make_solver
 from decrun.errors import ConfigError
-from decrun.runner.config import Direction, OptimizeConfig
+from decrun.runner.job.config import Direction, OptimizeConfig
 from decrun.runner.mesh.base import Refine
 
 FAST = ["app.steps=1", "figures=false", "progress=false"]
@@ -95,8 +95,8 @@ APP_CASES = [
 def test_an_apps_closed_option_names_its_choices_and_the_fix_runs(base, wrong, choices, fix):
     """The same line as the CLI cases above (the CLI prints it after ``error:``), composed and
     run in this process: the wrong value stops before any work, the named fix runs."""
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     key, value = wrong.split("=")
     with pytest.raises(ConfigError) as info:

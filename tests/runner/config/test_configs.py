@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from decrun.runner.config import compose_config
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
-from decrun.runner.run import run_experiment
 
 CONF = Path(__file__).resolve().parents[3] / "conf"
 
@@ -47,7 +47,7 @@ def test_every_mesh_option_runs_with_the_default_app(mesh, tmp_path):
     """The default smoothing on every mesh source (open ones too): stable is guaranteed by
     construction with ⋆0 > 0, so what is checked is that the flow smoothed something."""
     if mesh == "result":  # a previous run's mesh: make one first
-        from decrun.runner.run import write
+        from decrun.runner.job.run import write
 
         write(run_experiment(compose_config(["app.steps=1", "figures=false"])), tmp_path)
         MESH_OVERRIDES["result"] = [f"mesh.path={tmp_path / 'result.h5'}", "mesh.vertices=mesh"]

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import pytest
 
-from decrun.runner.config import compose_config
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment, write
 from decrun.runner.mesh.sources.files import SAMPLE_MESHES, sample_mesh_dir
-from decrun.runner.run import run_experiment, write
 
 ROOT = Path(__file__).resolve().parents[3]
 COMMAND = re.compile(r"^(?:\.venv/bin/)?(?:decrun(?:-table)?|python -m decrun)(?=\s|$)")
@@ -208,7 +208,7 @@ def test_sweep_example_runs(where, command, tmp_path):
                 done = subprocess.run([*env_python, *prerequisite], cwd=tmp_path, capture_output=True, text=True)
                 assert done.returncode == 0, done.stderr[-2000:]
     if command.startswith("decrun-table") and "<stamp>" not in command:
-        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.table import table_main; "
                                "sys.exit(table_main(sys.argv[1:]))", *args], cwd=tmp_path, capture_output=True,
                               text=True)
         assert done.returncode == 0 and ("| " in done.stdout or "--plot" in args and "wrote" in done.stdout), done.stderr
@@ -218,7 +218,7 @@ def test_sweep_example_runs(where, command, tmp_path):
         assert sweep.returncode == 0, sweep.stderr
         stamp = next((tmp_path / "outputs" / "sweeps").iterdir()).name
         args = [a.replace("<stamp>", stamp) for a in args]
-        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+        done = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.table import table_main; "
                                "sys.exit(table_main(sys.argv[1:]))", *args], cwd=tmp_path, capture_output=True,
                               text=True)
         assert done.returncode == 0 and "| job |" in done.stdout, done.stderr

@@ -9,7 +9,7 @@ import importlib
 
 from omegaconf import OmegaConf
 
-from decrun.runner.config import PLUGIN_GROUPS, config_dir, load_option
+from decrun.runner.job.config import PLUGIN_GROUPS, config_dir, load_option
 
 #: (conf file, key): why its YAML default differs from the dataclass default
 INTENDED = {

@@ -65,10 +65,10 @@ def test_a_launcher_that_is_not_installed_gives_the_pip_line(tmp_path):
 def test_the_sweep_progress_bar_starts_and_counts_jobs_in_any_subdir(tmp_path, monkeypatch):
     from omegaconf import OmegaConf
 
-    from decrun.runner import cli
-    from decrun.runner.cli import SweepTable
+    from decrun.runner.command import callbacks
+    from decrun.runner.command.callbacks import SweepTable
 
-    monkeypatch.setattr(cli, "terminal", lambda enabled=True: enabled)
+    monkeypatch.setattr(callbacks, "terminal", lambda enabled=True: enabled)
     config = OmegaConf.create({"progress": True, "hydra": {"sweep": {"dir": str(tmp_path / "s")},
                                                          "sweeper": {"_target_": "hydra_plugins.decrun_sweeper.DecrunSweeper"},
                                                          "overrides": {"task": ["app.dt=0.1,0.2,0.3"]}}})

@@ -257,8 +257,8 @@ def test_a_cut_that_drops_pieces_says_so_and_hole_pieces_all_keeps_them(tmp_path
     eigenvalue per piece."""
     import logging
 
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     common = ["mesh=file", f"mesh.path={two_spheres_obj(tmp_path)}", "mesh.hole_balls=[[0.0,0.0,1.0,0.5]]",
               f"mesh.hole_cut={cut}", "app=spectrum", "app.count=4", "figures=false"]
@@ -280,8 +280,8 @@ def test_clean_says_what_it_drops(tmp_path, caplog):
     metrics now, naming `mesh.clean=false`, which keeps every piece."""
     import logging
 
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     common = ["mesh=file", f"mesh.path={two_spheres_obj(tmp_path)}", "app=spectrum", "app.count=4", "figures=false"]
     with caplog.at_level(logging.INFO, logger="decrun"):

@@ -225,8 +225,8 @@ def test_each_source_has_only_its_own_options():
 def test_int_lists_are_accepted_where_floats_are_expected():
     """`'mesh.hole_balls=[[1,0,0,0.5]]'` (ints) is used as given, widened to floats — through
     the plugin builder and through the full CLI composition (experiment keys, app lists)."""
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     ints = mesh(source="icosphere", subdiv=2, hole_balls=[[1, 0, 0, 1]])
     floats = mesh(source="icosphere", subdiv=2, hole_balls=[[1.0, 0.0, 0.0, 1.0]])
@@ -262,7 +262,7 @@ def test_post_processing_yaml_equals_the_mesh_source_defaults():
 
     from omegaconf import OmegaConf
 
-    from decrun.runner.config import config_dir
+    from decrun.runner.job.config import config_dir
     from decrun.runner.mesh import MeshSource
 
     yaml_values = OmegaConf.to_container(OmegaConf.load(config_dir() / "mesh" / "_post_processing.yaml"))

@@ -11,8 +11,8 @@ import pytest
 
 from decrun.core.primitives import kuhn_cube
 from decrun.errors import ConfigError, DegenerateSimplexError
-from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment
 
 from meshes_for_tests import kuhn_cells
 

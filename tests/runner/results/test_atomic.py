@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from decrun.runner.atomic import atomic_path, temporary_name, write_text_atomic
+from decrun.runner.io.atomic import atomic_path, temporary_name, write_text_atomic
 
 
 def test_the_file_appears_whole_under_its_name_only_when_the_block_ends(tmp_path):

@@ -197,8 +197,8 @@ def test_a_designed_field_feeds_a_fluid(decrun_cli, tmp_path):
     assert metrics["initial_vorticity_max_abs"] == start
     (said,) = re.findall(r"max \|w0\| = ([^,)]+)", done.stderr)
     assert said == f"{start:.1e}"
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     result = run_experiment(compose_config(["app=fluid", "app.initial=mesh_field", "mesh=result",
                                             f"mesh.path={gradient / 'result.h5'}", "mesh.field=omega", "app.steps=2",
@@ -506,8 +506,8 @@ def test_each_app_writes_the_fields_it_declares_where_it_declares_them(overrides
     what the app writes: every field declared (a model's definitions aside), each with the
     rows of its place."""
     from decrun.apps.base import FieldOnEdges
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     done = run_experiment(compose_config([*overrides, "figures=false"]))
     app, K, fields = done.experiment.app, done.complex, done.result.fields

@@ -18,7 +18,7 @@ import pytest
 
 from decrun.apps.base import Result
 from decrun.errors import CorruptFileError
-from decrun.runner.cli import table_main
+from decrun.runner.command.table import table_main
 from decrun.runner.results import read_mesh, read_provenance, read_result, write_result
 from decrun.runner.results.checked import RESULT_RECORD
 from decrun.runner.results.journal import read_journal

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from decrun.runner.atomic import temporary_name, write_text_atomic
-from decrun.runner.locks import LOCK_NAME, LockedError, acquire, holds, release
-from decrun.runner.paths import OutsideError
+from decrun.runner.io.atomic import temporary_name, write_text_atomic
+from decrun.runner.io.locks import LOCK_NAME, LockedError, acquire, holds, release
+from decrun.runner.io.paths import OutsideError
 
 from cli_processes import decrun, start
 
@@ -266,7 +266,7 @@ def test_a_locked_run_directory_names_the_holder_and_another_directory_runs(tmp_
 def test_a_lock_left_by_a_dead_process_does_not_block(tmp_path):
     run_dir = tmp_path / "run"
     run_dir.mkdir()
-    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from decrun.runner.locks import acquire; "
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from decrun.runner.io.locks import acquire; "
                                "acquire(sys.argv[1]); print('locked', flush=True); time.sleep(600)", str(run_dir)],
                               stdout=subprocess.PIPE, text=True)
     assert holder.stdout.readline().strip() == "locked"

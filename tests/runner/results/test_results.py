@@ -164,7 +164,7 @@ def test_two_runs_of_one_config_have_one_content_hash_and_the_table_shows_it(tmp
                for n in ("a", "b")]
     assert records[0]["sha256"] != records[1]["sha256"]  # created, finished, timings
     assert records[0]["content_sha256"] == records[1]["content_sha256"]
-    table = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.cli import table_main; "
+    table = subprocess.run([sys.executable, "-c", "import sys; from decrun.runner.command.table import table_main; "
                             "sys.exit(table_main(['outputs/runs', '--metrics', 'content_sha256']))"],
                            cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert table.returncode == 0, table.stderr

@@ -43,8 +43,8 @@ def _runs(uri: str, experiment: str = "decrun") -> list:
 
 
 def track_command(*args: str, cwd) -> subprocess.CompletedProcess:
-    """The console script ``decrun-track`` (:func:`decrun.runner.cli.track_main`) as a child process."""
-    code = "import sys; from decrun.runner.cli import track_main; sys.exit(track_main())"
+    """The console script ``decrun-track`` (:func:`decrun.runner.command.table.track_main`) as a child process."""
+    code = "import sys; from decrun.runner.command.table import track_main; sys.exit(track_main())"
     return subprocess.run([sys.executable, "-c", code, *args], cwd=cwd, env=env(), capture_output=True, text=True,
                           timeout=300)
 
@@ -225,7 +225,7 @@ def test_config_sections_a_sweeps_jobs_share_are_flattened_once_and_equal_a_full
 
 
 def test_the_tracker_is_not_part_of_the_config_hash():
-    from decrun.runner.config import compose_config
+    from decrun.runner.job.config import compose_config
     from decrun.runner.sweep.manifest import config_hash
 
     base = ["app=heat", "mesh.subdiv=1"]

@@ -1,7 +1,7 @@
 """Launchers that cannot start (issue 34, item 3): no ``srun`` on the machine, ``sbatch``
 refused, a Ray address nobody answers at, a joblib job over ``hydra.launcher.timeout``.
 Each ends in one line naming the launcher, the cause and the command that fixes it, within
-a bounded time; the fix is run as printed (decrun.runner.launchers)."""
+a bounded time; the fix is run as printed (decrun.runner.sweep.launchers)."""
 
 from __future__ import annotations
 
@@ -174,7 +174,7 @@ def test_launch_failures_are_recognised_by_their_launcher_only():
     from hydra_plugins.hydra_ray_launcher.ray_launcher import RayLauncher as Ray
     from hydra_plugins.hydra_submitit_launcher.submitit_launcher import SlurmLauncher as Slurm
 
-    from decrun.runner.launchers import launch_failure, timed_out
+    from decrun.runner.sweep.launchers import launch_failure, timed_out
 
     class SlurmLauncher(Slurm):  # the plugin classes, not set up (no cluster here)
         def __init__(self):

@@ -1,5 +1,5 @@
 """Progress: sweep job counts as Hydra expands them, jobs done counted from the sweep
-directory, the task context on and off (decrun.runner.progress)."""
+directory, the task context on and off (decrun.runner.job.progress)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import time
 import pytest
 
 from decrun.apps.base import Context
-from decrun.runner.progress import Progress, SweepProgress, make_progress, sweep_size
+from decrun.runner.job.progress import Progress, SweepProgress, make_progress, sweep_size
 
 
 @pytest.mark.parametrize("overrides, params, total", [

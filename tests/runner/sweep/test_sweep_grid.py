@@ -12,7 +12,7 @@ import pytest
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
-from decrun.runner.progress import sweep_size
+from decrun.runner.job.progress import sweep_size
 from decrun.runner.sweep.grid import grid
 
 LINES = ["app.dt=0.1,0.2", "mesh.subdiv=2", "operator=circumcentric,barycentric", "seed=range(0,3)",

@@ -114,19 +114,19 @@ def test_planning_shows_its_progress_on_a_terminal_and_ctrl_c_while_planning_say
 
 HOOKED = textwrap.dedent("""
     import os, signal, sys, time
-    import decrun.runner.cli as cli
+    import decrun.runner.command.task as cli
 
     def interrupted():
         raise KeyboardInterrupt
 
-    where = cli._interrupted_where
+    where = cli.interrupted_where
 
     def second_ctrl_c(exc):  # Ctrl-C again while the first one is handled
         os.kill(os.getpid(), signal.SIGINT)
         time.sleep(0.2)
         return where(exc)
 
-    cli._hydra_main, cli._interrupted_where = interrupted, second_ctrl_c
+    cli._hydra_main, cli.interrupted_where = interrupted, second_ctrl_c
     sys.argv = ["decrun", "-m", "app.dt=0.1,0.2"]
     from decrun.__main__ import console_main
     console_main()

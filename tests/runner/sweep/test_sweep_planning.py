@@ -15,7 +15,7 @@ from hydra.core.global_hydra import GlobalHydra
 from hydra.types import RunMode
 from omegaconf import OmegaConf
 
-from decrun.runner.config import DecrunConfig, config_dir, register_configs
+from decrun.runner.job.config import DecrunConfig, config_dir, register_configs
 from decrun.runner.sweep.fast.planning import Composer, PlannedConfigs, simple_subdir, subdir_of
 from decrun.runner.sweep.manifest import UNHASHED, config_hash
 
@@ -95,7 +95,7 @@ def test_a_directory_pattern_of_the_job_number_only_is_resolved_without_its_conf
 
 
 def _plugins(experiment) -> dict:
-    from decrun.runner.config import GROUPS
+    from decrun.runner.job.config import GROUPS
 
     return {group.attribute: getattr(experiment, group.attribute) for group in GROUPS}
 
@@ -107,10 +107,10 @@ def test_a_derived_job_is_checked_as_a_full_build_is_with_one_build_per_plugin(h
     each built in full once (issue 24: a 2000-job sweep built all six plugins of every job)."""
     import copy
 
-    import decrun.runner.experiment as run_module
-    import decrun.runner.plugins as plugins
+    import decrun.runner.job.experiment as run_module
+    import decrun.runner.job.plugins as plugins
     from decrun.errors import ConfigError
-    from decrun.runner.run import validate
+    from decrun.runner.job.run import validate
     from decrun.runner.sweep.fast import JobDelta
 
     loader, master = hydra_loader
@@ -261,8 +261,8 @@ def test_recent_plugins_are_new_instances_of_the_same_values_and_refuse_as_build
     build's ConfigError, and the next good node is built again."""
     from decrun.apps.base import App
     from decrun.errors import ConfigError
-    from decrun.runner.config import load_option
-    from decrun.runner.plugins import Recent, build
+    from decrun.runner.job.config import load_option
+    from decrun.runner.job.plugins import Recent, build
 
     recent, node = Recent(), load_option("app", "smoothing")
     first, second = recent.build(node, "app", App), recent.build(node, "app", App)

@@ -25,7 +25,7 @@ def _locks_released():
     """Hydra's test runner runs the sweeper in this process and the process goes on: the sweep
     directories' locks, which the ``decrun`` command's exit releases, are released here, so a
     later test in the same worker (tests/runner/test_api.py checks it) finds none held."""
-    from decrun.runner.locks import released_after
+    from decrun.runner.io.locks import released_after
 
     with released_after():
         yield

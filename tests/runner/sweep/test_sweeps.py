@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from decrun.runner.cli import table_main
+from decrun.runner.command.table import table_main
 from decrun.runner.sweep.tables import load_sweep
 
 from cli_processes import comparable, decrun, env
@@ -82,8 +82,8 @@ def test_a_sweep_killed_mid_job_resumes_to_the_table_of_an_uninterrupted_sweep(t
 def test_optuna_finds_the_critical_time_step_within_5_percent(tmp_path):
     """Regression case of conf/experiment/dt_crit_search.yaml: the search maximises the
     stable app.dt without the eigen-solve; dt_crit = 2/λ_max from the same mesh."""
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     proc = decrun("-m", "hydra/sweeper=dt_crit_search", "+experiment=dt_crit_search", "hydra.sweep.dir=search",
                   cwd=tmp_path, timeout=600)

@@ -13,8 +13,8 @@ import pytest
 
 from decrun.apps.base import Result
 from decrun.errors import ConfigError
-from decrun.runner.cli import table_main
-from decrun.runner.config import OptimizeConfig
+from decrun.runner.command.table import table_main
+from decrun.runner.job.config import OptimizeConfig
 from decrun.runner.results.checked import RESULT_RECORD, file_record
 from decrun.runner.results.recorder import ResultRecorder, write_result
 from decrun.runner.sweep.manifest import FORMAT, MANIFEST
@@ -155,9 +155,9 @@ def test_the_objective_a_job_returns():
 
 
 def test_jobs_of_one_process_share_mesh_complex_and_operators():
-    from decrun.runner import job_cache
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.io import job_cache
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
 
     job_cache.clear()
     common = ["mesh.subdiv=2", "app.steps=2", "figures=false"]
@@ -183,7 +183,7 @@ def test_other_sweepers_refuse_a_non_empty_sweep_dir(tmp_path, capsys):
     refuses to mix a new sweep into an old directory, in one line."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.cli import SweepTable
+    from decrun.runner.command.callbacks import SweepTable
 
     old = tmp_path / "old"
     (old / "0").mkdir(parents=True)
@@ -208,7 +208,7 @@ def test_derived_job_compositions_equal_hydras(capsys, monkeypatch):
     from hydra.types import RunMode
     from omegaconf import OmegaConf
 
-    from decrun.runner.config import config_dir
+    from decrun.runner.job.config import config_dir
     from decrun.runner.sweep.fast import planning
     from decrun.runner.sweep.fast.planning import Composer
 
@@ -286,8 +286,8 @@ def test_no_override_shares_a_column_with_a_metric(app, tmp_path):
     from omegaconf import OmegaConf
     from runner.config.test_app_grid import APP_MESH  # tests/ is on sys.path (conftest)
 
-    from decrun.runner.config import compose_config
-    from decrun.runner.run import run_experiment
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
     from decrun.runner.sweep.tables import metric_column, reserved_names
 
     result = run_experiment(compose_config([f"app={app}", "figures=false", *APP_MESH[app]])).result
@@ -340,7 +340,7 @@ def test_decrun_table_on_a_read_only_mount(tmp_path):
     if shutil.which("unshare") is None:
         pytest.skip("no unshare")
     sweep = make_sweep(tmp_path / "s", {"0": {"status": "ok", "e": 1.0}})
-    table = f"import sys; from decrun.runner.cli import table_main; sys.exit(table_main([{str(sweep)!r}]))"
+    table = f"import sys; from decrun.runner.command.table import table_main; sys.exit(table_main([{str(sweep)!r}]))"
     script = (f"mount --bind {sweep} {sweep} && mount -o remount,ro,bind {sweep} || exit 77; "
               f"{sys.executable} -c {table!r}")
     proc = subprocess.run(["unshare", "-m", "sh", "-c", script], capture_output=True, text=True, timeout=120)

@@ -1,4 +1,4 @@
-"""decrun.runner.yaml_text: the dumper of config hashes writes ``OmegaConf.to_yaml``'s text
+"""decrun.runner.io.yaml_text: the dumper of config hashes writes ``OmegaConf.to_yaml``'s text
 for every config decrun composes (each option of each group, a sweep job's whole config
 with Hydra's node), resolved or not, sorted or not — so a manifest's hashes do not depend
 on OmegaConf's private dumper."""
@@ -11,8 +11,8 @@ import pytest
 import yaml
 from omegaconf import OmegaConf
 
-from decrun.runner.config import GROUPS, compose_config, load_option
-from decrun.runner.yaml_text import PythonDumper
+from decrun.runner.io.yaml_text import PythonDumper
+from decrun.runner.job.config import GROUPS, compose_config, load_option
 
 CONF = Path(__file__).resolve().parents[3] / "conf"
 
@@ -42,7 +42,7 @@ def test_a_sweep_jobs_whole_config_has_omegaconfs_text(tmp_path):
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
-    from decrun.runner.config import config_dir, register_configs
+    from decrun.runner.job.config import config_dir, register_configs
 
     register_configs()
     GlobalHydra.instance().clear()

@@ -25,10 +25,10 @@ _SURFACE = ("triangle", "quad", "polygon")
 
 def meshio_extensions() -> list[str]:
     """File endings meshio reads, except those decrun reads itself (and vector drawings)."""
-    import meshio._helpers
+    import meshio
 
     own = {".obj", ".off", ".ply", ".stl", ".svg", ".wkt"}
-    return sorted(set(meshio._helpers.extension_to_filetypes) - own)
+    return sorted(set(meshio.extension_to_filetypes) - own)
 
 
 def read_volume(path: Path, where: str) -> RawMesh:

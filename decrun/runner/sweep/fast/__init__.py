@@ -34,9 +34,9 @@ from typing import Any, Callable, Hashable, Iterator, Optional
 
 from omegaconf import DictConfig
 
-from decrun.runner.launchers import JOBLIB, is_launcher
 from decrun.runner.sweep.checks import import_modules
 from decrun.runner.sweep.fast.planning import Composer, PlannedConfigs, Template, subdir_of
+from decrun.runner.sweep.launchers import JOBLIB, is_launcher
 from decrun.runner.sweep.manifest import config_hash
 
 __all__ = ["SpeedLayer", "JobDelta"]

@@ -8,7 +8,7 @@ in every component followed. Two checks:
   directory; the ``.hydra/`` files and the log Hydra writes (:func:`hydra_files`) inside
   the run directory. Run while a sweep is planned or resumed and before a run starts,
   i.e. before Hydra writes anything.
-* :func:`check_file` — a file decrun writes (every :func:`decrun.runner.atomic.atomic_path`
+* :func:`check_file` — a file decrun writes (every :func:`decrun.runner.io.atomic.atomic_path`
   write and its temporary name, figures, exports) is not a symlink that leads out of the
   directory it is written into. One ``lstat`` when there is no symlink (the usual case).
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from decrun.errors import ConfigError, CorruptFileError
-from decrun.runner.files import RunFiles
+from decrun.runner.io.files import RunFiles
 from decrun.runner.mesh import Mesh, MeshSource, require
 from decrun.runner.results import read_result
 from decrun.runner.results.reading import CHAINED_STATUS, chained_status

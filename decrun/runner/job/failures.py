@@ -43,8 +43,8 @@ from pathlib import Path
 from typing import NoReturn
 
 from decrun.errors import LONG_WORD, DecrunError, shorten_words
-from decrun.runner.files import RunFiles
-from decrun.runner.paths import NEW_OUTPUT
+from decrun.runner.io.files import RunFiles
+from decrun.runner.io.paths import NEW_OUTPUT
 
 __all__ = ["stop", "Stopped", "shorten_words", "LONG_WORD", "Terminated", "install_sigterm", "interrupt_cause", "exit_code",
            "os_error_message", "record_status", "file_identity", "set_aside_stale", "MAX_NESTING", "nesting_depth",
@@ -120,9 +120,9 @@ class Stopped(SystemExit):
     in the caller's process, raise ``message`` instead (:mod:`decrun.runner.api`)."""
 
     #: the run failed on bad input (a config value, a mesh), not a full disk: its attempt leaves
-    #: nothing behind (set by :mod:`decrun.runner.run`)
+    #: nothing behind (set by :mod:`decrun.runner.job.run`)
     refused: bool = False
-    #: the run directory :mod:`decrun.runner.run` removes once its lock is dropped, and the
+    #: the run directory :mod:`decrun.runner.job.run` removes once its lock is dropped, and the
     #: outermost of its parents made with it (removed while empty), or None
     leave_nothing: tuple[Path, Path] | None = None
 

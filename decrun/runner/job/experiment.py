@@ -2,9 +2,9 @@
 errors name the config key they come from.
 
 :func:`validate` builds an :class:`Experiment` — one plugin per row of
-:data:`decrun.runner.config.GROUPS` — for a run (:func:`decrun.runner.run.prepare`) and for
+:data:`decrun.runner.job.config.GROUPS` — for a run (:func:`decrun.runner.job.run.prepare`) and for
 every planned job of a sweep (memoized: :func:`validate`'s ``memo`` and ``delta``);
-:func:`name_the_key` is the rule :meth:`decrun.runner.run.Run.naming_errors` applies.
+:func:`name_the_key` is the rule :meth:`decrun.runner.job.run.Run.naming_errors` applies.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import TYPE_CHECKING, Any, Callable
 from omegaconf import DictConfig, OmegaConf
 
 from decrun.errors import ConfigError, DecrunError, MeshError, SolverError, TopologyError
-from decrun.runner.config import GROUPS, CheckpointConfig, DecrunConfig, OptimizeConfig
-from decrun.runner.hints import resolution_message
-from decrun.runner.plugins import Rebuilt, Recent, build
+from decrun.runner.job.config import GROUPS, CheckpointConfig, DecrunConfig, OptimizeConfig
+from decrun.runner.job.hints import resolution_message
+from decrun.runner.job.plugins import Rebuilt, Recent, build
 
 if TYPE_CHECKING:  # the plugins' base classes, for the attributes' types only
     from decrun.apps.base import App
@@ -39,13 +39,13 @@ class Experiment:
     Attributes: ``mesh_source``, ``operator`` (Hodge-star variant), ``boundary``, ``app``,
     ``solver``, ``export``, ``tracker`` (None when ``cfg`` has no such node) — instances of the classes
     named by the config's ``_target_`` keys, one per row of
-    :data:`decrun.runner.config.GROUPS` (built in its order). The app then checks the
+    :data:`decrun.runner.job.config.GROUPS` (built in its order). The app then checks the
     solver against what the config alone says of its systems (before any mesh is loaded:
     a sweep's plan is refused before its first job). ``checkpoint``: the
-    :class:`~decrun.runner.config.CheckpointConfig` of a time-stepping run; ``optimize``: the
-    :class:`~decrun.runner.config.OptimizeConfig` (:func:`root_options`). An interpolation
+    :class:`~decrun.runner.job.config.CheckpointConfig` of a time-stepping run; ``optimize``: the
+    :class:`~decrun.runner.job.config.OptimizeConfig` (:func:`root_options`). An interpolation
     that does not resolve (``${oc.env:NAME}`` unset, an unknown resolver, a key referring to
-    itself) is a ConfigError naming its key (:func:`decrun.runner.hints.resolution_message`).
+    itself) is a ConfigError naming its key (:func:`decrun.runner.job.hints.resolution_message`).
     """
 
     mesh_source: MeshSource
@@ -87,8 +87,8 @@ class Experiment:
 
 
 def root_options(cfg: DictConfig, key: str, cls: type) -> Any:
-    """The dataclass ``cls`` (:class:`~decrun.runner.config.CheckpointConfig`,
-    :class:`~decrun.runner.config.OptimizeConfig`) of the root node ``cfg[key]``, its
+    """The dataclass ``cls`` (:class:`~decrun.runner.job.config.CheckpointConfig`,
+    :class:`~decrun.runner.job.config.OptimizeConfig`) of the root node ``cfg[key]``, its
     defaults when absent. ConfigError naming ``<key>.<option>`` for an option ``cls`` does
     not have — ``+checkpoint._target_=…`` too: these nodes are plain options, not plugins."""
     if key not in cfg:
@@ -107,7 +107,7 @@ def root_options(cfg: DictConfig, key: str, cls: type) -> Any:
 
 
 def check_root_keys(cfg: DictConfig) -> None:
-    """ConfigError for a root key the schema :class:`decrun.runner.config.DecrunConfig` does
+    """ConfigError for a root key the schema :class:`decrun.runner.job.config.DecrunConfig` does
     not have: Hydra's ``+foo=1`` adds keys even to a struct config, and nothing would read it."""
     known = [f.name for f in dataclasses.fields(DecrunConfig)]
     unknown = [key for key in cfg if key not in known and key != "hydra"]  # hydra: a sweep job's own node
@@ -157,7 +157,7 @@ def mesh_where(mesh) -> str:
 def validate(cfg: DictConfig, memo: dict | None = None, delta: Any = None, recent: Recent | None = None) -> Experiment:
     """Build and type-check every plugin node of ``cfg`` (ConfigError naming the key).
 
-    ``recent`` (:class:`~decrun.runner.plugins.Recent`; a sweep's jobs run one after the
+    ``recent`` (:class:`~decrun.runner.job.plugins.Recent`; a sweep's jobs run one after the
     other in a process): a plugin node equal to the last one built with it is made anew
     from that one's typed config, with the dataclass's checks (each job its own instances).
 
@@ -169,7 +169,7 @@ def validate(cfg: DictConfig, memo: dict | None = None, delta: Any = None, recen
     the config last checked with the same ``delta.group`` except at the plain keys
     ``delta.keys`` (and in the roots ``delta.interpolated``, which are built as above). A
     root none of those keys is under keeps its plugin; a root they are under is rebuilt
-    from its last typed config with those leaves assigned (:class:`~decrun.runner.plugins.Rebuilt`),
+    from its last typed config with those leaves assigned (:class:`~decrun.runner.job.plugins.Rebuilt`),
     so a 10 000-value sweep of ``app.dt`` checks each job in well under a millisecond."""
     if memo is None:
         return Experiment(cfg) if recent is None else Experiment(cfg, recent.build)

@@ -6,11 +6,11 @@ Who holds what:
 * a sweep directory — the submitting process of a ``decrun`` sweep, from the moment its
   jobs are planned (before the manifest is read or written, before a resume clears
   anything) until its table is written (:mod:`decrun.runner.sweep.sweeper`,
-  :class:`decrun.runner.cli.OutputGuard`);
+  :class:`decrun.runner.command.callbacks.OutputGuard`);
 * a run directory — the process recording the run: a single run from before Hydra
   creates the directory (``on_run_start``) to its end; each sweep job in whatever process
   runs it (the basic launcher's, a joblib / submitit / ray worker) while it runs
-  (:func:`decrun.runner.run.run`).
+  (:func:`decrun.runner.job.run.run`).
 
 The lock file holds ``<pid> <what>``; a second process fails at once with
 :class:`LockedError`, one line naming the directory and that pid, having touched nothing.
@@ -31,8 +31,8 @@ from pathlib import Path
 from typing import Iterator
 
 from decrun.errors import DecrunError
-from decrun.runner.files import RunFiles
-from decrun.runner.paths import OutsideError
+from decrun.runner.io.files import RunFiles
+from decrun.runner.io.paths import OutsideError
 
 __all__ = ["LOCK_NAME", "LockedError", "acquire", "release", "locked", "holds", "released_after"]
 
@@ -64,7 +64,7 @@ def acquire(directory: str | os.PathLike, what: str = "run", fix: str = "") -> b
     ``"run"`` or ``"sweep"``, recorded for the refusal). Returns True when taken now (the
     caller releases it), False when this process holds it already. :class:`LockedError`
     (``fix`` appended: the override that avoids the clash) when another process holds it;
-    :class:`~decrun.runner.paths.OutsideError` when the lock file is a symlink."""
+    :class:`~decrun.runner.io.paths.OutsideError` when the lock file is a symlink."""
     if holds(directory):
         return False
     path = Path(directory) / LOCK_NAME

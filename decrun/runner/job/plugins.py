@@ -37,7 +37,7 @@ from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationE
 
 from decrun.core.choices import Choice, choice_error
 from decrun.errors import ConfigError
-from decrun.runner.config import GROUP, load_option
+from decrun.runner.job.config import GROUP, load_option
 
 __all__ = ["target_class", "check_node", "build", "plain_values", "Rebuilt", "Recent"]
 

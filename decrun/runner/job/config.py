@@ -2,7 +2,7 @@
 
 The composed config has one node per plugin kind — ``mesh``, ``operator`` (Hodge-star
 variant), ``boundary`` (boundary adaptation), ``app``, ``solver`` — each naming its class
-with ``_target_`` (see :mod:`decrun.runner.plugins`), plus the run options below. Hydra
+with ``_target_`` (see :mod:`decrun.runner.job.plugins`), plus the run options below. Hydra
 composes YAML only; the runner type-checks each node against its class before any work.
 """
 
@@ -31,8 +31,8 @@ class PluginGroup:
     ``key``: the config key (``cfg.<key>``, ``decrun <key>=<option>``), its options are
     ``conf/<key>/<option>.yaml`` (:meth:`conf_dir`), each option's node ``cfg.<key>``; ``base``: the dotted name of the class
     whose dataclass subclass every option names with ``_target_: <module>.<Class>``
-    (:func:`decrun.runner.plugins.build` checks it); ``attribute``: where
-    :class:`decrun.runner.experiment.Experiment` keeps the built plugin; ``builtins``: the module
+    (:func:`decrun.runner.job.plugins.build` checks it); ``attribute``: where
+    :class:`decrun.runner.job.experiment.Experiment` keeps the built plugin; ``builtins``: the module
     prefixes of decrun's own options (a plugin outside decrun names its own module)."""
 
     key: str
@@ -60,7 +60,7 @@ def _import(dotted: str) -> type:
     return getattr(importlib.import_module(module_name), class_name)
 
 
-#: the plugin groups, in the order :class:`decrun.runner.experiment.Experiment` builds them (the
+#: the plugin groups, in the order :class:`decrun.runner.job.experiment.Experiment` builds them (the
 #: first refused node is the one reported)
 GROUPS = (
     PluginGroup("app", "decrun.apps.base.App", "app", ("decrun.apps.",)),
@@ -68,7 +68,7 @@ GROUPS = (
     PluginGroup("boundary", "decrun.core.boundary.BoundaryAdaptation", "boundary", ("decrun.core.boundary.",)),
     PluginGroup("solver", "decrun.core.solvers.Solver", "solver", ("decrun.core.solvers.",)),
     PluginGroup("mesh", "decrun.runner.mesh.MeshSource", "mesh_source", ("decrun.runner.mesh.sources.",
-                                                                          "decrun.runner.chain.")),
+                                                                          "decrun.runner.job.chain.")),
     PluginGroup("export", "decrun.runner.results.export.Export", "export", ("decrun.runner.results.export.",),
                 optional=True),
     PluginGroup("tracker", "decrun.runner.tracking.Tracker", "tracker", ("decrun.runner.tracking.",), optional=True),
@@ -208,7 +208,7 @@ def config_dir() -> Path:
 def load_option(group: str, name: str):
     """``conf/<group>/<name>.yaml`` as Hydra composes it on its own: the same-group files of
     its ``defaults`` list merged first (e.g. ``mesh/_post_processing``), without Hydra's
-    machinery (fast; for ``decrun --help`` and :func:`decrun.runner.plugins.option`)."""
+    machinery (fast; for ``decrun --help`` and :func:`decrun.runner.job.plugins.option`)."""
     root = config_dir()
     path = root / group / f"{name}.yaml"
     if not path.is_file():

@@ -10,7 +10,7 @@ import signal
 
 __all__ = ["INTERRUPTS", "ignore_interrupts", "restore_interrupts"]
 
-#: the signals that stop a run or a sweep (SIGTERM takes Ctrl-C's path: decrun.runner.failures)
+#: the signals that stop a run or a sweep (SIGTERM takes Ctrl-C's path: decrun.runner.job.failures)
 INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 
 

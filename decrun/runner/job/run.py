@@ -1,14 +1,14 @@
 """One run of the ``decrun`` command, without Hydra's machinery (also used by the tests).
 
-:func:`run` is what the Hydra task of :mod:`decrun.runner.cli` calls with the composed
+:func:`run` is what the Hydra task of :mod:`decrun.runner.command.task` calls with the composed
 config and the run directory. A run is one :class:`Run` record carried through three
 steps: :func:`prepare` (the config's plugins built and checked,
-:class:`~decrun.runner.experiment.Experiment` → the
+:class:`~decrun.runner.job.experiment.Experiment` → the
 mesh (:mod:`decrun.runner.mesh`) → ``SimplicialComplex`` → ``DEC``, checked by
 :meth:`decrun.apps.base.App.validate`), :func:`execute` (``app.run``, its records streamed
 to ``result.h5``) and :func:`write` (``result.h5`` (atomic) + ``metrics.json`` + figures +
 export). Errors get their config key in one place, :meth:`Run.naming_errors`; the run
-directory's file names are those of :class:`decrun.runner.files.RunFiles`.
+directory's file names are those of :class:`decrun.runner.io.files.RunFiles`.
 """
 
 from __future__ import annotations
@@ -29,11 +29,13 @@ from decrun.core import jit
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.errors import ConfigError, DecrunError, MeshError, TopologyError
-from decrun.runner import figure_process
-from decrun.runner.config import OptimizeConfig
-from decrun.runner.context import RunContext
-from decrun.runner.experiment import Experiment, mesh_where, name_the_key, root_options, validate
-from decrun.runner.failures import (
+from decrun.runner.io.files import RunFiles
+from decrun.runner.io.job_cache import mesh_and_dec
+from decrun.runner.io.locks import LockedError, acquire, release
+from decrun.runner.job.config import OptimizeConfig
+from decrun.runner.job.context import RunContext
+from decrun.runner.job.experiment import Experiment, mesh_where, name_the_key, root_options, validate
+from decrun.runner.job.failures import (
     Stopped,
     exit_code,
     file_identity,
@@ -47,13 +49,10 @@ from decrun.runner.failures import (
     set_aside_stale,
     shorten_words,
 )
-from decrun.runner.files import RunFiles
-from decrun.runner.hints import cli_message, memory_hint, plugin_name, resolution_message
-from decrun.runner.job_cache import mesh_and_dec
-from decrun.runner.locks import LockedError, acquire, release
+from decrun.runner.job.hints import cli_message, memory_hint, plugin_name, resolution_message
+from decrun.runner.job.plugins import Recent
+from decrun.runner.job.progress import make_progress, task
 from decrun.runner.mesh import Mesh
-from decrun.runner.plugins import Recent
-from decrun.runner.progress import make_progress, task
 from decrun.runner.results import write_metrics_json, write_result
 from decrun.runner.results.checked import RESULT_RECORD
 from decrun.runner.results.checkpoint import RunCheckpoint, remove_checkpoint
@@ -118,7 +117,7 @@ class Run:
         """The one place errors get the config key they come from in front (the core raises
         them knowing no config). ``stage="complex"``: the complex refused the mesh — a
         :class:`MeshError` names the mesh and gets the override that fixes it
-        (:func:`decrun.runner.hints.cli_message`); ``stage="app"`` (the app's checks, the
+        (:func:`decrun.runner.job.hints.cli_message`); ``stage="app"`` (the app's checks, the
         operators, the run): a :class:`DecrunError` as :func:`name_the_key` names it.
         Anything else goes on as it is."""
         try:
@@ -137,7 +136,7 @@ class Run:
 
 
 #: the plugins the last sweep job of this process built, made anew for the next one when its
-#: nodes have the same values (:class:`~decrun.runner.plugins.Recent`)
+#: nodes have the same values (:class:`~decrun.runner.job.plugins.Recent`)
 _RECENT = Recent()
 
 
@@ -149,9 +148,9 @@ def prepare(cfg: DictConfig, progress: Callable | None = None, out: Path | None 
 
     ``out``: the run directory (:func:`execute` then streams the app's records to its
     result.h5). With ``cache`` (sweep jobs) the mesh, complex and DEC come from the
-    per-process cache :mod:`decrun.runner.job_cache` when an earlier job had the same
+    per-process cache :mod:`decrun.runner.io.job_cache` when an earlier job had the same
     mesh / operator / boundary config (``mesh_seconds`` is then 0), and a plugin node equal to
-    the previous job's is made from that one's typed config (:class:`~decrun.runner.plugins.Recent`)."""
+    the previous job's is made from that one's typed config (:class:`~decrun.runner.job.plugins.Recent`)."""
     t = time.perf_counter()
     experiment = validate(cfg, recent=_RECENT if cache else None)
     run = Run(cfg, experiment, RunFiles(out) if out is not None else None, progress or make_progress(False))
@@ -331,17 +330,12 @@ def write(run: Run, out: Path | None = None) -> list[Path]:
         removed = remove_earlier_exports(files.dir)
         if removed:
             log.info("removed the earlier run's export files %s (they do not hold this result)", ", ".join(removed))
-        if not drawn:
-            figure_process.dismiss()  # the command's figure process, if any, has nothing to draw
-        else:
+        if drawn:
             try:
-                made = figure_process.draw(result.figures, files.dir, run.complex)
-                if made is None:  # no figure process for these figures: drawn here
-                    # lazy: matplotlib only for figures (start-up speed)
-                    from decrun.runner.plots.common import draw_figures
+                # lazy: matplotlib only for figures (start-up speed)
+                from decrun.runner.plots.common import draw_figures
 
-                    made = draw_figures(result.figures, files.dir, run.complex)
-                written += made
+                written += draw_figures(result.figures, files.dir, run.complex)
             except Exception as exc:  # the result and metrics stand; the error is added to them (below)
                 interrupt = find_in_chain(exc, KeyboardInterrupt)
                 if interrupt is not None:  # Ctrl-C/SIGTERM inside an extension's import: its ImportError wraps it
@@ -449,7 +443,7 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     """One run (or one sweep job, ``multirun``) of ``cfg`` into the directory ``out``: the
     experiment (:func:`prepare`, :func:`execute`), its files (:func:`write`) and what it prints. Returns 0 (1 for a failed
     sweep job), or with ``optimize.metric`` set the objective
-    :meth:`decrun.runner.config.OptimizeConfig.objective` for a sweeper; a failed single
+    :meth:`decrun.runner.job.config.OptimizeConfig.objective` for a sweeper; a failed single
     run exits 1 (an interrupted one 130/143) after recording its status in ``out``; an
     interrupted sweep job re-raises the interrupt, for the sweeper to say which jobs finished.
     ``verbose`` logs the traceback of a DecrunError; ``log_name`` is the job's log file
@@ -458,7 +452,7 @@ def run(cfg: DictConfig, out: Path, *, multirun: bool = False, verbose: bool = F
     e.g. ``outputs`` of a first ``outputs/runs/<stamp>``): a single run refused as bad input
     then removes ``out`` again, and those parents while they are empty.
 
-    The run holds ``out``'s lock (:mod:`decrun.runner.locks`; a single run took it before
+    The run holds ``out``'s lock (:mod:`decrun.runner.io.locks`; a single run took it before
     Hydra made the directory) while it runs: when another process holds it, one line on
     stderr naming that process and nothing written (exit 1; a sweep job returns as failed)."""
     try:
@@ -594,8 +588,8 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
 
 def memory_message(exc: BaseException, cfg: DictConfig) -> str:
     """``<where>: could not allocate <size> for an array of shape (…) <dtype>; <the setting
-    to lower>`` for a run that ran out of memory (:func:`decrun.runner.failures.memory_error_text`,
-    :func:`decrun.runner.hints.memory_hint`); ``where`` names the app and the mesh source."""
+    to lower>`` for a run that ran out of memory (:func:`decrun.runner.job.failures.memory_error_text`,
+    :func:`decrun.runner.job.hints.memory_hint`); ``where`` names the app and the mesh source."""
     where = f"app={plugin_name(cfg, 'app') or '?'} on mesh={plugin_name(cfg, 'mesh') or '?'}"
     hint = memory_hint(cfg, getattr(exc, "shape", None))
     return f"{where}: {memory_error_text(exc)}" + (f"; {hint}" if hint else "")

@@ -100,7 +100,7 @@ def _option_defaults(cfg, group: str) -> dict:
     (:func:`plugin_name`), or {} when there is no such file."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.config import load_option
+    from decrun.runner.job.config import load_option
 
     name = plugin_name(cfg, group)
     try:
@@ -179,8 +179,12 @@ def _raw_value(cfg, key: str):
 
     try:
         node = OmegaConf.select(cfg, parent, throw_on_resolution_failure=False) if parent else cfg
-        child = node._get_node(leaf) if node is not None else None
-        return child._value() if child is not None else None
+        if not OmegaConf.is_config(node):
+            return None
+        container = OmegaConf.to_container(node, resolve=False)  # interpolations kept as their text
+        if isinstance(container, list):
+            return container[int(leaf)]
+        return container.get(leaf) if isinstance(container, dict) else None
     except Exception:  # noqa: BLE001 — a key path OmegaConf cannot walk (list indices): no value to show
         return None
 
@@ -211,7 +215,7 @@ def default_override(cfg, key: str) -> str | None:
     line; None when the key has no default (an option the command added with ``+``)."""
     from omegaconf import OmegaConf
 
-    from decrun.runner.config import PLUGIN_GROUPS, DecrunConfig
+    from decrun.runner.job.config import PLUGIN_GROUPS, DecrunConfig
 
     root, _, rest = key.partition(".")
     try:
@@ -232,6 +236,12 @@ def default_override(cfg, key: str) -> str | None:
     return f"{key}={text}" if text is not None else None
 
 
+#: the resolvers an interpolation may name: OmegaConf's (``oc.*``), Hydra's and decrun's; the
+#: ones registered in this process are listed for an unknown one (OmegaConf has no public list)
+KNOWN_RESOLVERS = ("oc.env", "oc.select", "oc.create", "oc.decode", "oc.deprecated", "oc.dict.keys",
+                   "oc.dict.values", "hydra", "now", "python_version", "decrun.stamp")
+
+
 def resolution_message(exc: BaseException, cfg=None) -> str | None:
     """``<key>='<value>': <why it does not resolve>; use `<key>=<default>` (the default)``
     for an interpolation OmegaConf could not resolve (:func:`resolution_error` in ``exc``'s
@@ -241,6 +251,8 @@ def resolution_message(exc: BaseException, cfg=None) -> str | None:
     error = resolution_error(exc)
     if error is None:
         return None
+    from omegaconf import OmegaConf
+
     key = str(getattr(error, "full_key", "") or "") or "the config"
     text = " ".join(str(getattr(error, "msg", None) or error).split())
     text = text.split(" full_key:")[0]
@@ -253,9 +265,7 @@ def resolution_message(exc: BaseException, cfg=None) -> str | None:
         cause = f"the environment variable {env.group(1)} is not set; set it, or give a default in the " \
                 f"interpolation (${{oc.env:{env.group(1)},<default>}})"
     elif resolver:
-        from omegaconf.basecontainer import BaseContainer
-
-        known = ", ".join(sorted(BaseContainer._resolvers))
+        known = ", ".join(name for name in KNOWN_RESOLVERS if OmegaConf.has_resolver(name))
         cause = f"there is no resolver {resolver.group(1)!r} (resolvers: {known})"
     elif "Recursive interpolation" in text:
         cause = "the interpolation refers to itself (a cycle)"

@@ -5,7 +5,7 @@ journal's header, ``metrics.json``, a sweep's ``manifest.json``, ``metrics.csv``
 ``metrics.md``) goes through :func:`atomic_path`: a reader sees the old file or the whole
 new one, never a half-written one, and a failed write leaves nothing behind. Neither the
 file nor its temporary name may be a symlink leading out of their directory
-(:func:`decrun.runner.paths.check_file`): such a write is refused before anything is written.
+(:func:`decrun.runner.io.paths.check_file`): such a write is refused before anything is written.
 
 HDF5 files written this way (``result.h5``, ``checkpoint.h5``) are written through
 :class:`QuietFile` after :func:`check_free_space`: a full disk is one ``OSError`` raised
@@ -21,7 +21,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from decrun.runner.paths import check_file
+from decrun.runner.io.paths import check_file
 
 __all__ = ["atomic_path", "write_text_atomic", "temporary_name", "QuietFile", "check_free_space"]
 
@@ -38,7 +38,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """The temporary name to write ``path`` under (:func:`temporary_name`): when the block
     ends it is renamed onto ``path`` (``os.replace``, atomic on POSIX); when the block or
     the rename raises, the temporary file is removed and the error goes on.
-    :class:`~decrun.runner.paths.OutsideError` (nothing written) when ``path`` or the
+    :class:`~decrun.runner.io.paths.OutsideError` (nothing written) when ``path`` or the
     temporary name is a symlink leading out of its directory."""
     path = check_file(path)
     tmp = check_file(temporary_name(path))

@@ -23,7 +23,7 @@ from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Iterator
 
-from decrun.runner.files import RunFiles, SweepFiles
+from decrun.runner.io.files import RunFiles, SweepFiles
 
 __all__ = ["terminal", "make_progress", "Progress", "SweepProgress", "sweep_size"]
 

@@ -11,7 +11,7 @@ it holds and who writes it, one path property made with :func:`_path`, and — w
 of a sweep job must not inherit it — its name in :attr:`RunFiles.JOB_OUTPUTS`.
 
 Hydra's own files (``.hydra/`` and the log) are named by the Hydra config:
-:func:`decrun.runner.paths.hydra_files` reads their names from it; :attr:`RunFiles.HYDRA` is
+:func:`decrun.runner.io.paths.hydra_files` reads their names from it; :attr:`RunFiles.HYDRA` is
 Hydra's default name (decrun's conf keeps it), for code that has no config (a sweep's
 table, clearing a job to rerun it).
 
@@ -42,10 +42,10 @@ class RunFiles:
     #: run records (:func:`decrun.runner.results.journal.journal_path`)
     JOURNAL = RESULT + ".partial"
     #: an earlier run's result set aside by a run that failed in the same directory
-    #: (:func:`decrun.runner.failures.set_aside_stale`)
+    #: (:func:`decrun.runner.job.failures.set_aside_stale`)
     STALE = RESULT + ".stale"
     #: the hidden temporary names of an atomic write of the result (``.result.h5.tmp-<pid>``,
-    #: :func:`decrun.runner.atomic.temporary_name`), as a glob
+    #: :func:`decrun.runner.io.atomic.temporary_name`), as a glob
     RESULT_TEMPORARIES = "." + RESULT + "*"
     #: the last recorded state of a time-stepping run, to continue it after a kill
     #: (:mod:`decrun.runner.results.checkpoint`, :mod:`decrun.methods.stepping`); deleted when
@@ -56,7 +56,7 @@ class RunFiles:
     METRICS = "metrics.json"
     #: Hydra's output subdirectory (``hydra.output_subdir``, Hydra's default; ``overrides.yaml`` ...)
     HYDRA = ".hydra"
-    #: the lock a run or sweep holds on its directory (:mod:`decrun.runner.locks`)
+    #: the lock a run or sweep holds on its directory (:mod:`decrun.runner.io.locks`)
     LOCK = ".decrun.lock"
     #: one figure, ``<name>.png`` (:func:`decrun.runner.plots.common.draw_figures`)
     FIGURE = "{name}.png"

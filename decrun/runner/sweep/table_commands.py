@@ -1,5 +1,5 @@
 """``decrun-table --plot`` and ``decrun-table --compare``: what the command prints and its exit
-code (the parsing stays in :func:`decrun.runner.cli.table_main`)."""
+code (the parsing stays in :func:`decrun.runner.command.table.table_main`)."""
 
 from __future__ import annotations
 

@@ -367,7 +367,11 @@ def hydra_command(args: list[str]) -> None:
     """The ``decrun`` command's Hydra app for the command line ``args`` (``sys.argv[1:]``, set
     by the caller): a single run composes its config once (:func:`_composed_once`); a sweep, a
     config that sets ``hydra.mode`` or a composition error goes Hydra's own way. What the app
-    raises, Hydra's exit included, reaches the caller (:func:`main`, :func:`decrun.run`)."""
+    raises, Hydra's exit included, reaches the caller (:func:`main`, :func:`decrun.run`). The
+    search path's config files are checked first (:func:`~decrun.runner.config_files.check_config_files`)."""
+    from decrun.runner.config_files import check_config_files
+
+    check_config_files(args)
     try:
         with _composed_once(args):
             _hydra_main()
@@ -599,10 +603,11 @@ def part_missing_message(exc: Exception) -> str | None:
     if not isinstance(exc, MissingConfigException):
         return None
     text = str(exc)
-    match = re.search(r"In '([^'/]+)/([^']+)': Could not (?:find|load) '([^']+)/parts/([^'/]+)'", text)
+    match = re.search(r"In '([^'/]+)/([^']+)': Could not (?:find|load) '([^']+?)/parts/([^']*)'", text)
     if match is None or match.group(1) != match.group(3):
         return None
     group, model, _, part = match.groups()
+    named = part and "/" not in part and part not in (".", "..")  # `parts=[/etc/passwd]`, `parts=['']`: no name
     options: set[str] = set()
     for root in re.findall(r"path=file://(\S+)", text):
         directory = Path(root) / group / "parts"
@@ -611,6 +616,9 @@ def part_missing_message(exc: Exception) -> str | None:
     close = difflib.get_close_matches(part, sorted(options), n=1)
     hint = f"; did you mean {close[0]}?" if close else ""
     listing = f" (the parts: {' | '.join(sorted(options))})" if options else " (there are none)"
+    if not named:
+        return f"error: {group}={model}: {shorten_words(repr(part))} is not a part's name (a file in {group}/parts/, " \
+               f"no path){listing}"
     return (f"error: {group}={model}: no part {part} ({group}/parts/{part}.yaml is in no config directory of the "
             f"search path){hint}{listing}")
 

@@ -79,11 +79,15 @@ def load_yaml(path: str | os.PathLike) -> Any:
     """The YAML value in ``path`` read with ``yaml.safe_load`` (no Python object tags).
 
     Raises ``FileNotFoundError`` when absent and :class:`CorruptFileError` naming the file
-    for unreadable text, invalid YAML, a ``!!python/...`` tag or too deep nesting."""
+    for unreadable text, invalid YAML, a ``!!python/...`` tag, too deep nesting or an alias bomb
+    (:func:`~decrun.runner.config_files.check_aliases`)."""
     import yaml
+
+    from decrun.runner.config_files import check_aliases
 
     path = Path(path)
     text = _read_text(path)
+    check_aliases(text, path)  # an alias bomb, before a reader walks its expansion
     try:
         return yaml.safe_load(text)
     except RecursionError:

@@ -44,9 +44,9 @@ from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
-from decrun.methods.model.language import names_in, parse_equation
 from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_stability_limit, make_integrator
 from decrun.methods.model.kinds import NUMBER, VECTOR
+from decrun.methods.model.language import names_in, parse_equation
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.parts import PartSpec, compose_parts
 from decrun.methods.model.require import check_requirements, parse_requirement
@@ -124,7 +124,7 @@ def _check_definition_chain(equations: list, keys: list) -> None:
     than the deepest definition it reads). An equation that does not parse is left to the
     compiler, which names it; so is a cycle."""
     parsed = {}
-    for text, where in zip(equations, keys):
+    for text, where in zip(equations, keys, strict=True):
         try:
             equation = parse_equation(text, where)
         except ConfigError:

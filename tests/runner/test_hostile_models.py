@@ -14,11 +14,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from cli_processes import decrun, env
 
 from decrun.errors import CorruptFileError
 from decrun.runner.config_files import MAX_ALIASED_NODES, aliased_nodes, check_aliases
 from decrun.runner.results.checked import load_yaml
+
+from cli_processes import decrun, env
 
 SEARCH = "hydra.searchpath=[file://my_conf]"
 

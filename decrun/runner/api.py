@@ -109,7 +109,10 @@ def run(overrides: str | Sequence[str] = (), *, dir: str | os.PathLike | None = 
     ``overrides``: the command line's overrides (``["app=heat", "mesh.subdiv=3"]``, or one string
     split as a shell would); ``dir``: the run directory (``hydra.run.dir``); ``root``: the run goes
     to ``<root>/runs/<stamp>/`` (default: ``outputs/runs/<stamp>/`` in the working directory).
-    Raises :class:`RunError` with the command's message when the run cannot start or fails."""
+    ``dir`` and ``root`` are used as given, never resolved (one holding ``${`` is refused).
+    Raises :class:`RunError` with the command's message when the run cannot start or fails, and
+    at once when another call of :func:`run` or :func:`sweep` is running in this process (from
+    another thread: calls are one at a time; the running one goes on untouched)."""
     from decrun.runner.cli import OutputGuard
     from decrun.runner.files import RunFiles
     from decrun.runner.results.checked import load_json

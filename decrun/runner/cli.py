@@ -371,7 +371,7 @@ def hydra_command(args: list[str]) -> None:
     search path's config files are checked first (:func:`~decrun.runner.config_files.check_config_files`)."""
     from decrun.runner.config_files import check_config_files
 
-    check_config_files(args)
+    check_config_files(args, config_dir())
     try:
         with _composed_once(args):
             _hydra_main()

@@ -78,12 +78,10 @@ def check_aliases(text: str, where: str | os.PathLike, error: type[Exception] = 
                     "bomb); decrun reads no such file: write the values out or repeat fewer of them")
 
 
-def search_roots(args: Iterable[str]) -> list[Path]:
-    """decrun's config directory and the ``file://`` directories the command line adds
-    (``hydra.searchpath=[file://a,…]``, ``--config-dir a`` / ``-cd a``)."""
-    from decrun.runner.config import config_dir
-
-    roots = [config_dir()]  # absolute, as every root below
+def search_roots(args: Iterable[str], conf: Path) -> list[Path]:
+    """decrun's config directory ``conf`` and the ``file://`` directories the command line adds
+    (``hydra.searchpath=[file://a,…]``, ``--config-dir a`` / ``-cd a``), absolute."""
+    roots = [Path(os.path.abspath(conf))]
     args = list(args)
     for i, arg in enumerate(args):
         name, sep, value = arg.partition("=")
@@ -109,13 +107,13 @@ def _config_files(root: Path, groups: set[str]) -> Iterator[Path]:
             yield from sorted(directory.rglob("*.yaml"))
 
 
-def check_config_files(args: Iterable[str]) -> None:
+def check_config_files(args: Iterable[str], conf: Path) -> None:
     """Raise :class:`~decrun.errors.CorruptFileError` naming the first config file of the search
-    path (:func:`search_roots`) whose aliases are a bomb (:func:`check_aliases`). Run before
+    path (:func:`search_roots`; ``conf``: decrun's config directory) whose aliases are a bomb (:func:`check_aliases`). Run before
     Hydra composes anything; a file it cannot read is left to the composition, which names it
     (:func:`decrun.runner.failures.config_error_message`)."""
     args = list(args)
-    roots = search_roots(args)
+    roots = search_roots(args, conf)
     groups = {p.name for p in roots[0].iterdir() if p.is_dir()} | {"hydra"}
     # a group of the user's own, chosen on the command line (`+mygroup=x`, `mygroup/sub@pkg=x`)
     groups |= {word.lstrip("+~").partition("=")[0].partition("@")[0].partition("/")[0] for word in args

@@ -311,10 +311,11 @@ def _unreadable_config(exc: BaseException, args: list[str]) -> str | None:
     os_error = find_in_chain(exc, OSError)
     if not isinstance(os_error, OSError) or os_error.filename is None:
         return None
+    from decrun.runner.config import config_dir
     from decrun.runner.config_files import search_roots
 
     where = Path(os.path.abspath(os_error.filename))
-    if not any(where == root or root in where.parents for root in search_roots(args)):
+    if not any(where == root or root in where.parents for root in search_roots(args, config_dir())):
         return None
     cause = os.strerror(os_error.errno) if isinstance(os_error.errno, int) else str(os_error)
     fix = "make it readable (chmod u+r" + (",u+x" if where.is_dir() else "") + f" {where})" \

@@ -48,6 +48,7 @@ from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
 from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_stability_limit, make_integrator
 from decrun.methods.model.kinds import NUMBER, VECTOR
+from decrun.methods.model.language import names_in, parse_equation
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.parts import PartSpec, compose_parts
 from decrun.methods.model.require import check_requirements, parse_requirement
@@ -82,6 +83,64 @@ class FieldOptions:
     form: str = "0"
     initial: Any = None
     dirichlet: Any = None
+
+
+#: the longest plot name: its figure ``<name>.png`` is a file name (255 bytes on most file systems)
+PLOT_NAME_MAX = 100
+
+
+def _check_plot_name(name) -> None:
+    """A plot's name becomes the file ``<name>.png`` in the run directory, so it is a name like a
+    field's (a letter, then letters, digits or '_'; at most :data:`PLOT_NAME_MAX` characters):
+    never a path (``../x``, ``/tmp/x``), never a line of 100k characters; ConfigError otherwise,
+    echoing at most the name's first 40 characters."""
+    text = str(name)
+    shown = repr(text) if len(text) <= 40 else f"{text[:40]!r}…({len(text)} characters)"
+    if len(text) > PLOT_NAME_MAX:
+        raise ConfigError(f"app.plots: the plot name {shown} is longer than {PLOT_NAME_MAX} characters (it names "
+                          "the file <name>.png); choose a shorter one")
+    if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
+        raise ConfigError(f"app.plots: the plot name {shown} is not a name (a letter followed by letters, digits or "
+                          "'_'; it names the file <name>.png in the run directory, never a path); rename it, "
+                          "e.g. app.plots.flow")
+
+
+#: the longest chain of definitions reading one another (``v2 = v1 + 1``, ``v3 = v2 + 1`` …): the
+#: compiler follows a chain recursively, and Python's stack holds about 450 links (docs/models.md)
+MAX_DEFINITION_CHAIN = 300
+
+
+def _check_definition_chain(equations: list, keys: list) -> None:
+    """ConfigError when a definition reads, through other definitions, a chain longer than
+    :data:`MAX_DEFINITION_CHAIN` (counted without recursion: each definition's depth is one more
+    than the deepest definition it reads). An equation that does not parse is left to the
+    compiler, which names it; so is a cycle."""
+    parsed = {}
+    for text, where in zip(equations, keys, strict=True):
+        try:
+            equation = parse_equation(text, where)
+        except ConfigError:
+            return
+        if equation.kind == "definition":
+            parsed[equation.target] = (names_in(equation.rhs), where)
+    depth: dict[str, int] = {}
+    for start in parsed:
+        stack = [start]
+        while stack:
+            name = stack[-1]
+            if name in depth:
+                stack.pop()
+                continue
+            waiting = [n for n in parsed[name][0] if n in parsed and n not in depth and n not in stack]
+            if waiting:
+                stack.extend(waiting)
+                continue
+            depth[name] = 1 + max((depth.get(n, 0) for n in parsed[name][0] if n in parsed), default=0)
+            stack.pop()
+            if depth[name] > MAX_DEFINITION_CHAIN:
+                raise ConfigError(f"{parsed[name][1]}: {name} reads a chain of {depth[name]} definitions, each reading "
+                                  f"the next; a chain is at most {MAX_DEFINITION_CHAIN} long: merge definitions "
+                                  "into fewer (e.g. v3 = v1 + 2 instead of v2 = v1 + 1, v3 = v2 + 1)")
 
 
 @dataclass
@@ -194,6 +253,7 @@ class Model(App):
             if isinstance(options, dict):  # Python callers
                 self.fields[name] = FieldOptions(**options)
         for name, plot in self.plots.items():
+            _check_plot_name(name)
             if isinstance(plot, dict):  # Python callers
                 self.plots[name] = plot = PlotOptions(**plot)
             check_plot_options(name, plot)
@@ -218,6 +278,7 @@ class Model(App):
         parts = {name: PartSpec(dict(part.fields), list(part.equations), dict(part.metrics))
                  for name, part in self.parts.items()}
         self._composed = compose_parts(own, parts, key="app", own_name=f"the model's own (app={self.model})")
+        _check_definition_chain(self._composed.equations, self._composed.equation_keys)
         self._compiled = None
 
     # ------------------------------------------------------------------ options → method

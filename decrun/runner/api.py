@@ -27,12 +27,15 @@ logger's handlers and level (Hydra configures logging for each job: its log file
 closed after the call), and any directory lock the call took and still holds (a run or sweep
 that stopped early; the command's exit drops them). The command's SIGTERM handler is not
 installed: a library leaves the signals to its program. Calls are therefore one at a time in a
-process (not from several threads); any number of them, one after the other.
+process: a call made while another runs (from another thread, or from inside it) is refused at
+once with a :class:`RunError` naming the running one, and the running call goes on untouched;
+any number of calls, one after the other.
 
 Outputs go where the command puts them, relative to the working directory
 (``outputs/runs/<stamp>/``, ``outputs/sweeps/<stamp>/``), or under ``root`` (``<root>/runs/<stamp>``,
 ``<root>/sweeps/<stamp>``), or into exactly ``dir`` (``hydra.run.dir`` / ``hydra.sweep.dir``:
-what ``resume=True`` needs to find the sweep again).
+what ``resume=True`` needs to find the sweep again). ``dir`` and ``root`` are paths, never
+resolved: one holding ``${`` (which Hydra would read as an interpolation) is a :class:`RunError`.
 
 Errors: whatever the command would end with a non-zero exit is a :class:`RunError` whose text is
 the line the command prints (a bad override, a refused directory, a run that failed). A sweep
@@ -47,6 +50,7 @@ import logging
 import os
 import shlex
 import sys
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -105,16 +109,20 @@ def run(overrides: str | Sequence[str] = (), *, dir: str | os.PathLike | None = 
     ``overrides``: the command line's overrides (``["app=heat", "mesh.subdiv=3"]``, or one string
     split as a shell would); ``dir``: the run directory (``hydra.run.dir``); ``root``: the run goes
     to ``<root>/runs/<stamp>/`` (default: ``outputs/runs/<stamp>/`` in the working directory).
-    Raises :class:`RunError` with the command's message when the run cannot start or fails."""
+    ``dir`` and ``root`` are used as given, never resolved (one holding ``${`` is refused).
+    Raises :class:`RunError` with the command's message when the run cannot start or fails, and
+    at once when another call of :func:`run` or :func:`sweep` is running in this process (from
+    another thread: calls are one at a time; the running one goes on untouched)."""
     from decrun.runner.command.callbacks import OutputGuard
     from decrun.runner.io.files import RunFiles
     from decrun.runner.results.checked import load_json
 
     args = _overrides(overrides, "run") + _directory("run", dir, root, overrides)
-    OutputGuard.run_dir = None
-    _command(args, lambda: OutputGuard.run_dir)
-    out = _made(OutputGuard.run_dir, "hydra.callbacks.output_guard")
-    return Run(out, load_json(RunFiles(out).metrics))
+    with _one_call("run"):
+        OutputGuard.run_dir = None
+        _command(args, lambda: OutputGuard.run_dir)
+        out = _made(OutputGuard.run_dir, "hydra.callbacks.output_guard")
+        return Run(out, load_json(RunFiles(out).metrics))
 
 
 def sweep(overrides: str | Sequence[str] = (), *, launcher: str | None = None, resume: bool = False,
@@ -141,12 +149,37 @@ def sweep(overrides: str | Sequence[str] = (), *, launcher: str | None = None, r
         _refuse_both(overrides, "hydra.sweeper.resume", "resume")
         args.append("hydra.sweeper.resume=true")
     args += _directory("sweep", dir, root, overrides)
-    SweepTable.sweep_dir = None
-    _command(args, lambda: SweepTable.sweep_dir)
-    sweep_dir = _made(SweepTable.sweep_dir, "hydra.callbacks.sweep_table")
-    table = load_sweep(sweep_dir)
-    table.attrs["sweep_dir"] = str(sweep_dir)
-    return table
+    with _one_call("sweep"):
+        SweepTable.sweep_dir = None
+        _command(args, lambda: SweepTable.sweep_dir)
+        sweep_dir = _made(SweepTable.sweep_dir, "hydra.callbacks.sweep_table")
+        table = load_sweep(sweep_dir)
+        table.attrs["sweep_dir"] = str(sweep_dir)
+        return table
+
+
+#: held by the call of :func:`run` / :func:`sweep` running in this process (:func:`_one_call`)
+_CALL = threading.Lock()
+_CALLER: list[str] = []
+
+
+@contextmanager
+def _one_call(what: str) -> Iterator[None]:
+    """The block as this process's only call of the command: a second call while one runs (from
+    another thread, or from inside the first) is refused at once with a :class:`RunError` —
+    Hydra's state (its global config and search path, ``sys.argv``, the logging set-up) is the
+    process's, and two runs composing at once would break each other, the valid one too."""
+    if not _CALL.acquire(blocking=False):
+        running = _CALLER[0] if _CALLER else "another call"
+        raise RunError(f"error: decrun.{what}: {running} is running in this process (Hydra's state is global: calls "
+                       f"are one at a time); call decrun.{what} after it returns, or from another process "
+                       "(e.g. concurrent.futures.ProcessPoolExecutor)")
+    _CALLER[:] = [f"decrun.{what} in thread {threading.current_thread().name!r}"]
+    try:
+        yield
+    finally:
+        _CALLER.clear()
+        _CALL.release()
 
 
 def _overrides(overrides: str | Sequence[str], what: str) -> list[str]:
@@ -178,6 +211,11 @@ def _directory(kind: str, dir: str | os.PathLike | None, root: str | os.PathLike
         return []
     _refuse_both(overrides, f"hydra.{kind}.dir", "dir" if dir is not None else "root")
     path = str(dir) if dir is not None else os.path.join(str(root), f"{kind}s")
+    if "${" in path:  # Hydra resolves its output paths again where it uses them (its log file's name)
+        argument = "dir" if dir is not None else "root"
+        raise RunError(f"error: {argument}={path!r}: holds '${{', which Hydra would read as an interpolation (its own "
+                       "output paths are resolved again where they are used), so the files would not go into exactly "
+                       f"{argument}; give a path without '${{' (resolve it in Python, e.g. os.path.expandvars)")
     quoted = "'" + path.replace("\\", "\\\\").replace("'", "\\'") + "'"
     if dir is None:  # the command's stamp, made by Hydra's interpolation as for the default
         quoted = quoted[:-1] + "/${decrun.stamp:}'"

@@ -19,6 +19,7 @@ from decrun.runner.job.failures import (
     find_os_error,
     memory_error_text,
     os_error_message,
+    shorten_words,
 )
 
 
@@ -147,10 +148,11 @@ def part_missing_message(exc: Exception) -> str | None:
     if not isinstance(exc, MissingConfigException):
         return None
     text = str(exc)
-    match = re.search(r"In '([^'/]+)/([^']+)': Could not (?:find|load) '([^']+)/parts/([^'/]+)'", text)
+    match = re.search(r"In '([^'/]+)/([^']+)': Could not (?:find|load) '([^']+?)/parts/([^']*)'", text)
     if match is None or match.group(1) != match.group(3):
         return None
     group, model, _, part = match.groups()
+    named = part and "/" not in part and part not in (".", "..")  # `parts=[/etc/passwd]`, `parts=['']`: no name
     options: set[str] = set()
     for root in re.findall(r"path=file://(\S+)", text):
         directory = Path(root) / group / "parts"
@@ -159,6 +161,9 @@ def part_missing_message(exc: Exception) -> str | None:
     close = difflib.get_close_matches(part, sorted(options), n=1)
     hint = f"; did you mean {close[0]}?" if close else ""
     listing = f" (the parts: {' | '.join(sorted(options))})" if options else " (there are none)"
+    if not named:
+        return f"error: {group}={model}: {shorten_words(repr(part))} is not a part's name (a file in {group}/parts/, " \
+               f"no path){listing}"
     return (f"error: {group}={model}: no part {part} ({group}/parts/{part}.yaml is in no config directory of the "
             f"search path){hint}{listing}")
 

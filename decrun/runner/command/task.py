@@ -133,7 +133,11 @@ def main() -> None:
 def hydra_command(args: list[str]) -> None:
     """The ``decrun`` command's Hydra app for the command line ``args`` (``sys.argv[1:]``, set
     by the caller), run Hydra's own way. What the app raises, Hydra's exit included, reaches
-    the caller (:func:`main`, :func:`decrun.run`)."""
+    the caller (:func:`main`, :func:`decrun.run`). The search path's config files are checked
+    first (:func:`~decrun.runner.io.config_files.check_config_files`)."""
+    from decrun.runner.io.config_files import check_config_files
+
+    check_config_files(args, config_dir())
     _hydra_main()
 
 

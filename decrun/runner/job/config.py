@@ -9,6 +9,7 @@ composes YAML only; the runner type-checks each node against its class before an
 from __future__ import annotations
 
 import functools
+import io
 import secrets
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -19,6 +20,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
+from decrun.runner.io.config_files import check_aliases
 
 __all__ = ["DecrunConfig", "OptimizeConfig", "Direction", "PluginGroup", "GROUPS", "GROUP", "PLUGIN_GROUPS", "register_configs", "config_dir", "load_option",
            "compose_config", "unique_stamp"]
@@ -213,7 +215,9 @@ def load_option(group: str, name: str):
     path = root / group / f"{name}.yaml"
     if not path.is_file():
         raise ConfigError(f"{group}={name}: no such option (conf/{group}/{name}.yaml)")
-    node = OmegaConf.load(path)
+    text = path.read_text(encoding="utf-8")
+    check_aliases(text, path, ConfigError)
+    node = OmegaConf.load(io.StringIO(text))
     # same-group entries only: an override of another group (app/hodge's operator) is not part of this node;
     # a subgroup merged here (a composed model's `parts@_here_: [a, b]`: conf/app/parts/a.yaml …) is
     parts = []

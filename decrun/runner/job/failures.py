@@ -297,6 +297,32 @@ def _file_being_loaded(exc: BaseException) -> str | None:
     return path
 
 
+def _unreadable_config(exc: BaseException, args: list[str]) -> str | None:
+    """``<file>: …`` for a config file that cannot be read: a byte that is not UTF-8 (a Latin-1
+    ``é`` in a comment: the file and the byte's offset), or an OS error on a file or directory of
+    the config search path (unreadable, a directory where a file is expected: the path and the
+    cause, never "cannot write"). None for any other error."""
+    undecodable = find_in_chain(exc, UnicodeDecodeError)
+    path = _file_being_loaded(undecodable) if isinstance(undecodable, UnicodeDecodeError) else None
+    if isinstance(undecodable, UnicodeDecodeError) and path is not None:
+        byte = undecodable.object[undecodable.start]
+        return (f"{path}: byte 0x{byte:02x} at offset {undecodable.start} is not UTF-8 (config files are UTF-8 text, "
+                "comments too); save the file as UTF-8 (e.g. iconv -f latin1 -t utf-8)")
+    os_error = find_in_chain(exc, OSError)
+    if not isinstance(os_error, OSError) or os_error.filename is None:
+        return None
+    from decrun.runner.job.config import config_dir
+    from decrun.runner.io.config_files import search_roots
+
+    where = Path(os.path.abspath(os_error.filename))
+    if not any(where == root or root in where.parents for root in search_roots(args, config_dir())):
+        return None
+    cause = os.strerror(os_error.errno) if isinstance(os_error.errno, int) else str(os_error)
+    fix = "make it readable (chmod u+r" + (",u+x" if where.is_dir() else "") + f" {where})" \
+        if os_error.errno in (errno.EACCES, errno.EPERM) else "fix or remove it"
+    return f"cannot read the config {'directory' if where.is_dir() else 'file'} {where}: {cause}; {fix}"
+
+
 def config_error_message(exc: BaseException, args: list[str] | None = None) -> str | None:
     """``error: …`` (one line) for a config Hydra could not read: a YAML error in a config
     file (naming the file and line), or one nested too deeply for Python's stack (naming
@@ -308,6 +334,9 @@ def config_error_message(exc: BaseException, args: list[str] | None = None) -> s
     yaml_error = find_in_chain(exc, yaml.YAMLError)
     if yaml_error is not None:
         return f"error: {_yaml_message(yaml_error)}"
+    unreadable = _unreadable_config(exc, args or [])
+    if unreadable is not None:
+        return f"error: {unreadable}"
     recursion = find_in_chain(exc, RecursionError)
     if recursion is None:
         return None

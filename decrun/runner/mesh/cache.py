@@ -14,9 +14,12 @@ as one ``<key>.npz`` file holding the vertices (float64), the triangles (int64),
 ``extra`` (e.g. the repair counts), the key's own text and the arrays' sha256. The file is
 written under a unique temporary name in the cache directory and renamed onto its place
 (atomic on POSIX, also between processes of a sweep or SLURM jobs on one shared file
-system: a reader sees a whole entry or none). Reading checks the key's text, the arrays'
-dtypes and shapes and the arrays' sha256; an entry that fails any check is reported in the log
-and rebuilt (overwritten), never used. The arrays come back bit for bit, vertex order and all.
+system: a reader sees a whole entry or none). Reading checks that the entry is a regular file
+(a FIFO would block the run), the key's text, the arrays' dtypes and shapes, the arrays' sha256,
+and what a hash recomputed by hand cannot vouch for: finite vertices, face indices in range, and
+``extra`` a dict nested at most :data:`MAX_EXTRA_NESTING` levels. An entry that fails any check
+is reported in the log (a warning naming the entry and the check) and rebuilt (overwritten),
+never used. The arrays come back bit for bit, vertex order and all.
 
 Where: ``$DECRUN_MESH_CACHE`` if set, else ``$XDG_CACHE_HOME/decrun/meshes``, else
 ``~/.cache/decrun/meshes``. ``DECRUN_MESH_CACHE=off`` (or ``0``, ``false``, ``no``, empty)
@@ -29,6 +32,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import stat
 import tempfile
 from pathlib import Path
 from typing import Any, Callable
@@ -46,6 +50,8 @@ OFF = ("", "0", "off", "false", "no", "none")
 #: the entry layout; a change of it is a new key
 FORMAT = 1
 _FIELDS = {"vertices", "faces", "extra", "spec", "hash"}
+#: the deepest an entry's ``extra`` may nest (what decrun stores there is a flat dict of counts)
+MAX_EXTRA_NESTING = 8
 
 log = logging.getLogger("decrun")
 
@@ -90,10 +96,35 @@ def _entry(directory: Path, spec: str) -> Path:
     return directory / f"{text_sha256(spec)}.npz"
 
 
+def _open_regular(path: Path):
+    """``path`` opened for reading in binary, or :class:`_Unusable` when it is not a regular file
+    (a FIFO, which would block the run until something writes to it; a device, a directory).
+    Opened without blocking and checked on the open descriptor, so nothing can be swapped in
+    between the check and the read."""
+    descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+        os.close(descriptor)
+        raise _Unusable("not a regular file (a FIFO, a device or a directory)")
+    return os.fdopen(descriptor, "rb")
+
+
+def _nesting(value: Any) -> int:
+    """How deeply the lists and dicts of a JSON value nest (0 for a scalar), counted without
+    recursion."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        item, depth = stack.pop()
+        members = item.values() if isinstance(item, dict) else item if isinstance(item, list) else None
+        if members is not None:
+            deepest = max(deepest, depth + 1)
+            stack.extend((member, depth + 1) for member in members)
+    return deepest
+
+
 def _read(path: Path, spec: str) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """The entry's (vertices, faces, extra) after its checks; :class:`_Unusable` names the failed one."""
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with _open_regular(path) as stream, np.load(stream, allow_pickle=False) as data:
             if set(data.files) != _FIELDS:
                 raise _Unusable(f"fields {sorted(data.files)}, expected {sorted(_FIELDS)}")
             arrays = {name: data[name] for name in _FIELDS}
@@ -110,10 +141,17 @@ def _read(path: Path, spec: str) -> tuple[np.ndarray, np.ndarray, dict[str, Any]
         raise _Unusable(f"faces {faces.dtype} {faces.shape}, expected int64 (m, 3)")
     if str(arrays["hash"]) != content_hash(vertices, faces):
         raise _Unusable("its mesh hash does not match its arrays")
+    # the hash says the arrays are the ones written, not that what was written is a mesh
+    if not np.isfinite(vertices).all():
+        raise _Unusable("a vertex coordinate is not finite")
+    if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise _Unusable(f"a face index is outside 0 … {len(vertices) - 1} (faces span {faces.min()} … {faces.max()})")
     try:
         extra = json.loads(str(arrays["extra"]))
-    except ValueError as exc:
-        raise _Unusable(f"extra is not JSON: {exc}") from exc
+    except (ValueError, RecursionError) as exc:
+        raise _Unusable(f"extra is not JSON decrun reads: {type(exc).__name__}: {exc}") from exc
+    if not isinstance(extra, dict) or _nesting(extra) > MAX_EXTRA_NESTING:
+        raise _Unusable(f"extra is not a dict nested at most {MAX_EXTRA_NESTING} levels")
     return vertices, faces, extra
 
 

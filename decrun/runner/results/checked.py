@@ -7,6 +7,8 @@ claims, or follow a path out of the file. The readers here raise one
 
 * :func:`load_json` / :func:`load_yaml` -- unparsable text, nesting deeper than Python's
   recursion limit, YAML tags that would build Python objects (``!!python/object``);
+* :func:`open_regular` -- anything that is not a regular file (a FIFO would block the reader),
+  refused before it is read, by every reader here;
 * :func:`open_h5` -- not an HDF5 file; :func:`check_group` / :func:`read_dataset` -- links
   to other files (external links), external storage (``Dataset.external``), virtual
   datasets, and datasets whose declared shape is more than their stored bytes can hold
@@ -30,7 +32,7 @@ from decrun.core import digest
 from decrun.errors import CorruptFileError
 from decrun.runner.io.files import RunFiles
 
-__all__ = ["parse_json", "load_json", "load_yaml", "open_h5", "check_group", "checked_members", "check_dataset", "read_dataset", "file_record",
+__all__ = ["open_regular", "parse_json", "load_json", "load_yaml", "open_h5", "check_group", "checked_members", "check_dataset", "read_dataset", "file_record",
            "check_record", "MAX_DEFLATE_RATIO", "RESULT_RECORD", "CONTENT"]
 
 #: the key of metrics.json recording its result.h5 (:func:`file_record`)
@@ -44,11 +46,29 @@ MAX_DEFLATE_RATIO = 1100
 _SMALL_BYTES = 1 << 20
 
 
+def open_regular(path: str | os.PathLike):
+    """``path`` opened for binary reading, or :class:`CorruptFileError` naming it when it is not a
+    regular file: a FIFO (reading it would wait for a writer forever), a device, a socket, a
+    directory. The check is made on the open descriptor (opened without blocking, which a regular
+    file ignores), so nothing can be swapped in between; ``FileNotFoundError`` when absent."""
+    import stat
+
+    descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    mode = os.fstat(descriptor).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(descriptor)
+        kind = "a FIFO" if stat.S_ISFIFO(mode) else "a directory" if stat.S_ISDIR(mode) else "a special file"
+        raise CorruptFileError(f"{path}: not a regular file ({kind}); decrun reads only regular files")
+    return os.fdopen(descriptor, "rb")
+
+
 def _read_text(path: str | os.PathLike) -> str:
     """The text of ``path``: ``FileNotFoundError`` when absent (the caller's "missing"),
-    :class:`CorruptFileError` naming it when it cannot be read or is not text."""
+    :class:`CorruptFileError` naming it when it cannot be read, is not a regular file
+    (:func:`open_regular`) or is not text."""
     try:
-        return Path(path).read_text()
+        with open_regular(path) as stream:
+            return stream.read().decode()
     except FileNotFoundError:
         raise
     except (OSError, UnicodeDecodeError) as exc:
@@ -79,11 +99,15 @@ def load_yaml(path: str | os.PathLike) -> Any:
     """The YAML value in ``path`` read with ``yaml.safe_load`` (no Python object tags).
 
     Raises ``FileNotFoundError`` when absent and :class:`CorruptFileError` naming the file
-    for unreadable text, invalid YAML, a ``!!python/...`` tag or too deep nesting."""
+    for unreadable text, invalid YAML, a ``!!python/...`` tag, too deep nesting or an alias bomb
+    (:func:`~decrun.runner.io.config_files.check_aliases`)."""
     import yaml
+
+    from decrun.runner.io.config_files import check_aliases
 
     path = Path(path)
     text = _read_text(path)
+    check_aliases(text, path)  # an alias bomb, before a reader walks its expansion
     try:
         return yaml.safe_load(text)
     except RecursionError:
@@ -102,6 +126,7 @@ def open_h5(path: str | os.PathLike) -> Iterator[Any]:
 
     path = Path(path)
     try:
+        open_regular(path).close()  # a FIFO would block HDF5's open
         f = h5py.File(path, "r")
     except FileNotFoundError:
         raise

@@ -47,7 +47,7 @@ import numpy as np
 
 from decrun.errors import CorruptFileError
 from decrun.runner.io.atomic import atomic_path
-from decrun.runner.results.checked import parse_json
+from decrun.runner.results.checked import open_regular, parse_json
 
 MAGIC = b"DECRUNJ1"
 FORMAT = "decrun-journal-1"
@@ -260,7 +260,7 @@ def read_journal(path: str | os.PathLike, *, verify: bool = True) -> Journal:
     the file's size before anything is read or allocated.
     """
     path = Path(path)
-    with open(path, "rb") as f:
+    with open_regular(path) as f:  # a FIFO: refused, never waited on
         size = os.fstat(f.fileno()).st_size
         head = f.read(16)
         if len(head) < 16 or head[:8] != MAGIC:

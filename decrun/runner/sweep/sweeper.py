@@ -343,9 +343,10 @@ class ManifestSweeper(Sweeper):
                              f"command plans {len(jobs)}; resume with the sweep's own overrides: "
                              f"{' '.join(manifest['overrides'])}")
         for old, new in zip(planned, jobs, strict=True):
-            if old["overrides"] != new["overrides"] or old["config_hash"] != new["config_hash"]:
+            same = _identity(old["overrides"]) == _identity(new["overrides"])  # the tracker may change
+            if not same or old["config_hash"] != new["config_hash"]:
                 what = ("overrides " + " ".join(new["overrides"]) + " differ from " + " ".join(old["overrides"])
-                        if old["overrides"] != new["overrides"] else
+                        if not same else
                         f"config hash {new['config_hash']} differs from {old['config_hash']} (a config file changed)")
                 raise SweepError(f"error: hydra.sweeper.resume=true: job {old['job']}: {what}; resume with "
                                  "the same overrides and configs, or start a new sweep")
@@ -358,6 +359,21 @@ class ManifestSweeper(Sweeper):
         run["jobs"] = [j["job"] for j in todo]
         manifest.setdefault("runs", []).append(run)
         return manifest, todo
+
+
+#: config roots whose overrides are not part of a job's identity on resume: where its runs are
+#: logged (docs/tracking.md: a `tracker=none` sweep resumes with `tracker=mlflow`, and back)
+NOT_IDENTITY = ("tracker",)
+
+
+def _identity(overrides: Sequence[str]) -> list[str]:
+    """A job's overrides without those of :data:`NOT_IDENTITY` (``tracker=mlflow``,
+    ``tracker.uri=…``, ``+tracker.x=…``), in their order: what a resumed job must repeat."""
+    def root(override: str) -> str:
+        key = override.partition("=")[0].lstrip("+~").partition("@")[0]
+        return key.replace("/", ".").partition(".")[0]
+
+    return [o for o in overrides if root(str(o)) not in NOT_IDENTITY]
 
 
 def _batches(nums: list[int], size: Optional[int]) -> list[tuple[int, int]]:

@@ -37,6 +37,7 @@ decrun).
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import os
@@ -47,6 +48,7 @@ from typing import Any, ClassVar, cast
 
 from decrun.core.digest import Digest
 from decrun.errors import ConfigError, CorruptFileError
+from decrun.runner.io.config_files import check_aliases
 
 __all__ = ["Tracker", "NoTracker", "RunRecord", "STATUS", "track_sweep", "track_run",
            "job_record", "read_series", "flatten", "read_state"]
@@ -245,7 +247,9 @@ def _params(job_dir: Path, attrs: dict, shared: dict | None = None) -> dict[str,
     path = job_dir / RunFiles.HYDRA / "config.yaml"
     if not path.is_file():
         return {}
-    cfg = OmegaConf.load(path)
+    text = path.read_text()
+    check_aliases(text, path)
+    cfg = OmegaConf.load(io.StringIO(text))
     try:
         config = cast(dict, OmegaConf.to_container(cfg, resolve=True))  # a config.yaml is a mapping
     except Exception:  # noqa: BLE001 — e.g. ${oc.env:X} unset in this process: the text as written
@@ -260,6 +264,7 @@ def _composed(text: str, where: str):
     ``yaml.safe_load`` would); CorruptFileError naming ``where``."""
     import yaml
 
+    check_aliases(text, where)  # an alias bomb, before construct_object and flatten walk its expansion
     loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)(text)
     try:
         yield loader, loader.get_single_node()
@@ -305,6 +310,7 @@ def _yaml(text: str, where: str) -> Any:
     hydra.yaml is read for every job of a sweep); CorruptFileError naming ``where``."""
     import yaml
 
+    check_aliases(text, where)
     try:
         return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except (yaml.YAMLError, RecursionError) as exc:

@@ -10,7 +10,9 @@ temporary directory holding hard links to exactly the run's files (:func:`_stage
 run's local artifact directory through MLflow's artifact repository of the ``artifact_uri`` the
 run came with — the client would look the run up once more for it),
 ``set_terminated`` with ``FINISHED`` / ``FAILED`` / ``KILLED`` for ``ok`` / ``failed`` /
-``killed``. An existing run (a resumed sweep) gets the params it lacks, the new metric values,
+``killed``. A new run is tagged ``decrun.run_key`` (:func:`run_key`) so that a run made by a
+process killed before it wrote ``tracking.json`` is found again (``search_runs``) and
+logged into, never doubled. An existing run (a resumed sweep) gets the params it lacks, the new metric values,
 tags, artifacts and status. A param value longer than MLflow takes (6000 characters) is not
 cut: it goes to the tag ``param.<key>`` (up to 8000), and one longer still is named in the tag
 ``decrun.params_in_config_yaml`` (the artifact ``config.yaml`` holds every value).
@@ -40,6 +42,20 @@ __all__ = ["MlflowTracker"]
 
 #: ``status`` tag → MLflow's run status
 RUN_STATUS = {"ok": "FINISHED", "failed": "FAILED", "killed": "KILLED"}
+#: the tag naming what a run logs (:func:`run_key`), set when the run is made
+RUN_KEY = "decrun.run_key"
+
+
+def run_key(record: RunRecord) -> str:
+    """32 hex digits of sha256 over the absolute directory a run logs (a sweep's, a job's, a single
+    run's): one key per job for as long as its directory is where it is. Tagged at ``create_run``,
+    it finds the run again when a kill came between ``create_run`` and ``tracking.json``, so a
+    resume logs into that run instead of making a second one (docs/tracking.md)."""
+    from decrun.core.digest import text_sha256
+
+    return text_sha256(str(Path(record.dir).resolve()))[:32]
+
+
 #: MLflow's limits (mlflow.utils.validation)
 MAX_PARAMS_TAGS_PER_BATCH = 100
 MAX_ENTITIES_PER_BATCH = 1000
@@ -70,6 +86,7 @@ class MlflowTracker(Tracker):
             raise ConfigError("tracker.experiment: empty; name the MLflow experiment, e.g. tracker.experiment=decrun")
         self._client = None
         self._experiment_id = None
+        self._keyed: dict[str, dict[str, Any]] = {}  # parent run id → run key → run (:meth:`_made_before`)
 
     def check(self) -> None:
         require("mlflow", "mlflow", "'decrun[mlflow]'")
@@ -125,7 +142,8 @@ class MlflowTracker(Tracker):
         from mlflow.entities import Metric, Param, RunTag
 
         client = self.client()
-        existing = self._existing(run_id)
+        identity = run_key(record)
+        existing = self._existing(run_id) or self._made_before(record, identity)
         tags = dict(record.tags)
         params, too_long = {}, []
         for key, value in record.params.items():
@@ -138,7 +156,7 @@ class MlflowTracker(Tracker):
         if too_long:
             tags["decrun.params_in_config_yaml"] = ", ".join(too_long)
         if existing is None:
-            run_tags = {**tags, **({"mlflow.parentRunId": record.parent} if record.parent else {})}
+            run_tags = {**tags, RUN_KEY: identity, **({"mlflow.parentRunId": record.parent} if record.parent else {})}
             run = client.create_run(self._experiment_id, run_name=record.name, tags=run_tags)
             run_id, artifact_uri, tags = run.info.run_id, run.info.artifact_uri, {}
         else:
@@ -179,8 +197,33 @@ class MlflowTracker(Tracker):
             raise
         return run if run.info.lifecycle_stage == "active" else None
 
+    def _made_before(self, record: RunRecord, key: str) -> Any:
+        """The active run tagged :data:`RUN_KEY` ``key`` in the experiment — the run a process
+        made for this record before it was killed, ahead of writing ``tracking.json`` — or None.
+        A job's runs are looked up once per sweep run (every run under ``record.parent``, through
+        MLflow's public ``search_runs``), so a sweep of n jobs costs n/1000 searches, not n."""
+        parent = record.parent or ""
+        if parent not in self._keyed:
+            found: dict[str, Any] = {}
+            where = f"tags.`mlflow.parentRunId` = '{parent}'" if parent else f"tags.`{RUN_KEY}` = '{key}'"
+            token = None
+            while True:
+                page = self.client().search_runs([self._experiment_id], filter_string=where, max_results=1000,
+                                                 order_by=["attributes.start_time ASC"], page_token=token)
+                for run in page:  # the latest of several (made by older versions) wins
+                    if RUN_KEY in run.data.tags:
+                        found[run.data.tags[RUN_KEY]] = run
+                token = page.token
+                if not token:
+                    break
+            if not parent:
+                return found.get(key)
+            self._keyed[parent] = found
+        return self._keyed[parent].get(key)
+
     def close(self) -> None:
         self._client = None
+        self._keyed = {}
 
 
 def _local_artifacts(artifact_uri: str | None) -> Any:

@@ -3,6 +3,7 @@ without importing pymeshlab; a bad entry is reported and rebuilt, never used."""
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import subprocess
@@ -108,9 +109,56 @@ def corrupt_the_dtype(path: Path) -> None:
         np.savez(out, **arrays)
 
 
+def rewritten(path: Path, **changes) -> None:
+    """The entry at ``path`` written again with ``changes`` to its arrays and its hash recomputed:
+    a well-formed entry whose hash vouches for what it holds (issue 50, item 12)."""
+    with np.load(path) as data:
+        arrays = {name: data[name] for name in data.files}
+    arrays.update(changes)
+    arrays["hash"] = np.array(cache.content_hash(arrays["vertices"], arrays["faces"]))
+    with open(path, "wb") as out:
+        np.savez(out, **arrays)
+
+
+def corrupt_a_face_index(path: Path) -> None:
+    """A face pointing past the last vertex, the hash recomputed."""
+    with np.load(path) as data:
+        faces, count = data["faces"].copy(), len(data["vertices"])
+    faces[3, 1] = count + 7
+    rewritten(path, faces=faces)
+
+
+def corrupt_a_coordinate_to_nan(path: Path) -> None:
+    with np.load(path) as data:
+        vertices = data["vertices"].copy()
+    vertices[2, 1] = np.nan
+    rewritten(path, vertices=vertices)
+
+
+def corrupt_extra_by_nesting(path: Path) -> None:
+    """``extra`` nested 100 000 levels deep (not covered by the hash): json.loads overflows the stack."""
+    rewritten(path, extra=np.array("[" * 100_000 + "]" * 100_000))
+
+
+def corrupt_extra_by_moderate_nesting(path: Path) -> None:
+    """``extra`` nested 50 levels: readable, beyond the bound."""
+    rewritten(path, extra=np.array('{"a": ' * 50 + "1" + "}" * 50))
+
+
+def corrupt_into_a_fifo(path: Path) -> None:
+    """A FIFO in place of the entry: opening it for reading would block until a writer comes."""
+    path.unlink()
+    os.mkfifo(path)
+
+
 @pytest.mark.parametrize("corrupt, reason", [(corrupt_by_truncation, "unreadable"),
                                              (corrupt_a_vertex, "mesh hash does not match"),
-                                             (corrupt_the_dtype, "faces int32")])
+                                             (corrupt_the_dtype, "faces int32"),
+                                             (corrupt_a_face_index, "a face index is outside 0 … 41"),
+                                             (corrupt_a_coordinate_to_nan, "not finite"),
+                                             (corrupt_extra_by_nesting, "RecursionError"),
+                                             (corrupt_extra_by_moderate_nesting, "nested at most 8 levels"),
+                                             (corrupt_into_a_fifo, "not a regular file")])
 def test_a_corrupt_entry_is_reported_and_rebuilt_never_used(cache_dir, caplog, corrupt, reason):
     """A truncated file, a changed vertex or a wrong dtype: the load logs a warning naming the
     entry and the failed check, makes the mesh again (the same one) and rewrites the entry."""
@@ -118,7 +166,7 @@ def test_a_corrupt_entry_is_reported_and_rebuilt_never_used(cache_dir, caplog, c
     (path,) = entries(cache_dir)
     corrupt(path)
     with caplog.at_level(logging.WARNING, logger="decrun"):
-        again = mesh(source="icosphere", subdiv=1)
+        again = within(60, path, lambda: mesh(source="icosphere", subdiv=1))
     warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warnings) == 1 and str(path) in warnings[0] and reason in warnings[0], warnings
     assert np.array_equal(again.vertices, good.vertices) and np.array_equal(again.simplices, good.simplices)
@@ -126,6 +174,24 @@ def test_a_corrupt_entry_is_reported_and_rebuilt_never_used(cache_dir, caplog, c
     with caplog.at_level(logging.WARNING, logger="decrun"):
         mesh(source="icosphere", subdiv=1)  # the rewritten entry passes its checks
     assert caplog.records == [] and entries(cache_dir) == [path]
+
+
+def within(seconds: float, path: Path, load):
+    """``load()``'s value, failing the test when it takes more than ``seconds`` (a read blocked on
+    a FIFO at ``path`` is then released by opening the FIFO for writing, so the test ends)."""
+    import threading
+
+    outcome: dict = {}
+    worker = threading.Thread(target=lambda: outcome.update(value=load()), daemon=True)
+    worker.start()
+    worker.join(seconds)
+    if worker.is_alive():
+        if path.exists() and not path.is_file():
+            os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))
+        worker.join(10)
+        pytest.fail(f"loading the mesh blocked for more than {seconds} s on {path}")
+    assert "value" in outcome, "the load raised (see the thread's traceback above)"
+    return outcome["value"]
 
 
 def test_an_entry_for_another_key_is_not_used(cache_dir, caplog):
@@ -207,3 +273,25 @@ def test_processes_sharing_a_cache_each_get_the_whole_mesh(cache_dir, tmp_path):
     assert all(p.returncode == 0 for p in procs), [err[-2000:] for _, err in outs]
     assert len({out.strip() for out, _ in outs}) == 1
     assert len(entries(cache_dir)) == 1 and [p.name for p in cache_dir.iterdir()] == [entries(cache_dir)[0].name]
+
+
+@pytest.mark.parametrize("corrupt, reason", [(corrupt_a_face_index, "a face index is outside"),
+                                             (corrupt_extra_by_nesting, "RecursionError"),
+                                             (corrupt_into_a_fifo, "not a regular file")],
+                         ids=["face", "extra", "fifo"])
+def test_the_command_rebuilds_an_invalid_entry_with_a_warning(cache_dir, tmp_path, corrupt, reason):
+    """Through the real ``decrun`` (issue 50, items 7 and 12): an entry with an out-of-range face
+    under a recomputed hash, a nested ``extra``, or a FIFO in its place is a miss — the run
+    warns naming the entry, rebuilds it and finishes — never a failed run or a blocked one."""
+    from cli_processes import decrun
+
+    args = ["app=heat", "mesh.subdiv=1", "app.steps=2", "figures=false"]
+    first = decrun(*args, "hydra.run.dir=first", cwd=tmp_path, timeout=120)
+    assert first.returncode == 0, first.stderr[-2000:]
+    (path,) = entries(cache_dir)
+    corrupt(path)
+    proc = decrun(*args, "hydra.run.dir=second", cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    warnings = [line for line in proc.stderr.splitlines() if "mesh cache" in line]
+    assert len(warnings) == 1 and str(path) in warnings[0] and reason in warnings[0], proc.stderr[-2000:]
+    assert path.is_file() and json.loads((tmp_path / "second" / "metrics.json").read_text())["status"] == "ok"

@@ -361,3 +361,51 @@ def test_a_result_checked_twice_in_a_process_is_read_once_and_any_change_is_read
     with pytest.raises(CorruptFileError, match="sha256 differs"):
         checked.check_record(path, record)
     assert len(reads) == 4
+
+
+def test_a_kill_between_making_a_run_and_keeping_its_id_makes_no_second_run(tmp_path):
+    """Issue 50, item 13: a SIGKILL after MLflow made a job's run (and the sweep's) but before
+    ``tracking.json`` kept its id leaves the run RUNNING and no id on disk. That state, made here
+    exactly (the id files removed, the runs set back to RUNNING), then a resume: the same runs are
+    found again by their ``decrun.run_key`` tag and logged into — no second run, none left RUNNING."""
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    sweep = ["-m", "app=heat", "mesh.subdiv=1", "app.steps=2", "figures=false", "app.dt=1e-3,2e-3", "tracker=mlflow",
+             f"tracker.uri={uri}", "hydra.sweep.dir=sweep"]
+    first = decrun(*sweep, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr[-2000:]
+    before = {r.info.run_id: r for r in _runs(uri)}
+    assert len(before) == 3
+    client = _client(uri)
+    for directory in (tmp_path / "sweep", tmp_path / "sweep" / "0"):
+        state = directory / "tracking.json"
+        client.set_terminated(json.loads(state.read_text())[uri]["run_id"], status="RUNNING")
+        state.unlink()
+    resumed = decrun(*sweep, "hydra.sweeper.resume=true", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    after = {r.info.run_id: r for r in _runs(uri)}
+    assert set(after) == set(before), [r.info.run_name for r in after.values()]
+    assert all(r.info.status == "FINISHED" for r in after.values()), [r.info.status for r in after.values()]
+    job = json.loads((tmp_path / "sweep" / "0" / "tracking.json").read_text())[uri]["run_id"]
+    assert after[job].data.tags["decrun.job"] == "0" and job in before
+
+
+@pytest.mark.parametrize("first, then", [("none", "mlflow"), ("mlflow", "none")])
+def test_a_sweep_resumes_with_the_tracker_switched(tmp_path, first, then):
+    """Issue 50, item 14 (docs/tracking.md): the tracker is not part of a job's identity, so a
+    ``tracker=none`` sweep resumes with ``tracker=mlflow`` (which logs it: one run per job under
+    one for the sweep), and the other way round (nothing more is logged)."""
+    uri = f"sqlite:///{tmp_path / 'mlflow.db'}"
+    base = ["-m", "app=heat", "mesh.subdiv=1", "app.steps=2", "figures=false", "app.dt=1e-3,2e-3",
+            "hydra.sweep.dir=sweep"]
+
+    def tracker(name):
+        return ["tracker=mlflow", f"tracker.uri={uri}"] if name == "mlflow" else ["tracker=none"]
+
+    proc = decrun(*base, *tracker(first), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    logged = len(_runs(uri)) if first == "mlflow" else 0
+    proc = decrun(*base, *tracker(then), "hydra.sweeper.resume=true", cwd=tmp_path)
+    assert proc.returncode == 0 and "differ" not in proc.stderr, proc.stderr[-2000:]
+    assert len(_runs(uri)) == (3 if "mlflow" in (first, then) else 0) and logged in (0, 3)
+    if then == "mlflow":
+        assert "decrun: tracker=mlflow: 2 jobs under run" in proc.stdout, proc.stdout

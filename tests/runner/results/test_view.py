@@ -133,6 +133,20 @@ def test_list_and_refusals_are_one_line(runs, tmp_path):
     assert not (tmp_path / "x.png").exists()
 
 
+@pytest.mark.parametrize("name", ["result.h5", "result.h5.partial"])
+def test_a_fifo_in_place_of_the_result_is_one_line_never_a_hang(tmp_path, name):
+    """Issue 50, item 7: a FIFO where the result (or its journal) should be is refused before it
+    is opened — opening it would wait for a writer forever."""
+    run = tmp_path / "run"
+    run.mkdir()
+    os.mkfifo(run / name)
+    # a child blocked on the FIFO (the failure this test catches) is killed at the timeout
+    done = subprocess.run([sys.executable, "-m", "decrun.runner.view", str(run), "--list"], cwd=tmp_path,
+                          env=env(), capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr[-2000:]
+    assert f"{run / name}: not a regular file (a FIFO)" in done.stderr
+
+
 def test_without_polyscope_one_line_install_hint(runs, tmp_path):
     code = ("import sys; sys.modules['polyscope'] = None; from decrun.runner.view import main; "
             f"sys.exit(main([{str(runs['height'])!r}, '--screenshot', 'x.png']))")

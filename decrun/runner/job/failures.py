@@ -311,8 +311,8 @@ def _unreadable_config(exc: BaseException, args: list[str]) -> str | None:
     os_error = find_in_chain(exc, OSError)
     if not isinstance(os_error, OSError) or os_error.filename is None:
         return None
-    from decrun.runner.job.config import config_dir
     from decrun.runner.io.config_files import search_roots
+    from decrun.runner.job.config import config_dir
 
     where = Path(os.path.abspath(os_error.filename))
     if not any(where == root or root in where.parents for root in search_roots(args, config_dir())):

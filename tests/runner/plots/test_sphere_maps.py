@@ -14,9 +14,9 @@ import pytest
 
 from decrun.errors import DecrunError
 from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import prepare, run_experiment
 from decrun.runner.plots.lonlat import SphereInterpolator, directions, lonlat_grid, on_triangles, regrid
 from decrun.runner.plots.sphere import contour_levels, error_map, mapped, sphere_map
-from decrun.runner.job.run import prepare, run_experiment
 
 from cli_processes import decrun
 from meshes_for_tests import complex_of, icosphere

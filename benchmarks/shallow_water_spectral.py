@@ -16,10 +16,13 @@ points (alias-free for quadratic terms) and brought back by the scalar and spin-
 (E, B), ∇·A ↦ −√(l(l+1)) E / a and k·∇×A ↦ −√(l(l+1)) B / a. Transforms: ``ducc0.sht`` (synthesis_2d /
 analysis_2d, geometry "GL").
 
-Time stepping (the standard one of spectral shallow-water models): semi-implicit leapfrog — the gravity-wave
-terms g∇²h and H̄ δ (H̄ the largest initial depth) averaged over (n−1, n+1), all else explicit at n — with the
-Robert–Asselin–Williams filter (ν = 0.02, α = 0.53; Williams 2011), started by four classical RK4 substeps of
-dt/4. ``--scheme rk4`` runs explicit RK4 on the full tendencies instead (the time-error check).
+Time stepping: the stored TC5/TC6 references are ``--scheme rk4`` runs — explicit classical RK4 on the full
+tendencies. The default ``--scheme leapfrog`` is the standard one of spectral models: semi-implicit leapfrog —
+the gravity-wave terms g∇²h and H̄ δ (H̄ the largest initial depth) averaged over (n−1, n+1), all else
+explicit at n — with the Robert–Asselin–Williams filter (ν = 0.02, α = 0.53; Williams 2011), started by four
+RK4 substeps of dt/4. It is 4× cheaper per step but its phase error on advected small scales and on
+gravity waves is of the size of the errors the reference must resolve (benchmarks/data/README.md: at T170
+TC5's day 15 differs from RK4's by l2 8.6e-4 at dt 300 s); it kept TC2 steady to round-off.
 
 dt: the leapfrog is stable for the explicitly treated advection while |u|max √(T(T+1)) dt / a < 1
 (the highest wavenumber's advective frequency times dt); the default dt is the largest divisor of 3600 s at
@@ -32,8 +35,8 @@ undamped; h is not diffused, so TC2's steady state is untouched). ν = a⁴ / (�
 time τ = 6 h of the highest degree T: ν = 9.0e13 m⁴/s at T170, 1.4e15 at T85 (printed at start). It is
 applied implicitly over the leapfrog's 2 dt (explicitly in RK4: ν(T(T+1)/a²)² dt ≪ 1).
 
-    python benchmarks/shallow_water_spectral.py --case tc5 --truncation 170 --days 15 \\
-        --output benchmarks/data/sw_tc5_T170_day15.npz --manifest
+    python benchmarks/shallow_water_spectral.py --case tc5 --truncation 170 --days 15 --scheme rk4 \\
+        --dt 300 --threads 2 --output 'benchmarks/data/sw_tc5_T170_rk4_day{day}.npz' --manifest
 
 writes the depth, free surface, ζ and δ coefficients and the depth on the Gauss grid at each day of ``--days``
 (``{day}`` in ``--output`` is replaced by the day), and with ``--manifest`` records each file's sha256 and the

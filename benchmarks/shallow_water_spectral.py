@@ -217,8 +217,12 @@ def default_dt(max_speed: float, lmax: int, scheme: str, max_depth: float) -> fl
     wavenumber = np.sqrt(lmax * (lmax + 1.0)) / EARTH_RADIUS
     limit = (0.5 / (1.2 * max_speed * wavenumber) if scheme == "leapfrog"
              else 1.4 / ((1.2 * max_speed + np.sqrt(GRAVITY * max_depth)) * wavenumber))
-    divisors = [d for d in range(1, 3601) if 3600 % d == 0 and d <= limit]
-    return float(max(divisors))
+    return largest_divisor_of_hour(limit)
+
+
+def largest_divisor_of_hour(limit: float) -> float:
+    """The largest divisor of 3600 s not above ``limit`` (s), so that every whole day is whole steps."""
+    return float(max(d for d in range(1, 3601) if 3600 % d == 0 and d <= max(limit, 1.0)))
 
 
 def save(path: Path, model: ShallowWater, state: tuple, case: str, day: float, meta: dict) -> None:
@@ -287,7 +291,7 @@ def run(args: argparse.Namespace, command: str) -> dict:
     for day, target in zip(targets, steps_at, strict=True):
         while stepper.step < target:
             stepper.advance()
-            if stepper.step % 50 == 0 or stepper.step == target:
+            if stepper.step == 1 or stepper.step % 50 == 0 or stepper.step == target:
                 check_courant(model, stepper.current, dt, wavenumber, args.scheme, stepper.step)
             if stepper.step % round(DAY / dt) == 0:
                 print(f"  day {stepper.step * dt / DAY:g} ({time.perf_counter() - started:.0f} s)", flush=True)
@@ -347,7 +351,7 @@ def check_courant(model: ShallowWater, state: tuple, dt: float, wavenumber: floa
     limit = 0.8 if scheme == "leapfrog" else 2.8
     if frequency * dt > limit:
         raise SystemExit(f"Courant number {frequency * dt:.2f} > {limit} at step {step} (|u|max {speed:.1f} m/s): "
-                         f"pass --dt {0.5 * limit / frequency:.0f} or less")
+                         f"pass --dt {largest_divisor_of_hour(0.5 * limit / frequency):g}")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -140,3 +140,20 @@ def test_the_solver_keeps_tc2_steady_to_round_off(tmp_path):
                                        "--output", str(tmp_path / "tc2.npz")])
         written = solver.run(args, "test")
         assert written[str(tmp_path / "tc2.npz")]["tc2_norms"]["l2"] < 1e-13
+
+
+@pytest.mark.slow
+def test_the_solver_refuses_a_dt_over_its_cfl_limit_and_names_one_that_works(tmp_path):
+    """RK4 at T42 with dt = 1800 s is past (|u| + √(g h)) √(T(T+1))/a · dt ≤ 2.8: one line naming a --dt,
+    and that --dt runs."""
+    pytest.importorskip("ducc0")
+    import shallow_water_spectral as solver
+
+    arguments = ["--case", "tc5", "-T", "42", "--days", "0.25", "--scheme", "rk4", "--output", str(tmp_path / "tc5.npz")]
+    with pytest.raises(SystemExit) as error:
+        solver.run(solver.parse_arguments([*arguments, "--dt", "1800"]), "test")
+    message = str(error.value)
+    assert "Courant number" in message and "\n" not in message
+    suggested = message.split("pass --dt ")[1]
+    written = solver.run(solver.parse_arguments([*arguments, "--dt", suggested]), "test")
+    assert written[str(tmp_path / "tc5.npz")]["dt"] == float(suggested)

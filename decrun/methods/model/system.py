@@ -41,6 +41,7 @@ from decrun.methods.model.language import (
     parse_expression,
     to_text,
 )
+from decrun.methods.model.lowering import Evolution
 from decrun.methods.model.operators import OPERATORS, Discrete, Linear
 from decrun.methods.model.solve import BlockSystem, IncompatibleRightHandSide, LinearSystem, constant_kernel
 
@@ -181,6 +182,15 @@ class CompiledModel:
             out[name] = value
         return out
 
+    @property
+    def evolution(self) -> Evolution:
+        """The evolution equations lowered into linear blocks and explicit terms
+        (:class:`~decrun.methods.model.lowering.Evolution`), made once and shared by every caller."""
+        cached = getattr(self, "_evolution", None)
+        if cached is None:
+            cached = self._evolution = Evolution(self)
+        return cached
+
     def _constrained_masses(self) -> dict:
         """field → (M, interior indices, solve with M_II) for each evolved field with fixed values
         whose evolution is weighted by a non-diagonal mass M (Whitney's ⋆): there dt(u) at the
@@ -190,10 +200,8 @@ class CompiledModel:
         if cached is None:
             from scipy.sparse.linalg import factorized
 
-            from decrun.methods.model.integrators import Evolution  # lazy: integrators imports this module
-
             cached = {}
-            evolution = Evolution(self)
+            evolution = self.evolution
             for name in self.fixed:
                 M = evolution.mass.get(name)
                 if M is None or (M - sp.diags(M.diagonal())).count_nonzero() == 0:

@@ -549,8 +549,7 @@ def _term_pattern(compiler, node, v: str, rows: int, cols: int, where: str) -> s
                     raise ModelError(f"{where}: integrator=bdf/radau: {to_text(node)} has no sparse matrix here; use "
                                      "`app.integrator=imex`")
                 return _structure(step.A) @ _structure(parts[0])
-            if operator.name in ("exp", "log", "sin", "cos", "tanh", "sqrt", "abs", "max", "min", "explicit") and \
-                    all(p.shape[0] == p.shape[1] or True for p in parts):
+            if operator.pointwise:  # value by value (the registry's flag): the arguments' patterns
                 total = parts[0]
                 for p in parts[1:]:
                     total = _structure(total) + _structure(p)

@@ -42,12 +42,13 @@ from decrun.methods.model.language import (
     to_text,
 )
 from decrun.methods.model.lowering import Evolution
-from decrun.methods.model.operators import OPERATORS, Discrete, Linear
+from decrun.methods.model.operators import OPERATORS, Discrete, Linear, load_plugins
 from decrun.methods.model.solve import BlockSystem, IncompatibleRightHandSide, LinearSystem, constant_kernel
 
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
 
-RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random"} | set(OPERATORS) | {"solve"}
+#: the built-in names and words of the language (the operators' names, plugins' included, too: :func:`reserved`)
+RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random", "solve"}
 #: metric names the run itself reports (decrun.methods.model.metrics and the runner's status columns)
 RESERVED_METRICS = {"status", "error", "stable", "unstable_reason", "diverged_at_step", "steps_done", "solve_seconds",
                     "steps_per_second", "step_seconds_max", "resumed_from_step", "t_final", "dt", "integrator",
@@ -291,6 +292,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     bind values to the mesh (:func:`_bind_values`, :func:`_dirichlet`) → lower every equation
     into closures and linear blocks (:func:`_lower_equations`) → metrics → check stars."""
     key = spec.key
+    load_plugins()
     ops = Discrete(dec)
     _check_names(spec)
     kinds = _declared_kinds(spec, ops.n)
@@ -340,7 +342,7 @@ def _resolve(spec: ModelSpec, equations: list[Equation]) -> Resolved:
     targets = resolved.targets
 
     def claim(target: str, where: str):
-        if target in RESERVED:
+        if target in reserved():
             raise ModelError(f"{where}: {target!r} is a built-in name; choose another name for the field")
         if target in spec.constants:
             raise ModelError(f"{where}: {target!r} is a constant (app.constants.{target}); an equation cannot set it")
@@ -498,6 +500,12 @@ def _check_stars(compiler: Compiler, dec, trees) -> None:
                                  f"⋆ on {list(degrees)}-forms only; use `operator=mixed_area` (or leave that term out)")
 
 
+def reserved() -> set[str]:
+    """The names a field, constant or definition may not take: :data:`RESERVED` and every
+    operator's name (the built-in ones and those of installed plugins)."""
+    return RESERVED | set(OPERATORS)
+
+
 def _check_names(spec: ModelSpec) -> None:
     key = spec.key
     for group, names in (("fields", spec.fields), ("constants", spec.constants), ("metrics", spec.metrics)):
@@ -507,7 +515,7 @@ def _check_names(spec: ModelSpec) -> None:
             if group == "metrics" and name in RESERVED_METRICS:
                 raise ModelError(f"{key}.metrics.{name}: {name!r} is a metric every model run reports (or a column of "
                                  f"the sweep table); name yours otherwise, e.g. {name}_value")
-            if group != "metrics" and name in RESERVED:
+            if group != "metrics" and name in reserved():
                 raise ModelError(f"{key}.{group}.{name}: {name!r} is a built-in name of the model language "
                                  "(x y z t dt h pi random and the operators); choose another")
     both = set(spec.fields) & set(spec.constants)

@@ -350,7 +350,10 @@ class Model(App):
                                 stability_limit=getattr(self, "_stability_limit", None))
         for line in model.kernel_lines():
             ctx.log(line)
-        return Result(fields=self._fields(model, env), metrics=metrics, figures=self._figures(model, env),
+        newton = {f"{item.unknown}_newton_residuals": np.asarray(item.residual_norms, dtype=np.float64)
+                  for what, item in model.order if what == "newton" and item.residual_norms}
+        return Result(fields=self._fields(model, env), series=newton, metrics=metrics,
+                      figures=self._figures(model, env),
                       provenance={"model_equations_resolved": "\n".join(model.resolved()),
                                   "model_operator": ctx.dec.star_variant.describe()})
 

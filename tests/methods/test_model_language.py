@@ -305,9 +305,20 @@ def test_a_solve_with_no_unknown():
     assert message.startswith("app.equations[1]: the solve has no unknown"), message
 
 
-def test_a_nonlinear_solve_is_refused():
-    message = refused(["solve(p*p = 1)"], fields={"p": {"form": 0}})
-    assert message.startswith("app.equations[0]: the left side p * p is not linear in p"), message
+def test_a_nonlinear_solve_is_solved_by_newton_from_its_initial_value():
+    """solve(p*p = 1) (refused before as 'not linear'): Newton from p = 0.5 finds p = 1; from
+    p = 0 its Jacobian 2p is singular, and the refusal is one line naming the equation and the
+    override of a start."""
+    model = compile_(["solve(p*p = 1)"], fields={"p": {"form": 0, "initial": 0.5}})
+    model.bind(solver_factory("direct"))
+    assert np.allclose(model.environment({}, 0.0)["p"], 1.0, rtol=0, atol=1e-12)
+    model = compile_(["solve(p*p = 1)"], fields={"p": {"form": 0}})
+    model.bind(solver_factory("direct"))
+    with pytest.raises(ModelError) as info:
+        model.environment({}, 0.0)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("app.equations[0]: Newton's method did not converge"), message
+    assert "`app.fields.p.initial=<expression>`" in message
 
 
 def test_missing_initial_values():

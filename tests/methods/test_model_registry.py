@@ -65,15 +65,18 @@ def _run(function: str, scheme: str) -> np.ndarray:
 def test_every_elementwise_function_runs_under_every_integrator_with_the_same_answer(function):
     """``dt(u) = 0.01*laplacian(u) - 0.1*f(u)`` for every value-by-value f: rk4 (the reference,
     O(dt⁴)) and the adaptive bdf / radau / rk45 at tight tolerances agree to 1e-7; the
-    first-order imex and semi_implicit agree to O(dt) (2e-3 of the change). bdf/radau read the
-    Jacobian pattern from the registry's ``pointwise`` flag — ``cosh`` was refused there."""
+    first-order imex, semi_implicit, explicit and implicit Euler agree to O(dt) (2e-2 of the
+    change), Crank–Nicolson to O(dt²) (1e-4). bdf/radau read the Jacobian pattern from the
+    registry's ``pointwise`` flag, implicit Euler and Crank–Nicolson take Newton with the
+    derivative rules — ``cosh`` was refused by all four."""
     reference = _run(function, "rk4")
     start = 0.3 + 0.2 * _grid_dec().K.vertices[:, 0] * _grid_dec().K.vertices[:, 1]
     change = np.abs(reference - start).max()
     assert change > 1e-4 or function == "sign"
     for scheme in ("bdf", "radau", "rk45"):
         assert np.abs(_run(function, scheme) - reference).max() <= 1e-7 + 1e-6 * change, scheme
-    for scheme in ("imex", "semi_implicit", "explicit_euler"):
+    assert np.abs(_run(function, "crank_nicolson") - reference).max() <= 1e-4 * change + 1e-12  # Newton, O(dt²)
+    for scheme in ("imex", "semi_implicit", "explicit_euler", "implicit_euler"):
         assert np.abs(_run(function, scheme) - reference).max() <= 2e-2 * change + 1e-12, scheme
 
 

@@ -67,6 +67,9 @@ def _order(model) -> list[str]:
         elif what == "solve":
             lines.append(f"  solve for {item.unknown} : {model.kinds[item.unknown]}: linear, matrix "
                          f"{_matrix(item.system.A_full)} factorized once")
+        elif what == "newton":
+            lines.append(f"  solve for {item.unknown} : {model.kinds[item.unknown]}: nonlinear, Newton with the exact "
+                         f"sparse Jacobian of {to_text(item.equation.lhs)}")
         else:
             names = ", ".join(item.unknowns)
             lines.append(f"  system for {names}: block matrix {_matrix(item.system.A_full)} factorized once")

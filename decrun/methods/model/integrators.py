@@ -11,7 +11,8 @@ system is the symmetric ``M + dt S`` of the thesis' implicit smoothing, §1.3).
 ==================  ==========================================================================
 ``explicit_euler``  u ← u + dt F(u, t)
 ``rk4``             the classical 4-stage Runge–Kutta
-``implicit_euler``  (M − dt A) u⁺ = M u + dt M R(t⁺); R must not read the evolved fields
+``implicit_euler``  (M − dt A) u⁺ = M u + dt M R(t⁺); when R reads the evolved fields, Newton's
+                    method on M (u⁺ − u) = dt f(u⁺, t⁺) (:mod:`.implicit_newton`)
 ``crank_nicolson``  (M − dt/2 A) u⁺ = (M + dt/2 A) u + dt/2 M (R(t) + R(t⁺)); likewise
 ``imex``            (M − dt A) u⁺ = M u + dt M R(u, t): linear part implicit, the rest explicit
 ``semi_implicit``   (M − dt A(uⁿ)) u⁺ = M uⁿ + dt M R(uⁿ, t): lagged coefficients (Picard), A refactorized
@@ -30,8 +31,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.methods.model.compiler import NOT_LINEAR
+from decrun.methods.model.implicit_newton import NewtonImplicit
 from decrun.methods.model.language import ModelError, to_text
 from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.problem import ModelProblem
 from decrun.methods.model.solve import LinearSystem
 
 __all__ = ["INTEGRATORS", "FROZEN", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
@@ -80,16 +83,12 @@ class Explicit:
         pass
 
 
-def _require_linear(model, evolution, scheme: str) -> None:
-    """Implicit Euler and Crank–Nicolson step only terms linear in the evolved fields."""
-    if scheme in ("implicit_euler", "crank_nicolson"):
-        for u in evolution.names:
-            terms = evolution.reads_evolved(u)
-            if terms:
-                equation = next(e for e in model.equations if e.kind == "evolution" and e.target == u)
-                raise ModelError(f"{equation.where}: integrator={scheme} needs equations linear in the evolved "
-                                 f"fields with constant coefficients; the term {to_text(terms[0])} is not: use "
-                                 "`app.integrator=imex` (that term explicit) or `app.integrator=rk4`")
+def _nonlinear(model) -> bool:
+    """True when a term of an evolution that is not a constant linear block reads an evolved
+    field: implicit Euler and Crank–Nicolson then take Newton's method each step
+    (:class:`~decrun.methods.model.implicit_newton.NewtonImplicit`)."""
+    evolution = model.evolution
+    return any(evolution.reads_evolved(u) for u in evolution.names)
 
 
 def check_integrator(model, scheme: str, dt: float) -> None:
@@ -98,8 +97,8 @@ def check_integrator(model, scheme: str, dt: float) -> None:
     factorizing anything: raised when the model loads, before any work."""
     if scheme == "symplectic":
         Symplectic(model, dt)
-    elif scheme in ("implicit_euler", "crank_nicolson"):
-        _require_linear(model, model.evolution, scheme)
+    elif scheme in ("implicit_euler", "crank_nicolson") and _nonlinear(model):
+        ModelProblem(model).check_jacobian()  # Newton's: every nonlinear term needs an exact Jacobian
     elif scheme in ("bdf", "radau"):
         jacobian_pattern(model)
 
@@ -109,8 +108,7 @@ class Implicit:
 
     def __init__(self, model, dt: float, scheme: str, new_solver):
         self.model, self.dt, self.scheme = model, float(dt), scheme
-        self.evolution = evolution = model.evolution
-        _require_linear(model, evolution, scheme)
+        self.evolution = evolution = model.evolution  # implicit Euler, Crank–Nicolson: linear (else NewtonImplicit)
         theta = 0.5 if scheme == "crank_nicolson" else 1.0
         self.theta = theta
         fixed, self.fixed_values = evolution.fixed()
@@ -400,6 +398,8 @@ def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-
     """The integrator ``scheme`` (one of :data:`INTEGRATORS`) for ``model`` at step ``dt``."""
     if scheme in ("explicit_euler", "rk4"):
         return Explicit(model, dt, scheme)
+    if scheme in ("implicit_euler", "crank_nicolson") and _nonlinear(model):
+        return NewtonImplicit(model, dt, scheme, new_solver)
     if scheme in ("implicit_euler", "crank_nicolson", "imex"):
         return Implicit(model, dt, scheme, new_solver)
     if scheme == "symplectic":

@@ -42,6 +42,7 @@ from decrun.methods.model.language import (
     to_text,
 )
 from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.nonlinear import compile_nonlinear_solve
 from decrun.methods.model.operators import OPERATORS, Discrete, Linear, load_plugins
 from decrun.methods.model.solve import BlockSystem, IncompatibleRightHandSide, LinearSystem, constant_kernel
 
@@ -138,7 +139,8 @@ class CompiledModel:
     equations: list[Equation]
     evolved: list[str]
     inputs: list[str]
-    order: list[tuple[str, Any]]  # ("definition", (name, closure)) | ("solve", Solve) | ("system", SystemSolve)
+    #: ("definition", (name, closure)) | ("solve", Solve) | ("system", SystemSolve) | ("newton", NonlinearSolve)
+    order: list[tuple[str, Any]]
     rhs: dict[str, Callable]
     metrics: dict[str, Callable]
     fixed: dict[str, tuple[np.ndarray, np.ndarray]]
@@ -162,6 +164,8 @@ class CompiledModel:
                 env[name] = closure(env)
             elif what == "system":
                 env.update(item.solve(env))
+            elif what == "newton":
+                env[item.unknown] = item.solve(env)
             else:
                 env[item.unknown] = item.system.solve(item.rhs(env), item.fixed_values)
         return env
@@ -217,6 +221,8 @@ class CompiledModel:
         for what, item in self.order:
             if what in ("solve", "system"):
                 item.system.bind(new_solver)
+            elif what == "newton":
+                item.bind(new_solver)
 
     def check_compatibility(self) -> None:
         """Before any work: a singular solve (kernel of constants) whose right side reads only
@@ -224,7 +230,8 @@ class CompiledModel:
         must be round-off), so the refusal comes before the run, not at its first step."""
         computed = set()
         for what, item in self.order:
-            computed |= set(item.unknowns) if what == "system" else {item.unknown if what == "solve" else item[0]}
+            computed |= set(item.unknowns) if what == "system" else \
+                {item.unknown if what in ("solve", "newton") else item[0]}
         for what, item in self.order:
             if what != "solve" or item.system.pieces is None:
                 continue
@@ -457,6 +464,8 @@ def _lower_equations(model: CompiledModel, ordered: list[Equation], new_solver: 
             model.order.append(("definition", (equation.target, compiler.compile(equation.rhs, equation.where))))
         elif equation.kind == "system":
             model.order.append(("system", _compile_system(equation, model, new_solver)))
+        elif _nonlinear(equation, model):
+            model.order.append(("newton", compile_nonlinear_solve(equation, model, new_solver)))
         else:
             model.order.append(("solve", _compile_solve(equation, model, new_solver)))
     for equation in equations:
@@ -471,6 +480,17 @@ def _lower_equations(model: CompiledModel, ordered: list[Equation], new_solver: 
     trees = [(eq.where, eq.rhs) for eq in equations] + [(eq.where, eq.lhs) for eq in equations if eq.kind == "solve"]
     trees += [(eq.where, side) for eq in equations if eq.kind == "system" for pair in eq.pairs for side in pair]
     return trees
+
+
+def _nonlinear(equation: Equation, model: CompiledModel) -> bool:
+    """True when a solve's left side is not a constant sparse matrix times its unknown plus terms
+    without it: Newton's method solves it (:mod:`decrun.methods.model.nonlinear`)."""
+    compiler, unknown = model.compiler, equation.target
+    kind, lhs_kind = model.kinds[unknown], compiler.kind(equation.lhs, equation.where)
+    if lhs_kind != kind:
+        return False  # refused by _compile_solve, naming both kinds
+    blocks, rest = compiler.split(equation.lhs, {unknown})
+    return unknown not in blocks or any(compiler.depends_on(term, {unknown}) for _sign, term in rest)
 
 
 def _compile_metrics(model: CompiledModel) -> list[tuple[str, Node]]:

@@ -69,6 +69,10 @@ class Integrator(Choice):
     radau = "radau"
     rk45 = "rk45"
     semi_implicit = "semi_implicit"
+    ssprk3 = "ssprk3"
+    gauss_legendre = "gauss_legendre"
+    radau_iia = "radau_iia"
+    ark_imex = "ark_imex"
 
 
 @dataclass

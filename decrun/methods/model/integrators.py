@@ -27,6 +27,9 @@ Fixed (Dirichlet) values stay at their border values in every scheme.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Callable
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -35,12 +38,14 @@ from decrun.methods.model.implicit_newton import NewtonImplicit
 from decrun.methods.model.language import ModelError, to_text
 from decrun.methods.model.lowering import Evolution
 from decrun.methods.model.problem import ModelProblem
+from decrun.methods.model.runge_kutta import INTEGRATORS as RUNGE_KUTTA
+from decrun.methods.model.runge_kutta import Needs
 from decrun.methods.model.solve import LinearSystem
 
-__all__ = ["INTEGRATORS", "FROZEN", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
+__all__ = ["INTEGRATORS", "SCHEMES", "Scheme", "ProblemStepper", "FROZEN", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
 
 INTEGRATORS = ("explicit_euler", "rk4", "implicit_euler", "crank_nicolson", "imex", "symplectic", "bdf", "radau",
-               "rk45", "semi_implicit")
+               "rk45", "semi_implicit", "ssprk3", "gauss_legendre", "radau_iia", "ark_imex")
 #: the suffix of :func:`explicit_stability_limit`'s source when the limit is of frozen coefficients
 FROZEN = " (coefficients frozen at t = 0)"
 #: the stability interval on the negative real axis: |1 + z| ≤ 1 (Euler), RK4's ≈ −2.785
@@ -101,6 +106,8 @@ def check_integrator(model, scheme: str, dt: float) -> None:
         ModelProblem(model).check_jacobian()  # Newton's: every nonlinear term needs an exact Jacobian
     elif scheme in ("bdf", "radau"):
         jacobian_pattern(model)
+    elif SCHEMES[scheme].tableau is not None and SCHEMES[scheme].needs == "jacobian":
+        model.problem.check_jacobian()  # the stages' Newton: every nonlinear term needs an exact Jacobian
 
 
 class Implicit:
@@ -394,8 +401,40 @@ def _exact_jacobian(evolution: Evolution) -> sp.csr_matrix | None:
     return sp.bmat(rows, format="csc")
 
 
-def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-6, atol: float = 1e-9):
-    """The integrator ``scheme`` (one of :data:`INTEGRATORS`) for ``model`` at step ``dt``."""
+class ProblemStepper:
+    """A stepper of the Runge–Kutta family (:mod:`decrun.methods.model.runge_kutta`: y ↦ y⁺ over
+    the model's :class:`~decrun.methods.model.problem.ModelProblem`) stepping the model's state
+    (field → values, border values included); its state is the stepper's (checkpoints)."""
+
+    def __init__(self, problem: ModelProblem, stepper):
+        self.problem, self.stepper = problem, stepper
+
+    def step(self, state: dict, t: float) -> dict:
+        return self.problem.state(self.stepper.step(self.problem.free_values(state), t))
+
+    def state_dict(self) -> dict:
+        return self.stepper.state_dict()
+
+    def load_state(self, state: dict) -> None:
+        self.stepper.load_state(state)
+
+
+def _make_tableau(entry):
+    """The maker of a tableau integrator of the Runge–Kutta registry: its stepper over the
+    model's Problem (the exact Jacobian checked first when it needs one)."""
+    def make(model, dt: float, new_solver, rtol: float, atol: float):
+        problem = model.problem
+        options: dict = {}
+        if entry.needs == Needs.jacobian:
+            problem.check_jacobian()
+            options = {"where": f"app.integrator={entry.name}", "fix": f"take smaller steps: `app.dt={dt / 4:.6g}`"}
+        elif entry.needs == Needs.stiff_split:
+            options = {"key": "app.integrator"}
+        return ProblemStepper(problem, entry.factory(problem, float(dt), new_solver, **options))
+    return make
+
+
+def _make_legacy(model, scheme: str, dt: float, new_solver, rtol: float, atol: float):
     if scheme in ("explicit_euler", "rk4"):
         return Explicit(model, dt, scheme)
     if scheme in ("implicit_euler", "crank_nicolson") and _nonlinear(model):
@@ -406,8 +445,42 @@ def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-
         return Symplectic(model, dt)
     if scheme in ("bdf", "radau", "rk45"):
         return Adaptive(model, dt, scheme, rtol, atol)
-    if scheme == "semi_implicit":
-        return SemiImplicit(model, dt, new_solver)
+    return SemiImplicit(model, dt, new_solver)
+
+
+@dataclass(frozen=True)
+class Scheme:
+    """One integrator of ``app.integrator``: its ``name``, what it ``needs`` of the model
+    (``explicit``: only f; ``jacobian``: the exact Jacobian of its nonlinear terms;
+    ``stiff_split``: the constant linear part), its ``order`` in time, and
+    ``make(model, dt, new_solver, rtol, atol) -> stepper`` (``step(state, t)``, ``state_dict``,
+    ``load_state``); ``tableau``: its Butcher tableau, for a Runge–Kutta method given as data."""
+
+    name: str
+    needs: str
+    order: int
+    make: Callable
+    tableau: object = None
+
+
+#: every integrator by name, one entry each: the schemes written here, then the tableaux of
+#: :data:`decrun.methods.model.runge_kutta.INTEGRATORS` (a new tableau there is a new integrator)
+SCHEMES: dict[str, Scheme] = {
+    name: Scheme(name, needs, order, lambda model, dt, new_solver, rtol, atol, name=name:
+                 _make_legacy(model, name, dt, new_solver, rtol, atol))
+    for name, needs, order in (("explicit_euler", "explicit", 1), ("rk4", "explicit", 4),
+                               ("implicit_euler", "jacobian", 1), ("crank_nicolson", "jacobian", 2),
+                               ("imex", "stiff_split", 1), ("symplectic", "explicit", 2), ("bdf", "jacobian", 5),
+                               ("radau", "jacobian", 5), ("rk45", "explicit", 5), ("semi_implicit", "explicit", 1))}
+SCHEMES.update({name: Scheme(name, str(entry.needs), entry.order, _make_tableau(entry), entry.tableau)
+                for name, entry in RUNGE_KUTTA.items()})
+
+
+def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-6, atol: float = 1e-9):
+    """The integrator ``scheme`` (one of :data:`SCHEMES`) for ``model`` at step ``dt``."""
+    entry = SCHEMES.get(scheme)
+    if entry is not None:
+        return entry.make(model, float(dt), new_solver, rtol, atol)
     raise ModelError(f"app.integrator: unknown integrator {scheme!r}; choose one of {' | '.join(INTEGRATORS)}")
 
 

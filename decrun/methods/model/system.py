@@ -44,6 +44,7 @@ from decrun.methods.model.language import (
 from decrun.methods.model.lowering import Evolution
 from decrun.methods.model.nonlinear import compile_nonlinear_solve
 from decrun.methods.model.operators import OPERATORS, Discrete, Linear, load_plugins
+from decrun.methods.model.problem import ModelProblem
 from decrun.methods.model.solve import BlockSystem, IncompatibleRightHandSide, LinearSystem, constant_kernel
 
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
@@ -194,6 +195,15 @@ class CompiledModel:
         cached = getattr(self, "_evolution", None)
         if cached is None:
             cached = self._evolution = Evolution(self)
+        return cached
+
+    @property
+    def problem(self) -> ModelProblem:
+        """The model as M y' = f(y, t) over its free unknowns
+        (:class:`~decrun.methods.model.problem.ModelProblem`), made once."""
+        cached = getattr(self, "_problem", None)
+        if cached is None:
+            cached = self._problem = ModelProblem(self)
         return cached
 
     def _constrained_masses(self) -> dict:

@@ -23,7 +23,7 @@ rule has no exact Jacobian here.
 
 from __future__ import annotations
 
-from typing import Callable, Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 import scipy.sparse as sp
@@ -92,8 +92,9 @@ class _Builder:
         if isinstance(node, Name):
             return self._name(node)
         if isinstance(node, Negate):
-            inner = self.build(node.operand)
-            return lambda env: _times(-1.0, inner(env))
+            operand = self.build(node.operand)
+            assert operand is not None  # the operand reads the unknown
+            return lambda env: _times(-1.0, operand(env))
         if compiler.kind(node, self.where) == NUMBER:
             raise self.refuse(node, f"a number computed from {self.unknown} couples all its values (a dense Jacobian)")
         if isinstance(node, Binary):
@@ -147,11 +148,13 @@ class _Builder:
             matrix = None if step is None else _strong(compiler.ops, step)
             if matrix is None:
                 raise self.refuse(shown, f"{name} has no sparse matrix here (a Galerkin ⋆⁻¹)")
-            inner = self.build(node.args[0])
-            return lambda env: _apply(matrix, inner(env))
+            argument = self.build(node.args[0])
+            assert argument is not None  # the argument reads the unknown
+            return lambda env: _apply(matrix, argument(env))
         if operator.fixed_first is not None and len(node.args) == 2 and not compiler.depends_on(node.args[0],
                                                                                                   {self.unknown}):
-            first, inner = self.value(node.args[0]), self.build(node.args[1])
+            first, second = self.value(node.args[0]), self.build(node.args[1])
+            assert second is not None  # the second argument reads the unknown
             cache: list = []
 
             def fixed(env):
@@ -159,7 +162,7 @@ class _Builder:
                     cache[:] = [operator.fixed_first(compiler.ops, kinds, first(env))]
                 if cache[0] is None:
                     raise self.refuse(shown, f"{name} has no matrix for a {kinds[1]}")
-                return _apply(cache[0], inner(env))
+                return _apply(cache[0], second(env))
             return fixed
         if operator.derivative is None:
             raise self.refuse(shown, f"the operator {name} has no derivative rule")
@@ -203,10 +206,10 @@ def derivative(compiler, node: Node, unknown: str, where: str) -> Callable[[dict
     zero = sp.csr_matrix((rows, cols))
 
     def jacobian(env: dict) -> sp.csr_matrix:
-        D = built(env) if built is not None else None
+        D: Any = built(env) if built is not None else None
         if D is None:
             return zero
-        if isinstance(D, np.ndarray) or np.ndim(D) == 0 and not sp.issparse(D):
-            return sp.diags(np.broadcast_to(np.asarray(D, dtype=np.float64), (cols,))).tocsr()
-        return sp.csr_matrix(D)
+        if sp.issparse(D):
+            return sp.csr_matrix(D)
+        return sp.diags(np.broadcast_to(np.asarray(D, dtype=np.float64), (cols,))).tocsr()
     return jacobian

@@ -449,7 +449,7 @@ POINTWISE = {"exp": np.exp, "log": np.log, "sin": np.sin, "cos": np.cos, "tan": 
              "sqrt": np.sqrt, "abs": np.abs, "sign": np.sign}
 
 #: f' of each of :data:`POINTWISE` (abs' = sign, sign' = 0 away from 0)
-POINTWISE_DERIVATIVES = {
+POINTWISE_DERIVATIVES: dict[str, Callable] = {
     "exp": np.exp, "log": lambda x: 1.0 / x, "sin": np.cos, "cos": lambda x: -np.sin(x),
     "tan": lambda x: 1.0 / np.cos(x) ** 2, "tanh": lambda x: 1.0 - np.tanh(x) ** 2, "sinh": np.cosh,
     "cosh": np.sinh, "arcsin": lambda x: 1.0 / np.sqrt(1.0 - x ** 2), "arccos": lambda x: -1.0 / np.sqrt(1.0 - x ** 2),

@@ -487,7 +487,8 @@ def _lower_equations(model: CompiledModel, ordered: list[Equation], new_solver: 
             raise ModelError(f"{equation.where}: {to_text(equation.rhs)} is a {kind} but dt({equation.target}) is a "
                              f"{target_kind}")
         model.rhs[equation.target] = compiler.compile(equation.rhs, equation.where)
-    trees = [(eq.where, eq.rhs) for eq in equations] + [(eq.where, eq.lhs) for eq in equations if eq.kind == "solve"]
+    trees: list[tuple[str, Node]] = [(eq.where, eq.rhs) for eq in equations]
+    trees += [(eq.where, eq.lhs) for eq in equations if eq.kind == "solve" and eq.lhs is not None]
     trees += [(eq.where, side) for eq in equations if eq.kind == "system" for pair in eq.pairs for side in pair]
     return trees
 
@@ -495,11 +496,11 @@ def _lower_equations(model: CompiledModel, ordered: list[Equation], new_solver: 
 def _nonlinear(equation: Equation, model: CompiledModel) -> bool:
     """True when a solve's left side is not a constant sparse matrix times its unknown plus terms
     without it: Newton's method solves it (:mod:`decrun.methods.model.nonlinear`)."""
-    compiler, unknown = model.compiler, equation.target
-    kind, lhs_kind = model.kinds[unknown], compiler.kind(equation.lhs, equation.where)
-    if lhs_kind != kind:
+    compiler, unknown, lhs = model.compiler, equation.target, equation.lhs
+    assert lhs is not None  # a solve has a left side
+    if compiler.kind(lhs, equation.where) != model.kinds[unknown]:
         return False  # refused by _compile_solve, naming both kinds
-    blocks, rest = compiler.split(equation.lhs, {unknown})
+    blocks, rest = compiler.split(lhs, {unknown})
     return unknown not in blocks or any(compiler.depends_on(term, {unknown}) for _sign, term in rest)
 
 

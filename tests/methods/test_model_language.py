@@ -533,3 +533,24 @@ def test_vertex_in_equations_and_metrics_is_checked_when_the_model_loads(equatio
     assert message.startswith(key), message
     model = compile_(["s = vertex(src)", "dt(u) = laplacian(u) + s"], constants={"src": 161})
     assert model.environment(dict(model.initial_values), 0.0)["s"][161] == 1.0
+
+
+def test_each_node_is_typed_once():
+    """The kind pass runs once per node: typing, evaluating, finding the stars and splitting a
+    tree read the kinds kept on its nodes, never re-infer them."""
+    calls: dict[int, int] = {}
+
+    class Counting(Compiler):
+        def _infer(self, node, where):
+            calls[id(node)] = calls.get(id(node), 0) + 1
+            return super()._infer(node, where)
+
+    dec = sphere()
+    compiler = Counting(Discrete(dec), {"u": primal(0)}, varying={"u"})
+    compiler.static_env = {"x": dec.K.vertices[:, 0], "t": 0.0}
+    tree = parse_expression("laplacian(laplacian(u)) + u*u - exp(u) + 2*codifferential(d(u))", "test")
+    compiler.kind(tree, "test")
+    compiler.compile(tree, "test")
+    compiler.star_degrees(tree, "test")
+    compiler.split(tree, {"u"})
+    assert calls and max(calls.values()) == 1

@@ -64,10 +64,22 @@ class Compiler:
         self.solved = solved or {}
         self.varying = set(varying or ()) | TIME_VARYING
         self._static_env: dict | None = None
+        #: id(node) → (node, its kind): the kind of every node typed so far (:meth:`kind`)
+        self._typed: dict[int, tuple[Node, Kind]] = {}
 
     # ------------------------------------------------------------------ kinds
     def kind(self, node: Node, where: str) -> Kind:
-        """The kind of ``node``; ModelError naming ``where`` and the term on a mismatch."""
+        """The kind of ``node``; ModelError naming ``where`` and the term on a mismatch. Each
+        node is typed once: its kind is kept (by the node's identity, the node held with it) and
+        every later pass — evaluation, linear blocks, derivatives, explain — reads it back."""
+        known = self._typed.get(id(node))
+        if known is not None and known[0] is node:
+            return known[1]
+        kind = self._infer(node, where)
+        self._typed[id(node)] = (node, kind)
+        return kind
+
+    def _infer(self, node: Node, where: str) -> Kind:
         if isinstance(node, Number):
             return NUMBER
         if isinstance(node, Name):

@@ -235,7 +235,7 @@ def test_every_shipped_model_is_in_the_docs():
 #: the page's prose names the commands themselves (not an example to run)
 PROSE = ("decrun", "decrun-table")
 #: the sections whose commands the tests above run as a whole, in order, with their outputs
-WHOLE_SECTIONS = ("Your first model", "Composed models", "Bad input")
+WHOLE_SECTIONS = ("Your first model", "Composed models", "Bad input", "Your own operators")
 
 
 def heavy(command: str) -> bool:

@@ -46,6 +46,7 @@ from decrun.apps.model_plots import PlotOptions, check_plot_names, check_plot_op
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
+from decrun.methods.model.explain import explain
 from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_stability_limit, make_integrator
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.language import names_in, parse_equation
@@ -71,6 +72,10 @@ class Integrator(Choice):
     radau = "radau"
     rk45 = "rk45"
     semi_implicit = "semi_implicit"
+    ssprk3 = "ssprk3"
+    gauss_legendre = "gauss_legendre"
+    radau_iia = "radau_iia"
+    ark_imex = "ark_imex"
 
 
 @dataclass
@@ -212,6 +217,9 @@ class Model(App):
     #: what the model requires of its constants and dt, e.g. ``"Du > 0"``, checked before any
     #: mesh work (:mod:`decrun.methods.model.require`)
     require: List[str] = field(default_factory=list)
+    #: print the typed trees and the block structure of the compiled model and run nothing
+    #: (:func:`decrun.methods.model.explain.explain`): no step, no solve, no output field
+    explain: bool = False
 
     @classmethod
     def check_node(cls, node: dict, key: str) -> None:
@@ -319,6 +327,8 @@ class Model(App):
         stability limit of the diffusion blocks (of a nonlinear diffusion, with its
         coefficients frozen at the initial values)."""
         model = self.compiled(dec)
+        if self.explain:  # only what compiling checks: the typed trees and blocks are the point
+            return
         model.check_compatibility()
         self._check_plots(model)
         steps = self.total_steps()
@@ -375,6 +385,12 @@ class Model(App):
         """Run the model; see the module docstring. Metrics: the declared ones (at the end),
         and :func:`decrun.methods.model.metrics.model_metrics`'s."""
         model = self.compiled(ctx.dec, ctx.new_solver)
+        if self.explain:
+            text = explain(model)
+            for line in text.splitlines():  # on the console and in the run's log
+                ctx.log(line)
+            return Result(fields={}, metrics={"steps_done": 0}, figures={},
+                          provenance={"model_explain": text, "model_equations_resolved": "\n".join(model.resolved())})
         steps = 0 if model.is_static else self.total_steps()
         integrator = None
         report = None
@@ -394,7 +410,10 @@ class Model(App):
                                 stability_limit=getattr(self, "_stability_limit", None))
         for line in model.kernel_lines():
             ctx.log(line)
-        return Result(fields=self._fields(model, env), metrics=metrics, figures=self._figures(model, env),
+        newton = {f"{item.unknown}_newton_residuals": np.asarray(item.residual_norms, dtype=np.float64)
+                  for what, item in model.order if what == "newton" and item.residual_norms}
+        return Result(fields=self._fields(model, env), series=newton, metrics=metrics,
+                      figures=self._figures(model, env),
                       provenance={"model_equations_resolved": "\n".join(model.resolved()),
                                   "model_operator": ctx.dec.star_variant.describe()})
 

@@ -305,9 +305,20 @@ def test_a_solve_with_no_unknown():
     assert message.startswith("app.equations[1]: the solve has no unknown"), message
 
 
-def test_a_nonlinear_solve_is_refused():
-    message = refused(["solve(p*p = 1)"], fields={"p": {"form": 0}})
-    assert message.startswith("app.equations[0]: the left side p * p is not linear in p"), message
+def test_a_nonlinear_solve_is_solved_by_newton_from_its_initial_value():
+    """solve(p*p = 1) (refused before as 'not linear'): Newton from p = 0.5 finds p = 1; from
+    p = 0 its Jacobian 2p is singular, and the refusal is one line naming the equation and the
+    override of a start."""
+    model = compile_(["solve(p*p = 1)"], fields={"p": {"form": 0, "initial": 0.5}})
+    model.bind(solver_factory("direct"))
+    assert np.allclose(model.environment({}, 0.0)["p"], 1.0, rtol=0, atol=1e-12)
+    model = compile_(["solve(p*p = 1)"], fields={"p": {"form": 0}})
+    model.bind(solver_factory("direct"))
+    with pytest.raises(ModelError) as info:
+        model.environment({}, 0.0)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("app.equations[0]: Newton's method did not converge"), message
+    assert "`app.fields.p.initial=<expression>`" in message
 
 
 def test_missing_initial_values():
@@ -522,3 +533,24 @@ def test_vertex_in_equations_and_metrics_is_checked_when_the_model_loads(equatio
     assert message.startswith(key), message
     model = compile_(["s = vertex(src)", "dt(u) = laplacian(u) + s"], constants={"src": 161})
     assert model.environment(dict(model.initial_values), 0.0)["s"][161] == 1.0
+
+
+def test_each_node_is_typed_once():
+    """The kind pass runs once per node: typing, evaluating, finding the stars and splitting a
+    tree read the kinds kept on its nodes, never re-infer them."""
+    calls: dict[int, int] = {}
+
+    class Counting(Compiler):
+        def _infer(self, node, where):
+            calls[id(node)] = calls.get(id(node), 0) + 1
+            return super()._infer(node, where)
+
+    dec = sphere()
+    compiler = Counting(Discrete(dec), {"u": primal(0)}, varying={"u"})
+    compiler.static_env = {"x": dec.K.vertices[:, 0], "t": 0.0}
+    tree = parse_expression("laplacian(laplacian(u)) + u*u - exp(u) + 2*codifferential(d(u))", "test")
+    compiler.kind(tree, "test")
+    compiler.compile(tree, "test")
+    compiler.star_degrees(tree, "test")
+    compiler.split(tree, {"u"})
+    assert calls and max(calls.values()) == 1

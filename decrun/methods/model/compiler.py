@@ -64,10 +64,22 @@ class Compiler:
         self.solved = solved or {}
         self.varying = set(varying or ()) | TIME_VARYING
         self._static_env: dict | None = None
+        #: id(node) → (node, its kind): the kind of every node typed so far (:meth:`kind`)
+        self._typed: dict[int, tuple[Node, Kind]] = {}
 
     # ------------------------------------------------------------------ kinds
     def kind(self, node: Node, where: str) -> Kind:
-        """The kind of ``node``; ModelError naming ``where`` and the term on a mismatch."""
+        """The kind of ``node``; ModelError naming ``where`` and the term on a mismatch. Each
+        node is typed once: its kind is kept (by the node's identity, the node held with it) and
+        every later pass — evaluation, linear blocks, derivatives, explain — reads it back."""
+        known = self._typed.get(id(node))
+        if known is not None and known[0] is node:
+            return known[1]
+        kind = self._infer(node, where)
+        self._typed[id(node)] = (node, kind)
+        return kind
+
+    def _infer(self, node: Node, where: str) -> Kind:
         if isinstance(node, Number):
             return NUMBER
         if isinstance(node, Name):
@@ -437,22 +449,7 @@ class Compiler:
                     right = {k: v.scaled(-1.0) for k, v in right.items()}
                 return self._merge(left, right)
             if node.op in "*/":
-                left_dep = self.depends_on(node.left, unknowns)
-                right_dep = self.depends_on(node.right, unknowns)
-                if left_dep and right_dep:
-                    return NOT_LINEAR
-                if node.op == "/" and right_dep:
-                    return NOT_LINEAR
-                linear_side, factor = (node.left, node.right) if left_dep else (node.right, node.left)
-                if not self.is_static(factor):
-                    return NOT_LINEAR
-                inner = self.linear(linear_side, unknowns)
-                if inner is NOT_LINEAR:
-                    return NOT_LINEAR
-                value = self.static_value(factor)
-                if node.op == "/":
-                    value = 1.0 / value
-                return self._scale(inner, value)
+                return self._linear_product(node, unknowns)
             return NOT_LINEAR
         if isinstance(node, Call):
             step = self._operator_matrix(node)
@@ -469,6 +466,26 @@ class Compiler:
                 out[name] = composed
             return out
         return NOT_LINEAR
+
+    def _linear_product(self, node: Binary, unknowns: set[str]):
+        """:meth:`linear` of ``a * b`` or ``a / b``: one side linear in ``unknowns``, the other a
+        static factor (a number or a fixed form), else :data:`NOT_LINEAR`."""
+        left_dep = self.depends_on(node.left, unknowns)
+        right_dep = self.depends_on(node.right, unknowns)
+        if left_dep and right_dep:
+            return NOT_LINEAR
+        if node.op == "/" and right_dep:
+            return NOT_LINEAR
+        linear_side, factor = (node.left, node.right) if left_dep else (node.right, node.left)
+        if not self.is_static(factor):
+            return NOT_LINEAR
+        inner = self.linear(linear_side, unknowns)
+        if inner is NOT_LINEAR:
+            return NOT_LINEAR
+        value = self.static_value(factor)
+        if node.op == "/":
+            value = 1.0 / value
+        return self._scale(inner, value)
 
     def lagged(self, node: Node, unknowns: set[str]):
         """The Picard (lagged-coefficient) linearization of ``node`` in ``unknowns``: a builder
@@ -494,63 +511,71 @@ class Compiler:
                 return NOT_LINEAR
             return lambda env: {k: v.scaled(-1.0) for k, v in inner(env).items()}
         if isinstance(node, Binary):
-            if node.op in "+-":
-                left, right = self.lagged(node.left, unknowns), self.lagged(node.right, unknowns)
-                if left is NOT_LINEAR or right is NOT_LINEAR or left is None or right is None:
-                    return NOT_LINEAR
-                sign = -1.0 if node.op == "-" else 1.0
-
-                def summed(env):
-                    merged = self._merge(left(env), {k: v.scaled(sign) for k, v in right(env).items()})
-                    if merged is NOT_LINEAR:
-                        raise ModelError(f"{to_text(node)}: its two sides have different inverse stars; write it "
-                                         "over one ⋆ or use an explicit integrator")
-                    return merged
-                return summed
-            if node.op in "*/":
-                # the right factor linear and the left frozen first; a quotient freezes its denominator
-                options = [(node.left, node.right)] if node.op == "/" else \
-                    [(node.right, node.left), (node.left, node.right)]
-                for linear_side, factor in options:
-                    inner = self.lagged(linear_side, unknowns)
-                    if inner is None or inner is NOT_LINEAR:
-                        continue
-                    if self.kind(factor, "?") == VECTOR:
-                        return NOT_LINEAR
-                    value = self._compile(factor, "?")
-                    divide = node.op == "/"
-
-                    def scaled(env, inner=inner, value=value, divide=divide):
-                        factor_value = value(env)
-                        if divide:
-                            factor_value = 1.0 / np.asarray(factor_value, dtype=np.float64)
-                        out = self._scale(inner(env), factor_value)
-                        if out is NOT_LINEAR:
-                            raise ModelError(f"{to_text(node)}: a coefficient form times a Galerkin ⋆⁻¹ has no sparse "
-                                             "matrix; use an explicit integrator")
-                        return out
-                    return scaled
-                return NOT_LINEAR
-            return NOT_LINEAR
+            return self._lagged_binary(node, unknowns)
         if isinstance(node, Call):
-            step = self._operator_matrix(node)
-            if step is None:
-                return NOT_LINEAR
-            inner = self.lagged(node.args[0], unknowns)
-            if inner is NOT_LINEAR:
-                return NOT_LINEAR
-
-            def applied(env):
-                out = {}
-                for name, block in inner(env).items():
-                    composed = self.ops.compose(step, block)
-                    if composed is None:
-                        raise ModelError(f"{to_text(node)}: a Galerkin ⋆⁻¹ inside the term has no sparse matrix; use "
-                                         "an explicit integrator")
-                    out[name] = composed
-                return out
-            return applied
+            return self._lagged_call(node, unknowns)
         return NOT_LINEAR
+
+    def _lagged_binary(self, node: Binary, unknowns: set[str]):
+        """:meth:`lagged` of a sum, difference, product or quotient."""
+        if node.op in "+-":
+            left, right = self.lagged(node.left, unknowns), self.lagged(node.right, unknowns)
+            if left is NOT_LINEAR or right is NOT_LINEAR or left is None or right is None:
+                return NOT_LINEAR
+            sign = -1.0 if node.op == "-" else 1.0
+
+            def summed(env):
+                merged = self._merge(left(env), {k: v.scaled(sign) for k, v in right(env).items()})
+                if merged is NOT_LINEAR:
+                    raise ModelError(f"{to_text(node)}: its two sides have different inverse stars; write it "
+                                     "over one ⋆ or use an explicit integrator")
+                return merged
+            return summed
+        if node.op in "*/":
+            # the right factor linear and the left frozen first; a quotient freezes its denominator
+            options = [(node.left, node.right)] if node.op == "/" else \
+                [(node.right, node.left), (node.left, node.right)]
+            for linear_side, factor in options:
+                inner = self.lagged(linear_side, unknowns)
+                if inner is None or inner is NOT_LINEAR:
+                    continue
+                if self.kind(factor, "?") == VECTOR:
+                    return NOT_LINEAR
+                value = self._compile(factor, "?")
+                divide = node.op == "/"
+
+                def scaled(env, inner=inner, value=value, divide=divide):
+                    factor_value = value(env)
+                    if divide:
+                        factor_value = 1.0 / np.asarray(factor_value, dtype=np.float64)
+                    out = self._scale(inner(env), factor_value)
+                    if out is NOT_LINEAR:
+                        raise ModelError(f"{to_text(node)}: a coefficient form times a Galerkin ⋆⁻¹ has no sparse "
+                                         "matrix; use an explicit integrator")
+                    return out
+                return scaled
+            return NOT_LINEAR
+        return NOT_LINEAR
+
+    def _lagged_call(self, node: Call, unknowns: set[str]):
+        """:meth:`lagged` of a one-argument linear operator applied to a lagged term."""
+        step = self._operator_matrix(node)
+        if step is None:
+            return NOT_LINEAR
+        inner = self.lagged(node.args[0], unknowns)
+        if inner is NOT_LINEAR:
+            return NOT_LINEAR
+
+        def applied(env):
+            out = {}
+            for name, block in inner(env).items():
+                composed = self.ops.compose(step, block)
+                if composed is None:
+                    raise ModelError(f"{to_text(node)}: a Galerkin ⋆⁻¹ inside the term has no sparse matrix; use "
+                                     "an explicit integrator")
+                out[name] = composed
+            return out
+        return applied
 
     def _operator_matrix(self, node: Call) -> Linear | None:
         """The :class:`Linear` of the one-argument linear operator ``node`` calls, or None (not a

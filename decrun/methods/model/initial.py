@@ -30,7 +30,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from decrun.core.forms import sample_density, sample_flux, sample_vector_field
-from decrun.methods.model.kinds import Kind, primal
+from decrun.methods.model.kinds import NUMBER, Kind, primal
 from decrun.methods.model.language import (
     Binary,
     Call,
@@ -42,7 +42,7 @@ from decrun.methods.model.language import (
     parse_expression,
     to_text,
 )
-from decrun.methods.model.operators import POINTWISE
+from decrun.methods.model.operators import OPERATORS
 
 __all__ = ["sample", "PointExpression"]
 
@@ -81,8 +81,9 @@ class PointExpression:
             self._check(node.right)
             return
         if isinstance(node, Call):
-            allowed = node.function in POINTWISE and len(node.args) == 1 or \
-                node.function in ("min", "max") and len(node.args) == 2 or \
+            operator = OPERATORS.get(node.function)  # the registry's value-by-value operators (plugins' too)
+            allowed = operator is not None and operator.pointwise and len(node.args) in operator.arity and \
+                (node.function not in ("min", "max") or len(node.args) == 2) or \
                 node.function == "vertex" and len(node.args) == 1
             if not allowed:
                 raise ModelError(f"{self.where}: {to_text(node)}: an initial or border value is an expression of the "
@@ -149,9 +150,9 @@ class PointExpression:
             out[int(index)] = 1.0
             return out
         args = [self._value(arg, env, n_vertices) for arg in node.args]
-        if node.function in ("min", "max"):
-            return (np.minimum if node.function == "min" else np.maximum)(*args)
-        return POINTWISE[node.function](*args)
+        evaluate = OPERATORS[node.function].evaluate
+        assert evaluate is not None  # a value-by-value operator is evaluated, never a matrix
+        return evaluate(None, [NUMBER] * len(args), *args)
 
 
 def _rng(seed: int, name: str) -> np.random.Generator:

@@ -11,7 +11,8 @@ system is the symmetric ``M + dt S`` of the thesis' implicit smoothing, §1.3).
 ==================  ==========================================================================
 ``explicit_euler``  u ← u + dt F(u, t)
 ``rk4``             the classical 4-stage Runge–Kutta
-``implicit_euler``  (M − dt A) u⁺ = M u + dt M R(t⁺); R must not read the evolved fields
+``implicit_euler``  (M − dt A) u⁺ = M u + dt M R(t⁺); when R reads the evolved fields, Newton's
+                    method on M (u⁺ − u) = dt f(u⁺, t⁺) (:mod:`.implicit_newton`)
 ``crank_nicolson``  (M − dt/2 A) u⁺ = (M + dt/2 A) u + dt/2 M (R(t) + R(t⁺)); likewise
 ``imex``            (M − dt A) u⁺ = M u + dt M R(u, t): linear part implicit, the rest explicit
 ``semi_implicit``   (M − dt A(uⁿ)) u⁺ = M uⁿ + dt M R(uⁿ, t): lagged coefficients (Picard), A refactorized
@@ -26,130 +27,29 @@ Fixed (Dirichlet) values stay at their border values in every scheme.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Callable
+
 import numpy as np
 import scipy.sparse as sp
 
 from decrun.methods.model.compiler import NOT_LINEAR
+from decrun.methods.model.implicit_newton import NewtonImplicit
 from decrun.methods.model.language import ModelError, to_text
+from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.problem import ModelProblem
+from decrun.methods.model.runge_kutta import INTEGRATORS as RUNGE_KUTTA
+from decrun.methods.model.runge_kutta import Needs
 from decrun.methods.model.solve import LinearSystem
 
-__all__ = ["INTEGRATORS", "FROZEN", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
+__all__ = ["INTEGRATORS", "SCHEMES", "Scheme", "ProblemStepper", "FROZEN", "make_integrator", "explicit_stability_limit", "jacobian_pattern", "Evolution"]
 
 INTEGRATORS = ("explicit_euler", "rk4", "implicit_euler", "crank_nicolson", "imex", "symplectic", "bdf", "radau",
-               "rk45", "semi_implicit")
+               "rk45", "semi_implicit", "ssprk3", "gauss_legendre", "radau_iia", "ark_imex")
 #: the suffix of :func:`explicit_stability_limit`'s source when the limit is of frozen coefficients
 FROZEN = " (coefficients frozen at t = 0)"
 #: the stability interval on the negative real axis: |1 + z| ≤ 1 (Euler), RK4's ≈ −2.785
 STABILITY_INTERVAL = {"explicit_euler": 2.0, "rk4": 2.785293563405282}
-
-
-class Evolution:
-    """The evolution equations of a :class:`~decrun.methods.model.system.CompiledModel` split
-    for the implicit schemes: ``blocks[(u, v)]`` weak matrices A_uv, ``mass[u]`` the row's M_u
-    (sparse), ``rest[u]``: [(sign, closure)] of the explicit terms and ``rest_trees[u]``."""
-
-    def __init__(self, model):
-        self.model = model
-        compiler, ops = model.compiler, model.ops
-        self.names = list(model.evolved)
-        self.sizes = {name: model.kinds[name].size(ops.K) for name in self.names}
-        offsets = np.cumsum([0] + [self.sizes[name] for name in self.names])
-        self.slices = {name: slice(offsets[i], offsets[i + 1]) for i, name in enumerate(self.names)}
-        self.total = int(offsets[-1])
-        self.blocks, self.mass, self.rest, self.rest_trees = {}, {}, {}, {}
-        unknowns = set(self.names)
-        for equation in model.equations:
-            if equation.kind != "evolution":
-                continue
-            u = equation.target
-            blocks, rest = compiler.split(equation.rhs, unknowns)
-            invs = {block.inv for block in blocks.values()} - {None}
-            if len(invs) > 1:
-                raise ModelError(f"{equation.where}: the linear terms of dt({u}) mix inverse stars {sorted(invs)}; "
-                                 "write them over one ⋆ or use an explicit integrator")
-            size = self.sizes[u]
-            if invs:
-                k = invs.pop()
-                M = ops.dec.star(k).tocsr()
-                for v, block in list(blocks.items()):
-                    blocks[v] = block.A.tocsr() if block.inv is not None else (M @ block.A).tocsr()
-            else:
-                M = sp.identity(size, format="csr")
-                blocks = {v: block.A.tocsr() for v, block in blocks.items()}
-            self.mass[u] = M
-            for v, A in blocks.items():
-                self.blocks[(u, v)] = A
-            self.rest_trees[u] = rest
-            self.rest[u] = [(sign, compiler.compile(term, equation.where)) for sign, term in rest]
-        self._mass_diagonal = {}
-        for u, M in self.mass.items():
-            M = sp.csr_matrix(M)
-            M.sort_indices()
-            n = M.shape[0]
-            if M.nnz == n and np.array_equal(M.indptr, np.arange(n + 1)) and np.array_equal(M.indices, np.arange(n)):
-                self._mass_diagonal[u] = M.data.copy()
-
-    def apply_mass(self, u: str, value: np.ndarray) -> np.ndarray:
-        """M_u value — a product with the diagonal when M_u is diagonal (⋆0, the circumcentric ⋆k)."""
-        diagonal = self._mass_diagonal.get(u)
-        if diagonal is not None:
-            return diagonal * value
-        return self.mass[u] @ value
-
-    def reads_evolved(self, u: str) -> list:
-        """The explicit terms of dt(u) that read an evolved field (not allowed in implicit schemes)."""
-        compiler = self.model.compiler
-        return [term for sign, term in self.rest_trees[u] if compiler.depends_on(term, set(self.names))]
-
-    def rest_value(self, u: str, env: dict | None) -> np.ndarray:
-        """R_u at ``env``: the sum of the explicit terms of dt(u) (zeros when there are none;
-        ``env`` is None only where a model has no explicit term to read it)."""
-        value = None
-        for sign, closure in self.rest[u]:
-            term = closure(env) if sign == 1 else sign * closure(env)
-            value = term if value is None else value + term
-        if value is None or np.ndim(value) == 0:  # no term, or only numbers
-            return np.full(self.sizes[u], 0.0 if value is None else float(value))
-        return value
-
-    def matrix(self, alpha: float) -> sp.csr_matrix:
-        """M − α A over all evolved fields (the block system)."""
-        rows = []
-        for u in self.names:
-            row = []
-            for v in self.names:
-                block = self.blocks.get((u, v))
-                part = None if block is None else -alpha * block
-                if u == v:
-                    part = self.mass[u] if part is None else self.mass[u] + part
-                row.append(part)
-            rows.append(row)
-        return sp.bmat(rows, format="csr") if len(self.names) > 1 else sp.csr_matrix(rows[0][0])
-
-    def apply_blocks(self, state: dict) -> dict:
-        """Σ_v A_uv v for every row u."""
-        out = {u: np.zeros(self.sizes[u]) for u in self.names}
-        for (u, v), A in self.blocks.items():
-            out[u] = out[u] + A @ state[v]
-        return out
-
-    def stack(self, values: dict) -> np.ndarray:
-        return np.concatenate([np.asarray(values[name], dtype=np.float64) for name in self.names])
-
-    def unstack(self, vector: np.ndarray) -> dict:
-        return {name: vector[self.slices[name]] for name in self.names}
-
-    def fixed(self) -> tuple[np.ndarray, np.ndarray]:
-        """Indices in the stacked vector of the fixed values, and those values."""
-        indices, values = [], []
-        for name in self.names:
-            if name in self.model.fixed:
-                border, value = self.model.fixed[name]
-                indices.append(border + self.slices[name].start)
-                values.append(value)
-        if not indices:
-            return np.zeros(0, dtype=np.int64), np.zeros(0)
-        return np.concatenate(indices), np.concatenate(values)
 
 
 def _enforce(model, state: dict) -> dict:
@@ -188,16 +88,12 @@ class Explicit:
         pass
 
 
-def _require_linear(model, evolution, scheme: str) -> None:
-    """Implicit Euler and Crank–Nicolson step only terms linear in the evolved fields."""
-    if scheme in ("implicit_euler", "crank_nicolson"):
-        for u in evolution.names:
-            terms = evolution.reads_evolved(u)
-            if terms:
-                equation = next(e for e in model.equations if e.kind == "evolution" and e.target == u)
-                raise ModelError(f"{equation.where}: integrator={scheme} needs equations linear in the evolved "
-                                 f"fields with constant coefficients; the term {to_text(terms[0])} is not: use "
-                                 "`app.integrator=imex` (that term explicit) or `app.integrator=rk4`")
+def _nonlinear(model) -> bool:
+    """True when a term of an evolution that is not a constant linear block reads an evolved
+    field: implicit Euler and Crank–Nicolson then take Newton's method each step
+    (:class:`~decrun.methods.model.implicit_newton.NewtonImplicit`)."""
+    evolution = model.evolution
+    return any(evolution.reads_evolved(u) for u in evolution.names)
 
 
 def check_integrator(model, scheme: str, dt: float) -> None:
@@ -206,10 +102,12 @@ def check_integrator(model, scheme: str, dt: float) -> None:
     factorizing anything: raised when the model loads, before any work."""
     if scheme == "symplectic":
         Symplectic(model, dt)
-    elif scheme in ("implicit_euler", "crank_nicolson"):
-        _require_linear(model, Evolution(model), scheme)
+    elif scheme in ("implicit_euler", "crank_nicolson") and _nonlinear(model):
+        ModelProblem(model).check_jacobian()  # Newton's: every nonlinear term needs an exact Jacobian
     elif scheme in ("bdf", "radau"):
         jacobian_pattern(model)
+    elif SCHEMES[scheme].tableau is not None and SCHEMES[scheme].needs == "jacobian":
+        model.problem.check_jacobian()  # the stages' Newton: every nonlinear term needs an exact Jacobian
 
 
 class Implicit:
@@ -217,8 +115,7 @@ class Implicit:
 
     def __init__(self, model, dt: float, scheme: str, new_solver):
         self.model, self.dt, self.scheme = model, float(dt), scheme
-        self.evolution = evolution = Evolution(model)
-        _require_linear(model, evolution, scheme)
+        self.evolution = evolution = model.evolution  # implicit Euler, Crank–Nicolson: linear (else NewtonImplicit)
         theta = 0.5 if scheme == "crank_nicolson" else 1.0
         self.theta = theta
         fixed, self.fixed_values = evolution.fixed()
@@ -443,7 +340,7 @@ class Adaptive:
     def __init__(self, model, dt: float, scheme: str, rtol: float, atol: float):
         self.model, self.dt, self.scheme = model, float(dt), scheme
         self.rtol, self.atol = float(rtol), float(atol)
-        self.evolution = Evolution(model)
+        self.evolution = model.evolution
         self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") else None
         self.jacobian = _exact_jacobian(self.evolution) if scheme in ("bdf", "radau") else None
         self.h = float("nan")
@@ -504,18 +401,86 @@ def _exact_jacobian(evolution: Evolution) -> sp.csr_matrix | None:
     return sp.bmat(rows, format="csc")
 
 
-def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-6, atol: float = 1e-9):
-    """The integrator ``scheme`` (one of :data:`INTEGRATORS`) for ``model`` at step ``dt``."""
+class ProblemStepper:
+    """A stepper of the Runge–Kutta family (:mod:`decrun.methods.model.runge_kutta`: y ↦ y⁺ over
+    the model's :class:`~decrun.methods.model.problem.ModelProblem`) stepping the model's state
+    (field → values, border values included); its state is the stepper's (checkpoints)."""
+
+    def __init__(self, problem: ModelProblem, stepper):
+        self.problem, self.stepper = problem, stepper
+
+    def step(self, state: dict, t: float) -> dict:
+        return self.problem.state(self.stepper.step(self.problem.free_values(state), t))
+
+    def state_dict(self) -> dict:
+        return self.stepper.state_dict()
+
+    def load_state(self, state: dict) -> None:
+        self.stepper.load_state(state)
+
+
+def _make_tableau(entry):
+    """The maker of a tableau integrator of the Runge–Kutta registry: its stepper over the
+    model's Problem (the exact Jacobian checked first when it needs one)."""
+    def make(model, dt: float, new_solver, rtol: float, atol: float):
+        problem = model.problem
+        options: dict = {}
+        if entry.needs == Needs.jacobian:
+            problem.check_jacobian()
+            options = {"where": f"app.integrator={entry.name}", "fix": f"take smaller steps: `app.dt={dt / 4:.6g}`"}
+        elif entry.needs == Needs.stiff_split:
+            options = {"key": "app.integrator"}
+        return ProblemStepper(problem, entry.factory(problem, float(dt), new_solver, **options))
+    return make
+
+
+def _make_legacy(model, scheme: str, dt: float, new_solver, rtol: float, atol: float):
     if scheme in ("explicit_euler", "rk4"):
         return Explicit(model, dt, scheme)
+    if scheme in ("implicit_euler", "crank_nicolson") and _nonlinear(model):
+        return NewtonImplicit(model, dt, scheme, new_solver)
     if scheme in ("implicit_euler", "crank_nicolson", "imex"):
         return Implicit(model, dt, scheme, new_solver)
     if scheme == "symplectic":
         return Symplectic(model, dt)
     if scheme in ("bdf", "radau", "rk45"):
         return Adaptive(model, dt, scheme, rtol, atol)
-    if scheme == "semi_implicit":
-        return SemiImplicit(model, dt, new_solver)
+    return SemiImplicit(model, dt, new_solver)
+
+
+@dataclass(frozen=True)
+class Scheme:
+    """One integrator of ``app.integrator``: its ``name``, what it ``needs`` of the model
+    (``explicit``: only f; ``jacobian``: the exact Jacobian of its nonlinear terms;
+    ``stiff_split``: the constant linear part), its ``order`` in time, and
+    ``make(model, dt, new_solver, rtol, atol) -> stepper`` (``step(state, t)``, ``state_dict``,
+    ``load_state``); ``tableau``: its Butcher tableau, for a Runge–Kutta method given as data."""
+
+    name: str
+    needs: str
+    order: int
+    make: Callable
+    tableau: object = None
+
+
+#: every integrator by name, one entry each: the schemes written here, then the tableaux of
+#: :data:`decrun.methods.model.runge_kutta.INTEGRATORS` (a new tableau there is a new integrator)
+SCHEMES: dict[str, Scheme] = {
+    name: Scheme(name, needs, order, lambda model, dt, new_solver, rtol, atol, name=name:
+                 _make_legacy(model, name, dt, new_solver, rtol, atol))
+    for name, needs, order in (("explicit_euler", "explicit", 1), ("rk4", "explicit", 4),
+                               ("implicit_euler", "jacobian", 1), ("crank_nicolson", "jacobian", 2),
+                               ("imex", "stiff_split", 1), ("symplectic", "explicit", 2), ("bdf", "jacobian", 5),
+                               ("radau", "jacobian", 5), ("rk45", "explicit", 5), ("semi_implicit", "explicit", 1))}
+SCHEMES.update({name: Scheme(name, str(entry.needs), entry.order, _make_tableau(entry), entry.tableau)
+                for name, entry in RUNGE_KUTTA.items()})
+
+
+def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-6, atol: float = 1e-9):
+    """The integrator ``scheme`` (one of :data:`SCHEMES`) for ``model`` at step ``dt``."""
+    entry = SCHEMES.get(scheme)
+    if entry is not None:
+        return entry.make(model, float(dt), new_solver, rtol, atol)
     raise ModelError(f"app.integrator: unknown integrator {scheme!r}; choose one of {' | '.join(INTEGRATORS)}")
 
 
@@ -538,7 +503,7 @@ def explicit_stability_limit(model, scheme: str, state: dict | None = None) -> t
 
     if scheme not in STABILITY_INTERVAL:
         return float("inf"), ""
-    evolution = Evolution(model)
+    evolution = model.evolution
     best, source = float("inf"), ""
     for u in evolution.names:
         A = evolution.blocks.get((u, u))
@@ -586,7 +551,7 @@ def jacobian_pattern(model) -> sp.csr_matrix:
     """The sparsity of ∂F/∂u over the stacked evolved fields, from the equations: each term's
     operators' own patterns (a linear chain's matrix), value-by-value terms the identity. A
     term through an operator without a matrix (∧, ♯, ♭, a solve) is refused."""
-    evolution = Evolution(model)
+    evolution = model.evolution
     compiler = model.compiler
     names = set(evolution.names)
     rows = []
@@ -657,8 +622,7 @@ def _term_pattern(compiler, node, v: str, rows: int, cols: int, where: str) -> s
                     raise ModelError(f"{where}: integrator=bdf/radau: {to_text(node)} has no sparse matrix here; use "
                                      "`app.integrator=imex`")
                 return _structure(step.A) @ _structure(parts[0])
-            if operator.name in ("exp", "log", "sin", "cos", "tanh", "sqrt", "abs", "max", "min", "explicit") and \
-                    all(p.shape[0] == p.shape[1] or True for p in parts):
+            if operator.pointwise:  # value by value (the registry's flag): the arguments' patterns
                 total = parts[0]
                 for p in parts[1:]:
                     total = _structure(total) + _structure(p)

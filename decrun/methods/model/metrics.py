@@ -18,7 +18,8 @@ def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, 
     ``resumed_from_step`` (time-dependent models), ``t_final``, ``dt``, ``integrator``,
     ``dt_stability_limit`` and ``dt_over_stability_limit`` (explicit integrators with a
     diffusion block), ``accepted_steps`` and ``rhs_evaluations`` (adaptive integrators), ``factorizations``
-    (semi_implicit: one per step), and per
+    (semi_implicit: one per step), ``<unknown>_newton_iterations`` per nonlinear solve (its last
+    solve's), and per
     singular solve ``<unknown>_kernel_pieces``, ``<unknown>_rhs_mean_removed`` (the part of
     the right side along the kernel that was removed, relative) and ``<unknown>_rhs_mean`` (the
     mean that was subtracted, in the right side's units)."""
@@ -48,6 +49,9 @@ def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, 
         metrics["rhs_evaluations"] = int(state["evaluations"])
     if "factorizations" in state:
         metrics["factorizations"] = int(state["factorizations"])
+    for what, item in model.order:  # nonlinear solves: Newton's iterations of the last solve
+        if what == "newton" and item.iterations:
+            metrics[f"{item.unknown}_newton_iterations"] = int(item.iterations[-1])
     for name, kernel in model.solve_reports().items():
         metrics[f"{name}_kernel_pieces"] = int(kernel.pieces)
         metrics[f"{name}_rhs_mean_removed"] = float(kernel.removed)

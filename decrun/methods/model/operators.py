@@ -20,10 +20,12 @@ from typing import Callable, Optional
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.errors import ConfigError
 from decrun.methods.model import discrete
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
 
-__all__ = ["Linear", "Discrete", "Operator", "OPERATORS", "ALIASES", "POINTWISE", "Mismatch", "reference_table"]
+__all__ = ["Linear", "Discrete", "Operator", "OPERATORS", "ALIASES", "POINTWISE", "Mismatch", "reference_table",
+           "register", "pointwise", "load_plugins", "ENTRY_POINT_GROUP", "PluginError"]
 
 
 class Mismatch(Exception):
@@ -130,6 +132,14 @@ class Operator:
     #: (Discrete, kinds, first argument's value) -> the sparse matrix of the operator in its second
     #: argument, for an operator linear in it once the first is fixed (lie of a static velocity)
     fixed_first: Optional[Callable] = None
+    #: the derivative rule, for exact Jacobians: (Discrete, kinds, values, i) -> ∂(op)/∂(argument i)
+    #: at the arguments' ``values``, either an array (a value-by-value factor: the diagonal matrix
+    #: diag(f'(x))) or a sparse matrix; None: the operator has no derivative rule (a linear
+    #: operator's derivative is its matrix, :attr:`linear`, and needs no rule)
+    derivative: Optional[Callable] = None
+    #: True for a value-by-value operator: each output value reads the inputs' values on the same
+    #: simplex only (its Jacobian is diagonal; it may stand in initial and border values)
+    pointwise: bool = False
 
 
 def _one_form(args, n, name, allowed: Callable[[Kind], bool], takes: str) -> Kind:
@@ -424,6 +434,20 @@ def _reduction_or_pointwise_evaluate(function, reduce):
     return run
 
 
+def _larger_derivative(larger: bool):
+    """The derivative rule of two-argument max (``larger``) or min: 1 towards the argument that
+    is taken at each value, 0 towards the other (ties go to the first); the one-argument
+    reduction (a number) has no rule."""
+    def rule(ops, kinds, values, i):
+        if len(values) != 2:
+            return None
+        a, b = (np.asarray(value, dtype=np.float64) for value in values)
+        first = (a >= b) if larger else (a <= b)
+        taken = first if i == 0 else ~first
+        return np.broadcast_to(taken.astype(np.float64), np.broadcast(a, b).shape).copy()
+    return rule
+
+
 def _pointwise_kind(name, args):
     kinds = [kind for kind in args if kind != NUMBER]
     if any(kind == VECTOR for kind in kinds):
@@ -457,16 +481,36 @@ POINTWISE = {"exp": np.exp, "log": np.log, "sin": np.sin, "cos": np.cos, "tan": 
              "sinh": np.sinh, "cosh": np.cosh, "arcsin": np.arcsin, "arccos": np.arccos, "arctan": np.arctan,
              "sqrt": np.sqrt, "abs": np.abs, "sign": np.sign}
 
+#: f' of each of :data:`POINTWISE` (abs' = sign, sign' = 0 away from 0)
+POINTWISE_DERIVATIVES: dict[str, Callable] = {
+    "exp": np.exp, "log": lambda x: 1.0 / x, "sin": np.cos, "cos": lambda x: -np.sin(x),
+    "tan": lambda x: 1.0 / np.cos(x) ** 2, "tanh": lambda x: 1.0 - np.tanh(x) ** 2, "sinh": np.cosh,
+    "cosh": np.sinh, "arcsin": lambda x: 1.0 / np.sqrt(1.0 - x ** 2), "arccos": lambda x: -1.0 / np.sqrt(1.0 - x ** 2),
+    "arctan": lambda x: 1.0 / (1.0 + x ** 2), "sqrt": lambda x: 0.5 / np.sqrt(x), "abs": np.sign,
+    "sign": np.zeros_like}
+
 
 def _pointwise_rule(name):
     return lambda args, n: _pointwise_kind(name, args)
 
 
 OPERATORS: dict[str, Operator] = {}
+#: the operators decrun itself defines (a plugin may not replace one)
+BUILT_IN: set[str] = set()
 
 
 def _register(operator: Operator) -> None:
     OPERATORS[operator.name] = operator
+    BUILT_IN.add(operator.name)
+
+
+def pointwise(name: str, function: Callable, derivative: Callable, definition: str) -> Operator:
+    """A value-by-value operator of one argument (a number or a form → the same): ``function``
+    and its ``derivative`` are numpy functions of an array (``np.tanh`` and ``lambda x: 1 -
+    np.tanh(x)**2``); ``definition`` is its line in the docs' operator table. What a plugin
+    registers for a new elementwise function (docs/extending.md)."""
+    return Operator(name, (1,), "number or form → the same", definition, _pointwise_rule(name),
+                    _unary(function), derivative=lambda ops, kinds, values, i: derivative(values[0]), pointwise=True)
 
 
 _register(Operator("d", (1,), "primal k → primal k+1; dual k → dual k+1 (k < n)",
@@ -544,10 +588,12 @@ _register(Operator("inner", (2,), "two forms of one kind (or two vectors) → nu
                    lambda ops, kinds, a, b: inner_product(ops, kinds[0], a, b)))
 _register(Operator("max", (1, 2), "form → number (largest value); two forms/numbers → value by value",
                    "max over the values, or the larger of two values at each simplex",
-                   _reduction_or_pointwise("max"), _reduction_or_pointwise_evaluate(np.maximum, np.max)))
+                   _reduction_or_pointwise("max"), _reduction_or_pointwise_evaluate(np.maximum, np.max),
+                   derivative=_larger_derivative(larger=True), pointwise=True))
 _register(Operator("min", (1, 2), "form → number (smallest value); two forms/numbers → value by value",
                    "min over the values, or the smaller of two values at each simplex",
-                   _reduction_or_pointwise("min"), _reduction_or_pointwise_evaluate(np.minimum, np.min)))
+                   _reduction_or_pointwise("min"), _reduction_or_pointwise_evaluate(np.minimum, np.min),
+                   derivative=_larger_derivative(larger=False), pointwise=True))
 _register(Operator("mean", (1,), "form → number", "the arithmetic mean of the values (unweighted)",
                    _reduction_or_pointwise("mean"), _reduction_or_pointwise_evaluate(None, np.mean)))
 _register(Operator("vertex", (1,), "number i → primal 0-form",
@@ -561,24 +607,87 @@ _register(Operator("explicit", (1,), "anything → the same",
                    "the argument's value at the start of the step: a term under explicit(·) is never put into an "
                    "implicit integrator's matrix (imex splittings: s*laplacian(c) - D*laplacian(explicit(s*c)) "
                    "stabilizes; convex splitting); the identity for every other use",
-                   _explicit_kind, lambda ops, kinds, x: x))
+                   _explicit_kind, lambda ops, kinds, x: x,
+                   derivative=lambda ops, kinds, values, i: np.ones_like(np.asarray(values[0], dtype=np.float64)),
+                   pointwise=True))
 
 for _name, _function in POINTWISE.items():
-    _register(Operator(_name, (1,), "number or form → the same", f"{_name} of each value",
-                       _pointwise_rule(_name), _unary(_function)))
+    _register(pointwise(_name, _function, POINTWISE_DERIVATIVES[_name], f"{_name} of each value"))
 
 #: other spellings of the operators
 ALIASES = {"codiff": "codifferential", "delta": "codifferential", "hodge": "star", "star_inv": "inv_star",
            "laplace": "laplacian", "avg": "average", "interior_product": "interior"}
 
 
+#: the entry-point group through which an installed package adds operators (docs/extending.md)
+ENTRY_POINT_GROUP = "decrun.operators"
+#: names an operator may not take: the language's own words and built-in values
+_NOT_OPERATOR_NAMES = {"dt", "solve", "x", "y", "z", "t", "h", "pi", "random"}
+_plugins_loaded: list[str] = []
+
+
+class PluginError(ConfigError):
+    """An operator plugin that cannot be loaded or registered: one line naming its entry point."""
+
+
+def register(operator: Operator, source: str = "decrun") -> None:
+    """Add ``operator`` to :data:`OPERATORS` (the one table every pass reads: typing,
+    evaluation, linear blocks, derivatives, the docs' table). ``source`` names where it comes
+    from in a refusal. A plugin may not replace a built-in operator, an alias or a reserved name."""
+    name = operator.name
+    if not isinstance(name, str) or not name.isidentifier() or name.startswith("_"):
+        raise PluginError(f"{source}: an operator's name is a letter followed by letters, digits or '_', got {name!r}")
+    if name in BUILT_IN or name in ALIASES or name in _NOT_OPERATOR_NAMES:
+        raise PluginError(f"{source}: the operator name {name!r} is decrun's own (a built-in operator or name); "
+                          f"rename the plugin's operator, e.g. {name}_2")
+    if not operator.arity or not all(isinstance(count, int) and count >= 1 for count in operator.arity):
+        raise PluginError(f"{source}: operator {name!r} needs arity, a tuple of argument counts ≥ 1, got "
+                          f"{operator.arity!r}")
+    if operator.evaluate is None and operator.linear is None:
+        raise PluginError(f"{source}: operator {name!r} has neither evaluate nor linear; give it one of them")
+    OPERATORS[name] = operator
+
+
+def load_plugins() -> list[str]:
+    """Register the operators of every installed package's entry points in the group
+    :data:`ENTRY_POINT_GROUP` (found with :func:`importlib.metadata.entry_points`), once per
+    process; each entry point names an :class:`Operator`, a list of them, or a function
+    returning either. Returns the names registered from plugins. A plugin that fails to load
+    is a one-line :class:`PluginError` naming its entry point and package."""
+    if _plugins_loaded:
+        return list(_plugins_loaded[1:])
+    from importlib.metadata import entry_points
+
+    names = []
+    for entry in entry_points(group=ENTRY_POINT_GROUP):
+        package = getattr(entry.dist, "name", None) or "its package"
+        source = f"operator plugin {entry.name} = {entry.value} (entry point group {ENTRY_POINT_GROUP}, {package})"
+        try:
+            loaded = entry.load()
+            operators = loaded() if callable(loaded) and not isinstance(loaded, Operator) else loaded
+        except Exception as error:  # noqa: BLE001 - any failure of a user's package: one line naming it
+            first = (str(error).splitlines() or [""])[0]
+            raise PluginError(f"{source}: cannot be loaded ({type(error).__name__}: {first}); fix or uninstall "
+                              f"{package}") from None
+        for operator in [operators] if isinstance(operators, Operator) else list(operators):
+            if not isinstance(operator, Operator):
+                raise PluginError(f"{source}: gives a {type(operator).__name__}, not a "
+                                  "decrun.methods.model.operators.Operator")
+            register(operator, source)
+            names.append(operator.name)
+    _plugins_loaded[:] = ["loaded", *names]
+    return names
+
+
 def reference_table() -> str:
     """The language reference as a markdown table (operator, degree rule, discrete definition),
-    generated from :data:`OPERATORS`."""
+    generated from :data:`OPERATORS` (decrun's own operators; a plugin's are in its docs)."""
     def cell(text: str) -> str:  # a | inside a cell (|⋆σ|/|σ|) would end the column
         return text.replace("|", "\\|")
 
     rows = ["| operator | takes → gives | discrete definition |", "|---|---|---|"]
     for operator in OPERATORS.values():
+        if operator.name not in BUILT_IN:
+            continue
         rows.append(f"| `{operator.name}` | {cell(operator.takes)} | {cell(operator.definition)} |")
     return "\n".join(rows)

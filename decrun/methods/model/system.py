@@ -42,12 +42,16 @@ from decrun.methods.model.language import (
     parse_expression,
     to_text,
 )
-from decrun.methods.model.operators import OPERATORS, Discrete, Linear
+from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.nonlinear import compile_nonlinear_solve
+from decrun.methods.model.operators import OPERATORS, Discrete, Linear, load_plugins
+from decrun.methods.model.problem import ModelProblem
 from decrun.methods.model.solve import BlockSystem, IncompatibleRightHandSide, LinearSystem, constant_kernel
 
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
 
-RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random"} | set(OPERATORS) | {"solve"}
+#: the built-in names and words of the language (the operators' names, plugins' included, too: :func:`reserved`)
+RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random", "solve"}
 #: metric names the run itself reports (decrun.methods.model.metrics and the runner's status columns)
 RESERVED_METRICS = {"status", "error", "stable", "unstable_reason", "diverged_at_step", "steps_done", "solve_seconds",
                     "steps_per_second", "step_seconds_max", "resumed_from_step", "t_final", "dt", "integrator",
@@ -137,7 +141,8 @@ class CompiledModel:
     equations: list[Equation]
     evolved: list[str]
     inputs: list[str]
-    order: list[tuple[str, Any]]  # ("definition", (name, closure)) | ("solve", Solve) | ("system", SystemSolve)
+    #: ("definition", (name, closure)) | ("solve", Solve) | ("system", SystemSolve) | ("newton", NonlinearSolve)
+    order: list[tuple[str, Any]]
     rhs: dict[str, Callable]
     metrics: dict[str, Callable]
     fixed: dict[str, tuple[np.ndarray, np.ndarray]]
@@ -161,6 +166,8 @@ class CompiledModel:
                 env[name] = closure(env)
             elif what == "system":
                 env.update(item.solve(env))
+            elif what == "newton":
+                env[item.unknown] = item.solve(env)
             else:
                 env[item.unknown] = item.system.solve(item.rhs(env), item.fixed_values)
         return env
@@ -182,6 +189,24 @@ class CompiledModel:
             out[name] = value
         return out
 
+    @property
+    def evolution(self) -> Evolution:
+        """The evolution equations lowered into linear blocks and explicit terms
+        (:class:`~decrun.methods.model.lowering.Evolution`), made once and shared by every caller."""
+        cached = getattr(self, "_evolution", None)
+        if cached is None:
+            cached = self._evolution = Evolution(self)
+        return cached
+
+    @property
+    def problem(self) -> ModelProblem:
+        """The model as M y' = f(y, t) over its free unknowns
+        (:class:`~decrun.methods.model.problem.ModelProblem`), made once."""
+        cached = getattr(self, "_problem", None)
+        if cached is None:
+            cached = self._problem = ModelProblem(self)
+        return cached
+
     def _constrained_masses(self) -> dict:
         """field → (M, interior indices, solve with M_II) for each evolved field with fixed values
         whose evolution is weighted by a non-diagonal mass M (Whitney's ⋆): there dt(u) at the
@@ -191,10 +216,8 @@ class CompiledModel:
         if cached is None:
             from scipy.sparse.linalg import factorized
 
-            from decrun.methods.model.integrators import Evolution  # lazy: integrators imports this module
-
             cached = {}
-            evolution = Evolution(self)
+            evolution = self.evolution
             for name in self.fixed:
                 M = evolution.mass.get(name)
                 if M is None or (M - sp.diags(M.diagonal())).count_nonzero() == 0:
@@ -209,6 +232,8 @@ class CompiledModel:
         for what, item in self.order:
             if what in ("solve", "system"):
                 item.system.bind(new_solver)
+            elif what == "newton":
+                item.bind(new_solver)
 
     def check_compatibility(self) -> None:
         """Before any work: a singular solve (kernel of constants) whose right side reads only
@@ -216,7 +241,8 @@ class CompiledModel:
         must be round-off), so the refusal comes before the run, not at its first step."""
         computed = set()
         for what, item in self.order:
-            computed |= set(item.unknowns) if what == "system" else {item.unknown if what == "solve" else item[0]}
+            computed |= set(item.unknowns) if what == "system" else \
+                {item.unknown if what in ("solve", "newton") else item[0]}
         for what, item in self.order:
             if what != "solve" or item.system.pieces is None:
                 continue
@@ -263,30 +289,80 @@ def _kind_of_field(name: str, spec: FieldSpec, key: str, n: int) -> Kind:
     return form_kind(spec.form, f"{key}.fields.{name}.form", n)
 
 
+@dataclass
+class Resolved:
+    """What the resolve pass finds: the evolved fields in order, the definitions by target, the
+    solves and systems (their unknowns resolved) and which equation computes each name."""
+
+    equations: list[Equation]
+    evolved: list[str]
+    definitions: dict[str, Equation]
+    solves: list[Equation]
+    targets: dict[str, str]
+
+
 def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | None = None) -> CompiledModel:
     """The :class:`CompiledModel` of ``spec`` on ``dec``'s mesh (see the module docstring);
     ``new_solver()`` gives a fresh solver for each linear system; ``chained`` is a previous run's
-    field (``mesh=result mesh.field=…``) for ``initial: result:<field>``."""
+    field (``mesh=result mesh.field=…``) for ``initial: result:<field>``.
+
+    The passes, in order: parse (:func:`_parse_equations`) → resolve names and unknowns
+    (:func:`_resolve`) → order (:func:`_order`) → infer kinds (:func:`_type_definitions`) →
+    bind values to the mesh (:func:`_bind_values`, :func:`_dirichlet`) → lower every equation
+    into closures and linear blocks (:func:`_lower_equations`) → metrics → check stars."""
     key = spec.key
+    load_plugins()
     ops = Discrete(dec)
-    K, n = ops.K, ops.n
     _check_names(spec)
-    kinds = {name: _kind_of_field(name, field_spec, key, n) for name, field_spec in spec.fields.items()}
+    kinds = _declared_kinds(spec, ops.n)
+    resolved = _resolve(spec, _parse_equations(spec))
+    inputs = [name for name in spec.fields if name not in resolved.targets]
+    _check_initial_values(spec, resolved.evolved, inputs)
+    ordered = _order(resolved.definitions, resolved.solves, set(spec.fields) | set(spec.constants), key)
+    compiler = _type_definitions(spec, ops, kinds, resolved, ordered)
+    base, initial_values = _bind_values(spec, dec, kinds, resolved.evolved, inputs, chained)
+    fixed = _dirichlet(spec, kinds, dec, key)
+    compiler.static_env = dict(base)
+    model = CompiledModel(spec, ops, compiler, kinds, resolved.equations, resolved.evolved, inputs, [], {}, {}, fixed,
+                          base, initial_values)
+    trees = _lower_equations(model, ordered, new_solver)
+    trees += _compile_metrics(model)
+    check_intrinsic(compiler, dec, trees)
+    _check_stars(compiler, dec, trees)
+    return model
+
+
+def _declared_kinds(spec: ModelSpec, n: int) -> dict[str, Kind]:
+    """The kinds of the declared fields (their ``form``) and of the constants (numbers)."""
+    kinds = {name: _kind_of_field(name, field_spec, spec.key, n) for name, field_spec in spec.fields.items()}
     for name, value in spec.constants.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-            raise ModelError(f"{key}.constants.{name}: must be a finite number, got {value!r}")
+            raise ModelError(f"{spec.key}.constants.{name}: must be a finite number, got {value!r}")
         kinds[name] = NUMBER
+    return kinds
 
+
+def _parse_equations(spec: ModelSpec) -> list[Equation]:
+    """The parse pass: every equation string → :class:`Equation` (its key named in errors)."""
+    key = spec.key
     wheres = spec.equation_keys or [f"{key}.equations[{i}]" for i in range(len(spec.equations))]
     equations = [parse_equation(text, where) for text, where in zip(spec.equations, wheres, strict=True)]
     if not equations:
         raise ModelError(f"{key}.equations: a model needs at least one equation, e.g. "
                          f"'{key}.equations=[\"dt(u) = laplacian(u)\"]'")
-    evolved, definitions, solves = [], {}, []
-    targets: dict[str, str] = {}
+    return equations
+
+
+def _resolve(spec: ModelSpec, equations: list[Equation]) -> Resolved:
+    """The resolve pass: which field each equation computes — evolutions and definitions name
+    theirs, a solve's unknown is the one declared field of its left side that nothing else
+    computes, a system's are as many as its equations — each name computed once."""
+    key = spec.key
+    resolved = Resolved(list(equations), [], {}, [], {})
+    targets = resolved.targets
 
     def claim(target: str, where: str):
-        if target in RESERVED:
+        if target in reserved():
             raise ModelError(f"{where}: {target!r} is a built-in name; choose another name for the field")
         if target in spec.constants:
             raise ModelError(f"{where}: {target!r} is a constant (app.constants.{target}); an equation cannot set it")
@@ -300,52 +376,61 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
                 raise ModelError(f"{equation.where}: dt({equation.target}) evolves a field that is not declared; add "
                                  f"{key}.fields.{equation.target} with its form and initial value")
             claim(equation.target, equation.where)
-            evolved.append(equation.target)
+            resolved.evolved.append(equation.target)
         elif equation.kind == "definition":
             claim(equation.target, equation.where)
-            definitions[equation.target] = equation
-    # a solve's unknown: the declared field of its left side that no other equation computes
+            resolved.definitions[equation.target] = equation
     for index, equation in enumerate(equations):
         if equation.kind == "system":
-            equation = _system_unknowns(equation, spec, targets, evolved)
-            equations[index] = equation
-            for name in equation.targets:
-                claim(name, equation.where)
-            solves.append(equation)
+            equation = _system_unknowns(equation, spec, targets, resolved.evolved)
+        elif equation.kind == "solve":
+            equation = _solve_unknown(equation, spec, targets, resolved.evolved)
+        else:
             continue
-        if equation.kind != "solve":
-            continue
-        candidates = sorted(name for name in names_in(equation.lhs)
-                            if name in spec.fields and name not in targets and name not in evolved)
-        if not candidates:
-            raise ModelError(f"{equation.where}: the solve has no unknown: its left side {to_text(equation.lhs)} reads "
-                             f"no declared field that another equation does not compute; declare the unknown under "
-                             f"{key}.fields (e.g. {key}.fields.phi.form=0)")
-        if len(candidates) > 1:
-            without = [name for name in candidates if spec.fields[name].initial is None]
-            if len(without) != 1:
-                raise ModelError(f"{equation.where}: the solve's left side reads several undetermined fields "
-                                 f"{candidates}; a solve has one unknown")
-            candidates = without
-        equation = Equation("solve", candidates[0], equation.lhs, equation.rhs, equation.where, equation.text)
-        equations[index] = equation
-        claim(equation.target, equation.where)
-        solves.append(equation)
+        resolved.equations[index] = equation
+        for name in equation.targets or (equation.target,):
+            claim(name, equation.where)
+        resolved.solves.append(equation)
+    return resolved
 
-    inputs = [name for name in spec.fields if name not in targets]
+
+def _solve_unknown(equation: Equation, spec: ModelSpec, targets: dict, evolved: list) -> Equation:
+    """The unknown of ``solve(lhs = rhs)``: the declared field of its left side that no other
+    equation computes (the one without an initial value when there are several)."""
+    key = spec.key
+    candidates = sorted(name for name in names_in(equation.lhs)
+                        if name in spec.fields and name not in targets and name not in evolved)
+    if not candidates:
+        raise ModelError(f"{equation.where}: the solve has no unknown: its left side {to_text(equation.lhs)} reads "
+                         f"no declared field that another equation does not compute; declare the unknown under "
+                         f"{key}.fields (e.g. {key}.fields.phi.form=0)")
+    if len(candidates) > 1:
+        without = [name for name in candidates if spec.fields[name].initial is None]
+        if len(without) != 1:
+            raise ModelError(f"{equation.where}: the solve's left side reads several undetermined fields "
+                             f"{candidates}; a solve has one unknown")
+        candidates = without
+    return Equation("solve", candidates[0], equation.lhs, equation.rhs, equation.where, equation.text)
+
+
+def _check_initial_values(spec: ModelSpec, evolved: list[str], inputs: list[str]) -> None:
+    """Every evolved field and every input (a field nothing computes) has an initial value."""
+    key = spec.key
     for name in evolved + inputs:
         if spec.fields[name].initial is None:
             role = "dt(" + name + ") needs it" if name in evolved else "no equation computes it"
             raise ModelError(f"{key}.fields.{name}.initial: missing initial value ({role}); e.g. "
                              f"`{key}.fields.{name}.initial=0`")
 
-    ordered = _order(definitions, solves, set(spec.fields) | set(spec.constants), key)
-    varying = set(evolved) | {"t"}
-    inlinable = {name: eq.rhs for name, eq in definitions.items()}
-    solved = {}
-    for eq in solves:
-        for target in eq.targets or (eq.target,):
-            solved[target] = _sides(eq)
+
+def _type_definitions(spec: ModelSpec, ops: Discrete, kinds: dict[str, Kind], resolved: Resolved,
+                      ordered: list[Equation]) -> Compiler:
+    """The kind pass: the :class:`Compiler` of the model, every definition typed in dependency
+    order (a declared field's form must agree), and the names whose values vary in a run."""
+    key, n = spec.key, ops.n
+    varying = set(resolved.evolved) | {"t"}
+    inlinable = {name: eq.rhs for name, eq in resolved.definitions.items()}
+    solved = {target: _sides(eq) for eq in resolved.solves for target in eq.targets or (eq.target,)}
     compiler = Compiler(ops, kinds, inlinable, varying, solved)
     for equation in ordered:  # type every definition in order (solve unknowns are declared)
         if equation.kind == "definition":
@@ -357,30 +442,43 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
                                      f"{equation.target} is declared a {declared} ({key}.fields.{equation.target}.form)")
         compiler.kinds.update(kinds)
     compiler.kinds.update(kinds)
-    compiler.varying |= {name for name in targets if compiler.reads(Name(name)) & compiler.varying} | \
-        {target for eq in solves for target in eq.targets or (eq.target,)
+    compiler.varying |= {name for name in resolved.targets if compiler.reads(Name(name)) & compiler.varying} | \
+        {target for eq in resolved.solves for target in eq.targets or (eq.target,)
          if compiler.reads(Name(target)) & compiler.varying}
+    return compiler
 
+
+def _bind_values(spec: ModelSpec, dec, kinds: dict[str, Kind], evolved: list[str], inputs: list[str],
+                 chained: dict | None) -> tuple[dict, dict]:
+    """The bind pass: the built-in names' values on the mesh (coordinates, h, π, t, dt), the
+    constants and the inputs — ``base``, what every evaluation starts from — and the sampled
+    initial values of the evolved fields and inputs."""
+    K = dec.K
     base = {"x": K.vertices[:, 0].copy(), "y": K.vertices[:, 1].copy() if K.embedding_dim > 1 else
             np.zeros(K.num_simplices(0)), "z": K.vertices[:, 2].copy() if K.embedding_dim > 2 else
-            np.zeros(K.num_simplices(0)), "h": ops.mean_edge_length(), "pi": float(np.pi), "t": 0.0,
+            np.zeros(K.num_simplices(0)), "h": Discrete(dec).mean_edge_length(), "pi": float(np.pi), "t": 0.0,
             "dt": float(spec.dt)}
     base.update({name: float(value) for name, value in spec.constants.items()})
     initial_values = {}
     for name in evolved + inputs:
-        initial_values[name] = sample(spec.fields[name].initial, kinds[name], dec, f"{key}.fields.{name}.initial",
+        initial_values[name] = sample(spec.fields[name].initial, kinds[name], dec, f"{spec.key}.fields.{name}.initial",
                                       constants=spec.constants, seed=spec.seed, name=name, chained=chained)
     base.update({name: initial_values[name] for name in inputs})
-    fixed = _dirichlet(spec, kinds, dec, key)
-    compiler.static_env = dict(base)
+    return base, initial_values
 
-    model = CompiledModel(spec, ops, compiler, kinds, equations, evolved, inputs, [], {}, {}, fixed, base,
-                          initial_values)
+
+def _lower_equations(model: CompiledModel, ordered: list[Equation], new_solver: Callable) -> list[tuple[str, Node]]:
+    """The lowering pass: definitions into closures, solves and systems into factorized linear
+    systems, evolutions' right sides into closures (their kinds checked against the fields).
+    Returns every tree of the equations with its key (for :func:`_check_stars`)."""
+    compiler, kinds, equations = model.compiler, model.kinds, model.equations
     for equation in ordered:
         if equation.kind == "definition":
             model.order.append(("definition", (equation.target, compiler.compile(equation.rhs, equation.where))))
         elif equation.kind == "system":
             model.order.append(("system", _compile_system(equation, model, new_solver)))
+        elif _nonlinear(equation, model):
+            model.order.append(("newton", compile_nonlinear_solve(equation, model, new_solver)))
         else:
             model.order.append(("solve", _compile_solve(equation, model, new_solver)))
     for equation in equations:
@@ -392,20 +490,36 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
             raise ModelError(f"{equation.where}: {to_text(equation.rhs)} is a {kind} but dt({equation.target}) is a "
                              f"{target_kind}")
         model.rhs[equation.target] = compiler.compile(equation.rhs, equation.where)
-    trees = [(eq.where, eq.rhs) for eq in equations] + [(eq.where, eq.lhs) for eq in equations if eq.kind == "solve"]
+    trees: list[tuple[str, Node]] = [(eq.where, eq.rhs) for eq in equations]
+    trees += [(eq.where, eq.lhs) for eq in equations if eq.kind == "solve" and eq.lhs is not None]
     trees += [(eq.where, side) for eq in equations if eq.kind == "system" for pair in eq.pairs for side in pair]
-    for name, text in spec.metrics.items():
-        where = f"{key}.metrics.{name}"
+    return trees
+
+
+def _nonlinear(equation: Equation, model: CompiledModel) -> bool:
+    """True when a solve's left side is not a constant sparse matrix times its unknown plus terms
+    without it: Newton's method solves it (:mod:`decrun.methods.model.nonlinear`)."""
+    compiler, unknown, lhs = model.compiler, equation.target, equation.lhs
+    assert lhs is not None  # a solve has a left side
+    if compiler.kind(lhs, equation.where) != model.kinds[unknown]:
+        return False  # refused by _compile_solve, naming both kinds
+    blocks, rest = compiler.split(lhs, {unknown})
+    return unknown not in blocks or any(compiler.depends_on(term, {unknown}) for _sign, term in rest)
+
+
+def _compile_metrics(model: CompiledModel) -> list[tuple[str, Node]]:
+    """Every declared metric parsed, checked to be a number and compiled; returns their trees."""
+    trees = []
+    for name, text in model.spec.metrics.items():
+        where = f"{model.spec.key}.metrics.{name}"
         tree = parse_expression(text, where)
-        kind = compiler.kind(tree, where)
+        kind = model.compiler.kind(tree, where)
         if kind != NUMBER:
             raise ModelError(f"{where}: {to_text(tree)} is a {kind}; a metric is a number: e.g. integral(...), "
                              "norm(...), max(...) or inner(..., ...)")
-        model.metrics[name] = compiler.compile(tree, where)
+        model.metrics[name] = model.compiler.compile(tree, where)
         trees.append((where, tree))
-    check_intrinsic(compiler, dec, trees)
-    _check_stars(compiler, dec, trees)
-    return model
+    return trees
 
 
 def _check_stars(compiler: Compiler, dec, trees) -> None:
@@ -422,6 +536,12 @@ def _check_stars(compiler: Compiler, dec, trees) -> None:
                                  f"⋆ on {list(degrees)}-forms only; use `operator=mixed_area` (or leave that term out)")
 
 
+def reserved() -> set[str]:
+    """The names a field, constant or definition may not take: :data:`RESERVED` and every
+    operator's name (the built-in ones and those of installed plugins)."""
+    return RESERVED | set(OPERATORS)
+
+
 def _check_names(spec: ModelSpec) -> None:
     key = spec.key
     for group, names in (("fields", spec.fields), ("constants", spec.constants), ("metrics", spec.metrics)):
@@ -431,7 +551,7 @@ def _check_names(spec: ModelSpec) -> None:
             if group == "metrics" and name in RESERVED_METRICS:
                 raise ModelError(f"{key}.metrics.{name}: {name!r} is a metric every model run reports (or a column of "
                                  f"the sweep table); name yours otherwise, e.g. {name}_value")
-            if group != "metrics" and name in RESERVED:
+            if group != "metrics" and name in reserved():
                 raise ModelError(f"{key}.{group}.{name}: {name!r} is a built-in name of the model language "
                                  "(x y z t dt h pi random and the operators); choose another")
     both = set(spec.fields) & set(spec.constants)
@@ -622,6 +742,26 @@ class SystemSolve:
         return {name: x[self.offsets[i]:self.offsets[i + 1]] for i, name in enumerate(self.unknowns)}
 
 
+def _system_row_kinds(equation: Equation, compiler: Compiler, unknowns, kinds: list[Kind]) -> list[Kind]:
+    """The kind of each equation of a system (its left side's; the right side a number or the
+    same kind), refused unless they are the unknowns' kinds, as a multiset (a square system)."""
+    where = equation.where
+    row_kinds = []
+    for lhs, rhs in equation.pairs:
+        lhs_kind, rhs_kind = compiler.kind(lhs, where), compiler.kind(rhs, where)
+        if rhs_kind != lhs_kind and rhs_kind != NUMBER:
+            raise ModelError(f"{where}: {to_text(lhs)} is a {lhs_kind} but {to_text(rhs)} is a {rhs_kind}")
+        row_kinds.append(lhs_kind)
+    if sorted(map(str, row_kinds)) != sorted(map(str, kinds)):
+        given = ", ".join(f"{to_text(lhs)} : {kind}" for (lhs, _), kind in zip(equation.pairs, row_kinds, strict=True))
+        wanted = ", ".join(f"{name} : {kind}" for name, kind in zip(unknowns, kinds, strict=True))
+        missing = list((Counter(map(str, kinds)) - Counter(map(str, row_kinds))).elements())
+        raise ModelError(f"{where}: the system's equations ({given}) do not match its unknowns ({wanted}): each unknown "
+                         f"needs one equation of its kind, and one more left side should be a {missing[0]}; "
+                         "write that equation in its unknown's kind (e.g. d(u) = f for a top-form pressure)")
+    return row_kinds
+
+
 def _compile_system(equation: Equation, model: CompiledModel, new_solver: Callable) -> SystemSolve:
     """The block system of ``solve(l1 = r1, …, lm = rm)`` in its m unknowns u_1 … u_m.
 
@@ -636,19 +776,7 @@ def _compile_system(equation: Equation, model: CompiledModel, new_solver: Callab
     compiler, ops, K = model.compiler, model.ops, model.ops.K
     where, unknowns = equation.where, equation.targets
     kinds = [model.kinds[name] for name in unknowns]
-    row_kinds = []
-    for lhs, rhs in equation.pairs:
-        lhs_kind, rhs_kind = compiler.kind(lhs, where), compiler.kind(rhs, where)
-        if rhs_kind != lhs_kind and rhs_kind != NUMBER:
-            raise ModelError(f"{where}: {to_text(lhs)} is a {lhs_kind} but {to_text(rhs)} is a {rhs_kind}")
-        row_kinds.append(lhs_kind)
-    if sorted(map(str, row_kinds)) != sorted(map(str, kinds)):
-        given = ", ".join(f"{to_text(lhs)} : {kind}" for (lhs, _), kind in zip(equation.pairs, row_kinds, strict=True))
-        wanted = ", ".join(f"{name} : {kind}" for name, kind in zip(unknowns, kinds, strict=True))
-        missing = list((Counter(map(str, kinds)) - Counter(map(str, row_kinds))).elements())
-        raise ModelError(f"{where}: the system's equations ({given}) do not match its unknowns ({wanted}): each unknown "
-                         f"needs one equation of its kind, and one more left side should be a {missing[0]}; "
-                         "write that equation in its unknown's kind (e.g. d(u) = f for a top-form pressure)")
+    row_kinds = _system_row_kinds(equation, compiler, unknowns, kinds)
     sizes = [kind.size(K) for kind in kinds]
     offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     grid, rows = [], []

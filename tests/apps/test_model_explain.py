@@ -1,0 +1,41 @@
+"""``decrun app=<model> app.explain=true`` (issue 47): the compiled model's typed trees and block
+structure on the console, through the real command, and nothing run — no step, no solve, no field."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+
+from cli_processes import decrun
+
+
+def test_explain_prints_the_typed_trees_and_blocks_and_runs_nothing(tmp_path):
+    done = decrun("app=gray_scott", "app.explain=true", "figures=false", "progress=false", "hydra.run.dir=gs",
+                  cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    text = done.stderr
+    # the typed tree: every node with its kind
+    assert "app.equations[1]: dt(u) = Du*laplacian(u) - u*v**2 + F*(1 - u)" in text
+    assert "laplacian : primal 0-form" in text and "Du : number" in text
+    # the blocks: the constant Laplacian implicit, u v² nonlinear, F explicit
+    assert "linear A_uu (constant coefficients, implicit): 256×256" in text
+    assert "nonlinear (reads u, v): - u * v ** 2" in text and "explicit (reads no evolved field): + F * 1" in text
+    metrics = json.loads((tmp_path / "gs" / "metrics.json").read_text())
+    assert metrics["steps_done"] == 0 and metrics["status"] == "ok"
+    with h5py.File(tmp_path / "gs" / "result.h5") as f:
+        assert len(f["fields"]) == 0 and len(f["series"]) == 0
+
+
+def test_explain_shows_a_systems_block_matrix(tmp_path):
+    done = decrun("app=darcy", "app.explain=true", "figures=false", "progress=false", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "system for u, p: block matrix 1155×1155" in done.stderr
+    assert "definition pressure : dual 0-form" in done.stderr
+
+
+def test_explain_of_a_model_that_does_not_type_check_is_its_one_line_refusal(tmp_path):
+    done = decrun("app=heat", "app.explain=true", "app.equations=['dt(u) = d(u)']", "figures=false", cwd=tmp_path)
+    lines = [line for line in done.stderr.strip().splitlines() if line.strip()]
+    assert done.returncode != 0 and len(lines) == 1
+    assert lines[0].startswith("error: app.equations[0]: d(u) is a primal 1-form but dt(u) is a primal 0-form")

@@ -9,8 +9,8 @@ import json
 
 import numpy as np
 
-from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment
 
 from cli_processes import decrun
 

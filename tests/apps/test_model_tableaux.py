@@ -12,8 +12,8 @@ from decrun.apps.model import Integrator
 from decrun.core.solvers import solver_factory
 from decrun.methods.model.integrators import INTEGRATORS, SCHEMES, make_integrator
 from decrun.methods.model.stepper import ModelStepper
-from decrun.runner.config import compose_config
-from decrun.runner.run import prepare, run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import prepare, run_experiment
 
 #: the logistic reaction–diffusion of the issue's goal table, on the coarse sphere
 LOGISTIC = ["app=heat", "mesh.subdiv=1", "app.t_end=1.6", "app.fields.u.initial=0.5 + 0.3*x*y",

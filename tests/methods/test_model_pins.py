@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from decrun.runner.config import compose_config
-from decrun.runner.run import run_experiment
+from decrun.runner.job.config import compose_config
+from decrun.runner.job.run import run_experiment
 
 PINS = Path(__file__).with_name("model_pins.json")
 #: relative tolerance of a pinned number (against the size of the field or the metric)

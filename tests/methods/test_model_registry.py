@@ -24,7 +24,7 @@ from decrun.methods.model.integrators import make_integrator
 from decrun.methods.model.operators import OPERATORS, POINTWISE, Operator, PluginError, pointwise, register
 from decrun.methods.model.stepper import ModelStepper
 from decrun.methods.stepping import run_steps
-from decrun.runner.plugins import option
+from decrun.runner.job.plugins import option
 
 from cli_processes import env
 

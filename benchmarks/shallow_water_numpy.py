@@ -21,6 +21,7 @@ import numpy as np
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
+from decrun.core.sphere_lloyd import lloyd_sphere
 from decrun.core.trisk import TRiSK
 from decrun.methods import williamson as W
 
@@ -74,14 +75,18 @@ class ShallowWater:
         return h / 3.0 + 2.0 / 3.0 * (h2 + dt * k3h), U / 3.0 + 2.0 / 3.0 * (U2 + dt * k3u)
 
 
-def icosphere_trisk(subdiv: int, radius: float = W.EARTH_RADIUS, optimize: str = "none") -> TRiSK:
-    """TRiSK on pymeshlab's icosphere of ``subdiv`` and ``radius`` (what `mesh=icosphere` builds)."""
+def icosphere_trisk(subdiv: int, radius: float = W.EARTH_RADIUS, lloyd: int = 0) -> TRiSK:
+    """TRiSK on pymeshlab's icosphere of ``subdiv`` and ``radius`` (what `mesh=icosphere` builds),
+    after ``lloyd`` Lloyd steps towards the spherical centroidal Voronoi tessellation (stopping
+    early once no vertex moves by more than 1e-12 a)."""
     import pymeshlab
 
     ms = pymeshlab.MeshSet()
     ms.create_sphere(radius=float(radius), subdiv=int(subdiv))
     vertices, faces = ms.current_mesh().vertex_matrix(), ms.current_mesh().face_matrix().astype(np.int64)
     vertices = radius * vertices / np.linalg.norm(vertices, axis=1, keepdims=True)
+    if lloyd:
+        vertices, _ = lloyd_sphere(vertices, faces, lloyd, tolerance=1e-12)
     return TRiSK(DEC(SimplicialComplex(vertices, faces, orient="fix")))
 
 
@@ -154,12 +159,14 @@ def main() -> None:
     parser.add_argument("--method", default="rk4", choices=sorted(W.RK_STABILITY_INTERVAL))
     parser.add_argument("--largest-dt", action="store_true")
     parser.add_argument("--every", type=int, default=0)
+    parser.add_argument("--lloyd", type=int, default=0, help="Lloyd steps towards the SCVT before the run")
+    parser.add_argument("--save", default=None, help="write the final h, U and the cell centres to this .npz")
     args = parser.parse_args()
     cases = {"tc2": lambda: W.williamson_tc2(args.alpha), "tc5": W.williamson_tc5, "tc6": W.williamson_tc6,
              "galewsky": W.galewsky, "galewsky_unperturbed": lambda: W.galewsky(perturbed=False)}
     case = cases[args.case]()
     tick = time.perf_counter()
-    trisk = icosphere_trisk(args.subdiv)
+    trisk = icosphere_trisk(args.subdiv, lloyd=args.lloyd)
     trisk.perp()
     setup = time.perf_counter() - tick
     if args.largest_dt:
@@ -171,8 +178,10 @@ def main() -> None:
     formula = W.stable_time_step(trisk, h.max(), float(np.abs(U / trisk.primal_lengths).max()), args.method)
     dt = args.dt if args.dt is not None else args.dt_fraction * formula
     duration = case.duration if args.days is None else args.days * W.DAY
-    _, _, report = run(trisk, case, dt, duration, args.method, args.every)
-    print(json.dumps({"subdiv": args.subdiv, "alpha": args.alpha, "setup_seconds": setup, "formula_dt": formula,
+    h, U, report = run(trisk, case, dt, duration, args.method, args.every)
+    if args.save:
+        np.savez(args.save, h=h, U=U, points=trisk.K.vertices, areas=trisk.cell_areas, days=duration / W.DAY)
+    print(json.dumps({"subdiv": args.subdiv, "alpha": args.alpha, "lloyd": args.lloyd, "setup_seconds": setup, "formula_dt": formula,
                       **report}))
 
 

@@ -47,7 +47,20 @@ from decrun.core.cache import Cached
 from decrun.core.dec import DEC, diagonal_matrix
 from decrun.errors import MeshError
 
-__all__ = ["TRiSK", "corner_kite_areas"]
+__all__ = ["TRiSK", "corner_kite_areas", "sphere_radius"]
+
+
+def sphere_radius(vertices: np.ndarray, rtol: float = 1e-9) -> float:
+    """The radius a (model units) of the sphere centred at the origin that holds every vertex
+    (the mean of |x_i|); raises :class:`MeshError` in one line when a vertex is off it by more than
+    ``rtol`` a (a noisy or shifted mesh: the icosphere's default ``mesh.noise`` is 0.3)."""
+    distance = np.linalg.norm(vertices, axis=1)
+    radius = float(distance.mean())
+    worst = int(np.argmax(np.abs(distance - radius)))
+    if not radius > 0 or abs(distance[worst] - radius) > rtol * radius:
+        raise MeshError(f"mesh: not a sphere centred at the origin: vertex {worst} is at {distance[worst]:.9g} from "
+                        f"the origin, the mean is {radius:.9g} (use mesh=icosphere mesh.noise=0)")
+    return radius
 
 
 def corner_kite_areas(points: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ import scipy.sparse.linalg as spla
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.core.forms import sample_vector_field
-from decrun.core.trisk import TRiSK, corner_kite_areas
+from decrun.core.trisk import TRiSK, corner_kite_areas, sphere_radius
 from decrun.errors import MeshError
 from tests.meshes_for_tests import icosphere
 
@@ -179,6 +179,17 @@ def test_refuses_a_surface_with_a_border_and_a_non_delaunay_mesh():
         TRiSK(DEC(SimplicialComplex(squashed, faces, orient="fix")))
 
 
+def test_sphere_radius_refuses_a_noisy_or_shifted_sphere():
+    vertices, _ = icosphere(2)
+    assert sphere_radius(RADIUS * vertices) == pytest.approx(RADIUS, rel=1e-15)
+    noisy = vertices.copy()
+    noisy[7] *= 1.001
+    with pytest.raises(MeshError, match=r"^mesh: not a sphere centred at the origin: vertex 7 .*mesh.noise=0\)$"):
+        sphere_radius(noisy)
+    with pytest.raises(MeshError, match="not a sphere centred at the origin"):
+        sphere_radius(vertices + np.array([0.0, 0.0, 0.01]))
+
+
 # -------------------------------------------------------------------- orders on smooth fields
 def unit(x):
     return x / np.linalg.norm(x, axis=1, keepdims=True)
@@ -212,9 +223,10 @@ def surface_divergence_and_curl(x, h=1e-5):
     return div, np.einsum("nd,nd->n", curl, p)
 
 
-def errors(subdiv: int) -> dict[str, tuple[float, float]]:
-    """(max, area-weighted rms) errors of each operator on the unit icosphere of ``subdiv``."""
-    T = sphere_trisk(subdiv)
+def errors(subdiv: int, build=sphere_trisk) -> dict[str, tuple[float, float]]:
+    """(max, area-weighted rms) errors of each operator on the unit sphere mesh ``build(subdiv)``
+    (default the icosphere of ``subdiv``)."""
+    T = build(subdiv)
     K = T.K
     U = sample_vector_field(K, lambda x: tangent_field(unit(x)), order=4)
     d = T.primal_lengths

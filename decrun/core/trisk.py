@@ -87,7 +87,8 @@ class TRiSK(Cached):
     ----------
     dec : DEC
         Its complex must be a closed oriented triangle mesh in R³ whose circumcentric dual edges
-        all have positive length (a Delaunay mesh: the Voronoi cells are the TRiSK cells).
+        all have positive length (a Delaunay mesh: the Voronoi cells are the TRiSK cells). The
+        circumcentric dual volumes (``dec.dual_volumes``) are used whatever ``dec``'s star variant.
 
     Raises
     ------
@@ -199,7 +200,7 @@ class TRiSK(Cached):
 
     def kinetic_matrix(self) -> sp.csr_matrix:
         """(n0, n1) the map U² ↦ K: K_i = (1/(4 A_i)) Σ_{e∋i} ⋆1_e U_e² = (1/A_i) Σ_{e∋i} (l_e d_e/4) u_e²
-        (Ringler et al. 2010, eq. 21); Σ_i A_i K_i = Σ_e l_e d_e u_e²/2."""
+        (Ringler et al. 2010); Σ_i A_i K_i = Σ_e l_e d_e u_e²/2."""
 
         def compute():
             scale = diagonal_matrix(0.25 / self.cell_areas)
@@ -224,7 +225,7 @@ class TRiSK(Cached):
         """(n1, n1) TRiSK's W in DEC form: (W G)_e ≈ d_e (F^⊥ · t_e) = ∫_e (k × F)·dl for the flux
         dual 1-form G_e = l_e F·t_e (F tangent, k the outward normal).
 
-        Thuburn et al. (2009, eq. 33): around each cell i of edge e, with o_i(e) = ±1 the sign of
+        Thuburn et al. (2009): around each cell i of edge e, with o_i(e) = ±1 the sign of
         the outward flux of cell i through ⋆e (+1 when e starts at i),
 
             W_ee' = Σ_{cells i ∋ e, e'} o_i(e) o_i(e') (Σ_{v from e to e'} A_{i,v}/A_i − 1/2),

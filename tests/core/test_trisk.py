@@ -96,7 +96,7 @@ def test_the_coriolis_term_does_no_work(jittered):
 
 
 def test_curl_of_the_perpendicular_flux_is_the_kite_averaged_divergence(jittered):
-    """TRiSK's defining property (Thuburn et al. 2009, eq. 21): d1 (W G) = Σ_i (A_{i,v}/A_i) (net
+    """TRiSK's defining property (Thuburn et al. 2009): d1 (W G) = Σ_i (A_{i,v}/A_i) (net
     outflow of G from cell i), so a geostrophic flow on an f-plane is steady; exact."""
     T = jittered
     rng = np.random.default_rng(4)

@@ -20,12 +20,13 @@ import argparse
 import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.core.sphere_lloyd import lloyd_sphere
+from decrun.core.sphere_lloyd import lloyd_sphere, subdivide_sphere
 from decrun.core.trisk import TRiSK
 from decrun.methods import williamson as W
 
@@ -79,18 +80,28 @@ class ShallowWater:
         return h / 3.0 + 2.0 / 3.0 * (h2 + dt * k3h), U / 3.0 + 2.0 / 3.0 * (U2 + dt * k3u)
 
 
-def icosphere_trisk(subdiv: int, radius: float = W.EARTH_RADIUS, lloyd: int = 0) -> TRiSK:
-    """TRiSK on pymeshlab's icosphere of ``subdiv`` and ``radius`` (what `mesh=icosphere` builds),
-    after ``lloyd`` Lloyd steps towards the spherical centroidal Voronoi tessellation (stopping
-    early once no vertex moves by more than 1e-12 a)."""
+def icosphere_trisk(subdiv: int, radius: float = W.EARTH_RADIUS, lloyd: int = 0, cache: str | None = None) -> TRiSK:
+    """TRiSK on pymeshlab's icosphere of ``subdiv`` and ``radius`` (what `mesh=icosphere` builds);
+    with ``lloyd`` > 0 on the centroidal grid instead: the icosahedron Lloyd-iterated (at most
+    ``lloyd`` steps, until no vertex moves by 1e-12 a) and refined (:func:`subdivide_sphere`), level by
+    level up to ``subdiv`` — the same triangles as the icosphere's, the vertices moved. ``cache``: an
+    .npz read if it exists, else written with the mesh."""
     import pymeshlab
 
+    if cache and Path(cache).exists():
+        with np.load(cache) as stored:
+            return TRiSK(DEC(SimplicialComplex(stored["vertices"], stored["faces"], orient="fix")))
+
     ms = pymeshlab.MeshSet()
-    ms.create_sphere(radius=float(radius), subdiv=int(subdiv))
+    ms.create_sphere(radius=float(radius), subdiv=0 if lloyd else int(subdiv))
     vertices, faces = ms.current_mesh().vertex_matrix(), ms.current_mesh().face_matrix().astype(np.int64)
     vertices = radius * vertices / np.linalg.norm(vertices, axis=1, keepdims=True)
+    for _level in range(subdiv if lloyd else 0):
+        vertices, faces = subdivide_sphere(*lloyd_sphere(vertices, faces, lloyd, tolerance=1e-12)[:1], faces)
     if lloyd:
         vertices, _ = lloyd_sphere(vertices, faces, lloyd, tolerance=1e-12)
+    if cache:
+        np.savez(cache, vertices=vertices, faces=faces)
     return TRiSK(DEC(SimplicialComplex(vertices, faces, orient="fix")))
 
 
@@ -173,6 +184,7 @@ def main() -> None:
     parser.add_argument("--largest-dt", action="store_true")
     parser.add_argument("--every", type=int, default=0)
     parser.add_argument("--lloyd", type=int, default=0, help="Lloyd steps towards the SCVT before the run")
+    parser.add_argument("--mesh-cache", default=None, help="an .npz of the mesh: read if it exists, else written")
     parser.add_argument("--save", default=None, help="write the final h, U and the cell centres to this .npz")
     parser.add_argument("--reference", action="store_true",
                         help="tc5/tc6: l1/l2/l∞(h) against the stored spectral reference (benchmarks/shallow_water_reference.py)")
@@ -181,7 +193,7 @@ def main() -> None:
              "galewsky": W.galewsky, "galewsky_unperturbed": lambda: W.galewsky(perturbed=False)}
     case = cases[args.case]()
     tick = time.perf_counter()
-    trisk = icosphere_trisk(args.subdiv, lloyd=args.lloyd)
+    trisk = icosphere_trisk(args.subdiv, lloyd=args.lloyd, cache=args.mesh_cache)
     trisk.perp()
     setup = time.perf_counter() - tick
     if args.largest_dt:

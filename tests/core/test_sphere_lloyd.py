@@ -10,7 +10,7 @@ import pytest
 import tests.core.test_trisk as trisk_tests
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
-from decrun.core.sphere_lloyd import lloyd_sphere
+from decrun.core.sphere_lloyd import lloyd_sphere, subdivide_sphere
 from decrun.core.trisk import TRiSK
 from decrun.errors import MeshError
 from tests.meshes_for_tests import icosphere
@@ -26,6 +26,23 @@ def test_lloyd_converges_to_a_centroidal_tessellation_on_the_same_sphere():
     again, one = lloyd_sphere(moved, faces, 1)  # a fixed point: every generator is its cell's centroid
     assert one["last_move"] < 1e-12
     TRiSK(DEC(SimplicialComplex(moved, faces, orient="fix")))  # still Delaunay
+
+
+def test_subdividing_the_icosphere_gives_the_next_icosphere():
+    """pymeshlab's icosphere of subdiv 3 is that of subdiv 2 refined 1-to-4 at projected midpoints."""
+    from scipy.spatial import cKDTree
+
+    coarse, faces = icosphere(2)
+    fine, fine_faces = subdivide_sphere(coarse, faces)
+    expected, expected_faces = icosphere(3)
+    distance, match = cKDTree(expected).query(fine)
+    assert distance.max() < 1e-12 and np.unique(match).size == expected.shape[0]
+    as_expected = np.sort(np.sort(match[fine_faces], axis=1), axis=0)
+    np.testing.assert_array_equal(np.unique(np.sort(match[fine_faces], axis=1), axis=0),
+                                  np.unique(np.sort(expected_faces, axis=1), axis=0))
+    assert as_expected.shape == expected_faces.shape
+    K = SimplicialComplex(fine, fine_faces)  # consistently oriented as it is (orient="check")
+    assert K.euler_characteristic == 2
 
 
 def test_lloyd_refuses_a_mesh_off_the_sphere():

@@ -32,6 +32,7 @@ from omegaconf import DictConfig
 from decrun.runner.command.callbacks import OutputGuard, SweepTable
 from decrun.runner.command.errors import error_message
 from decrun.runner.command.help import fast_help
+from decrun.runner.command.model_keys import with_model_options
 from decrun.runner.io.interrupts import ignore_interrupts
 from decrun.runner.job.config import config_dir, register_configs
 from decrun.runner.job.failures import (
@@ -108,6 +109,8 @@ def main() -> None:
     if nested:
         print(nested, file=sys.stderr)
         sys.exit(1)
+    args = with_model_options(args)  # app.steps=… in a model file without `- _model`
+    sys.argv = [sys.argv[0], *args]
     SweepTable.failed = 0
     install_sigterm()
     # a log file that cannot be written (full disk) must not print logging's tracebacks;

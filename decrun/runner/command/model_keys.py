@@ -1,0 +1,64 @@
+"""Every documented option of a declarative model, overridable in any model file.
+
+A model file that does not start from ``conf/app/_model.yaml`` (``defaults: [_model, …]``) —
+the first model a user writes often lacks it — holds only the options it sets, and Hydra
+refuses ``app.steps=3`` for a key the file lacks ("not in struct"). The model's schema
+(:class:`decrun.apps.model.Model`) gives every missing option its default when the app is
+built, so such an override only needs Hydra's ``+`` form: :func:`with_model_options` rewrites
+it so before Hydra composes the command, for the documented options (the keys of
+``conf/app/_model.yaml``) of a model that lacks them. Anything else — a misspelt option
+(``app.stpes=3``), another app — is left to Hydra and decrun's one-line errors."""
+
+from __future__ import annotations
+
+from omegaconf import OmegaConf
+
+from decrun.runner.job.config import config_dir
+
+__all__ = ["MODEL_TARGET", "documented_options", "with_model_options"]
+
+#: the ``_target_`` of a declarative model's config
+MODEL_TARGET = "decrun.apps.model.Model"
+
+
+def documented_options() -> set[str]:
+    """The options of ``conf/app/_model.yaml`` (every option of a model, with its default)."""
+    node = OmegaConf.load(config_dir() / "app" / "_model.yaml")
+    return {str(key) for key in node if key != "_target_"}
+
+
+def _option(arg: str, options: set[str]) -> str | None:
+    """The documented model option a plain ``app.<option>…=value`` override sets, else None."""
+    name, sep, _ = arg.partition("=")
+    if not sep or not name.startswith("app."):  # +app.…, ++app.…, ~app.…: as given
+        return None
+    option = name.split(".")[1]
+    return option if option in options else None
+
+
+def with_model_options(args: list[str]) -> list[str]:
+    """``args`` (a ``decrun`` command line) with each override ``app.<option>…=value`` of a
+    documented model option that the chosen model's file lacks written ``+app.<option>…=value``
+    (the schema's default is then overridden, as in a model starting from ``_model``). ``args``
+    unchanged when there is none, or when the command's config cannot be composed (Hydra
+    then reports why)."""
+    options = documented_options()
+    if not any(_option(arg, options) for arg in args):
+        return args
+    choices = []  # the command's group choices, experiments and search path: what picks the model file
+    for arg in args:
+        name, sep, _ = arg.partition("=")
+        bare = name.lstrip("+~")
+        if sep and (bare == "hydra.searchpath" or ("." not in bare and not bare.startswith("hydra"))):
+            choices.append(arg.split(",")[0] if bare != "hydra.searchpath" else arg)
+    from decrun.runner.job.config import compose_config
+
+    try:
+        app = compose_config(choices).app
+        target, present = app.get("_target_"), set(app.keys())
+    except Exception:  # noqa: BLE001 — not composable this way: Hydra reports the command as given
+        return args
+    if target != MODEL_TARGET:
+        return args
+    missing = options - present
+    return [f"+{arg}" if _option(arg, missing) else arg for arg in args]

@@ -1,0 +1,87 @@
+"""Checks of a declarative model's config that need only the config, run for every run and
+every planned job of a sweep before anything runs (:class:`~decrun.runner.job.experiment.Experiment`):
+
+- every constant is read by an equation, a metric, a requirement, an initial or border value
+  or a figure — a misspelt ``app.constants.epz=0.1`` (given with ``+``) would otherwise run
+  silently with the default ``eps``;
+- ``t_end`` is a whole number of steps of ``dt`` (:meth:`decrun.apps.model.Model.total_steps`),
+  so a sweep of ``app.dt`` is refused at planning, not when its odd job runs.
+
+The names a text reads come from the model language's own parser
+(:func:`decrun.methods.model.language.parse_expression`, ``names_in``)."""
+
+from __future__ import annotations
+
+import difflib
+from typing import Any
+
+from decrun.errors import ConfigError, DecrunError
+from decrun.methods.model.language import names_in, parse_equation, parse_expression
+from decrun.methods.model.require import parse_requirement
+
+__all__ = ["names_read", "check_model"]
+
+
+def _texts(value: Any) -> list[str]:
+    """The strings in an option value (a string, a list of them for a vector field; numbers: none)."""
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, (list, tuple)):
+        return [text for item in value for text in _texts(item)]
+    return []
+
+
+def _expression_names(text: str) -> set[str]:
+    """The names an expression reads; none for a text that is not one (``random``,
+    ``result:u``: the model's own checks say what is wrong with it)."""
+    try:
+        return names_in(parse_expression(text, "app"))
+    except DecrunError:
+        return set()
+
+
+def names_read(app: Any) -> set[str]:
+    """Every name the model ``app`` (:class:`decrun.apps.model.Model`) reads: in its equations,
+    metrics, requirements, fields' initial and border values and figures, its parts' included."""
+    read: set[str] = set()
+    sources = [app, *app.parts.values()]
+    for source in sources:
+        for i, text in enumerate(source.equations):
+            try:
+                equation = parse_equation(text, f"app.equations[{i}]")
+            except DecrunError:
+                continue
+            pairs = equation.pairs or ((equation.lhs, equation.rhs),)
+            for left, right in pairs:
+                read |= (names_in(left) if left is not None else set()) | names_in(right)
+        for text in source.metrics.values():
+            read |= _expression_names(str(text))
+        for text in source.require:
+            try:
+                read |= parse_requirement(text, "app.require").names()
+            except DecrunError:
+                continue
+        for options in source.fields.values():
+            for text in _texts(options.initial) + _texts(options.dirichlet):
+                read |= _expression_names(text)
+    for plot in app.plots.values():
+        for text in (plot.color, plot.arrows):
+            if text:
+                read |= _expression_names(text)
+    return read
+
+
+def check_model(app: Any) -> None:
+    """ConfigError for the first constant of ``app`` nothing reads (naming the closest one that
+    is read, the fix), or for a ``t_end`` that is not a whole number of ``dt``."""
+    read = names_read(app)
+    for name in app.constants:
+        if name in read:
+            continue
+        used = sorted(c for c in app.constants if c in read)
+        close = difflib.get_close_matches(name, used, n=1)
+        fix = f"; did you mean app.constants.{close[0]}?" if close else \
+            f"; drop it (its constants: {', '.join(used) or 'none'})"
+        raise ConfigError(f"app.constants.{name}: unknown constant of app={app.model} (no equation, metric or "
+                          f"requirement reads it){fix}")
+    app.total_steps()

@@ -145,3 +145,17 @@ def test_my_model_without_the_searchpath_names_the_override_that_finds_it(tmp_pa
     elsewhere.mkdir()
     line = one_line(decrun("app=mymodel", *FAST, cwd=elsewhere))
     assert "a file <dir>/app/mymodel.yaml, found with `hydra.searchpath=[file://<dir>]`" in line, line
+
+
+def test_decruns_own_models_start_from_every_documented_option():
+    """The command composes a config to find a model's missing options only for a model on a
+    ``hydra.searchpath`` directory: decrun's own (``_target_`` a Model) must all have every one."""
+    from decrun.runner.command.model_keys import MODEL_TARGET
+    from decrun.runner.job.config import compose_config
+
+    apps = {p.stem: compose_config([f"app={p.stem}"]).app for p in (ROOT / "conf" / "app").glob("*.yaml")
+            if not p.stem.startswith("_")}
+    models = {name: app for name, app in apps.items() if app.get("_target_") == MODEL_TARGET}
+    assert len(models) >= 10
+    for name, app in models.items():
+        assert documented_options() <= set(app.keys()), name

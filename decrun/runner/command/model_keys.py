@@ -6,7 +6,8 @@ refuses ``app.steps=3`` for a key the file lacks ("not in struct"). The model's 
 (:class:`decrun.apps.model.Model`) gives every missing option its default when the app is
 built, so such an override only needs Hydra's ``+`` form: :func:`with_model_options` rewrites
 it so before Hydra composes the command, for the documented options (the keys of
-``conf/app/_model.yaml``) of a model that lacks them. Anything else — a misspelt option
+``conf/app/_model.yaml``) of a model that lacks them — a model on a config directory the
+command adds with ``hydra.searchpath`` (decrun's own all start from ``_model``). Anything else — a misspelt option
 (``app.stpes=3``), another app — is left to Hydra and decrun's one-line errors."""
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ def with_model_options(args: list[str]) -> list[str]:
     options = documented_options()
     if not any(_option(arg, options) for arg in args):
         return args
+    if not any(arg.lstrip("+").startswith("hydra.searchpath=") for arg in args):
+        return args  # decrun's own models start from _model (tests/runner/test_model_day_one.py): nothing to compose
     choices = []  # the command's group choices, experiments and search path: what picks the model file
     for arg in args:
         name, sep, _ = arg.partition("=")

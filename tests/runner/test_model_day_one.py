@@ -151,9 +151,9 @@ def test_decruns_own_models_start_from_every_documented_option():
     """The command composes a config to find a model's missing options only for a model on a
     ``hydra.searchpath`` directory: decrun's own (``_target_`` a Model) must all have every one."""
     from decrun.runner.command.model_keys import MODEL_TARGET
-    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.config import load_option
 
-    apps = {p.stem: compose_config([f"app={p.stem}"]).app for p in (ROOT / "conf" / "app").glob("*.yaml")
+    apps = {p.stem: load_option("app", p.stem) for p in (ROOT / "conf" / "app").glob("*.yaml")
             if not p.stem.startswith("_")}
     models = {name: app for name, app in apps.items() if app.get("_target_") == MODEL_TARGET}
     assert len(models) >= 10

@@ -13,6 +13,7 @@ The names a text reads come from the model language's own parser
 from __future__ import annotations
 
 import difflib
+import functools
 from typing import Any
 
 from decrun.errors import ConfigError, DecrunError
@@ -43,32 +44,39 @@ def _expression_names(text: str) -> set[str]:
 def names_read(app: Any) -> set[str]:
     """Every name the model ``app`` (:class:`decrun.apps.model.Model`) reads: in its equations,
     metrics, requirements, fields' initial and border values and figures, its parts' included."""
-    read: set[str] = set()
-    sources = [app, *app.parts.values()]
-    for source in sources:
-        for i, text in enumerate(source.equations):
-            try:
-                equation = parse_equation(text, f"app.equations[{i}]")
-            except DecrunError:
-                continue
-            pairs = equation.pairs or ((equation.lhs, equation.rhs),)
-            for left, right in pairs:
-                read |= (names_in(left) if left is not None else set()) | names_in(right)
-        for text in source.metrics.values():
-            read |= _expression_names(str(text))
-        for text in source.require:
-            try:
-                read |= parse_requirement(text, "app.require").names()
-            except DecrunError:
-                continue
+    equations: list[str] = []
+    expressions: list[str] = []
+    requirements: list[str] = []
+    for source in (app, *app.parts.values()):
+        equations += [str(text) for text in source.equations]
+        expressions += [str(text) for text in source.metrics.values()]
+        requirements += [str(text) for text in source.require]
         for options in source.fields.values():
-            for text in _texts(options.initial) + _texts(options.dirichlet):
-                read |= _expression_names(text)
+            expressions += _texts(options.initial) + _texts(options.dirichlet)
     for plot in app.plots.values():
-        for text in (plot.color, plot.arrows):
-            if text:
-                read |= _expression_names(text)
-    return read
+        expressions += [text for text in (plot.color, plot.arrows) if text]
+    return set(_names(tuple(equations), tuple(expressions), tuple(requirements)))
+
+
+@functools.lru_cache(maxsize=256)
+def _names(equations: tuple[str, ...], expressions: tuple[str, ...], requirements: tuple[str, ...]) -> frozenset:
+    """The names read by these texts, parsed once per distinct model (a sweep checks every job)."""
+    read: set[str] = set()
+    for text in equations:
+        try:
+            equation = parse_equation(text, "app.equations")
+        except DecrunError:  # the model's own checks say what is wrong with it
+            continue
+        for left, right in equation.pairs or ((equation.lhs, equation.rhs),):
+            read |= (names_in(left) if left is not None else set()) | names_in(right)
+    for text in expressions:
+        read |= _expression_names(text)
+    for text in requirements:
+        try:
+            read |= parse_requirement(text, "app.require").names()
+        except DecrunError:
+            continue
+    return frozenset(read)
 
 
 def check_model(app: Any) -> None:

@@ -108,7 +108,11 @@ def typo_message(exc: Exception) -> str | None:
 
     try:
         cfg = compose_config(overrides)
-        validate(cfg)
+        experiment = validate(cfg)
+        if key.startswith("app.constants.") and key.count(".") == 2:  # a constant nothing reads: a misspelt one
+            from decrun.runner.job.model_checks import check_model
+
+            check_model(experiment.app, [key.split(".")[2]])
     except DecrunError as error:
         return f"error: {error}"
     except Exception:  # the command cannot be recomposed this way: Hydra's message stands

@@ -16,7 +16,7 @@ from omegaconf import OmegaConf
 
 from decrun.runner.job.config import config_dir
 
-__all__ = ["MODEL_TARGET", "documented_options", "with_model_options"]
+__all__ = ["MODEL_TARGET", "documented_options", "with_model_options", "refuse_unread_constants"]
 
 #: the ``_target_`` of a declarative model's config
 MODEL_TARGET = "decrun.apps.model.Model"
@@ -65,3 +65,37 @@ def with_model_options(args: list[str]) -> list[str]:
         return args
     missing = options - present
     return [f"+{arg}" if _option(arg, missing) else arg for arg in args]
+
+
+def refuse_unread_constants(args: list[str]) -> None:
+    """For ``+app.constants.<name>=…`` on the command line (Hydra's advice for a constant the
+    model does not have, ``+app.constants.epz=0.1``): ConfigError when nothing in the model reads
+    ``<name>`` (:func:`decrun.runner.job.model_checks.check_model`), naming the closest constant
+    that is read. Nothing when there is no such override or the command cannot be composed this
+    way (Hydra then reports why)."""
+    added = [arg.partition("=")[0].split(".")[2] for arg in args
+             if arg.startswith("+app.constants.") and arg.partition("=")[0].count(".") == 2]
+    if not added:
+        return
+    overrides = []  # the command's config, a sweep's first values
+    for arg in args:
+        name, sep, value = arg.partition("=")
+        bare = name.lstrip("+~")
+        if not sep or (bare.startswith(("hydra.", "hydra/")) and bare != "hydra.searchpath"):
+            continue
+        overrides.append(arg if bare == "hydra.searchpath" else f"{name}={value.split(',')[0]}")
+    from decrun.errors import DecrunError
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.experiment import validate  # lazy: the numerical stack (start-up speed)
+    from decrun.runner.job.model_checks import check_model
+
+    try:
+        app = validate(compose_config(overrides)).app
+    except DecrunError:
+        raise
+    except Exception:  # noqa: BLE001 — not composable this way: Hydra reports the command as given
+        return
+    from decrun.apps.model import Model
+
+    if isinstance(app, Model):
+        check_model(app, added)

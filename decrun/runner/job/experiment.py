@@ -88,8 +88,8 @@ class Experiment:
 
 
 def check_model_config(app: Any) -> None:
-    """A declarative model's checks of its config alone (:func:`decrun.runner.job.model_checks.check_model`:
-    unread constants, ``t_end`` against ``dt``); nothing for another app."""
+    """A declarative model's check of its config alone (:func:`decrun.runner.job.model_checks.check_model`:
+    ``t_end`` against ``dt``, so a sweep is refused at planning); nothing for another app."""
     from decrun.apps.model import Model
 
     if isinstance(app, Model):

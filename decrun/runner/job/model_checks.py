@@ -1,9 +1,9 @@
 """Checks of a declarative model's config that need only the config, run for every run and
 every planned job of a sweep before anything runs (:class:`~decrun.runner.job.experiment.Experiment`):
 
-- every constant is read by an equation, a metric, a requirement, an initial or border value
-  or a figure — a misspelt ``app.constants.epz=0.1`` (given with ``+``) would otherwise run
-  silently with the default ``eps``;
+- a constant the command line adds is read by an equation, a metric, a requirement, an initial
+  or border value or a figure — a misspelt ``+app.constants.epz=0.1`` would otherwise run
+  silently with the default ``eps`` (:func:`decrun.runner.command.model_keys.refuse_unread_constants`);
 - ``t_end`` is a whole number of steps of ``dt`` (:meth:`decrun.apps.model.Model.total_steps`),
   so a sweep of ``app.dt`` is refused at planning, not when its odd job runs.
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import difflib
 import functools
-from typing import Any
+from typing import Any, Collection
 
 from decrun.errors import ConfigError, DecrunError
 from decrun.methods.model.language import names_in, parse_equation, parse_expression
@@ -79,12 +79,14 @@ def _names(equations: tuple[str, ...], expressions: tuple[str, ...], requirement
     return frozenset(read)
 
 
-def check_model(app: Any) -> None:
-    """ConfigError for the first constant of ``app`` nothing reads (naming the closest one that
-    is read, the fix), or for a ``t_end`` that is not a whole number of ``dt``."""
-    read = names_read(app)
-    for name in app.constants:
-        if name in read:
+def check_model(app: Any, added: Collection[str] = ()) -> None:
+    """ConfigError for a constant of ``added`` (those the command line adds, ``+app.constants.<name>=…``)
+    that nothing in the model ``app`` reads, naming the closest one that is read (the fix); and for a
+    ``t_end`` that is not a whole number of ``dt``. A constant the model's own file declares and
+    an override of the initial value no longer reads stays allowed."""
+    read = names_read(app) if added else set()
+    for name in added:
+        if name not in app.constants or name in read:
             continue
         used = sorted(c for c in app.constants if c in read)
         close = difflib.get_close_matches(name, used, n=1)

@@ -214,6 +214,8 @@ UNREACHABLE = {
                                 "tests/runner/results/test_export_and_chaining.py runs it and reads every step back",
     "mesh.field=''": "a chained field with NaN: tests/runner/results/test_export_and_chaining.py runs this fix",
     "app.initial=random": "see mesh.field=''",
+    "hydra.searchpath=": "a hint of the command line (no config directory has app=<name>), before any config: "
+                         "tests/runner/test_model_day_one.py runs it through the real decrun command",
 }
 
 

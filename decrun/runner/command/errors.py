@@ -108,12 +108,40 @@ def typo_message(exc: Exception) -> str | None:
     from decrun.runner.job.experiment import validate  # lazy: the numerical stack (start-up speed)
 
     try:
-        validate(compose_config(overrides))
+        cfg = compose_config(overrides)
+        experiment = validate(cfg)
+        if key.startswith("app.constants.") and key.count(".") == 2:  # a constant nothing reads: a misspelt one
+            from decrun.runner.job.model_checks import check_model
+
+            check_model(experiment.app, [key.split(".")[2]])
     except DecrunError as error:
         return f"error: {error}"
     except Exception:  # the command cannot be recomposed this way: Hydra's message stands
         return None
-    return None
+    return model_entry_message(key, cfg.app)
+
+
+#: a model's named entries: config key → what one is called in a message
+_MODEL_ENTRIES = {"fields": "field", "metrics": "metric"}
+
+
+def model_entry_message(key: str, app: Any) -> str | None:
+    """For ``app.fields.<name>…`` or ``app.metrics.<name>`` naming an entry the model ``app``
+    (its composed node) does not have: one line with the closest entry it has (the override
+    meant), and for a metric the ``+`` form that adds a new one. None for any other key."""
+    import difflib
+
+    parts = key.split(".")
+    if len(parts) < 3 or parts[0] != "app" or parts[1] not in _MODEL_ENTRIES or parts[1] not in app:
+        return None
+    group, name, rest = parts[1], parts[2], ".".join(parts[3:])
+    what = _MODEL_ENTRIES[group]
+    known = sorted(str(entry) for entry in app[group] if entry != name)  # the recomposed node holds it too
+    close = difflib.get_close_matches(name, known, n=1)
+    meant = f"; did you mean app.{group}.{close[0]}{'.' + rest if rest else ''}?" if close else ""
+    listing = f" (its {group}: {', '.join(known) or 'none'})"
+    added = f"; a new {what} is added with `+{key}=…`" if group == "metrics" else ""
+    return f"error: {key}: unknown {what} of app={app.get('model', '?')}{meant}{listing}{added}"
 
 
 def missing_plugin_message(exc: Exception) -> str | None:
@@ -192,7 +220,61 @@ def group_typo_message(exc: Exception) -> str | None:
     plus = next((arg[:len(arg) - len(arg.lstrip("+"))] for arg in sys.argv[1:]
                  if arg.lstrip("+") == f"{group}={name}"), "")
     hint = f"; did you mean `{plus}{group}={close[0]}`?" if close else ""
+    local = searchpath_hint(group, name)
+    if local or (not close and group in _PLUGIN_KEYS):
+        hint = f"; {local or _own_config_hint(group, name)}"
     return f"error: {plus}{group}={name}: no such option{hint} (the options: {' | '.join(options)})"
+
+
+#: the groups whose options a user writes in a config directory of their own
+_PLUGIN_KEYS = ("app", "mesh", "operator", "boundary", "solver", "export", "tracker")
+#: directories never searched for a user's config file
+_SKIPPED = {"outputs", "multirun", "node_modules", "__pycache__", "site-packages"}
+
+
+def _own_config_hint(group: str, name: str) -> str:
+    """The general advice for an option of one's own that Hydra did not find."""
+    return (f"an option of your own is a file <dir>/{group}/{name}.yaml, found with "
+            f"`hydra.searchpath=[file://<dir>]` (e.g. `hydra.searchpath=[file://$PWD/my_conf]`)")
+
+
+def searchpath_hint(group: str, name: str, depth: int = 3, budget: int = 2000) -> str | None:
+    """For ``<group>=<name>`` that no config directory has, when a file ``<name>.yaml`` is in
+    the current directory or a subfolder (``depth`` levels, at most ``budget`` folders; hidden
+    ones and outputs skipped): the exact ``hydra.searchpath=[file://<dir>]`` override that
+    finds it — ``<dir>`` the folder holding ``<group>/<name>.yaml`` — or, for a file outside a
+    ``<group>/`` folder, where to move it. None when there is no such file."""
+    root = Path.cwd()
+    level = [root]
+    seen = 0
+    for _ in range(depth + 1):
+        following = []
+        for folder in level:
+            seen += 1
+            if seen > budget:
+                return None
+            candidate = folder / f"{name}.yaml"
+            if candidate.is_file():
+                if folder.name == group:
+                    return f"{_shown(candidate, root)} is there: add `hydra.searchpath=[file://{folder.parent}]`"
+                return (f"{_shown(candidate, root)} is there, outside a {group}/ folder: move it to "
+                        f"{_shown(folder / group / candidate.name, root)} and add "
+                        f"`hydra.searchpath=[file://{folder}]`")
+            try:
+                following += sorted(p for p in folder.iterdir()
+                                    if p.is_dir() and not p.name.startswith((".", "_")) and p.name not in _SKIPPED)
+            except OSError:  # a folder that cannot be listed: not searched
+                continue
+        level = following
+    return None
+
+
+def _shown(path: Path, root: Path) -> str:
+    """``path`` relative to ``root`` where it is under it."""
+    try:
+        return str(path.relative_to(root))
+    except ValueError:
+        return str(path)
 
 
 def append_message(exc: Exception) -> str | None:

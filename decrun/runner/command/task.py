@@ -29,9 +29,11 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
+from decrun.errors import DecrunError
 from decrun.runner.command.callbacks import OutputGuard, SweepTable
 from decrun.runner.command.errors import error_message
 from decrun.runner.command.help import fast_help
+from decrun.runner.command.model_keys import refuse_unread_constants, with_model_options
 from decrun.runner.io.interrupts import ignore_interrupts
 from decrun.runner.job.config import config_dir, register_configs
 from decrun.runner.job.failures import (
@@ -107,6 +109,13 @@ def main() -> None:
     nested = override_nesting_error(args)  # before Hydra's parser, which would overflow the stack
     if nested:
         print(nested, file=sys.stderr)
+        sys.exit(1)
+    args = with_model_options(args)  # app.steps=… in a model file without `- _model`
+    sys.argv = [sys.argv[0], *args]
+    try:
+        refuse_unread_constants(args)  # +app.constants.epz=… that nothing reads
+    except DecrunError as exc:
+        _say(f"error: {exc}")
         sys.exit(1)
     SweepTable.failed = 0
     install_sigterm()

@@ -75,6 +75,7 @@ class Experiment:
                 plugin = make(cfg[group.key], group.key, group.base_class())  # e.g. a solver's missing package: SolverError
             setattr(self, group.attribute, plugin)
         self.app.check_solver(self.solver)
+        check_model_config(self.app)
         if self.export is not None:  # what the app writes against what the export needs: before any mesh
             self.export.check(self.app)
         if self.tracker is not None:  # its package: refused before the first job, not at the sweep's end
@@ -84,6 +85,17 @@ class Experiment:
         for key in ("progress", "figures"):  # plain root values: resolved here, not first in the run
             if key in cfg:
                 cfg[key]  # noqa: B018 — item access names the key in OmegaConf's error (get does not)
+
+
+def check_model_config(app: Any) -> None:
+    """A declarative model's check of its config alone (:func:`decrun.runner.job.model_checks.check_model`:
+    ``t_end`` against ``dt``, so a sweep is refused at planning); nothing for another app."""
+    from decrun.apps.model import Model
+
+    if isinstance(app, Model):
+        from decrun.runner.job.model_checks import check_model
+
+        check_model(app)
 
 
 def root_options(cfg: DictConfig, key: str, cls: type) -> Any:

@@ -162,3 +162,33 @@ def test_tc2_five_days_at_subdiv_4_through_the_cli_matches_the_twin(tmp_path):
     assert metrics["stable"] and metrics["steps_done"] == 270
     assert metrics["l2_h"] == pytest.approx(1.3455962270972088e-3, rel=1e-6)
     assert metrics["l2_h"] <= 1.35e-3
+
+
+def _comment_commands(path: Path) -> list[list[str]]:
+    """The example commands of a config's leading comment (``#   decrun …``), as override lists."""
+    commands = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if not line.startswith("#"):
+            break
+        words = line[1:].split(" # ")[0].split()  # a comment after the command is not an override
+        if words[:1] == ["decrun"]:
+            commands.append(words[1:])
+    return commands
+
+
+EXAMPLES = [*_comment_commands(ROOT / "conf" / "app" / "shallow_water.yaml"),
+            *_comment_commands(ROOT / "conf" / "experiment" / "williamson_tc2.yaml")]
+
+
+@pytest.mark.parametrize("overrides", EXAMPLES, ids=" ".join)
+def test_the_config_comments_examples_run(overrides):
+    """Each example of conf/app/shallow_water.yaml and conf/experiment/williamson_tc2.yaml, cut to
+    9600 s of model time (a whole number of steps at dt = 1600 and 800): stable, and mass kept to 1e-12."""
+    from decrun.runner.job.config import compose_config
+    from decrun.runner.job.run import run_experiment
+
+    assert len(EXAMPLES) >= 6
+    metrics = run_experiment(compose_config([*overrides, "app.t_end=9600", "app.record_every=1", "figures=false",
+                                             "progress=false"])).result.metrics
+    assert metrics["stable"] and metrics["steps_done"] >= 4
+    assert abs(metrics["mass_drift"]) <= 1e-12

@@ -216,6 +216,12 @@ MODELS = {
         (["app=darcy"], "flow", ["pressure_l2_error_rel", "flux_l2_error_rel", "divergence_residual", "n_vertices"],
          None),
     ]),
+    "model_shallow_water": ("`app=shallow_water` — Williamson's test case 2 (steady zonal geostrophic flow) after 5 "
+                            "days of TRiSK in the model language (RK4, dt = 1600 s) on the icosphere of the Earth's "
+                            "radius, subdiv 4: the depth's error against the exact (initial) state, a longitude–"
+                            "latitude map.", [
+        (["app=shallow_water"], "depth_error", ["l2_h", "linf_h", "mass_drift", "n_vertices"], None),
+    ]),
 }
 
 

@@ -187,6 +187,8 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     # Klausmeier's bands on a slope: biomass peaks (n > 3) over bare soil, from 1 % noise
     "klausmeier_bands": lambda m: m["stable"] and m["n_max"] > 3 and m["n_std"] > 0.5,
     # Darcy's convergence study, its single run the coarsest square (9 × 9): 1.4 % and 0.79 % off
+    # Williamson's TC2 at subdiv 5, 5 days: l2(h) under the 1e-3 (0.47e-3), mass kept exactly
+    "williamson_tc2": lambda m: m["stable"] and m["l2_h"] < 1e-3 and abs(m["mass_drift"]) <= 1e-12,
     "darcy_convergence": lambda m: (m["divergence_residual"] < 1e-12 and m["pressure_l2_error_rel"] < 0.02
                                     and m["flux_l2_error_rel"] < 0.01),
 }

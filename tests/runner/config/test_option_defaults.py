@@ -35,6 +35,10 @@ INTENDED = {
     ("mesh/bunny.yaml", "repair"): "a preset of Sample: the raw scan as it is (its defects are the point); "
                                    "mesh=sample repairs",
     ("mesh/bunny.yaml", "clean"): "a preset of Sample: the raw scan as it is; mesh=sample cleans",
+    ("mesh/icosphere_earth.yaml", "radius"): "a preset of Icosphere: the Earth's radius a = 6.37122e6 m of "
+                                             "app=shallow_water (Williamson et al. 1992) is what makes it earth",
+    ("mesh/icosphere_earth.yaml", "subdiv"): "a preset of Icosphere: app=shallow_water's default resolution "
+                                             "(2562 cells), as its dt = 1600 s is chosen for",
     ("mesh/icosphere.yaml", "noise"): "the CLI's icosphere is the default smoothing input (noisy, seeded); "
                                       "Icosphere() in Python is the clean sphere the tests and methods build on",
     ("mesh/planar.yaml", "holes"): "the preset's hole sits inside the preset's unit-square `outer`; a Python "

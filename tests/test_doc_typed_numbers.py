@@ -48,8 +48,6 @@ _TIMED = "benchmark timings: the section states its command, commit and machine"
 TIMING_SECTIONS: dict[str, dict[str, str]] = {
     "performance.md": {
         "Measured": _TIMED + " (the operators' table, the fluid channel's before/after)",
-        "How `auto` decides": "its timings are the operators' ### Measured table's (command, commit, machine "
-                              "there); its thresholds are constants of decrun.core.kernels",
         "Not reached": "timing ratios of the operators' ### Measured table (command, commit, machine there)",
         "Sparse Cholesky (CHOLMOD)": _TIMED, "A small run": _TIMED,
     },
@@ -94,12 +92,6 @@ def without_timing_sections(text: str, headings: dict[str, str]) -> str:
 #: page → phrases whose numbers are not measurements (phrase: why)
 ALLOWED: dict[str, dict[str, str]] = {
     "README.md": {"Python ≥ 3.10": "a requirement"},
-    "architecture.md": {
-        "from 4M items on": "a threshold of the code (decrun.core.kernels)",
-        "~1.3M triangles": "the threshold in triangles (3·m edge slots ≥ 4M)",
-        "~0.45 s of\nCPU, 10–150 s to compile": "timing (machine-dependent, not regenerated)",
-        "from 10k items on": "a threshold of the code (decrun.core.kernels)",
-    },
     "cluster.md": {
         "60 minutes per job, at most 64 jobs at once": "the example launcher config's values",
         "(20 by default: the command ends within ~25 s)": "the config default `hydra.sweeper.connect_timeout` and "
@@ -116,6 +108,8 @@ ALLOWED: dict[str, dict[str, str]] = {
         "down to 1e-300": "the range the fix handles", "diagonal 1.73e+100": "the example input's size",
         "a word over 160 characters (a 120 kB": "a bound of the code and the example input",
         "| 130 / 143 |": "exit codes (128 + SIGINT, 128 + SIGTERM)",
+        "or 100k characters (": "the hostile input of tests/runner/test_hostile_models.py (a name of 100 000 characters)",
+        "a chain of more than 300 definitions": "a bound of the code (decrun.apps.model.MAX_DEFINITION_CHAIN)",
     },
     "running.md": {
         "carry 24 random bits": "a constant of the code",
@@ -135,7 +129,6 @@ ALLOWED: dict[str, dict[str, str]] = {
     "tracking.md": {"127.0.0.1:5000": "the MLflow UI's default address"},
     "measurements.md": {"Python 3.11": "the machine's Python"},
     "performance.md": {
-        "~0.4 s of CPU": "timing of the operators' ### Measured table (command, commit, machine there)",
         "(20·4^s triangles)": "the icosphere's face count (formula)",
         "(dt = 0.005)": "the channel's time step (config)", "(10 steps)": "the comparison's length",
         "at t = 0.6, dt = 0.0025": "Fig. 7.15's end time and time step (config)",
@@ -224,6 +217,21 @@ ALLOWED: dict[str, dict[str, str]] = {
         "(≤ 1e-14 below)": "a bound the table below shows",
         ": 9, 17, 33 vertices a side": "the meshes (config)", ": 3, 6, 12 Kuhn cells a side": "the meshes (config)",
         "over 100 steps on": "the length of a test",
+        "(TRiSK, Ringler et al. 2010)": "citation", "on the Voronoi cells (Ringler et al. 2010)": "citation",
+        "(Thuburn et al. 2009)": "citation", "(Williamson et al.\n1992)": "citation",
+        "(Thuburn, Ringler, Skamarock & Klemp 2009; Ringler et al.\n2010)": "citations",
+        "graticules every 30°": "a constant of the code (decrun.runner.plots.sphere.GRATICULE)",
+        "(the grid's spacing, 0.5°)": "the default of the option `resolution` (decrun.runner.plots.sphere)",
+        "at most 100\n  characters": "a bound of the code (decrun.apps.model.PLOT_NAME_MAX)",
+        "by its first 40 characters": "a constant of the code (the refusal echoes the name's first 40 characters)",
+        "to 1e-12 over 20 steps": "the tolerance and length of a test (tests/apps/test_shallow_water_model.py)",
+        "radius a = 6.37122e6 m, subdiv 4) at dt = 1600 s for 5 days": "the mesh preset (icosphere_earth) and the "
+                                                                         "model's config (conf/app/shallow_water.yaml)",
+        "dt ≲ 2.8/(": "theory: RK4's imaginary stability interval 2√2 (decrun.methods.williamson.stable_time_step)",
+        "is at most\n  300 long": "a bound of the code (decrun.apps.model.MAX_DEFINITION_CHAIN)",
+        "Python's stack holds about 450 links,\n  so beyond 300 it says":
+            "the bound of the code and its reason (the comment of decrun.apps.model.MAX_DEFINITION_CHAIN)",
+        "at most 10 000 nodes in one file": "a bound of the code (decrun.runner.io.config_files.MAX_ALIASED_NODES)",
     },
     "gallery.md": {
         "(1280 triangles, none obtuse)": "the mesh (icosphere subdiv 3: 20·4³ faces)",
@@ -234,6 +242,9 @@ ALLOWED: dict[str, dict[str, str]] = {
         "(F, k) = (0.035, 0.065), stripes at (0.04, 0.06)": "the models' constants (config)",
         "exceeds 0.02": "the metric's threshold (config)", "(B = 2.5,": "the model's constant (config)",
         "(B = 1.5,": "the override shown", "after 200 years": "the experiment's end time (config)",
+        "(RK4, dt = 1600 s)": "the model's config (conf/app/shallow_water.yaml `dt`)",
+        "(contours every 2e-5 s⁻¹ from −1e-4 to 1e-4, 0°–90°N)": "the plot's config (scripts/sphere_maps.py: "
+                                                                "interval, value_range, latitudes)",
     },
 }
 

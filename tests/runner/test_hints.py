@@ -87,9 +87,14 @@ def _model_result_file(tmp: Path) -> str:
 
 #: name → (overrides that fail, the overrides the hint must name)
 CASES = {
-    # the declarative models: an integrator that cannot take the model names one that can
-    "model_implicit_on_a_nonlinear_term": (["app=heat", "mesh.subdiv=2", "app.integrator=implicit_euler",
-                                            "app.equations=['dt(u) = k*laplacian(u) - u**3']"],
+    # the declarative models: an integrator that cannot take the model names one that can. Implicit
+    # Euler steps a nonlinear term by Newton, but a number computed from u (mean(u)) couples all
+    # its values: a dense Jacobian, refused; bdf/radau have no sparse Jacobian pattern through it
+    "model_implicit_on_a_dense_jacobian": (["app=heat", "mesh.subdiv=2", "app.integrator=implicit_euler",
+                                            "app.equations=['dt(u) = k*laplacian(u) - u*mean(u)']"],
+                                           ["app.integrator=rk4"]),
+    "model_bdf_without_a_sparse_pattern": (["app=heat", "mesh.subdiv=2", "app.integrator=bdf",
+                                            "app.equations=['dt(u) = k*laplacian(u) - u*mean(u)']"],
                                            ["app.integrator=imex", "app.integrator=rk4"]),
     "model_symplectic_without_pairs": (["app=heat", "mesh.subdiv=2", "app.integrator=symplectic"],
                                        ["app.integrator=rk4", "app.integrator=crank_nicolson"]),

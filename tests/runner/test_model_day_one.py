@@ -70,6 +70,8 @@ EVERY_OPTION = {
     "plots": "app.plots.view={color: u, arrows: velocity}",
     "parts": "app.parts={}",
     "require": "app.require=['k >= 0']",
+    # false: true prints the compiled model and runs nothing (tests/apps/test_model_explain.py runs it)
+    "explain": "app.explain=false",
 }
 
 

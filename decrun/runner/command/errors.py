@@ -180,7 +180,9 @@ def part_missing_message(exc: Exception) -> str | None:
     if match is None or match.group(1) != match.group(3):
         return None
     group, model, _, part = match.groups()
-    named = part and "/" not in part and part not in (".", "..")  # `parts=[/etc/passwd]`, `parts=['']`: no name
+    # ``parts=[/etc/passwd]``, ``parts=['']``: no part's name (examples of refused input, not hints;
+    # tests/runner/test_hostile_models.py::test_a_part_named_by_a_path_or_nothing_is_one_line runs both)
+    named = part and "/" not in part and part not in (".", "..")
     options: set[str] = set()
     for root in re.findall(r"path=file://(\S+)", text):
         directory = Path(root) / group / "parts"

@@ -311,6 +311,8 @@ def _unreadable_config(exc: BaseException, args: list[str]) -> str | None:
     os_error = find_in_chain(exc, OSError)
     if not isinstance(os_error, OSError) or os_error.filename is None:
         return None
+    if os_error.errno == errno.ENAMETOOLONG:  # a name from the command line, not a file: the override is named
+        return None  # by decrun.runner.command.errors (and Path.is_dir would raise the same error again)
     from decrun.runner.io.config_files import search_roots
     from decrun.runner.job.config import config_dir
 

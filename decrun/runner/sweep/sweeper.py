@@ -362,7 +362,8 @@ class ManifestSweeper(Sweeper):
 
 
 #: config roots whose overrides are not part of a job's identity on resume: where its runs are
-#: logged (docs/tracking.md: a `tracker=none` sweep resumes with `tracker=mlflow`, and back)
+#: logged (docs/tracking.md: a ``tracker=none`` sweep resumes with ``tracker=mlflow``, and back;
+#: tests/runner/results/test_tracker.py::test_a_sweep_resumes_with_the_tracker_switched runs both ways)
 NOT_IDENTITY = ("tracker",)
 
 

@@ -320,7 +320,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     _check_initial_values(spec, resolved.evolved, inputs)
     ordered = _order(resolved.definitions, resolved.solves, set(spec.fields) | set(spec.constants), key)
     compiler = _type_definitions(spec, ops, kinds, resolved, ordered)
-    base, initial_values = _bind_values(spec, dec, kinds, resolved.evolved, inputs, chained)
+    base, initial_values = _bind_values(spec, ops, kinds, resolved.evolved, inputs, chained)
     fixed = _dirichlet(spec, kinds, dec, key)
     compiler.static_env = dict(base)
     model = CompiledModel(spec, ops, compiler, kinds, resolved.equations, resolved.evolved, inputs, [], {}, {}, fixed,
@@ -448,15 +448,15 @@ def _type_definitions(spec: ModelSpec, ops: Discrete, kinds: dict[str, Kind], re
     return compiler
 
 
-def _bind_values(spec: ModelSpec, dec, kinds: dict[str, Kind], evolved: list[str], inputs: list[str],
+def _bind_values(spec: ModelSpec, ops: Discrete, kinds: dict[str, Kind], evolved: list[str], inputs: list[str],
                  chained: dict | None) -> tuple[dict, dict]:
     """The bind pass: the built-in names' values on the mesh (coordinates, h, π, t, dt), the
     constants and the inputs — ``base``, what every evaluation starts from — and the sampled
     initial values of the evolved fields and inputs."""
-    K = dec.K
+    dec, K = ops.dec, ops.K
     base = {"x": K.vertices[:, 0].copy(), "y": K.vertices[:, 1].copy() if K.embedding_dim > 1 else
             np.zeros(K.num_simplices(0)), "z": K.vertices[:, 2].copy() if K.embedding_dim > 2 else
-            np.zeros(K.num_simplices(0)), "h": Discrete(dec).mean_edge_length(), "pi": float(np.pi), "t": 0.0,
+            np.zeros(K.num_simplices(0)), "h": ops.mean_edge_length(), "pi": float(np.pi), "t": 0.0,
             "dt": float(spec.dt)}
     base.update({name: float(value) for name, value in spec.constants.items()})
     initial_values = {}

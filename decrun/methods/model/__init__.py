@@ -5,8 +5,10 @@ operators, an integrator, metrics — compiled against a mesh's :class:`decrun.c
 named passes (:func:`compile_model` runs them in this order):
 
 - :mod:`.language`   parse: text → expression tree (Python's parser, a node whitelist; never eval)
-- :mod:`.system`     resolve names and unknowns, order, type definitions, bind values to the mesh,
-                     lower every equation; the result is a :class:`CompiledModel`
+- :mod:`.passes`     one module per pass: parse, resolve names and unknowns, order, type definitions,
+                     bind values to the mesh, lower every equation, metrics, stars
+- :mod:`.system`     the model as data, :class:`CompiledModel` and :func:`compile_model`, the chain of
+                     the passes
 - :mod:`.kinds`      the types: primal/dual k-forms, numbers, vector fields
 - :mod:`.operators`  the operator registry: one entry per operator — typing rule, discrete
                      definition, evaluation or matrix, derivative rule — plugins through the

@@ -46,6 +46,7 @@ from decrun.methods.model.passes.resolve import (
     RESERVED_METRICS,
     Resolved,
     _check_initial_values,
+    _check_known_names,
     _check_names,
     _resolve,
     reserved,
@@ -265,6 +266,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     _check_names(spec)
     kinds = _declared_kinds(spec, ops.n)
     resolved = _resolve(spec, _parse_equations(spec))
+    _check_known_names(spec, resolved)
     inputs = [name for name in spec.fields if name not in resolved.targets]
     _check_initial_values(spec, resolved.evolved, inputs)
     ordered = _order(resolved.definitions, resolved.solves, set(spec.fields) | set(spec.constants), key)

@@ -5,10 +5,12 @@ unknowns (one per equation) — each name computed once."""
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from decrun.methods.model.language import Equation, ModelError, names_in, to_text
+from decrun.methods.model.compiler import BUILTIN_NAMES
+from decrun.methods.model.language import Binary, Call, Equation, ModelError, Name, Negate, Node, names_in, to_text
 from decrun.methods.model.operators import OPERATORS
 
 if TYPE_CHECKING:
@@ -16,10 +18,10 @@ if TYPE_CHECKING:
 
 __all__ = ["RESERVED", "RESERVED_METRICS", "Resolved", "reserved"]
 
-
+#: the built-in names and words of the language (the operators' names, plugins' included, too: :func:`reserved`)
 RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random", "solve"}
 
-
+#: metric names the run itself reports (decrun.methods.model.metrics and the runner's status columns)
 RESERVED_METRICS = {"status", "error", "stable", "unstable_reason", "diverged_at_step", "steps_done", "solve_seconds",
                     "steps_per_second", "step_seconds_max", "resumed_from_step", "t_final", "dt", "integrator",
                     "dt_stability_limit", "dt_over_stability_limit", "accepted_steps", "rhs_evaluations",
@@ -151,3 +153,33 @@ def _check_initial_values(spec: ModelSpec, evolved: list[str], inputs: list[str]
             role = "dt(" + name + ") needs it" if name in evolved else "no equation computes it"
             raise ModelError(f"{key}.fields.{name}.initial: missing initial value ({role}); e.g. "
                              f"`{key}.fields.{name}.initial=0`")
+
+
+def _names_in_order(node: Node) -> list[str]:
+    """The names ``node`` reads, left to right, depth first (the order an error names the first)."""
+    if isinstance(node, Name):
+        return [node.name]
+    if isinstance(node, Negate):
+        return _names_in_order(node.operand)
+    if isinstance(node, Binary):
+        return _names_in_order(node.left) + _names_in_order(node.right)
+    if isinstance(node, Call):
+        return [name for arg in node.args for name in _names_in_order(arg)]
+    return []
+
+
+def _check_known_names(spec: ModelSpec, resolved: Resolved) -> None:
+    """Every name an equation reads is declared: a field, a constant, a built-in name (x y z t dt
+    h pi) or what another equation computes; an unknown name is refused in one line naming its
+    equation's key (and the closest known name)."""
+    known = set(spec.fields) | set(spec.constants) | set(BUILTIN_NAMES) | set(resolved.targets)
+    for equation in resolved.equations:
+        sides = equation.pairs or ((equation.lhs, equation.rhs),)
+        for side in (tree for pair in sides for tree in pair if tree is not None):
+            for name in _names_in_order(side):
+                if name in known:
+                    continue
+                close = difflib.get_close_matches(name, sorted(known), n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise ModelError(f"{equation.where}: unknown name {name!r}{hint}; declare fields under app.fields "
+                                 "and numbers under app.constants")

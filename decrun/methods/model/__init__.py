@@ -10,6 +10,8 @@ named passes (:func:`compile_model` runs them in this order):
 - :mod:`.system`     the model as data, :class:`CompiledModel` and :func:`compile_model`, the chain of
                      the passes
 - :mod:`.kinds`      the types: primal/dual k-forms, numbers, vector fields
+- :mod:`.typed`      the typed tree: each node with its kind, built once by the kind pass and read
+                     by every later pass (:attr:`CompiledModel.typed`)
 - :mod:`.operators`  the operator registry: one entry per operator — typing rule, discrete
                      definition, evaluation or matrix, derivative rule — plugins through the
                      entry-point group ``decrun.operators``; :mod:`.discrete` the operators DEC lacks

@@ -24,6 +24,7 @@ import scipy.sparse as sp
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, Number, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS, POINTWISE, Discrete, Linear, Mismatch
+from decrun.methods.model.typed import Typed, operands
 
 __all__ = ["Compiler", "BUILTIN_NAMES", "NOT_LINEAR"]
 
@@ -64,20 +65,27 @@ class Compiler:
         self.solved = solved or {}
         self.varying = set(varying or ()) | TIME_VARYING
         self._static_env: dict | None = None
-        #: id(node) → (node, its kind): the kind of every node typed so far (:meth:`kind`)
-        self._typed: dict[int, tuple[Node, Kind]] = {}
+        #: id(node) → its :class:`~decrun.methods.model.typed.Typed` node (which holds the node):
+        #: every node typed so far (:meth:`typed`)
+        self._typed: dict[int, Typed] = {}
 
     # ------------------------------------------------------------------ kinds
-    def kind(self, node: Node, where: str) -> Kind:
-        """The kind of ``node``; ModelError naming ``where`` and the term on a mismatch. Each
-        node is typed once: its kind is kept (by the node's identity, the node held with it) and
-        every later pass — evaluation, linear blocks, derivatives, explain — reads it back."""
+    def typed(self, node: Node, where: str) -> Typed:
+        """The typed tree of ``node`` (:class:`~decrun.methods.model.typed.Typed`: each node with
+        its kind); ModelError naming ``where`` and the term on a mismatch. Each node is typed
+        once, by the kind pass: its typed node is kept (by the node's identity) and every later
+        pass — evaluation, linear blocks, derivatives, stars, explain — reads the kind there."""
         known = self._typed.get(id(node))
-        if known is not None and known[0] is node:
-            return known[1]
-        kind = self._infer(node, where)
-        self._typed[id(node)] = (node, kind)
-        return kind
+        if known is not None and known.node is node:
+            return known
+        kind = self._infer(node, where)  # types the operands first (each once)
+        typed = Typed(node, kind, tuple(self.typed(operand, where) for operand in operands(node)))
+        self._typed[id(node)] = typed
+        return typed
+
+    def kind(self, node: Node, where: str) -> Kind:
+        """The kind of ``node``: read from its typed node (:meth:`typed`), inferred only once."""
+        return self.typed(node, where).kind
 
     def _infer(self, node: Node, where: str) -> Kind:
         if isinstance(node, Number):

@@ -15,29 +15,15 @@ from __future__ import annotations
 
 import scipy.sparse as sp
 
-from decrun.methods.model.language import Binary, Call, Name, Negate, Node, Number, to_text
+from decrun.methods.model.language import Node, to_text
 
 __all__ = ["explain", "typed_tree"]
 
 
 def typed_tree(compiler, node: Node, where: str, depth: int = 1) -> list[str]:
-    """The lines of ``node``'s tree, each node with its kind."""
-    pad = "  " * depth
-    kind = compiler.kind(node, where)
-    if isinstance(node, (Number, Name)):
-        return [f"{pad}{to_text(node)} : {kind}"]
-    if isinstance(node, Negate):
-        return [f"{pad}negate : {kind}", *typed_tree(compiler, node.operand, where, depth + 1)]
-    if isinstance(node, Binary):
-        label = "wedge (^)" if node.op == "^" else node.op
-        return [f"{pad}{label} : {kind}", *typed_tree(compiler, node.left, where, depth + 1),
-                *typed_tree(compiler, node.right, where, depth + 1)]
-    if isinstance(node, Call):
-        lines = [f"{pad}{node.function} : {kind}"]
-        for arg in node.args:
-            lines += typed_tree(compiler, arg, where, depth + 1)
-        return lines
-    raise TypeError(node)
+    """The lines of ``node``'s typed tree (:class:`~decrun.methods.model.typed.Typed`), each node
+    with its kind, as the kind pass kept it."""
+    return compiler.typed(node, where).lines(depth)
 
 
 def _matrix(A) -> str:
@@ -45,16 +31,19 @@ def _matrix(A) -> str:
 
 
 def _trees(model) -> list[str]:
-    compiler, lines = model.compiler, ["typed trees:"]
-    for equation in model.equations:
-        lines.append(f"  {equation.where}: {equation.text.strip()}")
-        pairs = equation.pairs or ((equation.lhs, equation.rhs),)
-        for left, right in pairs:
-            if equation.kind in ("solve", "system"):
-                lines.append("   left side:")
-                lines += typed_tree(compiler, left, equation.where, 2)
-                lines.append("   right side:")
-            lines += typed_tree(compiler, right, equation.where, 2)
+    """Every equation and metric as written, then its typed trees (``model.typed``); a solve's
+    and a system's sides are labelled."""
+    texts = {equation.where: equation.text.strip() for equation in model.equations}
+    texts.update({f"{model.spec.key}.metrics.{name}": str(text).strip() for name, text in model.spec.metrics.items()})
+    sided = {side.where for side in model.typed if side.role == "left side"}
+    lines, shown = ["typed trees:"], set()
+    for side in model.typed:
+        if side.where not in shown:
+            shown.add(side.where)
+            lines.append(f"  {side.where}: {texts.get(side.where, '')}")
+        if side.where in sided:
+            lines.append(f"   {side.role}:")
+        lines += side.tree.lines(2)
     return lines
 
 

@@ -40,7 +40,7 @@ from decrun.methods.model.passes.bind import _bind_values, _dirichlet, border_si
 from decrun.methods.model.passes.lower import _lower_equations
 from decrun.methods.model.passes.metrics import _compile_metrics
 from decrun.methods.model.passes.order import _order
-from decrun.methods.model.passes.parse import _parse_equations
+from decrun.methods.model.passes.parse import _parse_equations, _parse_metrics
 from decrun.methods.model.passes.resolve import (
     RESERVED,
     RESERVED_METRICS,
@@ -54,8 +54,9 @@ from decrun.methods.model.passes.resolve import (
 from decrun.methods.model.passes.solves import Solve, vertex_pieces
 from decrun.methods.model.passes.stars import _check_stars
 from decrun.methods.model.passes.systems import SystemSolve
-from decrun.methods.model.passes.types import _declared_kinds, _type_definitions
+from decrun.methods.model.passes.types import _declared_kinds, _type_definitions, _type_trees
 from decrun.methods.model.problem import ModelProblem
+from decrun.methods.model.typed import TypedSide
 
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces",
            # importable from here as before the passes moved to decrun.methods.model.passes
@@ -114,6 +115,8 @@ class CompiledModel:
     fixed: dict[str, tuple[np.ndarray, np.ndarray]]
     base: dict[str, Any]
     initial_values: dict[str, np.ndarray]
+    #: the typed trees (every side of every equation and every metric, each node with its kind)
+    typed: list[TypedSide] = field(default_factory=list)
 
     @property
     def is_static(self) -> bool:
@@ -256,9 +259,9 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     ``new_solver()`` gives a fresh solver for each linear system; ``chained`` is a previous run's
     field (``mesh=result mesh.field=…``) for ``initial: result:<field>``.
 
-    The passes, in order: parse (:func:`_parse_equations`) → resolve names and unknowns
-    (:func:`_resolve`) → order (:func:`_order`) → infer kinds (:func:`_type_definitions`) →
-    bind values to the mesh (:func:`_bind_values`, :func:`_dirichlet`) → lower every equation
+    The passes, in order: parse (:func:`_parse_equations`, :func:`_parse_metrics`) → resolve
+    names and unknowns (:func:`_resolve`, :func:`_check_known_names`) → order (:func:`_order`) →
+    infer kinds (:func:`_type_definitions`, then the typed trees :func:`_type_trees`) → bind values to the mesh (:func:`_bind_values`, :func:`_dirichlet`) → lower every equation
     into closures and linear blocks (:func:`_lower_equations`) → metrics → check stars."""
     key = spec.key
     load_plugins()
@@ -267,17 +270,19 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     kinds = _declared_kinds(spec, ops.n)
     resolved = _resolve(spec, _parse_equations(spec))
     _check_known_names(spec, resolved)
+    metrics = _parse_metrics(spec)
     inputs = [name for name in spec.fields if name not in resolved.targets]
     _check_initial_values(spec, resolved.evolved, inputs)
     ordered = _order(resolved.definitions, resolved.solves, set(spec.fields) | set(spec.constants), key)
     compiler = _type_definitions(spec, ops, kinds, resolved, ordered)
+    typed = _type_trees(compiler, resolved.equations, metrics)
     base, initial_values = _bind_values(spec, ops, kinds, resolved.evolved, inputs, chained)
     fixed = _dirichlet(spec, kinds, dec, key)
     compiler.static_env = dict(base)
     model = CompiledModel(spec, ops, compiler, kinds, resolved.equations, resolved.evolved, inputs, [], {}, {}, fixed,
-                          base, initial_values)
+                          base, initial_values, typed)
     trees = _lower_equations(model, ordered, new_solver)
-    trees += _compile_metrics(model)
+    trees += _compile_metrics(model, metrics)
     check_intrinsic(compiler, dec, trees)
     _check_stars(compiler, dec, trees)
     return model

@@ -1,6 +1,8 @@
 """The kind pass: the declared kinds (fields' forms, constants as numbers) and every definition's
 kind inferred in dependency order by the model's :class:`~decrun.methods.model.compiler.Compiler`
-(a declared field's form must agree); the names whose values vary in a run."""
+(a declared field's form must agree); the names whose values vary in a run; then every side of
+every equation and every metric typed (:func:`_type_trees`): after this pass each node of the
+model is a :class:`~decrun.methods.model.typed.Typed` node carrying its kind."""
 
 from __future__ import annotations
 
@@ -10,10 +12,11 @@ import numpy as np
 
 from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.kinds import NUMBER, Kind, form_kind
-from decrun.methods.model.language import Equation, ModelError, Name, to_text
+from decrun.methods.model.language import Equation, ModelError, Name, Node, to_text
 from decrun.methods.model.operators import Discrete
 from decrun.methods.model.passes.order import _sides
 from decrun.methods.model.passes.resolve import Resolved
+from decrun.methods.model.typed import TypedSide
 
 if TYPE_CHECKING:
     from decrun.methods.model.system import FieldSpec, ModelSpec
@@ -56,3 +59,17 @@ def _type_definitions(spec: ModelSpec, ops: Discrete, kinds: dict[str, Kind], re
         {target for eq in resolved.solves for target in eq.targets or (eq.target,)
          if compiler.reads(Name(target)) & compiler.varying}
     return compiler
+
+
+def _type_trees(compiler: Compiler, equations: list[Equation], metrics: dict[str, tuple[str, Node]]) -> list[TypedSide]:
+    """Every side of every equation (in the order written) and every metric, typed: the typed
+    trees of the model (:class:`~decrun.methods.model.typed.TypedSide`), each node with its kind."""
+    sides = []
+    for equation in equations:
+        for left, right in equation.pairs or ((equation.lhs, equation.rhs),):
+            if equation.kind in ("solve", "system"):  # an evolution's left side is dt(u), not a term
+                sides.append(TypedSide(equation.where, "left side", compiler.typed(left, equation.where)))
+            sides.append(TypedSide(equation.where, "right side", compiler.typed(right, equation.where)))
+    for where, tree in metrics.values():
+        sides.append(TypedSide(where, "metric", compiler.typed(tree, where)))
+    return sides

@@ -30,6 +30,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from decrun.core.forms import sample_density, sample_flux, sample_vector_field
+from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.kinds import NUMBER, Kind, primal
 from decrun.methods.model.language import (
     Binary,
@@ -42,7 +43,7 @@ from decrun.methods.model.language import (
     parse_expression,
     to_text,
 )
-from decrun.methods.model.operators import OPERATORS
+from decrun.methods.model.operators import OPERATORS, Discrete
 
 __all__ = ["sample", "PointExpression"]
 
@@ -53,12 +54,19 @@ EDGE_QUADRATURE = 5
 class PointExpression:
     """A value-by-value expression of the coordinates, checked against the whitelist (numbers,
     ``x y z pi random``, constants, + − * / **, the one-argument functions, two-argument
-    min/max, ``vertex(i)``) and evaluated at any points."""
+    min/max, ``vertex(i)``) and evaluated at any points by the model's one evaluator
+    (:meth:`decrun.methods.model.compiler.Compiler.compile`, the closures equations and metrics
+    run), with ``x y z random`` the values at the points."""
 
-    def __init__(self, text, where: str, constants: dict[str, float]):
+    def __init__(self, text, where: str, constants: dict[str, float], dec):
         self.where, self.constants = where, constants
         self.tree = parse_expression(text, where)
         self._check(self.tree)
+        kinds = {name: NUMBER for name in constants}
+        kinds["random"] = primal(0)
+        compiler = Compiler(Discrete(dec), kinds, varying={"x", "y", "z", "random"})
+        compiler.static_env = {"pi": float(np.pi), **{k: float(v) for k, v in constants.items()}}
+        self.evaluate = compiler.compile(self.tree, where)
 
     def _check(self, node: Node) -> None:
         if isinstance(node, Number):
@@ -118,8 +126,16 @@ class PointExpression:
                **{k: float(v) for k, v in self.constants.items()}}
         if self.uses("random"):
             env["random"] = rng.uniform(-1.0, 1.0, len(points))
-        with np.errstate(all="ignore"):
-            value = self._value(self.tree, env, n_vertices)
+        if n_vertices is None and self.has_vertex():
+            raise ModelError(f"{self.where}: vertex(i) is a 0-form (an indicator at a vertex); use it for a field "
+                             "with form: 0")
+        try:
+            with np.errstate(all="ignore"):
+                value = self.evaluate(env)
+        except (ZeroDivisionError, OverflowError):  # numbers alone (Python floats): not finite anywhere
+            value = np.nan
+        if np.iscomplexobj(value):  # a negative number to a fractional power
+            value = np.nan
         out = np.broadcast_to(np.asarray(value, dtype=np.float64), (len(points),)).copy()
         bad = ~np.isfinite(out)
         if bad.any():
@@ -127,32 +143,6 @@ class PointExpression:
             raise ModelError(f"{self.where}: the value is not finite at {int(bad.sum())} of {len(out)} points (e.g. at "
                              f"{np.round(points[index], 6).tolist()}); change the expression there")
         return out
-
-    def _value(self, node: Node, env: dict, n_vertices):
-        if isinstance(node, Number):
-            return node.value
-        if isinstance(node, Name):
-            return env[node.name]
-        if isinstance(node, Negate):
-            return -self._value(node.operand, env, n_vertices)
-        if isinstance(node, Binary):
-            a, b = self._value(node.left, env, n_vertices), self._value(node.right, env, n_vertices)
-            return {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "**": np.power}[node.op](a, b)
-        if node.function == "vertex":
-            index = self._value(node.args[0], env, n_vertices)
-            if n_vertices is None:
-                raise ModelError(f"{self.where}: vertex(i) is a 0-form (an indicator at a vertex); use it for a field "
-                                 "with form: 0")
-            if np.ndim(index) or not (float(index).is_integer() and 0 <= index < n_vertices):
-                raise ModelError(f"{self.where}: vertex({index}): the mesh has vertices 0..{n_vertices - 1}; give one "
-                                 "of them")
-            out = np.zeros(n_vertices)
-            out[int(index)] = 1.0
-            return out
-        args = [self._value(arg, env, n_vertices) for arg in node.args]
-        evaluate = OPERATORS[node.function].evaluate
-        assert evaluate is not None  # a value-by-value operator is evaluated, never a matrix
-        return evaluate(None, [NUMBER] * len(args), *args)
 
 
 def _rng(seed: int, name: str) -> np.random.Generator:
@@ -178,7 +168,7 @@ def sample(value, kind: Kind, dec, where: str, *, constants: dict[str, float], s
         if not np.isfinite(value):
             raise ModelError(f"{where}: must be a finite number, got {value}")
         return np.full(size, float(value))
-    expression = PointExpression(value, where, constants)
+    expression = PointExpression(value, where, constants, dec)
     if kind.dual and kind.degree == 0:  # one value per top simplex, at its circumcentre
         return expression.at(dec.circumcenters(n), rng)
     if kind.dual:  # ⋆ of the primal (n−k)-form of the same expression
@@ -202,7 +192,7 @@ def _vector(value, kind: Kind, dec, where: str, constants, rng) -> np.ndarray:
     if len(value) != d:
         raise ModelError(f"{where}: a vector field has {d} components on this mesh (its coordinates' dimension), got "
                          f"{len(value)}")
-    parts = [PointExpression(item, f"{where}[{i}]", constants) for i, item in enumerate(value)]
+    parts = [PointExpression(item, f"{where}[{i}]", constants, dec) for i, item in enumerate(value)]
 
     def field(points):
         return np.stack([part.at(points, rng) for part in parts], axis=1)
@@ -235,7 +225,7 @@ def _flux(value, kind: Kind, dec, where: str, constants, rng) -> np.ndarray:
     if len(items) not in allowed:
         raise ModelError(f"{where}.flux: a vector field has {' or '.join(map(str, sorted(allowed)))} components on "
                          f"this mesh, got {len(items)}")
-    parts = [PointExpression(item, f"{where}.flux[{i}]", constants) for i, item in enumerate(items)]
+    parts = [PointExpression(item, f"{where}.flux[{i}]", constants, dec) for i, item in enumerate(items)]
 
     def field(points):
         return np.stack([part.at(points, rng) for part in parts], axis=1)

@@ -35,7 +35,8 @@ import scipy.sparse as sp
 
 from decrun.methods.model.compiler import NOT_LINEAR
 from decrun.methods.model.implicit_newton import NewtonImplicit
-from decrun.methods.model.language import ModelError, to_text
+from decrun.methods.model.jacobian import pattern as term_pattern
+from decrun.methods.model.language import ModelError
 from decrun.methods.model.lowering import Evolution
 from decrun.methods.model.problem import ModelProblem
 from decrun.methods.model.runge_kutta import INTEGRATORS as RUNGE_KUTTA
@@ -548,9 +549,9 @@ def _diffusion_limit(A, M, scheme: str, largest_eigenvalue) -> float:
 
 
 def jacobian_pattern(model) -> sp.csr_matrix:
-    """The sparsity of ∂F/∂u over the stacked evolved fields, from the equations: each term's
-    operators' own patterns (a linear chain's matrix), value-by-value terms the identity. A
-    term through an operator without a matrix (∧, ♯, ♭, a solve) is refused."""
+    """The sparsity of ∂F/∂u over the stacked evolved fields: the linear blocks' structure and,
+    for each other term, the structure of its exact Jacobian (:func:`decrun.methods.model.jacobian.pattern`:
+    the derivative rules read on structures). A term without an exact sparse Jacobian is refused."""
     evolution = model.evolution
     compiler = model.compiler
     names = set(evolution.names)
@@ -563,7 +564,7 @@ def jacobian_pattern(model) -> sp.csr_matrix:
                 row[v] = _structure(A) if row[v] is None else row[v] + _structure(A)
         for _sign, term in evolution.rest_trees[u]:
             for v in compiler.reads(term) & names:
-                part = _term_pattern(compiler, term, v, evolution.sizes[u], evolution.sizes[v], equation.where)
+                part = term_pattern(compiler, term, v, equation.where)
                 row[v] = part if row[v] is None else row[v] + part
         rows.append([None if row[v] is None else row[v] for v in evolution.names])
     for i, u in enumerate(evolution.names):  # bmat needs a block in every row and column
@@ -578,61 +579,3 @@ def _structure(A) -> sp.csr_matrix:
     A = sp.csr_matrix(A, copy=True)
     A.data = np.ones_like(A.data)
     return A
-
-
-def _term_pattern(compiler, node, v: str, rows: int, cols: int, where: str) -> sp.csr_matrix:
-    """∂(node)/∂v's structure: the product of the linear operators on the way to v, the
-    identity through value-by-value operations."""
-    from decrun.methods.model.language import Binary, Call, Name, Negate, Number
-    from decrun.methods.model.operators import ALIASES, OPERATORS
-
-    def walk(node):
-        if isinstance(node, Number):
-            return None
-        if isinstance(node, Name):
-            if node.name == v:
-                return sp.identity(cols, format="csr")
-            if node.name in compiler.definitions:
-                return walk(compiler.definitions[node.name])
-            if node.name in compiler.solved and compiler.depends_on(node, {v}):
-                raise ModelError(f"{where}: integrator=bdf/radau: {node.name} is a solve's result, whose Jacobian is "
-                                 "dense; use `app.integrator=imex` or `app.integrator=rk4`")
-            return None
-        if isinstance(node, Negate):
-            return walk(node.operand)
-        if isinstance(node, Binary):
-            if node.op == "^":
-                raise ModelError(f"{where}: integrator=bdf/radau: no sparse Jacobian pattern through the wedge in "
-                                 f"{to_text(node)}; use `app.integrator=imex`")
-            parts = [p for p in (walk(node.left), walk(node.right)) if p is not None]
-            if not parts:
-                return None
-            return parts[0] if len(parts) == 1 else (_structure(parts[0]) + _structure(parts[1]))
-        if isinstance(node, Call):
-            name = ALIASES.get(node.function, node.function)
-            operator = OPERATORS[name]
-            parts = [walk(arg) for arg in node.args]
-            parts = [p for p in parts if p is not None]
-            if not parts:
-                return None
-            if operator.linear is not None and len(node.args) == 1:
-                kind = compiler.kind(node.args[0], where)
-                step = operator.linear(compiler.ops, kind)
-                if step is None:
-                    raise ModelError(f"{where}: integrator=bdf/radau: {to_text(node)} has no sparse matrix here; use "
-                                     "`app.integrator=imex`")
-                return _structure(step.A) @ _structure(parts[0])
-            if operator.pointwise:  # value by value (the registry's flag): the arguments' patterns
-                total = parts[0]
-                for p in parts[1:]:
-                    total = _structure(total) + _structure(p)
-                return total
-            raise ModelError(f"{where}: integrator=bdf/radau: no sparse Jacobian pattern through {operator.name} in "
-                             f"{to_text(node)}; use `app.integrator=imex` or `app.integrator=rk4`")
-        raise TypeError(node)
-
-    part = walk(node)
-    if part is None:
-        return sp.csr_matrix((rows, cols))
-    return _structure(part)
-

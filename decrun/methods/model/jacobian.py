@@ -32,7 +32,7 @@ from decrun.methods.model.kinds import NUMBER
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS
 
-__all__ = ["derivative", "Derivative"]
+__all__ = ["derivative", "Derivative", "pattern"]
 
 #: env ↦ D (None, an array: diag(a), or a sparse matrix)
 Derivative = Callable[[dict], object]
@@ -213,3 +213,112 @@ def derivative(compiler, node: Node, unknown: str, where: str) -> Callable[[dict
             return sp.csr_matrix(D)
         return sp.diags(np.broadcast_to(np.asarray(D, dtype=np.float64), (cols,))).tocsr()
     return jacobian
+
+
+def _structure(matrix) -> sp.csr_matrix:
+    """The 0/1 structure of a sparse matrix (its stored entries; explicit zeros dropped)."""
+    out = sp.csr_matrix(matrix, dtype=np.float64, copy=True)
+    out.eliminate_zeros()
+    out.data[:] = 1.0
+    return out
+
+
+def _union(first, second):
+    if first is None:
+        return second
+    if second is None:
+        return first
+    return _structure(first + second)
+
+
+class _Pattern:
+    """The structure of the exact Jacobian, by the rules of :class:`_Builder` read on structures
+    (see :func:`pattern`); refuses, in one line, every term the rules refuse."""
+
+    def __init__(self, compiler, unknown: str, size: int, where: str):
+        self.compiler, self.unknown, self.size, self.where = compiler, unknown, size, where
+        self._generic = np.random.default_rng(47)
+
+    def refuse(self, node: Node, why: str) -> ModelError:
+        return ModelError(f"{self.where}: integrator=bdf/radau: no sparse Jacobian pattern through {to_text(node)} "
+                          f"({why}); use `app.integrator=imex` or `app.integrator=rk4`")
+
+    def build(self, node: Node) -> sp.csr_matrix | None:
+        """The structure of ∂node/∂unknown, or None when ``node`` does not read the unknown."""
+        compiler = self.compiler
+        if not compiler.depends_on(node, {self.unknown}):
+            return None
+        if isinstance(node, Name):
+            if node.name == self.unknown:
+                return sp.identity(self.size, format="csr")
+            if node.name in compiler.definitions:
+                return self.build(compiler.definitions[node.name])
+            raise self.refuse(node, f"{node.name} is a solve's result, whose Jacobian is dense")
+        if isinstance(node, Negate):
+            return self.build(node.operand)
+        if compiler.kind(node, self.where) == NUMBER:
+            raise self.refuse(node, f"a number computed from {self.unknown} couples all its values")
+        if isinstance(node, Binary):
+            if node.op == "^":
+                return self._call(Call("wedge", (node.left, node.right)), node)
+            return _union(self.build(node.left), self.build(node.right))  # diag(b) D_a + diag(a) D_b, …
+        if isinstance(node, Call):
+            return self._call(node, node)
+        raise TypeError(node)
+
+    def _call(self, node: Call, shown: Node) -> sp.csr_matrix | None:
+        compiler = self.compiler
+        operator = OPERATORS[ALIASES.get(node.function, node.function)]
+        kinds = [compiler.kind(arg, self.where) for arg in node.args]
+        inners = [self.build(arg) for arg in node.args]
+        if operator.linear is not None and len(node.args) == 1:
+            step = operator.linear(compiler.ops, kinds[0])
+            matrix = None if step is None else _strong(compiler.ops, step)
+            if matrix is None:
+                raise self.refuse(shown, f"{operator.name} has no sparse matrix here")
+            return _structure(_structure(matrix) @ inners[0])
+        if operator.fixed_first is not None and len(node.args) == 2 and inners[0] is None:
+            if not compiler.is_static(node.args[0]):
+                raise self.refuse(shown, f"the matrix of {operator.name} changes with {to_text(node.args[0])}")
+            matrix = operator.fixed_first(compiler.ops, kinds, compiler.static_value(node.args[0]))
+            if matrix is None:
+                raise self.refuse(shown, f"{operator.name} has no matrix for a {kinds[1]}")
+            return _structure(_structure(matrix) @ inners[1])
+        if operator.derivative is None:
+            raise self.refuse(shown, f"the operator {operator.name} has no derivative rule")
+        total = None
+        for i, inner in enumerate(inners):
+            if inner is not None:
+                total = _union(total, _structure(self._partial(operator, kinds, i, shown) @ inner))
+        return total
+
+    def _partial(self, operator, kinds, i: int, shown: Node) -> sp.csr_matrix:
+        """The structure of ∂op/∂arg_i at every state: the identity for a value-by-value operator
+        (its rule gives a diagonal, some of whose values may vanish at one state — max, sign);
+        else the rule's structure at generic values (uniform in [1, 2], seeded), where no entry
+        vanishes but by cancellation."""
+        size = self.compiler.ops.K
+        if operator.pointwise:
+            rows = kinds[i].size(size) if kinds[i].is_form else self.size
+            return sp.identity(rows, format="csr")
+        values = [self._generic.uniform(1.0, 2.0, kind.size(size)) if kind.is_form else 1.5 for kind in kinds]
+        partial = operator.derivative(self.compiler.ops, kinds, values, i)
+        if partial is None:
+            raise self.refuse(shown, f"the operator {operator.name} has no derivative in argument {i + 1}")
+        return _structure(partial) if sp.issparse(partial) else \
+            sp.identity(np.size(partial) if np.ndim(partial) else kinds[i].size(size), format="csr")
+
+
+def pattern(compiler, node: Node, unknown: str, where: str) -> sp.csr_matrix:
+    """(rows, cols) the 0/1 sparsity of ∂node/∂unknown over every state: the structure of the
+    exact Jacobian that :func:`derivative` builds, by its rules (module docstring) read on
+    structures — a name the identity, a sum or product the union of its operands' structures, a
+    linear operator its matrix's structure times its argument's, ``lie(X, u)`` with a fixed X its
+    matrix's, a value-by-value operator the identity, another operator with a derivative rule its
+    rule's structure. What :func:`derivative` refuses is refused here (one line, bdf/radau's fix)."""
+    ops = compiler.ops
+    cols = compiler.kinds[unknown].size(ops.K)
+    kind = compiler.kind(node, where)
+    rows = kind.size(ops.K) if kind.is_form else cols
+    built = _Pattern(compiler, unknown, cols, where).build(node)
+    return sp.csr_matrix((rows, cols)) if built is None else built

@@ -9,11 +9,14 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.core.solvers import solver_factory
 from decrun.methods.model import FieldSpec, ModelError, ModelSpec, compile_model
+from decrun.methods.model.integrators import jacobian_pattern
+from decrun.methods.model.jacobian import derivative, pattern
 from decrun.runner.job.plugins import option
 
 EXPRESSION = "exp(-x**2)*sin(3*y) + max(x, y)**2 - c*abs(x - 0.1)/(1 + y**2) + sqrt(2 + cos(pi*x)) - tanh(-c)"
@@ -68,3 +71,42 @@ def test_operators_stay_out_of_values_and_vertex_is_checked_when_the_model_loads
     model = compiled(["dt(u) = laplacian(u)"], {"u": FieldSpec(0, "2*vertex(c)")}, constants={"c": 7})
     np.testing.assert_array_equal(np.flatnonzero(model.initial_values["u"]), [7])
     assert model.initial_values["u"][7] == 2.0
+
+
+# ---------------------------------------------------------------------------------------- patterns
+def structure(matrix) -> set[tuple[int, int]]:
+    coo = sp.coo_matrix(matrix)
+    keep = coo.data != 0
+    return set(zip(coo.row[keep].tolist(), coo.col[keep].tolist(), strict=True))
+
+
+@pytest.mark.parametrize("term, superset", [
+    ("0.01*laplacian(u) - 0.1*cosh(u)", False),
+    ("u*v**2 - laplacian(v*u) + star(d(star(d(u))))", False),
+    ("exp(-u)/(1 + v**2) + sin(laplacian(u))", False),
+    ("max(u, v) + sign(u)*v", True),  # the rules give 0 at some values: the pattern holds every state's
+])
+def test_the_bdf_radau_pattern_is_the_structure_of_the_exact_jacobian(term, superset):
+    model = compiled([f"dt(u) = {term}", "dt(v) = laplacian(v)"],
+                     {"u": FieldSpec(0, "0.3 + 0.2*x*y + 0.1*sin(5*x)"), "v": FieldSpec(0, "0.5 + 0.1*cos(3*y)")})
+    env = model.environment(dict(model.initial_values), 0.0)
+    tree = model.equations[0].rhs
+    for unknown in ("u", "v"):
+        expected = structure(derivative(model.compiler, tree, unknown, "app.equations[0]")(env))
+        got = structure(pattern(model.compiler, tree, unknown, "app.equations[0]"))
+        assert expected <= got if superset else expected == got, (unknown, len(expected), len(got))
+    stacked = jacobian_pattern(model)  # the integrators' pattern over (u, v) is built from it
+    n = model.ops.K.num_simplices(0)
+    assert stacked.shape == (2 * n, 2 * n) and stacked.nnz < 0.2 * (2 * n) ** 2
+
+
+@pytest.mark.parametrize("term, why", [
+    ("laplacian(u) - u*mean(u)", "no sparse Jacobian pattern through mean(u) (a number computed from u couples"),
+    ("laplacian(u) + u ^ u", "no sparse Jacobian pattern through u ^ u (the operator wedge has no derivative"),
+])
+def test_bdf_and_radau_refuse_a_term_without_a_sparse_jacobian_in_one_line(term, why):
+    with pytest.raises(ModelError) as error:
+        jacobian_pattern(compiled([f"dt(u) = {term}"], {"u": FieldSpec(0, "x")}))
+    message = str(error.value)
+    assert "\n" not in message and message.startswith(f"app.equations[0]: integrator=bdf/radau: {why}"), message
+    assert message.endswith("use `app.integrator=imex` or `app.integrator=rk4`")

@@ -18,6 +18,8 @@ def test_explain_prints_the_typed_trees_and_blocks_and_runs_nothing(tmp_path):
     # the typed tree: every node with its kind
     assert "app.equations[1]: dt(u) = Du*laplacian(u) - u*v**2 + F*(1 - u)" in text
     assert "laplacian : primal 0-form" in text and "Du : number" in text
+    assert "fields: v : primal 0-form (evolved), u : primal 0-form (evolved)" in text
+    assert "app.metrics.v_mean: integral(v) / integral(1 + 0*v)\n    / : number\n      integral : number" in text
     # the blocks: the constant Laplacian implicit, u v² nonlinear, F explicit
     assert "linear A_uu (constant coefficients, implicit): 256×256" in text
     assert "nonlinear (reads u, v): - u * v ** 2" in text and "explicit (reads no evolved field): + F * 1" in text
@@ -32,6 +34,9 @@ def test_explain_shows_a_systems_block_matrix(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "system for u, p: block matrix 1155×1155" in done.stderr
     assert "definition pressure : dual 0-form" in done.stderr
+    assert "p : primal 2-form (computed by app.equations[0])" in done.stderr
+    assert "   left side 2:\n    d : primal 2-form\n      u : primal 1-form\n   right side 2:\n    f : primal 2-form" \
+        in done.stderr  # the system's second equation d(u) = f, typed
 
 
 def test_explain_of_a_model_that_does_not_type_check_is_its_one_line_refusal(tmp_path):

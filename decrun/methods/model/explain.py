@@ -35,7 +35,7 @@ def _trees(model) -> list[str]:
     and a system's sides are labelled."""
     texts = {equation.where: equation.text.strip() for equation in model.equations}
     texts.update({f"{model.spec.key}.metrics.{name}": str(text).strip() for name, text in model.spec.metrics.items()})
-    sided = {side.where for side in model.typed if side.role == "left side"}
+    sided = {side.where for side in model.typed if side.role.startswith("left side")}
     lines, shown = ["typed trees:"], set()
     for side in model.typed:
         if side.where not in shown:
@@ -89,7 +89,11 @@ def _evolution(model) -> list[str]:
 
 def explain(model) -> str:
     """The typed trees and the block structure of a compiled model (module docstring)."""
-    kinds = ", ".join(f"{name} : {model.kinds[name]}" for name in model.evolved + model.inputs)
+    computed = {target: equation.where for equation in model.equations
+                for target in equation.targets or (equation.target,)}
+    roles = {name: "evolved" if name in model.evolved else "input" if name in model.inputs else
+             f"computed by {computed[name]}" for name in model.spec.fields}
+    kinds = ", ".join(f"{name} : {model.kinds[name]} ({role})" for name, role in roles.items())
     lines = [f"model: evolved {', '.join(model.evolved) or '(none: definitions and solves only)'}; "
              f"inputs {', '.join(model.inputs) or '(none)'}", f"fields: {kinds}"]
     lines += _trees(model) + _order(model)

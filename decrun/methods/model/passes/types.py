@@ -66,10 +66,12 @@ def _type_trees(compiler: Compiler, equations: list[Equation], metrics: dict[str
     trees of the model (:class:`~decrun.methods.model.typed.TypedSide`), each node with its kind."""
     sides = []
     for equation in equations:
-        for left, right in equation.pairs or ((equation.lhs, equation.rhs),):
+        pairs = equation.pairs or ((equation.lhs, equation.rhs),)
+        for i, (left, right) in enumerate(pairs):
+            row = f" {i + 1}" if len(pairs) > 1 else ""  # a system's equations, numbered
             if equation.kind in ("solve", "system"):  # an evolution's left side is dt(u), not a term
-                sides.append(TypedSide(equation.where, "left side", compiler.typed(left, equation.where)))
-            sides.append(TypedSide(equation.where, "right side", compiler.typed(right, equation.where)))
+                sides.append(TypedSide(equation.where, f"left side{row}", compiler.typed(left, equation.where)))
+            sides.append(TypedSide(equation.where, f"right side{row}", compiler.typed(right, equation.where)))
     for where, tree in metrics.values():
         sides.append(TypedSide(where, "metric", compiler.typed(tree, where)))
     return sides

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import zlib
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -129,6 +130,7 @@ class PointExpression:
         if n_vertices is None and self.has_vertex():
             raise ModelError(f"{self.where}: vertex(i) is a 0-form (an indicator at a vertex); use it for a field "
                              "with form: 0")
+        value: Any
         try:
             with np.errstate(all="ignore"):
                 value = self.evaluate(env)

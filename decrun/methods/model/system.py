@@ -259,10 +259,12 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     ``new_solver()`` gives a fresh solver for each linear system; ``chained`` is a previous run's
     field (``mesh=result mesh.field=…``) for ``initial: result:<field>``.
 
-    The passes, in order: parse (:func:`_parse_equations`, :func:`_parse_metrics`) → resolve
-    names and unknowns (:func:`_resolve`, :func:`_check_known_names`) → order (:func:`_order`) →
-    infer kinds (:func:`_type_definitions`, then the typed trees :func:`_type_trees`) → bind values to the mesh (:func:`_bind_values`, :func:`_dirichlet`) → lower every equation
-    into closures and linear blocks (:func:`_lower_equations`) → metrics → check stars."""
+    The passes (:mod:`decrun.methods.model.passes`), in order: parse (:func:`_parse_equations`,
+    :func:`_parse_metrics`) → resolve names and unknowns (:func:`_resolve`,
+    :func:`_check_known_names`) → order (:func:`_order`) → infer kinds (:func:`_type_definitions`,
+    then the typed trees :func:`_type_trees`) → bind values to the mesh (:func:`_bind_values`,
+    :func:`_dirichlet`) → lower every equation into closures and linear blocks
+    (:func:`_lower_equations`) → metrics (:func:`_compile_metrics`) → check stars."""
     key = spec.key
     load_plugins()
     ops = Discrete(dec)

@@ -33,6 +33,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.methods.model.adaptive_jacobian import exact_jacobian
 from decrun.methods.model.compiler import NOT_LINEAR
 from decrun.methods.model.implicit_newton import NewtonImplicit
 from decrun.methods.model.language import ModelError, to_text
@@ -104,7 +105,7 @@ def check_integrator(model, scheme: str, dt: float) -> None:
         Symplectic(model, dt)
     elif scheme in ("implicit_euler", "crank_nicolson") and _nonlinear(model):
         ModelProblem(model).check_jacobian()  # Newton's: every nonlinear term needs an exact Jacobian
-    elif scheme in ("bdf", "radau"):
+    elif scheme in ("bdf", "radau") and exact_jacobian(model) is None:
         jacobian_pattern(model)
     elif SCHEMES[scheme].tableau is not None and SCHEMES[scheme].needs == "jacobian":
         model.problem.check_jacobian()  # the stages' Newton: every nonlinear term needs an exact Jacobian
@@ -341,7 +342,8 @@ class Adaptive:
         self.model, self.dt, self.scheme = model, float(dt), scheme
         self.rtol, self.atol = float(rtol), float(atol)
         self.evolution = model.evolution
-        self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") else None
+        self.exact = exact_jacobian(model) if scheme in ("bdf", "radau") else None  # the derivative pass's
+        self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") and self.exact is None else None
         self.jacobian = _exact_jacobian(self.evolution) if scheme in ("bdf", "radau") else None
         self.h = float("nan")
         self.accepted = 0
@@ -361,6 +363,8 @@ class Adaptive:
             options["first_step"] = min(self.h, (t + self.dt) - t)
         if self.jacobian is not None:  # a linear model: ∂F/∂u is the constant M⁻¹A, exactly
             options["jac"] = self.jacobian
+        elif self.exact is not None:
+            options["jac"] = self.exact
         elif self.pattern is not None:
             options["jac_sparsity"] = self.pattern
         method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]

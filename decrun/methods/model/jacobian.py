@@ -14,11 +14,13 @@ matrix diag(a); else a sparse matrix):
 - a linear operator L (one argument): L D (L its matrix ⋆⁻¹A with a diagonal ⋆; a Galerkin ⋆⁻¹
   would make it dense and is refused);
 - an operator with a derivative rule: Σ_i ∂op/∂arg_i · D_i (value-by-value functions, max, min);
-- ``lie(X, u)`` with a fixed X: its matrix times D_u.
+- ``lie(X, u)`` with a fixed X: its matrix times D_u;
+- ♯, |·|, normalize, ♭, interior and ∧: their rules in
+  :mod:`decrun.methods.model.vector_derivatives` (a vector field's values flattened row by row).
 
 Anything else that reads the unknown — a number computed from it (``integral(u)`` couples every
-value), ∧, ♯ — is one :class:`ModelError` line naming the term: an operator without a derivative
-rule has no exact Jacobian here.
+value), ``flux_field``, ``lie`` whose velocity reads the unknown — is one :class:`ModelError` line
+naming the term: an operator without a derivative rule has no exact Jacobian here.
 """
 
 from __future__ import annotations

@@ -45,6 +45,8 @@ class ModelProblem:
             if rows[i][i] is None:
                 rows[i][i] = sp.csr_matrix((evolution.sizes[u], evolution.sizes[u]))
         self._stiff_full = sp.bmat(rows, format="csr")
+        #: (total, total) the stiff blocks over every evolved value, border rows and columns included
+        self.stiff_full = self._stiff_full
         mass = self._mass_full[self.free][:, self.free].tocsr()
         identity = (mass - sp.identity(self.size)).count_nonzero() == 0
         self.mass = None if identity else mass
@@ -101,13 +103,22 @@ class ModelProblem:
 
     def jacobian(self, y: np.ndarray, t: float) -> sp.csr_matrix:
         """(size, size) the exact ∂f/∂y: L + M ∂R/∂y (sparse)."""
+        rest = self.rest_jacobian(self.full(y), t)
+        if rest is None:
+            return self.stiff
+        full = self._stiff_full + self._mass_full @ rest
+        return full[self.free][:, self.free].tocsr()
+
+    def rest_jacobian(self, x: np.ndarray, t: float) -> sp.csr_matrix | None:
+        """(total, total) ∂R/∂x of the explicit terms over every evolved value (border values
+        included), at the stacked values ``x``; None when no explicit term reads an evolved field."""
         self.check_jacobian()
         assert self._rest_jacobians is not None
         evolution = self.evolution
         names = evolution.names
         if not self._rest_jacobians:
-            return self.stiff
-        env = self.model.environment(self.state(y), t)
+            return None
+        env = self.model.environment(evolution.unstack(x), t)
         rows = [[None for _ in names] for _ in names]
         for (u, v), parts in self._rest_jacobians.items():
             i, j = names.index(u), names.index(v)
@@ -122,6 +133,4 @@ class ModelProblem:
         for j, v in enumerate(names):
             if all(rows[i][j] is None for i in range(len(names))):
                 rows[j][j] = sp.csr_matrix((evolution.sizes[v], evolution.sizes[v]))
-        rest = sp.bmat(rows, format="csr")
-        full = self._stiff_full + self._mass_full @ rest
-        return full[self.free][:, self.free].tocsr()
+        return sp.bmat(rows, format="csr")

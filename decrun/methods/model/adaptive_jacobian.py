@@ -6,7 +6,9 @@ With diagonal row masses M_u (⋆0, the circumcentric ⋆k) it is sparse:
 (:meth:`decrun.methods.model.problem.ModelProblem.rest_jacobian`: each operator's derivative rule),
 and its rows at fixed (Dirichlet) values are 0, as F's are. Where that Jacobian cannot be made —
 a Galerkin mass (M⁻¹ dense) or a term without a derivative rule — :func:`exact_jacobian` returns
-None and the integrator keeps finite differences on the sparsity pattern.
+None and the integrator keeps finite differences on the sparsity pattern; a Galerkin Laplacian of
+k-forms (k ≥ 1), which needs a mass matrix, is refused in one line
+(:func:`decrun.methods.model.mixed.refuse_adaptive`).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.methods.model.language import ModelError
+from decrun.methods.model.mixed import refuse_adaptive
 
 __all__ = ["exact_jacobian"]
 
@@ -24,6 +27,7 @@ __all__ = ["exact_jacobian"]
 def exact_jacobian(model) -> Optional[Callable[[float, np.ndarray], sp.csr_matrix]]:
     """``jac(t, u) -> csr (total, total)``, ∂F/∂u over the stacked evolved values (module
     docstring), or None when it is not available as a sparse matrix."""
+    refuse_adaptive(model, "bdf/radau")
     evolution, problem = model.evolution, model.problem
     inverse = []
     for u in evolution.names:

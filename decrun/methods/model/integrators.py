@@ -38,6 +38,7 @@ from decrun.methods.model.compiler import NOT_LINEAR
 from decrun.methods.model.implicit_newton import NewtonImplicit
 from decrun.methods.model.language import ModelError, to_text
 from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.mixed import implicit_problem
 from decrun.methods.model.problem import ModelProblem
 from decrun.methods.model.runge_kutta import INTEGRATORS as RUNGE_KUTTA
 from decrun.methods.model.runge_kutta import Needs
@@ -104,11 +105,11 @@ def check_integrator(model, scheme: str, dt: float) -> None:
     if scheme == "symplectic":
         Symplectic(model, dt)
     elif scheme in ("implicit_euler", "crank_nicolson") and _nonlinear(model):
-        ModelProblem(model).check_jacobian()  # Newton's: every nonlinear term needs an exact Jacobian
+        implicit_problem(model).check_jacobian()  # Newton's: every nonlinear term needs an exact Jacobian
     elif scheme in ("bdf", "radau") and exact_jacobian(model) is None:
         jacobian_pattern(model)
     elif SCHEMES[scheme].tableau is not None and SCHEMES[scheme].needs == "jacobian":
-        model.problem.check_jacobian()  # the stages' Newton: every nonlinear term needs an exact Jacobian
+        implicit_problem(model).check_jacobian()  # the stages' Newton: every nonlinear term needs an exact Jacobian
 
 
 class Implicit:
@@ -427,7 +428,7 @@ def _make_tableau(entry):
     """The maker of a tableau integrator of the Runge–Kutta registry: its stepper over the
     model's Problem (the exact Jacobian checked first when it needs one)."""
     def make(model, dt: float, new_solver, rtol: float, atol: float):
-        problem = model.problem
+        problem = implicit_problem(model) if entry.needs == Needs.jacobian else model.problem
         options: dict = {}
         if entry.needs == Needs.jacobian:
             problem.check_jacobian()

@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.methods.model.jacobian import derivative
+from decrun.methods.model.jacobian import derivative_values
+from decrun.methods.model.jacobian_assembly import PatternAssembly, as_matrix
 
 __all__ = ["ModelProblem"]
 
@@ -52,6 +53,7 @@ class ModelProblem:
         self.mass = None if identity else mass
         self.stiff = self._stiff_full[self.free][:, self.free].tocsr()
         self._rest_jacobians: dict | None = None
+        self._assembly: PatternAssembly | None | bool = None
 
     # ------------------------------------------------------------------ states
     def full(self, y: np.ndarray) -> np.ndarray:
@@ -98,14 +100,56 @@ class ModelProblem:
             u = equation.target
             for sign, term in evolution.rest_trees[u]:
                 for v in sorted(model.compiler.reads(term) & names):
-                    out.setdefault((u, v), []).append((sign, derivative(model.compiler, term, v, equation.where)))
+                    closure, rows, cols = derivative_values(model.compiler, term, v, equation.where)
+                    if closure is not None:
+                        out.setdefault((u, v), []).append((sign, closure, rows, cols))
         self._rest_jacobians = out
 
+    def _rest_values(self, x: np.ndarray, t: float) -> dict:
+        """{(u, v): ∂R_u/∂v} at the stacked values ``x`` as the derivative pass gives them (an
+        array: a diagonal, or a sparse matrix)."""
+        self.check_jacobian()
+        assert self._rest_jacobians is not None
+        env = self.model.environment(self.evolution.unstack(x), t)
+        out = {}
+        for key, parts in self._rest_jacobians.items():
+            total = None
+            for sign, closure, rows, cols in parts:
+                D = closure(env)
+                D = sign * (np.asarray(D, dtype=np.float64) if not sp.issparse(D) else D)
+                if total is None:
+                    total = D
+                elif sp.issparse(total) or sp.issparse(D):
+                    total = as_matrix(total, rows, cols) + as_matrix(D, rows, cols)
+                else:
+                    total = total + D
+            out[key] = total
+        return out
+
+    def _pattern(self) -> PatternAssembly | None:
+        """The pattern assembly of J (:mod:`decrun.methods.model.jacobian_assembly`), made once;
+        None when a row mass is not diagonal or a block couples fields of different sizes."""
+        if self._assembly is None:
+            evolution = self.evolution
+            mass = self._mass_full
+            diagonal = mass.diagonal()
+            same = all(evolution.sizes[u] == evolution.sizes[v] for u, v in self._rest_jacobians or {})
+            usable = same and (mass - sp.diags(diagonal)).count_nonzero() == 0
+            self._assembly = (PatternAssembly(self.stiff, list(self._rest_jacobians or {}), evolution.slices, self.free,
+                                              self.total, diagonal) if usable else False)
+        return self._assembly or None
+
     def jacobian(self, y: np.ndarray, t: float) -> sp.csr_matrix:
-        """(size, size) the exact ∂f/∂y: L + M ∂R/∂y (sparse)."""
-        rest = self.rest_jacobian(self.full(y), t)
-        if rest is None:
+        """(size, size) the exact ∂f/∂y: L + M ∂R/∂y (sparse): in a pattern made once when every
+        ∂R_u/∂v is a diagonal (:class:`~decrun.methods.model.jacobian_assembly.PatternAssembly`)."""
+        self.check_jacobian()
+        if not self._rest_jacobians:
             return self.stiff
+        values = self._rest_values(self.full(y), t)
+        pattern = self._pattern() if not any(sp.issparse(D) for D in values.values()) else None
+        if pattern is not None:
+            return pattern.assemble(values)
+        rest = self._assemble_rest(values)
         full = self._stiff_full + self._mass_full @ rest
         return full[self.free][:, self.free].tocsr()
 
@@ -113,20 +157,16 @@ class ModelProblem:
         """(total, total) ∂R/∂x of the explicit terms over every evolved value (border values
         included), at the stacked values ``x``; None when no explicit term reads an evolved field."""
         self.check_jacobian()
-        assert self._rest_jacobians is not None
-        evolution = self.evolution
-        names = evolution.names
         if not self._rest_jacobians:
             return None
-        env = self.model.environment(evolution.unstack(x), t)
-        rows = [[None for _ in names] for _ in names]
-        for (u, v), parts in self._rest_jacobians.items():
-            i, j = names.index(u), names.index(v)
-            block = None
-            for sign, closure in parts:
-                term = sign * closure(env)
-                block = term if block is None else block + term
-            rows[i][j] = block
+        return self._assemble_rest(self._rest_values(x, t))
+
+    def _assemble_rest(self, values: dict) -> sp.csr_matrix:
+        evolution = self.evolution
+        names = evolution.names
+        rows: list[list] = [[None for _ in names] for _ in names]
+        for (u, v), D in values.items():
+            rows[names.index(u)][names.index(v)] = as_matrix(D, evolution.sizes[u], evolution.sizes[v])
         for i, u in enumerate(names):
             if all(block is None for block in rows[i]):
                 rows[i][i] = sp.csr_matrix((evolution.sizes[u], evolution.sizes[u]))

@@ -54,5 +54,5 @@ def test_a_sparse_derivative_takes_the_general_assembly():
     problem = ModelProblem(model)
     y = problem.free_values(model.initial_values)
     J = problem.jacobian(y, 0.0)
-    assert problem._assembly is None  # never built: the derivative was not a diagonal
+    assert not problem._assembly_made  # never built: the derivative was not a diagonal
     assert abs(J - _general(problem, y)).max() <= 1e-13 * abs(J).max()

@@ -359,7 +359,7 @@ class Adaptive:
             self.evaluations += 1
             return evolution.stack(model.derivative(model.environment(evolution.unstack(y), time)))
 
-        options = {"rtol": self.rtol, "atol": self.atol}
+        options: dict = {"rtol": self.rtol, "atol": self.atol}
         if np.isfinite(self.h) and self.h > 0:  # within the span as SciPy computes it: (t + dt) - t can be < dt
             options["first_step"] = min(self.h, (t + self.dt) - t)
         if self.jacobian is not None:  # a linear model: ∂F/∂u is the constant M⁻¹A, exactly

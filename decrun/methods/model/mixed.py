@@ -97,8 +97,8 @@ def galerkin_laplacians(model) -> list[GalerkinLaplacian]:
                 continue
             operator_sign, coefficient, field = matched
             kind = model.kinds[field]
-            name = "laplacian" if operator_sign < 0 else "laplace_de_rham"
-            if kind.dual or kind.degree < 1 or OPERATORS[name].linear(ops, kind) is not None \
+            lowering = OPERATORS["laplacian" if operator_sign < 0 else "laplace_de_rham"].linear
+            if kind.dual or kind.degree < 1 or lowering is None or lowering(ops, kind) is not None \
                     or ops.dec.star_is_diagonal(kind.degree - 1) or model.kinds[row] != kind:
                 continue
             value = 1.0

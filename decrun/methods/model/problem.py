@@ -53,7 +53,8 @@ class ModelProblem:
         self.mass = None if identity else mass
         self.stiff = self._stiff_full[self.free][:, self.free].tocsr()
         self._rest_jacobians: dict | None = None
-        self._assembly: PatternAssembly | None | bool = None
+        self._assembly: PatternAssembly | None = None
+        self._assembly_made = False
 
     # ------------------------------------------------------------------ states
     def full(self, y: np.ndarray) -> np.ndarray:
@@ -129,15 +130,16 @@ class ModelProblem:
     def _pattern(self) -> PatternAssembly | None:
         """The pattern assembly of J (:mod:`decrun.methods.model.jacobian_assembly`), made once;
         None when a row mass is not diagonal or a block couples fields of different sizes."""
-        if self._assembly is None:
+        if not self._assembly_made:
+            self._assembly_made = True
             evolution = self.evolution
             mass = self._mass_full
             diagonal = mass.diagonal()
             same = all(evolution.sizes[u] == evolution.sizes[v] for u, v in self._rest_jacobians or {})
             usable = same and (mass - sp.diags(diagonal)).count_nonzero() == 0
             self._assembly = (PatternAssembly(self.stiff, list(self._rest_jacobians or {}), evolution.slices, self.free,
-                                              self.total, diagonal) if usable else False)
-        return self._assembly or None
+                                              self.total, diagonal) if usable else None)
+        return self._assembly
 
     def jacobian(self, y: np.ndarray, t: float) -> sp.csr_matrix:
         """(size, size) the exact ∂f/∂y: L + M ∂R/∂y (sparse): in a pattern made once when every

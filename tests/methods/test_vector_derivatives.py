@@ -1,4 +1,5 @@
-"""The derivative rules of ♯, |·|, normalize, ♭, interior and ∧ (methods/model/vector_derivatives.py):
+"""The derivative rules of ♯, |·|, normalize, ♭, interior, ∧, flux_field and lie
+(methods/model/vector_derivatives.py):
 each exact Jacobian against central differences of the evaluator itself on a random state, to
 1e-6 relative — on a planar lattice, a closed sphere (3-D vectors) and under the intrinsic ♯."""
 
@@ -25,6 +26,8 @@ EXPRESSIONS = [
     "star(wedge(u, d(v)) ^ d(u))",
     "star(d(u**2) ^ d(v)) + star(d(v) ^ d(u))",
     "wedge(u, d(u)) + wedge(d(v), u*u)",
+    "codifferential(flat(flux_field(d(u**2))))",
+    "lie(sharp(d(u)), u) + lie(d(v), u*u) + lie(d(u**2), v)",
 ]
 
 
@@ -59,6 +62,11 @@ def test_each_rule_equals_central_differences_on_a_lattice(text):
 def test_each_rule_equals_central_differences_on_a_sphere(text):
     """Vectors in R³ on a closed curved surface."""
     _check(dec_of("sphere"), text, seed=1)
+
+
+def test_the_rules_on_tetrahedra():
+    """flux_field of a 2-form (a negatively oriented tetrahedron's sign included), ♯ and ∧ in 3-D."""
+    _check(dec_of("tets"), "norm(flux_field(d(u) ^ d(v))) + norm(sharp(d(u**2)))**2", seed=3)
 
 
 def test_the_intrinsic_sharp_rule_equals_central_differences():

@@ -15,12 +15,12 @@ matrix diag(a); else a sparse matrix):
   would make it dense and is refused);
 - an operator with a derivative rule: Σ_i ∂op/∂arg_i · D_i (value-by-value functions, max, min);
 - ``lie(X, u)`` with a fixed X: its matrix times D_u;
-- ♯, |·|, normalize, ♭, interior and ∧: their rules in
+- ♯, |·|, normalize, ♭, interior, ∧, flux_field and lie of 0-forms: their rules in
   :mod:`decrun.methods.model.vector_derivatives` (a vector field's values flattened row by row).
 
 Anything else that reads the unknown — a number computed from it (``integral(u)`` couples every
-value), ``flux_field``, ``lie`` whose velocity reads the unknown — is one :class:`ModelError` line
-naming the term: an operator without a derivative rule has no exact Jacobian here.
+value), lie of a 1-form along a velocity that reads the unknown (at its first evaluation), an
+operator of a plugin without a derivative rule — is one :class:`ModelError` line naming the term.
 """
 
 from __future__ import annotations

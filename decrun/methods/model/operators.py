@@ -547,7 +547,8 @@ _register(Operator("flux_field", (1,), "primal (n−1)-form → vector",
                    "the Whitney (n−1)-form's vector field at each top simplex's barycentre, Σ_i o_i u_i (x − p_i) "
                    "/ (n |σ|) (lowest-order Raviart–Thomas; o_i u_i the flux out through the face opposite p_i): "
                    "the velocity whose fluxes are u, exact for constant fields",
-                   _flux_field_kind, lambda ops, kinds, x: discrete.flux_field(ops.K, x)))
+                   _flux_field_kind, lambda ops, kinds, x: discrete.flux_field(ops.K, x),
+                   derivative=vector_derivatives.flux_field_derivative))
 _register(Operator("flat", (1,), "vector → primal 1-form (triangles)",
                    "ω_e = Σ_{f∋e} (|⋆e∩f|/|⋆e|) X_f·e (Hirani's primal-primal ♭), so −δ X♭ is the cotan "
                    "divergence",
@@ -574,7 +575,7 @@ _register(Operator("interior", (2,), "vector (or 1-form), primal 1-form → dual
 _register(Operator("lie", (2,), "vector (or 1-form), primal 0- or 1-form → the same form",
                    "L_X u = X·∇u per top simplex, volume-averaged to the vertices (centred advection); on 1-forms "
                    "Cartan's L_X ω = i_X dω + d i_X ω",
-                   _lie_kind, _lie_evaluate, fixed_first=_lie_fixed_first))
+                   _lie_kind, _lie_evaluate, fixed_first=_lie_fixed_first, derivative=vector_derivatives.lie_derivative))
 _register(Operator("norm", (1,), "vector → dual 0-form; form → number",
                    "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate,
                    derivative=vector_derivatives.norm_derivative))

@@ -17,7 +17,11 @@ naming the term):
 - ``interior(X, ω) = X·ω♯``: diag-blocks X_σᵀ S in ω; ω♯_σᵀ per row in X (through ♯ when X is a
   1-form);
 - ``wedge``: f∧ω = (A f)·ω is bilinear (A the vertex mean on k-simplices); α∧β of two 1-forms is
-  bilinear with the six products of :func:`decrun.methods.model.discrete.wedge_11`.
+  bilinear with the six products of :func:`decrun.methods.model.discrete.wedge_11`;
+- ``flux_field(u)`` is linear: row (σ, a) holds o_i (x̄_σ − p_i)_a / (n |σ|) at the face f_i of σ
+  opposite p_i (the lowest-order Raviart–Thomas field at the barycentre);
+- ``lie(X, f)`` of a 0-form, X · ∇f per top simplex averaged to the vertices (V): ``lie_0_matrix``
+  in f, V · rows ∇f_σᵀ in X (through ♯ when X is a 1-form); of a 1-form it has no rule here.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ import scipy.sparse as sp
 from decrun.methods.model import discrete
 from decrun.methods.model.kinds import VECTOR
 
-__all__ = ["sharp_matrix", "mesh_sharp_matrix", "sharp_derivative", "norm_derivative", "normalize_derivative", "flat_matrix",
+__all__ = ["flux_field_matrix", "flux_field_derivative", "lie_derivative", "sharp_matrix", "mesh_sharp_matrix", "sharp_derivative", "norm_derivative", "normalize_derivative", "flat_matrix",
            "flat_derivative", "interior_derivative", "wedge_derivative"]
 
 
@@ -170,3 +174,53 @@ def _triangle_edges(K) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return table[:, 0], table[:, 1], table[:, 2]
     triangles = K.simplices(2)
     return tuple(K.find_simplices(triangles[:, [a, b]]) for a, b in ((0, 1), (0, 2), (1, 2)))  # type: ignore[return-value]
+
+
+def flux_field_matrix(K) -> sp.csr_matrix:
+    """(n_n d, n_{n−1}) the matrix of :func:`decrun.methods.model.discrete.flux_field` (module
+    docstring; the sign of a negatively oriented tetrahedron included), made once per complex."""
+    def compute():
+        n = K.dim
+        top = K.simplices(n)
+        corners = K.vertices[top]
+        count, d = top.shape[0], corners.shape[2]
+        incidence = K.boundary(n).tocsc()
+        faces = K.top_face_indices(n - 1)
+        centre = corners.mean(axis=1)
+        scale = 1.0 / (n * K.top_volumes)
+        if n == 3:
+            oriented = K.vertices[K.oriented_simplices()]
+            scale = scale * np.sign(np.einsum("ij,ij->i", np.cross(oriented[:, 1] - oriented[:, 0],
+                                                                   oriented[:, 2] - oriented[:, 0]),
+                                              oriented[:, 3] - oriented[:, 0]))
+        rows, cols, data = [], [], []
+        for slot in range(n + 1):  # a loop over the n + 1 face slots, not over simplices
+            face = faces[:, slot]
+            sign = np.asarray(incidence[face, np.arange(count)]).ravel()
+            weight = (sign * scale)[:, None] * (centre - corners[:, n - slot])  # (n_n, d)
+            rows.append((np.arange(count)[:, None] * d + np.arange(d)[None, :]).ravel())
+            cols.append(np.repeat(face, d))
+            data.append(weight.ravel())
+        return sp.csr_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(count * d, K.num_simplices(n - 1)))
+    return K.require(("model", "flux_field_matrix"), compute)
+
+
+def flux_field_derivative(ops, kinds, values, i) -> sp.csr_matrix:
+    """∂ flux_field(u)/∂u (linear): :func:`flux_field_matrix`."""
+    return flux_field_matrix(ops.K)
+
+
+def lie_derivative(ops, kinds, values, i) -> sp.csr_matrix | None:
+    """∂ lie(X, f)/∂(argument i) for a 0-form f (module docstring); None for a 1-form."""
+    if kinds[1].degree != 0:
+        return None
+    K = ops.K
+    field, f = values
+    if i == 1:
+        vectors = field if kinds[0] == VECTOR else discrete.sharp(K, field)
+        return discrete.lie_0_matrix(K, np.asarray(vectors, dtype=np.float64))
+    top = K.simplices(K.dim)
+    gradient = np.einsum("fv,fvd->fd", np.asarray(f, dtype=np.float64)[top], discrete.gradients(K))
+    rows = discrete.vertex_average_matrix(K) @ _per_simplex_rows(gradient)
+    return (rows if kinds[0] == VECTOR else rows @ mesh_sharp_matrix(K)).tocsr()

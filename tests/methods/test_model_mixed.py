@@ -100,3 +100,19 @@ def test_bdf_is_refused_in_one_line_naming_what_runs_it():
         check_integrator(model, "bdf", 0.01)
     assert "\n" not in str(caught.value) and str(caught.value).startswith("app.equations[0]: 0.5 * laplacian(w)")
     check_integrator(model, "radau_iia", 0.01)  # what the message names runs
+
+
+def test_a_nonlinear_term_beside_the_galerkin_laplacian_has_its_exact_jacobian():
+    """dt(w) = laplacian(w) − w³ (value by value on edges): the mixed problem's Jacobian L + M ∂R/∂y
+    equals central differences of its f, and radau_iia steps it (Newton converges)."""
+    dec, model = _model("dt(w) = laplacian(w) - w**3")
+    problem = implicit_problem(model)
+    assert isinstance(problem, MixedProblem)
+    rng = np.random.default_rng(1)
+    y = problem.free_values({"w": rng.standard_normal(dec.K.num_simplices(1))})
+    direction = rng.standard_normal(problem.size)
+    eps = 1e-6
+    numeric = (problem.f(y + eps * direction, 0.0) - problem.f(y - eps * direction, 0.0)) / (2 * eps)
+    assert np.abs(problem.jacobian(y, 0.0) @ direction - numeric).max() <= 1e-6 * np.abs(numeric).max()
+    w = _run(model, "radau_iia", problem.state(y)["w"], 0.01, 3)
+    assert np.all(np.isfinite(w)) and np.abs(w).max() < np.abs(problem.state(y)["w"]).max()

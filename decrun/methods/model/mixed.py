@@ -137,21 +137,25 @@ class MixedProblem:
         #: each row's mass: the lowering's, or ⋆_k for a strong row (identity mass) that a Laplacian joins
         self.row_mass = row_mass = {u: dec.star(model.kinds[u].degree).tocsr() if scaled[u] else evolution.mass[u]
                                     for u in names}
-        L = sp.lil_matrix((augmented, augmented))
+        # L in blocks: the fields' rows and columns, then one pair per p
+        order = names + [("p", v) for v in self.fields]
+        sizes = [evolution.sizes[u] for u in names] + [self.codifferential_sizes[v] for v in self.fields]
+        blocks: dict = {}
+
+        def add(row, col, matrix):
+            key = (order.index(row), order.index(col))
+            blocks[key] = matrix if key not in blocks else blocks[key] + matrix
         for (u, v), A in evolution.blocks.items():
-            block = row_mass[u] @ A if scaled[u] else A
-            L[evolution.slices[u], evolution.slices[v]] = L[evolution.slices[u], evolution.slices[v]] + block
+            add(u, v, row_mass[u] @ A if scaled[u] else A)
         for item in laplacians:
-            rows, cols, p = evolution.slices[item.row], evolution.slices[item.field], self.p_slices[item.field]
             k = item.degree
             if k < model.ops.n:
-                C = dec.d(k).T @ dec.star(k + 1) @ dec.d(k)
-                L[rows, cols] = L[rows, cols] + item.scale * C
-            L[rows, p] = L[rows, p] + item.scale * self.couplings[item.field]
+                add(item.row, item.field, item.scale * (dec.d(k).T @ dec.star(k + 1) @ dec.d(k)))
+            add(item.row, ("p", item.field), item.scale * self.couplings[item.field])
         for v in self.fields:
-            L[self.p_slices[v], evolution.slices[v]] = self.couplings[v].T
-            L[self.p_slices[v], self.p_slices[v]] = -self.lower_masses[v]
-        self.stiff_full = L.tocsr()
+            add(("p", v), v, self.couplings[v].T)
+            add(("p", v), ("p", v), -self.lower_masses[v])
+        self.stiff_full = _assemble(blocks, sizes)
         self.free = np.concatenate([base.free, np.arange(evolution.total, augmented)])
         self.size = int(self.free.size)
         mass_full = sp.block_diag([row_mass[u] for u in names] + [sp.csr_matrix((augmented - evolution.total,) * 2)],
@@ -229,13 +233,22 @@ class MixedProblem:
         evolution = self.model.evolution
         X = self.full(y)
         env = self.model.environment(evolution.unstack(X[:evolution.total]), t)
-        total = self.stiff_full.shape[0]
-        rest = sp.lil_matrix((total, total))
-        for (u, v), parts in self._jacobians.items():
-            block = sum(sign * closure(env) for sign, closure in parts)
-            rest[evolution.slices[u], evolution.slices[v]] = self.row_mass[u] @ block
-        full = self.stiff_full + rest.tocsr()
+        names = evolution.names
+        sizes = [evolution.sizes[u] for u in names] + [self.codifferential_sizes[v] for v in self.fields]
+        blocks = {(names.index(u), names.index(v)): self.row_mass[u] @ sum(sign * closure(env) for sign, closure in parts)
+                  for (u, v), parts in self._jacobians.items()}
+        full = self.stiff_full + _assemble(blocks, sizes)
         return full[self.free][:, self.free].tocsr()
+
+
+def _assemble(blocks: dict, sizes: list[int]) -> sp.csr_matrix:
+    """One sparse matrix from ``blocks`` {(i, j): matrix} over blocks of ``sizes`` (zero elsewhere)."""
+    count = len(sizes)
+    grid = [[blocks.get((i, j)) for j in range(count)] for i in range(count)]
+    for i in range(count):
+        if grid[i][i] is None:  # bmat needs every row and column's size
+            grid[i][i] = sp.csr_matrix((sizes[i], sizes[i]))
+    return sp.bmat(grid, format="csr")
 
 
 def implicit_problem(model):

@@ -382,6 +382,18 @@ def model_convergence() -> dict:
     return _module("benchmarks/model_convergence.py").numbers()
 
 
+def integrator_orders() -> dict:
+    """The measured orders of the models page (``benchmarks/integrator_orders.py``): each fixed-step
+    integrator's observed time order on logistic reaction–diffusion (``<integrator>_order_<i>``)
+    and Newton's iterations, errors and spatial order on −Δu + u³ = f (``newton_<nx>_…``)."""
+    return _module("benchmarks/integrator_orders.py").numbers()
+
+
+#: the integrators of the models page's order table (benchmarks/integrator_orders.py's INTEGRATORS)
+INTEGRATOR_ORDER_SCHEMES = ("explicit_euler", "implicit_euler", "semi_implicit", "imex", "crank_nicolson", "ssprk3",
+                            "ark_imex", "rk4", "gauss_legendre", "radau_iia")
+
+
 def _convergence_numbers() -> dict[str, Number]:
     columns = {"vertices": {}, "faces": {}, "h": dict(fmt=".4f"), "error": dict(fmt=".3e"), "max_error": dict(fmt=".2e"),
                "order": dict(fmt=".2f"), "omega": dict(fmt=".6f", rtol=1e-7),
@@ -560,6 +572,11 @@ RUNS["parametrization_height_field"] = Source(height_field_parametrization, {
     "default": N("default", ".2f"), "harmonic": N("harmonic", ".2f"), "free": N("free", ".2f")})
 RUNS["operator_variants"] = Source(operator_variants, _variant_numbers())
 RUNS["model_convergence"] = Source(model_convergence, _convergence_numbers())
+RUNS["integrator_orders"] = Source(integrator_orders, {
+    **{f"{scheme}_{i}": N(f"{scheme}_order_{i}", ".2f") for scheme in INTEGRATOR_ORDER_SCHEMES for i in (0, 1)},
+    **{f"newton_{nx}_iterations": N(f"newton_{nx}_iterations") for nx in (9, 17, 33)},
+    **{f"newton_{nx}_error": N(f"newton_{nx}_error", ".2e") for nx in (9, 17, 33)},
+    **{f"newton_{nx}_order": N(f"newton_{nx}_order", ".2f") for nx in (17, 33)}})
 RUNS["halfar_offsets"] = Source(halfar_offsets, {
     f"{spacing}_{name}": N(f"{spacing}_{name}", ".2f") for spacing in HALFAR_SPACINGS for name in (*HALFAR_OFFSETS, "mean")})
 RUNS["model_poisson_sphere"] = Run(("+experiment=poisson_sphere",), {

@@ -1,6 +1,7 @@
-"""BDF and Radau get the sparse Jacobian pattern of the equations — nonzeros exactly where the
-operators and the value-by-value terms put them, never a dense n × n Jacobian — and an
-adaptive run records the steps its solver accepted."""
+"""BDF and Radau get the exact sparse Jacobian from the derivative rules (diagonal masses) or else
+the sparse Jacobian pattern of the equations — nonzeros exactly where the operators and the
+value-by-value terms put them, never a dense n × n Jacobian — and an adaptive run records the
+steps its solver accepted."""
 
 from __future__ import annotations
 
@@ -23,21 +24,53 @@ def prepared(overrides):
 
 @pytest.mark.parametrize("scheme", ["bdf", "radau"])
 def test_the_jacobian_pattern_is_the_operators_nonzeros(scheme):
-    """Gray–Scott: ∂(Du Δu − u v² + F(1 − u))/∂(u, v) and ∂(Dv Δv + u v² − (F + k) v)/∂(u, v)
-    have the stiffness S = d0ᵀ⋆1d0's pattern in the diagonal blocks (its stored entries: the
-    vertex adjacency and the diagonal) and the identity's off the diagonal (u v² couples u
-    and v value by value) — compared entry by entry, and far from dense."""
-    app, dec, model, integrator = prepared(["app=gray_scott", f"app.integrator={scheme}"])
-    assert integrator.jacobian is None  # nonlinear: finite differences on the pattern
-    pattern = sp.csr_matrix(integrator.pattern)
-    S = sp.csr_matrix(dec.d(0).T @ dec.star(1) @ dec.d(0))
+    """Gray–Scott under operator=whitney (a Galerkin ⋆0: M⁻¹ is dense, so no exact sparse ∂F/∂u):
+    ∂(Du Δu − u v² + F(1 − u))/∂(u, v) and ∂(Dv Δv + u v² − (F + k) v)/∂(u, v) have the
+    P1 stiffness S's pattern in the diagonal blocks (its stored entries: the vertex adjacency and
+    the diagonal) and the identity's off the diagonal (u v² couples u and v value by value) —
+    compared entry by entry, and far from dense."""
+    app, dec, model, integrator = prepared(["app=gray_scott", f"app.integrator={scheme}", "operator=whitney"])
+    assert integrator.jacobian is None and integrator.exact is None  # finite differences on the pattern
+    pattern = _structure(integrator.pattern)
+    S = model.evolution.blocks[("u", "u")]  # the weak Laplacian block: the P1 stiffness, stored entries
     n = S.shape[0]
-    diagonal = (abs(S) + sp.identity(n)).astype(bool).astype(np.float64)
+    diagonal = _structure(_structure(S) + sp.identity(n))
     identity = sp.identity(n)
-    expected = sp.bmat([[diagonal, identity], [identity, diagonal]], format="csr").astype(bool)
+    expected = _structure(sp.bmat([[diagonal, identity], [identity, diagonal]], format="csr"))
     assert pattern.shape == (2 * n, 2 * n)
-    assert (pattern.astype(bool) != expected).nnz == 0
+    difference = (pattern - expected).tocsr()
+    difference.eliminate_zeros()
+    assert difference.nnz == 0
     assert pattern.nnz == expected.nnz < 0.05 * (2 * n) ** 2
+
+
+def _structure(A) -> sp.csr_matrix:
+    """A's stored entries as ones (explicit zeros included)."""
+    A = sp.csr_matrix(A, copy=True)
+    A.sum_duplicates()
+    A.data[:] = 1.0
+    return A
+
+
+@pytest.mark.parametrize("scheme", ["bdf", "radau"])
+def test_a_nonlinear_model_hands_bdf_the_exact_jacobian_of_its_derivative_rules(scheme):
+    """Gray–Scott (diagonal ⋆0): ∂F/∂(u, v) = M⁻¹A + ∂R/∂(u, v) from the derivative pass, sparse
+    within the operators' pattern, equal to central differences of F, with the border-free rows."""
+    app, dec, model, integrator = prepared(["app=gray_scott", f"app.integrator={scheme}"])
+    assert integrator.jacobian is None and integrator.pattern is None and integrator.exact is not None
+    evolution = model.evolution
+    y = evolution.stack(model.initial_values)
+    J = integrator.exact(0.0, y)
+    n = J.shape[0] // 2
+    assert sp.issparse(J) and J.nnz < 0.05 * J.shape[0] ** 2
+
+    def F(y):
+        return evolution.stack(model.derivative(model.environment(evolution.unstack(y), 0.0)))
+    w = np.random.default_rng(0).standard_normal(y.size)
+    eps = 1e-6
+    numeric = (F(y + eps * w) - F(y - eps * w)) / (2 * eps)
+    assert np.abs(J @ w - numeric).max() <= 1e-6 * np.abs(numeric).max()
+    assert n == dec.K.num_simplices(0)
 
 
 def test_a_linear_model_hands_bdf_its_exact_sparse_jacobian():

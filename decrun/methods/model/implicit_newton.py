@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.methods.model.problem import ModelProblem
+from decrun.methods.model.mixed import implicit_problem
 
 __all__ = ["NewtonImplicit"]
 
@@ -29,7 +29,7 @@ class NewtonImplicit:
 
     def __init__(self, model, dt: float, scheme: str, new_solver):
         self.model, self.dt, self.scheme, self.new_solver = model, float(dt), scheme, new_solver
-        self.problem = problem = ModelProblem(model)
+        self.problem = problem = implicit_problem(model)  # the mixed form of a Galerkin Laplacian too
         problem.check_jacobian()  # a term without an exact Jacobian is refused now, not at the first step
         self.theta = 0.5 if scheme == "crank_nicolson" else 1.0
         self.mass = problem.mass if problem.mass is not None else sp.identity(problem.size, format="csr")

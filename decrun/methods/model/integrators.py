@@ -33,11 +33,13 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.methods.model.adaptive_jacobian import exact_jacobian
 from decrun.methods.model.compiler import NOT_LINEAR
 from decrun.methods.model.implicit_newton import NewtonImplicit
 from decrun.methods.model.jacobian import pattern as term_pattern
 from decrun.methods.model.language import ModelError
 from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.mixed import implicit_problem
 from decrun.methods.model.problem import ModelProblem
 from decrun.methods.model.runge_kutta import INTEGRATORS as RUNGE_KUTTA
 from decrun.methods.model.runge_kutta import Needs
@@ -104,11 +106,11 @@ def check_integrator(model, scheme: str, dt: float) -> None:
     if scheme == "symplectic":
         Symplectic(model, dt)
     elif scheme in ("implicit_euler", "crank_nicolson") and _nonlinear(model):
-        ModelProblem(model).check_jacobian()  # Newton's: every nonlinear term needs an exact Jacobian
-    elif scheme in ("bdf", "radau"):
+        implicit_problem(model).check_jacobian()  # Newton's: every nonlinear term needs an exact Jacobian
+    elif scheme in ("bdf", "radau") and exact_jacobian(model) is None:
         jacobian_pattern(model)
     elif SCHEMES[scheme].tableau is not None and SCHEMES[scheme].needs == "jacobian":
-        model.problem.check_jacobian()  # the stages' Newton: every nonlinear term needs an exact Jacobian
+        implicit_problem(model).check_jacobian()  # the stages' Newton: every nonlinear term needs an exact Jacobian
 
 
 class Implicit:
@@ -342,7 +344,8 @@ class Adaptive:
         self.model, self.dt, self.scheme = model, float(dt), scheme
         self.rtol, self.atol = float(rtol), float(atol)
         self.evolution = model.evolution
-        self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") else None
+        self.exact = exact_jacobian(model) if scheme in ("bdf", "radau") else None  # the derivative pass's
+        self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") and self.exact is None else None
         self.jacobian = _exact_jacobian(self.evolution) if scheme in ("bdf", "radau") else None
         self.h = float("nan")
         self.accepted = 0
@@ -357,11 +360,13 @@ class Adaptive:
             self.evaluations += 1
             return evolution.stack(model.derivative(model.environment(evolution.unstack(y), time)))
 
-        options = {"rtol": self.rtol, "atol": self.atol}
+        options: dict = {"rtol": self.rtol, "atol": self.atol}
         if np.isfinite(self.h) and self.h > 0:  # within the span as SciPy computes it: (t + dt) - t can be < dt
             options["first_step"] = min(self.h, (t + self.dt) - t)
         if self.jacobian is not None:  # a linear model: ∂F/∂u is the constant M⁻¹A, exactly
             options["jac"] = self.jacobian
+        elif self.exact is not None:
+            options["jac"] = self.exact
         elif self.pattern is not None:
             options["jac_sparsity"] = self.pattern
         method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]
@@ -424,7 +429,7 @@ def _make_tableau(entry):
     """The maker of a tableau integrator of the Runge–Kutta registry: its stepper over the
     model's Problem (the exact Jacobian checked first when it needs one)."""
     def make(model, dt: float, new_solver, rtol: float, atol: float):
-        problem = model.problem
+        problem = implicit_problem(model) if entry.needs == Needs.jacobian else model.problem
         options: dict = {}
         if entry.needs == Needs.jacobian:
             problem.check_jacobian()

@@ -14,11 +14,13 @@ matrix diag(a); else a sparse matrix):
 - a linear operator L (one argument): L D (L its matrix ⋆⁻¹A with a diagonal ⋆; a Galerkin ⋆⁻¹
   would make it dense and is refused);
 - an operator with a derivative rule: Σ_i ∂op/∂arg_i · D_i (value-by-value functions, max, min);
-- ``lie(X, u)`` with a fixed X: its matrix times D_u.
+- ``lie(X, u)`` with a fixed X: its matrix times D_u;
+- ♯, |·|, normalize, ♭, interior, ∧, flux_field and lie of 0-forms: their rules in
+  :mod:`decrun.methods.model.vector_derivatives` (a vector field's values flattened row by row).
 
 Anything else that reads the unknown — a number computed from it (``integral(u)`` couples every
-value), ∧, ♯ — is one :class:`ModelError` line naming the term: an operator without a derivative
-rule has no exact Jacobian here.
+value), lie of a 1-form along a velocity that reads the unknown (at its first evaluation), an
+operator of a plugin without a derivative rule — is one :class:`ModelError` line naming the term.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from decrun.methods.model.kinds import NUMBER
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS
 
-__all__ = ["derivative", "Derivative", "pattern"]
+__all__ = ["derivative", "derivative_values", "Derivative", "pattern"]
 
 #: env ↦ D (None, an array: diag(a), or a sparse matrix)
 Derivative = Callable[[dict], object]
@@ -194,15 +196,24 @@ def _strong(ops, linear) -> sp.csr_matrix | None:
     return (sp.diags(1.0 / diagonal) @ linear.A).tocsr()
 
 
-def derivative(compiler, node: Node, unknown: str, where: str) -> Callable[[dict], sp.csr_matrix]:
-    """``J(env) -> csr (rows, cols)``: ∂node/∂unknown at ``env`` (rows: the values of ``node``'s
-    kind; cols: the unknown's values), from the registry's rules (module docstring); built once.
-    A term the rules cannot differentiate is refused now, naming ``where`` and the term."""
+def derivative_values(compiler, node: Node, unknown: str, where: str) -> tuple[Optional[Derivative], int, int]:
+    """``(D, rows, cols)``: D(env) the derivative of ``node`` in ``unknown`` as the rules build it —
+    an array a (the diagonal matrix diag(a): a value-by-value term, its Jacobian a diagonal) or a
+    sparse matrix — or None when ``node`` does not read ``unknown``; rows × cols its shape. What
+    :func:`derivative` wraps, for an assembly that reuses a sparsity pattern
+    (:mod:`decrun.methods.model.jacobian_assembly`)."""
     ops = compiler.ops
     cols = compiler.kinds[unknown].size(ops.K)
     kind = compiler.kind(node, where)
     rows = kind.size(ops.K) if kind.is_form else cols
-    built = _Builder(compiler, unknown, cols, where).build(node)
+    return _Builder(compiler, unknown, cols, where).build(node), rows, cols
+
+
+def derivative(compiler, node: Node, unknown: str, where: str) -> Callable[[dict], sp.csr_matrix]:
+    """``J(env) -> csr (rows, cols)``: ∂node/∂unknown at ``env`` (rows: the values of ``node``'s
+    kind; cols: the unknown's values), from the registry's rules (module docstring); built once.
+    A term the rules cannot differentiate is refused now, naming ``where`` and the term."""
+    built, rows, cols = derivative_values(compiler, node, unknown, where)
     zero = sp.csr_matrix((rows, cols))
 
     def jacobian(env: dict) -> sp.csr_matrix:

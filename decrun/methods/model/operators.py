@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.errors import ConfigError
-from decrun.methods.model import discrete, sphere_operators
+from decrun.methods.model import discrete, sphere_operators, vector_derivatives
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
 
 __all__ = ["Linear", "Discrete", "Operator", "OPERATORS", "ALIASES", "POINTWISE", "Mismatch", "reference_table",
@@ -538,20 +538,21 @@ _register(Operator("laplace_de_rham", (1,), "primal k → primal k",
 _register(Operator("wedge", (2,), "primal j, primal k → primal j+k (0∧k, k∧0, 1∧1); also `a ^ b`",
                    "(f∧ω)(σ) = f̄_σ ω(σ); (α∧β)(σ) = 1/6 Σ_τ sign(τ) α(τ0τ1) β(τ1τ2) (§3.1.3; Hirani's "
                    "primal-primal wedge with barycentric weights)",
-                   _wedge_kind, _wedge_evaluate))
+                   _wedge_kind, _wedge_evaluate, derivative=vector_derivatives.wedge_derivative))
 _register(Operator("sharp", (1,), "primal 1-form → vector",
                    "Whitney interpolation at each top simplex's barycentre (eq. 6.7); sharp(d(u)) is the "
                    "gradient of the piecewise-linear u",
-                   _sharp_kind, lambda ops, kinds, x: ops.sharp(x)))
+                   _sharp_kind, lambda ops, kinds, x: ops.sharp(x), derivative=vector_derivatives.sharp_derivative))
 _register(Operator("flux_field", (1,), "primal (n−1)-form → vector",
                    "the Whitney (n−1)-form's vector field at each top simplex's barycentre, Σ_i o_i u_i (x − p_i) "
                    "/ (n |σ|) (lowest-order Raviart–Thomas; o_i u_i the flux out through the face opposite p_i): "
                    "the velocity whose fluxes are u, exact for constant fields",
-                   _flux_field_kind, lambda ops, kinds, x: discrete.flux_field(ops.K, x)))
+                   _flux_field_kind, lambda ops, kinds, x: discrete.flux_field(ops.K, x),
+                   derivative=vector_derivatives.flux_field_derivative))
 _register(Operator("flat", (1,), "vector → primal 1-form (triangles)",
                    "ω_e = Σ_{f∋e} (|⋆e∩f|/|⋆e|) X_f·e (Hirani's primal-primal ♭), so −δ X♭ is the cotan "
                    "divergence",
-                   _flat_kind, lambda ops, kinds, x: ops.flat(x)))
+                   _flat_kind, lambda ops, kinds, x: ops.flat(x), derivative=vector_derivatives.flat_derivative))
 _register(Operator("average", (1,), "primal 0-form → primal 1-form; dual 0-form → primal 1-form",
                    "(u_a + u_b)/2 on each edge ab (a coefficient per edge); of a dual 0-form g (one value per "
                    "top simplex): Σ_{σ∋e} g_σ / #{σ∋e}, the mean over the top simplices at the edge",
@@ -569,17 +570,19 @@ _register(Operator("border", (1,), "primal 0-form → primal (n−1)-form",
                    _border_kind, None, _border_linear))
 _register(Operator("interior", (2,), "vector (or 1-form), primal 1-form → dual 0-form",
                    "i_X ω = X · ω♯ in each top simplex (a 1-form velocity is taken through ♯)",
-                   _interior_kind, lambda ops, kinds, X, w: discrete.interior_1(ops.K, _as_vectors(ops, kinds[0], X), w)))
+                   _interior_kind, lambda ops, kinds, X, w: discrete.interior_1(ops.K, _as_vectors(ops, kinds[0], X), w),
+                   derivative=vector_derivatives.interior_derivative))
 _register(Operator("lie", (2,), "vector (or 1-form), primal 0- or 1-form → the same form",
                    "L_X u = X·∇u per top simplex, volume-averaged to the vertices (centred advection); on 1-forms "
                    "Cartan's L_X ω = i_X dω + d i_X ω",
-                   _lie_kind, _lie_evaluate, fixed_first=_lie_fixed_first))
+                   _lie_kind, _lie_evaluate, fixed_first=_lie_fixed_first, derivative=vector_derivatives.lie_derivative))
 _register(Operator("norm", (1,), "vector → dual 0-form; form → number",
-                   "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate))
+                   "|X| per top simplex; ‖u‖ = √⟨u, u⟩ for a form", _norm_kind, _norm_evaluate,
+                   derivative=vector_derivatives.norm_derivative))
 _register(Operator("normalize", (1,), "vector → vector",
                    "X/|X| per top simplex, and 0 where X = 0 (where the direction is undefined: the heat method's "
                    "X = −∇u/|∇u| where ∇u = 0, as Crane et al. define it)", _normalize_kind,
-                   lambda ops, kinds, x: discrete.normalize(x)))
+                   lambda ops, kinds, x: discrete.normalize(x), derivative=vector_derivatives.normalize_derivative))
 _register(Operator("integral", (1,), "0-form or n-form (primal or dual) → number",
                    "Σ ⋆0 u for a primal 0-form (the configured ⋆0); Σ u for an n-form", _integral_kind,
                    lambda ops, kinds, x: integral(ops, kinds[0], x)))

@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.methods.model.jacobian import derivative
+from decrun.methods.model.jacobian import derivative_values
+from decrun.methods.model.jacobian_assembly import PatternAssembly, as_matrix
 
 __all__ = ["ModelProblem"]
 
@@ -45,11 +46,15 @@ class ModelProblem:
             if rows[i][i] is None:
                 rows[i][i] = sp.csr_matrix((evolution.sizes[u], evolution.sizes[u]))
         self._stiff_full = sp.bmat(rows, format="csr")
+        #: (total, total) the stiff blocks over every evolved value, border rows and columns included
+        self.stiff_full = self._stiff_full
         mass = self._mass_full[self.free][:, self.free].tocsr()
         identity = (mass - sp.identity(self.size)).count_nonzero() == 0
         self.mass = None if identity else mass
         self.stiff = self._stiff_full[self.free][:, self.free].tocsr()
         self._rest_jacobians: dict | None = None
+        self._assembly: PatternAssembly | None = None
+        self._assembly_made = False
 
     # ------------------------------------------------------------------ states
     def full(self, y: np.ndarray) -> np.ndarray:
@@ -96,32 +101,78 @@ class ModelProblem:
             u = equation.target
             for sign, term in evolution.rest_trees[u]:
                 for v in sorted(model.compiler.reads(term) & names):
-                    out.setdefault((u, v), []).append((sign, derivative(model.compiler, term, v, equation.where)))
+                    closure, rows, cols = derivative_values(model.compiler, term, v, equation.where)
+                    if closure is not None:
+                        out.setdefault((u, v), []).append((sign, closure, rows, cols))
         self._rest_jacobians = out
 
-    def jacobian(self, y: np.ndarray, t: float) -> sp.csr_matrix:
-        """(size, size) the exact ∂f/∂y: L + M ∂R/∂y (sparse)."""
+    def _rest_values(self, x: np.ndarray, t: float) -> dict:
+        """{(u, v): ∂R_u/∂v} at the stacked values ``x`` as the derivative pass gives them (an
+        array: a diagonal, or a sparse matrix)."""
         self.check_jacobian()
         assert self._rest_jacobians is not None
-        evolution = self.evolution
-        names = evolution.names
+        env = self.model.environment(self.evolution.unstack(x), t)
+        out = {}
+        for key, parts in self._rest_jacobians.items():
+            total = None
+            for sign, closure, rows, cols in parts:
+                D = closure(env)
+                D = sign * (np.asarray(D, dtype=np.float64) if not sp.issparse(D) else D)
+                if total is None:
+                    total = D
+                elif sp.issparse(total) or sp.issparse(D):
+                    total = as_matrix(total, rows, cols) + as_matrix(D, rows, cols)
+                else:
+                    total = total + D
+            out[key] = total
+        return out
+
+    def _pattern(self) -> PatternAssembly | None:
+        """The pattern assembly of J (:mod:`decrun.methods.model.jacobian_assembly`), made once;
+        None when a row mass is not diagonal or a block couples fields of different sizes."""
+        if not self._assembly_made:
+            self._assembly_made = True
+            evolution = self.evolution
+            mass = self._mass_full
+            diagonal = mass.diagonal()
+            same = all(evolution.sizes[u] == evolution.sizes[v] for u, v in self._rest_jacobians or {})
+            usable = same and (mass - sp.diags(diagonal)).count_nonzero() == 0
+            self._assembly = (PatternAssembly(self.stiff, list(self._rest_jacobians or {}), evolution.slices, self.free,
+                                              self.total, diagonal) if usable else None)
+        return self._assembly
+
+    def jacobian(self, y: np.ndarray, t: float) -> sp.csr_matrix:
+        """(size, size) the exact ∂f/∂y: L + M ∂R/∂y (sparse): in a pattern made once when every
+        ∂R_u/∂v is a diagonal (:class:`~decrun.methods.model.jacobian_assembly.PatternAssembly`)."""
+        self.check_jacobian()
         if not self._rest_jacobians:
             return self.stiff
-        env = self.model.environment(self.state(y), t)
-        rows = [[None for _ in names] for _ in names]
-        for (u, v), parts in self._rest_jacobians.items():
-            i, j = names.index(u), names.index(v)
-            block = None
-            for sign, closure in parts:
-                term = sign * closure(env)
-                block = term if block is None else block + term
-            rows[i][j] = block
+        values = self._rest_values(self.full(y), t)
+        pattern = self._pattern() if not any(sp.issparse(D) for D in values.values()) else None
+        if pattern is not None:
+            return pattern.assemble(values)
+        rest = self._assemble_rest(values)
+        full = self._stiff_full + self._mass_full @ rest
+        return full[self.free][:, self.free].tocsr()
+
+    def rest_jacobian(self, x: np.ndarray, t: float) -> sp.csr_matrix | None:
+        """(total, total) ∂R/∂x of the explicit terms over every evolved value (border values
+        included), at the stacked values ``x``; None when no explicit term reads an evolved field."""
+        self.check_jacobian()
+        if not self._rest_jacobians:
+            return None
+        return self._assemble_rest(self._rest_values(x, t))
+
+    def _assemble_rest(self, values: dict) -> sp.csr_matrix:
+        evolution = self.evolution
+        names = evolution.names
+        rows: list[list] = [[None for _ in names] for _ in names]
+        for (u, v), D in values.items():
+            rows[names.index(u)][names.index(v)] = as_matrix(D, evolution.sizes[u], evolution.sizes[v])
         for i, u in enumerate(names):
             if all(block is None for block in rows[i]):
                 rows[i][i] = sp.csr_matrix((evolution.sizes[u], evolution.sizes[u]))
         for j, v in enumerate(names):
             if all(rows[i][j] is None for i in range(len(names))):
                 rows[j][j] = sp.csr_matrix((evolution.sizes[v], evolution.sizes[v]))
-        rest = sp.bmat(rows, format="csr")
-        full = self._stiff_full + self._mass_full @ rest
-        return full[self.free][:, self.free].tocsr()
+        return sp.bmat(rows, format="csr")

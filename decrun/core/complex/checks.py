@@ -213,13 +213,8 @@ def facet_pairs_numpy(order: np.ndarray, starts: np.ndarray, top: np.ndarray) ->
     simplices, whether two of them have the same vertex opposite a shared facet — duplicates)."""
     n = top.shape[1] - 1
     width = n + 1
-    counts = np.diff(starts)
-    if order.size and counts.min() == 2 and counts.max() == 2:  # closed: every facet in two simplices
-        interior = np.arange(counts.size)
-        at = starts[:-1]
-    else:
-        interior = np.flatnonzero(counts == 2)
-        at = starts[interior]
+    interior = np.flatnonzero(np.diff(starts) == 2)
+    at = starts[interior]
     index_type = np.int32 if interior.size and top.shape[0] < 2**31 // width - 1 else np.int64  # as the kernel's
     first, second = order[at].astype(index_type), order[at + 1].astype(index_type)
     first_slot, second_slot = first % width, second % width

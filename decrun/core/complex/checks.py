@@ -369,6 +369,6 @@ def fans_per_vertex_general(top, facets, pairs: FacetPairs, n_vertices: int) -> 
         cols.append(t1 * width + np.argmax(top[t1] == v[:, None], axis=1))
     rows, cols = np.concatenate(rows), np.concatenate(cols)
     graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(m * width, m * width))
-    _, label = graph_components(graph)
-    grouped = unique_rows(np.stack([top.ravel(), label], axis=1))[0]
-    return np.bincount(grouped[:, 0], minlength=n_vertices)
+    count, label = graph_components(graph)
+    fans = np.unique(top.ravel() * np.int64(count) + label)  # the distinct (vertex, fan) pairs
+    return np.bincount(fans // count, minlength=n_vertices)

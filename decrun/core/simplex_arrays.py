@@ -57,17 +57,17 @@ def group_rows_numpy(rows: "FaceRows"):
     if not isinstance(rows, FaceRows):
         rows = FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
     bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
-    rows = rows.materialize()
-    m, c = rows.shape
+    table = rows.materialize()
+    m, c = table.shape
     if bits * c <= 62:
         key = np.zeros(m, dtype=np.int64)
-        for column in rows.T:
+        for column in table.T:
             key <<= bits
             key |= column
         order = np.argsort(key, kind="stable")
     else:
-        order = np.lexsort(rows.T[::-1])
-    sorted_rows = rows[order]
+        order = np.lexsort(table.T[::-1])
+    sorted_rows = table[order]
     new = np.ones(m, dtype=bool)
     new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
     starts = np.flatnonzero(new)

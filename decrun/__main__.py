@@ -1,6 +1,7 @@
 """``python -m decrun`` = the ``decrun`` command (:func:`command`, its console script; :func:`console_main`
 in a process that goes on)."""
 
+import gc
 import sys
 
 from decrun.runner.io.interrupts import ignore_interrupts
@@ -29,9 +30,14 @@ def console_main() -> None:
 
 def command() -> None:
     """The ``decrun`` command as a process (its console script and ``python -m decrun``):
-    :func:`console_main`; the interpreter exits the usual way. In a process that goes on
+    :func:`console_main`; the interpreter exits the usual way (exit handlers, module teardown),
+    but its last garbage collections skip the objects the command leaves (``gc.freeze``: Hydra's,
+    matplotlib's and numpy's modules; ~0.1 s of CPU at exit). In a process that goes on
     afterwards call :func:`console_main`."""
-    console_main()
+    try:
+        console_main()
+    finally:
+        gc.freeze()
 
 
 if __name__ == "__main__":

@@ -43,12 +43,6 @@ def embed3(points: np.ndarray) -> np.ndarray:
     return np.concatenate([points, np.zeros((points.shape[0], 3 - points.shape[1]))], axis=1)
 
 
-def unique_edges(faces: np.ndarray) -> np.ndarray:
-    """(e, 2) int64 sorted vertex pairs of the distinct edges of triangles ``faces`` (m, 3),
-    in lexicographic order (:func:`decrun.core.connectivity.edge_table`)."""
-    return edge_table(faces)[0]
-
-
 def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Lengths |p_j − p_i| (model units) of the edges (e, 2) → (e,)."""
     return vertex_volumes(np.asarray(points, dtype=np.float64), np.asarray(edges))
@@ -56,7 +50,7 @@ def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
 
 def mean_edge_length(points: np.ndarray, faces: np.ndarray) -> float:
     """Mean length of the distinct edges of the triangles ``faces`` (model units)."""
-    return float(edge_lengths(points, unique_edges(faces)).mean())
+    return float(edge_lengths(points, edge_table(faces)[0]).mean())
 
 
 def triangle_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:

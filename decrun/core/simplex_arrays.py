@@ -51,63 +51,34 @@ def group_rows(rows: "np.ndarray | FaceRows"):
 
 
 def group_rows_numpy(rows: "FaceRows"):
-    """The numpy twin (and reference) of :func:`group_rows`' compiled kernel; same outputs."""
+    """The numpy twin (and reference) of :func:`group_rows`' compiled kernel; same outputs: a
+    stable lexicographic sort of the rows — one stable sort of each row packed into one int64
+    key where its entries fit (``bits`` each), else ``np.lexsort`` — then the groups' starts."""
     if not isinstance(rows, FaceRows):
         rows = FaceRows(np.ascontiguousarray(rows, dtype=np.int64), None)
-    m, c = rows.shape
-    if m == 0:
-        empty = np.zeros((0, c), dtype=np.int64)
-        return empty, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64)
     bits = max(1, int(np.ceil(np.log2(rows.max() + 2))))
+    table = rows.materialize()
+    m, c = table.shape
     if bits * c <= 62:
-        # Pack each row into one int64 key (edges and triangles of meshes up to ~2M vertices).
-        position_bits = max(1, (m - 1).bit_length())
-        if bits * c + position_bits <= 63:
-            # The row's position in the low bits makes every key distinct: sorting the keys by
-            # value (no indirection) gives the stable order, read back from the low bits.
-            key = rows.packed(bits, position_bits)
-            key.sort(kind="stable")
-            order = key & ((1 << position_bits) - 1)
-            key >>= position_bits
-        else:
-            key = rows.packed(bits)
-            order = np.argsort(key, kind="stable")
-            key = key[order]
-        new = np.empty(m, dtype=bool)
-        new[0] = True
-        np.not_equal(key[1:], key[:-1], out=new[1:])
-        starts = np.flatnonzero(new)
-        unique_key = key[starts]
-        del key
-        unique = np.empty((unique_key.size, c), dtype=np.int64)
-        mask = (1 << bits) - 1
-        for col in range(c - 1, -1, -1):
-            np.bitwise_and(unique_key, mask, out=unique[:, col])
-            unique_key >>= bits
+        key = np.zeros(m, dtype=np.int64)
+        for column in table.T:
+            key <<= bits
+            key |= column
+        order = np.argsort(key, kind="stable")
     else:
-        rows = rows.materialize()
-        order = np.lexsort(rows.T[::-1])
-        sorted_rows = rows[order]
-        new = np.empty(m, dtype=bool)
-        new[0] = True
-        new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
-        unique = sorted_rows[new]
-        del sorted_rows
-        starts = np.flatnonzero(new)
-    group = np.cumsum(new, dtype=np.int64)
-    group -= 1
+        order = np.lexsort(table.T[::-1])
+    sorted_rows = table[order]
+    new = np.ones(m, dtype=bool)
+    new[1:] = np.any(sorted_rows[1:] != sorted_rows[:-1], axis=1)
+    starts = np.flatnonzero(new)
     inverse = np.empty(m, dtype=np.int64)
-    inverse[order] = group
-    del group
-    return unique, inverse, order, np.append(starts, m)
-
-
-_SMALL_BUCKET = 32  # buckets up to this size are insertion-sorted, larger ones merge-sorted
+    inverse[order] = np.cumsum(new, dtype=np.int64) - 1
+    return sorted_rows[new], inverse, order, np.append(starts, m)
 
 
 class FaceRows:
     """The rows ``top[:, cols]`` flattened to (m·C, len(cols[0])) without building them,
-    unless asked: packed integer keys are computed column by column."""
+    unless asked (the compiled grouping reads ``top`` and the column table)."""
 
     def __init__(self, top: np.ndarray, cols):
         self.top, self.cols = top, cols
@@ -124,68 +95,26 @@ class FaceRows:
     def max(self) -> int:
         return int(self.top.max()) if self.top.size else 0
 
-    def column(self, index: int) -> np.ndarray:
-        """(m·C,) entries ``index`` of every row, in row order."""
-        if self.cols is None:
-            return self.top[:, index]
-        return self.top[:, [c[index] for c in self.cols]].ravel()
-
-    def packed(self, bits: int, position_bits: int = 0) -> np.ndarray:
-        """(m·C,) int64 keys: each row's entries, ``bits`` bits each (the first most significant),
-        then, with ``position_bits``, the row's position ``0..m·C-1`` in the lowest bits."""
-        count, width = self.shape
-        cols = [tuple(range(width))] if self.cols is None else self.cols
-        key = np.empty((self.top.shape[0], len(cols)), dtype=np.int64)  # row t·C + s is key[t, s]
-        for s, local in enumerate(cols):
-            out = key[:, s]
-            np.copyto(out, self.top[:, local[0]])
-            for q in local[1:]:
-                out <<= bits
-                out |= self.top[:, q]
-            if position_bits:
-                out <<= position_bits
-                out |= np.arange(s, count, len(cols), dtype=np.int64)
-        return key.reshape(count)
-
     def materialize(self) -> np.ndarray:
+        """(m·C, width) int64 rows: ``top[t, cols[s]]`` at row t·C + s."""
         if self.cols is None:
             return self.top
         return self.top[:, np.array(self.cols)].reshape(self.shape)
 
 
 def sort_rows(rows: np.ndarray) -> np.ndarray:
-    """Sort each (short) row; a min/max network for triangles, np.sort otherwise."""
-    if rows.shape[1] == 3:
-        a, b, c = rows[:, 0], rows[:, 1], rows[:, 2]
-        low = np.minimum(np.minimum(a, b), c)
-        high = np.maximum(np.maximum(a, b), c)
-        return np.stack([low, a + b + c - low - high, high], axis=1)
+    """Each row sorted (ascending)."""
     return np.sort(rows, axis=1)
 
 
 def sorted_rows_and_parity(rows: np.ndarray, n_vertices: int = 0):
     """(sorted rows (m, c) int64, inversion parity (m,) int8, smallest entry, largest entry,
     whether a sorted row repeats an entry, used (n_vertices,) bool: which of 0..n_vertices-1 the
-    rows hold) in one pass: the compiled ``sorted_rows`` (:mod:`decrun.core.extension`), or its numpy twins
-    :func:`sort_rows` and :func:`inversion_parity`."""
+    rows hold): the compiled ``sorted_rows`` (:mod:`decrun.core.extension`) in one pass, or its numpy
+    twins :func:`sort_rows` and :func:`inversion_parity`."""
     if (compiled := extension.kernels()) is not None:
         return compiled.sorted_rows(np.asarray(rows, dtype=np.int64), n_vertices)  # any layout: not copied
     rows = np.asarray(rows, dtype=np.int64)
-    if rows.shape[1] == 3 and rows.shape[0]:  # triangles: a min/max network on the three columns
-        a, b, c = rows[:, 0], rows[:, 1], rows[:, 2]
-        low, high = np.minimum(a, b), np.maximum(a, b)
-        middle = np.minimum(high, c)
-        np.maximum(high, c, out=high)
-        np.maximum(low, middle, out=middle)
-        np.minimum(low, c, out=low)
-        repeated = bool(np.any(low == middle) or np.any(middle == high))
-        inversions = (a > b).view(np.int8) + (a > c).view(np.int8)
-        inversions += (b > c).view(np.int8)
-        inversions &= 1
-        parity = 1 - 2 * inversions  # int8: +1 even, -1 odd
-        ordered = np.stack([low, middle, high], axis=1)
-        smallest, largest = int(low.min()), int(high.max())
-        return ordered, parity, smallest, largest, repeated, _used(ordered, smallest, largest, n_vertices)
     ordered = sort_rows(rows)
     repeated = bool((ordered[:, 1:] == ordered[:, :-1]).any())
     smallest, largest = int(ordered[:, 0].min()), int(ordered[:, -1].max())
@@ -240,10 +169,6 @@ def simplex_volumes(points: np.ndarray) -> np.ndarray:
     if j in (1, 2) and points.shape[2] in (2, 3):
         return _small_simplex_volumes([points[:, i, :] for i in range(j + 1)])
     edges = points[:, 1:, :] - points[:, :1, :]
-    if j == 1:
-        return np.linalg.norm(edges[:, 0], axis=1)
-    if j == 2 and points.shape[2] == 3:
-        return 0.5 * np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1)
     if j == points.shape[2]:
         return np.abs(np.linalg.det(edges)) / factorial(j)
     gram = np.einsum("mai,mbi->mab", edges, edges)
@@ -290,28 +215,4 @@ def vertex_volumes(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
 
 def vertex_volumes_numpy(vertices: np.ndarray, simplices: np.ndarray) -> np.ndarray:
     """The numpy twin of :func:`vertex_volumes` for edges and triangles in 2-D/3-D."""
-    return _small_simplex_volumes(_CornerCoordinates(vertices, simplices))
-
-
-class _CornerCoordinates:
-    """corners[i][:, axis] gathered one coordinate at a time (no (m, d) corner arrays)."""
-
-    def __init__(self, vertices: np.ndarray, simplices: np.ndarray):
-        self.columns = np.ascontiguousarray(vertices.T)  # (d, n0): contiguous per axis
-        self.corners = [np.ascontiguousarray(simplices[:, i]) for i in range(simplices.shape[1])]  # read d times each
-
-    def __len__(self) -> int:
-        return len(self.corners)
-
-    def __getitem__(self, i: int):
-        return _CornerColumn(self.columns, self.corners[i])
-
-
-class _CornerColumn:
-    def __init__(self, columns, index):
-        self.columns, self.index = columns, index
-        self.shape = (index.shape[0], columns.shape[0])
-
-    def __getitem__(self, key):
-        _, axis = key
-        return self.columns[axis][self.index]
+    return _small_simplex_volumes([vertices[simplices[:, i]] for i in range(simplices.shape[1])])

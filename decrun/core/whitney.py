@@ -38,7 +38,7 @@ import scipy.sparse as sp
 
 from decrun.core.complex import SimplicialComplex
 
-__all__ = ["whitney_mass_matrix", "whitney_lumped_mass", "top_face_table", "barycentric_gradient_gram"]
+__all__ = ["whitney_mass_matrix", "whitney_lumped_mass"]
 
 
 def _check(K: SimplicialComplex, k: int) -> None:
@@ -51,23 +51,6 @@ def _check(K: SimplicialComplex, k: int) -> None:
 
 def _index_dtype(*sizes: int):
     return np.int32 if max(sizes) < 2**31 - 1 else np.int64
-
-
-def top_face_table(K: SimplicialComplex, k: int) -> np.ndarray:
-    """Global indices of the k-faces of every top simplex.
-
-    Parameters
-    ----------
-    K : SimplicialComplex of dimension n
-    k : 0..n
-
-    Returns
-    -------
-    (n_n, C(n+1, k+1)) int: entry [t, c] is the index in ``K.simplices(k)`` of the face of
-    top simplex t spanned by local vertices ``combinations(range(n+1), k+1)[c]`` of its
-    sorted row — the complex's own cached table (``K.top_face_indices``).
-    """
-    return K.top_face_indices(k)
 
 
 def _cross(u, v):
@@ -172,18 +155,6 @@ class _TopGeometry:
         return self._bivectors[key]
 
 
-def barycentric_gradient_gram(K: SimplicialComplex):
-    """Gram matrix of the barycentric gradients of every top simplex, and the volumes.
-
-    Returns
-    -------
-    gram : dict {(i, j): (n_n,) array} for 0 ≤ i ≤ j ≤ n, G_ij = ∇λ_i·∇λ_j in 1/length²
-    volume : (n_n,) |σ_n| (area or volume)
-    """
-    geometry = _TopGeometry(K)
-    return geometry.gram, geometry.volume
-
-
 def _local_mass(geometry: _TopGeometry, k: int, I: tuple, J: tuple) -> np.ndarray:
     """(n_n,) ∫⟨W_I, W_J⟩ over each top simplex, eq. (2), for 1 ≤ k ≤ n − 1."""
     n = geometry.n
@@ -222,7 +193,7 @@ def whitney_mass_matrix(K: SimplicialComplex, k: int) -> sp.csr_matrix:
     if k == 0:
         # P1 mass: |σ|/((n+1)(n+2)) on every edge of σ, twice that on its vertices.
         share = volume / ((n + 1) * (n + 2))
-        edges_of_top = top_face_table(K, 1)
+        edges_of_top = K.top_face_indices(1)
         off = np.bincount(edges_of_top.ravel(), weights=np.repeat(share, edges_of_top.shape[1]),
                           minlength=K.num_simplices(1))
         del edges_of_top
@@ -234,7 +205,7 @@ def whitney_mass_matrix(K: SimplicialComplex, k: int) -> sp.csr_matrix:
         data = np.concatenate([off, off, diagonal])
         return sp.csr_matrix((data, (rows, cols)), shape=(size, size))
     geometry = _TopGeometry(K)
-    faces = top_face_table(K, k)  # (m, C)
+    faces = K.top_face_indices(k)  # (m, C)
     local = list(combinations(range(n + 1), k + 1))
     C = len(local)
     m = faces.shape[0]
@@ -295,7 +266,7 @@ def whitney_lumped_mass(K: SimplicialComplex, k: int) -> np.ndarray:
     if k == 0:
         return np.bincount(K.simplices(n).ravel(), weights=np.repeat(volume / (n + 1), n + 1), minlength=size)
     geometry = _TopGeometry(K)
-    faces = top_face_table(K, k)
+    faces = K.top_face_indices(k)
     local = list(combinations(range(n + 1), k + 1))
     diagonal = np.zeros(size)
     for a in range(len(local)):

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from decrun.core.complex import SimplicialComplex
 from decrun.core.dec import DEC
 from decrun.core.primitives import grid_triangles, kuhn_cube
-from decrun.core.whitney import top_face_table, whitney_lumped_mass, whitney_mass_matrix
+from decrun.core.whitney import whitney_lumped_mass, whitney_mass_matrix
 
 from meshes_for_tests import annulus, icosphere, random_planar, random_tets  # noqa: E402
 
@@ -132,7 +132,7 @@ def quadrature_mass(K, k):
     for lam, w in zip(*rule, strict=True):
         W = whitney_proxies(K, k, lam)
         local = local + w * np.einsum("m,mad,mbd->mab", vol, W, W)
-    faces = top_face_table(K, k)
+    faces = K.top_face_indices(k)
     C = faces.shape[1]
     rows = np.repeat(faces, C, axis=1).ravel()
     cols = np.tile(faces, (1, C)).ravel()
@@ -193,7 +193,7 @@ def test_derivatives_commute_with_whitney_forms():
             curls = [2 * np.cross(g[:, a], g[:, b]) for a, b in local]
         curls = np.stack(curls, axis=1)  # (m, C, 1 or 3)
         local_matrix = np.einsum("m,mad,mbd->mab", vol, curls, curls)
-        faces = top_face_table(K, 1)
+        faces = K.top_face_indices(1)
         C = faces.shape[1]
         n1 = K.num_simplices(1)
         reference = sp.coo_matrix((local_matrix.ravel(), (np.repeat(faces, C, axis=1).ravel(),
@@ -206,7 +206,7 @@ def test_derivatives_commute_with_whitney_forms():
     g = gradients_by_pinv(K)
     triangles = list(combinations(range(4), 3))
     div = np.stack([6 * np.einsum("md,md->m", g[:, a], np.cross(g[:, b], g[:, c])) for a, b, c in triangles], 1)
-    faces = top_face_table(K, 2)
+    faces = K.top_face_indices(2)
     n2 = K.num_simplices(2)
     local_matrix = volumes(K)[:, None, None] * div[:, :, None] * div[:, None, :]
     reference = sp.coo_matrix((local_matrix.ravel(), (np.repeat(faces, 4, axis=1).ravel(),

@@ -19,8 +19,6 @@ import scipy.sparse as sp
 from decrun.core import extension
 from decrun.core.connectivity import graph_components
 from decrun.core.simplex_arrays import (
-    FaceRows,
-    group_rows,
     sorted_rows_and_parity,
     unique_rows,
     vertex_volumes,
@@ -38,8 +36,8 @@ from decrun.errors import (
     UnreferencedVertexError,
 )
 
-__all__ = ["FacetPairs", "group_facets", "fan_roots_and_consistency", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
-           "fans_per_vertex", "fans_per_vertex_surface", "single_fan_surface", "facet_pairs_numpy", "inconsistent_facets", "fans_per_vertex_general", "simplex_name", "plural",
+__all__ = ["FacetPairs", "fan_roots_and_consistency", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
+           "fans_per_vertex", "facet_pairs_numpy", "inconsistent_facets", "fans_per_vertex_general", "simplex_name", "plural",
            "name_indices"]
 
 MAX_LISTED = 8  # how many offending simplices an error message names
@@ -160,32 +158,13 @@ def _compiled_pairs(pairs: tuple) -> FacetPairs:
     return FacetPairs(*pairs)
 
 
-def group_facets(top: np.ndarray, local, n_vertices: int) -> tuple[tuple, tuple[FacetPairs, bool] | None]:
-    """The (n-1)-face slots ``top[t, local[s]]`` of the (m, n+1) sorted top simplices grouped
-    (:func:`decrun.core.simplex_arrays.group_rows`: unique, inverse, order, starts) and, where the
-    compiled ``facet_groups`` runs, the facet pairs with their duplicate suspicion
-    (:func:`facet_pairs`' ``found``) from the same call; else ``None`` for them (the grouping alone).
-    ``top``'s entries are vertex indices below ``n_vertices`` (the checked input): the packed keys'
-    width follows from it, without a pass over ``top`` for its largest entry."""
-    rows = FaceRows(top, local)
-    bits = max(1, int(np.ceil(np.log2(max(n_vertices - 1, 0) + 2))))
-    if rows.shape[0] and bits * rows.shape[1] <= 62 and (compiled := extension.kernels()) is not None:
-        groups, pairs, suspect = compiled.facet_groups(np.ascontiguousarray(top, dtype=np.int64), rows.column_table(),
-                                                      bits, np.zeros(0, _pair_index_type(top)))
-        return groups, (_compiled_pairs(pairs), suspect)
-    return group_rows(rows), None
-
-
 def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: np.ndarray,
-                check_manifold: bool, found: tuple[FacetPairs, bool] | None = None) -> FacetPairs:
+                check_manifold: bool) -> FacetPairs:
     """The facet pairs from the facet groups (``order``/``starts`` of the grouped facet slots
     ``(n+1)·t + c``); raises on duplicate top simplices and, with ``check_manifold``, on facets
-    in more than two top simplices. ``found``: the pairs and duplicate suspicion
-    :func:`group_facets` already computed from these groups."""
+    in more than two top simplices."""
     n = top.shape[1] - 1
-    if found is not None:
-        pairs, suspect = found
-    elif (compiled := extension.kernels()) is not None:
+    if (compiled := extension.kernels()) is not None:
         pairs, suspect = compiled.facet_pairs(order, starts, np.ascontiguousarray(top), np.zeros(0, _pair_index_type(top)))
         pairs = _compiled_pairs(pairs)
     else:
@@ -213,13 +192,8 @@ def facet_pairs_numpy(order: np.ndarray, starts: np.ndarray, top: np.ndarray) ->
     simplices, whether two of them have the same vertex opposite a shared facet — duplicates)."""
     n = top.shape[1] - 1
     width = n + 1
-    counts = np.diff(starts)
-    if order.size and counts.min() == 2 and counts.max() == 2:  # closed: every facet in two simplices
-        interior = np.arange(counts.size)
-        at = starts[:-1]
-    else:
-        interior = np.flatnonzero(counts == 2)
-        at = starts[interior]
+    interior = np.flatnonzero(np.diff(starts) == 2)
+    at = starts[interior]
     index_type = np.int32 if interior.size and top.shape[0] < 2**31 // width - 1 else np.int64  # as the kernel's
     first, second = order[at].astype(index_type), order[at + 1].astype(index_type)
     first_slot, second_slot = first % width, second % width
@@ -336,14 +310,12 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
     n = top.shape[1] - 1
     if n < 2:
         return
-    if n == 2 and extension.kernels() is None and single_fan_surface(top, orientation, pairs, n_vertices).all():
-        return  # the counts below are only needed to name the fans of a bad vertex
     if roots is None:
         found = fan_roots_and_consistency(top, pairs, orientation)
         roots = None if found is None else found[0]
     if roots == n_vertices:
         return  # every vertex is used (the checked input) and has a fan: as many fans as vertices is one each
-    fans = fans_per_vertex(top, facets, orientation, pairs, n_vertices)
+    fans = fans_per_vertex(top, facets, pairs, n_vertices)
     bad = np.flatnonzero(fans > 1)
     if bad.size:
         raise NonManifoldError(
@@ -353,122 +325,14 @@ def check_vertex_stars(top: np.ndarray, facets: np.ndarray, orientation: np.ndar
         )
 
 
-def fans_per_vertex(top, facets, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
+def fans_per_vertex(top, facets, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
     """(n0,) int64 number of fans (top simplices connected across shared facets) around each
-    vertex: the compiled ``fans``, or its numpy twins (no extension, or ``DECRUN_NUMBA=0``)."""
+    vertex: the compiled ``fans``, or its numpy twin :func:`fans_per_vertex_general` (no extension,
+    or ``DECRUN_NUMBA=0``)."""
     if (compiled := extension.kernels()) is not None:
         return compiled.fans(np.ascontiguousarray(top), pairs.first, pairs.second, pairs.first_slot,
                             pairs.second_slot, n_vertices)
-    if top.shape[1] == 3:
-        return fans_per_vertex_surface(top, orientation, pairs, n_vertices)
     return fans_per_vertex_general(top, facets, pairs, n_vertices)
-
-
-def fans_per_vertex_surface(top, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
-    """Number of triangle fans around each vertex of an oriented edge-manifold surface.
-
-    Corner (t, i) steps to the corner of the same vertex in the triangle across the edge
-    leaving it in t's orientation; fans are the orbits of this step (paths at border
-    vertices, cycles inside). Orbits are counted by pointer jumping, O(m log valence).
-    """
-    following, moving = _corner_steps(top, orientation, pairs)
-    m = top.shape[0]
-    corner = np.arange(3 * m, dtype=np.int32)
-    # a corner has a predecessor iff some other corner steps to it (path ends step to themselves)
-    has_predecessor = np.zeros(3 * m, dtype=bool)
-    has_predecessor[following[moving]] = True
-    vertex = top.ravel()
-    valence = np.bincount(vertex, minlength=n_vertices)
-    # label = smallest corner id seen along the orbit, or -1 once the orbit reaches a path end
-    label = np.where(moving, corner, np.int32(-1))
-    jump = following
-    for _ in range(int(np.ceil(np.log2(max(int(valence.max()), 2))))):
-        np.minimum(label, label[jump], out=label)
-        jump = jump[jump]
-    root = ~has_predecessor | (label == corner)
-    return np.bincount(vertex[root], minlength=n_vertices)
-
-
-def single_fan_surface(top, orientation, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
-    """(n0,) bool: whether the triangles around each vertex of an oriented edge-manifold surface
-    form one fan (``fans_per_vertex_surface(...) == 1``), by walking one orbit per vertex.
-
-    The orbit of the corner step (see :func:`fans_per_vertex_surface`) from one corner of
-    vertex v — a path start (a corner no other steps to) if v has one, else any — is v's only
-    fan iff it visits all valence(v) corners of v. All vertices walk at once, each step a
-    gather over the vertices still walking: O(m) in all, one pass over the corner steps.
-    """
-    following, moving = _corner_steps(top, orientation, pairs)
-    vertex = top.ravel()
-    valence = np.bincount(vertex, minlength=n_vertices)
-    has_predecessor = np.zeros(vertex.size, dtype=bool)
-    has_predecessor[following[moving]] = True
-    path_start = np.flatnonzero(~has_predecessor).astype(np.int32)
-    start = np.empty(n_vertices, dtype=np.int32)
-    start[vertex] = np.arange(vertex.size, dtype=np.int32)  # any corner of each vertex ...
-    start[vertex[path_start]] = path_start  # ... a path start where the vertex has one
-    single = np.bincount(vertex[path_start], minlength=n_vertices) <= 1  # two paths: two fans
-    walking = np.flatnonzero(single)
-    first = start[walking]
-    current = first
-    length = 1  # the corners every walk still going has visited
-    longest = int(valence.max())
-    while walking.size:
-        if length > longest:  # an orbit longer than any vertex's corners: not one fan of v (cannot
-            single[walking] = False  # happen on a consistently oriented edge-manifold surface)
-            break
-        step = following[current]
-        done = (step == current) | (step == first)  # a path end steps to itself; a cycle returns
-        if done.any():
-            ended = walking[done]
-            single[ended] = valence[ended] == length
-            going = ~done
-            walking, first, step = walking[going], first[going], step[going]
-        current = step
-        length += 1
-    return single
-
-
-# Corner i of a sorted triangle leaves along the edge to its successor in the triangle's
-# orientation (edge slots (0,1) -> 0, (0,2) -> 1, (1,2) -> 2): the corner leaving along slot l
-# is _LEAVING[o, l] (o = 0 positive, 1 negative). Its vertex is the smaller (or larger) vertex of
-# that edge, so in the triangle across, whose slot of the edge is l', it sits at sorted position
-# _ARRIVING[o, l, l'].
-_LEAVING = np.array([[0, 2, 1], [1, 0, 2]], dtype=np.int32)
-_SMALLER = np.array([[1, 1, 0], [1, 0, 0]], dtype=np.int32)  # [o, corner]: the smaller vertex of its leaving edge
-_POSITION = np.array([[1, 2, 2], [0, 0, 1]], dtype=np.int32)  # [larger 0 | smaller 1, slot]: its sorted position
-_ARRIVING = _POSITION[_SMALLER[np.arange(2)[:, None], _LEAVING]]  # (2, 3, 3) [o, l, l']
-
-
-_LEAVING_OFFSET = (_LEAVING - np.arange(3, dtype=np.int32)).ravel()  # [3o + l]: corner - slot
-_ARRIVING_OFFSET = (_ARRIVING - np.arange(3, dtype=np.int32)).ravel()  # [9o + 3l + l']: corner - slot'
-
-
-def _corner_steps(top, orientation, pairs: FacetPairs) -> tuple[np.ndarray, np.ndarray]:
-    """(following (3m,) int32, moving (3m,) bool): the corner ``3t + i`` each corner steps to
-    across the edge leaving it in its triangle's orientation (itself at a border edge), and
-    whether it moves. One pass over the interior edges, both directions; a corner is its edge
-    slot ``3t + l`` plus a table entry (the tables above, flattened)."""
-    m = top.shape[0]
-    _, t0, t1, l0, l1 = pairs
-    index_type = np.int32 if 3 * m < 2**31 - 1 else np.int64
-    negative = (orientation < 0).view(np.int8)
-    following = np.arange(3 * m, dtype=index_type)
-    for a, b, la, lb in ((t0, t1, l0, l1), (t1, t0, l1, l0)):
-        slot_a: np.ndarray = 3 * a.astype(index_type, copy=False)
-        slot_a += la
-        slot_b: np.ndarray = 3 * b.astype(index_type, copy=False)
-        slot_b += lb
-        o: np.ndarray = negative[a].astype(index_type)
-        o *= 3
-        o += la  # 3o + l
-        slot_a += _LEAVING_OFFSET[o]
-        o *= 3
-        o += lb  # 9o + 3l + l'
-        slot_b += _ARRIVING_OFFSET[o]
-        following[slot_a] = slot_b
-    moving = following != np.arange(3 * m, dtype=index_type)
-    return following, moving
 
 
 def fans_per_vertex_general(top, facets, pairs: FacetPairs, n_vertices: int) -> np.ndarray:
@@ -484,6 +348,6 @@ def fans_per_vertex_general(top, facets, pairs: FacetPairs, n_vertices: int) -> 
         cols.append(t1 * width + np.argmax(top[t1] == v[:, None], axis=1))
     rows, cols = np.concatenate(rows), np.concatenate(cols)
     graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(m * width, m * width))
-    _, label = graph_components(graph)
-    grouped = unique_rows(np.stack([top.ravel(), label], axis=1))[0]
-    return np.bincount(grouped[:, 0], minlength=n_vertices)
+    count, label = graph_components(graph)
+    fans = np.unique(top.ravel() * np.int64(count) + label)  # the distinct (vertex, fan) pairs
+    return np.bincount(fans // count, minlength=n_vertices)

@@ -32,9 +32,9 @@ PSD solve by shift-and-refine, and a solve with fixed values (condensation) — 
 from __future__ import annotations
 
 from decrun.core.solvers.base import Solver
-from decrun.core.solvers.kernels import SingularSolve, condense, constant_kernel, solve_with_fixed
+from decrun.core.solvers.kernels import SingularSolve, constant_kernel, solve_with_fixed
 
-__all__ = ["Solver", "SingularSolve", "condense", "constant_kernel", "solve_with_fixed", "make_solver", "solver_factory"]
+__all__ = ["Solver", "SingularSolve", "constant_kernel", "solve_with_fixed", "make_solver", "solver_factory"]
 
 
 def make_solver(name: str = "auto", **options) -> Solver:

@@ -13,22 +13,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-from decrun.core.solvers.base import Solver
 from decrun.core.solvers.cholmod import SYMMETRY_TOL, asymmetry, cholesky_factor, cholesky_solve, installed_backends
+from decrun.core.solvers.direct import DirectSolver
 from decrun.errors import SolverError
 
 __all__ = ["AutoSolver"]
 
 
 @dataclass
-class AutoSolver(Solver):
-    """CHOLMOD where it applies, else SuperLU with column ordering ``permc_spec``."""
+class AutoSolver(DirectSolver):
+    """CHOLMOD where it applies, else SuperLU with column ordering ``permc_spec`` (``solver=direct``'s)."""
 
     name = "auto"
-    permc_spec: str = "COLAMD"
 
     def __post_init__(self):
         super().__post_init__()
@@ -37,7 +34,7 @@ class AutoSolver(Solver):
         self._have_cholmod = bool(installed_backends())
 
     def _prepare(self, A) -> None:
-        self._factor = self._lu = None
+        self._factor = None
         if self._have_cholmod and (A.diagonal() > 0).all() and asymmetry(A) <= SYMMETRY_TOL:
             try:
                 self._factor = cholesky_factor(A, self.name)
@@ -45,16 +42,10 @@ class AutoSolver(Solver):
                 return
             except SolverError:  # symmetric but indefinite: LU below
                 pass
-        try:
-            self._lu = spla.splu(sp.csc_matrix(A), permc_spec=self.permc_spec)
-        except RuntimeError as exc:  # "Factor is exactly singular"
-            raise SolverError(f"auto solver: cannot factorize the {A.shape} matrix: {exc}") from exc
+        super()._prepare(A)
         self.method = "superlu"
 
     def _solve_block(self, b: np.ndarray) -> np.ndarray:
         if self._factor is not None:
             return cholesky_solve(self._factor, np.ascontiguousarray(b))
-        x = self._lu.solve(b)
-        if not np.all(np.isfinite(x)):
-            raise SolverError("auto solver: the solution is not finite (matrix numerically singular?)")
-        return x
+        return super()._solve_block(b)

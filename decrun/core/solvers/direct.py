@@ -25,10 +25,10 @@ class DirectSolver(Solver):
         try:
             self._lu = spla.splu(sp.csc_matrix(A), permc_spec=self.permc_spec)
         except RuntimeError as exc:  # "Factor is exactly singular"
-            raise SolverError(f"direct solver: cannot factorize the {A.shape} matrix: {exc}") from exc
+            raise SolverError(f"{self.name} solver: cannot factorize the {A.shape} matrix: {exc}") from exc
 
     def _solve_block(self, b: np.ndarray) -> np.ndarray:
         x = self._lu.solve(b)
         if not np.all(np.isfinite(x)):
-            raise SolverError("direct solver: the solution is not finite (matrix numerically singular?)")
+            raise SolverError(f"{self.name} solver: the solution is not finite (matrix numerically singular?)")
         return x

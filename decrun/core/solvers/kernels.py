@@ -5,7 +5,7 @@
   then iterative refinement x ← x + (A + εW)⁻¹ P (b − A x) (P: the projection onto im A
   along the kernel A's zero row sums give away, :func:`constant_kernel`), and project the
   kernel out of x: the result is the solution W-orthogonal to ker A, the same for every solver.
-* :func:`condense` / :func:`solve_with_fixed` — A x = b with some entries of x given
+* :func:`solve_with_fixed` — A x = b with some entries of x given
   (Dirichlet values, pinned vertices), by eliminating them (scikit-fem's ``condense``).
 """
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["SingularSolve", "condense", "constant_kernel", "solve_with_fixed"]
+__all__ = ["SingularSolve", "constant_kernel", "solve_with_fixed"]
 
 
 def constant_kernel(A, rtol: float = 1e-12) -> np.ndarray:
@@ -169,35 +169,27 @@ class SingularSolve:
         return r / norm_b if norm_b > 0 else r
 
 
-def condense(A, b: np.ndarray, fixed: np.ndarray, values: np.ndarray, all_rows: bool = False):
-    """Eliminate the fixed unknowns x[fixed] = values from A x = b.
+def solve_with_fixed(A, b: np.ndarray, fixed: np.ndarray, values: np.ndarray, solver,
+                     least_squares: bool = False) -> np.ndarray:
+    """x with x[fixed] = values solving the remaining equations of A x = b, by eliminating the
+    fixed unknowns (scikit-fem's ``condense``).
 
-    Returns ``(A_ff, b_f, free)`` with A_ff = A[free, free] and b_f = b[free] − A[free, fixed] values.
-    With ``all_rows=True`` (least squares; A may be rectangular) only the columns are split:
-    A_f = A[:, free], b_f = b − A[:, fixed] values.
+    Square A: the free rows, A_ff x_f = b_f − A_fd values. ``least_squares=True`` (A may be
+    rectangular): min ‖A x − b‖ over x_f through the normal equations A_fᵀ A_f x_f = A_fᵀ b_f,
+    A_f = A[:, free] and b_f = b − A[:, fixed] values.
+    ``solver`` is a fresh decrun Solver (factorized once here).
     """
     A = sp.csr_matrix(A)
     fixed = np.asarray(fixed, dtype=np.int64)
+    values = np.asarray(values, dtype=np.float64)
     free = np.setdiff1d(np.arange(A.shape[1]), fixed)
-    columns_free, columns_fixed = A[:, free], A[:, fixed]
-    rows = slice(None) if all_rows else free
-    rhs = np.asarray(b, dtype=np.float64)[rows] - columns_fixed[rows] @ np.asarray(values, dtype=np.float64)
-    return columns_free[rows].tocsc(), rhs, free
-
-
-def solve_with_fixed(A, b: np.ndarray, fixed: np.ndarray, values: np.ndarray, solver,
-                     least_squares: bool = False) -> np.ndarray:
-    """x with x[fixed] = values solving the remaining equations of A x = b.
-
-    Square A: the free rows, A_ff x_f = b_f. ``least_squares=True`` (A may be rectangular):
-    min ‖A x − b‖ over x_f through the normal equations A_fᵀ A_f x_f = A_fᵀ b_f.
-    ``solver`` is a fresh decrun Solver (factorized once here).
-    """
-    A_free, rhs, free = condense(A, b, fixed, values, all_rows=least_squares)
+    rows = A if least_squares else A[free]
+    A_free = rows[:, free].tocsc()
+    rhs = np.asarray(b, dtype=np.float64)[slice(None) if least_squares else free] - rows[:, fixed] @ values
     if least_squares:
         rhs = A_free.T @ rhs
         A_free = (A_free.T @ A_free).tocsc()
-    x = np.empty(sp.csr_matrix(A).shape[1])
-    x[np.asarray(fixed, dtype=np.int64)] = values
+    x = np.empty(A.shape[1])
+    x[fixed] = values
     x[free] = solver.factorize(A_free).solve(rhs)
     return x

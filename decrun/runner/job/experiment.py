@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import json
+import sys
 from typing import TYPE_CHECKING, Any, Callable
 
 from omegaconf import DictConfig, OmegaConf
@@ -90,9 +91,8 @@ class Experiment:
 def check_model_config(app: Any) -> None:
     """A declarative model's check of its config alone (:func:`decrun.runner.job.model_checks.check_model`:
     ``t_end`` against ``dt``, so a sweep is refused at planning); nothing for another app."""
-    from decrun.apps.model import Model
-
-    if isinstance(app, Model):
+    model_module = sys.modules.get("decrun.apps.model")  # a Model instance means it is loaded: another app never imports it
+    if model_module is not None and isinstance(app, model_module.Model):
         from decrun.runner.job.model_checks import check_model
 
         check_model(app)

@@ -49,9 +49,8 @@ from typing import Any, Sequence
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
-from decrun.core.connectivity import drop_unreferenced, edge_table, largest_component
+from decrun.core.connectivity import drop_unreferenced, edge_table, graph_components, largest_component
 from decrun.core.geometry import area_normals
 from decrun.errors import ConfigError, MeshError
 
@@ -204,7 +203,7 @@ def _fans(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
         cols.append(c1)
     rows, cols = np.concatenate(rows), np.concatenate(cols)
     graph = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(3 * m, 3 * m))
-    _, label = connected_components(graph, directed=False)
+    _, label = graph_components(graph)
     pairs = np.unique(np.column_stack([vertex, label[corner]]), axis=0)
     return label, np.bincount(pairs[:, 0], minlength=n_vertices)
 

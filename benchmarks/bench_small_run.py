@@ -19,9 +19,12 @@ file, run with ``--child``) that times, without changing what runs:
 * ``imports``: every top-level ``import`` (wherever it happens: Hydra, the numerical stack,
   h5py, pymeshlab when the mesh source loads it), outside the figures;
 * ``plugin scan``: Hydra's scan of the ``hydra_plugins`` packages with the imports it makes
-  (each plugin module: decrun's sweeper and every installed launcher/sweeper plugin);
-* ``composition``: Hydra's ``compose_config`` (Hydra composes twice per command: once to
-  read ``hydra.mode``, once for the run);
+  (each plugin module: decrun's sweeper and every installed launcher/sweeper plugin), timed
+  around Hydra's public ``Plugins.instance()`` (its first call scans);
+* ``composition``: from the start of decrun's Hydra app until Hydra calls decrun's first callback
+  (``on_run_start`` / ``on_multirun_start``): Hydra's command line, search path and its two
+  compositions (once to read ``hydra.mode``, once for the run) — timed at these public seams,
+  not inside Hydra;
 * ``build``: :func:`decrun.runner.job.run.prepare` (plugins checked, mesh, complex, operators);
 * ``app``: :func:`decrun.runner.job.run.execute` (the app's compute, its records streamed);
 * ``write``: :func:`decrun.runner.job.run.write` without the figures (result.h5, metrics.json);
@@ -77,6 +80,12 @@ class Stages:
             self.stack[-1][3] += wall
             self.stack[-1][4] += cpu
 
+    def switch(self, name: str, to: str) -> None:
+        """Close the open stage ``name`` (when it is the innermost) and open ``to`` in its place."""
+        if self.current() == name:
+            self.leave()
+            self.enter(to)
+
     def current(self) -> str | None:
         return self.stack[-1][0] if self.stack else None
 
@@ -97,13 +106,22 @@ def child(argv: list[str], report: Path, spawned: float) -> None:
     stages = Stages()
     stages.totals["startup"] = [first_wall - spawned, first_cpu]
     patched: set[str] = set()
-    # (module, attribute path, stage): wrapped as soon as the module is imported
-    targets = [("hydra.core.plugins", "Plugins._scan_all_plugins", "plugin scan"),
-               ("hydra._internal.hydra", "Hydra.compose_config", "composition"),
+    # (module, attribute path, stage): wrapped as soon as the module is imported; a callback
+    # ends the composition (a stage that opens in one function and closes in another)
+    targets = [("hydra.core.plugins", "Plugins.instance", "plugin scan"),
+               ("decrun.runner.command.task", "_hydra_main", "composition"),
+               ("decrun.runner.command.callbacks", "OutputGuard.on_run_start", "end of composition"),
+               ("decrun.runner.command.callbacks", "SweepTable.on_multirun_start", "end of composition"),
                ("decrun.runner.job.run", "prepare", "build"),
                ("decrun.runner.job.run", "execute", "app"),
                ("decrun.runner.job.run", "write", "write"),
                ("decrun.runner.plots.common", "draw_figures", "figures")]
+
+    def ended(callback):
+        def timed(*args, **kwargs):
+            stages.switch("composition", "other")
+            return callback(*args, **kwargs)
+        return timed
 
     def patch() -> None:
         for module, path, stage in targets:
@@ -114,7 +132,9 @@ def child(argv: list[str], report: Path, spawned: float) -> None:
             for part in outer:
                 owner = getattr(owner, part)
             original = owner.__dict__[attr]
-            if isinstance(original, staticmethod):
+            if stage == "end of composition":
+                setattr(owner, attr, ended(original))
+            elif isinstance(original, staticmethod):
                 setattr(owner, attr, staticmethod(stages.wrap(stage, original.__func__)))
             else:
                 setattr(owner, attr, stages.wrap(stage, original))

@@ -112,8 +112,8 @@ def test_an_interpolation_that_does_not_resolve(here, monkeypatch, override, wor
 
 
 def test_a_config_file_nested_too_deeply(here, monkeypatch):
-    """A RecursionError while Hydra loads a config file: the line names that file (the frame of
-    Hydra's file config source that was loading it)."""
+    """A RecursionError while Hydra loads a config file: the line names that file (the config
+    file of the search path nested deeper than MAX_NESTING, found by reading it, not Hydra's frames)."""
     (here / "my_conf" / "app").mkdir(parents=True)
     deep = here / "my_conf" / "app" / "deep.yaml"
     deep.write_text("x: " + "[" * 5000 + "]" * 5000 + "\n")

@@ -51,14 +51,6 @@ register_configs()
 _VERBOSE = False
 
 
-def _is_multirun() -> bool:
-    return HydraConfig.get().mode == RunMode.MULTIRUN
-
-
-def _verbose() -> bool:
-    return _VERBOSE or bool(HydraConfig.get().verbose)
-
-
 def _hydra_task(cfg: DictConfig) -> int | float:
     """The Hydra task: :func:`decrun.runner.job.run.run` in the directory Hydra made."""
     # lazy: the numerical stack loads only once a run starts, not for --help or a bad override (start-up speed)
@@ -68,7 +60,8 @@ def _hydra_task(cfg: DictConfig) -> int | float:
     out = Path(hydra_cfg.runtime.output_dir)
     made = OutputGuard.made  # (run directory, outermost directory made with it), when this process made it
     outermost = made[1] if made is not None and made[0].absolute() == out.absolute() else None
-    return run(cfg, out, multirun=_is_multirun(), verbose=_verbose(), log_name=hydra_cfg.job.name, made=outermost)
+    return run(cfg, out, multirun=hydra_cfg.mode == RunMode.MULTIRUN, verbose=_VERBOSE or bool(hydra_cfg.verbose),
+               log_name=hydra_cfg.job.name, made=outermost)
 
 
 def _check_job(cfg: DictConfig, memo: dict | None = None, delta: Any = None) -> None:

@@ -20,7 +20,8 @@ from typing import Iterable, Iterator
 
 from decrun.errors import CorruptFileError
 
-__all__ = ["MAX_ALIASED_NODES", "aliased_nodes", "search_roots", "check_aliases", "check_config_files"]
+__all__ = ["MAX_ALIASED_NODES", "aliased_nodes", "yaml_depth", "search_roots", "config_files", "check_aliases",
+           "check_config_files"]
 
 #: the most nodes the aliases of one YAML file may stand for (a config's own anchors repeat a
 #: handful of values; OmegaConf builds 10⁴ nodes in well under a second)
@@ -66,6 +67,26 @@ def aliased_nodes(text: str, limit: int = MAX_ALIASED_NODES) -> int:
     return total
 
 
+def yaml_depth(data: bytes) -> int:
+    """The deepest nesting of lists and mappings in the YAML ``data``, counted from the events of
+    PyYAML's Python parser without building a node (it does not recurse, nor stop at libyaml's
+    depth limit: any depth is counted); text the parser refuses counts what was read before the
+    error."""
+    import yaml
+
+    depth = deepest = 0
+    try:
+        for event in yaml.parse(data, Loader=yaml.SafeLoader):
+            if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+                depth += 1
+                deepest = max(deepest, depth)
+            elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+                depth -= 1
+    except yaml.YAMLError:
+        pass
+    return deepest
+
+
 def check_aliases(text: str, where: str | os.PathLike, error: type[Exception] = CorruptFileError) -> None:
     """Raise ``error`` naming ``where`` when the aliases of the YAML ``text`` stand for more than
     :data:`MAX_ALIASED_NODES` nodes (:func:`aliased_nodes`); text without an alias costs a
@@ -94,39 +115,41 @@ def search_roots(args: Iterable[str], conf: Path) -> list[Path]:
     return roots
 
 
-def _config_files(root: Path, groups: set[str]) -> Iterator[Path]:
-    """The ``*.yaml`` files of ``root`` and of its config-group directories named in ``groups``
-    (recursively: ``app/parts/``), never the rest of a directory added to the search path (a
+def config_files(args: Iterable[str], conf: Path) -> Iterator[Path]:
+    """The config files of the search path (:func:`search_roots`; ``conf``: decrun's config
+    directory) for the command line ``args``: the ``*.yaml`` files of each root and of its
+    config-group directories — decrun's (``app/``, ``app/parts/`` …, recursively), ``hydra/``
+    and a group of the user's own chosen on the command line (``+mygroup=x``,
+    ``mygroup/sub@pkg=x``) — never the rest of a directory added to the search path (a
     project's ``outputs/`` holds thousands of YAML files Hydra never composes)."""
-    if not root.is_dir():
-        return
-    yield from sorted(root.glob("*.yaml"))
-    for group in sorted(groups):
-        try:
-            found = (root / group).is_dir()
-        except OSError:  # a name the file system cannot hold (`+app.<120 kB>=1`): no such group; Hydra's lookup says it
+    args = list(args)
+    roots = search_roots(args, conf)
+    groups = {p.name for p in roots[0].iterdir() if p.is_dir()} | {"hydra"}
+    groups |= {word.lstrip("+~").partition("=")[0].partition("@")[0].partition("/")[0] for word in args
+               if "=" in word and not word.startswith("-")} - {"", ".", ".."}
+    for root in roots:
+        if not root.is_dir():
             continue
-        if found:
-            yield from sorted((root / group).rglob("*.yaml"))
+        yield from sorted(root.glob("*.yaml"))
+        for group in sorted(groups):
+            try:
+                found = (root / group).is_dir()
+            except OSError:  # a name the file system cannot hold (`+app.<120 kB>=1`): no such group; Hydra's lookup says it
+                continue
+            if found:
+                yield from sorted((root / group).rglob("*.yaml"))
 
 
 def check_config_files(args: Iterable[str], conf: Path) -> None:
     """Raise :class:`~decrun.errors.CorruptFileError` naming the first config file of the search
-    path (:func:`search_roots`; ``conf``: decrun's config directory) whose aliases are a bomb (:func:`check_aliases`). Run before
+    path (:func:`config_files`) whose aliases are a bomb (:func:`check_aliases`). Run before
     Hydra composes anything; a file it cannot read is left to the composition, which names it
     (:func:`decrun.runner.job.failures.config_error_message`)."""
-    args = list(args)
-    roots = search_roots(args, conf)
-    groups = {p.name for p in roots[0].iterdir() if p.is_dir()} | {"hydra"}
-    # a group of the user's own, chosen on the command line (`+mygroup=x`, `mygroup/sub@pkg=x`)
-    groups |= {word.lstrip("+~").partition("=")[0].partition("@")[0].partition("/")[0] for word in args
-               if "=" in word and not word.startswith("-")} - {"", ".", ".."}
-    for root in roots:
-        for path in _config_files(root, groups):
-            try:
-                if not path.is_file():
-                    continue
-                text = path.read_bytes().decode("utf-8")
-            except (OSError, UnicodeDecodeError):  # said by the composition, naming the file (failures.py)
+    for path in config_files(args, conf):
+        try:
+            if not path.is_file():
                 continue
-            check_aliases(text, path)
+            text = path.read_bytes().decode("utf-8")
+        except (OSError, UnicodeDecodeError):  # said by the composition, naming the file (failures.py)
+            continue
+        check_aliases(text, path)

@@ -285,16 +285,30 @@ def _yaml_message(exc) -> str:
     return f"{where}: invalid YAML: {context + ': ' if context else ''}{problem}"
 
 
-def _file_being_loaded(exc: BaseException) -> str | None:
-    """The config file Hydra was loading when ``exc`` was raised (the ``full_path`` of its
-    file config source's ``load_config`` frame), or None."""
-    tb, path = exc.__traceback__, None
-    while tb is not None:
-        frame = tb.tb_frame
-        if frame.f_code.co_name == "load_config" and isinstance(frame.f_locals.get("full_path"), str):
-            path = frame.f_locals["full_path"]
-        tb = tb.tb_next
-    return path
+def _config_file(args: list[str], matches) -> tuple[Path, bytes] | None:
+    """The first config file of the search path for ``args``
+    (:func:`~decrun.runner.io.config_files.config_files`) whose bytes ``matches``, with its
+    bytes; None when none does. Read once Hydra failed to load a config: the file is found by
+    its content."""
+    from decrun.runner.io.config_files import config_files
+    from decrun.runner.job.config import config_dir
+
+    for path in config_files(args, config_dir()):
+        try:
+            data = path.read_bytes()
+        except OSError:
+            continue
+        if matches(data):
+            return path, data
+    return None
+
+
+def _utf8_error(data: bytes) -> UnicodeDecodeError | None:
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        return exc
+    return None
 
 
 def _unreadable_config(exc: BaseException, args: list[str]) -> str | None:
@@ -303,10 +317,13 @@ def _unreadable_config(exc: BaseException, args: list[str]) -> str | None:
     the config search path (unreadable, a directory where a file is expected: the path and the
     cause, never "cannot write"). None for any other error."""
     undecodable = find_in_chain(exc, UnicodeDecodeError)
-    path = _file_being_loaded(undecodable) if isinstance(undecodable, UnicodeDecodeError) else None
-    if isinstance(undecodable, UnicodeDecodeError) and path is not None:
-        byte = undecodable.object[undecodable.start]
-        return (f"{path}: byte 0x{byte:02x} at offset {undecodable.start} is not UTF-8 (config files are UTF-8 text, "
+    # the file that holds the bytes Hydra could not decode (Hydra may have read a chunk of it)
+    found = _config_file(args, lambda data: bytes(undecodable.object) in data and _utf8_error(data) is not None) \
+        if isinstance(undecodable, UnicodeDecodeError) else None
+    if found is not None:
+        path, data = found
+        offset = _utf8_error(data).start  # type: ignore[union-attr]
+        return (f"{path}: byte 0x{data[offset]:02x} at offset {offset} is not UTF-8 (config files are UTF-8 text, "
                 "comments too); save the file as UTF-8 (e.g. iconv -f latin1 -t utf-8)")
     os_error = find_in_chain(exc, OSError)
     if not isinstance(os_error, OSError) or os_error.filename is None:
@@ -342,9 +359,11 @@ def config_error_message(exc: BaseException, args: list[str] | None = None) -> s
     recursion = find_in_chain(exc, RecursionError)
     if recursion is None:
         return None
-    path = _file_being_loaded(recursion)
-    if path is not None:
-        return (f"error: {path}: nested too deeply to load (Python's recursion limit); a config may nest lists "
+    from decrun.runner.io.config_files import yaml_depth
+
+    found = _config_file(args or [], lambda data: yaml_depth(data) > MAX_NESTING)
+    if found is not None:
+        return (f"error: {found[0]}: nested too deeply to load (Python's recursion limit); a config may nest lists "
                 f"and dicts at most {MAX_NESTING} levels")
     deepest = max(args or [""], key=lambda a: nesting_depth(a.partition("=")[2]))
     culprit = f"{_shorten(deepest)}: " if "=" in deepest else ""

@@ -567,12 +567,9 @@ class Obj(Export):
         if outputs is None or self.uv in outputs and outputs[self.uv].on == "0":
             return
         if self.uv in outputs or app.outputs_complete:
-            raise ConfigError(self._missing(f"app={app.name}", sorted(name for name, o in outputs.items()
-                                                                         if o.on == "0")))
-
-    def _missing(self, who: str, fields: list[str]) -> str:
-        return (f"export.uv: {who} writes no per-vertex field {self.uv!r} (its per-vertex fields: {fields}): texture "
-                "coordinates come from app=parametrization; use `export=vtu`")
+            fields = sorted(name for name, o in outputs.items() if o.on == "0")
+            raise ConfigError(f"export.uv: app={app.name} writes no per-vertex field {self.uv!r} (its per-vertex "
+                              f"fields: {fields}): texture coordinates come from app=parametrization; use `export=vtu`")
 
     def write(self, files: RunFiles, result, mesh, K, app=None) -> list[Path]:
         if self.uv not in result.fields:

@@ -126,10 +126,6 @@ class ManifestSweeper(Sweeper):
         registered = WARM.get(task_function, ())
         self.warm = (*registered, task_function.__module__) if registered else ()
 
-    def _parse_config(self) -> List[str]:
-        """``hydra.sweeper.params`` as override lines (``key=values``), before the command line's."""
-        return [f"{k}={v}" for k, v in self.params.items()]
-
     def plan(self, arguments: List[str]) -> list[dict[str, Any]]:
         """The jobs of the sweep, in Hydra's order: ``{"job", "dir", "overrides",
         "config_hash"}`` (``dir``: the job's ``hydra.sweep.subdir``, resolved now).
@@ -140,7 +136,7 @@ class ManifestSweeper(Sweeper):
         any job starts."""
         loader = self.speed.unwrap(self.hydra_context)  # Hydra's own, after an earlier sweep
         parser = OverridesParser.create(config_loader=loader)
-        overrides = parser.parse_overrides(self._parse_config() + list(arguments))
+        overrides = parser.parse_overrides([f"{k}={v}" for k, v in self.params.items()] + list(arguments))  # params first
         try:
             size, swept = grid_size(overrides)
         except ValueError as exc:
@@ -246,7 +242,9 @@ class ManifestSweeper(Sweeper):
                 raise
             except Exception as exc:
                 if worker_died(exc):
-                    self._end_killed(sweep_dir, manifest, todo, exc)
+                    self._end_early(sweep_dir, manifest, todo, exc, "killed",
+                                    f"a worker process died ({type(exc).__name__})",
+                                    f"resume the rest with: {resume_command(sweep_dir)}", table=True)
                 if timed_out(self.launcher, exc):
                     limit = float(joblib_timeout(self.launcher))
                     self._end_early(sweep_dir, manifest, todo, exc, "killed",
@@ -267,14 +265,6 @@ class ManifestSweeper(Sweeper):
         manifest["runs"][-1]["finished"] = now()
         write_manifest(sweep_dir, manifest)
         return returns
-
-    def _end_killed(self, sweep_dir: Path, manifest: dict, todo: list[dict], exc: Exception) -> None:
-        """A worker process died (:func:`~decrun.runner.sweep.stops.worker_died`): mark the
-        jobs that had started and not finished ``killed``, record them in the manifest's run,
-        write the table (the sweep's callbacks), then end with one line naming them and the
-        command that resumes the rest (exit 1). No later batch is launched."""
-        self._end_early(sweep_dir, manifest, todo, exc, "killed", f"a worker process died ({type(exc).__name__})",
-                        f"resume the rest with: {resume_command(sweep_dir)}", table=True)
 
     def _end_early(self, sweep_dir: Path, manifest: dict, todo: list[dict], exc: Exception, verb: str, what: str,
                    fix: str, why: Optional[str] = None, table: bool = False) -> None:

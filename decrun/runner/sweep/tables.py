@@ -142,10 +142,6 @@ def _result_path(sweep_dir: Path, job_dir: str) -> str:
     return ""
 
 
-def _job_name(name: str) -> int | str:
-    return int(name) if name.isdigit() else name
-
-
 def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
     """Table of a sweep: columns ``job, <overridden keys...>, status, error, <metrics...>,
     result`` (module docstring); nullable ``Int64`` for integer columns."""
@@ -173,7 +169,7 @@ def sweep_table(sweep_dir: str | os.PathLike) -> pd.DataFrame:
         for key in metrics:
             if key not in metric_keys and key not in LEADING:
                 metric_keys.append(key)
-        rows.append({"job": _job_name(name), **overrides, **metrics, "result": _result_path(sweep_dir, where)})
+        rows.append({"job": int(name) if name.isdigit() else name, **overrides, **metrics, "result": _result_path(sweep_dir, where)})
     duplicates = mark_duplicates(rows)
     columns = ["job", *override_keys, "status", "error", *metric_keys, *([SAME_AS] if duplicates else []), "result"]
     return _typed(pd.DataFrame(rows, columns=columns), rows)

@@ -301,21 +301,11 @@ def _overrides(job_dir: Path) -> list[str]:
     from decrun.runner.io.files import RunFiles
 
     path = job_dir / RunFiles.HYDRA / "overrides.yaml"
-    items = _yaml(path.read_text(), str(path)) if path.is_file() else []
+    if not path.is_file():
+        return []
+    with _composed(path.read_text(), str(path)) as (loader, node):
+        items = loader.construct_object(node, deep=True) if node is not None else []
     return [str(item) for item in items] if isinstance(items, list) else []
-
-
-def _yaml(text: str, where: str) -> Any:
-    """``yaml.safe_load`` of ``text`` with libyaml's loader where there is one (a job's
-    hydra.yaml is read for every job of a sweep); CorruptFileError naming ``where``."""
-    import yaml
-
-    check_aliases(text, where)
-    try:
-        return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-    except (yaml.YAMLError, RecursionError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise CorruptFileError(f"{where}: not YAML decrun reads ({first})") from None
 
 
 def job_record(job_dir: Path, name: str, state: dict[str, Any], *, result_h5: bool = False,
@@ -357,9 +347,7 @@ def job_record(job_dir: Path, name: str, state: dict[str, Any], *, result_h5: bo
             continue
         if key == "config_hash":
             tags["decrun.config_hash"] = str(value)
-        elif isinstance(value, bool):
-            metrics[key] = float(value)
-        elif isinstance(value, (int, float)):
+        elif isinstance(value, (bool, int, float)):
             metrics[key] = float(value)
         elif value is not None:
             tags[f"metric.{key}"] = value if isinstance(value, str) else json.dumps(value, default=str)

@@ -94,22 +94,18 @@ def _vertices(text: TextTokens, lines: np.ndarray) -> np.ndarray:
         )
     first = text.line_first_token[lines]
     xyz = (first[:, None] + np.arange(1, 4)).ravel()
-    vertices = _floats(text, xyz, "vertex coordinate").reshape(-1, 3)
+    vertices = text.token_numbers(xyz, np.float64, "vertex coordinate").reshape(-1, 3)
     weighted = np.flatnonzero(values == 4)
     if weighted.size:
-        w = _floats(text, first[weighted] + 4, "vertex weight")
+        w = text.token_numbers(first[weighted] + 4, np.float64, "vertex weight")
         off = np.flatnonzero(w != 1)
         if off.size:
             i = int(weighted[off[0]])
             raise MeshError(f"{text.where}: line {int(lines[i]) + 1}: vertex {i} has weight w={w[off[0]]:g}; only w = 1 is supported")
     colored = np.flatnonzero(values == 6)
     if colored.size:
-        _floats(text, (first[colored, None] + np.arange(4, 7)).ravel(), "vertex colour")
+        text.token_numbers((first[colored, None] + np.arange(4, 7)).ravel(), np.float64, "vertex colour")
     return vertices
-
-
-def _floats(text: TextTokens, tokens: np.ndarray, what: str) -> np.ndarray:
-    return text.token_numbers(tokens, np.float64, what)
 
 
 def _faces(text: TextTokens, lines: np.ndarray, before: dict, totals: dict) -> tuple[np.ndarray, np.ndarray]:

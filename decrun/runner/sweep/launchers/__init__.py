@@ -99,15 +99,6 @@ def _slurm_only(key: str) -> bool:
     return key.startswith("hydra.launcher.") and key.split(".")[2] not in _local_keys()
 
 
-def _missing_slurm_command() -> Optional[str]:
-    return next((name for name in SLURM_COMMANDS if shutil.which(name) is None), None)
-
-
-def _no_slurm(config, missing: str) -> str:
-    return (f"error: {launcher_choice(config)}: `{missing}` is not on PATH: this machine cannot submit SLURM jobs "
-            f"(not a SLURM login node); nothing ran; run the sweep on this machine with: {TO_SUBMITIT_LOCAL.command()}")
-
-
 # ----------------------------------------------------------------------------------
 # Ray
 # ----------------------------------------------------------------------------------
@@ -253,9 +244,11 @@ def preflight(launcher: Any, config: Any, timeout: float = CONNECT_TIMEOUT) -> O
     """The one-line error when ``launcher`` cannot start here (module docstring), before
     the sweep is planned; None when it can."""
     if is_launcher(launcher, *SLURM):
-        missing = _missing_slurm_command()
+        missing = next((name for name in SLURM_COMMANDS if shutil.which(name) is None), None)
         if missing is not None:
-            return _no_slurm(config, missing)
+            return (f"error: {launcher_choice(config)}: `{missing}` is not on PATH: this machine cannot submit SLURM "
+                    f"jobs (not a SLURM login node); nothing ran; run the sweep on this machine with: "
+                    f"{TO_SUBMITIT_LOCAL.command()}")
     if is_launcher(launcher, *RAY):
         return connect_ray(launcher, config, timeout)
     return None

@@ -27,6 +27,7 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.methods.model import borders
 from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.initial import sample
 from decrun.methods.model.intrinsic import check_intrinsic
@@ -63,11 +64,14 @@ RESERVED_METRICS = {"status", "error", "stable", "unstable_reason", "diverged_at
 class FieldSpec:
     """One field: ``form`` (``0..3`` or ``dual0..dual3``), ``initial`` (number, expression,
     list of expressions, ``result:<field>`` or None) and ``dirichlet`` (its values on the border
-    simplices, None: natural)."""
+    simplices, None: natural; may read t), ``neumann`` (∂u/∂n) or ``robin`` ({alpha, value}):
+    :mod:`decrun.methods.model.borders`."""
 
     form: Any = 0
     initial: Any = None
     dirichlet: Any = None
+    neumann: Any = None
+    robin: Any = None
 
 
 @dataclass
@@ -315,17 +319,19 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     ops = Discrete(dec)
     _check_names(spec)
     kinds = _declared_kinds(spec, ops.n)
-    resolved = _resolve(spec, _parse_equations(spec))
+    resolved = _resolve(spec, borders.rewrite(spec, _parse_equations(spec), kinds, ops.n))
     inputs = [name for name in spec.fields if name not in resolved.targets]
     _check_initial_values(spec, resolved.evolved, inputs)
     ordered = _order(resolved.definitions, resolved.solves, set(spec.fields) | set(spec.constants), key)
     compiler = _type_definitions(spec, ops, kinds, resolved, ordered)
     base, initial_values = _bind_values(spec, ops, kinds, resolved.evolved, inputs, chained)
     fixed = _dirichlet(spec, kinds, dec, key)
+    bound = borders.bind(spec, ops, base, resolved)
     compiler.static_env = dict(base)
     model = CompiledModel(spec, ops, compiler, kinds, resolved.equations, resolved.evolved, inputs, [], {}, {}, fixed,
                           base, initial_values)
     trees = _lower_equations(model, ordered, new_solver)
+    borders.finish(model, bound)
     trees += _compile_metrics(model)
     check_intrinsic(compiler, dec, trees)
     _check_stars(compiler, dec, trees)
@@ -428,7 +434,7 @@ def _type_definitions(spec: ModelSpec, ops: Discrete, kinds: dict[str, Kind], re
     """The kind pass: the :class:`Compiler` of the model, every definition typed in dependency
     order (a declared field's form must agree), and the names whose values vary in a run."""
     key, n = spec.key, ops.n
-    varying = set(resolved.evolved) | {"t"}
+    varying = set(resolved.evolved) | {"t"} | borders.moving_names(spec)
     inlinable = {name: eq.rhs for name, eq in resolved.definitions.items()}
     solved = {target: _sides(eq) for eq in resolved.solves for target in eq.targets or (eq.target,)}
     compiler = Compiler(ops, kinds, inlinable, varying, solved)
@@ -608,10 +614,9 @@ def _dirichlet(spec: ModelSpec, kinds: dict[str, Kind], dec, key: str) -> dict:
         if border.size == 0:
             raise ModelError(f"{where}: this mesh has no border (a closed surface); drop the condition with "
                              f"`{key}.fields.{name}.dirichlet=null`")
-        text = field_spec.dirichlet
-        if isinstance(text, str) and "t" in names_in(parse_expression(text, where)):
-            raise ModelError(f"{where}: border values are fixed in time here; write them without t")
-        values = sample(text, kind, dec, where, constants=spec.constants, seed=spec.seed, name=name)
+        values = borders.dirichlet_at_start(spec, name, kind, dec, where)
+        if values is None:
+            values = sample(field_spec.dirichlet, kind, dec, where, constants=spec.constants, seed=spec.seed, name=name)
         fixed[name] = (border, values[border])
     return fixed
 

@@ -46,8 +46,8 @@ from decrun.apps.model_plots import PlotOptions, check_plot_names, check_plot_op
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
-from decrun.methods.model.explain import explain
 from decrun.methods.model.borders import check_integrator, make_integrator
+from decrun.methods.model.explain import explain
 from decrun.methods.model.integrators import FROZEN, explicit_stability_limit
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.language import names_in, parse_equation

@@ -35,8 +35,18 @@ import scipy.sparse as sp
 
 from decrun.core.boundary.conditions import border_load, border_quadrature, robin_matrix
 from decrun.methods.model.kinds import Kind, dual, primal
-from decrun.methods.model.language import Binary, Call, Equation, ModelError, Name, Negate, Node, Number, \
-    parse_expression, to_text
+from decrun.methods.model.language import (
+    Binary,
+    Call,
+    Equation,
+    ModelError,
+    Name,
+    Negate,
+    Node,
+    Number,
+    parse_expression,
+    to_text,
+)
 from decrun.methods.model.operators import ALIASES, OPERATORS, POINTWISE_DERIVATIVES
 from decrun.methods.model.problem import ModelProblem
 

@@ -124,7 +124,8 @@ class BorderExpression:
         if bad.any():
             at = np.round(np.asarray(points)[int(np.flatnonzero(bad)[0])], 6).tolist()
             raise ModelError(f"{self.where}: {what}the border value {to_text(self.tree)} is not finite at "
-                             f"{int(bad.sum())} border point(s) (e.g. {at}, t = {t:g}); change the expression there")
+                             f"{int(bad.sum())} border point(s) (e.g. {at}, t = {t:g}); change the expression there, e.g. "
+                             f"`{self.where}=0`")
         return out
 
 
@@ -334,11 +335,13 @@ def bind(spec, ops, base: dict, resolved) -> Borders:
             if value is None:
                 continue
             where = f"{key}.fields.{name}.{condition}"
-            if name not in computed:
+            static = condition == "dirichlet" and not (isinstance(value, str) and "t" in _names(parse_expression(value,
+                                                                                                            where)))
+            if name not in computed and not static:
                 raise ModelError(f"{where}: {name} is neither evolved (dt({name}) = …) nor solved for, so a border "
                                  f"condition has nothing to act on; drop it with `{where}=null`")
             if condition == "dirichlet":
-                if isinstance(value, str) and "t" in _names(parse_expression(value, where)):
+                if not static:
                     moving[name] = BorderExpression(value, where, spec.constants, name)
                 continue
             _no_border(dec, where)
@@ -495,7 +498,7 @@ class _SciPy:
         self.problem, self.scheme, self.rtol, self.atol = problem, scheme, float(rtol), float(atol)
         mass = problem.mass
         self.inverse = None if mass is None else 1.0 / mass.diagonal()
-        self.accepted = 0
+        self.accepted = self.evaluations = 0
         self.h = float("nan")
 
     def _scaled(self, value):
@@ -513,7 +516,11 @@ class _SciPy:
         if np.isfinite(self.h) and self.h > 0:
             options["first_step"] = min(self.h, (t + dt) - t)
         method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]
-        solution = solve_ivp(lambda time, v: self._scaled(problem.f(v, time)), (t, t + dt), y, method=method, **options)
+        def fun(time, v):
+            self.evaluations += 1
+            return self._scaled(problem.f(v, time))
+
+        solution = solve_ivp(fun, (t, t + dt), y, method=method, **options)
         if not solution.success:
             raise FloatingPointError(f"solve_ivp ({method}) failed at t = {t:g}: {solution.message}")
         self.accepted += len(solution.t) - 1
@@ -530,10 +537,11 @@ class _SciPyStepper:
         return self.inner.step(y, t, self.dt)
 
     def state_dict(self) -> dict:
-        return {"h": self.inner.h, "accepted": self.inner.accepted}
+        return {"h": self.inner.h, "accepted": self.inner.accepted, "evaluations": self.inner.evaluations}
 
     def load_state(self, state: dict) -> None:
         self.inner.h, self.inner.accepted = float(state["h"]), int(state["accepted"])
+        self.inner.evaluations = int(state["evaluations"])
 
 
 def _imex_euler():

@@ -92,7 +92,8 @@ class BorderExpression:
             self._check(node.right, field)
             return
         operator = OPERATORS.get(node.function) if isinstance(node, Call) else None
-        if operator is None or not operator.pointwise or len(node.args) not in operator.arity:
+        if not isinstance(node, Call) or operator is None or not operator.pointwise or \
+                len(node.args) not in operator.arity:
             raise ModelError(f"{self.where}: {to_text(node)}: a border value is an expression of x, y, z, t (exp, sin, "
                              f"sqrt … of them); operators belong in app.equations, e.g. `{self.where}=0`")
         for arg in node.args:
@@ -258,9 +259,10 @@ def _names(node: Node) -> set[str]:
 def _border_form(node: Call, name: str, key: str) -> Node:
     """laplacian(u) + inv_star(b) (Neumann) or laplacian(u) − c u + inv_star(b) (Robin)."""
     load = Call("inv_star", (Name(_load_name(name, key)),))
+    flux: Node = node
     if key == "robin":
-        node = Binary("-", node, Binary("*", Name(_coefficient_name(name)), Name(name)))  # type: ignore[assignment]
-    return Binary("+", node, load)
+        flux = Binary("-", node, Binary("*", Name(_coefficient_name(name)), Name(name)))
+    return Binary("+", flux, load)
 
 
 def moving_names(spec) -> set[str]:

@@ -239,3 +239,14 @@ def test_a_bad_border_is_one_line_naming_its_key_and_the_suggested_override_runs
     assert line.startswith(start), line
     assert f"`{fix}`" in line, line
     _runs(tmp_path, *overrides, fix)
+
+
+def test_a_border_key_the_yaml_does_not_list_names_its_own_key_and_the_plus_form_runs(tmp_path):
+    """`app.fields.u.neumann=0` on a model whose YAML gives u no neumann (Hydra overrides only
+    listed keys): one line naming app.fields.u.neumann (not app.neumann, not an unknown field) and
+    the `+` form, which runs."""
+    common = ["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.steps=2"]
+    line = _refused(tmp_path, *common, "app.fields.u.neumann=0")
+    assert line == ("error: app.fields.u.neumann: the field u of app=heat does not list neumann in its config; add it "
+                    "with `+app.fields.u.neumann=0`"), line
+    _runs(tmp_path, *common, "+app.fields.u.neumann=0")

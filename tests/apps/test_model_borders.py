@@ -250,3 +250,16 @@ def test_a_border_key_the_yaml_does_not_list_names_its_own_key_and_the_plus_form
     assert line == ("error: app.fields.u.neumann: the field u of app=heat does not list neumann in its config; add it "
                     "with `+app.fields.u.neumann=0`"), line
     _runs(tmp_path, *common, "+app.fields.u.neumann=0")
+
+
+def test_a_solve_reads_its_moving_border_values_at_the_time_of_the_solve():
+    """solve(laplacian(p) = 0) with p = t x on the border (p = t x inside too: harmonic), read by
+    dt(w) = 2*p: every stage's solve at its own t, so w = t² x exactly under crank_nicolson, and
+    p at the end is t x to round-off (the term 2*p is not frozen at its first value)."""
+    overrides = ["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "figures=false", "progress=false", "~app.require",
+                 "~app.fields.u", "~app.metrics", "+app.fields.p={form: 0, dirichlet: 't*x'}",
+                 "+app.fields.w={form: 0, initial: 0}", "app.equations=['solve(laplacian(p) = 0)', 'dt(w) = 2*p']",
+                 "app.integrator=crank_nicolson", "app.dt=0.05", "app.t_end=0.5",
+                 "+app.metrics={p_error: 'max(abs(p - t*x))', w_error: 'max(abs(w - t**2*x))'}"]
+    metrics = run_experiment(compose_config(overrides)).result.metrics
+    assert metrics["p_error"] < 1e-12 and metrics["w_error"] < 1e-12, metrics

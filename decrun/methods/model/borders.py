@@ -266,8 +266,14 @@ def _border_form(node: Call, name: str, key: str) -> Node:
 
 
 def moving_names(spec) -> set[str]:
-    """The border loads that read t (values change in a run: never cached as static)."""
+    """The names whose values change in a run through a border condition that reads t (never
+    cached as static): the border loads, and the fields with moving Dirichlet values (a solve's
+    unknown among them)."""
     out = set()
+    for name, field_spec in spec.fields.items():
+        text = field_spec.dirichlet
+        if isinstance(text, str) and "t" in _names(parse_expression(text, f"{spec.key}.fields.{name}.dirichlet")):
+            out.add(name)
     for name, key in _given(spec).items():
         value = getattr(spec.fields[name], key)
         text = value.get("value") if key == "robin" and isinstance(value, Mapping) else value

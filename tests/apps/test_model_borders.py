@@ -218,8 +218,8 @@ REFUSALS = [
                   "+app.fields.v={form: 0, initial: 'x*y', neumann: 0}"],
                  "error: app.fields.v.neumann: v is neither evolved", "app.fields.v.neumann=null", id="not computed"),
     pytest.param([*POISSON, "+app.fields.u.robin={alpha: -40, value: 0}"],
-                 "error: app.fields.u.robin.alpha: α < 0 on the border makes −laplacian(u) with this Robin border "
-                 "indefinite", "app.fields.u.robin.alpha=1", id="indefinite robin"),
+                 "error: app.fields.u.robin.alpha: the Robin weights ∫_Γi α are negative at 16 border vertices",
+                 "app.fields.u.robin.alpha=1", id="indefinite robin"),
     pytest.param([*POISSON, "app.equations=['solve(u = 1)']", "+app.fields.u.neumann=0"],
                  "error: app.fields.u.neumann: no equation reads laplacian(u)", "app.fields.u.neumann=null",
                  id="no laplacian"),

@@ -398,9 +398,10 @@ def _refuse_indefinite(ops, weights: np.ndarray, star0: np.ndarray, where: str) 
     else:
         smallest = float(eigsh(A.tocsc(), k=1, which="SA", return_eigenvectors=False, tol=1e-8)[0])
     if smallest < -1e-12 * abs(A).max():
-        raise ModelError(f"{where}.alpha: α < 0 on the border makes −laplacian(u) with this Robin border indefinite "
-                         f"(smallest eigenvalue {smallest:.3g} of ⋆0⁻¹(S + R)): solves are ill-posed and evolutions "
-                         f"grow without bound; make α ≥ 0, e.g. `{where}.alpha=1`")
+        raise ModelError(f"{where}.alpha: the Robin weights ∫_Γi α are negative at {int(np.sum(weights < 0))} border "
+                         "vertices (α < 0, or obtuse border triangles of tetrahedra) and make −laplacian(u) with this "
+                         f"border indefinite (smallest eigenvalue {smallest:.3g} of ⋆0⁻¹(S + R)): solves are ill-posed "
+                         f"and evolutions grow without bound; make α ≥ 0, e.g. `{where}.alpha=1`")
 
 
 def finish(model, borders: Borders) -> None:

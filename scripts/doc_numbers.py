@@ -581,6 +581,9 @@ RUNS["halfar_offsets"] = Source(halfar_offsets, {
     f"{spacing}_{name}": N(f"{spacing}_{name}", ".2f") for spacing in HALFAR_SPACINGS for name in (*HALFAR_OFFSETS, "mean")})
 RUNS["model_poisson_sphere"] = Run(("+experiment=poisson_sphere",), {
     "error": N("l2_error_rel", scale=100.0, fmt=".2f"), "vertices": N("n_vertices")})
+for _n in (9, 17, 33):  # Newton cooling of a plate (a Robin border) against its exact mode, h halved twice
+    RUNS[f"model_newton_cooling_{_n}"] = Run(("app=newton_cooling", f"mesh.nx={_n}", f"mesh.ny={_n}"), {
+        "error": N("l2_error_rel", ".2g")})
 for _b in ("1.8", "2.2"):  # the Brusselator's growth rate on either side of the Hopf point B = 2
     RUNS[f"model_brusselator_{_b.replace('.', '_')}"] = Run(("+experiment=brusselator_hopf", f"app.constants.B={_b}"), {
         "growth": N("growth_rate_measured", ".10f", rtol=1e-8)})

@@ -46,8 +46,9 @@ from decrun.apps.model_plots import PlotOptions, check_plot_names, check_plot_op
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
+from decrun.methods.model.borders import check_integrator, make_integrator
 from decrun.methods.model.explain import explain
-from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_stability_limit, make_integrator
+from decrun.methods.model.integrators import FROZEN, explicit_stability_limit
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.language import names_in, parse_equation
 from decrun.methods.model.metrics import model_metrics
@@ -83,11 +84,14 @@ class FieldOptions:
     """``app.fields.<name>``: ``form`` 0 | 1 | 2 | 3 | dual0 … dual3; ``initial`` a number, an
     expression of x, y, z, a list of expressions (a vector field, for 1- and 2-forms),
     ``random``, ``vertex(i)`` or ``result:<field>``; ``dirichlet`` its values on the border
-    simplices (null: natural)."""
+    simplices (null: natural; may read t), ``neumann`` the outward normal derivative ∂u/∂n,
+    ``robin`` ``{alpha, value}``: ∂u/∂n + α u = value (:mod:`decrun.methods.model.borders`)."""
 
     form: str = "0"
     initial: Any = None
     dirichlet: Any = None
+    neumann: Any = None
+    robin: Any = None
 
 
 #: the longest plot name: its figure ``<name>.png`` is a file name (255 bytes on most file systems)

@@ -41,10 +41,10 @@ class PartSpec:
 
 @dataclass
 class Composed:
-    """The merged model: ``fields`` name → (form, initial, dirichlet); ``equations`` with the
+    """The merged model: ``fields`` name → (form, initial, dirichlet, neumann, robin); ``equations`` with the
     config key of each (``app.parts.glen_law.equations[0]``) for messages; ``metrics``."""
 
-    fields: dict[str, tuple[Any, Any, Any]]
+    fields: dict[str, tuple[Any, ...]]
     equations: list[str]
     equation_keys: list[str]
     metrics: dict[str, str]
@@ -60,7 +60,7 @@ def compose_parts(own: PartSpec, parts: dict[str, PartSpec], key: str = "app", o
     (Gamma = …) and by part my_law (Gamma = …); a quantity has one definition: drop one``."""
     pieces = [(f"part {name}", f"{key}.parts.{name}", part) for name, part in parts.items()]
     pieces.append((own_name, key, own))
-    fields: dict[str, tuple[Any, Any, Any]] = {}
+    fields: dict[str, tuple[Any, ...]] = {}
     field_owner: dict[str, dict[str, str]] = {}
     equations, equation_keys = [], []
     computed: dict[str, tuple[str, str]] = {}
@@ -68,16 +68,17 @@ def compose_parts(own: PartSpec, parts: dict[str, PartSpec], key: str = "app", o
     metric_owner: dict[str, str] = {}
     for who, where, part in pieces:
         for name, options in part.fields.items():
-            value = (_form(options.form), options.initial, options.dirichlet)
+            value = (_form(options.form), options.initial, options.dirichlet, getattr(options, "neumann", None),
+                     getattr(options, "robin", None))
             if name not in fields:
                 fields[name] = value
-                field_owner[name] = {"form": who, "initial": who, "dirichlet": who}
+                field_owner[name] = {"form": who, "initial": who, "dirichlet": who, "neumann": who, "robin": who}
                 continue
-            form, initial, dirichlet = fields[name]
+            form = fields[name][0]
             if value[0] != form:
                 raise ModelError(f"{key}.parts: field {name} is declared form {form} by {field_owner[name]['form']} "
                                  f"and form {value[0]} by {who}; a field shared by parts has one form")
-            for index, what in ((1, "initial"), (2, "dirichlet")):
+            for index, what in ((1, "initial"), (2, "dirichlet"), (3, "neumann"), (4, "robin")):
                 mine, theirs = value[index], fields[name][index]
                 if mine is None or mine == theirs:
                     continue

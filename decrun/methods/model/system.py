@@ -30,6 +30,7 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
+from decrun.methods.model import borders
 from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.intrinsic import check_intrinsic
 from decrun.methods.model.kinds import Kind
@@ -67,11 +68,14 @@ __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_s
 class FieldSpec:
     """One field: ``form`` (``0..3`` or ``dual0..dual3``), ``initial`` (number, expression,
     list of expressions, ``result:<field>`` or None) and ``dirichlet`` (its values on the border
-    simplices, None: natural)."""
+    simplices, None: natural; may read t), ``neumann`` (∂u/∂n) or ``robin`` ({alpha, value}):
+    :mod:`decrun.methods.model.borders`."""
 
     form: Any = 0
     initial: Any = None
     dirichlet: Any = None
+    neumann: Any = None
+    robin: Any = None
 
 
 @dataclass
@@ -270,7 +274,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     ops = Discrete(dec)
     _check_names(spec)
     kinds = _declared_kinds(spec, ops.n)
-    resolved = _resolve(spec, _parse_equations(spec))
+    resolved = _resolve(spec, borders.rewrite(spec, _parse_equations(spec), kinds, ops.n))
     _check_known_names(spec, resolved)
     metrics = _parse_metrics(spec)
     inputs = [name for name in spec.fields if name not in resolved.targets]
@@ -280,10 +284,12 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     typed = _type_trees(compiler, resolved.equations, metrics)
     base, initial_values = _bind_values(spec, ops, kinds, resolved.evolved, inputs, chained)
     fixed = _dirichlet(spec, kinds, dec, key)
+    bound = borders.bind(spec, ops, base, resolved)
     compiler.static_env = dict(base)
     model = CompiledModel(spec, ops, compiler, kinds, resolved.equations, resolved.evolved, inputs, [], {}, {}, fixed,
                           base, initial_values, typed)
     trees = _lower_equations(model, ordered, new_solver)
+    borders.finish(model, bound)
     trees += _compile_metrics(model, metrics)
     check_intrinsic(compiler, dec, trees)
     _check_stars(compiler, dec, trees)

@@ -118,17 +118,31 @@ def typo_message(exc: Exception) -> str | None:
         return f"error: {error}"
     except Exception:  # the command cannot be recomposed this way: Hydra's message stands
         return None
-    return model_entry_message(key, cfg.app)
+    return model_entry_message(key, cfg.app, _field_existed(key, overrides, compose_config))
+
+
+def _field_existed(key: str, overrides: list[str], compose_config) -> bool:
+    """For ``app.fields.<name>.<option>``: whether the model has the field ``name`` without the
+    override (its YAML does not list the option, e.g. a border condition), not a misspelt field."""
+    parts = key.split(".")
+    if len(parts) < 4 or parts[:2] != ["app", "fields"]:
+        return False
+    try:
+        before = compose_config([o for o in overrides if o.split("=", 1)[0] != f"+{key}"])
+    except Exception:  # noqa: BLE001 - recomposition is a best effort on an error path
+        return False
+    return parts[2] in before.app.get("fields", {})
 
 
 #: a model's named entries: config key → what one is called in a message
 _MODEL_ENTRIES = {"fields": "field", "metrics": "metric"}
 
 
-def model_entry_message(key: str, app: Any) -> str | None:
+def model_entry_message(key: str, app: Any, existed: bool = False) -> str | None:
     """For ``app.fields.<name>…`` or ``app.metrics.<name>`` naming an entry the model ``app``
     (its composed node) does not have: one line with the closest entry it has (the override
-    meant), and for a metric the ``+`` form that adds a new one. None for any other key."""
+    meant), and for a metric the ``+`` form that adds a new one; for an option of a field that
+    ``existed`` without the override, the ``+`` form that adds it. None for any other key."""
     import difflib
 
     parts = key.split(".")
@@ -136,6 +150,10 @@ def model_entry_message(key: str, app: Any) -> str | None:
         return None
     group, name, rest = parts[1], parts[2], ".".join(parts[3:])
     what = _MODEL_ENTRIES[group]
+    if rest and existed:  # the field exists; its YAML does not list this option (e.g. a border condition)
+        value = next((arg.partition("=")[2] for arg in sys.argv[1:] if arg.partition("=")[0] == key), "…")
+        return (f"error: {key}: the {what} {name} of app={app.get('model', '?')} does not list {rest} in its config; "
+                f"add it with `+{key}={value}`")
     known = sorted(str(entry) for entry in app[group] if entry != name)  # the recomposed node holds it too
     close = difflib.get_close_matches(name, known, n=1)
     meant = f"; did you mean app.{group}.{close[0]}{'.' + rest if rest else ''}?" if close else ""

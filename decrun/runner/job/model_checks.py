@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import difflib
 import functools
+from collections.abc import Mapping
 from typing import Any, Collection
 
 from decrun.errors import ConfigError, DecrunError
@@ -53,6 +54,9 @@ def names_read(app: Any) -> set[str]:
         requirements += [str(text) for text in source.require]
         for options in source.fields.values():
             expressions += _texts(options.initial) + _texts(options.dirichlet)
+            robin = getattr(options, "robin", None)  # Neumann / Robin borders (methods/model/borders.py)
+            expressions += _texts(getattr(options, "neumann", None)) + \
+                _texts(list(robin.values()) if isinstance(robin, Mapping) else robin)
     for plot in app.plots.values():
         expressions += [text for text in (plot.color, plot.arrows) if text]
     return set(_names(tuple(equations), tuple(expressions), tuple(requirements)))

@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from decrun.methods.model import borders
 from decrun.methods.model.initial import sample
 from decrun.methods.model.kinds import Kind
-from decrun.methods.model.language import ModelError, names_in, parse_expression
+from decrun.methods.model.language import ModelError
 from decrun.methods.model.operators import Discrete
 
 if TYPE_CHECKING:
@@ -68,9 +69,8 @@ def _dirichlet(spec: ModelSpec, kinds: dict[str, Kind], dec, key: str) -> dict:
         if border.size == 0:
             raise ModelError(f"{where}: this mesh has no border (a closed surface); drop the condition with "
                              f"`{key}.fields.{name}.dirichlet=null`")
-        text = field_spec.dirichlet
-        if isinstance(text, str) and "t" in names_in(parse_expression(text, where)):
-            raise ModelError(f"{where}: border values are fixed in time here; write them without t")
-        values = sample(text, kind, dec, where, constants=spec.constants, seed=spec.seed, name=name)
+        values = borders.dirichlet_at_start(spec, name, kind, dec, where)
+        if values is None:
+            values = sample(field_spec.dirichlet, kind, dec, where, constants=spec.constants, seed=spec.seed, name=name)
         fixed[name] = (border, values[border])
     return fixed

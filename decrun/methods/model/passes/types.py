@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from decrun.methods.model import borders
 from decrun.methods.model.compiler import Compiler
 from decrun.methods.model.kinds import NUMBER, Kind, form_kind
 from decrun.methods.model.language import Equation, ModelError, Name, Node, to_text
@@ -41,7 +42,7 @@ def _type_definitions(spec: ModelSpec, ops: Discrete, kinds: dict[str, Kind], re
     """The kind pass: the :class:`Compiler` of the model, every definition typed in dependency
     order (a declared field's form must agree), and the names whose values vary in a run."""
     key, n = spec.key, ops.n
-    varying = set(resolved.evolved) | {"t"}
+    varying = set(resolved.evolved) | {"t"} | borders.moving_names(spec)
     inlinable = {name: eq.rhs for name, eq in resolved.definitions.items()}
     solved = {target: _sides(eq) for eq in resolved.solves for target in eq.targets or (eq.target,)}
     compiler = Compiler(ops, kinds, inlinable, varying, solved)

@@ -265,6 +265,17 @@ def _border_form(node: Call, name: str, key: str) -> Node:
     return Binary("+", flux, load)
 
 
+def internal_names(spec) -> set[str]:
+    """The names the rewrite of ``laplacian(u)`` introduces (bound by :func:`bind`, never the user's):
+    ``_neumann_u`` for a Neumann field, ``_robin_u`` and ``_robin_value_u`` for a Robin one."""
+    out = set()
+    for name, key in _given(spec).items():
+        out.add(_load_name(name, key))
+        if key == "robin":
+            out.add(_coefficient_name(name))
+    return out
+
+
 def moving_names(spec) -> set[str]:
     """The names whose values change in a run through a border condition that reads t (never
     cached as static): the border loads, and the fields with moving Dirichlet values (a solve's

@@ -168,11 +168,12 @@ def _names_in_order(node: Node) -> list[str]:
     return []
 
 
-def _check_known_names(spec: ModelSpec, resolved: Resolved) -> None:
+def _check_known_names(spec: ModelSpec, resolved: Resolved, internal: set[str] = frozenset()) -> None:
     """Every name an equation reads is declared: a field, a constant, a built-in name (x y z t dt
     h pi) or what another equation computes; an unknown name is refused in one line naming its
-    equation's key (and the closest known name)."""
-    known = set(spec.fields) | set(spec.constants) | set(BUILTIN_NAMES) | set(resolved.targets)
+    equation's key (and the closest known name). ``internal``: names a rewrite introduced (the
+    border loads of :func:`decrun.methods.model.borders.internal_names`)."""
+    known = set(spec.fields) | set(spec.constants) | set(BUILTIN_NAMES) | set(resolved.targets) | set(internal)
     for equation in resolved.equations:
         sides = equation.pairs or ((equation.lhs, equation.rhs),)
         for side in (tree for pair in sides for tree in pair if tree is not None):

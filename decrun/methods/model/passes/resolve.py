@@ -168,7 +168,7 @@ def _names_in_order(node: Node) -> list[str]:
     return []
 
 
-def _check_known_names(spec: ModelSpec, resolved: Resolved, internal: set[str] = frozenset()) -> None:
+def _check_known_names(spec: ModelSpec, resolved: Resolved, internal: frozenset[str] | set[str] = frozenset()) -> None:
     """Every name an equation reads is declared: a field, a constant, a built-in name (x y z t dt
     h pi) or what another equation computes; an unknown name is refused in one line naming its
     equation's key (and the closest known name). ``internal``: names a rewrite introduced (the

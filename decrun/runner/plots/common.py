@@ -102,13 +102,7 @@ def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
         own = colours if edges == "face" else edges  # "face" fails in 3-D before the axes draw (matplotlib)
         collection = Poly3DCollection(triangles, facecolors=colours, edgecolors=own, linewidths=widths)
         ax.add_collection3d(collection)
-        finite = v3[np.isfinite(v3).all(axis=1)]
-        if len(finite):
-            lo, hi = finite.min(axis=0), finite.max(axis=0)
-            center, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-12)
-            ax.set_xlim(center[0] - half, center[0] + half)
-            ax.set_ylim(center[1] - half, center[1] + half)
-            ax.set_zlim(center[2] - half, center[2] + half)
+        _share_limits([ax], [v3])  # a cube around the mesh: equal aspect
         ax.set_box_aspect((1, 1, 1))
         ax.set_axis_off()
     else:

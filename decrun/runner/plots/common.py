@@ -18,7 +18,6 @@ from matplotlib import colormaps
 from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 
-from decrun.runner.io.paths import check_file
 from decrun.runner.results import read_result
 
 #: two contrasting colours for checkerboard textures (0 → dark blue, 1 → light sand)
@@ -279,21 +278,13 @@ def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
     """Save ``fig`` as PNG through the Agg canvas (works without any display), under a
     temporary name renamed onto ``path`` when complete; refused
     (:class:`~decrun.runner.io.paths.OutsideError`) when ``path`` is a symlink leaving its directory."""
-    import os
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from decrun.runner.io.atomic import temporary_name
+    from decrun.runner.io.atomic import atomic_path
 
     FigureCanvasAgg(fig)
-    path = check_file(path)
-    temporary = temporary_name(path)  # renamed when complete: an interrupt leaves no truncated PNG
-    try:
+    with atomic_path(path) as temporary:  # renamed when complete: an interrupt leaves no truncated PNG
         fig.savefig(temporary, dpi=dpi or fig.dpi, format="png")
-        os.replace(temporary, path)
-    finally:
-        if temporary.exists():
-            temporary.unlink()
 
 
 class RecordedSeries:

@@ -51,10 +51,10 @@ import os
 import shlex
 import sys
 import threading
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterator, Sequence
+from typing import TYPE_CHECKING, Iterator, Sequence
 
 from decrun.errors import DecrunError
 
@@ -192,13 +192,9 @@ def _overrides(overrides: str | Sequence[str], what: str) -> list[str]:
     return words
 
 
-def _keys(overrides: str | Sequence[str]) -> set[str]:
-    words = shlex.split(overrides) if isinstance(overrides, str) else [str(o) for o in overrides]
-    return {w.partition("=")[0].lstrip("+~") for w in words}
-
-
 def _refuse_both(overrides: str | Sequence[str], key: str, argument: str) -> None:
-    if key in _keys(overrides):
+    words = shlex.split(overrides) if isinstance(overrides, str) else [str(o) for o in overrides]
+    if key in {w.partition("=")[0].lstrip("+~") for w in words}:
         raise ValueError(f"{key} is set both by the overrides and by {argument}=...; give one")
 
 
@@ -289,15 +285,9 @@ def _as_command(args: list[str]) -> Iterator[None]:
             os.environ["HYDRA_FULL_ERROR"] = saved_error
         logging.raiseExceptions = saved_raise
         for handler in root.handlers:
-            if handler not in saved_handlers:
-                _close(handler)
+            if handler not in saved_handlers:  # one that cannot flush (its file gone) is dropped all the same
+                with suppress(Exception):
+                    handler.flush()
+                    handler.close()
         root.handlers[:] = saved_handlers
         root.setLevel(saved_level)
-
-
-def _close(handler: Any) -> None:
-    try:
-        handler.flush()
-        handler.close()
-    except Exception:  # noqa: BLE001 — a handler that cannot flush (its file gone) is dropped all the same
-        pass

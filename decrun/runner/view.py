@@ -291,11 +291,9 @@ def _series(result, counts: dict[int, int], n: int) -> tuple[list[Quantity], dic
         label = f"{name} (series)"
         if array.ndim == 1:
             scalars[name] = array
-        elif array.shape[1] == counts[0]:
-            quantity, why = _vertex_quantity(label, array, series=True)
-            (quantities.append(quantity) if quantity else left_out.__setitem__(label, why))
-        elif array.shape[1] == counts[n]:
-            quantity, why = _cell_quantity(label, array, series=True)
+        elif array.shape[1] in (counts[0], counts[n]):
+            made = _vertex_quantity if array.shape[1] == counts[0] else _cell_quantity
+            quantity, why = made(label, array, series=True)
             (quantities.append(quantity) if quantity else left_out.__setitem__(label, why))
         elif n == 2 and array.shape[1] == counts.get(1) and array.ndim == 2:
             quantities.append(Quantity(label, "one_form", array, series=True))
@@ -342,14 +340,6 @@ def plan_view(path: str | Path) -> View:
 # polyscope
 # ----------------------------------------------------------------------------------
 
-def _polyscope():
-    try:
-        import polyscope
-    except ImportError:
-        raise ViewError(INSTALL_HINT) from None
-    return polyscope
-
-
 def _init(ps, headless: bool) -> None:
     """Start polyscope: EGL (no window, no display) for screenshots, a window otherwise."""
     try:
@@ -370,17 +360,12 @@ def _add(ps, view: View, structure, quantity: Quantity, step: int, enabled: bool
     values = quantity.at(step)
     kind, name = quantity.kind, quantity.name
     volume = view.dimension == 3
-    if kind == "vertex_scalar":
-        structure.add_scalar_quantity(name, values, defined_on="vertices", enabled=enabled, cmap=SCALAR_MAP,
+    on = "vertices" if kind.startswith("vertex_") else "cells" if volume else "faces"
+    if kind in ("vertex_scalar", "cell_scalar"):
+        structure.add_scalar_quantity(name, values, defined_on=on, enabled=enabled, cmap=SCALAR_MAP,
                                       vminmax=value_range(values))
-    elif kind == "cell_scalar":
-        structure.add_scalar_quantity(name, values, defined_on="cells" if volume else "faces", enabled=enabled,
-                                      cmap=SCALAR_MAP, vminmax=value_range(values))
-    elif kind == "vertex_vector":
-        structure.add_vector_quantity(name, values, defined_on="vertices", enabled=enabled, **ARROWS)
-    elif kind == "cell_vector":
-        structure.add_vector_quantity(name, values, defined_on="cells" if volume else "faces", enabled=enabled,
-                                      **ARROWS)
+    elif kind in ("vertex_vector", "cell_vector"):
+        structure.add_vector_quantity(name, values, defined_on=on, enabled=enabled, **ARROWS)
     elif kind == "parameterization":
         structure.add_parameterization_quantity(name, values, defined_on="vertices", enabled=enabled)
     elif kind == "one_form":
@@ -475,7 +460,10 @@ def show(view: View, field: str | None = None, step: int | None = None, screensh
     index = (step % steps) if step is not None and steps else max(steps - 1, 0)
     if view.left_out:
         log.warning("decrun-view: not shown: %s", left_out_line(view.left_out))
-    ps = _polyscope()
+    try:
+        import polyscope as ps
+    except ImportError:
+        raise ViewError(INSTALL_HINT) from None
     screenshot = Path(screenshot).resolve() if screenshot is not None else None
     with _settings_directory():  # ImGui writes imgui.ini into the working directory: not the user's
         try:

@@ -18,7 +18,6 @@ from matplotlib import colormaps
 from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.figure import Figure
 
-from decrun.runner.io.paths import check_file
 from decrun.runner.results import read_result
 
 #: two contrasting colours for checkerboard textures (0 → dark blue, 1 → light sand)
@@ -102,13 +101,7 @@ def plot_surface(ax, vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
         own = colours if edges == "face" else edges  # "face" fails in 3-D before the axes draw (matplotlib)
         collection = Poly3DCollection(triangles, facecolors=colours, edgecolors=own, linewidths=widths)
         ax.add_collection3d(collection)
-        finite = v3[np.isfinite(v3).all(axis=1)]
-        if len(finite):
-            lo, hi = finite.min(axis=0), finite.max(axis=0)
-            center, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-12)
-            ax.set_xlim(center[0] - half, center[0] + half)
-            ax.set_ylim(center[1] - half, center[1] + half)
-            ax.set_zlim(center[2] - half, center[2] + half)
+        _share_limits([ax], [v3])  # a cube around the mesh: equal aspect
         ax.set_box_aspect((1, 1, 1))
         ax.set_axis_off()
     else:
@@ -285,21 +278,13 @@ def save_figure(fig: Figure, path, dpi: int | None = None) -> None:
     """Save ``fig`` as PNG through the Agg canvas (works without any display), under a
     temporary name renamed onto ``path`` when complete; refused
     (:class:`~decrun.runner.io.paths.OutsideError`) when ``path`` is a symlink leaving its directory."""
-    import os
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from decrun.runner.io.atomic import temporary_name
+    from decrun.runner.io.atomic import atomic_path
 
     FigureCanvasAgg(fig)
-    path = check_file(path)
-    temporary = temporary_name(path)  # renamed when complete: an interrupt leaves no truncated PNG
-    try:
+    with atomic_path(path) as temporary:  # renamed when complete: an interrupt leaves no truncated PNG
         fig.savefig(temporary, dpi=dpi or fig.dpi, format="png")
-        os.replace(temporary, path)
-    finally:
-        if temporary.exists():
-            temporary.unlink()
 
 
 class RecordedSeries:

@@ -129,14 +129,12 @@ def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str
     the first frame (the colour map's colours). The GIF is written to a hidden temporary name
     beside ``out_path`` and renamed onto it when complete: an interrupted drawing (SIGTERM,
     Ctrl-C) leaves no truncated GIF."""
-    import os
-
     from matplotlib import colormaps
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import Normalize
     from PIL import Image
 
-    from decrun.runner.io.atomic import temporary_name
+    from decrun.runner.io.atomic import atomic_path
     from decrun.runner.plots.common import CHECKER
 
     frames = np.asarray(recorded[name])
@@ -163,12 +161,7 @@ def animation(K, recorded, out_path, name: str = "vorticity", *, times_name: str
             palette = image.quantize(colors=255)
         images.append(image.quantize(palette=palette, dither=Image.Dither.NONE))
     path = check_file(Path(out_path).with_suffix(".gif"))
-    temporary = temporary_name(path)
-    try:
+    with atomic_path(path) as temporary:
         images[0].save(temporary, format="GIF", save_all=True, append_images=images[1:], loop=0,
                        duration=int(round(1000 / fps)))
-        os.replace(temporary, path)
-    finally:
-        if temporary.exists():
-            temporary.unlink()
     return path

@@ -224,17 +224,8 @@ def _vtu_blocks(mesh, K, placed: Placed):
         if vset is None:
             for name, value in placed.on[k].items() if k else ():
                 per_block.setdefault(name, {})[index] = value
-            if k == n:
-                n_top = len(cells)
-                for name, members in placed.top_sets.items():
-                    indicator = np.zeros(n_top, dtype=np.uint8)
-                    indicator[members] = 1
-                    per_block.setdefault(name, {})[index] = indicator
-                for name, (of, values) in placed.along.items():
-                    if of in placed.top_sets:
-                        full = np.full((n_top, *values.shape[1:]), np.nan)
-                        full[placed.top_sets[of]] = values
-                        per_block.setdefault(name, {})[index] = full
+            for name, value in _on_sets(len(cells), placed.top_sets, placed.along).items() if k == n else ():
+                per_block.setdefault(name, {})[index] = value
         else:
             per_block.setdefault(vset, {})[index] = np.ones(len(cells), dtype=np.uint8)
             for name, (of, values) in placed.along.items():
@@ -249,6 +240,20 @@ def _vtu_blocks(mesh, K, placed: Placed):
         cell_data[name] = [on[i].astype(np.float64) if i in on else np.full((len(cells), *shape), np.nan)
                            for i, (_, cells, _, _) in enumerate(blocks)]
     return [(kind, cells) for kind, cells, _, _ in blocks], cell_data
+
+
+def _on_sets(size: int, sets: dict[str, np.ndarray], along: dict[str, tuple[str, np.ndarray]]) -> dict:
+    """Each set of ``sets`` as an indicator over ``size`` simplices (1 on its members, uint8),
+    and the values ``along`` it on its members (NaN elsewhere)."""
+    out: dict[str, np.ndarray] = {}
+    for name, members in sets.items():
+        out[name] = np.zeros(size, dtype=np.uint8)
+        out[name][members] = 1
+        for value_name, (of, values) in along.items():
+            if of == name:
+                out[value_name] = np.full((size, *values.shape[1:]), np.nan)
+                out[value_name][members] = values
+    return out
 
 
 def _add_field_data(path: Path, arrays: dict[str, np.ndarray]) -> None:
@@ -316,13 +321,6 @@ class NoExport(Export):
 
     def write(self, files: RunFiles, result, mesh, K, app=None) -> list[Path]:
         return []
-
-
-def _layout(result, mesh, K):
-    edges = K.simplices(1) if K is not None else None
-    groups = classify_fields(result.fields, len(mesh.vertices), len(mesh.simplices),
-                             len(edges) if edges is not None else None)
-    return groups, edges
 
 
 @dataclass
@@ -420,19 +418,8 @@ def _one_frame(result, mesh, K, app) -> tuple[tuple[dict, dict, dict], list[str]
     themselves are the cells."""
     placed = place_fields(result, mesh, K, app)
     n = mesh.simplices.shape[1] - 1
-    point, cell = dict(placed.on[0]), dict(placed.on[n])
-    counts = {0: len(mesh.vertices), n: len(mesh.simplices)}
-    for on, sets in ((point, placed.vertex_sets), (cell, placed.top_sets)):
-        size = counts[0 if on is point else n]
-        for name, members in sets.items():
-            indicator = np.zeros(size, dtype=np.uint8)
-            indicator[members] = 1
-            on[name] = indicator
-            for along, (of, values) in placed.along.items():
-                if of == name:
-                    full = np.full((size, *values.shape[1:]), np.nan)
-                    full[members] = values
-                    on[along] = full
+    point = {**placed.on[0], **_on_sets(len(mesh.vertices), placed.vertex_sets, placed.along)}
+    cell = {**placed.on[n], **_on_sets(len(mesh.simplices), placed.top_sets, placed.along)}
     edge = placed.on[1] if n > 1 else {}
     left = [*placed.other, *placed.unwritable, *(name for k in range(2, n) for name in placed.on[k])]
     return (point, cell, edge), left
@@ -512,8 +499,7 @@ class Ply(Export):
 
     def values(self, result, mesh, K) -> tuple[str, np.ndarray]:
         """(name, (n0,) values) of the field that colours the vertices."""
-        groups, _ = _layout(result, mesh, K)
-        point = groups["point"]
+        point = classify_fields(result.fields, len(mesh.vertices), len(mesh.simplices), None)["point"]
         if self.field == "auto":
             scalar = [name for name, value in point.items() if value.ndim == 1]
             if not scalar:

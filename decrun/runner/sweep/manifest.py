@@ -104,10 +104,8 @@ def yaml_block(key: str | None, value: Any) -> str:
     dict of resolved root keys, dumped as one mapping — the concatenation of their blocks
     (a block starts at column 0; :func:`_resolved` makes every container anew, so the
     dumper writes no anchor that spans two keys)."""
-    if key is None:
-        return yaml.dump(value, default_flow_style=False, allow_unicode=True, sort_keys=True, Dumper=_Dumper)
-    return yaml.dump({key: _resolved(value)}, default_flow_style=False, allow_unicode=True, sort_keys=True,
-                     Dumper=_Dumper)
+    data = value if key is None else {key: _resolved(value)}
+    return yaml.dump(data, default_flow_style=False, allow_unicode=True, sort_keys=True, Dumper=_Dumper)
 
 
 def _resolved(value: Any) -> Any:

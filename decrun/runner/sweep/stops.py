@@ -17,8 +17,6 @@ Two ways a sweep stops while its jobs run (:class:`~decrun.runner.sweep.sweeper.
 
 from __future__ import annotations
 
-import shlex
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
@@ -106,7 +104,7 @@ def resume_command(sweep_dir: Path, argv: Sequence[str] | None = None) -> str:
     """The command line that resumes this sweep: the ``decrun`` command as typed (``argv``,
     default ``sys.argv[1:]``) with ``hydra.sweep.dir=<sweep_dir> hydra.sweeper.resume=true``
     in place of any ``hydra.sweep.dir`` / ``hydra.sweeper.resume`` it had."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    kept = [a for a in argv if not a.lstrip("+~").startswith(("hydra.sweep.dir=", "hydra.sweeper.resume="))]
-    return shlex.join(["decrun", *kept, f"hydra.sweep.dir={sweep_dir}", "hydra.sweeper.resume=true"])
+    from decrun.runner.sweep.launchers import command_with
+
+    return command_with(argv, [f"hydra.sweep.dir={sweep_dir}", "hydra.sweeper.resume=true"])
 

@@ -289,12 +289,6 @@ def _submission_failed(exc: BaseException) -> bool:
     return False
 
 
-def _last_line(exc: BaseException) -> str:
-    """The last line of what failed (sbatch's error), or of the exception's message."""
-    text = str(exc).strip()
-    return text.splitlines()[-1] if text else ""
-
-
 def launch_failure(launcher: Any, config: Any, exc: BaseException) -> Optional[tuple[str, Fix]]:
     """``("<launcher>: cannot … (<cause>)", fix)`` for an exception of a cluster launcher's
     ``launch`` that says its jobs could not be submitted (no SLURM commands, a refused
@@ -302,7 +296,8 @@ def launch_failure(launcher: Any, config: Any, exc: BaseException) -> Optional[t
     error, a bug)."""
     text = (str(exc).splitlines() or [type(exc).__name__])[0]
     if is_launcher(launcher, *SLURM) and _submission_failed(exc):
-        return f"{launcher_choice(config)}: cannot submit its jobs ({_last_line(exc) or text})", TO_SUBMITIT_LOCAL
+        last = str(exc).strip().splitlines()[-1:]  # the last line of what failed (sbatch's error)
+        return f"{launcher_choice(config)}: cannot submit its jobs ({last[0] if last else text})", TO_SUBMITIT_LOCAL
     if is_launcher(launcher, *RAY) and isinstance(exc, ConnectionError):
         return (f"{launcher_choice(config)}: cannot reach the Ray cluster at hydra.launcher.ray.init.address="
                 f"{ray_address(launcher)} ({text})", TO_LOCAL_RAY)

@@ -53,6 +53,7 @@ from decrun.methods.model.language import names_in, parse_equation
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.parts import PartSpec, compose_parts
 from decrun.methods.model.require import check_requirements, parse_requirement
+from decrun.methods.model.stability import explicit_limit, refuse_indefinite_stars, refuse_nonfinite_terms
 from decrun.methods.model.stepper import ModelStepper
 from decrun.methods.stepping import run_steps
 
@@ -334,8 +335,10 @@ class Model(App):
         steps = self.total_steps()
         if not model.is_static:
             check_integrator(model, str(self.integrator), self.dt)
+            refuse_indefinite_stars(model, str(self.integrator))
         if model.is_static or not self.stability_check or steps == 0:
             return
+        refuse_nonfinite_terms(model)
         limit, source = explicit_stability_limit(model, str(self.integrator), model.initial_values)
         if self.dt > limit:
             if self.t_end is not None:  # a whole number of steps to t_end, each below 0.9 × the limit
@@ -350,6 +353,7 @@ class Model(App):
                               f"integrator={self.integrator} for dt({name}) on this mesh (2.785/λ_max for rk4, "
                               f"2/λ_max for Euler, λ_max of {part}); use `app.dt={safe}` or "
                               f"`app.integrator={implicit}`")
+        explicit_limit(model, str(self.integrator), self.dt, steps, self.t_end)  # every explicit term, not diffusion only
         self._stability_limit = limit
 
     def _check_plots(self, model) -> None:

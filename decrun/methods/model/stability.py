@@ -41,7 +41,7 @@ from decrun.methods.model.language import ModelError, to_text
 from decrun.methods.model.tableaux import TABLEAUX, Tableau
 
 __all__ = ["refuse_indefinite_stars", "refuse_nonfinite_terms", "explicit_limit", "SPURIOUS_GROWTH",
-           "stability_function"]
+           "stability_function", "suggested_dt"]
 
 #: the largest growth over a run that a scheme may add to the exact flow's, on any mode
 SPURIOUS_GROWTH = 10.0
@@ -269,19 +269,29 @@ def _fitted(dt: float, t_end: float | None) -> str:
     return f"{digits if digits <= dt else dt * 0.99:.2g}"
 
 
+def _estimate(model, scheme: str, dt: float, steps: int):
+    """(R, eigenvalues, how, part) of the explicitly integrated part at the initial state, or
+    None when ``scheme`` has none, the model does not evolve or its rate is not finite."""
+    R = stability_function(scheme)
+    if R is None or model.is_static or steps == 0:
+        return None
+    part = EXPLICIT_PART[scheme]
+    jacobian = _Jacobian(model, part)
+    if jacobian.n == 0 or not np.all(np.isfinite(jacobian.f0)):
+        return None  # refuse_nonfinite_terms names a non-finite term; nothing explicit to check
+    eigenvalues, how = spectrum_sample(jacobian)
+    return R, eigenvalues, how, part
+
+
 def explicit_limit(model, scheme: str, dt: float, steps: int, t_end: float | None) -> float:
     """The largest stable step of the explicitly integrated part of ``scheme`` (module
     docstring; inf when ``scheme`` has none or the model has no evolution), or ModelError naming
     ``app.dt`` and a step that passes, or ``app.stability_check=false`` where no estimate could
     be made."""
-    R = stability_function(scheme)
-    if R is None or model.is_static or steps == 0:
+    estimate = _estimate(model, scheme, dt, steps)
+    if estimate is None:
         return float("inf")
-    part = EXPLICIT_PART[scheme]
-    jacobian = _Jacobian(model, part)
-    if jacobian.n == 0 or not np.all(np.isfinite(jacobian.f0)):
-        return float("inf")  # refuse_nonfinite_terms names a non-finite term; nothing explicit to check
-    eigenvalues, how = spectrum_sample(jacobian)
+    R, eigenvalues, how, part = estimate
     duration = dt * steps
     what = "dt(y)" if part == "all" else "the explicit terms of dt(y)"
     if eigenvalues.size == 0:
@@ -299,3 +309,20 @@ def explicit_limit(model, scheme: str, dt: float, steps: int, t_end: float | Non
                      f"|λ| of its Jacobian at t = 0: {rho:.3g}, by {how}) would grow a mode by a factor "
                      f"{_growth(R, eigenvalues, dt, duration):.3g} over the run that the equations do not; use "
                      f"`app.dt={_fitted(0.9 * limit, t_end)}` (stable up to ≈ {limit:.3g}) or an implicit integrator")
+
+
+def suggested_dt(model, scheme: str, dt: float, steps: int, t_end: float | None, known: float | None) -> float:
+    """A step for a run that diverged at ``dt``: min(0.9 × the stability limit, dt/4) — the limit the
+    smaller of ``known`` (the diffusion limit) and the explicit part's at the initial state — as a
+    whole number of steps to ``t_end``. dt/4 where no limit applies (an implicit scheme whose
+    bounds or growth failed: a quarter step keeps e.g. Allen–Cahn's explicit reaction monotone)."""
+    limit = known if known is not None and np.isfinite(known) else float("inf")
+    try:
+        estimate = _estimate(model, scheme, dt, steps)
+    except (ModelError, ValueError, FloatingPointError):
+        estimate = None
+    if estimate is not None and estimate[1].size:
+        R, eigenvalues, _how, _part = estimate
+        limit = min(limit, largest_stable_dt(R, eigenvalues, dt, dt * steps) or limit)
+    step = min(0.9 * limit, dt / 4)
+    return float(_fitted(step, t_end))

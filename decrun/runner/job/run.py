@@ -51,8 +51,8 @@ from decrun.runner.job.failures import (
 )
 from decrun.runner.job.hints import cli_message, memory_hint, plugin_name, resolution_message
 from decrun.runner.job.plugins import Recent
-from decrun.runner.job.verdict import unstable_verdict
 from decrun.runner.job.progress import make_progress, task
+from decrun.runner.job.verdict import unstable_verdict
 from decrun.runner.mesh import Mesh
 from decrun.runner.results import write_metrics_json, write_result
 from decrun.runner.results.checked import RESULT_RECORD

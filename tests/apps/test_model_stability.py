@@ -199,10 +199,17 @@ def test_allen_cahn_blowing_up_without_bounds_is_unstable(tmp_path):
     assert record["stable"] is False and "grew to" in record["unstable_reason"], record
 
 
-@pytest.mark.parametrize("bounds", ["[1,-1]", "[0]", "[0,inf]"])
-def test_bad_bounds_are_refused_naming_the_key(tmp_path, bounds):
+@pytest.mark.parametrize("bounds, says", [("[1,-1]", "bounds are [lo, hi], two finite numbers with lo < hi"),
+                                          ("[0]", "bounds are [lo, hi]"), ("[0,inf]", "must be a finite number")])
+def test_bad_bounds_are_refused_naming_the_key(tmp_path, bounds, says):
     line = refused(decrun("app=heat", f"+app.fields.u.bounds={bounds}", *FAST, cwd=tmp_path))
-    assert line.startswith("error: app.fields.u.bounds"), line
+    assert line.startswith("error: app.fields.u.bounds") and says in line, line
+
+
+def test_good_bounds_run(tmp_path):
+    """Heat keeps u(0) = xy within [-1/2, 1/2] (a maximum principle on the sphere's harmonic)."""
+    proc = decrun("app=heat", "+app.fields.u.bounds=[-0.5,0.5]", *FAST, "hydra.run.dir=ok", cwd=tmp_path)
+    assert proc.returncode == 0 and metrics(tmp_path / "ok")["stable"] is True, proc.stderr
 
 
 def test_bounds_on_a_field_nothing_evolves_are_refused(tmp_path):
@@ -225,3 +232,52 @@ def test_explicit_smoothing_far_beyond_its_critical_step_says_so_on_its_own_line
     proc = decrun("app=smoothing", "app.scheme=explicit", *fix, *FAST, "hydra.run.dir=fixed", cwd=tmp_path)
     assert proc.returncode == 0 and metrics(tmp_path / "fixed")["stable"] is True, proc.stderr
     assert "UNSTABLE" not in proc.stdout
+
+
+# ------------------------------------------------------------------------------ the estimate itself
+class _Flaky:
+    """A Jacobian J = diag(−1, −2, …, −n) whose products ARPACK asks for are NaN (its iteration
+    fails), while the probed matrix is finite."""
+
+    def __init__(self, n: int):
+        self.n, self.calls = n, 0
+        self.diagonal = -np.arange(1.0, n + 1)
+
+    def matvec(self, v):
+        self.calls += 1
+        return self.diagonal * np.real(np.asarray(v)).ravel() * np.nan
+
+    def dense(self):
+        return np.diag(self.diagonal)
+
+
+def test_a_failed_arpack_falls_back_to_gershgorins_bound():
+    """No traceback: the eigen-solve's failure gives ρ ≤ max_i Σ_j |J_ij| = n from the probed matrix."""
+    from decrun.methods.model.stability import DENSE_MAX, spectrum_sample
+
+    values, how = spectrum_sample(_Flaky(DENSE_MAX + 100))
+    assert how == "gershgorin" and np.max(np.abs(values)) == DENSE_MAX + 100
+
+
+def test_the_diffusion_eigen_solve_returns_nan_instead_of_raising_on_an_infinite_matrix():
+    import scipy.sparse as sp
+
+    from decrun.methods.mean_curvature_flow import DENSE_EIGEN_MAX, largest_eigenvalue
+
+    n = DENSE_EIGEN_MAX + 36
+    S = sp.diags(np.r_[np.inf, np.ones(n - 1)]).tocsr()
+    assert np.isnan(largest_eigenvalue(S, np.ones(n)))
+
+
+def test_the_stability_functions_are_the_schemes():
+    """R(z) of forward Euler 1 + z; of RK4 the degree-4 Taylor polynomial of e^z; ARK's explicit
+    tableau is third order: R(z) − e^z = O(z⁴)."""
+    from decrun.methods.model.stability import stability_function
+
+    z = np.array([-0.01, 0.02j, -2.0])
+    assert np.allclose(stability_function("explicit_euler")(z), 1 + z)
+    assert np.allclose(stability_function("rk4")(z), 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24)
+    small = np.array([1e-2, 5e-3])
+    error = np.abs(stability_function("ark_imex")(small) - np.exp(small))
+    assert np.log2(error[0] / error[1]) > 3.8
+    assert stability_function("crank_nicolson") is None

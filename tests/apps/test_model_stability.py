@@ -199,6 +199,15 @@ def test_allen_cahn_blowing_up_without_bounds_is_unstable(tmp_path):
     assert record["stable"] is False and "grew to" in record["unstable_reason"], record
 
 
+def test_a_run_forced_from_rest_is_not_mistaken_for_growth(tmp_path):
+    """u(0) = 0 and a forcing sin(t)·x that is 0 at t = 0: the scale comes from the forcing later
+    in the run (T·max|sin(t) x|), so the honest growth from 0 stays stable."""
+    proc = decrun("app=heat", "app.fields.u.initial=0", "app.equations=[\"dt(u) = k*laplacian(u) + sin(t)*x\"]",
+                  "app.t_end=10", "app.dt=0.01", *FAST, "hydra.run.dir=ok", cwd=tmp_path)
+    assert proc.returncode == 0 and metrics(tmp_path / "ok")["stable"] is True, proc.stderr
+    assert "UNSTABLE" not in proc.stdout
+
+
 @pytest.mark.parametrize("bounds, says", [("[1,-1]", "bounds are [lo, hi], two finite numbers with lo < hi"),
                                           ("[0]", "bounds are [lo, hi]"), ("[0,inf]", "must be a finite number")])
 def test_bad_bounds_are_refused_naming_the_key(tmp_path, bounds, says):

@@ -6,8 +6,9 @@ After every step :class:`GrowthWatch` checks the evolved fields:
   (to round-off: :data:`BOUND_SLACK` of the interval's size);
 - without bounds, no evolved field may exceed :data:`GROWTH_FACTOR` × the run's scale, the
   largest of max|u(0)| over the evolved fields and of T·max|dt(u)(0)| (T the run's duration:
-  what the initial rate would reach). A model that starts from 0 with no initial rate takes
-  its scale from the first step that moves it.
+  what the initial rate would reach). A model that starts from 0 with no rate at t = 0 takes
+  the rate of its initial state at t = T/4, T/2, 3T/4, T (a forcing that starts at 0); one
+  with none of these takes its scale from the first step that moves it.
 
 A field that leaves either is a diverged run: the step loop stops there with ``stable: false``,
 ``diverged_at_step`` and the reason (:func:`decrun.methods.stepping.run_steps`), keeping what it
@@ -38,9 +39,14 @@ class GrowthWatch:
         if self.names:
             state = {name: np.asarray(model.initial_values[name], dtype=np.float64) for name in model.evolved}
             initial = max(float(np.max(np.abs(state[name]), initial=0.0)) for name in self.names)
-            with np.errstate(all="ignore"):
-                rate = model.derivative(model.environment(state, 0.0), self.names)
-            rates = [float(np.max(np.abs(np.asarray(rate[name], dtype=np.float64)), initial=0.0)) for name in self.names]
+            rates = []
+            for t in np.linspace(0.0, duration, 5):  # a time-dependent forcing may vanish at t = 0
+                with np.errstate(all="ignore"):
+                    rate = model.derivative(model.environment(state, float(t)), self.names)
+                rates += [float(np.max(np.abs(np.asarray(rate[name], dtype=np.float64)), initial=0.0))
+                          for name in self.names]
+                if initial > 0 or any(value > 0 for value in rates):
+                    break
             finite = [value for value in rates if np.isfinite(value)]
             self.scale = max([initial, duration * max(finite, default=0.0)])
 

@@ -48,13 +48,14 @@ from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
 from decrun.methods.model.explain import explain
 from decrun.methods.model.growth import GrowthWatch
+from decrun.methods.model.indefinite_stars import refuse_indefinite_stars
 from decrun.methods.model.integrators import FROZEN, check_integrator, explicit_stability_limit, make_integrator
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.language import names_in, parse_equation
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.parts import PartSpec, compose_parts
 from decrun.methods.model.require import check_requirements, parse_requirement
-from decrun.methods.model.stability import explicit_limit, refuse_indefinite_stars, refuse_nonfinite_terms, suggested_dt
+from decrun.methods.model.stability import explicit_limit, refuse_nonfinite_terms, suggested_dt
 from decrun.methods.model.stepper import ModelStepper
 from decrun.methods.stepping import run_steps
 

@@ -87,6 +87,18 @@ def test_zero_star1_on_the_grid_is_refused_without_an_arpack_traceback(tmp_path)
     assert proc.returncode == 0 and metrics(tmp_path / "fixed")["stable"] is True, proc.stderr
 
 
+def test_heat_weighted_by_a_negative_circumcentric_star0_is_refused_and_mixed_area_runs(tmp_path):
+    """The bunny's circumcentric ⋆0 has 47 negative dual areas: heat grew ×1e9 in 10
+    Crank–Nicolson steps with stable: true. Refused naming ⋆0; the named operator=mixed_area runs."""
+    case = ["app=heat", "mesh=bunny", "app.t_end=0.01", *FAST]
+    line = refused(decrun(*case, "operator=circumcentric", cwd=tmp_path))
+    assert "weighted by ⋆0 of operator=circumcentric" in line and "47 negative entries" in line, line
+    fix = overrides(line)
+    assert fix == ["operator=mixed_area"], line
+    proc = decrun(*case, *fix, "hydra.run.dir=fixed", cwd=tmp_path)
+    assert proc.returncode == 0 and metrics(tmp_path / "fixed")["stable"] is True, proc.stderr
+
+
 # ------------------------------------------------------------------------------ zero divisors
 @pytest.mark.parametrize("integrator, equation, term", [
     ("explicit_euler", "dt(u) = laplacian(u) + u/x", "u / x"),

@@ -48,12 +48,15 @@ from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
 from decrun.methods.model.borders import check_integrator, make_integrator
 from decrun.methods.model.explain import explain
+from decrun.methods.model.growth import GrowthWatch
+from decrun.methods.model.indefinite_stars import refuse_indefinite_stars
 from decrun.methods.model.integrators import FROZEN, explicit_stability_limit
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.language import names_in, parse_equation
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.parts import PartSpec, compose_parts
 from decrun.methods.model.require import check_requirements, parse_requirement
+from decrun.methods.model.stability import explicit_limit, refuse_nonfinite_terms, suggested_dt
 from decrun.methods.model.stepper import ModelStepper
 from decrun.methods.stepping import run_steps
 
@@ -85,13 +88,16 @@ class FieldOptions:
     expression of x, y, z, a list of expressions (a vector field, for 1- and 2-forms),
     ``random``, ``vertex(i)`` or ``result:<field>``; ``dirichlet`` its values on the border
     simplices (null: natural; may read t), ``neumann`` the outward normal derivative ∂u/∂n,
-    ``robin`` ``{alpha, value}``: ∂u/∂n + α u = value (:mod:`decrun.methods.model.borders`)."""
+    ``robin`` ``{alpha, value}``: ∂u/∂n + α u = value (:mod:`decrun.methods.model.borders`);
+    ``bounds`` [lo, hi] the range an evolved field must stay in (null: only runaway growth is
+    watched, :mod:`decrun.methods.model.growth`)."""
 
     form: str = "0"
     initial: Any = None
     dirichlet: Any = None
     neumann: Any = None
     robin: Any = None
+    bounds: Optional[List[float]] = None
 
 
 #: the longest plot name: its figure ``<name>.png`` is a file name (255 bytes on most file systems)
@@ -150,6 +156,17 @@ def _check_definition_chain(equations: list, keys: list) -> None:
                 raise ConfigError(f"{parsed[name][1]}: {name} reads a chain of {depth[name]} definitions, each reading "
                                   f"the next; a chain is at most {MAX_DEFINITION_CHAIN} long: merge definitions "
                                   "into fewer (e.g. v3 = v1 + 2 instead of v2 = v1 + 1, v3 = v2 + 1)")
+
+
+def _check_bounds(bounds, key: str) -> None:
+    """ConfigError unless ``bounds`` is None or [lo, hi], two finite numbers with lo < hi."""
+    if bounds is None:
+        return
+    values = list(bounds) if isinstance(bounds, (list, tuple)) or hasattr(bounds, "__len__") else [bounds]
+    numbers = [value for value in values if isinstance(value, (int, float)) and not isinstance(value, bool)]
+    if len(values) != 2 or len(numbers) != 2 or not all(math.isfinite(v) for v in numbers) or numbers[0] >= numbers[1]:
+        raise ConfigError(f"{key}: bounds are [lo, hi], two finite numbers with lo < hi, got {list(values)!r}; e.g. "
+                          f"`++{key}=[-1,1]` (or null: no bounds)")
 
 
 @dataclass
@@ -264,6 +281,7 @@ class Model(App):
         for name, options in self.fields.items():
             if isinstance(options, dict):  # Python callers
                 self.fields[name] = FieldOptions(**options)
+            _check_bounds(self.fields[name].bounds, f"app.fields.{name}.bounds")
         for name, plot in self.plots.items():
             _check_plot_name(name)
             if isinstance(plot, dict):  # Python callers
@@ -275,6 +293,7 @@ class Model(App):
             for field_name, options in part.fields.items():
                 if isinstance(options, dict):
                     part.fields[field_name] = FieldOptions(**options)
+                _check_bounds(part.fields[field_name].bounds, f"app.parts.{name}.fields.{field_name}.bounds")
         defaults, owners = _part_constants(self.parts, lambda name: name in self.constants, "app")
         for name, value in defaults.items():  # a Python caller's parts: their defaults become the model's
             self.constants.setdefault(name, value)
@@ -335,11 +354,14 @@ class Model(App):
             return
         model.check_compatibility()
         self._check_plots(model)
+        self._bounds(model)  # declared bounds name evolved fields
         steps = self.total_steps()
         if not model.is_static:
             check_integrator(model, str(self.integrator), self.dt)
+            refuse_indefinite_stars(model, str(self.integrator))
         if model.is_static or not self.stability_check or steps == 0:
             return
+        refuse_nonfinite_terms(model)
         limit, source = explicit_stability_limit(model, str(self.integrator), model.initial_values)
         if self.dt > limit:
             if self.t_end is not None:  # a whole number of steps to t_end, each below 0.9 × the limit
@@ -354,7 +376,24 @@ class Model(App):
                               f"integrator={self.integrator} for dt({name}) on this mesh (2.785/λ_max for rk4, "
                               f"2/λ_max for Euler, λ_max of {part}); use `app.dt={safe}` or "
                               f"`app.integrator={implicit}`")
+        explicit_limit(model, str(self.integrator), self.dt, steps, self.t_end)  # every explicit term, not diffusion only
         self._stability_limit = limit
+
+    def _bounds(self, model) -> dict[str, tuple[float, float]]:
+        """field → (lo, hi) of every declared ``bounds`` (the model's own and its parts'); ConfigError
+        for bounds on a field that no ``dt(…)`` evolves (only evolved fields are watched)."""
+        declared = [(f"app.fields.{name}.bounds", name, options.bounds) for name, options in self.fields.items()]
+        declared += [(f"app.parts.{part}.fields.{name}.bounds", name, options.bounds)
+                     for part, options_of in self.parts.items() for name, options in options_of.fields.items()]
+        out = {}
+        for key, name, bounds in declared:
+            if bounds is None:
+                continue
+            if name not in model.evolved:
+                raise ConfigError(f"{key}: {name} is not evolved (no dt({name}) equation), and bounds watch the evolved "
+                                  f"fields; drop it (`{key}=null`)")
+            out[name] = (float(bounds[0]), float(bounds[1]))
+        return out
 
     def _check_plots(self, model) -> None:
         """Every ``app.plots`` entry names a value to colour (a primal or dual 0-form) and a vector
@@ -405,13 +444,16 @@ class Model(App):
         else:
             with ctx.task(f"{self.model}: {self.integrator} set-up"):
                 integrator = make_integrator(model, str(self.integrator), self.dt, ctx.new_solver, self.rtol, self.atol)
-            stepper = ModelStepper(model, integrator, self.dt)
+            stepper = ModelStepper(model, integrator, self.dt, watch=GrowthWatch(model, self._bounds(model), self.dt * steps))
             report = run_steps(stepper, steps, progress=ctx.progress, record=ctx.record, record_every=self.record_every,
                                checkpoint=ctx.checkpoint, desc=self.model)
             env = stepper.environment()
         metrics = model_metrics(model, env, report, integrator=integrator, dt=self.dt,
                                 integrator_name=str(self.integrator),
                                 stability_limit=getattr(self, "_stability_limit", None))
+        if report is not None and not report.stable:  # the runner's verdict line names it (app.dt=…)
+            metrics["dt_suggested"] = suggested_dt(model, str(self.integrator), self.dt, steps, self.t_end,
+                                                   getattr(self, "_stability_limit", None))
         for line in model.kernel_lines():
             ctx.log(line)
         newton = {f"{item.unknown}_newton_residuals": np.asarray(item.residual_norms, dtype=np.float64)

@@ -127,7 +127,7 @@ def largest_eigenvalue(S: sp.spmatrix, M: np.ndarray | sp.spmatrix) -> float:
                                     maxiter=20 * n)[0])
         return float(spla.eigsh(S, k=1, M=M.tocsc(), which="LA", tol=1e-8, return_eigenvectors=False, v0=v0,
                                 maxiter=20 * n)[0])
-    except spla.ArpackNoConvergence:
+    except (spla.ArpackNoConvergence, spla.ArpackError):  # an ARPACK failure is no estimate, never a traceback
         return float("nan")
 
 

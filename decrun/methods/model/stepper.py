@@ -21,8 +21,10 @@ class ModelStepper:
 
     record_divergent_step = False
 
-    def __init__(self, model, integrator, dt: float, t0: float = 0.0):
+    def __init__(self, model, integrator, dt: float, t0: float = 0.0, watch=None):
         self.model, self.integrator, self.dt, self.t0 = model, integrator, float(dt), float(t0)
+        #: a :class:`~decrun.methods.model.growth.GrowthWatch`: declared bounds and runaway growth (None: none)
+        self.watch = watch
         # fixed (Dirichlet) values hold from t = 0: the first step must not see the initial value's border
         self.state = _enforce(model, {name: np.array(model.initial_values[name], dtype=np.float64)
                                       for name in model.evolved})
@@ -54,7 +56,7 @@ class ModelStepper:
         self.state = {name: np.asarray(value, dtype=np.float64) for name, value in state.items()}
         self.n = n
         self._env = None
-        return ""
+        return self.watch.check(self.state, n) if self.watch is not None else ""
 
     def state_dict(self) -> dict:
         state = {"fields": dict(self.state), "n": self.n}

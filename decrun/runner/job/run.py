@@ -52,6 +52,7 @@ from decrun.runner.job.failures import (
 from decrun.runner.job.hints import cli_message, memory_hint, plugin_name, resolution_message
 from decrun.runner.job.plugins import Recent
 from decrun.runner.job.progress import make_progress, task
+from decrun.runner.job.verdict import unstable_verdict
 from decrun.runner.mesh import Mesh
 from decrun.runner.results import write_metrics_json, write_result
 from decrun.runner.results.checked import RESULT_RECORD
@@ -582,6 +583,9 @@ def _run(cfg: DictConfig, out: Path, *, multirun: bool, verbose: bool, log_name:
         except ValueError:
             where = out
         warned = f"; warning: {metrics['warnings']}" if metrics.get("warnings") else ""
+        verdict = unstable_verdict(metrics)
+        if verdict:  # a line of its own: a diverged run is not an answer
+            print(verdict)
         print(f"decrun: wrote {where}/ ({', '.join(p.name for p in written)}, {log_name}.log){warned}")
     return 0
 

@@ -25,7 +25,8 @@ RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random", "solve"}
 RESERVED_METRICS = {"status", "error", "stable", "unstable_reason", "diverged_at_step", "steps_done", "solve_seconds",
                     "steps_per_second", "step_seconds_max", "resumed_from_step", "t_final", "dt", "integrator",
                     "dt_stability_limit", "dt_over_stability_limit", "accepted_steps", "rhs_evaluations",
-                    "headline_metrics", "factorizations", "total_seconds", "n_vertices", "n_faces", "warnings"}
+                    "headline_metrics", "factorizations", "total_seconds", "n_vertices", "n_faces", "warnings",
+                    "dt_suggested"}
 
 
 @dataclass

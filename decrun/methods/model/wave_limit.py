@@ -47,12 +47,13 @@ def oscillatory_stability_limit(model, scheme: str, state: dict) -> tuple[float,
     if J.count_nonzero() == 0:
         return float("inf"), 0.0
     try:
-        value = eigs(J.tocsr(), k=1, which="LM", return_eigenvectors=False, tol=1e-6, maxiter=20 * J.shape[0],
-                     v0=np.ones(J.shape[0]))[0]
+        values = eigs(J.tocsr(), k=min(6, J.shape[0] - 2), which="LM", return_eigenvectors=False, tol=1e-8,
+                      maxiter=20 * J.shape[0], v0=np.ones(J.shape[0]))
     except ArpackNoConvergence as stuck:
         if not len(stuck.eigenvalues):
             return float("inf"), 0.0
-        value = stuck.eigenvalues[0]
+        values = stuck.eigenvalues
+    value = values[np.argmax(np.abs(values))]  # the top of the spectrum is a cluster of waves: six of it
     modulus = float(abs(value))
     beta = IMAGINARY_INTERVAL[scheme]
     if beta == 0.0:

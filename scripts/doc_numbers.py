@@ -898,8 +898,7 @@ SLOW_GALLERY: set[str] = {"model_shallow_water_cases__0", "model_shallow_water_c
 #: runs that compose the same config as another run of the table (tests/test_numbers.py checks
 #: that they do): their numbers are taken from that run's metrics, which is run once
 ALIASES = {"gallery_fig7_15_density_and_time_step__0": "fig7_15_1400_0_005",
-           "gallery_fig7_15_density_and_time_step__1": "fig7_15_2800_0_005",
-           "gallery_model_shallow_water_cases__0": "sw_tc5_5", "gallery_model_shallow_water_cases__1": "sw_galewsky"}
+           "gallery_fig7_15_density_and_time_step__1": "fig7_15_2800_0_005"}
 
 
 def gallery_runs() -> dict[str, Run]:

@@ -74,10 +74,15 @@ def evaluate_real_field(alm: np.ndarray, lmax: int, points: np.ndarray, chunk: i
 
 def load_coefficients(path: str, name: str, where: str) -> tuple[np.ndarray, int]:
     """(the complex coefficients ``name`` of the stored ``.npz`` at ``path``, their truncation T), after
-    checking the file's sha256 against the manifest beside it. Every failure is one line naming ``where``."""
+    checking the file's sha256 against the manifest beside it. A relative ``path`` is taken from the working
+    directory, else from the repository root (``benchmarks/data/…`` from a checkout). Every failure is one line
+    naming ``where``."""
     file = Path(path)
+    if not file.is_file() and not file.is_absolute():  # a path of the repository (benchmarks/data/…) from elsewhere
+        file = Path(__file__).resolve().parents[2] / path
     if not file.is_file():
-        raise ConfigError(f"{where}: {path}: no such file (run from the repository root, or give its absolute path)")
+        raise ConfigError(f"{where}: {path}: no such file, neither from the working directory nor the repository "
+                          f"root ({Path(__file__).resolve().parents[2]}); give its absolute path")
     manifest = file.parent / MANIFEST_NAME
     entry = json.loads(manifest.read_text()).get("files", {}).get(file.name) if manifest.is_file() else None
     if entry is None:

@@ -914,7 +914,7 @@ def _gallery():
 #: error): shown as computed, held only to being this small
 ROUND_OFF = 1e-9
 #: gallery entries whose runs are too heavy for the default suite (checked with -m slow): none
-SLOW_GALLERY: set[str] = set()
+SLOW_GALLERY: set[str] = {"model_shallow_water_cases__0", "model_shallow_water_cases__1"}
 #: runs that compose the same config as another run of the table (tests/test_numbers.py checks
 #: that they do): their numbers are taken from that run's metrics, which is run once
 ALIASES = {"gallery_fig7_15_density_and_time_step__0": "fig7_15_1400_0_005",
@@ -934,6 +934,44 @@ def gallery_runs() -> dict[str, Run]:
                                           {metric: N(metric, atol=ROUND_OFF) for metric in shown},
                                           slow=name in SLOW_GALLERY, derived=gallery.derived_of(entry))
     return runs
+
+
+def shallow_water_drifts(done) -> dict:
+    """The recorded series of a shallow-water run: ``energy_drift`` (E(t_end) − E(0))/E(0) of the total energy
+    Σ A_i (h K + g h (h/2 + b)) (RK4's error only: the spatial scheme conserves it) and ``mass_drift_max``
+    max_t |M(t) − M(0)|/M(0) of the mass Σ A_i h_i."""
+    import numpy as np
+
+    energy = np.asarray(done.result.series["energy"], dtype=float)
+    mass = np.asarray(done.result.series["mass"], dtype=float)
+    return {"energy_drift": float((energy[-1] - energy[0]) / energy[0]),
+            "mass_drift_max": float(np.max(np.abs(mass - mass[0])) / mass[0])}
+
+
+#: the shallow-water convergence tables (docs/models.md, "Rotating shallow water"): each case at subdiv 4, 5, 6
+#: with dt halved per level (every dt ≤ 0.86 of the wave limit); slow: the subdiv-6 runs take minutes
+SHALLOW_WATER_CASES = {
+    "tc2": ("+experiment=williamson_tc2",), "tc2_pole": ("+experiment=williamson_tc2",
+                                                        "app.constants.alpha=0.7853981633974483"),
+    "tc5": ("+experiment=williamson_tc5",), "tc6": ("+experiment=williamson_tc6",)}
+SHALLOW_WATER_DT = {"tc2": (1600, 800, 400), "tc2_pole": (1600, 800, 400), "tc5": (1800, 900, 450),
+                    "tc6": (1200, 600, 300)}
+DRIFT = dict(fmt=".1e", rtol=0.0, atol=1e-13)
+for _case, _overrides in SHALLOW_WATER_CASES.items():
+    for _subdiv, _dt in zip((4, 5, 6), SHALLOW_WATER_DT[_case], strict=True):
+        RUNS[f"sw_{_case}_{_subdiv}"] = Run((*_overrides, f"mesh.subdiv={_subdiv}", f"app.dt={_dt}"), {
+            "l1": N("l1_h", ".3g"), "l2": N("l2_h", ".3g"), "linf": N("linf_h", ".3g"),
+            "mass": N("mass_drift_max", **DRIFT), "energy": N("energy_drift", ".2e", rtol=1e-2),
+            "limit": N("dt_stability_limit", ".0f")}, slow=True, derived=shallow_water_drifts)
+RUNS["sw_tc2_lloyd_4"] = Run(("+experiment=williamson_tc2", "mesh.subdiv=4", "app.dt=1600", "mesh.lloyd=2000"),
+                             {"l2": N("l2_h", ".3g")}, slow=True)
+RUNS["sw_tc2_lloyd_5"] = Run(("+experiment=williamson_tc2", "mesh.lloyd=2000"), {"l2": N("l2_h", ".3g")}, slow=True)
+RUNS["sw_galewsky_balanced"] = Run(("+experiment=galewsky", "app.constants.perturbation=0", "app.t_end=432000"), {
+    "l2": N("l2_h", ".3g"), "max": N("depth_change_max_m", ".0f"), "mass": N("mass_drift_max", **DRIFT),
+    "energy": N("energy_drift", ".2e", rtol=1e-2)}, slow=True, derived=shallow_water_drifts)
+RUNS["sw_galewsky"] = Run(("+experiment=galewsky",), {
+    "vorticity": N("vorticity_max", ".3g"), "mass": N("mass_drift_max", **DRIFT),
+    "energy": N("energy_drift", ".2e", rtol=1e-2)}, slow=True, derived=shallow_water_drifts)
 
 
 def all_runs() -> dict[str, Run | Source]:

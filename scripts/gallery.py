@@ -222,6 +222,14 @@ MODELS = {
                             "latitude map.", [
         (["app=shallow_water"], "depth_error", ["l2_h", "linf_h", "mass_drift", "n_vertices"], None),
     ]),
+    "model_shallow_water_cases": ("Williamson's test case 5 (`+experiment=williamson_tc5` at its defaults: zonal flow "
+                                  "over a conical mountain, subdiv 5): the depth minus the T170 spectral reference at "
+                                  "the end (m); and Galewsky's jet (`+experiment=galewsky` "
+                                  "at its defaults, subdiv 5): the relative vorticity at day 6 (s⁻¹) over the northern "
+                                  "hemisphere.", [
+        (["+experiment=williamson_tc5"], "depth_error", ["l2_h", "linf_h", "mass_drift", "n_vertices"], None),
+        (["+experiment=galewsky"], "vorticity_map", ["vorticity_max", "mass_drift", "n_vertices"], None),
+    ]),
 }
 
 

@@ -232,6 +232,13 @@ ALLOWED: dict[str, dict[str, str]] = {
         "Python's stack holds about 450 links,\n  so beyond 300 it says":
             "the bound of the code and its reason (the comment of decrun.apps.model.MAX_DEFINITION_CHAIN)",
         "at most 10 000 nodes in one file": "a bound of the code (decrun.runner.io.config_files.MAX_ALIASED_NODES)",
+        "subdiv 5 for 15 days": "the experiment's config (conf/experiment/williamson_tc5.yaml)",
+        "composite Simpson on 20001 latitudes": "a constant of the code (sphere_functions.LATITUDE_SAMPLES)",
+        "reference of **day 15**": "the stored reference's day (benchmarks/data/shallow_water_reference.json)",
+        "reference of **day 10** (the day GME publishes); day 14,": "the stored references' days (benchmarks/data)",
+        "(TC5 day 15, TC6 day 10)": "the stored references' days (benchmarks/data)",
+        "publishes l2(h) 1.37e-3 (TC5) and 9.01e-3 (TC6) at\nsubdiv 5 and 7.21e-4 and 2.89e-3 at subdiv 6":
+            "citation (GME's published errors, /work/shared/SHALLOW_WATER.md)",
     },
     "gallery.md": {
         "(1280 triangles, none obtuse)": "the mesh (icosphere subdiv 3: 20·4³ faces)",

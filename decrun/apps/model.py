@@ -42,6 +42,7 @@ from typing import Any, Dict, List, Optional
 import numpy as np
 
 from decrun.apps.base import App, Context, FieldOnEdges, Figure, Output, Result
+from decrun.apps.model_checks import check_wave_limit
 from decrun.apps.model_plots import PlotOptions, check_plot_names, check_plot_options, plot_figure
 from decrun.core.choices import Choice
 from decrun.errors import ConfigError
@@ -363,6 +364,8 @@ class Model(App):
             return
         refuse_nonfinite_terms(model)
         limit, source = explicit_stability_limit(model, str(self.integrator), model.initial_values)
+        if not np.isfinite(limit):  # no diffusion block: the fastest oscillation (waves) at t = 0
+            limit = check_wave_limit(model, str(self.integrator), self.dt, self.t_end)
         if self.dt > limit:
             if self.t_end is not None:  # a whole number of steps to t_end, each below 0.9 × the limit
                 safe = repr(self.t_end / math.ceil(self.t_end / (0.9 * limit)))

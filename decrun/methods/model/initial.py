@@ -19,6 +19,10 @@ A value is given as
   of div X over each top simplex (Stokes) — the flux of a velocity, for one model on triangles and
   tetrahedra (``app=darcy``);
 - ``vertex(i)``: the indicator of vertex i (0-forms);
+- ``latitude_integral(F)`` inside an expression: ∫_{−π/2}^{θ} F dθ' of a function F of the latitude, its sphere
+  mean removed (:mod:`decrun.methods.model.sphere_functions`);
+- ``{spherical_harmonics: <file.npz>, coefficients: <array>}``: a stored spectral field (its sha256 checked
+  against the manifest beside it) at the vertices or circumcentres (:mod:`decrun.methods.spherical_harmonics`);
 - ``result:<field>``: the field of a previous run, chained with ``mesh=result mesh.field=<field>``.
 """
 
@@ -45,6 +49,7 @@ from decrun.methods.model.language import (
     to_text,
 )
 from decrun.methods.model.operators import OPERATORS, Discrete
+from decrun.methods.model.sphere_functions import latitude_integral
 
 __all__ = ["sample", "PointExpression"]
 
@@ -63,11 +68,35 @@ class PointExpression:
         self.where, self.constants = where, constants
         self.tree = parse_expression(text, where)
         self._check(self.tree)
+        self.integrals: list[tuple[str, PointExpression]] = []
+        tree = self._lift_integrals(self.tree, dec)
         kinds = {name: NUMBER for name in constants}
         kinds["random"] = primal(0)
-        compiler = Compiler(Discrete(dec), kinds, varying={"x", "y", "z", "random"})
+        kinds.update({name: primal(0) for name, _ in self.integrals})
+        compiler = Compiler(Discrete(dec), kinds, varying={"x", "y", "z", "random", *kinds})
         compiler.static_env = {"pi": float(np.pi), **{k: float(v) for k, v in constants.items()}}
-        self.evaluate = compiler.compile(self.tree, where)
+        self.evaluate = compiler.compile(tree, where)
+
+    def _lift_integrals(self, node: Node, dec) -> Node:
+        """``latitude_integral(F)`` needs F on meridians, not at the points: each is replaced by a
+        name that :meth:`at` binds to :func:`~decrun.methods.model.sphere_functions.latitude_integral`
+        of F (its own expression)."""
+        if isinstance(node, Negate):
+            return Negate(self._lift_integrals(node.operand, dec))
+        if isinstance(node, Binary):
+            return Binary(node.op, self._lift_integrals(node.left, dec), self._lift_integrals(node.right, dec))
+        if not isinstance(node, Call):
+            return node
+        if node.function != "latitude_integral":
+            return Call(node.function, tuple(self._lift_integrals(arg, dec) for arg in node.args))
+        from decrun.methods.model.language import names_in
+
+        if "random" in names_in(node.args[0]):
+            raise ModelError(f"{self.where}: latitude_integral(F) integrates a function of the latitude; F may not "
+                             "use random")
+        name = f"_latitude_integral_{len(self.integrals)}"
+        self.integrals.append((name, PointExpression(to_text(node.args[0]), self.where, self.constants, dec)))
+        return Name(name)
 
     def _check(self, node: Node) -> None:
         if isinstance(node, Number):
@@ -93,7 +122,7 @@ class PointExpression:
             operator = OPERATORS.get(node.function)  # the registry's value-by-value operators (plugins' too)
             allowed = operator is not None and operator.pointwise and len(node.args) in operator.arity and \
                 (node.function not in ("min", "max") or len(node.args) == 2) or \
-                node.function == "vertex" and len(node.args) == 1
+                node.function in ("vertex", "latitude_integral") and len(node.args) == 1
             if not allowed:
                 raise ModelError(f"{self.where}: {to_text(node)}: an initial or border value is an expression of the "
                                  "coordinates (exp, sin, sqrt … of x, y, z); operators such as laplacian belong in "
@@ -122,11 +151,13 @@ class PointExpression:
         """(N,) values at ``points`` (N, d); ``n_vertices`` set when the points are the vertices
         (``vertex(i)`` is only defined there)."""
         points = np.asarray(points, dtype=np.float64)
-        env = {"x": points[:, 0], "y": points[:, 1] if points.shape[1] > 1 else np.zeros(len(points)),
-               "z": points[:, 2] if points.shape[1] > 2 else np.zeros(len(points)), "pi": np.pi,
-               **{k: float(v) for k, v in self.constants.items()}}
+        env = self._environment(points)
         if self.uses("random"):
             env["random"] = rng.uniform(-1.0, 1.0, len(points))
+        for name, integrand in self.integrals:  # F on the meridians, integrated in the latitude
+            with np.errstate(all="ignore"):
+                env[name] = latitude_integral(lambda meridian, F=integrand: F.evaluate(F._environment(meridian)),
+                                              points, self.where)
         if n_vertices is None and self.has_vertex():
             raise ModelError(f"{self.where}: vertex(i) is a 0-form (an indicator at a vertex); use it for a field "
                              "with form: 0")
@@ -146,6 +177,11 @@ class PointExpression:
                              f"{np.round(points[index], 6).tolist()}); change the expression there")
         return out
 
+    def _environment(self, points: np.ndarray) -> dict:
+        return {"x": points[:, 0], "y": points[:, 1] if points.shape[1] > 1 else np.zeros(len(points)),
+                "z": points[:, 2] if points.shape[1] > 2 else np.zeros(len(points)), "pi": np.pi,
+                **{k: float(v) for k, v in self.constants.items()}}
+
 
 def _rng(seed: int, name: str) -> np.random.Generator:
     """A generator seeded by the model's seed and the field's name (the same every run)."""
@@ -162,6 +198,8 @@ def sample(value, kind: Kind, dec, where: str, *, constants: dict[str, float], s
         return _chained(value.strip()[len("result:"):].strip(), kind, K, where, chained)
     if isinstance(value, (list, tuple)):
         return _vector(value, kind, dec, where, constants, rng)
+    if isinstance(value, Mapping) and "spherical_harmonics" in value:
+        return _spherical_harmonics(value, kind, dec, where)
     if isinstance(value, Mapping):
         return _flux(value, kind, dec, where, constants, rng)
     if isinstance(value, bool):
@@ -186,6 +224,23 @@ def sample(value, kind: Kind, dec, where: str, *, constants: dict[str, float], s
     what = "line integral along each edge" if kind.degree == 1 else "flux through each face"
     raise ModelError(f"{where}: a {kind} is sampled from a vector field: give a list of {K.embedding_dim} expressions "
                      f"(e.g. {example}), its {what}")
+
+
+def _spherical_harmonics(value, kind: Kind, dec, where: str) -> np.ndarray:
+    """``{spherical_harmonics: <file.npz>, coefficients: <array>}``: the stored real field at the vertices
+    (a 0-form) or the circumcentres (a dual 0-form) of a mesh in R³
+    (:func:`decrun.methods.spherical_harmonics.evaluate_real_field`)."""
+    from decrun.methods.spherical_harmonics import evaluate_real_field, load_coefficients
+
+    K = dec.K
+    if set(value) != {"spherical_harmonics", "coefficients"}:
+        raise ModelError(f"{where}: a stored spectral field is {{spherical_harmonics: <file.npz>, coefficients: "
+                         f"<array>}}, got the keys {sorted(value)}")
+    if K.embedding_dim != 3 or not (kind == primal(0) or kind.dual and kind.degree == 0):
+        raise ModelError(f"{where}: a spherical-harmonic field is a 0-form or dual 0-form on a mesh in R³, not a {kind}")
+    alm, lmax = load_coefficients(str(value["spherical_harmonics"]), str(value["coefficients"]), where)
+    points = K.vertices if kind == primal(0) else dec.circumcenters(K.dim)
+    return evaluate_real_field(alm, lmax, points)
 
 
 def _vector(value, kind: Kind, dec, where: str, constants, rng) -> np.ndarray:

@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.errors import ConfigError
-from decrun.methods.model import discrete, sphere_operators, vector_derivatives
+from decrun.methods.model import discrete, sphere_functions, sphere_operators, vector_derivatives
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
 
 __all__ = ["Linear", "Discrete", "Operator", "OPERATORS", "ALIASES", "POINTWISE", "Mismatch", "reference_table",
@@ -618,7 +618,7 @@ for _name, _function in POINTWISE.items():
     _register(pointwise(_name, _function, POINTWISE_DERIVATIVES[_name], f"{_name} of each value"))
 
 # rotating shallow water (TRiSK): mass_flux, kinetic_energy, vorticity, kite_average, coriolis
-for _operator in sphere_operators.built_in_operators():
+for _operator in sphere_operators.built_in_operators() + sphere_functions.built_in_operators():
     _register(_operator)
 
 #: other spellings of the operators

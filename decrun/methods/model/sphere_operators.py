@@ -16,6 +16,7 @@ operator's matrices are TRiSK's, built once per :class:`~decrun.core.dec.DEC` an
 
 from __future__ import annotations
 
+import numpy as np
 import scipy.sparse as sp
 
 from decrun.core.trisk import TRiSK
@@ -25,8 +26,32 @@ __all__ = ["built_in_operators", "trisk_of"]
 
 
 def trisk_of(ops) -> TRiSK:
-    """The :class:`TRiSK` operators of ``ops.dec``'s mesh, built once and cached on the DEC."""
-    return ops.dec.require("trisk", lambda: TRiSK(ops.dec))
+    """The :class:`TRiSK` operators of ``ops.dec``'s mesh, built once and cached on the DEC; a mesh that is
+    not a sphere centred at the origin is refused first, in one line naming ``mesh=`` and the fix."""
+    def build() -> TRiSK:
+        require_sphere(ops.dec.K.vertices)
+        return TRiSK(ops.dec)
+
+    return ops.dec.require("trisk", build)
+
+
+def require_sphere(vertices, rtol: float = 1e-9) -> float:
+    """The radius of the sphere centred at the origin that holds ``vertices`` (n, 3), else one
+    :class:`~decrun.errors.MeshError` line: the shallow-water operators are TRiSK's on a sphere."""
+    from decrun.errors import MeshError
+
+    vertices = np.asarray(vertices, dtype=np.float64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise MeshError(f"mesh: the shallow-water operators need a sphere in R³, got points in R^{vertices.shape[-1]}; "
+                        "use mesh=icosphere_earth")
+    distance = np.linalg.norm(vertices, axis=1)
+    radius = float(distance.mean())
+    worst = int(np.argmax(np.abs(distance - radius)))
+    if not radius > 0 or abs(distance[worst] - radius) > rtol * radius:
+        raise MeshError(f"mesh: not a sphere centred at the origin (vertex {worst} is {distance[worst]:.6g} from the "
+                        f"origin, the mean {radius:.6g}): the shallow-water operators (TRiSK) need one; use "
+                        "mesh=icosphere_earth (or mesh=icosphere mesh.noise=0 mesh.radius=<m>)")
+    return radius
 
 
 def _expect(name: str, kind: Kind, wanted: Kind, what: str) -> None:

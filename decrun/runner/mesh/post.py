@@ -37,7 +37,7 @@ from decrun.runner.mesh.cut import cut_holes as split_along_holes
 from decrun.runner.mesh.holes import cut_holes as remove_triangles_in_holes
 from decrun.runner.mesh.repair import cached_repair, up_axis_to_z
 
-__all__ = ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise"]
+__all__ = ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise", "lloyd"]
 
 
 def repair(mesh: Mesh, cfg) -> Mesh:
@@ -313,3 +313,40 @@ def noise(mesh: Mesh, cfg) -> Mesh:
     displaced = V + amplitude * rng.standard_normal(len(V))[:, None] * direction
     meta = dict(mesh.meta, clean_vertices=V.copy(), noise_amplitude=amplitude)
     return Mesh(displaced, F, meta)
+
+
+def lloyd(mesh: Mesh, cfg) -> Mesh:
+    """``lloyd``: at most ``lloyd`` steps of Lloyd's iteration towards the spherical centroidal Voronoi
+    tessellation (Du, Gunzburger & Ju 2003; the grid MPAS runs TRiSK on): every vertex moved to the radial
+    projection of its Voronoi cell's centroid, the triangles kept (:func:`decrun.core.sphere_lloyd.lloyd_sphere`),
+    stopping early once no vertex moves by ``lloyd_tolerance`` times the radius. Only for a triangulated sphere
+    centred at the origin (refused in one line otherwise). The result is kept in the mesh cache; the steps done
+    and the last move are in ``meta['lloyd']``."""
+    if cfg.lloyd == 0:
+        return mesh
+    require(cfg.lloyd > 0, "lloyd", f"must be >= 0 (Lloyd iterations), got {cfg.lloyd}")
+    require(cfg.lloyd_tolerance >= 0, "lloyd_tolerance", f"must be >= 0, got {cfg.lloyd_tolerance}")
+    require_surface(mesh, "mesh.lloyd", "mesh.lloyd=0")
+    from decrun.core.sphere_lloyd import lloyd_sphere
+    from decrun.core.trisk import sphere_radius
+
+    if mesh.vertices.shape[1] != 3:
+        raise MeshError("mesh.lloyd: Lloyd's iteration here is on a sphere in R³; use mesh.lloyd=0")
+    try:
+        sphere_radius(mesh.vertices)
+    except MeshError as exc:
+        raise MeshError(f"mesh.lloyd: needs a sphere centred at the origin ({exc.args[0].split(': ', 2)[-1]}); "
+                        "use mesh.lloyd=0 or mesh=icosphere_earth") from None
+
+    def build() -> tuple[np.ndarray, np.ndarray, dict]:
+        vertices, info = lloyd_sphere(mesh.vertices, mesh.simplices, int(cfg.lloyd), float(cfg.lloyd_tolerance))
+        return vertices, mesh.simplices, {"iterations": int(info["iterations"]), "last_move": float(info["last_move"])}
+
+    params = {"input": content_hash(mesh.vertices, mesh.simplices), "iterations": int(cfg.lloyd),
+              "tolerance": float(cfg.lloyd_tolerance)}
+    vertices, faces, info = cached_mesh("lloyd", params, __file__, build)
+    logging.getLogger("decrun").info("mesh.lloyd: %d Lloyd steps, the last moving a vertex by %.3g of the radius",
+                                     info["iterations"], info["last_move"])
+    meta = {k: v for k, v in mesh.meta.items() if k != "clean_vertices"}
+    meta["lloyd"] = dict(info)
+    return Mesh(vertices, faces, meta)

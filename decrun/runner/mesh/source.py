@@ -65,7 +65,7 @@ __all__ = ["MeshSource"]
 
 
 def _default_post() -> List[str]:
-    return ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise"]
+    return ["repair", "up_axis", "clean", "largest_component", "holes", "refine", "normalize", "noise", "lloyd"]
 
 
 @dataclass
@@ -104,6 +104,9 @@ class MeshSource:
     refine_target_edge: float = 0.0  # isotropic only; 0 = keep the mean edge length
     normalize: bool = False  # centre at the bounding-box centre, unit bounding-box diagonal
     noise: float = 0.0  # amplitude relative to the mean edge length, along vertex normals
+    #: Lloyd's iteration towards the spherical centroidal Voronoi grid: at most this many steps (0: off)
+    lloyd: int = 0
+    lloyd_tolerance: float = 1e-12  # stop once no vertex moves by this times the sphere's radius
     seed: int = 0
     #: how the simplicial complex treats orientation: check (report) | fix (re-orient)
     orient: Orient = Orient.check

@@ -192,12 +192,22 @@ EXPERIMENT_EXPECT = {  # what each figure of the thesis shows, as metrics of the
     # Darcy's convergence study, its single run the coarsest square (9 × 9): 1.4 % and 0.79 % off
     # Williamson's TC2 at subdiv 5, 5 days: l2(h) under the 1e-3 (0.47e-3), mass kept exactly
     "williamson_tc2": lambda m: m["stable"] and m["l2_h"] < 1e-3 and abs(m["mass_drift"]) <= 1e-12,
+    # TC5 (15 days) and TC6 (10 days) at subdiv 5 against the T170 references: under GME's 1.37e-3 and 9.01e-3
+    "williamson_tc5": lambda m: m["stable"] and m["l2_h"] < 1.37e-3 and abs(m["mass_drift"]) <= 1e-12,
+    "williamson_tc6": lambda m: m["stable"] and m["l2_h"] < 9.01e-3 and abs(m["mass_drift"]) <= 1e-12,
+    # Galewsky's jet, 6 days at subdiv 5: stable, mass kept
+    "galewsky": lambda m: m["stable"] and m["steps_done"] == 1080 and abs(m["mass_drift"]) <= 1e-12,
     "darcy_convergence": lambda m: (m["divergence_residual"] < 1e-12 and m["pressure_l2_error_rel"] < 0.02
                                     and m["flux_l2_error_rel"] < 0.01),
 }
 
 
-@pytest.mark.parametrize("experiment", options("experiment"))
+#: experiments whose single run takes over 10 s (days of shallow water at subdiv 5)
+SLOW_EXPERIMENTS = {"williamson_tc5", "williamson_tc6", "galewsky"}
+
+
+@pytest.mark.parametrize("experiment", [pytest.param(e, marks=pytest.mark.slow) if e in SLOW_EXPERIMENTS else e
+                                        for e in options("experiment")])
 def test_every_experiment_runs_as_a_single_run(experiment):
     result = run([f"+experiment={experiment}"])
     metrics = result.metrics

@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from decrun.core.complex import SimplicialComplex
+from decrun.core.dec import DEC
 from decrun.errors import ConfigError
 from decrun.methods import williamson as W
 from decrun.methods.model.initial import PointExpression
@@ -68,11 +70,18 @@ def test_arctan2_is_numpys_and_its_derivative_rule_is_exact():
 
 
 # ------------------------------------------------------------------ latitude_integral
+def _octahedron() -> DEC:
+    """The DEC of a unit octahedron: PointExpression compiles on a mesh's operators (values at any points)."""
+    vertices = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    faces = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    return DEC(SimplicialComplex(vertices, faces))
+
+
 def test_latitude_integral_of_cos_is_sin_latitude():
     """∫_{−π/2}^{θ} cos θ' dθ' = sin θ + 1, whose sphere mean is 1: latitude_integral(cos θ) = sin θ = z/|x|
     (to the quadrature's 1e-12), at points of any radius."""
     points = _sphere_points(radius=3.0)
-    expression = PointExpression("latitude_integral(sqrt(x**2 + y**2)/sqrt(x**2 + y**2 + z**2))", "test", {})
+    expression = PointExpression("latitude_integral(sqrt(x**2 + y**2)/sqrt(x**2 + y**2 + z**2))", "test", {}, _octahedron())
     value = expression.at(points, np.random.default_rng(0))
     assert np.abs(value - points[:, 2] / 3.0).max() < 1e-12
 
@@ -91,7 +100,7 @@ def test_latitude_integral_gives_galewskys_balanced_depth():
     nodes, weights = np.polynomial.legendre.leggauss(4000)
     lat = 0.5 * np.pi * nodes
     meridian = np.column_stack([np.cos(lat), 0.0 * lat, np.sin(lat)])
-    value = PointExpression("latitude_integral(z/sqrt(x**2 + y**2 + z**2))", "test", {}).at(meridian, None)
+    value = PointExpression("latitude_integral(z/sqrt(x**2 + y**2 + z**2))", "test", {}, _octahedron()).at(meridian, None)
     assert np.abs(value - (np.pi / 4 - np.cos(lat))).max() < 1e-9  # the spline near the poles: 9.5e-11
     assert abs(0.5 * 0.5 * np.pi * weights @ (value * np.cos(lat))) < 1e-10
 
@@ -103,7 +112,7 @@ def test_latitude_integral_gives_galewskys_balanced_depth():
 ])
 def test_latitude_integral_refuses_what_is_not_a_function_of_the_latitude(text, message):
     with pytest.raises(ModelError, match=message) as refused:
-        PointExpression(text, "app.fields.h.initial", {}).at(_sphere_points(), np.random.default_rng(0))
+        PointExpression(text, "app.fields.h.initial", {}, _octahedron()).at(_sphere_points(), np.random.default_rng(0))
     assert "app.fields.h.initial" in str(refused.value) and "\n" not in str(refused.value)
 
 

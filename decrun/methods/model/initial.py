@@ -72,8 +72,9 @@ class PointExpression:
         tree = self._lift_integrals(self.tree, dec)
         kinds = {name: NUMBER for name in constants}
         kinds["random"] = primal(0)
-        kinds.update({name: primal(0) for name, _ in self.integrals})
-        compiler = Compiler(Discrete(dec), kinds, varying={"x", "y", "z", "random", *kinds})
+        lifted = {name for name, _ in self.integrals}
+        kinds.update(dict.fromkeys(lifted, primal(0)))
+        compiler = Compiler(Discrete(dec), kinds, varying={"x", "y", "z", "random", *lifted})
         compiler.static_env = {"pi": float(np.pi), **{k: float(v) for k, v in constants.items()}}
         self.evaluate = compiler.compile(tree, where)
 

@@ -16,6 +16,7 @@ from decrun.methods.model.kind_inference import KindInference
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, Number, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS
+from decrun.methods.model.powers import fixed_power
 
 __all__ = ["Evaluator"]
 
@@ -71,6 +72,8 @@ class Evaluator(KindInference):
                 return scaled
             left, right = self._compile(node.left, where), self._compile(node.right, where)
             lk, rk = self.kind(node.left, where), self.kind(node.right, where)
+            if node.op == "**" and rk == NUMBER and self.is_static(node.right):  # u**3: products, not pow
+                return fixed_power(left, right)
             return _arithmetic(node.op, left, right, lk, rk)
         if isinstance(node, Call):
             operator = self.operator(node.function, where, node)

@@ -33,8 +33,9 @@ def integer_power(n: int) -> Callable[[np.ndarray], np.ndarray]:
     ``0 < |n| ≤ LARGEST``; a new array, never ``a`` itself."""
     if not (0 < abs(n) <= LARGEST):
         raise ValueError(f"integer_power takes 0 < |n| <= {LARGEST}, got {n}")
-    positive = {1: np.positive, 2: lambda a: a * a, 3: lambda a: a * a * a,
-                4: lambda a: np.square(a * a)}[abs(n)]
+    products: dict[int, Callable[[np.ndarray], np.ndarray]] = {
+        1: np.positive, 2: lambda a: a * a, 3: lambda a: a * a * a, 4: lambda a: np.square(a * a)}
+    positive = products[abs(n)]
     if n > 0:
         return positive
     return lambda a: 1.0 / positive(a)

@@ -23,6 +23,7 @@ import scipy.sparse as sp
 
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, Number, to_text
+from decrun.methods.model.numbers import number_arithmetic
 from decrun.methods.model.operators import ALIASES, OPERATORS, POINTWISE, Discrete, Linear, Mismatch
 
 __all__ = ["Compiler", "BUILTIN_NAMES", "NOT_LINEAR"]
@@ -630,6 +631,8 @@ class Compiler:
 
 def _arithmetic(op: str, left, right, lk: Kind, rk: Kind):
     """The closure of ``left op right`` (vectors scaled by per-simplex values broadcast)."""
+    if lk == NUMBER and rk == NUMBER:  # numpy's semantics: 1/0 is inf, not ZeroDivisionError
+        return number_arithmetic(op, left, right)
     if lk == VECTOR and rk not in (VECTOR, NUMBER):
         if op == "*":
             return lambda env: left(env) * right(env)[:, None]

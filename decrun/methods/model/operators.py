@@ -379,9 +379,13 @@ def inner_product(ops: Discrete, kind: Kind, a, b) -> float:
 
 
 def _norm_evaluate(ops: Discrete, kinds, x):
+    """‖x‖ = √⟨x, x⟩; nan (never 0, never a clamp) where ⟨x, x⟩ < 0 — an indefinite ⋆ (negative
+    circumcentric entries on obtuse triangles), reported by name at the end of the run
+    (:func:`decrun.methods.model.finite.negative_norms`)."""
     if kinds[0] == VECTOR:
         return np.sqrt(np.einsum("fd,fd->f", x, x))
-    return float(np.sqrt(max(inner_product(ops, kinds[0], x, x), 0.0)))
+    square = inner_product(ops, kinds[0], x, x)
+    return float(np.sqrt(square)) if square >= 0 else float("nan")
 
 
 def _normalize_kind(args, n):

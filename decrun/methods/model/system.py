@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.methods.model.compiler import Compiler
+from decrun.methods.model.finite import check_finite_numbers
 from decrun.methods.model.initial import sample
 from decrun.methods.model.intrinsic import check_intrinsic
 from decrun.methods.model.kinds import NUMBER, Kind, form_kind
@@ -43,9 +44,11 @@ from decrun.methods.model.language import (
     to_text,
 )
 from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.names import check_lookalike_names, check_metric_names
 from decrun.methods.model.nonlinear import compile_nonlinear_solve
 from decrun.methods.model.operators import OPERATORS, Discrete, Linear, load_plugins
 from decrun.methods.model.problem import ModelProblem
+from decrun.methods.model.sides import refuse_unknown_on_right
 from decrun.methods.model.solve import BlockSystem, IncompatibleRightHandSide, LinearSystem, constant_kernel
 
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
@@ -325,6 +328,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     compiler.static_env = dict(base)
     model = CompiledModel(spec, ops, compiler, kinds, resolved.equations, resolved.evolved, inputs, [], {}, {}, fixed,
                           base, initial_values)
+    check_finite_numbers(compiler, resolved.equations, key)
     trees = _lower_equations(model, ordered, new_solver)
     trees += _compile_metrics(model)
     check_intrinsic(compiler, dec, trees)
@@ -473,6 +477,7 @@ def _lower_equations(model: CompiledModel, ordered: list[Equation], new_solver: 
     Returns every tree of the equations with its key (for :func:`_check_stars`)."""
     compiler, kinds, equations = model.compiler, model.kinds, model.equations
     for equation in ordered:
+        refuse_unknown_on_right(equation, compiler)
         if equation.kind == "definition":
             model.order.append(("definition", (equation.target, compiler.compile(equation.rhs, equation.where))))
         elif equation.kind == "system":
@@ -554,6 +559,8 @@ def _check_names(spec: ModelSpec) -> None:
             if group != "metrics" and name in reserved():
                 raise ModelError(f"{key}.{group}.{name}: {name!r} is a built-in name of the model language "
                                  "(x y z t dt h pi random and the operators); choose another")
+    check_lookalike_names(key, {"fields": spec.fields, "constants": spec.constants, "metrics": spec.metrics})
+    check_metric_names(key, spec.metrics, spec.fields)
     both = set(spec.fields) & set(spec.constants)
     if both:
         name = sorted(both)[0]

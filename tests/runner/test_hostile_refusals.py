@@ -243,3 +243,66 @@ def test_a_solve_that_reads_its_unknown_on_the_right_is_refused_with_the_rewrite
     suggested = line.split("'")[-2]
     ran(decrun("app=poisson", f'app.equations=["{suggested}"]', "app.metrics={}", "hydra.run.dir=fixed",
                cwd=tmp_path, timeout=300), tmp_path / "fixed")
+
+
+# ------------------------------------------------------------------ issue 48, item 9: IMEX indefinite
+ALLEN_CAHN = """defaults:
+  - _model
+  - override /mesh@_global_.mesh: icosphere_clean
+  - _self_
+model: allen_cahn
+fields:
+  u: {form: 0, initial: "0.1*x*y + 0.05*z"}
+constants: {eps: 0.01}
+equations:
+  - "dt(u) = eps*laplacian(u) + u - u**3"
+integrator: imex
+dt: 1.25
+t_end: 12.5
+metrics:
+  u_max: "max(abs(u))"
+"""
+
+
+def test_imex_with_a_step_beyond_the_growth_rate_names_dt_the_term_and_both_fixes(tmp_path):
+    # (1 − dt) M + dt·eps·S is indefinite at dt = 1.25 (singular at dt = 1): "cholmod solver: the
+    # solution is not finite" named neither app.dt, nor the term u, nor a fix
+    model(tmp_path, "allen_cahn", ALLEN_CAHN)
+    proc = decrun("app=allen_cahn", SEARCH, "hydra.run.dir=run", cwd=tmp_path, timeout=300)
+    line = one_line(proc, "app.equations[0]", "app.integrator=imex", "app.dt=1.25", "its term u",
+                    "below 1", "`app.dt=0.5`", "'dt(u) = eps * laplacian(u) + explicit(u - u ** 3)'")
+    for fix in ("app.dt=0.5", f"app.equations=[\"{line.split(chr(39))[-2]}\"]"):
+        metrics = ran(decrun("app=allen_cahn", SEARCH, fix, "hydra.run.dir=fixed", cwd=tmp_path, timeout=300),
+                      tmp_path / "fixed")
+        # u → ±1 where it starts away from 0 (the stable states of u - u³); first order in dt around them
+        assert metrics["stable"] is True and 0.8 < metrics["u_max"] < 1.01
+
+
+# ------------------------------------------------------------------ issue 48, item 11: hints that match intent
+def test_a_caret_power_suggests_the_power(tmp_path):
+    proc = decrun("app=heat", 'app.equations=["dt(u) = u - u^3"]', "hydra.run.dir=run", cwd=tmp_path, timeout=300)
+    line = one_line(proc, "app.equations[0]", "u ^ 3", "wedge product ∧, not a power", "write u**3")
+    assert line.endswith("write u**3")
+    metrics = ran(decrun("app=heat", 'app.equations=["dt(u) = u - u**3"]', "app.t_end=0.01", "hydra.run.dir=fixed",
+                         cwd=tmp_path, timeout=300), tmp_path / "fixed")
+    assert metrics["stable"] is True
+
+
+def test_the_integral_of_a_number_suggests_the_area_built_in(tmp_path):
+    proc = decrun("app=heat", 'app.metrics={mass: "integral(1)"}', "hydra.run.dir=run", cwd=tmp_path, timeout=300)
+    line = one_line(proc, "app.metrics.mass", "a 0-form or a 2-form", "`app.metrics.mass=area`", "integral(f)/area")
+    assert "an 2-form" not in line
+    # the unit square (mesh=grid) has area 1, and area equals Σ ⋆0 (integral(1 + 0*x))
+    metrics = ran(decrun("app=poisson", "app.metrics.l2_error_rel=area", "app.metrics.max_abs_error=integral(1 + 0*x)",
+                         "hydra.run.dir=fixed", cwd=tmp_path, timeout=300), tmp_path / "fixed")
+    assert metrics["l2_error_rel"] == pytest.approx(1.0, abs=1e-12)
+    assert metrics["max_abs_error"] == pytest.approx(1.0, abs=1e-12)
+    on_sphere = ran(decrun("app=heat", "app.metrics.mass=area", "app.t_end=0.01", "hydra.run.dir=sphere", cwd=tmp_path,
+                           timeout=300), tmp_path / "sphere")
+    assert on_sphere["mass"] == pytest.approx(4 * math.pi, rel=0.01)  # the icosphere's area, below 4π by O(h²)
+
+
+def test_articles_agree_with_the_degree():
+    from decrun.methods.model.wording import article
+
+    assert [article(n) for n in (0, 1, 2, 3, 8, 11, 18, 21)] == ["a", "a", "a", "a", "an", "an", "an", "a"]

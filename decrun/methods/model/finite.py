@@ -41,7 +41,7 @@ def check_finite_numbers(compiler, equations: list[Equation], key: str) -> None:
                 if np.all(np.isfinite(value)):
                     continue
                 constants = sorted(name for name in compiler.reads(term) if name in compiler.static_env
-                                   and np.ndim(compiler.static_env[name]) == 0 and name not in ("pi", "h", "dt"))
+                                   and np.ndim(compiler.static_env[name]) == 0 and name not in ("pi", "h", "dt", "area"))
                 read = ", ".join(f"{key}.constants.{name}={float(compiler.static_env[name]):g}" for name in constants)
                 raise ModelError(f"{equation.where}: {to_text(term)} is {float(value)} (a float64 overflows beyond "
                                  f"1.8e308){' with ' + read if read else ''}; choose constants for which it is "

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from decrun.methods.model.language import Binary, Equation, ModelError, Negate, Node, Number, to_text
 
-__all__ = ["refuse_unknown_on_right"]
+__all__ = ["refuse_unknown_on_right", "summed"]
 
 
 def _summands(node: Node, sign: int = 1) -> list[tuple[int, Node]]:
@@ -21,7 +21,7 @@ def _summands(node: Node, sign: int = 1) -> list[tuple[int, Node]]:
     return [(sign, node)]
 
 
-def _sum(terms: list[tuple[int, Node]]) -> Node:
+def summed(terms: list[tuple[int, Node]]) -> Node:
     """The tree of Σ ±term (0 for none)."""
     if not terms:
         return Number(0.0)
@@ -41,6 +41,6 @@ def refuse_unknown_on_right(equation: Equation, compiler) -> None:
     terms = _summands(equation.rhs)
     moved = [(-sign, term) for sign, term in terms if compiler.depends_on(term, {unknown})]
     kept = [(sign, term) for sign, term in terms if not compiler.depends_on(term, {unknown})]
-    suggestion = f"solve({to_text(_sum([*_summands(equation.lhs), *moved]))} = {to_text(_sum(kept))})"
+    suggestion = f"solve({to_text(summed([*_summands(equation.lhs), *moved]))} = {to_text(summed(kept))})"
     raise ModelError(f"{equation.where}: the right side {to_text(equation.rhs)} reads the unknown {unknown}, which a "
                      f"solve computes from its right side; move the terms of {unknown} to the left: {suggestion!r}")

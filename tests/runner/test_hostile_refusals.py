@@ -306,3 +306,35 @@ def test_articles_agree_with_the_degree():
     from decrun.methods.model.wording import article
 
     assert [article(n) for n in (0, 1, 2, 3, 8, 11, 18, 21)] == ["a", "a", "a", "a", "an", "an", "an", "a"]
+
+
+# ------------------------------------------------------------------ item 8: a metric that fails keeps the run
+def test_a_metric_whose_evaluation_fails_is_nan_and_named_and_the_others_stand():
+    # an operator (a plugin's) that raises where it is evaluated: through the API, as the app does
+    from decrun.core.complex import SimplicialComplex
+    from decrun.core.dec import DEC
+    from decrun.core.solvers import solver_factory
+    from decrun.methods.model import FieldSpec, ModelSpec, compile_model
+    from decrun.methods.model.finite import nonfinite_lines
+    from decrun.methods.model.metrics import model_metrics
+    from decrun.methods.model.operators import OPERATORS, pointwise, register
+    from decrun.runner.job.plugins import option
+
+    def refuses(values):
+        raise ValueError("no value here\nsecond line")
+
+    mesh = option("mesh", "grid", nx=5, ny=5).load()
+    dec = DEC(SimplicialComplex(mesh.vertices, mesh.simplices, orient="fix"))
+    register(pointwise("refuses", refuses, refuses, "raises"), "test")
+    try:
+        spec = ModelSpec(fields={"u": FieldSpec(form=0, initial="x + 2")}, equations=["v = 2*u"],
+                         metrics={"broken": "integral(refuses(u))", "mass": "integral(u)"})
+        model = compile_model(spec, dec, solver_factory("direct"))
+        env = model.environment({}, 0.0)
+        metrics = model_metrics(model, env, dt=float("nan"), integrator_name="none")
+        lines = nonfinite_lines(model, env)
+    finally:
+        OPERATORS.pop("refuses")
+    assert math.isnan(metrics["broken"]) and metrics["mass"] == pytest.approx(2.0, abs=1e-12)  # ∫(x + 2) on [-½, ½]²
+    assert metrics["stable"] is False and metrics["unstable_reason"] == "non-finite metric broken"
+    assert lines == ["app.metrics.broken: cannot be evaluated (ValueError: no value here); its value is nan"]

@@ -122,6 +122,9 @@ def _calls(node: Node, function: str) -> list[Call]:
 
 
 def nonfinite_lines(model, env: dict) -> list[str]:
-    """The run's warnings about non-finite values at its end (``env``): the definitions
+    """The run's warnings about non-finite values at its end (``env``): the metrics that could not
+    be evaluated (:func:`~decrun.methods.model.metrics.metric_values`), the definitions
     (:func:`nonfinite_definitions`) and the norms of indefinite inner products (:func:`negative_norms`)."""
-    return [*nonfinite_definitions(model, env).values(), *negative_norms(model, env)]
+    failed = [f"{model.spec.key}.metrics.{name}: cannot be evaluated ({error}); its value is nan"
+              for name, error in getattr(model, "metric_errors", {}).items()]
+    return [*failed, *nonfinite_definitions(model, env).values(), *negative_norms(model, env)]

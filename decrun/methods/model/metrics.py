@@ -8,7 +8,24 @@ import numpy as np
 
 from decrun.methods.model.finite import nonfinite_definitions
 
-__all__ = ["model_metrics"]
+__all__ = ["model_metrics", "metric_values"]
+
+
+def metric_values(model, env: dict) -> dict[str, float]:
+    """Each declared metric's value at ``env``, one by one: a metric whose evaluation fails is nan
+    — its error kept in ``model.metric_errors`` (name → one line) for the run's warnings — so
+    that it never loses the run's result nor the other metrics. Numbers follow IEEE 754 (1/0 is
+    inf), without numpy's warnings: a non-finite metric is reported by name at the end."""
+    values, errors = {}, {}
+    for name, closure in model.metrics.items():
+        try:
+            with np.errstate(all="ignore"):
+                values[name] = float(closure(env))
+        except Exception as error:  # noqa: BLE001 - reported by name, the run goes on
+            values[name] = float("nan")
+            errors[name] = f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}"
+    model.metric_errors = errors
+    return values
 
 
 def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, integrator_name: str,

@@ -44,6 +44,7 @@ from decrun.methods.model.language import (
     to_text,
 )
 from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.metrics import metric_values
 from decrun.methods.model.names import check_lookalike_names, check_metric_names
 from decrun.methods.model.nonlinear import compile_nonlinear_solve
 from decrun.methods.model.operators import OPERATORS, Discrete, Linear, load_plugins
@@ -265,7 +266,7 @@ class CompiledModel:
         return lines
 
     def metric_values(self, env: dict) -> dict[str, float]:
-        return {name: float(closure(env)) for name, closure in self.metrics.items()}
+        return metric_values(self, env)  # one by one: a failing metric is nan and reported, the run kept
 
     def solve_reports(self) -> dict[str, Any]:
         """Per solve: the pieces whose kernel was handled and the largest part of b removed."""

@@ -293,7 +293,7 @@ def test_the_integral_of_a_number_suggests_the_area_built_in(tmp_path):
     line = one_line(proc, "app.metrics.mass", "a 0-form or a 2-form", "`app.metrics.mass=area`", "integral(f)/area")
     assert "an 2-form" not in line
     # the unit square (mesh=grid) has area 1, and area equals Σ ⋆0 (integral(1 + 0*x))
-    metrics = ran(decrun("app=poisson", "app.metrics.l2_error_rel=area", "app.metrics.max_abs_error=integral(1 + 0*x)",
+    metrics = ran(decrun("app=poisson", "app.metrics.l2_error_rel=area", 'app.metrics.max_abs_error="integral(1 + 0*x)"',
                          "hydra.run.dir=fixed", cwd=tmp_path, timeout=300), tmp_path / "fixed")
     assert metrics["l2_error_rel"] == pytest.approx(1.0, abs=1e-12)
     assert metrics["max_abs_error"] == pytest.approx(1.0, abs=1e-12)

@@ -194,17 +194,17 @@ class BlockSystem(LinearSystem):
         size = self.largest * np.abs(x).max() + np.abs(rhs[self.free]).max(initial=0.0)
         right = np.abs(rhs[self.free]).max(initial=0.0)
         worst = np.abs(residual).max(initial=0.0)
-        if np.all(np.isfinite(x)) and right > 0 and worst > RESIDUAL_LIMIT * right:
-            raise ModelError(f"{self.where}: the block system of {', '.join(self.unknowns)} has no solution: the "
-                             f"residual of the solve is {worst / right:.2g} of the right side (the equations "
-                             "contradict each other or the matrix is singular); write independent equations, e.g. "
-                             "give each unknown its own equation as in app=darcy")
         if not (np.all(np.isfinite(x)) and worst <= 1e-8 * size):
             error = np.abs(residual).max(initial=0.0) / size if size > 0 and np.isfinite(size) else float("nan")
             raise ModelError(f"{self.where}: the solution of the block system of {', '.join(self.unknowns)} is not "
                              f"one (backward error {error:.2g}, or values not finite): the solver did not converge "
                              "or the matrix is singular; check the equations and their border values, or use "
                              "`solver=direct`")
+        if right > 0 and worst > RESIDUAL_LIMIT * right:
+            raise ModelError(f"{self.where}: the block system of {', '.join(self.unknowns)} has no solution: the "
+                             f"residual of the solve is {worst / right:.2g} of the right side (the equations "
+                             "contradict each other or the matrix is singular); write independent equations, e.g. "
+                             "give each unknown its own equation as in app=darcy")
         return x
 
 

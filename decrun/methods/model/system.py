@@ -55,7 +55,7 @@ from decrun.methods.model.solve import BlockSystem, IncompatibleRightHandSide, L
 __all__ = ["FieldSpec", "ModelSpec", "CompiledModel", "compile_model", "border_simplices", "vertex_pieces"]
 
 #: the built-in names and words of the language (the operators' names, plugins' included, too: :func:`reserved`)
-RESERVED = {"x", "y", "z", "t", "dt", "h", "area", "pi", "random", "solve"}
+RESERVED = {"x", "y", "z", "t", "dt", "h", "pi", "random", "solve"}
 #: metric names the run itself reports (decrun.methods.model.metrics and the runner's status columns)
 RESERVED_METRICS = {"status", "error", "stable", "unstable_reason", "diverged_at_step", "steps_done", "solve_seconds",
                     "steps_per_second", "step_seconds_max", "resumed_from_step", "t_final", "dt", "integrator",
@@ -462,7 +462,7 @@ def _bind_values(spec: ModelSpec, ops: Discrete, kinds: dict[str, Kind], evolved
     base = {"x": K.vertices[:, 0].copy(), "y": K.vertices[:, 1].copy() if K.embedding_dim > 1 else
             np.zeros(K.num_simplices(0)), "z": K.vertices[:, 2].copy() if K.embedding_dim > 2 else
             np.zeros(K.num_simplices(0)), "h": ops.mean_edge_length(), "pi": float(np.pi), "t": 0.0,
-            "area": float(K.top_volumes.sum()),
+            "area": float(K.top_volumes.sum()),  # a field or constant named area takes its place
             "dt": float(spec.dt)}
     base.update({name: float(value) for name, value in spec.constants.items()})
     initial_values = {}
@@ -560,8 +560,8 @@ def _check_names(spec: ModelSpec) -> None:
                                  f"the sweep table); name yours otherwise, e.g. {name}_value")
             if group != "metrics" and name in reserved():
                 raise ModelError(f"{key}.{group}.{name}: {name!r} is a built-in name of the model language "
-                                 "(x y z t dt h area pi random and the operators); choose another")
-    check_lookalike_names(key, {"fields": spec.fields, "constants": spec.constants, "metrics": spec.metrics})
+                                 "(x y z t dt h pi random and the operators); choose another")
+    check_lookalike_names(key, {"fields": spec.fields, "constants": spec.constants})
     check_metric_names(key, spec.metrics, spec.fields)
     both = set(spec.fields) & set(spec.constants)
     if both:

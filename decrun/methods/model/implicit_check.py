@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.methods.model.language import ModelError, to_text
+from decrun.methods.model.language import ModelError, Node, to_text
 from decrun.methods.model.sides import summed
 
 __all__ = ["check_implicit_matrix"]
@@ -82,7 +82,8 @@ def check_implicit_matrix(model, evolution, theta: float, dt: float, scheme: str
 def _explicit_rewrite(model, u: str, equation, terms) -> str:
     """``dt(u) = <the other linear terms> + explicit(<the growing terms and the nonlinear rest>)``."""
     growing = [term for term, _rate in terms]
-    kept, moved = [], []
+    kept: list[tuple[int, Node]] = []
+    moved: list[tuple[int, Node]] = []
     for sign, term in model.compiler.terms(equation.rhs):
         blocks, _rest = model.compiler.split(term, {u})
         (moved if term in growing or not blocks else kept).append((1 if sign > 0 else -1, term))

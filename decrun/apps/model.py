@@ -49,6 +49,7 @@ from decrun.errors import ConfigError
 from decrun.methods.model import FieldSpec, ModelSpec, compile_model
 from decrun.methods.model.borders import check_integrator, make_integrator
 from decrun.methods.model.explain import explain
+from decrun.methods.model.finite import nonfinite_lines
 from decrun.methods.model.growth import GrowthWatch
 from decrun.methods.model.indefinite_stars import refuse_indefinite_stars
 from decrun.methods.model.integrators import FROZEN, explicit_stability_limit
@@ -441,8 +442,8 @@ class Model(App):
         integrator = None
         report = None
         if model.is_static:
-            with ctx.task(f"{self.model}: definitions and solves"):
-                env = model.environment({}, 0.0)
+            with ctx.task(f"{self.model}: definitions and solves"), np.errstate(all="ignore"):
+                env = model.environment({}, 0.0)  # a non-finite definition is reported by name, below
             stepper = None
         else:
             with ctx.task(f"{self.model}: {self.integrator} set-up"):
@@ -462,7 +463,7 @@ class Model(App):
         newton = {f"{item.unknown}_newton_residuals": np.asarray(item.residual_norms, dtype=np.float64)
                   for what, item in model.order if what == "newton" and item.residual_norms}
         return Result(fields=self._fields(model, env), series=newton, metrics=metrics,
-                      figures=self._figures(model, env),
+                      figures=self._figures(model, env), warnings=nonfinite_lines(model, env),
                       provenance={"model_equations_resolved": "\n".join(model.resolved()),
                                   "model_operator": ctx.dec.star_variant.describe()})
 

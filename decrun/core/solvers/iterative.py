@@ -277,8 +277,11 @@ class KrylovSolver(Solver):
                 candidate = start + dx
                 return backward_error(b - self._A @ candidate, candidate, b, self._norm_A) <= self.tol
 
-            x = x + self._krylov(method, M, residual, target, count, good_enough=good_enough,
-                                 maxiter=None if budget is None else int(budget - count[0]))
+            # a breakdown (a singular or inconsistent system) divides by zero inside the Krylov
+            # method: its non-finite x is refused below, not printed as a numpy warning
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                x = x + self._krylov(method, M, residual, target, count, good_enough=good_enough,
+                                     maxiter=None if budget is None else int(budget - count[0]))
             residual = b - self._A @ x
             previous, error = error, backward_error(residual, x, b, self._norm_A)
             if not np.isfinite(error) or error <= self.tol or error > 0.9 * previous:

@@ -1,7 +1,7 @@
 """Typed expression trees → numpy closures and sparse linear blocks.
 
 :class:`Compiler` knows the kind of every name (fields, definitions, constants and the built-in
-names ``x y z t dt h pi``) and
+names ``x y z t dt h area pi``) and
 
 - :meth:`~Compiler.kind` infers the kind of a tree, raising one :class:`ModelError` line that
   names the key and the offending term;

@@ -15,6 +15,7 @@ import numpy as np
 from decrun.methods.model.kind_inference import KindInference
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, Number, to_text
+from decrun.methods.model.numbers import number_arithmetic
 from decrun.methods.model.operators import ALIASES, OPERATORS
 from decrun.methods.model.powers import fixed_power
 
@@ -72,7 +73,7 @@ class Evaluator(KindInference):
                 return scaled
             left, right = self._compile(node.left, where), self._compile(node.right, where)
             lk, rk = self.kind(node.left, where), self.kind(node.right, where)
-            if node.op == "**" and rk == NUMBER and self.is_static(node.right):  # u**3: products, not pow
+            if node.op == "**" and lk != NUMBER and rk == NUMBER and self.is_static(node.right):  # u**3: products
                 return fixed_power(left, right)
             return _arithmetic(node.op, left, right, lk, rk)
         if isinstance(node, Call):
@@ -204,6 +205,8 @@ class Evaluator(KindInference):
 
 def _arithmetic(op: str, left, right, lk: Kind, rk: Kind):
     """The closure of ``left op right`` (vectors scaled by per-simplex values broadcast)."""
+    if lk == NUMBER and rk == NUMBER:  # numpy's semantics: 1/0 is inf, not ZeroDivisionError
+        return number_arithmetic(op, left, right)
     if lk == VECTOR and rk not in (VECTOR, NUMBER):
         if op == "*":
             return lambda env: left(env) * right(env)[:, None]

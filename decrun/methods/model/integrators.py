@@ -35,6 +35,7 @@ import scipy.sparse as sp
 
 from decrun.methods.model.adaptive_jacobian import exact_jacobian
 from decrun.methods.model.compiler import NOT_LINEAR
+from decrun.methods.model.implicit_check import check_implicit_matrix
 from decrun.methods.model.implicit_newton import NewtonImplicit
 from decrun.methods.model.jacobian import pattern as term_pattern
 from decrun.methods.model.language import ModelError
@@ -121,6 +122,7 @@ class Implicit:
         self.evolution = evolution = model.evolution  # implicit Euler, Crank–Nicolson: linear (else NewtonImplicit)
         theta = 0.5 if scheme == "crank_nicolson" else 1.0
         self.theta = theta
+        check_implicit_matrix(model, evolution, theta, self.dt, scheme)  # singular or indefinite: say why, before
         fixed, self.fixed_values = evolution.fixed()
         self.fixed = fixed
         self.groups = _uncoupled_groups(model, evolution, theta * self.dt, new_solver)

@@ -3,7 +3,7 @@
 build on it).
 
 :class:`KindInference` knows the kind of every name (fields, definitions, constants and the
-built-in names ``x y z t dt h pi``) and
+built-in names ``x y z t dt h area pi``) and
 
 - :meth:`~KindInference.typed` / :meth:`~KindInference.kind` type a tree once per node, raising one
   :class:`ModelError` line that names the key and the offending term;
@@ -20,11 +20,12 @@ from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, Number, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS, Discrete, Mismatch
 from decrun.methods.model.typed import Typed, operands
+from decrun.methods.model.wording import hint
 
 __all__ = ["KindInference", "BUILTIN_NAMES", "TIME_VARYING"]
 
 #: names every expression may read: coordinates (primal 0-forms), time, step, mean edge length, π
-BUILTIN_NAMES = {"x": primal(0), "y": primal(0), "z": primal(0), "t": NUMBER, "dt": NUMBER, "h": NUMBER,
+BUILTIN_NAMES = {"x": primal(0), "y": primal(0), "z": primal(0), "t": NUMBER, "dt": NUMBER, "h": NUMBER, "area": NUMBER,
                  "pi": NUMBER}
 #: the names whose values change during a run (a term reading them is not a constant matrix)
 TIME_VARYING = {"t"}
@@ -105,7 +106,7 @@ class KindInference:
         try:
             return operator.kind(kinds, self.n)
         except Mismatch as why:
-            raise ModelError(f"{where}: {to_text(shown or node)}: {why}") from None
+            raise ModelError(f"{where}: {to_text(shown or node)}: {why}{hint(shown or node, where)}") from None
 
     def _arithmetic_kind(self, node: Binary, where: str) -> Kind:
         left, right = self.kind(node.left, where), self.kind(node.right, where)

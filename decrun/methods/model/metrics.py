@@ -6,14 +6,33 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["model_metrics"]
+from decrun.methods.model.finite import nonfinite_definitions
+
+__all__ = ["model_metrics", "metric_values"]
+
+
+def metric_values(model, env: dict) -> dict[str, float]:
+    """Each declared metric's value at ``env``, one by one: a metric whose evaluation fails is nan
+    — its error kept in ``model.metric_errors`` (name → one line) for the run's warnings — so
+    that it never loses the run's result nor the other metrics. Numbers follow IEEE 754 (1/0 is
+    inf), without numpy's warnings: a non-finite metric is reported by name at the end."""
+    values, errors = {}, {}
+    for name, closure in model.metrics.items():
+        try:
+            with np.errstate(all="ignore"):
+                values[name] = float(closure(env))
+        except Exception as error:  # noqa: BLE001 - reported by name, the run goes on
+            values[name] = float("nan")
+            errors[name] = f"{type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''}"
+    model.metric_errors = errors
+    return values
 
 
 def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, integrator_name: str,
                   stability_limit: float | None = None) -> dict[str, Any]:
     """The declared metrics at the end (``env``) and their names (``headline_metrics``, which a
-    sweep table shows by default), then: ``stable`` (no step blew up and every
-    declared metric is finite), ``unstable_reason``/``diverged_at_step`` (only when not),
+    sweep table shows by default), then: ``stable`` (no step blew up, every
+    declared metric is finite and so is every definition's value), ``unstable_reason``/``diverged_at_step`` (only when not),
     the driver's ``steps_done``, ``solve_seconds``, ``steps_per_second``, ``step_seconds_max``,
     ``resumed_from_step`` (time-dependent models), ``t_final``, ``dt``, ``integrator``,
     ``dt_stability_limit`` and ``dt_over_stability_limit`` (explicit integrators with a
@@ -39,6 +58,10 @@ def model_metrics(model, env: dict, report=None, *, integrator=None, dt: float, 
     if nonfinite and stable:
         stable = False
         metrics["unstable_reason"] = f"non-finite metric {nonfinite[0]}"
+    definitions = nonfinite_definitions(model, env)  # v = 1/x with a vertex at x = 0 is no answer
+    if definitions and stable:
+        stable = False
+        metrics["unstable_reason"] = f"non-finite definition {next(iter(definitions))}"
     metrics["stable"] = bool(stable)
     if stability_limit is not None and np.isfinite(stability_limit):
         metrics["dt_stability_limit"] = float(stability_limit)

@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from decrun.errors import ConfigError
 from decrun.methods.model import discrete, sphere_functions, sphere_operators, vector_derivatives
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
+from decrun.methods.model.wording import article
 
 __all__ = ["Linear", "Discrete", "Operator", "OPERATORS", "ALIASES", "POINTWISE", "Mismatch", "reference_table",
            "register", "pointwise", "load_plugins", "ENTRY_POINT_GROUP", "PluginError"]
@@ -379,9 +380,13 @@ def inner_product(ops: Discrete, kind: Kind, a, b) -> float:
 
 
 def _norm_evaluate(ops: Discrete, kinds, x):
+    """‖x‖ = √⟨x, x⟩; nan (never 0, never a clamp) where ⟨x, x⟩ < 0 — an indefinite ⋆ (negative
+    circumcentric entries on obtuse triangles), reported by name at the end of the run
+    (:func:`decrun.methods.model.finite.negative_norms`)."""
     if kinds[0] == VECTOR:
         return np.sqrt(np.einsum("fd,fd->f", x, x))
-    return float(np.sqrt(max(inner_product(ops, kinds[0], x, x), 0.0)))
+    square = inner_product(ops, kinds[0], x, x)
+    return float(np.sqrt(square)) if square >= 0 else float("nan")
 
 
 def _normalize_kind(args, n):
@@ -395,7 +400,7 @@ def _integral_kind(args, n):
     (kind,) = args
     if kind.is_form and (kind.degree == 0 or kind.degree == n):
         return NUMBER
-    raise Mismatch(f"integral takes a 0-form or an {n}-form (primal or dual), got a {kind}")
+    raise Mismatch(f"integral takes a 0-form or {article(n)} {n}-form (primal or dual), got a {kind}")
 
 
 def integral(ops: Discrete, kind: Kind, x) -> float:
@@ -629,7 +634,7 @@ ALIASES = {"codiff": "codifferential", "delta": "codifferential", "hodge": "star
 #: the entry-point group through which an installed package adds operators (docs/extending.md)
 ENTRY_POINT_GROUP = "decrun.operators"
 #: names an operator may not take: the language's own words and built-in values
-_NOT_OPERATOR_NAMES = {"dt", "solve", "x", "y", "z", "t", "h", "pi", "random"}
+_NOT_OPERATOR_NAMES = {"dt", "solve", "x", "y", "z", "t", "h", "area", "pi", "random"}
 _plugins_loaded: list[str] = []
 
 

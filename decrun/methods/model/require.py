@@ -16,6 +16,8 @@ import re
 from dataclasses import dataclass
 from typing import Any, Callable
 
+import numpy as np
+
 from decrun.methods.model.language import (
     Binary,
     Call,
@@ -31,8 +33,12 @@ from decrun.methods.model.language import (
 __all__ = ["Requirement", "parse_requirement", "check_requirements"]
 
 _COMPARISON = re.compile(r"(>=|<=|>|<|==|!=)")
+_ARITHMETIC = {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "**": np.power}
 _TESTS = {">": lambda a, b: a > b, ">=": lambda a, b: a >= b, "<": lambda a, b: a < b, "<=": lambda a, b: a <= b}
-_FUNCTIONS: dict[str, Callable[..., Any]] = {"sqrt": math.sqrt, "exp": math.exp, "log": math.log, "abs": abs, "min": min, "max": max}
+#: numpy's functions, so that exp(1000) is inf (IEEE 754) and not Python's OverflowError: a requirement
+#: ``exp(exp(exp(k*10))) > 0`` holds (inf > 0); a nan fails every comparison
+_FUNCTIONS: dict[str, Callable[..., Any]] = {"sqrt": np.sqrt, "exp": np.exp, "log": np.log, "abs": np.abs,
+                                             "min": min, "max": max}
 
 
 @dataclass(frozen=True)
@@ -76,16 +82,14 @@ def _value(node: Node, values: dict[str, float], where: str) -> float:
         return -_value(node.operand, values, where)
     if isinstance(node, Binary) and node.op != "^":
         a, b = _value(node.left, values, where), _value(node.right, values, where)
-        try:
-            return {"+": a + b, "-": a - b, "*": a * b}[node.op] if node.op in "+-*" else \
-                (a / b if node.op == "/" else a ** b)
-        except (ZeroDivisionError, OverflowError, ValueError):
-            return math.nan
+        with np.errstate(all="ignore"):  # IEEE 754: 1/0 is inf, 0/0 and (-8)**(1/3) are nan
+            return float(_ARITHMETIC[node.op](np.float64(a), np.float64(b)))
     if isinstance(node, Call) and node.function in _FUNCTIONS:
         args = [_value(arg, values, where) for arg in node.args]
         try:
-            return float(_FUNCTIONS[node.function](*args))
-        except (TypeError, ValueError, OverflowError):
+            with np.errstate(all="ignore"):
+                return float(_FUNCTIONS[node.function](*args))
+        except (TypeError, ValueError):  # a wrong number of arguments
             return math.nan
     raise ModelError(f"{where}: a requirement is arithmetic of constants with {sorted(_FUNCTIONS)}; "
                      "operators of fields have no value before the mesh")
@@ -144,6 +148,10 @@ def check_requirements(requirements: list[Requirement], values: dict[str, float]
         if _holds(requirement, values):
             continue
         names = sorted(requirement.names() - {"pi"})
+        if not names:  # "1 > 2": no constant can make it hold
+            listing = requirement.where.rsplit("[", 1)[0]
+            raise ModelError(f"{requirement.where}: the requirement {requirement.text} reads no constant and is "
+                             f"false, so no model can meet it; correct or remove it (`{listing}=[]`)")
         shown = ", ".join(f"{fixed.get(n, f'{key}.constants.{n}')}={values[n]:g}"
                           + (f" (part {owners[n]}'s)" if n in owners else "") for n in names)
         repair = _repair(requirement, requirements, values, set(fixed))
@@ -151,6 +159,6 @@ def check_requirements(requirements: list[Requirement], values: dict[str, float]
             name, value = repair
             hint = f"; use `{key}.constants.{name}={value:g}`"
         else:
-            hint = f"; set {' or '.join(f'{key}.constants.{n}' for n in names if n not in fixed)} so that it holds"
+            hint = f"; set {' or '.join(fixed.get(n, f'{key}.constants.{n}') for n in names)} so that it holds"
         verb = "makes" if len(names) == 1 else "make"
         raise ModelError(f"{shown} {verb} the model ill-posed: {requirement.where} requires {requirement.text}{hint}")

@@ -26,11 +26,14 @@ import scipy.sparse as sp
 
 from decrun.methods.model.language import ModelError
 
-__all__ = ["LinearSystem", "BlockSystem", "KernelReport", "COMPATIBILITY_LIMIT"]
+__all__ = ["LinearSystem", "BlockSystem", "KernelReport", "COMPATIBILITY_LIMIT", "RESIDUAL_LIMIT"]
 
 #: largest |Σ b| / Σ |b| accepted on a singular system (the part removed from b); beyond it the
 #: problem has no solution and the model is refused
 COMPATIBILITY_LIMIT = 0.05
+#: largest max|A x − b| / max|b| accepted from a block system's solve: a backward-stable solve
+#: leaves ≤ ε cond(A) of b, so this admits cond(A) up to ~1e10 and refuses an x with no solution
+RESIDUAL_LIMIT = 1e-6
 
 
 @dataclass
@@ -178,21 +181,30 @@ class BlockSystem(LinearSystem):
     def solve(self, b: np.ndarray, fixed_values: np.ndarray | None = None) -> np.ndarray:
         """x with ``x[fixed] = fixed_values``. The backward error of the free rows,
         max|A x − b| / (max|A| max|x| + max|b|), is checked (≤ 1e-8), and x must be finite: a
-        solver that did not converge or a singular factorization is refused, not returned. (A
-        backward-stable solve of a nearly singular matrix passes this check: the unknowns that the
-        equations leave free are refused before, when the system is compiled.)"""
+        solver that did not converge or a singular factorization is refused, not returned. The
+        residual is also checked against the right-hand side alone, max|A x − b| ≤ 1e-6 max|b|
+        (:data:`RESIDUAL_LIMIT`): an inconsistent system (``solve(u + v = 1, u + v = 2)``) has no
+        x, and a solver that answers with a blown-up x (max|x| ≈ 1e14) passes the backward-error
+        check, whose denominator grows with max|x|, but never this one."""
         x = super().solve(b, fixed_values)
         rhs = self.sign * np.asarray(b, dtype=np.float64)
         residual = (self.A_full @ x - rhs)[self.free]
         if self.largest is None:
             self.largest = abs(self.A_full).max() if self.A_full.nnz else 0.0
         size = self.largest * np.abs(x).max() + np.abs(rhs[self.free]).max(initial=0.0)
-        if not (np.all(np.isfinite(x)) and np.abs(residual).max(initial=0.0) <= 1e-8 * size):
+        right = np.abs(rhs[self.free]).max(initial=0.0)
+        worst = np.abs(residual).max(initial=0.0)
+        if not (np.all(np.isfinite(x)) and worst <= 1e-8 * size):
             error = np.abs(residual).max(initial=0.0) / size if size > 0 and np.isfinite(size) else float("nan")
             raise ModelError(f"{self.where}: the solution of the block system of {', '.join(self.unknowns)} is not "
                              f"one (backward error {error:.2g}, or values not finite): the solver did not converge "
                              "or the matrix is singular; check the equations and their border values, or use "
                              "`solver=direct`")
+        if right > 0 and worst > RESIDUAL_LIMIT * right:
+            raise ModelError(f"{self.where}: the block system of {', '.join(self.unknowns)} has no solution: the "
+                             f"residual of the solve is {worst / right:.2g} of the right side (the equations "
+                             "contradict each other or the matrix is singular); write independent equations, e.g. "
+                             "give each unknown its own equation as in app=darcy")
         return x
 
 

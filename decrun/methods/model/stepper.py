@@ -42,10 +42,9 @@ class ModelStepper:
         return self._env
 
     def values(self) -> dict:
-        env = self.environment()
         out = {"time": self.t, **{name: self.state[name] for name in self.model.evolved}}
-        with np.errstate(all="ignore"):
-            out.update(self.model.metric_values(env))
+        with np.errstate(all="ignore"):  # a non-finite definition or metric is reported at the end, by name
+            out.update(self.model.metric_values(self.environment()))
         return out
 
     def step(self, n: int) -> str:

@@ -32,10 +32,12 @@ import scipy.sparse as sp
 
 from decrun.methods.model import borders
 from decrun.methods.model.compiler import Compiler
+from decrun.methods.model.finite import check_finite_numbers
 from decrun.methods.model.intrinsic import check_intrinsic
 from decrun.methods.model.kinds import Kind
 from decrun.methods.model.language import Equation
 from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.metrics import metric_values
 from decrun.methods.model.operators import Discrete, load_plugins
 from decrun.methods.model.passes.bind import _bind_values, _dirichlet, border_simplices
 from decrun.methods.model.passes.lower import _lower_equations
@@ -235,7 +237,7 @@ class CompiledModel:
         return lines
 
     def metric_values(self, env: dict) -> dict[str, float]:
-        return {name: float(closure(env)) for name, closure in self.metrics.items()}
+        return metric_values(self, env)  # one by one: a failing metric is nan and reported, the run kept
 
     def solve_reports(self) -> dict[str, Any]:
         """Per solve: the pieces whose kernel was handled and the largest part of b removed."""
@@ -288,6 +290,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     compiler.static_env = dict(base)
     model = CompiledModel(spec, ops, compiler, kinds, resolved.equations, resolved.evolved, inputs, [], {}, {}, fixed,
                           base, initial_values, typed)
+    check_finite_numbers(compiler, resolved.equations, key)
     trees = _lower_equations(model, ordered, new_solver)
     borders.finish(model, bound)
     trees += _compile_metrics(model, metrics)

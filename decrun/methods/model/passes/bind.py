@@ -44,6 +44,7 @@ def _bind_values(spec: ModelSpec, ops: Discrete, kinds: dict[str, Kind], evolved
     base = {"x": K.vertices[:, 0].copy(), "y": K.vertices[:, 1].copy() if K.embedding_dim > 1 else
             np.zeros(K.num_simplices(0)), "z": K.vertices[:, 2].copy() if K.embedding_dim > 2 else
             np.zeros(K.num_simplices(0)), "h": ops.mean_edge_length(), "pi": float(np.pi), "t": 0.0,
+            "area": float(K.top_volumes.sum()),  # a field or constant named area takes its place
             "dt": float(spec.dt)}
     base.update({name: float(value) for name, value in spec.constants.items()})
     initial_values = {}

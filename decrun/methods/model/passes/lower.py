@@ -11,6 +11,7 @@ from decrun.methods.model.language import Equation, ModelError, Node, to_text
 from decrun.methods.model.nonlinear import compile_nonlinear_solve
 from decrun.methods.model.passes.solves import _compile_solve
 from decrun.methods.model.passes.systems import _compile_system
+from decrun.methods.model.sides import refuse_unknown_on_right
 
 if TYPE_CHECKING:
     from decrun.methods.model.system import CompiledModel
@@ -22,6 +23,7 @@ def _lower_equations(model: CompiledModel, ordered: list[Equation], new_solver: 
     Returns every tree of the equations with its key (for :func:`_check_stars`)."""
     compiler, kinds, equations = model.compiler, model.kinds, model.equations
     for equation in ordered:
+        refuse_unknown_on_right(equation, compiler)
         if equation.kind == "definition":
             model.order.append(("definition", (equation.target, compiler.compile(equation.rhs, equation.where))))
         elif equation.kind == "system":

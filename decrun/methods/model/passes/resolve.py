@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from decrun.methods.model.compiler import BUILTIN_NAMES
 from decrun.methods.model.language import Binary, Call, Equation, ModelError, Name, Negate, Node, names_in, to_text
+from decrun.methods.model.names import check_lookalike_names, check_metric_names
 from decrun.methods.model.operators import OPERATORS
 
 if TYPE_CHECKING:
@@ -59,6 +60,8 @@ def _check_names(spec: ModelSpec) -> None:
             if group != "metrics" and name in reserved():
                 raise ModelError(f"{key}.{group}.{name}: {name!r} is a built-in name of the model language "
                                  "(x y z t dt h pi random and the operators); choose another")
+    check_lookalike_names(key, {"fields": spec.fields, "constants": spec.constants})
+    check_metric_names(key, spec.metrics, spec.fields)
     both = set(spec.fields) & set(spec.constants)
     if both:
         name = sorted(both)[0]

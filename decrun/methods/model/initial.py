@@ -157,8 +157,7 @@ class PointExpression:
             env["random"] = rng.uniform(-1.0, 1.0, len(points))
         for name, integrand in self.integrals:  # F on the meridians, integrated in the latitude
             with np.errstate(all="ignore"):
-                env[name] = latitude_integral(lambda meridian, F=integrand: F.evaluate(F._environment(meridian)),
-                                              points, self.where)
+                env[name] = latitude_integral(integrand.on, points, self.where)
         if n_vertices is None and self.has_vertex():
             raise ModelError(f"{self.where}: vertex(i) is a 0-form (an indicator at a vertex); use it for a field "
                              "with form: 0")
@@ -177,6 +176,11 @@ class PointExpression:
             raise ModelError(f"{self.where}: the value is not finite at {int(bad.sum())} of {len(out)} points (e.g. at "
                              f"{np.round(points[index], 6).tolist()}); change the expression there")
         return out
+
+    def on(self, points: np.ndarray) -> np.ndarray:
+        """The values at ``points`` (N, 3) with no check (a latitude integral's integrand, checked
+        by :func:`~decrun.methods.model.sphere_functions.latitude_integral`)."""
+        return np.asarray(self.evaluate(self._environment(np.asarray(points, dtype=np.float64))), dtype=np.float64)
 
     def _environment(self, points: np.ndarray) -> dict:
         return {"x": points[:, 0], "y": points[:, 1] if points.shape[1] > 1 else np.zeros(len(points)),

@@ -1,7 +1,6 @@
 """``python -m decrun`` = the ``decrun`` command (:func:`command`, its console script; :func:`console_main`
 in a process that goes on)."""
 
-import gc
 import sys
 
 from decrun.runner.io.interrupts import ignore_interrupts
@@ -30,14 +29,10 @@ def console_main() -> None:
 
 def command() -> None:
     """The ``decrun`` command as a process (its console script and ``python -m decrun``):
-    :func:`console_main`; the interpreter exits the usual way (exit handlers, module teardown),
-    but its last garbage collections skip the objects the command leaves (``gc.freeze``: Hydra's,
-    matplotlib's and numpy's modules; ~0.1 s of CPU at exit). In a process that goes on
-    afterwards call :func:`console_main`."""
-    try:
-        console_main()
-    finally:
-        gc.freeze()
+    :func:`console_main`; the interpreter exits the usual way (exit handlers, module teardown and
+    its last garbage collections: skipping them with ``gc.freeze`` made nanobind-based solvers report
+    their objects as leaked at exit). In a process that goes on afterwards call :func:`console_main`."""
+    console_main()
 
 
 if __name__ == "__main__":

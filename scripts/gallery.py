@@ -164,6 +164,10 @@ MODELS = {
     "model_poisson": ("`app=poisson` — Δu = f on the unit square with the exact solution's border values.", [
         (["app=poisson"], "u", ["l2_error_rel", "max_abs_error", "n_vertices"], None),
     ]),
+    "model_newton_cooling": ("`app=newton_cooling` — a square plate cooling to the air through a Robin border "
+                             "(∂u/∂n + αu = αu_air); the error is against the slowest mode, exact when μ tan(μ/2) = α.", [
+        (["app=newton_cooling"], "u", ["l2_error_rel", "mean_temperature", "n_vertices"], None),
+    ]),
     "model_wave": ("`app=wave` — the l = 2 mode through one period 2π/√6 (Störmer–Verlet): `projection` "
                    "is its amplitude, back to 1, the modified energy conserved.", [
         (["app=wave", "app.t_end=2.565"], "u_snapshots", ["projection", "energy_modified", "n_vertices"], None),

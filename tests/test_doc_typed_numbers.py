@@ -184,6 +184,13 @@ ALLOWED: dict[str, dict[str, str]] = {
     },
     "apps/writing.md": {"longer than 60 lines": "a rule of the code base"},
     "models.md": {
+        "densely, up to 400 unknowns": "a limit of the code (decrun.methods.model.stability)",
+        "|e^{dt λ}|))^steps, exceeds 10": "the explicit check's rule (a constant of the code)",
+        "passes (× 0.9, a whole": "the explicit check's margin (a constant of the code)",
+        "(to 1e-9 of hi − lo)": "the bounds check's tolerance (a constant of the code)",
+        "at dt = 1.25).": "the example's config value (Allen–Cahn under imex)",
+        ": 0.9 ×": "the suggested step's rule for other apps (0.9 × their critical step, a constant of the code)",
+        "is min(0.9 × the stability": "the suggested step's rule (a constant of the code)",
         "(l = 3: e^{−12k t})": "theory: l(l+1) = 12",
         "| 0.01, null |": "config defaults (`dt`, `t_end`)", "| 1e-6, 1e-9 |": "config defaults (`rtol`, `atol`)",
         "more than 4000 characters or 200 levels of nesting": "limits of the code",

@@ -87,6 +87,17 @@ def _model_result_file(tmp: Path) -> str:
 
 #: name → (overrides that fail, the overrides the hint must name)
 CASES = {
+    # moving border values (decrun.methods.model.borders): the integrators that cannot step them name one that can
+    "moving_border_symplectic": (["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.steps=2",
+                                  "app.integrator=symplectic", "+app.fields.u.dirichlet=t*x"],
+                                 ["app.integrator=gauss_legendre"]),
+    "moving_border_semi_implicit_nonlinear": (["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.steps=2",
+                                               "app.integrator=semi_implicit", "+app.fields.u.dirichlet=t*x",
+                                               "app.equations=['dt(u) = k*laplacian(u) - u**3']"],
+                                              ["app.integrator=implicit_euler"]),
+    "moving_border_bdf_galerkin_mass": (["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.steps=2",
+                                         "operator=whitney", "app.integrator=bdf", "+app.fields.u.dirichlet=t*x"],
+                                        ["app.integrator=radau_iia"]),
     # the declarative models: an integrator that cannot take the model names one that can. Implicit
     # Euler steps a nonlinear term by Newton, but a number computed from u (mean(u)) couples all
     # its values: a dense Jacobian, refused; bdf/radau have no sparse Jacobian pattern through it
@@ -205,6 +216,9 @@ CASES = {
 
 #: backticked overrides in the sources that no CLI run can reach, and why
 UNREACHABLE = {
+    "app.stability_check=false": "the explicit check's last resort when neither the eigen-solve nor its Gershgorin "
+                                 "bound gives an estimate (a finite Jacobian always has a Gershgorin bound); "
+                                 "tests/apps/test_model_stability.py runs the override on runs it would refuse",
     "mesh.max_volume=": "the tetrahedron-count refusal's fix makes millions of tetrahedra (too slow for a hint case): "
                         "tests/runner/mesh/test_volumes.py runs it under a lowered mesh.max_tetrahedra",
     "mesh.max_tetrahedra=": "see mesh.max_volume=; tests/runner/mesh/test_volumes.py runs this fix",

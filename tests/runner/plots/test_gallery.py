@@ -40,7 +40,7 @@ def shipped_models() -> set[str]:
 def test_every_shipped_model_has_a_gallery_section_with_its_numbers():
     models = gallery_module().MODELS
     assert shipped_models() == {"brusselator", "cahn_hilliard", "darcy", "gray_scott", "halfar", "heat",
-                                "heat_geodesics", "klausmeier", "mcf", "poisson", "shallow_water", "wave"}
+                                "heat_geodesics", "klausmeier", "mcf", "newton_cooling", "poisson", "shallow_water", "wave"}
     for model in shipped_models():
         assert any(name == f"model_{model}" or name.startswith(f"model_{model}_") for name in models), model
     text = (ROOT / "docs" / "gallery.md").read_text()

@@ -44,6 +44,7 @@ from decrun.methods.model.language import (
     Negate,
     Node,
     Number,
+    names_in,
     parse_expression,
     to_text,
 )
@@ -216,7 +217,7 @@ def rewrite(spec, equations: list[Equation], kinds: dict[str, Kind], n: int) -> 
                 found.add(args[0].name)
                 return _border_form(node, args[0].name, given[args[0].name])
             if function in _LAPLACIANS and len(args) == 1:
-                inner = _names(args[0]) & set(given)
+                inner = names_in(args[0]) & set(given)
                 if inner:
                     u = sorted(inner)[0]
                     key = f"{spec.key}.fields.{u}.{given[u]}"
@@ -242,18 +243,6 @@ def rewrite(spec, equations: list[Equation], kinds: dict[str, Kind], n: int) -> 
             raise ModelError(f"{where}: no equation reads laplacian({name}), through which the border flux enters; "
                              f"write the diffusion of {name} as laplacian({name}) or drop `{where}=null`")
     return out
-
-
-def _names(node: Node) -> set[str]:
-    if isinstance(node, Name):
-        return {node.name}
-    if isinstance(node, Call):
-        return set().union(*(_names(arg) for arg in node.args)) if node.args else set()
-    if isinstance(node, Binary):
-        return _names(node.left) | _names(node.right)
-    if isinstance(node, Negate):
-        return _names(node.operand)
-    return set()
 
 
 def _border_form(node: Call, name: str, key: str) -> Node:
@@ -283,12 +272,12 @@ def moving_names(spec) -> set[str]:
     out = set()
     for name, field_spec in spec.fields.items():
         text = field_spec.dirichlet
-        if isinstance(text, str) and "t" in _names(parse_expression(text, f"{spec.key}.fields.{name}.dirichlet")):
+        if isinstance(text, str) and "t" in names_in(parse_expression(text, f"{spec.key}.fields.{name}.dirichlet")):
             out.add(name)
     for name, key in _given(spec).items():
         value = getattr(spec.fields[name], key)
         text = value.get("value") if key == "robin" and isinstance(value, Mapping) else value
-        if isinstance(text, str) and "t" in _names(parse_expression(text, f"{spec.key}.fields.{name}.{key}")):
+        if isinstance(text, str) and "t" in names_in(parse_expression(text, f"{spec.key}.fields.{name}.{key}")):
             out.add(_load_name(name, key))
     return out
 
@@ -311,7 +300,7 @@ def dirichlet_at_start(spec, name: str, kind: Kind, dec, where: str) -> np.ndarr
     """The vertex values at t = 0 of a Dirichlet value that reads t, or None when it does not (the
     static sampling applies). Moving values are for primal 0-forms."""
     text = spec.fields[name].dirichlet
-    if not isinstance(text, str) or "t" not in _names(parse_expression(text, where)):
+    if not isinstance(text, str) or "t" not in names_in(parse_expression(text, where)):
         return None
     if kind != primal(0):
         raise ModelError(f"{where}: border values that move in time (read t) are for primal 0-forms; {name} is a "
@@ -354,7 +343,7 @@ def bind(spec, ops, base: dict, resolved) -> Borders:
             if value is None:
                 continue
             where = f"{key}.fields.{name}.{condition}"
-            static = condition == "dirichlet" and not (isinstance(value, str) and "t" in _names(parse_expression(value,
+            static = condition == "dirichlet" and not (isinstance(value, str) and "t" in names_in(parse_expression(value,
                                                                                                             where)))
             if name not in computed and not static:
                 raise ModelError(f"{where}: {name} is neither evolved (dt({name}) = …) nor solved for, so a border "

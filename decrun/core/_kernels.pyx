@@ -172,6 +172,14 @@ def facet_pairs(order, starts, top, index_like):
     return (interior, first, second, first_slot, second_slot), suspect
 
 
+def facet_groups(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits, index_like):
+    """Twin of ``complex.checks.group_facets``' numpy path: :func:`group_packed`'s grouping of the facet
+    slots, then :func:`facet_pairs` on it: ((unique, inverse, order, starts), pairs, suspect)."""
+    groups = group_packed(top, columns, bits)
+    pairs, suspect = facet_pairs(groups[2], groups[3], np.ascontiguousarray(top), index_like)
+    return groups, pairs, suspect
+
+
 def consistent(index_t[::1] first, index_t[::1] second, index_t[::1] first_slot, index_t[::1] second_slot,
                const int8_t[::1] parity):
     """Twin of ``complex.checks.inconsistent_facets`` (none): True when no interior facet is inconsistent."""

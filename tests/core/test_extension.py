@@ -73,15 +73,15 @@ def test_the_extension_equals_the_numpy_twins(name, counted):
 
 @needs_extension
 def test_auto_runs_every_twin_on_a_triangle_mesh_at_any_size(counted):
-    """A mesh's faces are grouped and its facets paired by the grouping and pairing twins. The
+    """A triangle mesh's edges are grouped and paired by the fused facet twin (the grouping and
+    pairing twins run inside it); a tetrahedral mesh's edges take the grouping twin itself. The
     fans are counted per vertex only where the fans around all vertices outnumber them (a pinched
     vertex to name); the fan roots' twin tests the orientation too, so the orientation's own twin
     runs where the stars are not checked (a curve)."""
     vertices, simplices = MESHES["annulus"]()  # a few hundred triangles
     with jit.use("auto"):
         _everything(vertices, simplices)
-    assert set(counted) == {"sorted_rows", "group_packed", "facet_pairs", "fan_roots", "small_volumes", "triangle_dual",
-                            "incidence"}
+    assert set(counted) == {"sorted_rows", "facet_groups", "fan_roots", "small_volumes", "triangle_dual", "incidence"}
     with jit.use("auto"):
         _everything(*MESHES["polyline"]())
     assert "consistent" in counted
@@ -145,7 +145,7 @@ def test_the_triangle_edge_grouping_equals_the_general_loops():
 
 
 @needs_extension
-def test_the_triangle_edge_groups_and_pairs_equal_the_numpy_twins():
+def test_the_fused_triangle_edge_groups_and_pairs_equal_the_numpy_twins():
     """The extension's edge grouping and facet pairing of a triangle mesh in one call equals the
     numpy twins — on wide (merge-sorted) buckets, edges in one, two and three triangles,
     duplicates, rows that are not sorted, Fortran layout and sparse indices."""
@@ -163,9 +163,8 @@ def test_the_triangle_edge_groups_and_pairs_equal_the_numpy_twins():
     suspicions = []
     for top, index_type in cases:
         bits = max(1, int(np.ceil(np.log2(top.max() + 2))))
+        groups, pairs, suspect = _kernels.facet_groups(top, columns, bits, np.zeros(0, index_type))
         contiguous = np.ascontiguousarray(top)
-        groups = _kernels.group_packed(top, columns, bits)
-        pairs, suspect = _kernels.facet_pairs(groups[2], groups[3], contiguous, np.zeros(0, index_type))
         _assert_same(groups, group_rows_numpy(FaceRows(contiguous, [(0, 1), (0, 2), (1, 2)])))
         reference, reference_suspect = checks.facet_pairs_numpy(groups[2], groups[3], contiguous)
         _assert_same(tuple(a.astype(index_type) for a in pairs[1:]), tuple(a.astype(index_type) for a in reference[1:]))

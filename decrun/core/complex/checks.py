@@ -19,6 +19,8 @@ import scipy.sparse as sp
 from decrun.core import extension
 from decrun.core.connectivity import graph_components
 from decrun.core.simplex_arrays import (
+    FaceRows,
+    group_rows,
     sorted_rows_and_parity,
     unique_rows,
     vertex_volumes,
@@ -36,7 +38,7 @@ from decrun.errors import (
     UnreferencedVertexError,
 )
 
-__all__ = ["FacetPairs", "fan_roots_and_consistency", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
+__all__ = ["FacetPairs", "group_facets", "fan_roots_and_consistency", "checked_input", "check_degenerate", "facet_pairs", "orient", "check_vertex_stars",
            "fans_per_vertex", "facet_pairs_numpy", "inconsistent_facets", "fans_per_vertex_general", "simplex_name", "plural",
            "name_indices"]
 
@@ -158,13 +160,32 @@ def _compiled_pairs(pairs: tuple) -> FacetPairs:
     return FacetPairs(*pairs)
 
 
+def group_facets(top: np.ndarray, local, n_vertices: int) -> tuple[tuple, tuple[FacetPairs, bool] | None]:
+    """The (n-1)-face slots ``top[t, local[s]]`` of the (m, n+1) sorted top simplices grouped
+    (:func:`decrun.core.simplex_arrays.group_rows`: unique, inverse, order, starts) and, where the
+    compiled ``facet_groups`` runs, the facet pairs with their duplicate suspicion
+    (:func:`facet_pairs`' ``found``) from the same call; else ``None`` for them (the grouping alone).
+    ``top``'s entries are vertex indices below ``n_vertices`` (the checked input): the packed keys'
+    width follows from it, without a pass over ``top`` for its largest entry."""
+    rows = FaceRows(top, local)
+    bits = max(1, int(np.ceil(np.log2(max(n_vertices - 1, 0) + 2))))
+    if rows.shape[0] and bits * rows.shape[1] <= 62 and (compiled := extension.kernels()) is not None:
+        groups, pairs, suspect = compiled.facet_groups(np.ascontiguousarray(top, dtype=np.int64), rows.column_table(),
+                                                      bits, np.zeros(0, _pair_index_type(top)))
+        return groups, (_compiled_pairs(pairs), suspect)
+    return group_rows(rows), None
+
+
 def facet_pairs(order: np.ndarray, starts: np.ndarray, top: np.ndarray, facets: np.ndarray,
-                check_manifold: bool) -> FacetPairs:
+                check_manifold: bool, found: tuple[FacetPairs, bool] | None = None) -> FacetPairs:
     """The facet pairs from the facet groups (``order``/``starts`` of the grouped facet slots
     ``(n+1)·t + c``); raises on duplicate top simplices and, with ``check_manifold``, on facets
-    in more than two top simplices."""
+    in more than two top simplices. ``found``: the pairs and duplicate suspicion
+    :func:`group_facets` already computed from these groups."""
     n = top.shape[1] - 1
-    if (compiled := extension.kernels()) is not None:
+    if found is not None:
+        pairs, suspect = found
+    elif (compiled := extension.kernels()) is not None:
         pairs, suspect = compiled.facet_pairs(order, starts, np.ascontiguousarray(top), np.zeros(0, _pair_index_type(top)))
         pairs = _compiled_pairs(pairs)
     else:

@@ -35,6 +35,7 @@ class Faces(NamedTuple):
     local: dict
     facet_order: np.ndarray
     facet_starts: np.ndarray
+    facet_pairs: tuple | None = None
 
 
 class Built(NamedTuple):
@@ -55,11 +56,13 @@ def enumerate_faces(top_sorted: np.ndarray, n_vertices: int) -> Faces:
     local = {j: list(combinations(range(n + 1), j + 1)) for j in range(n + 1)}
     lists = {n: top_sorted, 0: np.arange(n_vertices)[:, None]}
     top_faces = {n: np.arange(m)[:, None], 0: top_sorted}
-    facet_order = facet_starts = None
+    facet_order = facet_starts = found = None
     for j in range(1, n):
-        unique, inverse, order, starts = group_rows(FaceRows(top_sorted, local[j]))
-        if j == n - 1:  # the facets
+        if j == n - 1:  # the facets: grouped and paired in one call where the kernel runs
+            (unique, inverse, order, starts), found = checks.group_facets(top_sorted, local[j], n_vertices)
             facet_order, facet_starts = order, starts
+        else:
+            unique, inverse, order, starts = group_rows(FaceRows(top_sorted, local[j]))
         lists[j] = unique
         top_faces[j] = inverse.reshape(m, len(local[j]))
     if n == 1:  # facets are the vertices themselves
@@ -67,7 +70,7 @@ def enumerate_faces(top_sorted: np.ndarray, n_vertices: int) -> Faces:
         facet_order = np.argsort(slots, kind="stable")
         ordered = slots[facet_order]
         facet_starts = np.append(np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1]]), slots.size)
-    return Faces(lists, top_faces, local, facet_order, facet_starts)
+    return Faces(lists, top_faces, local, facet_order, facet_starts, found)
 
 
 def build(vertices, simplices, *, orient: str, unreferenced: str, check_manifold: bool,
@@ -82,7 +85,8 @@ def _build(vertices, simplices, orient, unreferenced, check_manifold, degenerate
     n = top_sorted.shape[1] - 1
     faces = enumerate_faces(top_sorted, vertices.shape[0])
     volumes = checks.check_degenerate(vertices, top_sorted, degenerate_tol)
-    pairs = checks.facet_pairs(faces.facet_order, faces.facet_starts, top_sorted, faces.lists[n - 1], check_manifold)
+    pairs = checks.facet_pairs(faces.facet_order, faces.facet_starts, top_sorted, faces.lists[n - 1], check_manifold,
+                               faces.facet_pairs)
     # the fans around all vertices and the orientation's consistency in one pass over the pairs
     found = checks.fan_roots_and_consistency(top_sorted, pairs, parity) if check_manifold and n >= 2 else None
     orientation = checks.orient(pairs, parity, orient, n, None if found is None else found[1])

@@ -34,6 +34,37 @@ def sorted_rows(const int64_t[:, :] rows, Py_ssize_t n_vertices):
     cdef int64_t smallest = rows[0, 0], largest = rows[0, 0], value
     cdef Py_ssize_t shifts
     cdef bint repeated = False
+    cdef int64_t x, y, z, low, middle, high
+    if c == 3:  # triangles: the same sorted rows and inversion parities without the shifting loop
+        for t in range(m):
+            x, y, z = rows[t, 0], rows[t, 1], rows[t, 2]
+            shifts = (x > y) + (x > z) + (y > z)
+            low = x if x < y else y
+            high = y if x < y else x
+            middle = z if z < high else high
+            high = z if z > high else high
+            middle = middle if middle > low else low
+            low = z if z < low else low
+            ordered[t, 0], ordered[t, 1], ordered[t, 2] = low, middle, high
+            parity[t] = 1 if shifts % 2 == 0 else -1
+            if low < smallest:
+                smallest = low
+            if high > largest:
+                largest = high
+            if low == middle or middle == high:
+                repeated = True
+            if low >= 0 and high < n_vertices:
+                used[low] = 1
+                used[middle] = 1
+                used[high] = 1
+            else:  # an entry out of range (the input check names it): the others are marked
+                if low >= 0 and low < n_vertices:
+                    used[low] = 1
+                if middle >= 0 and middle < n_vertices:
+                    used[middle] = 1
+                if high >= 0 and high < n_vertices:
+                    used[high] = 1
+        return ordered_array, parity_array, smallest, largest, bool(repeated), used_array
     for t in range(m):
         shifts = 0
         for a in range(c):
@@ -58,10 +89,54 @@ def sorted_rows(const int64_t[:, :] rows, Py_ssize_t n_vertices):
     return ordered_array, parity_array, smallest, largest, bool(repeated), used_array
 
 
+cdef bint _triangle_edges(const int64_t[:, :] top, const int64_t[:, ::1] columns):
+    """Whether the rows are the edge slots (0,1), (0,2), (1,2) of C-contiguous triangles."""
+    return (top.shape[1] == 3 and columns.shape[0] == 3 and columns.shape[1] == 2 and top.strides[1] == 8
+            and top.strides[0] == 24 and columns[0, 0] == 0 and columns[0, 1] == 1 and columns[1, 0] == 0
+            and columns[1, 1] == 2 and columns[2, 0] == 1 and columns[2, 1] == 2)
+
+
+cdef int64_t _bucket_triangle_edges(const int64_t[:, ::1] top, int bits, int64_t[::1] order,
+                                    int64_t[::1] sorted_key, object counts):
+    """The counting sort of :func:`group_packed` for the edge slots of triangles, its loops
+    unrolled over the three slots: the same buckets, keys and stable order; the bucket bounds
+    are written to ``counts[0]`` (a list); returns the largest leading entry."""
+    cdef Py_ssize_t m = top.shape[0], t, v
+    cdef int64_t x, y, z, largest = 0
+    for t in range(m):  # leading entries: x (slots 0, 1) and y (slot 2)
+        x, y = top[t, 0], top[t, 1]
+        if x > largest:
+            largest = x
+        if y > largest:
+            largest = y
+    count_array = np.zeros(largest + 2, np.int64)
+    cdef int64_t[::1] count = count_array
+    for t in range(m):
+        count[top[t, 0] + 1] += 2
+        count[top[t, 1] + 1] += 1
+    for v in range(largest + 1):
+        count[v + 1] += count[v]
+    position_array = count_array[:largest + 1].copy()
+    cdef int64_t[::1] position = position_array
+    cdef int64_t p
+    for t in range(m):
+        x, y, z = top[t, 0], top[t, 1], top[t, 2]
+        p = position[x]
+        order[p], sorted_key[p] = 3 * t, (x << bits) | y
+        order[p + 1], sorted_key[p + 1] = 3 * t + 1, (x << bits) | z
+        position[x] = p + 2
+        p = position[y]
+        order[p], sorted_key[p] = 3 * t + 2, (y << bits) | z
+        position[y] = p + 1
+    counts.append(count_array)
+    return largest
+
+
 def group_packed(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits):
     """Twin of ``simplex_arrays.group_rows_numpy``: the rows ``top[t, columns[s]]`` grouped
     by a stable counting sort on their leading entry and a stable sort of each bucket by the
-    packed key; (unique, inverse, order, starts). ``top`` in any layout."""
+    packed key; (unique, inverse, order, starts). ``top`` in any layout; a triangle mesh's edge
+    slots take loops unrolled over the three slots (the same arithmetic and order)."""
     cdef Py_ssize_t m = top.shape[0], slots = columns.shape[0], width = columns.shape[1]
     cdef Py_ssize_t total = m * slots, t, s, q, i, v, a, b, low, high, groups, g
     cdef int64_t k, lead, largest = 0, item, item_key, packed
@@ -71,33 +146,40 @@ def group_packed(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bit
     cdef int64_t[::1] order = order_array
     cdef int64_t[::1] sorted_key = sorted_array
     cdef int64_t[::1] count, position
-    for t in range(m):  # the keys' leading entries: the buckets (no array of keys is kept)
-        for s in range(slots):
-            lead = top[t, columns[s, 0]]
-            if lead > largest:
-                largest = lead
-    count = np.zeros(largest + 2, np.int64)
-    for t in range(m):
-        for s in range(slots):
-            count[top[t, columns[s, 0]] + 1] += 1
-    for v in range(largest + 1):
-        count[v + 1] += count[v]
-    position = np.array(count[:largest + 1])
-    for t in range(m):  # each row's packed key, scattered into its bucket in row order (stable)
-        for s in range(slots):
-            k = 0
-            for q in range(width):
-                k = (k << bits) | top[t, columns[s, q]]
-            lead = k >> shift
-            i = t * slots + s
-            order[position[lead]] = i
-            sorted_key[position[lead]] = k
-            position[lead] += 1
+    cdef const int64_t[:, ::1] rows
+    if _triangle_edges(top, columns):
+        counts = []
+        rows = np.asarray(top)
+        largest = _bucket_triangle_edges(rows, bits, order, sorted_key, counts)
+        count = counts[0]
+    else:
+        for t in range(m):  # the keys' leading entries: the buckets (no array of keys is kept)
+            for s in range(slots):
+                lead = top[t, columns[s, 0]]
+                if lead > largest:
+                    largest = lead
+        count = np.zeros(largest + 2, np.int64)
+        for t in range(m):
+            for s in range(slots):
+                count[top[t, columns[s, 0]] + 1] += 1
+        for v in range(largest + 1):
+            count[v + 1] += count[v]
+        position = np.array(count[:largest + 1])
+        for t in range(m):  # each row's packed key, scattered into its bucket in row order (stable)
+            for s in range(slots):
+                k = 0
+                for q in range(width):
+                    k = (k << bits) | top[t, columns[s, q]]
+                lead = k >> shift
+                i = t * slots + s
+                order[position[lead]] = i
+                sorted_key[position[lead]] = k
+                position[lead] += 1
     for v in range(largest + 1):
         low, high = count[v], count[v + 1]
         if high - low <= 1:
             continue
-        if high - low <= 32:  # a small bucket: stable insertion sort by key
+        if high - low <= 32:  # simplex_arrays._SMALL_BUCKET: stable insertion sort by key
             for a in range(low + 1, high):
                 item = order[a]
                 item_key = sorted_key[a]
@@ -148,7 +230,10 @@ def _facet_pairs_fill(const int64_t[::1] order, const int64_t[::1] starts, const
         if starts[g + 1] - starts[g] != 2:
             continue
         a, b = order[starts[g]], order[starts[g] + 1]
-        ta, tb = a // width, b // width
+        if width == 3:  # triangles: a division by a constant (a multiplication)
+            ta, tb = a // 3, b // 3
+        else:
+            ta, tb = a // width, b // width
         interior[p] = g
         first[p], first_slot[p] = ta, a - ta * width
         second[p], second_slot[p] = tb, b - tb * width
@@ -172,9 +257,142 @@ def facet_pairs(order, starts, top, index_like):
     return (interior, first, second, first_slot, second_slot), suspect
 
 
+cdef tuple _triangle_edge_groups(const int64_t[:, ::1] top, int bits):
+    """:func:`facet_groups` for the edge slots of C-contiguous sorted triangles (int32 pairs):
+    the counting sort of :func:`group_packed` whose buckets hold, for each slot, its second
+    vertex and the vertex opposite it packed in one int64 (``second << 32 | opposite``): a
+    bucket is sorted by the second vertex alone (the packed key's order within a bucket), and
+    the pairs and their duplicate suspicion are read off the sorted buckets, without another
+    pass over the groups or a look-up of the triangles; each slot's edge (``inverse``) is then
+    looked up in triangle order among its leading vertex's edges (reads instead of writes
+    scattered over ``inverse``)."""
+    cdef Py_ssize_t m = top.shape[0], total = 3 * m, t, v, a, b, low, high, groups = 0, pairs = 0, g, p
+    cdef int64_t x, y, z, at, item, item_load, item_second, ta, tb, oa, ob, largest = 0
+    cdef int64_t low_half = 0xffffffff
+    order_array = np.empty(total, np.int64)
+    payload_array = np.empty(total, np.int64)
+    cdef int64_t[::1] order = order_array
+    cdef int64_t[::1] payload = payload_array
+    # the entries are below 2**bits - 1 (bits fits the largest): the buckets' counts in an array of
+    # that bound, the largest leading entry found while counting (no pass of its own)
+    count_array = np.zeros((1 << bits) + 1, np.int64)
+    cdef int64_t[::1] count = count_array
+    for t in range(m):
+        x, y = top[t, 0], top[t, 1]  # x leads slots 0 and 1, y slot 2
+        count[x + 1] += 2
+        count[y + 1] += 1
+        if x > largest:
+            largest = x
+        if y > largest:
+            largest = y
+    for v in range(largest + 1):
+        count[v + 1] += count[v]
+    position_array = count_array[:largest + 1].copy()
+    cdef int64_t[::1] position = position_array
+    for t in range(m):  # slots (0,1), (0,2) into x's bucket, (1,2) into y's, in triangle order
+        x, y, z = top[t, 0], top[t, 1], top[t, 2]
+        at = position[x]
+        order[at], payload[at] = 3 * t, (y << 32) | z
+        order[at + 1], payload[at + 1] = 3 * t + 1, (z << 32) | y
+        position[x] = at + 2
+        at = position[y]
+        order[at], payload[at] = 3 * t + 2, (z << 32) | x
+        position[y] = at + 1
+    for v in range(largest + 1):
+        low, high = count[v], count[v + 1]
+        if 1 < high - low <= 32:  # simplex_arrays._SMALL_BUCKET: stable insertion sort
+            for a in range(low + 1, high):
+                item = order[a]
+                item_load = payload[a]
+                item_second = item_load >> 32
+                b = a - 1
+                while b >= low and (payload[b] >> 32) > item_second:
+                    order[b + 1] = order[b]
+                    payload[b + 1] = payload[b]
+                    b -= 1
+                order[b + 1] = item
+                payload[b + 1] = item_load
+        elif high - low > 32:
+            rank = np.argsort(payload_array[low:high] >> 32, kind="mergesort")
+            order_array[low:high] = order_array[low:high][rank]
+            payload_array[low:high] = payload_array[low:high][rank]
+        a = low
+        while a < high:  # the bucket's groups, and those of two slots (the pairs)
+            b = a + 1
+            while b < high and (payload[b] >> 32) == (payload[a] >> 32):
+                b += 1
+            groups += 1
+            if b - a == 2:
+                pairs += 1
+            a = b
+    unique_array = np.empty((groups, 2), np.int64)
+    inverse_array = np.empty(total, np.int64)
+    starts_array = np.empty(groups + 1, np.int64)
+    interior_array = np.empty(pairs, np.int64)
+    first_array, second_array, first_slot_array, second_slot_array = (np.empty(pairs, np.int32) for _ in range(4))
+    cdef int64_t[:, ::1] unique = unique_array
+    cdef int64_t[::1] inverse = inverse_array
+    cdef int64_t[::1] starts = starts_array
+    cdef int64_t[::1] interior = interior_array
+    cdef int32_t[::1] first = first_array
+    cdef int32_t[::1] second = second_array
+    cdef int32_t[::1] first_slot = first_slot_array
+    cdef int32_t[::1] second_slot = second_slot_array
+    cdef bint suspect = False
+    first_group_array = np.empty(largest + 1, np.int64)  # the first group (edge) of each bucket
+    cdef int64_t[::1] first_group = first_group_array
+    g = 0
+    p = 0
+    for v in range(largest + 1):
+        low, high = count[v], count[v + 1]
+        first_group[v] = g
+        a = low
+        while a < high:
+            y = payload[a] >> 32
+            starts[g] = a
+            unique[g, 0] = v
+            unique[g, 1] = y
+            b = a + 1
+            while b < high and (payload[b] >> 32) == y:
+                b += 1
+            if b - a == 2:
+                oa, ob = order[a], order[a + 1]
+                ta, tb = oa // 3, ob // 3
+                interior[p] = g
+                first[p], first_slot[p] = <int32_t> ta, <int32_t> (oa - 3 * ta)
+                second[p], second_slot[p] = <int32_t> tb, <int32_t> (ob - 3 * tb)
+                if (payload[a] & low_half) == (payload[a + 1] & low_half):  # the same opposite vertex
+                    suspect = True
+                p += 1
+            g += 1
+            a = b
+    starts[groups] = total
+    for t in range(m):  # each slot's edge, found in its leading vertex's few edges (read, where the
+        x, y, z = top[t, 0], top[t, 1], top[t, 2]  # sorted order would scatter writes across inverse)
+        g = first_group[x]
+        while unique[g, 1] != y:
+            g += 1
+        inverse[3 * t] = g
+        g = first_group[x]
+        while unique[g, 1] != z:
+            g += 1
+        inverse[3 * t + 1] = g
+        g = first_group[y]
+        while unique[g, 1] != z:
+            g += 1
+        inverse[3 * t + 2] = g
+    return ((unique_array, inverse_array, order_array, starts_array),
+            (interior_array, first_array, second_array, first_slot_array, second_slot_array), bool(suspect))
+
+
 def facet_groups(const int64_t[:, :] top, const int64_t[:, ::1] columns, int bits, index_like):
     """Twin of ``complex.checks.group_facets``' numpy path: :func:`group_packed`'s grouping of the facet
-    slots, then :func:`facet_pairs` on it: ((unique, inverse, order, starts), pairs, suspect)."""
+    slots, then :func:`facet_pairs` on it: ((unique, inverse, order, starts), pairs, suspect). The
+    edge slots of C-contiguous triangles with int32 pairs take one fused counting sort (where the
+    vertex indices are not much sparser than the slots: its buckets' counts span 2**bits)."""
+    if (_triangle_edges(top, columns) and bits <= 31 and index_like.dtype == np.int32 and top.shape[0] > 0
+            and (1 << bits) <= 6 * top.shape[0] + 2):  # the bucket counts' bound: at most twice the slots
+        return _triangle_edge_groups(np.asarray(top), bits)
     groups = group_packed(top, columns, bits)
     pairs, suspect = facet_pairs(groups[2], groups[3], np.ascontiguousarray(top), index_like)
     return groups, pairs, suspect

@@ -131,8 +131,9 @@ def test_group_rows_and_row_sorting_twins_on_wide_buckets_and_repeats(counted):
 
 @needs_extension
 def test_the_triangle_edge_grouping_equals_the_general_loops():
-    """The extension's grouping of a triangle mesh's edge slots equals the numpy twin in every
-    layout, also for rows that are not sorted (the leading entry is then not the smallest)."""
+    """The extension groups a triangle mesh's edge slots with loops unrolled over the three slots
+    (C-contiguous rows); other layouts take its general loops: both equal the numpy twin, also
+    for rows that are not sorted (the leading entry is then not the smallest)."""
     from decrun.core import _kernels  # type: ignore[attr-defined]
 
     rng = np.random.default_rng(5)
@@ -146,9 +147,10 @@ def test_the_triangle_edge_grouping_equals_the_general_loops():
 
 @needs_extension
 def test_the_fused_triangle_edge_groups_and_pairs_equal_the_numpy_twins():
-    """The extension's edge grouping and facet pairing of a triangle mesh in one call equals the
-    numpy twins — on wide (merge-sorted) buckets, edges in one, two and three triangles,
-    duplicates, rows that are not sorted, Fortran layout and sparse indices."""
+    """The fused twin of a triangle mesh's edge grouping and facet pairing (one counting sort,
+    the pairs and their duplicate suspicion read off the sorted buckets) equals the numpy twins
+    — on wide (merge-sorted) buckets, edges in one, two and three triangles, duplicates, rows
+    that are not sorted, Fortran layout and sparse indices (the general loops)."""
     from decrun.core import _kernels  # type: ignore[attr-defined]
     from decrun.core.complex import checks
 

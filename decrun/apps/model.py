@@ -58,7 +58,7 @@ from decrun.methods.model.language import names_in, parse_equation
 from decrun.methods.model.metrics import model_metrics
 from decrun.methods.model.parts import PartSpec, compose_parts
 from decrun.methods.model.require import check_requirements, parse_requirement
-from decrun.methods.model.stability import explicit_limit, refuse_nonfinite_terms, suggested_dt
+from decrun.methods.model.stability import explicit_limit, fitted_dt, refuse_nonfinite_terms, suggested_dt
 from decrun.methods.model.stepper import ModelStepper
 from decrun.methods.stepping import run_steps
 
@@ -368,10 +368,7 @@ class Model(App):
         if not np.isfinite(limit):  # no diffusion block: the fastest oscillation (waves) at t = 0
             limit = check_wave_limit(model, str(self.integrator), self.dt, self.t_end)
         if self.dt > limit:
-            if self.t_end is not None:  # a whole number of steps to t_end, each below 0.9 × the limit
-                safe = repr(self.t_end / math.ceil(self.t_end / (0.9 * limit)))
-            else:
-                safe = f"{float(f'{0.9 * limit:.2g}'):g}"
+            safe = fitted_dt(0.9 * limit, self.t_end)  # a whole number of steps to t_end, each below 0.9 × the limit
             frozen = source.endswith(FROZEN)
             name = source[: -len(FROZEN)] if frozen else source
             part = "its linear part with the coefficients frozen at t = 0" if frozen else "its linear part"

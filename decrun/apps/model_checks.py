@@ -4,9 +4,8 @@ shallow water's gravity waves — has no diffusion block for the diffusion limit
 
 from __future__ import annotations
 
-import math
-
 from decrun.errors import ConfigError
+from decrun.methods.model.stability import fitted_dt
 from decrun.methods.model.wave_limit import oscillatory_stability_limit
 
 __all__ = ["check_wave_limit"]
@@ -17,10 +16,7 @@ def check_wave_limit(model, scheme: str, dt: float, t_end: float | None) -> floa
     ``app.dt`` that works (a whole number of steps to ``t_end``, each at most 0.95 dt_max)."""
     limit, modulus = oscillatory_stability_limit(model, scheme, model.initial_values)
     if dt > limit:
-        if t_end is not None:
-            safe = repr(t_end / math.ceil(t_end / (0.95 * limit)))
-        else:
-            safe = f"{float(f'{0.95 * limit:.2g}'):g}"
+        safe = fitted_dt(0.95 * limit, t_end)
         raise ConfigError(f"app.dt={dt:g} exceeds the stability limit {limit:.4g} of integrator={scheme} for the "
                           f"fastest linear mode at t = 0 (2√2/|λ|max, |λ|max = {modulus:.4g} s⁻¹ of the Jacobian: "
                           f"waves, e.g. shallow water's gravity waves √(g h) on the shortest edges); use `app.dt={safe}`")

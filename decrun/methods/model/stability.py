@@ -31,7 +31,7 @@ import scipy.sparse.linalg as spla
 from decrun.methods.model.language import ModelError, to_text
 from decrun.methods.model.tableaux import TABLEAUX, Tableau
 
-__all__ = ["refuse_nonfinite_terms", "explicit_limit", "SPURIOUS_GROWTH", "stability_function", "suggested_dt"]
+__all__ = ["refuse_nonfinite_terms", "explicit_limit", "SPURIOUS_GROWTH", "stability_function", "suggested_dt", "fitted_dt"]
 
 #: the largest growth over a run that a scheme may add to the exact flow's, on any mode
 SPURIOUS_GROWTH = 10.0
@@ -203,8 +203,9 @@ def largest_stable_dt(R, eigenvalues: np.ndarray, dt: float, duration: float) ->
     return low
 
 
-def _fitted(dt: float, t_end: float | None) -> str:
-    """``dt`` rounded down to two digits, or to a whole number of steps of ``t_end``."""
+def fitted_dt(dt: float, t_end: float | None) -> str:
+    """The ``app.dt`` to suggest at most ``dt`` (s): a whole number of steps of ``t_end``, or with
+    no ``t_end`` ``dt`` to two digits (every refusal that names a working step uses it)."""
     if t_end is not None:
         return repr(t_end / math.ceil(t_end / dt))
     digits = float(f"{dt:.2g}")
@@ -240,7 +241,7 @@ def explicit_limit(model, scheme: str, dt: float, steps: int, t_end: float | Non
         bound = 0.1 * dt
         raise ModelError(f"app.stability_check: no estimate of the stability limit of integrator={scheme} for {what} "
                          f"could be made ({how}: the eigen-solve and its Gershgorin fallback); either check a "
-                         f"smaller step yourself, e.g. `app.dt={_fitted(bound, t_end)}`, or skip the check with "
+                         f"smaller step yourself, e.g. `app.dt={fitted_dt(bound, t_end)}`, or skip the check with "
                          "`app.stability_check=false`")
     if _growth(R, eigenvalues, dt, duration) <= SPURIOUS_GROWTH:
         return largest_stable_dt(R, eigenvalues, 1e6 * dt, duration)
@@ -250,7 +251,7 @@ def explicit_limit(model, scheme: str, dt: float, steps: int, t_end: float | Non
     raise ModelError(f"app.dt={dt:g} is unstable for integrator={scheme}: the explicit part ({names}; largest "
                      f"|λ| of its Jacobian at t = 0: {rho:.3g}, by {how}) would grow a mode by a factor "
                      f"{_growth(R, eigenvalues, dt, duration):.3g} over the run that the equations do not; use "
-                     f"`app.dt={_fitted(0.9 * limit, t_end)}` (stable up to ≈ {limit:.3g}) or an implicit integrator")
+                     f"`app.dt={fitted_dt(0.9 * limit, t_end)}` (stable up to ≈ {limit:.3g}) or an implicit integrator")
 
 
 def suggested_dt(model, scheme: str, dt: float, steps: int, t_end: float | None, known: float | None) -> float:
@@ -267,4 +268,4 @@ def suggested_dt(model, scheme: str, dt: float, steps: int, t_end: float | None,
         R, eigenvalues, _how, _part = estimate
         limit = min(limit, largest_stable_dt(R, eigenvalues, dt, dt * steps) or limit)
     step = min(0.9 * limit, dt / 4)
-    return float(_fitted(step, t_end))
+    return float(fitted_dt(step, t_end))

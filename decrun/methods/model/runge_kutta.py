@@ -59,8 +59,11 @@ __all__ = ["Problem", "Stepper", "Needs", "IntegratorEntry", "INTEGRATORS", "Mas
 
 
 class Problem(Protocol):
-    """M y' = f(y, t) over y (n,): ``mass`` M (n, n) SPD or None (the identity), ``stiff`` L (n, n)
-    the part of f linear with constant coefficients (f = L y + g(y, t)) or None."""
+    """M y' = f(y, t) over y (n,): ``mass`` M (n, n) symmetric positive semi-definite or None (the
+    identity) — SPD for an ODE; singular only on algebraic rows (0 = L y + g, a DAE of index 1:
+    :class:`~decrun.methods.model.mixed.MixedProblem`), which the steppers that solve with M − a dt J
+    alone take and the others refuse; ``stiff`` L (n, n) the part of f linear with constant
+    coefficients (f = L y + g(y, t)) or None."""
 
     size: int
     mass: sp.csr_matrix | None

@@ -7,8 +7,9 @@ the compiled model.
 
 - ``dirichlet: g(x, y, z, t)`` — u = g on the border vertices; with ``t`` the values move: every
   integrator steps the condensed system M_FF y' = f_F(y, t) whose border columns hold g(t) and,
-  for a non-diagonal mass, − M_FD ∂g/∂t (:class:`MovingProblem`); a linear solve reads g at its
-  ``t``;
+  for a non-diagonal mass, − M_FD ∂g/∂t (:class:`MovingProblem`); every solve of u reads g at its
+  ``t`` — a linear solve, a Newton solve and a block system (:mod:`~decrun.methods.model.moving_solves`;
+  factorizations stay done once, only the fixed values change);
 - ``neumann: g(x, y, z, t)`` — the outward normal derivative ∂u/∂n = g: every ``laplacian(u)``
   of the equations becomes ⋆0⁻¹(−S u + b(t)), b = ``border_load(g)`` (written into the tree as
   ``laplacian(u) + inv_star(_neumann_u)``, ``_neumann_u`` the dual n-form b);

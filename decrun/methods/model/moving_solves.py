@@ -31,12 +31,12 @@ def fixed_values_at(model, unknowns, moving: dict) -> Callable[[float], np.ndarr
     parts = []
     for name in unknowns:
         if name in model.fixed:
-            border, values = model.fixed[name]
-            parts.append((moving.get(name), vertices[border], np.asarray(values, dtype=np.float64)))
+            border, static = model.fixed[name]
+            parts.append((moving.get(name), vertices[border], np.asarray(static, dtype=np.float64)))
 
-    def values(t: float) -> np.ndarray:
-        return np.concatenate([static if g is None else g.at(points, t) for g, points, static in parts])
-    return values
+    def at(t: float) -> np.ndarray:
+        return np.concatenate([values if g is None else g.at(points, t) for g, points, values in parts])
+    return at
 
 
 def take_moving_values(what: str, item, model, moving: dict) -> None:

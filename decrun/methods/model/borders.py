@@ -7,8 +7,9 @@ the compiled model.
 
 - ``dirichlet: g(x, y, z, t)`` — u = g on the border vertices; with ``t`` the values move: every
   integrator steps the condensed system M_FF y' = f_F(y, t) whose border columns hold g(t) and,
-  for a non-diagonal mass, − M_FD ∂g/∂t (:class:`MovingProblem`); a linear solve reads g at its
-  ``t``;
+  for a non-diagonal mass, − M_FD ∂g/∂t (:class:`MovingProblem`); every solve of u reads g at its
+  ``t`` — a linear solve, a Newton solve and a block system (:mod:`~decrun.methods.model.moving_solves`;
+  factorizations stay done once, only the fixed values change);
 - ``neumann: g(x, y, z, t)`` — the outward normal derivative ∂u/∂n = g: every ``laplacian(u)``
   of the equations becomes ⋆0⁻¹(−S u + b(t)), b = ``border_load(g)`` (written into the tree as
   ``laplacian(u) + inv_star(_neumann_u)``, ``_neumann_u`` the dual n-form b);
@@ -405,21 +406,21 @@ def _refuse_indefinite(ops, weights: np.ndarray, star0: np.ndarray, where: str) 
 
 
 def finish(model, borders: Borders) -> None:
-    """After the lowering: the moving loads evaluated first in every environment, and each linear
-    solve whose unknown has moving Dirichlet values reading them at its t (a system or Newton solve
-    with them is refused)."""
+    """After the lowering: the moving loads evaluated first in every environment, and each solve
+    whose unknown has moving Dirichlet values reading them at its t — a linear solve through its
+    right side, a Newton or block-system solve through :mod:`~decrun.methods.model.moving_solves`."""
+    from decrun.methods.model.moving_solves import take_moving_values
+
     model.order[:0] = borders.order
     model._moving_borders = borders.moving
     K = model.ops.K
     for what, item in model.order:
         unknowns = set(item.unknowns) if what == "system" else {item.unknown} if what in ("solve", "newton") else set()
-        for u in sorted(unknowns & set(borders.moving)):
-            where = f"{model.spec.key}.fields.{u}.dirichlet"
-            if what != "solve":
-                raise ModelError(f"{where}: border values that read t are taken by evolved fields and linear solves; "
-                                 f"{u} is solved by a {'block system' if what == 'system' else 'Newton solve'}: write "
-                                 "them without t")
-            item.rhs = _moving_rhs(item, borders.moving[u], K.vertices[model.fixed[u][0]])
+        moving_unknowns = sorted(unknowns & set(borders.moving))
+        if moving_unknowns and what == "solve":
+            item.rhs = _moving_rhs(item, borders.moving[item.unknown], K.vertices[model.fixed[item.unknown][0]])
+        elif moving_unknowns:
+            take_moving_values(what, item, model, borders.moving)
 
 
 def _moving_rhs(item, expression: BorderExpression, points: np.ndarray) -> Callable[[dict], np.ndarray]:

@@ -42,6 +42,8 @@ class NonlinearSolve:
     fix: str
     iterations: list[int] = field(default_factory=list)
     residual_norms: list[float] = field(default_factory=list)
+    #: t ↦ the border values when they read t (:mod:`decrun.methods.model.moving_solves`); None: static
+    moving_values: Callable[[float], np.ndarray] | None = None
 
     @property
     def free(self) -> np.ndarray:
@@ -54,14 +56,17 @@ class NonlinearSolve:
         """The unknown's values at ``env`` (one Newton solve from the last solution)."""
         from decrun.methods.model.newton import newton
 
-        if self.new_solver is None:
-            raise RuntimeError("NonlinearSolve.solve before bind(new_solver)")
+        if self.new_solver is None:  # evaluated before the run binds its solver (its checks): the default, as a
+            from decrun.core.solvers import solver_factory  # LinearSystem's first factorization
+
+            self.new_solver = solver_factory(None)
         free, name = self.free, self.unknown
         local = dict(env)
         right = np.broadcast_to(np.asarray(self.rhs_closure(env), dtype=np.float64), (self.size,))[free]
         full = np.array(self.guess, dtype=np.float64)
-        if self.border_values is not None:
-            full[self.border] = self.border_values
+        border_values = self.border_values if self.moving_values is None else self.moving_values(float(env["t"]))
+        if border_values is not None:
+            full[self.border] = border_values
 
         def with_free(x):
             values = full.copy()

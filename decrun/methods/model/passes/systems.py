@@ -32,10 +32,13 @@ class SystemSolve:
     rows: list  # per equation: env ↦ its weak right-hand side
     offsets: np.ndarray  # (m + 1,) where each unknown's values start in the stacked vector
     fixed_values: np.ndarray | None
+    #: t ↦ the fixed values when some read t (:mod:`decrun.methods.model.moving_solves`); None: static
+    moving_values: Callable[[float], np.ndarray] | None = None
 
     def solve(self, env: dict) -> dict[str, np.ndarray]:
-        """Every unknown's values at ``env`` (one solve of the block system)."""
-        x = self.system.solve(np.concatenate([row(env) for row in self.rows]), self.fixed_values)
+        """Every unknown's values at ``env`` (one solve of the block system, factorized once)."""
+        fixed = self.fixed_values if self.moving_values is None else self.moving_values(float(env["t"]))
+        x = self.system.solve(np.concatenate([row(env) for row in self.rows]), fixed)
         return {name: x[self.offsets[i]:self.offsets[i + 1]] for i, name in enumerate(self.unknowns)}
 
 

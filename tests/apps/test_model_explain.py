@@ -44,3 +44,32 @@ def test_explain_of_a_model_that_does_not_type_check_is_its_one_line_refusal(tmp
     lines = [line for line in done.stderr.strip().splitlines() if line.strip()]
     assert done.returncode != 0 and len(lines) == 1
     assert lines[0].startswith("error: app.equations[0]: d(u) is a primal 1-form but dt(u) is a primal 0-form")
+
+
+def test_explain_shows_border_terms_by_what_they_are_with_a_legend(tmp_path):
+    """A Neumann and a Robin border rewrite laplacian(u) with names of their own: explain shows
+    them as neumann_load(u), robin_load(u), robin_weight(u) — in the typed trees, the blocks and
+    the definitions — each with one legend line naming its config key and expression, and no
+    internal name (_neumann_u, _robin_u, _robin_value_u) anywhere."""
+    common = ["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.explain=true", "figures=false", "progress=false"]
+    neumann = decrun(*common, "+app.fields.u.neumann='x'", "hydra.run.dir=neumann", cwd=tmp_path)
+    assert neumann.returncode == 0, neumann.stderr
+    text = neumann.stderr
+    assert "        inv_star : primal 0-form\n          neumann_load(u) : dual 2-form\n" in text
+    assert "explicit (reads no evolved field): + k * inv_star(neumann_load(u))" in text
+    assert ("  neumann_load(u) : dual 2-form: b_i = ∫_Γi g, the Neumann load of u (∂u/∂n = g, g = "
+            "app.fields.u.neumann = x); laplacian(u) + inv_star(neumann_load(u)) is ⋆0⁻¹(−S u + b)\n") in text
+    robin = decrun(*common, "+app.fields.u.robin={alpha: 2, value: 'x + t'}", "hydra.run.dir=robin", cwd=tmp_path)
+    assert robin.returncode == 0, robin.stderr
+    text = robin.stderr
+    assert "          * : primal 0-form\n            robin_weight(u) : primal 0-form\n            u : primal 0-form" \
+        in text
+    assert "definition robin_load(u) : dual 2-form (a closure)" in text  # it reads t: a definition each step
+    assert ("  robin_load(u) : dual 2-form: b_i = ∫_Γi v, the Robin load of u (∂u/∂n + α u = v, v = "
+            "app.fields.u.robin.value = x + t); it reads t: evaluated again at every step\n") in text
+    assert "  robin_weight(u) : primal 0-form: (∫_Γi α) / ⋆0_i, the Robin coefficient of u (α = " \
+           "app.fields.u.robin.alpha = 2)" in text
+    for shown in (neumann.stderr, robin.stderr):
+        assert "_neumann_" not in shown and "_robin_" not in shown
+    explained = json.loads((tmp_path / "robin" / "metrics.json").read_text())
+    assert explained["steps_done"] == 0

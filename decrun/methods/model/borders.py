@@ -265,6 +265,18 @@ def internal_names(spec) -> set[str]:
     return out
 
 
+def internal_roles(spec) -> dict[str, tuple[str, str]]:
+    """``{internal name: (field, part)}`` for the names of :func:`internal_names`: part
+    ``neumann`` (the Neumann load), ``robin.value`` (the Robin load) or ``robin.alpha`` (the Robin
+    coefficient) — what ``app.explain`` shows them as (:mod:`decrun.methods.model.border_labels`)."""
+    out = {}
+    for name, key in _given(spec).items():
+        out[_load_name(name, key)] = (name, "neumann" if key == "neumann" else "robin.value")
+        if key == "robin":
+            out[_coefficient_name(name)] = (name, "robin.alpha")
+    return out
+
+
 def moving_names(spec) -> set[str]:
     """The names whose values change in a run through a border condition that reads t (never
     cached as static): the border loads, and the fields with moving Dirichlet values (a solve's

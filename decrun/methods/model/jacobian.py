@@ -73,8 +73,10 @@ def _apply(matrix, D):
     """matrix · D (a sparse matrix applied to a derivative)."""
     if D is None:
         return None
-    if isinstance(D, np.ndarray):
-        return (matrix @ sp.diags(D)).tocsr()
+    if isinstance(D, np.ndarray):  # matrix · diag(D): its columns scaled, no sparse product
+        out = sp.csr_matrix(matrix, dtype=np.float64, copy=True)
+        out.data *= np.broadcast_to(D, (out.shape[1],))[out.indices]
+        return out
     return (matrix @ D).tocsr()
 
 

@@ -273,15 +273,35 @@ def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:
 
 
 def _lie_1_pieces(K) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray, sp.csr_matrix]:
-    """The fixed matrices of :func:`decrun.methods.model.discrete.lie_1` on a triangle mesh:
-    ``(P, F, N, G)`` with P = diag(1/|f|) d1 (n2, n1) the density ρ of dω per unit area, F the
-    ♭ matrix (n1, n2 d, :func:`flat_matrix`), N the unit normals (n2, 3) and G = d0 A (n1, n2),
-    A the volume-weighted mean onto the vertices: L_X ω = F vec(ρ N × X) + G (X·ω♯)."""
+    """The fixed matrices of :func:`decrun.methods.model.discrete.lie_1` on a triangle mesh, with
+    vector values flattened row by row (index f d + a): ``(P_d, F, N, G_d)`` — P_d (n2 d, n1) row
+    f d + a the row f of P = diag(1/|f|) d1 (the density ρ of dω per unit area), F the ♭ matrix
+    (n1, n2 d, :func:`flat_matrix`), N the unit normals (n2, 3), G_d (n1, n2 d) column f d + a the
+    column f of G = d0 A (A the volume-weighted mean onto the vertices); so that
+    L_X ω = F vec(ρ N × X) + G (X·ω♯), and every Jacobian below is one sparse product."""
     def compute():
+        d = K.vertices.shape[1]
+        count = K.num_simplices(2)
+        spread = sp.csr_matrix((np.ones(count * d), (np.arange(count * d), np.repeat(np.arange(count), d))),
+                               shape=(count * d, count))  # row f d + a ← f
         density = (sp.diags(1.0 / K.top_volumes) @ K.incidence(2)).tocsr()
         gather = (K.incidence(1) @ discrete.vertex_average_matrix(K)).tocsr()
-        return density, flat_matrix(K), discrete.face_normals(K), gather
+        return (spread @ density).tocsr(), flat_matrix(K), discrete.face_normals(K), (gather @ spread.T).tocsr()
     return K.require(("model", "lie_1_pieces"), compute)
+
+
+def _scale_columns(matrix: sp.csr_matrix, factor: np.ndarray) -> sp.csr_matrix:
+    """matrix · diag(factor), by scaling the stored values (no sparse product)."""
+    out = matrix.copy()
+    out.data *= factor[out.indices]
+    return out
+
+
+def _scale_rows(matrix: sp.csr_matrix, factor: np.ndarray) -> sp.csr_matrix:
+    """diag(factor) · matrix, by scaling the stored values (no sparse product)."""
+    out = matrix.copy()
+    out.data *= np.repeat(factor, np.diff(out.indptr))
+    return out
 
 
 def _normal_cross(normals: np.ndarray, d: int) -> np.ndarray:
@@ -300,11 +320,10 @@ def lie_1_matrix(K, vectors: np.ndarray) -> sp.csr_matrix:
     per triangle, S the ♯ matrix (:func:`_lie_1_pieces`)."""
     density, flat, normals, gather = _lie_1_pieces(K)
     vectors = np.asarray(vectors, dtype=np.float64)
-    d = vectors.shape[1]
-    turned = np.einsum("fab,fb->fa", _normal_cross(normals, d), vectors)  # (N × X)[:d] per triangle
-    rotation = flat @ _per_simplex_rows(turned).T @ density
-    transport = gather @ _per_simplex_rows(vectors) @ mesh_sharp_matrix(K)
-    return sp.csr_matrix(rotation + transport)
+    turned = np.einsum("fab,fb->fa", _normal_cross(normals, vectors.shape[1]), vectors)  # (N × X)[:d] per triangle
+    rotation = _scale_columns(flat, turned.ravel()) @ density  # F C P
+    transport = gather @ _scale_rows(mesh_sharp_matrix(K), vectors.ravel())  # G R S
+    return (rotation + transport).tocsr()
 
 
 def lie_1_derivative(ops, kinds, values, i) -> sp.csr_matrix:
@@ -320,6 +339,7 @@ def lie_1_derivative(ops, kinds, values, i) -> sp.csr_matrix:
         return lie_1_matrix(K, vectors)
     density, flat, normals, gather = _lie_1_pieces(K)
     omega = np.asarray(omega, dtype=np.float64)
-    blocks = _normal_cross(normals, vectors.shape[1]) * (density @ omega)[:, None, None]
-    in_field = flat @ _block_diagonal(blocks) + gather @ _per_simplex_rows(discrete.sharp(K, omega))
-    return sp.csr_matrix(in_field if kinds[0] == VECTOR else in_field @ mesh_sharp_matrix(K))
+    d = vectors.shape[1]
+    blocks = _normal_cross(normals, d) * (density @ omega)[::d, None, None]  # ρ_f [N_f ×]
+    in_field = flat @ _block_diagonal(blocks) + _scale_columns(gather, mesh_sharp_matrix(K) @ omega)
+    return (in_field if kinds[0] == VECTOR else in_field @ mesh_sharp_matrix(K)).tocsr()

@@ -26,6 +26,7 @@ ONE_FORM_EXPRESSIONS = [
     "lie(sharp(w), w) + lie(sharp(d(v)), w)",  # a vector velocity that reads w, and a fixed one
     "lie(d(v), w*w) - lie(w, d(v))",  # through a product in the form; in the velocity only
     "codifferential(lie(flat(normalize(sharp(w))), w))",  # through ♭, normalize, then δ
+    "lie(sharp(d(x*y + z)), w) - lie(d(x), w*w)",  # a static velocity: the matrix of ω ↦ L_X ω, made once
 ]
 
 

@@ -2,7 +2,7 @@
 
 A Neumann or Robin border rewrites ``laplacian(u)`` with names of its own
 (:func:`decrun.methods.model.borders.rewrite`): ``laplacian(u) + inv_star(_neumann_u)``, or
-``laplacian(u) - _robin_u*u + inv_star(_robin_value_u)``. Those internal names mean nothing to the
+``laplacian(u) - _robin_alpha_u*u + inv_star(_robin_value_u)``. Those internal names mean nothing to the
 person who wrote ``app.fields.u.neumann``; :func:`relabel` shows them in the explained model as
 
 - ``neumann_load(u)``: b, b_i = ∫_{Γ_i} g, the Neumann load (∂u/∂n = g), a dual n-form;

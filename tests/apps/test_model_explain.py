@@ -44,3 +44,53 @@ def test_explain_of_a_model_that_does_not_type_check_is_its_one_line_refusal(tmp
     lines = [line for line in done.stderr.strip().splitlines() if line.strip()]
     assert done.returncode != 0 and len(lines) == 1
     assert lines[0].startswith("error: app.equations[0]: d(u) is a primal 1-form but dt(u) is a primal 0-form")
+
+
+def test_explain_shows_border_terms_by_what_they_are_with_a_legend(tmp_path):
+    """A Neumann and a Robin border rewrite laplacian(u) with names of their own: explain shows
+    them as neumann_load(u), robin_load(u), robin_weight(u) — in the typed trees, the blocks and
+    the definitions — each with one legend line naming its config key and expression, and no
+    internal name (_neumann_u, _robin_alpha_u, _robin_value_u) anywhere."""
+    common = ["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.explain=true", "figures=false", "progress=false"]
+    neumann = decrun(*common, "+app.fields.u.neumann='x'", "hydra.run.dir=neumann", cwd=tmp_path)
+    assert neumann.returncode == 0, neumann.stderr
+    text = neumann.stderr
+    assert "        inv_star : primal 0-form\n          neumann_load(u) : dual 2-form\n" in text
+    assert "explicit (reads no evolved field): + k * inv_star(neumann_load(u))" in text
+    assert ("  neumann_load(u) : dual 2-form: b_i = ∫_Γi g, the Neumann load of u (∂u/∂n = g, g = "
+            "app.fields.u.neumann = x); laplacian(u) + inv_star(neumann_load(u)) is ⋆0⁻¹(−S u + b)\n") in text
+    robin = decrun(*common, "+app.fields.u.robin={alpha: 2, value: 'x + t'}", "hydra.run.dir=robin", cwd=tmp_path)
+    assert robin.returncode == 0, robin.stderr
+    text = robin.stderr
+    assert "          * : primal 0-form\n            robin_weight(u) : primal 0-form\n            u : primal 0-form" \
+        in text
+    assert "definition robin_load(u) : dual 2-form (a closure)" in text  # it reads t: a definition each step
+    assert ("  robin_load(u) : dual 2-form: b_i = ∫_Γi v, the Robin load of u (∂u/∂n + α u = v, v = "
+            "app.fields.u.robin.value = x + t); it reads t: evaluated again at every step\n") in text
+    assert "  robin_weight(u) : primal 0-form: (∫_Γi α) / ⋆0_i, the Robin coefficient of u (α = " \
+           "app.fields.u.robin.alpha = 2)" in text
+    for shown in (neumann.stderr, robin.stderr):
+        assert "_neumann_" not in shown and "_robin_" not in shown
+    explained = json.loads((tmp_path / "robin" / "metrics.json").read_text())
+    assert explained["steps_done"] == 0
+
+
+def test_robin_borders_of_u_and_value_u_keep_their_terms_apart(tmp_path):
+    """u's Robin load and value_u's Robin coefficient once shared the internal name _robin_value_u
+    (a kind clash refused the model); each is now its own term, shown by what it is, and the model runs."""
+    common = ["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "+app.fields.u.robin={alpha: 2, value: 'x'}",
+              "+app.fields.value_u={form: 0, initial: 'y', robin: {alpha: 3, value: 'y'}}",
+              "app.equations=['dt(u) = laplacian(u)', 'dt(value_u) = laplacian(value_u)']", "figures=false",
+              "progress=false"]
+    explained = decrun(*common, "app.explain=true", "hydra.run.dir=explained", cwd=tmp_path)
+    assert explained.returncode == 0, explained.stderr
+    for term in ("robin_load(u) : dual 2-form", "robin_weight(u) : primal 0-form", "robin_load(value_u) : dual 2-form",
+                 "robin_weight(value_u) : primal 0-form"):
+        assert f"  {term}: " in explained.stderr, term
+    ran = decrun(*common, "app.t_end=0.01", "hydra.run.dir=ran", cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    alone = decrun(*common[:5], *common[7:], "app.t_end=0.01", "hydra.run.dir=alone", cwd=tmp_path)  # u only
+    assert alone.returncode == 0, alone.stderr
+    both, single = (json.loads((tmp_path / run / "metrics.json").read_text()) for run in ("ran", "alone"))
+    for name in ("mass", "dirichlet_energy"):  # u's run is the same with value_u beside it, to round-off
+        assert abs(both[name] - single[name]) <= 1e-12 * abs(single[name]), name

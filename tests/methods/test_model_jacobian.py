@@ -64,19 +64,6 @@ def test_a_term_without_an_exact_jacobian_is_refused_in_one_line(text, words):
     assert "\n" not in str(caught.value) and str(caught.value).startswith("app.equations[0]: ")
 
 
-def test_lie_of_a_1_form_along_a_field_that_reads_the_unknown_is_refused_in_one_line():
-    """Its rule has no derivative in the velocity (only lie of 0-forms does): one line at the
-    first evaluation, naming the term."""
-    dec = dec_of("lattice")
-    compiler = _compiler(dec)
-    where = "app.equations[0]"
-    jacobian = derivative(compiler, parse_expression("codifferential(lie(sharp(d(u)), d(u)))", where), "u", where)
-    u = np.linspace(0.2, 0.8, dec.K.num_simplices(0))
-    with pytest.raises(ModelError, match="no derivative in argument 1") as caught:
-        jacobian(env_of(dec.K, {"u": u, "v": u, "D": u ** 2 + 1}))
-    assert "\n" not in str(caught.value) and str(caught.value).startswith(where + ": ")
-
-
 def _problem(equations, fields, mesh="lattice", star="circumcentric"):
     spec = ModelSpec(fields=fields, equations=equations, dt=0.01)
     return ModelProblem(compile_model(spec, dec_of(mesh, star), solver_factory("auto")))

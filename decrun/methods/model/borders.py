@@ -14,8 +14,8 @@ the compiled model.
   of the equations becomes ⋆0⁻¹(−S u + b(t)), b = ``border_load(g)`` (written into the tree as
   ``laplacian(u) + inv_star(_neumann_u)``, ``_neumann_u`` the dual n-form b);
 - ``robin: {alpha: α(x, y, z), value: v(x, y, z, t)}`` — ∂u/∂n + α u = v: ``laplacian(u)``
-  becomes ⋆0⁻¹(−(S + R) u + b(v)), R = ``robin_matrix(α)`` (``laplacian(u) - _robin_u*u +
-  inv_star(_robin_value_u)``, ``_robin_u`` = diag(R)/⋆0, a constant coefficient: R joins the
+  becomes ⋆0⁻¹(−(S + R) u + b(v)), R = ``robin_matrix(α)`` (``laplacian(u) - _robin_alpha_u*u +
+  inv_star(_robin_value_u)``, ``_robin_alpha_u`` = diag(R)/⋆0, a constant coefficient: R joins the
   linear block of the implicit integrators and solves).
 
 Border expressions are value-by-value expressions of ``x y z t pi`` and ``app.constants``,
@@ -187,7 +187,7 @@ def _load_name(name: str, key: str) -> str:
 
 
 def _coefficient_name(name: str) -> str:
-    return f"_robin_{name}"
+    return f"_robin_alpha_{name}"  # never a load's name: `_robin_value_u` is u's load, not value_u's α
 
 
 def rewrite(spec, equations: list[Equation], kinds: dict[str, Kind], n: int) -> list[Equation]:
@@ -257,12 +257,24 @@ def _border_form(node: Call, name: str, key: str) -> Node:
 
 def internal_names(spec) -> set[str]:
     """The names the rewrite of ``laplacian(u)`` introduces (bound by :func:`bind`, never the user's):
-    ``_neumann_u`` for a Neumann field, ``_robin_u`` and ``_robin_value_u`` for a Robin one."""
+    ``_neumann_u`` for a Neumann field, ``_robin_alpha_u`` and ``_robin_value_u`` for a Robin one."""
     out = set()
     for name, key in _given(spec).items():
         out.add(_load_name(name, key))
         if key == "robin":
             out.add(_coefficient_name(name))
+    return out
+
+
+def internal_roles(spec) -> dict[str, tuple[str, str]]:
+    """``{internal name: (field, part)}`` for the names of :func:`internal_names`: part
+    ``neumann`` (the Neumann load), ``robin.value`` (the Robin load) or ``robin.alpha`` (the Robin
+    coefficient) — what ``app.explain`` shows them as (:mod:`decrun.methods.model.border_labels`)."""
+    out = {}
+    for name, key in _given(spec).items():
+        out[_load_name(name, key)] = (name, "neumann" if key == "neumann" else "robin.value")
+        if key == "robin":
+            out[_coefficient_name(name)] = (name, "robin.alpha")
     return out
 
 

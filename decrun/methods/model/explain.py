@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import scipy.sparse as sp
 
+from decrun.methods.model.border_labels import legend, relabel
 from decrun.methods.model.language import Node, to_text
 
 __all__ = ["explain", "typed_tree"]
@@ -100,4 +101,4 @@ def explain(model) -> str:
     if model.evolved:
         lines += _evolution(model)
     lines += [f"metric {name} : number" for name in model.metrics]
-    return "\n".join(lines)
+    return relabel("\n".join(lines + legend(model.spec, model.kinds)), model.spec)  # border terms by meaning

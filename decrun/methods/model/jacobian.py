@@ -15,12 +15,14 @@ matrix diag(a); else a sparse matrix):
   would make it dense and is refused);
 - an operator with a derivative rule: Σ_i ∂op/∂arg_i · D_i (value-by-value functions, max, min);
 - ``lie(X, u)`` with a fixed X: its matrix times D_u;
-- ♯, |·|, normalize, ♭, interior, ∧, flux_field and lie of 0-forms: their rules in
+- ♯, |·|, normalize, ♭ (also the intrinsic one), interior, ∧, flux_field and lie (of 0- and
+  1-forms, in the velocity and in the form): their rules in
   :mod:`decrun.methods.model.vector_derivatives` (a vector field's values flattened row by row).
 
-Anything else that reads the unknown — a number computed from it (``integral(u)`` couples every
-value), lie of a 1-form along a velocity that reads the unknown (at its first evaluation), an
-operator of a plugin without a derivative rule — is one :class:`ModelError` line naming the term.
+Anything else that reads the unknown — a number computed from it (``integral(u)``, ``inner``,
+``mean``, ``norm`` of a form, one-argument ``max``/``min``: each couples every value, a dense
+Jacobian), a linear operator with a Galerkin ⋆⁻¹ (dense), an operator of a plugin without a
+derivative rule — is one :class:`ModelError` line naming the term.
 """
 
 from __future__ import annotations
@@ -30,9 +32,10 @@ from typing import Any, Callable, Optional
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.methods.model.kinds import NUMBER
+from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS
+from decrun.methods.model.vector_derivatives import vector_shape
 
 __all__ = ["derivative", "derivative_values", "Derivative", "pattern"]
 
@@ -70,8 +73,10 @@ def _apply(matrix, D):
     """matrix · D (a sparse matrix applied to a derivative)."""
     if D is None:
         return None
-    if isinstance(D, np.ndarray):
-        return (matrix @ sp.diags(D)).tocsr()
+    if isinstance(D, np.ndarray):  # matrix · diag(D): its columns scaled, no sparse product
+        out = sp.csr_matrix(matrix, dtype=np.float64, copy=True)
+        out.data *= np.broadcast_to(D, (out.shape[1],))[out.indices]
+        return out
     return (matrix @ D).tocsr()
 
 
@@ -288,7 +293,8 @@ class _Pattern:
             if matrix is None:
                 raise self.refuse(shown, f"{operator.name} has no sparse matrix here")
             return _structure(_structure(matrix) @ inners[0])
-        if operator.fixed_first is not None and len(node.args) == 2 and inners[0] is None:
+        if operator.fixed_first is not None and len(node.args) == 2 and inners[0] is None and (
+                compiler.is_static(node.args[0]) or operator.derivative is None):  # else: its rule's structure
             if not compiler.is_static(node.args[0]):
                 raise self.refuse(shown, f"the matrix of {operator.name} changes with {to_text(node.args[0])}")
             matrix = operator.fixed_first(compiler.ops, kinds, compiler.static_value(node.args[0]))
@@ -312,7 +318,9 @@ class _Pattern:
         if operator.pointwise:
             rows = kinds[i].size(size) if kinds[i].is_form else self.size
             return sp.identity(rows, format="csr")
-        values = [self._generic.uniform(1.0, 2.0, kind.size(size)) if kind.is_form else 1.5 for kind in kinds]
+        values = [self._generic.uniform(1.0, 2.0, kind.size(size)) if kind.is_form else
+                  self._generic.uniform(1.0, 2.0, vector_shape(self.compiler.ops)) if kind == VECTOR else 1.5
+                  for kind in kinds]
         partial = operator.derivative(self.compiler.ops, kinds, values, i)
         if partial is None:
             raise self.refuse(shown, f"the operator {operator.name} has no derivative in argument {i + 1}")

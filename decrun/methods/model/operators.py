@@ -336,9 +336,9 @@ def _lie_kind(args, n):
 
 
 def _lie_fixed_first(ops: "Discrete", kinds, field):
-    """The matrix of u ↦ L_X u on 0-forms for a fixed X (None on 1-forms: evaluated)."""
+    """The matrix of u ↦ L_X u for a fixed X (0-forms; Cartan's formula on 1-forms)."""
     if kinds[1].degree != 0:
-        return None
+        return vector_derivatives.lie_1_matrix(ops.K, _as_vectors(ops, kinds[0], field))
     return discrete.lie_0_matrix(ops.K, _as_vectors(ops, kinds[0], field))
 
 

@@ -1,5 +1,5 @@
-"""Derivative rules of the operators on vector fields and of the wedge product, for the exact
-Jacobians of the derivative pass (:mod:`decrun.methods.model.jacobian`).
+"""Derivative rules of the operators on vector fields, the wedge product and the Lie derivative,
+for the exact Jacobians of the derivative pass (:mod:`decrun.methods.model.jacobian`).
 
 A vector field is one vector per top simplex, ``(n_n, d)``; as an argument of a Jacobian it is
 flattened row by row, value ``(σ, a)`` at index ``σ d + a``. Each rule has the signature of
@@ -13,7 +13,8 @@ naming the term):
   differentiable there, and its square |X|², which the models write, has derivative 0);
 - ``normalize(X) = X/|X|``: the block (I − X̂X̂ᵀ)/|X| per top simplex (0 where X = 0, where
   normalize is 0 by definition);
-- ``flat(X)`` (triangles, the mesh's own simplices) is linear: ω_e = Σ_{f∋e} w_fe X_f·e;
+- ``flat(X)`` (triangles) is linear: ω_e = Σ_{f∋e} w_fe X_f·e, on the mesh's own simplices or
+  (``operator=intrinsic_delaunay``) on the intrinsic triangulation's, X in each triangle's frame;
 - ``interior(X, ω) = X·ω♯``: diag-blocks X_σᵀ S in ω; ω♯_σᵀ per row in X (through ♯ when X is a
   1-form);
 - ``wedge``: f∧ω = (A f)·ω is bilinear (A the vertex mean on k-simplices); α∧β of two 1-forms is
@@ -21,7 +22,10 @@ naming the term):
 - ``flux_field(u)`` is linear: row (σ, a) holds o_i (x̄_σ − p_i)_a / (n |σ|) at the face f_i of σ
   opposite p_i (the lowest-order Raviart–Thomas field at the barycentre);
 - ``lie(X, f)`` of a 0-form, X · ∇f per top simplex averaged to the vertices (V): ``lie_0_matrix``
-  in f, V · rows ∇f_σᵀ in X (through ♯ when X is a 1-form); of a 1-form it has no rule here.
+  in f, V · rows ∇f_σᵀ in X (through ♯ when X is a 1-form);
+- ``lie(X, ω)`` of a 1-form (triangles), Cartan's L_X ω = (ρ N × X)♭ + d V (X·ω♯), ρ = dω/|f|,
+  is bilinear: :func:`lie_1_matrix` in ω, the blocks ♭ · ρ_f [N_f ×] + d V · rows ω♯_fᵀ in X
+  (through ♯ when X is a 1-form).
 """
 
 from __future__ import annotations
@@ -34,8 +38,8 @@ import scipy.sparse as sp
 from decrun.methods.model import discrete
 from decrun.methods.model.kinds import VECTOR
 
-__all__ = ["flux_field_matrix", "flux_field_derivative", "lie_derivative", "sharp_matrix", "mesh_sharp_matrix", "sharp_derivative", "norm_derivative", "normalize_derivative", "flat_matrix",
-           "flat_derivative", "interior_derivative", "wedge_derivative"]
+__all__ = ["flux_field_matrix", "flux_field_derivative", "lie_derivative", "lie_1_matrix", "lie_1_derivative", "sharp_matrix", "vector_shape", "mesh_sharp_matrix", "sharp_derivative", "norm_derivative", "normalize_derivative", "flat_matrix",
+           "intrinsic_flat_matrix", "flat_derivative", "interior_derivative", "wedge_derivative"]
 
 
 def _interleaved(parts) -> sp.csr_matrix:
@@ -58,6 +62,13 @@ def sharp_matrix(ops) -> sp.csr_matrix:
     if ops.intrinsic is None:
         return mesh_sharp_matrix(ops.K)
     return ops.K.require(("model", "intrinsic_sharp_matrix_flat"), lambda: _interleaved(ops.intrinsic.sharp_matrices))
+
+
+def vector_shape(ops) -> tuple[int, int]:
+    """(n_n, d) the shape of a vector field's value (``ops.sharp``'s: the intrinsic
+    triangulation's triangles and their 2-D frames under ``operator=intrinsic_delaunay``)."""
+    d = 2 if ops.intrinsic is not None else ops.K.vertices.shape[1]
+    return sharp_matrix(ops).shape[0] // d, d
 
 
 def sharp_derivative(ops, kinds, values, i) -> sp.csr_matrix:
@@ -119,11 +130,36 @@ def flat_matrix(K) -> sp.csr_matrix:
     return K.require(("model", "flat_matrix"), compute)
 
 
-def flat_derivative(ops, kinds, values, i) -> sp.csr_matrix | None:
-    """∂ flat(X)/∂X (linear): :func:`flat_matrix`; None under ``operator=intrinsic_delaunay``
-    (its ♭ lives on the intrinsic triangulation)."""
+def intrinsic_flat_matrix(ops) -> sp.csr_matrix:
+    """(e, f 2) the matrix of the intrinsic triangulation's ♭
+    (:meth:`decrun.core.intrinsic_calculus.IntrinsicCalculus.flat`, ``operator=intrinsic_delaunay``):
+    row e holds share_s · ±(side vector of s) at the columns of the triangle of each side s on e,
+    share_s = ½cot θ_s / Σ_{s∋e} ½cot θ_s (1/#{s ∋ e} where that sum is 0, as ``flat`` takes it),
+    the vectors in each triangle's own frame."""
+    calculus = ops.intrinsic
+
+    def compute():
+        half_cot = 0.5 * calculus.T.corner_cotangents().ravel()  # side 3f + c is opposite corner c
+        edges = calculus.T.face_edges.ravel()
+        n_edges, n_faces = calculus.n_edges, calculus.n_faces
+        total = np.bincount(edges, weights=half_cot, minlength=n_edges)
+        count = np.bincount(edges, minlength=n_edges).astype(np.float64)
+        scale = np.abs(half_cot).max() if half_cot.size else 1.0
+        degenerate = np.abs(total) <= 1e-12 * scale
+        share = np.where(degenerate[edges], 1.0 / np.maximum(count, 1.0)[edges],
+                         half_cot / np.where(degenerate, 1.0, total)[edges])  # (3f,)
+        along = (calculus.side_vectors * calculus.side_sign[..., None]).reshape(-1, 2)  # (3f, 2)
+        rows = np.repeat(edges, 2)
+        cols = (np.repeat(np.arange(n_faces), 3)[:, None] * 2 + np.arange(2)[None, :]).ravel()
+        return sp.csr_matrix(((share[:, None] * along).ravel(), (rows, cols)), shape=(n_edges, 2 * n_faces))
+    return ops.K.require(("model", "intrinsic_flat_matrix"), compute)
+
+
+def flat_derivative(ops, kinds, values, i) -> sp.csr_matrix:
+    """∂ flat(X)/∂X (linear): :func:`flat_matrix`, or :func:`intrinsic_flat_matrix` under
+    ``operator=intrinsic_delaunay`` (its ♭ lives on the intrinsic triangulation)."""
     if ops.intrinsic is not None:
-        return None
+        return intrinsic_flat_matrix(ops)
     return flat_matrix(ops.K)
 
 
@@ -211,10 +247,11 @@ def flux_field_derivative(ops, kinds, values, i) -> sp.csr_matrix:
     return flux_field_matrix(ops.K)
 
 
-def lie_derivative(ops, kinds, values, i) -> sp.csr_matrix | None:
-    """∂ lie(X, f)/∂(argument i) for a 0-form f (module docstring); None for a 1-form."""
+def lie_derivative(ops, kinds, values, i) -> sp.csr_matrix:
+    """∂ lie(X, f)/∂(argument i) for a 0-form f (module docstring); of a 1-form:
+    :func:`lie_1_derivative`."""
     if kinds[1].degree != 0:
-        return None
+        return lie_1_derivative(ops, kinds, values, i)
     K = ops.K
     field, f = values
     if i == 1:
@@ -224,3 +261,85 @@ def lie_derivative(ops, kinds, values, i) -> sp.csr_matrix | None:
     gradient = np.einsum("fv,fvd->fd", np.asarray(f, dtype=np.float64)[top], discrete.gradients(K))
     rows = discrete.vertex_average_matrix(K) @ _per_simplex_rows(gradient)
     return (rows if kinds[0] == VECTOR else rows @ mesh_sharp_matrix(K)).tocsr()
+
+
+def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:
+    """(n_n a, n_n b) the block-diagonal matrix of the per-simplex blocks ``blocks`` (n_n, a, b):
+    block σ at rows σ a …, columns σ b … (vector values flattened row by row)."""
+    count, a, b = blocks.shape
+    rows = np.repeat(np.arange(count * a), b)
+    cols = (np.arange(count)[:, None, None] * b + np.arange(b)[None, None, :]).repeat(a, axis=1).ravel()
+    return sp.csr_matrix((blocks.ravel(), (rows, cols)), shape=(count * a, count * b))
+
+
+def _lie_1_pieces(K) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray, sp.csr_matrix]:
+    """The fixed matrices of :func:`decrun.methods.model.discrete.lie_1` on a triangle mesh, with
+    vector values flattened row by row (index f d + a): ``(P_d, F, N, G_d)`` — P_d (n2 d, n1) row
+    f d + a the row f of P = diag(1/|f|) d1 (the density ρ of dω per unit area), F the ♭ matrix
+    (n1, n2 d, :func:`flat_matrix`), N the unit normals (n2, 3), G_d (n1, n2 d) column f d + a the
+    column f of G = d0 A (A the volume-weighted mean onto the vertices); so that
+    L_X ω = F vec(ρ N × X) + G (X·ω♯), and every Jacobian below is one sparse product."""
+    def compute():
+        d = K.vertices.shape[1]
+        count = K.num_simplices(2)
+        spread = sp.csr_matrix((np.ones(count * d), (np.arange(count * d), np.repeat(np.arange(count), d))),
+                               shape=(count * d, count))  # row f d + a ← f
+        density = (sp.diags(1.0 / K.top_volumes) @ K.incidence(2)).tocsr()
+        gather = (K.incidence(1) @ discrete.vertex_average_matrix(K)).tocsr()
+        return (spread @ density).tocsr(), flat_matrix(K), discrete.face_normals(K), (gather @ spread.T).tocsr()
+    return K.require(("model", "lie_1_pieces"), compute)
+
+
+def _scale_columns(matrix: sp.csr_matrix, factor: np.ndarray) -> sp.csr_matrix:
+    """matrix · diag(factor), by scaling the stored values (no sparse product)."""
+    out = matrix.copy()
+    out.data *= factor[out.indices]
+    return out
+
+
+def _scale_rows(matrix: sp.csr_matrix, factor: np.ndarray) -> sp.csr_matrix:
+    """diag(factor) · matrix, by scaling the stored values (no sparse product)."""
+    out = matrix.copy()
+    out.data *= np.repeat(factor, np.diff(out.indptr))
+    return out
+
+
+def _normal_cross(normals: np.ndarray, d: int) -> np.ndarray:
+    """(n2, d, d) the matrices of X ↦ (N × X)[:d] per triangle (X in R^d padded with zeros to R³):
+    column b is N × e_b."""
+    basis = np.eye(3)[:d]  # (d, 3): e_b
+    columns = np.cross(normals[:, None, :], basis[None, :, :])  # (n2, d: b, 3: a)
+    return np.transpose(columns, (0, 2, 1))[:, :d, :]
+
+
+def lie_1_matrix(K, vectors: np.ndarray) -> sp.csr_matrix:
+    """(n1, n1) the matrix of ω ↦ :func:`decrun.methods.model.discrete.lie_1` (K, X, ω) for a
+    fixed field X (n2, d) — Cartan's formula, linear in ω:
+    F · vec(ρ_f (N_f × X_f)) with ρ = P ω, plus G · (X_fᵀ ω♯_f), i.e.
+    F C P + G R S, C (n2 d, n2) the column N_f × X_f per triangle, R (n2, n2 d) the row X_fᵀ
+    per triangle, S the ♯ matrix (:func:`_lie_1_pieces`)."""
+    density, flat, normals, gather = _lie_1_pieces(K)
+    vectors = np.asarray(vectors, dtype=np.float64)
+    turned = np.einsum("fab,fb->fa", _normal_cross(normals, vectors.shape[1]), vectors)  # (N × X)[:d] per triangle
+    rotation = _scale_columns(flat, turned.ravel()) @ density  # F C P
+    transport = gather @ _scale_rows(mesh_sharp_matrix(K), vectors.ravel())  # G R S
+    return (rotation + transport).tocsr()
+
+
+def lie_1_derivative(ops, kinds, values, i) -> sp.csr_matrix:
+    """∂ lie(X, ω)/∂(argument i) for a 1-form ω on a triangle mesh. L_X ω is bilinear (Cartan's
+    formula, :func:`lie_1_matrix`): in ω its matrix at the given X; in X (n1, n2 d) the blocks
+    F · blockdiag(ρ_f [N_f ×]) + G · rows ω♯_fᵀ, times the ♯ matrix S when the velocity is a
+    1-form (lie takes its ♯ on the mesh's own simplices)."""
+    K = ops.K
+    field, omega = values
+    vectors = field if kinds[0] == VECTOR else discrete.sharp(K, field)
+    vectors = np.asarray(vectors, dtype=np.float64)
+    if i == 1:
+        return lie_1_matrix(K, vectors)
+    density, flat, normals, gather = _lie_1_pieces(K)
+    omega = np.asarray(omega, dtype=np.float64)
+    d = vectors.shape[1]
+    blocks = _normal_cross(normals, d) * (density @ omega)[::d, None, None]  # ρ_f [N_f ×]
+    in_field = flat @ _block_diagonal(blocks) + _scale_columns(gather, mesh_sharp_matrix(K) @ omega)
+    return (in_field if kinds[0] == VECTOR else in_field @ mesh_sharp_matrix(K)).tocsr()

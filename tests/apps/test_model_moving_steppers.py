@@ -37,7 +37,7 @@ def _cli(tmp_path, *overrides: str) -> dict:
 
 def _time_orders(fields: list) -> np.ndarray:
     """log2 of the ratios of successive distances |u(dt) − u(dt/2)| (dt halved each time)."""
-    distances = np.array([np.abs(a - b).max() for a, b in zip(fields[:-1], fields[1:])])
+    distances = np.array([np.abs(a - b).max() for a, b in zip(fields[:-1], fields[1:], strict=True)])
     return np.log2(distances[:-1] / distances[1:])
 
 

@@ -226,10 +226,6 @@ REFUSALS = [
     pytest.param([*POISSON, "+app.fields.u.robin={alpha: t, value: 0}"],
                  "error: app.fields.u.robin.alpha: α joins the constant stiffness", "app.fields.u.robin.alpha=1",
                  id="alpha reads t"),
-    pytest.param(["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.steps=2", "app.integrator=symplectic",
-                  "+app.fields.u.dirichlet='t*x'"],
-                 "error: app.fields.u.dirichlet: border values that move in time are stepped",
-                 "app.integrator=gauss_legendre", id="symplectic"),
 ]
 
 

@@ -512,63 +512,8 @@ class _MovingStepper:
         self.stepper.load_state(state)
 
 
-class _SciPy:
-    """SciPy's solve_ivp (BDF, Radau, RK45) on y' = M⁻¹ f(y, t), M diagonal, the exact sparse
-    Jacobian M⁻¹ ∂f/∂y for the implicit ones."""
-
-    def __init__(self, problem: MovingProblem, scheme: str, rtol: float, atol: float):
-        self.problem, self.scheme, self.rtol, self.atol = problem, scheme, float(rtol), float(atol)
-        mass = problem.mass
-        self.inverse = None if mass is None else 1.0 / mass.diagonal()
-        self.accepted = self.evaluations = 0
-        self.h = float("nan")
-
-    def _scaled(self, value):
-        if self.inverse is None:
-            return value
-        return value * self.inverse if isinstance(value, np.ndarray) else sp.diags(self.inverse) @ value
-
-    def step(self, y: np.ndarray, t: float, dt: float) -> np.ndarray:
-        from scipy.integrate import solve_ivp
-
-        problem = self.problem
-        options: dict = {"rtol": self.rtol, "atol": self.atol}
-        if self.scheme != "rk45":
-            options["jac"] = lambda time, v: sp.csc_matrix(self._scaled(problem.jacobian(v, time)))
-        if np.isfinite(self.h) and self.h > 0:
-            options["first_step"] = min(self.h, (t + dt) - t)
-        method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]
-        def fun(time, v):
-            self.evaluations += 1
-            return self._scaled(problem.f(v, time))
-
-        solution = solve_ivp(fun, (t, t + dt), y, method=method, **options)
-        if not solution.success:
-            raise FloatingPointError(f"solve_ivp ({method}) failed at t = {t:g}: {solution.message}")
-        self.accepted += len(solution.t) - 1
-        if len(solution.t) > 1:
-            self.h = float(solution.t[-1] - solution.t[-2])
-        return solution.y[:, -1].copy()
-
-
-class _SciPyStepper:
-    def __init__(self, inner: _SciPy, dt: float):
-        self.inner, self.dt = inner, float(dt)
-
-    def step(self, y: np.ndarray, t: float) -> np.ndarray:
-        return self.inner.step(y, t, self.dt)
-
-    def state_dict(self) -> dict:
-        return {"h": self.inner.h, "accepted": self.inner.accepted, "evaluations": self.inner.evaluations}
-
-    def load_state(self, state: dict) -> None:
-        self.inner.h, self.inner.accepted = float(state["h"]), int(state["accepted"])
-        self.inner.evaluations = int(state["evaluations"])
-
-
 def _imex_euler():
-    """ARS(1,1,1): (M − dt L) y⁺ = M y + dt g(y, t) — ``imex`` (and ``semi_implicit`` of a model
-    whose every term is linear with constant coefficients or explicit) as an additive pair."""
+    """ARS(1,1,1): (M − dt L) y⁺ = M y + dt g(y, t) — ``imex`` as an additive pair."""
     from decrun.methods.model.tableaux import Tableau
 
     return Tableau("imex", np.array([[0.0, 0.0], [0.0, 1.0]]), np.array([0.0, 1.0]), np.array([0.0, 1.0]), order=1,
@@ -577,30 +522,21 @@ def _imex_euler():
 
 _EXPLICIT = {"explicit_euler", "rk4", "ssprk3"}
 _IMPLICIT = {"implicit_euler", "crank_nicolson", "gauss_legendre", "radau_iia"}
-_ADDITIVE = {"imex", "semi_implicit", "ark_imex"}
+_ADDITIVE = {"imex", "ark_imex"}
 _SCIPY = {"bdf", "radau", "rk45"}
 
 
 def check_integrator(model, scheme: str, dt: float) -> None:
     """:func:`decrun.methods.model.integrators.check_integrator`, and for moving Dirichlet values
-    the schemes that step them (one line naming the key otherwise)."""
+    the same checks of the schemes that step them (an exact Jacobian for the implicit tableaux)."""
     from decrun.methods.model import integrators
 
     fields = moving(model)
     if not fields:
         return integrators.check_integrator(model, scheme, dt)
-    where = f"{model.spec.key}.fields.{sorted(fields)[0]}.dirichlet"
-    if scheme == "symplectic":
-        raise ModelError(f"{where}: border values that move in time are stepped on the condensed system M y' = f(y, t), "
-                         "not by the kick–drift pairs of symplectic; use `app.integrator=gauss_legendre`")
-    if scheme == "semi_implicit" and any(model.evolution.reads_evolved(u) for u in model.evolution.names):
-        raise ModelError(f"{where}: with moving border values semi_implicit's lagged coefficients are not available; "
-                         "use `app.integrator=implicit_euler` (Newton on the nonlinear terms)")
-    mass = MovingProblem(model, fields).mass if scheme in _SCIPY else None
-    if mass is not None and (mass - sp.diags(mass.diagonal())).count_nonzero():
-        raise ModelError(f"{where}: integrator={scheme} steps y' = M⁻¹ f and this model's mass is not diagonal; use "
-                         "`app.integrator=radau_iia`")
-    if scheme in _IMPLICIT or scheme in ("bdf", "radau"):
+    if scheme in ("symplectic", "bdf", "radau"):  # the structural checks of fixed borders: pairs, a Jacobian pattern
+        return integrators.check_integrator(model, scheme, dt)
+    if scheme in _IMPLICIT:
         model.problem.check_jacobian()
 
 
@@ -608,9 +544,9 @@ def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-
     """The integrator ``scheme`` for ``model``: :func:`decrun.methods.model.integrators.make_integrator`,
     or, when an evolved field's border values read t, the same method stepping :class:`MovingProblem`
     (explicit_euler, rk4, ssprk3: explicit tableaux; implicit_euler, crank_nicolson, gauss_legendre,
-    radau_iia: implicit tableaux by Newton; imex, semi_implicit, ark_imex: additive pairs; bdf,
-    radau, rk45: SciPy's solve_ivp)."""
-    from decrun.methods.model import integrators
+    radau_iia: implicit tableaux by Newton; imex, ark_imex: additive pairs; symplectic,
+    semi_implicit, bdf, radau, rk45: :mod:`decrun.methods.model.moving_steppers`)."""
+    from decrun.methods.model import integrators, moving_steppers
     from decrun.methods.model.runge_kutta import AdditiveRungeKutta, ExplicitRungeKutta, ImplicitRungeKutta
     from decrun.methods.model.tableaux import TABLEAUX
 
@@ -619,6 +555,10 @@ def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-
         return integrators.make_integrator(model, scheme, dt, new_solver, rtol, atol)
     check_integrator(model, scheme, dt)
     problem = MovingProblem(model, fields)
+    if scheme == "symplectic":
+        return moving_steppers.MovingSymplectic(model, dt, fields, new_solver)
+    if scheme == "semi_implicit":
+        return moving_steppers.MovingSemiImplicit(model, dt, new_solver, problem)
     if scheme in _EXPLICIT:
         stepper: Any = ExplicitRungeKutta(TABLEAUX[scheme], problem, dt, new_solver)
     elif scheme in _IMPLICIT:
@@ -629,7 +569,8 @@ def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-
         tableau = TABLEAUX["ark_imex"] if scheme == "ark_imex" else _imex_euler()
         stepper = AdditiveRungeKutta(tableau, problem, dt, new_solver, key="app.integrator")
     elif scheme in _SCIPY:
-        stepper = _SciPyStepper(_SciPy(problem, scheme, rtol, atol), dt)
+        stepper = moving_steppers.MovingSciPyStepper(moving_steppers.MovingSciPy(model, problem, scheme, rtol, atol,
+                                                                                new_solver), dt)
     else:
         raise ModelError(f"app.integrator: unknown integrator {scheme!r}; choose one of "
                          f"{' | '.join(integrators.INTEGRATORS)}")

@@ -54,8 +54,10 @@ class NonlinearSolve:
         """The unknown's values at ``env`` (one Newton solve from the last solution)."""
         from decrun.methods.model.newton import newton
 
-        if self.new_solver is None:
-            raise RuntimeError("NonlinearSolve.solve before bind(new_solver)")
+        if self.new_solver is None:  # a solve before bind (the app's checks at t = 0): the default solver, as LinearSystem
+            from decrun.core.solvers import solver_factory
+
+            self.new_solver = solver_factory(None)
         free, name = self.free, self.unknown
         local = dict(env)
         right = np.broadcast_to(np.asarray(self.rhs_closure(env), dtype=np.float64), (self.size,))[free]

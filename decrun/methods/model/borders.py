@@ -12,10 +12,11 @@ the compiled model.
 - ``neumann: g(x, y, z, t)`` — the outward normal derivative ∂u/∂n = g: every ``laplacian(u)``
   of the equations becomes ⋆0⁻¹(−S u + b(t)), b = ``border_load(g)`` (written into the tree as
   ``laplacian(u) + inv_star(_neumann_u)``, ``_neumann_u`` the dual n-form b);
-- ``robin: {alpha: α(x, y, z), value: v(x, y, z, t)}`` — ∂u/∂n + α u = v: ``laplacian(u)``
+- ``robin: {alpha: α(x, y, z, t), value: v(x, y, z, t)}`` — ∂u/∂n + α u = v: ``laplacian(u)``
   becomes ⋆0⁻¹(−(S + R) u + b(v)), R = ``robin_matrix(α)`` (``laplacian(u) - _robin_u*u +
   inv_star(_robin_value_u)``, ``_robin_u`` = diag(R)/⋆0, a constant coefficient: R joins the
-  linear block of the implicit integrators and solves).
+  linear block of the implicit integrators and solves; α reading t and a Galerkin ⋆0:
+  :mod:`decrun.methods.model.robin`).
 
 Border expressions are value-by-value expressions of ``x y z t pi`` and ``app.constants``,
 evaluated at the border quadrature points (:func:`~decrun.core.boundary.conditions.border_quadrature`)

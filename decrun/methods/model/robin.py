@@ -8,8 +8,9 @@ border form of the Laplacian is ⋆0 Δu = −(S + R) u + b(v). In the language:
 - a diagonal ⋆0: ``laplacian(u) - _robin_u*u + inv_star(_robin_value_u)``, ``_robin_u`` = w/⋆0
   (a coefficient form: ⋆0⁻¹ R u = (w/⋆0) u);
 - a Galerkin ⋆0 M (``operator=whitney``): ⋆0⁻¹ R u is not a coefficient times u (M⁻¹ is dense), so
-  the term is ``inv_star(border_mass(_robin_u*u))`` with ``_robin_u`` = w/|Γ_i| (the mean of α on
-  Γ_i) and ``border_mass`` = diag(|Γ_i|) (:func:`built_in_operators`): border_mass(ᾱ u) = R u, a
+  the term is ``inv_star(border_mass(_robin_u*u))`` with ``_robin_u`` = w/m (ᾱ, the mean of α
+  weighted by the hats) and ``border_mass`` = diag(m), m_i = ∫_∂Ω φ_i (:func:`built_in_operators`;
+  here w_i = ∫_∂Ω α φ_i, the P1 border quadrature of :func:`quadrature`): border_mass(ᾱ u) = R u, a
   dual n-form, and its ``inv_star`` is M⁻¹ R u — the same inverse star as ``laplacian(u)`` =
   M⁻¹(−S u), so the linear split (:mod:`decrun.methods.model.linear`) adds them into one weak block
   ⋆0⁻¹(−(S + R)): one M solve, never an inverse matrix.
@@ -60,8 +61,8 @@ def _weights(ops, quadrature: BorderQuadrature, alpha: np.ndarray) -> np.ndarray
 
 
 def coefficient(ops, weights: np.ndarray, where: str) -> np.ndarray:
-    """(n0,) the Robin coefficient ``_robin_u`` from w = diag(R): w/⋆0 for a diagonal ⋆0, w/|Γ_i|
-    for a Galerkin one (module docstring); −laplacian(u) with the border checked definite first."""
+    """(n0,) the Robin coefficient ``_robin_u`` from w = diag(R): w/⋆0 for a diagonal ⋆0, w/m
+    (m = :func:`border_mass`) for a Galerkin one (module docstring); −laplacian(u) with the border checked definite first."""
     star0 = ops.diagonal(0)
     if np.any(weights < 0):
         refuse_indefinite(ops, weights, where)
@@ -140,7 +141,8 @@ def built_in_operators() -> list:
     from decrun.methods.model.operators import Operator
 
     return [Operator("border_mass", (1,), "primal 0-form → dual n-form",
-                     "diag(|Γ_i|) u: |Γ_i| the border part of vertex i's dual cell (half its border edges; on "
-                     "tetrahedra the circumcentric share of its border triangles), 0 inside — the lumped ∫_∂Ω u v, "
-                     "so inv_star(border_mass(α*u)) is the Robin term ⋆0⁻¹ R u of ∂u/∂n + α u = v",
+                     "diag(m) u, m_i = ∫_∂Ω φ_i the lumped border mass of the P1 hats (half of each border edge "
+                     "at vertex i, a third of each border triangle), 0 inside — ∫_∂Ω u v lumped; "
+                     "inv_star(border_mass(ᾱ*u)), ᾱ_i = ∫_∂Ω α φ_i / m_i, is the Robin term ⋆0⁻¹ R u of a "
+                     "Galerkin ⋆0",
                      _border_mass_kind, None, _border_mass_linear)]

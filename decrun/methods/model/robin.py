@@ -60,12 +60,13 @@ def _weights(ops, quadrature: BorderQuadrature, alpha: np.ndarray) -> np.ndarray
     return robin_matrix(ops.K, quadrature, alpha).diagonal()
 
 
-def coefficient(ops, weights: np.ndarray, where: str) -> np.ndarray:
+def coefficient(ops, weights: np.ndarray, where: str, t: float | None = None) -> np.ndarray:
     """(n0,) the Robin coefficient ``_robin_u`` from w = diag(R): w/⋆0 for a diagonal ⋆0, w/m
-    (m = :func:`border_mass`) for a Galerkin one (module docstring); −laplacian(u) with the border checked definite first."""
+    (m = :func:`border_mass`) for a Galerkin one (module docstring); −laplacian(u) with the border
+    checked definite first (``t``: the time of a moving α, named in the refusal)."""
     star0 = ops.diagonal(0)
     if np.any(weights < 0):
-        refuse_indefinite(ops, weights, where)
+        refuse_indefinite(ops, weights, where, t)
     if star0 is not None:
         return weights / star0
     measure = border_mass(ops)  # > 0 at every border vertex, 0 inside (where the weights are 0 too)
@@ -84,7 +85,7 @@ def moving_coefficient(ops, quadrature: BorderQuadrature, alpha, where: str) -> 
         if t not in values:
             if len(values) > 8:
                 values.clear()
-            values[t] = coefficient(ops, _weights(ops, quadrature, alpha.at(quadrature.points, t)), where)
+            values[t] = coefficient(ops, _weights(ops, quadrature, alpha.at(quadrature.points, t)), where, t)
         return values[t]
     return at
 
@@ -94,7 +95,7 @@ def static_coefficient(ops, quadrature: BorderQuadrature, alpha, where: str) -> 
     return coefficient(ops, _weights(ops, quadrature, alpha.at(quadrature.points, 0.0)), where)
 
 
-def refuse_indefinite(ops, weights: np.ndarray, where: str) -> None:
+def refuse_indefinite(ops, weights: np.ndarray, where: str, t: float | None = None) -> None:
     """One line when S + R (R = diag ``weights``) has a negative eigenvalue in the ⋆0 inner product:
     −laplacian(u) with this Robin border is then indefinite (solves are ill-posed, evolutions grow).
     A Galerkin ⋆0 M is positive definite, so (S + R) x = λ M x has the inertia of S + R (Sylvester):
@@ -113,7 +114,8 @@ def refuse_indefinite(ops, weights: np.ndarray, where: str) -> None:
     else:
         smallest = float(eigsh(A.tocsc(), k=1, which="SA", return_eigenvectors=False, tol=1e-8)[0])
     if smallest < -1e-12 * abs(A).max():
-        raise ModelError(f"{where}: the Robin weights ∫_Γi α are negative at {int(np.sum(weights < 0))} border "
+        when = "" if t is None else f" at t = {t:g}"
+        raise ModelError(f"{where}: the Robin weights ∫_Γi α are negative{when} at {int(np.sum(weights < 0))} border "
                          "vertices (α < 0, or obtuse border triangles of tetrahedra) and make −laplacian(u) with this "
                          f"border indefinite (smallest eigenvalue {smallest:.3g} of ⋆0⁻¹(S + R)): solves are ill-posed "
                          f"and evolutions grow without bound; make α ≥ 0, e.g. `{where}=1`")

@@ -223,9 +223,6 @@ REFUSALS = [
     pytest.param([*POISSON, "app.equations=['solve(u = 1)']", "+app.fields.u.neumann=0"],
                  "error: app.fields.u.neumann: no equation reads laplacian(u)", "app.fields.u.neumann=null",
                  id="no laplacian"),
-    pytest.param([*POISSON, "+app.fields.u.robin={alpha: t, value: 0}"],
-                 "error: app.fields.u.robin.alpha: α joins the constant stiffness", "app.fields.u.robin.alpha=1",
-                 id="alpha reads t"),
 ]
 
 

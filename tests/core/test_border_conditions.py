@@ -344,3 +344,19 @@ def test_the_barycentric_share_of_a_border_triangle_breaks_green_identity_on_tet
     barycentric = np.bincount(faces.vertices.ravel(), np.repeat(area * flux / 3, 3), minlength=K.num_simplices(0))
     residual = DEC(K).laplacian_symmetric(0) @ (K.vertices @ gradient) - barycentric
     assert np.abs(residual).max() > 1e-3 * np.abs(barycentric).max()
+
+
+@pytest.mark.parametrize("name", list(IDENTITY_MESHES))
+def test_the_hat_quadrature_makes_green_identity_exact_for_the_galerkin_stiffness(name):
+    """For a Galerkin ⋆0 (operator=whitney) the border load is ∫_∂Ω g φ_i (hat_quadrature): the P1
+    stiffness of a linear u is exactly it (integration by parts with Δu = 0), on random tetrahedra
+    too, and the hats' border masses ∫_∂Ω φ_i sum to the border's measure."""
+    K = IDENTITY_MESHES[name]()
+    gradient = np.array([0.3, -1.2, 0.7])[:K.vertices.shape[1]]
+    faces = bc.border_faces(K)
+    quadrature = bc.hat_quadrature(K, faces)
+    load = bc.border_load(K, quadrature, (bc.outward_normals(K, faces) @ gradient)[quadrature.face])
+    residual = DEC(K, star="whitney").laplacian_symmetric(0) @ (K.vertices @ gradient) - load
+    assert np.abs(residual).max() < 1e-12 * np.abs(load).max()
+    assert bc.border_load(K, quadrature, 1.0).sum() == pytest.approx(bc.border_measures(K).sum(), rel=1e-12)
+    assert np.array_equal(bc.border_load(K, quadrature, 1.0) > 0, K.border_vertices())

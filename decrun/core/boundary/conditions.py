@@ -64,7 +64,7 @@ from decrun.core.connectivity import edge_owners
 from decrun.core.stars.circumcentric import circumcenter_barycentric
 
 __all__ = ["BorderFaces", "BorderQuadrature", "Condensation", "border_faces", "border_load", "border_measures",
-           "border_quadrature", "outward_normals", "robin_matrix"]
+           "border_quadrature", "hat_quadrature", "outward_normals", "robin_matrix"]
 
 
 @dataclass(frozen=True)
@@ -156,6 +156,27 @@ def border_quadrature(K, faces: BorderFaces | None = None) -> BorderQuadrature:
     points = (i_at + (i_at + j_at) / 2 + center[:, None, :]) / 3
     return BorderQuadrature(points.reshape(-1, x.shape[1]), weights.ravel(),
                             faces.vertices[:, order[:, 0]].ravel(), np.repeat(np.arange(b), 6))
+
+
+def hat_quadrature(K, faces: BorderFaces | None = None) -> BorderQuadrature:
+    """The border pieces of the P1 hat functions φ_i, for a Galerkin ⋆0 (``operator=whitney``):
+    ∫_∂Ω g φ_i ≈ Σ_{q: vertex[q] = i} weight[q] g(points[q]), exact for g linear on each face.
+
+    Each border face F (n vertices) gives each of its vertices i the weight |F|/n = ∫_F φ_i at the
+    point (2 x_i + Σ_{j≠i} x_j)/(n + 1), where a linear g takes the value n ∫_F g φ_i / |F|. With
+    it the P1 stiffness S of a linear u is the border load of its ∂u/∂n exactly (S u = ∫_∂Ω ∂u/∂n φ_i:
+    integration by parts with Δu = 0), on tetrahedra too, where the circumcentric pieces of
+    :func:`border_quadrature` are the Γ_i of DEC's dual cells instead."""
+    faces = border_faces(K) if faces is None else faces
+    x = np.asarray(K.vertices, dtype=np.float64)
+    corners = x[faces.vertices]                                            # (b, n, d)
+    b, n = faces.vertices.shape
+    spans = corners[:, 1:] - corners[:, :1]
+    gram = np.einsum("bkd,bld->bkl", spans, spans)
+    measure = np.sqrt(np.abs(np.linalg.det(gram))) / (1.0 if n == 2 else 2.0)
+    points = (corners + corners.sum(axis=1, keepdims=True)) / (n + 1)
+    return BorderQuadrature(points.reshape(-1, x.shape[1]), np.repeat(measure / n, n), faces.vertices.ravel(),
+                            np.repeat(np.arange(b), n))
 
 
 def border_load(K, quadrature: BorderQuadrature, values: np.ndarray | float) -> np.ndarray:

@@ -13,10 +13,11 @@ the compiled model.
 - ``neumann: g(x, y, z, t)`` — the outward normal derivative ∂u/∂n = g: every ``laplacian(u)``
   of the equations becomes ⋆0⁻¹(−S u + b(t)), b = ``border_load(g)`` (written into the tree as
   ``laplacian(u) + inv_star(_neumann_u)``, ``_neumann_u`` the dual n-form b);
-- ``robin: {alpha: α(x, y, z), value: v(x, y, z, t)}`` — ∂u/∂n + α u = v: ``laplacian(u)``
+- ``robin: {alpha: α(x, y, z, t), value: v(x, y, z, t)}`` — ∂u/∂n + α u = v: ``laplacian(u)``
   becomes ⋆0⁻¹(−(S + R) u + b(v)), R = ``robin_matrix(α)`` (``laplacian(u) - _robin_alpha_u*u +
   inv_star(_robin_value_u)``, ``_robin_alpha_u`` = diag(R)/⋆0, a constant coefficient: R joins the
-  linear block of the implicit integrators and solves).
+  linear block of the implicit integrators and solves; α reading t and a Galerkin ⋆0:
+  :mod:`decrun.methods.model.robin`).
 
 Border expressions are value-by-value expressions of ``x y z t pi`` and ``app.constants``,
 evaluated at the border quadrature points (:func:`~decrun.core.boundary.conditions.border_quadrature`)
@@ -34,7 +35,8 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
-from decrun.core.boundary.conditions import border_load, border_quadrature, robin_matrix
+from decrun.core.boundary.conditions import border_load
+from decrun.methods.model import robin
 from decrun.methods.model.kinds import Kind, dual, primal
 from decrun.methods.model.language import (
     Binary,
@@ -190,14 +192,16 @@ def _coefficient_name(name: str) -> str:
     return f"_robin_alpha_{name}"  # never a load's name: `_robin_value_u` is u's load, not value_u's α
 
 
-def rewrite(spec, equations: list[Equation], kinds: dict[str, Kind], n: int) -> list[Equation]:
+def rewrite(spec, equations: list[Equation], kinds: dict[str, Kind], n: int, ops=None) -> list[Equation]:
     """The equations with every ``laplacian(u)`` of a field u with a Neumann or Robin condition
-    replaced by its border form (module docstring); the new names' kinds added to ``kinds``.
+    replaced by its border form (module docstring; a Robin term over a Galerkin ⋆0 of ``ops`` in
+    the form of :mod:`decrun.methods.model.robin`); the new names' kinds added to ``kinds``.
     A condition whose field no ``laplacian(u)`` reads, or a second-order term of u written
     otherwise, is refused (one line)."""
     given = _given(spec)
     if not given:
         return equations
+    galerkin = ops is not None and "robin" in given.values() and ops.diagonal(0) is None
     for name, key in given.items():
         where = f"{spec.key}.fields.{name}.{key}"
         kind = kinds[name]
@@ -216,7 +220,7 @@ def rewrite(spec, equations: list[Equation], kinds: dict[str, Kind], n: int) -> 
             if function in _LAPLACIANS and len(args) == 1 and isinstance(args[0], Name) and args[0].name in given \
                     and function == "laplacian":
                 found.add(args[0].name)
-                return _border_form(node, args[0].name, given[args[0].name])
+                return _border_form(node, args[0].name, given[args[0].name], galerkin)
             if function in _LAPLACIANS and len(args) == 1:
                 inner = names_in(args[0]) & set(given)
                 if inner:
@@ -246,12 +250,16 @@ def rewrite(spec, equations: list[Equation], kinds: dict[str, Kind], n: int) -> 
     return out
 
 
-def _border_form(node: Call, name: str, key: str) -> Node:
-    """laplacian(u) + inv_star(b) (Neumann) or laplacian(u) − c u + inv_star(b) (Robin)."""
+def _border_form(node: Call, name: str, key: str, galerkin: bool = False) -> Node:
+    """laplacian(u) + inv_star(b) (Neumann) or laplacian(u) − c u + inv_star(b) (Robin; over a
+    Galerkin ⋆0 laplacian(u) − inv_star(border_mass(c u)) + inv_star(b))."""
     load = Call("inv_star", (Name(_load_name(name, key)),))
     flux: Node = node
     if key == "robin":
-        flux = Binary("-", node, Binary("*", Name(_coefficient_name(name)), Name(name)))
+        term: Node = Binary("*", Name(_coefficient_name(name)), Name(name))
+        if galerkin:
+            term = Call("inv_star", (Call("border_mass", (term,)),))
+        flux = Binary("-", node, term)
     return Binary("+", flux, load)
 
 
@@ -292,6 +300,9 @@ def moving_names(spec) -> set[str]:
         text = value.get("value") if key == "robin" and isinstance(value, Mapping) else value
         if isinstance(text, str) and "t" in names_in(parse_expression(text, f"{spec.key}.fields.{name}.{key}")):
             out.add(_load_name(name, key))
+        alpha = value.get("alpha") if key == "robin" and isinstance(value, Mapping) else None
+        if isinstance(alpha, str) and "t" in names_in(parse_expression(alpha, f"{spec.key}.fields.{name}.robin.alpha")):
+            out.add(_coefficient_name(name))
     return out
 
 
@@ -366,10 +377,10 @@ def bind(spec, ops, base: dict, resolved) -> Borders:
                     moving[name] = BorderExpression(value, where, spec.constants, name)
                 continue
             _no_border(dec, where)
-            quadrature = border_quadrature(K) if quadrature is None else quadrature
+            quadrature = robin.quadrature(ops) if quadrature is None else quadrature
             if condition == "robin":
                 alpha_text, value = _robin_parts(value, where)
-                base[_coefficient_name(name)] = _robin_coefficient(spec, ops, name, alpha_text, quadrature, where)
+                order += _robin_coefficient(spec, ops, name, alpha_text, quadrature, where, base)
             expression = BorderExpression(value, where + (".value" if condition == "robin" else ""), spec.constants,
                                           name)
             load = _load_name(name, condition)
@@ -379,42 +390,19 @@ def bind(spec, ops, base: dict, resolved) -> Borders:
     return Borders(order, moving)
 
 
-def _robin_coefficient(spec, ops, name: str, alpha_text, quadrature, where: str) -> np.ndarray:
-    """(n0,) diag(R)/⋆0: the Robin term ⋆0⁻¹ R u as a coefficient times u; refused for a
-    Galerkin ⋆0, for α reading t, and when −laplacian(u) with the border turns indefinite."""
-    K = ops.K
+def _robin_coefficient(spec, ops, name: str, alpha_text, quadrature, where: str, base: dict) -> list:
+    """``_robin_u`` (:mod:`decrun.methods.model.robin`) at t = 0 into ``base``; for α reading t also
+    its moving definition (returned as ``order`` entries). α(t) with a Galerkin ⋆0 is refused."""
     alpha = BorderExpression(alpha_text, where + ".alpha", spec.constants, name)
-    if alpha.reads_time:
-        raise ModelError(f"{where}.alpha: α joins the constant stiffness S + R, so it may not read t (the value may); "
-                         f"write α without t, e.g. `{where}.alpha=1`")
-    star0 = ops.diagonal(0)
-    if star0 is None:
-        raise ModelError(f"{where}: the Robin matrix R is added to a diagonal ⋆0, and operator="
-                         f"{ops.dec.star_variant.name} has a Galerkin ⋆0; use `operator=circumcentric`")
-    weights = robin_matrix(K, quadrature, alpha.at(quadrature.points, 0.0)).diagonal()
-    if np.any(weights < 0):
-        _refuse_indefinite(ops, weights, star0, where)
-    return weights / star0
-
-
-def _refuse_indefinite(ops, weights: np.ndarray, star0: np.ndarray, where: str) -> None:
-    """One line when S + R (R = diag ``weights``) has a negative eigenvalue in the ⋆0 inner product:
-    −laplacian(u) with this Robin border is then indefinite (solves are ill-posed, evolutions grow)."""
-    from scipy.sparse.linalg import eigsh
-
-    d0 = ops.dec.d(0)
-    S = (d0.T @ ops.dec.star(1) @ d0).tocsr()
-    scale = 1.0 / np.sqrt(np.abs(star0))
-    A = sp.diags(scale) @ (S + sp.diags(weights)) @ sp.diags(scale)
-    if A.shape[0] <= 400:
-        smallest = float(np.linalg.eigvalsh(A.toarray())[0])
-    else:
-        smallest = float(eigsh(A.tocsc(), k=1, which="SA", return_eigenvectors=False, tol=1e-8)[0])
-    if smallest < -1e-12 * abs(A).max():
-        raise ModelError(f"{where}.alpha: the Robin weights ∫_Γi α are negative at {int(np.sum(weights < 0))} border "
-                         "vertices (α < 0, or obtuse border triangles of tetrahedra) and make −laplacian(u) with this "
-                         f"border indefinite (smallest eigenvalue {smallest:.3g} of ⋆0⁻¹(S + R)): solves are ill-posed "
-                         f"and evolutions grow without bound; make α ≥ 0, e.g. `{where}.alpha=1`")
+    coefficient = _coefficient_name(name)
+    base[coefficient] = robin.static_coefficient(ops, quadrature, alpha, where + ".alpha")
+    if not alpha.reads_time:
+        return []
+    if ops.diagonal(0) is None:
+        raise ModelError(f"{where}.alpha: α reading t makes the Robin term a moving coefficient, whose exact Jacobian "
+                         f"through the Galerkin ⋆0⁻¹ of operator={ops.dec.star_variant.name} is dense; use "
+                         "`operator=circumcentric`")
+    return [("definition", (coefficient, robin.moving_coefficient(ops, quadrature, alpha, where + ".alpha")))]
 
 
 def finish(model, borders: Borders) -> None:

@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.errors import ConfigError
-from decrun.methods.model import discrete, sphere_functions, sphere_operators, vector_derivatives
+from decrun.methods.model import discrete, robin, sphere_functions, sphere_operators, vector_derivatives
 from decrun.methods.model.kinds import NUMBER, VECTOR, Kind, dual, primal
 from decrun.methods.model.wording import article
 
@@ -622,8 +622,9 @@ _register(Operator("explicit", (1,), "anything → the same",
 for _name, _function in POINTWISE.items():
     _register(pointwise(_name, _function, POINTWISE_DERIVATIVES[_name], f"{_name} of each value"))
 
-# rotating shallow water (TRiSK): mass_flux, kinetic_energy, vorticity, kite_average, coriolis
-for _operator in sphere_operators.built_in_operators() + sphere_functions.built_in_operators():
+# rotating shallow water (TRiSK): mass_flux, kinetic_energy, vorticity, kite_average, coriolis; Robin borders: border_mass
+for _operator in sphere_operators.built_in_operators() + sphere_functions.built_in_operators() + \
+        robin.built_in_operators():
     _register(_operator)
 
 #: other spellings of the operators

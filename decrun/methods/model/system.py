@@ -276,7 +276,7 @@ def compile_model(spec: ModelSpec, dec, new_solver: Callable, chained: dict | No
     ops = Discrete(dec)
     _check_names(spec)
     kinds = _declared_kinds(spec, ops.n)
-    resolved = _resolve(spec, borders.rewrite(spec, _parse_equations(spec), kinds, ops.n))
+    resolved = _resolve(spec, borders.rewrite(spec, _parse_equations(spec), kinds, ops.n, ops))
     _check_known_names(spec, resolved, borders.internal_names(spec))
     metrics = _parse_metrics(spec)
     inputs = [name for name in spec.fields if name not in resolved.targets]

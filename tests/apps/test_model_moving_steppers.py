@@ -145,7 +145,7 @@ def test_semi_implicit_is_first_order_in_time_on_a_manufactured_nonlinear_diffus
 def test_scipy_steppers_with_a_galerkin_mass_solve_the_condensed_system(mesh, integrator):
     """operator=whitney (⋆0 the P1 mass): u = (1 + t²) L solves M_FF u_F' = −(S u)_F + (M f)_F −
     M_FD ∂g/∂t with f = 2tL, and (u − u_exact)² makes the model nonlinear (bdf and radau then take
-    finite differences on the sparsity pattern, as with fixed borders): u to the tolerance asked."""
+    M_L⁻¹ ∂f/∂y, the lumped mass, as with fixed borders): u to the tolerance asked."""
     moving = f"((1 + t**2)*{L})"
     metrics = _run("app=heat", *mesh, "operator=whitney", "~app.require", f"app.fields.u.initial='{L}'",
                    f"app.equations=['dt(u) = laplacian(u) + 2*t*{L} + (u - {moving})**2']",

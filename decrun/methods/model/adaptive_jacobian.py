@@ -6,8 +6,9 @@ With diagonal row masses M_u (⋆0, the circumcentric ⋆k) it is sparse:
 (:meth:`decrun.methods.model.problem.ModelProblem.rest_jacobian`: each operator's derivative rule),
 and its rows at fixed (Dirichlet) values are 0, as F's are. Where that Jacobian cannot be made —
 a Galerkin mass (M⁻¹ dense) or a term without a derivative rule — :func:`exact_jacobian` returns
-None and the integrator keeps finite differences on the sparsity pattern; a Galerkin Laplacian of
-k-forms (k ≥ 1), which needs a mass matrix, is refused in one line
+None and the integrator takes M_L⁻¹ ∂f/∂y with the lumped mass
+(:mod:`decrun.methods.model.lumped_jacobian`) or else finite differences on the sparsity pattern;
+a Galerkin Laplacian of k-forms (k ≥ 1), which needs a mass matrix, is refused in one line
 (:func:`decrun.methods.model.mixed.refuse_adaptive`).
 """
 

@@ -18,7 +18,7 @@ system is the symmetric ``M + dt S`` of the thesis' implicit smoothing, §1.3).
 ``semi_implicit``   (M − dt A(uⁿ)) u⁺ = M uⁿ + dt M R(uⁿ, t): lagged coefficients (Picard), A refactorized
                     every step — nonlinear diffusion ∇·(D(u)∇u) with D frozen at uⁿ
 ``symplectic``      Störmer–Verlet (kick–drift–kick) for pairs dt(q) = f(p), dt(p) = g(q)
-``bdf``, ``radau``  SciPy's ``solve_ivp`` with the sparse Jacobian pattern of the equations
+``bdf``, ``radau``  SciPy's ``solve_ivp`` with the exact sparse Jacobian (a Galerkin mass: lumped)
 ``rk45``            SciPy's adaptive Runge–Kutta (no Jacobian)
 ==================  ==========================================================================
 
@@ -40,6 +40,7 @@ from decrun.methods.model.implicit_newton import NewtonImplicit
 from decrun.methods.model.jacobian import pattern as term_pattern
 from decrun.methods.model.language import ModelError
 from decrun.methods.model.lowering import Evolution
+from decrun.methods.model.lumped_jacobian import lumped_jacobian_of_model
 from decrun.methods.model.mixed import implicit_problem
 from decrun.methods.model.problem import ModelProblem
 from decrun.methods.model.runge_kutta import INTEGRATORS as RUNGE_KUTTA
@@ -347,6 +348,7 @@ class Adaptive:
         self.rtol, self.atol = float(rtol), float(atol)
         self.evolution = model.evolution
         self.exact = exact_jacobian(model) if scheme in ("bdf", "radau") else None  # the derivative pass's
+        self.exact = self.exact or (lumped_jacobian_of_model(model) if scheme in ("bdf", "radau") else None)  # Galerkin M
         self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") and self.exact is None else None
         self.jacobian = _exact_jacobian(self.evolution) if scheme in ("bdf", "radau") else None
         self.h = float("nan")

@@ -21,9 +21,11 @@ each on the system condensed at the border values, M_FF y' = f_F(y, t) − M_FD 
     :class:`MovingSciPy`: y' = M_FF⁻¹ (f_F(y, t) − M_FD ∂g/∂t), M_FF divided by when diagonal and
     factorized once (``new_solver``) otherwise. The Jacobian as the fixed-border path
     (:class:`~decrun.methods.model.integrators.Adaptive`) takes it: the exact sparse M_FF⁻¹ ∂f/∂y
-    for a diagonal mass whose terms all have derivative rules, else finite differences on the
+    for a diagonal mass whose terms all have derivative rules; for a Galerkin mass (M_FF⁻¹ dense,
+    never formed) M_L⁻¹ ∂f/∂y with the lumped M_FF
+    (:func:`~decrun.methods.model.lumped_jacobian.lumped_jacobian`); else finite differences on the
     sparsity pattern of the equations (:func:`~decrun.methods.model.integrators.jacobian_pattern`,
-    restricted to the free values) — M_FF⁻¹ of a Galerkin mass is dense, and is never formed.
+    restricted to the free values).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import scipy.sparse as sp
 
 from decrun.methods.model.adaptive_jacobian import exact_jacobian
 from decrun.methods.model.integrators import SemiImplicit, Symplectic, jacobian_pattern
+from decrun.methods.model.lumped_jacobian import lumped_jacobian
 from decrun.methods.model.runge_kutta import MassMatrix
 
 __all__ = ["MovingSymplectic", "MovingSemiImplicit", "MovingSciPy", "MovingSciPyStepper"]
@@ -129,10 +132,14 @@ class MovingSciPy:
         self.mass = MassMatrix(problem.mass, problem.size, new_solver)
         diagonal = problem.mass is None or _diagonal(problem.mass)
         self.inverse = None if problem.mass is None or not diagonal else 1.0 / problem.mass.diagonal()
-        self.exact = self.pattern = None
+        #: jac(t, y) for solve_ivp, or None (the pattern, or no Jacobian)
+        self.exact: Callable[[float, np.ndarray], sp.csc_matrix] | None = None
+        self.pattern = None
         if scheme in ("bdf", "radau"):
             if diagonal and exact_jacobian(model) is not None:
-                self.exact = True
+                self.exact = self._jacobian
+            elif (lumped := lumped_jacobian(problem)) is not None:  # a Galerkin mass: M_L⁻¹ ∂f/∂y
+                self.exact = lumped
             else:
                 free = problem.free
                 self.pattern = jacobian_pattern(model)[free][:, free].tocsr()
@@ -148,8 +155,8 @@ class MovingSciPy:
         from scipy.integrate import solve_ivp
 
         options: dict = {"rtol": self.rtol, "atol": self.atol}
-        if self.exact:
-            options["jac"] = self._jacobian
+        if self.exact is not None:
+            options["jac"] = self.exact
         elif self.pattern is not None:
             options["jac_sparsity"] = self.pattern
         if np.isfinite(self.h) and self.h > 0:

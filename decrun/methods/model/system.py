@@ -32,8 +32,8 @@ import scipy.sparse as sp
 
 from decrun.methods.model import borders
 from decrun.methods.model.compiler import Compiler
-from decrun.methods.model.finite import check_finite_numbers
 from decrun.methods.model.environment import environment
+from decrun.methods.model.finite import check_finite_numbers
 from decrun.methods.model.intrinsic import check_intrinsic
 from decrun.methods.model.kinds import Kind
 from decrun.methods.model.language import Equation

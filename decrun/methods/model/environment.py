@@ -63,22 +63,23 @@ def deferred_names(model) -> frozenset[str]:
     return frozenset(item[0] for what, item in model.order if what == "definition" and item[0] not in read)
 
 
-def environment(model, values: dict, complete: bool) -> Environment:
+def environment(model, values: dict, complete: bool) -> dict:
     """``values`` (built-ins, constants, inputs, the state, ``t``) with ``model.order`` run on
-    them: every item when ``complete`` or the model is static (its definitions run once: nothing
-    to save), else all but the :func:`deferred_names` (computed when read)."""
-    if complete or model.is_static:
-        env = Environment(values, [])
-        for what, item in model.order:
-            evaluate_item(env, what, item)
-        return env
+    them: every item (in ``values`` itself) when ``complete``, when the model is static (its
+    definitions run once: nothing to save) or when nothing is deferred; else an
+    :class:`Environment` with all but the :func:`deferred_names` (computed when read)."""
     cached = getattr(model, "_deferred", None)
     if cached is None or cached[0] != len(model.order):  # the order is complete once compiled
-        cached = model._deferred = (len(model.order), deferred_names(model))
-    deferred = cached[1]
-    pending = [(what, item) for what, item in model.order if what == "definition" and item[0] in deferred]
+        deferred = deferred_names(model)
+        pending = [(what, item) for what, item in model.order if what == "definition" and item[0] in deferred]
+        eager = [(what, item) for what, item in model.order if not (what == "definition" and item[0] in deferred)]
+        cached = model._deferred = (len(model.order), eager, pending)
+    _, eager, pending = cached
+    if complete or not pending or model.is_static:
+        for what, item in model.order:
+            evaluate_item(values, what, item)
+        return values
     env = Environment(values, pending)
-    for what, item in model.order:
-        if not (what == "definition" and item[0] in deferred):
-            evaluate_item(env, what, item)
+    for what, item in eager:
+        evaluate_item(env, what, item)
     return env

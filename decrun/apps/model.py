@@ -440,7 +440,7 @@ class Model(App):
         report = None
         if model.is_static:
             with ctx.task(f"{self.model}: definitions and solves"), np.errstate(all="ignore"):
-                env = model.environment({}, 0.0)  # a non-finite definition is reported by name, below
+                env = model.environment({}, 0.0, complete=True)  # a non-finite definition: reported by name, below
             stepper = None
         else:
             with ctx.task(f"{self.model}: {self.integrator} set-up"):

@@ -165,6 +165,34 @@ def test_cholmod_refuses_what_it_cannot_factorize_and_names_direct():
         make_solver("cholmod").factorize(sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]])))
 
 
+def test_asymmetry_is_max_of_a_minus_its_transpose_over_max_a(heat_matrix):
+    """cholmod.asymmetry = max |A − Aᵀ| / max |A| exactly, whichever way it is computed: the
+    entry-by-entry path (canonical CSR, Aᵀ with A's pattern) and the A − Aᵀ path (another
+    pattern, unsorted indices) — checked against the dense definition."""
+    from decrun.core.solvers.cholmod import asymmetry
+
+    def dense(A):
+        D = A.toarray()
+        return float(np.abs(D - D.T).max() / np.abs(D).max())
+
+    A = heat_matrix.copy()
+    A.sort_indices()
+    assert asymmetry(A) == dense(A) == 0.0
+    skewed = A.copy()  # same pattern, one value pair off by 1e-9 of the largest entry
+    row, column = 3, int(skewed.indices[skewed.indptr[3]])
+    row, column = (row, column) if row != column else (3, int(skewed.indices[skewed.indptr[3] + 1]))
+    skewed[row, column] = skewed[row, column] + 1e-9 * np.abs(A.data).max()
+    assert skewed.has_canonical_format and asymmetry(skewed) == pytest.approx(dense(skewed), rel=1e-12)
+    assert asymmetry(skewed) == pytest.approx(1e-9, rel=1e-6)
+    lopsided = (A + 1e-3 * sp.triu(A, 1)).tocsr()  # a value pair off
+    pattern = (A + sp.csr_matrix(([0.5], ([0], [A.shape[0] - 1])), shape=A.shape)).tocsr()  # one entry without its pair
+    unsorted = sp.csr_matrix((pattern.data[::-1].copy(), pattern.indices[::-1].copy(),
+                              (pattern.nnz - pattern.indptr[::-1]).copy()), shape=A.shape)  # rows and entries reversed
+    for matrix in (lopsided, pattern, unsorted):
+        assert asymmetry(matrix) == pytest.approx(dense(matrix), rel=1e-12)
+    assert not unsorted.has_sorted_indices and asymmetry(unsorted) > 0
+
+
 def test_gmres_stops_at_the_backward_error_on_the_galerkin_saddle_point():
     """The Galerkin coexact solve ([M dᵀ; d −εI], refined against ε = 0) with solver=iterative:
     GMRES + ILU reaches the backward error in a few iterations per solve, and its second

@@ -35,9 +35,10 @@ class AutoSolver(DirectSolver):
 
     def _prepare(self, A) -> None:
         self._factor = None
-        if self._have_cholmod and (A.diagonal() > 0).all() and asymmetry(A) <= SYMMETRY_TOL:
+        skew = asymmetry(A) if self._have_cholmod and (A.diagonal() > 0).all() else None
+        if skew is not None and skew <= SYMMETRY_TOL:
             try:
-                self._factor = cholesky_factor(A, self.name)
+                self._factor = cholesky_factor(A, self.name, skew=skew)  # measured once, here
                 self.method = "cholmod"
                 return
             except SolverError:  # symmetric but indefinite: LU below

@@ -40,10 +40,19 @@ SYMMETRY_TOL = 1e-12  # max |A − Aᵀ| relative to max |A| accepted as symmetr
 
 
 def asymmetry(A: sp.csr_matrix) -> float:
-    """max |A − Aᵀ| / max |A| (0 for an exactly symmetric matrix)."""
+    """max |A − Aᵀ| / max |A| (0 for an exactly symmetric matrix). A canonical CSR matrix whose
+    transpose has its pattern (the usual symmetric system) compares the two value arrays entry
+    by entry — Aᵀ in CSR has sorted indices, so equal patterns pair the same (i, j) — without
+    forming A − Aᵀ."""
     scale = float(np.abs(A.data).max()) if A.nnz else 0.0
+    if not scale > 0:
+        return 0.0
+    if A.format == "csr" and A.has_canonical_format:
+        transpose = A.T.tocsr()
+        if np.array_equal(A.indptr, transpose.indptr) and np.array_equal(A.indices, transpose.indices):
+            return float(np.abs(A.data - transpose.data).max()) / scale
     difference = A - A.T
-    return float(np.abs(difference.data).max()) / scale if difference.nnz and scale > 0 else 0.0
+    return float(np.abs(difference.data).max()) / scale if difference.nnz else 0.0
 
 
 @contextlib.contextmanager
@@ -137,12 +146,14 @@ class _Supernodal:
         x[...] = self.factor(b)
 
 
-def cholesky_factor(A: sp.csr_matrix, name: str, backend: CholmodBackend | str = CholmodBackend.auto):
+def cholesky_factor(A: sp.csr_matrix, name: str, backend: CholmodBackend | str = CholmodBackend.auto,
+                    skew: float | None = None):
     """The CHOLMOD factor of the symmetric positive definite CSR matrix ``A`` (an object with
     ``solve(b, x)``), by ``backend`` (``auto``: the fastest installed); SolverError (naming
-    ``solver=direct``) when ``A`` is not symmetric or not positive definite."""
+    ``solver=direct``) when ``A`` is not symmetric or not positive definite. ``skew`` is
+    :func:`asymmetry` of ``A`` when the caller has measured it already (None: measured here)."""
     backend = _backend(backend)
-    skew = asymmetry(A)
+    skew = asymmetry(A) if skew is None else skew
     if skew > SYMMETRY_TOL:
         raise SolverError(f"{name} solver: the {A.shape} matrix is not symmetric (max |A − Aᵀ| = {skew:.2g} × max |A|); "
                           "Cholesky needs a symmetric positive definite matrix: use solver=direct")

@@ -25,6 +25,30 @@ class _NotLinear:
 NOT_LINEAR = _NotLinear()
 
 
+class _Fixed:
+    """A lagged builder whose blocks read nothing of ``env`` (an unknown, and linear operators
+    applied to it: ``d(h)``): made at its first call, then the same blocks at every step — not a
+    sparse product per step. The blocks are never changed in place (callers build new ones)."""
+
+    def __init__(self, make):
+        self.make, self.blocks = make, None
+
+    def __call__(self, env):
+        if self.blocks is None:
+            self.blocks = self.make(env)
+        return self.blocks
+
+
+def _rows_scaled(A: sp.spmatrix, values: np.ndarray) -> sp.csr_matrix:
+    """diag(values) @ A as CSR, each stored entry multiplied by its row's value — the entries of
+    the sparse product, without one (its zeros dropped as the product drops them)."""
+    A = sp.csr_matrix(A)
+    data = A.data * np.repeat(values, np.diff(A.indptr))
+    scaled = sp.csr_matrix((data, A.indices.copy(), A.indptr.copy()), shape=A.shape)  # A's own pattern untouched
+    scaled.eliminate_zeros()
+    return scaled
+
+
 class LinearSplit(Evaluator):
     """Linear blocks and lagged linearizations of expressions (closures from :class:`Evaluator`)."""
 
@@ -136,7 +160,7 @@ class LinearSplit(Evaluator):
         if isinstance(node, Name):
             if node.name in unknowns:
                 block = self.ops.identity(self.kinds[node.name])
-                return lambda env: {node.name: block}
+                return _Fixed(lambda env: {node.name: block})
             if node.name in self.definitions:
                 return self.lagged(self.definitions[node.name], unknowns)
             return NOT_LINEAR
@@ -144,7 +168,10 @@ class LinearSplit(Evaluator):
             inner = self.lagged(node.operand, unknowns)
             if inner is NOT_LINEAR:
                 return NOT_LINEAR
-            return lambda env: {k: v.scaled(-1.0) for k, v in inner(env).items()}
+
+            def negated(env):
+                return {k: v.scaled(-1.0) for k, v in inner(env).items()}
+            return _Fixed(negated) if isinstance(inner, _Fixed) else negated
         if isinstance(node, Binary):
             return self._lagged_binary(node, unknowns)
         if isinstance(node, Call):
@@ -210,7 +237,7 @@ class LinearSplit(Evaluator):
                                      "an explicit integrator")
                 out[name] = composed
             return out
-        return applied
+        return _Fixed(applied) if isinstance(inner, _Fixed) else applied
 
     def _operator_matrix(self, node: Call) -> Linear | None:
         """The :class:`Linear` of the one-argument linear operator ``node`` calls, or None (not a
@@ -241,8 +268,8 @@ class LinearSplit(Evaluator):
                 diagonal = self.ops.diagonal(block.inv)
                 if diagonal is None:
                     return NOT_LINEAR
-                block = Linear(None, (sp.diags(1.0 / diagonal) @ block.A).tocsr())
-            out[name] = Linear(None, (sp.diags(np.asarray(value, dtype=np.float64)) @ block.A).tocsr())
+                block = Linear(None, _rows_scaled(block.A, 1.0 / diagonal))
+            out[name] = Linear(None, _rows_scaled(block.A, np.asarray(value, dtype=np.float64)))
         return out
 
     def split(self, node: Node, unknowns: set[str]) -> tuple[dict, list[tuple[float, Node]]]:

@@ -69,7 +69,7 @@ class LinearSystem:
         diagonal = A.diagonal()
         if diagonal.size and np.all(diagonal <= 0) and np.any(diagonal < 0) and _symmetric(A):
             self.sign = -1.0  # the Laplace–Beltrami sign: hand the SPD −A to the solver
-        A = self.sign * A
+        A = -A if self.sign < 0 else A  # (sign +1: no copy of a matrix the solver copies if it must)
         keep = np.ones(n, dtype=bool)
         keep[self.fixed] = False
         self.pinned = np.zeros(0, dtype=np.int64)
@@ -84,6 +84,10 @@ class LinearSystem:
         self.A_free_fixed = A[self.free][:, self.fixed] if self.fixed.size else None
         self.solver = None  # factorized at the first solve, with the solver bound then
 
+    def free_matrix(self) -> sp.csr_matrix:
+        """A over the free rows and columns (A itself when nothing is fixed or pinned: no copies)."""
+        return self.A_full if self.all_free else self.A_full[self.free][:, self.free].tocsr()
+
     def bind(self, new_solver: Callable) -> None:
         """Use ``new_solver()`` for the factorization (before the first solve)."""
         if self.solver is None:
@@ -97,8 +101,8 @@ class LinearSystem:
 
                 self.new_solver = solver_factory(None)
             solver = self.new_solver()
-            matrix = self.A_full[self.free][:, self.free]
-            if getattr(solver, "needs_spd", False) and not _symmetric(matrix.tocsr()):
+            matrix = self.free_matrix()
+            if getattr(solver, "needs_spd", False) and not _symmetric(matrix):
                 raise UnsymmetricSystem(solver.name)
             solver.factorize(matrix)
             self.solver = solver
@@ -159,7 +163,7 @@ class BlockSystem(LinearSystem):
         """Factorize once; refuse an SPD-only solver for a matrix that cannot be SPD."""
         if self.solver is None and self.new_solver is not None:
             solver = self.new_solver()
-            matrix = self.A_full[self.free][:, self.free].tocsr()
+            matrix = self.free_matrix()
             if getattr(solver, "needs_spd", False):
                 diagonal = matrix.diagonal()
                 if not _symmetric(matrix) or diagonal.size and diagonal.min() <= 0:

@@ -38,7 +38,7 @@ class ModelStepper:
     def environment(self) -> dict:
         """Every value of the model at the current state (computed once per state)."""
         if self._env is None:
-            self._env = self.model.environment(self.state, self.t)
+            self._env = self.model.environment(self.state, self.t, complete=True)
         return self._env
 
     def values(self) -> dict:

@@ -32,6 +32,7 @@ import scipy.sparse as sp
 
 from decrun.methods.model import borders
 from decrun.methods.model.compiler import Compiler
+from decrun.methods.model.environment import environment
 from decrun.methods.model.finite import check_finite_numbers
 from decrun.methods.model.intrinsic import check_intrinsic
 from decrun.methods.model.kinds import Kind
@@ -129,23 +130,14 @@ class CompiledModel:
         """True when nothing evolves: the definitions and solves run once."""
         return not self.evolved
 
-    def environment(self, state: dict[str, np.ndarray], t: float) -> dict[str, Any]:
+    def environment(self, state: dict[str, np.ndarray], t: float, complete: bool = False) -> dict[str, Any]:
         """Every value at ``state`` (the evolved fields) and time ``t``: built-ins, constants,
-        inputs, the state, then each definition and solve in order."""
+        inputs, the state, then each definition and solve in order — those only metrics and
+        records read when first read, unless ``complete`` (:mod:`~decrun.methods.model.environment`)."""
         env = dict(self.base)
         env.update(state)
         env["t"] = float(t)
-        for what, item in self.order:
-            if what == "definition":
-                name, closure = item
-                env[name] = closure(env)
-            elif what == "system":
-                env.update(item.solve(env))
-            elif what == "newton":
-                env[item.unknown] = item.solve(env)
-            else:
-                env[item.unknown] = item.system.solve(item.rhs(env), item.fixed_values)
-        return env
+        return environment(self, env, complete)
 
     def derivative(self, env: dict, names=None) -> dict[str, np.ndarray]:
         """dt(u) for each evolved field (or those in ``names``) at ``env``."""

@@ -1,4 +1,4 @@
-"""Small integer exponents by products (decrun.methods.model.powers): the value equals NumPy's
+"""Small integer exponents (|n| ≤ 5) by products (decrun.methods.model.powers): the value equals NumPy's
 power to round-off — negative bases, zeros under negative exponents (±inf), NaN and ±inf — and
 the evaluator takes that path for ``u**3`` and for an integer-valued constant exponent, while any
 other exponent keeps NumPy's power."""
@@ -51,6 +51,17 @@ def test_negative_exponent_of_zero_is_inf_as_in_numpy():
         assert np.signbit(integer_power(-3)(a)[1])
 
 
+def test_the_largest_products_are_the_fifth_powers():
+    """LARGEST = 5 (H^(n+2) of the shallow-ice diffusivity, Glen's n = 3): ±5 by products, ±6 refused."""
+    assert LARGEST == 5 and 5 in EXPONENTS and -5 in EXPONENTS
+    a = np.array([2.0, -3.0, 0.5])
+    np.testing.assert_array_equal(integer_power(5)(a), [32.0, -243.0, 0.03125])  # exact in binary
+    np.testing.assert_array_equal(integer_power(-5)(a), [1 / 32, -1 / 243, 32.0])
+    for n in (6, -6):
+        with pytest.raises(ValueError, match="0 < \\|n\\| <= 5"):
+            integer_power(n)
+
+
 def test_integer_power_returns_a_new_array():
     a = np.array([1.5, -2.0])
     assert integer_power(1)(a) is not a
@@ -72,12 +83,14 @@ def evaluate(expression: str, u: np.ndarray, constants: dict[str, float] | None 
 
 
 @pytest.mark.parametrize("expression, constants, n", [("u**3", {}, 3), ("u**4", {}, 4), ("u**(-2)", {}, -2),
-                                                      ("u**c", {"c": 3.0}, 3), ("u**(c + 1)", {"c": -4.0}, -3)])
+                                                      ("u**c", {"c": 3.0}, 3), ("u**(c + 1)", {"c": -4.0}, -3),
+                                                      ("u**(n + 2)", {"n": 3.0}, 5), ("u**(-5)", {}, -5)])
 def test_the_evaluator_raises_integer_exponents_by_products(expression, constants, n):
     u = bases()[:4000]
     with np.errstate(all="ignore"):
         value = evaluate(expression, u, constants)
-        products = {2: u * u, 3: u * u * u, 4: (u * u) * (u * u)}[abs(n)]  # the documented products
+        products = {2: u * u, 3: u * u * u, 4: (u * u) * (u * u),  # the documented products
+                    5: ((u * u) * (u * u)) * u}[abs(n)]
         if n < 0:
             products = 1.0 / products
         reference = np.power(u, float(n))
@@ -87,7 +100,7 @@ def test_the_evaluator_raises_integer_exponents_by_products(expression, constant
     np.testing.assert_allclose(value[finite], reference[finite], rtol=5 * ULP, atol=0)
 
 
-@pytest.mark.parametrize("expression, constants, exponent", [("u**2.5", {}, 2.5), ("u**c", {"c": 5.0}, 5.0),
+@pytest.mark.parametrize("expression, constants, exponent", [("u**2.5", {}, 2.5), ("u**c", {"c": 6.0}, 6.0),
                                                              ("u**c", {"c": 0.0}, 0.0), ("u**t", {}, 0.0)])
 def test_other_exponents_keep_numpys_power(expression, constants, exponent):
     u = np.abs(bases()[:4000]) + 0.5

@@ -223,6 +223,19 @@ REFUSALS = [
     pytest.param([*POISSON, "app.equations=['solve(u = 1)']", "+app.fields.u.neumann=0"],
                  "error: app.fields.u.neumann: no equation reads laplacian(u)", "app.fields.u.neumann=null",
                  id="no laplacian"),
+    pytest.param([*POISSON, "+app.fields.u.robin={alpha: '-40 + t', value: 0}"],
+                 "error: app.fields.u.robin.alpha: the Robin weights ∫_Γi α are negative at 16 border vertices",
+                 "app.fields.u.robin.alpha=1", id="indefinite alpha(t)"),
+    pytest.param(["app=heat", "mesh=grid", "mesh.nx=10", "mesh.ny=10", "app.integrator=implicit_euler", "app.dt=0.005",
+                  "app.t_end=0.05", "+app.fields.u.robin={alpha: '1 - 100*t', value: 0}"],
+                 "error: app.fields.u.robin.alpha: the Robin weights ∫_Γi α are negative at t = 0.0",
+                 "app.fields.u.robin.alpha=1", id="alpha(t) turns negative during the run"),
+    pytest.param([*POISSON, "operator=whitney", "+app.fields.u.robin={alpha: -40, value: 0}"],
+                 "error: app.fields.u.robin.alpha: the Robin weights ∫_Γi α are negative at 16 border vertices",
+                 "app.fields.u.robin.alpha=1", id="indefinite whitney"),
+    pytest.param([*POISSON, "operator=whitney", "+app.fields.u.robin={alpha: '1 + t', value: 0}"],
+                 "error: app.fields.u.robin.alpha: α reading t makes the Robin term a moving coefficient",
+                 "operator=circumcentric", id="alpha(t) whitney"),
 ]
 
 

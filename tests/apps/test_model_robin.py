@@ -7,17 +7,13 @@ tetrahedra, and runs and refusals through the real ``decrun`` command."""
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from test_model_borders import DN, DN_LINEAR, DN_STEADY, U_LINEAR, U_STEADY, F, U
+from test_model_borders import DN, DN_LINEAR, DN_STEADY, POISSON, U_LINEAR, U_STEADY, F, U, _runs
 
 from decrun.runner.job.config import compose_config
 from decrun.runner.job.run import run_experiment
-
-from cli_processes import decrun
 
 #: α(t) = 2 + sin t > 0: the Robin coefficient moves in time
 ALPHA_T = "(2 + sin(t))"
@@ -215,19 +211,6 @@ def test_border_mass_sums_to_the_border_measure():
 
 
 # ---------------------------------------------------------------------- through the command
-def _runs(tmp_path, *overrides: str) -> dict:
-    done = decrun(*overrides, "figures=false", "progress=false", "hydra.run.dir=fixed", cwd=tmp_path)
-    assert done.returncode == 0, done.stderr[-3000:]
-    return json.loads((tmp_path / "fixed" / "metrics.json").read_text())
-
-
-def _refused(tmp_path, *overrides: str) -> str:
-    done = decrun(*overrides, "figures=false", "progress=false", cwd=tmp_path)
-    lines = [line for line in done.stderr.strip().splitlines() if line.strip()]
-    assert done.returncode != 0 and len(lines) == 1, done.stderr[-3000:]
-    return lines[0]
-
-
 HEAT = ["app=heat", "mesh=grid", "mesh.nx=16", "mesh.ny=16", f"app.equations=['dt(u) = laplacian(u) + {F}']",
         "app.fields.u.initial='cos(pi*x)*cos(pi*y)'", "app.dt=0.01", "app.t_end=0.2", "~app.require",
         f"+app.metrics.u_error='norm(u - {U})/norm(1 + 0*x)'"]
@@ -241,34 +224,6 @@ def test_the_command_runs_each_case(case, tmp_path):
              "whitney neumann": [NEUMANN, "operator=whitney", "app.integrator=crank_nicolson"]}[case]
     metrics = _runs(tmp_path, *HEAT, *extra)
     assert metrics["stable"] is True and metrics["u_error"] < 2e-2, metrics  # measured 4e-3 – 1.4e-2
-
-
-POISSON = ["app=poisson", "mesh.nx=5", "mesh.ny=5", "app.fields.u.dirichlet=null",
-           "app.equations=['solve(u - laplacian(u) = 1)']"]
-
-REFUSALS = [
-    pytest.param([*POISSON, "+app.fields.u.robin={alpha: '-40 + t', value: 0}"],
-                 "error: app.fields.u.robin.alpha: the Robin weights ∫_Γi α are negative at 16 border vertices",
-                 "app.fields.u.robin.alpha=1", id="indefinite alpha(t)"),
-    pytest.param(["app=heat", "mesh=grid", "mesh.nx=10", "mesh.ny=10", "app.integrator=implicit_euler", "app.dt=0.005",
-                  "app.t_end=0.05", "+app.fields.u.robin={alpha: '1 - 100*t', value: 0}"],
-                 "error: app.fields.u.robin.alpha: the Robin weights ∫_Γi α are negative at t = 0.0",
-                 "app.fields.u.robin.alpha=1", id="alpha(t) turns negative during the run"),
-    pytest.param([*POISSON, "operator=whitney", "+app.fields.u.robin={alpha: -40, value: 0}"],
-                 "error: app.fields.u.robin.alpha: the Robin weights ∫_Γi α are negative at 16 border vertices",
-                 "app.fields.u.robin.alpha=1", id="indefinite whitney"),
-    pytest.param([*POISSON, "operator=whitney", "+app.fields.u.robin={alpha: '1 + t', value: 0}"],
-                 "error: app.fields.u.robin.alpha: α reading t makes the Robin term a moving coefficient",
-                 "operator=circumcentric", id="alpha(t) whitney"),
-]
-
-
-@pytest.mark.parametrize("overrides, start, fix", REFUSALS)
-def test_a_refused_robin_border_is_one_line_and_its_fix_runs(overrides, start, fix, tmp_path):
-    line = _refused(tmp_path, *overrides)
-    assert line.startswith(start), line
-    assert f"`{fix}`" in line, line
-    _runs(tmp_path, *overrides, fix)
 
 
 def test_an_alpha_that_reads_t_runs_through_the_command_where_it_was_refused(tmp_path):

@@ -87,17 +87,6 @@ def _model_result_file(tmp: Path) -> str:
 
 #: name → (overrides that fail, the overrides the hint must name)
 CASES = {
-    # moving border values (decrun.methods.model.borders): the integrators that cannot step them name one that can
-    "moving_border_symplectic": (["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.steps=2",
-                                  "app.integrator=symplectic", "+app.fields.u.dirichlet=t*x"],
-                                 ["app.integrator=gauss_legendre"]),
-    "moving_border_semi_implicit_nonlinear": (["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.steps=2",
-                                               "app.integrator=semi_implicit", "+app.fields.u.dirichlet=t*x",
-                                               "app.equations=['dt(u) = k*laplacian(u) - u**3']"],
-                                              ["app.integrator=implicit_euler"]),
-    "moving_border_bdf_galerkin_mass": (["app=heat", "mesh=grid", "mesh.nx=5", "mesh.ny=5", "app.steps=2",
-                                         "operator=whitney", "app.integrator=bdf", "+app.fields.u.dirichlet=t*x"],
-                                        ["app.integrator=radau_iia"]),
     # the declarative models: an integrator that cannot take the model names one that can. Implicit
     # Euler steps a nonlinear term by Newton, but a number computed from u (mean(u)) couples all
     # its values: a dense Jacobian, refused; bdf/radau have no sparse Jacobian pattern through it

@@ -557,8 +557,7 @@ def make_integrator(model, scheme: str, dt: float, new_solver, rtol: float = 1e-
         tableau = TABLEAUX["ark_imex"] if scheme == "ark_imex" else _imex_euler()
         stepper = AdditiveRungeKutta(tableau, problem, dt, new_solver, key="app.integrator")
     elif scheme in _SCIPY:
-        stepper = moving_steppers.MovingSciPyStepper(moving_steppers.MovingSciPy(model, problem, scheme, rtol, atol,
-                                                                                new_solver), dt)
+        stepper = moving_steppers.MovingSciPy(model, problem, scheme, dt, rtol, atol, new_solver)
     else:
         raise ModelError(f"app.integrator: unknown integrator {scheme!r}; choose one of "
                          f"{' | '.join(integrators.INTEGRATORS)}")

@@ -338,49 +338,42 @@ class Symplectic:
         pass
 
 
-class Adaptive:
-    """SciPy's ``solve_ivp`` (BDF, Radau or RK45) from t to t + dt, restarted every step from the
-    last accepted step size (kept in the state, so a resumed run repeats the same steps);
-    ``accepted_steps`` counts the solver's accepted steps."""
+class SolveIVP:
+    """SciPy's ``solve_ivp`` (BDF, Radau or RK45) over one span [t, t + dt] at a time, restarted
+    every span from the last accepted step size ``h`` (kept in the state, so a resumed run repeats
+    the same steps); ``accepted`` counts the solver's accepted steps, ``evaluations`` the right
+    side's. ``jac``: SciPy's Jacobian (a matrix or ``jac(t, y)``) or None; ``sparsity``: its
+    ``jac_sparsity`` (finite differences on that pattern) when there is no ``jac``."""
 
-    def __init__(self, model, dt: float, scheme: str, rtol: float, atol: float):
-        self.model, self.dt, self.scheme = model, float(dt), scheme
-        self.rtol, self.atol = float(rtol), float(atol)
-        self.evolution = model.evolution
-        self.exact = exact_jacobian(model) if scheme in ("bdf", "radau") else None  # the derivative pass's
-        self.exact = self.exact or (lumped_jacobian_of_model(model) if scheme in ("bdf", "radau") else None)  # Galerkin M
-        self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") and self.exact is None else None
-        self.jacobian = _exact_jacobian(self.evolution) if scheme in ("bdf", "radau") else None
+    def __init__(self, scheme: str, rtol: float, atol: float, jac=None, sparsity=None):
+        self.scheme, self.rtol, self.atol, self.jac, self.sparsity = scheme, float(rtol), float(atol), jac, sparsity
         self.h = float("nan")
         self.accepted = 0
         self.evaluations = 0
 
-    def step(self, state: dict, t: float) -> dict:
+    def advance(self, fun: Callable, y: np.ndarray, t: float, dt: float) -> np.ndarray:
+        """(n,) y' = fun(t, y) integrated from y at t to t + dt."""
         from scipy.integrate import solve_ivp
 
-        evolution, model = self.evolution, self.model
-
-        def fun(time, y):
+        def counted(time, v):
             self.evaluations += 1
-            return evolution.stack(model.derivative(model.environment(evolution.unstack(y), time)))
+            return fun(time, v)
 
         options: dict = {"rtol": self.rtol, "atol": self.atol}
         if np.isfinite(self.h) and self.h > 0:  # within the span as SciPy computes it: (t + dt) - t can be < dt
-            options["first_step"] = min(self.h, (t + self.dt) - t)
-        if self.jacobian is not None:  # a linear model: ∂F/∂u is the constant M⁻¹A, exactly
-            options["jac"] = self.jacobian
-        elif self.exact is not None:
-            options["jac"] = self.exact
-        elif self.pattern is not None:
-            options["jac_sparsity"] = self.pattern
+            options["first_step"] = min(self.h, (t + dt) - t)
+        if self.jac is not None:
+            options["jac"] = self.jac
+        elif self.sparsity is not None:
+            options["jac_sparsity"] = self.sparsity
         method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]
-        solution = solve_ivp(fun, (t, t + self.dt), evolution.stack(state), method=method, **options)
+        solution = solve_ivp(counted, (t, t + dt), y, method=method, **options)
         if not solution.success:
             raise FloatingPointError(f"solve_ivp ({method}) failed at t = {t:g}: {solution.message}")
         self.accepted += len(solution.t) - 1
         if len(solution.t) > 1:
             self.h = float(solution.t[-1] - solution.t[-2])
-        return _enforce(model, evolution.unstack(solution.y[:, -1].copy()))
+        return solution.y[:, -1].copy()
 
     def state_dict(self) -> dict:
         return {"h": self.h, "accepted": self.accepted, "evaluations": self.evaluations}
@@ -388,6 +381,39 @@ class Adaptive:
     def load_state(self, state: dict) -> None:
         self.h, self.accepted = float(state["h"]), int(state["accepted"])
         self.evaluations = int(state["evaluations"])
+
+
+class Adaptive:
+    """:class:`SolveIVP` stepping the model's state from t to t + dt (``accepted_steps`` counts the
+    solver's accepted steps), with the most exact Jacobian the model gives: the constant M⁻¹A of a
+    linear model, the derivative pass's, M_L⁻¹ ∂f/∂y for a Galerkin mass, else finite differences
+    on the equations' sparsity pattern."""
+
+    def __init__(self, model, dt: float, scheme: str, rtol: float, atol: float):
+        self.model, self.dt, self.scheme = model, float(dt), scheme
+        self.evolution = model.evolution
+        self.exact = exact_jacobian(model) if scheme in ("bdf", "radau") else None  # the derivative pass's
+        self.exact = self.exact or (lumped_jacobian_of_model(model) if scheme in ("bdf", "radau") else None)  # Galerkin M
+        self.pattern = jacobian_pattern(model) if scheme in ("bdf", "radau") and self.exact is None else None
+        self.jacobian = _exact_jacobian(self.evolution) if scheme in ("bdf", "radau") else None
+        # a linear model: ∂F/∂u is the constant M⁻¹A, exactly
+        self.ivp = SolveIVP(scheme, rtol, atol, self.jacobian if self.jacobian is not None else self.exact,
+                            self.pattern)
+
+    def step(self, state: dict, t: float) -> dict:
+        evolution, model = self.evolution, self.model
+
+        def fun(time, y):
+            return evolution.stack(model.derivative(model.environment(evolution.unstack(y), time)))
+
+        y = self.ivp.advance(fun, evolution.stack(state), t, self.dt)
+        return _enforce(model, evolution.unstack(y))
+
+    def state_dict(self) -> dict:
+        return self.ivp.state_dict()
+
+    def load_state(self, state: dict) -> None:
+        self.ivp.load_state(state)
 
 
 def _exact_jacobian(evolution: Evolution) -> sp.csr_matrix | None:

@@ -36,11 +36,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from decrun.methods.model.adaptive_jacobian import exact_jacobian
-from decrun.methods.model.integrators import SemiImplicit, Symplectic, jacobian_pattern
+from decrun.methods.model.integrators import SemiImplicit, SolveIVP, Symplectic, jacobian_pattern
 from decrun.methods.model.lumped_jacobian import lumped_jacobian
 from decrun.methods.model.runge_kutta import MassMatrix
 
-__all__ = ["MovingSymplectic", "MovingSemiImplicit", "MovingSciPy", "MovingSciPyStepper"]
+__all__ = ["MovingSymplectic", "MovingSemiImplicit", "MovingSciPy"]
 
 
 def _diagonal(M) -> bool:
@@ -123,12 +123,12 @@ class MovingSemiImplicit(SemiImplicit):
 
 
 class MovingSciPy:
-    """SciPy's ``solve_ivp`` (BDF, Radau, RK45) on y' = M_FF⁻¹ f(y, t) of a
-    :class:`~decrun.methods.model.borders.MovingProblem` (module docstring): ``accepted`` steps,
-    ``evaluations`` of the right side, ``h`` the last accepted step."""
+    """:class:`~decrun.methods.model.integrators.SolveIVP` (BDF, Radau, RK45) stepping the free
+    values y by ``dt`` on y' = M_FF⁻¹ f(y, t) of a :class:`~decrun.methods.model.borders.MovingProblem`
+    (module docstring); its counters and last step are the state."""
 
-    def __init__(self, model, problem, scheme: str, rtol: float, atol: float, new_solver: Callable):
-        self.problem, self.scheme, self.rtol, self.atol = problem, scheme, float(rtol), float(atol)
+    def __init__(self, model, problem, scheme: str, dt: float, rtol: float, atol: float, new_solver: Callable):
+        self.problem, self.dt = problem, float(dt)
         self.mass = MassMatrix(problem.mass, problem.size, new_solver)
         diagonal = problem.mass is None or _diagonal(problem.mass)
         self.inverse = None if problem.mass is None or not diagonal else 1.0 / problem.mass.diagonal()
@@ -143,51 +143,18 @@ class MovingSciPy:
             else:
                 free = problem.free
                 self.pattern = jacobian_pattern(model)[free][:, free].tocsr()
-        self.accepted = self.evaluations = 0
-        self.h = float("nan")
+        self.ivp = SolveIVP(scheme, rtol, atol, self.exact, self.pattern)
 
     def _jacobian(self, time: float, y: np.ndarray) -> sp.csc_matrix:
         J = self.problem.jacobian(y, time)
         return sp.csc_matrix(J if self.inverse is None else sp.diags(self.inverse) @ J)
 
-    def step(self, y: np.ndarray, t: float, dt: float) -> np.ndarray:
-        """The free values y at t → at t + dt (SciPy's own steps in between)."""
-        from scipy.integrate import solve_ivp
-
-        options: dict = {"rtol": self.rtol, "atol": self.atol}
-        if self.exact is not None:
-            options["jac"] = self.exact
-        elif self.pattern is not None:
-            options["jac_sparsity"] = self.pattern
-        if np.isfinite(self.h) and self.h > 0:
-            options["first_step"] = min(self.h, (t + dt) - t)
-        method = {"bdf": "BDF", "radau": "Radau", "rk45": "RK45"}[self.scheme]
-
-        def fun(time, v):
-            self.evaluations += 1
-            return self.mass.solve(self.problem.f(v, time))
-
-        solution = solve_ivp(fun, (t, t + dt), y, method=method, **options)
-        if not solution.success:
-            raise FloatingPointError(f"solve_ivp ({method}) failed at t = {t:g}: {solution.message}")
-        self.accepted += len(solution.t) - 1
-        if len(solution.t) > 1:
-            self.h = float(solution.t[-1] - solution.t[-2])
-        return solution.y[:, -1].copy()
-
-
-class MovingSciPyStepper:
-    """:class:`MovingSciPy` over steps of ``dt`` (its counters and last step are the state)."""
-
-    def __init__(self, inner: MovingSciPy, dt: float):
-        self.inner, self.dt = inner, float(dt)
-
     def step(self, y: np.ndarray, t: float) -> np.ndarray:
-        return self.inner.step(y, t, self.dt)
+        """The free values y at t → at t + dt (SciPy's own steps in between)."""
+        return self.ivp.advance(lambda time, v: self.mass.solve(self.problem.f(v, time)), y, t, self.dt)
 
     def state_dict(self) -> dict:
-        return {"h": self.inner.h, "accepted": self.inner.accepted, "evaluations": self.inner.evaluations}
+        return self.ivp.state_dict()
 
     def load_state(self, state: dict) -> None:
-        self.inner.h, self.inner.accepted = float(state["h"]), int(state["accepted"])
-        self.inner.evaluations = int(state["evaluations"])
+        self.ivp.load_state(state)

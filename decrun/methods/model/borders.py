@@ -332,16 +332,25 @@ def dirichlet_at_start(spec, name: str, kind: Kind, dec, where: str) -> np.ndarr
     return BorderExpression(text, where, spec.constants, name).at(dec.K.vertices, 0.0)
 
 
-def _varying_load(name: str, quadrature, expression: BorderExpression, K) -> Callable[[dict], np.ndarray]:
+def at_each_time(compute: Callable[[float], np.ndarray]) -> Callable[[dict], np.ndarray]:
+    """``env ↦ compute(env["t"])``, each time computed once: the stages of one step read a moving
+    border term a few times (the last few times are kept)."""
     values: dict[float, np.ndarray] = {}
 
-    def load(env: dict) -> np.ndarray:
+    def at(env: dict) -> np.ndarray:
         t = float(env["t"])
-        if t not in values:  # the stages of one step read a few times, each once
+        if t not in values:
             if len(values) > 8:
                 values.clear()
-            values[t] = border_load(K, quadrature, expression.at(quadrature.points, t))
+            values[t] = compute(t)
         return values[t]
+    return at
+
+
+def _load_at(K, quadrature, expression: BorderExpression) -> Callable[[float], np.ndarray]:
+    """t ↦ (n0,) b(t), b_i = ∫_{Γ_i} g(·, t): the load of a border value that reads t."""
+    def load(t: float) -> np.ndarray:
+        return border_load(K, quadrature, expression.at(quadrature.points, t))
     return load
 
 
@@ -386,7 +395,7 @@ def bind(spec, ops, base: dict, resolved) -> Borders:
             load = _load_name(name, condition)
             base[load] = border_load(K, quadrature, expression.at(quadrature.points, 0.0))
             if expression.reads_time:
-                order.append(("definition", (load, _varying_load(name, quadrature, expression, K))))
+                order.append(("definition", (load, at_each_time(_load_at(K, quadrature, expression)))))
     return Borders(order, moving)
 
 
@@ -402,7 +411,8 @@ def _robin_coefficient(spec, ops, name: str, alpha_text, quadrature, where: str,
         raise ModelError(f"{where}.alpha: α reading t makes the Robin term a moving coefficient, whose exact Jacobian "
                          f"through the Galerkin ⋆0⁻¹ of operator={ops.dec.star_variant.name} is dense; use "
                          "`operator=circumcentric`")
-    return [("definition", (coefficient, robin.moving_coefficient(ops, quadrature, alpha, where + ".alpha")))]
+    return [("definition", (coefficient, at_each_time(robin.moving_coefficient(ops, quadrature, alpha,
+                                                                                where + ".alpha"))))]
 
 
 def finish(model, borders: Borders) -> None:

@@ -73,20 +73,13 @@ def coefficient(ops, weights: np.ndarray, where: str, t: float | None = None) ->
     return np.divide(weights, measure, out=np.zeros_like(weights), where=measure > 0)
 
 
-def moving_coefficient(ops, quadrature: BorderQuadrature, alpha, where: str) -> Callable[[dict], np.ndarray]:
-    """``env ↦ _robin_u`` at ``env["t"]`` for an α that reads t (``alpha`` a
-    :class:`~decrun.methods.model.borders.BorderExpression`): the coefficient of :func:`coefficient`
-    at each time, computed once per time (the stages of one step read it a few times), with the
-    definiteness check at every new time where a weight is negative."""
-    values: dict[float, np.ndarray] = {}
-
-    def at(env: dict) -> np.ndarray:
-        t = float(env["t"])
-        if t not in values:
-            if len(values) > 8:
-                values.clear()
-            values[t] = coefficient(ops, _weights(ops, quadrature, alpha.at(quadrature.points, t)), where, t)
-        return values[t]
+def moving_coefficient(ops, quadrature: BorderQuadrature, alpha, where: str) -> Callable[[float], np.ndarray]:
+    """``t ↦ _robin_u`` at t for an α that reads t (``alpha`` a
+    :class:`~decrun.methods.model.borders.BorderExpression`): the coefficient of :func:`coefficient`,
+    with the definiteness check at every time where a weight is negative (the caller computes each
+    time once: :func:`~decrun.methods.model.borders.at_each_time`)."""
+    def at(t: float) -> np.ndarray:
+        return coefficient(ops, _weights(ops, quadrature, alpha.at(quadrature.points, t)), where, t)
     return at
 
 

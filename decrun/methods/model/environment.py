@@ -48,10 +48,10 @@ class Environment(dict):
         raise KeyError(name)
 
 
-
 def deferred_names(model) -> frozenset[str]:
-    """The definitions of ``model`` that no evolution equation, solve or system reads (directly or
-    through other definitions): only metrics and records read them."""
+    """The definitions of ``model`` that no evolution equation, solve or system reads directly: only
+    metrics, records or other definitions read them (a deferred one that an eager definition reads is
+    computed right then, by :class:`Environment`)."""
     compiler = model.compiler
     read: set[str] = set()
     for equation in model.equations:

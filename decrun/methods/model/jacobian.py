@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS
+from decrun.methods.model.scaling import scale_columns
 from decrun.methods.model.vector_derivatives import vector_shape
 
 __all__ = ["derivative", "derivative_values", "Derivative", "pattern"]
@@ -74,9 +75,7 @@ def _apply(matrix, D):
     if D is None:
         return None
     if isinstance(D, np.ndarray):  # matrix · diag(D): its columns scaled, no sparse product
-        out = sp.csr_matrix(matrix, dtype=np.float64, copy=True)
-        out.data *= np.broadcast_to(D, (out.shape[1],))[out.indices]
-        return out
+        return scale_columns(matrix, D)
     return (matrix @ D).tocsr()
 
 

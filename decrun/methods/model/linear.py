@@ -13,6 +13,7 @@ from decrun.methods.model.evaluate import Evaluator
 from decrun.methods.model.kinds import NUMBER, VECTOR
 from decrun.methods.model.language import Binary, Call, ModelError, Name, Negate, Node, to_text
 from decrun.methods.model.operators import ALIASES, OPERATORS, Linear
+from decrun.methods.model.scaling import scale_rows
 
 __all__ = ["LinearSplit", "NOT_LINEAR"]
 
@@ -40,11 +41,9 @@ class _Fixed:
 
 
 def _rows_scaled(A: sp.spmatrix, values: np.ndarray) -> sp.csr_matrix:
-    """diag(values) @ A as CSR, each stored entry multiplied by its row's value — the entries of
-    the sparse product, without one (its zeros dropped as the product drops them)."""
-    A = sp.csr_matrix(A)
-    data = A.data * np.repeat(values, np.diff(A.indptr))
-    scaled = sp.csr_matrix((data, A.indices.copy(), A.indptr.copy()), shape=A.shape)  # A's own pattern untouched
+    """diag(values) @ A as CSR (:func:`~decrun.methods.model.scaling.scale_rows`), its zeros
+    dropped as the sparse product drops them."""
+    scaled = scale_rows(A, values)
     scaled.eliminate_zeros()
     return scaled
 

@@ -37,6 +37,7 @@ import scipy.sparse as sp
 
 from decrun.methods.model import discrete
 from decrun.methods.model.kinds import VECTOR
+from decrun.methods.model.scaling import scale_columns, scale_rows
 
 __all__ = ["flux_field_matrix", "flux_field_derivative", "lie_derivative", "lie_1_matrix", "lie_1_derivative", "sharp_matrix", "vector_shape", "mesh_sharp_matrix", "sharp_derivative", "norm_derivative", "normalize_derivative", "flat_matrix",
            "intrinsic_flat_matrix", "flat_derivative", "interior_derivative", "wedge_derivative"]
@@ -290,20 +291,6 @@ def _lie_1_pieces(K) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray, sp.csr_m
     return K.require(("model", "lie_1_pieces"), compute)
 
 
-def _scale_columns(matrix: sp.csr_matrix, factor: np.ndarray) -> sp.csr_matrix:
-    """matrix · diag(factor), by scaling the stored values (no sparse product)."""
-    out = matrix.copy()
-    out.data *= factor[out.indices]
-    return out
-
-
-def _scale_rows(matrix: sp.csr_matrix, factor: np.ndarray) -> sp.csr_matrix:
-    """diag(factor) · matrix, by scaling the stored values (no sparse product)."""
-    out = matrix.copy()
-    out.data *= np.repeat(factor, np.diff(out.indptr))
-    return out
-
-
 def _normal_cross(normals: np.ndarray, d: int) -> np.ndarray:
     """(n2, d, d) the matrices of X ↦ (N × X)[:d] per triangle (X in R^d padded with zeros to R³):
     column b is N × e_b."""
@@ -321,8 +308,8 @@ def lie_1_matrix(K, vectors: np.ndarray) -> sp.csr_matrix:
     density, flat, normals, gather = _lie_1_pieces(K)
     vectors = np.asarray(vectors, dtype=np.float64)
     turned = np.einsum("fab,fb->fa", _normal_cross(normals, vectors.shape[1]), vectors)  # (N × X)[:d] per triangle
-    rotation = _scale_columns(flat, turned.ravel()) @ density  # F C P
-    transport = gather @ _scale_rows(mesh_sharp_matrix(K), vectors.ravel())  # G R S
+    rotation = scale_columns(flat, turned.ravel()) @ density  # F C P
+    transport = gather @ scale_rows(mesh_sharp_matrix(K), vectors.ravel())  # G R S
     return (rotation + transport).tocsr()
 
 
@@ -341,5 +328,5 @@ def lie_1_derivative(ops, kinds, values, i) -> sp.csr_matrix:
     omega = np.asarray(omega, dtype=np.float64)
     d = vectors.shape[1]
     blocks = _normal_cross(normals, d) * (density @ omega)[::d, None, None]  # ρ_f [N_f ×]
-    in_field = flat @ _block_diagonal(blocks) + _scale_columns(gather, mesh_sharp_matrix(K) @ omega)
+    in_field = flat @ _block_diagonal(blocks) + scale_columns(gather, mesh_sharp_matrix(K) @ omega)
     return (in_field if kinds[0] == VECTOR else in_field @ mesh_sharp_matrix(K)).tocsr()
